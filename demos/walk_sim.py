@@ -1,0 +1,167 @@
+"""The walk scenario: a robot walking a varied path on a field, with a panning camera and ground truth.
+
+    from demos.walk_sim import WalkScenario, simulate
+    log = simulate(WalkScenario(), seed=0)      # log.truth (T, 3), log.commands (T, 3), log.frames
+
+Motion at 100 Hz: the robot follows random waypoints (turning toward each, slowing in turns, with some
+sideways drift in the request). Its true motion is not its request: a per-run scale error on each axis, a
+turn bias, and step-to-step noise, as a walking engine's odometry differs from what it is asked. Camera at
+30 Hz, 60° horizontal field of view on a head panning ±45° every 4 s: landmarks in view and range are
+detected with a probability falling with range; range noise grows with the square of the range (a camera's
+pitch error), bearing noise is constant; a few false positives per second of random type. At
+`kidnap_time` the robot is carried `kidnap_distance` metres in a random direction (heading kept, as the
+gyro keeps it); the motion input says nothing of it.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field as dataclass_field
+
+import numpy as np
+
+from field import Field, LandmarkType, spl
+from field.angles import wrap_angles
+from sensing.observations import Observations
+
+
+@dataclass(frozen=True)
+class WalkScenario:
+    field: Field = dataclass_field(default_factory=spl)
+    duration: float = 60.0
+    motion_rate: float = 100.0            # Hz
+    camera_rate: float = 30.0             # Hz
+    max_speed: float = 0.25               # m/s
+    max_turn_rate: float = 0.8            # rad/s
+    field_of_view: float = math.radians(60.0)
+    head_pan_amplitude: float = math.radians(45.0)
+    head_pan_period: float = 4.0          # s
+    min_range: float = 0.3                # m, closer landmarks are below the image
+    max_range: float = 6.0                # m
+    detection_near: float = 0.9           # detection probability at min_range ...
+    detection_far: float = 0.3            # ... falling linearly to this at max_range
+    range_noise_floor: float = 0.03       # m
+    range_noise_growth: float = 0.015     # 1/m (σ_r = floor + growth·r²)
+    bearing_noise: float = 0.03           # rad
+    false_positive_rate: float = 0.15     # per camera frame
+    odometry_scale_sigma: float = 0.06    # per-run scale error of vx, vy, ω (1σ)
+    turn_bias_sigma: float = 0.03         # rad/s, per-run drift while walking
+    step_noise: float = 0.05              # relative step-to-step velocity noise
+    kidnap_time: float | None = 30.0      # s, None for no kidnapping
+    kidnap_distance: float = 3.0          # m
+    margin: float = 0.6                   # m, waypoints and start stay this far inside the field
+
+
+@dataclass(frozen=True)
+class CameraFrame:
+    step: int                  # index of the motion step after which the frame arrives
+    observations: Observations
+    head_angle: float          # rad, relative to the body
+
+
+@dataclass(frozen=True)
+class WalkLog:
+    scenario: WalkScenario
+    dt: float
+    times: np.ndarray          # (T,) time at the end of each motion step
+    truth: np.ndarray          # (T, 3) true pose at the end of each step
+    commands: np.ndarray       # (T, 3) walk request (vx, vy, ω) during each step
+    frames: tuple[CameraFrame, ...]
+    start: np.ndarray          # (3,) true pose at t = 0
+    kidnap_step: int | None    # step at whose end the robot was carried away
+
+
+def _detection_probability(s: WalkScenario, r: np.ndarray) -> np.ndarray:
+    share = np.clip((r - s.min_range) / (s.max_range - s.min_range), 0.0, 1.0)
+    p = s.detection_near + share * (s.detection_far - s.detection_near)
+    return np.where((r >= s.min_range) & (r <= s.max_range), p, 0.0)
+
+
+def _random_point(s: WalkScenario, rng: np.random.Generator, x_range=None) -> np.ndarray:
+    hl, hw = s.field.half_length - s.margin, s.field.half_width - s.margin
+    lo, hi = x_range if x_range is not None else (-hl, hl)
+    return np.array([rng.uniform(lo, hi), rng.uniform(-hw, hw)])
+
+
+def _camera(s: WalkScenario, pose: np.ndarray, head: float, rng: np.random.Generator) -> Observations:
+    kinds, ranges, bearings = [], [], []
+    half_fov = 0.5 * s.field_of_view
+    for kind in LandmarkType:
+        points = np.asarray(s.field.landmarks_of(kind))
+        if points.shape[0] == 0:
+            continue
+        d = points - pose[:2]
+        r = np.hypot(d[:, 0], d[:, 1])
+        bearing = wrap_angles(np.arctan2(d[:, 1], d[:, 0]) - pose[2])
+        visible = np.abs(wrap_angles(bearing - head)) <= half_fov
+        detected = visible & (rng.random(r.shape[0]) < _detection_probability(s, r))
+        for i in np.flatnonzero(detected):
+            sigma_r = s.range_noise_floor + s.range_noise_growth * r[i] ** 2
+            kinds.append(int(kind))
+            ranges.append(max(0.0, r[i] + sigma_r * rng.standard_normal()))
+            bearings.append(bearing[i] + s.bearing_noise * rng.standard_normal())
+    for _ in range(rng.poisson(s.false_positive_rate)):
+        kinds.append(int(rng.choice([int(t) for t in LandmarkType])))
+        ranges.append(rng.uniform(s.min_range, 0.6 * s.max_range))
+        bearings.append(head + rng.uniform(-half_fov, half_fov))
+    return Observations.from_arrays(kinds, ranges, wrap_angles(np.array(bearings, dtype=np.float64)))
+
+
+def simulate(scenario: WalkScenario = WalkScenario(), seed: int = 0) -> WalkLog:
+    """Run the scenario once; everything random comes from `seed`."""
+    s = scenario
+    rng = np.random.default_rng(seed)
+    dt = 1.0 / s.motion_rate
+    n_steps = int(round(s.duration * s.motion_rate))
+    camera_every = s.motion_rate / s.camera_rate
+    scale = 1.0 + s.odometry_scale_sigma * rng.standard_normal(3)
+    turn_bias = s.turn_bias_sigma * rng.standard_normal()
+    # Start in the own half (kick-off placement), facing roughly up the field.
+    start = np.append(_random_point(s, rng, (-s.field.half_length + s.margin, -0.5)), rng.uniform(-1.5, 1.5))
+    pose = start.copy()
+    waypoint = _random_point(s, rng)
+    lateral_phase = rng.uniform(0, 2 * math.pi)
+    kidnap_step = None if s.kidnap_time is None else int(round(s.kidnap_time * s.motion_rate)) - 1
+    times = np.arange(1, n_steps + 1) * dt
+    truth = np.empty((n_steps, 3))
+    commands = np.empty((n_steps, 3))
+    frames = []
+    next_frame = camera_every
+    for k in range(n_steps):
+        t = times[k]
+        d = waypoint - pose[:2]
+        if np.hypot(*d) < 0.4:
+            waypoint = _random_point(s, rng)
+            d = waypoint - pose[:2]
+        error = math.remainder(math.atan2(d[1], d[0]) - pose[2], 2 * math.pi)
+        omega = float(np.clip(1.5 * error, -s.max_turn_rate, s.max_turn_rate))
+        vx = s.max_speed * max(0.0, math.cos(error)) ** 2
+        vy = 0.05 * math.sin(0.4 * t + lateral_phase)
+        command = np.array([vx, vy, omega])
+        commands[k] = command
+        walking = vx > 0.02
+        true_velocity = command * scale * (1.0 + s.step_noise * rng.standard_normal(3))
+        true_velocity[2] += turn_bias if walking else 0.0
+        half = pose[2] + 0.5 * true_velocity[2] * dt
+        c, sn = math.cos(half), math.sin(half)
+        pose[0] += (c * true_velocity[0] - sn * true_velocity[1]) * dt
+        pose[1] += (sn * true_velocity[0] + c * true_velocity[1]) * dt
+        pose[2] = math.remainder(pose[2] + true_velocity[2] * dt, 2 * math.pi)
+        if k == kidnap_step:
+            pose[:2] = _kidnap_target(s, pose, rng)
+            waypoint = _random_point(s, rng)
+        truth[k] = pose
+        if k + 1 >= next_frame:
+            next_frame += camera_every
+            head = s.head_pan_amplitude * math.sin(2 * math.pi * t / s.head_pan_period)
+            frames.append(CameraFrame(k, _camera(s, pose, head, rng), head))
+    return WalkLog(s, dt, times, truth, commands, tuple(frames), start, kidnap_step)
+
+
+def _kidnap_target(s: WalkScenario, pose: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+    hl, hw = s.field.half_length - s.margin, s.field.half_width - s.margin
+    for _ in range(1000):
+        angle = rng.uniform(-math.pi, math.pi)
+        target = pose[:2] + s.kidnap_distance * np.array([math.cos(angle), math.sin(angle)])
+        if abs(target[0]) <= hl and abs(target[1]) <= hw:
+            return target
+    raise RuntimeError("no kidnapping target inside the field")

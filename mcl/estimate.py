@@ -1,0 +1,187 @@
+"""The belief's summary: the pose estimate of the dominant cluster, and grid entropy (Hoffmann eq. 27).
+
+    from mcl.estimate import cluster_estimate, grid_entropy
+
+The field is point-symmetric, so a lost filter may hold two mirror modes; their mean is the centre of the
+field, facing nowhere. The estimate is therefore the weighted circular mean of the dominant cluster: the
+heaviest cell of a coarse (x, y, θ) histogram seeds a few rounds of mean shift with a flat kernel, and the
+covariance is that of the particles the kernel holds. The cluster's share of the weight is returned too.
+
+Entropy is computed on a grid as in the paper, position and orientation separately, in bits:
+H = -Σ p(sᵢ) log₂ p(sᵢ), p(sᵢ) the weight in cell i. It lies in [0, log₂(cells)] and is zero while every
+particle shares one cell.
+"""
+from __future__ import annotations
+
+import math
+
+import numba
+import numpy as np
+
+from field.angles import wrap_angle, wrap_angles
+
+
+@numba.njit(cache=True, inline="always")
+def _cell(value, origin, size, count):
+    c = int(math.floor((value - origin) / size))
+    if c < 0:
+        return 0
+    if c >= count:
+        return count - 1
+    return c
+
+
+@numba.njit(cache=True)
+def _masked_mean(poses, weights, cx, cy, ct, radius, angle_radius, use_mask):
+    """Weighted mean (circular for θ) of the particles within the flat kernel around (cx, cy, ct)."""
+    sx = 0.0
+    sy = 0.0
+    sc = 0.0
+    ss = 0.0
+    total = 0.0
+    r2 = radius * radius
+    for i in range(poses.shape[0]):
+        if use_mask:
+            dx = poses[i, 0] - cx
+            dy = poses[i, 1] - cy
+            if dx * dx + dy * dy > r2 or abs(wrap_angle(poses[i, 2] - ct)) > angle_radius:
+                continue
+        w = weights[i]
+        sx += w * poses[i, 0]
+        sy += w * poses[i, 1]
+        sc += w * math.cos(poses[i, 2])
+        ss += w * math.sin(poses[i, 2])
+        total += w
+    if total <= 0.0:
+        return cx, cy, ct, 0.0
+    return sx / total, sy / total, math.atan2(ss, sc), total
+
+
+@numba.njit(cache=True)
+def cluster_estimate(poses, weights, x_min, y_min, cell_size, nx, ny, n_theta, radius, angle_radius,
+                     iterations, histogram, out_mean, out_cov):
+    """Mean and covariance of the dominant cluster; returns the cluster's weight.
+
+    histogram: scratch of nx·ny·n_theta floats. out_mean (3,), out_cov (3, 3) are written.
+    """
+    histogram[:] = 0.0
+    theta_size = 2.0 * math.pi / n_theta
+    for i in range(poses.shape[0]):
+        cx = _cell(poses[i, 0], x_min, cell_size, nx)
+        cy = _cell(poses[i, 1], y_min, cell_size, ny)
+        ct = _cell(poses[i, 2], -math.pi, theta_size, n_theta)
+        histogram[(cx * ny + cy) * n_theta + ct] += weights[i]
+    best = np.argmax(histogram)
+    bt = best % n_theta
+    by = (best // n_theta) % ny
+    bx = best // (n_theta * ny)
+    # Seed: the centre of the heaviest cell; the kernel is wider than a cell, so mean shift merges its
+    # neighbours and walks to the mode.
+    mx = x_min + (bx + 0.5) * cell_size
+    my = y_min + (by + 0.5) * cell_size
+    mt = -math.pi + (bt + 0.5) * theta_size
+    total = 0.0
+    for _ in range(iterations):
+        mx, my, mt, total = _masked_mean(poses, weights, mx, my, mt, radius, angle_radius, True)
+    # Covariance of the held particles, θ residual wrapped around the circular mean.
+    cov = np.zeros((3, 3))
+    r2 = radius * radius
+    if total > 0.0:
+        for i in range(poses.shape[0]):
+            dx = poses[i, 0] - mx
+            dy = poses[i, 1] - my
+            dt = wrap_angle(poses[i, 2] - mt)
+            if dx * dx + dy * dy > r2 or abs(dt) > angle_radius:
+                continue
+            w = weights[i] / total
+            cov[0, 0] += w * dx * dx
+            cov[0, 1] += w * dx * dy
+            cov[0, 2] += w * dx * dt
+            cov[1, 1] += w * dy * dy
+            cov[1, 2] += w * dy * dt
+            cov[2, 2] += w * dt * dt
+    cov[1, 0] = cov[0, 1]
+    cov[2, 0] = cov[0, 2]
+    cov[2, 1] = cov[1, 2]
+    out_mean[0] = mx
+    out_mean[1] = my
+    out_mean[2] = wrap_angle(mt)
+    out_cov[:, :] = cov
+    return total
+
+
+@numba.njit(cache=True)
+def _entropy_bits(histogram):
+    h = 0.0
+    for p in histogram:
+        if p > 0.0:
+            h -= p * math.log2(p)
+    return max(h, 0.0)
+
+
+@numba.njit(cache=True)
+def grid_entropy(poses, weights, x_min, y_min, cell_size, nx, ny, n_theta, position_histogram,
+                 orientation_histogram):
+    """Position and orientation entropy in bits (Hoffmann eq. 27) on a grid; weights must sum to one.
+
+    Particles beyond the grid count in its border cells. The histograms are scratch arrays of nx·ny and
+    n_theta floats.
+    """
+    position_histogram[:] = 0.0
+    orientation_histogram[:] = 0.0
+    theta_size = 2.0 * math.pi / n_theta
+    for i in range(poses.shape[0]):
+        cx = _cell(poses[i, 0], x_min, cell_size, nx)
+        cy = _cell(poses[i, 1], y_min, cell_size, ny)
+        position_histogram[cx * ny + cy] += weights[i]
+        orientation_histogram[_cell(poses[i, 2], -math.pi, theta_size, n_theta)] += weights[i]
+    return _entropy_bits(position_histogram), _entropy_bits(orientation_histogram)
+
+
+# -- plain numpy references -----------------------------------------------------------------------------------
+def _cells(values, origin, size, count):
+    return np.clip(np.floor((values - origin) / size).astype(np.int64), 0, count - 1)
+
+
+def grid_entropy_reference(poses, weights, x_min, y_min, cell_size, nx, ny, n_theta):
+    cx = _cells(poses[:, 0], x_min, cell_size, nx)
+    cy = _cells(poses[:, 1], y_min, cell_size, ny)
+    ct = _cells(poses[:, 2], -np.pi, 2 * np.pi / n_theta, n_theta)
+
+    def bits(index, size):
+        p = np.bincount(index, weights=weights, minlength=size)
+        p = p[p > 0]
+        return max(float(-(p * np.log2(p)).sum()), 0.0)
+
+    return bits(cx * ny + cy, nx * ny), bits(ct, n_theta)
+
+
+def cluster_estimate_reference(poses, weights, x_min, y_min, cell_size, nx, ny, n_theta, radius, angle_radius,
+                               iterations):
+    """Numpy version of `cluster_estimate`: returns (mean (3,), cov (3, 3), weight)."""
+    theta_size = 2 * np.pi / n_theta
+    cx = _cells(poses[:, 0], x_min, cell_size, nx)
+    cy = _cells(poses[:, 1], y_min, cell_size, ny)
+    ct = _cells(poses[:, 2], -np.pi, theta_size, n_theta)
+    histogram = np.bincount((cx * ny + cy) * n_theta + ct, weights=weights, minlength=nx * ny * n_theta)
+    best = int(np.argmax(histogram))
+    bt, by, bx = best % n_theta, (best // n_theta) % ny, best // (n_theta * ny)
+    mean = np.array([x_min + (bx + 0.5) * cell_size, y_min + (by + 0.5) * cell_size, -np.pi + (bt + 0.5) * theta_size])
+    total = 0.0
+    for _ in range(iterations):
+        d = poses[:, :2] - mean[:2]
+        mask = ((d ** 2).sum(axis=1) <= radius ** 2) & (np.abs(wrap_angles(poses[:, 2] - mean[2])) <= angle_radius)
+        w = weights[mask]
+        total = w.sum()
+        if total <= 0:
+            break
+        mean = np.array([(w * poses[mask, 0]).sum() / total, (w * poses[mask, 1]).sum() / total,
+                         math.atan2((w * np.sin(poses[mask, 2])).sum() / total, (w * np.cos(poses[mask, 2])).sum() / total)])
+    d = np.column_stack([poses[:, 0] - mean[0], poses[:, 1] - mean[1], wrap_angles(poses[:, 2] - mean[2])])
+    mask = ((d[:, :2] ** 2).sum(axis=1) <= radius ** 2) & (np.abs(d[:, 2]) <= angle_radius)
+    cov = np.zeros((3, 3))
+    if total > 0:
+        w = weights[mask] / total
+        cov = (d[mask] * w[:, None]).T @ d[mask]
+    mean[2] = float(wrap_angles(mean[2]))
+    return mean, cov, float(total)

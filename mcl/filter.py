@@ -1,0 +1,464 @@
+"""The particle filter: Monte Carlo localization on a soccer field.
+
+    from field import spl
+    from mcl import ParticleFilter
+    from motion_models import MotionInput, VelocityLinear
+    from sensing import LandmarkSensorModel, LandmarkObservation
+
+    pf = ParticleFilter(spl(), VelocityLinear(), LandmarkSensorModel(spl()), n_particles=500, seed=0)
+    pf.reset_uniform("own_half")
+    pf.predict(MotionInput(dt=0.01, command=(0.2, 0.0, 0.0)))
+    pf.correct([LandmarkObservation("goalpost", range=4.6, bearing=0.2)])
+    est = pf.estimate()          # est.pose [x, y, θ], est.covariance (3, 3), est.weight
+    h = pf.entropy()             # h.position, h.orientation in bits
+
+The filter knows the motion and sensor models only through their interfaces (`check`/`predict`,
+`check`/`log_likelihood`). Every public call validates its input before it changes anything: a rejected
+call raises ValueError and leaves the filter exactly as it was.
+
+Resampling happens when the effective sample size falls below `resample_threshold`·N, or when augmented MCL
+(Thrun et al., Probabilistic Robotics, table 8.3) asks for fresh particles: w_slow and w_fast track the
+average likelihood per detection, and 1 - (w_fast/w_slow)/ratio_threshold of the particles are injected
+(a dead-band: plain augmented MCL, ratio_threshold = 1, injects after every false positive); and as in
+sensor resetting, 1 - w_fast/fit_threshold when the fit is poor in absolute terms, which is what finds the
+robot from a uniform start (where w_slow is as poor as w_fast). Injected particles
+explain a current detection (sensor resetting) or are uniform over the injection region, and once the
+filter has been confident their heading is drawn around the estimated heading. That is the guard against
+the point-symmetric field: the mirror pose (−x, −y, θ+π) differs by π in heading, and a robot's heading
+survives being carried (the gyro keeps it), so a filter that re-seeds after a kidnapping does not land on
+the mirror. Before the first confident estimate, injection stays inside the region of the last uniform
+reset (the own half at kick-off, where the rules place the robot).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Iterable
+
+import numpy as np
+
+from field import Field
+from field.angles import wrap_angles
+from motion_models.base import MotionInput, MotionModel
+from sensing.observations import Observations
+
+from . import resampling
+from .estimate import cluster_estimate, grid_entropy
+from .weights import normalize
+
+REGIONS = ("field", "own_half", "opponent_half")
+
+
+@dataclass(frozen=True)
+class Estimate:
+    """The pose of the dominant cluster: pose [x, y, θ], its covariance (3, 3), and the cluster's weight."""
+
+    pose: np.ndarray
+    covariance: np.ndarray
+    weight: float
+
+    @property
+    def x(self) -> float:
+        return float(self.pose[0])
+
+    @property
+    def y(self) -> float:
+        return float(self.pose[1])
+
+    @property
+    def theta(self) -> float:
+        return float(self.pose[2])
+
+    def is_confident(self, position_sigma: float = 0.3, heading_sigma: float = 0.2, weight: float = 0.8) -> bool:
+        """True when the cluster holds most of the weight and is tight in position and heading."""
+        position_std = math.sqrt(max(self.covariance[0, 0] + self.covariance[1, 1], 0.0))
+        return (self.weight >= weight and position_std <= position_sigma
+                and math.sqrt(max(self.covariance[2, 2], 0.0)) <= heading_sigma)
+
+
+@dataclass(frozen=True)
+class Entropy:
+    """Grid entropy of the belief in bits (Hoffmann eq. 27)."""
+
+    position: float
+    orientation: float
+
+
+@dataclass(frozen=True)
+class AugmentedMCL:
+    """Augmented MCL parameters: averaging rates of w_slow and w_fast (0 < alpha_slow << alpha_fast <= 1)."""
+
+    alpha_slow: float = 0.002
+    alpha_fast: float = 0.1
+    ratio_threshold: float = 0.5         # inject 1 - (w_fast/w_slow)/ratio_threshold of the particles: only
+                                         # when the short-term fit drops below this share of the long-term
+                                         # one (1.0 is plain augmented MCL, which reacts to every false
+                                         # positive in a frame with a single detection)
+    fit_threshold: float = 0.2           # also inject 1 - w_fast/fit_threshold when the fit is poor in absolute
+                                         # terms (sensor resetting, Lenser & Veloso 2000): a perfect match
+                                         # scores 1 per detection with sensing.LandmarkSensorModel; measured
+                                         # in the walk scenario, w_fast is >= 0.30 in 99 % of the frames while
+                                         # tracking and 0.045 (median) while lost. 0 switches this off
+    sensor_reset_fraction: float = 0.5   # share of injected particles drawn from a detection
+    heading_sigma: float = 0.3           # rad, spread of injected headings around the estimate
+    max_fraction: float = 0.25           # never replace more than this share of the particles at once
+    confident_corrections: int = 30      # corrections in a row the estimate must be confident before its
+                                         # heading guides injection (one second of a 30 Hz camera)
+
+    def __post_init__(self) -> None:
+        if not (0 < self.alpha_slow < self.alpha_fast <= 1):
+            raise ValueError(f"alpha_slow = {self.alpha_slow!r}, alpha_fast = {self.alpha_fast!r}: "
+                             "need 0 < alpha_slow < alpha_fast <= 1")
+        for name in ("sensor_reset_fraction", "max_fraction", "ratio_threshold"):
+            value = getattr(self, name)
+            if not 0 <= value <= 1:
+                raise ValueError(f"{name} = {value!r} must be within [0, 1]")
+        if not (math.isfinite(self.heading_sigma) and self.heading_sigma > 0):
+            raise ValueError(f"heading_sigma = {self.heading_sigma!r} must be finite and > 0")
+        if not (math.isfinite(self.fit_threshold) and self.fit_threshold >= 0):
+            raise ValueError(f"fit_threshold = {self.fit_threshold!r} must be finite and >= 0")
+        if not (isinstance(self.confident_corrections, int) and self.confident_corrections >= 1):
+            raise ValueError(f"confident_corrections = {self.confident_corrections!r} must be an integer >= 1")
+
+
+@dataclass(frozen=True)
+class Grid:
+    """Cell sizes for the entropy (and the estimate's seed histogram)."""
+
+    position_cell: float = 0.1            # m
+    orientation_bins: int = 36            # 10° bins
+    cluster_cell: float = 0.5             # m, seed histogram of the estimate
+    cluster_orientation_bins: int = 8
+    cluster_radius: float = 0.75          # m, mean-shift kernel
+    cluster_angle_radius: float = 0.8     # rad
+
+    def __post_init__(self) -> None:
+        for name in ("position_cell", "cluster_cell", "cluster_radius", "cluster_angle_radius"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value > 0):
+                raise ValueError(f"{name} = {value!r} must be finite and > 0")
+        for name in ("orientation_bins", "cluster_orientation_bins"):
+            value = getattr(self, name)
+            if not (isinstance(value, int) and value >= 1):
+                raise ValueError(f"{name} = {value!r} must be an integer >= 1")
+
+
+class ParticleFilter:
+    """Monte Carlo localization: particles `poses` (N, 3) [x, y, θ] with `log_weights` (N,).
+
+    field:              the field (bounds for resets, injection and the entropy grid)
+    motion_model:       any motion model (`motion_models`)
+    sensor_model:       any sensor model with `check(observations)` and `log_likelihood(poses, observations)`
+    n_particles:        N > 0
+    seed:               seed of the filter's one random generator (same seed, same run)
+    resampling:         "systematic" (default), "stratified", "residual" or "multinomial"
+    resample_threshold: resample when ESS < threshold·N (0..1)
+    augmented:          AugmentedMCL parameters, or None to switch injection off
+    grid:               entropy and estimate grid parameters
+    """
+
+    def __init__(self, field: Field, motion_model: MotionModel, sensor_model, n_particles: int = 500,
+                 seed: int | None = 0, resampling: str = "systematic", resample_threshold: float = 0.5,
+                 augmented: AugmentedMCL | None = AugmentedMCL(), grid: Grid = Grid()) -> None:
+        if not isinstance(field, Field):
+            raise ValueError(f"field = {field!r} must be a field.Field")
+        if isinstance(n_particles, bool) or not isinstance(n_particles, (int, np.integer)) or n_particles <= 0:
+            raise ValueError(f"n_particles = {n_particles!r} must be an integer > 0")
+        if resampling not in _SCHEMES:
+            raise ValueError(f"resampling = {resampling!r} must be one of {tuple(_SCHEMES)}")
+        if not (isinstance(resample_threshold, (int, float)) and 0 <= resample_threshold <= 1):
+            raise ValueError(f"resample_threshold = {resample_threshold!r} must be within [0, 1]")
+        for name, obj, methods in (("motion_model", motion_model, ("check", "predict")),
+                                   ("sensor_model", sensor_model, ("check", "log_likelihood"))):
+            missing = [m for m in methods if not callable(getattr(obj, m, None))]
+            if missing:
+                raise ValueError(f"{name} = {obj!r} lacks {', '.join(missing)}")
+        self.field = field
+        self.motion_model = motion_model
+        self.sensor_model = sensor_model
+        self.n = int(n_particles)
+        self.resampling = resampling
+        self.resample_threshold = float(resample_threshold)
+        self.augmented = augmented
+        self.grid = grid
+        self.rng = np.random.default_rng(seed)
+        # Carpet bounds: the field plus its border strip.
+        border = field.dims.border_strip_width
+        self._x_min, self._x_max = -field.half_length - border, field.half_length + border
+        self._y_min, self._y_max = -field.half_width - border, field.half_width + border
+        self._entropy_nx = max(1, math.ceil((self._x_max - self._x_min) / grid.position_cell))
+        self._entropy_ny = max(1, math.ceil((self._y_max - self._y_min) / grid.position_cell))
+        self._cluster_nx = max(1, math.ceil((self._x_max - self._x_min) / grid.cluster_cell))
+        self._cluster_ny = max(1, math.ceil((self._y_max - self._y_min) / grid.cluster_cell))
+        # Buffers kept across steps.
+        self.poses = np.zeros((self.n, 3))
+        self.log_weights = np.full(self.n, -math.log(self.n))
+        self._weights = np.full(self.n, 1.0 / self.n)
+        self._log_likelihood = np.empty(self.n)
+        self._position_histogram = np.empty(self._entropy_nx * self._entropy_ny)
+        self._orientation_histogram = np.empty(grid.orientation_bins)
+        self._cluster_histogram = np.empty(self._cluster_nx * self._cluster_ny * grid.cluster_orientation_bins)
+        self.w_slow = 0.0
+        self.w_fast = 0.0
+        self.ess = float(self.n)
+        self.resampled = False        # whether the last correction resampled
+        self.injected = 0             # particles injected by the last correction
+        self._injection_bounds = self._region_bounds("field")
+        self._ever_confident = False
+        self._confident_streak = 0
+        self._estimate: Estimate | None = None
+        self.reset_uniform("field")
+
+    # -- resets ------------------------------------------------------------------------------------------
+    def _region_bounds(self, region) -> tuple[float, float, float, float]:
+        hl, hw = self.field.half_length, self.field.half_width
+        if isinstance(region, str):
+            if region not in REGIONS:
+                raise ValueError(f"region = {region!r} must be one of {REGIONS} or (x_min, x_max, y_min, y_max)")
+            return {"field": (-hl, hl, -hw, hw), "own_half": (-hl, 0.0, -hw, hw),
+                    "opponent_half": (0.0, hl, -hw, hw)}[region]
+        try:
+            x_min, x_max, y_min, y_max = (float(v) for v in region)
+        except (TypeError, ValueError):
+            raise ValueError(f"region = {region!r} must be a name or (x_min, x_max, y_min, y_max)") from None
+        if not all(math.isfinite(v) for v in (x_min, x_max, y_min, y_max)) or x_min >= x_max or y_min >= y_max:
+            raise ValueError(f"region = {region!r} must be finite with x_min < x_max and y_min < y_max")
+        return x_min, x_max, y_min, y_max
+
+    def _set_particles(self, poses: np.ndarray) -> None:
+        self.poses[:] = poses
+        self.poses[:, 2] = wrap_angles(self.poses[:, 2])
+        self.log_weights[:] = -math.log(self.n)
+        self._weights[:] = 1.0 / self.n
+        self.ess = float(self.n)
+        self._estimate = None
+
+    def reset_uniform(self, region="field", heading: float | None = None, heading_sigma: float = 0.0) -> None:
+        """Spread the particles uniformly over a region ("field", "own_half", "opponent_half", or bounds).
+
+        heading: None for uniform headings, else headings around it with `heading_sigma` (rad). Injection
+        stays in this region until the filter is first confident (see the module docstring).
+        """
+        bounds = self._region_bounds(region)
+        if heading is not None and not (math.isfinite(heading) and math.isfinite(heading_sigma) and heading_sigma >= 0):
+            raise ValueError(f"heading = {heading!r}, heading_sigma = {heading_sigma!r} must be finite (sigma >= 0)")
+        x_min, x_max, y_min, y_max = bounds
+        poses = np.empty((self.n, 3))
+        poses[:, 0] = self.rng.uniform(x_min, x_max, self.n)
+        poses[:, 1] = self.rng.uniform(y_min, y_max, self.n)
+        if heading is None:
+            poses[:, 2] = self.rng.uniform(-math.pi, math.pi, self.n)
+        else:
+            poses[:, 2] = heading + heading_sigma * self.rng.standard_normal(self.n)
+        self._set_particles(poses)
+        self._injection_bounds = bounds
+        self._ever_confident = False
+        self._confident_streak = 0
+        self.w_slow = self.w_fast = 0.0
+
+    def reset_around(self, pose, sigma=(0.1, 0.1, 0.1)) -> None:
+        """Normal particles around a known pose (x, y, θ) with standard deviations `sigma`."""
+        pose = np.asarray(pose, dtype=np.float64)
+        sigma = np.asarray(sigma, dtype=np.float64)
+        if pose.shape != (3,) or not np.isfinite(pose).all():
+            raise ValueError(f"pose = {pose!r} must be three finite numbers")
+        if sigma.shape != (3,) or not np.isfinite(sigma).all() or (sigma < 0).any():
+            raise ValueError(f"sigma = {sigma!r} must be three finite numbers >= 0")
+        self._set_particles(pose + sigma * self.rng.standard_normal((self.n, 3)))
+        self._injection_bounds = self._region_bounds("field")
+        self._ever_confident = True
+        self.w_slow = self.w_fast = 0.0
+
+    def reset_mirrored(self) -> None:
+        """Mirror every particle through the centre mark: (x, y, θ) → (−x, −y, θ+π), weights kept."""
+        self.poses[:] = self.field.mirror_poses(self.poses)
+        self._estimate = None
+
+    def set_particles(self, poses, log_weights=None) -> None:
+        """Replace the particle set (N, 3) and optionally its log-weights (N,); validated first."""
+        poses = np.asarray(poses, dtype=np.float64)
+        if poses.shape != (self.n, 3) or not np.isfinite(poses).all():
+            raise ValueError(f"poses must be finite with shape ({self.n}, 3), got {poses.shape}")
+        if log_weights is not None:
+            log_weights = np.asarray(log_weights, dtype=np.float64)
+            if log_weights.shape != (self.n,) or np.isnan(log_weights).any() or not (log_weights > -np.inf).any():
+                raise ValueError("log_weights must have shape (N,), no NaN, and at least one finite entry")
+        self._set_particles(poses)
+        if log_weights is not None:
+            total, self.ess = normalize(log_weights, self._weights)
+            self.log_weights[:] = log_weights - total
+
+    # -- the step ----------------------------------------------------------------------------------------
+    def predict(self, u: MotionInput) -> None:
+        """Move every particle by the motion model."""
+        if not isinstance(u, MotionInput):
+            raise ValueError(f"u = {u!r} must be a motion_models.MotionInput")
+        self.motion_model.check(u)
+        self.motion_model.predict(self.poses, u, self.rng)
+        self._estimate = None
+
+    def correct(self, observations: Observations | Iterable | None) -> None:
+        """Weigh the particles by the detections, then resample (and inject) if needed."""
+        observations = Observations.coerce(observations)
+        self.sensor_model.check(observations)
+        if len(observations) == 0:
+            return
+        log_likelihood = self.sensor_model.log_likelihood(self.poses, observations, out=self._log_likelihood)
+        if np.isnan(log_likelihood).any() or (log_likelihood == np.inf).any():
+            raise ValueError("sensor model returned NaN or +inf log-likelihoods; filter left unchanged")
+        native_log_average = self._native_log_average(log_likelihood)
+        candidate = self.log_weights + log_likelihood
+        log_evidence, ess = normalize(candidate, self._weights)
+        self._estimate = None
+        if log_evidence == -np.inf:
+            # Every particle has zero likelihood: the belief cannot explain the detections. Recover by
+            # keeping the particles with uniform weights and replacing the largest allowed share by
+            # injected ones; nothing else (no NaN) can come out of this.
+            self._weights[:] = 1.0 / self.n
+            self._resample(self._injection_count(1.0), observations)
+            return
+        self.log_weights[:] = candidate - log_evidence
+        self.ess = ess
+        fraction = self._update_augmented(native_log_average / len(observations))
+        count = self._injection_count(fraction)
+        if count > 0 or ess < self.resample_threshold * self.n:
+            self._resample(count, observations)
+        else:
+            self.resampled = False
+            self.injected = 0
+        self._track_confidence()
+
+    def _track_confidence(self) -> None:
+        """Trust the estimated heading for injection once it has been confident for a while.
+
+        A single confident correction is not enough: early in global localization a wrong cluster can be
+        tight for a moment, and injecting around its heading would seed the mirror pose.
+        """
+        if self.augmented is None or self._ever_confident:
+            return
+        self._confident_streak = self._confident_streak + 1 if self.estimate().is_confident() else 0
+        if self._confident_streak >= self.augmented.confident_corrections:
+            self._ever_confident = True
+            self._injection_bounds = self._region_bounds("field")
+
+    def step(self, u: MotionInput, observations=None) -> Estimate:
+        """predict(u), then correct(observations) when there are any; returns the estimate."""
+        observations = Observations.coerce(observations)
+        self.sensor_model.check(observations)
+        if not isinstance(u, MotionInput):
+            raise ValueError(f"u = {u!r} must be a motion_models.MotionInput")
+        self.motion_model.check(u)
+        self.predict(u)
+        self.correct(observations)
+        return self.estimate()
+
+    # -- augmented MCL -----------------------------------------------------------------------------------
+    def _native_log_average(self, log_likelihood: np.ndarray) -> float:
+        """log(Σ wᵢ pᵢ / Σ wᵢ) over the particles not injected by the previous resampling (prior weights).
+
+        Freshly injected particles mostly explain the detections badly; counting them would lower the
+        average, which asks for more injection: a feedback loop that tears a good cluster apart. They sit
+        at the tail of the arrays until the next resampling.
+        """
+        native = self.n - self.injected
+        prior = self.log_weights[:native]
+        return _log_sum_exp(prior + log_likelihood[:native]) - _log_sum_exp(prior)
+
+    def _update_augmented(self, log_average: float) -> float:
+        """Update w_slow, w_fast with the per-detection average likelihood; return the injection share."""
+        if self.augmented is None:
+            return 0.0
+        a = self.augmented
+        average = math.exp(log_average)
+        if self.w_slow == 0.0:
+            self.w_slow = self.w_fast = average
+        else:
+            self.w_slow += a.alpha_slow * (average - self.w_slow)
+            self.w_fast += a.alpha_fast * (average - self.w_fast)
+        relative = 1.0 - self.w_fast / (a.ratio_threshold * self.w_slow) if self.w_slow > 0 else 1.0
+        absolute = 1.0 - self.w_fast / a.fit_threshold if a.fit_threshold > 0 else 0.0
+        return max(0.0, relative, absolute)
+
+    def _injection_count(self, fraction: float) -> int:
+        if self.augmented is None:
+            return 0
+        return int(round(min(fraction, self.augmented.max_fraction) * self.n))
+
+    def _sample_injection(self, count: int, observations: Observations) -> np.ndarray:
+        heading = self.estimate().theta if self._ever_confident else None
+        sigma = self.augmented.heading_sigma
+        x_min, x_max, y_min, y_max = self._injection_bounds
+        n_sensor = int(round(count * self.augmented.sensor_reset_fraction))
+        sampler = getattr(self.sensor_model, "sample_poses", None)
+        poses = np.empty((0, 3))
+        if n_sensor > 0 and sampler is not None and len(observations) > 0:
+            poses = sampler(observations, n_sensor, self.rng, heading=heading, heading_sigma=sigma)
+            inside = ((poses[:, 0] >= x_min) & (poses[:, 0] <= x_max)
+                      & (poses[:, 1] >= y_min) & (poses[:, 1] <= y_max))
+            poses = poses[inside]
+        rest = count - poses.shape[0]
+        uniform = np.empty((rest, 3))
+        uniform[:, 0] = self.rng.uniform(x_min, x_max, rest)
+        uniform[:, 1] = self.rng.uniform(y_min, y_max, rest)
+        if heading is None:
+            uniform[:, 2] = self.rng.uniform(-math.pi, math.pi, rest)
+        else:
+            uniform[:, 2] = wrap_angles(heading + sigma * self.rng.standard_normal(rest))
+        return np.concatenate([poses, uniform], axis=0)
+
+    def _resample(self, count: int, observations: Observations) -> None:
+        injected = self._sample_injection(count, observations) if count > 0 else np.empty((0, 3))
+        keep = self.n - injected.shape[0]
+        ancestors = _SCHEMES[self.resampling](self._weights, keep, self.rng)
+        self.poses[:keep] = self.poses[ancestors]
+        self.poses[keep:] = injected
+        self.log_weights[:] = -math.log(self.n)
+        self._weights[:] = 1.0 / self.n
+        self.ess = float(self.n)
+        self.resampled = True
+        self.injected = int(injected.shape[0])
+        self._estimate = None
+
+    # -- summaries ---------------------------------------------------------------------------------------
+    @property
+    def weights(self) -> np.ndarray:
+        """Normalized weights (a read-only view)."""
+        view = self._weights.view()
+        view.flags.writeable = False
+        return view
+
+    def estimate(self) -> Estimate:
+        """Weighted circular mean and covariance of the dominant cluster (cached until the particles change)."""
+        if self._estimate is None:
+            g = self.grid
+            mean = np.empty(3)
+            cov = np.empty((3, 3))
+            weight = cluster_estimate(self.poses, self._weights, self._x_min, self._y_min, g.cluster_cell,
+                                      self._cluster_nx, self._cluster_ny, g.cluster_orientation_bins,
+                                      g.cluster_radius, g.cluster_angle_radius, 3, self._cluster_histogram,
+                                      mean, cov)
+            self._estimate = Estimate(mean, cov, float(weight))
+        return self._estimate
+
+    def entropy(self) -> Entropy:
+        """Position and orientation entropy in bits on the grid (Hoffmann eq. 27)."""
+        position, orientation = grid_entropy(self.poses, self._weights, self._x_min, self._y_min,
+                                             self.grid.position_cell, self._entropy_nx, self._entropy_ny,
+                                             self.grid.orientation_bins, self._position_histogram,
+                                             self._orientation_histogram)
+        return Entropy(float(position), float(orientation))
+
+    @property
+    def entropy_bounds(self) -> tuple[float, float]:
+        """The largest possible position and orientation entropies: log2 of the cell counts."""
+        return math.log2(self._entropy_nx * self._entropy_ny), math.log2(self.grid.orientation_bins)
+
+
+_SCHEMES = resampling.SCHEMES
+
+
+def _log_sum_exp(values: np.ndarray) -> float:
+    peak = values.max()
+    if peak == -np.inf:
+        return -math.inf
+    return float(peak + math.log(np.exp(values - peak).sum()))

@@ -1,0 +1,159 @@
+"""Recording a filter run to Rerun (.rrd) for review in the Rerun viewer.
+
+    from mcl.recording import Recorder
+    with Recorder("walk.rrd", field, particles_every=5) as rec:
+        for step, t in ...:
+            ...
+            rec.log_step(step, t, pf, truth=true_pose, observations=obs)
+
+Entity paths: `field/...` (static: lines, centre circle, landmarks by type), `particles` (every k-th step,
+coloured by weight), `robot/estimate`, `robot/truth`, `observations` (rays from the estimate to each
+detection), `entropy/position`, `entropy/orientation` (every step), `error/position`, `error/heading` (when
+the truth is known); timelines `step` (sequence) and `time` (duration, seconds). Anything else (a model's
+state belief, a percept) goes through `log_scalars`. The file opens on a blueprint with the field view beside
+the entropy and error plots. Coordinates are the field frame in metres; note that Rerun's 2-D view draws +y
+downwards (the image convention), so the field appears mirrored top to bottom.
+
+Logged arrays are fresh copies: Rerun keeps a reference until it flushes. `close()` (or the `with` block)
+writes the file's footer.
+"""
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import rerun as rr
+import rerun.blueprint as rrb
+
+from field import Field, LandmarkType
+from sensing.observations import Observations
+
+LANDMARK_COLORS = {
+    LandmarkType.GOALPOST: (255, 255, 0),
+    LandmarkType.L_CROSSING: (255, 120, 0),
+    LandmarkType.T_CROSSING: (0, 200, 255),
+    LandmarkType.X_CROSSING: (255, 0, 255),
+    LandmarkType.PENALTY_MARK: (255, 255, 255),
+    LandmarkType.CENTER_MARK: (200, 200, 200),
+}
+
+
+def weight_colors(weights: np.ndarray) -> np.ndarray:
+    """Map weights to RGB from dark blue (lightest) to yellow (heaviest), relative to the heaviest."""
+    top = float(weights.max()) if weights.size else 1.0
+    level = np.clip(weights / top, 0.0, 1.0) if top > 0 else np.zeros_like(weights)
+    low = np.array([40, 30, 120], dtype=np.float64)
+    high = np.array([255, 230, 40], dtype=np.float64)
+    return (low + level[:, None] * (high - low)).astype(np.uint8)
+
+
+def default_blueprint() -> rrb.Blueprint:
+    return rrb.Blueprint(
+        rrb.Horizontal(
+            rrb.Spatial2DView(origin="/", name="field",
+                              contents=["/field/**", "/particles", "/robot/**", "/observations"]),
+            rrb.Vertical(
+                rrb.TimeSeriesView(origin="/entropy", name="entropy [bits]"),
+                rrb.TimeSeriesView(origin="/error", name="error [m, rad]"),
+            ),
+            column_shares=[3, 2],
+        ),
+        collapse_panels=True,
+    )
+
+
+class Recorder:
+    """Writes one filter run to an .rrd file (or to any `rr.RecordingStream` you pass)."""
+
+    def __init__(self, path: str | Path | None, field: Field, particles_every: int = 5,
+                 application_id: str = "robocup-mcl", stream: rr.RecordingStream | None = None,
+                 blueprint: rrb.Blueprint | None = None) -> None:
+        if isinstance(particles_every, bool) or not isinstance(particles_every, int) or particles_every < 1:
+            raise ValueError(f"particles_every = {particles_every!r} must be an integer >= 1")
+        if stream is None and path is None:
+            raise ValueError("give a path or a stream")
+        self.field = field
+        self.particles_every = particles_every
+        self.path = None if path is None else Path(path)
+        self.stream = stream or rr.RecordingStream(application_id)
+        if self.path is not None:
+            self.path.parent.mkdir(parents=True, exist_ok=True)
+            self.stream.save(str(self.path), default_blueprint=blueprint or default_blueprint())
+        self._log_field()
+
+    def __enter__(self) -> "Recorder":
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    def close(self) -> None:
+        """Flush and write the footer."""
+        self.stream.disconnect()
+
+    def _log_field(self) -> None:
+        log = self.stream.log
+        log("field/lines", rr.LineStrips2D(np.array(self.field.segments), colors=[(230, 230, 230)],
+                                           radii=self.field.dims.line_width / 2), static=True)
+        cx, cy, radius = self.field.center_circle
+        angles = np.linspace(0.0, 2.0 * math.pi, 97)
+        circle = np.stack([cx + radius * np.cos(angles), cy + radius * np.sin(angles)], axis=1)
+        log("field/center_circle", rr.LineStrips2D([circle], colors=[(230, 230, 230)],
+                                                   radii=self.field.dims.line_width / 2), static=True)
+        hl, hw, border = self.field.half_length, self.field.half_width, self.field.dims.border_strip_width
+        carpet = np.array([[-hl - border, -hw - border], [hl + border, -hw - border], [hl + border, hw + border],
+                           [-hl - border, hw + border], [-hl - border, -hw - border]])
+        log("field/carpet", rr.LineStrips2D([carpet], colors=[(20, 110, 40)], radii=0.02), static=True)
+        for kind in LandmarkType:
+            points = np.array(self.field.landmarks_of(kind))
+            if points.shape[0]:
+                log(f"field/landmarks/{kind.name.lower()}",
+                    rr.Points2D(points, colors=[LANDMARK_COLORS[kind]], radii=0.06), static=True)
+        for path, name, color in (("entropy/position", "position", (80, 160, 255)),
+                                  ("entropy/orientation", "orientation", (255, 140, 40)),
+                                  ("error/position", "position [m]", (80, 220, 120)),
+                                  ("error/heading", "heading [rad]", (230, 80, 80))):
+            log(path, rr.SeriesLines(names=name, colors=[color]), static=True)
+
+    def set_time(self, step: int, t: float) -> None:
+        self.stream.set_time("step", sequence=int(step))
+        self.stream.set_time("time", duration=float(t))
+
+    def log_scalars(self, values: dict[str, float]) -> None:
+        """Log scalar series at the current time, e.g. {"proprioception/s_rel": 0.8}."""
+        for path, value in values.items():
+            self.stream.log(path, rr.Scalars(float(value)))
+
+    def log_step(self, step: int, t: float, pf, truth=None, observations: Observations | None = None,
+                 entropy=None) -> None:
+        """Log one filter step: entropy and pose every step, particles every `particles_every` steps."""
+        self.set_time(step, t)
+        log = self.stream.log
+        entropy = entropy or pf.entropy()
+        log("entropy/position", rr.Scalars(entropy.position))
+        log("entropy/orientation", rr.Scalars(entropy.orientation))
+        estimate = pf.estimate()
+        pose = estimate.pose.copy()
+        log("robot/estimate", rr.Arrows2D(origins=[pose[:2]], vectors=[0.35 * np.array([math.cos(pose[2]),
+                                                                                        math.sin(pose[2])])],
+                                          colors=[(255, 60, 60)], radii=0.03))
+        if truth is not None:
+            truth = np.asarray(truth, dtype=np.float64).copy()
+            log("robot/truth", rr.Arrows2D(origins=[truth[:2]], vectors=[0.35 * np.array([math.cos(truth[2]),
+                                                                                          math.sin(truth[2])])],
+                                           colors=[(60, 255, 60)], radii=0.03))
+            log("error/position", rr.Scalars(float(np.hypot(*(pose[:2] - truth[:2])))))
+            heading_error = math.remainder(pose[2] - truth[2], 2.0 * math.pi)
+            log("error/heading", rr.Scalars(abs(heading_error)))
+        if step % self.particles_every == 0:
+            poses = pf.poses.copy()
+            log("particles", rr.Points2D(poses[:, :2], colors=weight_colors(np.array(pf.weights)), radii=0.025))
+        if observations is not None and len(observations):
+            points = observations.points()
+            c, s = math.cos(pose[2]), math.sin(pose[2])
+            world = np.stack([pose[0] + c * points[:, 0] - s * points[:, 1],
+                              pose[1] + s * points[:, 0] + c * points[:, 1]], axis=1)
+            strips = np.stack([np.broadcast_to(pose[:2], world.shape), world], axis=1)
+            colors = [LANDMARK_COLORS[LandmarkType(int(k))] for k in observations.kinds]
+            log("observations", rr.LineStrips2D(strips, colors=colors, radii=0.01))

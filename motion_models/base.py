@@ -1,0 +1,95 @@
+"""The motion model interface: what a model takes (`MotionInput`) and what it must do (`MotionModel`).
+
+    from motion_models import MotionInput, VelocityLinear
+
+    u = MotionInput(dt=0.01, command=(0.2, 0.0, 0.1))        # walk request: vx, vy [m/s], omega [rad/s]
+    VelocityLinear().predict(poses, u, rng)                  # poses (N, 3) updated in place
+
+A model reads the fields of `MotionInput` it needs and raises `ValueError` naming the missing one.
+Every field is in SI units and in the robot frame (+x forward, +y left).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any, Protocol, runtime_checkable
+
+import numpy as np
+
+
+def _finite_triple(name: str, value: Any) -> tuple[float, float, float] | None:
+    if value is None:
+        return None
+    try:
+        triple = tuple(float(v) for v in value)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} = {value!r} must be three numbers") from None
+    if len(triple) != 3:
+        raise ValueError(f"{name} = {value!r} must have three components, not {len(triple)}")
+    if not all(math.isfinite(v) for v in triple):
+        raise ValueError(f"{name} = {value!r} must be finite")
+    return triple  # type: ignore[return-value]
+
+
+@dataclass(frozen=True)
+class MotionInput:
+    """What the robot did since the previous filter step.
+
+    dt:        time since the previous step [s], finite and >= 0.
+    command:   the walk request m = (vx, vy, omega) [m/s, m/s, rad/s] (Hoffmann eq. 4).
+    odometry:  measured pose change (dx, dy, dtheta) [m, m, rad] in the robot frame at the previous pose.
+    collision: a collision percept (used by collision-aware models).
+    footstep:  a support-foot swap event (used by footstep models).
+    """
+
+    dt: float
+    command: tuple[float, float, float] | None = None
+    odometry: tuple[float, float, float] | None = None
+    collision: Any = None
+    footstep: Any = None
+
+    def __post_init__(self) -> None:
+        try:
+            dt = float(self.dt)
+        except (TypeError, ValueError):
+            raise ValueError(f"dt = {self.dt!r} must be a number of seconds") from None
+        if not math.isfinite(dt) or dt < 0.0:
+            raise ValueError(f"dt = {self.dt!r} must be finite and >= 0")
+        object.__setattr__(self, "dt", dt)
+        object.__setattr__(self, "command", _finite_triple("command", self.command))
+        object.__setattr__(self, "odometry", _finite_triple("odometry", self.odometry))
+
+    def displacement(self) -> tuple[float, float, float]:
+        """The intended pose change (dx, dy, dtheta) in the robot frame: odometry if given, else dt * command.
+
+        A command is integrated along its arc (the translation is rotated by half the turn), so that a
+        curved walk request lands where the robot would be.
+        """
+        if self.odometry is not None:
+            return self.odometry
+        if self.command is None:
+            raise ValueError("MotionInput has neither command nor odometry: the model needs one of them")
+        vx, vy, omega = self.command
+        half_turn = 0.5 * omega * self.dt
+        c, s = math.cos(half_turn), math.sin(half_turn)
+        return ((c * vx - s * vy) * self.dt, (s * vx + c * vy) * self.dt, omega * self.dt)
+
+
+@runtime_checkable
+class MotionModel(Protocol):
+    """Moves particles by one motion input. Implementations are frozen dataclasses."""
+
+    def check(self, u: MotionInput) -> None:
+        """Raise ValueError if `u` lacks what this model needs. Must not draw random numbers."""
+
+    def predict(self, poses: np.ndarray, u: MotionInput, rng: np.random.Generator) -> None:
+        """Update `poses` (N, 3) float64 C-contiguous in place."""
+
+
+def check_poses(poses: np.ndarray) -> None:
+    """The particle array contract shared by every model (see DESIGN.md: float64 (N, 3) C-contiguous)."""
+    if not isinstance(poses, np.ndarray) or poses.dtype != np.float64 or poses.ndim != 2 or poses.shape[1] != 3:
+        raise ValueError(f"poses must be a float64 array of shape (N, 3), got {getattr(poses, 'dtype', type(poses))} "
+                         f"{getattr(poses, 'shape', '')}")
+    if not poses.flags.c_contiguous or not poses.flags.writeable:
+        raise ValueError("poses must be C-contiguous and writeable (models update them in place)")

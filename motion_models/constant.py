@@ -1,0 +1,48 @@
+"""`ConstantNoise`: odometry plus a fixed noise rate, whatever the speed.
+
+    from motion_models import ConstantNoise, MotionInput
+    model = ConstantNoise(rate_x=0.35, rate_y=0.2, rate_theta=0.3)
+    model.predict(poses, MotionInput(dt=0.01, command=(0.2, 0.0, 0.0)), rng)
+
+The pose change is the input's displacement (odometry, or dt * command); the noise added in the robot frame
+is uniform on [-dt * rate_k, dt * rate_k] per axis (eq. 10 with the speed terms replaced by constants), or
+Gaussian with the same variance. A standing robot diffuses too: that is this model's weakness, and the
+reason for the velocity-linear one.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ._kernels import move_with_noise
+from .base import MotionInput, check_poses
+
+
+@dataclass(frozen=True)
+class ConstantNoise:
+    """Noise bounds grow with time only. Rates in m/s (x, y) and rad/s (theta)."""
+
+    rate_x: float = 0.35
+    rate_y: float = 0.2
+    rate_theta: float = 0.3
+    gaussian: bool = False
+
+    def __post_init__(self) -> None:
+        for name in ("rate_x", "rate_y", "rate_theta"):
+            value = getattr(self, name)
+            if not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0):
+                raise ValueError(f"{name} = {value!r} must be a finite number >= 0")
+
+    def check(self, u: MotionInput) -> None:
+        u.displacement()
+
+    def noise_bounds(self, u: MotionInput) -> tuple[float, float, float]:
+        return (u.dt * self.rate_x, u.dt * self.rate_y, u.dt * self.rate_theta)
+
+    def predict(self, poses: np.ndarray, u: MotionInput, rng: np.random.Generator) -> None:
+        check_poses(poses)
+        dx, dy, dtheta = u.displacement()
+        bx, by, bt = self.noise_bounds(u)
+        move_with_noise(poses, dx, dy, dtheta, bx, by, bt, self.gaussian, rng)
