@@ -9,7 +9,8 @@
 
 Figures printed (all measured in this run, nothing fixed in advance):
 1. Straight walk of `--duration` s (the paper's experiment, Section VI): the average forward velocity (IMU x
-   axis, eq. 38 taken as a mean) of each estimator against the truth, and its error in percent.
+   axis, eq. 38 taken as a mean) of each estimator against the truth, and its error in percent; the EKF again
+   without removing the gyro bias measured while standing; the EKF error over `--seeds` seeds.
 2. RMSE of the 3-D velocity over quarters of the run, straight and turning walks, foot twist on and off,
    evaluated at the kinematics samples where a support foot is known (all four estimators on the same samples).
 3. Tilt (direction of gravity) error of the EKF, in degrees, on the run of figure 1.
@@ -49,14 +50,20 @@ def ekf_params_for(sensors: SensorParams, lever_arm: float = 0.3, n_joints: int 
     )
 
 
-def run_estimators(run: BipedRun, params: VelocityEKFParams | None = None, backend: str = "numba") -> dict:
-    """Run the four estimators over one simulated walk; returns per-sample estimates, truth and the EKF inputs."""
+def run_estimators(run: BipedRun, params: VelocityEKFParams | None = None, backend: str = "numba",
+                   zero_gyro: bool = True) -> dict:
+    """Run the four estimators over one simulated walk; returns per-sample estimates, truth and the EKF inputs.
+
+    All start from the first `STANDING_SAMPLES_TIME` seconds, when the robot stands still (eq. 1); with
+    `zero_gyro` the mean gyro of that period is taken as its bias and removed, for every estimator.
+    """
     params = params or ekf_params_for(run.sensors)
     n0 = int(np.searchsorted(run.imu_time, STANDING_SAMPLES_TIME, side="right")) - 1
     t0 = float(run.imu_time[n0])
     standing = run.accel[: n0 + 1]
-    imu_only = ImuOnlyEstimator.from_standing(standing, t0)
-    ekf = VelocityEKF.from_standing(standing, t0, params=params, backend=backend)
+    standing_gyro = run.gyro[: n0 + 1] if zero_gyro else None
+    imu_only = ImuOnlyEstimator.from_standing(standing, t0, gyro_samples=standing_gyro)
+    ekf = VelocityEKF.from_standing(standing, t0, params=params, backend=backend, gyro_samples=standing_gyro)
     odometry = LegOdometry(run.chains, ekf)
     n_imu = run.imu_time.shape[0]
     imu_v = np.full((n_imu, 3), np.nan)
@@ -75,7 +82,8 @@ def run_estimators(run: BipedRun, params: VelocityEKFParams | None = None, backe
         if k >= n_kin or (i < n_imu and run.imu_time[i] <= run.kin_time[k]):
             odometry.imu(run.imu_time[i], run.gyro[i], run.accel[i])
             imu_only.update(run.imu_time[i], run.gyro[i], run.accel[i])
-            events.append(("predict", run.imu_time[i] - run.imu_time[i - 1], run.gyro[i], run.accel[i]))
+            events.append(("predict", run.imu_time[i] - run.imu_time[i - 1], run.gyro[i] - ekf.gyro_bias,
+                           run.accel[i]))
             imu_v[i], imu_g[i] = imu_only.velocity, imu_only.gravity
             ekf_v[i], ekf_g[i] = ekf.velocity, ekf.gravity
             i += 1
@@ -199,8 +207,16 @@ def _format(report: dict) -> str:
         r = f1[name]
         lines.append(f"  {name:<17}{100 * r['estimate_m_s']:>14.2f}{100 * r['truth_m_s']:>12.2f}"
                      f"{r['error_percent']:>10.1f}")
+    r = report["ekf_gyro_not_zeroed"]
+    lines.append(f"  {'ekf, raw gyro':<17}{100 * r['estimate_m_s']:>14.2f}{100 * r['truth_m_s']:>12.2f}"
+                 f"{r['error_percent']:>10.1f}   (gyro bias not removed while standing)")
     ekf_err = f1["ekf"]["error_percent"]
     lines.append(f"  EKF goal <= 5 %: {'met' if ekf_err <= 5.0 else 'MISSED'} ({ekf_err:.1f} %)")
+    spread = report["seed_spread"]
+    lines.append(f"  Same walk, seeds {spread['seeds'][0]}-{spread['seeds'][-1]}, EKF error %: "
+                 + ", ".join(f"{x:.1f}" for x in spread["ekf_error_percent"])
+                 + f"  (median {np.median(spread['ekf_error_percent']):.1f}, max {max(spread['ekf_error_percent']):.1f}"
+                 + f"; kinematics+gyro median {np.median(spread['kinematics_gyro_error_percent']):.1f})")
     lines.append("")
     lines.append("Figure 2. Velocity RMSE (cm/s) over quarters of the run, at kinematics samples with a support foot")
     for key, block in report["rmse"].items():
@@ -233,7 +249,7 @@ def _format(report: dict) -> str:
     return "\n".join(lines)
 
 
-def build_report(seed: int, duration: float, twist: bool, slip: bool) -> dict:
+def build_report(seed: int, duration: float, twist: bool, slip: bool, n_seeds: int = 5) -> dict:
     """Every figure, from fresh simulations."""
     base_disturbances = DisturbanceParams()
     slip_probability = base_disturbances.slip_probability if slip else 0.0
@@ -247,6 +263,19 @@ def build_report(seed: int, duration: float, twist: bool, slip: bool) -> dict:
     report = {"seed": seed, "duration": duration, "twist": twist, "slip": slip,
               "average_forward_velocity": average_forward_velocity(straight, result),
               "tilt": tilt_figures(straight, result), "rmse": {}}
+    raw = average_forward_velocity(straight, run_estimators(straight, zero_gyro=False))
+    report["ekf_gyro_not_zeroed"] = raw["ekf"]
+    spread = {"seeds": list(range(seed, seed + n_seeds)), "ekf_error_percent": [],
+              "kinematics_gyro_error_percent": []}
+    for other in spread["seeds"]:
+        if other == seed:
+            figures = report["average_forward_velocity"]
+        else:
+            other_run = simulate_walk(duration, other, gait=GaitParams(), disturbances=disturbances(twist))
+            figures = average_forward_velocity(other_run, run_estimators(other_run))
+        spread["ekf_error_percent"].append(figures["ekf"]["error_percent"])
+        spread["kinematics_gyro_error_percent"].append(figures["kinematics+gyro"]["error_percent"])
+    report["seed_spread"] = spread
     for walk in ("straight", "turning"):
         for twist_on in (True, False):
             gait = GaitParams() if walk == "straight" else turning_gait(duration)
@@ -271,10 +300,14 @@ def main(argv: list[str] | None = None) -> int:
                         help="foot twist episodes in the walk of figures 1, 3 and 4")
     parser.add_argument("--slip", action=argparse.BooleanOptionalAction, default=True,
                         help="limited slip episodes in every walk")
+    parser.add_argument("--seeds", type=int, default=5,
+                        help="figure 1 is also repeated for this many seeds from --seed, to show the spread")
     args = parser.parse_args(argv)
+    if args.seeds < 1:
+        parser.error(f"--seeds must be at least 1, got {args.seeds}")
     if not (math.isfinite(args.duration) and args.duration >= 4.0):
         parser.error(f"--duration must be at least 4 s, got {args.duration}")
-    report = build_report(args.seed, args.duration, args.twist, args.slip)
+    report = build_report(args.seed, args.duration, args.twist, args.slip, args.seeds)
     if args.json:
         json.dump(report, sys.stdout, indent=2)
         sys.stdout.write("\n")

@@ -48,8 +48,11 @@ def settle_time(errors: np.ndarray, times: np.ndarray, start: int, end: int, dt:
 
 def run_walk(model: str = "velocity-linear", particles: int = 500, seed: int = 0, rrd: str | None = None,
              scenario: WalkScenario = WalkScenario(), sensor: LandmarkSensorModel | None = None,
-             record_every: int = 5) -> dict:
-    """Simulate the scenario with `seed`, run the filter on it, and return the figures (and series)."""
+             record_every: int = 5, series: bool = False) -> dict:
+    """Simulate the scenario with `seed`, run the filter on it, and return the figures.
+
+    With `series`, the result also holds "series": times, truth, estimates and entropy per step (arrays).
+    """
     log = simulate(scenario, seed)
     sensor = sensor or LandmarkSensorModel(scenario.field)
     pf = ParticleFilter(scenario.field, MODELS[model](), sensor, n_particles=particles, seed=seed)
@@ -77,7 +80,10 @@ def run_walk(model: str = "velocity-linear", particles: int = 500, seed: int = 0
     elapsed = time.perf_counter() - started
     if recorder is not None:
         recorder.close()
-    return summarize(log, estimates, entropy, elapsed, model, particles, seed, rrd)
+    result = summarize(log, estimates, entropy, elapsed, model, particles, seed, rrd)
+    if series:
+        result["series"] = {"times": log.times, "truth": log.truth, "estimates": estimates, "entropy": entropy}
+    return result
 
 
 def summarize(log: WalkLog, estimates: np.ndarray, entropy: np.ndarray, elapsed: float, model: str,

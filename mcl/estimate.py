@@ -4,8 +4,9 @@
 
 The field is point-symmetric, so a lost filter may hold two mirror modes; their mean is the centre of the
 field, facing nowhere. The estimate is therefore the weighted circular mean of the dominant cluster: the
-heaviest cell of a coarse (x, y, θ) histogram seeds a few rounds of mean shift with a flat kernel, and the
-covariance is that of the particles the kernel holds. The cluster's share of the weight is returned too.
+heaviest cell of a coarse (x, y, θ) histogram seeds a few rounds of mean shift with a flat kernel (heading
+averaged as wrapped residuals about the current centre, the intrinsic circular mean), and the covariance is
+that of the particles the kernel holds. The cluster's share of the weight is returned too.
 
 Entropy is computed on a grid as in the paper, position and orientation separately, in bits:
 H = -Σ p(sᵢ) log₂ p(sᵢ), p(sᵢ) the weight in cell i. It lies in [0, log₂(cells)] and is zero while every
@@ -32,29 +33,32 @@ def _cell(value, origin, size, count):
 
 
 @numba.njit(cache=True)
-def _masked_mean(poses, weights, cx, cy, ct, radius, angle_radius, use_mask):
-    """Weighted mean (circular for θ) of the particles within the flat kernel around (cx, cy, ct)."""
+def _kernel_mean(poses, weights, cx, cy, ct, radius, angle_radius):
+    """Weighted mean of the particles within the flat kernel around (cx, cy, ct).
+
+    The heading is the intrinsic circular mean: the centre plus the weighted mean of the wrapped residuals
+    (one step of the Fréchet-mean iteration on the circle; repeated calls converge). Within the kernel's
+    ±angle_radius this needs no trigonometry.
+    """
     sx = 0.0
     sy = 0.0
-    sc = 0.0
-    ss = 0.0
+    st = 0.0
     total = 0.0
     r2 = radius * radius
     for i in range(poses.shape[0]):
-        if use_mask:
-            dx = poses[i, 0] - cx
-            dy = poses[i, 1] - cy
-            if dx * dx + dy * dy > r2 or abs(wrap_angle(poses[i, 2] - ct)) > angle_radius:
-                continue
+        dx = poses[i, 0] - cx
+        dy = poses[i, 1] - cy
+        dt = wrap_angle(poses[i, 2] - ct)
+        if dx * dx + dy * dy > r2 or abs(dt) > angle_radius:
+            continue
         w = weights[i]
-        sx += w * poses[i, 0]
-        sy += w * poses[i, 1]
-        sc += w * math.cos(poses[i, 2])
-        ss += w * math.sin(poses[i, 2])
+        sx += w * dx
+        sy += w * dy
+        st += w * dt
         total += w
     if total <= 0.0:
         return cx, cy, ct, 0.0
-    return sx / total, sy / total, math.atan2(ss, sc), total
+    return cx + sx / total, cy + sy / total, wrap_angle(ct + st / total), total
 
 
 @numba.njit(cache=True)
@@ -82,7 +86,7 @@ def cluster_estimate(poses, weights, x_min, y_min, cell_size, nx, ny, n_theta, r
     mt = -math.pi + (bt + 0.5) * theta_size
     total = 0.0
     for _ in range(iterations):
-        mx, my, mt, total = _masked_mean(poses, weights, mx, my, mt, radius, angle_radius, True)
+        mx, my, mt, total = _kernel_mean(poses, weights, mx, my, mt, radius, angle_radius)
     # Covariance of the held particles, θ residual wrapped around the circular mean.
     cov = np.zeros((3, 3))
     r2 = radius * radius
@@ -169,14 +173,14 @@ def cluster_estimate_reference(poses, weights, x_min, y_min, cell_size, nx, ny, 
     mean = np.array([x_min + (bx + 0.5) * cell_size, y_min + (by + 0.5) * cell_size, -np.pi + (bt + 0.5) * theta_size])
     total = 0.0
     for _ in range(iterations):
-        d = poses[:, :2] - mean[:2]
-        mask = ((d ** 2).sum(axis=1) <= radius ** 2) & (np.abs(wrap_angles(poses[:, 2] - mean[2])) <= angle_radius)
+        d = np.column_stack([poses[:, 0] - mean[0], poses[:, 1] - mean[1], wrap_angles(poses[:, 2] - mean[2])])
+        mask = ((d[:, :2] ** 2).sum(axis=1) <= radius ** 2) & (np.abs(d[:, 2]) <= angle_radius)
         w = weights[mask]
         total = w.sum()
         if total <= 0:
             break
-        mean = np.array([(w * poses[mask, 0]).sum() / total, (w * poses[mask, 1]).sum() / total,
-                         math.atan2((w * np.sin(poses[mask, 2])).sum() / total, (w * np.cos(poses[mask, 2])).sum() / total)])
+        shift = (w[:, None] * d[mask]).sum(axis=0) / total
+        mean = np.array([mean[0] + shift[0], mean[1] + shift[1], float(wrap_angles(mean[2] + shift[2]))])
     d = np.column_stack([poses[:, 0] - mean[0], poses[:, 1] - mean[1], wrap_angles(poses[:, 2] - mean[2])])
     mask = ((d[:, :2] ** 2).sum(axis=1) <= radius ** 2) & (np.abs(d[:, 2]) <= angle_radius)
     cov = np.zeros((3, 3))

@@ -39,6 +39,7 @@ import numpy as np
 
 from field import Field
 from field.angles import wrap_angles
+from motion_models._kernels import SQRT3 as _SQRT3, draw_variates, move_with_noise
 from motion_models.base import MotionInput, MotionModel
 from sensing.observations import Observations
 
@@ -155,11 +156,16 @@ class ParticleFilter:
     resample_threshold: resample when ESS < threshold·N (0..1)
     augmented:          AugmentedMCL parameters, or None to switch injection off
     grid:               entropy and estimate grid parameters
+    roughening:         standard deviations (x [m], y [m], θ [rad]) of the jitter added to resampled
+                        particles (Gordon et al. 1993). Without it a standing robot, whose velocity-linear
+                        noise is zero (eq. 10), collapses onto copies of a single particle after a few
+                        corrections. (0, 0, 0) switches it off.
     """
 
     def __init__(self, field: Field, motion_model: MotionModel, sensor_model, n_particles: int = 500,
                  seed: int | None = 0, resampling: str = "systematic", resample_threshold: float = 0.5,
-                 augmented: AugmentedMCL | None = AugmentedMCL(), grid: Grid = Grid()) -> None:
+                 augmented: AugmentedMCL | None = AugmentedMCL(), grid: Grid = Grid(),
+                 roughening: tuple[float, float, float] = (0.005, 0.005, 0.005)) -> None:
         if not isinstance(field, Field):
             raise ValueError(f"field = {field!r} must be a field.Field")
         if isinstance(n_particles, bool) or not isinstance(n_particles, (int, np.integer)) or n_particles <= 0:
@@ -173,6 +179,10 @@ class ParticleFilter:
             missing = [m for m in methods if not callable(getattr(obj, m, None))]
             if missing:
                 raise ValueError(f"{name} = {obj!r} lacks {', '.join(missing)}")
+        roughening_array = np.asarray(roughening, dtype=np.float64)
+        if roughening_array.shape != (3,) or not np.isfinite(roughening_array).all() or (roughening_array < 0).any():
+            raise ValueError(f"roughening = {roughening!r} must be three finite numbers >= 0")
+        self.roughening = roughening_array
         self.field = field
         self.motion_model = motion_model
         self.sensor_model = sensor_model
@@ -411,6 +421,11 @@ class ParticleFilter:
         keep = self.n - injected.shape[0]
         ancestors = _SCHEMES[self.resampling](self._weights, keep, self.rng)
         self.poses[:keep] = self.poses[ancestors]
+        if self.roughening.any():
+            # Gaussian jitter in each particle's own frame, so that it commutes with rotating the world.
+            bounds = self.roughening * _SQRT3
+            move_with_noise(self.poses[:keep], 0.0, 0.0, 0.0, bounds[0], bounds[1], bounds[2], True,
+                            draw_variates(self.rng, keep, True))
         self.poses[keep:] = injected
         self.log_weights[:] = -math.log(self.n)
         self._weights[:] = 1.0 / self.n

@@ -62,8 +62,8 @@ class MotionInput:
     def displacement(self) -> tuple[float, float, float]:
         """The intended pose change (dx, dy, dtheta) in the robot frame: odometry if given, else dt * command.
 
-        A command is integrated along its arc (the translation is rotated by half the turn), so that a
-        curved walk request lands where the robot would be.
+        A command is integrated exactly along its constant-velocity arc (the chord, turned by half the
+        turn), so that a curved walk request lands where the robot would be at any step length.
         """
         if self.odometry is not None:
             return self.odometry
@@ -71,7 +71,9 @@ class MotionInput:
             raise ValueError("MotionInput has neither command nor odometry: the model needs one of them")
         vx, vy, omega = self.command
         half_turn = 0.5 * omega * self.dt
-        c, s = math.cos(half_turn), math.sin(half_turn)
+        # The chord of a constant-velocity arc: length |v|·dt·sin(h)/h, direction turned by h = ω·dt/2.
+        chord = math.sin(half_turn) / half_turn if abs(half_turn) > 1e-9 else 1.0 - half_turn * half_turn / 6.0
+        c, s = chord * math.cos(half_turn), chord * math.sin(half_turn)
         return ((c * vx - s * vy) * self.dt, (s * vx + c * vy) * self.dt, omega * self.dt)
 
 
@@ -93,3 +95,36 @@ def check_poses(poses: np.ndarray) -> None:
                          f"{getattr(poses, 'shape', '')}")
     if not poses.flags.c_contiguous or not poses.flags.writeable:
         raise ValueError("poses must be C-contiguous and writeable (models update them in place)")
+
+
+def check_nonnegative(obj, names: tuple[str, ...]) -> None:
+    """Validate that each named parameter of a frozen model is a finite number >= 0."""
+    for name in names:
+        value = getattr(obj, name)
+        if isinstance(value, bool) or not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0):
+            raise ValueError(f"{name} = {value!r} must be a finite number >= 0")
+
+
+class BoundedNoiseModel:
+    """Shared behaviour of the models that move by the input's displacement plus robot-frame noise.
+
+    A subclass (a frozen dataclass with a `gaussian` field) defines `noise_bounds(u)`: the half-widths of
+    the uniform noise per axis (or, with `gaussian`, sqrt(3) times its standard deviation).
+    """
+
+    gaussian: bool
+
+    def check(self, u: MotionInput) -> None:
+        u.displacement()
+
+    def noise_bounds(self, u: MotionInput) -> tuple[float, float, float]:
+        raise NotImplementedError
+
+    def predict(self, poses: np.ndarray, u: MotionInput, rng: np.random.Generator) -> None:
+        from ._kernels import draw_variates, move_with_noise
+
+        check_poses(poses)
+        dx, dy, dtheta = u.displacement()
+        bx, by, bt = self.noise_bounds(u)
+        move_with_noise(poses, dx, dy, dtheta, bx, by, bt, self.gaussian,
+                        draw_variates(rng, poses.shape[0], self.gaussian))

@@ -14,14 +14,11 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-import numpy as np
-
-from ._kernels import move_with_noise
-from .base import MotionInput, check_poses
+from .base import BoundedNoiseModel, MotionInput, check_nonnegative
 
 
 @dataclass(frozen=True)
-class ConstantNoise:
+class ConstantNoise(BoundedNoiseModel):
     """Noise bounds grow with time only. Rates in m/s (x, y) and rad/s (theta)."""
 
     rate_x: float = 0.35
@@ -30,19 +27,7 @@ class ConstantNoise:
     gaussian: bool = False
 
     def __post_init__(self) -> None:
-        for name in ("rate_x", "rate_y", "rate_theta"):
-            value = getattr(self, name)
-            if not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0):
-                raise ValueError(f"{name} = {value!r} must be a finite number >= 0")
-
-    def check(self, u: MotionInput) -> None:
-        u.displacement()
+        check_nonnegative(self, ("rate_x", "rate_y", "rate_theta"))
 
     def noise_bounds(self, u: MotionInput) -> tuple[float, float, float]:
         return (u.dt * self.rate_x, u.dt * self.rate_y, u.dt * self.rate_theta)
-
-    def predict(self, poses: np.ndarray, u: MotionInput, rng: np.random.Generator) -> None:
-        check_poses(poses)
-        dx, dy, dtheta = u.displacement()
-        bx, by, bt = self.noise_bounds(u)
-        move_with_noise(poses, dx, dy, dtheta, bx, by, bt, self.gaussian, rng)

@@ -28,7 +28,8 @@ Parameters (settable attributes, validated): ``init_D`` (25·I), ``init_alpha`` 
 ``w_prune`` (1.0), ``init_lambda`` (0.999), ``final_lambda`` (0.99999), ``tau_lambda`` (0.9999),
 ``init_S2`` (1e-10), ``add_threshold`` (0.5), ``kernel`` ("Gaussian" or "BiSquare"), ``norm_in`` and
 ``norm_out`` (ones). Read-only: ``n_in``/``nIn``, ``n_out``/``nOut``, ``n_data``, ``mean_x``, ``var_x``,
-``init_M``, ``num_rfs``, ``n_pruned``; :meth:`LWPR.receptive_field` returns one RF's state.
+``init_M``, ``num_rfs``, ``n_pruned``; :meth:`LWPR.receptive_field` returns one RF's state and
+:meth:`LWPR.copy` an independent copy.
 
 Errors: a wrong shape, a non-finite value, predicting before any update, or a model file that is truncated,
 of another format version or missing a field raise ``ValueError`` naming the problem. Inputs are checked
@@ -579,10 +580,11 @@ def _update_kernel(x, y, norm_in, norm_out, fpar, ipar, init, xstats, n_data, ve
 
 
 @numba.njit(cache=True)
-def _predict_kernel(X, cutoff, norm_in, norm_out, kernel, vec, mat, proj, reg, scal, ints, counts, Y, CONF,
-                    with_conf):
+def _predict_kernel(X, cutoff, norm_in, norm_out, fpar, ipar, init, xstats, vec, mat, proj, reg, scal, ints,
+                    counts, Y, CONF, with_conf):
     """LWPR.md "predict(x, cutoff=0.001)" for each row of X. Returns the first row holding a non-finite
     value (nothing computed), or −1."""
+    kernel = ipar[_KERNEL]
     m, n = X.shape
     n_out = Y.shape[1]
     for p in range(m):
@@ -739,7 +741,6 @@ class LWPR:
         self._n_data = 0
         self._counts = np.zeros((n_out, 2), dtype=np.int64)
         self._allocate(self._INITIAL_CAPACITY)
-        self._y_train = np.empty(n_out)
 
     # ------------------------------------------------------------------ storage
     def _allocate(self, capacity: int) -> None:
@@ -750,10 +751,13 @@ class LWPR:
         self._reg = np.zeros((n_out, capacity, _N_REG, n))
         self._scal = np.zeros((n_out, capacity, _N_SCAL))
         self._ints = np.zeros((n_out, capacity, _N_INTS), dtype=np.int64)
+        self._capacity = capacity
+        self._bind()
 
-    @property
-    def _capacity(self) -> int:
-        return self._vec.shape[1]
+    def _bind(self) -> None:
+        # The kernels' array arguments, gathered once: every array is modified in place afterwards.
+        self._rf_args = (self._vec, self._mat, self._proj, self._reg, self._scal, self._ints, self._counts)
+        self._model_args = (self._norm_in, self._norm_out, self._fpar, self._ipar, self._init, self._xstats)
 
     def _grow(self, capacity: int) -> None:
         old = {name: getattr(self, "_" + name) for name in _RF_ARRAYS}
@@ -855,7 +859,7 @@ class LWPR:
 
     @norm_in.setter
     def norm_in(self, value: Any) -> None:
-        self._norm_in = self._positive_vector(value, self._n_in, "norm_in")
+        self._norm_in[:] = self._positive_vector(value, self._n_in, "norm_in")
 
     @property
     def norm_out(self) -> np.ndarray:
@@ -864,7 +868,7 @@ class LWPR:
 
     @norm_out.setter
     def norm_out(self, value: Any) -> None:
-        self._norm_out = self._positive_vector(value, self._n_out, "norm_out")
+        self._norm_out[:] = self._positive_vector(value, self._n_out, "norm_out")
 
     def _square(self, value: Any, name: str) -> np.ndarray:
         a = _as_float_array(value, f"LWPR.{name}")
@@ -889,7 +893,10 @@ class LWPR:
         return a.copy()
 
     # ---------------------------------------------------------------- training
-    def _vector(self, value: Any, n: int, name: str, method: str) -> np.ndarray:
+    @staticmethod
+    def _vector(value: Any, n: int, name: str, method: str) -> np.ndarray:
+        if type(value) is np.ndarray and value.dtype == np.float64 and value.shape == (n,):
+            return value if value.flags.c_contiguous else np.ascontiguousarray(value)
         a = _as_float_array(value, f"LWPR.{method}: {name}")
         if a.shape != (n,):
             if a.size == n and (a.ndim == 0 or (a.ndim == 2 and 1 in a.shape)):
@@ -906,10 +913,8 @@ class LWPR:
         """
         x = self._vector(x, self._n_in, "x", "update")
         y = self._vector(y, self._n_out, "y", "update")
-        y_train = self._y_train
-        status = _update_kernel(x, y, self._norm_in, self._norm_out, self._fpar, self._ipar, self._init,
-                                self._xstats, self._n_data, self._vec, self._mat, self._proj, self._reg,
-                                self._scal, self._ints, self._counts, y_train)
+        y_train = np.empty(self._n_out)
+        status = _update_kernel(x, y, *self._model_args, self._n_data, *self._rf_args, y_train)
         if status < 0:
             name, value = ("x", x) if status == -1 else ("y", y)
             raise ValueError(f"LWPR.update: {name} must be finite, got {value!r}")
@@ -917,16 +922,19 @@ class LWPR:
         if status >= self._capacity:
             # At most one RF per output is created per update: keep one free slot for the next call.
             self._grow(2 * self._capacity)
-        return y_train.copy()
+        return y_train
 
     # -------------------------------------------------------------- prediction
     def _predict(self, x: Any, cutoff: Any, with_conf: bool, method: str):
         if self._n_data == 0:
             raise ValueError(f"LWPR.{method}: the model is untrained (no update() yet)")
-        c = _scalar(cutoff, f"{method}: cutoff")
-        if c < 0.0:
-            raise ValueError(f"LWPR.{method}: cutoff must be non-negative, got {cutoff!r}")
-        a = _as_float_array(x, f"LWPR.{method}: x")
+        if type(cutoff) is float and cutoff >= 0.0:
+            c = cutoff
+        else:
+            c = _scalar(cutoff, f"{method}: cutoff")
+            if c < 0.0:
+                raise ValueError(f"LWPR.{method}: cutoff must be non-negative, got {cutoff!r}")
+        a = x if type(x) is np.ndarray and x.dtype == np.float64 else _as_float_array(x, f"LWPR.{method}: x")
         n = self._n_in
         single = True
         if a.shape == (n,) or (a.ndim == 0 and n == 1):
@@ -939,8 +947,7 @@ class LWPR:
         X = np.ascontiguousarray(X)
         Y = np.empty((X.shape[0], self._n_out))
         conf = np.empty((X.shape[0], self._n_out)) if with_conf else Y
-        bad = _predict_kernel(X, c, self._norm_in, self._norm_out, self._ipar[_KERNEL], self._vec, self._mat,
-                              self._proj, self._reg, self._scal, self._ints, self._counts, Y, conf, with_conf)
+        bad = _predict_kernel(X, c, *self._model_args, *self._rf_args, Y, conf, with_conf)
         if bad >= 0:
             raise ValueError(f"LWPR.{method}: x must be finite, got {X[bad]!r}")
         if single:
@@ -984,6 +991,14 @@ class LWPR:
             "beta0": float(s[_BETA0]), "sum_e2": float(s[_SUM_E2]), "SSp": float(s[_SSP]), "w": float(s[_W]),
             "n_reg": R, "trustworthy": bool(self._ints[o, k, _TRUST]),
         }
+
+    def copy(self) -> LWPR:
+        """An independent copy of the model (parameters and every receptive field)."""
+        twin = object.__new__(LWPR)
+        twin.__dict__.update({key: (value.copy() if isinstance(value, np.ndarray) else value)
+                              for key, value in self.__dict__.items()})
+        twin._bind()
+        return twin
 
     def __repr__(self) -> str:
         return (f"LWPR(n_in={self._n_in}, n_out={self._n_out}, n_data={self._n_data}, "

@@ -25,14 +25,11 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-import numpy as np
-
-from ._kernels import move_with_noise
-from .base import MotionInput, check_poses
+from .base import BoundedNoiseModel, MotionInput, check_nonnegative
 
 
 @dataclass(frozen=True)
-class VelocityLinear:
+class VelocityLinear(BoundedNoiseModel):
     """Hoffmann eq. 10 with documented SI defaults (see the module docstring)."""
 
     beta1: float = 1.7   # along-track noise per unit speed
@@ -42,13 +39,7 @@ class VelocityLinear:
     gaussian: bool = False
 
     def __post_init__(self) -> None:
-        for name in ("beta1", "beta2", "beta3", "beta4"):
-            value = getattr(self, name)
-            if not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0):
-                raise ValueError(f"{name} = {value!r} must be a finite number >= 0")
-
-    def check(self, u: MotionInput) -> None:
-        u.displacement()
+        check_nonnegative(self, ("beta1", "beta2", "beta3", "beta4"))
 
     def noise_bounds(self, u: MotionInput) -> tuple[float, float, float]:
         """The half-widths Δt·β|v|... of eq. 10 for this input."""
@@ -60,9 +51,3 @@ class VelocityLinear:
         # Δt·β·|v| with |v| = |Δ|/Δt: the odometry's own displacement sets the bound.
         distance = math.hypot(dx, dy)
         return (self.beta1 * distance, self.beta2 * distance, self.beta3 * distance + self.beta4 * abs(dtheta))
-
-    def predict(self, poses: np.ndarray, u: MotionInput, rng: np.random.Generator) -> None:
-        check_poses(poses)
-        dx, dy, dtheta = u.displacement()
-        bx, by, bt = self.noise_bounds(u)
-        move_with_noise(poses, dx, dy, dtheta, bx, by, bt, self.gaussian, rng)

@@ -261,10 +261,10 @@ class LegChain:
         return self.frames(angles)[-1]
 
     def imu_positions(self, angles) -> np.ndarray:
-        """IMU position p_i in every frame, eq. 5–7: row 0 is the sole frame, row j+1 DH frame j (n+2, 3)."""
+        """IMU position p_i in every frame, eq. 5–7: row 0 the sole frame, row j+1 DH frame j, last the IMU (n+3, 3)."""
         frames = self.frames(angles)
         imu = frames[-1, :3, 3]
-        return np.array([f[:3, :3].T @ (imu - f[:3, 3]) for f in frames[:-1]] + [np.zeros(3)])
+        return np.array([imu] + [f[:3, :3].T @ (imu - f[:3, 3]) for f in frames[:-1]] + [np.zeros(3)])
 
     def jacobian(self, angles) -> np.ndarray:
         """Geometric Jacobian (6, n) of the IMU pose in the sole frame: rows (linear velocity, angular)."""

@@ -2,7 +2,7 @@
 
     from sensing.velocity import VelocityEKF, VelocityEKFParams, LegOdometry, planar_increment
 
-    ekf = VelocityEKF.from_standing(accel_samples, time=t0)      # eq. 1: g = mean accelerometer, v = 0
+    ekf = VelocityEKF.from_standing(accel_samples, time=t0, gyro_samples=gyro_samples)   # eq. 1, gyro zeroed
     ekf.predict(t, gyro, accel)                                  # at the IMU rate, eq. 28–31
     ekf.correct(v_kg)                                            # at the kinematics rate, eq. 32–37
     dx, dy, dtheta = planar_increment(ekf.gravity, ekf.velocity, gyro, dt)   # robot-frame odometry
@@ -297,6 +297,19 @@ def _positive(value, name: str) -> float:
     return x
 
 
+def _standing_gyro_bias(gyro_samples) -> np.ndarray:
+    if gyro_samples is None:
+        return np.zeros(3)
+    samples = np.asarray(gyro_samples, dtype=np.float64)
+    if samples.ndim == 1:
+        samples = samples[None, :]
+    if samples.ndim != 2 or samples.shape[1] != 3 or samples.shape[0] == 0:
+        raise ValueError(f"gyro_samples must have shape (N, 3) with N >= 1, got {samples.shape}")
+    if not np.all(np.isfinite(samples)):
+        raise ValueError("gyro_samples must be finite")
+    return samples.mean(axis=0)
+
+
 def _standing_gravity(accel_samples) -> np.ndarray:
     samples = np.asarray(accel_samples, dtype=np.float64)
     if samples.ndim == 1:
@@ -317,20 +330,26 @@ def _standing_gravity(accel_samples) -> np.ndarray:
 class ImuOnlyEstimator:
     """Dead reckoning from the IMU (eq. 1–4): gravity turned by the gyro, velocity integrated from q - g."""
 
-    def __init__(self, gravity, time: float, velocity=(0.0, 0.0, 0.0), max_imu_gap: float = 0.1):
+    def __init__(self, gravity, time: float, velocity=(0.0, 0.0, 0.0), max_imu_gap: float = 0.1,
+                 gyro_bias=(0.0, 0.0, 0.0)):
         self._state = np.concatenate([_vector3(gravity, "gravity"), _vector3(velocity, "velocity")])
         self._time = _time(time)
         self.max_imu_gap = _positive(max_imu_gap, "max_imu_gap")
+        self.gyro_bias = _vector3(gyro_bias, "gyro_bias").copy()
 
     @classmethod
-    def from_standing(cls, accel_samples, time: float, **kwargs) -> "ImuOnlyEstimator":
-        """Eq. 1: gravity from the accelerometer of a robot standing still (mean of the samples), v = 0."""
-        return cls(_standing_gravity(accel_samples), time, **kwargs)
+    def from_standing(cls, accel_samples, time: float, gyro_samples=None, **kwargs) -> "ImuOnlyEstimator":
+        """Eq. 1: gravity from the accelerometer of a robot standing still (mean of the samples), v = 0.
+
+        With `gyro_samples` of the same still period, their mean is taken as the gyro bias and subtracted
+        from every later sample (an addition to the paper, which assumes an unbiased gyroscope).
+        """
+        return cls(_standing_gravity(accel_samples), time, gyro_bias=_standing_gyro_bias(gyro_samples), **kwargs)
 
     def update(self, time: float, gyro, accel) -> None:
         """Eq. 2–4 over the interval since the previous sample."""
         dt = _imu_interval(time, self._time, self.max_imu_gap)
-        gyro = _vector3(gyro, "gyro")
+        gyro = _vector3(gyro, "gyro") - self.gyro_bias
         accel = _vector3(accel, "accel")
         imu_step_kernel(self._state, gyro, accel, dt)
         self._time = float(time)
@@ -413,7 +432,7 @@ class VelocityEKF:
     """
 
     def __init__(self, gravity, time: float, params: VelocityEKFParams = VelocityEKFParams(),
-                 velocity=(0.0, 0.0, 0.0), covariance=None, backend: str = "numba"):
+                 velocity=(0.0, 0.0, 0.0), covariance=None, backend: str = "numba", gyro_bias=(0.0, 0.0, 0.0)):
         if backend not in BACKENDS:
             raise ValueError(f"backend must be one of {BACKENDS}, got {backend!r}")
         if not isinstance(params, VelocityEKFParams):
@@ -421,6 +440,7 @@ class VelocityEKF:
         self.params = params
         self.backend = backend
         self._state = np.concatenate([_vector3(gravity, "gravity"), _vector3(velocity, "velocity")])
+        self.gyro_bias = _vector3(gyro_bias, "gyro_bias").copy()
         if covariance is None:
             covariance = np.diag([params.initial_gravity_std ** 2] * 3 + [params.initial_velocity_std ** 2] * 3)
         cov = np.array(covariance, dtype=np.float64)
@@ -436,15 +456,21 @@ class VelocityEKF:
 
     @classmethod
     def from_standing(cls, accel_samples, time: float, params: VelocityEKFParams = VelocityEKFParams(),
-                      backend: str = "numba") -> "VelocityEKF":
-        """Eq. 1: start from a robot standing still; gravity is the mean accelerometer sample, v = 0."""
-        return cls(_standing_gravity(accel_samples), time, params=params, backend=backend)
+                      backend: str = "numba", gyro_samples=None) -> "VelocityEKF":
+        """Eq. 1: start from a robot standing still; gravity is the mean accelerometer sample, v = 0.
+
+        With `gyro_samples` of the same still period, their mean is taken as the gyro bias and subtracted from
+        every later sample: the state has no bias (eq. 15), and an uncorrected bias turns g steadily, which the
+        velocity corrections can only follow with a lag, biasing v.
+        """
+        return cls(_standing_gravity(accel_samples), time, params=params, backend=backend,
+                   gyro_bias=_standing_gyro_bias(gyro_samples))
 
     def predict(self, time: float, gyro, accel) -> None:
         """Prediction with the IMU sample taken at `time` (eq. 28–31), δ = time - previous time."""
         p = self.params
         dt = _imu_interval(time, self._time, p.max_imu_gap)
-        gyro = _vector3(gyro, "gyro")
+        gyro = _vector3(gyro, "gyro") - self.gyro_bias
         accel = _vector3(accel, "accel")
         if self.backend == "numba":
             ekf_predict_kernel(self._state, self._cov, gyro, accel, dt, p.gyro_noise, p.accel_noise,
@@ -529,7 +555,7 @@ class LegOdometry:
     """IMU samples drive the EKF prediction; joint encoders and foot contacts drive its correction.
 
     Joint rates are backward differences of consecutive encoder readings; the gyroscope of eq. 11 is the mean
-    of the IMU samples since the previous kinematics sample. A leg is used only if its foot was on the
+    of the IMU samples since the previous kinematics sample, less the EKF's gyro bias. A leg is used only if its foot was on the
     ground at both readings (`support_foot`). With no such leg the EKF only predicts.
     """
 
@@ -581,6 +607,7 @@ class LegOdometry:
                 dt = t - self._previous_time
                 rates = (angles[foot] - self._previous_angles[foot]) / dt
                 gyro = self._gyro_sum / self._gyro_count if self._gyro_count else self._last_gyro
+                gyro = gyro - self.ekf.gyro_bias
                 vk, vkg = self.chains[foot].velocities(angles[foot], rates, gyro)
                 self.ekf.correct(vkg)
         self._previous_time = t

@@ -1,0 +1,58 @@
+"""The `robocup-mcl` command: demos and benchmarks.
+
+    robocup-mcl demo walk [--model ...] [--particles N] [--seed S | --seeds 0-9] [--rrd PATH] [--json]
+    robocup-mcl demo velocity [--json] ...
+    robocup-mcl bench [--sizes ...] [--json]          # the filter step, numba versus numpy
+    robocup-mcl bench lwpr [--seeds N] [--json]       # LWPR on the cross benchmark
+"""
+from __future__ import annotations
+
+import importlib
+import sys
+
+DEMOS = {
+    "walk": ("demos.walk", "the particle filter on the 60 s walk scenario with a kidnapping"),
+    "velocity": ("demos.velocity", "IMU + leg kinematics velocity estimators against the truth"),
+}
+BENCHES = {
+    "step": ("mcl.bench", "one full filter step per particle count, numba versus plain numpy"),
+    "lwpr": ("demos.lwpr_cross", "LWPR on the cross benchmark: accuracy, receptive fields, speed"),
+}
+
+
+def _usage() -> str:
+    lines = [__doc__.strip(), "", "demos:"]
+    lines += [f"  {name:<10} {text}" for name, (_, text) in DEMOS.items()]
+    lines += ["benchmarks:"] + [f"  {name:<10} {text}" for name, (_, text) in BENCHES.items()]
+    return "\n".join(lines)
+
+
+def _dispatch(table: dict, name: str, argv: list[str], what: str) -> int:
+    if name not in table:
+        print(f"robocup-mcl: unknown {what} {name!r}; choose from {', '.join(table)}", file=sys.stderr)
+        return 2
+    module = importlib.import_module(table[name][0])
+    return int(module.main(argv) or 0)
+
+
+def main(argv: list[str] | None = None) -> int:
+    argv = list(sys.argv[1:] if argv is None else argv)
+    if not argv or argv[0] in ("-h", "--help"):
+        print(_usage())
+        return 0 if argv else 2
+    command, rest = argv[0], argv[1:]
+    if command == "demo":
+        if not rest or rest[0] in ("-h", "--help"):
+            print(_usage())
+            return 0 if rest else 2
+        return _dispatch(DEMOS, rest[0], rest[1:], "demo")
+    if command == "bench":
+        if rest and not rest[0].startswith("-"):
+            return _dispatch(BENCHES, rest[0], rest[1:], "benchmark")
+        return _dispatch(BENCHES, "step", rest, "benchmark")
+    print(f"robocup-mcl: unknown command {command!r}\n\n{_usage()}", file=sys.stderr)
+    return 2
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,165 @@
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+
+from field import LandmarkType, spl
+from field.angles import wrap_angles
+from sensing import LandmarkObservation, LandmarkSensorModel, Observations
+
+FIELD = spl()
+
+
+def observe(pose, kind, field=FIELD, index=0):
+    """The exact range and bearing of landmark `index` of `kind` from `pose`."""
+    target = field.landmarks_of(kind)[index]
+    d = target - np.asarray(pose[:2])
+    return math.hypot(*d), math.atan2(d[1], d[0]) - pose[2]
+
+
+# -- observations ---------------------------------------------------------------------------------------------
+@pytest.mark.parametrize("kwargs,match", [
+    (dict(kind="goalpost", range=float("nan"), bearing=0.0), "range"),
+    (dict(kind="goalpost", range=1.0, bearing=float("inf")), "bearing"),
+    (dict(kind="goalpost", range=-0.5, bearing=0.0), "range"),
+    (dict(kind="corner_flag", range=1.0, bearing=0.0), "corner_flag"),
+    (dict(kind=17, range=1.0, bearing=0.0), "17"),
+    (dict(kind="goalpost", range=1.0, bearing=0.0, range_sigma=0.0), "range_sigma"),
+    (dict(kind="goalpost", range=1.0, bearing=0.0, bearing_sigma=float("nan")), "bearing_sigma"),
+])
+def test_bad_observation_is_rejected_with_its_field(kwargs, match):
+    with pytest.raises(ValueError, match=match):
+        LandmarkObservation(**kwargs)
+
+
+def test_bad_batches_are_rejected():
+    with pytest.raises(ValueError, match="ranges"):
+        Observations.from_arrays(["goalpost"], [float("nan")], [0.0])
+    with pytest.raises(ValueError, match="ranges"):
+        Observations.from_arrays(["goalpost", "goalpost"], [1.0, -1.0], [0.0, 0.0])
+    with pytest.raises(ValueError, match="entries"):
+        Observations.from_arrays(["goalpost", "goalpost"], [1.0], [0.0, 0.0])
+    with pytest.raises(ValueError, match="not a landmark type"):
+        Observations(np.array([9]), [1.0], [0.0], [np.nan], [np.nan])
+    with pytest.raises(ValueError, match="LandmarkObservation"):
+        Observations.from_list([("goalpost", 1.0, 0.0)])
+
+
+def test_batches_are_read_only_and_convert_to_points():
+    obs = Observations.from_list([LandmarkObservation(LandmarkType.T_CROSSING, 2.0, math.pi / 2)])
+    assert not obs.ranges.flags.writeable
+    np.testing.assert_allclose(obs.points(), [[0.0, 2.0]], atol=1e-12)
+    assert len(Observations.coerce(None)) == 0
+
+
+def test_type_absent_from_the_field_is_an_error(spl_field):
+    from field import FieldDimensions, Field
+    model = LandmarkSensorModel(spl_field)
+    model.check(Observations.from_arrays(["x_crossing"], [1.0], [0.0]))
+    # A sensor model over a field whose table lacks a type must say so (simulate with an offsets hole).
+    offsets = model._offsets.copy()
+    offsets[LandmarkType.X_CROSSING + 1:] -= 2
+    object.__setattr__(model, "_offsets", offsets)
+    with pytest.raises(ValueError, match="X_CROSSING"):
+        model.check(Observations.from_arrays(["x_crossing"], [1.0], [0.0]))
+
+
+@pytest.mark.parametrize("name,value", [("range_noise_floor", 0.0), ("bearing_sigma", -1.0),
+                                        ("outlier_weight", float("nan")), ("bearing_model", "cosine")])
+def test_bad_sensor_parameters(name, value):
+    with pytest.raises(ValueError, match=name):
+        LandmarkSensorModel(FIELD, **{name: value})
+
+
+# -- likelihood -----------------------------------------------------------------------------------------------
+kinds = st.sampled_from([t.name for t in LandmarkType])
+detection = st.tuples(kinds, st.floats(0.0, 8.0), st.floats(-math.pi, math.pi),
+                      st.one_of(st.none(), st.floats(0.01, 1.0)))
+
+
+@given(st.lists(detection, min_size=1, max_size=12), st.sampled_from(["von_mises", "exact"]),
+       st.integers(0, 2**32 - 1))
+def test_kernel_matches_numpy_reference(detections, bearing_model, seed):
+    rng = np.random.default_rng(seed)
+    poses = np.column_stack([rng.uniform(-5, 5, 50), rng.uniform(-3.5, 3.5, 50), rng.uniform(-math.pi, math.pi, 50)])
+    obs = Observations.from_arrays([d[0] for d in detections], [d[1] for d in detections],
+                                   [d[2] for d in detections], [np.nan if d[3] is None else d[3] for d in detections])
+    model = LandmarkSensorModel(FIELD, bearing_model=bearing_model)
+    fast = model.log_likelihood(poses, obs)
+    slow = model.log_likelihood_reference(poses, obs)
+    assert np.isfinite(fast).all()
+    np.testing.assert_allclose(fast, slow, rtol=1e-9, atol=1e-9)
+
+
+def test_true_pose_scores_best_and_perfect_match_scores_near_zero():
+    pose = np.array([1.0, -0.5, 0.4])
+    detections = [observe(pose, kind, index=i) for kind, i in (("goalpost", 3), ("penalty_mark", 1),
+                                                               ("x_crossing", 0), ("l_crossing", 7))]
+    obs = Observations.from_arrays(["goalpost", "penalty_mark", "x_crossing", "l_crossing"],
+                                   [d[0] for d in detections], [d[1] for d in detections])
+    model = LandmarkSensorModel(FIELD)
+    rng = np.random.default_rng(0)
+    others = pose + np.column_stack([rng.normal(0, 0.5, 200), rng.normal(0, 0.5, 200), rng.normal(0, 0.3, 200)])
+    scores = model.log_likelihood(np.vstack([pose, others]), obs)
+    assert scores[0] == pytest.approx(4 * math.log1p(model.outlier_weight), abs=1e-9)
+    assert scores[0] >= scores[1:].max()
+
+
+def test_ambiguous_type_associates_with_the_best_candidate():
+    """Seen from the mirror pose, a goalpost detection matches a different post equally well."""
+    pose = np.array([2.0, 1.0, 0.3])
+    r, b = observe(pose, "goalpost", index=2)
+    obs = Observations.from_arrays(["goalpost"], [r], [b])
+    mirrored = FIELD.mirror_poses(pose[None, :])
+    model = LandmarkSensorModel(FIELD)
+    scores = model.log_likelihood(np.vstack([pose, mirrored]), obs)
+    assert scores[0] == pytest.approx(scores[1], abs=1e-9)
+
+
+@given(st.floats(-0.2, 0.2), st.floats(0.02, 0.2))
+def test_von_mises_matches_exact_for_small_bearing_errors(error, sigma):
+    pose = np.array([[0.5, 0.5, 0.0]])
+    r, b = observe(pose[0], "penalty_mark", index=1)
+    obs = Observations.from_arrays(["penalty_mark"], [r], [b + error], bearing_sigmas=[sigma])
+    exact = LandmarkSensorModel(FIELD, bearing_model="exact", outlier_weight=1e-300).log_likelihood(pose, obs)
+    von_mises = LandmarkSensorModel(FIELD, outlier_weight=1e-300).log_likelihood(pose, obs)
+    # κ(cos e − 1) = −e²/(2σ²) + e⁴/(24σ²) − ...
+    assert von_mises[0] == pytest.approx(exact[0], abs=error ** 4 / (24 * sigma ** 2) + 1e-9)
+
+
+def test_outlier_floor_bounds_the_cost_of_a_false_positive():
+    model = LandmarkSensorModel(FIELD)
+    poses = np.array([[0.0, 0.0, 0.0], [3.0, 2.0, 1.0]])
+    far_off = Observations.from_arrays(["goalpost"], [0.1], [math.pi])   # nothing explains this
+    scores = model.log_likelihood(poses, far_off)
+    assert (scores >= math.log(model.outlier_weight) - 1e-12).all()
+
+
+def test_range_noise_grows_with_range():
+    model = LandmarkSensorModel(FIELD)
+    sigmas = model.range_sigma(np.array([0.5, 2.0, 5.0]))
+    assert np.all(np.diff(sigmas) > 0)
+
+
+def test_no_observations_give_zero():
+    model = LandmarkSensorModel(FIELD)
+    assert np.array_equal(model.log_likelihood(np.zeros((3, 3)), Observations.empty()), np.zeros(3))
+
+
+# -- sensor resetting -----------------------------------------------------------------------------------------
+def test_sampled_poses_explain_the_detection():
+    pose = np.array([-1.0, 1.5, 2.0])
+    r, b = observe(pose, "penalty_mark", index=0)
+    obs = Observations.from_arrays(["penalty_mark"], [r], [b], [1e-6], [1e-6])
+    model = LandmarkSensorModel(FIELD)
+    samples = model.sample_poses(obs, 200, np.random.default_rng(0), heading=pose[2], heading_sigma=1e-6)
+    # Two penalty marks: every sample is at the true pose or at the pose that sees the other mark there.
+    near_truth = np.hypot(*(samples[:, :2] - pose[:2]).T) < 1e-3
+    assert near_truth.any() and (~near_truth).any()
+    scored_with_model_noise = Observations.from_arrays(["penalty_mark"], [r], [b])
+    assert np.allclose(model.log_likelihood(samples, scored_with_model_noise), math.log1p(model.outlier_weight),
+                       atol=1e-3)
+    assert (np.abs(wrap_angles(samples[:, 2] - pose[2])) < 1e-3).all()
+    assert model.sample_poses(Observations.empty(), 5, np.random.default_rng(0)).shape == (0, 3)

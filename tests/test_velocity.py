@@ -1,0 +1,308 @@
+"""Tests for sensing.velocity (the four estimators, the EKF, planar odometry) and the biped demo."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from scipy.spatial.transform import Rotation
+
+from demos.biped import DisturbanceParams, SensorParams, simulate_walk
+from sensing.kinematics import nao_leg, rotation_y
+from sensing.velocity import (ImuOnlyEstimator, LegOdometry, VelocityEKF, VelocityEKFParams, ekf_correct_kernel,
+                              ekf_correct_reference, ekf_jacobians_reference, ekf_predict_kernel,
+                              ekf_predict_reference, imu_step_reference, planar_increment, rotate,
+                              rotation_derivative, rotation_matrix, support_foot, tilt_error)
+
+G_UP = np.array([0.0, 0.0, 9.81])
+
+
+def assert_spd(cov):
+    assert np.all(np.isfinite(cov))
+    np.testing.assert_array_equal(cov, cov.T)
+    np.linalg.cholesky(cov)
+
+
+# --- f(β, x) and the Jacobians --------------------------------------------------------------------------
+def test_rotation_matches_scipy_and_small_angles():
+    rng = np.random.default_rng(0)
+    for scale in (1.0, 1e-3, 1e-9):
+        beta = rng.normal(size=3) * scale
+        np.testing.assert_allclose(rotation_matrix(beta), Rotation.from_rotvec(beta).as_matrix(), atol=1e-15)
+    np.testing.assert_allclose(rotation_matrix(np.zeros(3)), np.eye(3))
+
+
+def test_rotation_derivative_finite_difference():
+    rng = np.random.default_rng(1)
+    x = rng.normal(size=3)
+    h = 1e-7
+    numeric = np.column_stack([(rotate(h * e, x) - rotate(-h * e, x)) / (2 * h) for e in np.eye(3)])
+    np.testing.assert_allclose(rotation_derivative(x), numeric, atol=1e-8)
+
+
+def _numeric_jacobian(fun, x0, h=1e-6):
+    return np.column_stack([(fun(x0 + h * e) - fun(x0 - h * e)) / (2 * h) for e in np.eye(x0.size)])
+
+
+def test_transition_jacobian_F_finite_difference():
+    rng = np.random.default_rng(2)
+    dt = 0.01
+    for _ in range(5):
+        state = np.concatenate([G_UP + rng.normal(size=3) * 0.3, rng.normal(size=3) * 0.2])
+        gyro, accel = rng.normal(size=3) * 2.0, G_UP + rng.normal(size=3)
+        numeric = _numeric_jacobian(lambda s: imu_step_reference(s, gyro, accel, dt), state)
+        f_exact, _ = ekf_jacobians_reference(state, gyro, dt, 0.01, 0.05, exact=True)
+        np.testing.assert_allclose(f_exact, numeric, atol=1e-8)
+        # Eq. 24 is its first-order form: off by O(|ω| δ).
+        f_paper, _ = ekf_jacobians_reference(state, gyro, dt, 0.01, 0.05, exact=False)
+        assert np.abs(f_paper - numeric).max() < 2.0 * np.linalg.norm(gyro) * dt
+
+
+@pytest.mark.parametrize("gyro_scale", [0.0, 1.0])
+def test_noise_jacobian_C_finite_difference(gyro_scale):
+    rng = np.random.default_rng(3)
+    dt, sigma_w, sigma_q = 0.01, 0.02, 0.3
+    state = np.concatenate([G_UP + rng.normal(size=3) * 0.3, rng.normal(size=3) * 0.2])
+    gyro_hat, accel_hat = rng.normal(size=3) * gyro_scale, G_UP + rng.normal(size=3)
+
+    def with_noise(noise):           # eq. 16–18: true inputs are ω̂ - ω̃ and q̂ - q̃, noise scaled as in eq. 23
+        return imu_step_reference(state, gyro_hat - noise[:3] * sigma_w, accel_hat - noise[3:] * sigma_q, dt)
+
+    numeric = _numeric_jacobian(with_noise, np.zeros(6), h=1e-4)
+    _, c = ekf_jacobians_reference(state, gyro_hat, dt, sigma_w, sigma_q)
+    tolerance = 1e-9 if gyro_scale == 0.0 else 2.0 * np.linalg.norm(gyro_hat) * dt * np.abs(c).max()
+    np.testing.assert_allclose(c, numeric, atol=tolerance)
+
+
+def test_kernels_match_references():
+    rng = np.random.default_rng(4)
+    state = np.concatenate([G_UP, [0.1, 0.0, 0.0]])
+    cov = np.diag([0.01] * 3 + [0.001] * 3)
+    s_k, c_k = state.copy(), cov.copy()
+    for i in range(300):
+        gyro, accel = rng.normal(size=3), G_UP + rng.normal(size=3)
+        ekf_predict_kernel(s_k, c_k, gyro, accel, 0.01, 0.01, 0.05, i % 2 == 0)
+        state, cov = ekf_predict_reference(state, cov, gyro, accel, 0.01, 0.01, 0.05, i % 2 == 0)
+        if i % 3 == 0:
+            z = rng.normal(size=3) * 0.1
+            ekf_correct_kernel(s_k, c_k, z, 0.05)
+            state, cov = ekf_correct_reference(state, cov, z, 0.05)
+    np.testing.assert_allclose(s_k, state, atol=1e-12)
+    np.testing.assert_allclose(c_k, cov, atol=1e-15)
+    assert_spd(c_k)
+
+
+def test_backends_agree_through_the_class():
+    rng = np.random.default_rng(5)
+    filters = [VelocityEKF(G_UP, 0.0, backend=b) for b in ("numba", "reference")]
+    for i in range(1, 200):
+        gyro, accel = rng.normal(size=3) * 0.5, G_UP + rng.normal(size=3) * 0.2
+        z = rng.normal(size=3) * 0.05
+        for f in filters:
+            f.predict(i * 0.01, gyro, accel)
+            if i % 3 == 0:
+                f.correct(z)
+    np.testing.assert_allclose(filters[0].state, filters[1].state, atol=1e-12)
+    np.testing.assert_allclose(filters[0].covariance, filters[1].covariance, atol=1e-15)
+
+
+# --- covariance stays SPD (hypothesis) ------------------------------------------------------------------
+@settings(max_examples=25, deadline=None)
+@given(seed=st.integers(0, 2 ** 32 - 1), n_steps=st.integers(50, 1500), correction_every=st.integers(1, 400),
+       gyro_scale=st.floats(0.0, 10.0), accel_scale=st.floats(0.0, 30.0), dt=st.floats(1e-4, 0.09),
+       exact=st.booleans(), sigma_v=st.floats(1e-3, 1.0))
+def test_covariance_stays_symmetric_positive_definite(seed, n_steps, correction_every, gyro_scale, accel_scale, dt,
+                                                     exact, sigma_v):
+    rng = np.random.default_rng(seed)
+    params = VelocityEKFParams(exact_jacobian=exact, velocity_noise=sigma_v)
+    ekf = VelocityEKF(G_UP, 0.0, params=params)
+    t = 0.0
+    for i in range(n_steps):
+        t += dt
+        ekf.predict(t, rng.normal(size=3) * gyro_scale, G_UP + rng.normal(size=3) * accel_scale)
+        if i % correction_every == 0:
+            ekf.correct(rng.normal(size=3) * 0.5)
+        if i % 97 == 0:
+            assert_spd(ekf.covariance)
+    assert np.all(np.isfinite(ekf.state))
+    assert_spd(ekf.covariance)
+
+
+# --- the robot standing still ---------------------------------------------------------------------------
+def test_standing_robot_gives_zero_velocity_and_gravity():
+    rng = np.random.default_rng(6)
+    tilt = rotation_y(0.1)                     # trunk leaning 0.1 rad
+    true_g = tilt.T @ G_UP
+    chains = (nao_leg("left"), nao_leg("right"))
+    angles = np.array([[0.0, -0.45, 0.9, -0.45, 0.0, 0.0]] * 2)
+    accel_bias = np.array([0.02, -0.01, 0.03])
+    standing = true_g + accel_bias + rng.normal(size=(50, 3)) * 0.05
+    ekf = VelocityEKF.from_standing(standing, 0.49)
+    imu_only = ImuOnlyEstimator.from_standing(standing, 0.49)
+    odometry = LegOdometry(chains, ekf)
+    contacts = np.ones((2, 4), dtype=bool)
+    velocities = []
+    for i in range(50, 1050):
+        t = i * 0.01
+        gyro, accel = rng.normal(size=3) * 0.01, true_g + accel_bias + rng.normal(size=3) * 0.05
+        odometry.imu(t, gyro, accel)
+        imu_only.update(t, gyro, accel)
+        if i % 3 == 0:
+            sample = odometry.kinematics(t + 0.001, angles, contacts)
+            if i > 52:
+                assert sample.foot in (0, 1)
+                np.testing.assert_allclose(sample.velocity_kinematic, 0.0, atol=1e-12)
+        velocities.append(ekf.velocity)
+    velocities = np.array(velocities[-500:])
+    assert np.linalg.norm(velocities.mean(axis=0)) < 0.01        # no drift, only sensor noise
+    assert np.abs(velocities).max() < 0.03
+    assert math.degrees(tilt_error(ekf.gravity, true_g)) < 0.5
+    assert not ekf.is_stale
+    assert_spd(ekf.covariance)
+    assert np.linalg.norm(imu_only.velocity) > np.linalg.norm(velocities[-1])   # dead reckoning drifts
+
+
+def test_noise_free_standing_is_exactly_still():
+    ekf = VelocityEKF.from_standing(np.tile(G_UP, (10, 1)), 0.0)
+    odometry = LegOdometry((nao_leg("left"),), ekf)
+    for i in range(1, 1001):
+        odometry.imu(i * 0.01, np.zeros(3), G_UP)
+        if i % 3 == 0:
+            odometry.kinematics(i * 0.01, np.zeros((1, 6)), np.ones((1, 4), bool))
+    np.testing.assert_allclose(ekf.velocity, 0.0, atol=1e-12)
+    np.testing.assert_allclose(ekf.gravity, G_UP, atol=1e-12)
+
+
+def test_noise_free_walk_all_estimators_track_truth():
+    sensors = SensorParams(accel_noise=0, accel_bias=0, gyro_noise=0, gyro_bias=0, encoder_resolution=0,
+                           contact_error=0)
+    run = simulate_walk(4.0, 0, sensors=sensors, disturbances=DisturbanceParams(0.0, slip_probability=0.0))
+    from demos.velocity import ekf_params_for, run_estimators
+    result = run_estimators(run, params=ekf_params_for(SensorParams()))
+    n0 = result["n0"]
+    assert np.abs(result["imu_velocity"][n0:] - run.true_velocity[n0:]).max() < 0.01
+    assert np.abs(result["ekf_velocity"][n0:] - run.true_velocity[n0:]).max() < 0.015
+    valid = result["foot"] >= 0
+    assert valid[run.kin_time > result["t0"]].mean() > 0.95
+    for name in ("kinematics", "kinematics+gyro"):
+        assert np.abs(result["kin"][name][valid] - run.true_kin_velocity[valid]).max() < 0.02
+    assert np.degrees(tilt_error(result["ekf_gravity"][n0:], run.true_gravity[n0:])).max() < 0.2
+
+
+# --- bad input ------------------------------------------------------------------------------------------
+def test_bad_samples_are_rejected_and_leave_state_untouched():
+    ekf = VelocityEKF(G_UP, 1.0)
+    ekf.predict(1.01, [0.1, 0, 0], G_UP)
+    before = (ekf.state, ekf.covariance, ekf.time)
+    cases = [((1.01, [0, 0, 0], G_UP), "time must be after"),          # zero time step
+             ((1.0, [0, 0, 0], G_UP), "out of order"),
+             ((np.nan, [0, 0, 0], G_UP), "time must be finite"),
+             ((1.02, [0, np.nan, 0], G_UP), "gyro must be finite"),
+             ((1.02, [0, 0, 0], [0, 0]), "accel must have shape"),
+             ((5.0, [0, 0, 0], G_UP), "max_imu_gap")]
+    for args, message in cases:
+        with pytest.raises(ValueError, match=message):
+            ekf.predict(*args)
+        np.testing.assert_array_equal(ekf.state, before[0])
+        np.testing.assert_array_equal(ekf.covariance, before[1])
+        assert ekf.time == before[2]
+    with pytest.raises(ValueError, match="measured_velocity must be finite"):
+        ekf.correct([np.nan, 0, 0])
+    np.testing.assert_array_equal(ekf.state, before[0])
+    with pytest.raises(ValueError, match="backend"):
+        VelocityEKF(G_UP, 0.0, backend="gpu")
+    with pytest.raises(ValueError, match="velocity_noise"):
+        VelocityEKFParams(velocity_noise=0.0)
+    with pytest.raises(ValueError, match="accel_samples"):
+        VelocityEKF.from_standing(np.zeros((10, 3)), 0.0)
+
+
+def test_leg_odometry_rejects_wrong_joint_arrays():
+    ekf = VelocityEKF(G_UP, 0.0)
+    odometry = LegOdometry((nao_leg("left"), nao_leg("right")), ekf)
+    with pytest.raises(ValueError, match="angles must have shape"):
+        odometry.kinematics(0.0, np.zeros((2, 5)), np.ones((2, 4), bool))
+    with pytest.raises(ValueError, match="angles must be finite"):
+        odometry.kinematics(0.0, np.full((2, 6), np.nan), np.ones((2, 4), bool))
+    odometry.kinematics(0.0, np.zeros((2, 6)), np.ones((2, 4), bool))
+    with pytest.raises(ValueError, match="time must be after"):
+        odometry.kinematics(0.0, np.zeros((2, 6)), np.ones((2, 4), bool))
+
+
+def test_no_foot_in_contact_for_long_predicts_only():
+    rng = np.random.default_rng(7)
+    ekf = VelocityEKF(G_UP, 0.0)
+    odometry = LegOdometry((nao_leg("left"), nao_leg("right")), ekf)
+    no_contact = np.zeros((2, 4), dtype=bool)
+    for i in range(1, 3001):                   # 30 s airborne (or with broken contact sensors)
+        odometry.imu(i * 0.01, rng.normal(size=3) * 0.01, G_UP + rng.normal(size=3) * 0.05)
+        if i % 3 == 0:
+            sample = odometry.kinematics(i * 0.01, np.zeros((2, 6)), no_contact)
+            assert sample.foot == -1 and np.all(np.isnan(sample.velocity_kinematic_gyro))
+    assert ekf.n_corrections == 0 and ekf.is_stale
+    assert np.all(np.isfinite(ekf.state))
+    assert_spd(ekf.covariance)
+    assert ekf.covariance[3, 3] > VelocityEKFParams().initial_velocity_std ** 2
+
+
+def test_support_foot_selection():
+    c = np.array([[1, 1, 1, 0], [1, 1, 1, 1]], dtype=bool)
+    assert support_foot(c) == 1
+    assert support_foot(np.array([[1, 1, 0, 0], [1, 1, 0, 0]], bool), previous=1) == 1
+    assert support_foot(np.array([[1, 1, 0, 0], [1, 1, 0, 0]], bool)) == 0
+    assert support_foot(np.array([[1, 0, 0, 0], [0, 0, 0, 0]], bool)) == -1
+
+
+# --- planar odometry ------------------------------------------------------------------------------------
+@pytest.mark.parametrize("lateral", [0.0, 0.05])
+def test_planar_increments_follow_a_constant_velocity_arc(lateral):
+    speed, yaw_rate, dt, steps = 0.2, 0.4, 0.01, 1000
+    trunk = rotation_y(0.15) @ Rotation.from_rotvec([0.08, 0, 0]).as_matrix()   # tilted IMU (level → IMU: Rᵀ)
+    # Level frame: x is the IMU x axis projected; the robot-frame velocity (speed, lateral) in IMU axes:
+    forward = trunk[:, 0] - trunk[2, 0] * np.array([0, 0, 1.0])
+    forward /= np.linalg.norm(forward)
+    left = np.cross([0, 0, 1.0], forward)
+    velocity = trunk.T @ (speed * forward + lateral * left)
+    gravity = trunk.T @ G_UP
+    gyro = trunk.T @ np.array([0.0, 0.0, yaw_rate])
+    pose = np.zeros(3)
+    for _ in range(steps):
+        dx, dy, dtheta = planar_increment(gravity, velocity, gyro, dt)
+        c, s = math.cos(pose[2]), math.sin(pose[2])
+        pose += [c * dx - s * dy, s * dx + c * dy, dtheta]
+    t = steps * dt
+    heading0 = math.atan2(lateral, speed)
+    radius = math.hypot(speed, lateral) / yaw_rate
+    expected = radius * np.array([math.sin(yaw_rate * t + heading0) - math.sin(heading0),
+                                  math.cos(heading0) - math.cos(yaw_rate * t + heading0)])
+    np.testing.assert_allclose(pose[:2], expected, atol=1e-12)
+    assert pose[2] == pytest.approx(yaw_rate * t, abs=1e-12)
+    # Rows give the same as one at a time, and a straight line stays exact.
+    rows = planar_increment(np.tile(gravity, (3, 1)), np.tile(velocity, (3, 1)), np.zeros((3, 3)), [dt] * 3)
+    np.testing.assert_allclose(rows[:, :2], np.tile([speed * dt, lateral * dt], (3, 1)), atol=1e-15)
+
+
+# --- simulator and demo ---------------------------------------------------------------------------------
+def test_simulator_is_deterministic_and_twist_keeps_noise():
+    a = simulate_walk(3.0, 11)
+    b = simulate_walk(3.0, 11)
+    c = simulate_walk(3.0, 11, disturbances=DisturbanceParams(twist_probability=0.0))
+    np.testing.assert_array_equal(a.gyro, b.gyro)
+    np.testing.assert_array_equal(a.joint_angles, b.joint_angles)
+    np.testing.assert_array_equal(a.gyro, c.gyro)                # the trunk and IMU do not feel a twist
+    res = a.sensors.encoder_resolution
+    np.testing.assert_allclose(a.joint_angles / res, np.round(a.joint_angles / res), atol=1e-9)
+    assert a.contacts.shape == (a.kin_time.size, 2, 4)
+
+
+def test_demo_main_json(capsys):
+    from demos.velocity import main
+    assert main(["--json", "--duration", "5", "--seeds", "1", "--no-twist"]) == 0
+    report = json.loads(capsys.readouterr().out)
+    assert set(report["average_forward_velocity"]) == {"imu", "kinematics", "kinematics+gyro", "ekf"}
+    assert report["timing"]["max_state_difference"] < 1e-9
+    assert len(report["rmse"]) == 4
