@@ -1,7 +1,7 @@
 """`robocup-mcl demo walk`: the particle filter on the walk scenario, with the figures the README quotes.
 
     robocup-mcl demo walk [--model constant|velocity-linear] [--particles N] [--seed S | --seeds 0-9]
-                          [--rrd PATH] [--json]
+                          [--lines] [--rrd PATH] [--json]
 
 The filter starts uniform over the own half (unknown heading), predicts at 100 Hz from the walk request and
 corrects with each camera frame. Measured per run:
@@ -25,7 +25,7 @@ import numpy as np
 from field.angles import wrap_angles
 from mcl import ParticleFilter
 from motion_models import ConstantNoise, MotionInput, VelocityLinear
-from sensing import LandmarkSensorModel
+from sensing import CombinedSensorModel, LandmarkSensorModel, LineSensorModel
 
 from .walk_sim import WalkLog, WalkScenario, simulate
 
@@ -54,7 +54,10 @@ def run_walk(model: str = "velocity-linear", particles: int = 500, seed: int = 0
     With `series`, the result also holds "series": times, truth, estimates and entropy per step (arrays).
     """
     log = simulate(scenario, seed)
-    sensor = sensor or LandmarkSensorModel(scenario.field)
+    if sensor is None:
+        sensor = LandmarkSensorModel(scenario.field)
+        if scenario.lines:
+            sensor = CombinedSensorModel((sensor, LineSensorModel(scenario.field)))
     pf = ParticleFilter(scenario.field, MODELS[model](), sensor, n_particles=particles, seed=seed)
     pf.reset_uniform("own_half")
     recorder = None
@@ -110,7 +113,7 @@ def summarize(log: WalkLog, estimates: np.ndarray, entropy: np.ndarray, elapsed:
         return float(np.sqrt(np.mean(values[tracking] ** 2))) if tracking.any() else None
 
     return {
-        "model": model, "particles": particles, "seed": seed,
+        "model": model, "particles": particles, "seed": seed, "lines": log.scenario.lines,
         "converged_s": converged, "reconverged_s": reconverged,
         "position_rmse_m": rmse(position_error), "heading_rmse_deg": None if rmse(heading_error) is None
         else math.degrees(rmse(heading_error)),
@@ -168,6 +171,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--seeds", help='several seeds: "0-9" or "0,3,5" (overrides --seed)')
     parser.add_argument("--duration", type=float, default=60.0, help="seconds of walking (default 60)")
+    parser.add_argument("--lines", action="store_true",
+                        help="the camera also reports points on field lines, scored by the line model")
     parser.add_argument("--rrd", help="write a Rerun recording here (one seed only)")
     parser.add_argument("--json", action="store_true", help="print JSON instead of a table")
     args = parser.parse_args(argv)
@@ -176,7 +181,7 @@ def main(argv: list[str] | None = None) -> int:
     seeds = parse_seeds(args.seeds) if args.seeds else [args.seed]
     if args.rrd and len(seeds) > 1:
         parser.error("--rrd records one run: give --seed, not --seeds")
-    scenario = WalkScenario()
+    scenario = WalkScenario(lines=args.lines)
     if args.duration != scenario.duration:
         kidnap = scenario.kidnap_time if args.duration > (scenario.kidnap_time or 0) + 5 else None
         scenario = replace(scenario, duration=args.duration, kidnap_time=kidnap)
@@ -187,7 +192,8 @@ def main(argv: list[str] | None = None) -> int:
         print()
         return 0
     print(f"walk scenario: {scenario.duration:.0f} s on {scenario.field.name}, model {args.model}, "
-          f"{args.particles} particles, kidnapping at {scenario.kidnap_time} s")
+          f"{args.particles} particles, kidnapping at {scenario.kidnap_time} s, "
+          f"{'landmarks and lines' if scenario.lines else 'landmarks only'}")
     print(f"{'seed':>4} {'pos RMSE':>9} {'head RMSE':>9} {'converge':>9} {'reconv.':>8} {'mirror':>7} {'ms/step':>8}")
     for r in runs:
         print(f"{r['seed']:>4} {_fmt(r['position_rmse_m'], ' m'):>9} {_fmt(r['heading_rmse_deg'], '°', 2):>9} "

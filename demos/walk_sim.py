@@ -8,7 +8,8 @@ sideways drift in the request). Its true motion is not its request: a per-run sc
 turn bias, and step-to-step noise, as a walking engine's odometry differs from what it is asked. Camera at
 30 Hz, 60° horizontal field of view on a head panning ±45° every 4 s: landmarks in view and range are
 detected with a probability falling with range; range noise grows with the square of the range (a camera's
-pitch error), bearing noise is constant; a few false positives per second of random type. At
+pitch error), bearing noise is constant; a few false positives per second of random type. With `lines`,
+the frame also holds points on the visible field lines (same noise, some missed, a few false). At
 `kidnap_time` the robot is carried `kidnap_distance` metres in a random direction (heading kept, as the
 gyro keeps it); the motion input says nothing of it.
 """
@@ -43,6 +44,11 @@ class WalkScenario:
     range_noise_growth: float = 0.015     # 1/m (σ_r = floor + growth·r²)
     bearing_noise: float = 0.03           # rad
     false_positive_rate: float = 0.15     # per camera frame
+    lines: bool = False                   # report points on detected field lines too
+    line_max_range: float = 4.0           # m
+    line_point_spacing: float = 0.15      # m between points reported along a line
+    line_detection: float = 0.6           # probability that a visible line point is reported
+    false_line_points: float = 1.0        # per camera frame (white things that are not lines)
     odometry_scale_sigma: float = 0.06    # per-run scale error of vx, vy, ω (1σ)
     turn_bias_sigma: float = 0.03         # rad/s, per-run drift while walking
     step_noise: float = 0.05              # relative step-to-step velocity noise
@@ -82,7 +88,25 @@ def _random_point(s: WalkScenario, rng: np.random.Generator, x_range=None) -> np
     return np.array([rng.uniform(lo, hi), rng.uniform(-hw, hw)])
 
 
-def _camera(s: WalkScenario, pose: np.ndarray, head: float, rng: np.random.Generator) -> Observations:
+def _line_points(s: WalkScenario, pose: np.ndarray, head: float, rng: np.random.Generator,
+                 candidates: np.ndarray) -> np.ndarray:
+    """Points on the visible lines, in the robot frame, with the camera's range and bearing noise."""
+    d = candidates - pose[:2]
+    r = np.hypot(d[:, 0], d[:, 1])
+    bearing = wrap_angles(np.arctan2(d[:, 1], d[:, 0]) - pose[2])
+    visible = ((np.abs(wrap_angles(bearing - head)) <= 0.5 * s.field_of_view) & (r >= s.min_range)
+               & (r <= s.line_max_range) & (rng.random(r.shape[0]) < s.line_detection))
+    r, bearing = r[visible], bearing[visible]
+    r = np.maximum(r + (s.range_noise_floor + s.range_noise_growth * r ** 2) * rng.standard_normal(r.shape[0]), 0)
+    bearing = bearing + s.bearing_noise * rng.standard_normal(bearing.shape[0])
+    n_false = rng.poisson(s.false_line_points)
+    r = np.append(r, rng.uniform(s.min_range, s.line_max_range, n_false))
+    bearing = np.append(bearing, head + rng.uniform(-0.5 * s.field_of_view, 0.5 * s.field_of_view, n_false))
+    return np.column_stack([r * np.cos(bearing), r * np.sin(bearing)])
+
+
+def _camera(s: WalkScenario, pose: np.ndarray, head: float, rng: np.random.Generator,
+            line_candidates: np.ndarray | None = None) -> Observations:
     kinds, ranges, bearings = [], [], []
     half_fov = 0.5 * s.field_of_view
     for kind in LandmarkType:
@@ -103,7 +127,9 @@ def _camera(s: WalkScenario, pose: np.ndarray, head: float, rng: np.random.Gener
         kinds.append(int(rng.choice([int(t) for t in LandmarkType])))
         ranges.append(rng.uniform(s.min_range, 0.6 * s.max_range))
         bearings.append(head + rng.uniform(-half_fov, half_fov))
-    return Observations.from_arrays(kinds, ranges, wrap_angles(np.array(bearings, dtype=np.float64)))
+    points = None if line_candidates is None else _line_points(s, pose, head, rng, line_candidates)
+    return Observations.from_arrays(kinds, ranges, wrap_angles(np.array(bearings, dtype=np.float64)),
+                                    line_points=points)
 
 
 def simulate(scenario: WalkScenario = WalkScenario(), seed: int = 0) -> WalkLog:
@@ -125,6 +151,7 @@ def simulate(scenario: WalkScenario = WalkScenario(), seed: int = 0) -> WalkLog:
     truth = np.empty((n_steps, 3))
     commands = np.empty((n_steps, 3))
     frames = []
+    line_candidates = s.field.line_points(spacing=s.line_point_spacing) if s.lines else None
     next_frame = camera_every
     for k in range(n_steps):
         t = times[k]
@@ -153,7 +180,7 @@ def simulate(scenario: WalkScenario = WalkScenario(), seed: int = 0) -> WalkLog:
         if k + 1 >= next_frame:
             next_frame += camera_every
             head = s.head_pan_amplitude * math.sin(2 * math.pi * t / s.head_pan_period)
-            frames.append(CameraFrame(k, _camera(s, pose, head, rng), head))
+            frames.append(CameraFrame(k, _camera(s, pose, head, rng, line_candidates), head))
     return WalkLog(s, dt, times, truth, commands, tuple(frames), start, kidnap_step)
 
 

@@ -103,8 +103,9 @@ class AugmentedMCL:
     sensor_reset_fraction: float = 0.5   # share of injected particles drawn from a detection
     heading_sigma: float = 0.3           # rad, spread of injected headings around the estimate
     max_fraction: float = 0.25           # never replace more than this share of the particles at once
-    confident_corrections: int = 30      # corrections in a row the estimate must be confident before its
-                                         # heading guides injection (one second of a 30 Hz camera)
+    confident_corrections: int = 120     # corrections in a row the estimate must be confident before its
+                                         # heading guides injection: one sweep of a head panning every 4 s
+                                         # at 30 Hz, so the hypothesis has met everything the camera sees
 
     def __post_init__(self) -> None:
         if not (0 < self.alpha_slow < self.alpha_fast <= 1):
@@ -149,7 +150,9 @@ class ParticleFilter:
 
     field:              the field (bounds for resets, injection and the entropy grid)
     motion_model:       any motion model (`motion_models`)
-    sensor_model:       any sensor model with `check(observations)` and `log_likelihood(poses, observations)`
+    sensor_model:       any sensor model with `check(observations)` and `log_likelihood(poses, observations)`;
+                        optional: `terms(observations)` (independent terms scored, default: detections)
+                        and `sample_poses` (sensor resetting)
     n_particles:        N > 0
     seed:               seed of the filter's one random generator (same seed, same run)
     resampling:         "systematic" (default), "stratified", "residual" or "multinomial"
@@ -311,7 +314,7 @@ class ParticleFilter:
         """Weigh the particles by the detections, then resample (and inject) if needed."""
         observations = Observations.coerce(observations)
         self.sensor_model.check(observations)
-        if len(observations) == 0:
+        if observations.is_empty:
             return
         log_likelihood = self.sensor_model.log_likelihood(self.poses, observations, out=self._log_likelihood)
         if np.isnan(log_likelihood).any() or (log_likelihood == np.inf).any():
@@ -329,7 +332,8 @@ class ParticleFilter:
             return
         self.log_weights[:] = candidate - log_evidence
         self.ess = ess
-        fraction = self._update_augmented(native_log_average / len(observations))
+        terms = getattr(self.sensor_model, "terms", len)(observations)
+        fraction = self._update_augmented(native_log_average / terms) if terms > 0 else 0.0
         count = self._injection_count(fraction)
         if count > 0 or ess < self.resample_threshold * self.n:
             self._resample(count, observations)

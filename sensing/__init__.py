@@ -1,8 +1,15 @@
-"""What the robot perceives: landmark observations and the landmark sensor model.
+"""What the robot perceives: observations and the sensor models that score them.
 
-    from sensing import LandmarkObservation, Observations, LandmarkSensorModel
+    from sensing import LandmarkObservation, Observations, LandmarkSensorModel, LineSensorModel
+
+`LandmarkSensorModel` scores typed range-bearing detections (goalposts, line crossings, marks);
+`LineSensorModel` scores points on detected field lines against a distance-transform likelihood field;
+`CombinedSensorModel` adds them. Leg kinematics and the velocity EKF live in `sensing.kinematics` and
+`sensing.velocity`.
 """
+from .combined import CombinedSensorModel
 from .landmarks import LandmarkSensorModel
+from .lines import LineSensorModel
 from .observations import LandmarkObservation, Observations
 
-__all__ = ["LandmarkObservation", "Observations", "LandmarkSensorModel"]
+__all__ = ["LandmarkObservation", "Observations", "LandmarkSensorModel", "LineSensorModel", "CombinedSensorModel"]

@@ -229,6 +229,10 @@ class LandmarkSensorModel:
             raise ValueError(f"observation {i}: field {self.field.name!r} has no landmark of type "
                              f"{LandmarkType(int(kinds[i])).name}")
 
+    def terms(self, observations: Observations) -> int:
+        """How many independent terms the likelihood sums: one per landmark detection."""
+        return len(observations)
+
     def _sigmas(self, observations: Observations) -> tuple[np.ndarray, np.ndarray]:
         range_sigmas = np.where(np.isnan(observations.range_sigmas), self.range_sigma(observations.ranges),
                                 observations.range_sigmas)

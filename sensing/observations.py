@@ -79,9 +79,11 @@ def _check_number(name: str, value: object) -> None:
 
 @dataclass(frozen=True, eq=False)
 class Observations:
-    """A batch of detections as read-only float64/int64 arrays of equal length.
+    """One camera frame's detections as read-only arrays.
 
-    kinds (int64 landmark type values), ranges, bearings, range_sigmas, bearing_sigmas (NaN = not given).
+    Landmarks, arrays of equal length: kinds (int64 landmark type values), ranges, bearings, range_sigmas,
+    bearing_sigmas (NaN = not given). Field lines: line_points, (P, 2) points on detected lines in the
+    robot frame [m] (empty when the vision reports none).
     """
 
     kinds: np.ndarray
@@ -89,8 +91,22 @@ class Observations:
     bearings: np.ndarray
     range_sigmas: np.ndarray
     bearing_sigmas: np.ndarray
+    line_points: np.ndarray | None = None
 
     def __post_init__(self) -> None:
+        raw = np.zeros((0, 2)) if self.line_points is None else self.line_points
+        try:
+            points = np.array(raw, dtype=np.float64, copy=True).reshape(-1, 2)
+        except (TypeError, ValueError):
+            raise ValueError(f"line_points = {raw!r} must be an array of (x, y) points") from None
+        if not np.isfinite(points).all():
+            i = int(np.argmin(np.isfinite(points).all(axis=1)))
+            raise ValueError(f"line_points[{i}] = {points[i].tolist()!r} must be finite")
+        points.flags.writeable = False
+        object.__setattr__(self, "line_points", points)
+        self._check_landmarks()
+
+    def _check_landmarks(self) -> None:
         n = None
         for name in ("kinds", "ranges", "bearings", "range_sigmas", "bearing_sigmas"):
             dtype = np.int64 if name == "kinds" else np.float64
@@ -127,17 +143,17 @@ class Observations:
     @classmethod
     def from_arrays(cls, kinds: Sequence, ranges: Sequence[float], bearings: Sequence[float],
                     range_sigmas: Sequence[float] | None = None,
-                    bearing_sigmas: Sequence[float] | None = None) -> "Observations":
+                    bearing_sigmas: Sequence[float] | None = None, line_points=None) -> "Observations":
         kinds_arr = np.array([landmark_type(k).value for k in np.atleast_1d(np.asarray(kinds, dtype=object))],
                              dtype=np.int64) if len(np.atleast_1d(kinds)) else np.zeros(0, np.int64)
         n = kinds_arr.shape[0]
         nan = np.full(n, np.nan)
         return cls(kinds_arr, ranges, bearings,
                    nan if range_sigmas is None else range_sigmas,
-                   nan if bearing_sigmas is None else bearing_sigmas)
+                   nan if bearing_sigmas is None else bearing_sigmas, line_points)
 
     @classmethod
-    def from_list(cls, observations: Iterable[LandmarkObservation]) -> "Observations":
+    def from_list(cls, observations: Iterable[LandmarkObservation], line_points=None) -> "Observations":
         items = list(observations)
         for i, o in enumerate(items):
             if not isinstance(o, LandmarkObservation):
@@ -147,6 +163,7 @@ class Observations:
             [o.range for o in items], [o.bearing for o in items],
             [np.nan if o.range_sigma is None else o.range_sigma for o in items],
             [np.nan if o.bearing_sigma is None else o.bearing_sigma for o in items],
+            line_points,
         )
 
     @classmethod
@@ -163,7 +180,13 @@ class Observations:
         return cls.from_list(observations)
 
     def __len__(self) -> int:
+        """The number of landmark detections (line points are counted by `is_empty` and the line model)."""
         return int(self.kinds.shape[0])
+
+    @property
+    def is_empty(self) -> bool:
+        """No landmark and no line point."""
+        return self.kinds.shape[0] == 0 and self.line_points.shape[0] == 0
 
     def points(self) -> np.ndarray:
         """The detections as (n, 2) points in the robot frame."""

@@ -2,10 +2,12 @@
 
     from sensing.velocity import VelocityEKF, VelocityEKFParams, LegOdometry, planar_increment
 
-    ekf = VelocityEKF.from_standing(accel_samples, time=t0, gyro_samples=gyro_samples)   # eq. 1, gyro zeroed
-    ekf.predict(t, gyro, accel)                                  # at the IMU rate, eq. 28–31
+    ekf = VelocityEKF.from_standing(accel_samples, time=t0, gyro_samples=gyro_samples)   # eq. 1, b from the gyro
+    ekf.predict(t, gyro, accel)                                  # at the IMU rate, eq. 28–31, raw gyro
     ekf.correct(v_kg)                                            # at the kinematics rate, eq. 32–37
-    dx, dy, dtheta = planar_increment(ekf.gravity, ekf.velocity, gyro, dt)   # robot-frame odometry
+    dx, dy, dtheta = planar_increment(ekf.gravity, ekf.velocity, gyro - ekf.gyro_bias, dt)   # robot-frame odometry
+
+    paper = VelocityEKFParams(estimate_gyro_bias=False)          # the paper's filter, state [g, v], exactly
 
     odometry = LegOdometry((left_chain, right_chain), ekf)       # or let it pick the support foot
     odometry.imu(t, gyro, accel)
@@ -20,6 +22,13 @@ numpy twins (`ekf_predict_reference`, `ekf_correct_reference`) compute the same 
 Choices beyond the paper, all documented where they are made: the transition Jacobian F keeps the rotation
 blocks that eq. 24 drops to first order (`exact_jacobian=False` gives eq. 24 verbatim); the covariance update
 of eq. 37 is evaluated in Joseph form, equal in exact arithmetic, so P stays symmetric positive definite.
+
+The gyro bias (not in the paper, on by default: `VelocityEKFParams(estimate_gyro_bias=True)`): the state is
+[g, v, b], the IMU step turns g and v by ω̂ - b, and b is a slow random walk (`gyro_bias_random_walk`).
+Without it, a bias left after zeroing the gyro on a standing robot keeps turning g, and the velocity follows
+the corrections with a lag, which biases v. Its kernels are `ekf_bias_predict_kernel` and
+`ekf_bias_jacobians_kernel` (numpy: `ekf_bias_predict_reference`, `ekf_bias_jacobians_reference`); the
+correction is shared. With `estimate_gyro_bias=False` the filter is the paper's, unchanged.
 
 Bad input raises ValueError naming the field, and leaves the filter as it was: non-finite samples, a time that
 does not advance, an IMU gap longer than `max_imu_gap`. With no foot on the ground the filter only predicts;
@@ -88,6 +97,43 @@ def rotation_derivative(x) -> np.ndarray:
     and the finite-difference test checks this form.
     """
     return -skew(x)
+
+
+@numba.njit(cache=True)
+def left_jacobian_kernel(beta0, beta1, beta2, out):
+    """Left Jacobian J(β) of SO(3), written into out (3, 3): R(β + dβ) = R(J(β) dβ) R(β) to first order."""
+    angle2 = beta0 * beta0 + beta1 * beta1 + beta2 * beta2
+    if angle2 < 1e-12:
+        # Taylor terms: (1 - cos θ)/θ² ≈ 1/2 - θ²/24, (θ - sin θ)/θ³ ≈ 1/6 - θ²/120.
+        a = 0.5 - angle2 / 24.0
+        b = 1.0 / 6.0 - angle2 / 120.0
+    else:
+        angle = math.sqrt(angle2)
+        a = (1.0 - math.cos(angle)) / angle2
+        b = (angle - math.sin(angle)) / (angle2 * angle)
+    # J = I + a [β]× + b [β]×², with [β]×² = β βᵀ - θ² I.
+    out[0, 0] = 1.0 + b * (beta0 * beta0 - angle2)
+    out[1, 1] = 1.0 + b * (beta1 * beta1 - angle2)
+    out[2, 2] = 1.0 + b * (beta2 * beta2 - angle2)
+    out[0, 1] = -a * beta2 + b * beta0 * beta1
+    out[1, 0] = a * beta2 + b * beta0 * beta1
+    out[0, 2] = a * beta1 + b * beta0 * beta2
+    out[2, 0] = -a * beta1 + b * beta0 * beta2
+    out[1, 2] = -a * beta0 + b * beta1 * beta2
+    out[2, 1] = a * beta0 + b * beta1 * beta2
+
+
+def left_jacobian(beta) -> np.ndarray:
+    """Left Jacobian of SO(3) at the rotation vector β."""
+    beta = np.asarray(beta, dtype=np.float64)
+    out = np.empty((3, 3))
+    left_jacobian_kernel(beta[0], beta[1], beta[2], out)
+    return out
+
+
+def rotation_derivative_at(beta, x) -> np.ndarray:
+    """∂f(β, x)/∂β at any β: -[f(β, x)]× J(β) (J the left Jacobian); at β = 0 it is `rotation_derivative`."""
+    return -skew(rotate(beta, x)) @ left_jacobian(beta)
 
 
 # ---------------------------------------------------------------------------------------------------------
@@ -163,8 +209,102 @@ def ekf_predict_kernel(state, cov, gyro, accel, dt, sigma_w, sigma_q, exact):
 
 
 @numba.njit(cache=True)
+def _skew_times_kernel(x, m, scale, out, row):
+    """out[row:row+3, 6:9] += scale · [x]× m."""
+    for c in range(3):
+        out[row + 0, 6 + c] += scale * (-x[2] * m[1, c] + x[1] * m[2, c])
+        out[row + 1, 6 + c] += scale * (x[2] * m[0, c] - x[0] * m[2, c])
+        out[row + 2, 6 + c] += scale * (-x[1] * m[0, c] + x[0] * m[1, c])
+
+
+@numba.njit(cache=True)
+def ekf_bias_jacobians_kernel(state, gyro, dt, sigma_w, sigma_q, sigma_b, exact, f_out, c_out):
+    """F and C of the filter with state [g, v, b] at the prior state, into f_out (9, 9) and c_out (9, 9).
+
+    The IMU step turns g and v by the corrected rate u = ω̂ - b; the bias is a random walk. F's bias columns
+    are ∂[g, v]⁺/∂b = -∂[g, v]⁺/∂u. The gyro noise enters through the same u = ω̂ - b - ω̃, so C's gyro-noise
+    columns are σ_ω times the bias columns of F. exact: every block exact, the bias columns through the left
+    Jacobian of SO(3); not exact: eq. 24 and eq. 25 verbatim for [g, v], and the bias columns at u = 0 (which
+    are then eq. 25's gyro columns over σ_ω). C's accelerometer columns are those of eq. 25; its bias columns
+    σ_b √δ I, the random walk of b over δ.
+    """
+    f_out[:, :] = 0.0
+    c_out[:, :] = 0.0
+    u0, u1, u2 = gyro[0] - state[6], gyro[1] - state[7], gyro[2] - state[8]
+    g = state[0:3].copy()
+    v = state[3:6].copy()
+    if exact:
+        half = np.empty((3, 3))
+        rotation_matrix_kernel(-u0 * dt / 2.0, -u1 * dt / 2.0, -u2 * dt / 2.0, half)
+        full = half @ half
+        for r in range(3):
+            for c in range(3):
+                f_out[r, c] = full[r, c]
+                f_out[3 + r, 3 + c] = full[r, c]
+                f_out[3 + r, c] = -half[r, c] * dt
+        jac_full = np.empty((3, 3))
+        jac_half = np.empty((3, 3))
+        left_jacobian_kernel(-u0 * dt, -u1 * dt, -u2 * dt, jac_full)
+        left_jacobian_kernel(-u0 * dt / 2.0, -u1 * dt / 2.0, -u2 * dt / 2.0, jac_half)
+        # g⁺ = f(-uδ, g), v⁺ = f(-uδ, v) + (q - f(-uδ/2, g))δ, and ∂f(β, x)/∂β = -[f(β, x)]× J(β).
+        _skew_times_kernel(full @ g, jac_full, -dt, f_out, 0)
+        _skew_times_kernel(full @ v, jac_full, -dt, f_out, 3)
+        _skew_times_kernel(half @ g, jac_half, dt * dt / 2.0, f_out, 3)
+    else:
+        for k in range(3):
+            f_out[k, k] = 1.0
+            f_out[3 + k, 3 + k] = 1.0
+            f_out[3 + k, k] = -dt
+        eye = np.eye(3)
+        _skew_times_kernel(g, eye, -dt, f_out, 0)
+        _skew_times_kernel(v, eye, -dt, f_out, 3)
+        _skew_times_kernel(g, eye, dt * dt / 2.0, f_out, 3)
+    root_dt = math.sqrt(dt)
+    for r in range(6):
+        for c in range(3):
+            c_out[r, c] = f_out[r, 6 + c] * sigma_w
+    for k in range(3):
+        f_out[6 + k, 6 + k] = 1.0
+        c_out[3 + k, 3 + k] = -dt * sigma_q
+        c_out[6 + k, 6 + k] = root_dt * sigma_b
+
+
+@numba.njit(cache=True)
+def ekf_bias_predict_kernel(state, cov, gyro, accel, dt, sigma_w, sigma_q, sigma_b, exact):
+    """Prediction of the filter with state [g, v, b], in place: eq. 28–30 with ω̂ - b, b kept; P ← F P Fᵀ + C Cᵀ.
+
+    gyro is the raw sample ω̂; the state's bias is subtracted here.
+    """
+    f = np.empty((9, 9))
+    c = np.empty((9, 9))
+    ekf_bias_jacobians_kernel(state, gyro, dt, sigma_w, sigma_q, sigma_b, exact, f, c)
+    corrected = np.empty(3)
+    for k in range(3):
+        corrected[k] = gyro[k] - state[6 + k]
+    imu_step_kernel(state[:6], corrected, accel, dt)
+    fp = np.zeros((9, 9))
+    for i in range(9):
+        for k in range(9):
+            fik = f[i, k]
+            if fik != 0.0:
+                for j in range(9):
+                    fp[i, j] += fik * cov[k, j]
+    for i in range(9):
+        for j in range(i, 9):
+            acc = 0.0
+            for k in range(9):
+                acc += fp[i, k] * f[j, k] + c[i, k] * c[j, k]
+            cov[i, j] = acc
+            cov[j, i] = acc
+
+
+@numba.njit(cache=True)
 def ekf_correct_kernel(state, cov, measured, sigma_v):
-    """EKF correction in place with the velocity measurement v^KG (eq. 32–37), covariance in Joseph form."""
+    """EKF correction in place with the velocity measurement v^KG (eq. 32–37), covariance in Joseph form.
+
+    Any state whose entries 3–5 are the velocity: [g, v] (n = 6) or [g, v, b] (n = 9).
+    """
+    n = state.shape[0]
     # S = H P Hᵀ + σ_v² I (eq. 34), H = [0 I] (eq. 33); inverse by cofactors.
     s = np.empty((3, 3))
     for r in range(3):
@@ -183,8 +323,8 @@ def ekf_correct_kernel(state, cov, measured, sigma_v):
     inv[2, 0] = (s[1, 0] * s[2, 1] - s[1, 1] * s[2, 0]) / det
     inv[2, 1] = (s[0, 1] * s[2, 0] - s[0, 0] * s[2, 1]) / det
     inv[2, 2] = (s[0, 0] * s[1, 1] - s[0, 1] * s[1, 0]) / det
-    gain = np.zeros((6, 3))                                # K = P Hᵀ S⁻¹ (eq. 35)
-    for i in range(6):
+    gain = np.zeros((n, 3))                                # K = P Hᵀ S⁻¹ (eq. 35)
+    for i in range(n):
         for j in range(3):
             acc = 0.0
             for k in range(3):
@@ -193,29 +333,29 @@ def ekf_correct_kernel(state, cov, measured, sigma_v):
     innovation = np.empty(3)                               # eq. 32
     for k in range(3):
         innovation[k] = measured[k] - state[3 + k]
-    for i in range(6):                                     # eq. 36
+    for i in range(n):                                     # eq. 36
         acc = 0.0
         for k in range(3):
             acc += gain[i, k] * innovation[k]
         state[i] += acc
     # eq. 37 as (I - KH) P (I - KH)ᵀ + σ_v² K Kᵀ.
-    a = np.zeros((6, 6))
-    for i in range(6):
+    a = np.zeros((n, n))
+    for i in range(n):
         a[i, i] = 1.0
         for k in range(3):
             a[i, 3 + k] -= gain[i, k]
-    ap = np.zeros((6, 6))
-    for i in range(6):
-        for k in range(6):
+    ap = np.zeros((n, n))
+    for i in range(n):
+        for k in range(n):
             aik = a[i, k]
             if aik != 0.0:
-                for j in range(6):
+                for j in range(n):
                     ap[i, j] += aik * cov[k, j]
     r2 = sigma_v * sigma_v
-    for i in range(6):
-        for j in range(i, 6):
+    for i in range(n):
+        for j in range(i, n):
             acc = 0.0
-            for k in range(6):
+            for k in range(n):
                 acc += ap[i, k] * a[j, k]
             for k in range(3):
                 acc += r2 * gain[i, k] * gain[j, k]
@@ -260,13 +400,53 @@ def ekf_predict_reference(state, cov, gyro, accel, dt, sigma_w, sigma_q, exact=T
     return imu_step_reference(state, gyro, accel, dt), (new_cov + new_cov.T) / 2.0
 
 
+def bias_imu_step_reference(state, gyro, accel, dt) -> np.ndarray:
+    """The IMU step of the state [g, v, b] in numpy: eq. 2–4 with the rate ω̂ - b; b unchanged."""
+    state = np.asarray(state, dtype=np.float64)
+    corrected = np.asarray(gyro, dtype=np.float64) - state[6:]
+    return np.concatenate([imu_step_reference(state[:6], corrected, accel, dt), state[6:]])
+
+
+def ekf_bias_jacobians_reference(state, gyro, dt, sigma_w, sigma_q, sigma_b,
+                                 exact=True) -> tuple[np.ndarray, np.ndarray]:
+    """F and C of the filter with state [g, v, b] in numpy (see `ekf_bias_jacobians_kernel`)."""
+    state = np.asarray(state, dtype=np.float64)
+    corrected = np.asarray(gyro, dtype=np.float64) - state[6:]
+    g, v = state[:3], state[3:6]
+    f6, _ = ekf_jacobians_reference(state[:6], corrected, dt, sigma_w, sigma_q, exact)
+    if exact:
+        # -∂[g, v]⁺/∂u with g⁺ = f(-uδ, g), v⁺ = f(-uδ, v) + (q - f(-uδ/2, g))δ.
+        full, half = -corrected * dt, -corrected * dt / 2.0
+        f_gb = rotation_derivative_at(full, g) * dt
+        f_vb = rotation_derivative_at(full, v) * dt - rotation_derivative_at(half, g) * dt ** 2 / 2.0
+    else:
+        f_gb = rotation_derivative(g) * dt
+        f_vb = rotation_derivative(v) * dt - rotation_derivative(g) * dt ** 2 / 2.0
+    f_b = np.vstack([f_gb, f_vb])
+    f = np.block([[f6, f_b], [np.zeros((3, 6)), np.eye(3)]])
+    c = np.zeros((9, 9))
+    c[:6, :3] = f_b * sigma_w
+    c[3:6, 3:6] = -np.eye(3) * dt * sigma_q
+    c[6:, 6:] = np.eye(3) * math.sqrt(dt) * sigma_b
+    return f, c
+
+
+def ekf_bias_predict_reference(state, cov, gyro, accel, dt, sigma_w, sigma_q, sigma_b, exact=True):
+    """Numpy twin of `ekf_bias_predict_kernel`: returns (state, covariance)."""
+    f, c = ekf_bias_jacobians_reference(state, gyro, dt, sigma_w, sigma_q, sigma_b, exact)
+    new_cov = f @ cov @ f.T + c @ c.T
+    return bias_imu_step_reference(state, gyro, accel, dt), (new_cov + new_cov.T) / 2.0
+
+
 def ekf_correct_reference(state, cov, measured, sigma_v):
     """Numpy twin of `ekf_correct_kernel`: returns (state, covariance)."""
-    h = np.hstack([np.zeros((3, 3)), np.eye(3)])
+    n = state.shape[0]
+    h = np.zeros((3, n))                          # eq. 33, H = [0 I] (and 0 for the bias)
+    h[:, 3:6] = np.eye(3)
     s = h @ cov @ h.T + np.eye(3) * sigma_v ** 2
     gain = np.linalg.solve(s, h @ cov).T          # P Hᵀ S⁻¹ (S and P symmetric)
-    new_state = state + gain @ (np.asarray(measured, dtype=np.float64) - state[3:])
-    a = np.eye(6) - gain @ h
+    new_state = state + gain @ (np.asarray(measured, dtype=np.float64) - state[3:6])
+    a = np.eye(n) - gain @ h
     new_cov = a @ cov @ a.T + sigma_v ** 2 * gain @ gain.T
     return new_state, (new_cov + new_cov.T) / 2.0
 
@@ -404,6 +584,14 @@ class VelocityEKFParams:
     initial_velocity_std give the starting covariance. An IMU gap longer than max_imu_gap (s) is refused;
     `is_stale` is true after max_prediction_time (s) without a correction. exact_jacobian keeps the rotation
     blocks of F (False: eq. 24 as printed).
+
+    estimate_gyro_bias adds the gyro bias b to the state, [g, v, b] (not in the paper; False is the paper's
+    filter with state [g, v] exactly). gyro_noise is then the white noise alone, since the bias is no longer
+    noise. initial_gyro_bias_std (rad/s) is the bias's starting standard deviation when it is not measured
+    from a standing robot (`VelocityEKF.from_standing` with gyro samples uses the standard error of their
+    mean). gyro_bias_random_walk σ_b (rad/s/√s) is the bias's random walk: its variance grows by σ_b² δ per
+    prediction. The default is the spread of the bias between runs, 0.005 rad/s, reached over an hour
+    (0.005 / √3600 s): a bias that is constant in a run should move little, but b must not freeze.
     """
 
     gyro_noise: float = 0.01
@@ -414,11 +602,27 @@ class VelocityEKFParams:
     max_imu_gap: float = 0.1
     max_prediction_time: float = 1.0
     exact_jacobian: bool = True
+    estimate_gyro_bias: bool = True
+    initial_gyro_bias_std: float = 0.005
+    gyro_bias_random_walk: float = 0.005 / 60.0
 
     def __post_init__(self):
         for name in ("gyro_noise", "accel_noise", "velocity_noise", "initial_gravity_std",
-                     "initial_velocity_std", "max_imu_gap", "max_prediction_time"):
+                     "initial_velocity_std", "max_imu_gap", "max_prediction_time", "initial_gyro_bias_std",
+                     "gyro_bias_random_walk"):
             _positive(getattr(self, name), name)
+
+    @property
+    def state_size(self) -> int:
+        return 9 if self.estimate_gyro_bias else 6
+
+    def initial_covariance(self, gyro_bias_std: float | None = None) -> np.ndarray:
+        """The starting P: diagonal, from the initial standard deviations (bias: `gyro_bias_std` if given)."""
+        variances = [self.initial_gravity_std ** 2] * 3 + [self.initial_velocity_std ** 2] * 3
+        if self.estimate_gyro_bias:
+            std = self.initial_gyro_bias_std if gyro_bias_std is None else gyro_bias_std
+            variances += [std ** 2] * 3
+        return np.diag(variances)
 
 
 BACKENDS = ("numba", "reference")
@@ -427,8 +631,10 @@ BACKENDS = ("numba", "reference")
 class VelocityEKF:
     """The EKF of Section V: state [g, v] (eq. 15), prediction from the IMU, correction from v^KG.
 
-    `backend` is "numba" (the kernels) or "reference" (the numpy twins); both give the same numbers to
-    rounding. Accessors return copies.
+    With `params.estimate_gyro_bias` the state is [g, v, b]: the gyro bias b is estimated and the IMU step
+    uses ω̂ - b (`gyro_bias` is then the current estimate); without it, `gyro_bias` is a constant subtracted
+    from every sample and the filter is the paper's. `backend` is "numba" (the kernels) or "reference" (the
+    numpy twins); both give the same numbers to rounding. Accessors return copies.
     """
 
     def __init__(self, gravity, time: float, params: VelocityEKFParams = VelocityEKFParams(),
@@ -439,13 +645,17 @@ class VelocityEKF:
             raise ValueError(f"params must be a VelocityEKFParams, got {type(params).__name__}")
         self.params = params
         self.backend = backend
+        bias = _vector3(gyro_bias, "gyro_bias").copy()
         self._state = np.concatenate([_vector3(gravity, "gravity"), _vector3(velocity, "velocity")])
-        self.gyro_bias = _vector3(gyro_bias, "gyro_bias").copy()
+        if params.estimate_gyro_bias:
+            self._state = np.concatenate([self._state, bias])
+        self._fixed_gyro_bias = bias
+        n = params.state_size
         if covariance is None:
-            covariance = np.diag([params.initial_gravity_std ** 2] * 3 + [params.initial_velocity_std ** 2] * 3)
+            covariance = params.initial_covariance()
         cov = np.array(covariance, dtype=np.float64)
-        if cov.shape != (6, 6) or not np.all(np.isfinite(cov)):
-            raise ValueError(f"covariance must be a finite (6, 6) matrix, got shape {cov.shape}")
+        if cov.shape != (n, n) or not np.all(np.isfinite(cov)):
+            raise ValueError(f"covariance must be a finite ({n}, {n}) matrix, got shape {cov.shape}")
         if not np.allclose(cov, cov.T) or np.linalg.eigvalsh((cov + cov.T) / 2.0).min() <= 0.0:
             raise ValueError("covariance must be symmetric positive definite")
         self._cov = np.ascontiguousarray((cov + cov.T) / 2.0)
@@ -459,19 +669,38 @@ class VelocityEKF:
                       backend: str = "numba", gyro_samples=None) -> "VelocityEKF":
         """Eq. 1: start from a robot standing still; gravity is the mean accelerometer sample, v = 0.
 
-        With `gyro_samples` of the same still period, their mean is taken as the gyro bias and subtracted from
-        every later sample: the state has no bias (eq. 15), and an uncorrected bias turns g steadily, which the
-        velocity corrections can only follow with a lag, biasing v.
+        With `gyro_samples` of the same still period, their mean is taken as the gyro bias. The paper's filter
+        (eq. 15, no bias in the state) subtracts it from every later sample; what remains of the bias turns g
+        steadily, which the velocity corrections can only follow with a lag, biasing v. With
+        `params.estimate_gyro_bias` the mean starts the state's b, with the standard error of the mean,
+        σ_ω / √N, as its standard deviation.
         """
-        return cls(_standing_gravity(accel_samples), time, params=params, backend=backend,
-                   gyro_bias=_standing_gyro_bias(gyro_samples))
+        gravity = _standing_gravity(accel_samples)
+        bias = _standing_gyro_bias(gyro_samples)
+        covariance = None
+        if params.estimate_gyro_bias and gyro_samples is not None:
+            n_samples = np.asarray(gyro_samples, dtype=np.float64).reshape(-1, 3).shape[0]
+            covariance = params.initial_covariance(params.gyro_noise / math.sqrt(n_samples))
+        return cls(gravity, time, params=params, backend=backend, gyro_bias=bias, covariance=covariance)
 
     def predict(self, time: float, gyro, accel) -> None:
         """Prediction with the IMU sample taken at `time` (eq. 28–31), δ = time - previous time."""
         p = self.params
         dt = _imu_interval(time, self._time, p.max_imu_gap)
-        gyro = _vector3(gyro, "gyro") - self.gyro_bias
+        gyro = _vector3(gyro, "gyro")
         accel = _vector3(accel, "accel")
+        if p.estimate_gyro_bias:
+            if self.backend == "numba":
+                ekf_bias_predict_kernel(self._state, self._cov, gyro, accel, dt, p.gyro_noise, p.accel_noise,
+                                        p.gyro_bias_random_walk, p.exact_jacobian)
+            else:
+                self._state, self._cov = ekf_bias_predict_reference(
+                    self._state, self._cov, gyro, accel, dt, p.gyro_noise, p.accel_noise, p.gyro_bias_random_walk,
+                    p.exact_jacobian)
+            self._time = float(time)
+            self.n_predictions += 1
+            return
+        gyro = gyro - self._fixed_gyro_bias
         if self.backend == "numba":
             ekf_predict_kernel(self._state, self._cov, gyro, accel, dt, p.gyro_noise, p.accel_noise,
                                p.exact_jacobian)
@@ -502,10 +731,18 @@ class VelocityEKF:
 
     @property
     def velocity(self) -> np.ndarray:
-        return self._state[3:].copy()
+        return self._state[3:6].copy()
+
+    @property
+    def gyro_bias(self) -> np.ndarray:
+        """The bias subtracted from the gyro: the estimate b, or the constant one of the paper's filter."""
+        if self.params.estimate_gyro_bias:
+            return self._state[6:].copy()
+        return self._fixed_gyro_bias.copy()
 
     @property
     def state(self) -> np.ndarray:
+        """[g, v] or [g, v, b]."""
         return self._state.copy()
 
     @property
@@ -555,8 +792,8 @@ class LegOdometry:
     """IMU samples drive the EKF prediction; joint encoders and foot contacts drive its correction.
 
     Joint rates are backward differences of consecutive encoder readings; the gyroscope of eq. 11 is the mean
-    of the IMU samples since the previous kinematics sample, less the EKF's gyro bias. A leg is used only if its foot was on the
-    ground at both readings (`support_foot`). With no such leg the EKF only predicts.
+    of the IMU samples since the previous kinematics sample, less the EKF's gyro bias (its current estimate
+    when the EKF has one). A leg is used only if its foot was on the ground at both readings (`support_foot`). With no such leg the EKF only predicts.
     """
 
     def __init__(self, chains: Sequence[LegChain], ekf: VelocityEKF, min_pressed: int = 2):

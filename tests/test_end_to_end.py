@@ -105,3 +105,8 @@ def test_seed_parsing_and_aggregate():
     summary = aggregate(runs)
     assert summary["position_rmse_m"]["median"] == 0.06 and summary["position_rmse_m"]["worst_seed"] == 1
     assert summary["converged_s"]["worst"] is None and summary["converged_s"]["failed_seeds"] == 1
+
+
+def test_walk_with_lines_runs(capsys):
+    assert walk_main(["--duration", "3", "--particles", "200", "--lines", "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["lines"] is True

@@ -1,0 +1,141 @@
+"""The field-line sensor model: points on detected lines scored against a likelihood field of the lines.
+
+    from sensing import LineSensorModel
+    model = LineSensorModel(spl())                       # precomputes the distance map once
+    log_likelihood = model.log_likelihood(poses, observations)      # uses observations.line_points
+
+As in nav2_amcl's likelihood-field model and Bit-Bots' localization: a distance transform
+(`scipy.ndimage.distance_transform_edt`) of the rasterized line centre lines gives, for every cell of the
+carpet, the distance d to the nearest line. A line point p seen in the robot frame scores, for a particle at
+pose x, log(exp(-½(d(x ⊕ p)/σ)²) + outlier_weight). Points beyond the map score the floor. Neighbouring points
+on a line are not independent, so at most `max_points` (spread evenly over the detections) are used.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field as dataclass_field
+
+import numba
+import numpy as np
+from scipy import ndimage
+
+from field import Field
+
+from .observations import Observations
+
+
+@numba.njit(cache=True)
+def line_log_likelihood(poses, points, distance, x0, y0, inverse_cell, inv_var, log_outlier, out):
+    """out[i] = Σ_points log(exp(-½ d²/σ²) + outlier), d looked up in the distance map (nearest cell)."""
+    ny, nx = distance.shape
+    outlier = math.exp(log_outlier)
+    m = points.shape[0]
+    for i in range(poses.shape[0]):
+        c = math.cos(poses[i, 2])
+        s = math.sin(poses[i, 2])
+        total = 0.0
+        product = 1.0
+        for j in range(m):
+            gx = poses[i, 0] + c * points[j, 0] - s * points[j, 1]
+            gy = poses[i, 1] + s * points[j, 0] + c * points[j, 1]
+            col = int(math.floor((gx - x0) * inverse_cell))
+            row = int(math.floor((gy - y0) * inverse_cell))
+            if 0 <= col < nx and 0 <= row < ny:
+                d = distance[row, col]
+                product *= math.exp(-0.5 * d * d * inv_var) + outlier
+            else:
+                product *= outlier
+            if (j & 15) == 15:  # each factor is in (outlier, 1 + outlier]: flush before it can underflow
+                total += math.log(product)
+                product = 1.0
+        out[i] = total + math.log(product)
+    return out
+
+
+def line_log_likelihood_reference(poses, points, distance, x0, y0, cell, sigma, outlier_weight):
+    """Plain numpy version of `line_log_likelihood`."""
+    c, s = np.cos(poses[:, 2:3]), np.sin(poses[:, 2:3])
+    gx = poses[:, 0:1] + c * points[None, :, 0] - s * points[None, :, 1]
+    gy = poses[:, 1:2] + s * points[None, :, 0] + c * points[None, :, 1]
+    col = np.floor((gx - x0) / cell).astype(np.int64)
+    row = np.floor((gy - y0) / cell).astype(np.int64)
+    inside = (col >= 0) & (col < distance.shape[1]) & (row >= 0) & (row < distance.shape[0])
+    d = distance[np.clip(row, 0, distance.shape[0] - 1), np.clip(col, 0, distance.shape[1] - 1)]
+    match = np.where(inside, np.exp(-0.5 * (d / sigma) ** 2), 0.0)
+    return np.log(match + outlier_weight).sum(axis=1)
+
+
+@dataclass(frozen=True, eq=False)
+class LineSensorModel:
+    """Likelihood field of the field lines. sigma [m]: spread of a line point around its line."""
+
+    field: Field
+    sigma: float = 0.1
+    resolution: float = 0.02
+    max_points: int = 12
+    outlier_weight: float = 0.05
+    _distance: np.ndarray = dataclass_field(init=False, repr=False)
+    _origin: tuple[float, float] = dataclass_field(init=False, repr=False)
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.field, Field):
+            raise ValueError(f"field = {self.field!r} must be a field.Field")
+        for name in ("sigma", "resolution", "outlier_weight"):
+            value = getattr(self, name)
+            if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
+                raise ValueError(f"{name} = {value!r} must be a finite number > 0")
+        if isinstance(self.max_points, bool) or not isinstance(self.max_points, int) or self.max_points < 1:
+            raise ValueError(f"max_points = {self.max_points!r} must be an integer >= 1")
+        border = self.field.dims.border_strip_width
+        x0, y0 = -self.field.half_length - border, -self.field.half_width - border
+        nx = int(math.ceil(2 * (self.field.half_length + border) / self.resolution))
+        ny = int(math.ceil(2 * (self.field.half_width + border) / self.resolution))
+        on_line = np.ones((ny, nx), dtype=bool)   # True = not a line cell (the transform measures to False)
+        points = self.field.line_points(spacing=self.resolution / 2)
+        cols = np.clip(((points[:, 0] - x0) / self.resolution).astype(np.int64), 0, nx - 1)
+        rows = np.clip(((points[:, 1] - y0) / self.resolution).astype(np.int64), 0, ny - 1)
+        on_line[rows, cols] = False
+        distance = ndimage.distance_transform_edt(on_line) * self.resolution
+        distance = np.ascontiguousarray(distance, dtype=np.float64)
+        distance.flags.writeable = False
+        object.__setattr__(self, "_distance", distance)
+        object.__setattr__(self, "_origin", (x0, y0))
+
+    @property
+    def distance_map(self) -> np.ndarray:
+        """(rows, cols) distance to the nearest line [m]; row = y, col = x, cell (0, 0) at the carpet corner."""
+        return self._distance
+
+    def check(self, observations: Observations) -> None:
+        """Line points need no field-specific check (they were validated as finite when built)."""
+
+    def used_points(self, observations: Observations) -> np.ndarray:
+        """The at most `max_points` line points scored, spread evenly over the detections."""
+        points = observations.line_points
+        if points.shape[0] <= self.max_points:
+            return points
+        index = np.linspace(0, points.shape[0] - 1, self.max_points).round().astype(np.int64)
+        return np.ascontiguousarray(points[index])
+
+    def terms(self, observations: Observations) -> int:
+        """How many independent terms the likelihood sums (for the filter's per-term fit)."""
+        return int(self.used_points(observations).shape[0])
+
+    def log_likelihood(self, poses: np.ndarray, observations: Observations,
+                       out: np.ndarray | None = None) -> np.ndarray:
+        observations = Observations.coerce(observations)
+        out = np.empty(poses.shape[0]) if out is None else out
+        points = self.used_points(observations)
+        if points.shape[0] == 0:
+            out[:] = 0.0
+            return out
+        x0, y0 = self._origin
+        return line_log_likelihood(poses, points, self._distance, x0, y0, 1.0 / self.resolution,
+                                   1.0 / self.sigma ** 2, math.log(self.outlier_weight), out)
+
+    def log_likelihood_reference(self, poses: np.ndarray, observations: Observations) -> np.ndarray:
+        points = self.used_points(Observations.coerce(observations))
+        if points.shape[0] == 0:
+            return np.zeros(poses.shape[0])
+        return line_log_likelihood_reference(poses, points, self._distance, *self._origin, self.resolution,
+                                             self.sigma, self.outlier_weight)
