@@ -168,7 +168,7 @@ class ParticleFilter:
     def __init__(self, field: Field, motion_model: MotionModel, sensor_model, n_particles: int = 500,
                  seed: int | None = 0, resampling: str = "systematic", resample_threshold: float = 0.5,
                  augmented: AugmentedMCL | None = AugmentedMCL(), grid: Grid = Grid(),
-                 roughening: tuple[float, float, float] = (0.005, 0.005, 0.005)) -> None:
+                 roughening: tuple[float, float, float] = (0.02, 0.02, 0.02)) -> None:
         if not isinstance(field, Field):
             raise ValueError(f"field = {field!r} must be a field.Field")
         if isinstance(n_particles, bool) or not isinstance(n_particles, (int, np.integer)) or n_particles <= 0:
