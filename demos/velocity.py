@@ -310,7 +310,8 @@ def _format(report: dict) -> str:
                      f"; IMU-only growing: {'yes' if all(np.diff(block['imu'][:-1]) > 0) else 'NO'}")
     lines.append("")
     tilt = report["tilt"]
-    lines.append("Figure 3. Tilt (gravity direction) error, degrees, run of figure 1; gyro bias error, mrad/s (x, y, z)")
+    lines.append("Figure 3. Tilt (gravity direction) error, degrees, run of figure 1; "
+                 "gyro bias error, mrad/s (x, y, z)")
     for name in variants + ("imu",):
         r = tilt[name]
         lines.append(f"  {label.get(name, name):<{width}}mean {r['mean_deg']:.3f}  rms {r['rms_deg']:.3f}  "
@@ -330,7 +331,8 @@ def _format(report: dict) -> str:
         for kind in ("numba", "reference"):
             lines.append(f"  {label[name] + ', ' + kind:<{width + 12}}{tm[f'{kind}_predict_us']:>12.2f}"
                          f"{tm[f'{kind}_correct_us']:>12.2f}")
-        lines.append(f"  {'':<{width + 12}}speed-up: predict x{tm['reference_predict_us'] / tm['numba_predict_us']:.0f}, "
+        lines.append(f"  {'':<{width + 12}}speed-up: "
+                     f"predict x{tm['reference_predict_us'] / tm['numba_predict_us']:.0f}, "
                      f"correct x{tm['reference_correct_us'] / tm['numba_correct_us']:.0f}; "
                      f"largest state difference {tm['max_state_difference']:.2e}")
     return "\n".join(lines)

@@ -793,7 +793,8 @@ class LegOdometry:
 
     Joint rates are backward differences of consecutive encoder readings; the gyroscope of eq. 11 is the mean
     of the IMU samples since the previous kinematics sample, less the EKF's gyro bias (its current estimate
-    when the EKF has one). A leg is used only if its foot was on the ground at both readings (`support_foot`). With no such leg the EKF only predicts.
+    when the EKF has one). A leg is used only if its foot was on the ground at both readings (`support_foot`).
+    With no such leg the EKF only predicts.
     """
 
     def __init__(self, chains: Sequence[LegChain], ekf: VelocityEKF, min_pressed: int = 2):

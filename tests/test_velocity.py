@@ -13,12 +13,15 @@ from scipy.spatial.transform import Rotation
 
 from demos.biped import DisturbanceParams, SensorParams, simulate_walk
 from sensing.kinematics import nao_leg, rotation_y
-from sensing.velocity import (ImuOnlyEstimator, LegOdometry, VelocityEKF, VelocityEKFParams, ekf_correct_kernel,
-                              ekf_correct_reference, ekf_jacobians_reference, ekf_predict_kernel,
-                              ekf_predict_reference, imu_step_reference, planar_increment, rotate,
-                              rotation_derivative, rotation_matrix, support_foot, tilt_error)
+from sensing.velocity import (ImuOnlyEstimator, LegOdometry, VelocityEKF, VelocityEKFParams, bias_imu_step_reference,
+                              ekf_bias_jacobians_kernel, ekf_bias_jacobians_reference, ekf_bias_predict_kernel,
+                              ekf_bias_predict_reference, ekf_correct_kernel, ekf_correct_reference,
+                              ekf_jacobians_reference, ekf_predict_kernel, ekf_predict_reference, imu_step_reference,
+                              left_jacobian, planar_increment, rotate, rotation_derivative, rotation_derivative_at,
+                              rotation_matrix, support_foot, tilt_error)
 
 G_UP = np.array([0.0, 0.0, 9.81])
+PAPER = VelocityEKFParams(estimate_gyro_bias=False)
 
 
 def assert_spd(cov):
@@ -78,6 +81,79 @@ def test_noise_jacobian_C_finite_difference(gyro_scale):
     np.testing.assert_allclose(c, numeric, atol=tolerance)
 
 
+@pytest.mark.parametrize("scale", [3.0, 1.0, 1e-3, 1e-9, 0.0])
+def test_rotation_derivative_at_any_angle_finite_difference(scale):
+    rng = np.random.default_rng(20)
+    beta, x = rng.normal(size=3) * scale, rng.normal(size=3)
+    numeric = _numeric_jacobian(lambda b: rotate(b, x), beta, h=1e-7)
+    np.testing.assert_allclose(rotation_derivative_at(beta, x), numeric, atol=1e-8)
+    # J(β) maps to the left perturbation: R(β + dβ) = R(J dβ) R(β).
+    d_beta = rng.normal(size=3) * 1e-7
+    np.testing.assert_allclose(rotation_matrix(beta + d_beta),
+                               rotation_matrix(left_jacobian(beta) @ d_beta) @ rotation_matrix(beta), atol=1e-13)
+    if scale == 0.0:
+        np.testing.assert_array_equal(rotation_derivative_at(beta, x), rotation_derivative(x))
+
+
+def _bias_state(rng):
+    return np.concatenate([G_UP + rng.normal(size=3) * 0.3, rng.normal(size=3) * 0.2, rng.normal(size=3) * 0.05])
+
+
+def test_bias_transition_jacobian_F_finite_difference():
+    rng = np.random.default_rng(21)
+    dt = 0.01
+    for gyro_scale in (0.0, 2.0, 20.0):
+        state = _bias_state(rng)
+        gyro, accel = rng.normal(size=3) * gyro_scale, G_UP + rng.normal(size=3)
+        numeric = _numeric_jacobian(lambda s: bias_imu_step_reference(s, gyro, accel, dt), state)
+        f_exact, _ = ekf_bias_jacobians_reference(state, gyro, dt, 0.01, 0.05, 1e-4, exact=True)
+        np.testing.assert_allclose(f_exact, numeric, atol=1e-8)
+        f_first, _ = ekf_bias_jacobians_reference(state, gyro, dt, 0.01, 0.05, 1e-4, exact=False)
+        # First order (eq. 24 and the bias columns at u = 0): off by O(|ω̂ - b| δ).
+        assert np.abs(f_first - numeric).max() <= 2.0 * np.linalg.norm(gyro - state[6:]) * dt + 1e-8
+        # The [g, v] block is the paper's filter's F at the corrected rate ω̂ - b.
+        for exact, f in ((True, f_exact), (False, f_first)):
+            f6, _ = ekf_jacobians_reference(state[:6], gyro - state[6:], dt, 0.01, 0.05, exact)
+            np.testing.assert_array_equal(f[:6, :6], f6)
+        np.testing.assert_array_equal(f_exact[6:], np.hstack([np.zeros((3, 6)), np.eye(3)]))
+
+
+@pytest.mark.parametrize("gyro_scale", [0.0, 1.0, 20.0])
+def test_bias_noise_jacobian_C_finite_difference(gyro_scale):
+    rng = np.random.default_rng(22)
+    dt, sigma_w, sigma_q, sigma_b = 0.01, 0.02, 0.3, 0.004
+    state = _bias_state(rng)
+    gyro_hat, accel_hat = rng.normal(size=3) * gyro_scale, G_UP + rng.normal(size=3)
+
+    def with_noise(noise):   # true rate ω̂ - b - ω̃, true specific force q̂ - q̃, bias step σ_b √δ n
+        out = bias_imu_step_reference(state, gyro_hat - noise[:3] * sigma_w, accel_hat - noise[3:6] * sigma_q, dt)
+        out[6:] += noise[6:] * sigma_b * math.sqrt(dt)
+        return out
+
+    numeric = _numeric_jacobian(with_noise, np.zeros(9), h=1e-4)
+    _, c_exact = ekf_bias_jacobians_reference(state, gyro_hat, dt, sigma_w, sigma_q, sigma_b, exact=True)
+    np.testing.assert_allclose(c_exact, numeric, atol=1e-10)
+    # Not exact: the [g, v] rows are eq. 25 at ω̂ - b, the bias rows the random walk.
+    _, c_first = ekf_bias_jacobians_reference(state, gyro_hat, dt, sigma_w, sigma_q, sigma_b, exact=False)
+    _, c6 = ekf_jacobians_reference(state[:6], gyro_hat - state[6:], dt, sigma_w, sigma_q)
+    np.testing.assert_allclose(c_first[:6, :6], c6, atol=1e-18)
+    np.testing.assert_array_equal(c_first[6:], c_exact[6:])
+    tolerance = 1e-10 + 2.0 * np.linalg.norm(gyro_hat - state[6:]) * dt * np.abs(c_first).max()
+    np.testing.assert_allclose(c_first, numeric, atol=tolerance)
+
+
+@pytest.mark.parametrize("exact", [True, False])
+def test_bias_jacobian_kernel_matches_reference(exact):
+    rng = np.random.default_rng(23)
+    for gyro_scale in (0.0, 1.0, 30.0):
+        state, gyro = _bias_state(rng), rng.normal(size=3) * gyro_scale
+        f, c = np.empty((9, 9)), np.empty((9, 9))
+        ekf_bias_jacobians_kernel(state, gyro, 0.01, 0.01, 0.05, 1e-4, exact, f, c)
+        f_ref, c_ref = ekf_bias_jacobians_reference(state, gyro, 0.01, 0.01, 0.05, 1e-4, exact)
+        np.testing.assert_allclose(f, f_ref, rtol=0, atol=1e-15)
+        np.testing.assert_allclose(c, c_ref, rtol=0, atol=1e-17)
+
+
 def test_kernels_match_references():
     rng = np.random.default_rng(4)
     state = np.concatenate([G_UP, [0.1, 0.0, 0.0]])
@@ -96,9 +172,49 @@ def test_kernels_match_references():
     assert_spd(c_k)
 
 
-def test_backends_agree_through_the_class():
+def test_bias_kernels_match_references():
+    rng = np.random.default_rng(24)
+    state = np.concatenate([G_UP, [0.1, 0.0, 0.0], [0.01, -0.02, 0.005]])
+    cov = np.diag([0.01] * 3 + [0.001] * 3 + [1e-5] * 3)
+    s_k, c_k = state.copy(), cov.copy()
+    for i in range(300):
+        gyro, accel = rng.normal(size=3), G_UP + rng.normal(size=3)
+        ekf_bias_predict_kernel(s_k, c_k, gyro, accel, 0.01, 0.01, 0.05, 1e-4, i % 2 == 0)
+        state, cov = ekf_bias_predict_reference(state, cov, gyro, accel, 0.01, 0.01, 0.05, 1e-4, i % 2 == 0)
+        if i % 3 == 0:
+            z = rng.normal(size=3) * 0.1
+            ekf_correct_kernel(s_k, c_k, z, 0.05)
+            state, cov = ekf_correct_reference(state, cov, z, 0.05)
+    np.testing.assert_allclose(s_k, state, atol=1e-12)
+    np.testing.assert_allclose(c_k, cov, atol=1e-15)
+    assert_spd(c_k)
+
+
+def test_paper_filter_is_the_six_state_kernels():
+    rng = np.random.default_rng(25)
+    bias = np.array([0.01, -0.02, 0.003])
+    ekf = VelocityEKF(G_UP, 0.0, params=PAPER, gyro_bias=bias)
+    assert ekf.state.shape == (6,) and ekf.covariance.shape == (6, 6)
+    state, cov = ekf.state, ekf.covariance
+    for i in range(1, 200):
+        gyro, accel = rng.normal(size=3), G_UP + rng.normal(size=3)
+        ekf.predict(i * 0.01, gyro, accel)
+        ekf_predict_kernel(state, cov, gyro - bias, accel, 0.01 * i - 0.01 * (i - 1), PAPER.gyro_noise,
+                           PAPER.accel_noise, True)
+        if i % 3 == 0:
+            z = rng.normal(size=3) * 0.1
+            ekf.correct(z)
+            ekf_correct_kernel(state, cov, z, PAPER.velocity_noise)
+        np.testing.assert_array_equal(ekf.state, state)
+        np.testing.assert_array_equal(ekf.covariance, cov)
+    np.testing.assert_array_equal(ekf.gyro_bias, bias)
+
+
+@pytest.mark.parametrize("estimate_gyro_bias", [True, False])
+def test_backends_agree_through_the_class(estimate_gyro_bias):
     rng = np.random.default_rng(5)
-    filters = [VelocityEKF(G_UP, 0.0, backend=b) for b in ("numba", "reference")]
+    params = VelocityEKFParams(estimate_gyro_bias=estimate_gyro_bias)
+    filters = [VelocityEKF(G_UP, 0.0, params=params, backend=b) for b in ("numba", "reference")]
     for i in range(1, 200):
         gyro, accel = rng.normal(size=3) * 0.5, G_UP + rng.normal(size=3) * 0.2
         z = rng.normal(size=3) * 0.05
@@ -114,11 +230,13 @@ def test_backends_agree_through_the_class():
 @settings(max_examples=25, deadline=None)
 @given(seed=st.integers(0, 2 ** 32 - 1), n_steps=st.integers(50, 1500), correction_every=st.integers(1, 400),
        gyro_scale=st.floats(0.0, 10.0), accel_scale=st.floats(0.0, 30.0), dt=st.floats(1e-4, 0.09),
-       exact=st.booleans(), sigma_v=st.floats(1e-3, 1.0))
+       exact=st.booleans(), sigma_v=st.floats(1e-3, 1.0), estimate_gyro_bias=st.booleans(),
+       bias_walk=st.floats(1e-7, 1e-2))
 def test_covariance_stays_symmetric_positive_definite(seed, n_steps, correction_every, gyro_scale, accel_scale, dt,
-                                                     exact, sigma_v):
+                                                     exact, sigma_v, estimate_gyro_bias, bias_walk):
     rng = np.random.default_rng(seed)
-    params = VelocityEKFParams(exact_jacobian=exact, velocity_noise=sigma_v)
+    params = VelocityEKFParams(exact_jacobian=exact, velocity_noise=sigma_v, estimate_gyro_bias=estimate_gyro_bias,
+                               gyro_bias_random_walk=bias_walk)
     ekf = VelocityEKF(G_UP, 0.0, params=params)
     t = 0.0
     for i in range(n_steps):
@@ -177,20 +295,58 @@ def test_noise_free_standing_is_exactly_still():
     np.testing.assert_allclose(ekf.gravity, G_UP, atol=1e-12)
 
 
+def test_from_standing_starts_the_bias_state():
+    rng = np.random.default_rng(26)
+    bias = np.array([0.004, -0.006, 0.002])
+    gyro = bias + rng.normal(size=(51, 3)) * 0.01
+    params = VelocityEKFParams(gyro_noise=0.01)
+    ekf = VelocityEKF.from_standing(np.tile(G_UP, (51, 1)), 0.5, params=params, gyro_samples=gyro)
+    assert ekf.state.shape == (9,)
+    np.testing.assert_allclose(ekf.gyro_bias, gyro.mean(axis=0), rtol=0, atol=1e-17)
+    np.testing.assert_allclose(np.diag(ekf.covariance)[6:], 0.01 ** 2 / 51, rtol=1e-12)
+    unmeasured = VelocityEKF.from_standing(np.tile(G_UP, (51, 1)), 0.5, params=params)
+    np.testing.assert_array_equal(unmeasured.gyro_bias, 0.0)
+    np.testing.assert_allclose(np.diag(unmeasured.covariance)[6:], params.initial_gyro_bias_std ** 2)
+
+
+def test_bias_state_learns_a_tilting_bias_the_paper_filter_cannot():
+    rng = np.random.default_rng(27)
+    tilt = rotation_y(0.2)
+    true_g = tilt.T @ G_UP
+    bias = np.array([0.004, -0.003, 0.0])       # about the horizontal axes: turns g, so it shows in v
+    filters = {flag: VelocityEKF(true_g, 0.0, params=VelocityEKFParams(estimate_gyro_bias=flag))
+               for flag in (True, False)}
+    for i in range(1, 3001):
+        gyro, accel = bias + rng.normal(size=3) * 0.01, true_g + rng.normal(size=3) * 0.05
+        for ekf in filters.values():
+            ekf.predict(i * 0.01, gyro, accel)
+            if i % 3 == 0:
+                ekf.correct(rng.normal(size=3) * 0.003)
+    with_bias, paper = filters[True], filters[False]
+    horizontal = tilt.T[:, :2]                  # the IMU-frame directions of the level x and y axes
+    assert np.abs(horizontal.T @ (with_bias.gyro_bias - bias)).max() < 0.001
+    assert math.degrees(tilt_error(with_bias.gravity, true_g)) < 0.1
+    # The paper's filter lags behind the turning g: tilted, and its velocity off although the robot is still.
+    assert math.degrees(tilt_error(paper.gravity, true_g)) > 3.0 * math.degrees(tilt_error(with_bias.gravity, true_g))
+    assert np.linalg.norm(paper.velocity) > 3.0 * np.linalg.norm(with_bias.velocity)
+    assert_spd(with_bias.covariance)
+
+
 def test_noise_free_walk_all_estimators_track_truth():
     sensors = SensorParams(accel_noise=0, accel_bias=0, gyro_noise=0, gyro_bias=0, encoder_resolution=0,
                            contact_error=0)
     run = simulate_walk(4.0, 0, sensors=sensors, disturbances=DisturbanceParams(0.0, slip_probability=0.0))
-    from demos.velocity import ekf_params_for, run_estimators
-    result = run_estimators(run, params=ekf_params_for(SensorParams()))
+    from demos.velocity import default_variants, run_estimators
+    result = run_estimators(run, params=default_variants(SensorParams()))
     n0 = result["n0"]
     assert np.abs(result["imu_velocity"][n0:] - run.true_velocity[n0:]).max() < 0.01
-    assert np.abs(result["ekf_velocity"][n0:] - run.true_velocity[n0:]).max() < 0.015
+    for name in ("ekf", "ekf+bias"):
+        assert np.abs(result[f"{name}_velocity"][n0:] - run.true_velocity[n0:]).max() < 0.015
+        assert np.degrees(tilt_error(result[f"{name}_gravity"][n0:], run.true_gravity[n0:])).max() < 0.2
     valid = result["foot"] >= 0
     assert valid[run.kin_time > result["t0"]].mean() > 0.95
     for name in ("kinematics", "kinematics+gyro"):
         assert np.abs(result["kin"][name][valid] - run.true_kin_velocity[valid]).max() < 0.02
-    assert np.degrees(tilt_error(result["ekf_gravity"][n0:], run.true_gravity[n0:])).max() < 0.2
 
 
 # --- bad input ------------------------------------------------------------------------------------------
@@ -217,6 +373,12 @@ def test_bad_samples_are_rejected_and_leave_state_untouched():
         VelocityEKF(G_UP, 0.0, backend="gpu")
     with pytest.raises(ValueError, match="velocity_noise"):
         VelocityEKFParams(velocity_noise=0.0)
+    with pytest.raises(ValueError, match="gyro_bias_random_walk"):
+        VelocityEKFParams(gyro_bias_random_walk=0.0)
+    with pytest.raises(ValueError, match=r"covariance must be a finite \(9, 9\)"):
+        VelocityEKF(G_UP, 0.0, covariance=np.eye(6))
+    with pytest.raises(ValueError, match=r"covariance must be a finite \(6, 6\)"):
+        VelocityEKF(G_UP, 0.0, params=PAPER, covariance=np.eye(9))
     with pytest.raises(ValueError, match="accel_samples"):
         VelocityEKF.from_standing(np.zeros((10, 3)), 0.0)
 
@@ -303,6 +465,11 @@ def test_demo_main_json(capsys):
     from demos.velocity import main
     assert main(["--json", "--duration", "5", "--seeds", "1", "--no-twist"]) == 0
     report = json.loads(capsys.readouterr().out)
-    assert set(report["average_forward_velocity"]) == {"imu", "kinematics", "kinematics+gyro", "ekf"}
-    assert report["timing"]["max_state_difference"] < 1e-9
+    assert set(report["average_forward_velocity"]) == {"imu", "kinematics", "kinematics+gyro", "ekf", "ekf+bias"}
+    for name in ("ekf", "ekf+bias"):
+        assert report["timing"][name]["max_state_difference"] < 1e-9
+        assert len(report["seed_spread"][f"{name}_error_percent"]) == 1
+    assert report["ekf_params"]["ekf"]["estimate_gyro_bias"] is False
+    assert report["ekf_params"]["ekf+bias"]["estimate_gyro_bias"] is True
     assert len(report["rmse"]) == 4
+    assert all(set(block) >= {"ekf", "ekf+bias"} for block in report["rmse"].values())
