@@ -67,6 +67,7 @@ def run_walk(model: str = "velocity-linear", particles: int = 500, seed: int = 0
     n = log.times.shape[0]
     estimates = np.empty((n, 3))
     entropy = np.empty((n, 2))
+    fit = np.full(n, np.nan)     # w_fast after each correction: augmented MCL's short-term fit
     frames = {frame.step: frame for frame in log.frames}
     started = time.perf_counter()
     for k in range(n):
@@ -74,6 +75,7 @@ def run_walk(model: str = "velocity-linear", particles: int = 500, seed: int = 0
         frame = frames.get(k)
         if frame is not None:
             pf.correct(frame.observations)
+            fit[k] = pf.w_fast
         estimates[k] = pf.estimate().pose
         h = pf.entropy()
         entropy[k] = (h.position, h.orientation)
@@ -83,14 +85,14 @@ def run_walk(model: str = "velocity-linear", particles: int = 500, seed: int = 0
     elapsed = time.perf_counter() - started
     if recorder is not None:
         recorder.close()
-    result = summarize(log, estimates, entropy, elapsed, model, particles, seed, rrd)
+    result = summarize(log, estimates, entropy, elapsed, model, particles, seed, rrd, fit)
     if series:
         result["series"] = {"times": log.times, "truth": log.truth, "estimates": estimates, "entropy": entropy}
     return result
 
 
 def summarize(log: WalkLog, estimates: np.ndarray, entropy: np.ndarray, elapsed: float, model: str,
-              particles: int, seed: int, rrd: str | None) -> dict:
+              particles: int, seed: int, rrd: str | None, fit: np.ndarray | None = None) -> dict:
     truth, times, dt = log.truth, log.times, log.dt
     position_error = np.hypot(*(estimates[:, :2] - truth[:, :2]).T)
     heading_error = np.abs(wrap_angles(estimates[:, 2] - truth[:, 2]))
@@ -122,7 +124,29 @@ def summarize(log: WalkLog, estimates: np.ndarray, entropy: np.ndarray, elapsed:
         "mean_entropy_bits": {"position": float(entropy[:, 0].mean()), "orientation": float(entropy[:, 1].mean())},
         "filter_seconds": elapsed, "steps": n, "ms_per_step": 1e3 * elapsed / n,
         "rrd": rrd,
+        "_fit": _fit_samples(fit, position_error),
     }
+
+
+def _fit_samples(fit: np.ndarray | None, position_error: np.ndarray) -> dict:
+    """w_fast after each correction, split into tracking (error < 0.2 m) and lost (error > 1 m) frames."""
+    if fit is None:
+        return {"tracking": np.empty(0), "lost": np.empty(0)}
+    seen = ~np.isnan(fit)
+    return {"tracking": fit[seen & (position_error < 0.2)], "lost": fit[seen & (position_error > 1.0)]}
+
+
+def fit_figures(runs: list[dict]) -> dict:
+    """Percentiles of w_fast over all frames of all runs, while tracking and while lost: the separation that
+    `AugmentedMCL.fit_threshold` relies on."""
+    tracking = np.concatenate([r["_fit"]["tracking"] for r in runs])
+    lost = np.concatenate([r["_fit"]["lost"] for r in runs])
+
+    def pct(values, q):
+        return float(np.percentile(values, q)) if values.size else None
+
+    return {"tracking_p1": pct(tracking, 1), "tracking_p5": pct(tracking, 5), "lost_p50": pct(lost, 50),
+            "lost_p95": pct(lost, 95), "tracking_frames": int(tracking.size), "lost_frames": int(lost.size)}
 
 
 def parse_seeds(text: str) -> list[int]:
@@ -157,7 +181,10 @@ def aggregate(runs: list[dict]) -> dict:
                 "failed_seeds": missing}
 
     keys = ("position_rmse_m", "heading_rmse_deg", "converged_s", "reconverged_s", "mirror_share", "ms_per_step")
-    return {key: stat(key) for key in keys}
+    summary = {key: stat(key) for key in keys}
+    if all("_fit" in r for r in runs):
+        summary["fit_w_fast"] = fit_figures(runs)
+    return summary
 
 
 def _fmt(value, unit="", digits=3):
@@ -186,7 +213,9 @@ def main(argv: list[str] | None = None) -> int:
         kidnap = scenario.kidnap_time if args.duration > (scenario.kidnap_time or 0) + 5 else None
         scenario = replace(scenario, duration=args.duration, kidnap_time=kidnap)
     runs = [run_walk(args.model, args.particles, s, args.rrd, scenario) for s in seeds]
-    result = {"runs": runs, "summary": aggregate(runs)} if len(runs) > 1 else runs[0]
+    summary = aggregate(runs)
+    runs = [{k: v for k, v in r.items() if not k.startswith("_")} for r in runs]
+    result = {"runs": runs, "summary": summary} if len(runs) > 1 else runs[0]
     if args.json:
         json.dump(result, sys.stdout, indent=2)
         print()
@@ -206,6 +235,11 @@ def main(argv: list[str] | None = None) -> int:
                                  ("mirror share", "mirror_share", "")):
             print(f"{label:>15}: median {_fmt(s[key]['median'], unit)}, worst {_fmt(s[key]['worst'], unit)} "
                   f"(seed {s[key]['worst_seed']}), never: {s[key]['failed_seeds']}")
+        fit = s["fit_w_fast"]
+        if fit["tracking_p1"] is not None and fit["lost_p50"] is not None:
+            print(f"  w_fast (fit), all frames of all seeds: while tracking 1st percentile {fit['tracking_p1']:.3f}, "
+                  f"5th {fit['tracking_p5']:.3f} ({fit['tracking_frames']} frames); while lost median "
+                  f"{fit['lost_p50']:.3f} ({fit['lost_frames']} frames)")
     if args.rrd:
         print(f"recording written to {args.rrd} (open it with: rerun {args.rrd})")
     return 0

@@ -14,7 +14,7 @@ from motion_models.base import MotionInput
 from sensing.observations import Observations
 
 from .estimate import cluster_estimate_reference, grid_entropy_reference
-from .resampling import systematic_reference
+from .resampling import gather_with_jitter_reference, systematic_reference
 from .weights import normalize_reference
 
 
@@ -36,9 +36,8 @@ def numpy_step(pf, u: MotionInput, observations: Observations, timings: dict | N
     weights, log_total, ess = normalize_reference(pf.log_weights + log_likelihood)
     marks.append(clock())
     ancestors = systematic_reference(weights, pf.n, pf.rng)
-    poses = poses[ancestors]
-    bounds = pf.roughening * np.sqrt(3.0)
-    move_with_noise_reference(poses, 0.0, 0.0, 0.0, *bounds, True, draw_variates(pf.rng, pf.n, True))
+    poses = gather_with_jitter_reference(poses, ancestors, pf.roughening * np.sqrt(3.0),
+                                         draw_variates(pf.rng, pf.n, False))
     weights = np.full(pf.n, 1.0 / pf.n)
     marks.append(clock())
     g = pf.grid

@@ -11,8 +11,12 @@ variates drawn beforehand; the `*_reference` functions are plain numpy twins tha
 """
 from __future__ import annotations
 
+import math
+
 import numba
 import numpy as np
+
+from field.angles import wrap_angle, wrap_angles
 
 
 @numba.njit(cache=True, inline="always")
@@ -131,6 +135,36 @@ def residual(weights: np.ndarray, m: int, rng: np.random.Generator) -> np.ndarra
         copies[np.argmax(copies)] -= excess
     rest = int(m) - int(copies.sum())
     return _residual(weights, copies, rng.standard_exponential(rest + 1), np.empty(int(m), dtype=np.int64))
+
+
+@numba.njit(cache=True)
+def gather_with_jitter(source, ancestors, bounds, uniforms, out):
+    """out[k] = source[ancestors[k]] moved by a uniform jitter on ±bounds in the ancestor's own frame.
+
+    uniforms (M, 3) on [0, 1). The copy and the jitter (roughening) in one pass.
+    """
+    for k in range(ancestors.shape[0]):
+        i = ancestors[k]
+        theta = source[i, 2]
+        ex = (2.0 * uniforms[k, 0] - 1.0) * bounds[0]
+        ey = (2.0 * uniforms[k, 1] - 1.0) * bounds[1]
+        c = math.cos(theta)
+        s = math.sin(theta)
+        out[k, 0] = source[i, 0] + c * ex - s * ey
+        out[k, 1] = source[i, 1] + s * ex + c * ey
+        out[k, 2] = wrap_angle(theta + (2.0 * uniforms[k, 2] - 1.0) * bounds[2])
+    return out
+
+
+def gather_with_jitter_reference(source, ancestors, bounds, uniforms):
+    """Numpy twin of `gather_with_jitter`."""
+    picked = source[ancestors].copy()
+    noise = (2.0 * uniforms - 1.0) * bounds
+    c, s = np.cos(picked[:, 2]), np.sin(picked[:, 2])
+    picked[:, 0] += c * noise[:, 0] - s * noise[:, 1]
+    picked[:, 1] += s * noise[:, 0] + c * noise[:, 1]
+    picked[:, 2] = wrap_angles(picked[:, 2] + noise[:, 2])
+    return picked
 
 
 SCHEMES = {"systematic": systematic, "stratified": stratified, "residual": residual, "multinomial": multinomial}

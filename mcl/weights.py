@@ -43,3 +43,27 @@ def normalize_reference(log_weights):
     total = e.sum()
     w = e / total
     return w, peak + math.log(total), 1.0 / np.sum(w * w)
+
+
+@numba.njit(cache=True)
+def log_mean_likelihood(log_weights, log_likelihood, count):
+    """log(Σ wᵢ pᵢ / Σ wᵢ) over the first `count` particles, in one pass (log-sum-exp of both sums).
+
+    Returns -inf when no particle of the `count` has a finite weight and likelihood.
+    """
+    peak_prior = -np.inf
+    peak_joint = -np.inf
+    for i in range(count):
+        if log_weights[i] > peak_prior:
+            peak_prior = log_weights[i]
+        joint = log_weights[i] + log_likelihood[i]
+        if joint > peak_joint:
+            peak_joint = joint
+    if peak_prior == -np.inf or peak_joint == -np.inf:
+        return -np.inf
+    prior = 0.0
+    joint = 0.0
+    for i in range(count):
+        prior += math.exp(log_weights[i] - peak_prior)
+        joint += math.exp(log_weights[i] + log_likelihood[i] - peak_joint)
+    return peak_joint + math.log(joint) - peak_prior - math.log(prior)

@@ -9,10 +9,12 @@ Detections of one type are ambiguous (four goalposts, ten T crossings): each det
 particle, with the landmark of its type that explains it best (the maximum over candidates). Per detection
 and particle, with r̂ and b̂ the range and bearing of a candidate seen from the particle,
 
-    ℓ = log( exp(best_k [ -½((r - r̂_k)/σ_r)² + bearing term ]) + outlier_weight )
+    ℓ = max( best_k [ -½((r - r̂_k)/σ_r)² + bearing term ],  log outlier_weight )
 
 The outlier term is a floor, so a false positive costs every particle about the same instead of wiping out
-the right ones. Range noise grows with range as for a camera at height h: a pitch error δ moves the ground
+the right ones. This is the max-mixture of Olson & Agarwal (RSS 2012): it needs no exp or log per detection
+and differs from the sum-mixture log(exp(best) + outlier_weight) (`mixture="sum"`) by at most log 2, at the
+floor. Range noise grows with range as for a camera at height h: a pitch error δ moves the ground
 point by δ·(h² + r²)/h, hence σ_r(r) = range_noise_floor + range_noise_growth·r².
 
 Two bearing terms: "exact", -½(wrap(b - b̂)/σ_b)², needs one atan2 per particle and candidate; "von_mises",
@@ -48,8 +50,10 @@ FAST = {"nsz", "arcp", "contract", "afn", "reassoc"}
 
 @numba.njit(cache=True, fastmath=FAST)
 def landmark_log_likelihood(poses, table, offsets, kinds, ranges, bearings, range_sigmas, bearing_sigmas,
-                            range_noise_floor, range_noise_growth, bearing_sigma, exact, log_outlier, out):
-    """out[i] = Σ_detections log(exp(max_k score_ik) + outlier) for every particle i.
+                            range_noise_floor, range_noise_growth, bearing_sigma, exact, sum_mixture, log_outlier,
+                            out):
+    """out[i] = Σ_detections max(max_k score_ik, log outlier) for every particle i (the max-mixture), or
+    with `sum_mixture`, Σ log(exp(max_k score_ik) + outlier).
 
     The candidates of type t are table[offsets[t]:offsets[t+1]]. A NaN sigma means "use the noise model".
     Detections are grouped by type first, so the geometry to a type's candidates is computed once per
@@ -135,6 +139,9 @@ def landmark_log_likelihood(poses, table, offsets, kinds, ranges, bearings, rang
                         score += inv_var_bearing[j] * (cos_error - 1.0)
                     if score > best:
                         best = score
+                if not sum_mixture:
+                    total += max(best, log_outlier)
+                    continue
                 # log(exp(best) + outlier), accumulated as a product: one exp per detection and one log
                 # per 16 detections instead of an exp and a log each. Each factor lies in (outlier, 1 +
                 # outlier], so 16 of them cannot underflow.
@@ -149,7 +156,7 @@ def landmark_log_likelihood(poses, table, offsets, kinds, ranges, bearings, rang
 
 
 def landmark_log_likelihood_reference(poses, candidates_by_kind, kinds, ranges, bearings, range_sigmas,
-                                      bearing_sigmas, exact, outlier_weight):
+                                      bearing_sigmas, exact, outlier_weight, sum_mixture=False):
     """Plain numpy version of the same likelihood, one detection at a time (for tests and the benchmark)."""
     total = np.zeros(poses.shape[0])
     for kind, r, b, sr, sb in zip(kinds, ranges, bearings, range_sigmas, bearing_sigmas):
@@ -163,7 +170,9 @@ def landmark_log_likelihood_reference(poses, candidates_by_kind, kinds, ranges, 
             score = score - 0.5 * (error / sb) ** 2
         else:
             score = score + (np.cos(error) - 1.0) / sb ** 2
-        total += np.logaddexp(score.max(axis=1), math.log(outlier_weight))
+        best = score.max(axis=1)
+        floor = math.log(outlier_weight)
+        total += np.logaddexp(best, floor) if sum_mixture else np.maximum(best, floor)
     return total
 
 
@@ -175,6 +184,7 @@ class LandmarkSensorModel:
     bearing_sigma [rad]: σ_b, the same at every range.
     bearing_model: "von_mises" (no atan2, the default) or "exact".
     outlier_weight: the likelihood floor of one detection relative to a perfect match (false positives).
+    mixture: "max" (the floor as a maximum, the default) or "sum" (added as a mixture component).
     """
 
     field: Field
@@ -183,6 +193,7 @@ class LandmarkSensorModel:
     bearing_sigma: float = 0.05
     bearing_model: str = "von_mises"
     outlier_weight: float = 0.01
+    mixture: str = "max"
     _table: np.ndarray = dataclass_field(init=False, repr=False)
     _offsets: np.ndarray = dataclass_field(init=False, repr=False)
 
@@ -196,6 +207,8 @@ class LandmarkSensorModel:
         if not (isinstance(self.range_noise_growth, (int, float)) and math.isfinite(self.range_noise_growth)
                 and self.range_noise_growth >= 0):
             raise ValueError(f"range_noise_growth = {self.range_noise_growth!r} must be finite and >= 0")
+        if self.mixture not in ("max", "sum"):
+            raise ValueError(f"mixture = {self.mixture!r} must be 'max' or 'sum'")
         if self.bearing_model not in BEARING_MODELS:
             raise ValueError(f"bearing_model = {self.bearing_model!r} must be one of {BEARING_MODELS}")
         kinds = sorted(LandmarkType, key=lambda t: t.value)
@@ -255,7 +268,7 @@ class LandmarkSensorModel:
         landmark_log_likelihood(
             poses, self._table, self._offsets, observations.kinds, observations.ranges, observations.bearings,
             observations.range_sigmas, observations.bearing_sigmas, self.range_noise_floor,
-            self.range_noise_growth, self.bearing_sigma, self.bearing_model == "exact",
+            self.range_noise_growth, self.bearing_sigma, self.bearing_model == "exact", self.mixture == "sum",
             math.log(self.outlier_weight), out)
         return out
 
@@ -267,7 +280,7 @@ class LandmarkSensorModel:
         by_kind = {t.value: self.candidates(t) for t in LandmarkType}
         return landmark_log_likelihood_reference(
             poses, by_kind, observations.kinds, observations.ranges, observations.bearings, range_sigmas,
-            bearing_sigmas, self.bearing_model == "exact", self.outlier_weight)
+            bearing_sigmas, self.bearing_model == "exact", self.outlier_weight, self.mixture == "sum")
 
     # -- sensor resetting ---------------------------------------------------------------------------------
     def sample_poses(self, observations: Observations, n: int, rng: np.random.Generator,

@@ -67,7 +67,8 @@ def test_type_absent_from_the_field_is_an_error(spl_field):
 
 
 @pytest.mark.parametrize("name,value", [("range_noise_floor", 0.0), ("bearing_sigma", -1.0),
-                                        ("outlier_weight", float("nan")), ("bearing_model", "cosine")])
+                                        ("outlier_weight", float("nan")), ("bearing_model", "cosine"),
+                                        ("mixture", "product")])
 def test_bad_sensor_parameters(name, value):
     with pytest.raises(ValueError, match=name):
         LandmarkSensorModel(FIELD, **{name: value})
@@ -103,8 +104,10 @@ def test_true_pose_scores_best_and_perfect_match_scores_near_zero():
     rng = np.random.default_rng(0)
     others = pose + np.column_stack([rng.normal(0, 0.5, 200), rng.normal(0, 0.5, 200), rng.normal(0, 0.3, 200)])
     scores = model.log_likelihood(np.vstack([pose, others]), obs)
-    assert scores[0] == pytest.approx(4 * math.log1p(model.outlier_weight), abs=1e-9)
+    assert scores[0] == pytest.approx(0.0, abs=1e-9)             # max-mixture: a perfect match scores 0
     assert scores[0] >= scores[1:].max()
+    summed = LandmarkSensorModel(FIELD, mixture="sum").log_likelihood(pose[None], obs)
+    assert summed[0] == pytest.approx(4 * math.log1p(model.outlier_weight), abs=1e-9)
 
 
 def test_ambiguous_type_associates_with_the_best_candidate():
@@ -137,6 +140,19 @@ def test_outlier_floor_bounds_the_cost_of_a_false_positive():
     assert (scores >= math.log(model.outlier_weight) - 1e-12).all()
 
 
+@given(st.integers(0, 2**32 - 1), st.sampled_from(["von_mises", "exact"]))
+def test_max_and_sum_mixtures_differ_by_at_most_log2(seed, bearing_model):
+    rng = np.random.default_rng(seed)
+    poses = np.column_stack([rng.uniform(-5, 5, 40), rng.uniform(-3, 3, 40), rng.uniform(-3, 3, 40)])
+    obs = Observations.from_arrays(["goalpost", "t_crossing", "l_crossing"], rng.uniform(0, 6, 3),
+                                   rng.uniform(-3, 3, 3))
+    by_max = LandmarkSensorModel(FIELD, bearing_model=bearing_model).log_likelihood(poses, obs)
+    by_sum = LandmarkSensorModel(FIELD, bearing_model=bearing_model, mixture="sum").log_likelihood(poses, obs)
+    np.testing.assert_allclose(by_sum, LandmarkSensorModel(FIELD, bearing_model=bearing_model, mixture="sum")
+                               .log_likelihood_reference(poses, obs), atol=1e-9)
+    assert (by_sum >= by_max - 1e-12).all() and (by_sum - by_max <= 3 * math.log(2) + 1e-12).all()
+
+
 def test_range_noise_grows_with_range():
     model = LandmarkSensorModel(FIELD)
     sigmas = model.range_sigma(np.array([0.5, 2.0, 5.0]))
@@ -159,7 +175,6 @@ def test_sampled_poses_explain_the_detection():
     near_truth = np.hypot(*(samples[:, :2] - pose[:2]).T) < 1e-3
     assert near_truth.any() and (~near_truth).any()
     scored_with_model_noise = Observations.from_arrays(["penalty_mark"], [r], [b])
-    assert np.allclose(model.log_likelihood(samples, scored_with_model_noise), math.log1p(model.outlier_weight),
-                       atol=1e-3)
+    assert np.allclose(model.log_likelihood(samples, scored_with_model_noise), 0.0, atol=1e-3)
     assert (np.abs(wrap_angles(samples[:, 2] - pose[2])) < 1e-3).all()
     assert model.sample_poses(Observations.empty(), 5, np.random.default_rng(0)).shape == (0, 3)
