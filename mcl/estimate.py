@@ -63,10 +63,13 @@ def _kernel_mean(poses, weights, cx, cy, ct, radius, angle_radius):
 
 @numba.njit(cache=True)
 def cluster_estimate(poses, weights, x_min, y_min, cell_size, nx, ny, n_theta, radius, angle_radius,
-                     iterations, histogram, out_mean, out_cov):
+                     iterations, histogram, previous, use_previous, out_mean, out_cov):
     """Mean and covariance of the dominant cluster; returns the cluster's weight.
 
-    histogram: scratch of nx·ny·n_theta floats. out_mean (3,), out_cov (3, 3) are written.
+    histogram: scratch of nx·ny·n_theta floats. out_mean (3,), out_cov (3, 3) are written. When the cluster
+    grown from the heaviest cell holds less than half the weight and `use_previous`, the mean shift also
+    starts from `previous` (the last estimate) and the heavier of the two clusters wins: a tight cluster
+    split across cell boundaries then is not lost to a clump that fits in one cell.
     """
     histogram[:] = 0.0
     theta_size = 2.0 * math.pi / n_theta
@@ -87,6 +90,12 @@ def cluster_estimate(poses, weights, x_min, y_min, cell_size, nx, ny, n_theta, r
     total = 0.0
     for _ in range(iterations):
         mx, my, mt, total = _kernel_mean(poses, weights, mx, my, mt, radius, angle_radius)
+    if use_previous and total < 0.5:
+        px, py, pt, ptotal = previous[0], previous[1], previous[2], 0.0
+        for _ in range(iterations):
+            px, py, pt, ptotal = _kernel_mean(poses, weights, px, py, pt, radius, angle_radius)
+        if ptotal > total:
+            mx, my, mt, total = px, py, pt, ptotal
     # Covariance of the held particles, θ residual wrapped around the circular mean.
     cov = np.zeros((3, 3))
     r2 = radius * radius
@@ -161,7 +170,7 @@ def grid_entropy_reference(poses, weights, x_min, y_min, cell_size, nx, ny, n_th
 
 
 def cluster_estimate_reference(poses, weights, x_min, y_min, cell_size, nx, ny, n_theta, radius, angle_radius,
-                               iterations):
+                               iterations, previous=None):
     """Numpy version of `cluster_estimate`: returns (mean (3,), cov (3, 3), weight)."""
     theta_size = 2 * np.pi / n_theta
     cx = _cells(poses[:, 0], x_min, cell_size, nx)
@@ -171,16 +180,24 @@ def cluster_estimate_reference(poses, weights, x_min, y_min, cell_size, nx, ny, 
     best = int(np.argmax(histogram))
     bt, by, bx = best % n_theta, (best // n_theta) % ny, best // (n_theta * ny)
     mean = np.array([x_min + (bx + 0.5) * cell_size, y_min + (by + 0.5) * cell_size, -np.pi + (bt + 0.5) * theta_size])
-    total = 0.0
-    for _ in range(iterations):
-        d = np.column_stack([poses[:, 0] - mean[0], poses[:, 1] - mean[1], wrap_angles(poses[:, 2] - mean[2])])
-        mask = ((d[:, :2] ** 2).sum(axis=1) <= radius ** 2) & (np.abs(d[:, 2]) <= angle_radius)
-        w = weights[mask]
-        total = w.sum()
-        if total <= 0:
-            break
-        shift = (w[:, None] * d[mask]).sum(axis=0) / total
-        mean = np.array([mean[0] + shift[0], mean[1] + shift[1], float(wrap_angles(mean[2] + shift[2]))])
+    def shift(mean):
+        total = 0.0
+        for _ in range(iterations):
+            d = np.column_stack([poses[:, 0] - mean[0], poses[:, 1] - mean[1], wrap_angles(poses[:, 2] - mean[2])])
+            mask = ((d[:, :2] ** 2).sum(axis=1) <= radius ** 2) & (np.abs(d[:, 2]) <= angle_radius)
+            w = weights[mask]
+            total = w.sum()
+            if total <= 0:
+                return mean, 0.0
+            step = (w[:, None] * d[mask]).sum(axis=0) / total
+            mean = np.array([mean[0] + step[0], mean[1] + step[1], float(wrap_angles(mean[2] + step[2]))])
+        return mean, total
+
+    mean, total = shift(mean)
+    if previous is not None and total < 0.5:
+        other, other_total = shift(np.asarray(previous, dtype=np.float64))
+        if other_total > total:
+            mean, total = other, other_total
     d = np.column_stack([poses[:, 0] - mean[0], poses[:, 1] - mean[1], wrap_angles(poses[:, 2] - mean[2])])
     mask = ((d[:, :2] ** 2).sum(axis=1) <= radius ** 2) & (np.abs(d[:, 2]) <= angle_radius)
     cov = np.zeros((3, 3))

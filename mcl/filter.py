@@ -21,13 +21,18 @@ Resampling happens when the effective sample size falls below `resample_threshol
 average likelihood per detection, and 1 - (w_fast/w_slow)/ratio_threshold of the particles are injected
 (a dead-band: plain augmented MCL, ratio_threshold = 1, injects after every false positive); and as in
 sensor resetting, 1 - w_fast/fit_threshold when the fit is poor in absolute terms, which is what finds the
-robot from a uniform start (where w_slow is as poor as w_fast). Injected particles
-explain a current detection (sensor resetting) or are uniform over the injection region, and once the
-filter has been confident their heading is drawn around the estimated heading. That is the guard against
-the point-symmetric field: the mirror pose (−x, −y, θ+π) differs by π in heading, and a robot's heading
-survives being carried (the gyro keeps it), so a filter that re-seeds after a kidnapping does not land on
-the mirror. Before the first confident estimate, injection stays inside the region of the last uniform
-reset (the own half at kick-off, where the rules place the robot).
+robot from a uniform start (where w_slow is as poor as w_fast). Freshly injected particles are left out of
+that average: they explain the detections badly and would ask for ever more injection.
+
+Injected particles explain a current detection (sensor resetting) or are uniform over the injection
+region. Once the estimate has been confident for `AugmentedMCL.confident_corrections` corrections in a row
+(one sweep of a panning head), their heading is drawn around a heading reference: the heading of the last
+confident, well-fitting estimate, carried forward by the motion inputs (as a gyro would carry it). That is
+the guard against the point-symmetric field: the mirror pose (−x, −y, θ+π) differs by π in heading, and a
+robot's heading survives being carried, so a filter that re-seeds after a kidnapping does not land on the
+mirror. Until then, injection stays inside the region of the last uniform reset (the own half at kick-off,
+where the rules place the robot) with uniform headings, and at most `max_fraction` of the particles are
+replaced per correction; afterwards at most `max_fraction_tracking`.
 """
 from __future__ import annotations
 
@@ -103,8 +108,14 @@ class AugmentedMCL:
                                          # `robocup-mcl demo walk --seeds 0-9`), so it rarely fires then;
                                          # 0 switches it off
     sensor_reset_fraction: float = 0.5   # share of injected particles drawn from a detection
-    heading_sigma: float = 0.3           # rad, spread of injected headings around the estimate
-    max_fraction: float = 0.25           # never replace more than this share of the particles at once
+    heading_sigma: float = 0.3           # rad, spread of injected headings around the heading reference
+    heading_gate: float = 0.5            # rad: once trusted, the reference follows a confident estimate only
+                                         # within this (odometry drifts by less; a wrong cluster differs more)
+    max_fraction: float = 0.25           # never replace more than this share of the particles at once ...
+    max_fraction_tracking: float = 0.05  # ... nor more than this once the heading is trusted: sensor resetting
+                                         # around a known heading needs few particles to find a kidnapped
+                                         # robot, and a streak of false positives must not dissolve a
+                                         # correct cluster (at 25 % a frame, 90 % of it is gone in 8 frames)
     confident_corrections: int = 120     # corrections in a row the estimate must be confident before its
                                          # heading guides injection: one sweep of a head panning every 4 s
                                          # at 30 Hz, so the hypothesis has met everything the camera sees
@@ -113,12 +124,14 @@ class AugmentedMCL:
         if not (0 < self.alpha_slow < self.alpha_fast <= 1):
             raise ValueError(f"alpha_slow = {self.alpha_slow!r}, alpha_fast = {self.alpha_fast!r}: "
                              "need 0 < alpha_slow < alpha_fast <= 1")
-        for name in ("sensor_reset_fraction", "max_fraction", "ratio_threshold"):
+        for name in ("sensor_reset_fraction", "max_fraction", "max_fraction_tracking", "ratio_threshold"):
             value = getattr(self, name)
             if not 0 <= value <= 1:
                 raise ValueError(f"{name} = {value!r} must be within [0, 1]")
-        if not (math.isfinite(self.heading_sigma) and self.heading_sigma > 0):
-            raise ValueError(f"heading_sigma = {self.heading_sigma!r} must be finite and > 0")
+        for name in ("heading_sigma", "heading_gate"):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value > 0):
+                raise ValueError(f"{name} = {value!r} must be finite and > 0")
         if not (math.isfinite(self.fit_threshold) and self.fit_threshold >= 0):
             raise ValueError(f"fit_threshold = {self.fit_threshold!r} must be finite and >= 0")
         if not (isinstance(self.confident_corrections, int) and self.confident_corrections >= 1):
@@ -162,9 +175,9 @@ class ParticleFilter:
     augmented:          AugmentedMCL parameters, or None to switch injection off
     grid:               entropy and estimate grid parameters
     roughening:         standard deviations (x [m], y [m], θ [rad]) of the uniform jitter added to
-                        resampled particles in their own frame (Gordon et al. 1993). Without it a standing robot, whose velocity-linear
-                        noise is zero (eq. 10), collapses onto copies of a single particle after a few
-                        corrections. (0, 0, 0) switches it off.
+                        resampled particles in their own frame (Gordon et al. 1993). Without it a standing
+                        robot, whose velocity-linear noise is zero (eq. 10), collapses onto copies of one
+                        particle after a few corrections. (0, 0, 0) switches it off.
     """
 
     def __init__(self, field: Field, motion_model: MotionModel, sensor_model, n_particles: int = 500,
@@ -222,7 +235,10 @@ class ParticleFilter:
         self._injection_bounds = self._region_bounds("field")
         self._ever_confident = False
         self._confident_streak = 0
+        self._heading_reference = 0.0     # trusted heading, carried forward by odometry (see _track_confidence)
         self._estimate: Estimate | None = None
+        self._previous_estimate = np.zeros(3)
+        self._has_previous_estimate = False
         self.reset_uniform("field")
 
     # -- resets ------------------------------------------------------------------------------------------
@@ -242,6 +258,7 @@ class ParticleFilter:
         return x_min, x_max, y_min, y_max
 
     def _set_particles(self, poses: np.ndarray) -> None:
+        self._has_previous_estimate = False
         self.poses[:] = poses
         self.poses[:, 2] = wrap_angles(self.poses[:, 2])
         self.log_weights[:] = -math.log(self.n)
@@ -256,8 +273,14 @@ class ParticleFilter:
         stays in this region until the filter is first confident (see the module docstring).
         """
         bounds = self._region_bounds(region)
-        if heading is not None and not (math.isfinite(heading) and math.isfinite(heading_sigma) and heading_sigma >= 0):
-            raise ValueError(f"heading = {heading!r}, heading_sigma = {heading_sigma!r} must be finite (sigma >= 0)")
+        if heading is not None:
+            try:
+                valid = math.isfinite(heading) and math.isfinite(heading_sigma) and heading_sigma >= 0
+            except TypeError:
+                valid = False
+            if not valid:
+                raise ValueError(f"heading = {heading!r}, heading_sigma = {heading_sigma!r} must be finite "
+                                 "numbers (sigma >= 0)")
         x_min, x_max, y_min, y_max = bounds
         poses = np.empty((self.n, 3))
         poses[:, 0] = self.rng.uniform(x_min, x_max, self.n)
@@ -273,7 +296,10 @@ class ParticleFilter:
         self.w_slow = self.w_fast = 0.0
 
     def reset_around(self, pose, sigma=(0.1, 0.1, 0.1)) -> None:
-        """Normal particles around a known pose (x, y, θ) with standard deviations `sigma`."""
+        """Normal particles around a known pose (x, y, θ) with standard deviations `sigma`.
+
+        The pose is taken as known: its heading guides injection from now on (as after a confident sweep).
+        """
         pose = np.asarray(pose, dtype=np.float64)
         sigma = np.asarray(sigma, dtype=np.float64)
         if pose.shape != (3,) or not np.isfinite(pose).all():
@@ -283,11 +309,14 @@ class ParticleFilter:
         self._set_particles(pose + sigma * self.rng.standard_normal((self.n, 3)))
         self._injection_bounds = self._region_bounds("field")
         self._ever_confident = True
+        self._heading_reference = math.remainder(float(pose[2]), 2 * math.pi)
         self.w_slow = self.w_fast = 0.0
 
     def reset_mirrored(self) -> None:
         """Mirror every particle through the centre mark: (x, y, θ) → (−x, −y, θ+π), weights kept."""
         self.poses[:] = self.field.mirror_poses(self.poses)
+        self._heading_reference = math.remainder(self._heading_reference + math.pi, 2 * math.pi)
+        self._has_previous_estimate = False
         self._estimate = None
 
     def set_particles(self, poses, log_weights=None) -> None:
@@ -297,8 +326,9 @@ class ParticleFilter:
             raise ValueError(f"poses must be finite with shape ({self.n}, 3), got {poses.shape}")
         if log_weights is not None:
             log_weights = np.asarray(log_weights, dtype=np.float64)
-            if log_weights.shape != (self.n,) or np.isnan(log_weights).any() or not (log_weights > -np.inf).any():
-                raise ValueError("log_weights must have shape (N,), no NaN, and at least one finite entry")
+            if (log_weights.shape != (self.n,) or np.isnan(log_weights).any() or np.isposinf(log_weights).any()
+                    or not (log_weights > -np.inf).any()):
+                raise ValueError("log_weights must have shape (N,), no NaN or +inf, and at least one finite entry")
         self._set_particles(poses)
         if log_weights is not None:
             total, self.ess = normalize(log_weights, self._weights)
@@ -311,7 +341,12 @@ class ParticleFilter:
             raise ValueError(f"u = {u!r} must be a motion_models.MotionInput")
         self.motion_model.check(u)
         self.motion_model.predict(self.poses, u, self.rng)
+        self._carry_heading(u)
         self._estimate = None
+
+    def _carry_heading(self, u: MotionInput) -> None:
+        """Turn the heading reference by the motion input's rotation, as a gyro would."""
+        self._heading_reference = math.remainder(self._heading_reference + u.displacement()[2], 2 * math.pi)
 
     def correct(self, observations: Observations | Iterable | None) -> None:
         """Weigh the particles by the detections, then resample (and inject) if needed."""
@@ -361,24 +396,37 @@ class ParticleFilter:
             raise ValueError(f"u = {u!r} must be a motion_models.MotionInput")
         self.motion_model.check(u)
         self.motion_model.predict(self.poses, u, self.rng)
+        self._carry_heading(u)
         self._estimate = None
         self._correct(observations)
         return self.estimate()
 
     def _track_confidence(self) -> None:
-        """Trust the estimated heading for injection once it has been confident for a while.
+        """Keep the heading reference that guides injection.
 
-        A single confident correction is not enough: early in global localization a wrong cluster can be
-        tight for a moment, and injecting around its heading would seed the mirror pose.
+        The reference is anchored to the estimate only while the estimate is confident and explains the
+        detections (w_fast at least the fit threshold), and, once trusted, only within `heading_gate` of
+        where the motion inputs have carried it, as a gyro's heading is corrected but not replaced. A lost
+        filter's estimate hops between clusters, and one of them can fit a few detections with the wrong
+        heading; following it would walk the reference away until injection seeds the mirror. Injection
+        uses the reference once the estimate has been confident for `confident_corrections` corrections in
+        a row: early in global localization a wrong cluster can be tight for a moment.
         """
-        if self.augmented is None or self._ever_confident:
+        if self.augmented is None:
             return
-        self._confident_streak = self._confident_streak + 1 if self.estimate().is_confident() else 0
+        estimate = self.estimate()
+        confident = estimate.is_confident()
+        if confident and self.w_fast >= self.augmented.fit_threshold:
+            offset = math.remainder(estimate.theta - self._heading_reference, 2 * math.pi)
+            if not self._ever_confident or abs(offset) <= self.augmented.heading_gate:
+                self._heading_reference = estimate.theta
+        if self._ever_confident:
+            return
+        self._confident_streak = self._confident_streak + 1 if confident else 0
         if self._confident_streak >= self.augmented.confident_corrections:
             self._ever_confident = True
             self._injection_bounds = self._region_bounds("field")
 
-    # -- augmented MCL -----------------------------------------------------------------------------------
     def _native_log_average(self, log_likelihood: np.ndarray) -> float:
         """log(Σ wᵢ pᵢ / Σ wᵢ) over the particles not injected by the previous resampling (prior weights).
 
@@ -406,10 +454,11 @@ class ParticleFilter:
     def _injection_count(self, fraction: float) -> int:
         if self.augmented is None:
             return 0
-        return int(round(min(fraction, self.augmented.max_fraction) * self.n))
+        cap = self.augmented.max_fraction_tracking if self._ever_confident else self.augmented.max_fraction
+        return int(round(min(fraction, cap) * self.n))
 
     def _sample_injection(self, count: int, observations: Observations) -> np.ndarray:
-        heading = self.estimate().theta if self._ever_confident else None
+        heading = self._heading_reference if self._ever_confident else None
         sigma = self.augmented.heading_sigma
         x_min, x_max, y_min, y_max = self._injection_bounds
         n_sensor = int(round(count * self.augmented.sensor_reset_fraction))
@@ -456,16 +505,23 @@ class ParticleFilter:
         return view
 
     def estimate(self) -> Estimate:
-        """Weighted circular mean and covariance of the dominant cluster (cached until the particles change)."""
+        """Weighted circular mean and covariance of the dominant cluster (cached until the particles change).
+
+        When no cluster holds half the weight, the one around the previous estimate is preferred if it is
+        the heavier (hysteresis: see `mcl.estimate.cluster_estimate`).
+        """
         if self._estimate is None:
             g = self.grid
             mean = np.empty(3)
             cov = np.empty((3, 3))
+            previous = self._previous_estimate
             weight = cluster_estimate(self.poses, self._weights, self._x_min, self._y_min, g.cluster_cell,
                                       self._cluster_nx, self._cluster_ny, g.cluster_orientation_bins,
                                       g.cluster_radius, g.cluster_angle_radius, 3, self._cluster_histogram,
-                                      mean, cov)
+                                      previous, self._has_previous_estimate, mean, cov)
             self._estimate = Estimate(mean, cov, float(weight))
+            previous[:] = mean
+            self._has_previous_estimate = True
         return self._estimate
 
     def entropy(self) -> Entropy:

@@ -43,7 +43,8 @@ def numpy_step(pf, u: MotionInput, observations: Observations, timings: dict | N
     g = pf.grid
     mean, cov, cluster_weight = cluster_estimate_reference(
         poses, weights, pf._x_min, pf._y_min, g.cluster_cell, pf._cluster_nx, pf._cluster_ny,
-        g.cluster_orientation_bins, g.cluster_radius, g.cluster_angle_radius, 3)
+        g.cluster_orientation_bins, g.cluster_radius, g.cluster_angle_radius, 3,
+        pf._previous_estimate if pf._has_previous_estimate else None)
     marks.append(clock())
     entropy = grid_entropy_reference(poses, weights, pf._x_min, pf._y_min, g.position_cell, pf._entropy_nx,
                                      pf._entropy_ny, g.orientation_bins)

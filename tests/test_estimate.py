@@ -16,9 +16,10 @@ def entropy(poses, weights, **grid):
                         np.empty(g["nx"] * g["ny"]), np.empty(g["n_theta"]))
 
 
-def estimate(poses, weights):
+def estimate(poses, weights, previous=None):
     mean, cov = np.empty(3), np.empty((3, 3))
     weight = cluster_estimate(poses, weights, -5.2, -3.7, 0.5, 21, 15, 8, 0.75, 0.8, 3, np.empty(21 * 15 * 8),
+                              np.zeros(3) if previous is None else np.asarray(previous, float), previous is not None,
                               mean, cov)
     return mean, cov, weight
 
@@ -52,12 +53,13 @@ def test_entropy_extremes():
     assert entropy(two, np.array([0.5, 0.5]))[0] == pytest.approx(1.0)
 
 
-@given(clouds)
-def test_cluster_estimate_matches_reference(rng):
+@given(clouds, st.booleans())
+def test_cluster_estimate_matches_reference(rng, with_previous):
     poses, weights = random_cloud(rng)
-    mean, cov, weight = estimate(poses, weights)
+    previous = poses[int(np.argmax(weights))] if with_previous else None
+    mean, cov, weight = estimate(poses, weights, previous)
     ref_mean, ref_cov, ref_weight = cluster_estimate_reference(poses, weights, -5.2, -3.7, 0.5, 21, 15, 8, 0.75,
-                                                               0.8, 3)
+                                                               0.8, 3, previous)
     np.testing.assert_allclose(mean, ref_mean, atol=1e-9)
     np.testing.assert_allclose(cov, ref_cov, atol=1e-9)
     assert weight == pytest.approx(ref_weight, abs=1e-9)
@@ -84,3 +86,18 @@ def test_heading_mean_across_the_wrap():
     mean, cov, _ = estimate(poses, np.full(400, 1 / 400))
     assert abs(math.remainder(mean[2] - math.pi, 2 * math.pi)) < 0.02
     assert cov[2, 2] == pytest.approx(0.01, rel=0.25)
+
+
+def test_a_split_cluster_is_not_lost_to_a_clump_in_one_cell():
+    """A wide true cluster straddling cell boundaries holds more weight than a clump filling one cell, but
+    each of its cells holds less: seeded from the previous estimate, the estimate stays on the true one."""
+    rng = np.random.default_rng(3)
+    true = np.column_stack([rng.uniform(-0.3, 0.3, 700) - 0.2, rng.uniform(-0.3, 0.3, 700) - 0.2,
+                            rng.normal(0.0, 0.02, 700)])              # spread over the cells around (-0.2, -0.2)
+    clump = np.column_stack([rng.normal(2.85, 0.02, 300), rng.normal(1.85, 0.02, 300), rng.normal(0.0, 0.02, 300)])
+    poses = np.vstack([true, clump])
+    weights = np.full(1000, 1 / 1000)
+    without_history, _, w1 = estimate(poses, weights)
+    with_history, _, w2 = estimate(poses, weights, previous=(-0.2, -0.2, 0.0))
+    assert np.hypot(*(without_history[:2] - (2.85, 1.85))) < 0.05 and w1 == pytest.approx(0.3, abs=0.01)
+    assert np.hypot(*(with_history[:2] - (-0.2, -0.2))) < 0.05 and w2 == pytest.approx(0.7, abs=0.01)

@@ -111,7 +111,10 @@ def test_bad_resets_are_rejected_unchanged():
     for call in (lambda: pf.reset_uniform("left_wing"), lambda: pf.reset_uniform((1, 0, 0, 1)),
                  lambda: pf.reset_around((0, float("nan"), 0)), lambda: pf.reset_around((0, 0, 0), (1, -1, 1)),
                  lambda: pf.set_particles(np.zeros((3, 3))),
-                 lambda: pf.set_particles(np.zeros((300, 3)), np.full(300, -np.inf))):
+                 lambda: pf.set_particles(np.zeros((300, 3)), np.full(300, -np.inf)),
+                 lambda: pf.set_particles(np.zeros((300, 3)), np.r_[np.inf, np.zeros(299)]),
+                 lambda: pf.reset_uniform("field", heading="north"),
+                 lambda: pf.reset_uniform("field", heading=0.0, heading_sigma=float("nan"))):
         with pytest.raises(ValueError):
             call()
     assert same_state(before, state(pf))
@@ -233,7 +236,7 @@ def test_zero_likelihood_everywhere_recovers_by_injection_without_nan():
     pf.correct(detections())
     assert np.isfinite(pf.poses).all() and np.isfinite(pf.log_weights).all()
     assert pf.weights.sum() == pytest.approx(1.0)
-    assert pf.injected == int(round(AugmentedMCL().max_fraction * 200))
+    assert pf.injected == int(round(AugmentedMCL().max_fraction_tracking * 200))   # reset_around: pose known
     assert np.isfinite(pf.estimate().pose).all()
 
 
@@ -280,3 +283,24 @@ def test_constant_model_plugs_in_unchanged():
     pf.reset_around(TRUE_POSE, (0.1, 0.1, 0.1))
     e = pf.step(MotionInput(dt=0.01, odometry=(0.0, 0.0, 0.0)), detections())
     assert np.hypot(e.x - TRUE_POSE[0], e.y - TRUE_POSE[1]) < 0.2
+
+
+def test_heading_reference_follows_odometry_and_gates_a_contradicting_cluster():
+    """The reference that guides injection behaves like a gyro: carried by the motion inputs, corrected by a
+    confident well-fitting estimate, never replaced by one that contradicts it (the mirror guard)."""
+    pf = make(n=500, seed=4)
+    pf.reset_around(TRUE_POSE, (0.05, 0.05, 0.02))
+    assert pf._heading_reference == pytest.approx(TRUE_POSE[2])
+    for _ in range(10):                                   # turn at 1 rad/s for 0.5 s, no camera
+        pf.predict(MotionInput(dt=0.05, command=(0.0, 0.0, 1.0)))
+    assert pf._heading_reference == pytest.approx(TRUE_POSE[2] + 0.5, abs=1e-9)
+    turned = TRUE_POSE + np.array([0.0, 0.0, 0.5])
+    for _ in range(10):                                   # a consistent confident estimate corrects it
+        pf.step(MotionInput(dt=0.033, command=(0, 0, 0)), detections(turned))
+    assert abs(math.remainder(pf._heading_reference - turned[2], 2 * math.pi)) < 0.05
+    mirror = FIELD.mirror_poses(turned[None])[0]          # a tight cluster at the mirror pose fits just as well
+    pf.set_particles(mirror + np.random.default_rng(0).normal(0, 0.02, (pf.n, 3)))
+    for _ in range(10):
+        pf.step(MotionInput(dt=0.033, command=(0, 0, 0)), detections(mirror))
+    assert pf.estimate().is_confident()
+    assert abs(math.remainder(pf._heading_reference - turned[2], 2 * math.pi)) < 0.05
