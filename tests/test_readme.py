@@ -29,3 +29,10 @@ def test_readme_quick_start_has_exactly_the_two_commands():
     quick = README.read_text().split("## Quick start", 1)[1].split("##", 1)[0]
     block = re.search(r"```sh\n(.*?)```", quick, flags=re.S).group(1).strip().splitlines()
     assert block == ["make demo", "make test"]
+
+
+def test_lwpr_example_runs_and_learns():
+    example = next(block for block in python_blocks() if "LWPR(2, 1)" in block)
+    namespace: dict = {}
+    exec(compile(example, str(README), "exec"), namespace)
+    assert abs(namespace["y_hat"][0] - (-0.1567)) < 0.02 and namespace["conf"][0] > 0
