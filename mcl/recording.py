@@ -11,8 +11,10 @@ coloured by weight), `robot/estimate`, `robot/truth`, `observations` (rays from 
 detection), `entropy/position`, `entropy/orientation` (every step), `error/position`, `error/heading` (when
 the truth is known); timelines `step` (sequence) and `time` (duration, seconds). Anything else (a model's
 state belief, a percept) goes through `log_scalars`. The file opens on a blueprint with the field view beside
-the entropy and error plots. Coordinates are the field frame in metres; note that Rerun's 2-D view draws +y
-downwards (the image convention), so the field appears mirrored top to bottom.
+the entropy and error plots. Data are logged in the field frame, in metres. Rerun's 2-D view draws +y
+downwards (the image convention), so each top-level entity carries a static y-flip transform and the field
+appears as seen from above (+x right, +y up); the viewer's hover readout is in the view's coordinates (y
+negated), its selection panel shows the logged field-frame values.
 
 Logged arrays are fresh copies: Rerun keeps a reference until it flushes. `close()` (or the `with` block)
 writes the file's footer.
@@ -94,6 +96,8 @@ class Recorder:
 
     def _log_field(self) -> None:
         log = self.stream.log
+        for root in ("field", "particles", "robot", "observations"):
+            log(root, rr.Transform3D(scale=[1.0, -1.0, 1.0]), static=True)
         log("field/lines", rr.LineStrips2D(np.array(self.field.segments), colors=[(230, 230, 230)],
                                            radii=self.field.dims.line_width / 2), static=True)
         cx, cy, radius = self.field.center_circle
