@@ -110,3 +110,9 @@ def test_seed_parsing_and_aggregate():
 def test_walk_with_lines_runs(capsys):
     assert walk_main(["--duration", "3", "--particles", "200", "--lines", "--json"]) == 0
     assert json.loads(capsys.readouterr().out)["lines"] is True
+
+
+def test_bench_reports_the_accuracy_cost_of_the_fast_bearing_term():
+    from mcl.bench import bearing_accuracy
+    accuracy = bearing_accuracy(n=500)
+    assert 0.0 <= accuracy["total_variation"] < 0.01
