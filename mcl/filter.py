@@ -337,9 +337,15 @@ class ParticleFilter:
     # -- the step ----------------------------------------------------------------------------------------
     def predict(self, u: MotionInput) -> None:
         """Move every particle by the motion model."""
+        self._check_motion(u)
+        self._move(u)
+
+    def _check_motion(self, u: MotionInput) -> None:
         if not isinstance(u, MotionInput):
             raise ValueError(f"u = {u!r} must be a motion_models.MotionInput")
         self.motion_model.check(u)
+
+    def _move(self, u: MotionInput) -> None:
         self.motion_model.predict(self.poses, u, self.rng)
         self._carry_heading(u)
         self._estimate = None
@@ -392,12 +398,8 @@ class ParticleFilter:
         """
         observations = Observations.coerce(observations)
         self.sensor_model.check(observations)
-        if not isinstance(u, MotionInput):
-            raise ValueError(f"u = {u!r} must be a motion_models.MotionInput")
-        self.motion_model.check(u)
-        self.motion_model.predict(self.poses, u, self.rng)
-        self._carry_heading(u)
-        self._estimate = None
+        self._check_motion(u)
+        self._move(u)
         self._correct(observations)
         return self.estimate()
 

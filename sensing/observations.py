@@ -25,21 +25,10 @@ from field import LandmarkType
 
 def landmark_type(kind: LandmarkType | int | str) -> LandmarkType:
     """Parse a landmark type given as the enum, its value or its name (case-insensitive)."""
-    if isinstance(kind, LandmarkType):
-        return kind
-    if isinstance(kind, str):
-        try:
-            return LandmarkType[kind.strip().upper()]
-        except KeyError:
-            names = ", ".join(t.name for t in LandmarkType)
-            raise ValueError(f"kind = {kind!r} is not a landmark type (one of {names})") from None
-    if isinstance(kind, (int, np.integer)) and not isinstance(kind, bool):
-        try:
-            return LandmarkType(int(kind))
-        except ValueError:
-            raise ValueError(f"kind = {kind!r} is not a landmark type value "
-                             f"(0..{len(LandmarkType) - 1})") from None
-    raise ValueError(f"kind = {kind!r} is not a landmark type")
+    try:
+        return LandmarkType.parse(kind)
+    except ValueError as error:
+        raise ValueError(f"kind = {kind!r}: {error}") from None
 
 
 @dataclass(frozen=True)

@@ -49,6 +49,20 @@ from sensing.kinematics import LegChain
 # ---------------------------------------------------------------------------------------------------------
 # f(β, x): x rotated by the rotation vector β, and its derivative at β = 0
 # ---------------------------------------------------------------------------------------------------------
+@numba.njit(cache=True, inline="always")
+def _identity_plus_skew_terms(beta0, beta1, beta2, angle2, p, q, out):
+    """out = I + p [β]× + q [β]×², with [β]×² = β βᵀ - |β|² I: the form of both R(β) and J(β)."""
+    out[0, 0] = 1.0 + q * (beta0 * beta0 - angle2)
+    out[1, 1] = 1.0 + q * (beta1 * beta1 - angle2)
+    out[2, 2] = 1.0 + q * (beta2 * beta2 - angle2)
+    out[0, 1] = -p * beta2 + q * beta0 * beta1
+    out[1, 0] = p * beta2 + q * beta0 * beta1
+    out[0, 2] = p * beta1 + q * beta0 * beta2
+    out[2, 0] = -p * beta1 + q * beta0 * beta2
+    out[1, 2] = -p * beta0 + q * beta1 * beta2
+    out[2, 1] = p * beta0 + q * beta1 * beta2
+
+
 @numba.njit(cache=True)
 def rotation_matrix_kernel(beta0, beta1, beta2, out):
     """Rotation matrix of the rotation vector β (Rodrigues), written into out (3, 3)."""
@@ -61,15 +75,8 @@ def rotation_matrix_kernel(beta0, beta1, beta2, out):
         angle = math.sqrt(angle2)
         s = math.sin(angle) / angle
         c = (1.0 - math.cos(angle)) / angle2
-    out[0, 0] = 1.0 - c * (beta1 * beta1 + beta2 * beta2)
-    out[1, 1] = 1.0 - c * (beta0 * beta0 + beta2 * beta2)
-    out[2, 2] = 1.0 - c * (beta0 * beta0 + beta1 * beta1)
-    out[0, 1] = -s * beta2 + c * beta0 * beta1
-    out[1, 0] = s * beta2 + c * beta0 * beta1
-    out[0, 2] = s * beta1 + c * beta0 * beta2
-    out[2, 0] = -s * beta1 + c * beta0 * beta2
-    out[1, 2] = -s * beta0 + c * beta1 * beta2
-    out[2, 1] = s * beta0 + c * beta1 * beta2
+    # R = I + s [β]× + c [β]×² (Rodrigues).
+    _identity_plus_skew_terms(beta0, beta1, beta2, angle2, s, c, out)
 
 
 def rotation_matrix(beta) -> np.ndarray:
@@ -111,16 +118,8 @@ def left_jacobian_kernel(beta0, beta1, beta2, out):
         angle = math.sqrt(angle2)
         a = (1.0 - math.cos(angle)) / angle2
         b = (angle - math.sin(angle)) / (angle2 * angle)
-    # J = I + a [β]× + b [β]×², with [β]×² = β βᵀ - θ² I.
-    out[0, 0] = 1.0 + b * (beta0 * beta0 - angle2)
-    out[1, 1] = 1.0 + b * (beta1 * beta1 - angle2)
-    out[2, 2] = 1.0 + b * (beta2 * beta2 - angle2)
-    out[0, 1] = -a * beta2 + b * beta0 * beta1
-    out[1, 0] = a * beta2 + b * beta0 * beta1
-    out[0, 2] = a * beta1 + b * beta0 * beta2
-    out[2, 0] = -a * beta1 + b * beta0 * beta2
-    out[1, 2] = -a * beta0 + b * beta1 * beta2
-    out[2, 1] = a * beta0 + b * beta1 * beta2
+    # J = I + a [β]× + b [β]×².
+    _identity_plus_skew_terms(beta0, beta1, beta2, angle2, a, b, out)
 
 
 def left_jacobian(beta) -> np.ndarray:
