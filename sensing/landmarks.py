@@ -63,10 +63,10 @@ def landmark_log_likelihood(poses, table, offsets, kinds, ranges, bearings, rang
     order = np.argsort(kinds, kind="mergesort")
     obs_range = np.empty(m)
     obs_bearing = np.empty(m)
-    obs_cos = np.empty(m)
-    obs_sin = np.empty(m)
-    inv_var_range = np.empty(m)
-    inv_var_bearing = np.empty(m)
+    range_weight = np.empty(m)       # -½/σ_r²
+    bearing_cos = np.empty(m)        # κ cos b (von Mises)  or  -½/σ_b² (exact)
+    bearing_sin = np.empty(m)        # κ sin b (von Mises)
+    bearing_offset = np.empty(m)     # -κ (von Mises)  or  0 (exact)
     group_kind = np.empty(m, dtype=np.int64)
     group_start = np.empty(m + 1, dtype=np.int64)
     n_groups = 0
@@ -82,10 +82,17 @@ def landmark_log_likelihood(poses, table, offsets, kinds, ranges, bearings, rang
             sb = bearing_sigma
         obs_range[j] = r
         obs_bearing[j] = bearings[o]
-        obs_cos[j] = math.cos(bearings[o])
-        obs_sin[j] = math.sin(bearings[o])
-        inv_var_range[j] = 1.0 / (sr * sr)
-        inv_var_bearing[j] = 1.0 / (sb * sb)
+        range_weight[j] = -0.5 / (sr * sr)
+        kappa = 1.0 / (sb * sb)
+        if exact:
+            bearing_cos[j] = -0.5 * kappa
+            bearing_sin[j] = 0.0
+            bearing_offset[j] = 0.0
+        else:
+            # κ(cos(b - b̂) - 1) = κ cos b · cos b̂ + κ sin b · sin b̂ - κ, with (cos b̂, sin b̂) = (ux, uy)
+            bearing_cos[j] = kappa * math.cos(bearings[o])
+            bearing_sin[j] = kappa * math.sin(bearings[o])
+            bearing_offset[j] = -kappa
         kind = kinds[o]
         if n_groups == 0 or group_kind[n_groups - 1] != kind:
             group_kind[n_groups] = kind
@@ -119,26 +126,30 @@ def landmark_log_likelihood(poses, table, offsets, kinds, ranges, bearings, rang
                 d = math.sqrt(rx * rx + ry * ry)
                 dist[k] = d
                 if d > 1e-12:
-                    ux[k] = rx / d
-                    uy[k] = ry / d
+                    inverse = 1.0 / d
+                    ux[k] = rx * inverse
+                    uy[k] = ry * inverse
                 else:
                     ux[k] = 1.0
                     uy[k] = 0.0
                 if exact:
                     expected_bearing[k] = math.atan2(ry, rx)
             for j in range(group_start[g], group_start[g + 1]):
+                r = obs_range[j]
+                wr = range_weight[j]
                 best = -np.inf
-                for k in range(n_cand):
-                    er = obs_range[j] - dist[k]
-                    score = -0.5 * er * er * inv_var_range[j]
-                    if exact:
+                if exact:
+                    for k in range(n_cand):
+                        er = r - dist[k]
                         eb = wrap_angle(obs_bearing[j] - expected_bearing[k])
-                        score -= 0.5 * eb * eb * inv_var_bearing[j]
-                    else:
-                        cos_error = obs_cos[j] * ux[k] + obs_sin[j] * uy[k]
-                        score += inv_var_bearing[j] * (cos_error - 1.0)
-                    if score > best:
-                        best = score
+                        best = max(best, wr * er * er + bearing_cos[j] * eb * eb)
+                else:
+                    bc = bearing_cos[j]
+                    bs = bearing_sin[j]
+                    for k in range(n_cand):   # branch-free, so LLVM can vectorize over the candidates
+                        er = r - dist[k]
+                        best = max(best, wr * er * er + bc * ux[k] + bs * uy[k])
+                    best += bearing_offset[j]
                 if not sum_mixture:
                     total += max(best, log_outlier)
                     continue
