@@ -185,26 +185,33 @@ def ekf_jacobians_kernel(state, gyro, dt, sigma_w, sigma_q, exact, f_out, c_out)
 
 
 @numba.njit(cache=True)
+def propagate_covariance(cov, f, c):
+    """cov ← F cov Fᵀ + C Cᵀ in place (eq. 31), exactly symmetric; skips the zeros of the sparse F."""
+    n = cov.shape[0]
+    fp = np.zeros((n, n))
+    for i in range(n):
+        for k in range(n):
+            fik = f[i, k]
+            if fik != 0.0:
+                for j in range(n):
+                    fp[i, j] += fik * cov[k, j]
+    for i in range(n):
+        for j in range(i, n):
+            acc = 0.0
+            for k in range(n):
+                acc += fp[i, k] * f[j, k] + c[i, k] * c[j, k]
+            cov[i, j] = acc
+            cov[j, i] = acc
+
+
+@numba.njit(cache=True)
 def ekf_predict_kernel(state, cov, gyro, accel, dt, sigma_w, sigma_q, exact):
     """EKF prediction in place: state by eq. 28–30, covariance by eq. 31 (P ← F P Fᵀ + C Cᵀ)."""
     f = np.empty((6, 6))
     c = np.empty((6, 6))
     ekf_jacobians_kernel(state, gyro, dt, sigma_w, sigma_q, exact, f, c)
     imu_step_kernel(state, gyro, accel, dt)
-    fp = np.zeros((6, 6))
-    for i in range(6):
-        for k in range(6):
-            fik = f[i, k]
-            if fik != 0.0:
-                for j in range(6):
-                    fp[i, j] += fik * cov[k, j]
-    for i in range(6):
-        for j in range(i, 6):
-            acc = 0.0
-            for k in range(6):
-                acc += fp[i, k] * f[j, k] + c[i, k] * c[j, k]
-            cov[i, j] = acc
-            cov[j, i] = acc
+    propagate_covariance(cov, f, c)
 
 
 @numba.njit(cache=True)
@@ -281,20 +288,7 @@ def ekf_bias_predict_kernel(state, cov, gyro, accel, dt, sigma_w, sigma_q, sigma
     for k in range(3):
         corrected[k] = gyro[k] - state[6 + k]
     imu_step_kernel(state[:6], corrected, accel, dt)
-    fp = np.zeros((9, 9))
-    for i in range(9):
-        for k in range(9):
-            fik = f[i, k]
-            if fik != 0.0:
-                for j in range(9):
-                    fp[i, j] += fik * cov[k, j]
-    for i in range(9):
-        for j in range(i, 9):
-            acc = 0.0
-            for k in range(9):
-                acc += fp[i, k] * f[j, k] + c[i, k] * c[j, k]
-            cov[i, j] = acc
-            cov[j, i] = acc
+    propagate_covariance(cov, f, c)
 
 
 @numba.njit(cache=True)
