@@ -11,7 +11,6 @@ reason for the velocity-linear one.
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 from .base import BoundedNoiseModel, MotionInput, check_nonnegative

@@ -55,7 +55,6 @@ def test_batches_are_read_only_and_convert_to_points():
 
 
 def test_type_absent_from_the_field_is_an_error(spl_field):
-    from field import FieldDimensions, Field
     model = LandmarkSensorModel(spl_field)
     model.check(Observations.from_arrays(["x_crossing"], [1.0], [0.0]))
     # A sensor model over a field whose table lacks a type must say so (simulate with an offsets hole).
