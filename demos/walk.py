@@ -165,18 +165,19 @@ def parse_seeds(text: str) -> list[int]:
 
 def aggregate(runs: list[dict]) -> dict:
     """Medians and worst seeds of the figures over several runs (None = never converged = worst)."""
-    def stat(key, worst=max):
+    def never_last(value):
+        return math.inf if value is None else value
+
+    def stat(key):
         values = [r[key] for r in runs]
-        finite = [v for v in values if v is not None]
-        missing = len(values) - len(finite)
-        if not finite:
+        missing = values.count(None)
+        if missing == len(values):
             return {"median": None, "worst": None, "worst_seed": None, "failed_seeds": missing}
-        ordered = sorted(values, key=lambda v: math.inf if v is None else v)
-        median = ordered[len(ordered) // 2] if len(ordered) % 2 else None
-        if len(ordered) % 2 == 0:
-            a, b = ordered[len(ordered) // 2 - 1], ordered[len(ordered) // 2]
-            median = None if a is None or b is None else 0.5 * (a + b)
-        worst_run = max(runs, key=lambda r: math.inf if r[key] is None else r[key])
+        ordered = sorted(values, key=never_last)
+        middle = len(ordered) // 2
+        pair = ordered[middle - 1:middle + 1] if len(ordered) % 2 == 0 else [ordered[middle]]
+        median = None if None in pair else sum(pair) / len(pair)
+        worst_run = max(runs, key=lambda r: never_last(r[key]))
         return {"median": median, "worst": worst_run[key], "worst_seed": worst_run["seed"],
                 "failed_seeds": missing}
 

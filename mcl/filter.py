@@ -48,9 +48,8 @@ from motion_models._kernels import SQRT3 as _SQRT3, draw_variates
 from motion_models.base import MotionInput, MotionModel
 from sensing.observations import Observations
 
-from . import resampling
 from .estimate import cluster_estimate, grid_entropy
-from .resampling import gather_with_jitter
+from .resampling import SCHEMES, gather_with_jitter
 from .weights import log_mean_likelihood, normalize
 
 REGIONS = ("field", "own_half", "opponent_half")
@@ -188,8 +187,8 @@ class ParticleFilter:
             raise ValueError(f"field = {field!r} must be a field.Field")
         if isinstance(n_particles, bool) or not isinstance(n_particles, (int, np.integer)) or n_particles <= 0:
             raise ValueError(f"n_particles = {n_particles!r} must be an integer > 0")
-        if resampling not in _SCHEMES:
-            raise ValueError(f"resampling = {resampling!r} must be one of {tuple(_SCHEMES)}")
+        if resampling not in SCHEMES:
+            raise ValueError(f"resampling = {resampling!r} must be one of {tuple(SCHEMES)}")
         if not (isinstance(resample_threshold, (int, float)) and 0 <= resample_threshold <= 1):
             raise ValueError(f"resample_threshold = {resample_threshold!r} must be within [0, 1]")
         for name, obj, methods in (("motion_model", motion_model, ("check", "predict")),
@@ -440,8 +439,6 @@ class ParticleFilter:
 
     def _update_augmented(self, log_average: float) -> float:
         """Update w_slow, w_fast with the per-detection average likelihood; return the injection share."""
-        if self.augmented is None:
-            return 0.0
         a = self.augmented
         average = math.exp(log_average)
         if self.w_slow == 0.0:
@@ -484,7 +481,7 @@ class ParticleFilter:
     def _resample(self, count: int, observations: Observations) -> None:
         injected = self._sample_injection(count, observations) if count > 0 else np.empty((0, 3))
         keep = self.n - injected.shape[0]
-        ancestors = _SCHEMES[self.resampling](self._weights, keep, self.rng)
+        ancestors = SCHEMES[self.resampling](self._weights, keep, self.rng)
         self._previous[:] = self.poses
         # Roughening: uniform jitter of standard deviation `roughening`, in each particle's own frame so that
         # it commutes with rotating the world, fused with the copy from the ancestors.
@@ -539,6 +536,4 @@ class ParticleFilter:
         """The largest possible position and orientation entropies: log2 of the cell counts."""
         return math.log2(self._entropy_nx * self._entropy_ny), math.log2(self.grid.orientation_bins)
 
-
-_SCHEMES = resampling.SCHEMES
 
