@@ -535,5 +535,3 @@ class ParticleFilter:
     def entropy_bounds(self) -> tuple[float, float]:
         """The largest possible position and orientation entropies: log2 of the cell counts."""
         return math.log2(self._entropy_nx * self._entropy_ny), math.log2(self.grid.orientation_bins)
-
-
