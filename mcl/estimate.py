@@ -1,6 +1,6 @@
 """The belief's summary: the pose estimate of the dominant cluster, and grid entropy (Hoffmann eq. 27).
 
-    from mcl.estimate import cluster_estimate, grid_entropy
+    from mcl.estimate import cluster_estimate, grid_entropy, credible_region_contains
 
 The field is point-symmetric, so a lost filter may hold two mirror modes; their mean is the centre of the
 field, facing nowhere. The estimate is therefore the weighted circular mean of the dominant cluster: the
@@ -11,6 +11,9 @@ that of the particles the kernel holds. The cluster's share of the weight is ret
 Entropy is computed on a grid as in the paper, position and orientation separately, in bits:
 H = -Σ p(sᵢ) log₂ p(sᵢ), p(sᵢ) the weight in cell i. It lies in [0, log₂(cells)] and is zero while every
 particle shares one cell.
+
+`credible_region_contains` tells whether a pose lies in the smallest region holding 95 % of the belief: the
+check that the truth stays inside the particle cloud.
 """
 from __future__ import annotations
 
@@ -206,3 +209,42 @@ def cluster_estimate_reference(poses, weights, x_min, y_min, cell_size, nx, ny, 
         cov = (d[mask] * w[:, None]).T @ d[mask]
     mean[2] = float(wrap_angles(mean[2]))
     return mean, cov, float(total)
+
+
+def credible_region_contains(poses: np.ndarray, weights: np.ndarray, pose, mass: float = 0.95,
+                             min_bandwidth: tuple[float, float, float] = (0.005, 0.005, 0.005)) -> bool:
+    """Whether `pose` (x, y, θ) lies inside the smallest region holding `mass` of the belief.
+
+    The belief's density is a weighted kernel density estimate over the particles (Gaussian kernels, diagonal
+    bandwidths by Scott's rule from the weighted spread, never below `min_bandwidth`, heading differences
+    wrapped). The smallest region holding `mass` is where the density exceeds the level at which the particles
+    above it hold `mass` of the weight (the highest-density region, estimated from the sample); the pose is
+    inside when its density reaches that level. O(N²): meant for evaluation, not for the robot's loop.
+    """
+    poses = np.asarray(poses, dtype=np.float64)
+    weights = np.asarray(weights, dtype=np.float64)
+    pose = np.asarray(pose, dtype=np.float64)
+    if poses.ndim != 2 or poses.shape[1] != 3 or weights.shape != (poses.shape[0],) or pose.shape != (3,):
+        raise ValueError(f"poses (N, 3), weights (N,) and pose (3,) expected, got {poses.shape}, {weights.shape}, "
+                         f"{pose.shape}")
+    if not (0 < mass < 1):
+        raise ValueError(f"mass = {mass!r} must be within (0, 1)")
+    weights = weights / weights.sum()
+    n_effective = 1.0 / float(np.sum(weights ** 2))
+    centre = np.array([weights @ poses[:, 0], weights @ poses[:, 1],
+                       math.atan2(weights @ np.sin(poses[:, 2]), weights @ np.cos(poses[:, 2]))])
+    residual = poses - centre
+    residual[:, 2] = wrap_angles(residual[:, 2])
+    spread = np.sqrt(weights @ residual ** 2)
+    bandwidth = np.maximum(spread * n_effective ** (-1.0 / 7.0), np.asarray(min_bandwidth))   # Scott, d = 3
+
+    def density(points: np.ndarray) -> np.ndarray:
+        difference = points[:, None, :] - poses[None, :, :]
+        difference[..., 2] = wrap_angles(difference[..., 2])
+        return np.exp(-0.5 * np.sum((difference / bandwidth) ** 2, axis=-1)) @ weights
+
+    at_particles = density(poses)
+    order = np.argsort(-at_particles, kind="stable")
+    held = np.cumsum(weights[order])
+    level = at_particles[order[min(int(np.searchsorted(held, mass)), order.size - 1)]]
+    return bool(density(pose[None, :])[0] >= level)

@@ -33,6 +33,11 @@ robot's heading survives being carried, so a filter that re-seeds after a kidnap
 mirror. Until then, injection stays inside the region of the last uniform reset (the own half at kick-off,
 where the rules place the robot) with uniform headings, and at most `max_fraction` of the particles are
 replaced per correction; afterwards at most `max_fraction_tracking`.
+
+Stateful motion models. A motion model with a `particle_state(n)` method (the adaptive model's mobility state:
+a jump-Markov particle filter) gets a per-particle state array that the filter keeps beside the poses: it is
+passed to `predict(poses, u, rng, state=...)`, follows each particle through resampling, and starts fresh for
+reset and injected particles. `pf.motion_state` shows it (read-only).
 """
 from __future__ import annotations
 
@@ -238,6 +243,12 @@ class ParticleFilter:
         self._estimate: Estimate | None = None
         self._previous_estimate = np.zeros(3)
         self._has_previous_estimate = False
+        self._motion_state = None
+        if callable(getattr(motion_model, "particle_state", None)):
+            self._motion_state = np.ascontiguousarray(motion_model.particle_state(self.n))
+            if self._motion_state.shape[:1] != (self.n,):
+                raise ValueError(f"motion_model.particle_state({self.n}) must have {self.n} rows, "
+                                 f"got shape {self._motion_state.shape}")
         self.reset_uniform("field")
 
     # -- resets ------------------------------------------------------------------------------------------
@@ -258,6 +269,8 @@ class ParticleFilter:
 
     def _set_particles(self, poses: np.ndarray) -> None:
         self._has_previous_estimate = False
+        if self._motion_state is not None:
+            self._motion_state[:] = self.motion_model.particle_state(self.n)
         self.poses[:] = poses
         self.poses[:, 2] = wrap_angles(self.poses[:, 2])
         self.log_weights[:] = -math.log(self.n)
@@ -318,9 +331,17 @@ class ParticleFilter:
         self._has_previous_estimate = False
         self._estimate = None
 
-    def set_particles(self, poses, log_weights=None) -> None:
-        """Replace the particle set (N, 3) and optionally its log-weights (N,); validated first."""
+    def set_particles(self, poses, log_weights=None, motion_state=None) -> None:
+        """Replace the particle set (N, 3) and optionally its log-weights (N,) and, for a stateful motion model,
+        its per-particle state (fresh when not given); validated first."""
         poses = np.asarray(poses, dtype=np.float64)
+        if motion_state is not None:
+            if self._motion_state is None:
+                raise ValueError("motion_state given, but the motion model keeps no per-particle state")
+            motion_state = np.asarray(motion_state, dtype=self._motion_state.dtype)
+            if motion_state.shape != self._motion_state.shape or not np.isfinite(motion_state).all():
+                raise ValueError(f"motion_state must be finite with shape {self._motion_state.shape}, "
+                                 f"got {motion_state.shape}")
         if poses.shape != (self.n, 3) or not np.isfinite(poses).all():
             raise ValueError(f"poses must be finite with shape ({self.n}, 3), got {poses.shape}")
         if log_weights is not None:
@@ -329,6 +350,8 @@ class ParticleFilter:
                     or not (log_weights > -np.inf).any()):
                 raise ValueError("log_weights must have shape (N,), no NaN or +inf, and at least one finite entry")
         self._set_particles(poses)
+        if motion_state is not None:
+            self._motion_state[:] = motion_state
         if log_weights is not None:
             total, self.ess = normalize(log_weights, self._weights)
             self.log_weights[:] = log_weights - total
@@ -345,7 +368,10 @@ class ParticleFilter:
         self.motion_model.check(u)
 
     def _move(self, u: MotionInput) -> None:
-        self.motion_model.predict(self.poses, u, self.rng)
+        if self._motion_state is None:
+            self.motion_model.predict(self.poses, u, self.rng)
+        else:
+            self.motion_model.predict(self.poses, u, self.rng, state=self._motion_state)
         self._carry_heading(u)
         self._estimate = None
 
@@ -488,6 +514,9 @@ class ParticleFilter:
         gather_with_jitter(self._previous, ancestors, self.roughening * _SQRT3, draw_variates(self.rng, keep, False),
                            self.poses)
         self.poses[keep:] = injected
+        if self._motion_state is not None:
+            self._motion_state[:keep] = self._motion_state[ancestors]
+            self._motion_state[keep:] = self.motion_model.particle_state(self.n - keep)
         self.log_weights[:] = -math.log(self.n)
         self._weights[:] = 1.0 / self.n
         self.ess = float(self.n)
@@ -496,6 +525,15 @@ class ParticleFilter:
         self._estimate = None
 
     # -- summaries ---------------------------------------------------------------------------------------
+    @property
+    def motion_state(self) -> np.ndarray | None:
+        """The stateful motion model's per-particle state (a read-only view), or None for a stateless model."""
+        if self._motion_state is None:
+            return None
+        view = self._motion_state.view()
+        view.flags.writeable = False
+        return view
+
     @property
     def weights(self) -> np.ndarray:
         """Normalized weights (a read-only view)."""

@@ -1,15 +1,19 @@
 """Motion models: how particles move between filter steps, all behind one interface.
 
-    from motion_models import MotionInput, ConstantNoise, VelocityLinear
+    from motion_models import MotionInput, ConstantNoise, VelocityLinear, AdaptiveMotion
 
     u = MotionInput(dt=0.01, command=(0.2, 0.0, 0.1))   # or odometry=(dx, dy, dtheta)
     VelocityLinear().predict(poses, u, rng)             # poses (N, 3), updated in place
 
+`AdaptiveMotion` (Hoffmann's five mobility states) also needs `MotionInput.collision`, a collision percept
+from `sensing.collision`, and keeps a state per particle (the filter carries it).
+
 A model is a frozen dataclass with `check(u)` (raise ValueError if `u` lacks what it needs) and
 `predict(poses, u, rng)`; the filter in `mcl` calls nothing else. A new model is a new module here.
 """
+from .adaptive import AdaptiveMotion, MobilityTransitions
 from .base import MotionInput, MotionModel
 from .constant import ConstantNoise
 from .velocity_linear import VelocityLinear
 
-__all__ = ["MotionInput", "MotionModel", "ConstantNoise", "VelocityLinear"]
+__all__ = ["MotionInput", "MotionModel", "ConstantNoise", "VelocityLinear", "AdaptiveMotion", "MobilityTransitions"]

@@ -1,0 +1,469 @@
+"""`robocup-mcl demo collision`: Hoffmann's experiments (section 4), reproduced and measured.
+
+    robocup-mcl demo collision --case single --model adaptive --rrd recordings/collision.rrd   # one run
+    robocup-mcl demo collision --case single --seeds 0-19          # both models, no vision, 20 seeds
+    robocup-mcl demo collision --case single --seeds 0-19 --vision # with landmark observations
+    robocup-mcl demo collision --detection                         # the collision detector alone
+    robocup-mcl demo collision --particle-sweep 50,100,200,500     # claim (a): fewer particles
+    robocup-mcl demo collision --cost                              # predict cost, adaptive / velocity-linear
+    robocup-mcl demo collision --report [--json]                   # all of the README's figures
+
+The robot walks forward at 200 mm/s for 10 s; the filter's particles all start at the true pose (section 4.1).
+Cases: "none" (4.1), "single" (4.2: a collision of about 2 s on the left, during which the robot is held back,
+then stopped and turning toward the obstacle), "double" (4.3: left, then right, in brief succession). Each
+seed shifts the collision times (±0.5 s) and draws the severities. The collision percept comes from the
+detector (`sensing.collision`) fed with the simulated servo data, its reference learned from three minutes of
+simulated free walking (seed 1000, never a test seed).
+
+Measured per run: grid entropy (eq. 27) of position and orientation each step; without vision, whether the true
+pose lies inside the smallest region holding 95 % of the belief (`mcl.estimate.credible_region_contains`), at
+each step from the collision's start on; with vision, the position error of the estimate and the time from the
+collision's end until that error is below 0.2 m (0 when it never exceeded it).
+
+Entropy grid: 5 cm cells and 5° bins. The paper does not give its grid; the filter's default (10 cm, 10°) is
+coarser than the whole no-collision cloud of 100 particles for most of the run, which would make both models
+score 0 bits.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+import time
+from dataclasses import replace
+
+import numpy as np
+
+from field.angles import wrap_angles
+from mcl import Grid, ParticleFilter
+from mcl.estimate import credible_region_contains
+from motion_models import AdaptiveMotion, MotionInput, VelocityLinear
+from motion_models.adaptive import STATES
+from sensing import LandmarkSensorModel
+from sensing.collision import CollisionDetector, CollisionReference, detect, learn_reference
+
+from .collision_sim import (BOTH, LEFT, RIGHT, SIDE_NAMES, SLIPPAGE, CollisionScenario, jitter_events, paper_case,
+                            random_collisions, simulate)
+from .walk import parse_seeds
+
+MODELS = {"velocity-linear": VelocityLinear, "adaptive": AdaptiveMotion,
+          "adaptive-step": lambda: AdaptiveMotion(redraw="step")}
+CASES = ("none", "single", "double")
+GRID = Grid(position_cell=0.05, orientation_bins=72)
+RELOCALIZED = 0.2        # m
+REFERENCE_SEED = 1000    # the free walk the detector's reference is learned from
+
+
+def free_walk_reference(seed: int = REFERENCE_SEED, duration: float = 180.0) -> CollisionReference:
+    """The detector's reference, learned from `duration` s of simulated free walking at varied requests."""
+    log = simulate(CollisionScenario(duration=duration, command=None), seed)
+    return learn_reference(log.servo_commands, log.servo_readings, log.phase, log.commands, log.joint_sides)
+
+
+def case_scenario(case: str, seed: int, vision: bool = False) -> CollisionScenario:
+    """The paper's case with this seed's collision times and severities."""
+    scenario = paper_case(case, vision=vision)
+    rng = np.random.default_rng(np.random.SeedSequence([seed, 3]))
+    return replace(scenario, events=jitter_events(scenario.events, rng))
+
+
+def run_case(case: str, model: str, seed: int, reference: CollisionReference, particles: int = 100,
+             vision: bool = False, rrd: str | None = None, containment: bool | None = None) -> dict:
+    """One run of a case with one model; returns the figures (and per-step series under "series")."""
+    scenario = case_scenario(case, seed, vision)
+    log = simulate(scenario, seed)
+    motion = MODELS[model]()
+    pf = ParticleFilter(scenario.field, motion, LandmarkSensorModel(scenario.field), n_particles=particles,
+                        seed=seed, grid=GRID)
+    pf.reset_around(log.start, sigma=(0.0, 0.0, 0.0))
+    detector = CollisionDetector(reference)
+    containment = (not vision) if containment is None else containment
+    recorder = None
+    if rrd:
+        from mcl.recording import Recorder
+        recorder = Recorder(rrd, scenario.field, particles_every=2, blueprint=collision_blueprint())
+    n = log.times.shape[0]
+    estimates = np.empty((n, 3))
+    entropy = np.empty((n, 2))
+    s_rel = np.empty((n, 2))
+    belief = np.full((n, 5), np.nan)
+    contained = np.zeros(n, dtype=bool)
+    frames = {frame.step: frame for frame in log.frames}
+    stateful = pf.motion_state is not None
+    started = time.perf_counter()
+    for k in range(n):
+        percept = detector.update(log.servo_commands[k], log.servo_readings[k], log.phase[k], log.commands[k])
+        s_rel[k] = (percept.s_rel_left, percept.s_rel_right)
+        pf.predict(MotionInput(dt=log.dt, command=tuple(log.commands[k]), collision=percept))
+        frame = frames.get(k)
+        if frame is not None:
+            pf.correct(frame.observations)
+        estimates[k] = pf.estimate().pose
+        h = pf.entropy()
+        entropy[k] = (h.position, h.orientation)
+        if stateful:
+            belief[k] = motion.state_belief(pf.motion_state, pf.weights)
+        if containment:
+            contained[k] = credible_region_contains(pf.poses, pf.weights, log.truth[k])
+        if recorder is not None:
+            recorder.log_step(k, float(log.times[k]), pf, truth=log.truth[k],
+                              observations=frame.observations if frame is not None else None, entropy=h)
+            values = {"proprioception/s_rel/left": s_rel[k, 0], "proprioception/s_rel/right": s_rel[k, 1],
+                      "proprioception/collision_threshold": 1.0}
+            if stateful:
+                values.update({f"motion/state_belief/{name}": belief[k, i] for i, name in enumerate(STATES)})
+            recorder.log_scalars(values)
+    elapsed = time.perf_counter() - started
+    if recorder is not None:
+        recorder.close()
+    return summarize(case, model, seed, particles, vision, log, estimates, entropy, contained if containment else None,
+                     belief, s_rel, elapsed, rrd)
+
+
+def collision_blueprint():
+    import rerun.blueprint as rrb
+    return rrb.Blueprint(
+        rrb.Horizontal(
+            rrb.Spatial2DView(origin="/", name="field",
+                              contents=["/field/**", "/particles", "/robot/**", "/observations"]),
+            rrb.Vertical(
+                rrb.TimeSeriesView(origin="/entropy", name="entropy [bits]"),
+                rrb.TimeSeriesView(origin="/proprioception", name="S_rel (collision when > 1)"),
+                rrb.TimeSeriesView(origin="/motion/state_belief", name="mobility state belief"),
+                rrb.TimeSeriesView(origin="/error", name="error [m, rad]"),
+            ),
+            column_shares=[3, 2],
+        ),
+        collapse_panels=True,
+    )
+
+
+def summarize(case, model, seed, particles, vision, log, estimates, entropy, contained, belief, s_rel, elapsed,
+              rrd) -> dict:
+    times = log.times
+    events = log.events
+    collision_start = events[0].start if events else None
+    collision_end = events[-1].end if events else None
+    position_error = np.hypot(*(estimates[:, :2] - log.truth[:, :2]).T)
+    heading_error = np.abs(wrap_angles(estimates[:, 2] - log.truth[:, 2]))
+    seconds = np.arange(1, int(round(times[-1])) + 1)
+    at_second = np.searchsorted(times, seconds - 1e-9)
+    result = {
+        "case": case, "model": model, "seed": seed, "particles": particles, "vision": vision,
+        "collision_start_s": collision_start, "collision_end_s": collision_end,
+        "entropy_position_bits": [float(entropy[i, 0]) for i in at_second],
+        "entropy_orientation_bits": [float(entropy[i, 1]) for i in at_second],
+        "final_position_error_m": float(position_error[-1]),
+        "final_heading_error_deg": math.degrees(float(heading_error[-1])),
+        "position_rmse_m": float(np.sqrt(np.mean(position_error ** 2))),
+        "ms_per_step": 1e3 * elapsed / times.shape[0], "rrd": rrd,
+    }
+    after = times > (collision_start if collision_start is not None else 1.0)
+    if contained is not None:
+        result["contained_share"] = float(contained[after].mean())
+    if collision_start is not None:
+        result["position_rmse_after_collision_m"] = float(np.sqrt(np.mean(position_error[after] ** 2)))
+        result["max_position_error_m"] = float(position_error[after].max())
+    if vision and collision_end is not None:
+        from_end = np.flatnonzero(times >= collision_end)
+        below = from_end[position_error[from_end] < RELOCALIZED]
+        result["relocalization_s"] = None if below.size == 0 else max(0.0, float(times[below[0]] - collision_end))
+    if not np.isnan(belief).all():
+        result["state_belief_at_end_of_collision"] = (
+            None if collision_end is None else
+            dict(zip(STATES, belief[min(np.searchsorted(times, collision_end), len(times) - 1)].round(3).tolist())))
+        result["free_belief_at_end"] = float(belief[-1, 0])
+    result["series"] = {"times": times, "entropy": entropy, "s_rel": s_rel, "belief": belief,
+                        "position_error": position_error, "contained": contained}
+    return result
+
+
+# -- the detector's figures -------------------------------------------------------------------------------
+def detection_figures(reference: CollisionReference, seeds=(0, 1, 2), minutes: float = 10.0,
+                      within: float = 0.3) -> dict:
+    """Collision detection on long simulated walks (varied requests, random collisions of every kind and side).
+
+    detected: share of contact episodes (hindrance, stop, push; slippage has no contact) with a collision
+    percept within `within` s of the start; side correct: share of detected episodes whose side (eq. 26, from
+    the percept's recent sides, `within` s after the first detection) is the true one; false alarms: rising
+    edges of the percept outside every episode (and the 0.5 s after it), per minute of free walking.
+    """
+    detected = episodes = side_ok = false_alarms = 0
+    free_frames = 0
+    delays = []
+    confusion: dict[str, int] = {}
+    for seed in seeds:
+        rng = np.random.default_rng(np.random.SeedSequence([seed, 7]))
+        duration = 60.0 * minutes
+        events = random_collisions(duration, rng)
+        log = simulate(CollisionScenario(duration=duration, command=None, events=events), seed)
+        out = detect(reference, log.servo_commands, log.servo_readings, log.phase, log.commands)
+        collision = out["collision"].any(axis=1)
+        start_times = log.times - log.dt
+        busy = np.zeros(start_times.shape[0], dtype=bool)
+        for event in events:
+            busy |= (start_times >= event.start) & (start_times < event.end + 0.5)
+        rising = collision & ~np.r_[False, collision[:-1]]
+        false_alarms += int((rising & ~busy).sum())
+        free_frames += int((~busy).sum())
+        for group in _episodes(events):
+            first = group[0]
+            if first.mode == SLIPPAGE:
+                continue
+            episodes += 1
+            window = np.flatnonzero((start_times >= first.start) & (start_times < first.start + within) & collision)
+            if window.size == 0:
+                continue
+            detected += 1
+            delays.append(float(start_times[window[0]] - first.start))
+            k = min(window[0] + int(round(within / log.dt)), start_times.shape[0] - 1)
+            left, right = out["recent"][k]
+            side = BOTH if (left and right) else LEFT if left else RIGHT if right else 0
+            side_ok += int(side == first.side)
+            key = f"{SIDE_NAMES[first.side]}->{SIDE_NAMES[side]}"
+            confusion[key] = confusion.get(key, 0) + 1
+    free_minutes = free_frames / 100.0 / 60.0
+    return {"seeds": list(seeds), "minutes_per_seed": minutes, "episodes": episodes,
+            "detected_share": detected / episodes if episodes else None,
+            "median_delay_s": float(np.median(delays)) if delays else None,
+            "side_correct_share": side_ok / detected if detected else None,
+            "false_alarms": false_alarms, "free_minutes": free_minutes,
+            "false_alarms_per_minute": false_alarms / free_minutes if free_minutes else None,
+            "side_confusion": dict(sorted(confusion.items()))}
+
+
+def _episodes(events):
+    """Events that follow each other without a gap (a hindrance turning into a stop) form one episode."""
+    groups = []
+    for event in events:
+        if groups and abs(groups[-1][-1].end - event.start) < 1e-9 and event.side == groups[-1][-1].side:
+            groups[-1].append(event)
+        else:
+            groups.append([event])
+    return groups
+
+
+# -- aggregation ------------------------------------------------------------------------------------------
+def _median(values):
+    values = [v for v in values if v is not None]
+    return float(np.median(values)) if values else None
+
+
+def compare_entropy(runs_vl: list[dict], runs_adaptive: list[dict]) -> dict:
+    """Case none: per second, median position entropy of both models, and the share of seeds on which the
+    adaptive model's position entropy is below velocity-linear's at every second after the first."""
+    per_second_vl = np.array([r["entropy_position_bits"] for r in runs_vl])
+    per_second_ad = np.array([r["entropy_position_bits"] for r in runs_adaptive])
+    below = (per_second_ad[:, 1:] < per_second_vl[:, 1:]).all(axis=1)
+    return {"seconds": list(range(1, per_second_vl.shape[1] + 1)),
+            "velocity_linear_median_bits": np.median(per_second_vl, axis=0).round(3).tolist(),
+            "adaptive_median_bits": np.median(per_second_ad, axis=0).round(3).tolist(),
+            "seeds_below_every_second_after_first": int(below.sum()), "seeds": int(below.size),
+            "median_below_every_second_after_first": bool(
+                (np.median(per_second_ad, axis=0)[1:] < np.median(per_second_vl, axis=0)[1:]).all())}
+
+
+def case_summary(runs: list[dict]) -> dict:
+    keys = ("contained_share", "relocalization_s", "position_rmse_after_collision_m", "max_position_error_m",
+            "final_position_error_m", "final_heading_error_deg", "position_rmse_m", "ms_per_step")
+    summary = {}
+    for key in keys:
+        values = [r.get(key) for r in runs if key in r]
+        if not values:
+            continue
+        numbers = [v for v in values if v is not None]
+        summary[key] = {"median": _median(values), "mean": float(np.mean(numbers)) if numbers else None,
+                        "min": min(numbers) if numbers else None, "max": max(numbers) if numbers else None,
+                        "never": values.count(None)}
+    return summary
+
+
+def predict_cost(particles: int = 1000, steps: int = 2000, repeats: int = 5) -> dict:
+    """Time per predict step at N particles, adaptive versus velocity-linear, interleaved in the same run."""
+    from sensing.collision import CollisionPercept
+    percept = CollisionPercept(left=True, s_rel_left=2.0, rate=0.3, recent_left=True)
+    u = MotionInput(dt=0.01, command=(0.2, 0.0, 0.0), collision=percept)
+    models = {"velocity-linear": VelocityLinear(), "adaptive": AdaptiveMotion()}
+    best = {name: math.inf for name in models}
+    rng = np.random.default_rng(0)
+    poses = np.zeros((particles, 3))
+    state = models["adaptive"].particle_state(particles)
+    for name, model in models.items():       # compile and warm up
+        model.predict(poses, u, rng, state=state) if name == "adaptive" else model.predict(poses, u, rng)
+    for _ in range(repeats):
+        for name, model in models.items():
+            started = time.perf_counter()
+            if name == "adaptive":
+                for _ in range(steps):
+                    model.predict(poses, u, rng, state=state)
+            else:
+                for _ in range(steps):
+                    model.predict(poses, u, rng)
+            best[name] = min(best[name], (time.perf_counter() - started) / steps)
+    return {"particles": particles, "velocity_linear_us": 1e6 * best["velocity-linear"],
+            "adaptive_us": 1e6 * best["adaptive"], "ratio": best["adaptive"] / best["velocity-linear"]}
+
+
+def run_cases(cases, models, seeds, reference, particles, vision) -> dict:
+    out = {}
+    for case in cases:
+        out[case] = {}
+        for model in models:
+            runs = [run_case(case, model, seed, reference, particles, vision) for seed in seeds]
+            out[case][model] = {"runs": runs, "summary": case_summary(runs)}
+        if case == "none" and "velocity-linear" in models and "adaptive" in models:
+            out[case]["entropy"] = compare_entropy(out[case]["velocity-linear"]["runs"], out[case]["adaptive"]["runs"])
+    return out
+
+
+def particle_sweep(counts, seeds, reference, cases=("single", "double"), baseline: int = 500) -> dict:
+    """Claim (a): the smallest particle count at which the adaptive model, with vision, is as accurate as
+    velocity-linear at `baseline` particles (median over seeds and cases of the position RMSE from the
+    collision's start on)."""
+    def accuracy(model, n):
+        runs = [run_case(case, model, seed, reference, n, vision=True) for case in cases for seed in seeds]
+        return _median([r["position_rmse_after_collision_m"] for r in runs]), \
+            _median([r["relocalization_s"] for r in runs])
+
+    target, target_reloc = accuracy("velocity-linear", baseline)
+    rows = []
+    needed = None
+    for n in sorted(counts):
+        rmse, reloc = accuracy("adaptive", n)
+        rows.append({"particles": n, "median_rmse_m": rmse, "median_relocalization_s": reloc})
+        if needed is None and rmse is not None and rmse <= target:
+            needed = n
+    return {"velocity_linear": {"particles": baseline, "median_rmse_m": target,
+                                "median_relocalization_s": target_reloc},
+            "adaptive": rows, "adaptive_particles_needed": needed, "cases": list(cases), "seeds": list(seeds)}
+
+
+# -- command line ---------------------------------------------------------------------------------------
+def _strip(result):
+    if isinstance(result, dict):
+        return {k: _strip(v) for k, v in result.items() if k != "series"}
+    if isinstance(result, list):
+        return [_strip(v) for v in result]
+    return result
+
+
+def _fmt(value, unit="", digits=3):
+    return "—" if value is None else f"{value:.{digits}f}{unit}"
+
+
+def print_cases(results: dict, vision: bool) -> None:
+    for case, by_model in results.items():
+        print(f"case {case}, {'with' if vision else 'no'} vision:")
+        if "entropy" in by_model:
+            e = by_model["entropy"]
+            print("  position entropy [bits], median over seeds, at second " + " ".join(f"{s:>5}" for s in e["seconds"]))
+            print("    velocity-linear" + " " * 28 + " ".join(f"{v:5.2f}" for v in e["velocity_linear_median_bits"]))
+            print("    adaptive       " + " " * 28 + " ".join(f"{v:5.2f}" for v in e["adaptive_median_bits"]))
+            print(f"  adaptive below velocity-linear at every second after the first: "
+                  f"{e['seeds_below_every_second_after_first']}/{e['seeds']} seeds")
+        for model, block in by_model.items():
+            if model == "entropy":
+                continue
+            s = block["summary"]
+            parts = [f"  {model:<16}"]
+            if "contained_share" in s:
+                parts.append(f"truth in 95% region: median {100 * s['contained_share']['median']:.0f}% "
+                             f"(min {100 * s['contained_share']['min']:.0f}%) of steps")
+            if "relocalization_s" in s:
+                parts.append(f"relocalized (<{RELOCALIZED} m) after the collision: median "
+                             f"{_fmt(s['relocalization_s']['median'], ' s', 2)}, max "
+                             f"{_fmt(s['relocalization_s']['max'], ' s', 2)}, never {s['relocalization_s']['never']}")
+            if "position_rmse_after_collision_m" in s:
+                parts.append(f"RMSE after collision start {_fmt(s['position_rmse_after_collision_m']['median'], ' m')}")
+            parts.append(f"final error {_fmt(s['final_position_error_m']['median'], ' m')}")
+            print("; ".join(parts))
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="robocup-mcl demo collision", description=__doc__.split("\n\n")[0])
+    parser.add_argument("--case", choices=CASES + ("all",), default="all")
+    parser.add_argument("--model", choices=sorted(MODELS) + ["both"], default="both")
+    parser.add_argument("--particles", type=int, default=None, help="default: 100 without vision, 500 with")
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--seeds", help='several seeds: "0-19" or "0,3,5" (overrides --seed)')
+    parser.add_argument("--vision", action="store_true", help="correct with landmark observations")
+    parser.add_argument("--detection", action="store_true", help="the collision detector's figures only")
+    parser.add_argument("--minutes", type=float, default=10.0, help="minutes per seed for --detection")
+    parser.add_argument("--particle-sweep", help='adaptive particle counts to try, e.g. "50,100,200,500"')
+    parser.add_argument("--cost", action="store_true", help="predict cost, adaptive / velocity-linear, N = 1000")
+    parser.add_argument("--report", action="store_true", help="every figure of the README (takes minutes)")
+    parser.add_argument("--rrd", help="write a Rerun recording here (one case, one model, one seed)")
+    parser.add_argument("--json", action="store_true", help="print JSON instead of text")
+    args = parser.parse_args(argv)
+    seeds = parse_seeds(args.seeds) if args.seeds else [args.seed]
+    cases = CASES if args.case == "all" else (args.case,)
+    models = ("velocity-linear", "adaptive") if args.model == "both" else (args.model,)
+    particles = args.particles or (500 if args.vision else 100)
+    if particles <= 0:
+        parser.error(f"--particles {particles} must be > 0")
+    if args.rrd and (len(seeds) > 1 or len(cases) > 1 or len(models) > 1):
+        parser.error("--rrd records one run: give --case, --model (not both) and --seed")
+    reference = free_walk_reference()
+    result: dict = {}
+    if args.report:
+        report_seeds = parse_seeds(args.seeds) if args.seeds else list(range(20))
+        result["detection"] = detection_figures(reference, minutes=args.minutes)
+        result["no_vision"] = run_cases(CASES, ("velocity-linear", "adaptive", "adaptive-step"), report_seeds,
+                                        reference, 100, False)
+        result["vision"] = run_cases(("single", "double"), ("velocity-linear", "adaptive"), report_seeds,
+                                     reference, 500, True)
+        result["particle_sweep"] = particle_sweep((50, 100, 200, 300, 500), report_seeds, reference)
+        result["cost"] = predict_cost()
+    elif args.detection:
+        result["detection"] = detection_figures(reference, seeds=seeds if args.seeds else (0, 1, 2),
+                                                minutes=args.minutes)
+    elif args.particle_sweep:
+        counts = [int(c) for c in args.particle_sweep.split(",")]
+        result["particle_sweep"] = particle_sweep(counts, seeds, reference)
+    elif args.cost:
+        result["cost"] = predict_cost()
+    else:
+        key = "vision" if args.vision else "no_vision"
+        if args.rrd:
+            run = run_case(cases[0], models[0], seeds[0], reference, particles, args.vision, args.rrd)
+            result[key] = {cases[0]: {models[0]: {"runs": [run], "summary": case_summary([run])}}}
+        else:
+            result[key] = run_cases(cases, models, seeds, reference, particles, args.vision)
+    if args.json:
+        json.dump(_strip(result), sys.stdout, indent=2)
+        print()
+        return 0
+    if "detection" in result:
+        d = result["detection"]
+        print(f"collision detection, {len(d['seeds'])} × {d['minutes_per_seed']:.0f} min of simulated walking, "
+              f"{d['episodes']} contact episodes:")
+        print(f"  detected within 0.3 s: {100 * d['detected_share']:.1f}% (median delay {d['median_delay_s']:.3f} s)")
+        print(f"  side correct: {100 * d['side_correct_share']:.1f}%   (true->reported: {d['side_confusion']})")
+        print(f"  false alarms: {d['false_alarms']} in {d['free_minutes']:.1f} min of free walking = "
+              f"{d['false_alarms_per_minute']:.2f} per minute")
+    for key, vision in (("no_vision", False), ("vision", True)):
+        if key in result:
+            print_cases(result[key], vision)
+    if "particle_sweep" in result:
+        p = result["particle_sweep"]
+        v = p["velocity_linear"]
+        print(f"with vision, median position RMSE from the collision on (cases {', '.join(p['cases'])}, "
+              f"{len(p['seeds'])} seeds):")
+        print(f"  velocity-linear at {v['particles']} particles: {_fmt(v['median_rmse_m'], ' m')} "
+              f"(relocalized after {_fmt(v['median_relocalization_s'], ' s', 2)})")
+        for row in p["adaptive"]:
+            print(f"  adaptive at {row['particles']:>4} particles: {_fmt(row['median_rmse_m'], ' m')} "
+                  f"(relocalized after {_fmt(row['median_relocalization_s'], ' s', 2)})")
+        print(f"  adaptive particles needed to match: {p['adaptive_particles_needed']}")
+    if "cost" in result:
+        c = result["cost"]
+        print(f"predict at N = {c['particles']}: velocity-linear {c['velocity_linear_us']:.1f} µs, adaptive "
+              f"{c['adaptive_us']:.1f} µs, ratio {c['ratio']:.2f}")
+    if args.rrd:
+        print(f"recording written to {args.rrd} (open it with: rerun {args.rrd})")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,329 @@
+"""`AdaptiveMotion`: Hoffmann's adaptive motion model, five mobility states driven by collision percepts.
+
+    from motion_models import AdaptiveMotion, MotionInput
+    from sensing.collision import CollisionDetector, NO_COLLISION
+
+    model = AdaptiveMotion()                                   # documented defaults, see below
+    pf = ParticleFilter(field, model, sensor, n_particles=100)  # the filter keeps each particle's state
+    percept = detector.update(joint_command, joint_reading, phase, walk_command)
+    pf.predict(MotionInput(dt=0.01, command=(0.2, 0.0, 0.0), collision=percept))
+    model.state_belief(pf.motion_state, pf.weights)            # (5,): free, slippage, hindrance, pushed, stopped
+
+The effective velocity is m_eff = m + ε_odo + ε_col (Hoffmann eq. 11–13). ε_odo is the odometry error of a
+freely walking robot, eq. 10 with smaller β than `VelocityLinear` (calibrated odometry is precise as long as
+the walk is unhindered); ε_col depends on the mobility state (section 3.1):
+
+    free        m unchanged                                                   (ε_col = 0)
+    slippage    v' = v·rand(β1, 1),  ω' = ω + β2·rand(-1, 1)                   (eq. 14–15)
+    hindrance   v' = v·rand(β3, 1),  ω' = ω·rand(β4, 1)                        (eq. 16–17)
+    pushed      displaced by d = β5·rand(0, 1) toward α = rand(-π, π),
+                turned by β6·rand(-1, 1)                                       (eq. 18–22)
+    stopped     v' = 0,  ω' = (|v|/w)·c(z_c)·β_turn·rand(0, 1)                 (eq. 23, 25–26)
+                or ω' = β7·rand(-1, 1) when no side is known                   (eq. 24)
+
+with c(z_c) = +1 for a collision on the left, -1 on the right, 0 on both (`CollisionPercept.side`). Translations
+are in the robot frame, so the model commutes with rotating the world. ε_odo is eq. 10 on the effective
+speeds: a stopped robot does not translate at all.
+
+Jump-Markov particle filter. Each particle carries its own mobility state (`particle_state`, kept by the
+filter through resampling) so that landmark observations weigh "it was pushed" against "it walked on". At each
+step a particle's state moves along a Markov chain whose transition probabilities depend on the collision
+percept: P = expm(Q·dt) for a generator Q (rates per second, `MobilityTransitions`), which keeps the chain the
+same at any step rate and makes every row a probability distribution. No collision returns toward free; a
+collision leads into hindrance, pushed or slippage; collisions at high frequency (the percept's `rate` at or
+above `frequent_rate`) lead into stopped and keep the robot there (section 3.1, Fig. 1).
+
+The rand() of eq. 14–26 are drawn when a particle leaves free (a collision episode starts) and held until it is
+free again (`redraw="episode"`, the default): a collision moves a robot consistently for its duration (one push
+direction, one turning rate), also when the particle passes from hindrance to stopped.
+Drawn afresh every step (`redraw="step"`), the perturbations average out over the hundred steps of a two-second
+collision and the cloud hardly spreads; `robocup-mcl demo collision` measures both.
+
+Units and defaults. SI throughout: β2, β6, β7 in rad/s and β5 in m/s are rates (the paper's per-step values at
+8 ms are ambiguous, see `VelocityLinear`), β1, β3, β4, β_turn are shares. The defaults are hand-tuned, as in
+the paper, on seeds of the collision simulator that the README's figures do not use.
+"""
+from __future__ import annotations
+
+import functools
+import math
+from dataclasses import dataclass, field
+
+import numba
+import numpy as np
+import scipy.linalg
+
+from field.angles import wrap_angle, wrap_angles
+from sensing.collision import CollisionPercept
+
+from .base import MotionInput, check_nonnegative, check_poses
+
+FREE, SLIPPAGE, HINDRANCE, PUSHED, STOPPED = range(5)
+STATES = ("free", "slippage", "hindrance", "pushed", "stopped")
+CONDITIONS = ("quiet", "collision", "frequent")
+STATE_COLUMNS = 4          # per particle: mobility state, then the three rand() values of its episode
+VARIATES = 7               # per particle and step: transition, three fresh episode values, three odometry noise
+
+
+def _rates(pairs: dict[tuple[str, str], float]) -> tuple[tuple[str, str, float], ...]:
+    return tuple((a, b, float(rate)) for (a, b), rate in pairs.items())
+
+
+@dataclass(frozen=True)
+class MobilityTransitions:
+    """Transition rates between mobility states [1/s], one set per percept condition.
+
+    quiet:     no collision detected within the detector's recent window (percept rate 0)
+    collision: collisions detected recently, but not at high frequency
+    frequent:  collisions at high frequency (percept rate >= `AdaptiveMotion.frequent_rate`)
+
+    Each entry is (from, to, rate); a state's probability of staying is what its rates leave. The small quiet
+    rates out of free stand for collisions the detector misses.
+    """
+
+    quiet: tuple[tuple[str, str, float], ...] = _rates({
+        ("free", "slippage"): 0.02, ("free", "hindrance"): 0.02, ("free", "pushed"): 0.02,
+        ("slippage", "free"): 3.0, ("hindrance", "free"): 4.0, ("pushed", "free"): 5.0, ("stopped", "free"): 4.0})
+    collision: tuple[tuple[str, str, float], ...] = _rates({
+        ("free", "slippage"): 2.0, ("free", "hindrance"): 4.0, ("free", "pushed"): 2.0,
+        ("slippage", "hindrance"): 1.0, ("pushed", "hindrance"): 1.0, ("hindrance", "stopped"): 1.0,
+        ("stopped", "hindrance"): 1.0, ("stopped", "free"): 5.0})
+    frequent: tuple[tuple[str, str, float], ...] = _rates({
+        ("free", "hindrance"): 4.0, ("free", "pushed"): 1.0, ("free", "slippage"): 1.0, ("free", "stopped"): 2.0,
+        ("slippage", "stopped"): 3.0, ("hindrance", "stopped"): 3.0, ("pushed", "stopped"): 3.0})
+
+    def __post_init__(self) -> None:
+        for condition in CONDITIONS:
+            for entry in getattr(self, condition):
+                if len(entry) != 3:
+                    raise ValueError(f"{condition} entry {entry!r} must be (from, to, rate)")
+                source, target, rate = entry
+                for name in (source, target):
+                    if name not in STATES:
+                        raise ValueError(f"{condition} entry {entry!r}: {name!r} is not one of {STATES}")
+                if source == target:
+                    raise ValueError(f"{condition} entry {entry!r}: a rate must lead to another state")
+                if not (isinstance(rate, (int, float)) and math.isfinite(rate) and rate >= 0):
+                    raise ValueError(f"{condition} entry {entry!r}: rate must be finite and >= 0")
+
+    def generator(self, condition: str) -> np.ndarray:
+        """The rate matrix Q (5, 5) of a condition: off-diagonal rates, rows summing to zero."""
+        if condition not in CONDITIONS:
+            raise ValueError(f"condition = {condition!r} must be one of {CONDITIONS}")
+        q = np.zeros((5, 5))
+        for source, target, rate in getattr(self, condition):
+            q[STATES.index(source), STATES.index(target)] += rate
+        q[np.diag_indices(5)] = -q.sum(axis=1)
+        return q
+
+    def matrix(self, condition: str, dt: float) -> np.ndarray:
+        """Transition probabilities over dt seconds: P = expm(Q·dt), rows summing to one."""
+        return _transition_matrix(self, condition, float(dt)).copy()
+
+
+@functools.lru_cache(maxsize=64)
+def _transition_matrix(transitions: MobilityTransitions, condition: str, dt: float) -> np.ndarray:
+    p = scipy.linalg.expm(transitions.generator(condition) * dt)
+    p = np.clip(p, 0.0, None)
+    return p / p.sum(axis=1, keepdims=True)
+
+
+@functools.lru_cache(maxsize=64)
+def _cumulative(transitions: MobilityTransitions, condition: str, dt: float) -> np.ndarray:
+    cumulative = np.cumsum(_transition_matrix(transitions, condition, dt), axis=1)
+    cumulative[:, -1] = 1.0       # rounding must never let a uniform variate fall past the last state
+    return cumulative
+
+
+@dataclass(frozen=True)
+class AdaptiveMotion:
+    """Hoffmann's adaptive motion model (see the module docstring). Needs `MotionInput.collision`."""
+
+    beta1: float = 0.5            # slippage: speed kept at least this share (eq. 14)
+    beta2: float = 0.4            # rad/s, slippage: heading rate error bound (eq. 15)
+    beta3: float = 0.1            # hindrance: speed kept at least this share (eq. 16)
+    beta4: float = 0.3            # hindrance: turn rate kept at least this share (eq. 17)
+    beta5: float = 0.4            # m/s, pushed: push speed bound (eq. 19)
+    beta6: float = 0.6            # rad/s, pushed: heading rate bound (eq. 22)
+    beta7: float = 0.4            # rad/s, stopped without a known side: turn rate bound (eq. 24)
+    beta_turn: float = 0.5        # stopped: turn toward the collision, share of |v|/w (eq. 25)
+    foot_separation: float = 0.1  # m, w of eq. 25: lateral distance between the feet
+    odometry: tuple[float, float, float, float] = (1.0, 0.6, 0.6, 0.6)   # β1..β4 of eq. 10 for free walking
+    frequent_rate: float = 0.25   # share of the recent second with a collision that counts as "at high
+                                  # frequency": a burst each step, or a quarter second of continuous contact
+    transitions: MobilityTransitions = field(default_factory=MobilityTransitions)
+    redraw: str = "episode"       # "episode" or "step": when the rand() of eq. 14-26 are drawn
+
+    def __post_init__(self) -> None:
+        check_nonnegative(self, ("beta2", "beta5", "beta6", "beta7", "beta_turn"))
+        for name in ("beta1", "beta3", "beta4"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not (isinstance(value, (int, float)) and 0 <= value < 1):
+                raise ValueError(f"{name} = {value!r} must be within [0, 1) (Hoffmann eq. 14-17)")
+        if not (isinstance(self.foot_separation, (int, float)) and math.isfinite(self.foot_separation)
+                and self.foot_separation > 0):
+            raise ValueError(f"foot_separation = {self.foot_separation!r} must be finite and > 0")
+        odometry = tuple(self.odometry)
+        if len(odometry) != 4 or not all(isinstance(b, (int, float)) and math.isfinite(b) and b >= 0
+                                         for b in odometry):
+            raise ValueError(f"odometry = {self.odometry!r} must be four finite numbers >= 0 (eq. 10's β1..β4)")
+        object.__setattr__(self, "odometry", tuple(float(b) for b in odometry))
+        if not (isinstance(self.frequent_rate, (int, float)) and 0 < self.frequent_rate <= 1):
+            raise ValueError(f"frequent_rate = {self.frequent_rate!r} must be within (0, 1]")
+        if not isinstance(self.transitions, MobilityTransitions):
+            raise ValueError(f"transitions = {self.transitions!r} must be a MobilityTransitions")
+        if self.redraw not in ("episode", "step"):
+            raise ValueError(f"redraw = {self.redraw!r} must be 'episode' or 'step'")
+
+    # -- the particle state ------------------------------------------------------------------------------
+    def particle_state(self, n: int) -> np.ndarray:
+        """Fresh per-particle state (n, 4): every particle free."""
+        return np.zeros((n, STATE_COLUMNS))
+
+    @staticmethod
+    def state_belief(state: np.ndarray, weights: np.ndarray) -> np.ndarray:
+        """The belief over the five mobility states: the weighted histogram of the particles' states (5,)."""
+        return np.bincount(state[:, 0].astype(np.int64), weights=weights, minlength=5)[:5]
+
+    # -- the interface -----------------------------------------------------------------------------------
+    def check(self, u: MotionInput) -> None:
+        if not isinstance(u.collision, CollisionPercept):
+            raise ValueError(f"AdaptiveMotion needs MotionInput.collision, a sensing.collision.CollisionPercept "
+                             f"(sensing.collision.NO_COLLISION when nothing was detected); got {u.collision!r}")
+        u.displacement()
+
+    def condition(self, percept: CollisionPercept) -> str:
+        """Which transition set applies: "frequent", "collision" or "quiet"."""
+        if percept.rate >= self.frequent_rate:
+            return "frequent"
+        return "collision" if percept.rate > 0 else "quiet"
+
+    def velocities(self, u: MotionInput) -> tuple[float, float, float]:
+        """The requested (vx, vy, ω): the command, or the odometry divided by dt."""
+        if u.command is not None:
+            return u.command
+        dx, dy, dtheta = u.displacement()
+        if u.dt <= 0:
+            return (0.0, 0.0, 0.0)
+        return (dx / u.dt, dy / u.dt, dtheta / u.dt)
+
+    def kernel_arguments(self, u: MotionInput) -> tuple:
+        """Everything `adaptive_move` takes besides poses, state and variates."""
+        percept: CollisionPercept = u.collision
+        side = percept.side
+        vx, vy, omega = self.velocities(u)
+        params = np.array([self.beta1, self.beta2, self.beta3, self.beta4, self.beta5, self.beta6, self.beta7,
+                           self.beta_turn, self.foot_separation, *self.odometry])
+        return (_cumulative(self.transitions, self.condition(percept), u.dt), vx, vy, omega, u.dt,
+                np.nan if side is None else float(side), params, self.redraw == "step")
+
+    def predict(self, poses: np.ndarray, u: MotionInput, rng: np.random.Generator,
+                state: np.ndarray | None = None) -> None:
+        """Move `poses` in place; `state` (N, 4) is each particle's mobility state, updated in place (the
+        filter passes its own; None uses a throw-away all-free state, i.e. a single-step prediction)."""
+        check_poses(poses)
+        self.check(u)
+        n = poses.shape[0]
+        if state is None:
+            state = self.particle_state(n)
+        elif state.shape != (n, STATE_COLUMNS) or state.dtype != np.float64:
+            raise ValueError(f"state must be float64 of shape ({n}, {STATE_COLUMNS}), got {state.dtype} {state.shape}")
+        adaptive_move(poses, state, *self.kernel_arguments(u), rng.random((n, VARIATES)))
+
+
+@numba.njit(cache=True)
+def adaptive_move(poses, state, cumulative, vx, vy, omega, dt, side, params, redraw_each_step, variates):
+    """Jump-Markov step of every particle: draw its next mobility state, then move it by its state's velocity
+    (Hoffmann eq. 11-26) plus eq. 10's odometry noise on the effective speeds. `variates` (N, 7) uniforms:
+    [transition, three episode values (taken when the particle leaves free, or every step with
+    `redraw_each_step`), three odometry noise values]; `side` is c(z_c) or NaN."""
+    beta1, beta2, beta3, beta4 = params[0], params[1], params[2], params[3]
+    beta5, beta6, beta7, beta_turn, separation = params[4], params[5], params[6], params[7], params[8]
+    odo1, odo2, odo3, odo4 = params[9], params[10], params[11], params[12]
+    speed = math.sqrt(vx * vx + vy * vy)
+    for i in range(poses.shape[0]):
+        old = int(state[i, 0])
+        new = 0
+        while variates[i, 0] >= cumulative[old, new]:
+            new += 1
+        if (old == 0 and new != 0) or redraw_each_step:
+            state[i, 1] = variates[i, 1]
+            state[i, 2] = variates[i, 2]
+            state[i, 3] = variates[i, 3]
+        state[i, 0] = new
+        e1, e2, e3 = state[i, 1], state[i, 2], state[i, 3]
+        ex, ey, w = vx, vy, omega         # effective walking velocity
+        px, py = 0.0, 0.0                 # push velocity
+        if new == 1:      # slippage, eq. 14-15
+            factor = beta1 + (1.0 - beta1) * e1
+            ex, ey = vx * factor, vy * factor
+            w = omega + beta2 * (2.0 * e2 - 1.0)
+        elif new == 2:    # hindrance, eq. 16-17
+            factor = beta3 + (1.0 - beta3) * e1
+            ex, ey = vx * factor, vy * factor
+            w = omega * (beta4 + (1.0 - beta4) * e2)
+        elif new == 3:    # pushed, eq. 18-22
+            alpha = math.pi * (2.0 * e1 - 1.0)
+            push = beta5 * e2
+            px, py = push * math.cos(alpha), push * math.sin(alpha)
+            w = omega + beta6 * (2.0 * e3 - 1.0)
+        elif new == 4:    # stopped, eq. 23-26
+            ex, ey = 0.0, 0.0
+            if side == side:   # not NaN: the side is known
+                w = speed / separation * side * beta_turn * e1
+            else:
+                w = beta7 * (2.0 * e1 - 1.0)
+        walked = math.sqrt(ex * ex + ey * ey)
+        bound_x = odo1 * walked * dt
+        bound_y = odo2 * walked * dt
+        bound_theta = (odo3 * walked + odo4 * abs(w)) * dt
+        half = 0.5 * w * dt
+        chord = math.sin(half) / half if abs(half) > 1e-9 else 1.0
+        dx = (ex + px) * dt * chord + (2.0 * variates[i, 4] - 1.0) * bound_x
+        dy = (ey + py) * dt * chord + (2.0 * variates[i, 5] - 1.0) * bound_y
+        theta = poses[i, 2]
+        c = math.cos(theta + half)
+        s = math.sin(theta + half)
+        poses[i, 0] += c * dx - s * dy
+        poses[i, 1] += s * dx + c * dy
+        poses[i, 2] = wrap_angle(theta + w * dt + (2.0 * variates[i, 6] - 1.0) * bound_theta)
+
+
+def adaptive_move_reference(poses, state, cumulative, vx, vy, omega, dt, side, params, redraw_each_step, variates):
+    """Plain numpy twin of `adaptive_move` (the same variates give the same poses and states)."""
+    beta1, beta2, beta3, beta4, beta5, beta6, beta7, beta_turn, separation, odo1, odo2, odo3, odo4 = params
+    old = state[:, 0].astype(np.int64)
+    new = (variates[:, 0][:, None] >= cumulative[old]).sum(axis=1)
+    renew = ((old == 0) & (new != 0)) | bool(redraw_each_step)
+    state[renew, 1:4] = variates[renew, 1:4]
+    state[:, 0] = new
+    e1, e2, e3 = state[:, 1], state[:, 2], state[:, 3]
+    n = poses.shape[0]
+    ex, ey, w = np.full(n, vx), np.full(n, vy), np.full(n, omega)
+    px, py = np.zeros(n), np.zeros(n)
+    slip, hinder, pushed, stopped = new == 1, new == 2, new == 3, new == 4
+    factor = np.where(slip, beta1 + (1 - beta1) * e1, np.where(hinder, beta3 + (1 - beta3) * e1, 1.0))
+    ex, ey = ex * factor, ey * factor
+    w = np.where(slip, omega + beta2 * (2 * e2 - 1), w)
+    w = np.where(hinder, omega * (beta4 + (1 - beta4) * e2), w)
+    alpha = np.pi * (2 * e1 - 1)
+    px = np.where(pushed, beta5 * e2 * np.cos(alpha), 0.0)
+    py = np.where(pushed, beta5 * e2 * np.sin(alpha), 0.0)
+    w = np.where(pushed, omega + beta6 * (2 * e3 - 1), w)
+    ex, ey = np.where(stopped, 0.0, ex), np.where(stopped, 0.0, ey)
+    speed = math.hypot(vx, vy)
+    turn = speed / separation * side * beta_turn * e1 if not math.isnan(side) else beta7 * (2 * e1 - 1)
+    w = np.where(stopped, turn, w)
+    walked = np.hypot(ex, ey)
+    bounds = np.column_stack([odo1 * walked * dt, odo2 * walked * dt, (odo3 * walked + odo4 * np.abs(w)) * dt])
+    noise = (2 * variates[:, 4:7] - 1) * bounds
+    half = 0.5 * w * dt
+    safe = np.where(np.abs(half) > 1e-9, half, 1.0)
+    chord = np.where(np.abs(half) > 1e-9, np.sin(safe) / safe, 1.0)
+    dx = (ex + px) * dt * chord + noise[:, 0]
+    dy = (ey + py) * dt * chord + noise[:, 1]
+    theta = poses[:, 2].copy()
+    c, s = np.cos(theta + half), np.sin(theta + half)
+    poses[:, 0] += c * dx - s * dy
+    poses[:, 1] += s * dx + c * dy
+    poses[:, 2] = wrap_angles(theta + w * dt + noise[:, 2])
