@@ -15,6 +15,11 @@ seed shifts the collision times (±0.5 s) and draws the severities. The collisio
 detector (`sensing.collision`) fed with the simulated servo data, its reference learned from three minutes of
 simulated free walking (seed 1000, never a test seed).
 
+With vision, augmented MCL's injection is off unless `--injection` is given: the figures then show what the
+motion model alone does for re-localization, as the paper argues it. (With injection on, a filter can also
+recover by re-seeding; its heading reference is carried by the motion input, which does not know of the turn a
+collision causes: see the README.)
+
 Measured per run: grid entropy (eq. 27) of position and orientation each step; without vision, whether the true
 pose lies inside the smallest region holding 95 % of the belief (`mcl.estimate.credible_region_contains`), at
 each step from the collision's start on; with vision, the position error of the estimate and the time from the
@@ -36,7 +41,7 @@ from dataclasses import replace
 import numpy as np
 
 from field.angles import wrap_angles
-from mcl import Grid, ParticleFilter
+from mcl import AugmentedMCL, Grid, ParticleFilter
 from mcl.estimate import credible_region_contains
 from motion_models import AdaptiveMotion, MotionInput, VelocityLinear
 from motion_models.adaptive import STATES
@@ -69,13 +74,14 @@ def case_scenario(case: str, seed: int, vision: bool = False) -> CollisionScenar
 
 
 def run_case(case: str, model: str, seed: int, reference: CollisionReference, particles: int = 100,
-             vision: bool = False, rrd: str | None = None, containment: bool | None = None) -> dict:
+             vision: bool = False, rrd: str | None = None, containment: bool | None = None,
+             injection: bool = False) -> dict:
     """One run of a case with one model; returns the figures (and per-step series under "series")."""
     scenario = case_scenario(case, seed, vision)
     log = simulate(scenario, seed)
     motion = MODELS[model]()
     pf = ParticleFilter(scenario.field, motion, LandmarkSensorModel(scenario.field), n_particles=particles,
-                        seed=seed, grid=GRID)
+                        seed=seed, grid=GRID, augmented=AugmentedMCL() if injection else None)
     pf.reset_around(log.start, sigma=(0.0, 0.0, 0.0))
     detector = CollisionDetector(reference)
     containment = (not vision) if containment is None else containment
@@ -305,12 +311,12 @@ def predict_cost(particles: int = 1000, steps: int = 2000, repeats: int = 5) -> 
             "adaptive_us": 1e6 * best["adaptive"], "ratio": best["adaptive"] / best["velocity-linear"]}
 
 
-def run_cases(cases, models, seeds, reference, particles, vision) -> dict:
+def run_cases(cases, models, seeds, reference, particles, vision, injection: bool = False) -> dict:
     out = {}
     for case in cases:
         out[case] = {}
         for model in models:
-            runs = [run_case(case, model, seed, reference, particles, vision) for seed in seeds]
+            runs = [run_case(case, model, seed, reference, particles, vision, injection=injection) for seed in seeds]
             out[case][model] = {"runs": runs, "summary": case_summary(runs)}
         if case == "none" and "velocity-linear" in models and "adaptive" in models:
             out[case]["entropy"] = compare_entropy(out[case]["velocity-linear"]["runs"], out[case]["adaptive"]["runs"])
@@ -352,9 +358,9 @@ def _fmt(value, unit="", digits=3):
     return "—" if value is None else f"{value:.{digits}f}{unit}"
 
 
-def print_cases(results: dict, vision: bool) -> None:
+def print_cases(results: dict, label: str) -> None:
     for case, by_model in results.items():
-        print(f"case {case}, {'with' if vision else 'no'} vision:")
+        print(f"case {case}, {label}:")
         if "entropy" in by_model:
             e = by_model["entropy"]
             print("  position entropy [bits], median over seeds, at second " + " ".join(f"{s:>5}" for s in e["seconds"]))
@@ -388,6 +394,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--seeds", help='several seeds: "0-19" or "0,3,5" (overrides --seed)')
     parser.add_argument("--vision", action="store_true", help="correct with landmark observations")
+    parser.add_argument("--injection", action="store_true",
+                        help="with --vision: augmented MCL's injection on (off by default: the motion model alone)")
     parser.add_argument("--detection", action="store_true", help="the collision detector's figures only")
     parser.add_argument("--minutes", type=float, default=10.0, help="minutes per seed for --detection")
     parser.add_argument("--particle-sweep", help='adaptive particle counts to try, e.g. "50,100,200,500"')
@@ -413,6 +421,8 @@ def main(argv: list[str] | None = None) -> int:
                                         reference, 100, False)
         result["vision"] = run_cases(("single", "double"), ("velocity-linear", "adaptive"), report_seeds,
                                      reference, 500, True)
+        result["vision_injection"] = run_cases(("single", "double"), ("velocity-linear", "adaptive"), report_seeds,
+                                               reference, 500, True, injection=True)
         result["particle_sweep"] = particle_sweep((50, 100, 200, 300, 500), report_seeds, reference)
         result["cost"] = predict_cost()
     elif args.detection:
@@ -424,12 +434,13 @@ def main(argv: list[str] | None = None) -> int:
     elif args.cost:
         result["cost"] = predict_cost()
     else:
-        key = "vision" if args.vision else "no_vision"
+        key = ("vision_injection" if args.injection else "vision") if args.vision else "no_vision"
         if args.rrd:
-            run = run_case(cases[0], models[0], seeds[0], reference, particles, args.vision, args.rrd)
+            run = run_case(cases[0], models[0], seeds[0], reference, particles, args.vision, args.rrd,
+                           injection=args.injection)
             result[key] = {cases[0]: {models[0]: {"runs": [run], "summary": case_summary([run])}}}
         else:
-            result[key] = run_cases(cases, models, seeds, reference, particles, args.vision)
+            result[key] = run_cases(cases, models, seeds, reference, particles, args.vision, args.injection)
     if args.json:
         json.dump(_strip(result), sys.stdout, indent=2)
         print()
@@ -442,9 +453,10 @@ def main(argv: list[str] | None = None) -> int:
         print(f"  side correct: {100 * d['side_correct_share']:.1f}%   (true->reported: {d['side_confusion']})")
         print(f"  false alarms: {d['false_alarms']} in {d['free_minutes']:.1f} min of free walking = "
               f"{d['false_alarms_per_minute']:.2f} per minute")
-    for key, vision in (("no_vision", False), ("vision", True)):
+    for key, label in (("no_vision", "no vision"), ("vision", "with vision"),
+                       ("vision_injection", "with vision and augmented MCL's injection")):
         if key in result:
-            print_cases(result[key], vision)
+            print_cases(result[key], label)
     if "particle_sweep" in result:
         p = result["particle_sweep"]
         v = p["velocity_linear"]

@@ -77,12 +77,12 @@ class MobilityTransitions:
     collision: collisions detected recently, but not at high frequency
     frequent:  collisions at high frequency (percept rate >= `AdaptiveMotion.frequent_rate`)
 
-    Each entry is (from, to, rate); a state's probability of staying is what its rates leave. The small quiet
-    rates out of free stand for collisions the detector misses.
+    Each entry is (from, to, rate); a state's probability of staying is what its rates leave. As in the paper,
+    only collision events lead away from free: add quiet ("free", ...) rates to stand for collisions the
+    detector misses (each particle then leaves free that often, and the cloud grows outliers).
     """
 
     quiet: tuple[tuple[str, str, float], ...] = _rates({
-        ("free", "slippage"): 0.02, ("free", "hindrance"): 0.02, ("free", "pushed"): 0.02,
         ("slippage", "free"): 3.0, ("hindrance", "free"): 4.0, ("pushed", "free"): 5.0, ("stopped", "free"): 4.0})
     collision: tuple[tuple[str, str, float], ...] = _rates({
         ("free", "slippage"): 2.0, ("free", "hindrance"): 4.0, ("free", "pushed"): 2.0,

@@ -33,6 +33,7 @@ walking raise ValueError naming the problem; a rejected `update` leaves the dete
 from __future__ import annotations
 
 import math
+import zipfile
 from collections import deque
 from dataclasses import dataclass
 from pathlib import Path
@@ -147,7 +148,7 @@ class CollisionReference:
                     raise ValueError(f"{path}: not a version-{FORMAT_VERSION} collision reference")
                 return cls(data["delays"].astype(np.int64), data["joint_sides"].astype(np.int64),
                            int(data["window"]), data["speeds"], data["table"], float(data["half_stance"]))
-        except (KeyError, OSError, EOFError) as error:
+        except (KeyError, OSError, EOFError, zipfile.BadZipFile) as error:
             raise ValueError(f"{path}: cannot read a collision reference ({error})") from None
 
 
