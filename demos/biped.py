@@ -5,6 +5,8 @@
     run = simulate_walk(duration=28.0, seed=0)                          # straight walk, twist and slip on
     run = simulate_walk(28.0, seed=0, gait=turning_gait(28.0))          # straight, turn left, straight
     run = simulate_walk(28.0, seed=0, disturbances=DisturbanceParams(twist_probability=0.0))
+    command = gait_command(run.gait, run.imu_time)                      # the walk request (vx, vy, ω)
+    poses = field_poses(run, start=(-3.5, -1.0, 0.0))                   # the trunk's (x, y, θ) on a field
 
 What is simulated. The trunk follows a smooth path (stand still, speed ramp, constant speed, optional turn),
 with the sway, bounce, surge, lean and rocking of a walk; the feet are placed under the hips at the moments the
@@ -29,6 +31,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from field.angles import wrap_angles
 from sensing.kinematics import LegChain, nao_leg, rotation_z
 
 FINE_RATE = 3000.0          # Hz: truth grid; IMU and kinematics rates must divide it
@@ -449,3 +452,40 @@ def simulate_walk(duration: float = 28.0, seed: int = 0, gait: GaitParams = Gait
         contacts=contacts, true_contact=true_contact, twist=twist, slip=slip,
         true_kin_velocity=body_velocity[kin_index], chains=chains, gait=gait, sensors=sensors,
         disturbances=disturbances, episodes=episodes)
+
+
+# ---------------------------------------------------------------------------------------------------------
+# The walk request and the walk on a field (additions for the odometry experiment; the simulation above is
+# unchanged)
+# ---------------------------------------------------------------------------------------------------------
+def gait_command(gait: GaitParams, times) -> np.ndarray:
+    """The walk request (vx, vy, ω) in the robot frame at `times` (s): what the trunk path of `simulate_walk`
+    follows, without the walk's oscillations (sway, surge, bounce).
+
+    The speed ramps up from `stand_time` over `ramp_time`, and the turn rate in and out around `turn_start`
+    and `turn_end` over `turn_ramp`, by the same formulas as the simulation, so a walking engine given this
+    request and executing it perfectly walks the simulated path; vy is always 0.
+    """
+    times = np.asarray(times, dtype=np.float64)
+    if not np.all(np.isfinite(times)):
+        raise ValueError("times must be finite")
+    speed = gait.speed * _smoother((times - gait.stand_time) / gait.ramp_time)
+    omega = gait.turn_rate * (_smoother((times - gait.turn_start) / gait.turn_ramp)
+                              - _smoother((times - gait.turn_end) / gait.turn_ramp))
+    return np.stack(np.broadcast_arrays(speed, np.zeros_like(speed), omega), axis=-1)
+
+
+def field_poses(run: BipedRun, start) -> np.ndarray:
+    """The trunk's planar pose (x, y, θ) at every IMU sample, on a field where the walk starts at `start`.
+
+    The simulation's world has the trunk at the origin facing +x at t = 0; `start` (x, y, θ) in the field
+    frame moves it there. θ is the trunk's yaw (the heading of its forward axis on the floor), wrapped to
+    (-π, π].
+    """
+    start = np.asarray(start, dtype=np.float64)
+    if start.shape != (3,) or not np.all(np.isfinite(start)):
+        raise ValueError(f"start must be three finite numbers (x, y, θ), got {start.tolist()}")
+    c, s = math.cos(start[2]), math.sin(start[2])
+    x, y = run.trunk_position[:, 0], run.trunk_position[:, 1]
+    return np.stack([start[0] + c * x - s * y, start[1] + s * x + c * y, wrap_angles(start[2] + run.trunk_yaw)],
+                    axis=1)

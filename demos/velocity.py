@@ -4,6 +4,7 @@ two variants: the paper's (state [g, v], "ekf") and one that also estimates the 
 
     python -m demos.velocity                       # 28 s straight walk, twist and slip on, seed 0
     python -m demos.velocity --no-twist --json --seed 3 --duration 40
+    robocup-mcl demo velocity --seeds 5 --rrd velocity.rrd     # the same, with a Rerun recording
 
     from demos.velocity import main, run_estimators
     from demos.biped import simulate_walk
@@ -19,6 +20,26 @@ Figures printed (all measured in this run, nothing fixed in advance):
    the error of each EKF's gyro bias at the start and at the end of that run.
 4. Time per EKF prediction and correction of both EKFs, numba kernel against the numpy reference, replaying the
    inputs of the run of figure 1, with the largest difference between the two state sequences.
+5. The EKF as odometry for the particle filter (`sensing.velocity_odometry`): the "ekf+bias" filter's velocity,
+   levelled with its gravity estimate, and its bias-corrected gyro, summed over each filter step, against the
+   commanded velocity. The walk (straight and turning, `--seeds` seeds) is placed on an SPL field
+   (`PLACEMENTS`), the walk scenario's landmark camera (`demos.walk_sim`, its noise settings) gives a frame at
+   every filter step (33.3 Hz: three IMU samples per step), and a ParticleFilter (VelocityLinear with its β
+   scaled to the step, LandmarkSensorModel, `--particles`) runs once per odometry source, all on the same
+   frames and from the same seed, started by `reset_around` the true start pose: the task is tracking, where
+   odometry matters, not global localization, which the camera decides. Figures: position and heading RMSE
+   over every filter step; the same with a sparse camera (one frame in `SPARSE_CAMERA_EVERY`, about 1 Hz);
+   dead reckoning, the pose error at the end of the walk chaining the odometry alone from the true start.
+   Sources: "ekf odometry"; "command", the gait's request as a walking engine with the walk scenario's
+   execution error would have to be given it (a per-run scale per axis and a turn bias, from their own seed
+   stream); "ideal command", the request the simulated trunk follows exactly (the simulator executes commands
+   perfectly, so this is a bound, not a real robot's odometry).
+
+With `--rrd PATH`, a Rerun recording of the straight walk of `--seed`: the forward velocity of the truth and of
+each estimator over time (`proprioception/forward_velocity/...`, the paper's Fig. 3), and figure 5's filter
+with the EKF odometry (`particles`, `robot/estimate`, `robot/truth`, `observations`, `entropy/...`,
+`error/...`) with the command filters' estimates (`robot/estimate_command`, `robot/estimate_ideal_command`,
+`error/position_command`, `error/heading_command`) and the dead-reckoned poses (`robot/dead_reckoning/...`).
 
 EKF noise parameters come from the simulated sensor specification, not from the results: σ_q is the standard
 deviation of one accelerometer sample's error, noise and bias together; σ_v is the spread of a kinematic
@@ -40,10 +61,17 @@ import time as _time
 
 import numpy as np
 
-from demos.biped import BipedRun, DisturbanceParams, GaitParams, SensorParams, simulate_walk, turning_gait
+from demos.biped import (BipedRun, DisturbanceParams, GaitParams, SensorParams, field_poses, gait_command,
+                         simulate_walk, turning_gait)
+from demos.walk_sim import WalkScenario, _camera
+from field.angles import wrap_angles
+from mcl import ParticleFilter
+from motion_models import MotionInput, VelocityLinear
+from sensing import LandmarkSensorModel, Observations
 from sensing.velocity import (ImuOnlyEstimator, LegOdometry, VelocityEKF, VelocityEKFParams, ekf_bias_predict_kernel,
                               ekf_bias_predict_reference, ekf_correct_kernel, ekf_correct_reference,
                               ekf_predict_kernel, ekf_predict_reference, tilt_error)
+from sensing.velocity_odometry import EKFOdometry, compose_increments
 
 EKF_VARIANTS = ("ekf", "ekf+bias")                 # the paper's [g, v] filter; with the gyro bias, [g, v, b]
 ESTIMATORS = ("imu", "kinematics", "kinematics+gyro") + EKF_VARIANTS
@@ -261,6 +289,290 @@ def timing(result: dict, name: str = "ekf", repeats: int = 3) -> dict:
             "predictions": best["numba"][3], "corrections": best["numba"][4], "max_state_difference": diff}
 
 
+# ---------------------------------------------------------------------------------------------------------
+# Figure 5: the EKF as odometry for the particle filter, against the commanded velocity
+# ---------------------------------------------------------------------------------------------------------
+FILTER_EVERY = 3                 # IMU samples per filter step: 100 Hz IMU → 33.3 Hz filter and camera
+PLACEMENTS = {"straight": (-3.5, -1.0, 0.0), "turning": (-3.0, -2.0, 0.0)}    # field pose of the walk's start
+ODOMETRY_SOURCES = ("ekf odometry", "command", "ideal command")
+ODOMETRY_EKF = "ekf+bias"        # the EKF variant whose velocity and bias-corrected gyro make the odometry
+RESET_SIGMA = (0.1, 0.1, 0.1)    # m, m, rad: the filter starts around the true start pose
+CAMERA_STREAM, EXECUTION_STREAM = 1, 2      # seed streams: camera noise, the walking engine's execution error
+MOTION_RATE_REFERENCE = 0.01     # s: the step for which VelocityLinear's β are set (its docstring)
+SPARSE_CAMERA_EVERY = 33         # the sparse camera keeps one frame in 33: about one per second
+
+
+def walk_gait(walk: str, duration: float) -> GaitParams:
+    """The gait of a "straight" or "turning" walk of `duration` seconds."""
+    if walk not in PLACEMENTS:
+        raise ValueError(f"walk must be one of {tuple(PLACEMENTS)}, got {walk!r}")
+    return GaitParams() if walk == "straight" else turning_gait(duration)
+
+
+def filter_steps(run: BipedRun, n0: int, every: int = FILTER_EVERY) -> np.ndarray:
+    """IMU indices of the filter steps: n0 (the start, no step) and every `every`-th sample after it."""
+    if isinstance(every, bool) or not isinstance(every, (int, np.integer)) or every < 1:
+        raise ValueError(f"every must be an integer >= 1, got {every!r}")
+    return np.arange(n0, run.imu_time.shape[0], every)
+
+
+def ekf_odometry(run: BipedRun, steps: np.ndarray, params: VelocityEKFParams | None = None) -> np.ndarray:
+    """The EKF odometry (M - 1, 3) between consecutive filter steps `steps` (IMU indices, steps[0] = start).
+
+    One `EKFOdometry` over the whole run, samples in time order as in `run_estimators` (an IMU sample before a
+    kinematics sample of the same time), started from the standing robot at steps[0] (eq. 1, gyro zeroed);
+    `take()` right after the IMU sample of each filter step.
+    """
+    params = ekf_params_for(run.sensors, estimate_gyro_bias=True) if params is None else params
+    n0 = int(steps[0])
+    t0 = float(run.imu_time[n0])
+    ekf = VelocityEKF.from_standing(run.accel[: n0 + 1], t0, params=params, gyro_samples=run.gyro[: n0 + 1])
+    odometry = EKFOdometry(LegOdometry(run.chains, ekf))
+    is_step = np.zeros(run.imu_time.shape[0], dtype=bool)
+    is_step[steps[1:]] = True
+    out = np.empty((steps.shape[0] - 1, 3))
+    m = 0
+    n_kin = run.kin_time.shape[0]
+    i, k = n0 + 1, int(np.searchsorted(run.kin_time, t0, side="left"))
+    last = int(steps[-1])
+    while i <= last:
+        if k >= n_kin or run.imu_time[i] <= run.kin_time[k]:
+            odometry.imu(run.imu_time[i], run.gyro[i], run.accel[i])
+            if is_step[i]:
+                out[m] = odometry.take().odometry
+                m += 1
+            i += 1
+        else:
+            odometry.kinematics(run.kin_time[k], run.joint_angles[k], run.contacts[k])
+            k += 1
+    return out
+
+
+def execution_error(seed: int, scenario: WalkScenario = WalkScenario()) -> tuple[np.ndarray, float]:
+    """Per-run error of the walking engine, as in the walk scenario: scale of (vx, vy, ω) and a turn bias (rad/s).
+
+    Drawn from its own stream of `seed`, so the walk and its sensors are the same with and without it.
+    """
+    rng = np.random.default_rng([seed, EXECUTION_STREAM])
+    scale = 1.0 + scenario.odometry_scale_sigma * rng.standard_normal(3)
+    return scale, float(scenario.turn_bias_sigma * rng.standard_normal())
+
+
+def commanded_velocity(run: BipedRun, steps: np.ndarray, seed: int, ideal: bool = False,
+                       scenario: WalkScenario = WalkScenario()) -> np.ndarray:
+    """The walk request (M - 1, 3) of each filter step: the gait's command at the step's middle.
+
+    The simulated trunk follows the gait's request exactly (`gait_command`); a real walking engine does not.
+    With `ideal` the command is that request; otherwise it is the request a walking engine with the walk
+    scenario's execution error (`execution_error`: executed = scale · command + turn bias while walking) had
+    to be given to walk the simulated path. The robot "walks" when the request's vx exceeds 0.02 m/s.
+    """
+    t = run.imu_time[steps]
+    command = gait_command(run.gait, (t[:-1] + t[1:]) / 2.0)
+    if ideal:
+        return command
+    scale, turn_bias = execution_error(seed, scenario)
+    walking = command[:, 0] > 0.02
+    out = command / scale
+    out[:, 2] = (command[:, 2] - np.where(walking, turn_bias, 0.0)) / scale[2]
+    return out
+
+
+def camera_frames(truth: np.ndarray, times: np.ndarray, seed: int, scenario: WalkScenario = WalkScenario()) -> list:
+    """One landmark camera frame per filter step (the walk scenario's camera and noise) at the true poses."""
+    rng = np.random.default_rng([seed, CAMERA_STREAM])
+    frames = []
+    for pose, t in zip(truth, times):
+        head = scenario.head_pan_amplitude * math.sin(2.0 * math.pi * t / scenario.head_pan_period)
+        frames.append(_camera(scenario, pose, head, rng))
+    return frames
+
+
+def motion_model_for(dt: float) -> VelocityLinear:
+    """VelocityLinear with its β scaled to the filter step: the noise is a random walk (its docstring)."""
+    factor = math.sqrt(MOTION_RATE_REFERENCE / dt)
+    base = VelocityLinear()
+    return VelocityLinear(beta1=base.beta1 * factor, beta2=base.beta2 * factor, beta3=base.beta3 * factor,
+                          beta4=base.beta4 * factor)
+
+
+def _pose_errors(estimates: np.ndarray, truth: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    return (np.hypot(estimates[:, 0] - truth[:, 0], estimates[:, 1] - truth[:, 1]),
+            np.abs(wrap_angles(estimates[:, 2] - truth[:, 2])))
+
+
+def odometry_run(run: BipedRun, seed: int, walk: str, particles: int = 500, recorder=None) -> dict:
+    """Figure 5 for one walk: the filter and dead reckoning with each odometry source (`ODOMETRY_SOURCES`).
+
+    The walk is placed on an SPL field at `PLACEMENTS[walk]`; a camera frame (the walk scenario's landmark
+    camera) arrives at every filter step. Each source drives its own ParticleFilter (VelocityLinear scaled to
+    the step, LandmarkSensorModel, `particles` particles, seed `seed`, started by `reset_around` the true
+    start pose with `RESET_SIGMA`) on the same frames; and again with a sparse camera, which keeps one frame in
+    `SPARSE_CAMERA_EVERY` (the rest empty). Dead reckoning chains the source's pose changes from the true
+    start pose (the motion model's mean, no camera). Errors are taken at every filter step, against the
+    trunk's pose. With a `mcl.recording.Recorder`, the EKF odometry filter with the full camera is logged by
+    `log_step` and the command filters' estimates beside it.
+    """
+    if walk not in PLACEMENTS:
+        raise ValueError(f"walk must be one of {tuple(PLACEMENTS)}, got {walk!r}")
+    scenario = WalkScenario()
+    n0 = int(np.searchsorted(run.imu_time, STANDING_SAMPLES_TIME, side="right")) - 1
+    steps = filter_steps(run, n0)
+    if steps.shape[0] < 2:
+        raise ValueError(f"the walk is too short for a filter step after {run.imu_time[n0]:.2f} s")
+    truth = field_poses(run, PLACEMENTS[walk])[steps]
+    times = run.imu_time[steps]
+    dts = np.diff(times)
+    frames = camera_frames(truth[1:], times[1:], seed, scenario)
+    empty = Observations.from_arrays([], [], [])
+    sparse = [frame if (m + 1) % SPARSE_CAMERA_EVERY == 0 else empty for m, frame in enumerate(frames)]
+    odometry = ekf_odometry(run, steps)
+    ideal = commanded_velocity(run, steps, seed, ideal=True, scenario=scenario)
+    inputs = {"ekf odometry": [MotionInput(dt=dt, odometry=tuple(d)) for dt, d in zip(dts, odometry)],
+              "command": [MotionInput(dt=dt, command=tuple(c))
+                          for dt, c in zip(dts, commanded_velocity(run, steps, seed, scenario=scenario))],
+              "ideal command": [MotionInput(dt=dt, command=tuple(c)) for dt, c in zip(dts, ideal)]}
+    field = scenario.field
+    sensor = LandmarkSensorModel(field)
+    model = motion_model_for(float(dts[0]))
+    dead = {source: compose_increments([u.displacement() for u in inputs[source]], truth[0])
+            for source in ODOMETRY_SOURCES}
+    estimates = {}
+    for camera, camera_frames_used in (("camera", frames), ("sparse camera", sparse)):
+        filters = {}
+        for source in ODOMETRY_SOURCES:
+            pf = ParticleFilter(field, model, sensor, n_particles=particles, seed=seed)
+            pf.reset_around(truth[0], sigma=RESET_SIGMA)
+            filters[source] = pf
+            estimates[camera, source] = np.empty((steps.shape[0] - 1, 3))
+        for m, frame in enumerate(camera_frames_used):
+            for source, pf in filters.items():
+                pf.predict(inputs[source][m])
+                pf.correct(frame)
+                estimates[camera, source][m] = pf.estimate().pose
+            if recorder is not None and camera == "camera":
+                _record_filter_step(recorder, m + 1, float(times[m + 1]), filters, truth[m + 1], frame,
+                                    {source: estimates[camera, source] for source in ODOMETRY_SOURCES}, dead, m)
+    out = {"walk": walk, "seed": seed, "start": list(PLACEMENTS[walk]), "steps": int(steps.shape[0] - 1),
+           "path_length_m": float(np.sum(ideal[:, 0] * dts)),
+           "turned_deg": float(np.degrees(run.trunk_yaw[steps[-1]] - run.trunk_yaw[n0]))}
+    for source in ODOMETRY_SOURCES:
+        figures = {}
+        for camera, prefix in (("camera", ""), ("sparse camera", "sparse_camera_")):
+            position, heading = _pose_errors(estimates[camera, source], truth[1:])
+            figures[f"{prefix}position_rmse_m"] = float(np.sqrt(np.mean(position ** 2)))
+            figures[f"{prefix}heading_rmse_deg"] = float(np.degrees(np.sqrt(np.mean(heading ** 2))))
+            figures[f"{prefix}max_position_error_m"] = float(position.max())
+        dead_position, dead_heading = _pose_errors(dead[source][-1:], truth[-1:])
+        figures["dead_reckoning_position_m"] = float(dead_position[0])
+        figures["dead_reckoning_heading_deg"] = float(np.degrees(dead_heading[0]))
+        out[source] = figures
+    return out
+
+
+def summarize_odometry(runs: list[dict]) -> dict:
+    """Median and maximum over seeds of each figure of each source."""
+    out = {}
+    for source in ODOMETRY_SOURCES:
+        out[source] = {}
+        for key in runs[0][source]:
+            values = [r[source][key] for r in runs]
+            out[source][key] = {"median": float(np.median(values)), "max": float(np.max(values))}
+    return out
+
+
+# --- recording ---------------------------------------------------------------------------------------------
+FORWARD_VELOCITY = "proprioception/forward_velocity"
+SERIES_STYLE = {"truth": ((240, 240, 240), "truth"), "imu": ((230, 80, 80), "IMU only"),
+                "kinematics": ((80, 160, 255), "kinematics"), "kinematics_gyro": ((80, 220, 120), "kinematics+gyro"),
+                "ekf": ((255, 200, 40), "EKF (paper)"), "ekf_bias": ((255, 120, 0), "EKF + gyro bias")}
+OTHER_SOURCES = {"command": ("robot/estimate_command", (60, 140, 255)),
+                 "ideal command": ("robot/estimate_ideal_command", (200, 200, 255))}
+
+
+def velocity_blueprint():
+    import rerun.blueprint as rrb
+
+    return rrb.Blueprint(
+        rrb.Horizontal(
+            rrb.Spatial2DView(origin="/", name="field",
+                              contents=["/field/**", "/particles", "/robot/**", "/observations"]),
+            rrb.Vertical(
+                rrb.TimeSeriesView(origin=f"/{FORWARD_VELOCITY}", name="forward velocity [m/s] (paper, Fig. 3)"),
+                rrb.TimeSeriesView(origin="/error", name="error [m, rad]"),
+                rrb.TimeSeriesView(origin="/entropy", name="entropy [bits]"),
+            ),
+            column_shares=[3, 2],
+        ),
+        collapse_panels=True,
+    )
+
+
+def record_velocities(recorder, run: BipedRun, result: dict) -> None:
+    """The paper's Fig. 3 as scalar series on the `time` timeline: forward velocity (IMU x axis) of the truth
+    and of each estimator; the kinematic estimates at the kinematics samples with a support foot."""
+    import rerun as rr
+
+    stream = recorder.stream
+    n0 = result["n0"]
+    valid = result["foot"] >= 0
+    series = {"truth": (run.imu_time[n0:], run.true_velocity[n0:, 0]),
+              "imu": (run.imu_time[n0:], result["imu_velocity"][n0:, 0]),
+              "kinematics": (run.kin_time[valid], result["kin"]["kinematics"][valid, 0]),
+              "kinematics_gyro": (run.kin_time[valid], result["kin"]["kinematics+gyro"][valid, 0]),
+              "ekf": (run.imu_time[n0:], result["ekf_velocity"][n0:, 0]),
+              "ekf_bias": (run.imu_time[n0:], result["ekf+bias_velocity"][n0:, 0])}
+    for name, (times, values) in series.items():
+        color, label = SERIES_STYLE[name]
+        path = f"{FORWARD_VELOCITY}/{name}"
+        if name.startswith("kinematics"):
+            stream.log(path, rr.SeriesPoints(names=label, colors=[color], marker_sizes=[1.5]), static=True)
+        else:
+            stream.log(path, rr.SeriesLines(names=label, colors=[color]), static=True)
+        stream.send_columns(path, indexes=[rr.TimeColumn("time", duration=np.array(times, dtype=np.float64))],
+                            columns=rr.Scalars.columns(scalars=np.array(values, dtype=np.float64)))
+    for path, label, color in (("error/position_command", "position, command [m]", (60, 140, 255)),
+                               ("error/heading_command", "heading, command [rad]", (160, 80, 255))):
+        stream.log(path, rr.SeriesLines(names=label, colors=[color]), static=True)
+
+
+def _arrow(pose: np.ndarray, color):
+    import rerun as rr
+
+    return rr.Arrows2D(origins=[pose[:2].copy()], vectors=[0.35 * np.array([math.cos(pose[2]), math.sin(pose[2])])],
+                       colors=[color], radii=0.02)
+
+
+def _record_filter_step(recorder, step: int, t: float, filters: dict, truth: np.ndarray, frame, estimates: dict,
+                        dead: dict, m: int) -> None:
+    """The EKF odometry filter through `Recorder.log_step`; the command filters' estimates and errors, and
+    the dead-reckoned poses, beside it."""
+    import rerun as rr
+
+    recorder.log_step(step, t, filters["ekf odometry"], truth=truth, observations=frame)
+    log = recorder.stream.log
+    for source, (path, color) in OTHER_SOURCES.items():
+        log(path, _arrow(estimates[source][m], color))
+    position, heading = _pose_errors(estimates["command"][m:m + 1], truth[None, :])
+    log("error/position_command", rr.Scalars(float(position[0])))
+    log("error/heading_command", rr.Scalars(float(heading[0])))
+    log("robot/dead_reckoning/ekf_odometry", _arrow(dead["ekf odometry"][m], (255, 160, 160)))
+    log("robot/dead_reckoning/command", _arrow(dead["command"][m], (160, 200, 255)))
+
+
+def write_recording(path: str, run: BipedRun, result: dict, seed: int, walk: str, particles: int) -> dict:
+    """The .rrd of `--rrd`: Fig. 3's velocities of `run` and the filters on the same walk; returns figure 5's
+    numbers for that walk (the same as without a recording)."""
+    from mcl.recording import Recorder
+
+    recorder = Recorder(path, WalkScenario().field, particles_every=5, blueprint=velocity_blueprint())
+    try:
+        record_velocities(recorder, run, result)
+        return odometry_run(run, seed, walk, particles, recorder=recorder)
+    finally:
+        recorder.close()
+
+
 LABELS = {"ekf": "ekf (paper)", "ekf+bias": "ekf + gyro bias"}
 
 
@@ -335,11 +647,63 @@ def _format(report: dict) -> str:
                      f"predict x{tm['reference_predict_us'] / tm['numba_predict_us']:.0f}, "
                      f"correct x{tm['reference_correct_us'] / tm['numba_correct_us']:.0f}; "
                      f"largest state difference {tm['max_state_difference']:.2e}")
+    lines.append("")
+    lines.extend(_format_odometry(report["odometry"]))
     return "\n".join(lines)
 
 
-def build_report(seed: int, duration: float, twist: bool, slip: bool, n_seeds: int = 5) -> dict:
-    """Every figure, from fresh simulations."""
+ODOMETRY_COLUMNS = (("camera", "position_rmse_m", 100.0), ("camera", "heading_rmse_deg", 1.0),
+                    ("sparse camera", "sparse_camera_position_rmse_m", 100.0),
+                    ("sparse camera", "sparse_camera_heading_rmse_deg", 1.0),
+                    ("dead reckoning", "dead_reckoning_position_m", 100.0),
+                    ("dead reckoning", "dead_reckoning_heading_deg", 1.0))
+
+
+def _format_odometry(odometry: dict) -> list[str]:
+    seeds = odometry["seeds"]
+    lines = [f"Figure 5. Particle filter on an SPL field with the EKF odometry ({LABELS[odometry['ekf']]}, levelled, "
+             "summed per filter step)",
+             f"  versus the commanded velocity: {odometry['particles']} particles at "
+             f"{odometry['filter_rate_hz']:.1f} Hz, VelocityLinear, landmark camera every step (sparse: one frame "
+             f"in {odometry['sparse_camera_every']}),",
+             "  started around the true start pose; dead reckoning: the odometry alone from the true start pose, "
+             "error at the end.",
+             f"  Medians over seeds {seeds[0]}-{seeds[-1]} (max in brackets); position in cm, heading in degrees."
+             if len(seeds) > 1 else f"  Seed {seeds[0]} (medians and max of one run); position in cm, heading in "
+                                    f"degrees."]
+    width = 16
+    head1 = "".join(f"{group:^28}" for group in ("camera", "sparse camera", "dead reckoning"))
+    head2 = "".join(f"{'position':>14}{'heading':>14}" for _ in range(3))
+    for walk, block in odometry["walks"].items():
+        first = block["runs"][0]
+        lines.append(f"  {walk} walk ({first['path_length_m']:.2f} m walked, turning {first['turned_deg']:.0f} deg; "
+                     f"start at {tuple(first['start'])})")
+        lines.append(f"    {'':<{width}}{head1}")
+        lines.append(f"    {'source':<{width}}{head2}")
+        for source in odometry["sources"]:
+            summary = block["summary"][source]
+            cells = "".join(f"{scale * summary[key]['median']:>7.1f} ({scale * summary[key]['max']:>5.1f})"
+                            for _, key, scale in ODOMETRY_COLUMNS)
+            lines.append(f"    {source:<{width}}{cells}")
+        wins = []
+        for _, key, _ in ODOMETRY_COLUMNS:
+            better = sum(r["ekf odometry"][key] < r["command"][key] for r in block["runs"])
+            wins.append(f"{better}/{len(block['runs'])}")
+        lines.append(f"    {'ekf < command':<{width}}" + "".join(f"{w:>14}" for w in wins) + "   (seeds)")
+    lines.append("  'command': the request a walking engine with the walk scenario's execution error (per-run scale "
+                 "6 % per axis, turn bias")
+    lines.append("  0.03 rad/s, 1 sigma) must be given to walk the simulated path. 'ideal command': the request the "
+                 "simulated trunk follows")
+    lines.append("  exactly, a bound no real walking engine reaches. 'ekf < command': seeds on which the EKF odometry's "
+                 "figure is the smaller.")
+    if odometry.get("rrd"):
+        lines.append(f"  Recording of the straight walk, seed {seeds[0]}: {odometry['rrd']}")
+    return lines
+
+
+def build_report(seed: int, duration: float, twist: bool, slip: bool, n_seeds: int = 5, particles: int = 500,
+                 rrd: str | None = None) -> dict:
+    """Every figure, from fresh simulations; with `rrd`, the recording of figures 1 and 5's straight walk."""
     base_disturbances = DisturbanceParams()
     slip_probability = base_disturbances.slip_probability if slip else 0.0
 
@@ -355,6 +719,7 @@ def build_report(seed: int, duration: float, twist: bool, slip: bool, n_seeds: i
               "tilt": tilt_figures(straight, result), "rmse": {}}
     raw = average_forward_velocity(straight, run_estimators(straight, zero_gyro=False))
     report["ekf_gyro_not_zeroed"] = {name: raw[name] for name in variants}
+    walks = {("straight", seed): straight}         # the twist setting of figure 1, reused by figure 5
     spread = {"seeds": list(range(seed, seed + n_seeds)), "kinematics+gyro_error_percent": []}
     for name in variants:
         spread[f"{name}_error_percent"] = []
@@ -363,6 +728,7 @@ def build_report(seed: int, duration: float, twist: bool, slip: bool, n_seeds: i
             figures = report["average_forward_velocity"]
         else:
             other_run = simulate_walk(duration, other, gait=GaitParams(), disturbances=disturbances(twist))
+            walks["straight", other] = other_run
             figures = average_forward_velocity(other_run, run_estimators(other_run))
         for name in variants + ("kinematics+gyro",):
             spread[f"{name}_error_percent"].append(figures[name]["error_percent"])
@@ -375,10 +741,37 @@ def build_report(seed: int, duration: float, twist: bool, slip: bool, n_seeds: i
             else:
                 run = simulate_walk(duration, seed, gait=gait, disturbances=disturbances(twist_on))
                 res = run_estimators(run)
+                if twist_on == twist:
+                    walks[walk, seed] = run
             report["rmse"][f"{walk} walk, twist {'on' if twist_on else 'off'}"] = rmse_windows(run, res)
     report["timing"] = {name: timing(result, name) for name in variants}
     report["ekf_params"] = {name: dataclasses.asdict(result["params"][name]) for name in variants}
+    report["odometry"] = odometry_report(walks, result, spread["seeds"], duration, disturbances(twist), particles,
+                                         rrd)
     return report
+
+
+def odometry_report(walks: dict, result: dict, seeds: list[int], duration: float,
+                    disturbances: DisturbanceParams, particles: int = 500, rrd: str | None = None) -> dict:
+    """Figure 5 over `seeds`, straight and turning walks; `walks` holds (walk, seed) runs already simulated
+    (`result` is the estimators' run on the straight walk of seeds[0], recorded with `rrd`)."""
+    out = {"filter_rate_hz": None, "particles": particles, "ekf": ODOMETRY_EKF, "sources": list(ODOMETRY_SOURCES),
+           "placements": {walk: list(pose) for walk, pose in PLACEMENTS.items()}, "reset_sigma": list(RESET_SIGMA),
+           "sparse_camera_every": SPARSE_CAMERA_EVERY, "seeds": list(seeds), "walks": {}}
+    for walk in PLACEMENTS:
+        runs = []
+        for s in seeds:
+            run = walks.get((walk, s))
+            if run is None:
+                run = simulate_walk(duration, s, gait=walk_gait(walk, duration), disturbances=disturbances)
+            if rrd and walk == "straight" and s == seeds[0]:
+                runs.append(write_recording(rrd, run, result, s, walk, particles))
+            else:
+                runs.append(odometry_run(run, s, walk, particles))
+            out["filter_rate_hz"] = run.sensors.imu_rate / FILTER_EVERY
+        out["walks"][walk] = {"runs": runs, "summary": summarize_odometry(runs)}
+    out["rrd"] = rrd
+    return out
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -391,18 +784,26 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--slip", action=argparse.BooleanOptionalAction, default=True,
                         help="limited slip episodes in every walk")
     parser.add_argument("--seeds", type=int, default=5,
-                        help="figure 1 is also repeated for this many seeds from --seed, to show the spread")
+                        help="figures 1 and 5 are repeated for this many seeds from --seed, to show the spread")
+    parser.add_argument("--particles", type=int, default=500, help="particles of each filter of figure 5")
+    parser.add_argument("--rrd", metavar="PATH",
+                        help="write a Rerun recording: the velocities of figure 1 (the paper's Fig. 3) and the "
+                             "filters of figure 5 on the same straight walk")
     args = parser.parse_args(argv)
     if args.seeds < 1:
         parser.error(f"--seeds must be at least 1, got {args.seeds}")
+    if args.particles < 1:
+        parser.error(f"--particles must be at least 1, got {args.particles}")
     if not (math.isfinite(args.duration) and args.duration >= 4.0):
         parser.error(f"--duration must be at least 4 s, got {args.duration}")
-    report = build_report(args.seed, args.duration, args.twist, args.slip, args.seeds)
+    report = build_report(args.seed, args.duration, args.twist, args.slip, args.seeds, args.particles, args.rrd)
     if args.json:
         json.dump(report, sys.stdout, indent=2)
         sys.stdout.write("\n")
     else:
         print(_format(report))
+        if args.rrd:
+            print(f"\nrecording written to {args.rrd} (open it with: rerun {args.rrd})")
     return 0
 
 
