@@ -89,6 +89,7 @@ def run_case(case: str, model: str, seed: int, reference: CollisionReference, pa
     if rrd:
         from mcl.recording import Recorder
         recorder = Recorder(rrd, scenario.field, particles_every=2, blueprint=collision_blueprint())
+        _style_series(recorder)
     n = log.times.shape[0]
     estimates = np.empty((n, 3))
     entropy = np.empty((n, 2))
@@ -127,22 +128,23 @@ def run_case(case: str, model: str, seed: int, reference: CollisionReference, pa
                      belief, s_rel, elapsed, rrd)
 
 
+STATE_COLORS = ((80, 220, 120), (80, 200, 255), (255, 200, 40), (255, 80, 200), (230, 60, 60))
+
+
+def _style_series(recorder) -> None:
+    import rerun as rr
+    for name, color in zip(STATES, STATE_COLORS):
+        recorder.stream.log(f"motion/state_belief/{name}", rr.SeriesLines(names=name, colors=[color]), static=True)
+    for path, name, color in (("proprioception/s_rel/left", "S_rel left", (80, 160, 255)),
+                              ("proprioception/s_rel/right", "S_rel right", (255, 140, 40)),
+                              ("proprioception/collision_threshold", "threshold", (150, 150, 150))):
+        recorder.stream.log(path, rr.SeriesLines(names=name, colors=[color]), static=True)
+
+
 def collision_blueprint():
-    import rerun.blueprint as rrb
-    return rrb.Blueprint(
-        rrb.Horizontal(
-            rrb.Spatial2DView(origin="/", name="field",
-                              contents=["/field/**", "/particles", "/robot/**", "/observations"]),
-            rrb.Vertical(
-                rrb.TimeSeriesView(origin="/entropy", name="entropy [bits]"),
-                rrb.TimeSeriesView(origin="/proprioception", name="S_rel (collision when > 1)"),
-                rrb.TimeSeriesView(origin="/motion/state_belief", name="mobility state belief"),
-                rrb.TimeSeriesView(origin="/error", name="error [m, rad]"),
-            ),
-            column_shares=[3, 2],
-        ),
-        collapse_panels=True,
-    )
+    from mcl.recording import default_blueprint
+    return default_blueprint((("/entropy", "entropy [bits]"), ("/proprioception", "S_rel (collision when > 1)"),
+                              ("/motion/state_belief", "mobility state belief"), ("/error", "error [m, rad]")))
 
 
 def summarize(case, model, seed, particles, vision, log, estimates, entropy, contained, belief, s_rel, elapsed,

@@ -34,9 +34,8 @@ from dataclasses import dataclass, field as dataclass_field, replace
 import numpy as np
 
 from field import Field, spl
-from sensing.observations import Observations
 
-from .walk_sim import WalkScenario, _camera
+from .walk_sim import CameraFrame, WalkScenario, _camera
 
 FREE, SLIPPAGE, HINDRANCE, PUSHED, STOPPED = range(5)
 MODE_NAMES = ("free", "slippage", "hindrance", "pushed", "stopped")
@@ -97,12 +96,6 @@ class CollisionScenario:
     # camera (landmark detections only)
     camera: WalkScenario = dataclass_field(default_factory=lambda: WalkScenario(kidnap_time=None))
     vision: bool = False
-
-
-@dataclass(frozen=True)
-class CameraFrame:
-    step: int
-    observations: Observations
 
 
 @dataclass(frozen=True)
@@ -323,6 +316,6 @@ def simulate(scenario: CollisionScenario, seed: int = 0) -> CollisionLog:
         if s.vision and k + 1 >= next_frame:
             next_frame += camera_every
             head = s.camera.head_pan_amplitude * math.sin(2 * math.pi * t / s.camera.head_pan_period)
-            frames.append(CameraFrame(k, _camera(replace(s.camera, field=s.field), pose, head, camera_rng)))
+            frames.append(CameraFrame(k, _camera(replace(s.camera, field=s.field), pose, head, camera_rng), head))
     return CollisionLog(s, dt, times, truth, start, commands, phase, joint_commands, readings, joint_sides,
                         mode, contact, tuple(s.events), tuple(frames))

@@ -491,21 +491,10 @@ OTHER_SOURCES = {"command": ("robot/estimate_command", (60, 140, 255)),
 
 
 def velocity_blueprint():
-    import rerun.blueprint as rrb
+    from mcl.recording import default_blueprint
 
-    return rrb.Blueprint(
-        rrb.Horizontal(
-            rrb.Spatial2DView(origin="/", name="field",
-                              contents=["/field/**", "/particles", "/robot/**", "/observations"]),
-            rrb.Vertical(
-                rrb.TimeSeriesView(origin=f"/{FORWARD_VELOCITY}", name="forward velocity [m/s] (paper, Fig. 3)"),
-                rrb.TimeSeriesView(origin="/error", name="error [m, rad]"),
-                rrb.TimeSeriesView(origin="/entropy", name="entropy [bits]"),
-            ),
-            column_shares=[3, 2],
-        ),
-        collapse_panels=True,
-    )
+    return default_blueprint(((f"/{FORWARD_VELOCITY}", "forward velocity [m/s] (paper, Fig. 3)"),
+                              ("/error", "error [m, rad]"), ("/entropy", "entropy [bits]")))
 
 
 def record_velocities(recorder, run: BipedRun, result: dict) -> None:

@@ -50,15 +50,14 @@ def weight_colors(weights: np.ndarray) -> np.ndarray:
     return (low + level[:, None] * (high - low)).astype(np.uint8)
 
 
-def default_blueprint() -> rrb.Blueprint:
+def default_blueprint(series: tuple[tuple[str, str], ...] = (("/entropy", "entropy [bits]"),
+                                                              ("/error", "error [m, rad]"))) -> rrb.Blueprint:
+    """The field view beside a column of time-series plots, one per (entity origin, title) in `series`."""
     return rrb.Blueprint(
         rrb.Horizontal(
             rrb.Spatial2DView(origin="/", name="field",
                               contents=["/field/**", "/particles", "/robot/**", "/observations"]),
-            rrb.Vertical(
-                rrb.TimeSeriesView(origin="/entropy", name="entropy [bits]"),
-                rrb.TimeSeriesView(origin="/error", name="error [m, rad]"),
-            ),
+            rrb.Vertical(*(rrb.TimeSeriesView(origin=origin, name=name) for origin, name in series)),
             column_shares=[3, 2],
         ),
         collapse_panels=True,
