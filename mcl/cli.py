@@ -3,6 +3,7 @@
     robocup-mcl demo walk [--model ...] [--particles N] [--seed S | --seeds 0-9] [--rrd PATH] [--json]
     robocup-mcl demo velocity [--json] ...
     robocup-mcl demo collision [--case none|single|double] [--model ...] [--vision] [--json] [--rrd PATH]
+    robocup-mcl demo odometry [--surface carpet|grass|both] [--curve] [--filter] [--json]
     robocup-mcl bench [--sizes ...] [--json]          # the filter step, numba versus numpy
     robocup-mcl bench lwpr [--seeds N] [--json]       # LWPR on the cross benchmark
 """
@@ -15,6 +16,7 @@ DEMOS = {
     "walk": ("demos.walk", "the particle filter on the 60 s walk scenario with a kidnapping"),
     "velocity": ("demos.velocity", "IMU + leg kinematics velocity estimators against the truth"),
     "collision": ("demos.collision", "Hoffmann's collision experiments: adaptive versus velocity-linear model"),
+    "odometry": ("demos.odometry", "learned footstep odometry (Rouxel et al.): drift of raw vs LWPR-corrected steps"),
 }
 BENCHES = {
     "step": ("mcl.bench", "one full filter step per particle count, numba versus plain numpy"),

@@ -6,7 +6,8 @@
     VelocityLinear().predict(poses, u, rng)             # poses (N, 3), updated in place
 
 `AdaptiveMotion` (Hoffmann's five mobility states) also needs `MotionInput.collision`, a collision percept
-from `sensing.collision`, and keeps a state per particle (the filter carries it).
+from `sensing.collision`, and keeps a state per particle (the filter carries it). `LearnedFootstepOdometry`
+(Rouxel et al.) moves particles at support-foot swaps, from `MotionInput.footstep` (a `FootstepEvent`).
 
 A model is a frozen dataclass with `check(u)` (raise ValueError if `u` lacks what it needs) and
 `predict(poses, u, rng)`; the filter in `mcl` calls nothing else. A new model is a new module here.
@@ -14,6 +15,9 @@ A model is a frozen dataclass with `check(u)` (raise ValueError if `u` lacks wha
 from .adaptive import AdaptiveMotion, MobilityTransitions
 from .base import MotionInput, MotionModel
 from .constant import ConstantNoise
+from .footsteps import FootstepEvent
+from .learned_odometry import LearnedFootstepOdometry, RawFootstepOdometry
 from .velocity_linear import VelocityLinear
 
-__all__ = ["MotionInput", "MotionModel", "ConstantNoise", "VelocityLinear", "AdaptiveMotion", "MobilityTransitions"]
+__all__ = ["MotionInput", "MotionModel", "ConstantNoise", "VelocityLinear", "AdaptiveMotion", "MobilityTransitions",
+           "FootstepEvent", "LearnedFootstepOdometry", "RawFootstepOdometry"]

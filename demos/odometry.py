@@ -1,0 +1,413 @@
+"""`robocup-mcl demo odometry`: learned footstep odometry (Rouxel et al.) on simulated walks, with its figures.
+
+    robocup-mcl demo odometry [--surface carpet|grass|both] [--seed S] [--curve] [--filter] [--json]
+    robocup-mcl demo odometry --train LOG.npz --save DIR [--seed S]     # train on a recorded log, save
+    robocup-mcl demo odometry --record LOG.npz [--surface grass] [--seed S] [--duration 300]
+
+    from demos.odometry import evaluate, learning_curve, filter_comparison, main
+
+The paper's protocol (sec. IV-B 2-3) on `demos.footstep_sim` logs, per surface: five 5-minute joystick walks;
+the three LWPR models of each input set learn on the first half of the first log (its second half tuned the
+meta-parameters in `LWPRSettings`); the four other logs are cut into non-overlapping 20 s sequences, on each
+of which the odometry restarts at the true pose and integrates its footstep displacements (the paper's
+"re-integration", `motion_models.footsteps.integrate`). Figures: the mean Cartesian and angular drift from
+the motion capture after 10 s and 20 s, with 95 % intervals (mean ± 1.96 standard errors), for the four
+methods: a priori raw (the commanded steps), a priori learned (LWPR on the 7 command inputs), online raw (the
+sensor-based steps), online learned (LWPR on the 9 sensor inputs); and the mean per-step error of each axis.
+
+`--curve`: the learning curve (Fig. 7): the models learn on the first T seconds of the learning log, for T
+from 10 s to the half; drift after 10 s on the test logs and the mean per-step forward error, per T.
+
+`--filter`: the particle filter of `demos.walk` (landmark sensor model, the walk scenario's camera and
+its noise, 500 particles, started around the true pose) on 60 s footstep walks across the SPL field, moved
+by learned versus raw footstep odometry (`RawFootstepOdometry`: the raw step with its RMS error on the
+learning set as noise), averaged over the walks: position RMSE and median error, heading RMSE, the share
+of the time the estimate is more than 0.5 m off, and the worst error of all walks; with the camera on all
+the time and with the camera looking away (no detections) for the second half of every 10 s, as while
+watching the ball.
+Particles move only at support swaps; the filter's gyro-carried heading reference follows the sensor yaw.
+
+Seeds: log i of surface s is `simulate(seed=1000·seed + 10·s + i)`; the particle filter runs use seeds
+derived from `seed` as well. Same seed, same figures, bit for bit (timings aside).
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+import time
+
+import numpy as np
+
+from demos.footstep_sim import (SURFACES, Driver, FootstepLog, load_log, save_log, simulate,
+                                truth_displacements)
+from field.angles import wrap_angles
+from motion_models.footsteps import LEFT, RIGHT, input_matrix, integrate
+from motion_models.learned_odometry import LearnedFootstepOdometry, LWPRSettings, RawFootstepOdometry
+
+METHODS = ("apriori_raw", "apriori_learned", "online_raw", "online_learned")
+OTHER = ("apriori_learned_other", "online_learned_other")
+OTHER_LABELS = {"apriori_learned_other": "a priori learned as a correction of the commanded step",
+                "online_learned_other": "online learned on the true step itself, not its correction"}
+KINDS = ("apriori", "online")
+N_LOGS = 5
+LOG_SECONDS = 300.0
+SEQUENCE_SECONDS = 20.0
+HORIZONS = (10.0, 20.0)
+CURVE_SECONDS = (10, 20, 30, 45, 60, 90, 120, 150)
+Z95 = 1.959964
+LOST = 0.5          # m: a filter whose estimate is farther than this from the truth has lost the robot
+
+
+# ---------------------------------------------------------------------------------------------------------
+# Data
+# ---------------------------------------------------------------------------------------------------------
+def log_seed(seed: int, surface: str, index: int) -> int:
+    return 1000 * seed + 10 * list(SURFACES).index(surface) + index
+
+
+def make_logs(surface: str, seed: int, n: int = N_LOGS, duration: float = LOG_SECONDS) -> list[FootstepLog]:
+    return [simulate(duration, surface, log_seed(seed, surface, i)) for i in range(n)]
+
+
+def step_inputs(log: FootstepLog, kind: str) -> np.ndarray:
+    """The LWPR inputs of every step of `log` (K rows): the step before the first counts as standing (zero
+    displacement, one nominal period, the other support foot), as `FootstepLog.events` has it."""
+    support = np.concatenate(([RIGHT if log.support[0] == LEFT else LEFT], log.support))
+    zero = np.zeros((1, 3))
+    return input_matrix(kind, support, np.vstack([zero, log.commanded]), np.vstack([zero, log.sensor]),
+                        np.concatenate(([log.step_period], log.durations)))
+
+
+def train(log: FootstepLog, seed: int = 0, settings: LWPRSettings = LWPRSettings()) -> dict:
+    """Both learned models and both calibrated raw models from one learning log."""
+    truth = truth_displacements(log)
+    out = {}
+    for kind in KINDS:
+        X = step_inputs(log, kind)
+        out[f"{kind}_learned"] = LearnedFootstepOdometry.train(X, truth, kind, seed=seed, settings=settings)
+        out[f"{kind}_raw"] = RawFootstepOdometry.calibrate(X, truth, kind)
+    return out
+
+
+def method_steps(log: FootstepLog, models: dict) -> dict:
+    """Each method's footstep displacements (K, 3) on `log`."""
+    steps = {"apriori_raw": log.commanded, "online_raw": log.sensor}
+    for kind in KINDS:
+        steps[f"{kind}_learned"] = models[f"{kind}_learned"].predict_steps(step_inputs(log, kind))[0]
+    return steps
+
+
+# ---------------------------------------------------------------------------------------------------------
+# The drift protocol
+# ---------------------------------------------------------------------------------------------------------
+def sequence_drifts(log: FootstepLog, steps: dict, sequence: float = SEQUENCE_SECONDS,
+                    horizons=HORIZONS) -> dict:
+    """Per method and horizon, the Cartesian [m] and angular [rad] drift on each non-overlapping sequence:
+    the odometry restarts at the swap that opens the sequence and integrates until the swap nearest
+    start + horizon; the truth is the motion capture at those swaps."""
+    times = log.swap_times
+    out = {m: {h: ([], []) for h in horizons} for m in steps}
+    n_sequences = int((times[-1] - times[0] + 1e-9) // sequence)
+    for j in range(n_sequences):
+        start_time = times[0] + j * sequence
+        i0 = int(np.searchsorted(times, start_time - 1e-9))
+        origin = log.swap_poses[i0]
+        for h in horizons:
+            i1 = int(np.argmin(np.abs(times - (start_time + h))))
+            if i1 <= i0 or abs(times[i1] - (start_time + h)) > log.step_period:
+                continue
+            true_end = _relative(origin, log.swap_poses[i1])
+            for m, d in steps.items():
+                end = integrate(d[i0:i1])[-1]
+                out[m][h][0].append(math.hypot(end[0] - true_end[0], end[1] - true_end[1]))
+                out[m][h][1].append(abs(float(wrap_angles(end[2] - true_end[2]))))
+    return out
+
+
+def _relative(origin: np.ndarray, pose: np.ndarray) -> np.ndarray:
+    c, s = math.cos(origin[2]), math.sin(origin[2])
+    d = pose[:2] - origin[:2]
+    return np.array([c * d[0] + s * d[1], -s * d[0] + c * d[1], float(wrap_angles(pose[2] - origin[2]))])
+
+
+def _stat(values) -> dict:
+    v = np.asarray(values, dtype=np.float64)
+    half = Z95 * v.std(ddof=1) / math.sqrt(v.size) if v.size > 1 else float("nan")
+    return {"mean": float(v.mean()), "ci95": float(half), "n": int(v.size)}
+
+
+def evaluate(surface: str, seed: int = 0, logs: list[FootstepLog] | None = None) -> dict:
+    """The paper's protocol on one surface (see the module docstring)."""
+    logs = make_logs(surface, seed) if logs is None else logs
+    learn = logs[0].first(0.5 * (logs[0].swap_times[-1] - logs[0].swap_times[0]))
+    models = train(learn, seed)
+    # The other choice of target per input set (see motion_models.learned_odometry), for comparison.
+    other = {kind: train(learn, seed, LWPRSettings(residual=kind != "online"))[f"{kind}_learned"] for kind in KINDS}
+    pooled = {m: {h: ([], []) for h in HORIZONS} for m in (*METHODS, *OTHER)}
+    step_errors = {m: [] for m in (*METHODS, *OTHER)}
+    for log in logs[1:]:
+        steps = method_steps(log, models)
+        steps.update({f"{kind}_learned_other": other[kind].predict_steps(step_inputs(log, kind))[0] for kind in KINDS})
+        truth = truth_displacements(log)
+        for m in steps:
+            step_errors[m].append(np.abs(steps[m] - truth))
+        for m, per_h in sequence_drifts(log, steps).items():
+            for h, (cart, ang) in per_h.items():
+                pooled[m][h][0].extend(cart)
+                pooled[m][h][1].extend(ang)
+    drift = {m: {f"{h:g}s": {"cartesian_m": _stat(pooled[m][h][0]), "angular_deg": _stat(np.degrees(pooled[m][h][1]))}
+                 for h in HORIZONS} for m in pooled}
+    per_step = {m: dict(zip(("dx_mm", "dy_mm", "dtheta_deg"),
+                            (np.concatenate(step_errors[m]).mean(axis=0) * np.array([1e3, 1e3, 180 / math.pi])).tolist()))
+                for m in pooled}
+    learned = {kind: models[f"{kind}_learned"] for kind in KINDS}
+    other_figures = {m: {"drift": drift.pop(m), "per_step_error": per_step.pop(m)} for m in OTHER}
+    reduction = {kind: 1.0 - drift[f"{kind}_learned"]["10s"]["cartesian_m"]["mean"]
+                 / drift[f"{kind}_raw"]["10s"]["cartesian_m"]["mean"] for kind in KINDS}
+    return {
+        "surface": surface, "seed": seed,
+        "learning_steps": learn.n_steps, "learning_seconds": float(learn.swap_times[-1] - learn.swap_times[0]),
+        "test_logs": len(logs) - 1, "test_steps": int(sum(log.n_steps for log in logs[1:])),
+        "sequences": drift["online_raw"]["10s"]["cartesian_m"]["n"],
+        "drift": drift, "per_step_error": per_step,
+        "drift_reduction_10s": reduction,
+        "other_targets": other_figures,
+        "receptive_fields": {kind: {name: int(mod.num_rfs[0]) for name, mod in zip(("dx", "dy", "dtheta"),
+                                                                                    learned[kind].models)}
+                             for kind in KINDS},
+        "_logs": logs, "_models": models,
+    }
+
+
+def learning_curve(surface: str, seed: int = 0, logs: list[FootstepLog] | None = None,
+                   seconds=CURVE_SECONDS) -> dict:
+    """Drift after 10 s on the test logs and mean per-step forward error against seconds of learning."""
+    logs = make_logs(surface, seed) if logs is None else logs
+    rows = []
+    tests = [(log, truth_displacements(log)) for log in logs[1:]]
+    for t in seconds:
+        models = train(logs[0].first(float(t)), seed)
+        cart = {m: [] for m in METHODS}
+        dx = {m: [] for m in METHODS}
+        for log, truth in tests:
+            steps = method_steps(log, models)
+            for m, per_h in sequence_drifts(log, steps, horizons=(10.0,)).items():
+                cart[m].extend(per_h[10.0][0])
+                dx[m].append(np.abs(steps[m][:, 0] - truth[:, 0]))
+        rows.append({"seconds": t, "steps": logs[0].first(float(t)).n_steps,
+                     **{f"{m}_drift10_m": float(np.mean(cart[m])) for m in METHODS},
+                     **{f"{m}_dx_mm": float(1e3 * np.concatenate(dx[m]).mean()) for m in METHODS}})
+    return {"surface": surface, "seed": seed, "rows": rows}
+
+
+# ---------------------------------------------------------------------------------------------------------
+# The particle filter
+# ---------------------------------------------------------------------------------------------------------
+def filter_run(log: FootstepLog, model, seed: int, vision_gaps: bool, particles: int = 500) -> dict:
+    """Run the particle filter over a field walk moved by `model` (a footstep motion model)."""
+    from demos.walk_sim import WalkScenario, _camera
+    from mcl import ParticleFilter
+    from motion_models import MotionInput
+    from sensing import LandmarkSensorModel
+
+    scenario = WalkScenario()
+    camera_rng = np.random.default_rng([seed, 1])
+    pf = ParticleFilter(scenario.field, model, LandmarkSensorModel(scenario.field), n_particles=particles,
+                        seed=seed)
+    pf.reset_around(log.truth[0], sigma=(0.1, 0.1, 0.05))
+    events = log.events()
+    swap_tick = np.rint(log.swap_times[1:] * 100.0).astype(np.int64)   # tick at whose end each step ends
+    event_at = dict(zip(swap_tick.tolist(), events))
+    dt = float(log.mocap_times[1] - log.mocap_times[0])
+    camera_every = 1.0 / scenario.camera_rate
+    next_frame = camera_every
+    n = log.mocap_times.shape[0]
+    errors = np.empty((n - 1, 2))
+    for k in range(1, n):
+        t = float(log.mocap_times[k])
+        event = event_at.get(k)
+        # The gyro-carried heading of the filter follows the sensor yaw at each swap.
+        u = MotionInput(dt=dt, odometry=event.sensor if event is not None else (0.0, 0.0, 0.0), footstep=event)
+        pf.predict(u)
+        if t + 1e-9 >= next_frame:
+            next_frame += camera_every
+            head = scenario.head_pan_amplitude * math.sin(2 * math.pi * t / scenario.head_pan_period)
+            observations = _camera(scenario, log.truth[k], head, camera_rng)
+            if not (vision_gaps and (t % 10.0) >= 5.0):
+                pf.correct(observations)
+        estimate = pf.estimate().pose
+        errors[k - 1] = (math.hypot(*(estimate[:2] - log.truth[k, :2])),
+                         abs(float(wrap_angles(estimate[2] - log.truth[k, 2]))))
+    return {"position_rmse_m": float(np.sqrt(np.mean(errors[:, 0] ** 2))),
+            "position_median_m": float(np.median(errors[:, 0])),
+            "heading_rmse_deg": math.degrees(float(np.sqrt(np.mean(errors[:, 1] ** 2)))),
+            "max_position_error_m": float(errors[:, 0].max()),
+            "lost_share": float(np.mean(errors[:, 0] > LOST))}
+
+
+def field_walk(surface: str, seed: int, duration: float = 60.0) -> FootstepLog:
+    """A footstep walk over the SPL field (kept 0.6 m inside the lines), starting in the own half."""
+    from field import spl
+    f = spl()
+    rng = np.random.default_rng([seed, 2])
+    start = (rng.uniform(-f.half_length + 0.6, -0.5), rng.uniform(-f.half_width + 0.6, f.half_width - 0.6),
+             rng.uniform(-1.5, 1.5))
+    driver = Driver(area=(f.half_length - 0.6, f.half_width - 0.6), margin=0.5, change_rate=0.3)
+    return simulate(duration, surface, seed=10_000 + seed, driver=driver, start=start)
+
+
+def filter_comparison(surface: str, models: dict, seed: int = 0, runs: int = 3) -> dict:
+    """Tracking error of the particle filter with learned versus raw footstep odometry (both input sets)."""
+    out = {}
+    for gaps in (False, True):
+        per_method = {m: [] for m in METHODS}
+        for r in range(runs):
+            log = field_walk(surface, 100 * seed + r)
+            for m in METHODS:
+                per_method[m].append(filter_run(log, models[m], seed=100 * seed + r, vision_gaps=gaps))
+        out["vision_gaps" if gaps else "vision"] = {
+            m: {key: float((np.max if key.startswith("max") else np.mean)([run[key] for run in per_method[m]]))
+                for key in per_method[m][0]}
+            for m in METHODS}
+    out["runs"] = runs
+    return out
+
+
+# ---------------------------------------------------------------------------------------------------------
+# Command line
+# ---------------------------------------------------------------------------------------------------------
+LABELS = {"apriori_raw": "a priori raw", "apriori_learned": "a priori learned", "online_raw": "online raw",
+          "online_learned": "online learned"}
+
+
+def _print_evaluation(r: dict) -> None:
+    print(f"\n{r['surface']}: learned on {r['learning_steps']} steps ({r['learning_seconds']:.0f} s), tested on "
+          f"{r['test_logs']} logs ({r['test_steps']} steps, {r['sequences']} sequences of 20 s)")
+    print(f"{'method':<17} {'drift 10 s [cm]':>17} {'drift 20 s [cm]':>17} {'angle 10 s [°]':>15} "
+          f"{'angle 20 s [°]':>15} {'step err x/y [mm], θ [°]':>26}")
+    for m in METHODS:
+        d, e = r["drift"][m], r["per_step_error"][m]
+        cells = [f"{100 * d[h]['cartesian_m']['mean']:6.1f} ± {100 * d[h]['cartesian_m']['ci95']:4.1f}" for h in ("10s", "20s")]
+        cells += [f"{d[h]['angular_deg']['mean']:5.1f} ± {d[h]['angular_deg']['ci95']:4.1f}" for h in ("10s", "20s")]
+        print(f"{LABELS[m]:<17} {cells[0]:>17} {cells[1]:>17} {cells[2]:>15} {cells[3]:>15} "
+              f"{e['dx_mm']:8.1f} {e['dy_mm']:5.1f} {e['dtheta_deg']:5.2f}")
+    for m in OTHER:
+        d, e = r["other_targets"][m]["drift"], r["other_targets"][m]["per_step_error"]
+        print(f"  ({OTHER_LABELS[m]}: 10 s drift "
+              f"{100 * d['10s']['cartesian_m']['mean']:.1f} cm, {d['10s']['angular_deg']['mean']:.1f}°; step error "
+              f"{e['dx_mm']:.1f} / {e['dy_mm']:.1f} mm, {e['dtheta_deg']:.2f}°)")
+    red = r["drift_reduction_10s"]
+    print(f"learning cuts the 10 s drift by {100 * red['apriori']:.0f} % (a priori) and {100 * red['online']:.0f} % "
+          f"(online); receptive fields {r['receptive_fields']}")
+
+
+def _print_curve(c: dict) -> None:
+    print(f"\nlearning curve ({c['surface']}): drift after 10 s [cm] | mean forward step error [mm]")
+    print(f"{'learn s':>7} {'steps':>5}  " + " ".join(f"{LABELS[m]:>16}" for m in METHODS) + "  |  "
+          + " ".join(f"{m.split('_')[0][:2]}-{m.split('_')[1][:3]:>3}" for m in METHODS))
+    for row in c["rows"]:
+        print(f"{row['seconds']:>7} {row['steps']:>5}  " + " ".join(f"{100 * row[f'{m}_drift10_m']:>16.1f}" for m in METHODS)
+              + "  |  " + " ".join(f"{row[f'{m}_dx_mm']:>6.1f}" for m in METHODS))
+
+
+def _print_filter(surface: str, f: dict) -> None:
+    print(f"\nparticle filter on {f['runs']} field walks of 60 s ({surface}), 500 particles, start around the truth")
+    for key, label in (("vision", "camera always on"), ("vision_gaps", "camera away 5 s in every 10 s")):
+        print(f"  {label}:")
+        for m in METHODS:
+            v = f[key][m]
+            print(f"    {LABELS[m]:<17} position RMSE {100 * v['position_rmse_m']:5.1f} cm, median "
+                  f"{100 * v['position_median_m']:4.1f} cm, heading RMSE {v['heading_rmse_deg']:4.1f}°, worst "
+                  f"{100 * v['max_position_error_m']:5.1f} cm, error > 0.5 m {100 * v['lost_share']:4.1f} % of the time")
+
+
+def _public(obj):
+    if isinstance(obj, dict):
+        return {k: _public(v) for k, v in obj.items() if not str(k).startswith("_")}
+    return obj
+
+
+def train_command(log_path: str, directory: str, seed: int, kinds=KINDS, half: bool = False) -> dict:
+    """Train the models of each input set on a recorded log and save them under directory/<kind>/."""
+    log = load_log(log_path)
+    if half:
+        log = log.first(0.5 * (log.swap_times[-1] - log.swap_times[0]))
+    truth = truth_displacements(log)
+    out = {"log": log_path, "surface": log.surface, "steps": log.n_steps, "saved": {}}
+    for kind in kinds:
+        model = LearnedFootstepOdometry.train(step_inputs(log, kind), truth, kind, seed=seed)
+        path = f"{directory.rstrip('/')}/{kind}"
+        model.save(path)
+        out["saved"][kind] = {"directory": path, "receptive_fields": [int(m.num_rfs[0]) for m in model.models]}
+    return out
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="robocup-mcl demo odometry", description=__doc__.split("\n\n")[0])
+    parser.add_argument("--surface", choices=("carpet", "grass", "both"), default="both")
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--curve", action="store_true", help="the learning curve (drift against learning time)")
+    parser.add_argument("--filter", action="store_true", help="particle filter: learned versus raw odometry")
+    parser.add_argument("--filter-runs", type=int, default=3, help="field walks per surface for --filter")
+    parser.add_argument("--json", action="store_true", help="print JSON instead of tables")
+    parser.add_argument("--record", metavar="LOG", help="simulate one walk (--surface, --seed, --duration) "
+                        "and write it as a .npz log")
+    parser.add_argument("--duration", type=float, default=LOG_SECONDS, help="seconds of walk for --record")
+    parser.add_argument("--train", metavar="LOG", help="train on this recorded .npz log (needs --save)")
+    parser.add_argument("--half", action="store_true", help="with --train: learn on the first half of the log")
+    parser.add_argument("--save", metavar="DIR", help="with --train: save the models to DIR/apriori, DIR/online")
+    args = parser.parse_args(argv)
+    if args.train or args.save:
+        if not (args.train and args.save):
+            parser.error("--train LOG and --save DIR go together")
+        try:
+            result = train_command(args.train, args.save, args.seed, half=args.half)
+        except ValueError as exc:
+            print(f"robocup-mcl demo odometry: {exc}", file=sys.stderr)
+            return 1
+        print(json.dumps(result, indent=2) if args.json else
+              f"trained on {result['steps']} steps of {args.train} ({result['surface']}): "
+              + ", ".join(f"{k} → {v['directory']} (receptive fields dx/dy/dθ {v['receptive_fields']})"
+                          for k, v in result["saved"].items()))
+        return 0
+    if args.record:
+        surface = "grass" if args.surface == "both" else args.surface
+        try:
+            log = simulate(args.duration, surface, args.seed)
+        except ValueError as exc:
+            parser.error(str(exc))
+        save_log(log, args.record)
+        print(f"{log.n_steps} steps ({args.duration:g} s on {surface}, seed {args.seed}) written to {args.record}")
+        return 0
+    if args.filter_runs < 1:
+        parser.error(f"--filter-runs {args.filter_runs} must be >= 1")
+    surfaces = ["carpet", "grass"] if args.surface == "both" else [args.surface]
+    started = time.perf_counter()
+    result: dict = {"surfaces": {}}
+    for surface in surfaces:
+        r = evaluate(surface, args.seed)
+        entry = {"evaluation": r}
+        if args.curve:
+            entry["learning_curve"] = learning_curve(surface, args.seed, logs=r["_logs"])
+        if args.filter:
+            entry["filter"] = filter_comparison(surface, r["_models"], args.seed, args.filter_runs)
+        result["surfaces"][surface] = entry
+        if not args.json:
+            _print_evaluation(r)
+            if args.curve:
+                _print_curve(entry["learning_curve"])
+            if args.filter:
+                _print_filter(surface, entry["filter"])
+    result["seconds"] = time.perf_counter() - started
+    if args.json:
+        json.dump(_public(result), sys.stdout, indent=2)
+        print()
+    else:
+        print(f"\n({result['seconds']:.0f} s)")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,365 @@
+"""`LearnedFootstepOdometry`: footstep displacements corrected by three LWPR models (Rouxel et al. sec. III-C).
+
+    from motion_models import MotionInput
+    from motion_models.footsteps import FootstepEvent, input_matrix
+    from motion_models.learned_odometry import LearnedFootstepOdometry, RawFootstepOdometry
+
+    X = input_matrix("online", support, commanded, sensor, durations)       # (K-1, 9) from a recorded log
+    model = LearnedFootstepOdometry.train(X, truth[1:], "online", seed=0)   # truth: (K, 3) displacements
+    model.save("odometry_model/"); model = LearnedFootstepOdometry.load("odometry_model/")
+    mean, sigma = model.predict_steps(X)              # (m, 3) predicted displacements and their noise
+    model.predict(poses, MotionInput(dt=0.01, odometry=event.sensor, footstep=event), rng)
+
+Three single-output LWPR models predict the true forward, lateral and turn displacement of the step that
+ends at a support swap, each from the same inputs (the paper's simplification: the three are independent
+given the inputs):
+- "apriori" (7 inputs): the commanded displacement of steps t and t-1 and the support foot, R⁷ → R;
+- "online" (9 inputs): the sensor-based displacement of steps t and t-1, the support foot, and the two step
+  durations, R⁹ → R.
+Input and output scales (`norm_in`, `norm_out`) are the training data's standard deviations, so one set of
+LWPR meta-parameters (`LWPRSettings`) serves both input sets.
+
+Targets. The a-priori models learn the true step itself, as the paper states. The online models learn its
+correction, truth minus the sensor-based step (inputs 0-2), and add the sensor step back (the paper's
+"corrective function", same inputs, same output): the gyro's yaw is already within a fraction of a degree
+of the truth per step, and LWPR's broad local models, asked for the whole step, lose that precision. Both
+choices were made on the second half of the learning log (sec. IV-B 2); `robocup-mcl demo odometry` prints
+the test figures of the other choice next to each (`LWPRSettings.residual` overrides it).
+
+In the filter (`predict`), particles move only when `u.footstep` holds a `FootstepEvent`: by the predicted
+displacement plus Gaussian robot-frame noise whose standard deviation per axis is LWPR's confidence bound
+(`predict_conf`) times `noise_scale`, never below `min_sigma`. Between swaps (`u.footstep is None`) poses are
+left unchanged. Where no receptive field covers the inputs (a step unlike any in training), LWPR knows
+nothing: the model then falls back to the raw displacement (inputs 0-2) with the raw odometry's RMS error on
+the training data as noise (`fallback_sigma`). `RawFootstepOdometry` is the same motion model without
+learning: the raw displacement with a constant noise calibrated on training data, for comparisons.
+
+Errors: inputs of the wrong dimension, non-finite training data or too few samples, an event that lacks
+what the input set needs, and a model directory that is incomplete, truncated or of another format version
+raise ValueError naming the problem. Training builds new models and returns a new holder only when done;
+`updated` trains copies: a holder's models are never left half-updated. The same data and seed give the same
+models, bit for bit.
+"""
+from __future__ import annotations
+
+import json
+import math
+import os
+from dataclasses import dataclass
+
+import numpy as np
+
+from ._kernels import SQRT3, move_with_noise
+from .base import MotionInput, check_poses
+from .footsteps import INPUT_KINDS, N_INPUTS, FootstepEvent
+from .lwpr import LWPR
+
+OUTPUTS = ("dx", "dy", "dtheta")
+MODEL_FORMAT = "robocup-mcl learned footstep odometry"
+MODEL_FORMAT_VERSION = 1
+META_FILE = "footstep_odometry.json"
+MIN_SAMPLES = 10
+NO_FIELD = 1e19     # LWPR's bound where no receptive field is active is 1e20·norm_out
+
+
+@dataclass(frozen=True)
+class LWPRSettings:
+    """LWPR meta-parameters for the footstep models, in units of the normalized inputs (one standard deviation
+    of the training data). Tuned on the second half of the learning log, as sec. IV-B 2 does."""
+
+    init_D: float = 0.01         # very broad receptive fields (width ≈ 10 σ): the paper finds the functions
+                                 # "quite simple and almost linear" (1 to 5 RFs)
+    init_alpha: float = 2.0      # slow distance-metric learning: at 10 or more, the metrics shrink on the
+                                 # step noise and LWPR grows tens of RFs for no better validation error
+    w_gen: float = 0.1           # add an RF where no RF is activated above this
+    penalty: float = 1e-6        # distance-metric shrinkage (larger keeps RFs broad)
+    init_lambda: float = 0.995   # forgetting: start lower than LWPR's default so early
+    final_lambda: float = 0.9999  # estimates do not linger after a few epochs
+    epochs: int = 10             # passes over the learning set, each in a fresh order from the seed
+    residual: bool | None = None  # learn truth - raw (inputs 0-2) and add the raw step back; None: for the
+                                  # online inputs only (see the module docstring)
+    input_floor: float = 1e-3    # smallest input scale (a constant input would divide by zero)
+
+    def __post_init__(self) -> None:
+        for name in ("init_D", "init_alpha", "w_gen", "input_floor"):
+            value = getattr(self, name)
+            if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
+                raise ValueError(f"{name} = {value!r} must be a finite number > 0")
+        if not (isinstance(self.epochs, int) and self.epochs >= 1):
+            raise ValueError(f"epochs = {self.epochs!r} must be an integer >= 1")
+        if self.residual not in (None, True, False):
+            raise ValueError(f"residual = {self.residual!r} must be None, True or False")
+
+    def residual_for(self, kind: str) -> bool:
+        """Whether the models of input set `kind` learn the correction of the raw step (None: online only)."""
+        return kind == "online" if self.residual is None else bool(self.residual)
+
+
+def _check_kind(kind: str) -> None:
+    if kind not in INPUT_KINDS:
+        raise ValueError(f"inputs = {kind!r} must be one of {INPUT_KINDS}")
+
+
+def _training_arrays(inputs, targets, kind: str) -> tuple[np.ndarray, np.ndarray]:
+    _check_kind(kind)
+    X = np.asarray(inputs, dtype=np.float64)
+    Y = np.asarray(targets, dtype=np.float64)
+    n_in = N_INPUTS[kind]
+    if X.ndim != 2 or X.shape[1] != n_in:
+        raise ValueError(f"inputs must have shape (n, {n_in}) for the {kind} input set, got shape {X.shape}")
+    if Y.shape != (X.shape[0], 3):
+        raise ValueError(f"targets must have shape ({X.shape[0]}, 3) (dx, dy, dθ per input row), got {Y.shape}")
+    if X.shape[0] < MIN_SAMPLES:
+        raise ValueError(f"inputs hold {X.shape[0]} samples; training needs at least {MIN_SAMPLES}")
+    for name, A in (("inputs", X), ("targets", Y)):
+        bad = ~np.isfinite(A).all(axis=1)
+        if bad.any():
+            row = int(np.flatnonzero(bad)[0])
+            raise ValueError(f"{name} must be finite: row {row} is {A[row].tolist()} "
+                             f"({int(bad.sum())} bad rows)")
+    return X, Y
+
+
+def _sigma_triple(name: str, value) -> tuple[float, float, float]:
+    try:
+        triple = tuple(float(v) for v in value)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} = {value!r} must be three numbers") from None
+    if len(triple) != 3 or not all(math.isfinite(v) and v >= 0 for v in triple):
+        raise ValueError(f"{name} = {value!r} must be three finite numbers >= 0")
+    return triple  # type: ignore[return-value]
+
+
+def _raw_rms(X: np.ndarray, Y: np.ndarray) -> tuple[float, float, float]:
+    """RMS error of the raw displacement (inputs 0-2) against the truth, per axis."""
+    return tuple(float(v) for v in np.sqrt(np.mean((Y - X[:, :3]) ** 2, axis=0)))  # type: ignore[return-value]
+
+
+@dataclass(frozen=True)
+class LearnedFootstepOdometry:
+    """Three trained LWPR models (dx, dy, dθ) and how their predictions move particles.
+
+    Build one with `train` or `load`; the LWPR objects must not be updated in place (use `updated`).
+    """
+
+    models: tuple
+    inputs: str = "online"
+    fallback_sigma: tuple[float, float, float] = (0.01, 0.01, 0.05)
+    noise_scale: float = 1.0
+    min_sigma: tuple[float, float, float] = (0.001, 0.001, 0.003)
+    residual: bool = False
+
+    def __post_init__(self) -> None:
+        _check_kind(self.inputs)
+        if not isinstance(self.residual, bool):
+            raise ValueError(f"residual = {self.residual!r} must be True or False")
+        models = tuple(self.models) if isinstance(self.models, (tuple, list)) else None
+        if models is None or len(models) != 3 or not all(isinstance(m, LWPR) for m in models):
+            raise ValueError(f"models = {self.models!r} must be three LWPR models (dx, dy, dθ)")
+        for name, m in zip(OUTPUTS, models):
+            if m.n_in != N_INPUTS[self.inputs] or m.n_out != 1:
+                raise ValueError(f"model {name!r} maps R^{m.n_in} → R^{m.n_out}; the {self.inputs} input set "
+                                 f"needs R^{N_INPUTS[self.inputs]} → R^1")
+            if m.n_data == 0:
+                raise ValueError(f"model {name!r} is untrained: train it (LearnedFootstepOdometry.train) first")
+        object.__setattr__(self, "models", models)
+        object.__setattr__(self, "fallback_sigma", _sigma_triple("fallback_sigma", self.fallback_sigma))
+        object.__setattr__(self, "min_sigma", _sigma_triple("min_sigma", self.min_sigma))
+        if not (isinstance(self.noise_scale, (int, float)) and math.isfinite(self.noise_scale)
+                and self.noise_scale >= 0):
+            raise ValueError(f"noise_scale = {self.noise_scale!r} must be a finite number >= 0")
+
+    # -- training ---------------------------------------------------------------------------------------
+    @classmethod
+    def train(cls, inputs, targets, kind: str = "online", *, seed: int = 0,
+              settings: LWPRSettings = LWPRSettings(), noise_scale: float = 1.0) -> "LearnedFootstepOdometry":
+        """Train three new LWPR models on inputs (n, 7|9) and true displacements targets (n, 3).
+
+        Everything is validated first; nothing is returned until all three models are trained.
+        """
+        X, Y = _training_arrays(inputs, targets, kind)
+        residual = settings.residual_for(kind)
+        fit = Y - X[:, :3] if residual else Y
+        norm_in = np.maximum(X.std(axis=0), settings.input_floor)
+        norm_out = np.maximum(fit.std(axis=0), 1e-6)
+        models = []
+        for j in range(3):
+            m = LWPR(X.shape[1], 1)
+            m.norm_in = norm_in
+            m.norm_out = np.array([norm_out[j]])
+            # init_D acts on x / norm_in: spherical in units of the data's spread.
+            m.init_D = settings.init_D * np.eye(X.shape[1])
+            m.init_alpha = settings.init_alpha * np.ones((X.shape[1], X.shape[1]))
+            m.w_gen = settings.w_gen
+            m.penalty = settings.penalty
+            m.init_lambda = settings.init_lambda
+            m.final_lambda = settings.final_lambda
+            models.append(m)
+        _fit(models, X, fit, seed, settings.epochs)
+        return cls(tuple(models), kind, _raw_rms(X, Y), noise_scale, residual=residual)
+
+    def updated(self, inputs, targets, *, seed: int = 0, epochs: int = 1) -> "LearnedFootstepOdometry":
+        """A new holder whose models are copies of these trained further on (inputs, targets); this one is
+        untouched (online learning without ever exposing a half-updated model)."""
+        X, Y = _training_arrays(inputs, targets, self.inputs)
+        if not (isinstance(epochs, int) and epochs >= 1):
+            raise ValueError(f"epochs = {epochs!r} must be an integer >= 1")
+        models = [m.copy() for m in self.models]
+        _fit(models, X, Y - X[:, :3] if self.residual else Y, seed, epochs)
+        return LearnedFootstepOdometry(tuple(models), self.inputs, self.fallback_sigma, self.noise_scale,
+                                       self.min_sigma, self.residual)
+
+    # -- prediction -------------------------------------------------------------------------------------
+    def predict_steps(self, inputs) -> tuple[np.ndarray, np.ndarray]:
+        """Predicted displacements (m, 3) and their noise standard deviations (m, 3) for input rows (m, n)."""
+        X = np.asarray(inputs, dtype=np.float64)
+        n_in = N_INPUTS[self.inputs]
+        if X.ndim != 2 or X.shape[1] != n_in:
+            raise ValueError(f"inputs must have shape (m, {n_in}) for the {self.inputs} input set, "
+                             f"got shape {X.shape}")
+        if not np.isfinite(X).all():
+            row = int(np.flatnonzero(~np.isfinite(X).all(axis=1))[0])
+            raise ValueError(f"inputs must be finite: row {row} is {X[row].tolist()}")
+        mean = np.empty((X.shape[0], 3))
+        sigma = np.empty((X.shape[0], 3))
+        for j, m in enumerate(self.models):
+            y, conf = m.predict_conf(np.ascontiguousarray(X))
+            mean[:, j], sigma[:, j] = y[:, 0], conf[:, 0]
+        unknown = (sigma >= NO_FIELD * np.array([m.norm_out[0] for m in self.models])) | ~np.isfinite(mean)
+        sigma = np.maximum(self.noise_scale * sigma, np.array(self.min_sigma))
+        if self.residual:
+            mean = mean + X[:, :3]
+        # Outside every receptive field: the raw displacement with the raw odometry's error.
+        mean = np.where(unknown, X[:, :3], mean)
+        sigma = np.where(unknown, np.broadcast_to(np.array(self.fallback_sigma), sigma.shape), sigma)
+        return mean, sigma
+
+    def predict_event(self, event: FootstepEvent) -> tuple[np.ndarray, np.ndarray]:
+        """Predicted displacement (3,) and noise standard deviation (3,) of the step `event` ends."""
+        if not isinstance(event, FootstepEvent):
+            raise ValueError(f"footstep = {event!r} must be a motion_models.footsteps.FootstepEvent")
+        mean, sigma = self.predict_steps(event.inputs(self.inputs)[None, :])
+        return mean[0], sigma[0]
+
+    # -- the motion model interface ---------------------------------------------------------------------
+    def check(self, u: MotionInput) -> None:
+        """Raise ValueError unless `u.footstep` is None or a FootstepEvent with this input set's fields."""
+        if u.footstep is None:
+            return
+        if not isinstance(u.footstep, FootstepEvent):
+            raise ValueError(f"footstep = {u.footstep!r} must be a motion_models.footsteps.FootstepEvent")
+        u.footstep.inputs(self.inputs)
+
+    def predict(self, poses: np.ndarray, u: MotionInput, rng: np.random.Generator) -> None:
+        """At a support swap, move every pose by the predicted step plus N(0, σ²) robot-frame noise; between
+        swaps, leave the poses (and the generator) untouched."""
+        check_poses(poses)
+        self.check(u)
+        if u.footstep is None:
+            return
+        mean, sigma = self.predict_event(u.footstep)
+        _move_gaussian(poses, mean, sigma, rng)
+
+    # -- files ------------------------------------------------------------------------------------------
+    def save(self, directory: str | os.PathLike) -> None:
+        """Write the three models and their settings into `directory` (created if needed). Each file is
+        written to a temporary name and renamed; the metadata file, written last, names the models."""
+        directory = os.fspath(directory)
+        os.makedirs(directory, exist_ok=True)
+        for name, m in zip(OUTPUTS, self.models):
+            m.save(os.path.join(directory, f"{name}.npz"))
+        meta = {"format": MODEL_FORMAT, "format_version": MODEL_FORMAT_VERSION, "inputs": self.inputs,
+                "n_inputs": N_INPUTS[self.inputs], "models": {name: f"{name}.npz" for name in OUTPUTS},
+                "fallback_sigma": list(self.fallback_sigma), "noise_scale": self.noise_scale,
+                "min_sigma": list(self.min_sigma), "residual": self.residual}
+        path = os.path.join(directory, META_FILE)
+        tmp = f"{path}.tmp-{os.getpid()}"
+        try:
+            with open(tmp, "w") as f:
+                json.dump(meta, f, indent=2)
+            os.replace(tmp, path)
+        finally:
+            if os.path.exists(tmp):
+                os.remove(tmp)
+
+    @classmethod
+    def load(cls, directory: str | os.PathLike) -> "LearnedFootstepOdometry":
+        """Read a directory written by `save`. Missing, truncated or foreign files and another format
+        version raise ValueError naming the file and the problem."""
+        directory = os.fspath(directory)
+        path = os.path.join(directory, META_FILE)
+        if not os.path.isfile(path):
+            raise ValueError(f"{directory!r} holds no {META_FILE}: not a saved LearnedFootstepOdometry")
+        try:
+            with open(path) as f:
+                meta = json.load(f)
+        except (OSError, ValueError) as exc:
+            raise ValueError(f"{path!r} is truncated or not JSON: {exc}") from None
+        if not isinstance(meta, dict) or meta.get("format") != MODEL_FORMAT:
+            raise ValueError(f"{path!r} is not a learned footstep odometry file")
+        if meta.get("format_version") != MODEL_FORMAT_VERSION:
+            raise ValueError(f"{path!r} has format version {meta.get('format_version')!r}; this version of "
+                             f"robocup-mcl reads version {MODEL_FORMAT_VERSION}")
+        try:
+            kind = meta["inputs"]
+            _check_kind(kind)
+            models = tuple(LWPR.load(os.path.join(directory, meta["models"][name])) for name in OUTPUTS)
+            return cls(models, kind, meta["fallback_sigma"], meta["noise_scale"], meta["min_sigma"],
+                       meta["residual"])
+        except FileNotFoundError as exc:
+            raise ValueError(f"{directory!r} lacks a model file: {exc.filename}") from None
+        except (KeyError, TypeError) as exc:
+            raise ValueError(f"{path!r} lacks or garbles the field {exc}") from None
+        except ValueError as exc:
+            raise ValueError(f"{directory!r}: {exc}") from None
+
+
+def _fit(models: list, X: np.ndarray, Y: np.ndarray, seed: int, epochs: int) -> None:
+    """Update each model on every row, `epochs` times, each pass in a fresh order drawn from `seed`.
+    The data were validated before, so no update can be rejected halfway."""
+    rng = np.random.default_rng(seed)
+    for _ in range(epochs):
+        for i in rng.permutation(X.shape[0]):
+            for j, m in enumerate(models):
+                m.update(X[i], Y[i, j:j + 1])
+
+
+def _move_gaussian(poses: np.ndarray, mean, sigma, rng: np.random.Generator) -> None:
+    # move_with_noise's Gaussian mode takes bounds b with σ = b/√3 (same variance as uniform on [-b, b]).
+    variates = rng.standard_normal((poses.shape[0], 3))
+    move_with_noise(poses, float(mean[0]), float(mean[1]), float(mean[2]), float(sigma[0]) * SQRT3,
+                    float(sigma[1]) * SQRT3, float(sigma[2]) * SQRT3, True, variates)
+
+
+@dataclass(frozen=True)
+class RawFootstepOdometry:
+    """The footstep displacement without learning: the event's commanded ("apriori") or sensor ("online")
+    displacement plus constant Gaussian robot-frame noise `sigma` (m, m, rad) per step."""
+
+    inputs: str = "online"
+    sigma: tuple[float, float, float] = (0.01, 0.01, 0.03)
+
+    def __post_init__(self) -> None:
+        _check_kind(self.inputs)
+        object.__setattr__(self, "sigma", _sigma_triple("sigma", self.sigma))
+
+    @classmethod
+    def calibrate(cls, inputs, targets, kind: str = "online") -> "RawFootstepOdometry":
+        """Noise = the raw displacement's RMS error against the truth on training data (bias included)."""
+        X, Y = _training_arrays(inputs, targets, kind)
+        return cls(kind, _raw_rms(X, Y))
+
+    def check(self, u: MotionInput) -> None:
+        if u.footstep is None:
+            return
+        if not isinstance(u.footstep, FootstepEvent):
+            raise ValueError(f"footstep = {u.footstep!r} must be a motion_models.footsteps.FootstepEvent")
+        u.footstep.inputs(self.inputs)
+
+    def predict(self, poses: np.ndarray, u: MotionInput, rng: np.random.Generator) -> None:
+        check_poses(poses)
+        self.check(u)
+        if u.footstep is None:
+            return
+        event = u.footstep
+        _move_gaussian(poses, event.commanded if self.inputs == "apriori" else event.sensor, self.sigma, rng)
