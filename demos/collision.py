@@ -176,7 +176,8 @@ def summarize(case, model, seed, particles, vision, log, estimates, entropy, con
     if vision and collision_end is not None:
         from_end = np.flatnonzero(times >= collision_end)
         below = from_end[position_error[from_end] < RELOCALIZED]
-        result["relocalization_s"] = None if below.size == 0 else max(0.0, float(times[below[0]] - collision_end))
+        # 0 when the first step after the collision's end is already within RELOCALIZED.
+        result["relocalization_s"] = None if below.size == 0 else float(times[below[0]] - times[from_end[0]])
     if not np.isnan(belief).all():
         result["state_belief_at_end_of_collision"] = (
             None if collision_end is None else
@@ -376,8 +377,9 @@ def print_cases(results: dict, label: str) -> None:
             s = block["summary"]
             parts = [f"  {model:<16}"]
             if "contained_share" in s:
-                parts.append(f"truth in 95% region: median {100 * s['contained_share']['median']:.0f}% "
-                             f"(min {100 * s['contained_share']['min']:.0f}%) of steps")
+                parts.append(f"truth in 95% region: median {100 * s['contained_share']['median']:.0f}%, "
+                             f"mean {100 * s['contained_share']['mean']:.0f}%, min "
+                             f"{100 * s['contained_share']['min']:.0f}% of steps")
             if "relocalization_s" in s:
                 parts.append(f"relocalized (<{RELOCALIZED} m) after the collision: median "
                              f"{_fmt(s['relocalization_s']['median'], ' s', 2)}, max "
@@ -425,7 +427,7 @@ def main(argv: list[str] | None = None) -> int:
                                      reference, 500, True)
         result["vision_injection"] = run_cases(("single", "double"), ("velocity-linear", "adaptive"), report_seeds,
                                                reference, 500, True, injection=True)
-        result["particle_sweep"] = particle_sweep((50, 100, 200, 300, 500), report_seeds, reference)
+        result["particle_sweep"] = particle_sweep((10, 25, 50, 100, 200, 500), report_seeds, reference)
         result["cost"] = predict_cost()
     elif args.detection:
         result["detection"] = detection_figures(reference, seeds=seeds if args.seeds else (0, 1, 2),

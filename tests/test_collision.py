@@ -136,8 +136,7 @@ def test_reference_save_load(reference, tmp_path):
 
 @given(st.floats(0.0, 1.0, exclude_max=True), st.floats(0.0, 1.0))
 def test_reference_is_positive_and_finite_everywhere(phase, speed):
-    log = simulate(CollisionScenario(duration=40.0, command=None), seed=2004)
-    reference = _cached_reference(log)
+    reference = _cached_reference()
     value = reference.reference(phase, speed)
     assert value.shape == (2,) and np.isfinite(value).all() and (value > 0).all()
 
@@ -145,8 +144,9 @@ def test_reference_is_positive_and_finite_everywhere(phase, speed):
 _CACHE: dict = {}
 
 
-def _cached_reference(log):
+def _cached_reference():
     if "reference" not in _CACHE:
+        log = simulate(CollisionScenario(duration=40.0, command=None), seed=2004)
         _CACHE["reference"] = learn_reference(log.servo_commands, log.servo_readings, log.phase, log.commands,
                                               log.joint_sides, min_samples=5)
     return _CACHE["reference"]
@@ -177,3 +177,30 @@ def test_paper_experiments_end_to_end():
     for run in single_ad:
         assert run["state_belief_at_end_of_collision"]["free"] < 0.5
         assert run["free_belief_at_end"] > 0.9
+
+
+def test_recording_holds_the_state_belief_and_s_rel(tmp_path):
+    """The collision demo's .rrd carries the belief over the mobility states and S_rel, as computed."""
+    from demos.collision import free_walk_reference, run_case
+    from test_end_to_end import scalar_series
+
+    path = tmp_path / "collision.rrd"
+    result = run_case("single", "adaptive", 0, free_walk_reference(), particles=50, rrd=str(path))
+    series = result["series"]
+    steps, stopped = scalar_series(path, "/motion/state_belief/stopped")
+    assert np.array_equal(steps, np.arange(series["belief"].shape[0]))
+    assert np.array_equal(stopped, series["belief"][:, 4]) and stopped.max() > 0.5
+    _, s_rel_left = scalar_series(path, "/proprioception/s_rel/left")
+    assert np.array_equal(s_rel_left, series["s_rel"][:, 0]) and s_rel_left.max() > 1.0
+
+
+def test_collision_command_json(capsys):
+    from mcl.cli import main as cli_main
+    import json
+
+    assert cli_main(["demo", "collision", "--case", "single", "--seeds", "0-1", "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    block = out["no_vision"]["single"]
+    assert set(block) == {"velocity-linear", "adaptive"}
+    assert block["adaptive"]["summary"]["contained_share"]["mean"] > block["velocity-linear"]["summary"][
+        "contained_share"]["mean"]
