@@ -255,7 +255,8 @@ def _episodes(events):
 
 # -- aggregation ------------------------------------------------------------------------------------------
 def _median(values):
-    values = [v for v in values if v is not None]
+    """Median with None (never happened, e.g. never re-localized) counted as infinitely late."""
+    values = [math.inf if v is None else v for v in values]
     return float(np.median(values)) if values else None
 
 
@@ -354,11 +355,15 @@ def _strip(result):
         return {k: _strip(v) for k, v in result.items() if k != "series"}
     if isinstance(result, list):
         return [_strip(v) for v in result]
+    if isinstance(result, float) and math.isinf(result):
+        return None          # JSON has no infinity: a median that never happened (see "never" counts)
     return result
 
 
 def _fmt(value, unit="", digits=3):
-    return "—" if value is None else f"{value:.{digits}f}{unit}"
+    if value is None:
+        return "—"
+    return "never" if math.isinf(value) else f"{value:.{digits}f}{unit}"
 
 
 def print_cases(results: dict, label: str) -> None:

@@ -53,6 +53,7 @@ import numpy as np
 
 from field.angles import wrap_angles
 from motion_models.footsteps import LEFT, RIGHT, FootstepEvent, displacements, integrate
+from motion_models.lwpr import save_npz_atomically
 
 LOG_FORMAT = "robocup-mcl footstep log"
 LOG_FORMAT_VERSION = 1
@@ -362,15 +363,7 @@ def save_log(log: FootstepLog, path: str | os.PathLike) -> None:
     fields = {name: getattr(log, name) for name in _ARRAYS}
     fields.update(format=np.array(LOG_FORMAT), format_version=np.array(LOG_FORMAT_VERSION),
                   surface=np.array(log.surface), seed=np.array(log.seed), step_period=np.array(log.step_period))
-    path = os.fspath(path)
-    tmp = f"{path}.tmp-{os.getpid()}"
-    try:
-        with open(tmp, "wb") as f:
-            np.savez(f, **fields)
-        os.replace(tmp, path)
-    finally:
-        if os.path.exists(tmp):
-            os.remove(tmp)
+    save_npz_atomically(path, fields)
 
 
 def load_log(path: str | os.PathLike) -> FootstepLog:

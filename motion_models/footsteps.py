@@ -28,6 +28,8 @@ import numpy as np
 
 from field.angles import wrap_angles
 
+from .base import _finite_triple
+
 LEFT = 1
 RIGHT = -1
 INPUT_KINDS = ("apriori", "online")
@@ -80,20 +82,6 @@ def integrate(steps, start=(0.0, 0.0, 0.0)) -> np.ndarray:
     return out
 
 
-def _triple(name: str, value) -> tuple[float, float, float] | None:
-    if value is None:
-        return None
-    try:
-        triple = tuple(float(v) for v in value)
-    except (TypeError, ValueError):
-        raise ValueError(f"{name} = {value!r} must be three numbers (dx, dy, dθ)") from None
-    if len(triple) != 3:
-        raise ValueError(f"{name} = {value!r} must have three components, not {len(triple)}")
-    if not all(math.isfinite(v) for v in triple):
-        raise ValueError(f"{name} = {value!r} must be finite")
-    return triple  # type: ignore[return-value]
-
-
 def _duration(name: str, value) -> float | None:
     if value is None:
         return None
@@ -137,7 +125,7 @@ class FootstepEvent:
         if self.commanded is None:
             raise ValueError("commanded = None: a footstep event needs the commanded displacement")
         for name in ("commanded", "previous_commanded", "sensor", "previous_sensor"):
-            object.__setattr__(self, name, _triple(name, getattr(self, name)))
+            object.__setattr__(self, name, _finite_triple(name, getattr(self, name)))
         if self.previous_commanded is None:
             raise ValueError("previous_commanded = None: give (0, 0, 0) for a step from standing")
         for name in ("duration", "previous_duration"):

@@ -1026,15 +1026,7 @@ class LWPR:
             fields[name] = np.array(bool(self._ipar[index]))
         for name in _RF_ARRAYS:
             fields["rf_" + name] = getattr(self, "_" + name)[:, :used]
-        path = os.fspath(path)
-        tmp = f"{path}.tmp-{os.getpid()}"
-        try:
-            with open(tmp, "wb") as f:
-                np.savez(f, **fields)
-            os.replace(tmp, path)
-        finally:
-            if os.path.exists(tmp):
-                os.remove(tmp)
+        save_npz_atomically(path, fields)
 
     @classmethod
     def load(cls, path: str | os.PathLike) -> LWPR:
@@ -1116,3 +1108,16 @@ class LWPR:
             getattr(model, "_" + name)[:, :used] = array
         model._counts[:] = counts
         return model
+
+
+def save_npz_atomically(path: str | os.PathLike, fields: dict) -> None:
+    """np.savez to a temporary file, then renamed: a reader never sees a half-written file."""
+    path = os.fspath(path)
+    tmp = f"{path}.tmp-{os.getpid()}"
+    try:
+        with open(tmp, "wb") as f:
+            np.savez(f, **fields)
+        os.replace(tmp, path)
+    finally:
+        if os.path.exists(tmp):
+            os.remove(tmp)
