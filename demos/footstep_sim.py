@@ -46,14 +46,13 @@ from __future__ import annotations
 
 import math
 import os
-import zipfile
 from dataclasses import dataclass, replace
 
 import numpy as np
 
 from field.angles import wrap_angles
 from motion_models.footsteps import LEFT, RIGHT, FootstepEvent, displacements, integrate
-from motion_models.lwpr import save_npz_atomically
+from motion_models.lwpr import load_npz, save_npz_atomically
 
 LOG_FORMAT = "robocup-mcl footstep log"
 LOG_FORMAT_VERSION = 1
@@ -370,13 +369,7 @@ def load_log(path: str | os.PathLike) -> FootstepLog:
     """Read a log written by `save_log`. A truncated or foreign file, another format version, a missing
     field, inconsistent lengths or non-finite values raise ValueError naming the file and the problem."""
     path = os.fspath(path)
-    try:
-        with np.load(path, allow_pickle=False) as npz:
-            data = {key: npz[key] for key in npz.files}
-    except FileNotFoundError:
-        raise
-    except (zipfile.BadZipFile, EOFError, OSError, ValueError, KeyError) as exc:
-        raise ValueError(f"footstep log {path!r} is truncated or not a footstep log: {exc}") from None
+    data = load_npz(path, "a footstep log")
     for key in ("format", "format_version", "surface", "seed", "step_period", *_ARRAYS):
         if key not in data:
             raise ValueError(f"footstep log {path!r} lacks the field {key!r}")

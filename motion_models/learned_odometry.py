@@ -244,11 +244,7 @@ class LearnedFootstepOdometry:
     # -- the motion model interface ---------------------------------------------------------------------
     def check(self, u: MotionInput) -> None:
         """Raise ValueError unless `u.footstep` is None or a FootstepEvent with this input set's fields."""
-        if u.footstep is None:
-            return
-        if not isinstance(u.footstep, FootstepEvent):
-            raise ValueError(f"footstep = {u.footstep!r} must be a motion_models.footsteps.FootstepEvent")
-        u.footstep.inputs(self.inputs)
+        _check_footstep(u, self.inputs)
 
     def predict(self, poses: np.ndarray, u: MotionInput, rng: np.random.Generator) -> None:
         """At a support swap, move every pose by the predicted step plus N(0, σ²) robot-frame noise; between
@@ -350,11 +346,8 @@ class RawFootstepOdometry:
         return cls(kind, _raw_rms(X, Y))
 
     def check(self, u: MotionInput) -> None:
-        if u.footstep is None:
-            return
-        if not isinstance(u.footstep, FootstepEvent):
-            raise ValueError(f"footstep = {u.footstep!r} must be a motion_models.footsteps.FootstepEvent")
-        u.footstep.inputs(self.inputs)
+        """Raise ValueError unless `u.footstep` is None or a FootstepEvent with this input set's fields."""
+        _check_footstep(u, self.inputs)
 
     def predict(self, poses: np.ndarray, u: MotionInput, rng: np.random.Generator) -> None:
         check_poses(poses)
@@ -363,3 +356,11 @@ class RawFootstepOdometry:
             return
         event = u.footstep
         _move_gaussian(poses, event.commanded if self.inputs == "apriori" else event.sensor, self.sigma, rng)
+
+
+def _check_footstep(u: MotionInput, inputs: str) -> None:
+    if u.footstep is None:
+        return
+    if not isinstance(u.footstep, FootstepEvent):
+        raise ValueError(f"footstep = {u.footstep!r} must be a motion_models.footsteps.FootstepEvent")
+    u.footstep.inputs(inputs)

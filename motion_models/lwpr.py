@@ -1033,13 +1033,7 @@ class LWPR:
         """Read a model written by :meth:`save`. A truncated or foreign file, another format version, a
         missing field or inconsistent shapes raise ValueError naming the file and the problem."""
         path = os.fspath(path)
-        try:
-            with np.load(path, allow_pickle=False) as npz:
-                data = {key: npz[key] for key in npz.files}
-        except FileNotFoundError:
-            raise
-        except (zipfile.BadZipFile, EOFError, OSError, ValueError, KeyError) as exc:
-            raise ValueError(f"LWPR model file {path!r} is truncated or not an LWPR model file: {exc}") from None
+        data = load_npz(path, "an LWPR model file")
 
         def need(key: str) -> np.ndarray:
             if key not in data:
@@ -1108,6 +1102,18 @@ class LWPR:
             getattr(model, "_" + name)[:, :used] = array
         model._counts[:] = counts
         return model
+
+
+def load_npz(path: str, what: str) -> dict[str, np.ndarray]:
+    """Every array of an `.npz` file; a truncated or foreign file raises ValueError saying it is not `what`
+    (a missing file stays FileNotFoundError)."""
+    try:
+        with np.load(path, allow_pickle=False) as npz:
+            return {key: npz[key] for key in npz.files}
+    except FileNotFoundError:
+        raise
+    except (zipfile.BadZipFile, EOFError, OSError, ValueError, KeyError) as exc:
+        raise ValueError(f"{path!r} is truncated or not {what}: {exc}") from None
 
 
 def save_npz_atomically(path: str | os.PathLike, fields: dict) -> None:

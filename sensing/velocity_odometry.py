@@ -36,7 +36,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from sensing.velocity import KinematicSample, LegOdometry, planar_increment
+from sensing.velocity import KinematicSample, LegOdometry, _vector3, planar_increment
 
 
 class OdometryIncrement(NamedTuple):
@@ -63,15 +63,6 @@ def _wrap(angle: float) -> float:
     return math.pi if wrapped == -math.pi else wrapped
 
 
-def _increment3(value, name: str) -> np.ndarray:
-    arr = np.asarray(value, dtype=np.float64)
-    if arr.shape != (3,):
-        raise ValueError(f"{name} must have shape (3,), got {arr.shape}")
-    if not np.all(np.isfinite(arr)):
-        raise ValueError(f"{name} must be finite, got {arr.tolist()}")
-    return arr
-
-
 def _duration(value, name: str = "dt") -> float:
     try:
         dt = float(value)
@@ -94,7 +85,7 @@ def compose_increments(increments, start=(0.0, 0.0, 0.0)) -> np.ndarray:
         raise ValueError(f"increments must have shape (N, 3), got {inc.shape}")
     if not np.all(np.isfinite(inc)):
         raise ValueError("increments must be finite")
-    x, y, theta = (float(v) for v in _increment3(start, "start"))
+    x, y, theta = (float(v) for v in _vector3(start, "start"))
     out = np.empty_like(inc)
     for k in range(inc.shape[0]):
         c, s = math.cos(theta), math.sin(theta)
@@ -117,7 +108,7 @@ class PlanarOdometry:
 
     def add(self, increment, dt: float) -> None:
         """Append one increment (dx, dy, dθ), expressed in the robot frame where the previous one ended."""
-        increment = _increment3(increment, "increment")
+        increment = _vector3(increment, "increment")
         dt = _duration(dt)
         c, s = math.cos(self._dtheta), math.sin(self._dtheta)
         self._dx += c * increment[0] - s * increment[1]
@@ -183,8 +174,8 @@ class EKFOdometry:
         dt = t - ekf.time
         if not (math.isfinite(t) and dt > 0.0):
             raise ValueError(f"time must be finite and after the EKF time {ekf.time!r}, got {time!r}")
-        raw = _increment3(gyro, "gyro")
-        _increment3(accel, "accel")
+        raw = _vector3(gyro, "gyro")
+        _vector3(accel, "accel")
         increment = planar_increment(ekf.gravity, ekf.velocity, raw - ekf.gyro_bias, dt)
         self.leg_odometry.imu(t, raw, accel)           # validates the gap; raises before changing anything
         self.sum.add(increment, dt)
