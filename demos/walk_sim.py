@@ -55,6 +55,7 @@ class WalkScenario:
     kidnap_time: float | None = 30.0      # s, None for no kidnapping
     kidnap_distance: float = 3.0          # m
     margin: float = 0.6                   # m, waypoints and start stay this far inside the field
+    start_pose: tuple[float, float, float] | None = None   # where the robot starts (None: random, own half)
 
 
 @dataclass(frozen=True)
@@ -143,6 +144,8 @@ def simulate(scenario: WalkScenario = WalkScenario(), seed: int = 0) -> WalkLog:
     turn_bias = s.turn_bias_sigma * rng.standard_normal()
     # Start in the own half (kick-off placement), facing roughly up the field.
     start = np.append(_random_point(s, rng, (-s.field.half_length + s.margin, -0.5)), rng.uniform(-1.5, 1.5))
+    if s.start_pose is not None:     # drawn all the same, so that the rest of the run keeps its random numbers
+        start = np.array(s.start_pose, dtype=np.float64)
     pose = start.copy()
     waypoint = _random_point(s, rng)
     lateral_phase = rng.uniform(0, 2 * math.pi)

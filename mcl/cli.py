@@ -4,6 +4,8 @@
     robocup-mcl demo velocity [--json] ...
     robocup-mcl demo collision [--case none|single|double] [--model ...] [--vision] [--json] [--rrd PATH]
     robocup-mcl demo odometry [--surface carpet|grass|both] [--curve] [--filter] [--json]
+    robocup-mcl demo latency [--latency 0.08] [--seeds 0-9] [--json]
+    robocup-mcl demo penalty [--seeds 0-19] [--json]
     robocup-mcl bench [--sizes ...] [--json]          # the filter step, numba versus numpy
     robocup-mcl bench lwpr [--seeds N] [--json]       # LWPR on the cross benchmark
 """
@@ -17,6 +19,8 @@ DEMOS = {
     "velocity": ("demos.velocity", "IMU + leg kinematics velocity estimators against the truth"),
     "collision": ("demos.collision", "Hoffmann's collision experiments: adaptive versus velocity-linear model"),
     "odometry": ("demos.odometry", "learned footstep odometry (Rouxel et al.): drift of raw vs LWPR-corrected steps"),
+    "latency": ("demos.latency", "a late camera (80 ms): tracking with and without latency compensation"),
+    "penalty": ("demos.penalty", "returning from a penalty on an unknown touchline: convergence, mirror share"),
 }
 BENCHES = {
     "step": ("mcl.bench", "one full filter step per particle count, numba versus plain numpy"),

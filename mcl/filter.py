@@ -54,6 +54,7 @@ from motion_models.base import MotionInput, MotionModel
 from sensing.observations import Observations
 
 from .estimate import cluster_estimate, grid_entropy
+from .latency import move_back, move_forward
 from .resampling import SCHEMES, gather_with_jitter
 from .weights import log_mean_likelihood, normalize
 
@@ -228,11 +229,13 @@ class ParticleFilter:
         self._weights = np.full(self.n, 1.0 / self.n)
         self._log_likelihood = np.empty(self.n)
         self._previous = np.empty((self.n, 3))
+        self._capture_poses = np.empty((self.n, 3))
         self._position_histogram = np.empty(self._entropy_nx * self._entropy_ny)
         self._orientation_histogram = np.empty(grid.orientation_bins)
         self._cluster_histogram = np.empty(self._cluster_nx * self._cluster_ny * grid.cluster_orientation_bins)
         self.w_slow = 0.0
         self.w_fast = 0.0
+        self.frame_fit = math.nan     # the last correction's average likelihood per detection (augmented MCL)
         self.ess = float(self.n)
         self.resampled = False        # whether the last correction resampled
         self.injected = 0             # particles injected by the last correction
@@ -313,11 +316,9 @@ class ParticleFilter:
         The pose is taken as known: its heading guides injection from now on (as after a confident sweep).
         """
         pose = np.asarray(pose, dtype=np.float64)
-        sigma = np.asarray(sigma, dtype=np.float64)
         if pose.shape != (3,) or not np.isfinite(pose).all():
             raise ValueError(f"pose = {pose!r} must be three finite numbers")
-        if sigma.shape != (3,) or not np.isfinite(sigma).all() or (sigma < 0).any():
-            raise ValueError(f"sigma = {sigma!r} must be three finite numbers >= 0")
+        sigma = self._check_sigma(sigma)
         self._set_particles(pose + sigma * self.rng.standard_normal((self.n, 3)))
         self._injection_bounds = self._region_bounds("field")
         self._ever_confident = True
@@ -330,6 +331,48 @@ class ParticleFilter:
         self._heading_reference = math.remainder(self._heading_reference + math.pi, 2 * math.pi)
         self._has_previous_estimate = False
         self._estimate = None
+
+    def reset_candidates(self, poses, sigma=(0.1, 0.1, 0.1), region="field") -> None:
+        """Spread the particles evenly over several candidate poses (K, 3), normal around each with `sigma`.
+
+        For a placement whose pose the rules fix up to a choice the robot cannot know (which touchline, which
+        kick-off position). Injection stays inside `region` with uniform headings until the filter is
+        confident again (as after `reset_uniform`): the candidates' headings differ, so no single heading
+        reference guides it yet.
+        """
+        candidates = np.asarray(poses, dtype=np.float64)
+        if candidates.ndim == 1:
+            candidates = candidates.reshape(1, -1)
+        if candidates.ndim != 2 or candidates.shape[1] != 3 or candidates.shape[0] == 0 \
+                or not np.isfinite(candidates).all():
+            raise ValueError(f"poses = {poses!r} must be one or more finite (x, y, θ) poses")
+        sigma = self._check_sigma(sigma)
+        bounds = self._region_bounds(region)
+        choice = np.arange(self.n) % candidates.shape[0]
+        self._set_particles(candidates[choice] + sigma * self.rng.standard_normal((self.n, 3)))
+        self._injection_bounds = bounds
+        self._ever_confident = False
+        self._confident_streak = 0
+        self.w_slow = self.w_fast = 0.0
+
+    def diffuse(self, sigma=(0.1, 0.1, 0.3)) -> None:
+        """Widen the belief: add normal noise `sigma` (x [m], y [m], θ [rad]) to every particle, weights kept.
+
+        For what moved the robot without odometry seeing it (a fall and getting up, a push while standing).
+        """
+        sigma = self._check_sigma(sigma)
+        noisy = self.poses + sigma * self.rng.standard_normal((self.n, 3))
+        self.poses[:] = noisy
+        self.poses[:, 2] = wrap_angles(self.poses[:, 2])
+        self._has_previous_estimate = False
+        self._estimate = None
+
+    @staticmethod
+    def _check_sigma(sigma) -> np.ndarray:
+        array = np.asarray(sigma, dtype=np.float64)
+        if array.shape != (3,) or not np.isfinite(array).all() or (array < 0).any():
+            raise ValueError(f"sigma = {sigma!r} must be three finite numbers >= 0")
+        return array
 
     def set_particles(self, poses, log_weights=None, motion_state=None) -> None:
         """Replace the particle set (N, 3) and optionally its log-weights (N,) and, for a stateful motion model,
@@ -379,19 +422,40 @@ class ParticleFilter:
         """Turn the heading reference by the motion input's rotation, as a gyro would."""
         self._heading_reference = math.remainder(self._heading_reference + u.displacement()[2], 2 * math.pi)
 
-    def correct(self, observations: Observations | Iterable | None) -> None:
-        """Weigh the particles by the detections, then resample (and inject) if needed."""
+    def correct(self, observations: Observations | Iterable | None, since=None) -> None:
+        """Weigh the particles by the detections, then resample (and inject) if needed.
+
+        since: for detections captured earlier (camera latency), the robot's motion (dx, dy, dθ) from their
+               capture to now, in the robot frame at capture (`mcl.latency.MotionHistory.since`). Each particle
+               is scored where it was at capture: moved back along `since`. None or (0, 0, 0): scored as it is.
+        """
         observations = Observations.coerce(observations)
         self.sensor_model.check(observations)
-        self._correct(observations)
+        self._correct(observations, self._check_since(since))
 
-    def _correct(self, observations: Observations) -> None:
+    @staticmethod
+    def _check_since(since) -> np.ndarray | None:
+        if since is None:
+            return None
+        array = np.asarray(since, dtype=np.float64)
+        if array.shape != (3,) or not np.isfinite(array).all():
+            raise ValueError(f"since = {since!r} must be three finite numbers (dx, dy, dθ)")
+        return None if not array.any() else array
+
+    def _correct(self, observations: Observations, since: np.ndarray | None = None) -> None:
         if observations.is_empty:
             return
-        log_likelihood = self.sensor_model.log_likelihood(self.poses, observations, out=self._log_likelihood)
+        scored = self.poses
+        if since is not None:
+            move_back(self.poses, since, self._capture_poses)
+            scored = self._capture_poses
+        log_likelihood = self.sensor_model.log_likelihood(scored, observations, out=self._log_likelihood)
         if np.isnan(log_likelihood).any() or (log_likelihood == np.inf).any():
             raise ValueError("sensor model returned NaN or +inf log-likelihoods; filter left unchanged")
-        native_log_average = self._native_log_average(log_likelihood) if self.augmented is not None else 0.0
+        native_log_average = self._native_log_average(log_likelihood)
+        terms = getattr(self.sensor_model, "terms", len)(observations)
+        if terms > 0:
+            self.frame_fit = math.exp(native_log_average / terms)
         candidate = self.log_weights + log_likelihood
         log_evidence, ess = normalize(candidate, self._weights)
         self._estimate = None
@@ -400,17 +464,16 @@ class ParticleFilter:
             # keeping the particles with uniform weights and replacing the largest allowed share by
             # injected ones; nothing else (no NaN) can come out of this.
             self._weights[:] = 1.0 / self.n
-            self._resample(self._injection_count(1.0), observations)
+            self._resample(self._injection_count(1.0), observations, since)
             return
         self.log_weights[:] = candidate - log_evidence
         self.ess = ess
         fraction = 0.0
         if self.augmented is not None:
-            terms = getattr(self.sensor_model, "terms", len)(observations)
             fraction = self._update_augmented(native_log_average / terms) if terms > 0 else 0.0
         count = self._injection_count(fraction)
         if count > 0 or ess < self.resample_threshold * self.n:
-            self._resample(count, observations)
+            self._resample(count, observations, since)
         else:
             self.resampled = False
             self.injected = 0
@@ -504,8 +567,11 @@ class ParticleFilter:
             uniform[:, 2] = wrap_angles(heading + sigma * self.rng.standard_normal(rest))
         return np.concatenate([poses, uniform], axis=0)
 
-    def _resample(self, count: int, observations: Observations) -> None:
+    def _resample(self, count: int, observations: Observations, since: np.ndarray | None = None) -> None:
         injected = self._sample_injection(count, observations) if count > 0 else np.empty((0, 3))
+        if since is not None and injected.shape[0]:
+            # Sensor resetting placed them where the detections were captured: carry them to now.
+            move_forward(injected, since, injected)
         keep = self.n - injected.shape[0]
         ancestors = SCHEMES[self.resampling](self._weights, keep, self.rng)
         self._previous[:] = self.poses

@@ -1,0 +1,315 @@
+"""One robot's localization in its control loop: motion in, detections in (with their capture time), pose,
+quality and "lost" out, and the game's events as one call each.
+
+    from field import spl
+    from mcl.localizer import Localizer
+    from motion_models import MotionInput
+
+    loc = Localizer(spl(), n_particles=500, seed=0)     # velocity-linear motion, landmark sensor model
+    loc.initial_placement()                              # INITIAL: on one of the own touchlines
+
+    # every frame (100 Hz):
+    loc.motion(t, MotionInput(dt=0.01, odometry=(dx, dy, dtheta)))   # t: end of the step [s]
+    # whenever a camera frame arrives, however late:
+    loc.observe(observations, capture_time=t_image)
+    pose = loc.pose()                  # Estimate: pose [x, y, θ], covariance, weight
+    loc.quality(), loc.is_lost         # Quality.SUPERB / OKAY / POOR, and a bool
+
+Game events (what the SPL and Humanoid League rules make happen to a robot):
+
+| call | when | belief afterwards |
+|---|---|---|
+| `initial_placement()` | INITIAL / entering the field | along both own touchlines, facing into the field |
+| `kickoff_placement(poses)` | placed at kick-off positions | around the given poses (default: a typical line-up) |
+| `manual_placement(poses)` | the referee placed it | around the given poses (default: anywhere in the own half, facing the opponent goal) |
+| `penalty_return()` | back from a penalty | at the penalty-mark line on either own touchline, facing into the field |
+| `fallen()` / `got_up()` | fall detected / standing again | corrections and motion paused; then widened by `getup_sigma` |
+| `place(pose)` | pose known (a test stand, a set piece) | around that pose, its heading trusted |
+
+After a reset whose candidates differ in heading (both touchlines), augmented MCL injects only inside the own
+half with uniform headings until the estimate is confident again: the point mirror of a touchline pose lies in
+the other half, so the filter cannot settle there.
+
+Latency. `observe(..., capture_time=)` scores the detections against where each particle was when the image
+was taken (`mcl.latency`): the motion of the last `history` seconds is kept. An observation older than that is
+refused with ValueError, and the filter is left as it was.
+
+Quality (`QualityThresholds`), from the dominant cluster's covariance and weight, the belief's grid entropy,
+and how well the last detections fit (`fit`: the likelihood per detection, averaged over the last few frames;
+faster than augmented MCL's w_fast, which takes a third of a second to notice a kidnapping):
+- SUPERB: tight (position σ, heading σ small), one cluster, low entropy, detections explained;
+- OKAY: usable for behaviour, but wider or with less support;
+- POOR: anything else. `is_lost` is POOR for `lost_after` seconds in a row.
+"""
+from __future__ import annotations
+
+import enum
+import math
+from collections import Counter
+from dataclasses import dataclass
+
+import numpy as np
+
+from field import Field
+from motion_models import MotionInput
+from sensing import LandmarkSensorModel
+from sensing.observations import Observations
+
+from .filter import Entropy, Estimate, ParticleFilter
+from .latency import MotionHistory
+
+
+class Quality(enum.Enum):
+    """How far behaviour can trust the pose (as B-Human's superb / okay / poor)."""
+
+    SUPERB = "superb"
+    OKAY = "okay"
+    POOR = "poor"
+
+
+@dataclass(frozen=True)
+class QualityThresholds:
+    """Limits for each quality level; a level needs all of its limits met."""
+
+    superb_position: float = 0.15      # m, sqrt(var x + var y) of the dominant cluster
+    superb_heading: float = 0.1        # rad
+    superb_weight: float = 0.9         # share of the weight in the dominant cluster
+    superb_entropy: float = 7.0        # bits of position entropy (10 cm cells: 128 cells ~ 1.3 m²)
+    okay_position: float = 0.4
+    okay_heading: float = 0.3
+    okay_weight: float = 0.6
+    okay_entropy: float = 9.0
+    superb_fit: float = 0.15           # recent fit: likelihood per detection (1 = perfect match), averaged over
+    okay_fit: float = 0.03             # camera frames with weight `fit_rate` (see `Localizer.fit`)
+    fit_rate: float = 0.5
+    lost_after: float = 2.0            # s of POOR in a row before is_lost
+
+    def __post_init__(self) -> None:
+        for name, value in self.__dict__.items():
+            if not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0):
+                raise ValueError(f"{name} = {value!r} must be a finite number >= 0")
+        if not 0 < self.fit_rate <= 1:
+            raise ValueError(f"fit_rate = {self.fit_rate!r} must be within (0, 1]")
+
+
+def touchline_poses(field: Field, x_values) -> np.ndarray:
+    """Poses on both touchlines at each x, facing into the field: (x, +w/2, -π/2) and (x, -w/2, +π/2)."""
+    xs = np.atleast_1d(np.asarray(x_values, dtype=np.float64))
+    hw = field.half_width
+    left = np.column_stack([xs, np.full_like(xs, hw), np.full_like(xs, -math.pi / 2)])
+    right = np.column_stack([xs, np.full_like(xs, -hw), np.full_like(xs, math.pi / 2)])
+    return np.concatenate([left, right])
+
+
+def default_kickoff_positions(field: Field, kicking: bool) -> np.ndarray:
+    """A typical line-up in the own half, facing the opponent goal (not prescribed by the rules: pass your own).
+
+    Goalkeeper on the middle of the own goal line, two defenders at the own penalty area's front corners, one
+    player at the own penalty mark's height in the middle, and one striker: just inside the centre circle
+    when kicking off, outside it otherwise.
+    """
+    d = field.dims
+    hl = field.half_length
+    front = -hl + d.penalty_area_length
+    radius = 0.5 * d.center_circle_diameter
+    striker = -0.2 if kicking else -(radius + 0.2)
+    return np.array([[-hl, 0.0, 0.0], [front, 0.5 * d.penalty_area_width, 0.0],
+                     [front, -0.5 * d.penalty_area_width, 0.0], [-hl + d.penalty_mark_distance, 0.0, 0.0],
+                     [striker, 0.0, 0.0]])
+
+
+class Localizer:
+    """A particle filter wrapped for a robot's loop: latency-aware corrections, game events, quality.
+
+    field, motion_model, sensor_model, n_particles, seed, and any further keyword: as `ParticleFilter`
+    (motion model default: velocity-linear; sensor model default: `LandmarkSensorModel(field)`).
+    history:            seconds of motion kept for late detections
+    compensate_latency: score detections at their capture time (True) or as if they were current
+    quality:            `QualityThresholds`
+    getup_sigma:        (x [m], y [m], θ [rad]) noise added by `got_up`
+    placement_sigma:    (x, y, θ) spread around a placement pose (robots are placed by hand)
+
+    `counts` says what was not used and why ("observation while fallen", "motion while fallen",
+    "observation older than history").
+    """
+
+    def __init__(self, field: Field, motion_model=None, sensor_model=None, n_particles: int = 500, seed=0,
+                 history: float = 1.0, compensate_latency: bool = True,
+                 quality: QualityThresholds = QualityThresholds(), getup_sigma=(0.15, 0.15, 0.5),
+                 placement_sigma=(0.15, 0.08, 0.15), **filter_options) -> None:
+        if motion_model is None:
+            from motion_models import VelocityLinear
+            motion_model = VelocityLinear()
+        if sensor_model is None:
+            sensor_model = LandmarkSensorModel(field)
+        self.filter = ParticleFilter(field, motion_model, sensor_model, n_particles=n_particles, seed=seed,
+                                     **filter_options)
+        self.field = field
+        self.history = MotionHistory(history)
+        self.compensate_latency = bool(compensate_latency)
+        self.thresholds = quality
+        self.getup_sigma = ParticleFilter._check_sigma(getup_sigma)
+        self.placement_sigma = ParticleFilter._check_sigma(placement_sigma)
+        self.time: float | None = None
+        self.is_fallen = False
+        self.counts: Counter = Counter()
+        self._poor_since: float | None = None
+        self._quality: Quality | None = None
+        self.fit = 0.0
+
+    # -- the loop ----------------------------------------------------------------------------------------
+    def motion(self, t: float, u: MotionInput) -> None:
+        """The robot's motion during the step that ends at time `t` [s] (times never go back)."""
+        t = self._check_time(t)
+        if not isinstance(u, MotionInput):
+            raise ValueError(f"u = {u!r} must be a motion_models.MotionInput")
+        if self.is_fallen:
+            # A fallen robot's odometry says nothing about where it lies; got_up widens the belief instead.
+            self.counts["motion while fallen"] += 1
+            self.history.record(t, u.dt, (0.0, 0.0, 0.0))
+        else:
+            displacement = u.displacement() if (u.odometry is not None or u.command is not None) else (0, 0, 0)
+            self.filter.predict(u)
+            self.history.record(t, u.dt, displacement)
+        self.time = t
+        self._quality = None
+        self._update_lost()
+
+    def observe(self, observations, capture_time: float | None = None) -> bool:
+        """Correct with one camera frame's detections, captured at `capture_time` (None: now).
+
+        Returns False when the frame was not used (the robot is fallen); raises ValueError for a frame
+        captured before the kept motion history, leaving the filter unchanged.
+        """
+        observations = Observations.coerce(observations)
+        since = None
+        if capture_time is not None:
+            capture_time = float(capture_time)
+            if not math.isfinite(capture_time):
+                raise ValueError(f"capture_time = {capture_time!r} must be finite")
+            if self.compensate_latency:
+                try:
+                    since = self.history.since(capture_time)
+                except ValueError:
+                    self.counts["observation older than history"] += 1
+                    raise
+        if self.is_fallen:
+            self.counts["observation while fallen"] += 1
+            return False
+        self.filter.correct(observations, since=since)
+        frame_fit = self.filter.frame_fit
+        if not math.isnan(frame_fit):
+            self.fit += self.thresholds.fit_rate * (frame_fit - self.fit)
+        self._quality = None
+        self._update_lost()
+        return True
+
+    def pose(self) -> Estimate:
+        """The estimate: pose [x, y, θ] of the dominant cluster, its covariance and weight."""
+        return self.filter.estimate()
+
+    def entropy(self) -> Entropy:
+        return self.filter.entropy()
+
+    # -- quality -----------------------------------------------------------------------------------------
+    def quality(self) -> Quality:
+        """SUPERB, OKAY or POOR (see the module docstring and `QualityThresholds`)."""
+        if self._quality is None:
+            self._quality = self._assess()
+        return self._quality
+
+    def _assess(self) -> Quality:
+        q = self.thresholds
+        estimate = self.filter.estimate()
+        cov = estimate.covariance
+        position_sigma = math.sqrt(max(cov[0, 0] + cov[1, 1], 0.0))
+        heading_sigma = math.sqrt(max(cov[2, 2], 0.0))
+        entropy = self.filter.entropy().position
+        fit = self.fit
+        if self.is_fallen:
+            return Quality.POOR
+        if (position_sigma <= q.superb_position and heading_sigma <= q.superb_heading
+                and estimate.weight >= q.superb_weight and entropy <= q.superb_entropy and fit >= q.superb_fit):
+            return Quality.SUPERB
+        if (position_sigma <= q.okay_position and heading_sigma <= q.okay_heading
+                and estimate.weight >= q.okay_weight and entropy <= q.okay_entropy and fit >= q.okay_fit):
+            return Quality.OKAY
+        return Quality.POOR
+
+    @property
+    def is_lost(self) -> bool:
+        """POOR quality for at least `lost_after` seconds in a row."""
+        return (self._poor_since is not None and self.time is not None
+                and self.time - self._poor_since >= self.thresholds.lost_after)
+
+    def _update_lost(self) -> None:
+        if self.quality() is Quality.POOR:
+            if self._poor_since is None:
+                self._poor_since = self.time if self.time is not None else 0.0
+        else:
+            self._poor_since = None
+
+    # -- game events -------------------------------------------------------------------------------------
+    def initial_placement(self, spacing: float = 0.25) -> None:
+        """INITIAL: the robot stands on one of the own touchlines (which one it cannot know), facing in."""
+        hl = self.field.half_length
+        xs = np.arange(-hl + 0.5 * spacing, 0.0, spacing)
+        self._reset(touchline_poses(self.field, xs), (0.5 * spacing, 0.08, 0.15))
+
+    def penalty_return(self) -> None:
+        """Back from a penalty: on either own touchline at the penalty mark's x, facing into the field."""
+        x = -self.field.half_length + self.field.dims.penalty_mark_distance
+        self._reset(touchline_poses(self.field, [x]), self.placement_sigma)
+
+    def kickoff_placement(self, poses=None, kicking: bool = True) -> None:
+        """Placed at kick-off positions: around `poses` (K, 3), or `default_kickoff_positions`."""
+        if poses is None:
+            poses = default_kickoff_positions(self.field, kicking)
+        self._reset(poses, self.placement_sigma)
+
+    def manual_placement(self, poses=None) -> None:
+        """The referee placed the robot: around `poses` (K, 3) when the team knows where, else anywhere in the
+        own half facing the opponent goal."""
+        if poses is not None:
+            self._reset(poses, self.placement_sigma)
+            return
+        self.filter.reset_uniform("own_half", heading=0.0, heading_sigma=0.3)
+        self._after_reset()
+
+    def place(self, pose, sigma=None) -> None:
+        """The pose is known: particles around it, its heading trusted for injection."""
+        self.filter.reset_around(pose, self.placement_sigma if sigma is None else sigma)
+        self._after_reset()
+
+    def fallen(self) -> None:
+        """The robot fell: motion and detections are ignored (and counted) until `got_up`."""
+        self.is_fallen = True
+        self._quality = None
+
+    def got_up(self) -> None:
+        """Standing again: the belief is widened by `getup_sigma` (falling and rising move and turn the robot)."""
+        if self.is_fallen:
+            self.filter.diffuse(self.getup_sigma)
+        self.is_fallen = False
+        self._quality = None
+
+    def _reset(self, poses, sigma) -> None:
+        self.filter.reset_candidates(poses, sigma, region="own_half")
+        self._after_reset()
+
+    def _after_reset(self) -> None:
+        self.fit = 0.0
+        self._quality = None
+        self._poor_since = None
+        self.history.clear(self.time)
+
+    def _check_time(self, t) -> float:
+        try:
+            t = float(t)
+        except (TypeError, ValueError):
+            raise ValueError(f"t = {t!r} must be a time in seconds") from None
+        if not math.isfinite(t):
+            raise ValueError(f"t = {t!r} must be finite")
+        if self.time is not None and t < self.time:
+            raise ValueError(f"t = {t:.6f} s is before the previous step's {self.time:.6f} s: times never go back")
+        return t

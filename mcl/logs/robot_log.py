@@ -1,0 +1,203 @@
+"""The in-memory robot log: one array per stream, times in seconds from the log's origin.
+
+    from mcl.logs import RobotLog, VisionFrame
+
+A stream that the log does not hold has zero rows. Times are float64 seconds relative to `origin_ns` (the
+first message's time in integer nanoseconds since the epoch), which keeps sub-microsecond precision over a
+whole game. All poses and velocities are SI: metres, seconds, radians.
+
+Streams (each `*_times` array is strictly increasing):
+- odometry: `odometry_times` (K,), `odometry` (K, 3) the robot's odometry pose [x, y, yaw] in its odom frame
+  (cumulative, as `nav_msgs/Odometry` carries it); the filter moves by the difference of consecutive poses.
+- commands: `command_times` (C,), `commands` (C, 3) walk request (vx, vy, ω) [m/s, m/s, rad/s].
+- IMU: `imu_times` (I,), `gyro` (I, 3) [rad/s], `acceleration` (I, 3) [m/s²].
+- joints: `joint_names` (n names), `joint_command_times` (J,), `joint_commands` (J, n) [rad];
+  `joint_reading_times` (R,), `joint_readings` (R, n) [rad].
+- vision: `vision`, a tuple of `VisionFrame` sorted by arrival time: capture `stamp`, arrival `received`,
+  and the detections as `sensing.Observations` in the robot frame.
+- ground truth: `truth_times` (G,), `truth` (G, 3) field-frame pose [x, y, θ] (empty when not recorded).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field as dataclass_field
+
+import numpy as np
+
+from sensing.observations import Observations
+
+
+class LogError(ValueError):
+    """A log that cannot be used as asked: names the file, topic and time where it can."""
+
+
+@dataclass(frozen=True, eq=False)
+class VisionFrame:
+    """One camera frame's detections: captured at `stamp`, reaching the log at `received` (both [s])."""
+
+    stamp: float
+    received: float
+    observations: Observations
+
+    @property
+    def latency(self) -> float:
+        """Seconds between capture and arrival."""
+        return self.received - self.stamp
+
+
+def _empty(columns: int | None = None) -> np.ndarray:
+    return np.zeros((0,) if columns is None else (0, columns))
+
+
+@dataclass(frozen=True, eq=False)
+class RobotLog:
+    """What a robot recorded (see the module docstring for the streams and their units)."""
+
+    origin_ns: int = 0
+    odometry_times: np.ndarray = dataclass_field(default_factory=_empty)
+    odometry: np.ndarray = dataclass_field(default_factory=lambda: _empty(3))
+    command_times: np.ndarray = dataclass_field(default_factory=_empty)
+    commands: np.ndarray = dataclass_field(default_factory=lambda: _empty(3))
+    imu_times: np.ndarray = dataclass_field(default_factory=_empty)
+    gyro: np.ndarray = dataclass_field(default_factory=lambda: _empty(3))
+    acceleration: np.ndarray = dataclass_field(default_factory=lambda: _empty(3))
+    joint_names: tuple[str, ...] = ()
+    joint_command_times: np.ndarray = dataclass_field(default_factory=_empty)
+    joint_commands: np.ndarray = dataclass_field(default_factory=lambda: _empty(0))
+    joint_reading_times: np.ndarray = dataclass_field(default_factory=_empty)
+    joint_readings: np.ndarray = dataclass_field(default_factory=lambda: _empty(0))
+    vision: tuple[VisionFrame, ...] = ()
+    truth_times: np.ndarray = dataclass_field(default_factory=_empty)
+    truth: np.ndarray = dataclass_field(default_factory=lambda: _empty(3))
+
+    STREAMS = (("odometry_times", "odometry", 3), ("command_times", "commands", 3), ("imu_times", "gyro", 3),
+               ("imu_times", "acceleration", 3), ("truth_times", "truth", 3))
+
+    def __post_init__(self) -> None:
+        n_joints = len(self.joint_names)
+        for times_name, values_name, columns in self.STREAMS + (
+                ("joint_command_times", "joint_commands", n_joints),
+                ("joint_reading_times", "joint_readings", n_joints)):
+            times = np.ascontiguousarray(getattr(self, times_name), dtype=np.float64).reshape(-1)
+            values = np.ascontiguousarray(getattr(self, values_name), dtype=np.float64)
+            if values.size == 0:
+                values = values.reshape(times.shape[0] if times.shape[0] and columns == 0 else 0, columns)
+            if values.ndim != 2 or values.shape != (times.shape[0], columns):
+                raise LogError(f"{values_name} has shape {values.shape}, expected ({times.shape[0]}, {columns}) "
+                               f"to match {times_name}")
+            if not (np.isfinite(times).all() and np.isfinite(values).all()):
+                raise LogError(f"{times_name} / {values_name} hold a NaN or an infinity")
+            if times.shape[0] > 1 and not (np.diff(times) > 0).all():
+                i = int(np.argmax(np.diff(times) <= 0)) + 1
+                raise LogError(f"{times_name}[{i}] = {times[i]:.6f} s does not follow {times[i - 1]:.6f} s")
+            object.__setattr__(self, times_name, times)
+            object.__setattr__(self, values_name, values)
+        object.__setattr__(self, "joint_names", tuple(str(name) for name in self.joint_names))
+        frames = tuple(self.vision)
+        for i, frame in enumerate(frames):
+            if not isinstance(frame, VisionFrame):
+                raise LogError(f"vision[{i}] = {frame!r} is not a VisionFrame")
+            if not (math.isfinite(frame.stamp) and math.isfinite(frame.received)):
+                raise LogError(f"vision[{i}] has a non-finite time")
+            if i and frame.received < frames[i - 1].received:
+                raise LogError(f"vision[{i}] arrives at {frame.received:.6f} s, before vision[{i - 1}] "
+                               f"({frames[i - 1].received:.6f} s): frames are sorted by arrival")
+        object.__setattr__(self, "vision", frames)
+
+    def _span(self) -> tuple[float, float] | None:
+        starts, ends = [], []
+        for times in (self.odometry_times, self.command_times, self.imu_times, self.joint_command_times,
+                      self.joint_reading_times, self.truth_times):
+            if times.shape[0]:
+                starts.append(times[0])
+                ends.append(times[-1])
+        if self.vision:
+            starts.append(min(f.stamp for f in self.vision))
+            ends.append(self.vision[-1].received)
+        return (float(min(starts)), float(max(ends))) if starts else None
+
+    @property
+    def start_time(self) -> float:
+        """The earliest time of any stream [s] (0 for an empty log)."""
+        span = self._span()
+        return span[0] if span else 0.0
+
+    @property
+    def end_time(self) -> float:
+        """The latest time of any stream [s] (0 for an empty log)."""
+        span = self._span()
+        return span[1] if span else 0.0
+
+    @property
+    def duration(self) -> float:
+        """Seconds from the first to the last message of any stream."""
+        return self.end_time - self.start_time
+
+    @property
+    def has_truth(self) -> bool:
+        return self.truth_times.shape[0] > 0
+
+    def truth_at(self, times: np.ndarray) -> np.ndarray:
+        """Ground truth interpolated at `times` (linear in x, y, along the shorter arc in θ); NaN outside."""
+        times = np.asarray(times, dtype=np.float64)
+        out = np.full(times.shape + (3,), np.nan)
+        if not self.has_truth:
+            return out
+        t = self.truth_times
+        inside = (times >= t[0]) & (times <= t[-1])
+        theta = np.unwrap(self.truth[:, 2])
+        for column, values in enumerate((self.truth[:, 0], self.truth[:, 1], theta)):
+            out[inside, column] = np.interp(times[inside], t, values)
+        out[inside, 2] = np.remainder(out[inside, 2] + math.pi, 2 * math.pi) - math.pi
+        return out
+
+
+@dataclass
+class ReadReport:
+    """What a reader did with a log: messages per topic, what it dropped and why, gaps, and where it stopped.
+
+    Nothing is skipped silently: every message not used is counted under (topic, reason) in `dropped`.
+    """
+
+    path: str
+    messages: dict[str, int] = dataclass_field(default_factory=dict)       # topic -> messages read
+    types: dict[str, str] = dataclass_field(default_factory=dict)          # topic -> message type
+    dropped: dict[tuple[str, str], int] = dataclass_field(default_factory=dict)
+    gaps: list[tuple[str, float, float]] = dataclass_field(default_factory=list)   # (topic, start s, length s)
+    stopped_at: float | None = None        # log time [s] of the last message read from a broken log
+    stop_reason: str | None = None
+    missing: list[str] = dataclass_field(default_factory=list)   # default topics the log does not have
+
+    def drop(self, topic: str, reason: str, count: int = 1) -> None:
+        self.dropped[(topic, reason)] = self.dropped.get((topic, reason), 0) + count
+
+    @property
+    def complete(self) -> bool:
+        """The whole log was read (it did not break part way)."""
+        return self.stop_reason is None
+
+    @property
+    def dropped_total(self) -> int:
+        return sum(self.dropped.values())
+
+    def summary(self) -> str:
+        lines = [f"{self.path}: {sum(self.messages.values())} messages on {len(self.messages)} topics"]
+        for topic in sorted(self.messages):
+            lines.append(f"  {topic} ({self.types.get(topic, '?')}): {self.messages[topic]}")
+        for (topic, reason), count in sorted(self.dropped.items()):
+            lines.append(f"  dropped {count} on {topic}: {reason}")
+        for topic, start, length in self.gaps:
+            lines.append(f"  gap of {length:.2f} s on {topic} at {start:.3f} s")
+        if self.missing:
+            lines.append(f"  not in the log: {', '.join(self.missing)}")
+        if self.stop_reason is not None:
+            where = "before the first message" if self.stopped_at is None else f"at {self.stopped_at:.3f} s"
+            lines.append(f"  stopped {where}: {self.stop_reason}")
+        return "\n".join(lines)
+
+    def to_json(self) -> dict:
+        return {"path": self.path, "messages": dict(self.messages), "types": dict(self.types),
+                "dropped": [{"topic": t, "reason": r, "count": c} for (t, r), c in sorted(self.dropped.items())],
+                "gaps": [{"topic": t, "start_s": s, "length_s": g} for t, s, g in self.gaps],
+                "complete": self.complete, "stopped_at_s": self.stopped_at, "stop_reason": self.stop_reason,
+                "missing": list(self.missing)}

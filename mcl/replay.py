@@ -1,0 +1,322 @@
+"""Replay a robot's log through the filter: estimates, errors against ground truth, a recording, poses out.
+
+    from field import spl
+    from mcl.logs import read_log
+    from mcl.replay import replay
+
+    log, report = read_log("game.mcap")              # ROS 2 MCAP, or the columnar .npz / CSV folder
+    result = replay(log, spl(), particles=500, rrd="game.rrd", poses_out="poses.mcap")
+    print(result.summary())                          # errors (when the log has truth), speed, what was dropped
+
+or from the shell: `robocup-mcl replay game.mcap --field kidsize --rrd game.rrd --out poses.mcap`.
+
+The replay is the robot's loop (`mcl.localizer.Localizer`) driven by the log in arrival order:
+- motion: each odometry message moves the filter by the odometry change since the previous one (in the robot
+  frame); a log without odometry moves it by the walk command, held from one command to the next (and the
+  last one until the log ends);
+- vision: each camera frame corrects the filter when it arrives, scored at its capture time (the header
+  stamp) unless latency compensation is off;
+- after every motion step the estimate, its covariance, the quality and the "lost" flag are kept (and
+  written to the recording and the pose output).
+Events at the same instant (within 1 µs): motion first, then vision. Nothing is skipped silently: what the
+localizer could not use is counted in `result.dropped` with its reason.
+"""
+from __future__ import annotations
+
+import math
+import sys
+import time
+from dataclasses import dataclass, field as dataclass_field
+from pathlib import Path
+
+import numpy as np
+
+from field import Field
+from field.angles import wrap_angles
+from motion_models import ConstantNoise, MotionInput, VelocityLinear
+
+from .latency import SAME_TIME
+from .localizer import Localizer, Quality
+from .logs import LogError, RobotLog
+
+MODELS = {"velocity-linear": VelocityLinear, "constant": ConstantNoise}
+STARTS = ("own_half", "field", "initial", "penalty")
+QUALITY_CODES = {Quality.SUPERB: 2, Quality.OKAY: 1, Quality.POOR: 0}
+WRONG = 0.5     # m: an estimate this far from the truth is wrong (for the quality flag's figures)
+
+
+@dataclass
+class ReplayResult:
+    """Per motion step: `times` (M,), `estimates` (M, 3), `covariances` (M, 3, 3), `weights` (M,) the dominant
+    cluster's share of the weight, `quality` (M,) codes
+    (2 superb, 1 okay, 0 poor), `lost` (M,), `entropy` (M, 2) position/orientation bits, `truth` (M, 3) (NaN
+    where the log has none); `dropped` {reason: count}; `frames_used`; `elapsed` seconds of replay."""
+
+    times: np.ndarray
+    estimates: np.ndarray
+    covariances: np.ndarray
+    weights: np.ndarray
+    quality: np.ndarray
+    lost: np.ndarray
+    entropy: np.ndarray
+    truth: np.ndarray
+    dropped: dict[str, int] = dataclass_field(default_factory=dict)
+    frames_used: int = 0
+    elapsed: float = 0.0
+    log_duration: float = 0.0
+
+    @property
+    def has_truth(self) -> np.ndarray:
+        """(M,) bool: steps with ground truth (the log's truth covers their time)."""
+        return ~np.isnan(self.truth[:, 0])
+
+    @property
+    def position_errors(self) -> np.ndarray:
+        return np.hypot(*(self.estimates[:, :2] - self.truth[:, :2]).T)
+
+    @property
+    def heading_errors(self) -> np.ndarray:
+        return np.abs(wrap_angles(self.estimates[:, 2] - self.truth[:, 2]))
+
+    def figures(self) -> dict:
+        """Speed, quality shares and, with ground truth, the errors (NaN-free figures only)."""
+        steps = self.times.shape[0]
+        out = {"steps": steps, "frames_used": self.frames_used, "dropped": dict(self.dropped),
+               "log_seconds": self.log_duration, "replay_seconds": self.elapsed,
+               "real_time_factor": self.log_duration / self.elapsed if self.elapsed > 0 else None,
+               "quality_share": {q.value: float(np.mean(self.quality == code)) if steps else 0.0
+                                 for q, code in QUALITY_CODES.items()},
+               "lost_share": float(np.mean(self.lost)) if steps else 0.0}
+        has_truth = self.has_truth
+        if has_truth.any():
+            position, heading = self.position_errors[has_truth], self.heading_errors[has_truth]
+            out["position_error_m"] = {"median": float(np.median(position)), "p95": float(np.percentile(position, 95)),
+                                       "rmse": float(np.sqrt(np.mean(position ** 2)))}
+            out["heading_error_deg"] = {"median": math.degrees(float(np.median(heading))),
+                                        "p95": math.degrees(float(np.percentile(heading, 95)))}
+            # How honest the quality flag is: the share of each level's steps whose error exceeds 0.5 m.
+            wrong = position > WRONG
+            quality = self.quality[has_truth]
+            out["wrong_share_by_quality"] = {q.value: float(np.mean(wrong[quality == code])) if (quality == code).any()
+                                             else None for q, code in QUALITY_CODES.items()}
+        return out
+
+    def summary(self) -> str:
+        f = self.figures()
+        lines = [f"{f['steps']} steps, {f['frames_used']} camera frames used, "
+                 f"{f['log_seconds']:.1f} s of log in {f['replay_seconds']:.1f} s"
+                 + (f" ({f['real_time_factor']:.1f}x real time)" if f["real_time_factor"] else "")]
+        shares = ", ".join(f"{name} {100 * share:.0f} %" for name, share in f["quality_share"].items())
+        lines.append(f"quality: {shares}; lost {100 * f['lost_share']:.0f} % of the time")
+        if "position_error_m" in f:
+            p, h = f["position_error_m"], f["heading_error_deg"]
+            lines.append(f"error against truth: position median {p['median']:.3f} m, p95 {p['p95']:.3f} m, "
+                         f"RMSE {p['rmse']:.3f} m; heading median {h['median']:.1f}°, p95 {h['p95']:.1f}°")
+            wrong = ", ".join(f"{name} {100 * share:.1f} %" for name, share in f["wrong_share_by_quality"].items()
+                              if share is not None)
+            lines.append(f"steps more than {WRONG} m off, by quality: {wrong}")
+        for reason, count in sorted(self.dropped.items()):
+            lines.append(f"dropped {count}: {reason}")
+        return "\n".join(lines)
+
+
+def motion_events(log: RobotLog) -> tuple[np.ndarray, list[MotionInput]]:
+    """The motion steps a log drives the filter with: end times (M,) and their `MotionInput`s.
+
+    Odometry when the log has at least two odometry poses (the change between consecutive ones, in the robot
+    frame of the earlier one, with the command in force); otherwise the walk commands held until the next
+    command (the last one until the log's end). LogError when the log has neither.
+    """
+    if log.odometry_times.shape[0] >= 2:
+        t, pose = log.odometry_times, log.odometry
+        d = np.diff(pose[:, :2], axis=0)
+        c, s = np.cos(pose[:-1, 2]), np.sin(pose[:-1, 2])
+        local = np.column_stack([c * d[:, 0] + s * d[:, 1], -s * d[:, 0] + c * d[:, 1],
+                                 wrap_angles(np.diff(pose[:, 2]))])
+        dts = np.diff(t)
+        commands = _commands_at(log, t[:-1])
+        inputs = [MotionInput(dt=float(dts[k]), odometry=tuple(local[k]),
+                              command=None if commands is None else tuple(commands[k]))
+                  for k in range(dts.shape[0])]
+        return t[1:], inputs
+    if log.command_times.shape[0] >= 1:
+        t = log.command_times
+        end = max(log.end_time, float(t[-1]))
+        ends = np.append(t[1:], end) if end > t[-1] + SAME_TIME else t[1:]
+        dts = ends - t[:ends.shape[0]]
+        inputs = [MotionInput(dt=float(dts[k]), command=tuple(log.commands[k])) for k in range(ends.shape[0])]
+        return ends, inputs
+    raise LogError("the log has neither odometry (two or more poses) nor walk commands: nothing moves the filter")
+
+
+def _commands_at(log: RobotLog, times: np.ndarray) -> np.ndarray | None:
+    """The walk command in force at each time (the latest at or before it), or None without commands."""
+    if log.command_times.shape[0] == 0:
+        return None
+    index = np.searchsorted(log.command_times, times + SAME_TIME, side="right") - 1
+    commands = log.commands[np.clip(index, 0, None)].copy()
+    commands[index < 0] = 0.0
+    return commands
+
+
+def replay(log: RobotLog, field: Field, model: str = "velocity-linear", particles: int = 500, seed: int = 0,
+           compensate_latency: bool = True, history: float = 1.0, start="own_half", rrd: str | None = None,
+           poses_out: str | None = None, record_every: int = 5, progress: bool = False,
+           localizer: Localizer | None = None) -> ReplayResult:
+    """Run the log through a `Localizer` and collect the estimates (see the module docstring).
+
+    start: where the belief starts: "own_half" (uniform, kick-off side), "field" (uniform), "initial"
+           (`initial_placement`: the touchlines), "penalty" (`penalty_return`), or a pose (x, y, θ).
+    rrd: write a Rerun recording; poses_out: write the estimates (.mcap PoseWithCovarianceStamped, .csv in the
+    SPL convention, .npz arrays). `localizer` replaces the one built from model/particles/seed.
+    """
+    if model not in MODELS:
+        raise ValueError(f"model = {model!r} must be one of {tuple(MODELS)}")
+    times, inputs = motion_events(log)
+    if localizer is None:
+        localizer = Localizer(field, MODELS[model](), n_particles=particles, seed=seed, history=history,
+                              compensate_latency=compensate_latency)
+    _start(localizer, start)
+    recorder = None
+    if rrd:
+        from .recording import Recorder
+        recorder = Recorder(rrd, field)
+    writer = _pose_writer(poses_out, log.origin_ns) if poses_out else None
+    m = times.shape[0]
+    estimates, covariances, weights = np.empty((m, 3)), np.empty((m, 3, 3)), np.empty(m)
+    quality, lost = np.empty(m, dtype=np.int8), np.zeros(m, dtype=bool)
+    entropy = np.empty((m, 2))
+    truth = log.truth_at(times)
+    frames = log.vision
+    next_frame, frames_used = 0, 0
+    bar = _Progress(m) if progress else None
+    started = time.perf_counter()
+    try:
+        for k in range(m):
+            t = float(times[k])
+            localizer.motion(t, inputs[k])
+            step_observations = None
+            while next_frame < len(frames) and frames[next_frame].received <= t + SAME_TIME:
+                frame = frames[next_frame]
+                next_frame += 1
+                try:
+                    if localizer.observe(frame.observations, capture_time=frame.stamp):
+                        frames_used += 1
+                        step_observations = frame.observations
+                except ValueError:
+                    pass          # counted by the localizer (older than the motion history)
+            estimate = localizer.pose()
+            h = localizer.entropy()
+            estimates[k], covariances[k], weights[k] = estimate.pose, estimate.covariance, estimate.weight
+            quality[k] = QUALITY_CODES[localizer.quality()]
+            lost[k] = localizer.is_lost
+            entropy[k] = (h.position, h.orientation)
+            if recorder is not None:
+                recorder.log_step(k, t, localizer.filter, truth=None if np.isnan(truth[k, 0]) else truth[k],
+                                  observations=step_observations, entropy=h)
+                recorder.log_scalars({"quality": float(quality[k]), "lost": float(lost[k])})
+            if writer is not None:
+                writer.write(t, estimate.pose, estimate.covariance, localizer.quality(), bool(lost[k]))
+            if bar is not None:
+                bar.update(k + 1, t)
+    finally:
+        if recorder is not None:
+            recorder.close()
+        if writer is not None:
+            writer.close()
+        if bar is not None:
+            bar.close()
+    elapsed = time.perf_counter() - started
+    dropped = dict(localizer.counts)
+    if next_frame < len(frames):
+        dropped["camera frame after the last motion step"] = len(frames) - next_frame
+    return ReplayResult(times, estimates, covariances, weights, quality, lost, entropy, truth, dropped, frames_used,
+                        elapsed, log.duration)
+
+
+def _start(localizer: Localizer, start) -> None:
+    if isinstance(start, str):
+        if start not in STARTS:
+            raise ValueError(f"start = {start!r} must be one of {STARTS} or a pose (x, y, θ)")
+        if start in ("own_half", "field"):
+            localizer.filter.reset_uniform(start)
+        elif start == "initial":
+            localizer.initial_placement()
+        else:
+            localizer.penalty_return()
+    else:
+        localizer.place(start)
+
+
+class _PoseOutput:
+    """Writes each step's estimate in the format the file name asks for."""
+
+    def __init__(self, path: Path, origin_ns: int) -> None:
+        self.path, self.origin_ns = path, origin_ns
+        self.rows: list[tuple] = []
+        self._mcap = None
+        if path.suffix == ".mcap":
+            from .logs.mcap_io import PoseWriter
+            self._mcap = PoseWriter(path)
+            self._mcap.__enter__()
+
+    def write(self, t: float, pose: np.ndarray, covariance: np.ndarray, quality: Quality, lost: bool) -> None:
+        if self._mcap is not None:
+            self._mcap.write(self.origin_ns + int(round(t * 1e9)), pose, covariance)
+        else:
+            self.rows.append((t, *pose, *covariance.reshape(-1), QUALITY_CODES[quality], lost))
+
+    def close(self) -> None:
+        if self._mcap is not None:
+            self._mcap.__exit__(None, None, None)
+            return
+        rows = np.array(self.rows, dtype=np.float64).reshape(-1, 15)
+        if self.path.suffix == ".npz":
+            np.savez(self.path, times=rows[:, 0], poses=rows[:, 1:4], covariances=rows[:, 4:13].reshape(-1, 3, 3),
+                     quality=rows[:, 13].astype(np.int8), lost=rows[:, 14].astype(bool), origin_ns=self.origin_ns)
+            return
+        from .formats import pose_to_spl
+        with open(self.path, "w") as out:
+            out.write("t_s,x_mm,y_mm,theta_rad,sigma_x_mm,sigma_y_mm,sigma_theta_rad,quality,lost\n")
+            for row in rows:
+                x_mm, y_mm, theta = pose_to_spl(row[1:4])
+                cov = row[4:13].reshape(3, 3)
+                sx, sy, st = (math.sqrt(max(cov[i, i], 0.0)) for i in range(3))
+                quality = {code: q.value for q, code in QUALITY_CODES.items()}[int(row[13])]
+                out.write(f"{row[0]:.6f},{x_mm:.1f},{y_mm:.1f},{theta:.5f},{1e3 * sx:.1f},{1e3 * sy:.1f},"
+                          f"{st:.5f},{quality},{int(row[14])}\n")
+
+
+POSE_SUFFIXES = (".mcap", ".csv", ".npz")
+
+
+def _pose_writer(path, origin_ns: int) -> _PoseOutput:
+    path = Path(path)
+    if path.suffix not in POSE_SUFFIXES:
+        raise ValueError(f"poses_out = {str(path)!r} must end in one of {POSE_SUFFIXES}")
+    path.parent.mkdir(parents=True, exist_ok=True)
+    return _PoseOutput(path, origin_ns)
+
+
+class _Progress:
+    """A one-line progress bar on stderr."""
+
+    def __init__(self, total: int, width: int = 30) -> None:
+        self.total, self.width = max(total, 1), width
+        self.started = time.perf_counter()
+        self._shown = -1
+
+    def update(self, done: int, t: float) -> None:
+        percent = int(100 * done / self.total)
+        if percent == self._shown:
+            return
+        self._shown = percent
+        filled = self.width * done // self.total
+        elapsed = time.perf_counter() - self.started
+        speed = f"{t / elapsed:.0f}x real time" if elapsed > 0 and t > 0 else ""
+        sys.stderr.write(f"\rreplay [{'#' * filled}{'.' * (self.width - filled)}] {percent:3d} %  {t:7.1f} s  {speed}")
+        sys.stderr.flush()
+
+    def close(self) -> None:
+        sys.stderr.write("\n")
+        sys.stderr.flush()
