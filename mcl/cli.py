@@ -1,4 +1,4 @@
-"""The `robocup-mcl` command: demos and benchmarks.
+"""The `robocup-mcl` command: demos, log replay and benchmarks.
 
     robocup-mcl demo walk [--model ...] [--particles N] [--seed S | --seeds 0-9] [--rrd PATH] [--json]
     robocup-mcl demo velocity [--json] ...
@@ -6,8 +6,11 @@
     robocup-mcl demo odometry [--surface carpet|grass|both] [--curve] [--filter] [--json]
     robocup-mcl demo latency [--latency 0.08] [--seeds 0-9] [--json]
     robocup-mcl demo penalty [--seeds 0-19] [--json]
+    robocup-mcl replay LOG [--field spl|kidsize|adultsize|FILE] [--model ...] [--particles N] [--rrd PATH]
+                       [--out POSES] [--list] [--json]      # a robot's log (ROS 2 MCAP, .npz, CSV folder)
     robocup-mcl bench [--sizes ...] [--json]          # the filter step, numba versus numpy
     robocup-mcl bench lwpr [--seeds N] [--json]       # LWPR on the cross benchmark
+    robocup-mcl bench replay [--minutes 10] [--json]  # log replay speed in multiples of real time
 """
 from __future__ import annotations
 
@@ -25,6 +28,7 @@ DEMOS = {
 BENCHES = {
     "step": ("mcl.bench", "one full filter step per particle count, numba versus plain numpy"),
     "lwpr": ("demos.lwpr_cross", "LWPR on the cross benchmark: accuracy, receptive fields, speed"),
+    "replay": ("demos.replay_speed", "a 10-minute MCAP log replayed, in multiples of real time"),
 }
 
 
@@ -54,6 +58,9 @@ def main(argv: list[str] | None = None) -> int:
             print(_usage())
             return 0 if rest else 2
         return _dispatch(DEMOS, rest[0], rest[1:], "demo")
+    if command == "replay":
+        from .replay import main as replay_main
+        return replay_main(rest)
     if command == "bench":
         if rest and not rest[0].startswith("-"):
             return _dispatch(BENCHES, rest[0], rest[1:], "benchmark")

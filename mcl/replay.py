@@ -320,3 +320,95 @@ class _Progress:
     def close(self) -> None:
         sys.stderr.write("\n")
         sys.stderr.flush()
+
+
+def _field(name: str) -> Field:
+    from field import PRESET_NAMES, load_field, preset
+    return preset(name) if name in PRESET_NAMES else load_field(name)
+
+
+def _parse_start(text: str):
+    if text in STARTS:
+        return text
+    try:
+        pose = tuple(float(v) for v in text.split(","))
+    except ValueError:
+        pose = ()
+    if len(pose) != 3:
+        raise ValueError(f"--start {text!r} must be one of {STARTS} or x,y,theta")
+    return pose
+
+
+def main(argv: list[str] | None = None) -> int:
+    """`robocup-mcl replay LOG ...` (see `robocup-mcl replay --help`)."""
+    import argparse
+    import json
+    from dataclasses import fields
+
+    from .logs import read_log
+    from .logs.mcap_io import Topics, list_topics
+
+    parser = argparse.ArgumentParser(
+        prog="robocup-mcl replay", description="Replay a robot's log (ROS 2 MCAP, .npz, or a CSV folder) "
+        "through the filter: estimates, errors against ground truth, a Rerun recording, poses out.")
+    parser.add_argument("log", help="the log: .mcap, .npz, or a folder of CSV files")
+    parser.add_argument("--list", action="store_true", help="list the log's topics (MCAP) and stop")
+    parser.add_argument("--field", default="spl", help="spl, kidsize, adultsize, or a field file (.toml/.json)")
+    parser.add_argument("--model", choices=sorted(MODELS), default="velocity-linear")
+    parser.add_argument("--particles", type=int, default=500)
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--start", default="own_half",
+                        help=f"initial belief: {', '.join(STARTS)}, or a pose x,y,theta (default own_half)")
+    parser.add_argument("--no-latency", action="store_true",
+                        help="score camera frames as if current (default: at their capture time)")
+    parser.add_argument("--history", type=float, default=1.0, help="seconds of motion kept for late frames")
+    parser.add_argument("--gap", type=float, default=1.0, help="report gaps longer than this [s]")
+    parser.add_argument("--rrd", help="write a Rerun recording here")
+    parser.add_argument("--out", help="write the estimates here: .mcap (PoseWithCovarianceStamped), "
+                                      ".csv (SPL convention: mm, rad), .npz")
+    parser.add_argument("--json", action="store_true", help="print the figures and the read report as JSON")
+    parser.add_argument("--progress", choices=("auto", "on", "off"), default="auto",
+                        help="progress bar on stderr (auto: when stderr is a terminal)")
+    defaults = Topics()
+    for f in fields(Topics):
+        if f.name != "pose_out":
+            parser.add_argument(f"--topic-{f.name.replace('_', '-')}", dest=f"topic_{f.name}",
+                                help=f"topic of the {f.name.replace('_', ' ')} (default {getattr(defaults, f.name)})")
+    args = parser.parse_args(argv)
+    if args.particles <= 0:
+        parser.error(f"--particles {args.particles} must be > 0")
+    try:
+        if args.list:
+            rows = list_topics(args.log)
+            if args.json:
+                json.dump(rows, sys.stdout, indent=2)
+                print()
+            else:
+                for row in rows:
+                    print(f"{row['topic']:<32} {row['type']:<48} {row['count']:>8} messages")
+            return 0
+        given = {f.name: getattr(args, f"topic_{f.name}") for f in fields(Topics)
+                 if f.name != "pose_out" and getattr(args, f"topic_{f.name}") is not None}
+        topics = Topics(**given) if given else None
+        field = _field(args.field)
+        start = _parse_start(args.start)
+        log, report = read_log(args.log, topics=topics, gap=args.gap)
+        progress = sys.stderr.isatty() if args.progress == "auto" else args.progress == "on"
+        result = replay(log, field, model=args.model, particles=args.particles, seed=args.seed,
+                        compensate_latency=not args.no_latency, history=args.history, start=start, rrd=args.rrd,
+                        poses_out=args.out, progress=progress and not args.json)
+    except (ValueError, OSError) as error:
+        print(f"robocup-mcl replay: {error}", file=sys.stderr)
+        return 1
+    if args.json:
+        json.dump({"log": report.to_json(), "replay": result.figures(), "rrd": args.rrd, "out": args.out},
+                  sys.stdout, indent=2)
+        print()
+        return 0
+    print(report.summary())
+    print(result.summary())
+    if args.rrd:
+        print(f"recording written to {args.rrd} (open it with: rerun {args.rrd})")
+    if args.out:
+        print(f"estimates written to {args.out}")
+    return 0
