@@ -42,6 +42,8 @@ from .logs import LogError, RobotLog
 MODELS = {"velocity-linear": VelocityLinear, "constant": ConstantNoise}
 STARTS = ("own_half", "field", "initial", "penalty")
 QUALITY_CODES = {Quality.SUPERB: 2, Quality.OKAY: 1, Quality.POOR: 0}
+MAX_NOTES = 10
+LONG_STEP = 0.5   # s: a motion step this long is a gap in the log, worth a note
 WRONG = 0.5     # m: an estimate this far from the truth is wrong (for the quality flag's figures)
 
 
@@ -61,6 +63,7 @@ class ReplayResult:
     entropy: np.ndarray
     truth: np.ndarray
     dropped: dict[str, int] = dataclass_field(default_factory=dict)
+    notes: list[str] = dataclass_field(default_factory=list)      # the first few events worth a look, with times
     frames_used: int = 0
     elapsed: float = 0.0
     log_duration: float = 0.0
@@ -81,7 +84,7 @@ class ReplayResult:
     def figures(self) -> dict:
         """Speed, quality shares and, with ground truth, the errors (NaN-free figures only)."""
         steps = self.times.shape[0]
-        out = {"steps": steps, "frames_used": self.frames_used, "dropped": dict(self.dropped),
+        out = {"steps": steps, "frames_used": self.frames_used, "dropped": dict(self.dropped), "notes": list(self.notes),
                "log_seconds": self.log_duration, "replay_seconds": self.elapsed,
                "real_time_factor": self.log_duration / self.elapsed if self.elapsed > 0 else None,
                "quality_share": {q.value: float(np.mean(self.quality == code)) if steps else 0.0
@@ -117,6 +120,7 @@ class ReplayResult:
             lines.append(f"steps more than {WRONG} m off, by quality: {wrong}")
         for reason, count in sorted(self.dropped.items()):
             lines.append(f"dropped {count}: {reason}")
+        lines += [f"note: {note}" for note in self.notes]
         return "\n".join(lines)
 
 
@@ -179,8 +183,10 @@ def replay(log: RobotLog, field: Field, model: str = "velocity-linear", particle
     _start(localizer, start)
     recorder = None
     if rrd:
-        from .recording import Recorder
-        recorder = Recorder(rrd, field)
+        from .recording import Recorder, default_blueprint
+        recorder = Recorder(rrd, field, particles_every=record_every, blueprint=default_blueprint(
+            (("/entropy", "entropy [bits]"), ("/error", "error [m, rad]"),
+             ("/localization", "quality (2 superb, 1 okay, 0 poor), lost"))))
     writer = _pose_writer(poses_out, log.origin_ns) if poses_out else None
     m = times.shape[0]
     estimates, covariances, weights = np.empty((m, 3)), np.empty((m, 3, 3)), np.empty(m)
@@ -190,10 +196,20 @@ def replay(log: RobotLog, field: Field, model: str = "velocity-linear", particle
     frames = log.vision
     next_frame, frames_used = 0, 0
     bar = _Progress(m) if progress else None
+    notes: list[str] = []
+
+    def note(text: str) -> None:
+        if len(notes) < MAX_NOTES:
+            notes.append(text)
+        elif len(notes) == MAX_NOTES:
+            notes.append("(further notes left out)")
     started = time.perf_counter()
     try:
         for k in range(m):
             t = float(times[k])
+            if inputs[k].dt > LONG_STEP:
+                note(f"motion step of {inputs[k].dt:.2f} s ending at {t:.3f} s (a gap in the motion stream): "
+                     "integrated as one step")
             localizer.motion(t, inputs[k])
             step_observations = None
             while next_frame < len(frames) and frames[next_frame].received <= t + SAME_TIME:
@@ -203,8 +219,8 @@ def replay(log: RobotLog, field: Field, model: str = "velocity-linear", particle
                     if localizer.observe(frame.observations, capture_time=frame.stamp):
                         frames_used += 1
                         step_observations = frame.observations
-                except ValueError:
-                    pass          # counted by the localizer (older than the motion history)
+                except ValueError as error:   # counted by the localizer
+                    note(f"camera frame arriving at {frame.received:.3f} s dropped: {error}")
             estimate = localizer.pose()
             h = localizer.entropy()
             estimates[k], covariances[k], weights[k] = estimate.pose, estimate.covariance, estimate.weight
@@ -214,7 +230,7 @@ def replay(log: RobotLog, field: Field, model: str = "velocity-linear", particle
             if recorder is not None:
                 recorder.log_step(k, t, localizer.filter, truth=None if np.isnan(truth[k, 0]) else truth[k],
                                   observations=step_observations, entropy=h)
-                recorder.log_scalars({"quality": float(quality[k]), "lost": float(lost[k])})
+                recorder.log_scalars({"localization/quality": float(quality[k]), "localization/lost": float(lost[k])})
             if writer is not None:
                 writer.write(t, estimate.pose, estimate.covariance, localizer.quality(), bool(lost[k]))
             if bar is not None:
@@ -230,7 +246,8 @@ def replay(log: RobotLog, field: Field, model: str = "velocity-linear", particle
     dropped = dict(localizer.counts)
     if next_frame < len(frames):
         dropped["camera frame after the last motion step"] = len(frames) - next_frame
-    return ReplayResult(times, estimates, covariances, weights, quality, lost, entropy, truth, dropped, frames_used,
+    return ReplayResult(times, estimates, covariances, weights, quality, lost, entropy, truth, dropped, notes,
+                        frames_used,
                         elapsed, log.duration)
 
 

@@ -288,3 +288,36 @@ def test_a_truncated_mcap_replays_up_to_where_it_breaks(tmp_path):
     result = replay(log, FIELD, particles=100, seed=7)
     assert 0 < result.times[-1] <= report.stopped_at + 0.02 < 6.0
     assert np.isfinite(result.estimates).all()
+
+
+def test_replay_counts_and_names_a_frame_older_than_the_history():
+    from mcl.logs import RobotLog, VisionFrame
+    _, sim = walk(seed=8, duration=4.0)
+    log = to_robot_log(sim)
+    late = VisionFrame(stamp=0.5, received=2.5, observations=log.vision[0].observations)
+    frames = sorted(log.vision + (late,), key=lambda f: f.received)
+    log = RobotLog(origin_ns=log.origin_ns, command_times=log.command_times, commands=log.commands,
+                   vision=tuple(frames), truth_times=log.truth_times, truth=log.truth)
+    result = replay(log, FIELD, particles=100, seed=8, history=1.0)
+    assert result.dropped == {"observation older than history": 1}
+    assert result.frames_used == len(frames) - 1
+    assert any("arriving at 2.500 s" in note and "captured at 0.500 s" in note for note in result.notes)
+    assert "older than history" in result.summary()
+
+
+def test_replay_recording_holds_the_pose_quality_and_lost_series(tmp_path):
+    import rerun.chunk as rrc
+    _, sim = walk(seed=9, duration=1.0)
+    path = tmp_path / "replay.rrd"
+    result = replay(to_robot_log(sim), FIELD, particles=100, seed=9, rrd=str(path))
+    entities = {chunk.entity_path for chunk in rrc.RrdReader(str(path)).stream()}
+    for expected in ("/particles", "/robot/estimate", "/robot/truth", "/localization/quality",
+                     "/localization/lost", "/entropy/position"):
+        assert expected in entities
+    quality = []
+    for chunk in rrc.RrdReader(str(path)).stream():
+        if chunk.entity_path == "/localization/quality" and not chunk.is_static:
+            batch = chunk.to_record_batch()
+            column = next(n for n in batch.schema.names if n.endswith(":scalars"))
+            quality.extend(v[0] for v in batch.column(batch.schema.names.index(column)).to_pylist())
+    assert sorted(quality) == sorted(result.quality.astype(float).tolist())

@@ -36,3 +36,13 @@ def test_lwpr_example_runs_and_learns():
     namespace: dict = {}
     exec(compile(example, str(README), "exec"), namespace)
     assert abs(namespace["y_hat"][0] - (-0.1567)) < 0.02 and namespace["conf"][0] > 0
+
+
+def test_localizer_example_runs_and_starts_on_a_touchline():
+    example = next(block for block in python_blocks() if "Localizer(" in block)
+    namespace: dict = {}
+    with contextlib.redirect_stdout(io.StringIO()):
+        exec(compile(example, str(README), "exec"), namespace)
+    field, pose = namespace["loc"].field, namespace["estimate"].pose
+    assert abs(abs(pose[1]) - field.half_width) < 0.3 and pose[0] < 0
+    assert abs(abs(pose[2]) - math.pi / 2) < 0.3
