@@ -47,7 +47,7 @@ from __future__ import annotations
 
 import functools
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 
 import numba
 import numpy as np
@@ -63,6 +63,7 @@ STATES = ("free", "slippage", "hindrance", "pushed", "stopped")
 CONDITIONS = ("quiet", "collision", "frequent")
 STATE_COLUMNS = 4          # per particle: mobility state, then the three rand() values of its episode
 VARIATES = 7               # per particle and step: transition, three fresh episode values, three odometry noise
+_CUMULATIVE_MEMO = 64      # (condition, dt) pairs an AdaptiveMotion keeps the cumulative transition rows of
 
 
 def _rates(pairs: dict[tuple[str, str], float]) -> tuple[tuple[str, str, float], ...]:
@@ -132,6 +133,7 @@ def _transition_matrix(transitions: MobilityTransitions, condition: str, dt: flo
 def _cumulative(transitions: MobilityTransitions, condition: str, dt: float) -> np.ndarray:
     cumulative = np.cumsum(_transition_matrix(transitions, condition, dt), axis=1)
     cumulative[:, -1] = 1.0       # rounding must never let a uniform variate fall past the last state
+    cumulative.flags.writeable = False
     return cumulative
 
 
@@ -174,6 +176,23 @@ class AdaptiveMotion:
             raise ValueError(f"transitions = {self.transitions!r} must be a MobilityTransitions")
         if self.redraw not in ("episode", "step"):
             raise ValueError(f"redraw = {self.redraw!r} must be 'episode' or 'step'")
+        self._memoize()
+
+    def _memoize(self) -> None:
+        # Memos of the validated parameters, not fields: what every `predict` hands the kernel unchanged.
+        params = np.array([self.beta1, self.beta2, self.beta3, self.beta4, self.beta5, self.beta6, self.beta7,
+                           self.beta_turn, self.foot_separation, *self.odometry], dtype=np.float64)
+        params.flags.writeable = False
+        object.__setattr__(self, "_kernel_params", params)
+        object.__setattr__(self, "_cumulative_rows", {})
+
+    def __getstate__(self) -> dict:
+        return {f.name: getattr(self, f.name) for f in fields(self)}
+
+    def __setstate__(self, state: dict) -> None:
+        for name, value in state.items():
+            object.__setattr__(self, name, value)
+        self._memoize()
 
     # -- the particle state ------------------------------------------------------------------------------
     def particle_state(self, n: int) -> np.ndarray:
@@ -207,22 +226,34 @@ class AdaptiveMotion:
             return (0.0, 0.0, 0.0)
         return (dx / u.dt, dy / u.dt, dtheta / u.dt)
 
+    def cumulative_transitions(self, condition: str, dt: float) -> np.ndarray:
+        """Cumulative rows of expm(Q·dt) for a percept condition (read-only, (5, 5), last column exactly 1),
+        computed once per (condition, dt): a filter running at a fixed rate never recomputes the expm."""
+        key = (condition, dt)
+        rows = self._cumulative_rows.get(key)
+        if rows is None:
+            if len(self._cumulative_rows) >= _CUMULATIVE_MEMO:     # a varying dt must not grow it without end
+                self._cumulative_rows.clear()
+            rows = _cumulative(self.transitions, condition, float(dt))
+            self._cumulative_rows[key] = rows
+        return rows
+
     def kernel_arguments(self, u: MotionInput) -> tuple:
         """Everything `adaptive_move` takes besides poses, state and variates."""
         percept: CollisionPercept = u.collision
         side = percept.side
         vx, vy, omega = self.velocities(u)
-        params = np.array([self.beta1, self.beta2, self.beta3, self.beta4, self.beta5, self.beta6, self.beta7,
-                           self.beta_turn, self.foot_separation, *self.odometry])
-        return (_cumulative(self.transitions, self.condition(percept), u.dt), vx, vy, omega, u.dt,
-                np.nan if side is None else float(side), params, self.redraw == "step")
+        return (self.cumulative_transitions(self.condition(percept), u.dt), vx, vy, omega, u.dt,
+                np.nan if side is None else float(side), self._kernel_params, self.redraw == "step")
 
     def predict(self, poses: np.ndarray, u: MotionInput, rng: np.random.Generator,
                 state: np.ndarray | None = None) -> None:
         """Move `poses` in place; `state` (N, 4) is each particle's mobility state, updated in place (the
         filter passes its own; None uses a throw-away all-free state, i.e. a single-step prediction)."""
         check_poses(poses)
-        self.check(u)
+        percept = u.collision
+        if not isinstance(percept, CollisionPercept) or (u.command is None and u.odometry is None):
+            self.check(u)                   # raises the ValueError that names what is missing
         n = poses.shape[0]
         if state is None:
             state = self.particle_state(n)
@@ -236,11 +267,25 @@ def adaptive_move(poses, state, cumulative, vx, vy, omega, dt, side, params, red
     """Jump-Markov step of every particle: draw its next mobility state, then move it by its state's velocity
     (Hoffmann eq. 11-26) plus eq. 10's odometry noise on the effective speeds. `variates` (N, 7) uniforms:
     [transition, three episode values (taken when the particle leaves free, or every step with
-    `redraw_each_step`), three odometry noise values]; `side` is c(z_c) or NaN."""
+    `redraw_each_step`), three odometry noise values]; `side` is c(z_c) or NaN.
+
+    Every particle gets, bit for bit, the numbers of the general step at the end of the loop. Free particles
+    share their chord, noise bounds and turn, so these are computed once; a stopped particle's displacement
+    is exactly ±0, which leaves a non-zero coordinate unchanged, so only its heading is computed."""
     beta1, beta2, beta3, beta4 = params[0], params[1], params[2], params[3]
     beta5, beta6, beta7, beta_turn, separation = params[4], params[5], params[6], params[7], params[8]
     odo1, odo2, odo3, odo4 = params[9], params[10], params[11], params[12]
     speed = math.sqrt(vx * vx + vy * vy)
+    free_half = 0.5 * omega * dt
+    free_chord = math.sin(free_half) / free_half if abs(free_half) > 1e-9 else 1.0
+    free_dx = (vx + 0.0) * dt * free_chord
+    free_dy = (vy + 0.0) * dt * free_chord
+    free_bound_x = odo1 * speed * dt
+    free_bound_y = odo2 * speed * dt
+    free_bound_theta = (odo3 * speed + odo4 * abs(omega)) * dt
+    free_turn = omega * dt
+    side_known = side == side        # not NaN
+    stopped_turn_rate = speed / separation * side * beta_turn
     for i in range(poses.shape[0]):
         old = int(state[i, 0])
         new = 0
@@ -251,10 +296,29 @@ def adaptive_move(poses, state, cumulative, vx, vy, omega, dt, side, params, red
             state[i, 2] = variates[i, 2]
             state[i, 3] = variates[i, 3]
         state[i, 0] = new
+        theta = poses[i, 2]
+        if new == 0:      # free: the request plus eq. 10's noise
+            dx = free_dx + (2.0 * variates[i, 4] - 1.0) * free_bound_x
+            dy = free_dy + (2.0 * variates[i, 5] - 1.0) * free_bound_y
+            c = math.cos(theta + free_half)
+            s = math.sin(theta + free_half)
+            poses[i, 0] += c * dx - s * dy
+            poses[i, 1] += s * dx + c * dy
+            poses[i, 2] = wrap_angle(theta + free_turn + (2.0 * variates[i, 6] - 1.0) * free_bound_theta)
+            continue
         e1, e2, e3 = state[i, 1], state[i, 2], state[i, 3]
-        ex, ey, w = vx, vy, omega         # effective walking velocity
         px, py = 0.0, 0.0                 # push velocity
-        if new == 1:      # slippage, eq. 14-15
+        if new == 4:      # stopped, eq. 23-26
+            if side_known:
+                w = stopped_turn_rate * e1
+            else:
+                w = beta7 * (2.0 * e1 - 1.0)
+            if poses[i, 0] != 0.0 and poses[i, 1] != 0.0:
+                # With no walking speed the noise bound of eq. 10 is odo4·|ω'|·dt alone.
+                poses[i, 2] = wrap_angle(theta + w * dt + (2.0 * variates[i, 6] - 1.0) * (odo4 * abs(w) * dt))
+                continue
+            ex, ey = 0.0, 0.0             # at a zero coordinate the sign of the zero displacement shows
+        elif new == 1:    # slippage, eq. 14-15
             factor = beta1 + (1.0 - beta1) * e1
             ex, ey = vx * factor, vy * factor
             w = omega + beta2 * (2.0 * e2 - 1.0)
@@ -262,17 +326,12 @@ def adaptive_move(poses, state, cumulative, vx, vy, omega, dt, side, params, red
             factor = beta3 + (1.0 - beta3) * e1
             ex, ey = vx * factor, vy * factor
             w = omega * (beta4 + (1.0 - beta4) * e2)
-        elif new == 3:    # pushed, eq. 18-22
+        else:             # pushed, eq. 18-22
+            ex, ey = vx, vy
             alpha = math.pi * (2.0 * e1 - 1.0)
             push = beta5 * e2
             px, py = push * math.cos(alpha), push * math.sin(alpha)
             w = omega + beta6 * (2.0 * e3 - 1.0)
-        elif new == 4:    # stopped, eq. 23-26
-            ex, ey = 0.0, 0.0
-            if side == side:   # not NaN: the side is known
-                w = speed / separation * side * beta_turn * e1
-            else:
-                w = beta7 * (2.0 * e1 - 1.0)
         walked = math.sqrt(ex * ex + ey * ey)
         bound_x = odo1 * walked * dt
         bound_y = odo2 * walked * dt
@@ -281,7 +340,6 @@ def adaptive_move(poses, state, cumulative, vx, vy, omega, dt, side, params, red
         chord = math.sin(half) / half if abs(half) > 1e-9 else 1.0
         dx = (ex + px) * dt * chord + (2.0 * variates[i, 4] - 1.0) * bound_x
         dy = (ey + py) * dt * chord + (2.0 * variates[i, 5] - 1.0) * bound_y
-        theta = poses[i, 2]
         c = math.cos(theta + half)
         s = math.sin(theta + half)
         poses[i, 0] += c * dx - s * dy

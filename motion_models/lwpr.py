@@ -37,8 +37,10 @@ before any state changes, so a rejected call leaves the model exactly as it was;
 completion in one compiled call. The same data in the same order give the same model, bit for bit.
 
 Implementation: each output's RFs live in preallocated numpy arrays (capacity doubles when full) and the
-update and prediction loops are ``numba.njit(cache=True)`` kernels. ``motion_models._lwpr_reference`` holds a
-plain-Python implementation of the same equations that the tests compare against.
+update and prediction loops are ``numba.njit(cache=True)`` kernels. The whole model is four flat buffers, so a
+kernel call passes few arguments (numba's dispatch costs about 70 ns per array argument, per call); a model
+pickles and copies as those buffers. ``motion_models._lwpr_reference`` holds a plain-Python
+implementation of the same equations that the tests compare against.
 """
 
 from __future__ import annotations
@@ -50,6 +52,9 @@ from typing import Any
 
 import numba
 import numpy as np
+from numba.core.imputils import impl_ret_borrowed
+from numba.extending import intrinsic
+from numpy.lib.stride_tricks import as_strided
 
 __all__ = ["LWPR", "FORMAT_VERSION"]
 
@@ -66,6 +71,10 @@ _FORMAT_NAME = "robocup-mcl LWPR model"
 #   scal (n_out, K, 4)              beta0, sum_e2, SSp, last activation w
 #   ints (n_out, K, 2)              number of projections R, trustworthy flag
 #   counts (n_out, 2)               number of RFs, number pruned
+# They are views of two flat buffers, `rf` (float: vec, mat, proj, reg, scal, one block after the other) and
+# `rf_int` (int: counts, then ints), and the model-wide values are views of `model` (float: norm_in, norm_out,
+# the float parameters, init, xstats) and `ipar` (int: the switches, the kernel and n_data). A kernel call
+# thus takes four state arrays, and `_model_views` / `_rf_views` rebuild the views inside the kernel.
 # ---------------------------------------------------------------------------------------------------------
 _C, _MEAN_X, _VAR_X = 0, 1, 2
 _N_VEC = 3
@@ -88,7 +97,7 @@ _PENALTY, _W_GEN, _W_PRUNE, _INIT_LAMBDA, _FINAL_LAMBDA, _TAU_LAMBDA, _INIT_S2, 
     _META_RATE = range(9)
 _FLOAT_DEFAULTS = (1e-6, 0.1, 1.0, 0.999, 0.99999, 0.9999, 1e-10, 0.5, 250.0)
 _BOOL_PARAMS = ("diag_only", "update_D", "meta")
-_DIAG_ONLY, _UPDATE_D, _META, _KERNEL = 0, 1, 2, 3
+_DIAG_ONLY, _UPDATE_D, _META, _KERNEL, _SAMPLES = 0, 1, 2, 3, 4
 _BOOL_DEFAULTS = (True, True, False)
 _KERNELS = ("Gaussian", "BiSquare")
 _GAUSSIAN, _BISQUARE = 0, 1
@@ -96,6 +105,68 @@ _GAUSSIAN, _BISQUARE = 0, 1
 _INIT_D, _INIT_M, _INIT_ALPHA = 0, 1, 2
 
 _RF_ARRAYS = ("vec", "mat", "proj", "reg", "scal", "ints")
+# Attributes that are views of the four flat buffers: never stored, made again by LWPR._bind.
+_VIEWS = ("_norm_in", "_norm_out", "_fpar", "_init", "_xstats", "_vec", "_mat", "_proj", "_reg", "_scal", "_ints",
+          "_counts")
+_FLOAT64 = np.dtype(np.float64)
+_N_FLOAT_PARAMS = len(_FLOAT_PARAMS)
+
+
+@intrinsic
+def _c_contiguous(typingctx, array):
+    """The same array, typed C-contiguous: for a view that is C-ordered by construction (`_view2` ...), so that
+    the kernels index it as they index a C array."""
+    def codegen(context, builder, signature, args):
+        return impl_ret_borrowed(context, builder, signature.return_type, args[0])
+
+    return array.copy(layout="C")(array), codegen
+
+
+# The views are made by as_strided, which costs nothing, where a reshape costs tens of ns per call.
+@numba.njit(cache=True, inline="always")
+def _view2(buffer, start, d0, d1):
+    return _c_contiguous(as_strided(buffer[start:], shape=(d0, d1), strides=(8 * d1, 8)))
+
+
+@numba.njit(cache=True, inline="always")
+def _view3(buffer, start, d0, d1, d2):
+    return _c_contiguous(as_strided(buffer[start:], shape=(d0, d1, d2), strides=(8 * d1 * d2, 8 * d2, 8)))
+
+
+@numba.njit(cache=True, inline="always")
+def _view4(buffer, start, d0, d1, d2, d3):
+    return _c_contiguous(as_strided(buffer[start:], shape=(d0, d1, d2, d3),
+                                    strides=(8 * d1 * d2 * d3, 8 * d2 * d3, 8 * d3, 8)))
+
+
+@numba.njit(cache=True, inline="always")
+def _view5(buffer, start, d0, d1, d2, d3, d4):
+    return _c_contiguous(as_strided(buffer[start:], shape=(d0, d1, d2, d3, d4),
+                                    strides=(8 * d1 * d2 * d3 * d4, 8 * d2 * d3 * d4, 8 * d3 * d4, 8 * d4, 8)))
+
+
+@numba.njit(cache=True)
+def _model_views(model, n, n_out):
+    """norm_in (n,), norm_out (n_out,), fpar, init (3, n, n), xstats (2, n): views of the flat `model`."""
+    a = n + n_out
+    b = a + _N_FLOAT_PARAMS
+    c = b + 3 * n * n
+    return model[:n], model[n:a], model[a:b], _view3(model, b, 3, n, n), _view2(model, c, 2, n)
+
+
+@numba.njit(cache=True)
+def _rf_views(rf, rf_int, n, n_out):
+    """vec, mat, proj, reg, scal, ints, counts (shapes above): views of the flat `rf` and `rf_int`."""
+    capacity = (rf_int.shape[0] - 2 * n_out) // (_N_INTS * n_out)
+    m = n_out * capacity
+    a = m * _N_VEC * n
+    b = a + m * _N_MAT * n * n
+    c = b + m * _N_PROJ * n * n
+    d = c + m * _N_REG * n
+    return (_view4(rf, 0, n_out, capacity, _N_VEC, n), _view5(rf, a, n_out, capacity, _N_MAT, n, n),
+            _view5(rf, b, n_out, capacity, _N_PROJ, n, n), _view4(rf, c, n_out, capacity, _N_REG, n),
+            _view3(rf, d, n_out, capacity, _N_SCAL), _view3(rf_int, 2 * n_out, n_out, capacity, _N_INTS),
+            _view2(rf_int, 0, n_out, 2))
 
 
 # =========================================================================================================
@@ -544,10 +615,9 @@ def _update_output(o, xn, yn, fpar, ipar, init, vec, mat, proj, reg, scal, ints,
 
 
 @numba.njit(cache=True)
-def _update_kernel(x, y, norm_in, norm_out, fpar, ipar, init, xstats, n_data, vec, mat, proj, reg, scal,
-                   ints, counts, y_train):
+def _update_kernel(x, y, model, ipar, rf, rf_int, y_train):
     """One training sample for every output. Returns −1 / −2 for a non-finite x / y (nothing changed),
-    otherwise the largest number of RFs of any output after the update."""
+    otherwise the largest number of RFs of any output after the update (and n_data has grown by one)."""
     n = x.shape[0]
     n_out = y.shape[0]
     for i in range(n):
@@ -556,8 +626,11 @@ def _update_kernel(x, y, norm_in, norm_out, fpar, ipar, init, xstats, n_data, ve
     for i in range(n_out):
         if not np.isfinite(y[i]):
             return -2
+    norm_in, norm_out, fpar, init, xstats = _model_views(model, n, n_out)
+    vec, mat, proj, reg, scal, ints, counts = _rf_views(rf, rf_int, n, n_out)
     # Model-wide input statistics, on the unscaled input as the library keeps them.
-    prev = float(n_data)
+    prev = float(ipar[_SAMPLES])
+    ipar[_SAMPLES] += 1
     inv_n = 1.0 / (prev + 1.0)
     for i in range(n):
         mx = (xstats[0, i] * prev + x[i]) * inv_n
@@ -579,73 +652,99 @@ def _update_kernel(x, y, norm_in, norm_out, fpar, ipar, init, xstats, n_data, ve
     return largest
 
 
+@numba.njit(cache=True, inline="always")
+def _predict_point(x, cutoff, kernel, norm_in, norm_out, vec, mat, proj, reg, scal, ints, counts, y, conf,
+                   with_conf, xn, z, dx):
+    """LWPR.md "predict(x, cutoff=0.001)" at one point x (n,), into y and conf (n_out,); xn, z, dx: scratch."""
+    n = x.shape[0]
+    for i in range(n):
+        xn[i] = x[i] / norm_in[i]
+    for o in range(y.shape[0]):
+        sum_w = 0.0
+        sum_wy = 0.0
+        sum_wyy = 0.0
+        sum_conf = 0.0
+        for k in range(counts[o, _NUM_RFS]):
+            if ints[o, k, _TRUST] == 0:
+                continue
+            q = _distance(xn, vec, mat, o, k, dx)
+            if kernel == _GAUSSIAN:
+                w = math.exp(-0.5 * q)
+            else:
+                a = 1.0 - 0.25 * q
+                w = 0.0 if a < 0.0 else a * a
+            if not w > cutoff:
+                continue
+            R = ints[o, k, _NREG]
+            if reg[o, k, _N_DATA, R - 1] <= 2 * n:
+                R -= 1
+            # The PLS projection of x − mean_x, written out on the packed arrays (see _distance).
+            for i in range(n):
+                z[i] = xn[i] - vec[o, k, _MEAN_X, i]
+            y_k = scal[o, k, _BETA0]
+            sig = 0.0
+            for j in range(R):
+                sj = 0.0
+                for i in range(n):
+                    sj += proj[o, k, _U, j, i] * z[i]
+                if j + 1 < R:
+                    for i in range(n):
+                        z[i] -= proj[o, k, _P, j, i] * sj
+                y_k += sj * reg[o, k, _BETA, j]
+                sig += sj * sj / reg[o, k, _SSS2, j]
+            sum_w += w
+            sum_wy += w * y_k
+            if with_conf:
+                sig = reg[o, k, _SUM_ECV2, R - 1] / (reg[o, k, _SUM_W, R - 1] - scal[o, k, _SSP]) \
+                    * (1.0 + w * sig)
+                sum_wyy += w * y_k * y_k
+                sum_conf += w * sig
+        if sum_w > 0.0:
+            y_hat = sum_wy / sum_w
+            y[o] = y_hat * norm_out[o]
+            if with_conf:
+                conf[o] = math.sqrt(abs(sum_conf + sum_wyy - sum_wy * y_hat)) / sum_w * norm_out[o]
+        else:
+            y[o] = 0.0
+            if with_conf:
+                conf[o] = 1e20 * norm_out[o]
+
+
 @numba.njit(cache=True)
-def _predict_kernel(X, cutoff, norm_in, norm_out, fpar, ipar, init, xstats, vec, mat, proj, reg, scal, ints,
-                    counts, Y, CONF, with_conf):
-    """LWPR.md "predict(x, cutoff=0.001)" for each row of X. Returns the first row holding a non-finite
-    value (nothing computed), or −1."""
-    kernel = ipar[_KERNEL]
+def _predict_kernel(X, cutoff, model, ipar, rf, rf_int, Y, CONF, with_conf):
+    """`_predict_point` for each row of X (m, n) into Y, CONF (m, n_out). Returns the first row holding a
+    non-finite value (nothing computed), or −1."""
     m, n = X.shape
     n_out = Y.shape[1]
     for p in range(m):
         for i in range(n):
             if not np.isfinite(X[p, i]):
                 return p
+    norm_in, norm_out, _, _, _ = _model_views(model, n, n_out)
+    vec, mat, proj, reg, scal, ints, counts = _rf_views(rf, rf_int, n, n_out)
     xn = np.empty(n)
     z = np.empty(n)
     dx = np.empty(n)
     for p in range(m):
-        for i in range(n):
-            xn[i] = X[p, i] / norm_in[i]
-        for o in range(n_out):
-            sum_w = 0.0
-            sum_wy = 0.0
-            sum_wyy = 0.0
-            sum_conf = 0.0
-            for k in range(counts[o, _NUM_RFS]):
-                if ints[o, k, _TRUST] == 0:
-                    continue
-                q = _distance(xn, vec, mat, o, k, dx)
-                if kernel == _GAUSSIAN:
-                    w = math.exp(-0.5 * q)
-                else:
-                    a = 1.0 - 0.25 * q
-                    w = 0.0 if a < 0.0 else a * a
-                if not w > cutoff:
-                    continue
-                R = ints[o, k, _NREG]
-                if reg[o, k, _N_DATA, R - 1] <= 2 * n:
-                    R -= 1
-                # The PLS projection of x − mean_x, written out on the packed arrays (see _distance).
-                for i in range(n):
-                    z[i] = xn[i] - vec[o, k, _MEAN_X, i]
-                y_k = scal[o, k, _BETA0]
-                sig = 0.0
-                for j in range(R):
-                    sj = 0.0
-                    for i in range(n):
-                        sj += proj[o, k, _U, j, i] * z[i]
-                    if j + 1 < R:
-                        for i in range(n):
-                            z[i] -= proj[o, k, _P, j, i] * sj
-                    y_k += sj * reg[o, k, _BETA, j]
-                    sig += sj * sj / reg[o, k, _SSS2, j]
-                sum_w += w
-                sum_wy += w * y_k
-                if with_conf:
-                    sig = reg[o, k, _SUM_ECV2, R - 1] / (reg[o, k, _SUM_W, R - 1] - scal[o, k, _SSP]) \
-                        * (1.0 + w * sig)
-                    sum_wyy += w * y_k * y_k
-                    sum_conf += w * sig
-            if sum_w > 0.0:
-                y_hat = sum_wy / sum_w
-                Y[p, o] = y_hat * norm_out[o]
-                if with_conf:
-                    CONF[p, o] = math.sqrt(abs(sum_conf + sum_wyy - sum_wy * y_hat)) / sum_w * norm_out[o]
-            else:
-                Y[p, o] = 0.0
-                if with_conf:
-                    CONF[p, o] = 1e20 * norm_out[o]
+        _predict_point(X[p], cutoff, ipar[_KERNEL], norm_in, norm_out, vec, mat, proj, reg, scal, ints, counts,
+                       Y[p], CONF[p], with_conf, xn, z, dx)
+    return -1
+
+
+@numba.njit(cache=True)
+def _predict_one_kernel(x, cutoff, model, ipar, rf, rf_int, y, conf, with_conf):
+    """`_predict_point` at one point x (n,) into y, conf (n_out,). Returns 0 if x holds a non-finite value
+    (nothing computed), or −1."""
+    n = x.shape[0]
+    n_out = y.shape[0]
+    for i in range(n):
+        if not np.isfinite(x[i]):
+            return 0
+    norm_in, norm_out, _, _, _ = _model_views(model, n, n_out)
+    vec, mat, proj, reg, scal, ints, counts = _rf_views(rf, rf_int, n, n_out)
+    scratch = np.empty((3, n))
+    _predict_point(x, cutoff, ipar[_KERNEL], norm_in, norm_out, vec, mat, proj, reg, scal, ints, counts, y, conf,
+                   with_conf, scratch[0], scratch[1], scratch[2])
     return -1
 
 
@@ -729,35 +828,40 @@ class LWPR:
         n, n_out = int(n_in), int(n_out)
         self._n_in = n
         self._n_out = n_out
-        self._fpar = np.array(_FLOAT_DEFAULTS, dtype=np.float64)
-        self._ipar = np.array([*(int(b) for b in _BOOL_DEFAULTS), _GAUSSIAN], dtype=np.int64)
-        self._init = np.empty((3, n, n))
+        # The four flat buffers the kernels take (see "Packed receptive-field storage"); every other array
+        # attribute is a view of one of them, made by _bind.
+        self._model = np.zeros(n + n_out + _N_FLOAT_PARAMS + 3 * n * n + 2 * n)
+        self._ipar = np.array([*(int(b) for b in _BOOL_DEFAULTS), _GAUSSIAN, 0], dtype=np.int64)
+        self._rf_int = np.zeros(2 * n_out, dtype=np.int64)       # the counts, until _allocate adds the RFs
+        self._bind_model()
+        self._fpar[:] = _FLOAT_DEFAULTS
         self._init[_INIT_D] = 25.0 * np.eye(n)
         self._init[_INIT_M] = 5.0 * np.eye(n)
         self._init[_INIT_ALPHA] = 50.0
-        self._norm_in = np.ones(n)
-        self._norm_out = np.ones(n_out)
-        self._xstats = np.zeros((2, n))
-        self._n_data = 0
-        self._counts = np.zeros((n_out, 2), dtype=np.int64)
+        self._norm_in[:] = 1.0
+        self._norm_out[:] = 1.0
         self._allocate(self._INITIAL_CAPACITY)
 
     # ------------------------------------------------------------------ storage
     def _allocate(self, capacity: int) -> None:
+        """Fresh, zeroed RF storage for ``capacity`` RFs per output (the counts are kept)."""
         n, n_out = self._n_in, self._n_out
-        self._vec = np.zeros((n_out, capacity, _N_VEC, n))
-        self._mat = np.zeros((n_out, capacity, _N_MAT, n, n))
-        self._proj = np.zeros((n_out, capacity, _N_PROJ, n, n))
-        self._reg = np.zeros((n_out, capacity, _N_REG, n))
-        self._scal = np.zeros((n_out, capacity, _N_SCAL))
-        self._ints = np.zeros((n_out, capacity, _N_INTS), dtype=np.int64)
+        per_rf = _N_VEC * n + (_N_MAT + _N_PROJ) * n * n + _N_REG * n + _N_SCAL
+        counts = self._rf_int[:2 * n_out].copy()
+        self._rf = np.zeros(n_out * capacity * per_rf)
+        self._rf_int = np.zeros(2 * n_out + n_out * capacity * _N_INTS, dtype=np.int64)
+        self._rf_int[:2 * n_out] = counts
         self._capacity = capacity
         self._bind()
 
+    def _bind_model(self) -> None:
+        self._norm_in, self._norm_out, self._fpar, self._init, self._xstats = _model_views(
+            self._model, self._n_in, self._n_out)
+
     def _bind(self) -> None:
-        # The kernels' array arguments, gathered once: every array is modified in place afterwards.
-        self._rf_args = (self._vec, self._mat, self._proj, self._reg, self._scal, self._ints, self._counts)
-        self._model_args = (self._norm_in, self._norm_out, self._fpar, self._ipar, self._init, self._xstats)
+        self._bind_model()
+        self._vec, self._mat, self._proj, self._reg, self._scal, self._ints, self._counts = _rf_views(
+            self._rf, self._rf_int, self._n_in, self._n_out)
 
     def _grow(self, capacity: int) -> None:
         old = {name: getattr(self, "_" + name) for name in _RF_ARRAYS}
@@ -783,7 +887,7 @@ class LWPR:
     @property
     def n_data(self) -> int:
         """Number of training samples seen."""
-        return self._n_data
+        return int(self._ipar[_SAMPLES])
 
     @property
     def mean_x(self) -> np.ndarray:
@@ -895,7 +999,7 @@ class LWPR:
     # ---------------------------------------------------------------- training
     @staticmethod
     def _vector(value: Any, n: int, name: str, method: str) -> np.ndarray:
-        if type(value) is np.ndarray and value.dtype == np.float64 and value.shape == (n,):
+        if type(value) is np.ndarray and value.dtype is _FLOAT64 and value.shape == (n,):
             return value if value.flags.c_contiguous else np.ascontiguousarray(value)
         a = _as_float_array(value, f"LWPR.{method}: {name}")
         if a.shape != (n,):
@@ -911,14 +1015,18 @@ class LWPR:
         x has shape (n_in,), y shape (n_out,) (scalars are accepted when the dimension is 1). A non-finite
         value raises ValueError and leaves the model untouched.
         """
-        x = self._vector(x, self._n_in, "x", "update")
-        y = self._vector(y, self._n_out, "y", "update")
-        y_train = np.empty(self._n_out)
-        status = _update_kernel(x, y, *self._model_args, self._n_data, *self._rf_args, y_train)
+        n, n_out = self._n_in, self._n_out
+        # The common case, float64 vectors of the right shape, is checked here without a call; the kernel
+        # checks finiteness before it changes anything.
+        if not (type(x) is np.ndarray and x.dtype is _FLOAT64 and x.shape == (n,) and x.flags.c_contiguous):
+            x = self._vector(x, n, "x", "update")
+        if not (type(y) is np.ndarray and y.dtype is _FLOAT64 and y.shape == (n_out,) and y.flags.c_contiguous):
+            y = self._vector(y, n_out, "y", "update")
+        y_train = np.empty(n_out)
+        status = _update_kernel(x, y, self._model, self._ipar, self._rf, self._rf_int, y_train)
         if status < 0:
             name, value = ("x", x) if status == -1 else ("y", y)
             raise ValueError(f"LWPR.update: {name} must be finite, got {value!r}")
-        self._n_data += 1
         if status >= self._capacity:
             # At most one RF per output is created per update: keep one free slot for the next call.
             self._grow(2 * self._capacity)
@@ -926,7 +1034,7 @@ class LWPR:
 
     # -------------------------------------------------------------- prediction
     def _predict(self, x: Any, cutoff: Any, with_conf: bool, method: str):
-        if self._n_data == 0:
+        if self._ipar[_SAMPLES] == 0:
             raise ValueError(f"LWPR.{method}: the model is untrained (no update() yet)")
         if type(cutoff) is float and cutoff >= 0.0:
             c = cutoff
@@ -934,8 +1042,16 @@ class LWPR:
             c = _scalar(cutoff, f"{method}: cutoff")
             if c < 0.0:
                 raise ValueError(f"LWPR.{method}: cutoff must be non-negative, got {cutoff!r}")
-        a = x if type(x) is np.ndarray and x.dtype == np.float64 else _as_float_array(x, f"LWPR.{method}: x")
         n = self._n_in
+        if type(x) is np.ndarray and x.dtype is _FLOAT64 and x.shape == (n,):
+            # One point, the common case: no reshaping on the way in or out.
+            x = x if x.flags.c_contiguous else np.ascontiguousarray(x)
+            y = np.empty(self._n_out)
+            conf = np.empty(self._n_out) if with_conf else y
+            if _predict_one_kernel(x, c, self._model, self._ipar, self._rf, self._rf_int, y, conf, with_conf) >= 0:
+                raise ValueError(f"LWPR.{method}: x must be finite, got {x!r}")
+            return (y, conf) if with_conf else y
+        a = x if type(x) is np.ndarray and x.dtype == np.float64 else _as_float_array(x, f"LWPR.{method}: x")
         single = True
         if a.shape == (n,) or (a.ndim == 0 and n == 1):
             X = a.reshape(1, n)
@@ -947,7 +1063,7 @@ class LWPR:
         X = np.ascontiguousarray(X)
         Y = np.empty((X.shape[0], self._n_out))
         conf = np.empty((X.shape[0], self._n_out)) if with_conf else Y
-        bad = _predict_kernel(X, c, *self._model_args, *self._rf_args, Y, conf, with_conf)
+        bad = _predict_kernel(X, c, self._model, self._ipar, self._rf, self._rf_int, Y, conf, with_conf)
         if bad >= 0:
             raise ValueError(f"LWPR.{method}: x must be finite, got {X[bad]!r}")
         if single:
@@ -995,13 +1111,20 @@ class LWPR:
     def copy(self) -> LWPR:
         """An independent copy of the model (parameters and every receptive field)."""
         twin = object.__new__(LWPR)
-        twin.__dict__.update({key: (value.copy() if isinstance(value, np.ndarray) else value)
-                              for key, value in self.__dict__.items()})
-        twin._bind()
+        twin.__setstate__({key: (value.copy() if isinstance(value, np.ndarray) else value)
+                           for key, value in self.__getstate__().items()})
         return twin
 
+    def __getstate__(self) -> dict[str, Any]:
+        # The flat buffers only: pickled views would come back as arrays of their own.
+        return {key: value for key, value in self.__dict__.items() if key not in _VIEWS}
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        self.__dict__.update(state)
+        self._bind()
+
     def __repr__(self) -> str:
-        return (f"LWPR(n_in={self._n_in}, n_out={self._n_out}, n_data={self._n_data}, "
+        return (f"LWPR(n_in={self._n_in}, n_out={self._n_out}, n_data={self.n_data}, "
                 f"num_rfs={self.num_rfs.tolist()})")
 
     # ------------------------------------------------------------ save / load
@@ -1013,7 +1136,7 @@ class LWPR:
             "format_version": np.array(FORMAT_VERSION, dtype=np.int64),
             "n_in": np.array(self._n_in, dtype=np.int64),
             "n_out": np.array(self._n_out, dtype=np.int64),
-            "n_data": np.array(self._n_data, dtype=np.int64),
+            "n_data": np.array(self.n_data, dtype=np.int64),
             "kernel": np.array(self.kernel),
             "init_D": self._init[_INIT_D], "init_M": self._init[_INIT_M], "init_alpha": self._init[_INIT_ALPHA],
             "norm_in": self._norm_in, "norm_out": self._norm_out,
@@ -1066,7 +1189,7 @@ class LWPR:
                 if need(key).shape != (n,):
                     raise ValueError(f"field {key!r} has shape {need(key).shape}, expected ({n},)")
                 model._xstats[row] = need(key)
-            model._n_data = int(need("n_data"))
+            model._ipar[_SAMPLES] = int(need("n_data"))
             counts = need("counts")
             if counts.shape != (n_out, 2) or counts.dtype.kind != "i":
                 raise ValueError(f"field 'counts' has shape {counts.shape}, dtype {counts.dtype}")
@@ -1090,7 +1213,7 @@ class LWPR:
                 if live.size and (live.min() < 1 or live.max() > n):
                     raise ValueError(f"an RF of output {o} has {live.min()}..{live.max()} projections, "
                                      f"outside [1, {n}]")
-            if model._n_data < 0 or not np.all(np.isfinite(model._xstats)):
+            if model.n_data < 0 or not np.all(np.isfinite(model._xstats)):
                 raise ValueError("fields 'n_data', 'mean_x' or 'var_x' are invalid")
         except (ValueError, TypeError) as exc:
             if str(exc).startswith(f"LWPR model file {path!r}"):

@@ -63,28 +63,58 @@ def _identity_plus_skew_terms(beta0, beta1, beta2, angle2, p, q, out):
     out[2, 1] = p * beta0 + q * beta1 * beta2
 
 
+@numba.njit(cache=True, inline="always")
+def _so3_matrix_kernel(beta0, beta1, beta2, out, jacobian):
+    """R(β) (Rodrigues) or, with `jacobian`, the left Jacobian J(β) of SO(3), written into out (3, 3)."""
+    angle2 = beta0 * beta0 + beta1 * beta1 + beta2 * beta2
+    if jacobian:
+        if angle2 < 1e-12:
+            # Taylor terms: (1 - cos θ)/θ² ≈ 1/2 - θ²/24, (θ - sin θ)/θ³ ≈ 1/6 - θ²/120.
+            p = 0.5 - angle2 / 24.0
+            q = 1.0 / 6.0 - angle2 / 120.0
+        else:
+            angle = math.sqrt(angle2)
+            p = (1.0 - math.cos(angle)) / angle2
+            q = (angle - math.sin(angle)) / (angle2 * angle)
+    elif angle2 < 1e-16:
+        # Taylor terms: sin(θ)/θ ≈ 1 - θ²/6, (1 - cos θ)/θ² ≈ 1/2 - θ²/24.
+        p = 1.0 - angle2 / 6.0
+        q = 0.5 - angle2 / 24.0
+    else:
+        angle = math.sqrt(angle2)
+        p = math.sin(angle) / angle
+        q = (1.0 - math.cos(angle)) / angle2
+    # R = I + (sin θ/θ) [β]× + ((1 - cos θ)/θ²) [β]×²;  J = I + ((1 - cos θ)/θ²) [β]× + ((θ - sin θ)/θ³) [β]×².
+    _identity_plus_skew_terms(beta0, beta1, beta2, angle2, p, q, out)
+
+
 @numba.njit(cache=True)
 def rotation_matrix_kernel(beta0, beta1, beta2, out):
     """Rotation matrix of the rotation vector β (Rodrigues), written into out (3, 3)."""
-    angle2 = beta0 * beta0 + beta1 * beta1 + beta2 * beta2
-    if angle2 < 1e-16:
-        # Taylor terms: sin(θ)/θ ≈ 1 - θ²/6, (1 - cos θ)/θ² ≈ 1/2 - θ²/24.
-        s = 1.0 - angle2 / 6.0
-        c = 0.5 - angle2 / 24.0
-    else:
-        angle = math.sqrt(angle2)
-        s = math.sin(angle) / angle
-        c = (1.0 - math.cos(angle)) / angle2
-    # R = I + s [β]× + c [β]×² (Rodrigues).
-    _identity_plus_skew_terms(beta0, beta1, beta2, angle2, s, c, out)
+    _so3_matrix_kernel(beta0, beta1, beta2, out, False)
+
+
+@numba.njit(cache=True)
+def left_jacobian_kernel(beta0, beta1, beta2, out):
+    """Left Jacobian J(β) of SO(3), written into out (3, 3): R(β + dβ) = R(J(β) dβ) R(β) to first order."""
+    _so3_matrix_kernel(beta0, beta1, beta2, out, True)
+
+
+def _so3_matrix(kernel, beta) -> np.ndarray:
+    beta = np.asarray(beta, dtype=np.float64)
+    out = np.empty((3, 3))
+    kernel(beta[0], beta[1], beta[2], out)
+    return out
 
 
 def rotation_matrix(beta) -> np.ndarray:
     """Rotation matrix of the rotation vector β: f(β, x) = rotation_matrix(β) @ x."""
-    beta = np.asarray(beta, dtype=np.float64)
-    out = np.empty((3, 3))
-    rotation_matrix_kernel(beta[0], beta[1], beta[2], out)
-    return out
+    return _so3_matrix(rotation_matrix_kernel, beta)
+
+
+def left_jacobian(beta) -> np.ndarray:
+    """Left Jacobian of SO(3) at the rotation vector β."""
+    return _so3_matrix(left_jacobian_kernel, beta)
 
 
 def rotate(beta, x) -> np.ndarray:
@@ -104,30 +134,6 @@ def rotation_derivative(x) -> np.ndarray:
     and the finite-difference test checks this form.
     """
     return -skew(x)
-
-
-@numba.njit(cache=True)
-def left_jacobian_kernel(beta0, beta1, beta2, out):
-    """Left Jacobian J(β) of SO(3), written into out (3, 3): R(β + dβ) = R(J(β) dβ) R(β) to first order."""
-    angle2 = beta0 * beta0 + beta1 * beta1 + beta2 * beta2
-    if angle2 < 1e-12:
-        # Taylor terms: (1 - cos θ)/θ² ≈ 1/2 - θ²/24, (θ - sin θ)/θ³ ≈ 1/6 - θ²/120.
-        a = 0.5 - angle2 / 24.0
-        b = 1.0 / 6.0 - angle2 / 120.0
-    else:
-        angle = math.sqrt(angle2)
-        a = (1.0 - math.cos(angle)) / angle2
-        b = (angle - math.sin(angle)) / (angle2 * angle)
-    # J = I + a [β]× + b [β]×².
-    _identity_plus_skew_terms(beta0, beta1, beta2, angle2, a, b, out)
-
-
-def left_jacobian(beta) -> np.ndarray:
-    """Left Jacobian of SO(3) at the rotation vector β."""
-    beta = np.asarray(beta, dtype=np.float64)
-    out = np.empty((3, 3))
-    left_jacobian_kernel(beta[0], beta[1], beta[2], out)
-    return out
 
 
 def rotation_derivative_at(beta, x) -> np.ndarray:
@@ -447,13 +453,24 @@ def ekf_correct_reference(state, cov, measured, sigma_v):
 # ---------------------------------------------------------------------------------------------------------
 # Validation helpers
 # ---------------------------------------------------------------------------------------------------------
+_FLOAT64 = np.dtype(np.float64)
+
+
 def _vector3(value, name: str) -> np.ndarray:
-    arr = np.asarray(value, dtype=np.float64)
-    if arr.shape != (3,):
-        raise ValueError(f"{name} must have shape (3,), got {arr.shape}")
-    if not np.all(np.isfinite(arr)):
+    """`value` as a finite float64 array (3,), C-contiguous (itself when it already is one, not a copy).
+
+    Called on every IMU sample: the common case, a float64 (3,) array, is checked without numpy calls."""
+    if type(value) is np.ndarray and value.dtype is _FLOAT64 and value.shape == (3,) and value.flags.c_contiguous:
+        arr = value
+    else:
+        arr = np.asarray(value, dtype=np.float64)
+        if arr.shape != (3,):
+            raise ValueError(f"{name} must have shape (3,), got {arr.shape}")
+        arr = np.ascontiguousarray(arr)
+    x, y, z = arr.tolist()
+    if not (math.isfinite(x) and math.isfinite(y) and math.isfinite(z)):
         raise ValueError(f"{name} must be finite, got {arr.tolist()}")
-    return np.ascontiguousarray(arr)
+    return arr
 
 
 def _time(value, name: str = "time") -> float:
@@ -500,7 +517,26 @@ def _standing_gravity(accel_samples) -> np.ndarray:
 # ---------------------------------------------------------------------------------------------------------
 # Estimator 1: IMU only (eq. 1–4)
 # ---------------------------------------------------------------------------------------------------------
-class ImuOnlyEstimator:
+class _GravityVelocityState:
+    """The accessors of an estimator whose state starts with [g, v] (eq. 15), at time `_time`; copies."""
+
+    _state: np.ndarray
+    _time: float
+
+    @property
+    def time(self) -> float:
+        return self._time
+
+    @property
+    def gravity(self) -> np.ndarray:
+        return self._state[:3].copy()
+
+    @property
+    def velocity(self) -> np.ndarray:
+        return self._state[3:6].copy()
+
+
+class ImuOnlyEstimator(_GravityVelocityState):
     """Dead reckoning from the IMU (eq. 1–4): gravity turned by the gyro, velocity integrated from q - g."""
 
     def __init__(self, gravity, time: float, velocity=(0.0, 0.0, 0.0), max_imu_gap: float = 0.1,
@@ -527,17 +563,6 @@ class ImuOnlyEstimator:
         imu_step_kernel(self._state, gyro, accel, dt)
         self._time = float(time)
 
-    @property
-    def time(self) -> float:
-        return self._time
-
-    @property
-    def gravity(self) -> np.ndarray:
-        return self._state[:3].copy()
-
-    @property
-    def velocity(self) -> np.ndarray:
-        return self._state[3:].copy()
 
 
 def _imu_interval(time, previous: float, max_gap: float) -> float:
@@ -621,7 +646,7 @@ class VelocityEKFParams:
 BACKENDS = ("numba", "reference")
 
 
-class VelocityEKF:
+class VelocityEKF(_GravityVelocityState):
     """The EKF of Section V: state [g, v] (eq. 15), prediction from the IMU, correction from v^KG.
 
     With `params.estimate_gyro_bias` the state is [g, v, b]: the gyro bias b is estimated and the IMU step
@@ -713,18 +738,6 @@ class VelocityEKF:
             self._state, self._cov = ekf_correct_reference(self._state, self._cov, measured, sigma_v)
         self._last_correction = self._time
         self.n_corrections += 1
-
-    @property
-    def time(self) -> float:
-        return self._time
-
-    @property
-    def gravity(self) -> np.ndarray:
-        return self._state[:3].copy()
-
-    @property
-    def velocity(self) -> np.ndarray:
-        return self._state[3:6].copy()
 
     @property
     def gyro_bias(self) -> np.ndarray:

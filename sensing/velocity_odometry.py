@@ -63,11 +63,15 @@ def _wrap(angle: float) -> float:
     return math.pi if wrapped == -math.pi else wrapped
 
 
-def _duration(value, name: str = "dt") -> float:
+def _seconds(value, name: str) -> float:
     try:
-        dt = float(value)
+        return float(value)
     except (TypeError, ValueError):
         raise ValueError(f"{name} = {value!r} must be a number of seconds") from None
+
+
+def _duration(value, name: str = "dt") -> float:
+    dt = _seconds(value, name)
     if not (math.isfinite(dt) and dt >= 0.0):
         raise ValueError(f"{name} = {value!r} must be finite and >= 0")
     return dt
@@ -167,10 +171,7 @@ class EKFOdometry:
         sample changes neither the EKF nor the sum. Returns the increment (dx, dy, dθ).
         """
         ekf = self.ekf
-        try:
-            t = float(time)
-        except (TypeError, ValueError):
-            raise ValueError(f"time = {time!r} must be a number of seconds") from None
+        t = _seconds(time, "time")
         dt = t - ekf.time
         if not (math.isfinite(t) and dt > 0.0):
             raise ValueError(f"time must be finite and after the EKF time {ekf.time!r}, got {time!r}")

@@ -1,5 +1,8 @@
 """The adaptive five-state motion model (Hoffmann eq. 11-26) and the filter's per-particle motion state."""
+import copy
+import dataclasses
 import math
+import pickle
 
 import numpy as np
 import pytest
@@ -24,7 +27,7 @@ turns = st.floats(-1.5, 1.5)
 def _step(model, state_index, vx, vy, omega, side, seed, n=64, odometry_noise=False):
     """Particles at the origin facing +x, all in one state, moved once; returns (poses, episode values)."""
     if not odometry_noise:
-        model = AdaptiveMotion(**{**model.__dict__, "odometry": (0.0, 0.0, 0.0, 0.0)})
+        model = dataclasses.replace(model, odometry=(0.0, 0.0, 0.0, 0.0))
     rng = np.random.default_rng(seed)
     poses = np.zeros((n, 3))
     state = np.zeros((n, 4))
@@ -146,17 +149,15 @@ def test_belief_converges_to_free_without_collisions():
     assert belief[FREE] > 0.95
 
 
-@given(st.integers(0, 2 ** 32 - 1), speeds, speeds, turns, st.sampled_from([1.0, -1.0, 0.0, math.nan]),
-       st.booleans(), st.sampled_from(CONDITIONS))
-def test_kernel_matches_reference(seed, vx, vy, omega, side, redraw, condition):
-    rng = np.random.default_rng(seed)
-    n = 50
-    poses = rng.normal(size=(n, 3))
+def _kernel_and_reference(rng, poses, vx, vy, omega, side, redraw, condition):
+    """One step of `adaptive_move` and of its numpy twin from the same particles and variates; asserts they
+    agree (states exactly, poses to rounding) and returns the kernel's (poses, state)."""
+    n = poses.shape[0]
     state = np.column_stack([rng.integers(0, 5, n), rng.random((n, 3))]).astype(np.float64)
-    model = AdaptiveMotion()
+    state[::3, 0] = STOPPED
     cumulative = np.cumsum(MobilityTransitions().matrix(condition, 0.5), axis=1)
     cumulative[:, -1] = 1.0
-    params = model.kernel_arguments(MotionInput(DT, (vx, vy, omega), collision=LEFT_HIT))[6]
+    params = AdaptiveMotion().kernel_arguments(MotionInput(DT, (vx, vy, omega), collision=LEFT_HIT))[6]
     variates = rng.random((n, VARIATES))
     a, sa, b, sb = poses.copy(), state.copy(), poses.copy(), state.copy()
     adaptive_move(a, sa, cumulative, vx, vy, omega, DT, side, params, redraw, variates)
@@ -164,6 +165,61 @@ def test_kernel_matches_reference(seed, vx, vy, omega, side, redraw, condition):
     np.testing.assert_allclose(a, b, rtol=1e-12, atol=1e-12)
     np.testing.assert_array_equal(sa, sb)
     assert np.isfinite(a).all()
+    return a, sa
+
+
+kernel_cases = given(st.integers(0, 2 ** 32 - 1), speeds, speeds, turns,
+                     st.sampled_from([1.0, -1.0, 0.0, math.nan]), st.booleans(), st.sampled_from(CONDITIONS))
+
+
+@kernel_cases
+def test_kernel_matches_reference(seed, vx, vy, omega, side, redraw, condition):
+    rng = np.random.default_rng(seed)
+    _kernel_and_reference(rng, rng.normal(size=(50, 3)), vx, vy, omega, side, redraw, condition)
+
+
+@kernel_cases
+def test_kernel_matches_reference_at_zero_coordinates(seed, vx, vy, omega, side, redraw, condition):
+    # A stopped particle whose x and y are non-zero keeps them bit for bit (its displacement is ±0); at a zero
+    # coordinate the kernel takes the general step, where the sign of that zero shows.
+    rng = np.random.default_rng(seed)
+    n = 60
+    poses = rng.normal(size=(n, 3))
+    poses[rng.random(n) < 0.3, 0] = 0.0
+    poses[rng.random(n) < 0.3, 1] = -0.0
+    poses[:5, :2] = 0.0
+    moved, state = _kernel_and_reference(rng, poses, vx, vy, omega, side, redraw, condition)
+    kept = (state[:, 0] == STOPPED) & (poses[:, :2] != 0.0).all(axis=1)
+    assert moved[kept, :2].tobytes() == poses[kept, :2].tobytes()
+
+
+def test_transition_rows_are_computed_once_per_condition_and_dt():
+    model = AdaptiveMotion()
+    u = MotionInput(DT, (0.2, 0.0, 0.0), collision=LEFT_HIT)
+    first = model.kernel_arguments(u)[0]
+    assert model.kernel_arguments(u)[0] is first
+    expected = np.cumsum(MobilityTransitions().matrix("collision", DT), axis=1)
+    expected[:, -1] = 1.0
+    np.testing.assert_array_equal(first, expected)
+    assert model.kernel_arguments(MotionInput(2 * DT, (0.2, 0.0, 0.0), collision=LEFT_HIT))[0] is not first
+    assert not first.flags.writeable and not model.kernel_arguments(u)[6].flags.writeable
+    # An equal model computes the same rows (and compares equal: the memos are not fields).
+    assert AdaptiveMotion() == model and hash(AdaptiveMotion()) == hash(model)
+    np.testing.assert_array_equal(AdaptiveMotion().kernel_arguments(u)[0], first)
+
+
+def test_copies_and_pickles_move_the_particles_alike():
+    model = AdaptiveMotion(beta1=0.3, redraw="step")
+    u = MotionInput(DT, (0.2, 0.05, 0.3), collision=LEFT_HIT)
+    model.predict(np.zeros((4, 3)), u, np.random.default_rng(0))        # fills the memo that copies must not share
+    runs = []
+    for clone in (model, pickle.loads(pickle.dumps(model)), copy.deepcopy(model), dataclasses.replace(model)):
+        assert clone == model
+        poses, state, rng = np.zeros((30, 3)), clone.particle_state(30), np.random.default_rng(8)
+        for _ in range(20):
+            clone.predict(poses, u, rng, state=state)
+        runs.append(poses.tobytes() + state.tobytes())
+    assert len(set(runs)) == 1
 
 
 @given(st.integers(0, 2 ** 32 - 1), st.floats(-math.pi, math.pi), st.sampled_from(CONDITIONS))

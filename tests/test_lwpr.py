@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import copy
+import pickle
 import zipfile
 
 import numpy as np
@@ -201,6 +203,47 @@ def test_update_is_deterministic():
     np.testing.assert_array_equal(runs[0][1], runs[1][1])
 
 
+def test_one_point_predictions_equal_the_batched_rows(trained):
+    G = np.random.default_rng(5).uniform(-1.2, 1.2, (60, 2))
+    batch, batch_conf = trained.predict_conf(G)
+    np.testing.assert_array_equal(trained.predict(G), batch)
+    for i, x in enumerate(G):
+        for form in (x, x.tolist(), np.repeat(x, 2)[::2], tuple(x)):
+            np.testing.assert_array_equal(trained.predict(form), batch[i])
+        y, conf = trained.predict_conf(x)
+        np.testing.assert_array_equal(y, batch[i])
+        np.testing.assert_array_equal(conf, batch_conf[i])
+        assert y.shape == (1,) and conf.shape == (1,)
+    assert trained.predict(G[0]) is not trained.predict(G[0])           # a fresh array each call
+
+
+def test_copy_is_independent_and_learns_the_same(trained):
+    twin = trained.copy()
+    X, Y = cross_data(11, 300)              # enough new RFs to grow the copy's storage
+    G = np.random.default_rng(6).uniform(-1.0, 1.0, (100, 2))
+    before = trained.predict(G)
+    again = trained.copy()
+    for x, y in zip(X, Y):
+        np.testing.assert_array_equal(twin.update(x, y), again.update(x, y))
+    np.testing.assert_array_equal(trained.predict(G), before)
+    assert trained.n_data + len(X) == twin.n_data == again.n_data
+    np.testing.assert_array_equal(twin.predict_conf(G)[1], again.predict_conf(G)[1])
+    twin.w_gen = 0.5
+    assert trained.w_gen == again.w_gen == 0.2
+
+
+def test_pickled_and_deep_copied_models_learn_like_the_original(trained):
+    X, Y = cross_data(12, 100)
+    original = trained.copy()
+    for clone in (pickle.loads(pickle.dumps(trained)), copy.deepcopy(trained)):
+        twin = original.copy()
+        for x, y in zip(X, Y):
+            np.testing.assert_array_equal(clone.update(x, y), twin.update(x, y))
+        np.testing.assert_array_equal(clone.num_rfs, twin.num_rfs)
+        np.testing.assert_array_equal(clone.receptive_field(0, 0)["D"], twin.receptive_field(0, 0)["D"])
+        assert clone.n_data == twin.n_data
+
+
 def test_save_then_load_gives_identical_predictions(tmp_path, trained):
     path = tmp_path / "cross.npz"
     trained.save(path)
@@ -241,6 +284,8 @@ def test_bad_input_is_rejected_and_leaves_the_model_untouched(tmp_path, trained)
         model.predict(np.zeros(3))
     with pytest.raises(ValueError, match="x must be finite"):
         model.predict(np.array([[0.0, 0.0], [np.nan, 1.0]]))
+    with pytest.raises(ValueError, match="x must be finite"):
+        model.predict_conf(np.array([0.0, np.inf]))
     with pytest.raises(ValueError, match="cutoff"):
         model.predict(np.zeros(2), cutoff=-1.0)
     assert model.n_data == n_data

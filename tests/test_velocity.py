@@ -154,33 +154,22 @@ def test_bias_jacobian_kernel_matches_reference(exact):
         np.testing.assert_allclose(c, c_ref, rtol=0, atol=1e-17)
 
 
-def test_kernels_match_references():
-    rng = np.random.default_rng(4)
-    state = np.concatenate([G_UP, [0.1, 0.0, 0.0]])
-    cov = np.diag([0.01] * 3 + [0.001] * 3)
+@pytest.mark.parametrize("estimate_gyro_bias", [False, True])
+def test_kernels_match_references(estimate_gyro_bias):
+    rng = np.random.default_rng(24 if estimate_gyro_bias else 4)
+    if estimate_gyro_bias:
+        state = np.concatenate([G_UP, [0.1, 0.0, 0.0], [0.01, -0.02, 0.005]])
+        cov = np.diag([0.01] * 3 + [0.001] * 3 + [1e-5] * 3)
+        kernel, reference, bias_walk = ekf_bias_predict_kernel, ekf_bias_predict_reference, (1e-4,)
+    else:
+        state = np.concatenate([G_UP, [0.1, 0.0, 0.0]])
+        cov = np.diag([0.01] * 3 + [0.001] * 3)
+        kernel, reference, bias_walk = ekf_predict_kernel, ekf_predict_reference, ()
     s_k, c_k = state.copy(), cov.copy()
     for i in range(300):
         gyro, accel = rng.normal(size=3), G_UP + rng.normal(size=3)
-        ekf_predict_kernel(s_k, c_k, gyro, accel, 0.01, 0.01, 0.05, i % 2 == 0)
-        state, cov = ekf_predict_reference(state, cov, gyro, accel, 0.01, 0.01, 0.05, i % 2 == 0)
-        if i % 3 == 0:
-            z = rng.normal(size=3) * 0.1
-            ekf_correct_kernel(s_k, c_k, z, 0.05)
-            state, cov = ekf_correct_reference(state, cov, z, 0.05)
-    np.testing.assert_allclose(s_k, state, atol=1e-12)
-    np.testing.assert_allclose(c_k, cov, atol=1e-15)
-    assert_spd(c_k)
-
-
-def test_bias_kernels_match_references():
-    rng = np.random.default_rng(24)
-    state = np.concatenate([G_UP, [0.1, 0.0, 0.0], [0.01, -0.02, 0.005]])
-    cov = np.diag([0.01] * 3 + [0.001] * 3 + [1e-5] * 3)
-    s_k, c_k = state.copy(), cov.copy()
-    for i in range(300):
-        gyro, accel = rng.normal(size=3), G_UP + rng.normal(size=3)
-        ekf_bias_predict_kernel(s_k, c_k, gyro, accel, 0.01, 0.01, 0.05, 1e-4, i % 2 == 0)
-        state, cov = ekf_bias_predict_reference(state, cov, gyro, accel, 0.01, 0.01, 0.05, 1e-4, i % 2 == 0)
+        kernel(s_k, c_k, gyro, accel, 0.01, 0.01, 0.05, *bias_walk, i % 2 == 0)
+        state, cov = reference(state, cov, gyro, accel, 0.01, 0.01, 0.05, *bias_walk, i % 2 == 0)
         if i % 3 == 0:
             z = rng.normal(size=3) * 0.1
             ekf_correct_kernel(s_k, c_k, z, 0.05)
@@ -358,6 +347,9 @@ def test_bad_samples_are_rejected_and_leave_state_untouched():
              ((1.0, [0, 0, 0], G_UP), "out of order"),
              ((np.nan, [0, 0, 0], G_UP), "time must be finite"),
              ((1.02, [0, np.nan, 0], G_UP), "gyro must be finite"),
+             ((1.02, np.array([0.0, np.inf, 0.0]), G_UP), "gyro must be finite"),
+             ((1.02, np.zeros(3), np.array([9.81, np.nan, 0.0])), "accel must be finite"),
+             ((1.02, np.zeros(4), G_UP), "gyro must have shape"),
              ((1.02, [0, 0, 0], [0, 0]), "accel must have shape"),
              ((5.0, [0, 0, 0], G_UP), "max_imu_gap")]
     for args, message in cases:
@@ -381,6 +373,27 @@ def test_bad_samples_are_rejected_and_leave_state_untouched():
         VelocityEKF(G_UP, 0.0, params=PAPER, covariance=np.eye(9))
     with pytest.raises(ValueError, match="accel_samples"):
         VelocityEKF.from_standing(np.zeros((10, 3)), 0.0)
+
+
+def test_every_form_of_a_sample_gives_the_same_filter():
+    rng = np.random.default_rng(28)
+    samples = [(rng.normal(size=3) * 0.3, G_UP + rng.normal(size=3) * 0.1, rng.normal(size=3) * 0.05)
+               for _ in range(30)]
+    kept = [tuple(v.copy() for v in sample) for sample in samples]
+    forms = (lambda v: v, lambda v: v.tolist(), lambda v: np.repeat(v, 2)[::2], lambda v: tuple(v))
+    filters = []
+    for form in forms:
+        ekf = VelocityEKF(G_UP, 0.0)
+        for i, (gyro, accel, measured) in enumerate(samples, start=1):
+            ekf.predict(i * 0.01, form(gyro), form(accel))
+            ekf.correct(form(measured))
+        filters.append(ekf)
+    for ekf in filters[1:]:
+        np.testing.assert_array_equal(ekf.state, filters[0].state)
+        np.testing.assert_array_equal(ekf.covariance, filters[0].covariance)
+    for sample, copy in zip(samples, kept):       # the filter reads the caller's arrays, never writes them
+        for v, c in zip(sample, copy):
+            np.testing.assert_array_equal(v, c)
 
 
 def test_leg_odometry_rejects_wrong_joint_arrays():
