@@ -21,8 +21,14 @@ demo: $(STAMP)
 test: $(STAMP)
 	$(PY) -m pytest
 
-bench: $(STAMP)
-	$(VENV)/bin/robocup-mcl bench
+# The benchmark also needs the `bench` extra (filterpy and particles to compare with, matplotlib to plot).
+BENCH_STAMP := $(VENV)/.installed-bench
+$(BENCH_STAMP): $(STAMP)
+	$(PY) -m pip install --quiet -e '.[test,bench]'
+	touch $(BENCH_STAMP)
+
+bench: $(BENCH_STAMP)
+	$(VENV)/bin/robocup-mcl bench --save recordings/bench.json --plot recordings/bench.png
 
 clean:
 	rm -rf $(VENV) recordings .pytest_cache .hypothesis

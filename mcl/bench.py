@@ -1,197 +1,196 @@
-"""`robocup-mcl bench`: time one full filter step, phase by phase, against the same step in plain numpy.
+"""`robocup-mcl bench`: the benchmark suite: the filter step whole and phase by phase against plain numpy, per N.
 
-    robocup-mcl bench [--sizes 100,1000,...] [--exact] [--json]
+    robocup-mcl bench [--sizes 100,1000,...] [--quick] [--json] [--save PATH] [--plot PATH.png]
+                      [--no-startup] [--no-exact] [--skip SECTION,...] [--budget SECONDS]
+    robocup-mcl bench step ...        # the same
 
-The step: predict (velocity-linear), correct with 10 detections of a 4-way ambiguous type (goalposts),
-normalize and ESS, systematic resampling, estimate (dominant cluster), entropy. The numba step is timed
-through the filter's public calls (`step` + `entropy`, resampling forced every step) and phase by phase;
-the numpy step (`mcl.reference.numpy_step`) in the same run, on the same particles. Also: the start-up of
-a fresh process that must compile every kernel (empty numba cache), and of one that finds the cache.
+What it measures, all in one run so that ratios compare like with like (candidates are called in turn and
+medians taken; the machine may be busy with other work). JSON keys first, the --skip name in brackets:
+
+- rows: the full step (predict, 10 goalpost detections, normalize + ESS, systematic resampling, estimate,
+  entropy) and each phase, in ns per particle at each N (default 100 ... 1 000 000), numba against the plain
+  numpy twin (`mcl.reference`): motion models (velocity-linear, adaptive), landmark likelihood (von Mises
+  and exact atan2 bearing [exact: --no-exact]), line likelihood, normalize + ESS, resampling, injection,
+  estimate, entropy, recording to Rerun [recording]; `phases` says what each phase calls;
+- resampling [peers]: our systematic resampler against filterpy's and particles' (`pip install -e
+  '.[bench]'`; reported "not installed" without them) and its numpy twin;
+- threads [threads]: two threads against one at N >= 10⁵, if the filter has a threads option;
+- memory [memory]: tracemalloc's scratch memory and memory kept per step at N = 10⁴ and 10⁵, and the arrays
+  the kernels allocate;
+- startup, demo_walk [startup, or --no-startup]: a fresh process to its first step with an empty numba
+  cache (the compile time) and with the cache found; `robocup-mcl demo walk --duration 0.1` with the cache;
+- numpy_without_avx512 [avx512]: the numpy step in processes with numpy's AVX-512 code switched off
+  (NPY_DISABLE_CPU_FEATURES), alternated with processes with numpy as it is;
+- models [models]: LWPR update and predict (2 inputs), velocity-EKF predict and correct, in µs;
+- bearing_accuracy [accuracy]: what the von Mises bearing term costs in accuracy (total-variation distance
+  between its normalized weights and the exact term's);
+- machine, settings, targets (each "met", "NOT MET" or "not measured" with the reason), duration_s.
+
+--quick: N = 100, 1 000, 10 000, fewer samples, no empty-cache compile (about half a minute).
+--json prints the result as JSON instead of the table; --save writes the JSON to a file; --plot draws the
+scaling curves to a PNG (needs matplotlib). Progress goes to stderr.
 """
 from __future__ import annotations
 
 import argparse
 import json
-import os
-import platform
-import subprocess
 import sys
-import tempfile
 import time
+import traceback
+from pathlib import Path
 
-import numpy as np
+from .bench_step import PHASES, bench_setup, bearing_accuracy
 
-from field import spl
-from motion_models import MotionInput, VelocityLinear
-from sensing import LandmarkSensorModel, Observations
-
-from .filter import ParticleFilter
-from .reference import PHASES, numpy_step
-from .weights import normalize
+__all__ = ["main", "run", "bench_setup", "bearing_accuracy", "PHASES", "SIZES", "QUICK_SIZES", "SECTIONS"]
 
 SIZES = (100, 1_000, 10_000, 100_000, 1_000_000)
-TRUE_POSE = np.array([1.0, 0.5, 0.3])
+QUICK_SIZES = (100, 1_000, 10_000)
+MEMORY_SIZES = (10_000, 100_000)
+SECTIONS = ("peers", "threads", "memory", "avx512", "startup", "models", "recording", "accuracy")
+BUDGET_S = 0.4          # seconds of samples per timed item
+QUICK_BUDGET_S = 0.05
+SCHEMA = 2
 
 
-def bench_setup(n: int, bearing_model: str = "von_mises", seed: int = 0):
-    """A filter of n particles around TRUE_POSE, a motion input, and 10 goalpost detections."""
-    field = spl()
-    sensor = LandmarkSensorModel(field, bearing_model=bearing_model)
-    pf = ParticleFilter(field, VelocityLinear(), sensor, n_particles=n, seed=seed, resample_threshold=1.0,
-                        augmented=None)
-    pf.reset_around(TRUE_POSE, (0.3, 0.3, 0.2))
-    rng = np.random.default_rng(seed + 1)
-    posts = field.landmarks_of("goalpost")
-    picks = posts[rng.integers(0, len(posts), 10)]
-    d = picks - TRUE_POSE[:2]
-    ranges = np.hypot(d[:, 0], d[:, 1]) + 0.05 * rng.standard_normal(10)
-    bearings = np.arctan2(d[:, 1], d[:, 0]) - TRUE_POSE[2] + 0.03 * rng.standard_normal(10)
-    observations = Observations.from_arrays(["goalpost"] * 10, ranges, bearings)
-    return pf, MotionInput(dt=0.01, command=(0.2, 0.0, 0.1)), observations
+def _progress(text: str) -> None:
+    print(f"bench: {text}", file=sys.stderr, flush=True)
 
 
-def _repetitions(n: int) -> int:
-    return int(max(3, min(2000, 3e6 / max(n, 1))))
-
-
-def time_numba(n: int, bearing_model: str = "von_mises") -> dict:
-    pf, u, obs = bench_setup(n, bearing_model)
-    pf.step(u, obs), pf.entropy()  # warm up (compiled or loaded from the cache)
-    reps = _repetitions(n)
-    clock = time.perf_counter
-    start = clock()
-    for _ in range(reps):
-        pf.step(u, obs)
-        pf.entropy()
-    full = (clock() - start) / reps
-    phases = dict.fromkeys(PHASES, 0.0)
-    for _ in range(reps):
-        t0 = clock()
-        pf.predict(u)
-        t1 = clock()
-        log_likelihood = pf.sensor_model.log_likelihood(pf.poses, obs, out=pf._log_likelihood)
-        t2 = clock()
-        normalize(pf.log_weights + log_likelihood, pf._weights)
-        t3 = clock()
-        pf._resample(0, obs)
-        t4 = clock()
-        pf.estimate()
-        t5 = clock()
-        pf.entropy()
-        t6 = clock()
-        for name, a, b in zip(PHASES, (t0, t1, t2, t3, t4, t5), (t1, t2, t3, t4, t5, t6)):
-            phases[name] += b - a
-    return {"full_step_s": full, "phases_s": {k: v / reps for k, v in phases.items()}, "repetitions": reps}
-
-
-def time_numpy(n: int) -> dict:
-    pf, u, obs = bench_setup(n)
-    numpy_step(pf, u, obs)
-    reps = max(2, _repetitions(n) // 10)
-    phases: dict = {}
+def _guarded(name: str, fn, *args, **kwargs) -> dict:
+    """Run one section; a failure is reported in its place instead of ending the suite."""
     start = time.perf_counter()
-    for _ in range(reps):
-        numpy_step(pf, u, obs, phases)
-    full = (time.perf_counter() - start) / reps
-    return {"full_step_s": full, "phases_s": {k: phases[k] / reps for k in PHASES}, "repetitions": reps}
+    try:
+        section = fn(*args, **kwargs)
+    except Exception as error:  # the suite reports every section it can
+        section = {"error": f"{type(error).__name__}: {error}",
+                   "traceback": traceback.format_exc(limit=4)}
+    if isinstance(section, dict):
+        section["seconds"] = time.perf_counter() - start
+    _progress(f"{name} done in {time.perf_counter() - start:.1f} s")
+    return section
 
 
-_PROBE = ("import time; t = time.perf_counter(); from mcl.bench import bench_setup; "
-          "pf, u, obs = bench_setup(1000); pf.step(u, obs); pf.entropy(); "
-          "print(time.perf_counter() - t)")
+def _models(budget_s: float) -> dict:
+    from .bench_models import time_ekf, time_lwpr
 
-
-def time_startup() -> dict:
-    """Wall time of a fresh process to its first full step: with an empty numba cache, then with the cache."""
-    with tempfile.TemporaryDirectory() as cache:
-        env = dict(os.environ, NUMBA_CACHE_DIR=cache)
-        result = {}
-        for label in ("cold_cache_s", "warm_cache_s"):
-            start = time.perf_counter()
-            out = subprocess.run([sys.executable, "-c", _PROBE], env=env, capture_output=True, text=True, check=True)
-            result[label] = time.perf_counter() - start
-            result[label.replace("_s", "_in_python_s")] = float(out.stdout.strip().splitlines()[-1])
-    result["compile_s"] = result["cold_cache_s"] - result["warm_cache_s"]
+    result = {}
+    for key, fn, args in (("lwpr", time_lwpr, ()), ("ekf", time_ekf, (budget_s,))):
+        try:
+            result[key] = fn(*args)
+        except Exception as error:
+            result[key] = None
+            result[f"{key}_error"] = f"{type(error).__name__}: {error}"
     return result
 
 
-def machine() -> dict:
-    return {"python": platform.python_version(), "machine": platform.machine(), "cpus": os.cpu_count(),
-            "processor": platform.processor() or platform.uname().machine,
-            "numpy": np.__version__, "numba": __import__("numba").__version__}
+def run(sizes=SIZES, quick: bool = False, startup: bool = True, exact: bool = True, skip=(),
+        budget_s: float | None = None) -> dict:
+    """The whole suite; returns the result (see the module docstring for its sections)."""
+    from .bench_report import evaluate_targets
+    from .bench_step import time_resamplers, time_size, time_threads
+    from .bench_system import (load_average, machine, memory, numpy_without_avx512, time_demo_walk,
+                               time_startup)
 
-
-def bearing_accuracy(n: int = 10_000) -> dict:
-    """What the von Mises bearing term costs in accuracy: the total-variation distance between the normalized
-    weights it gives and those of the exact term, on the same particles and detections (0 = identical)."""
-    pf, _, obs = bench_setup(n)
-    weights = {}
-    for model in ("von_mises", "exact"):
-        sensor = LandmarkSensorModel(pf.field, bearing_model=model)
-        log_likelihood = sensor.log_likelihood(pf.poses, obs)
-        w = np.exp(log_likelihood - log_likelihood.max())
-        weights[model] = w / w.sum()
-    return {"n": n, "total_variation": float(0.5 * np.abs(weights["von_mises"] - weights["exact"]).sum())}
-
-
-def run(sizes=SIZES, startup: bool = True, exact: bool = True) -> dict:
+    skip = set(skip)
+    if not startup:
+        skip.add("startup")
+    budget = budget_s if budget_s is not None else (QUICK_BUDGET_S if quick else BUDGET_S)
+    started = time.perf_counter()
+    result: dict = {
+        "benchmark": "robocup-mcl bench", "schema": SCHEMA, "machine": machine(),
+        "settings": {"sizes": list(sizes), "quick": quick, "budget_s": budget, "exact": exact,
+                     "skipped": sorted(skip), "threads": 1,
+                     "step": "predict (velocity-linear), 10 goalpost detections (von Mises bearing), "
+                             "normalize + ESS, systematic resampling every step, estimate, entropy"},
+        "phases": [{"name": p.name, "description": p.description, "numba": p.numba_entry, "numpy": p.numpy_entry}
+                   for p in PHASES],
+    }
     rows = []
     for n in sizes:
-        fast = time_numba(n)
-        row = {"n": n, "numba": fast, "numpy": time_numpy(n)}
-        row["speedup"] = row["numpy"]["full_step_s"] / fast["full_step_s"]
-        row["ns_per_particle"] = 1e9 * fast["full_step_s"] / n
-        if exact:
-            row["numba_exact_bearing"] = time_numba(n, "exact")
-        rows.append(row)
-    result = {"machine": machine(), "threads": 1, "rows": rows}
-    if exact:
-        result["bearing_accuracy"] = bearing_accuracy()
-    if startup:
-        result["startup"] = time_startup()
+        _progress(f"N = {n}: full step and phases")
+        rows.append(time_size(n, budget, exact=exact, recording="recording" not in skip))
+    result["rows"] = rows
+    if "peers" not in skip:
+        _progress("resampling against filterpy and particles")
+        result["resampling"] = _guarded("resampling", time_resamplers, sizes, budget)
+    if "threads" not in skip:
+        result["threads"] = _guarded("threads", time_threads, sizes, budget)
+    if "memory" not in skip:
+        _progress(f"memory at N = {', '.join(str(n) for n in MEMORY_SIZES)}")
+        result["memory"] = _guarded("memory", memory, MEMORY_SIZES)
+    if "avx512" not in skip:
+        _progress("numpy step with AVX-512 off")
+        result["numpy_without_avx512"] = _guarded("numpy without AVX-512", numpy_without_avx512, sizes, budget,
+                                                  rounds=1 if quick else 2)
+    if "startup" not in skip:
+        _progress("start-up" + ("" if quick else " (empty numba cache: compiles every kernel of the step)"))
+        result["startup"] = _guarded("start-up", time_startup, cold=not quick, warm_runs=1 if quick else 2)
+        result["demo_walk"] = _guarded("demo walk", time_demo_walk, runs=1 if quick else 2)
+    if "models" not in skip:
+        result["models"] = _guarded("models", _models, budget)
+    if "accuracy" not in skip:
+        result["bearing_accuracy"] = _guarded("bearing accuracy", bearing_accuracy)
+    result["machine"]["load_average_end"] = load_average()
+    result["targets"] = evaluate_targets(result)
+    result["duration_s"] = time.perf_counter() - started
     return result
 
 
-def _format(result: dict) -> str:
-    lines = [f"one full step (predict, 10 goalpost detections, normalize+ESS, resample, estimate, entropy); "
-             f"python {result['machine']['python']}, numba {result['machine']['numba']}, one thread"]
-    head = f"{'N':>9} {'numba':>10} {'ns/part.':>9} {'numpy':>10} {'speedup':>8} {'exact atan2':>12}  phases (numba, µs)"
-    lines.append(head)
-    for row in result["rows"]:
-        phases = " ".join(f"{k}={1e6 * v:.1f}" for k, v in row["numba"]["phases_s"].items())
-        exact = row.get("numba_exact_bearing")
-        exact_text = f"{1e3 * exact['full_step_s']:.3f} ms" if exact else "-"
-        lines.append(f"{row['n']:>9} {1e3 * row['numba']['full_step_s']:>7.3f} ms {row['ns_per_particle']:>9.0f} "
-                     f"{1e3 * row['numpy']['full_step_s']:>7.3f} ms {row['speedup']:>7.1f}x {exact_text:>12}  {phases}")
-    if "bearing_accuracy" in result:
-        a = result["bearing_accuracy"]
-        lines.append(f"von Mises versus exact bearing term: total-variation distance between the normalized weights "
-                     f"{a['total_variation']:.4f} (N = {a['n']}, same particles and detections)")
-    if "startup" in result:
-        s = result["startup"]
-        lines.append(f"start-up to the first step: empty numba cache {s['cold_cache_s']:.2f} s, "
-                     f"cache found {s['warm_cache_s']:.2f} s (compile ≈ {s['compile_s']:.2f} s)")
-    return "\n".join(lines)
+def _sizes(parser: argparse.ArgumentParser, text: str) -> list[int]:
+    try:
+        sizes = [int(s) for s in text.split(",") if s.strip()]
+    except ValueError:
+        parser.error(f"--sizes {text!r} must be comma-separated integers")
+    if not sizes or min(sizes) <= 0:
+        parser.error(f"--sizes {text!r} must name particle counts > 0")
+    return sizes
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="robocup-mcl bench", description=__doc__.split("\n\n")[0])
-    parser.add_argument("--sizes", default=",".join(str(n) for n in SIZES),
-                        help="particle counts, comma-separated (default 100..1000000)")
-    parser.add_argument("--no-startup", action="store_true", help="skip the start-up measurements")
+    parser = argparse.ArgumentParser(prog="robocup-mcl bench", description=__doc__.split("\n\n")[0],
+                                     formatter_class=argparse.RawDescriptionHelpFormatter,
+                                     epilog=__doc__.split("\n\n", 2)[2])
+    parser.add_argument("--sizes", help="particle counts, comma-separated (default 100,1000,10000,100000,1000000; "
+                                        "with --quick 100,1000,10000)")
+    parser.add_argument("--quick", action="store_true",
+                        help="a CI-sized run: small sizes, fewer samples, no empty-cache compile")
+    parser.add_argument("--json", action="store_true", help="print the result as JSON instead of the table")
+    parser.add_argument("--save", metavar="PATH", help="write the result as JSON to PATH")
+    parser.add_argument("--plot", metavar="PATH", help="draw the scaling curves to a PNG (needs matplotlib)")
+    parser.add_argument("--no-startup", action="store_true", help="skip the fresh-process timings "
+                                                                  "(start-up, compile, demo walk)")
     parser.add_argument("--no-exact", action="store_true", help="skip timing the exact (atan2) bearing term")
-    parser.add_argument("--json", action="store_true")
+    parser.add_argument("--skip", default="", help=f"sections to leave out, comma-separated: {', '.join(SECTIONS)}")
+    parser.add_argument("--budget", type=float, help=f"seconds of samples per timed item (default {BUDGET_S}, "
+                                                     f"--quick {QUICK_BUDGET_S})")
     args = parser.parse_args(argv)
-    try:
-        sizes = [int(s) for s in args.sizes.split(",") if s.strip()]
-    except ValueError:
-        parser.error(f"--sizes {args.sizes!r} must be comma-separated integers")
-    if not sizes or min(sizes) <= 0:
-        parser.error(f"--sizes {args.sizes!r} must name particle counts > 0")
-    result = run(sizes, startup=not args.no_startup, exact=not args.no_exact)
+    sizes = _sizes(parser, args.sizes) if args.sizes else list(QUICK_SIZES if args.quick else SIZES)
+    skip = [s.strip() for s in args.skip.split(",") if s.strip()]
+    unknown = sorted(set(skip) - set(SECTIONS))
+    if unknown:
+        parser.error(f"--skip {', '.join(unknown)}: choose from {', '.join(SECTIONS)}")
+    if args.budget is not None and not args.budget > 0:
+        parser.error(f"--budget {args.budget!r} must be > 0")
+    if args.plot:
+        from .bench_report import matplotlib_missing
+        if matplotlib_missing():
+            parser.error("--plot needs matplotlib: pip install -e '.[bench]'")
+    result = run(sizes, quick=args.quick, startup=not args.no_startup, exact=not args.no_exact, skip=skip,
+                 budget_s=args.budget)
+    for path in (args.save, args.plot):
+        if path:
+            Path(path).parent.mkdir(parents=True, exist_ok=True)
+    if args.save:
+        with open(args.save, "w") as file:
+            json.dump(result, file, indent=2)
+            file.write("\n")
+    if args.plot:
+        from .bench_report import plot
+        plot(result, args.plot)
     if args.json:
         json.dump(result, sys.stdout, indent=2)
         print()
     else:
-        print(_format(result))
+        from .bench_report import format_report
+        print(format_report(result))
     return 0

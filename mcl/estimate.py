@@ -14,6 +14,11 @@ particle shares one cell.
 
 `credible_region_contains` tells whether a pose lies in the smallest region holding 95 % of the belief: the
 check that the truth stays inside the particle cloud.
+
+The filter fills the estimate's and the entropy's histograms in one pass and keeps them until the particles
+change (`summary_fill`, `summary_estimate`, `summary_entropy`): the results of `cluster_estimate` and
+`grid_entropy` bit for bit. `summary_estimate_chunked` (several threads) and `summary_estimate_fast`
+(reassociated sums) are its opt-in variants, equal to rounding.
 """
 from __future__ import annotations
 
@@ -21,8 +26,12 @@ import math
 
 import numba
 import numpy as np
+from llvmlite import ir
+from numba import types
+from numba.extending import intrinsic
 
-from field.angles import wrap_angle, wrap_angles
+from field.angles import wrap_angles
+from motion_models._kernels import wrap
 
 
 @numba.njit(cache=True, inline="always")
@@ -35,8 +44,43 @@ def _cell(value, origin, size, count):
     return c
 
 
+BLOCK = 256        # particles per block of the vectorized loops below
+
+
+@numba.njit(cache=True, inline="always")
+def _cell_float(value, origin, size, count):
+    """`_cell` as a float (exact), for vectorized loops."""
+    c = np.floor((value - origin) / size)
+    c = 0.0 if c < 0.0 else c
+    return count - 1.0 if c >= count else c
+
+
+# -- mean shift and covariance of the dominant cluster --------------------------------------------------------
+# The sums run over the particles in index order, as they always have (the estimate is reproducible to the
+# bit), but everything else is computed for a block of particles at a time by loops that vectorize: the
+# offsets from the centre, the wrapped heading residual, the kernel's membership and the weighted terms
+# (a particle outside the kernel adds a weight of zero: the sums are the same, since adding ±0 to a sum that
+# starts at +0 changes nothing). The sums over a block are then a short chain of additions.
+
+# (The block kernels take slices and index them from 0: an index offset by a variable start would need
+# numba's negative-index wraparound, which keeps LLVM from vectorizing.)
+
+@numba.njit(cache=True, error_model="numpy")
+def _kernel_terms(xs, ys, ts, weights, count, cx, cy, ct, r2, angle_radius, rows):
+    for p in range(count):
+        dx = xs[p] - cx
+        dy = ys[p] - cy
+        dt = wrap(ts[p] - ct)
+        inside = (dx * dx + dy * dy <= r2) & (abs(dt) <= angle_radius)
+        w = weights[p] if inside else 0.0
+        rows[0, p] = w * dx
+        rows[1, p] = w * dy
+        rows[2, p] = w * dt
+        rows[3, p] = w
+
+
 @numba.njit(cache=True)
-def _kernel_mean(poses, weights, cx, cy, ct, radius, angle_radius):
+def _kernel_mean(xs, ys, ts, weights, cx, cy, ct, radius, angle_radius, rows):
     """Weighted mean of the particles within the flat kernel around (cx, cy, ct).
 
     The heading is the intrinsic circular mean: the centre plus the weighted mean of the wrapped residuals
@@ -48,20 +92,94 @@ def _kernel_mean(poses, weights, cx, cy, ct, radius, angle_radius):
     st = 0.0
     total = 0.0
     r2 = radius * radius
-    for i in range(poses.shape[0]):
-        dx = poses[i, 0] - cx
-        dy = poses[i, 1] - cy
-        dt = wrap_angle(poses[i, 2] - ct)
-        if dx * dx + dy * dy > r2 or abs(dt) > angle_radius:
-            continue
-        w = weights[i]
-        sx += w * dx
-        sy += w * dy
-        st += w * dt
-        total += w
+    n = xs.shape[0]
+    for start in range(0, n, BLOCK):
+        count = min(BLOCK, n - start)
+        stop = start + count
+        _kernel_terms(xs[start:stop], ys[start:stop], ts[start:stop], weights[start:stop], count, cx, cy, ct, r2,
+                      angle_radius, rows)
+        for p in range(count):
+            sx += rows[0, p]
+            sy += rows[1, p]
+            st += rows[2, p]
+            total += rows[3, p]
     if total <= 0.0:
         return cx, cy, ct, 0.0
-    return cx + sx / total, cy + sy / total, wrap_angle(ct + st / total), total
+    return cx + sx / total, cy + sy / total, wrap(ct + st / total), total
+
+
+@numba.njit(cache=True, error_model="numpy")
+def _covariance_terms(xs, ys, ts, weights, count, mx, my, mt, r2, angle_radius, total, rows):
+    for p in range(count):
+        dx = xs[p] - mx
+        dy = ys[p] - my
+        dt = wrap(ts[p] - mt)
+        inside = (dx * dx + dy * dy <= r2) & (abs(dt) <= angle_radius)
+        w = weights[p] / total if inside else 0.0
+        rows[0, p] = w * dx * dx
+        rows[1, p] = w * dx * dy
+        rows[2, p] = w * dx * dt
+        rows[3, p] = w * dy * dy
+        rows[4, p] = w * dy * dt
+        rows[5, p] = w * dt * dt
+
+
+@numba.njit(cache=True)
+def _kernel_covariance(xs, ys, ts, weights, mx, my, mt, radius, angle_radius, total, rows, out_cov):
+    """Covariance of the particles within the kernel around the mean (mx, my, mt), θ residual wrapped."""
+    c00 = c01 = c02 = c11 = c12 = c22 = 0.0
+    r2 = radius * radius
+    n = xs.shape[0]
+    if total > 0.0:
+        for start in range(0, n, BLOCK):
+            count = min(BLOCK, n - start)
+            stop = start + count
+            _covariance_terms(xs[start:stop], ys[start:stop], ts[start:stop], weights[start:stop], count, mx, my,
+                              mt, r2, angle_radius, total, rows)
+            for p in range(count):
+                c00 += rows[0, p]
+                c01 += rows[1, p]
+                c02 += rows[2, p]
+                c11 += rows[3, p]
+                c12 += rows[4, p]
+                c22 += rows[5, p]
+    out_cov[0, 0] = c00
+    out_cov[0, 1] = out_cov[1, 0] = c01
+    out_cov[0, 2] = out_cov[2, 0] = c02
+    out_cov[1, 1] = c11
+    out_cov[1, 2] = out_cov[2, 1] = c12
+    out_cov[2, 2] = c22
+
+
+@numba.njit(cache=True)
+def _dominant_cluster(xs, ys, ts, weights, best, x_min, y_min, cell_size, ny, n_theta, radius, angle_radius,
+                      iterations, previous, use_previous, out_mean, out_cov):
+    """Mean shift from the centre of histogram cell `best` (and from `previous`), then the covariance; returns
+    the cluster's weight. xs, ys, ts: the particles' coordinates as separate arrays."""
+    rows = np.empty((6, BLOCK))
+    theta_size = 2.0 * math.pi / n_theta
+    bt = best % n_theta
+    by = (best // n_theta) % ny
+    bx = best // (n_theta * ny)
+    # Seed: the centre of the heaviest cell; the kernel is wider than a cell, so mean shift merges its
+    # neighbours and walks to the mode.
+    mx = x_min + (bx + 0.5) * cell_size
+    my = y_min + (by + 0.5) * cell_size
+    mt = -math.pi + (bt + 0.5) * theta_size
+    total = 0.0
+    for _ in range(iterations):
+        mx, my, mt, total = _kernel_mean(xs, ys, ts, weights, mx, my, mt, radius, angle_radius, rows)
+    if use_previous and total < 0.5:
+        px, py, pt, ptotal = previous[0], previous[1], previous[2], 0.0
+        for _ in range(iterations):
+            px, py, pt, ptotal = _kernel_mean(xs, ys, ts, weights, px, py, pt, radius, angle_radius, rows)
+        if ptotal > total:
+            mx, my, mt, total = px, py, pt, ptotal
+    _kernel_covariance(xs, ys, ts, weights, mx, my, mt, radius, angle_radius, total, rows, out_cov)
+    out_mean[0] = mx
+    out_mean[1] = my
+    out_mean[2] = wrap(mt)
+    return total
 
 
 @numba.njit(cache=True)
@@ -81,49 +199,10 @@ def cluster_estimate(poses, weights, x_min, y_min, cell_size, nx, ny, n_theta, r
         cy = _cell(poses[i, 1], y_min, cell_size, ny)
         ct = _cell(poses[i, 2], -math.pi, theta_size, n_theta)
         histogram[(cx * ny + cy) * n_theta + ct] += weights[i]
-    best = np.argmax(histogram)
-    bt = best % n_theta
-    by = (best // n_theta) % ny
-    bx = best // (n_theta * ny)
-    # Seed: the centre of the heaviest cell; the kernel is wider than a cell, so mean shift merges its
-    # neighbours and walks to the mode.
-    mx = x_min + (bx + 0.5) * cell_size
-    my = y_min + (by + 0.5) * cell_size
-    mt = -math.pi + (bt + 0.5) * theta_size
-    total = 0.0
-    for _ in range(iterations):
-        mx, my, mt, total = _kernel_mean(poses, weights, mx, my, mt, radius, angle_radius)
-    if use_previous and total < 0.5:
-        px, py, pt, ptotal = previous[0], previous[1], previous[2], 0.0
-        for _ in range(iterations):
-            px, py, pt, ptotal = _kernel_mean(poses, weights, px, py, pt, radius, angle_radius)
-        if ptotal > total:
-            mx, my, mt, total = px, py, pt, ptotal
-    # Covariance of the held particles, θ residual wrapped around the circular mean.
-    cov = np.zeros((3, 3))
-    r2 = radius * radius
-    if total > 0.0:
-        for i in range(poses.shape[0]):
-            dx = poses[i, 0] - mx
-            dy = poses[i, 1] - my
-            dt = wrap_angle(poses[i, 2] - mt)
-            if dx * dx + dy * dy > r2 or abs(dt) > angle_radius:
-                continue
-            w = weights[i] / total
-            cov[0, 0] += w * dx * dx
-            cov[0, 1] += w * dx * dy
-            cov[0, 2] += w * dx * dt
-            cov[1, 1] += w * dy * dy
-            cov[1, 2] += w * dy * dt
-            cov[2, 2] += w * dt * dt
-    cov[1, 0] = cov[0, 1]
-    cov[2, 0] = cov[0, 2]
-    cov[2, 1] = cov[1, 2]
-    out_mean[0] = mx
-    out_mean[1] = my
-    out_mean[2] = wrap_angle(mt)
-    out_cov[:, :] = cov
-    return total
+    return _dominant_cluster(np.ascontiguousarray(poses[:, 0]), np.ascontiguousarray(poses[:, 1]),
+                             np.ascontiguousarray(poses[:, 2]), weights, np.argmax(histogram), x_min, y_min,
+                             cell_size, ny, n_theta, radius, angle_radius, iterations, previous, use_previous,
+                             out_mean, out_cov)
 
 
 @numba.njit(cache=True)
@@ -152,6 +231,465 @@ def grid_entropy(poses, weights, x_min, y_min, cell_size, nx, ny, n_theta, posit
         position_histogram[cx * ny + cy] += weights[i]
         orientation_histogram[_cell(poses[i, 2], -math.pi, theta_size, n_theta)] += weights[i]
     return _entropy_bits(position_histogram), _entropy_bits(orientation_histogram)
+
+
+# -- the filter's summary: the histograms of the estimate and of the entropy in one pass --------------------------
+# A filter that asks for both the estimate and the entropy after each step would bin every particle twice,
+# and at N = 100 clearing and scanning the 7 696 cells of the position grid costs more than the particles.
+# The summary keeps the three histograms with a bitmap of the cells that hold weight: filling them is one
+# pass over the particles (which also lays out their coordinates as separate arrays for the mean shift);
+# the dominant cell, the entropies and the clearing visit the marked cells only, in index order, so every
+# sum and every tie is resolved as the full scans above resolve them.
+
+@intrinsic
+def _trailing_zeros(typingctx, word):
+    """Index of the lowest set bit of a nonzero uint64 (llvm.cttz)."""
+    signature = types.uint64(types.uint64)
+
+    def codegen(context, builder, sig, args):
+        int64 = ir.IntType(64)
+        function = builder.module.declare_intrinsic("llvm.cttz", [int64],
+                                                    ir.FunctionType(int64, [int64, ir.IntType(1)]))
+        return builder.call(function, [args[0], ir.Constant(ir.IntType(1), 1)])
+
+    return signature, codegen
+
+
+@numba.njit(cache=True)
+def _clear_marked(histogram, bitmap):
+    for word_index in range(bitmap.shape[0]):
+        word = bitmap[word_index]
+        while word != 0:
+            histogram[word_index * 64 + np.int64(_trailing_zeros(word))] = 0.0
+            word &= word - np.uint64(1)
+        bitmap[word_index] = 0
+
+
+@numba.njit(cache=True)
+def _marked_argmax(histogram, bitmap):
+    """np.argmax(histogram) when every unmarked cell is zero and some marked cell is positive."""
+    best = 0
+    best_value = -np.inf
+    for word_index in range(bitmap.shape[0]):
+        word = bitmap[word_index]
+        while word != 0:
+            cell = word_index * 64 + np.int64(_trailing_zeros(word))
+            if histogram[cell] > best_value:
+                best_value = histogram[cell]
+                best = cell
+            word &= word - np.uint64(1)
+    return best
+
+
+@numba.njit(cache=True)
+def _marked_entropy_bits(histogram, bitmap):
+    """_entropy_bits(histogram) when every unmarked cell is zero."""
+    h = 0.0
+    for word_index in range(bitmap.shape[0]):
+        word = bitmap[word_index]
+        while word != 0:
+            p = histogram[word_index * 64 + np.int64(_trailing_zeros(word))]
+            if p > 0.0:
+                h -= p * math.log2(p)
+            word &= word - np.uint64(1)
+    return max(h, 0.0)
+
+
+# Summary grid parameters, one float64 array (counts as floats).
+(G_X_MIN, G_Y_MIN, G_CLUSTER_CELL, G_CLUSTER_NX, G_CLUSTER_NY, G_CLUSTER_NT, G_RADIUS, G_ANGLE_RADIUS,
+ G_ITERATIONS, G_POSITION_CELL, G_ENTROPY_NX, G_ENTROPY_NY, G_ENTROPY_NT) = range(13)
+
+
+def summary_grid(x_min, y_min, cluster_cell, cluster_nx, cluster_ny, cluster_orientation_bins, cluster_radius,
+                 cluster_angle_radius, iterations, position_cell, entropy_nx, entropy_ny, orientation_bins):
+    """The parameter array of the summary kernels (see `mcl.filter.Grid`)."""
+    return np.array([x_min, y_min, cluster_cell, cluster_nx, cluster_ny, cluster_orientation_bins, cluster_radius,
+                     cluster_angle_radius, iterations, position_cell, entropy_nx, entropy_ny, orientation_bins],
+                    dtype=np.float64)
+
+
+@numba.njit(cache=True)
+def _layout(grid):
+    """Sizes of the cluster, position and orientation histograms, laid end to end in one array (their bitmaps
+    likewise, 64 cells a word)."""
+    cluster = int(grid[G_CLUSTER_NX]) * int(grid[G_CLUSTER_NY]) * int(grid[G_CLUSTER_NT])
+    position = int(grid[G_ENTROPY_NX]) * int(grid[G_ENTROPY_NY])
+    return cluster, position, int(grid[G_ENTROPY_NT])
+
+
+def summary_buffers(grid, n):
+    """The summary's arrays: coordinates (3, n) (x, y, θ rows for the mean shift), the three histograms end to
+    end and their bitmaps (both zero)."""
+    sizes = _layout(grid)
+    return (np.empty((3, n)), np.zeros(sum(sizes)),
+            np.zeros(sum((size + 63) // 64 for size in sizes), dtype=np.uint64))
+
+
+@numba.njit(cache=True)
+def _parts(grid, histograms, bitmaps):
+    """The cluster, position and orientation histograms and bitmaps, as views."""
+    cluster, position, orientation = _layout(grid)
+    wc = (cluster + 63) // 64
+    wp = (position + 63) // 64
+    return (histograms[:cluster], histograms[cluster:cluster + position], histograms[cluster + position:],
+            bitmaps[:wc], bitmaps[wc:wc + wp], bitmaps[wc + wp:])
+
+
+@numba.njit(cache=True, error_model="numpy")
+def _summary_cells(grid, xs, ys, ts, count, cells):
+    """The cluster, position and orientation cells (rows of `cells`) of a block of particles."""
+    x_min = grid[G_X_MIN]
+    y_min = grid[G_Y_MIN]
+    cluster_cell = grid[G_CLUSTER_CELL]
+    cluster_nx = grid[G_CLUSTER_NX]
+    cluster_ny = grid[G_CLUSTER_NY]
+    cluster_nt = grid[G_CLUSTER_NT]
+    cluster_theta = 2.0 * math.pi / int(cluster_nt)
+    position_cell = grid[G_POSITION_CELL]
+    entropy_nx = grid[G_ENTROPY_NX]
+    entropy_ny = grid[G_ENTROPY_NY]
+    entropy_nt = grid[G_ENTROPY_NT]
+    entropy_theta = 2.0 * math.pi / int(entropy_nt)
+    for p in range(count):
+        x = xs[p]
+        y = ys[p]
+        theta = ts[p]
+        cell = ((_cell_float(x, x_min, cluster_cell, cluster_nx) * cluster_ny
+                 + _cell_float(y, y_min, cluster_cell, cluster_ny)) * cluster_nt
+                + _cell_float(theta, -math.pi, cluster_theta, cluster_nt))
+        cells[0, p] = np.int32(cell)
+        cell = (_cell_float(x, x_min, position_cell, entropy_nx) * entropy_ny
+                + _cell_float(y, y_min, position_cell, entropy_ny))
+        cells[1, p] = np.int32(cell)
+        cells[2, p] = np.int32(_cell_float(theta, -math.pi, entropy_theta, entropy_nt))
+
+
+@numba.njit(cache=True)
+def _deinterleave(poses, count, xs, ys, ts):
+    for p in range(count):
+        xs[p] = poses[p, 0]
+        ys[p] = poses[p, 1]
+        ts[p] = poses[p, 2]
+
+
+@numba.njit(cache=True)
+def summary_fill(grid, poses, weights, coordinates, histograms, bitmaps):
+    """Clear the histograms, then bin every particle into the cluster, position and orientation histograms
+    (as `cluster_estimate` and `grid_entropy` bin them), marking each cell as it first receives weight. The
+    coordinates are copied to the rows of `coordinates` (x, y, θ) on the way; with `poses` of no rows they
+    are taken from there (written by `mcl.resampling.resample_with_jitter`)."""
+    cluster, position, orientation, cluster_bits, position_bits, orientation_bits = _parts(grid, histograms,
+                                                                                          bitmaps)
+    _clear_marked(cluster, cluster_bits)
+    _clear_marked(position, position_bits)
+    _clear_marked(orientation, orientation_bits)
+    cells = np.empty((3, BLOCK), dtype=np.int32)
+    one = np.uint64(1)
+    n = weights.shape[0]
+    copy = poses.shape[0] > 0
+    for start in range(0, n, BLOCK):
+        count = min(BLOCK, n - start)
+        stop = start + count
+        xs = coordinates[0, start:stop]
+        ys = coordinates[1, start:stop]
+        ts = coordinates[2, start:stop]
+        if copy:
+            _deinterleave(poses[start:stop], count, xs, ys, ts)
+        _summary_cells(grid, xs, ys, ts, count, cells)
+        for p in range(count):
+            w = weights[start + p]
+            # (Written out rather than called: a helper taking the arrays would cost a reference count per call.)
+            cell = np.int64(cells[0, p])
+            if cluster[cell] == 0.0 and w != 0.0:
+                cluster_bits[cell >> 6] |= one << np.uint64(cell & 63)
+            cluster[cell] += w
+            cell = np.int64(cells[1, p])
+            if position[cell] == 0.0 and w != 0.0:
+                position_bits[cell >> 6] |= one << np.uint64(cell & 63)
+            position[cell] += w
+            cell = np.int64(cells[2, p])
+            if orientation[cell] == 0.0 and w != 0.0:
+                orientation_bits[cell >> 6] |= one << np.uint64(cell & 63)
+            orientation[cell] += w
+
+
+@numba.njit(cache=True)
+def summary_estimate(grid, coordinates, weights, histograms, bitmaps, previous, use_previous, out_mean, out_cov):
+    """`cluster_estimate` from the filled summary: the same mean, covariance and weight."""
+    cluster, _, _, cluster_bits, _, _ = _parts(grid, histograms, bitmaps)
+    return _dominant_cluster(coordinates[0], coordinates[1], coordinates[2], weights,
+                             _marked_argmax(cluster, cluster_bits), grid[G_X_MIN], grid[G_Y_MIN],
+                             grid[G_CLUSTER_CELL], int(grid[G_CLUSTER_NY]), int(grid[G_CLUSTER_NT]), grid[G_RADIUS],
+                             grid[G_ANGLE_RADIUS], int(grid[G_ITERATIONS]), previous, use_previous, out_mean, out_cov)
+
+
+@numba.njit(cache=True)
+def summary_entropy(grid, histograms, bitmaps):
+    """`grid_entropy` from the filled summary: (position, orientation) bits."""
+    _, position, orientation, _, position_bits, orientation_bits = _parts(grid, histograms, bitmaps)
+    return _marked_entropy_bits(position, position_bits), _marked_entropy_bits(orientation, orientation_bits)
+
+
+# -- the same on several threads ------------------------------------------------------------------------------------
+# The mean shift's and the covariance's sums taken chunk by chunk (within a chunk in index order, then over
+# the chunks in order), the chunks spread over threads: the same estimate for any number of threads, the
+# serial one's bit for bit when a chunk holds every particle, otherwise equal to rounding.
+
+@numba.njit(cache=True, parallel=True)
+def _kernel_mean_chunked(xs, ys, ts, weights, cx, cy, ct, radius, angle_radius, chunk):
+    n = xs.shape[0]
+    chunks = max(1, (n + chunk - 1) // chunk)
+    partial = np.zeros((chunks, 4))
+    r2 = radius * radius
+    for t in numba.prange(chunks):
+        rows = np.empty((4, BLOCK))
+        sx = 0.0
+        sy = 0.0
+        st = 0.0
+        total = 0.0
+        for start in range(t * chunk, min(n, (t + 1) * chunk), BLOCK):
+            stop = min(start + BLOCK, n, (t + 1) * chunk)
+            count = stop - start
+            _kernel_terms(xs[start:stop], ys[start:stop], ts[start:stop], weights[start:stop], count, cx, cy, ct,
+                          r2, angle_radius, rows)
+            for p in range(count):
+                sx += rows[0, p]
+                sy += rows[1, p]
+                st += rows[2, p]
+                total += rows[3, p]
+        partial[t, 0] = sx
+        partial[t, 1] = sy
+        partial[t, 2] = st
+        partial[t, 3] = total
+    sx = 0.0
+    sy = 0.0
+    st = 0.0
+    total = 0.0
+    for t in range(chunks):
+        sx += partial[t, 0]
+        sy += partial[t, 1]
+        st += partial[t, 2]
+        total += partial[t, 3]
+    if total <= 0.0:
+        return cx, cy, ct, 0.0
+    return cx + sx / total, cy + sy / total, wrap(ct + st / total), total
+
+
+@numba.njit(cache=True, parallel=True)
+def _kernel_covariance_chunked(xs, ys, ts, weights, mx, my, mt, radius, angle_radius, total, out_cov, chunk):
+    n = xs.shape[0]
+    chunks = max(1, (n + chunk - 1) // chunk)
+    partial = np.zeros((chunks, 6))
+    r2 = radius * radius
+    if total > 0.0:
+        for t in numba.prange(chunks):
+            rows = np.empty((6, BLOCK))
+            sums = np.zeros(6)
+            for start in range(t * chunk, min(n, (t + 1) * chunk), BLOCK):
+                stop = min(start + BLOCK, n, (t + 1) * chunk)
+                count = stop - start
+                _covariance_terms(xs[start:stop], ys[start:stop], ts[start:stop], weights[start:stop], count, mx,
+                                  my, mt, r2, angle_radius, total, rows)
+                for p in range(count):
+                    for q in range(6):
+                        sums[q] += rows[q, p]
+            partial[t, :] = sums
+    c = np.zeros(6)
+    for t in range(chunks):
+        for q in range(6):
+            c[q] += partial[t, q]
+    out_cov[0, 0] = c[0]
+    out_cov[0, 1] = out_cov[1, 0] = c[1]
+    out_cov[0, 2] = out_cov[2, 0] = c[2]
+    out_cov[1, 1] = c[3]
+    out_cov[1, 2] = out_cov[2, 1] = c[4]
+    out_cov[2, 2] = c[5]
+
+
+@numba.njit(cache=True)
+def _dominant_cluster_chunked(xs, ys, ts, weights, best, x_min, y_min, cell_size, ny, n_theta, radius,
+                              angle_radius, iterations, previous, use_previous, out_mean, out_cov, chunk):
+    """`_dominant_cluster` with `_kernel_mean_chunked` and `_kernel_covariance_chunked`."""
+    theta_size = 2.0 * math.pi / n_theta
+    bt = best % n_theta
+    by = (best // n_theta) % ny
+    bx = best // (n_theta * ny)
+    mx = x_min + (bx + 0.5) * cell_size
+    my = y_min + (by + 0.5) * cell_size
+    mt = -math.pi + (bt + 0.5) * theta_size
+    total = 0.0
+    for _ in range(iterations):
+        mx, my, mt, total = _kernel_mean_chunked(xs, ys, ts, weights, mx, my, mt, radius, angle_radius, chunk)
+    if use_previous and total < 0.5:
+        px, py, pt, ptotal = previous[0], previous[1], previous[2], 0.0
+        for _ in range(iterations):
+            px, py, pt, ptotal = _kernel_mean_chunked(xs, ys, ts, weights, px, py, pt, radius, angle_radius, chunk)
+        if ptotal > total:
+            mx, my, mt, total = px, py, pt, ptotal
+    _kernel_covariance_chunked(xs, ys, ts, weights, mx, my, mt, radius, angle_radius, total, out_cov, chunk)
+    out_mean[0] = mx
+    out_mean[1] = my
+    out_mean[2] = wrap(mt)
+    return total
+
+
+@numba.njit(cache=True)
+def summary_estimate_chunked(grid, coordinates, weights, histograms, bitmaps, previous, use_previous, out_mean,
+                             out_cov, chunk):
+    """`summary_estimate` with its sums in chunks on several threads (see above)."""
+    cluster, _, _, cluster_bits, _, _ = _parts(grid, histograms, bitmaps)
+    return _dominant_cluster_chunked(coordinates[0], coordinates[1], coordinates[2], weights,
+                                     _marked_argmax(cluster, cluster_bits), grid[G_X_MIN], grid[G_Y_MIN],
+                                     grid[G_CLUSTER_CELL], int(grid[G_CLUSTER_NY]), int(grid[G_CLUSTER_NT]),
+                                     grid[G_RADIUS], grid[G_ANGLE_RADIUS], int(grid[G_ITERATIONS]), previous,
+                                     use_previous, out_mean, out_cov, chunk)
+
+
+# Several threads fill the histograms in fixed point (weights in units of 2⁻⁶⁰, one row of `local` per thread),
+# where sums in any order are exact: the histograms do not depend on how the chunks fell to the threads, and
+# differ from the serial ones by rounding only.
+_FIXED = 2.0 ** 60
+
+
+@numba.njit(cache=True, parallel=True)
+def _fill_fixed(grid, poses, weights, coordinates, local, chunk):
+    cluster_size, position_size, _ = _layout(grid)
+    n = weights.shape[0]
+    copy = poses.shape[0] > 0
+    for t in numba.prange(max(1, (n + chunk - 1) // chunk)):
+        row = numba.get_thread_id()
+        cells = np.empty((3, BLOCK), dtype=np.int32)
+        for start in range(t * chunk, min(n, (t + 1) * chunk), BLOCK):
+            stop = min(start + BLOCK, n, (t + 1) * chunk)
+            xs = coordinates[0, start:stop]
+            ys = coordinates[1, start:stop]
+            ts = coordinates[2, start:stop]
+            if copy:
+                _deinterleave(poses[start:stop], stop - start, xs, ys, ts)
+            _summary_cells(grid, xs, ys, ts, stop - start, cells)
+            for p in range(stop - start):
+                q = np.int64(weights[start + p] * _FIXED + 0.5)
+                local[row, cells[0, p]] += q
+                local[row, cluster_size + cells[1, p]] += q
+                local[row, cluster_size + position_size + cells[2, p]] += q
+
+
+@numba.njit(cache=True)
+def summary_fill_chunked(grid, poses, weights, coordinates, histograms, bitmaps, local, chunk):
+    """`summary_fill` on several threads (`local`: (threads, cells) int64 scratch, zero on entry and on return):
+    the same cells, the weights summed in fixed point (equal to rounding)."""
+    cluster, position, orientation, cluster_bits, position_bits, orientation_bits = _parts(grid, histograms,
+                                                                                          bitmaps)
+    _clear_marked(cluster, cluster_bits)
+    _clear_marked(position, position_bits)
+    _clear_marked(orientation, orientation_bits)
+    _fill_fixed(grid, poses, weights, coordinates, local, chunk)
+    cluster_size, position_size, _ = _layout(grid)
+    cluster_words = (cluster_size + 63) // 64
+    position_words = (position_size + 63) // 64
+    one = np.uint64(1)
+    for cell in range(histograms.shape[0]):
+        total = 0
+        for row in range(local.shape[0]):
+            total += local[row, cell]
+            local[row, cell] = 0
+        if total == 0:
+            continue
+        histograms[cell] = total / _FIXED
+        if cell < cluster_size:
+            word, bit = cell >> 6, cell & 63
+        elif cell < cluster_size + position_size:
+            word, bit = cluster_words + ((cell - cluster_size) >> 6), (cell - cluster_size) & 63
+        else:
+            offset = cell - cluster_size - position_size
+            word, bit = cluster_words + position_words + (offset >> 6), offset & 63
+        bitmaps[word] |= one << np.uint64(bit)
+
+
+# -- the opt-in fast variant ----------------------------------------------------------------------------------------
+# With `ParticleFilter(fast=True)`: the mean shift's and the covariance's sums reassociated (one vectorized loop
+# each), equal to the serial estimate to rounding.
+FAST = {"nsz", "arcp", "contract", "afn", "reassoc"}     # fast-math without assuming no NaN / inf
+
+
+@numba.njit(cache=True, fastmath=FAST, error_model="numpy")
+def _kernel_mean_fast(xs, ys, ts, weights, cx, cy, ct, radius, angle_radius):
+    sx = 0.0
+    sy = 0.0
+    st = 0.0
+    total = 0.0
+    r2 = radius * radius
+    for i in range(xs.shape[0]):
+        dx = xs[i] - cx
+        dy = ys[i] - cy
+        dt = wrap(ts[i] - ct)
+        inside = (dx * dx + dy * dy <= r2) & (abs(dt) <= angle_radius)
+        w = weights[i] if inside else 0.0
+        sx += w * dx
+        sy += w * dy
+        st += w * dt
+        total += w
+    if total <= 0.0:
+        return cx, cy, ct, 0.0
+    return cx + sx / total, cy + sy / total, wrap(ct + st / total), total
+
+
+@numba.njit(cache=True, fastmath=FAST, error_model="numpy")
+def _kernel_covariance_fast(xs, ys, ts, weights, mx, my, mt, radius, angle_radius, total, out_cov):
+    c00 = c01 = c02 = c11 = c12 = c22 = 0.0
+    r2 = radius * radius
+    if total > 0.0:
+        inverse = 1.0 / total
+        for i in range(xs.shape[0]):
+            dx = xs[i] - mx
+            dy = ys[i] - my
+            dt = wrap(ts[i] - mt)
+            inside = (dx * dx + dy * dy <= r2) & (abs(dt) <= angle_radius)
+            w = weights[i] * inverse if inside else 0.0
+            c00 += w * dx * dx
+            c01 += w * dx * dy
+            c02 += w * dx * dt
+            c11 += w * dy * dy
+            c12 += w * dy * dt
+            c22 += w * dt * dt
+    out_cov[0, 0] = c00
+    out_cov[0, 1] = out_cov[1, 0] = c01
+    out_cov[0, 2] = out_cov[2, 0] = c02
+    out_cov[1, 1] = c11
+    out_cov[1, 2] = out_cov[2, 1] = c12
+    out_cov[2, 2] = c22
+
+
+@numba.njit(cache=True)
+def summary_estimate_fast(grid, coordinates, weights, histograms, bitmaps, previous, use_previous, out_mean, out_cov):
+    """`summary_estimate` with reassociated sums (equal to rounding)."""
+    cluster, _, _, cluster_bits, _, _ = _parts(grid, histograms, bitmaps)
+    best = _marked_argmax(cluster, cluster_bits)
+    xs, ys, ts = coordinates[0], coordinates[1], coordinates[2]
+    cell_size = grid[G_CLUSTER_CELL]
+    ny = int(grid[G_CLUSTER_NY])
+    n_theta = int(grid[G_CLUSTER_NT])
+    radius = grid[G_RADIUS]
+    angle_radius = grid[G_ANGLE_RADIUS]
+    iterations = int(grid[G_ITERATIONS])
+    theta_size = 2.0 * math.pi / n_theta
+    mx = grid[G_X_MIN] + (best // (n_theta * ny) + 0.5) * cell_size
+    my = grid[G_Y_MIN] + ((best // n_theta) % ny + 0.5) * cell_size
+    mt = -math.pi + (best % n_theta + 0.5) * theta_size
+    total = 0.0
+    for _ in range(iterations):
+        mx, my, mt, total = _kernel_mean_fast(xs, ys, ts, weights, mx, my, mt, radius, angle_radius)
+    if use_previous and total < 0.5:
+        px, py, pt, ptotal = previous[0], previous[1], previous[2], 0.0
+        for _ in range(iterations):
+            px, py, pt, ptotal = _kernel_mean_fast(xs, ys, ts, weights, px, py, pt, radius, angle_radius)
+        if ptotal > total:
+            mx, my, mt, total = px, py, pt, ptotal
+    _kernel_covariance_fast(xs, ys, ts, weights, mx, my, mt, radius, angle_radius, total, out_cov)
+    out_mean[0] = mx
+    out_mean[1] = my
+    out_mean[2] = wrap(mt)
+    return total
 
 
 # -- plain numpy references -----------------------------------------------------------------------------------

@@ -38,6 +38,16 @@ Stateful motion models. A motion model with a `particle_state(n)` method (the ad
 a jump-Markov particle filter) gets a per-particle state array that the filter keeps beside the poses: it is
 passed to `predict(poses, u, rng, state=...)`, follows each particle through resampling, and starts fresh for
 reset and injected particles. `pf.motion_state` shows it (read-only).
+
+Speed. With a bounded-noise motion model (velocity-linear, constant) and a sensor model that offers
+`compiled_likelihood` (the landmark model's default variant), `step` and `correct` are one call into compiled
+code (`_compiled_step`): predict, likelihood, weights, resampling, the histograms the estimate and the entropy
+share, and the estimate, with the random numbers drawn in the kernels from the filter's generator. The results
+are those of the plain sequence of calls bit for bit (tests/test_fast_step.py runs both side by side); the
+rare branches (injection, particles that explain nothing) fall back to that sequence. Buffers are kept across
+steps. `fast=True` (vectorized polynomials for sin, cos and exp, reassociated sums) and `threads=n` (chunks of
+particles on n threads) trade the last bits for speed; `mcl.reference.compiled_phases` cuts the compiled
+step into its stages for the benchmark.
 """
 from __future__ import annotations
 
@@ -45,18 +55,22 @@ import math
 from dataclasses import dataclass
 from typing import Iterable
 
+import numba
 import numpy as np
 
 from field import Field
 from field.angles import wrap_angles
-from motion_models._kernels import SQRT3 as _SQRT3, draw_variates
-from motion_models.base import MotionInput, MotionModel
+from motion_models._kernels import (FAST, SQRT3, bit_generator_handle, draw_variates, fast_sincos, move_chunked,
+                                    move_range, move_range_fast, parallel_uniforms)
+from motion_models.base import BoundedNoiseModel, MotionInput, MotionModel
+from sensing.landmarks import BLOCK, COS, SIN, TOTAL, X, Y, block_work, load_block, prepare_detections, score_block
 from sensing.observations import Observations
 
-from .estimate import cluster_estimate, grid_entropy
+from .estimate import (summary_buffers, summary_entropy, summary_estimate, summary_estimate_chunked,
+                       summary_estimate_fast, summary_fill, summary_fill_chunked, summary_grid)
 from .latency import move_back, move_forward
-from .resampling import SCHEMES, gather_with_jitter
-from .weights import log_mean_likelihood, normalize
+from .resampling import SCHEMES, gather_with_jitter, resample_with_jitter, resample_with_jitter_chunked
+from .weights import log_mean_likelihood, normalize, reweigh, reweigh_chunked, weigh, weigh_chunked, weigh_fast
 
 REGIONS = ("field", "own_half", "opponent_half")
 
@@ -183,12 +197,24 @@ class ParticleFilter:
                         resampled particles in their own frame (Gordon et al. 1993). Without it a standing
                         robot, whose velocity-linear noise is zero (eq. 10), collapses onto copies of one
                         particle after a few corrections. (0, 0, 0) switches it off.
+    threads:            1 (the default) computes every step on one thread. With 2 or more, the compiled
+                        step, correction, prediction, estimate and entropy spread chunks of particles over that
+                        many threads, and take their sums chunk by chunk: the same results for any number of
+                        threads (and from run to run), equal to the one-thread results to rounding (a few
+                        units in the last place; resampling can differ where a point falls within rounding
+                        of a running total). Worth it from about N = 10⁵.
+    fast:               False (the default) keeps every result bit for bit as the plain kernels compute it. True
+                        lets the compiled step compute sin, cos and exp by vectorized polynomials and reassociate
+                        the sums of the weights and of the estimate: the same random draws, particles, weights
+                        and estimate equal to about 10⁻¹⁴ after a step (and, like any rounding difference,
+                        a run that resamples drifts apart from the default one over many steps).
     """
 
     def __init__(self, field: Field, motion_model: MotionModel, sensor_model, n_particles: int = 500,
                  seed: int | None = 0, resampling: str = "systematic", resample_threshold: float = 0.5,
                  augmented: AugmentedMCL | None = AugmentedMCL(), grid: Grid = Grid(),
-                 roughening: tuple[float, float, float] = (0.02, 0.02, 0.02)) -> None:
+                 roughening: tuple[float, float, float] = (0.02, 0.02, 0.02), threads: int = 1,
+                 fast: bool = False) -> None:
         if not isinstance(field, Field):
             raise ValueError(f"field = {field!r} must be a field.Field")
         if isinstance(n_particles, bool) or not isinstance(n_particles, (int, np.integer)) or n_particles <= 0:
@@ -206,6 +232,13 @@ class ParticleFilter:
         if roughening_array.shape != (3,) or not np.isfinite(roughening_array).all() or (roughening_array < 0).any():
             raise ValueError(f"roughening = {roughening!r} must be three finite numbers >= 0")
         self.roughening = roughening_array
+        if isinstance(threads, bool) or not isinstance(threads, (int, np.integer)) or threads < 1:
+            raise ValueError(f"threads = {threads!r} must be an integer >= 1")
+        if not isinstance(fast, (bool, np.bool_)):
+            raise ValueError(f"fast = {fast!r} must be True or False")
+        self._threads = int(threads)
+        self._fast = bool(fast)
+        self._thread_scope = _Threads(self._threads)
         self.field = field
         self.motion_model = motion_model
         self.sensor_model = sensor_model
@@ -223,16 +256,29 @@ class ParticleFilter:
         self._entropy_ny = max(1, math.ceil((self._y_max - self._y_min) / grid.position_cell))
         self._cluster_nx = max(1, math.ceil((self._x_max - self._x_min) / grid.cluster_cell))
         self._cluster_ny = max(1, math.ceil((self._y_max - self._y_min) / grid.cluster_cell))
-        # Buffers kept across steps.
+        # Buffers kept across steps: a steady-state step allocates nothing that grows with N.
         self.poses = np.zeros((self.n, 3))
         self.log_weights = np.full(self.n, -math.log(self.n))
         self._weights = np.full(self.n, 1.0 / self.n)
         self._log_likelihood = np.empty(self.n)
-        self._previous = np.empty((self.n, 3))
+        self._previous = np.empty((self.n, 3))          # the particles before resampling (the copy's source)
         self._capture_poses = np.empty((self.n, 3))
-        self._position_histogram = np.empty(self._entropy_nx * self._entropy_ny)
-        self._orientation_histogram = np.empty(grid.orientation_bins)
-        self._cluster_histogram = np.empty(self._cluster_nx * self._cluster_ny * grid.cluster_orientation_bins)
+        self._trig = np.empty((self.n, 2))              # cos, sin of the scored headings, for the roughening
+        self._variates = np.empty((self.n, 3))          # drawn Gaussian motion noise, resampling variates
+        self._counts = np.zeros(self.n + 1, dtype=np.int64)   # resampling scratch (zero between uses)
+        # The estimate's and the entropy's histograms, filled in one pass and kept until the particles change.
+        self._grid_parameters = summary_grid(self._x_min, self._y_min, grid.cluster_cell, self._cluster_nx,
+                                             self._cluster_ny, grid.cluster_orientation_bins, grid.cluster_radius,
+                                             grid.cluster_angle_radius, 3, grid.position_cell, self._entropy_nx,
+                                             self._entropy_ny, grid.orientation_bins)
+        self._summary = summary_buffers(self._grid_parameters, self.n)
+        # threads > 1: each thread's histograms, in fixed point (see mcl.estimate.summary_fill_chunked)
+        self._local_histograms = np.zeros((numba.config.NUMBA_NUM_THREADS if self._threads > 1 else 0,
+                                           self._summary[1].shape[0]), dtype=np.int64)
+        self._summary_valid = False
+        self._rng_handle: tuple | None = None           # (bit generator, its kernel handle)
+        self._compiled_sensor_of = None                 # the sensor model `_compiled_sensor` was asked of
+        self._compiled_sensor = None
         self.w_slow = 0.0
         self.w_fast = 0.0
         self.frame_fit = math.nan     # the last correction's average likelihood per detection (augmented MCL)
@@ -253,6 +299,11 @@ class ParticleFilter:
                 raise ValueError(f"motion_model.particle_state({self.n}) must have {self.n} rows, "
                                  f"got shape {self._motion_state.shape}")
         self.reset_uniform("field")
+
+    def _changed(self) -> None:
+        """The particles or their weights changed: the cached estimate and summary histograms are stale."""
+        self._estimate = None
+        self._summary_valid = False
 
     # -- resets ------------------------------------------------------------------------------------------
     def _region_bounds(self, region) -> tuple[float, float, float, float]:
@@ -279,7 +330,7 @@ class ParticleFilter:
         self.log_weights[:] = -math.log(self.n)
         self._weights[:] = 1.0 / self.n
         self.ess = float(self.n)
-        self._estimate = None
+        self._changed()
 
     def reset_uniform(self, region="field", heading: float | None = None, heading_sigma: float = 0.0) -> None:
         """Spread the particles uniformly over a region ("field", "own_half", "opponent_half", or bounds).
@@ -330,7 +381,7 @@ class ParticleFilter:
         self.poses[:] = self.field.mirror_poses(self.poses)
         self._heading_reference = math.remainder(self._heading_reference + math.pi, 2 * math.pi)
         self._has_previous_estimate = False
-        self._estimate = None
+        self._changed()
 
     def reset_candidates(self, poses, sigma=(0.1, 0.1, 0.1), region="field") -> None:
         """Spread the particles evenly over several candidate poses (K, 3), normal around each with `sigma`.
@@ -365,7 +416,7 @@ class ParticleFilter:
         self.poses[:] = noisy
         self.poses[:, 2] = wrap_angles(self.poses[:, 2])
         self._has_previous_estimate = False
-        self._estimate = None
+        self._changed()
 
     @staticmethod
     def _check_sigma(sigma) -> np.ndarray:
@@ -400,9 +451,15 @@ class ParticleFilter:
             self.log_weights[:] = log_weights - total
 
     # -- the step ----------------------------------------------------------------------------------------
+    # A bounded-noise motion model (velocity-linear, constant) and a sensor model that offers
+    # `compiled_likelihood` (the landmark model's default variant) run inside the filter's own kernels:
+    # `predict` draws its noise in the kernel, and `correct` and `step` are one call into compiled code
+    # (`_compiled_step`: predict, likelihood, weights, resampling, the summary histograms and the estimate).
+    # Every path gives the particles, weights, draws and estimates of the plain sequence of calls bit for bit;
+    # other models take that sequence.
+
     def predict(self, u: MotionInput) -> None:
         """Move every particle by the motion model."""
-        self._check_motion(u)
         self._move(u)
 
     def _check_motion(self, u: MotionInput) -> None:
@@ -410,13 +467,66 @@ class ParticleFilter:
             raise ValueError(f"u = {u!r} must be a motion_models.MotionInput")
         self.motion_model.check(u)
 
+    def _kernel_motion(self, u: MotionInput) -> tuple[float, ...] | None:
+        """Check `u` (as `_check_motion`); return (dx, dy, dθ, bound_x, bound_y, bound_θ) when the motion model
+        moves as `BoundedNoiseModel` does (displacement plus bounded robot-frame noise), so the filter's
+        kernels can move the particles themselves, else None."""
+        if not isinstance(u, MotionInput):
+            raise ValueError(f"u = {u!r} must be a motion_models.MotionInput")
+        model = self.motion_model
+        kind = type(model)
+        if (self._motion_state is not None or not isinstance(model, BoundedNoiseModel)
+                or kind.predict is not BoundedNoiseModel.predict or kind.check is not BoundedNoiseModel.check):
+            model.check(u)
+            return None
+        dx, dy, dtheta = u.displacement()           # BoundedNoiseModel.check
+        bound_x, bound_y, bound_theta = model.noise_bounds(u)
+        return float(dx), float(dy), float(dtheta), float(bound_x), float(bound_y), float(bound_theta)
+
+    def _generator(self) -> tuple[int, int]:
+        """The filter generator's handle for drawing in kernels (`motion_models._kernels.bit_generator_handle`)."""
+        bit_generator = self.rng.bit_generator
+        handle = self._rng_handle
+        if handle is None or handle[0] is not bit_generator:
+            handle = self._rng_handle = (bit_generator, *bit_generator_handle(self.rng))
+        return handle[1], handle[2]
+
+    def _sensor_kernel(self) -> tuple | None:
+        """The sensor model's `compiled_likelihood()` arguments (None: score through `log_likelihood`)."""
+        sensor_model = self.sensor_model
+        if sensor_model is not self._compiled_sensor_of:
+            compiled = getattr(sensor_model, "compiled_likelihood", None)
+            self._compiled_sensor = compiled() if callable(compiled) else None
+            self._compiled_sensor_of = sensor_model
+        return self._compiled_sensor
+
     def _move(self, u: MotionInput) -> None:
-        if self._motion_state is None:
-            self.motion_model.predict(self.poses, u, self.rng)
+        motion = self._kernel_motion(u)             # checks u first
+        if motion is None:
+            if self._motion_state is None:
+                self.motion_model.predict(self.poses, u, self.rng)
+            else:
+                self.motion_model.predict(self.poses, u, self.rng, state=self._motion_state)
+            self._carry_heading(u)
         else:
-            self.motion_model.predict(self.poses, u, self.rng, state=self._motion_state)
-        self._carry_heading(u)
-        self._estimate = None
+            self._move_compiled(motion)
+            self._heading_reference = math.remainder(self._heading_reference + motion[2], 2 * math.pi)
+        self._changed()
+
+    def _move_compiled(self, motion: tuple[float, ...]) -> None:
+        """Move by (dx, dy, dθ, bounds) in the filter's kernels, with the noise the motion model would draw."""
+        gaussian = bool(self.motion_model.gaussian)
+        variates = draw_variates(self.rng, self.n, True, out=self._variates) if gaussian else _NO_VARIATES
+        if self._threads > 1:
+            with self._thread_scope:
+                if not gaussian:
+                    variates = self._variates
+                    parallel_uniforms(*self._generator(), variates.reshape(-1), 3 * self.n)
+                move_chunked(self.poses, *motion, gaussian, variates, _CHUNK)
+        elif self._fast:
+            move_range_fast(self.poses, self.poses, 0, self.n, *motion, gaussian, variates, *self._generator())
+        else:
+            move_range(self.poses, self.poses, 0, self.n, *motion, gaussian, variates, *self._generator())
 
     def _carry_heading(self, u: MotionInput) -> None:
         """Turn the heading reference by the motion input's rotation, as a gyro would."""
@@ -430,8 +540,20 @@ class ParticleFilter:
                is scored where it was at capture: moved back along `since`. None or (0, 0, 0): scored as it is.
         """
         observations = Observations.coerce(observations)
-        self.sensor_model.check(observations)
-        self._correct(observations, self._check_since(since))
+        if len(observations) == 0 or self._sensor_kernel() is None:
+            self.sensor_model.check(observations)
+            self._correct(observations, self._check_since(since))
+            return
+        try:
+            since = self._check_since(since)
+        except ValueError:
+            self.sensor_model.check(observations)     # the detections are checked first
+            raise
+        if since is not None:
+            self.sensor_model.check(observations)
+            self._correct(observations, since)
+        else:
+            self._step_compiled(None, observations, False)
 
     @staticmethod
     def _check_since(since) -> np.ndarray | None:
@@ -449,16 +571,16 @@ class ParticleFilter:
         if since is not None:
             move_back(self.poses, since, self._capture_poses)
             scored = self._capture_poses
-        log_likelihood = self.sensor_model.log_likelihood(scored, observations, out=self._log_likelihood)
-        if np.isnan(log_likelihood).any() or (log_likelihood == np.inf).any():
+        log_likelihood = np.asarray(self.sensor_model.log_likelihood(scored, observations, out=self._log_likelihood),
+                                    dtype=np.float64)
+        valid, native_log_average, log_evidence, ess = weigh(self.log_weights, log_likelihood,
+                                                             self.n - self.injected, self._weights)
+        if not valid:
             raise ValueError("sensor model returned NaN or +inf log-likelihoods; filter left unchanged")
-        native_log_average = self._native_log_average(log_likelihood)
         terms = getattr(self.sensor_model, "terms", len)(observations)
         if terms > 0:
             self.frame_fit = math.exp(native_log_average / terms)
-        candidate = self.log_weights + log_likelihood
-        log_evidence, ess = normalize(candidate, self._weights)
-        self._estimate = None
+        self._changed()
         if log_evidence == -np.inf:
             # Every particle has zero likelihood: the belief cannot explain the detections. Recover by
             # keeping the particles with uniform weights and replacing the largest allowed share by
@@ -466,7 +588,7 @@ class ParticleFilter:
             self._weights[:] = 1.0 / self.n
             self._resample(self._injection_count(1.0), observations, since)
             return
-        self.log_weights[:] = candidate - log_evidence
+        reweigh(self.log_weights, log_likelihood, log_evidence)
         self.ess = ess
         fraction = 0.0
         if self.augmented is not None:
@@ -485,11 +607,90 @@ class ParticleFilter:
         Both inputs are validated before anything changes.
         """
         observations = Observations.coerce(observations)
-        self.sensor_model.check(observations)
-        self._check_motion(u)
-        self._move(u)
-        self._correct(observations)
+        if len(observations) == 0 or self._sensor_kernel() is None:
+            self.sensor_model.check(observations)
+            self._check_motion(u)
+            self._move(u)
+            self._correct(observations)
+            return self.estimate()
+        try:
+            motion = self._kernel_motion(u)
+        except ValueError:
+            self.sensor_model.check(observations)     # the detections are checked first
+            raise
+        if motion is None:
+            self.sensor_model.check(observations)     # before moving in Python
+            self._move(u)
+        self._step_compiled(motion, observations, True)
         return self.estimate()
+
+    def _step_compiled(self, motion: tuple | None, observations: Observations, in_step: bool) -> None:
+        """[predict by `motion`,] correct(observations): one call into `_compiled_step`."""
+        n = self.n
+        table, offsets, range_noise_floor, range_noise_growth, bearing_sigma, log_outlier = self._compiled_sensor
+        move = motion is not None
+        chunk = _CHUNK if self._threads > 1 else 0
+        gaussian = move and bool(self.motion_model.gaussian)
+        variates = self._variates if chunk else _NO_VARIATES
+        if not move:
+            motion = _NO_MOTION
+        elif gaussian:
+            self.sensor_model.check(observations)     # before the noise is drawn
+            variates = draw_variates(self.rng, n, True, out=self._variates)
+        a = self.augmented
+        if a is None:
+            augmented, alpha_slow, alpha_fast, ratio_threshold, fit_threshold, cap = False, 0.0, 0.0, 1.0, 0.0, 0.0
+        else:
+            augmented, alpha_slow, alpha_fast = True, a.alpha_slow, a.alpha_fast
+            ratio_threshold, fit_threshold = a.ratio_threshold, a.fit_threshold
+            cap = a.max_fraction_tracking if self._ever_confident else a.max_fraction
+        terms = getattr(self.sensor_model, "terms", len)(observations)
+        # Only an estimate the plain sequence of calls computes (after a correction with augmentation, or at the
+        # end of `step`) may be computed here: computing one moves the hysteresis anchor `_previous_estimate`.
+        want_estimate = in_step or a is not None
+        mean = np.empty(3)
+        covariance = np.empty((3, 3))
+        coordinates, histograms, bitmaps = self._summary
+        with self._thread_scope:
+            (status, native_log_average, ess, w_slow, w_fast, fraction, resampled, weight) = _compiled_step(
+                self.poses, self.log_weights, self._weights, self._log_likelihood, self._previous, self._trig,
+                self._counts, self._local_histograms, move, *motion, gaussian, variates, *self._generator(),
+                observations.kinds, observations.ranges, observations.bearings, observations.range_sigmas,
+                observations.bearing_sigmas, table, offsets, range_noise_floor, range_noise_growth, bearing_sigma,
+                log_outlier, n - self.injected, terms, augmented, alpha_slow, alpha_fast, ratio_threshold,
+                fit_threshold, self.w_slow, self.w_fast, cap, self.resample_threshold,
+                self.resampling == "systematic" and self._motion_state is None, self.roughening,
+                self._grid_parameters, coordinates, histograms, bitmaps, want_estimate, self._previous_estimate,
+                self._has_previous_estimate, mean, covariance, chunk, self._fast)
+        if status == _STEP_MISSING:
+            self.sensor_model.check(observations)     # raises, naming the detection; nothing has changed
+            raise ValueError("a detection's landmark type is not on this field")
+        if move:                                      # the particles have moved, whatever follows
+            self._heading_reference = math.remainder(self._heading_reference + motion[2], 2 * math.pi)
+            self._changed()
+        if status == _STEP_INVALID:
+            raise ValueError("sensor model returned NaN or +inf log-likelihoods; filter left unchanged")
+        self._changed()
+        if terms > 0:
+            self.frame_fit = math.exp(native_log_average / terms)
+        if status == _STEP_UNEXPLAINED:
+            self._weights[:] = 1.0 / n
+            self._resample(self._injection_count(1.0), observations)
+            return
+        self.ess = ess
+        if augmented and terms > 0:
+            self.w_slow = w_slow
+            self.w_fast = w_fast
+        if status == _STEP_RESAMPLE:
+            self._resample(self._injection_count(fraction), observations)
+        else:
+            self.resampled = resampled
+            self.injected = 0
+            self._summary_valid = True
+            if want_estimate:                         # `_previous_estimate` was updated in the kernel
+                self._estimate = Estimate(mean, covariance, weight)
+                self._has_previous_estimate = True
+        self._track_confidence()
 
     def _track_confidence(self) -> None:
         """Keep the heading reference that guides injection.
@@ -568,27 +769,42 @@ class ParticleFilter:
         return np.concatenate([poses, uniform], axis=0)
 
     def _resample(self, count: int, observations: Observations, since: np.ndarray | None = None) -> None:
-        injected = self._sample_injection(count, observations) if count > 0 else np.empty((0, 3))
+        injected = self._sample_injection(count, observations) if count > 0 else _NO_VARIATES
         if since is not None and injected.shape[0]:
             # Sensor resetting placed them where the detections were captured: carry them to now.
             move_forward(injected, since, injected)
         keep = self.n - injected.shape[0]
-        ancestors = SCHEMES[self.resampling](self._weights, keep, self.rng)
         self._previous[:] = self.poses
         # Roughening: uniform jitter of standard deviation `roughening`, in each particle's own frame so that
         # it commutes with rotating the world, fused with the copy from the ancestors.
-        gather_with_jitter(self._previous, ancestors, self.roughening * _SQRT3, draw_variates(self.rng, keep, False),
-                           self.poses)
+        bounds = self.roughening * SQRT3
+        if self.resampling == "systematic" and self._motion_state is None:
+            resample_with_jitter(self._weights, keep, self._previous, bounds, self.poses, _NO_TRIG,
+                                 *self._generator(), self._counts, _NO_COORDINATES)
+        else:
+            ancestors = SCHEMES[self.resampling](self._weights, keep, self.rng)
+            gather_with_jitter(self._previous, ancestors, bounds,
+                               draw_variates(self.rng, keep, False, out=self._variates), self.poses)
+            if self._motion_state is not None:
+                self._motion_state[:keep] = self._motion_state[ancestors]
+                self._motion_state[keep:] = self.motion_model.particle_state(self.n - keep)
         self.poses[keep:] = injected
-        if self._motion_state is not None:
-            self._motion_state[:keep] = self._motion_state[ancestors]
-            self._motion_state[keep:] = self.motion_model.particle_state(self.n - keep)
         self.log_weights[:] = -math.log(self.n)
         self._weights[:] = 1.0 / self.n
         self.ess = float(self.n)
         self.resampled = True
         self.injected = int(injected.shape[0])
-        self._estimate = None
+        self._changed()
+
+    @property
+    def threads(self) -> int:
+        """The number of threads the compiled step runs on (a constructor option)."""
+        return self._threads
+
+    @property
+    def fast(self) -> bool:
+        """Whether the compiled step computes sin, cos, exp and its sums the fast way (a constructor option)."""
+        return self._fast
 
     # -- summaries ---------------------------------------------------------------------------------------
     @property
@@ -607,6 +823,16 @@ class ParticleFilter:
         view.flags.writeable = False
         return view
 
+    def _fill_summary(self) -> None:
+        if not self._summary_valid:
+            if self._threads > 1:
+                with self._thread_scope:
+                    summary_fill_chunked(self._grid_parameters, self.poses, self._weights, *self._summary,
+                                         self._local_histograms, _CHUNK)
+            else:
+                summary_fill(self._grid_parameters, self.poses, self._weights, *self._summary)
+            self._summary_valid = True
+
     def estimate(self) -> Estimate:
         """Weighted circular mean and covariance of the dominant cluster (cached until the particles change).
 
@@ -614,28 +840,267 @@ class ParticleFilter:
         the heavier (hysteresis: see `mcl.estimate.cluster_estimate`).
         """
         if self._estimate is None:
-            g = self.grid
+            self._fill_summary()
             mean = np.empty(3)
             cov = np.empty((3, 3))
             previous = self._previous_estimate
-            weight = cluster_estimate(self.poses, self._weights, self._x_min, self._y_min, g.cluster_cell,
-                                      self._cluster_nx, self._cluster_ny, g.cluster_orientation_bins,
-                                      g.cluster_radius, g.cluster_angle_radius, 3, self._cluster_histogram,
-                                      previous, self._has_previous_estimate, mean, cov)
+            coordinates, histograms, bitmaps = self._summary
+            if self._threads > 1:
+                with self._thread_scope:
+                    weight = summary_estimate_chunked(self._grid_parameters, coordinates, self._weights, histograms,
+                                                      bitmaps, previous, self._has_previous_estimate, mean, cov,
+                                                      _CHUNK)
+            elif self._fast:
+                weight = summary_estimate_fast(self._grid_parameters, coordinates, self._weights, histograms, bitmaps,
+                                               previous, self._has_previous_estimate, mean, cov)
+            else:
+                weight = summary_estimate(self._grid_parameters, coordinates, self._weights, histograms, bitmaps,
+                                          previous, self._has_previous_estimate, mean, cov)
             self._estimate = Estimate(mean, cov, float(weight))
             previous[:] = mean
             self._has_previous_estimate = True
         return self._estimate
 
     def entropy(self) -> Entropy:
-        """Position and orientation entropy in bits on the grid (Hoffmann eq. 27)."""
-        position, orientation = grid_entropy(self.poses, self._weights, self._x_min, self._y_min,
-                                             self.grid.position_cell, self._entropy_nx, self._entropy_ny,
-                                             self.grid.orientation_bins, self._position_histogram,
-                                             self._orientation_histogram)
+        """Position and orientation entropy in bits on the grid (Hoffmann eq. 27), from the histograms the
+        estimate shares (kept until the particles change)."""
+        self._fill_summary()
+        position, orientation = summary_entropy(self._grid_parameters, *self._summary[1:])
         return Entropy(float(position), float(orientation))
 
     @property
     def entropy_bounds(self) -> tuple[float, float]:
         """The largest possible position and orientation entropies: log2 of the cell counts."""
         return math.log2(self._entropy_nx * self._entropy_ny), math.log2(self.grid.orientation_bins)
+
+
+# -- the compiled step ---------------------------------------------------------------------------------------------
+_CHUNK = 4096        # particles per chunk with threads > 1 (fixed: the results do not depend on the threads)
+THETA = TOTAL        # `_load_block_fast` keeps the headings in the work array's row TOTAL until they are scored
+
+
+class _Threads:
+    """Run numba's parallel kernels on `threads` threads inside the block (at most NUMBA_NUM_THREADS); a filter
+    on one thread runs no parallel kernel, and its block sets nothing."""
+
+    def __init__(self, threads: int) -> None:
+        self.active = threads > 1
+        self.threads = min(threads, numba.config.NUMBA_NUM_THREADS)
+        self.previous = self.threads
+
+    def __enter__(self) -> None:
+        if self.active:
+            self.previous = numba.get_num_threads()
+            if self.previous != self.threads:
+                numba.set_num_threads(self.threads)
+
+    def __exit__(self, *exc) -> None:
+        if self.active and self.previous != self.threads:
+            numba.set_num_threads(self.previous)
+
+
+_NO_VARIATES = np.empty((0, 3))
+_NO_TRIG = np.empty((0, 2))
+_NO_COORDINATES = np.empty((3, 0))
+_NO_MOTION = (0.0,) * 6
+# `_compiled_step` status: done; a detection's type is missing (nothing changed); NaN or +inf likelihoods
+# (predicted only); no particle explains the detections; resampling (with injection) is left to Python.
+_STEP_DONE, _STEP_MISSING, _STEP_INVALID, _STEP_UNEXPLAINED, _STEP_RESAMPLE = range(5)
+
+
+@numba.njit(cache=True)
+def augmented_update(w_slow, w_fast, log_average, alpha_slow, alpha_fast, ratio_threshold, fit_threshold):
+    """`ParticleFilter._update_augmented` in compiled code: (w_slow, w_fast, injection share)."""
+    average = math.exp(log_average)
+    if w_slow == 0.0:
+        w_slow = w_fast = average
+    else:
+        w_slow += alpha_slow * (average - w_slow)
+        w_fast += alpha_fast * (average - w_fast)
+    relative = 1.0 - w_fast / (ratio_threshold * w_slow) if w_slow > 0 else 1.0
+    absolute = 1.0 - w_fast / fit_threshold if fit_threshold > 0 else 0.0
+    fraction = 0.0                       # max(0.0, relative, absolute), resolved as Python's max resolves it
+    if relative > fraction:
+        fraction = relative
+    if absolute > fraction:
+        fraction = absolute
+    return w_slow, w_fast, fraction
+
+
+@numba.njit(cache=True, fastmath=FAST, error_model="numpy")
+def _trig_fast(work, count):
+    for p in range(count):
+        work[COS, p], work[SIN, p] = fast_sincos(work[THETA, p])
+
+
+@numba.njit(cache=True)
+def _load_block_fast(poses, start, count, work, trig):
+    """`load_block` with `fast_sincos` (the work array's rows TOTAL holds the headings meanwhile)."""
+    for p in range(count):
+        work[X, p] = poses[start + p, 0]
+        work[Y, p] = poses[start + p, 1]
+        work[THETA, p] = poses[start + p, 2]
+    _trig_fast(work, count)
+    for p in range(count):
+        trig[start + p, 0] = work[COS, p]
+        trig[start + p, 1] = work[SIN, p]
+
+
+@numba.njit(cache=True)
+def _predict_and_score(poses, scratch, trig, log_likelihood, move, dx, dy, dtheta, bound_x, bound_y, bound_theta,
+                       gaussian, variates, function, state, table, offsets, detections, groups, log_outlier, start,
+                       stop, fast):
+    """Particles start..stop moved (or copied) from `poses` into `scratch` a block at a time and scored there
+    while in cache; cos and sin of their headings into `trig` (for the roughening)."""
+    work = block_work(offsets, groups, min(stop - start, BLOCK))
+    for block in range(start, stop, BLOCK):
+        end = min(block + BLOCK, stop)
+        if not move:
+            scratch[block:end] = poses[block:end]
+        elif fast:
+            move_range_fast(poses, scratch, block, end, dx, dy, dtheta, bound_x, bound_y, bound_theta, gaussian,
+                            variates, function, state)
+        else:
+            move_range(poses, scratch, block, end, dx, dy, dtheta, bound_x, bound_y, bound_theta, gaussian,
+                       variates, function, state)
+        if fast:
+            _load_block_fast(scratch, block, end - block, work, trig)
+        else:
+            load_block(scratch, block, end - block, work, trig)
+        score_block(work, end - block, table, offsets, detections, groups, log_outlier)
+        log_likelihood[block:end] = work[TOTAL, :end - block]
+
+
+@numba.njit(cache=True, parallel=True)
+def _predict_and_score_chunked(poses, scratch, trig, log_likelihood, move, dx, dy, dtheta, bound_x, bound_y,
+                               bound_theta, gaussian, variates, table, offsets, detections, groups, log_outlier,
+                               chunk, fast):
+    """`_predict_and_score` of all particles, the chunks on several threads (the noise drawn beforehand)."""
+    n = poses.shape[0]
+    for t in numba.prange(max(1, (n + chunk - 1) // chunk)):
+        _predict_and_score(poses, scratch, trig, log_likelihood, move, dx, dy, dtheta, bound_x, bound_y,
+                           bound_theta, gaussian, variates, 0, 0, table, offsets, detections, groups, log_outlier,
+                           t * chunk, min(n, (t + 1) * chunk), fast)
+
+
+@numba.njit(cache=True, parallel=True)
+def _fill_chunked(first, first_value, second, second_value, chunk):
+    n = first.shape[0]
+    for t in numba.prange(max(1, (n + chunk - 1) // chunk)):
+        first[t * chunk:min(n, (t + 1) * chunk)] = first_value
+        second[t * chunk:min(n, (t + 1) * chunk)] = second_value
+
+
+@numba.njit(cache=True, parallel=True)
+def _copy_chunked(source, out, chunk):
+    n = source.shape[0]
+    for t in numba.prange(max(1, (n + chunk - 1) // chunk)):
+        out[t * chunk:min(n, (t + 1) * chunk)] = source[t * chunk:min(n, (t + 1) * chunk)]
+
+
+@numba.njit(cache=True)
+def _compiled_step(poses, log_weights, weights, log_likelihood, scratch, trig, counts, local,
+                   move, dx, dy, dtheta, bound_x, bound_y, bound_theta, gaussian, variates, function, state,
+                   kinds, ranges, bearings, range_sigmas, bearing_sigmas, table, offsets, range_noise_floor,
+                   range_noise_growth, bearing_sigma, log_outlier,
+                   count, terms, augmented, alpha_slow, alpha_fast, ratio_threshold, fit_threshold, w_slow, w_fast,
+                   cap, resample_threshold, can_resample, roughening,
+                   grid, coordinates, histograms, bitmaps, want_estimate, previous, use_previous, out_mean, out_cov,
+                   chunk, fast):
+    """predict (when `move`), the landmark likelihood, the weight update, augmented MCL's rates, systematic
+    resampling with roughening, the summary histograms and the estimate, as ParticleFilter.predict and
+    correct compute them. Returns (status, native log average, ESS, w_slow, w_fast, injection share,
+    resampled, estimate weight); with an estimate, `previous` becomes its mean.
+
+    The particles are moved (or copied) block by block into `scratch` and scored there while they are in
+    cache, with cos and sin of their headings kept in `trig` for the roughening; resampling then copies from
+    `scratch` into `poses`, and without resampling `scratch` is copied back. variates: the Gaussian motion
+    noise drawn beforehand; for uniform noise, no rows (drawn here), or with `chunk` a (N, 3) scratch.
+
+    chunk > 0: the threads variant. The particles go through the stages in chunks of `chunk` spread over
+    threads, and every sum is taken chunk by chunk (`mcl.weights.weigh_chunked`,
+    `mcl.resampling.resample_with_jitter_chunked`, `mcl.estimate.summary_estimate_chunked`): the same
+    results for any number of threads, equal to the serial ones to rounding. `local`: the threads' fixed-point
+    histograms (`mcl.estimate.summary_fill_chunked`).
+    fast: sin, cos and exp by vectorized polynomials and the sums of the weights and of the estimate
+    reassociated; the same draws, results equal to rounding.
+    """
+    n = poses.shape[0]
+    detections, groups, missing = prepare_detections(kinds, ranges, bearings, range_sigmas, bearing_sigmas, offsets,
+                                                     range_noise_floor, range_noise_growth, bearing_sigma)
+    if missing >= 0:
+        return _STEP_MISSING, 0.0, 0.0, w_slow, w_fast, 0.0, False, 0.0
+    if chunk > 0:
+        if move and not gaussian:
+            parallel_uniforms(function, state, variates.reshape(-1), 3 * n)
+        _predict_and_score_chunked(poses, scratch, trig, log_likelihood, move, dx, dy, dtheta, bound_x, bound_y,
+                                   bound_theta, gaussian, variates, table, offsets, detections, groups, log_outlier,
+                                   chunk, fast)
+        valid, native, log_evidence, ess = weigh_chunked(log_weights, log_likelihood, count, weights, chunk)
+    else:
+        _predict_and_score(poses, scratch, trig, log_likelihood, move, dx, dy, dtheta, bound_x, bound_y, bound_theta,
+                           gaussian, variates, function, state, table, offsets, detections, groups, log_outlier, 0,
+                           n, fast)
+        if fast:
+            valid, native, log_evidence, ess = weigh_fast(log_weights, log_likelihood, count, weights)
+        else:
+            valid, native, log_evidence, ess = weigh(log_weights, log_likelihood, count, weights)
+    if not valid or log_evidence == -np.inf:
+        if move:
+            poses[:, :] = scratch
+        return _STEP_INVALID if not valid else _STEP_UNEXPLAINED, native, 0.0, w_slow, w_fast, 0.0, False, 0.0
+    fraction = 0.0
+    if augmented and terms > 0:
+        w_slow, w_fast, fraction = augmented_update(w_slow, w_fast, native / terms, alpha_slow, alpha_fast,
+                                                    ratio_threshold, fit_threshold)
+    # `_injection_count`: round(min(fraction, cap)·N) > 0, i.e. the product exceeds one half.
+    inject = augmented and (cap if cap < fraction else fraction) * n > 0.5
+    resample = ess < resample_threshold * n
+    if inject or (resample and not can_resample):
+        if move:
+            poses[:, :] = scratch
+        return _STEP_RESAMPLE, native, ess, w_slow, w_fast, fraction, False, 0.0
+    if resample:
+        bounds = np.empty(3)
+        for axis in range(3):
+            bounds[axis] = roughening[axis] * SQRT3
+        if chunk > 0:
+            resample_with_jitter_chunked(weights, n, scratch, bounds, poses, trig, function, state, counts,
+                                         coordinates, variates.reshape(-1), chunk)
+        else:
+            resample_with_jitter(weights, n, scratch, bounds, poses, trig, function, state, counts, coordinates)
+        if chunk > 0:
+            _fill_chunked(log_weights, -math.log(n), weights, 1.0 / n, chunk)
+        else:
+            log_weights[:] = -math.log(n)
+            weights[:] = 1.0 / n
+        ess = float(n)
+        source = _NO_VARIATES                   # the coordinates were written by the resampling
+    else:
+        if move:
+            if chunk > 0:
+                _copy_chunked(scratch, poses, chunk)
+            else:
+                poses[:, :] = scratch
+        if chunk > 0:
+            reweigh_chunked(log_weights, log_likelihood, log_evidence, chunk)
+        else:
+            reweigh(log_weights, log_likelihood, log_evidence)
+        source = poses
+    weight = 0.0
+    if chunk > 0:
+        summary_fill_chunked(grid, source, weights, coordinates, histograms, bitmaps, local, chunk)
+        if want_estimate:
+            weight = summary_estimate_chunked(grid, coordinates, weights, histograms, bitmaps, previous, use_previous,
+                                              out_mean, out_cov, chunk)
+    else:
+        summary_fill(grid, source, weights, coordinates, histograms, bitmaps)
+        if want_estimate and fast:
+            weight = summary_estimate_fast(grid, coordinates, weights, histograms, bitmaps, previous, use_previous,
+                                           out_mean, out_cov)
+        elif want_estimate:
+            weight = summary_estimate(grid, coordinates, weights, histograms, bitmaps, previous, use_previous,
+                                      out_mean, out_cov)
+    if want_estimate:
+        previous[:] = out_mean
+    return _STEP_DONE, native, ess, w_slow, w_fast, fraction, resample, weight

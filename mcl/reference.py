@@ -1,29 +1,51 @@
-"""The filter step in plain numpy: the reference the numba kernels are tested against and benchmarked with.
+"""The filter step in plain numpy, and the compiled step phase by phase: what the benchmark times.
 
-    from mcl.reference import numpy_step
+    from mcl.reference import PHASES, numpy_step, compiled_phases, full_step
 
-Each phase calls the `*_reference` twin of the kernel the filter uses; with the same generator state the
+    numpy_step(pf, u, observations, timings)     # the step in plain numpy, on a copy of pf's particles
+    work = compiled_phases(pf, u, observations)  # {phase: callable}, the compiled step cut into its stages
+    for name in PHASES:
+        work[name]()                             # in this order; together one step that always resamples
+    full_step(pf, u, observations)               # pf.step(u, observations) and pf.entropy(): one dispatch
+
+`numpy_step` calls the `*_reference` twin of each kernel the filter uses; with the same generator state its
 results agree with the filter's to rounding (the draws are the same, in the same order).
+
+`compiled_phases` calls, one dispatch each, the kernels that `mcl.filter._compiled_step` runs in a single
+dispatch, on the filter's own buffers and with its options (`fast`, `threads`): predict (moving the particles
+into the scratch copy the likelihood scores), likelihood (and cos, sin of the headings for the roughening),
+normalize (+ ESS and augmented MCL's average), resample (systematic, the copy and the roughening in one pass),
+estimate (the shared histograms and the dominant cluster), entropy. Their sum is the fused step plus six
+dispatches (about 1 µs each).
 """
 from __future__ import annotations
 
+import math
+import time
+from typing import Callable
+
 import numpy as np
 
-from motion_models._kernels import draw_variates, move_with_noise_reference
+from motion_models._kernels import (SQRT3, draw_variates, move_chunked, move_range, move_range_fast,
+                                    move_with_noise_reference, parallel_uniforms)
 from motion_models.base import MotionInput
+from sensing.landmarks import prepare_detections, von_mises_log_likelihood
 from sensing.observations import Observations
 
-from .estimate import cluster_estimate_reference, grid_entropy_reference
-from .resampling import gather_with_jitter_reference, systematic_reference
-from .weights import normalize_reference
+from .estimate import (cluster_estimate_reference, grid_entropy_reference, summary_entropy, summary_estimate,
+                       summary_estimate_chunked, summary_estimate_fast, summary_fill, summary_fill_chunked)
+from .resampling import (gather_with_jitter_reference, resample_with_jitter, resample_with_jitter_chunked,
+                         systematic_reference)
+from .filter import _CHUNK, _predict_and_score, _predict_and_score_chunked
+from .weights import normalize_reference, weigh, weigh_chunked, weigh_fast
+
+PHASES = ("predict", "likelihood", "normalize", "resample", "estimate", "entropy")
 
 
 def numpy_step(pf, u: MotionInput, observations: Observations, timings: dict | None = None) -> dict:
     """One full step on a copy of `pf`'s particles, in numpy: predict, likelihood, normalize + ESS,
     systematic resampling, estimate, entropy. Uses (and advances) `pf.rng`. Returns the results; adds the
     seconds of each phase to `timings` when given."""
-    import time
-
     clock = time.perf_counter
     marks = [clock()]
     poses = pf.poses.copy()
@@ -56,4 +78,125 @@ def numpy_step(pf, u: MotionInput, observations: Observations, timings: dict | N
             "mean": mean, "covariance": cov, "cluster_weight": cluster_weight, "entropy": entropy}
 
 
-PHASES = ("predict", "likelihood", "normalize", "resample", "estimate", "entropy")
+def full_step(pf, u: MotionInput, observations: Observations):
+    """The fused step through the public calls: `pf.step(u, observations)` (predict, correct, resampling when
+    the ESS asks for it, estimate: one dispatch into compiled code) and `pf.entropy()`."""
+    estimate = pf.step(u, observations)
+    return estimate, pf.entropy()
+
+
+def compiled_phases(pf, u: MotionInput, observations: Observations) -> dict[str, Callable[[], object]]:
+    """The compiled step's stages as separate calls on `pf` (see the module docstring); call them in the
+    order of PHASES. Needs what the fused step needs: a bounded-noise motion model (velocity-linear,
+    constant) and a sensor model with `compiled_likelihood` (the landmark model's default variant); it
+    resamples every time (the benchmark's setting, `resample_threshold=1`)."""
+    motion = pf._kernel_motion(u)
+    sensor = pf._sensor_kernel()
+    if motion is None or sensor is None:
+        raise ValueError("compiled_phases needs a bounded-noise motion model and a sensor model with "
+                         "compiled_likelihood()")
+    observations = Observations.coerce(observations)
+    pf.sensor_model.check(observations)
+    table, offsets, range_noise_floor, range_noise_growth, bearing_sigma, log_outlier = sensor
+    n = pf.n
+    gaussian = bool(pf.motion_model.gaussian)
+    chunk = _CHUNK if pf.threads > 1 else 0
+    scope = pf._thread_scope
+    scratch = pf._previous
+    coordinates, histograms, bitmaps = pf._summary
+    grid = pf._grid_parameters
+    mean = np.empty(3)
+    covariance = np.empty((3, 3))
+    no_variates = np.empty((0, 3))
+
+    def predict():
+        function, generator = pf._generator()
+        variates = no_variates
+        if gaussian:
+            variates = draw_variates(pf.rng, n, True, out=pf._variates)
+        if chunk:
+            with scope:
+                if not gaussian:
+                    variates = pf._variates
+                    parallel_uniforms(function, generator, variates.reshape(-1), 3 * n)
+                scratch[:] = pf.poses
+                move_chunked(scratch, *motion, gaussian, variates, chunk)
+        elif pf.fast:
+            move_range_fast(pf.poses, scratch, 0, n, *motion, gaussian, variates, function, generator)
+        else:
+            move_range(pf.poses, scratch, 0, n, *motion, gaussian, variates, function, generator)
+        pf._heading_reference = math.remainder(pf._heading_reference + motion[2], 2 * math.pi)
+        pf._changed()
+
+    def likelihood():
+        detections, groups, _ = prepare_detections(
+            observations.kinds, observations.ranges, observations.bearings, observations.range_sigmas,
+            observations.bearing_sigmas, offsets, range_noise_floor, range_noise_growth, bearing_sigma)
+        if chunk or pf.fast:
+            if chunk:
+                with scope:
+                    _predict_and_score_chunked(scratch, scratch, pf._trig, pf._log_likelihood, False, *motion,
+                                               False, no_variates, table, offsets, detections, groups, log_outlier,
+                                               chunk, pf.fast)
+            else:
+                _predict_and_score(scratch, scratch, pf._trig, pf._log_likelihood, False, *motion, False,
+                                   no_variates, 0, 0, table, offsets, detections, groups, log_outlier, 0, n, True)
+        else:
+            von_mises_log_likelihood(scratch, table, offsets, detections, groups, log_outlier, pf._log_likelihood,
+                                     pf._trig)
+
+    def normalize():
+        count = n - pf.injected
+        if chunk:
+            with scope:
+                valid, native, log_total, ess = weigh_chunked(pf.log_weights, pf._log_likelihood, count, pf._weights,
+                                                              chunk)
+        elif pf.fast:
+            valid, native, log_total, ess = weigh_fast(pf.log_weights, pf._log_likelihood, count, pf._weights)
+        else:
+            valid, native, log_total, ess = weigh(pf.log_weights, pf._log_likelihood, count, pf._weights)
+        if len(observations) > 0:
+            pf.frame_fit = math.exp(native / len(observations))
+        return ess
+
+    def resample():
+        bounds = pf.roughening * SQRT3
+        function, generator = pf._generator()
+        if chunk:
+            with scope:
+                resample_with_jitter_chunked(pf._weights, n, scratch, bounds, pf.poses, pf._trig, function,
+                                             generator, pf._counts, coordinates, pf._variates.reshape(-1), chunk)
+        else:
+            resample_with_jitter(pf._weights, n, scratch, bounds, pf.poses, pf._trig, function, generator,
+                                 pf._counts, coordinates)
+        pf.log_weights[:] = -math.log(n)
+        pf._weights[:] = 1.0 / n
+        pf.ess = float(n)
+        pf.resampled = True
+        pf.injected = 0
+        pf._changed()
+
+    def estimate():
+        previous = pf._previous_estimate
+        use_previous = pf._has_previous_estimate
+        if chunk:
+            with scope:
+                summary_fill_chunked(grid, no_variates, pf._weights, coordinates, histograms, bitmaps,
+                                     pf._local_histograms, chunk)
+                weight = summary_estimate_chunked(grid, coordinates, pf._weights, histograms, bitmaps, previous,
+                                                  use_previous, mean, covariance, chunk)
+        else:
+            summary_fill(grid, no_variates, pf._weights, coordinates, histograms, bitmaps)
+            kernel = summary_estimate_fast if pf.fast else summary_estimate
+            weight = kernel(grid, coordinates, pf._weights, histograms, bitmaps, previous, use_previous, mean,
+                            covariance)
+        previous[:] = mean
+        pf._has_previous_estimate = True
+        pf._summary_valid = True
+        return weight
+
+    def entropy():
+        return summary_entropy(grid, histograms, bitmaps)
+
+    return {"predict": predict, "likelihood": likelihood, "normalize": normalize, "resample": resample,
+            "estimate": estimate, "entropy": entropy}

@@ -8,6 +8,12 @@ is unbiased: particle i has M·wᵢ offspring on average. Systematic (the defaul
 keeps every particle with M·wᵢ >= 1; stratified draws one uniform per stratum; residual keeps ⌊M·wᵢ⌋ copies
 and draws the rest multinomially; multinomial draws M independent ancestors. Each is one pass in numba over
 variates drawn beforehand; the `*_reference` functions are plain numpy twins that the tests compare with.
+
+The filter resamples with `resample_with_jitter` (`systematic_with_jitter` allocates its scratch):
+systematic resampling, the copy from the ancestors and the roughening jitter in one pass, drawing its
+uniforms in the kernel from the filter's generator (see `motion_models._kernels.next_double`); the same
+particles, bit for bit, as `systematic` followed by `gather_with_jitter` on `rng.random((M, 3))`, without
+the ancestor array or the variate array.
 """
 from __future__ import annotations
 
@@ -16,7 +22,8 @@ import math
 import numba
 import numpy as np
 
-from field.angles import wrap_angle, wrap_angles
+from field.angles import wrap_angles
+from motion_models._kernels import draw_uniforms, next_double, parallel_uniforms, wrap
 
 
 @numba.njit(cache=True, inline="always")
@@ -110,7 +117,8 @@ def _check(weights: np.ndarray, m: int) -> np.ndarray:
 def systematic(weights: np.ndarray, m: int, rng: np.random.Generator) -> np.ndarray:
     """One uniform u0 ~ U[0, 1), then the points (u0 + k)/M: the lowest-variance scheme."""
     weights = _check(weights, m)
-    return _systematic(weights, int(m), rng.random(), np.empty(int(m), dtype=np.int64))
+    m = int(m)
+    return _systematic_counted(weights, m, rng.random(), np.empty(m, dtype=np.int64), np.zeros(m + 1, dtype=np.int64))
 
 
 def stratified(weights: np.ndarray, m: int, rng: np.random.Generator) -> np.ndarray:
@@ -138,22 +146,209 @@ def residual(weights: np.ndarray, m: int, rng: np.random.Generator) -> np.ndarra
 
 
 @numba.njit(cache=True)
+def jitter_pose(x, y, theta, c, s, u0, u1, u2, bound_x, bound_y, bound_theta):
+    """(x, y, θ) moved by a uniform jitter on ±bounds in its own frame (c, s = cos θ, sin θ) from uniforms u."""
+    ex = (2.0 * u0 - 1.0) * bound_x
+    ey = (2.0 * u1 - 1.0) * bound_y
+    return x + c * ex - s * ey, y + s * ex + c * ey, wrap(theta + (2.0 * u2 - 1.0) * bound_theta)
+
+
+@numba.njit(cache=True)
 def gather_with_jitter(source, ancestors, bounds, uniforms, out):
     """out[k] = source[ancestors[k]] moved by a uniform jitter on ±bounds in the ancestor's own frame.
 
     uniforms (M, 3) on [0, 1). The copy and the jitter (roughening) in one pass.
     """
+    bx, by, bt = bounds[0], bounds[1], bounds[2]
     for k in range(ancestors.shape[0]):
         i = ancestors[k]
         theta = source[i, 2]
-        ex = (2.0 * uniforms[k, 0] - 1.0) * bounds[0]
-        ey = (2.0 * uniforms[k, 1] - 1.0) * bounds[1]
-        c = math.cos(theta)
-        s = math.sin(theta)
-        out[k, 0] = source[i, 0] + c * ex - s * ey
-        out[k, 1] = source[i, 1] + s * ex + c * ey
-        out[k, 2] = wrap_angle(theta + (2.0 * uniforms[k, 2] - 1.0) * bounds[2])
+        out[k, 0], out[k, 1], out[k, 2] = jitter_pose(source[i, 0], source[i, 1], theta, math.cos(theta),
+                                                      math.sin(theta), uniforms[k, 0], uniforms[k, 1],
+                                                      uniforms[k, 2], bx, by, bt)
     return out
+
+
+# -- systematic resampling without a merge loop -------------------------------------------------------------------
+# The merge in `_systematic` advances j while the point (u0 + k)/M lies at or beyond the running total C_j: a
+# branch taken a data-dependent number of times per offspring, mispredicted about once per particle. The
+# same ancestors follow from counting instead: particle j < N-1 is passed by the points at or beyond C_j,
+# i.e. by every point from c_j = #{k : (u0 + k)/M < C_j} on, so the ancestor of point k is the number of
+# particles with c_j <= k, a running sum over a histogram of the c_j. c_j is ceil(C_j·M - u0) unless that
+# number lies within 1e-4 of an integer, where the comparisons that define it are made exactly as the merge
+# makes them; so the ancestors equal the merge's bit for bit, with C_j the same running sum. (The float error
+# of C_j·M - u0 is about M·2⁻⁵², far below the margin for any M a filter uses.)
+
+@numba.njit(cache=True, inline="always")
+def _passed_count(cumulative, m, u0):
+    """c = #{k : (u0 + k)/M < cumulative}, as `_passed_counts` finds it."""
+    t = cumulative * m - u0
+    c = math.ceil(t)
+    if abs(t - round(t)) < 1e-4:
+        c = min(max(c, 0), m)
+        while c > 0 and (u0 + (c - 1)) / m >= cumulative:
+            c -= 1
+        while c < m and (u0 + c) / m < cumulative:
+            c += 1
+    return min(max(c, 0), m)
+
+
+@numba.njit(cache=True)
+def _passed_counts(weights, m, u0, counts):
+    """counts[c] = #{j < N-1 : c_j = c} (counts (M + 1,) zero on entry)."""
+    cumulative = 0.0
+    for j in range(weights.shape[0] - 1):
+        cumulative += weights[j]                # 0 + w0 = w0: the merge's running total
+        counts[_passed_count(cumulative, m, u0)] += 1
+
+
+@numba.njit(cache=True)
+def _systematic_counted(weights, m, u0, out, counts):
+    """`_systematic` by counting; counts (M + 1,) int64 zero on entry and on return."""
+    _passed_counts(weights, m, u0, counts)
+    ancestor = 0
+    for k in range(m):
+        ancestor += counts[k]
+        counts[k] = 0
+        out[k] = ancestor
+    counts[m] = 0
+    return out
+
+
+DRAWS = 256        # offspring per block of drawn uniforms
+
+
+@numba.njit(cache=True)
+def resample_with_jitter(weights, m, source, bounds, out, trig, function, state, counts, coordinates):
+    """Systematic resampling of M particles from `source` into out[:M], with roughening; returns u0.
+
+    Draws u0 and then three uniforms per offspring from the bit generator (function, state), the order of
+    `systematic(weights, M, rng)` followed by `rng.random((M, 3))`, and gives what `gather_with_jitter` gives
+    with them. trig (N, 2): cos and sin of each source heading when it has rows (computed otherwise).
+    counts: (M + 1,) int64 scratch, zero on entry and on return. coordinates: when it has columns, (3, M) rows
+    that receive x, y, θ of the offspring too.
+    """
+    u0 = next_double(function, state)
+    _passed_counts(weights, m, u0, counts)
+    known = trig.shape[0] > 0
+    split = coordinates.shape[1] > 0
+    bx, by, bt = bounds[0], bounds[1], bounds[2]
+    uniforms = np.empty(3 * DRAWS)
+    j = 0
+    for start in range(0, m, DRAWS):
+        count = min(DRAWS, m - start)
+        draw_uniforms(function, state, uniforms, 3 * count)
+        for p in range(count):
+            k = start + p
+            j += counts[k]
+            counts[k] = 0
+            theta = source[j, 2]
+            if known:
+                c = trig[j, 0]
+                s = trig[j, 1]
+            else:
+                c = math.cos(theta)
+                s = math.sin(theta)
+            x, y, theta = jitter_pose(source[j, 0], source[j, 1], theta, c, s, uniforms[3 * p], uniforms[3 * p + 1],
+                                      uniforms[3 * p + 2], bx, by, bt)
+            out[k, 0] = x
+            out[k, 1] = y
+            out[k, 2] = theta
+            if split:
+                coordinates[0, k] = x
+                coordinates[1, k] = y
+                coordinates[2, k] = theta
+    counts[m] = 0
+    return u0
+
+
+@numba.njit(cache=True)
+def systematic_with_jitter(weights, m, source, bounds, out, trig, function, state):
+    """`resample_with_jitter` with its scratch allocated here."""
+    return resample_with_jitter(weights, m, source, bounds, out, trig, function, state,
+                                np.zeros(m + 1, dtype=np.int64), np.empty((3, 0)))
+
+
+@numba.njit(cache=True, parallel=True)
+def resample_with_jitter_chunked(weights, m, source, bounds, out, trig, function, state, counts, coordinates,
+                                 uniforms, chunk):
+    """`resample_with_jitter` with the running total of the weights taken chunk by chunk (each chunk's total
+    in index order, the chunks' in order, then each chunk's running sum on top of its prefix) and the chunks
+    spread over threads: the same offspring for any number of threads; `resample_with_jitter`'s bit for bit
+    when chunk >= N, otherwise the same unless a point falls within rounding of a running total. uniforms: a
+    flat scratch of at least 3·M floats (the roughening's uniforms are drawn into it first, in parallel)."""
+    u0 = next_double(function, state)
+    parallel_uniforms(function, state, uniforms, 3 * m)
+    n = weights.shape[0]
+    passed = n - 1                                  # particles that the points can pass
+    chunks = max(1, (passed + chunk - 1) // chunk)
+    totals = np.zeros(chunks)
+    for t in numba.prange(chunks):
+        total = 0.0
+        for j in range(t * chunk, min(passed, (t + 1) * chunk)):
+            total += weights[j]
+        totals[t] = total
+    prefix = np.zeros(chunks)
+    for t in range(1, chunks):
+        prefix[t] = prefix[t - 1] + totals[t - 1]
+    # Each chunk counts its particles; the count of its first c may be shared with the chunk before (c is
+    # monotone), so it is kept aside and added afterwards, one chunk at a time.
+    first = np.full(chunks, -1, dtype=np.int64)
+    shared = np.zeros(chunks, dtype=np.int64)
+    for t in numba.prange(chunks):
+        running = 0.0
+        for j in range(t * chunk, min(passed, (t + 1) * chunk)):
+            running += weights[j]
+            c = _passed_count(prefix[t] + running, m, u0)
+            if first[t] < 0:
+                first[t] = c
+            if c == first[t]:
+                shared[t] += 1
+            else:
+                counts[c] += 1
+    for t in range(chunks):
+        if first[t] >= 0:
+            counts[first[t]] += shared[t]
+    # The ancestor of point k is the running sum of the counts up to k: each chunk of points starts from the
+    # sum of the counts before it.
+    k_chunks = max(1, (m + chunk - 1) // chunk)
+    starts = np.zeros(k_chunks, dtype=np.int64)
+    for t in numba.prange(k_chunks):
+        total = 0
+        for k in range(t * chunk, min(m, (t + 1) * chunk)):
+            total += counts[k]
+        starts[t] = total
+    running_start = 0
+    for t in range(k_chunks):
+        total = starts[t]
+        starts[t] = running_start
+        running_start += total
+    known = trig.shape[0] > 0
+    split = coordinates.shape[1] > 0
+    bx, by, bt = bounds[0], bounds[1], bounds[2]
+    for t in numba.prange(k_chunks):
+        j = starts[t]
+        for k in range(t * chunk, min(m, (t + 1) * chunk)):
+            j += counts[k]
+            counts[k] = 0
+            theta = source[j, 2]
+            if known:
+                c = trig[j, 0]
+                s = trig[j, 1]
+            else:
+                c = math.cos(theta)
+                s = math.sin(theta)
+            x, y, theta = jitter_pose(source[j, 0], source[j, 1], theta, c, s, uniforms[3 * k], uniforms[3 * k + 1],
+                                      uniforms[3 * k + 2], bx, by, bt)
+            out[k, 0] = x
+            out[k, 1] = y
+            out[k, 2] = theta
+            if split:
+                coordinates[0, k] = x
+                coordinates[1, k] = y
+                coordinates[2, k] = theta
+    counts[m] = 0
+    return u0
 
 
 def gather_with_jitter_reference(source, ancestors, bounds, uniforms):

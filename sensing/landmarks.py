@@ -26,6 +26,12 @@ bearing terms' normalized weights differ).
 
 Log-likelihoods are unnormalized: a perfect match scores 0 per detection. Constants shared by all
 particles cancel in the weights; the filter's augmented-MCL average uses the per-detection mean.
+
+Kernels. `landmark_log_likelihood` computes every variant particle by particle. The default variant (von Mises,
+max-mixture) runs in `von_mises_log_likelihood`, which takes the particles a block at a time so that its
+loops vectorize across particles, with the same results bit for bit (see the comment above it);
+`prepare_detections` turns a batch into its per-detection constants, grouped by type, once per call. A
+compiled filter step calls `load_block` and `score_block` itself (`compiled_likelihood`).
 """
 from __future__ import annotations
 
@@ -34,6 +40,9 @@ from dataclasses import dataclass, field as dataclass_field
 
 import numba
 import numpy as np
+from llvmlite import ir
+from numba import types
+from numba.extending import intrinsic
 
 from field import Field, LandmarkType
 from field.angles import wrap_angle, wrap_angles
@@ -166,6 +175,184 @@ def landmark_log_likelihood(poses, table, offsets, kinds, ranges, bearings, rang
     return out
 
 
+# -- the default model (von Mises bearing, max-mixture) in blocks of particles -------------------------------------
+# `landmark_log_likelihood` above computes every variant particle by particle; its fast-math flags let LLVM
+# contract some products into fused multiply-adds. The kernels below compute the default variant, the one the
+# filter runs every frame, bit for bit as that kernel does, but written with those fused multiply-adds spelled
+# out (`_fma`) and no fast-math: nothing is left to the compiler's choice, so the results stay the same
+# whichever way LLVM arranges the loops. They work on a block of particles at a time, with the candidates'
+# geometry and the running maxima in rows over the block, so that every inner loop runs over particles and
+# vectorizes (four particles per AVX2 instruction). The maxima alternate between two rows (`BEST`), because a
+# row that is read and written in the same loop becomes a masked store, which is slow on AMD processors.
+
+BLOCK = 128        # particles per block: the rows below stay in L1
+X, Y, COS, SIN, TOTAL, BEST = 0, 1, 2, 3, 4, 5       # rows of the block work array; BEST takes rows 5 and 6
+GEOMETRY = 7       # then, for each candidate k of the widest type: distance, unit x, unit y (rows 7 + 3k ...)
+
+
+@intrinsic
+def _fma(typingctx, a, b, c):
+    """a·b + c rounded once (llvm.fma; one instruction with FMA3)."""
+    signature = types.float64(types.float64, types.float64, types.float64)
+
+    def codegen(context, builder, sig, args):
+        double = ir.DoubleType()
+        function = builder.module.declare_intrinsic("llvm.fma", [double], ir.FunctionType(double, [double] * 3))
+        return builder.call(function, args)
+
+    return signature, codegen
+
+
+@numba.njit(cache=True)
+def prepare_detections(kinds, ranges, bearings, range_sigmas, bearing_sigmas, offsets, range_noise_floor,
+                       range_noise_growth, bearing_sigma):
+    """The per-detection constants of the von Mises max-mixture, grouped by type.
+
+    Returns (detections (m, 5): range, -½/σ_r², κ cos b, κ sin b, -κ; groups (g, 3): type, first row, end row;
+    missing): detections sorted by type (stable), as `landmark_log_likelihood` sums them, and `missing`, the
+    first detection whose type has no landmark on the field (-1 if none).
+    """
+    m = kinds.shape[0]
+    missing = -1
+    for j in range(m):
+        if offsets[kinds[j] + 1] == offsets[kinds[j]]:
+            missing = j
+            break
+    order = np.argsort(kinds, kind="mergesort")
+    detections = np.empty((m, 5))
+    groups = np.empty((m, 3), dtype=np.int64)
+    n_groups = 0
+    for j in range(m):
+        o = order[j]
+        r = ranges[o]
+        sr = range_sigmas[o]
+        if np.isnan(sr):
+            sr = _fma(r * r, range_noise_growth, range_noise_floor)
+        sb = bearing_sigmas[o]
+        if np.isnan(sb):
+            sb = bearing_sigma
+        kappa = 1.0 / (sb * sb)
+        detections[j, 0] = r
+        detections[j, 1] = -0.5 / (sr * sr)
+        detections[j, 2] = math.cos(bearings[o]) * kappa
+        detections[j, 3] = math.sin(bearings[o]) * kappa
+        detections[j, 4] = -kappa
+        kind = kinds[o]
+        if n_groups == 0 or groups[n_groups - 1, 0] != kind:
+            groups[n_groups, 0] = kind
+            groups[n_groups, 1] = j
+            n_groups += 1
+        groups[n_groups - 1, 2] = j + 1
+    return detections, groups[:n_groups], missing
+
+
+@numba.njit(cache=True)
+def block_work(offsets, groups, columns):
+    """The work array `score_block` needs for up to `columns` (<= BLOCK) particles: GEOMETRY rows plus 3 per
+    candidate of the widest detected type."""
+    widest = 0
+    for g in range(groups.shape[0]):
+        widest = max(widest, offsets[groups[g, 0] + 1] - offsets[groups[g, 0]])
+    return np.empty((GEOMETRY + 3 * widest, columns))
+
+
+@numba.njit(cache=True)
+def load_block(poses, start, count, work, trig):
+    """Rows X, Y, COS, SIN of the work array from poses[start:start + count]; cos and sin also into
+    trig[start:start + count] when trig has rows (for a later pass over the same poses)."""
+    keep = trig.shape[0] > 0
+    for p in range(count):
+        i = start + p
+        theta = poses[i, 2]
+        c = math.cos(theta)
+        s = math.sin(theta)
+        work[X, p] = poses[i, 0]
+        work[Y, p] = poses[i, 1]
+        work[COS, p] = c
+        work[SIN, p] = s
+        if keep:
+            trig[i, 0] = c
+            trig[i, 1] = s
+
+
+@numba.njit(cache=True, error_model="numpy")
+def score_block(work, count, table, offsets, detections, groups, log_outlier):
+    """Row TOTAL of the work array: the log-likelihood (von Mises, max-mixture) of the block's `count` particles,
+    whose rows X, Y, COS, SIN are loaded. Bit for bit `landmark_log_likelihood` with exact = sum_mixture = False."""
+    for p in range(count):
+        work[TOTAL, p] = 0.0
+    for g in range(groups.shape[0]):
+        kind = groups[g, 0]
+        first = offsets[kind]
+        n_cand = offsets[kind + 1] - first
+        # Geometry to each candidate, once per particle and type: distance and unit direction, robot frame.
+        for k in range(n_cand):
+            tx = table[first + k, 0]
+            ty = table[first + k, 1]
+            row = GEOMETRY + 3 * k
+            for p in range(count):
+                dxw = tx - work[X, p]
+                dyw = ty - work[Y, p]
+                c = work[COS, p]
+                s = work[SIN, p]
+                rx = _fma(dyw, s, c * dxw)
+                ry = _fma(c, dyw, -(s * dxw))
+                d = math.sqrt(_fma(rx, rx, ry * ry))
+                inverse = 1.0 / d
+                far = d > 1e-12
+                work[row, p] = d
+                work[row + 1, p] = inverse * rx if far else 1.0
+                work[row + 2, p] = inverse * ry if far else 0.0
+        for j in range(groups[g, 1], groups[g, 2]):
+            r = detections[j, 0]
+            wr = detections[j, 1]
+            bc = detections[j, 2]
+            bs = detections[j, 3]
+            for p in range(count):
+                work[BEST, p] = -np.inf
+            for k in range(n_cand):
+                row = GEOMETRY + 3 * k
+                source = BEST + k % 2
+                target = BEST + 1 - k % 2
+                for p in range(count):
+                    er = r - work[row, p]
+                    score = _fma(bs, work[row + 2, p], _fma(er * er, wr, bc * work[row + 1, p]))
+                    best = work[source, p]
+                    work[target, p] = score if score > best else best
+            offset = detections[j, 4]
+            last = BEST + n_cand % 2
+            for p in range(count):
+                best = work[last, p] + offset
+                work[TOTAL, p] += log_outlier if log_outlier > best else best
+
+
+@numba.njit(cache=True)
+def von_mises_log_likelihood(poses, table, offsets, detections, groups, log_outlier, out, trig):
+    """out[i] = the von Mises max-mixture log-likelihood of particle i (`prepare_detections` made the
+    detections); cos and sin of each heading also into trig (N, 2) when it has rows."""
+    n = poses.shape[0]
+    work = block_work(offsets, groups, min(n, BLOCK))
+    for start in range(0, n, BLOCK):
+        count = min(BLOCK, n - start)
+        load_block(poses, start, count, work, trig)
+        score_block(work, count, table, offsets, detections, groups, log_outlier)
+        for p in range(count):
+            out[start + p] = work[TOTAL, p]
+    return out
+
+
+@numba.njit(cache=True)
+def _von_mises_log_likelihood(poses, table, offsets, kinds, ranges, bearings, range_sigmas, bearing_sigmas,
+                              range_noise_floor, range_noise_growth, bearing_sigma, log_outlier, out):
+    """`LandmarkSensorModel.log_likelihood` of the default variant in one call; returns the first detection
+    whose type has no landmark on the field (nothing written), or -1."""
+    detections, groups, missing = prepare_detections(kinds, ranges, bearings, range_sigmas, bearing_sigmas, offsets,
+                                                     range_noise_floor, range_noise_growth, bearing_sigma)
+    if missing < 0:
+        von_mises_log_likelihood(poses, table, offsets, detections, groups, log_outlier, out, np.empty((0, 2)))
+    return missing
+
+
 def landmark_log_likelihood_reference(poses, candidates_by_kind, kinds, ranges, bearings, range_sigmas,
                                       bearing_sigmas, exact, outlier_weight, sum_mixture=False):
     """Plain numpy version of the same likelihood, one detection at a time (for tests and the benchmark)."""
@@ -269,10 +456,18 @@ class LandmarkSensorModel:
                        out: np.ndarray | None = None) -> np.ndarray:
         """Log-likelihood of `observations` for each pose in `poses` (N, 3); shape (N,)."""
         observations = Observations.coerce(observations)
-        self.check(observations)
         n = poses.shape[0]
         if out is None:
             out = np.empty(n)
+        if self.bearing_model == "von_mises" and self.mixture == "max":
+            # The type check runs inside the kernel, before anything is written; check() then names the culprit.
+            if _von_mises_log_likelihood(poses, self._table, self._offsets, observations.kinds, observations.ranges,
+                                         observations.bearings, observations.range_sigmas, observations.bearing_sigmas,
+                                         self.range_noise_floor, self.range_noise_growth, self.bearing_sigma,
+                                         math.log(self.outlier_weight), out) >= 0:
+                self.check(observations)
+            return out
+        self.check(observations)
         if len(observations) == 0:
             out[:] = 0.0
             return out
@@ -282,6 +477,16 @@ class LandmarkSensorModel:
             self.range_noise_growth, self.bearing_sigma, self.bearing_model == "exact", self.mixture == "sum",
             math.log(self.outlier_weight), out)
         return out
+
+    def compiled_likelihood(self) -> tuple | None:
+        """What a compiled filter step needs to run this model's likelihood itself (`von_mises_log_likelihood`
+        on `prepare_detections`): (table, offsets, range_noise_floor, range_noise_growth, bearing_sigma,
+        log outlier_weight); None for the variants it does not cover (exact bearing, sum mixture), which the
+        filter scores through `log_likelihood`. A subclass that changes `log_likelihood` must return None."""
+        if self.bearing_model != "von_mises" or self.mixture != "max":
+            return None
+        return (self._table, self._offsets, float(self.range_noise_floor), float(self.range_noise_growth),
+                float(self.bearing_sigma), math.log(self.outlier_weight))
 
     def log_likelihood_reference(self, poses: np.ndarray, observations: Observations) -> np.ndarray:
         """The same, in plain numpy (slow; for tests and the benchmark)."""

@@ -1,8 +1,9 @@
 import math
 
+import numba
 import numpy as np
 import pytest
-from hypothesis import given
+from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from mcl.estimate import cluster_estimate, cluster_estimate_reference, grid_entropy, grid_entropy_reference
@@ -101,3 +102,60 @@ def test_a_split_cluster_is_not_lost_to_a_clump_in_one_cell():
     with_history, _, w2 = estimate(poses, weights, previous=(-0.2, -0.2, 0.0))
     assert np.hypot(*(without_history[:2] - (2.85, 1.85))) < 0.05 and w1 == pytest.approx(0.3, abs=0.01)
     assert np.hypot(*(with_history[:2] - (-0.2, -0.2))) < 0.05 and w2 == pytest.approx(0.7, abs=0.01)
+
+
+# -- the filter's summary: shared histograms, bitmaps of the cells in use -------------------------------------------
+SUMMARY = dict(x_min=-5.2, y_min=-3.7, cluster_cell=0.5, cluster_nx=21, cluster_ny=15, cluster_orientation_bins=8,
+               cluster_radius=0.75, cluster_angle_radius=0.8, iterations=3, position_cell=0.1, entropy_nx=104,
+               entropy_ny=74, orientation_bins=36)
+
+
+@given(clouds, st.booleans(), st.booleans())
+def test_summary_equals_cluster_estimate_and_grid_entropy_bit_for_bit(rng, with_previous, equal_weights):
+    from mcl.estimate import summary_buffers, summary_entropy, summary_estimate, summary_fill, summary_grid
+
+    grid = summary_grid(**SUMMARY)
+    coordinates, histograms, bitmaps = summary_buffers(grid, 300)
+    for _ in range(2):                  # the buffers are reused: the second fill must forget the first
+        poses, weights = random_cloud(rng)
+        if equal_weights:
+            weights = np.full(300, 1 / 300)
+        previous = poses[int(np.argmax(weights))] if with_previous else None
+        summary_fill(grid, poses, weights, coordinates, histograms, bitmaps)
+        mean, cov = np.empty(3), np.empty((3, 3))
+        weight = summary_estimate(grid, coordinates, weights, histograms, bitmaps,
+                                  np.zeros(3) if previous is None else previous, previous is not None, mean, cov)
+        expected = estimate(poses, weights, previous)
+        assert np.array_equal(mean, expected[0]) and np.array_equal(cov, expected[1]) and weight == expected[2]
+        assert summary_entropy(grid, histograms, bitmaps) == entropy(poses, weights)
+
+
+@settings(max_examples=12)
+@given(clouds)
+def test_fast_and_chunked_estimates_match_to_rounding(rng):
+    from mcl.estimate import (summary_buffers, summary_estimate, summary_estimate_chunked, summary_estimate_fast,
+                              summary_fill, summary_fill_chunked, summary_grid)
+
+    grid = summary_grid(**SUMMARY)
+    poses, weights = random_cloud(rng, n=700)
+    coordinates, histograms, bitmaps = summary_buffers(grid, 700)
+    summary_fill(grid, poses, weights, coordinates, histograms, bitmaps)
+    expected = np.empty(3), np.empty((3, 3))
+    weight = summary_estimate(grid, coordinates, weights, histograms, bitmaps, poses[0], True, *expected)
+    mean, cov = np.empty(3), np.empty((3, 3))
+    assert summary_estimate_fast(grid, coordinates, weights, histograms, bitmaps, poses[0], True, mean,
+                                 cov) == pytest.approx(weight, abs=1e-12)
+    np.testing.assert_allclose(mean, expected[0], atol=1e-12)
+    np.testing.assert_allclose(cov, expected[1], atol=1e-12)
+    chunked_histograms, chunked_bitmaps = histograms.copy(), bitmaps.copy()
+    local = np.zeros((numba.config.NUMBA_NUM_THREADS, histograms.shape[0]), dtype=np.int64)
+    summary_fill_chunked(grid, poses, weights, coordinates, chunked_histograms, chunked_bitmaps, local, 64)
+    np.testing.assert_allclose(chunked_histograms, histograms, rtol=1e-12, atol=1e-17)
+    assert np.array_equal(chunked_bitmaps, bitmaps) and not local.any()
+    for chunk in (1 << 20, 64):
+        c_weight = summary_estimate_chunked(grid, coordinates, weights, histograms, bitmaps, poses[0], True, mean,
+                                            cov, chunk)
+        if chunk > 700:
+            assert c_weight == weight and np.array_equal(mean, expected[0]) and np.array_equal(cov, expected[1])
+        np.testing.assert_allclose(mean, expected[0], atol=1e-12)
+        assert c_weight == pytest.approx(weight, abs=1e-12)

@@ -304,3 +304,30 @@ def test_heading_reference_follows_odometry_and_gates_a_contradicting_cluster():
         pf.step(MotionInput(dt=0.033, command=(0, 0, 0)), detections(mirror))
     assert pf.estimate().is_confident()
     assert abs(math.remainder(pf._heading_reference - turned[2], 2 * math.pi)) < 0.05
+
+
+def test_weigh_is_log_mean_likelihood_and_normalize_bit_for_bit():
+    from mcl.weights import log_mean_likelihood, normalize, weigh, weigh_chunked, weigh_fast
+
+    rng = np.random.default_rng(0)
+    for trial in range(60):
+        n = int(rng.integers(1, 500))
+        log_weights = rng.normal(0, 3, n) if trial % 3 else np.full(n, -math.log(n))
+        log_likelihood = rng.normal(-5, 4, n)
+        if trial % 7 == 0:
+            log_likelihood[rng.random(n) < 0.5] = -np.inf
+        count = int(rng.integers(0, n + 1)) if trial % 2 else n
+        weights, expected_weights = np.empty(n), np.empty(n)
+        valid, native, log_total, ess = weigh(log_weights, log_likelihood, count, weights)
+        expected = normalize(log_weights + log_likelihood, expected_weights)
+        assert valid and (log_total, ess) == expected and np.array_equal(weights, expected_weights)
+        assert native == log_mean_likelihood(log_weights, log_likelihood, count)
+        for variant in (lambda w: weigh_chunked(log_weights, log_likelihood, count, w, 16),
+                        lambda w: weigh_fast(log_weights, log_likelihood, count, w)):
+            other = np.empty(n)
+            result = variant(other)
+            np.testing.assert_allclose(result[1:], (native, log_total, ess), rtol=1e-12, atol=1e-12)
+            np.testing.assert_allclose(other, weights, rtol=1e-12, atol=1e-300)
+    broken = np.zeros(5)
+    broken[2] = np.nan
+    assert not weigh(np.zeros(5), broken, 5, np.empty(5))[0]

@@ -1,13 +1,14 @@
 import math
 
+import numba
 import numpy as np
 import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from field.angles import wrap_angles
+from field.angles import wrap_angle, wrap_angles
 from motion_models import ConstantNoise, MotionInput, VelocityLinear
-from motion_models._kernels import draw_variates, move_with_noise, move_with_noise_reference
+from motion_models._kernels import draw_variates, fast_sincos, move_with_noise, move_with_noise_reference, wrap
 
 finite = st.floats(-5, 5, allow_nan=False)
 speeds = st.tuples(st.floats(-0.4, 0.4), st.floats(-0.2, 0.2), st.floats(-1.5, 1.5))
@@ -163,3 +164,102 @@ def test_predict_rejects_bad_pose_arrays():
     for bad in (np.zeros((3, 2)), np.zeros((3, 3), dtype=np.float32), np.zeros((3, 3))[:, ::-1]):
         with pytest.raises(ValueError, match="poses"):
             VelocityLinear().predict(bad, u, np.random.default_rng(0))
+
+
+# -- drawing in the kernels ---------------------------------------------------------------------------------------
+@pytest.mark.parametrize("bit_generator", [np.random.PCG64, np.random.PCG64DXSM, np.random.MT19937,
+                                           np.random.Philox, np.random.SFC64])
+@given(st.integers(0, 2**32 - 1), st.lists(st.integers(0, 40), min_size=1, max_size=6), st.integers(0, 3))
+def test_kernel_draws_are_the_generators_own(bit_generator, seed, counts, jump):
+    """draw_uniforms, next_double and parallel_uniforms give what rng.random gives and leave the generator where
+    rng.random leaves it (numpy's PCG64 is stepped in the kernel, the others through next_double)."""
+    from motion_models._kernels import bit_generator_handle, draw_uniforms, next_double, parallel_uniforms
+
+    plain = np.random.Generator(bit_generator(seed))
+    drawn = np.random.Generator(bit_generator(seed))
+    if jump and hasattr(plain.bit_generator, "advance"):
+        plain.bit_generator.advance(jump * 1000 + 7)
+        drawn.bit_generator.advance(jump * 1000 + 7)
+    handle = bit_generator_handle(drawn)
+    for count in counts:
+        out = np.empty(count)
+        draw_uniforms(*handle, out, count)
+        assert np.array_equal(out, plain.random(count))
+        assert next_double(*handle) == plain.random()
+    big = np.empty(20000)
+    parallel_uniforms(*handle, big, 20000)
+    assert np.array_equal(big, plain.random(20000))
+    assert same_state(drawn.bit_generator.state, plain.bit_generator.state)
+
+
+def same_state(a, b):
+    if isinstance(a, dict):
+        return a.keys() == b.keys() and all(same_state(a[k], b[k]) for k in a)
+    return np.array_equal(a, b)
+
+
+def test_the_default_generator_is_stepped_in_the_kernel():
+    from motion_models._kernels import PCG64_INLINE, bit_generator_handle
+
+    assert bit_generator_handle(np.random.default_rng(0))[0] == PCG64_INLINE
+    assert bit_generator_handle(np.random.Generator(np.random.MT19937(0)))[0] != PCG64_INLINE
+
+
+@given(poses_strategy(40), speeds, st.integers(0, 2**32 - 1))
+def test_drawing_kernel_equals_the_kernel_on_drawn_variates(poses, command, seed):
+    from motion_models._kernels import bit_generator_handle, move_drawing_noise
+
+    model = VelocityLinear()
+    u = MotionInput(dt=0.01, command=command)
+    a, b = poses.copy(), poses.copy()
+    plain, drawn = np.random.default_rng(seed), np.random.default_rng(seed)
+    move_with_noise(a, *u.displacement(), *model.noise_bounds(u), False, draw_variates(plain, a.shape[0], False))
+    move_drawing_noise(b, *u.displacement(), *model.noise_bounds(u), *bit_generator_handle(drawn))
+    assert np.array_equal(a, b) and plain.bit_generator.state == drawn.bit_generator.state
+
+
+@numba.njit
+def _both_wraps(values, out):
+    for i in range(values.shape[0]):
+        out[i, 0] = wrap(values[i])
+        out[i, 1] = wrap_angle(values[i])
+
+
+@given(st.lists(st.floats(-50, 50), min_size=1, max_size=50))
+def test_wrap_is_wrap_angle_bit_for_bit(angles):
+    values = np.array(angles + [math.pi, -math.pi, 0.0, -0.0, 2 * math.pi, -3 * math.pi, 1e-300])
+    out = np.empty((values.shape[0], 2))
+    _both_wraps(values, out)
+    assert np.array_equal(out[:, 0], out[:, 1])
+
+
+@given(poses_strategy(60), speeds, st.booleans(), st.integers(0, 2**32 - 1))
+def test_fast_motion_matches_to_rounding(poses, command, gaussian, seed):
+    """The opt-in fast kernel: polynomial sin and cos (fast_sincos), the same draws."""
+    from motion_models._kernels import bit_generator_handle, move_range, move_range_fast
+
+    model = VelocityLinear(gaussian=gaussian)
+    u = MotionInput(dt=0.02, command=command)
+    variates = draw_variates(np.random.default_rng(seed), poses.shape[0], True) if gaussian else np.empty((0, 3))
+    a, b = poses.copy(), poses.copy()
+    args = (*u.displacement(), *model.noise_bounds(u), gaussian, variates)
+    generators = np.random.default_rng(seed), np.random.default_rng(seed)     # (a handle does not keep them)
+    move_range(a, a, 0, a.shape[0], *args, *bit_generator_handle(generators[0]))
+    move_range_fast(b, b, 0, b.shape[0], *args, *bit_generator_handle(generators[1]))
+    np.testing.assert_allclose(b[:, :2], a[:, :2], rtol=0, atol=1e-12)
+    assert np.abs(wrap_angles(b[:, 2] - a[:, 2])).max() < 1e-12
+    assert (b[:, 2] > -math.pi).all() and (b[:, 2] <= math.pi).all()
+
+
+@numba.njit
+def _fast_sincos_all(values, out):
+    for i in range(values.shape[0]):
+        out[i, 0], out[i, 1] = fast_sincos(values[i])
+
+
+def test_fast_sincos_is_accurate():
+    values = np.concatenate([np.random.default_rng(0).uniform(-100, 100, 100000),
+                             np.arange(-8, 9) * math.pi / 4, [1e-300, -1e-300, 0.0]])
+    out = np.empty((values.shape[0], 2))
+    _fast_sincos_all(values, out)
+    assert np.abs(out[:, 0] - np.cos(values)).max() < 5e-16 and np.abs(out[:, 1] - np.sin(values)).max() < 5e-16

@@ -1,6 +1,6 @@
 import numpy as np
 import pytest
-from hypothesis import given
+from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from mcl.resampling import (SCHEMES, multinomial, multinomial_reference, stratified, stratified_reference,
@@ -67,3 +67,75 @@ def test_bad_weights(bad):
 def test_bad_count():
     with pytest.raises(ValueError, match="M"):
         systematic(np.ones(3) / 3, -1, np.random.default_rng(0))
+
+
+# -- the filter's resampler: counting instead of merging, one pass with the copy and the roughening -------------
+uniform_starts = st.one_of(st.just(0.0), st.floats(0.0, 1.0, exclude_max=True))
+
+
+@given(weight_lists, uniform_starts, st.integers(0, 90), st.booleans())
+def test_counting_equals_the_merge_bit_for_bit(weights, u0, m, equal):
+    """The ancestors by counting (`_systematic_counted`, what `systematic` runs) against the merge loop
+    (`_systematic`), including equal weights at u0 = 0, where points fall exactly on running totals."""
+    from mcl.resampling import _systematic, _systematic_counted
+
+    if equal:
+        weights = np.full(weights.shape[0], 1.0 / weights.shape[0])
+    counts = np.zeros(m + 1, dtype=np.int64)
+    merged = _systematic(weights, m, u0, np.empty(m, dtype=np.int64))
+    assert np.array_equal(_systematic_counted(weights, m, u0, np.empty(m, dtype=np.int64), counts), merged)
+    assert not counts.any()
+
+
+@given(weight_lists, st.integers(0, 2**32 - 1), st.integers(0, 60), st.booleans())
+def test_resampling_with_jitter_equals_systematic_then_gather(weights, seed, m, known_trig):
+    from mcl.resampling import gather_with_jitter, resample_with_jitter, systematic_with_jitter
+    from motion_models._kernels import bit_generator_handle
+
+    n = weights.shape[0]
+    rng = np.random.default_rng(seed)
+    source = np.column_stack([rng.uniform(-5, 5, n), rng.uniform(-3, 3, n), rng.uniform(-np.pi, np.pi, n)])
+    bounds = np.array([0.03, 0.02, 0.05])
+    plain, drawn = np.random.default_rng(seed + 1), np.random.default_rng(seed + 1)
+    expected = gather_with_jitter(source, systematic(weights, m, plain), bounds, plain.random((m, 3)),
+                                  np.empty((m, 3)))
+    trig = np.column_stack([np.cos(source[:, 2]), np.sin(source[:, 2])]) if known_trig else np.empty((0, 2))
+    out, coordinates, counts = np.empty((m, 3)), np.empty((3, m)), np.zeros(m + 1, dtype=np.int64)
+    resample_with_jitter(weights, m, source, bounds, out, trig, *bit_generator_handle(drawn), counts, coordinates)
+    assert np.array_equal(out, expected) and np.array_equal(coordinates, expected.T) and not counts.any()
+    assert plain.bit_generator.state == drawn.bit_generator.state
+    again, generator = np.empty((m, 3)), np.random.default_rng(seed + 1)     # (a handle does not keep it)
+    systematic_with_jitter(weights, m, source, bounds, again, trig, *bit_generator_handle(generator))
+    assert np.array_equal(again, expected)
+
+
+@settings(max_examples=20)
+@given(weight_lists, st.integers(0, 2**32 - 1))
+def test_chunked_resampling(weights, seed):
+    """On several threads: with one chunk, the serial resampler bit for bit; with small chunks the running
+    totals are summed by chunk, and the offspring stay those of systematic resampling."""
+    from mcl.resampling import resample_with_jitter, resample_with_jitter_chunked
+    from motion_models._kernels import bit_generator_handle
+
+    n = m = weights.shape[0]
+    rng = np.random.default_rng(seed)
+    source = np.column_stack([rng.uniform(-5, 5, n), rng.uniform(-3, 3, n), rng.uniform(-np.pi, np.pi, n)])
+    bounds = np.zeros(3)
+    results = []
+    for chunk in (0, 1 << 20, 4):
+        out = np.empty((m, 3))
+        generator = np.random.default_rng(seed)
+        counts = np.zeros(m + 1, dtype=np.int64)
+        if chunk:
+            resample_with_jitter_chunked(weights, m, source, bounds, out, np.empty((0, 2)),
+                                         *bit_generator_handle(generator), counts, np.empty((3, 0)),
+                                         np.empty(3 * m), chunk)
+        else:
+            resample_with_jitter(weights, m, source, bounds, out, np.empty((0, 2)), *bit_generator_handle(generator),
+                                 counts, np.empty((3, 0)))
+        assert not counts.any()
+        results.append(out)
+    assert np.array_equal(results[0], results[1])
+    # Zero roughening: each offspring is a copy; count them per source particle.
+    offspring = (results[2][:, None, :] == source[None, :, :]).all(axis=2).sum(axis=0)
+    assert offspring.sum() == m and (np.abs(offspring - m * weights) < 1 + 1e-9).all()

@@ -177,3 +177,47 @@ def test_sampled_poses_explain_the_detection():
     assert np.allclose(model.log_likelihood(samples, scored_with_model_noise), 0.0, atol=1e-3)
     assert (np.abs(wrap_angles(samples[:, 2] - pose[2])) < 1e-3).all()
     assert model.sample_poses(Observations.empty(), 5, np.random.default_rng(0)).shape == (0, 3)
+
+
+# -- the block kernel of the default model ------------------------------------------------------------------------
+@given(st.lists(detection, min_size=0, max_size=14), st.integers(1, 300), st.integers(0, 2**32 - 1),
+       st.floats(0.01, 0.3), st.floats(0.0, 0.1), st.floats(0.005, 0.5), st.floats(1e-4, 0.9))
+def test_block_kernel_equals_the_particle_by_particle_kernel_bit_for_bit(detections, n, seed, floor, growth,
+                                                                         bearing_sigma, outlier_weight):
+    """`von_mises_log_likelihood` (what `log_likelihood` runs for the default model) against the general kernel
+    `landmark_log_likelihood`, which computes every variant particle by particle."""
+    from sensing.landmarks import landmark_log_likelihood
+
+    rng = np.random.default_rng(seed)
+    poses = np.column_stack([rng.uniform(-6, 6, n), rng.uniform(-4, 4, n), rng.uniform(-math.pi, math.pi, n)])
+    poses[: min(n, 4), :2] = FIELD.landmarks_of("goalpost")[: min(n, 4)]      # on a candidate: distance 0
+    obs = Observations.from_arrays([d[0] for d in detections], [d[1] for d in detections],
+                                   [d[2] for d in detections], [np.nan if d[3] is None else d[3] for d in detections],
+                                   rng.choice([np.nan, 0.1], len(detections)))
+    model = LandmarkSensorModel(FIELD, range_noise_floor=floor, range_noise_growth=growth,
+                                bearing_sigma=bearing_sigma, outlier_weight=outlier_weight)
+    general = np.empty(n)
+    landmark_log_likelihood(poses, model._table, model._offsets, obs.kinds, obs.ranges, obs.bearings, obs.range_sigmas,
+                            obs.bearing_sigmas, floor, growth, bearing_sigma, False, False, math.log(outlier_weight),
+                            general)
+    assert np.array_equal(model.log_likelihood(poses, obs), general)
+
+
+def test_block_kernel_keeps_cos_and_sin_of_the_headings():
+    from sensing.landmarks import prepare_detections, von_mises_log_likelihood
+
+    rng = np.random.default_rng(1)
+    poses = np.column_stack([rng.uniform(-4, 4, 300), rng.uniform(-3, 3, 300), rng.uniform(-3, 3, 300)])
+    obs = Observations.from_arrays(["goalpost", "t_crossing"], [2.0, 3.0], [0.1, -0.4])
+    model = LandmarkSensorModel(FIELD)
+    table, offsets, floor, growth, bearing_sigma, log_outlier = model.compiled_likelihood()
+    detections, groups, missing = prepare_detections(obs.kinds, obs.ranges, obs.bearings, obs.range_sigmas,
+                                                     obs.bearing_sigmas, offsets, floor, growth, bearing_sigma)
+    assert missing == -1 and groups[:, 0].tolist() == [0, 2]
+    trig = np.empty((300, 2))
+    out = von_mises_log_likelihood(poses, table, offsets, detections, groups, log_outlier, np.empty(300), trig)
+    assert np.array_equal(out, model.log_likelihood(poses, obs))
+    assert np.array_equal(trig[:, 0], [math.cos(t) for t in poses[:, 2]])
+    assert np.array_equal(trig[:, 1], [math.sin(t) for t in poses[:, 2]])
+    assert LandmarkSensorModel(FIELD, bearing_model="exact").compiled_likelihood() is None
+    assert LandmarkSensorModel(FIELD, mixture="sum").compiled_likelihood() is None

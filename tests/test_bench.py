@@ -1,0 +1,185 @@
+"""The benchmark suite's structure: its JSON, its sections, the machine description, the targets, a missing peer.
+
+No timing is checked here (speed is the benchmark's business, not the tests'): the runs use tiny sizes and a
+tiny sampling budget.
+"""
+import contextlib
+import io
+import json
+import sys
+
+import pytest
+
+from mcl import bench, bench_step
+from mcl.bench_report import evaluate_targets, format_report
+from mcl.cli import main as cli_main
+
+TINY = ["--quick", "--sizes", "40,120", "--budget", "0.002"]
+
+
+@pytest.fixture(scope="module")
+def quick_run(tmp_path_factory):
+    """One --quick run of every section at tiny sizes, saved to a file (and plotted when matplotlib is there)."""
+    folder = tmp_path_factory.mktemp("bench")
+    argv = ["bench", *TINY, "--json", "--save", str(folder / "bench.json")]
+    plotting = _importable("matplotlib")
+    if plotting:
+        argv += ["--plot", str(folder / "bench.png")]
+    stdout = io.StringIO()
+    with contextlib.redirect_stdout(stdout):
+        code = cli_main(argv)
+    return {"code": code, "printed": json.loads(stdout.getvalue()), "folder": folder, "plotting": plotting,
+            "saved": json.loads((folder / "bench.json").read_text())}
+
+
+def _importable(name: str) -> bool:
+    try:
+        __import__(name)
+    except ImportError:
+        return False
+    return True
+
+
+def test_quick_run_writes_every_section(quick_run):
+    assert quick_run["code"] == 0
+    result = quick_run["printed"]
+    assert result == quick_run["saved"]
+    for key in ("benchmark", "schema", "machine", "settings", "phases", "rows", "resampling", "threads", "memory",
+                "numpy_without_avx512", "startup", "demo_walk", "models", "bearing_accuracy", "targets",
+                "duration_s"):
+        assert key in result, key
+    for key in ("resampling", "threads", "memory", "numpy_without_avx512", "startup", "demo_walk", "models",
+                "bearing_accuracy"):
+        assert "error" not in result[key], (key, result[key].get("traceback"))
+    assert result["settings"]["quick"] is True and result["settings"]["sizes"] == [40, 120]
+
+
+def test_rows_hold_the_full_step_and_every_phase(quick_run):
+    rows = quick_run["printed"]["rows"]
+    assert [row["n"] for row in rows] == [40, 120]
+    for row in rows:
+        assert row["speedup"] > 0 and row["ns_per_particle"] > 0
+        assert row["full_step"]["numpy_s"] > 0 and row["full_step_exact_bearing"]["numba_s"] > 0
+        assert set(row["phases"]) == set(bench_step.PHASE_NAMES)
+        for phase in bench_step.PHASES:
+            entry = row["phases"][phase.name]
+            assert entry["numba_ns_per_particle"] > 0
+            assert (entry["numpy_s"] is None) == (phase.numpy_entry is None)
+            if entry["numpy_s"] is not None:
+                assert entry["speedup"] == pytest.approx(entry["numpy_s"] / entry["numba_s"])
+
+
+def test_machine_description(quick_run):
+    machine = quick_run["printed"]["machine"]
+    for key in ("cpu_model", "cpus", "simd_flags", "python", "numpy", "numba", "load_average",
+                "load_average_end", "numpy_cpu_dispatch"):
+        assert key in machine, key
+    assert machine["cpus"] >= 1 and machine["cpu_model"]
+    if machine["simd_flags"] is not None:
+        assert {"avx2", "avx512f"} <= set(machine["simd_flags"])
+
+
+def test_resampling_section_names_ours_and_the_peers(quick_run):
+    section = quick_run["printed"]["resampling"]
+    assert "mcl.resampling.systematic" in section["ours"]
+    for label in ("filterpy.monte_carlo.systematic_resample", "particles.resampling.systematic",
+                  "mcl.resampling.systematic_reference"):
+        assert label in section["entries"]
+    for row in section["rows"]:
+        assert row["best_ours_ns_per_particle"] > 0
+        for label, status in section["entries"].items():
+            if status["available"]:
+                assert row["ns_per_particle"][label] is not None or label in row["problems"]
+        assert row["problems"] == {}
+
+
+def test_memory_startup_models_sections(quick_run):
+    result = quick_run["printed"]
+    memory = result["memory"]
+    assert [row["n"] for row in memory["rows"]] == list(bench.MEMORY_SIZES)
+    assert isinstance(memory["grows_with_n"], bool) and isinstance(memory["retains_memory"], bool)
+    assert result["startup"]["warm_cache_s"] > 0 and result["startup"]["cold_cache_s"] is None   # --quick
+    assert result["demo_walk"]["wall_s"] > 0
+    models = result["models"]
+    assert models["lwpr"]["inputs"] == 2 and models["lwpr"]["update_us"] > 0
+    assert {"default", "paper"} == set(models["ekf"])
+    threads = result["threads"]
+    assert threads["available"] in (True, False)
+    if not threads["available"]:
+        assert "not available" in threads["note"]
+    avx = result["numpy_without_avx512"]
+    assert "NPY_DISABLE_CPU_FEATURES" in avx and "cpu_has_avx512" in avx
+
+
+def test_targets_are_all_reported(quick_run):
+    result = quick_run["printed"]
+    targets = result["targets"]
+    assert len(targets) >= 15
+    for target in targets:
+        assert target["met"] in (True, False, None)
+        assert target["met"] is None or target["value"] is not None
+    text = format_report(result)
+    for target in targets:
+        assert target["target"] in text
+    assert text.count("NOT MET") == sum(t["met"] is False for t in targets)
+
+
+def test_plot_is_written(quick_run):
+    if not quick_run["plotting"]:
+        pytest.skip("matplotlib is not installed (pip install -e '.[bench]')")
+    png = (quick_run["folder"] / "bench.png").read_bytes()
+    assert png[:8] == b"\x89PNG\r\n\x1a\n" and len(png) > 10_000
+
+
+def test_a_missing_peer_is_reported_as_not_installed(monkeypatch):
+    monkeypatch.setattr(bench_step, "PEERS", bench_step.PEERS + (("nonexistent", "no_such_resampling_lib",
+                                                                  "systematic"),))
+    monkeypatch.setitem(sys.modules, "filterpy", None)        # as if filterpy were not installed
+    monkeypatch.setitem(sys.modules, "filterpy.monte_carlo", None)
+    section = bench_step.time_resamplers([50], budget_s=0.001)
+    for label in ("no_such_resampling_lib.systematic", "filterpy.monte_carlo.systematic_resample"):
+        assert section["entries"][label] == {"package": section["entries"][label]["package"], "available": False,
+                                             "note": "not installed", "version": None}
+        assert section["rows"][0]["ns_per_particle"][label] is None
+    assert section["rows"][0]["ns_per_particle"]["mcl.resampling.systematic"] > 0
+    text = format_report({"machine": {"cpu_model": "x", "cpus": 1, "python": "3", "numpy": "2", "numba": "0"},
+                          "settings": {"quick": True}, "resampling": section, "targets": []})
+    assert "no_such_resampling_lib.systematic" in text and "not installed" in text
+
+
+def test_targets_judge_the_figures():
+    def row(n, seconds, speedup):
+        phases = {"predict_adaptive": {"numba_s": 1.2}, "predict_velocity_linear": {"numba_s": 1.0}}
+        return {"n": n, "ns_per_particle": 1e9 * seconds / n, "speedup": speedup,
+                "full_step": {"numba_s": seconds}, "phases": phases}
+
+    result = {"rows": [row(100, 10e-6, 25.0), row(1000, 0.2e-3, 10.0), row(10_000, 0.5e-3, 6.0)],
+              "threads": {"available": False, "note": "not available: no threads option", "rows": []},
+              "models": {"lwpr": {"update_us": 12.0, "predict_us": 2.0},
+                         "ekf": {"default": {"predict_us": 5.0, "correct_us": 30.0}}},
+              "demo_walk": {"wall_s": 2.0}}
+    verdicts = {t["id"]: t["met"] for t in evaluate_targets(result)}
+    assert verdicts["full_step_ns_per_particle"] is True          # 50 ns at 10 000
+    assert verdicts["full_step_ns_per_particle_aim"] is False
+    assert verdicts["full_step_1000"] is False and verdicts["full_step_100"] is True
+    assert verdicts["speedup_10000"] is True and verdicts["speedup_100"] is True
+    assert verdicts["two_threads"] is None and verdicts["resampling_1e6"] is None
+    assert verdicts["steady_state_allocation"] is None and verdicts["demo_walk_cached"] is True
+    assert verdicts["adaptive_vs_velocity_linear"] is True
+    assert verdicts["lwpr_update"] is False and verdicts["lwpr_predict"] is True
+    assert verdicts["ekf_predict"] is True and verdicts["ekf_correct"] is False
+
+
+def test_measure_interleaves_and_counts_samples():
+    calls = []
+    timed = bench_step.measure({"a": lambda: calls.append("a"), "b": lambda: calls.append("b")}, budget_s=0.0,
+                               min_samples=4, sample_s=0.0)
+    assert {name: t["samples"] for name, t in timed.items()} == {"a": 4, "b": 4}
+    assert calls[4:] == ["a", "b"] * 4          # after two warm-up calls each: A, B, A, B, ...
+
+
+@pytest.mark.parametrize("argv", [["--sizes", "ten"], ["--sizes", "0"], ["--skip", "everything"],
+                                  ["--budget", "0"]])
+def test_bad_options_are_refused(argv):
+    with pytest.raises(SystemExit):
+        bench.main(argv)

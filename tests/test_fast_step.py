@@ -1,0 +1,348 @@
+"""The compiled step: the one-dispatch `step`/`correct`, its opt-in variants (fast, threads) and its phases.
+
+Default settings give what the plain sequence of calls gives, bit for bit: the sequence is run here through
+a sensor model that offers no compiled likelihood (so the filter scores through `log_likelihood`, weighs with
+`weigh`, resamples with `_resample`), and compared after every call with the compiled path on the same seed.
+"""
+import math
+import tracemalloc
+from dataclasses import dataclass
+
+import numba
+import numpy as np
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+
+from field import spl
+from mcl import AugmentedMCL, Entropy, Estimate, ParticleFilter
+from mcl.estimate import cluster_estimate, grid_entropy
+from mcl.filter import augmented_update
+from mcl.reference import PHASES, compiled_phases, full_step
+from mcl.resampling import SCHEMES, gather_with_jitter
+from mcl.weights import log_mean_likelihood, normalize
+from motion_models import ConstantNoise, MotionInput, VelocityLinear
+from motion_models._kernels import draw_variates
+from sensing import LandmarkSensorModel, Observations
+
+FIELD = spl()
+TRUE_POSE = np.array([1.0, 0.5, 0.3])
+
+
+@dataclass(frozen=True, eq=False)
+class StagedLandmarks(LandmarkSensorModel):
+    """The landmark model without `compiled_likelihood`: the filter scores through `log_likelihood`."""
+
+    def compiled_likelihood(self):
+        return None
+
+
+class PlainFilter(ParticleFilter):
+    """The step as a sequence of plain calls, as the filter made them before it had compiled paths: the motion
+    model's own predict, `log_mean_likelihood` and `normalize`, a resampling scheme then `gather_with_jitter`
+    on `draw_variates`, `cluster_estimate` and `grid_entropy` on fresh histograms."""
+
+    def _move(self, u):
+        self.motion_model.predict(self.poses, u, self.rng)
+        self._carry_heading(u)
+        self._changed()
+
+    def _correct(self, observations, since=None):
+        if observations.is_empty:
+            return
+        log_likelihood = self.sensor_model.log_likelihood(self.poses, observations, out=self._log_likelihood)
+        native = log_mean_likelihood(self.log_weights, log_likelihood, self.n - self.injected)
+        terms = self.sensor_model.terms(observations)
+        if terms > 0:
+            self.frame_fit = math.exp(native / terms)
+        candidate = self.log_weights + log_likelihood
+        log_evidence, ess = normalize(candidate, self._weights)
+        self._changed()
+        if log_evidence == -np.inf:
+            self._weights[:] = 1.0 / self.n
+            self._resample(self._injection_count(1.0), observations)
+            return
+        self.log_weights[:] = candidate - log_evidence
+        self.ess = ess
+        fraction = self._update_augmented(native / terms) if self.augmented is not None and terms > 0 else 0.0
+        count = self._injection_count(fraction)
+        if count > 0 or ess < self.resample_threshold * self.n:
+            self._resample(count, observations)
+        else:
+            self.resampled = False
+            self.injected = 0
+        self._track_confidence()
+
+    def _resample(self, count, observations, since=None):
+        injected = self._sample_injection(count, observations) if count > 0 else np.empty((0, 3))
+        keep = self.n - injected.shape[0]
+        ancestors = SCHEMES[self.resampling](self._weights, keep, self.rng)
+        previous = self.poses.copy()
+        gather_with_jitter(previous, ancestors, self.roughening * math.sqrt(3.0), draw_variates(self.rng, keep, False),
+                           self.poses)
+        self.poses[keep:] = injected
+        self.log_weights[:] = -math.log(self.n)
+        self._weights[:] = 1.0 / self.n
+        self.ess = float(self.n)
+        self.resampled = True
+        self.injected = int(injected.shape[0])
+        self._changed()
+
+    def estimate(self):
+        if self._estimate is None:
+            g = self.grid
+            mean, cov = np.empty(3), np.empty((3, 3))
+            weight = cluster_estimate(self.poses, self._weights, self._x_min, self._y_min, g.cluster_cell,
+                                      self._cluster_nx, self._cluster_ny, g.cluster_orientation_bins, g.cluster_radius,
+                                      g.cluster_angle_radius, 3, np.empty(self._cluster_nx * self._cluster_ny
+                                                                          * g.cluster_orientation_bins),
+                                      self._previous_estimate, self._has_previous_estimate, mean, cov)
+            self._estimate = Estimate(mean, cov, float(weight))
+            self._previous_estimate[:] = mean
+            self._has_previous_estimate = True
+        return self._estimate
+
+    def entropy(self):
+        g = self.grid
+        cells = self._entropy_nx * self._entropy_ny
+        position, orientation = grid_entropy(self.poses, self._weights, self._x_min, self._y_min, g.position_cell,
+                                             self._entropy_nx, self._entropy_ny, g.orientation_bins, np.empty(cells),
+                                             np.empty(g.orientation_bins))
+        return Entropy(float(position), float(orientation))
+
+
+def detections(pose, rng, count=10, kinds=("goalpost",), false_positives=0):
+    rows = []
+    for _ in range(count):
+        kind = kinds[rng.integers(len(kinds))]
+        target = FIELD.landmarks_of(kind)[rng.integers(len(FIELD.landmarks_of(kind)))]
+        d = target - pose[:2]
+        rows.append((kind, math.hypot(*d) + 0.05 * rng.standard_normal(),
+                     math.atan2(d[1], d[0]) - pose[2] + 0.03 * rng.standard_normal()))
+    for _ in range(false_positives):
+        rows.append((kinds[0], rng.uniform(0.5, 6.0), rng.uniform(-1.0, 1.0)))
+    return Observations.from_arrays(*zip(*rows))
+
+
+def state(pf):
+    estimate = pf.estimate()
+    entropy = pf.entropy()
+    return (pf.poses.copy(), pf.log_weights.copy(), np.array(pf.weights), pf.w_slow, pf.w_fast, pf.ess,
+            pf.resampled, pf.injected, pf.frame_fit, pf._heading_reference, pf._ever_confident,
+            pf.rng.bit_generator.state, estimate.pose.copy(), estimate.covariance.copy(), estimate.weight,
+            entropy.position, entropy.orientation)
+
+
+def same(a, b):
+    return all(np.array_equal(x, y, equal_nan=True) if isinstance(x, np.ndarray)
+               else (x == y or (isinstance(x, float) and math.isnan(x) and math.isnan(y))) for x, y in zip(a, b))
+
+
+def make(n=300, seed=0, sensor=LandmarkSensorModel(FIELD), motion=VelocityLinear(), **kwargs):
+    return ParticleFilter(FIELD, motion, sensor, n_particles=n, seed=seed, **kwargs)
+
+
+def scenario(pf, steps=45, seed=1, use_step=True, kinds=("goalpost", "t_crossing"), kidnap=True,
+             compare_every_call=None):
+    """A walk with detections most frames, a kidnapping halfway (injection), a frame with false positives."""
+    rng = np.random.default_rng(seed)
+    truth = TRUE_POSE.copy()
+    for k in range(steps):
+        command = (0.2 * math.sin(0.1 * k), 0.05, 0.3 * math.cos(0.05 * k))
+        u = MotionInput(dt=0.033, command=command)
+        truth = truth + np.array([0.033 * command[0], 0.0, 0.033 * command[2]])
+        if kidnap and k == steps // 2:
+            truth = truth + np.array([-2.0, 1.0, 0.0])
+        obs = detections(truth, rng, 1 + k % 10, kinds, false_positives=k % 7 == 3) if k % 3 != 2 else None
+        if use_step:
+            pf.step(u, obs)
+        else:
+            pf.predict(u)
+            pf.correct(obs)
+        yield k
+
+
+@pytest.mark.parametrize("options", [
+    dict(),
+    dict(resample_threshold=1.0, augmented=None),
+    dict(augmented=None),
+    dict(motion=VelocityLinear(gaussian=True)),
+    dict(motion=ConstantNoise()),
+    dict(resampling="stratified"),
+    dict(roughening=(0.0, 0.0, 0.0)),
+    dict(n=1),
+    dict(n=700),
+])
+@pytest.mark.parametrize("use_step", [True, False])
+def test_compiled_path_equals_the_plain_sequence_bit_for_bit(options, use_step):
+    compiled = make(**options)
+    options = {"n": 300, "motion": VelocityLinear(), **options}
+    plain = PlainFilter(FIELD, options.pop("motion"), StagedLandmarks(FIELD), n_particles=options.pop("n"), seed=0,
+                        **options)
+    for pf in (compiled, plain):
+        pf.reset_uniform("own_half")
+    for _ in zip(scenario(compiled, use_step=use_step), scenario(plain, use_step=use_step)):
+        assert same(state(compiled), state(plain))
+
+
+def test_compiled_path_covers_injection_and_global_localization():
+    """The scenario above reaches the Python fallbacks of the compiled step: injection and resampling."""
+    pf = make(n=400)
+    pf.reset_uniform("own_half")
+    injected = resampled = kept = 0
+    for _ in scenario(pf, steps=60):
+        injected += pf.injected > 0
+        resampled += pf.resampled and pf.injected == 0
+        kept += not pf.resampled
+    assert injected and resampled and kept
+
+
+def test_step_equals_predict_then_correct_then_estimate():
+    a, b = make(seed=3), make(seed=3)
+    for pf in (a, b):
+        pf.reset_around(TRUE_POSE, (0.3, 0.3, 0.2))
+    rng_a, rng_b = np.random.default_rng(0), np.random.default_rng(0)
+    u = MotionInput(dt=0.033, command=(0.1, 0.05, 0.2))
+    for _ in range(20):
+        estimate = a.step(u, detections(TRUE_POSE, rng_a))
+        b.predict(u)
+        b.correct(detections(TRUE_POSE, rng_b))
+        assert np.array_equal(estimate.pose, b.estimate().pose) and same(state(a), state(b))
+
+
+def test_a_missing_landmark_type_is_rejected_before_anything_changes():
+    sensor = LandmarkSensorModel(FIELD)
+    offsets = sensor._offsets.copy()
+    offsets[2:] -= offsets[2] - offsets[1]            # a field without L crossings (the later types' rows shift)
+    object.__setattr__(sensor, "_offsets", offsets)
+    pf = make(sensor=sensor)
+    pf.step(MotionInput(dt=0.01, command=(0.1, 0.0, 0.0)), detections(TRUE_POSE, np.random.default_rng(0)))
+    before = state(pf)
+    bad = Observations.from_arrays(["goalpost", "l_crossing"], [2.0, 1.0], [0.0, 0.5])
+    for call in (lambda: pf.step(MotionInput(dt=0.01, command=(0.1, 0.0, 0.0)), bad), lambda: pf.correct(bad)):
+        with pytest.raises(ValueError, match="L_CROSSING"):
+            call()
+        assert same(before, state(pf))
+
+
+@given(st.floats(0.0, 2.0), st.floats(0.0, 2.0), st.floats(-50.0, 1.0), st.floats(0.001, 0.2),
+       st.floats(0.2, 1.0), st.floats(0.05, 1.0), st.floats(0.0, 1.0))
+def test_augmented_update_in_compiled_code_equals_the_python_method(w_slow, w_fast, log_average, alpha_slow,
+                                                                    alpha_fast, ratio, fit):
+    pf = make(augmented=AugmentedMCL(alpha_slow=alpha_slow, alpha_fast=max(alpha_fast, alpha_slow * 1.01),
+                                     ratio_threshold=ratio, fit_threshold=fit))
+    pf.w_slow, pf.w_fast = w_slow, w_fast
+    a = pf.augmented
+    compiled = augmented_update(w_slow, w_fast, log_average, a.alpha_slow, a.alpha_fast, a.ratio_threshold,
+                                a.fit_threshold)
+    fraction = pf._update_augmented(log_average)
+    assert compiled == (pf.w_slow, pf.w_fast, fraction)
+
+
+# -- the opt-in variants ----------------------------------------------------------------------------------------
+def test_options_are_validated():
+    for bad in (0, -1, 1.5, True, "2"):
+        with pytest.raises(ValueError, match="threads"):
+            make(threads=bad)
+    with pytest.raises(ValueError, match="fast"):
+        make(fast="yes")
+
+
+@pytest.mark.parametrize("threshold", [1.0, 0.0])
+def test_fast_matches_the_default_to_rounding(threshold):
+    """fast=True: the same draws; after each step the particles, weights and estimate agree to about 1e-12
+    (here the particles are taken from the default filter before each step, so rounding cannot accumulate)."""
+    default, fast = (make(n=3000, resample_threshold=threshold, augmented=None, fast=f) for f in (False, True))
+    rng = np.random.default_rng(4)
+    default.reset_around(TRUE_POSE, (0.3, 0.3, 0.2))
+    for _ in range(6):
+        fast.set_particles(default.poses, default.log_weights)
+        fast.rng.bit_generator.state = default.rng.bit_generator.state
+        obs = detections(TRUE_POSE, rng)
+        u = MotionInput(dt=0.033, command=(0.2, 0.0, 0.3))
+        a, b = default.step(u, obs), fast.step(u, obs)
+        offset = np.abs(default.poses - fast.poses)
+        offset[:, 2] = np.minimum(offset[:, 2], 2 * math.pi - offset[:, 2])
+        assert offset.max() < 1e-12
+        np.testing.assert_allclose(fast.log_weights, default.log_weights, rtol=0, atol=1e-9)
+        np.testing.assert_allclose(fast.weights, default.weights, rtol=1e-9, atol=1e-15)
+        np.testing.assert_allclose(b.pose, a.pose, atol=1e-12)
+        np.testing.assert_allclose(b.covariance, a.covariance, atol=1e-12)
+        assert b.weight == pytest.approx(a.weight, abs=1e-12) and fast.ess == pytest.approx(default.ess, rel=1e-9)
+        assert fast.entropy().position == pytest.approx(default.entropy().position, abs=1e-9)
+
+
+def run_threads(threads, n, numba_threads=None, steps=5):
+    pf = make(n=n, resample_threshold=0.9, threads=threads)
+    pf.reset_around(TRUE_POSE, (0.3, 0.3, 0.2))
+    if numba_threads is not None:
+        pf._thread_scope.threads = numba_threads
+    rng = np.random.default_rng(2)
+    states = []
+    for k in range(steps):
+        u = MotionInput(dt=0.033, command=(0.2, 0.0, 0.3))
+        if k % 2:
+            pf.step(u, detections(TRUE_POSE, rng))
+        else:
+            pf.predict(u)
+            pf.correct(detections(TRUE_POSE, rng))
+        states.append(state(pf))
+    return states
+
+
+def test_threads_give_the_same_results_on_any_number_of_threads():
+    n = 20000                                           # three chunks
+    if numba.config.NUMBA_NUM_THREADS < 2:
+        pytest.skip("numba has one thread here")
+    for a, b in zip(run_threads(2, n), run_threads(2, n, numba_threads=1)):
+        assert same(a, b)
+
+
+def test_threads_match_one_thread_to_rounding():
+    for a, b in zip(run_threads(1, 20000), run_threads(2, 20000)):
+        np.testing.assert_allclose(b[0], a[0], rtol=0, atol=1e-9)     # the same offspring, particles to rounding
+        np.testing.assert_allclose(b[1], a[1], rtol=0, atol=1e-9)
+        np.testing.assert_allclose(b[12], a[12], atol=1e-9)
+        np.testing.assert_allclose(b[13], a[13], atol=1e-9)
+        assert b[5] == pytest.approx(a[5], rel=1e-9)
+
+
+# -- what the benchmark calls -----------------------------------------------------------------------------------
+@pytest.mark.parametrize("options", [dict(), dict(fast=True), dict(threads=2)])
+def test_compiled_phases_in_order_are_the_fused_step(options):
+    fused, phased = (make(n=2000, resample_threshold=1.0, augmented=None, **options) for _ in range(2))
+    for pf in (fused, phased):
+        pf.reset_around(TRUE_POSE, (0.3, 0.3, 0.2))
+    u = MotionInput(dt=0.01, command=(0.2, 0.0, 0.1))
+    obs = detections(TRUE_POSE, np.random.default_rng(5))
+    work = compiled_phases(phased, u, obs)
+    assert tuple(work) == PHASES
+    for _ in range(3):
+        full_step(fused, u, obs)
+        for name in PHASES:
+            work[name]()
+        assert same(state(fused), state(phased))
+
+
+# -- memory -----------------------------------------------------------------------------------------------------
+@pytest.mark.parametrize("options", [dict(), dict(fast=True)])
+def test_a_steady_state_step_allocates_nothing_that_grows_with_n(options):
+    """tracemalloc sees numpy's allocations; the kernels' own scratch (numba's runtime, which tracemalloc does
+    not see) is a few blocks of fixed size, so the Python-visible peak must not grow with N either."""
+    peaks = []
+    for n in (2000, 50000):
+        pf = make(n=n, resample_threshold=1.0, **options)
+        pf.reset_around(TRUE_POSE, (0.3, 0.3, 0.2))
+        u = MotionInput(dt=0.01, command=(0.2, 0.0, 0.1))
+        obs = detections(TRUE_POSE, np.random.default_rng(6))
+        for _ in range(2):
+            pf.step(u, obs), pf.entropy()
+        tracemalloc.start()
+        for _ in range(3):
+            pf.step(u, obs)
+            pf.entropy()
+            pf.predict(u)
+            pf.estimate()
+        peaks.append(tracemalloc.get_traced_memory()[1])
+        tracemalloc.stop()
+    assert peaks[1] < 64 * 1024 and peaks[1] < peaks[0] + 16 * 1024
