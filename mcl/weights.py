@@ -80,6 +80,34 @@ def log_mean_likelihood(log_weights, log_likelihood, count):
     return peak_joint + math.log(joint) - peak_prior - math.log(prior)
 
 
+@numba.njit(cache=True, inline="always")
+def _peaks(log_weights, log_likelihood, count):
+    """One scan for `weigh`: (valid, peak over all candidates log_weights + log_likelihood, peak over the first
+    `count` candidates, peak of the first `count` log-weights, whether those log-weights are all equal).
+    valid is False at the first NaN or +inf log-likelihood."""
+    n = log_weights.shape[0]
+    peak = -np.inf
+    peak_joint = -np.inf
+    peak_prior = -np.inf
+    equal_prior = True
+    first = log_weights[0] if n > 0 else 0.0
+    for i in range(n):
+        ll = log_likelihood[i]
+        if np.isnan(ll) or ll == np.inf:
+            return False, peak, peak_joint, peak_prior, equal_prior
+        candidate = log_weights[i] + ll
+        if candidate > peak:
+            peak = candidate
+        if i < count:
+            if candidate > peak_joint:
+                peak_joint = candidate
+            if log_weights[i] > peak_prior:
+                peak_prior = log_weights[i]
+            if log_weights[i] != first:
+                equal_prior = False
+    return True, peak, peak_joint, peak_prior, equal_prior
+
+
 @numba.njit(cache=True)
 def weigh(log_weights, log_likelihood, count, weights_out):
     """A correction's weight update; returns (valid, native, log_total, ess).
@@ -95,25 +123,9 @@ def weigh(log_weights, log_likelihood, count, weights_out):
     the prior sum is `count` exactly. Otherwise the missing sum is taken as those functions take it.
     """
     n = log_weights.shape[0]
-    peak = -np.inf            # over all candidates log_weights + log_likelihood
-    peak_joint = -np.inf      # over the first `count`
-    peak_prior = -np.inf      # over the first `count` log-weights
-    equal_prior = True
-    first = log_weights[0] if n > 0 else 0.0
-    for i in range(n):
-        ll = log_likelihood[i]
-        if np.isnan(ll) or ll == np.inf:
-            return False, 0.0, 0.0, 0.0
-        candidate = log_weights[i] + ll
-        if candidate > peak:
-            peak = candidate
-        if i < count:
-            if candidate > peak_joint:
-                peak_joint = candidate
-            if log_weights[i] > peak_prior:
-                peak_prior = log_weights[i]
-            if log_weights[i] != first:
-                equal_prior = False
+    valid, peak, peak_joint, peak_prior, equal_prior = _peaks(log_weights, log_likelihood, count)
+    if not valid:
+        return False, 0.0, 0.0, 0.0
     total = 0.0
     joint = 0.0
     if peak > -np.inf:
@@ -339,25 +351,9 @@ def _scale_and_squares(weights, inverse):
 def weigh_fast(log_weights, log_likelihood, count, weights_out):
     """`weigh` with `fast_exp` and reassociated sums (equal to rounding)."""
     n = log_weights.shape[0]
-    peak = -np.inf
-    peak_joint = -np.inf
-    peak_prior = -np.inf
-    equal_prior = True
-    first = log_weights[0] if n > 0 else 0.0
-    for i in range(n):
-        ll = log_likelihood[i]
-        if np.isnan(ll) or ll == np.inf:
-            return False, 0.0, 0.0, 0.0
-        candidate = log_weights[i] + ll
-        if candidate > peak:
-            peak = candidate
-        if i < count:
-            if candidate > peak_joint:
-                peak_joint = candidate
-            if log_weights[i] > peak_prior:
-                peak_prior = log_weights[i]
-            if log_weights[i] != first:
-                equal_prior = False
+    valid, peak, peak_joint, peak_prior, equal_prior = _peaks(log_weights, log_likelihood, count)
+    if not valid:
+        return False, 0.0, 0.0, 0.0
     total = 0.0
     joint = 0.0
     if peak > -np.inf:
