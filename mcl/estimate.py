@@ -151,21 +151,25 @@ def _kernel_covariance(xs, ys, ts, weights, mx, my, mt, radius, angle_radius, to
     out_cov[2, 2] = c22
 
 
+@numba.njit(cache=True, inline="always")
+def _cell_centre(best, x_min, y_min, cell_size, ny, n_theta):
+    """The centre (x, y, θ) of cell `best` of the (x, y, θ) histogram."""
+    bt = best % n_theta
+    by = (best // n_theta) % ny
+    bx = best // (n_theta * ny)
+    return (x_min + (bx + 0.5) * cell_size, y_min + (by + 0.5) * cell_size,
+            -math.pi + (bt + 0.5) * (2.0 * math.pi / n_theta))
+
+
 @numba.njit(cache=True)
 def _dominant_cluster(xs, ys, ts, weights, best, x_min, y_min, cell_size, ny, n_theta, radius, angle_radius,
                       iterations, previous, use_previous, out_mean, out_cov):
     """Mean shift from the centre of histogram cell `best` (and from `previous`), then the covariance; returns
     the cluster's weight. xs, ys, ts: the particles' coordinates as separate arrays."""
     rows = np.empty((6, BLOCK))
-    theta_size = 2.0 * math.pi / n_theta
-    bt = best % n_theta
-    by = (best // n_theta) % ny
-    bx = best // (n_theta * ny)
     # Seed: the centre of the heaviest cell; the kernel is wider than a cell, so mean shift merges its
     # neighbours and walks to the mode.
-    mx = x_min + (bx + 0.5) * cell_size
-    my = y_min + (by + 0.5) * cell_size
-    mt = -math.pi + (bt + 0.5) * theta_size
+    mx, my, mt = _cell_centre(best, x_min, y_min, cell_size, ny, n_theta)
     total = 0.0
     for _ in range(iterations):
         mx, my, mt, total = _kernel_mean(xs, ys, ts, weights, mx, my, mt, radius, angle_radius, rows)
@@ -510,13 +514,7 @@ def _kernel_covariance_chunked(xs, ys, ts, weights, mx, my, mt, radius, angle_ra
 def _dominant_cluster_chunked(xs, ys, ts, weights, best, x_min, y_min, cell_size, ny, n_theta, radius,
                               angle_radius, iterations, previous, use_previous, out_mean, out_cov, chunk):
     """`_dominant_cluster` with `_kernel_mean_chunked` and `_kernel_covariance_chunked`."""
-    theta_size = 2.0 * math.pi / n_theta
-    bt = best % n_theta
-    by = (best // n_theta) % ny
-    bx = best // (n_theta * ny)
-    mx = x_min + (bx + 0.5) * cell_size
-    my = y_min + (by + 0.5) * cell_size
-    mt = -math.pi + (bt + 0.5) * theta_size
+    mx, my, mt = _cell_centre(best, x_min, y_min, cell_size, ny, n_theta)
     total = 0.0
     for _ in range(iterations):
         mx, my, mt, total = _kernel_mean_chunked(xs, ys, ts, weights, mx, my, mt, radius, angle_radius, chunk)

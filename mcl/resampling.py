@@ -218,6 +218,28 @@ def _systematic_counted(weights, m, u0, out, counts):
 DRAWS = 256        # offspring per block of drawn uniforms
 
 
+@numba.njit(cache=True, inline="always")
+def _place(source, j, trig, known, uniforms, u, bx, by, bt, out, k, coordinates, split):
+    """Offspring k of ancestor j: its pose jittered by uniforms[u:u + 3] (with the ancestor's cos/sin from
+    `trig` when `known`), written to out[k] and, when `split`, to coordinates[:, k]."""
+    theta = source[j, 2]
+    if known:
+        c = trig[j, 0]
+        s = trig[j, 1]
+    else:
+        c = math.cos(theta)
+        s = math.sin(theta)
+    x, y, theta = jitter_pose(source[j, 0], source[j, 1], theta, c, s, uniforms[u], uniforms[u + 1],
+                              uniforms[u + 2], bx, by, bt)
+    out[k, 0] = x
+    out[k, 1] = y
+    out[k, 2] = theta
+    if split:
+        coordinates[0, k] = x
+        coordinates[1, k] = y
+        coordinates[2, k] = theta
+
+
 @numba.njit(cache=True)
 def resample_with_jitter(weights, m, source, bounds, out, trig, function, state, counts, coordinates):
     """Systematic resampling of M particles from `source` into out[:M], with roughening; returns u0.
@@ -242,22 +264,7 @@ def resample_with_jitter(weights, m, source, bounds, out, trig, function, state,
             k = start + p
             j += counts[k]
             counts[k] = 0
-            theta = source[j, 2]
-            if known:
-                c = trig[j, 0]
-                s = trig[j, 1]
-            else:
-                c = math.cos(theta)
-                s = math.sin(theta)
-            x, y, theta = jitter_pose(source[j, 0], source[j, 1], theta, c, s, uniforms[3 * p], uniforms[3 * p + 1],
-                                      uniforms[3 * p + 2], bx, by, bt)
-            out[k, 0] = x
-            out[k, 1] = y
-            out[k, 2] = theta
-            if split:
-                coordinates[0, k] = x
-                coordinates[1, k] = y
-                coordinates[2, k] = theta
+            _place(source, j, trig, known, uniforms, 3 * p, bx, by, bt, out, k, coordinates, split)
     counts[m] = 0
     return u0
 
@@ -331,22 +338,7 @@ def resample_with_jitter_chunked(weights, m, source, bounds, out, trig, function
         for k in range(t * chunk, min(m, (t + 1) * chunk)):
             j += counts[k]
             counts[k] = 0
-            theta = source[j, 2]
-            if known:
-                c = trig[j, 0]
-                s = trig[j, 1]
-            else:
-                c = math.cos(theta)
-                s = math.sin(theta)
-            x, y, theta = jitter_pose(source[j, 0], source[j, 1], theta, c, s, uniforms[3 * k], uniforms[3 * k + 1],
-                                      uniforms[3 * k + 2], bx, by, bt)
-            out[k, 0] = x
-            out[k, 1] = y
-            out[k, 2] = theta
-            if split:
-                coordinates[0, k] = x
-                coordinates[1, k] = y
-                coordinates[2, k] = theta
+            _place(source, j, trig, known, uniforms, 3 * k, bx, by, bt, out, k, coordinates, split)
     counts[m] = 0
     return u0
 
