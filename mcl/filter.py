@@ -61,7 +61,7 @@ import numpy as np
 from field import Field
 from field.angles import wrap_angles
 from motion_models._kernels import (FAST, SQRT3, bit_generator_handle, draw_variates, fast_sincos, move_chunked,
-                                    move_range, move_range_fast, parallel_uniforms)
+                                    move_range, move_range_fast, parallel_uniforms, MOVE_WORK, NO_WORK)
 from motion_models.base import BoundedNoiseModel, MotionInput, MotionModel
 from sensing.landmarks import BLOCK, COS, SIN, TOTAL, X, Y, block_work, load_block, prepare_detections, score_block
 from sensing.observations import Observations
@@ -524,9 +524,10 @@ class ParticleFilter:
                     parallel_uniforms(*self._generator(), variates.reshape(-1), 3 * self.n)
                 move_chunked(self.poses, *motion, gaussian, variates, _CHUNK)
         elif self._fast:
-            move_range_fast(self.poses, self.poses, 0, self.n, *motion, gaussian, variates, *self._generator())
+            move_range_fast(self.poses, self.poses, 0, self.n, *motion, gaussian, variates, *self._generator(),
+                            NO_WORK)
         else:
-            move_range(self.poses, self.poses, 0, self.n, *motion, gaussian, variates, *self._generator())
+            move_range(self.poses, self.poses, 0, self.n, *motion, gaussian, variates, *self._generator(), NO_WORK)
 
     def _carry_heading(self, u: MotionInput) -> None:
         """Turn the heading reference by the motion input's rotation, as a gyro would."""
@@ -953,16 +954,17 @@ def _predict_and_score(poses, scratch, trig, log_likelihood, move, dx, dy, dthet
     """Particles start..stop moved (or copied) from `poses` into `scratch` a block at a time and scored there
     while in cache; cos and sin of their headings into `trig` (for the roughening)."""
     work = block_work(offsets, groups, min(stop - start, BLOCK))
+    move_work = np.empty(MOVE_WORK)
     for block in range(start, stop, BLOCK):
         end = min(block + BLOCK, stop)
         if not move:
             scratch[block:end] = poses[block:end]
         elif fast:
             move_range_fast(poses, scratch, block, end, dx, dy, dtheta, bound_x, bound_y, bound_theta, gaussian,
-                            variates, function, state)
+                            variates, function, state, move_work)
         else:
             move_range(poses, scratch, block, end, dx, dy, dtheta, bound_x, bound_y, bound_theta, gaussian,
-                       variates, function, state)
+                       variates, function, state, move_work)
         if fast:
             _load_block_fast(scratch, block, end - block, work, trig)
         else:

@@ -26,7 +26,7 @@ from typing import Callable
 
 import numpy as np
 
-from motion_models._kernels import (SQRT3, draw_variates, move_chunked, move_range, move_range_fast,
+from motion_models._kernels import (NO_WORK, SQRT3, draw_variates, move_chunked, move_range, move_range_fast,
                                     move_with_noise_reference, parallel_uniforms)
 from motion_models.base import MotionInput
 from sensing.landmarks import prepare_detections, von_mises_log_likelihood
@@ -122,9 +122,9 @@ def compiled_phases(pf, u: MotionInput, observations: Observations) -> dict[str,
                 scratch[:] = pf.poses
                 move_chunked(scratch, *motion, gaussian, variates, chunk)
         elif pf.fast:
-            move_range_fast(pf.poses, scratch, 0, n, *motion, gaussian, variates, function, generator)
+            move_range_fast(pf.poses, scratch, 0, n, *motion, gaussian, variates, function, generator, NO_WORK)
         else:
-            move_range(pf.poses, scratch, 0, n, *motion, gaussian, variates, function, generator)
+            move_range(pf.poses, scratch, 0, n, *motion, gaussian, variates, function, generator, NO_WORK)
         pf._heading_reference = math.remainder(pf._heading_reference + motion[2], 2 * math.pi)
         pf._changed()
 

@@ -240,6 +240,35 @@ def _place(source, j, trig, known, uniforms, u, bx, by, bt, out, k, coordinates,
         coordinates[2, k] = theta
 
 
+@numba.njit(cache=True, inline="always")
+def _place_run(source, j, trig, known, uniforms, u, bx, by, bt, out, first, stop, counts, coordinates, split):
+    """Offspring first..stop-1, their ancestors the running sum of `counts` from j (counts zeroed on the way),
+    their uniforms from uniforms[u:]; returns the last ancestor. Called with literal `known` and `split`."""
+    for k in range(first, stop):
+        j += counts[k]
+        counts[k] = 0
+        _place(source, j, trig, known, uniforms, u + 3 * (k - first), bx, by, bt, out, k, coordinates, split)
+    return j
+
+
+@numba.njit(cache=True, inline="always")
+def _place_range(source, j, trig, uniforms, u, bx, by, bt, out, first, stop, counts, coordinates):
+    """`_place_run` with `known` (trig has rows) and `split` (coordinates has columns) decided once, outside
+    the loop: with a flag tested inside it, LLVM computes the cos and sin of the other branch anyway (they are
+    speculatable intrinsics), which made the loop four times slower."""
+    known = trig.shape[0] > 0
+    if coordinates.shape[1] > 0:
+        if known:
+            return _place_run(source, j, trig, True, uniforms, u, bx, by, bt, out, first, stop, counts, coordinates,
+                              True)
+        return _place_run(source, j, trig, False, uniforms, u, bx, by, bt, out, first, stop, counts, coordinates,
+                          True)
+    if known:
+        return _place_run(source, j, trig, True, uniforms, u, bx, by, bt, out, first, stop, counts, coordinates,
+                          False)
+    return _place_run(source, j, trig, False, uniforms, u, bx, by, bt, out, first, stop, counts, coordinates, False)
+
+
 @numba.njit(cache=True)
 def resample_with_jitter(weights, m, source, bounds, out, trig, function, state, counts, coordinates):
     """Systematic resampling of M particles from `source` into out[:M], with roughening; returns u0.
@@ -252,19 +281,13 @@ def resample_with_jitter(weights, m, source, bounds, out, trig, function, state,
     """
     u0 = next_double(function, state)
     _passed_counts(weights, m, u0, counts)
-    known = trig.shape[0] > 0
-    split = coordinates.shape[1] > 0
     bx, by, bt = bounds[0], bounds[1], bounds[2]
     uniforms = np.empty(3 * DRAWS)
     j = 0
     for start in range(0, m, DRAWS):
         count = min(DRAWS, m - start)
         draw_uniforms(function, state, uniforms, 3 * count)
-        for p in range(count):
-            k = start + p
-            j += counts[k]
-            counts[k] = 0
-            _place(source, j, trig, known, uniforms, 3 * p, bx, by, bt, out, k, coordinates, split)
+        j = _place_range(source, j, trig, uniforms, 0, bx, by, bt, out, start, start + count, counts, coordinates)
     counts[m] = 0
     return u0
 
@@ -330,15 +353,10 @@ def resample_with_jitter_chunked(weights, m, source, bounds, out, trig, function
         total = starts[t]
         starts[t] = running_start
         running_start += total
-    known = trig.shape[0] > 0
-    split = coordinates.shape[1] > 0
     bx, by, bt = bounds[0], bounds[1], bounds[2]
     for t in numba.prange(k_chunks):
-        j = starts[t]
-        for k in range(t * chunk, min(m, (t + 1) * chunk)):
-            j += counts[k]
-            counts[k] = 0
-            _place(source, j, trig, known, uniforms, 3 * k, bx, by, bt, out, k, coordinates, split)
+        _place_range(source, starts[t], trig, uniforms, 3 * t * chunk, bx, by, bt, out, t * chunk,
+                     min(m, (t + 1) * chunk), counts, coordinates)
     counts[m] = 0
     return u0
 

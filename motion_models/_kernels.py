@@ -151,7 +151,7 @@ def _pcg64_double(typingctx, high, low):
 # at once: state_k = A_k·state + G_k·inc with A_k = aᵏ and G_k = 1 + a + … + aᵏ⁻¹, so eight steps are eight
 # independent multiplications instead of a chain of eight.
 _PCG64_MULTIPLIER = (2549297995355413924 << 64) + 4865540595714422341
-PCG64_LANES = 8
+PCG64_LANES = 8    # `_pcg64_fill` spells out its eight lanes
 
 
 def _pcg64_tables() -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -174,20 +174,27 @@ def _pcg64_tables() -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
 _A_HIGH, _A_LOW, _G_HIGH, _G_LOW = _pcg64_tables()
 
 
+@numba.njit(cache=True, inline="always")
+def _lane(k, inc_high, inc_low):
+    """G_k·inc (mod 2¹²⁸) as (high, low)."""
+    zero = np.uint64(0)
+    return _mul_add_128(_G_HIGH[k], _G_LOW[k], inc_high, inc_low, zero, zero)
+
+
 @numba.njit(cache=True)
 def _pcg64_fill(s_high, s_low, inc_high, inc_low, out, count):
     """out[:count] ← the uniforms of the PCG64 stream that follows state s (increment inc); returns the state
     after them."""
-    zero = np.uint64(0)
-    c = np.empty((2, PCG64_LANES), dtype=np.uint64)         # G_k·inc, high and low halves
-    for k in range(PCG64_LANES):
-        c[0, k], c[1, k] = _mul_add_128(_G_HIGH[k], _G_LOW[k], inc_high, inc_low, zero, zero)
+    # G_k·inc for the eight lanes, kept in a tuple (no array: this runs once per block of draws)
+    c = (_lane(0, inc_high, inc_low), _lane(1, inc_high, inc_low), _lane(2, inc_high, inc_low),
+         _lane(3, inc_high, inc_low), _lane(4, inc_high, inc_low), _lane(5, inc_high, inc_low),
+         _lane(6, inc_high, inc_low), _lane(7, inc_high, inc_low))
     i = 0
     while i + PCG64_LANES <= count:
         high = s_high
         low = s_low
         for k in range(PCG64_LANES):
-            high, low = _mul_add_128(_A_HIGH[k], _A_LOW[k], s_high, s_low, c[0, k], c[1, k])
+            high, low = _mul_add_128(_A_HIGH[k], _A_LOW[k], s_high, s_low, c[k][0], c[k][1])
             out[i + k] = _pcg64_double(high, low)
         s_high = high
         s_low = low
@@ -320,6 +327,14 @@ def _pcg64_layout_ok() -> bool:
 
 
 DRAWS = 256       # particles per block of uniforms drawn at once
+MOVE_WORK = 6 * DRAWS     # the scratch of `move_range` and `move_range_fast`
+NO_WORK = np.empty(0)     # (from Python; a kernel passes np.empty(0): a global array is read-only there)
+
+
+@numba.njit(cache=True, inline="always")
+def _move_work(work):
+    """`work` if it holds MOVE_WORK floats, else a new scratch."""
+    return work if work.shape[0] >= MOVE_WORK else np.empty(MOVE_WORK)
 
 
 @numba.njit(cache=True)
@@ -334,17 +349,18 @@ def move_pose(x, y, theta, dx, dy, dtheta, ex, ey, et):
 
 @numba.njit(cache=True)
 def move_range(source, out, start, stop, dx, dy, dtheta, bound_x, bound_y, bound_theta, gaussian, variates,
-               function, state):
+               function, state, work):
     """out[i] = source[i] moved, for i in [start, stop) (out may be source).
 
     The noise of particle i comes from variates[i] when `variates` has rows, else from three uniforms drawn
-    here (x, y, θ in that order, as `rng.random((n, 3))` lays them out; uniform noise only).
+    here (x, y, θ in that order, as `rng.random((n, 3))` lays them out; uniform noise only). work: scratch of
+    MOVE_WORK floats kept by a caller that moves a block at a time (`NO_WORK`: allocated here).
     """
     sx = bound_x / SQRT3
     sy = bound_y / SQRT3
     st = bound_theta / SQRT3
     if variates.shape[0] == 0:
-        uniforms = np.empty(3 * DRAWS)
+        uniforms = _move_work(work)[:3 * DRAWS]
         for block in range(start, stop, DRAWS):
             count = min(DRAWS, stop - block)
             draw_uniforms(function, state, uniforms, 3 * count)
@@ -378,7 +394,7 @@ def move_with_noise(poses, dx, dy, dtheta, bound_x, bound_y, bound_theta, gaussi
     switching the distribution keeps the spread. `variates` (N, 3) come from `draw_variates`.
     """
     move_range(poses, poses, 0, poses.shape[0], dx, dy, dtheta, bound_x, bound_y, bound_theta, gaussian, variates,
-               0, 0)
+               0, 0, np.empty(0))
 
 
 @numba.njit(cache=True)
@@ -386,7 +402,7 @@ def move_drawing_noise(poses, dx, dy, dtheta, bound_x, bound_y, bound_theta, fun
     """`move_with_noise` with uniform noise whose variates are drawn in the kernel from a bit generator
     (`bit_generator_handle`): the same poses as `move_with_noise(..., False, rng.random((N, 3)))`."""
     move_range(poses, poses, 0, poses.shape[0], dx, dy, dtheta, bound_x, bound_y, bound_theta, False,
-               np.empty((0, 3)), function, state)
+               np.empty((0, 3)), function, state, np.empty(0))
 
 
 @numba.njit(cache=True, parallel=True)
@@ -395,7 +411,7 @@ def move_chunked(poses, dx, dy, dtheta, bound_x, bound_y, bound_theta, gaussian,
     n = poses.shape[0]
     for t in numba.prange(max(1, (n + chunk - 1) // chunk)):
         move_range(poses, poses, t * chunk, min(n, (t + 1) * chunk), dx, dy, dtheta, bound_x, bound_y,
-                   bound_theta, gaussian, variates, 0, 0)
+                   bound_theta, gaussian, variates, 0, 0, np.empty(0))
 
 
 # -- the opt-in fast variant ----------------------------------------------------------------------------------------
@@ -467,10 +483,11 @@ def _move_fast_rows(rows, count, dx, dy, dtheta, bound_x, bound_y, bound_theta, 
 
 @numba.njit(cache=True)
 def move_range_fast(source, out, start, stop, dx, dy, dtheta, bound_x, bound_y, bound_theta, gaussian, variates,
-                    function, state):
+                    function, state, work):
     """`move_range` with `fast_sincos` and fast-math: the same draws, the poses to rounding."""
-    uniforms = np.empty(3 * DRAWS)
-    rows = np.empty((3, DRAWS))
+    work = _move_work(work)
+    uniforms = work[:3 * DRAWS]
+    rows = work[3 * DRAWS:MOVE_WORK].reshape((3, DRAWS))
     for block in range(start, stop, DRAWS):
         end = min(block + DRAWS, stop)
         count = end - block

@@ -236,7 +236,7 @@ def test_wrap_is_wrap_angle_bit_for_bit(angles):
 @given(poses_strategy(60), speeds, st.booleans(), st.integers(0, 2**32 - 1))
 def test_fast_motion_matches_to_rounding(poses, command, gaussian, seed):
     """The opt-in fast kernel: polynomial sin and cos (fast_sincos), the same draws."""
-    from motion_models._kernels import bit_generator_handle, move_range, move_range_fast
+    from motion_models._kernels import NO_WORK, bit_generator_handle, move_range, move_range_fast
 
     model = VelocityLinear(gaussian=gaussian)
     u = MotionInput(dt=0.02, command=command)
@@ -244,8 +244,8 @@ def test_fast_motion_matches_to_rounding(poses, command, gaussian, seed):
     a, b = poses.copy(), poses.copy()
     args = (*u.displacement(), *model.noise_bounds(u), gaussian, variates)
     generators = np.random.default_rng(seed), np.random.default_rng(seed)     # (a handle does not keep them)
-    move_range(a, a, 0, a.shape[0], *args, *bit_generator_handle(generators[0]))
-    move_range_fast(b, b, 0, b.shape[0], *args, *bit_generator_handle(generators[1]))
+    move_range(a, a, 0, a.shape[0], *args, *bit_generator_handle(generators[0]), NO_WORK)
+    move_range_fast(b, b, 0, b.shape[0], *args, *bit_generator_handle(generators[1]), NO_WORK)
     np.testing.assert_allclose(b[:, :2], a[:, :2], rtol=0, atol=1e-12)
     assert np.abs(wrap_angles(b[:, 2] - a[:, 2])).max() < 1e-12
     assert (b[:, 2] > -math.pi).all() and (b[:, 2] <= math.pi).all()
