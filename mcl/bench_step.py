@@ -31,7 +31,7 @@ from motion_models import AdaptiveMotion, MotionInput, VelocityLinear
 from motion_models._kernels import SQRT3, draw_variates, move_with_noise_reference
 from motion_models.adaptive import VARIATES, adaptive_move_reference
 from sensing import LandmarkSensorModel, Observations
-from sensing.collision import CollisionPercept
+from sensing.collision import NO_COLLISION, CollisionPercept
 from sensing.lines import LineSensorModel
 
 from . import resampling
@@ -86,6 +86,20 @@ FUSED = fused_resampler()
 COLLISION = CollisionPercept(left=True, s_rel_left=1.5, rate=0.3, recent_left=True)
 
 
+def stationary_mobility(model: AdaptiveMotion, u: MotionInput, n: int, rng: np.random.Generator) -> np.ndarray:
+    """A particle state (n, 4) whose mobility states are drawn from the stationary distribution of the transitions
+    that `u`'s percept selects (the mix a filter holds after a while in that condition), episode values uniform.
+    Timed from there, the phase costs the same however many times it is called; from all-free states it would
+    drift through the transient."""
+    matrix = model.transitions.matrix(model.condition(u.collision), u.dt)
+    values, vectors = np.linalg.eig(matrix.T)
+    stationary = np.abs(np.real(vectors[:, np.argmin(np.abs(values - 1.0))]))
+    state = model.particle_state(n)
+    state[:, 0] = rng.choice(stationary.shape[0], size=n, p=stationary / stationary.sum())
+    state[:, 1:] = rng.random((n, state.shape[1] - 1))
+    return state
+
+
 @dataclass(frozen=True)
 class Phase:
     """One phase of the step: what the numba side calls, and its numpy twin (None: there is none)."""
@@ -99,7 +113,10 @@ class Phase:
 PHASES = (
     Phase("predict_velocity_linear", "motion model: velocity-linear (Hoffmann eq. 10), variates drawn included",
           "VelocityLinear.predict", "motion_models._kernels.move_with_noise_reference"),
-    Phase("predict_adaptive", "motion model: adaptive, five mobility states, during a collision (Hoffmann eq. 11-26)",
+    Phase("predict_adaptive", "motion model: adaptive, five mobility states, during frequent collisions (Hoffmann "
+          "eq. 11-26), the states in that condition's stationary mix",
+          "AdaptiveMotion.predict(state=...)", "motion_models.adaptive.adaptive_move_reference"),
+    Phase("predict_adaptive_quiet", "motion model: adaptive, walking without collisions (every particle free)",
           "AdaptiveMotion.predict(state=...)", "motion_models.adaptive.adaptive_move_reference"),
     Phase("likelihood_von_mises", "landmark likelihood, 10 goalposts, fast von Mises bearing term",
           "LandmarkSensorModel.log_likelihood", "LandmarkSensorModel.log_likelihood_reference"),
@@ -278,7 +295,10 @@ class PhaseScene:
         self.exact = LandmarkSensorModel(field, bearing_model="exact")
         self.lines = LineSensorModel(field)
         self.poses = {side: pf.poses.copy() for side in ("numba", "numpy")}
-        self.state = {side: self.adaptive.particle_state(n) for side in ("numba", "numpy")}
+        self.u_quiet = MotionInput(dt=0.01, command=(0.2, 0.0, 0.1), collision=NO_COLLISION)
+        mix = stationary_mobility(self.adaptive, self.u_collision, n, np.random.default_rng(11))
+        self.state = {side: mix.copy() for side in ("numba", "numpy")}
+        self.state_quiet = {side: self.adaptive.particle_state(n) for side in ("numba", "numpy")}
         self.log_weights = pf.log_weights.copy()
         self.log_likelihood = self.von_mises.log_likelihood(pf.poses, self.observations)
         self.weights = np.empty(n)
@@ -294,7 +314,7 @@ class PhaseScene:
     # numba side (what the filter calls) ------------------------------------------------------------------
     def numba_work(self) -> dict[str, Callable[[], object]]:
         pf, landmarks, n = self.pf, self.observations, self.n
-        poses, state = self.poses["numba"], self.state["numba"]
+        poses, state, quiet = self.poses["numba"], self.state["numba"], self.state_quiet["numba"]
 
         if FUSED is not None:
             resample = FUSED[1](self.weights, n, poses, self.jitter, self.resampled, self.rng)
@@ -306,6 +326,7 @@ class PhaseScene:
         work = {
             "predict_velocity_linear": lambda: self.velocity_linear.predict(poses, self.u, self.rng),
             "predict_adaptive": lambda: self.adaptive.predict(poses, self.u_collision, self.rng, state=state),
+            "predict_adaptive_quiet": lambda: self.adaptive.predict(poses, self.u_quiet, self.rng, state=quiet),
             "likelihood_von_mises": lambda: self.von_mises.log_likelihood(poses, landmarks, out=self.out),
             "likelihood_exact": lambda: self.exact.log_likelihood(poses, landmarks, out=self.out),
             "likelihood_lines": lambda: self.lines.log_likelihood(poses, self.observations, out=self.out),
@@ -322,7 +343,7 @@ class PhaseScene:
     # numpy side (the references) -----------------------------------------------------------------------------
     def numpy_work(self) -> dict[str, Callable[[], object]]:
         pf, landmarks, n = self.pf, self.observations, self.n
-        poses, state = self.poses["numpy"], self.state["numpy"]
+        poses, state, quiet = self.poses["numpy"], self.state["numpy"], self.state_quiet["numpy"]
         model = self.velocity_linear
         g = pf.grid
 
@@ -332,6 +353,10 @@ class PhaseScene:
 
         def predict_adaptive():
             adaptive_move_reference(poses, state, *self.adaptive.kernel_arguments(self.u_collision),
+                                    self.rng.random((n, VARIATES)))
+
+        def predict_adaptive_quiet():
+            adaptive_move_reference(poses, quiet, *self.adaptive.kernel_arguments(self.u_quiet),
                                     self.rng.random((n, VARIATES)))
 
         def resample():
@@ -351,6 +376,7 @@ class PhaseScene:
         return {
             "predict_velocity_linear": predict_velocity_linear,
             "predict_adaptive": predict_adaptive,
+            "predict_adaptive_quiet": predict_adaptive_quiet,
             "likelihood_von_mises": lambda: self.von_mises.log_likelihood_reference(poses, landmarks),
             "likelihood_exact": lambda: self.exact.log_likelihood_reference(poses, landmarks),
             "likelihood_lines": lambda: self.lines.log_likelihood_reference(poses, self.observations),

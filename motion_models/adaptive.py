@@ -56,6 +56,7 @@ import scipy.linalg
 from field.angles import wrap_angle, wrap_angles
 from sensing.collision import CollisionPercept
 
+from ._kernels import DRAWS, bit_generator_handle, draw_uniforms
 from .base import MotionInput, check_nonnegative, check_poses
 
 FREE, SLIPPAGE, HINDRANCE, PUSHED, STOPPED = range(5)
@@ -259,7 +260,7 @@ class AdaptiveMotion:
             state = self.particle_state(n)
         elif state.shape != (n, STATE_COLUMNS) or state.dtype != np.float64:
             raise ValueError(f"state must be float64 of shape ({n}, {STATE_COLUMNS}), got {state.dtype} {state.shape}")
-        adaptive_move(poses, state, *self.kernel_arguments(u), rng.random((n, VARIATES)))
+        adaptive_move_drawing(poses, state, *self.kernel_arguments(u), *bit_generator_handle(rng))
 
 
 @numba.njit(cache=True)
@@ -272,6 +273,31 @@ def adaptive_move(poses, state, cumulative, vx, vy, omega, dt, side, params, red
     Every particle gets, bit for bit, the numbers of the general step at the end of the loop. Free particles
     share their chord, noise bounds and turn, so these are computed once; a stopped particle's displacement
     is exactly ±0, which leaves a non-zero coordinate unchanged, so only its heading is computed."""
+    _adaptive_range(poses, state, cumulative, vx, vy, omega, dt, side, params, redraw_each_step, variates, 0, 0,
+                    poses.shape[0])
+
+
+@numba.njit(cache=True)
+def adaptive_move_drawing(poses, state, cumulative, vx, vy, omega, dt, side, params, redraw_each_step, function,
+                          generator):
+    """`adaptive_move` with its variates drawn here, a block of particles at a time, from a bit generator
+    (`motion_models._kernels.bit_generator_handle`): the same poses and states as `adaptive_move(...,
+    rng.random((N, 7)))`, without the (N, 7) array."""
+    n = poses.shape[0]
+    variates = np.empty((DRAWS, VARIATES))
+    flat = variates.reshape(-1)
+    for start in range(0, n, DRAWS):
+        stop = min(start + DRAWS, n)
+        draw_uniforms(function, generator, flat, VARIATES * (stop - start))
+        _adaptive_range(poses, state, cumulative, vx, vy, omega, dt, side, params, redraw_each_step, variates,
+                        start, start, stop)
+
+
+@numba.njit(cache=True)
+def _adaptive_range(poses, state, cumulative, vx, vy, omega, dt, side, params, redraw_each_step, all_variates, first,
+                    start, stop):
+    """`adaptive_move` of particles start..stop-1; particle i's variates are all_variates[i - first]."""
+    variates = all_variates[start - first:stop - first]
     beta1, beta2, beta3, beta4 = params[0], params[1], params[2], params[3]
     beta5, beta6, beta7, beta_turn, separation = params[4], params[5], params[6], params[7], params[8]
     odo1, odo2, odo3, odo4 = params[9], params[10], params[11], params[12]
@@ -286,7 +312,9 @@ def adaptive_move(poses, state, cumulative, vx, vy, omega, dt, side, params, red
     free_turn = omega * dt
     side_known = side == side        # not NaN
     stopped_turn_rate = speed / separation * side * beta_turn
-    for i in range(poses.shape[0]):
+    poses = poses[start:stop]
+    state = state[start:stop]
+    for i in range(stop - start):
         old = int(state[i, 0])
         new = 0
         while variates[i, 0] >= cumulative[old, new]:
@@ -295,7 +323,8 @@ def adaptive_move(poses, state, cumulative, vx, vy, omega, dt, side, params, red
             state[i, 1] = variates[i, 1]
             state[i, 2] = variates[i, 2]
             state[i, 3] = variates[i, 3]
-        state[i, 0] = new
+        if new != old:
+            state[i, 0] = new         # (unchanged states stay clean in the cache: no write-back at large N)
         theta = poses[i, 2]
         if new == 0:      # free: the request plus eq. 10's noise
             dx = free_dx + (2.0 * variates[i, 4] - 1.0) * free_bound_x

@@ -305,3 +305,24 @@ def test_same_seed_same_run():
 
     (a, sa), (b, sb) = run(), run()
     assert a.tobytes() == b.tobytes() and sa.tobytes() == sb.tobytes()
+
+
+@given(st.integers(0, 2 ** 32 - 1), st.integers(1, 700), st.booleans(), st.sampled_from(CONDITIONS))
+def test_drawing_in_the_kernel_equals_the_drawn_variates(seed, n, redraw, condition):
+    # `predict` draws the 7 uniforms per particle inside the kernel, a block at a time: the same poses and
+    # states, bit for bit, as `adaptive_move` on rng.random((n, 7)), and the generator ends where that leaves it.
+    from motion_models._kernels import bit_generator_handle
+    from motion_models.adaptive import adaptive_move_drawing
+    setup = np.random.default_rng(seed)
+    poses = np.column_stack([setup.uniform(-4, 4, n), setup.uniform(-3, 3, n), setup.uniform(-3, 3, n)])
+    state = np.column_stack([setup.integers(0, 5, n), setup.random((n, 3))]).astype(np.float64)
+    cumulative = np.cumsum(MobilityTransitions().matrix(condition, 0.5), axis=1)
+    cumulative[:, -1] = 1.0
+    arguments = AdaptiveMotion().kernel_arguments(MotionInput(DT, (0.2, 0.05, 0.4), collision=LEFT_HIT))
+    args, params = arguments[1:6], arguments[6]
+    a, sa, b, sb = poses.copy(), state.copy(), poses.copy(), state.copy()
+    drawn, inside = np.random.default_rng(seed + 1), np.random.default_rng(seed + 1)
+    adaptive_move(a, sa, cumulative, *args, params, redraw, drawn.random((n, VARIATES)))
+    adaptive_move_drawing(b, sb, cumulative, *args, params, redraw, *bit_generator_handle(inside))
+    assert a.tobytes() == b.tobytes() and sa.tobytes() == sb.tobytes()
+    assert drawn.random() == inside.random()

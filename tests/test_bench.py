@@ -8,6 +8,7 @@ import io
 import json
 import sys
 
+import numpy as np
 import pytest
 
 from mcl import bench, bench_step
@@ -183,3 +184,25 @@ def test_measure_interleaves_and_counts_samples():
 def test_bad_options_are_refused(argv):
     with pytest.raises(SystemExit):
         bench.main(argv)
+
+
+def test_adaptive_phase_starts_from_its_stationary_mix():
+    # The collision phase is timed from the stationary mix of its transitions, so its cost does not drift
+    # with the number of calls: one more transition leaves the shares of the five states where they were.
+    from mcl.bench_step import COLLISION, stationary_mobility
+    from motion_models import AdaptiveMotion, MotionInput
+    model = AdaptiveMotion()
+    u = MotionInput(dt=0.01, command=(0.2, 0.0, 0.1), collision=COLLISION)
+    state = stationary_mobility(model, u, 200_000, np.random.default_rng(3))
+    shares = np.bincount(state[:, 0].astype(int), minlength=5) / state.shape[0]
+    after = shares @ model.transitions.matrix(model.condition(COLLISION), u.dt)
+    np.testing.assert_allclose(after, shares, atol=0.01)
+    assert shares[0] < 0.5                       # not the all-free start
+    assert ((state[:, 1:] >= 0) & (state[:, 1:] < 1)).all()
+
+
+def test_adaptive_ratio_takes_the_slower_scenario():
+    from mcl.bench_report import adaptive_ratios
+    phases = {"predict_adaptive": {"numba_s": 1.2}, "predict_adaptive_quiet": {"numba_s": 1.6},
+              "predict_velocity_linear": {"numba_s": 1.0}}
+    assert adaptive_ratios({"rows": [{"n": 10, "phases": phases}]}) == [(10, 1.6)]
