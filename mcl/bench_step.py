@@ -557,6 +557,9 @@ def _is_systematic(ancestors: np.ndarray, weights: np.ndarray) -> bool:
     return bool(ancestors.shape[0] == n and np.all(np.abs(counts - n * weights) < 1.0 + 1e-6))
 
 
+KEPT_OUT = "mcl.resampling.systematic(out=kept)"
+
+
 def time_resamplers(sizes, budget_s: float) -> dict:
     """Ns per particle of our systematic resampler(s), its numpy twin and the peers', on the weights of a
     corrected particle set, at each N; ratios are peer / ours (> 1: ours is faster)."""
@@ -567,6 +570,9 @@ def time_resamplers(sizes, budget_s: float) -> dict:
                                                      "note": "plain numpy twin", "version": None}
     status.update(peer_status)
     candidates = dict(ours)
+    status[KEPT_OUT] = {"package": "robocup-mcl", "available": True, "version": None,
+                        "note": "into an array kept across calls, as a filter resamples"}
+    ours = [*ours, KEPT_OUT]
     fused_label = None if FUSED is None else f"mcl.resampling.{FUSED[0]}"
     if FUSED is not None:
         status[fused_label] = {"package": "robocup-mcl", "available": True, "version": None,
@@ -584,6 +590,8 @@ def time_resamplers(sizes, budget_s: float) -> dict:
         if FUSED is not None:
             fused = FUSED[1](weights, n, pf.poses, pf.roughening * SQRT3, np.empty((n, 3)), np.random.default_rng(5))
             candidates[fused_label] = lambda weights, rng, fused=fused: fused()
+        candidates[KEPT_OUT] = lambda weights, rng, kept=np.empty(n, dtype=np.int64): systematic(
+            weights, n, rng, out=kept)
         rng = np.random.default_rng(3)
         np.random.seed(3)
         usable, failures = {}, {}

@@ -114,11 +114,21 @@ def _check(weights: np.ndarray, m: int) -> np.ndarray:
     return weights
 
 
-def systematic(weights: np.ndarray, m: int, rng: np.random.Generator) -> np.ndarray:
-    """One uniform u0 ~ U[0, 1), then the points (u0 + k)/M: the lowest-variance scheme."""
+def systematic(weights: np.ndarray, m: int, rng: np.random.Generator, out: np.ndarray | None = None) -> np.ndarray:
+    """One uniform u0 ~ U[0, 1), then the points (u0 + k)/M: the lowest-variance scheme.
+
+    out: an int64 array of M to write the ancestors into (kept across calls, so that resampling allocates
+    nothing: fresh memory costs more than the resampling itself at a million particles); returned.
+    """
     weights = _check(weights, m)
     m = int(m)
-    return _systematic_counted(weights, m, rng.random(), np.empty(m, dtype=np.int64), np.zeros(m + 1, dtype=np.int64))
+    if out is None:
+        return _systematic_in_place(weights, m, rng.random(), np.zeros(m, dtype=np.int64))
+    if not isinstance(out, np.ndarray) or out.dtype != np.int64 or out.shape != (m,) or not out.flags.c_contiguous \
+            or not out.flags.writeable:
+        raise ValueError(f"out must be a writeable contiguous int64 array of shape ({m},)")
+    out.fill(0)
+    return _systematic_in_place(weights, m, rng.random(), out)
 
 
 def stratified(weights: np.ndarray, m: int, rng: np.random.Generator) -> np.ndarray:
@@ -183,14 +193,14 @@ def gather_with_jitter(source, ancestors, bounds, uniforms, out):
 def _passed_count(cumulative, m, u0):
     """c = #{k : (u0 + k)/M < cumulative}, as `_passed_counts` finds it."""
     t = cumulative * m - u0
-    c = math.ceil(t)
-    if abs(t - round(t)) < 1e-4:
-        c = min(max(c, 0), m)
+    if abs(t - np.rint(t)) < 1e-4:
+        c = min(max(math.ceil(t), 0), m)
         while c > 0 and (u0 + (c - 1)) / m >= cumulative:
             c -= 1
         while c < m and (u0 + c) / m < cumulative:
             c += 1
-    return min(max(c, 0), m)
+        return c
+    return int(min(max(np.ceil(t), 0.0), float(m)))      # (in floats: one conversion to an integer)
 
 
 @numba.njit(cache=True)
@@ -212,6 +222,23 @@ def _systematic_counted(weights, m, u0, out, counts):
         counts[k] = 0
         out[k] = ancestor
     counts[m] = 0
+    return out
+
+
+@numba.njit(cache=True)
+def _systematic_in_place(weights, m, u0, out):
+    """`_systematic` by counting into `out` itself (M int64, zero on entry): the counts of c < M (a particle
+    with c = M is passed by every point and is no one's ancestor), then their running sum in place."""
+    cumulative = 0.0
+    for j in range(weights.shape[0] - 1):
+        cumulative += weights[j]
+        c = _passed_count(cumulative, m, u0)
+        if c < m:
+            out[c] += 1
+    ancestor = 0
+    for k in range(m):
+        ancestor += out[k]
+        out[k] = ancestor
     return out
 
 

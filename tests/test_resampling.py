@@ -75,9 +75,10 @@ uniform_starts = st.one_of(st.just(0.0), st.floats(0.0, 1.0, exclude_max=True))
 
 @given(weight_lists, uniform_starts, st.integers(0, 90), st.booleans())
 def test_counting_equals_the_merge_bit_for_bit(weights, u0, m, equal):
-    """The ancestors by counting (`_systematic_counted`, what `systematic` runs) against the merge loop
-    (`_systematic`), including equal weights at u0 = 0, where points fall exactly on running totals."""
-    from mcl.resampling import _systematic, _systematic_counted
+    """The ancestors by counting (`_systematic_counted`, what the filter's resampler runs, and
+    `_systematic_in_place`, what `systematic` runs) against the merge loop (`_systematic`), including equal
+    weights at u0 = 0, where points fall exactly on running totals."""
+    from mcl.resampling import _systematic, _systematic_counted, _systematic_in_place
 
     if equal:
         weights = np.full(weights.shape[0], 1.0 / weights.shape[0])
@@ -85,6 +86,7 @@ def test_counting_equals_the_merge_bit_for_bit(weights, u0, m, equal):
     merged = _systematic(weights, m, u0, np.empty(m, dtype=np.int64))
     assert np.array_equal(_systematic_counted(weights, m, u0, np.empty(m, dtype=np.int64), counts), merged)
     assert not counts.any()
+    assert np.array_equal(_systematic_in_place(weights, m, u0, np.zeros(m, dtype=np.int64)), merged)
 
 
 @given(weight_lists, st.integers(0, 2**32 - 1), st.integers(0, 60), st.booleans())
@@ -139,3 +141,20 @@ def test_chunked_resampling(weights, seed):
     # Zero roughening: each offspring is a copy; count them per source particle.
     offspring = (results[2][:, None, :] == source[None, :, :]).all(axis=2).sum(axis=0)
     assert offspring.sum() == m and (np.abs(offspring - m * weights) < 1 + 1e-9).all()
+
+
+def test_systematic_into_a_kept_array():
+    # out= gives the ancestors of a fresh call, in the caller's array, whatever it held; a wrong array is refused
+    # before anything is drawn.
+    rng = np.random.default_rng(4)
+    weights = rng.random(300)
+    weights /= weights.sum()
+    kept = np.full(300, 77, dtype=np.int64)
+    a, b = np.random.default_rng(9), np.random.default_rng(9)
+    result = systematic(weights, 300, a, out=kept)
+    assert result is kept and np.array_equal(kept, systematic(weights, 300, b))
+    for wrong in (np.empty(299, dtype=np.int64), np.empty(300), np.empty((300, 1), dtype=np.int64)):
+        state = a.bit_generator.state
+        with pytest.raises(ValueError, match="out must be"):
+            systematic(weights, 300, a, out=wrong)
+        assert a.bit_generator.state == state
