@@ -37,7 +37,7 @@ from sensing.lines import LineSensorModel
 from . import resampling
 from .estimate import cluster_estimate_reference, grid_entropy_reference
 from .filter import AugmentedMCL, ParticleFilter
-from .reference import numpy_step
+from .reference import issue_shaped_step, numpy_step
 from .resampling import gather_with_jitter, gather_with_jitter_reference, systematic, systematic_reference
 from .weights import normalize, normalize_reference
 
@@ -246,6 +246,18 @@ def full_step_work(n: int, bearing_model: str = "von_mises", **filter_options) -
     return step
 
 
+def issue_step_work(n: int, **filter_options) -> Callable[[], object]:
+    """The issue's step shape (`mcl.reference.issue_shaped_step`: no roughening, no estimate) on the filter's
+    kernels and buffers."""
+    pf, u, observations = bench_setup(n, **filter_options)
+    return issue_shaped_step(pf, u, observations)
+
+
+def fast_option() -> bool:
+    """Whether `ParticleFilter` has the fast-math option."""
+    return "fast" in inspect.signature(ParticleFilter).parameters
+
+
 def numpy_step_work(n: int) -> Callable[[], object]:
     """The same step in plain numpy (`mcl.reference.numpy_step`, on a copy of the particles)."""
     pf, u, observations = bench_setup(n)
@@ -416,7 +428,11 @@ class PhaseScene:
 
 def time_size(n: int, budget_s: float, exact: bool = True, recording: bool = True, min_samples: int = 3) -> dict:
     """The full step (numba, numpy, and numba with the exact bearing term) and every phase at one N."""
-    work = {"full_step/numba": full_step_work(n), "full_step/numpy": numpy_step_work(n)}
+    work = {"full_step/numba": full_step_work(n), "full_step/numpy": numpy_step_work(n),
+            "issue_step/numba": issue_step_work(n)}
+    if fast_option():
+        work["full_step_fast/numba"] = full_step_work(n, fast=True)
+        work["issue_step_fast/numba"] = issue_step_work(n, fast=True)
     if exact:
         work["full_step_exact/numba"] = full_step_work(n, "exact")
     errors = {}
@@ -436,6 +452,10 @@ def time_size(n: int, budget_s: float, exact: bool = True, recording: bool = Tru
             timed = measure(work, budget_s, min_samples=min_samples)
         finally:
             scene.close()
+    # The same step called back to back (samples of about 20 ms of consecutive calls): caches and branch
+    # predictors warm, as a loop that runs nothing but the step measures it.
+    timed["full_step_back_to_back/numba"] = measure({"step": work["full_step/numba"]}, budget_s, min_samples,
+                                                    sample_s=0.02)["step"]
     fast, slow = timed["full_step/numba"], timed["full_step/numpy"]
     row = {
         "n": n,
@@ -444,6 +464,11 @@ def time_size(n: int, budget_s: float, exact: bool = True, recording: bool = Tru
         "full_step": _pair(n, fast, slow),
         "phases": {},
     }
+    for key, name in (("full_step_back_to_back", "full_step_back_to_back/numba"), ("issue_step", "issue_step/numba"),
+                      ("full_step_fast", "full_step_fast/numba"),
+                      ("issue_step_fast", "issue_step_fast/numba")):
+        if name in timed:
+            row[key] = _pair(n, timed[name], None)
     if exact:
         row["full_step_exact_bearing"] = _pair(n, timed["full_step_exact/numba"], None)
     for phase in PHASES:

@@ -1,12 +1,13 @@
 """The filter step in plain numpy, and the compiled step phase by phase: what the benchmark times.
 
-    from mcl.reference import PHASES, numpy_step, compiled_phases, full_step
+    from mcl.reference import PHASES, numpy_step, compiled_phases, full_step, issue_shaped_step
 
     numpy_step(pf, u, observations, timings)     # the step in plain numpy, on a copy of pf's particles
     work = compiled_phases(pf, u, observations)  # {phase: callable}, the compiled step cut into its stages
     for name in PHASES:
         work[name]()                             # in this order; together one step that always resamples
     full_step(pf, u, observations)               # pf.step(u, observations) and pf.entropy(): one dispatch
+    issue_shaped_step(pf, u, observations)()     # the C reference's shape: no roughening, no estimate
 
 `numpy_step` calls the `*_reference` twin of each kernel the filter uses; with the same generator state its
 results agree with the filter's to rounding (the draws are the same, in the same order).
@@ -24,18 +25,19 @@ import math
 import time
 from typing import Callable
 
+import numba
 import numpy as np
 
 from motion_models._kernels import (NO_WORK, SQRT3, draw_variates, move_chunked, move_range, move_range_fast,
-                                    move_with_noise_reference, parallel_uniforms)
+                                    move_with_noise_reference, next_double, parallel_uniforms)
 from motion_models.base import MotionInput
 from sensing.landmarks import prepare_detections, von_mises_log_likelihood
 from sensing.observations import Observations
 
 from .estimate import (cluster_estimate_reference, grid_entropy_reference, summary_entropy, summary_estimate,
                        summary_estimate_chunked, summary_estimate_fast, summary_fill, summary_fill_chunked)
-from .resampling import (gather_with_jitter_reference, resample_with_jitter, resample_with_jitter_chunked,
-                         systematic_reference)
+from .resampling import (_passed_counts, gather_with_jitter_reference, resample_with_jitter,
+                         resample_with_jitter_chunked, systematic_reference)
 from .filter import _CHUNK, _predict_and_score, _predict_and_score_chunked
 from .weights import normalize_reference, weigh, weigh_chunked, weigh_fast
 
@@ -76,6 +78,79 @@ def numpy_step(pf, u: MotionInput, observations: Observations, timings: dict | N
             timings[name] = timings.get(name, 0.0) + (b - a)
     return {"poses": poses, "log_likelihood": log_likelihood, "ess": ess, "log_total": log_total,
             "mean": mean, "covariance": cov, "cluster_weight": cluster_weight, "entropy": entropy}
+
+
+# -- the issue's step shape ----------------------------------------------------------------------------------------
+# The C reference the performance issue measures (about 53 ns per particle without atan2, 18 with -ffast-math)
+# runs predict, 10 detections of a 4-way ambiguous type, normalize, ESS, systematic resampling and the grid
+# entropy. The filter's step does two things more: it roughens the resampled particles (three more draws and a
+# jitter each) and it computes the estimate (the dominant cluster by mean shift). `issue_shaped_step` runs the
+# reference's shape with the filter's own kernels, so that the two can be compared like with like; the
+# benchmark reports it beside the full step, never instead of it.
+
+@numba.njit(cache=True)
+def _resample_copy(weights, source, out, coordinates, counts, u0):
+    """Systematic resampling of all N particles from `source` into `out` (and the rows of `coordinates`), by
+    counting (`mcl.resampling`), without roughening; counts (N + 1,) zero on entry and on return."""
+    n = weights.shape[0]
+    _passed_counts(weights, n, u0, counts)
+    j = 0
+    for k in range(n):
+        j += counts[k]
+        counts[k] = 0
+        for axis in range(3):
+            out[k, axis] = source[j, axis]
+            coordinates[axis, k] = source[j, axis]
+    counts[n] = 0
+
+
+@numba.njit(cache=True)
+def _issue_shaped_kernel(poses, scratch, trig, log_likelihood, log_weights, weights, counts, dx, dy, dtheta, bound_x,
+                         bound_y, bound_theta, function, state, table, offsets, detections, groups, log_outlier, grid,
+                         coordinates, histograms, bitmaps, fast):
+    n = poses.shape[0]
+    _predict_and_score(poses, scratch, trig, log_likelihood, True, dx, dy, dtheta, bound_x, bound_y, bound_theta,
+                       False, np.empty((0, 3)), function, state, table, offsets, detections, groups, log_outlier, 0,
+                       n, fast)
+    if fast:
+        valid, _, _, ess = weigh_fast(log_weights, log_likelihood, n, weights)
+    else:
+        valid, _, _, ess = weigh(log_weights, log_likelihood, n, weights)
+    _resample_copy(weights, scratch, poses, coordinates, counts, next_double(function, state))
+    log_weights[:] = -math.log(n)
+    weights[:] = 1.0 / n
+    summary_fill(grid, np.empty((0, 3)), weights, coordinates, histograms, bitmaps)
+    position, orientation = summary_entropy(grid, histograms, bitmaps)
+    return ess, position, orientation
+
+
+def issue_shaped_step(pf, u: MotionInput, observations: Observations) -> Callable[[], tuple]:
+    """The performance issue's step shape on `pf`'s particles and buffers, one dispatch per call: predict
+    (uniform noise drawn in the kernel), the landmark likelihood, normalize + ESS, systematic resampling of
+    every particle (a plain copy: no roughening), the grid entropy. No estimate. Returns a callable giving
+    (ESS before resampling, position entropy, orientation entropy). Needs what `compiled_phases` needs, with
+    uniform motion noise, one thread."""
+    motion = pf._kernel_motion(u)
+    sensor = pf._sensor_kernel()
+    if motion is None or sensor is None or pf.motion_model.gaussian or pf.threads > 1:
+        raise ValueError("issue_shaped_step needs a bounded uniform-noise motion model, a sensor model with "
+                         "compiled_likelihood() and one thread")
+    observations = Observations.coerce(observations)
+    pf.sensor_model.check(observations)
+    table, offsets, range_noise_floor, range_noise_growth, bearing_sigma, log_outlier = sensor
+    detections, groups, _ = prepare_detections(
+        observations.kinds, observations.ranges, observations.bearings, observations.range_sigmas,
+        observations.bearing_sigmas, offsets, range_noise_floor, range_noise_growth, bearing_sigma)
+    coordinates, histograms, bitmaps = pf._summary
+    counts = np.zeros(pf.n + 1, dtype=np.int64)
+
+    def step():
+        pf._changed()
+        return _issue_shaped_kernel(pf.poses, pf._previous, pf._trig, pf._log_likelihood, pf.log_weights,
+                                    pf._weights, counts, *motion, *pf._generator(), table, offsets, detections,
+                                    groups, log_outlier, pf._grid_parameters, coordinates, histograms, bitmaps,
+                                    pf.fast)
+    return step
 
 
 def full_step(pf, u: MotionInput, observations: Observations):

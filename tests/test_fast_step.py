@@ -346,3 +346,34 @@ def test_a_steady_state_step_allocates_nothing_that_grows_with_n(options):
         peaks.append(tracemalloc.get_traced_memory()[1])
         tracemalloc.stop()
     assert peaks[1] < 64 * 1024 and peaks[1] < peaks[0] + 16 * 1024
+
+
+@pytest.mark.parametrize("fast", [False, True])
+def test_issue_shaped_step_equals_its_numpy_twin(fast):
+    # The benchmark's C-reference-shaped step (predict, likelihood, normalize + ESS, systematic resampling
+    # without roughening, grid entropy) against the numpy references fed the same draws.
+    from mcl.bench_step import bench_setup
+    from mcl.estimate import grid_entropy_reference
+    from mcl.reference import issue_shaped_step
+    from mcl.resampling import systematic_reference
+    from mcl.weights import normalize_reference
+    from motion_models._kernels import move_with_noise_reference
+
+    pf, u, observations = bench_setup(700, fast=fast)
+    pf.step(u, observations)
+    poses, log_weights = pf.poses.copy(), pf.log_weights.copy()
+    rng = np.random.default_rng()
+    rng.bit_generator.state = pf.rng.bit_generator.state
+    ess, position, orientation = issue_shaped_step(pf, u, observations)()
+
+    move_with_noise_reference(poses, *u.displacement(), *pf.motion_model.noise_bounds(u), False, rng.random((700, 3)))
+    weights, _, expected_ess = normalize_reference(log_weights + pf.sensor_model.log_likelihood_reference(
+        poses, observations))
+    expected = poses[systematic_reference(weights, 700, rng)]
+    np.testing.assert_allclose(pf.poses, expected, rtol=0, atol=1e-12)
+    assert ess == pytest.approx(expected_ess, rel=1e-12)
+    g = pf.grid
+    bits = grid_entropy_reference(expected, np.full(700, 1 / 700), pf._x_min, pf._y_min, g.position_cell,
+                                  pf._entropy_nx, pf._entropy_ny, g.orientation_bins)
+    assert (position, orientation) == pytest.approx(bits, rel=1e-12)
+    assert (pf.weights == 1 / 700).all() and rng.random() == pf.rng.random()
