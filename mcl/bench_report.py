@@ -377,6 +377,12 @@ def plot(result: dict, path: str) -> None:
     ax.plot(sizes, [row["ns_per_particle"] for row in rows], "o-", color="tab:blue", label="numba step")
     ax.plot(sizes, [row["full_step"]["numpy_ns_per_particle"] for row in rows], "s--", color="tab:red",
             label="numpy step")
+    for key, style, color, label in (("full_step_fast", "o:", "tab:blue", "numba step, fast=True"),
+                                     ("issue_step", "D-", "tab:purple", "issue's step shape (no roughening, no estimate)"),
+                                     ("issue_step_fast", "D:", "tab:purple", "issue's step shape, fast=True")):
+        points = [(row["n"], row[key]["numba_ns_per_particle"]) for row in rows if row.get(key)]
+        if points:
+            ax.plot(*zip(*points), style, color=color, label=label, ms=4)
     exact = [(row["n"], row["full_step_exact_bearing"]["numba_ns_per_particle"]) for row in rows
              if row.get("full_step_exact_bearing")]
     if exact:
