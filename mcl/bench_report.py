@@ -246,7 +246,8 @@ def format_report(result: dict) -> str:
     peers = _section(result, "resampling")
     if peers:
         lines.append("")
-        lines.append("systematic resampling, ns per particle (ratio to our fastest; > 1: ours is faster)")
+        lines.append("systematic resampling, ns per particle (ratio to our fastest; > 1: ours is faster); each "
+                     "resampler called back to back, samples of about 20 ms")
         peer_sizes = [r["n"] for r in peers["rows"]]
         lines.append(f"{'entry':<42}" + "".join(f"{f'N = {n}':>18}" for n in peer_sizes))
         for label, status in peers["entries"].items():
