@@ -82,6 +82,10 @@ if part in ("filter", "all"):
     adaptive = ParticleFilter(field, AdaptiveMotion(), LandmarkSensorModel(field), n_particles=64, seed=2)
     percept = CollisionPercept(left=True, s_rel_left=1.5, rate=0.3, recent_left=True)
     adaptive.step(MotionInput(dt=0.01, command=(0.2, 0.0, 0.0), collision=percept), observations)
+    from motion_models.adaptive import VARIATES, adaptive_move      # (predict draws in the kernel instead)
+    model = AdaptiveMotion()
+    arguments = model.kernel_arguments(MotionInput(dt=0.01, command=(0.2, 0.0, 0.0), collision=percept))
+    adaptive_move(adaptive.poses.copy(), model.particle_state(64), *arguments, rng.random((64, VARIATES)))
 
     # Kernels that are public on their own (the tests compare them with their numpy twins) beside the fused
     # code the filter runs.
