@@ -36,7 +36,7 @@ from sensing.observations import Observations
 
 from .estimate import (cluster_estimate_reference, grid_entropy_reference, summary_entropy, summary_estimate,
                        summary_estimate_chunked, summary_estimate_fast, summary_fill, summary_fill_chunked)
-from .resampling import (_passed_counts, gather_with_jitter_reference, resample_with_jitter,
+from .resampling import (_systematic_counted, gather_with_jitter_reference, resample_with_jitter,
                          resample_with_jitter_chunked, systematic_reference)
 from .filter import _CHUNK, _predict_and_score, _predict_and_score_chunked
 from .weights import normalize_reference, weigh, weigh_chunked, weigh_fast
@@ -89,34 +89,31 @@ def numpy_step(pf, u: MotionInput, observations: Observations, timings: dict | N
 # benchmark reports it beside the full step, never instead of it.
 
 @numba.njit(cache=True)
-def _resample_copy(weights, source, out, coordinates, counts, u0):
-    """Systematic resampling of all N particles from `source` into `out` (and the rows of `coordinates`), by
-    counting (`mcl.resampling`), without roughening; counts (N + 1,) zero on entry and on return."""
-    n = weights.shape[0]
-    _passed_counts(weights, n, u0, counts)
-    j = 0
-    for k in range(n):
-        j += counts[k]
-        counts[k] = 0
+def _resample_copy(weights, source, out, coordinates, ancestors, counts, u0):
+    """Systematic resampling of all N particles from `source` into `out` (and the rows of `coordinates`): the
+    ancestors by `mcl.resampling`'s counting, then a plain copy (no roughening). counts (N + 1,) zero on entry
+    and on return; ancestors (N,) scratch."""
+    _systematic_counted(weights, weights.shape[0], u0, ancestors, counts)
+    for k in range(ancestors.shape[0]):
+        j = ancestors[k]
         for axis in range(3):
             out[k, axis] = source[j, axis]
             coordinates[axis, k] = source[j, axis]
-    counts[n] = 0
 
 
 @numba.njit(cache=True)
-def _issue_shaped_kernel(poses, scratch, trig, log_likelihood, log_weights, weights, counts, dx, dy, dtheta, bound_x,
-                         bound_y, bound_theta, function, state, table, offsets, detections, groups, log_outlier, grid,
-                         coordinates, histograms, bitmaps, fast):
+def _issue_shaped_kernel(poses, scratch, trig, log_likelihood, log_weights, weights, ancestors, counts, dx, dy, dtheta,
+                         bound_x, bound_y, bound_theta, function, state, table, offsets, detections, groups,
+                         log_outlier, grid, coordinates, histograms, bitmaps, fast):
     n = poses.shape[0]
     _predict_and_score(poses, scratch, trig, log_likelihood, True, dx, dy, dtheta, bound_x, bound_y, bound_theta,
                        False, np.empty((0, 3)), function, state, table, offsets, detections, groups, log_outlier, 0,
                        n, fast)
     if fast:
-        valid, _, _, ess = weigh_fast(log_weights, log_likelihood, n, weights)
+        _, _, _, ess = weigh_fast(log_weights, log_likelihood, n, weights)
     else:
-        valid, _, _, ess = weigh(log_weights, log_likelihood, n, weights)
-    _resample_copy(weights, scratch, poses, coordinates, counts, next_double(function, state))
+        _, _, _, ess = weigh(log_weights, log_likelihood, n, weights)
+    _resample_copy(weights, scratch, poses, coordinates, ancestors, counts, next_double(function, state))
     log_weights[:] = -math.log(n)
     weights[:] = 1.0 / n
     summary_fill(grid, np.empty((0, 3)), weights, coordinates, histograms, bitmaps)
@@ -142,12 +139,12 @@ def issue_shaped_step(pf, u: MotionInput, observations: Observations) -> Callabl
         observations.kinds, observations.ranges, observations.bearings, observations.range_sigmas,
         observations.bearing_sigmas, offsets, range_noise_floor, range_noise_growth, bearing_sigma)
     coordinates, histograms, bitmaps = pf._summary
-    counts = np.zeros(pf.n + 1, dtype=np.int64)
+    ancestors, counts = np.empty(pf.n, dtype=np.int64), np.zeros(pf.n + 1, dtype=np.int64)
 
     def step():
         pf._changed()
         return _issue_shaped_kernel(pf.poses, pf._previous, pf._trig, pf._log_likelihood, pf.log_weights,
-                                    pf._weights, counts, *motion, *pf._generator(), table, offsets, detections,
+                                    pf._weights, ancestors, counts, *motion, *pf._generator(), table, offsets, detections,
                                     groups, log_outlier, pf._grid_parameters, coordinates, histograms, bitmaps,
                                     pf.fast)
     return step
