@@ -55,7 +55,9 @@ def fused_resampler():
     """(name, prepare) for the fused resampling kernel of `mcl.resampling`, or None when it has none.
 
     prepare(weights, m, source, bounds, out, rng) returns a zero-argument call that resamples m particles of
-    `source` into `out` as the filter does (scratch allocated once, as the filter keeps it)."""
+    `source` into `out` as the filter does: scratch allocated once, as the filter keeps it, and the cos and sin
+    of the source headings known, as the step's scoring leaves them for the roughening (computed here once, from
+    the headings `source` has now)."""
     from motion_models import _kernels
 
     handle = getattr(_kernels, "bit_generator_handle", None)
@@ -76,8 +78,8 @@ def fused_resampler():
         def prepare(weights, m, source, bounds, out, rng, kernel=kernel, extra=tuple(extra)):
             function, state = handle(rng)
             scratch = tuple(FUSED_SCRATCH[name](m) for name in extra)
-            no_trig = np.empty((0, 2))
-            return lambda: kernel(weights, m, source, bounds, out, no_trig, function, state, *scratch)
+            trig = np.ascontiguousarray(np.stack([np.cos(source[:, 2]), np.sin(source[:, 2])], axis=1))
+            return lambda: kernel(weights, m, source, bounds, out, trig, function, state, *scratch)
         return name, prepare
     return None
 
@@ -127,7 +129,8 @@ PHASES = (
           "LineSensorModel.log_likelihood", "LineSensorModel.log_likelihood_reference"),
     Phase("normalize", "normalization (log-sum-exp) and ESS, prior log-weights + log-likelihood included",
           "mcl.weights.normalize", "mcl.weights.normalize_reference"),
-    Phase("resample", "systematic resampling and the roughening copy (gather with jitter)",
+    Phase("resample", "systematic resampling and the roughening copy (gather with jitter), the headings' cos "
+          "and sin known (the step's scoring leaves them)",
           f"mcl.resampling.{FUSED[0]} (fused, uniforms drawn in the kernel)" if FUSED else
           "mcl.resampling.systematic + gather_with_jitter",
           "mcl.resampling.systematic_reference + gather_with_jitter_reference"),

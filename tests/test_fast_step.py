@@ -210,6 +210,39 @@ def test_step_equals_predict_then_correct_then_estimate():
         assert np.array_equal(estimate.pose, b.estimate().pose) and same(state(a), state(b))
 
 
+@pytest.mark.parametrize("options", [dict(), dict(threads=2)])
+def test_the_entropy_from_the_step_is_the_entropy_computed_afresh(options):
+    """Once asked for, the entropy comes out of the compiled step; it is what a fresh computation from the same
+    histograms gives, it is dropped when the particles change, and asking for it changes nothing else. (Without
+    injection, which the step leaves to Python, and the entropy with it.)"""
+    asking, silent = make(seed=4, augmented=None, **options), make(seed=4, augmented=None, **options)
+    rng_a, rng_b = np.random.default_rng(2), np.random.default_rng(2)
+    u = MotionInput(dt=0.033, command=(0.1, 0.05, 0.2))
+    first = asking.entropy()
+    assert asking.entropy() is first                    # kept until the particles change
+    for k in range(12):
+        asking.step(u, detections(TRUE_POSE, rng_a))
+        silent.step(u, detections(TRUE_POSE, rng_b))
+        assert asking._entropy is not None              # computed by the step itself
+        assert silent._entropy is None
+        from_step = asking.entropy()
+        asking._entropy = None                          # the same histograms, entropy computed by its own call
+        assert asking.entropy() == from_step
+        assert np.array_equal(asking.poses, silent.poses) and np.array_equal(asking.log_weights, silent.log_weights)
+    assert silent.entropy() == asking.entropy()
+    asking.predict(u)
+    assert asking._entropy is None                      # the particles moved
+    fresh = grid_entropy(asking.poses, np.array(asking.weights), asking._x_min, asking._y_min,
+                         asking.grid.position_cell, asking._entropy_nx, asking._entropy_ny,
+                         asking.grid.orientation_bins, np.empty(asking._entropy_nx * asking._entropy_ny),
+                         np.empty(asking.grid.orientation_bins))
+    entropy = asking.entropy()
+    if options:                                         # threads: histograms summed in fixed point
+        assert (entropy.position, entropy.orientation) == pytest.approx(fresh, rel=1e-12)
+    else:
+        assert (entropy.position, entropy.orientation) == fresh
+
+
 def test_a_missing_landmark_type_is_rejected_before_anything_changes():
     sensor = LandmarkSensorModel(FIELD)
     offsets = sensor._offsets.copy()
