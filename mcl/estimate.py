@@ -391,6 +391,13 @@ def summary_fill(grid, poses, weights, coordinates, histograms, bitmaps):
     one = np.uint64(1)
     n = weights.shape[0]
     copy = poses.shape[0] > 0
+    # The cluster and orientation cells are coarse: a tracked belief puts most consecutive particles (offspring
+    # of one ancestor lie side by side) in the same cell, and `histogram[cell] += w` would then wait for the
+    # store of the particle before. Those two sums run in a register while the cell stays the same and are
+    # stored when it changes: the same additions in the same order. (The fine position cells change too often
+    # for that to pay: the branch would mispredict.)
+    cluster_cell = orientation_cell = np.int64(-1)
+    cluster_sum = orientation_sum = 0.0
     for start in range(0, n, BLOCK):
         count = min(BLOCK, n - start)
         stop = start + count
@@ -404,17 +411,31 @@ def summary_fill(grid, poses, weights, coordinates, histograms, bitmaps):
             w = weights[start + p]
             # (Written out rather than called: a helper taking the arrays would cost a reference count per call.)
             cell = np.int64(cells[0, p])
-            if cluster[cell] == 0.0 and w != 0.0:
+            if cell != cluster_cell:
+                if cluster_cell >= 0:
+                    cluster[cluster_cell] = cluster_sum
+                cluster_cell = cell
+                cluster_sum = cluster[cell]
+            if cluster_sum == 0.0 and w != 0.0:
                 cluster_bits[cell >> 6] |= one << np.uint64(cell & 63)
-            cluster[cell] += w
+            cluster_sum += w
             cell = np.int64(cells[1, p])
             if position[cell] == 0.0 and w != 0.0:
                 position_bits[cell >> 6] |= one << np.uint64(cell & 63)
             position[cell] += w
             cell = np.int64(cells[2, p])
-            if orientation[cell] == 0.0 and w != 0.0:
+            if cell != orientation_cell:
+                if orientation_cell >= 0:
+                    orientation[orientation_cell] = orientation_sum
+                orientation_cell = cell
+                orientation_sum = orientation[cell]
+            if orientation_sum == 0.0 and w != 0.0:
                 orientation_bits[cell >> 6] |= one << np.uint64(cell & 63)
-            orientation[cell] += w
+            orientation_sum += w
+    if cluster_cell >= 0:
+        cluster[cluster_cell] = cluster_sum
+    if orientation_cell >= 0:
+        orientation[orientation_cell] = orientation_sum
 
 
 @numba.njit(cache=True)
