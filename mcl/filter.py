@@ -666,12 +666,8 @@ class ParticleFilter:
         mean = np.empty(3)
         covariance = np.empty((3, 3))
         coordinates, histograms, bitmaps = self._summary
-        handle = self._rng_handle
-        if handle is None or handle[0] is not self.rng.bit_generator:
-            self._generator()
-            handle = self._rng_handle
         arguments = (self.poses, self.log_weights, self._weights, self._log_likelihood, self._previous, self._trig,
-                     self._counts, self._local_histograms, move, *motion, gaussian, variates, handle[1], handle[2],
+                     self._counts, self._local_histograms, move, *motion, gaussian, variates, *self._generator(),
                      observations.kinds, observations.ranges, observations.bearings, observations.range_sigmas,
                      observations.bearing_sigmas, table, offsets, range_noise_floor, range_noise_growth,
                      bearing_sigma, log_outlier, n - self.injected, terms, augmented, alpha_slow, alpha_fast,
@@ -691,13 +687,10 @@ class ParticleFilter:
             raise ValueError("a detection's landmark type is not on this field")
         if move:                                      # the particles have moved, whatever follows
             self._heading_reference = math.remainder(self._heading_reference + motion[2], 2 * math.pi)
-        elif status == _STEP_INVALID:                 # nothing has changed (the cached summary stands)
-            raise ValueError("sensor model returned NaN or +inf log-likelihoods; filter left unchanged")
-        self._estimate = None                         # `_changed()`
-        self._entropy = None
-        self._summary_valid = False
+            self._changed()
         if status == _STEP_INVALID:
             raise ValueError("sensor model returned NaN or +inf log-likelihoods; filter left unchanged")
+        self._changed()
         if terms > 0:
             self.frame_fit = math.exp(native_log_average / terms)
         if status == _STEP_UNEXPLAINED:
@@ -710,18 +703,16 @@ class ParticleFilter:
             self.w_fast = w_fast
         if status == _STEP_RESAMPLE:
             self._resample(self._injection_count(fraction), observations)
-            self._track_confidence()
-            return
-        self.resampled = resampled
-        self.injected = 0
-        self._summary_valid = True
-        if want_estimate:                             # `_previous_estimate` was updated in the kernel
-            self._estimate = Estimate(mean, covariance, weight)
-            self._has_previous_estimate = True
-        if self._entropy_wanted:
-            self._entropy = Entropy(position, orientation)
-        if a is not None:
-            self._track_confidence()
+        else:
+            self.resampled = resampled
+            self.injected = 0
+            self._summary_valid = True
+            if want_estimate:                         # `_previous_estimate` was updated in the kernel
+                self._estimate = Estimate(mean, covariance, weight)
+                self._has_previous_estimate = True
+            if self._entropy_wanted:
+                self._entropy = Entropy(position, orientation)
+        self._track_confidence()
 
     def _track_confidence(self) -> None:
         """Keep the heading reference that guides injection.
