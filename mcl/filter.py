@@ -636,20 +636,17 @@ class ParticleFilter:
         return self.estimate()
 
     def _step_compiled(self, motion: tuple | None, observations: Observations, in_step: bool) -> None:
-        """[predict by `motion`,] correct(observations): one call into `_compiled_step`.
-
-        This runs in the robot's loop at every step: it reads each attribute once and builds nothing it does not
-        hand over (at N = 100 the Python here costs about as much as the particles)."""
+        """[predict by `motion`,] correct(observations): one call into `_compiled_step` (with the entropy, once
+        `entropy()` has been asked for)."""
         n = self.n
         table, offsets, range_noise_floor, range_noise_growth, bearing_sigma, log_outlier = self._compiled_sensor
         move = motion is not None
-        threads = self._threads > 1
-        variates = self._variates if threads else _NO_VARIATES
-        gaussian = False
+        chunk = _CHUNK if self._threads > 1 else 0
+        gaussian = move and bool(self.motion_model.gaussian)
+        variates = self._variates if chunk else _NO_VARIATES
         if not move:
             motion = _NO_MOTION
-        elif self.motion_model.gaussian:
-            gaussian = True
+        elif gaussian:
             self.sensor_model.check(observations)     # before the noise is drawn
             variates = draw_variates(self.rng, n, True, out=self._variates)
         a = self.augmented
@@ -666,22 +663,18 @@ class ParticleFilter:
         mean = np.empty(3)
         covariance = np.empty((3, 3))
         coordinates, histograms, bitmaps = self._summary
-        arguments = (self.poses, self.log_weights, self._weights, self._log_likelihood, self._previous, self._trig,
-                     self._counts, self._local_histograms, move, *motion, gaussian, variates, *self._generator(),
-                     observations.kinds, observations.ranges, observations.bearings, observations.range_sigmas,
-                     observations.bearing_sigmas, table, offsets, range_noise_floor, range_noise_growth,
-                     bearing_sigma, log_outlier, n - self.injected, terms, augmented, alpha_slow, alpha_fast,
-                     ratio_threshold, fit_threshold, self.w_slow, self.w_fast, cap, self.resample_threshold,
-                     self.resampling == "systematic" and self._motion_state is None, self.roughening,
-                     self._grid_parameters, coordinates, histograms, bitmaps, want_estimate, self._previous_estimate,
-                     self._has_previous_estimate, mean, covariance, self._entropy_wanted,
-                     _CHUNK if threads else 0, self._fast)
-        if threads:
-            with self._thread_scope:
-                result = _compiled_step(*arguments)
-        else:
-            result = _compiled_step(*arguments)
-        status, native_log_average, ess, w_slow, w_fast, fraction, resampled, weight, position, orientation = result
+        with self._thread_scope:
+            (status, native_log_average, ess, w_slow, w_fast, fraction, resampled, weight, position,
+             orientation) = _compiled_step(
+                self.poses, self.log_weights, self._weights, self._log_likelihood, self._previous, self._trig,
+                self._counts, self._local_histograms, move, *motion, gaussian, variates, *self._generator(),
+                observations.kinds, observations.ranges, observations.bearings, observations.range_sigmas,
+                observations.bearing_sigmas, table, offsets, range_noise_floor, range_noise_growth, bearing_sigma,
+                log_outlier, n - self.injected, terms, augmented, alpha_slow, alpha_fast, ratio_threshold,
+                fit_threshold, self.w_slow, self.w_fast, cap, self.resample_threshold,
+                self.resampling == "systematic" and self._motion_state is None, self.roughening,
+                self._grid_parameters, coordinates, histograms, bitmaps, want_estimate, self._previous_estimate,
+                self._has_previous_estimate, mean, covariance, self._entropy_wanted, chunk, self._fast)
         if status == _STEP_MISSING:
             self.sensor_model.check(observations)     # raises, naming the detection; nothing has changed
             raise ValueError("a detection's landmark type is not on this field")
