@@ -60,8 +60,8 @@ import numpy as np
 
 from field import Field
 from field.angles import wrap_angles
-from motion_models._kernels import (FAST, SQRT3, bit_generator_handle, draw_variates, fast_sincos, move_chunked,
-                                    move_range, move_range_fast, parallel_uniforms, MOVE_WORK, NO_WORK)
+from motion_models._kernels import (FAST, SQRT3, balanced_chunk, bit_generator_handle, draw_variates, fast_sincos,
+                                    move_chunked, move_range, move_range_fast, parallel_uniforms, MOVE_WORK, NO_WORK)
 from motion_models.base import BoundedNoiseModel, MotionInput, MotionModel
 from sensing.landmarks import BLOCK, COS, SIN, TOTAL, X, Y, block_work, load_block, prepare_detections, score_block
 from sensing.observations import Observations
@@ -237,6 +237,7 @@ class ParticleFilter:
         if not isinstance(fast, (bool, np.bool_)):
             raise ValueError(f"fast = {fast!r} must be True or False")
         self._threads = int(threads)
+        self._chunk = int(balanced_chunk(int(n_particles), _CHUNK))   # particles per chunk with threads > 1
         self._fast = bool(fast)
         self._thread_scope = _Threads(self._threads)
         self.field = field
@@ -532,7 +533,7 @@ class ParticleFilter:
                 if not gaussian:
                     variates = self._variates
                     parallel_uniforms(*self._generator(), variates.reshape(-1), 3 * self.n)
-                move_chunked(self.poses, *motion, gaussian, variates, _CHUNK)
+                move_chunked(self.poses, *motion, gaussian, variates, self._chunk)
         elif self._fast:
             move_range_fast(self.poses, self.poses, 0, self.n, *motion, gaussian, variates, *self._generator(),
                             NO_WORK)
@@ -641,7 +642,7 @@ class ParticleFilter:
         n = self.n
         table, offsets, range_noise_floor, range_noise_growth, bearing_sigma, log_outlier = self._compiled_sensor
         move = motion is not None
-        chunk = _CHUNK if self._threads > 1 else 0
+        chunk = self._chunk if self._threads > 1 else 0
         gaussian = move and bool(self.motion_model.gaussian)
         variates = self._variates if chunk else _NO_VARIATES
         if not move:
@@ -843,7 +844,7 @@ class ParticleFilter:
             if self._threads > 1:
                 with self._thread_scope:
                     summary_fill_chunked(self._grid_parameters, self.poses, self._weights, *self._summary,
-                                         self._local_histograms, _CHUNK)
+                                         self._local_histograms, self._chunk)
             else:
                 summary_fill(self._grid_parameters, self.poses, self._weights, *self._summary)
             self._summary_valid = True
@@ -864,7 +865,7 @@ class ParticleFilter:
                 with self._thread_scope:
                     weight = summary_estimate_chunked(self._grid_parameters, coordinates, self._weights, histograms,
                                                       bitmaps, previous, self._has_previous_estimate, mean, cov,
-                                                      _CHUNK)
+                                                      self._chunk)
             elif self._fast:
                 weight = summary_estimate_fast(self._grid_parameters, coordinates, self._weights, histograms, bitmaps,
                                                previous, self._has_previous_estimate, mean, cov)
@@ -893,7 +894,8 @@ class ParticleFilter:
 
 
 # -- the compiled step ---------------------------------------------------------------------------------------------
-_CHUNK = 4096        # particles per chunk with threads > 1 (fixed: the results do not depend on the threads)
+_CHUNK = 4096        # particles per chunk with threads > 1, about (`balanced_chunk`: a function of N alone, so the
+                     # results do not depend on the threads)
 THETA = TOTAL        # `_load_block_fast` keeps the headings in the work array's row TOTAL until they are scored
 
 

@@ -38,7 +38,7 @@ from .estimate import (cluster_estimate_reference, grid_entropy_reference, summa
                        summary_estimate_chunked, summary_estimate_fast, summary_fill, summary_fill_chunked)
 from .resampling import (_systematic_counted, gather_with_jitter_reference, resample_with_jitter,
                          resample_with_jitter_chunked, systematic_reference)
-from .filter import _CHUNK, _predict_and_score, _predict_and_score_chunked
+from .filter import _predict_and_score, _predict_and_score_chunked
 from .weights import normalize_reference, weigh, weigh_chunked, weigh_fast
 
 PHASES = ("predict", "likelihood", "normalize", "resample", "estimate", "entropy")
@@ -172,7 +172,7 @@ def compiled_phases(pf, u: MotionInput, observations: Observations) -> dict[str,
     table, offsets, range_noise_floor, range_noise_growth, bearing_sigma, log_outlier = sensor
     n = pf.n
     gaussian = bool(pf.motion_model.gaussian)
-    chunk = _CHUNK if pf.threads > 1 else 0
+    chunk = pf._chunk if pf.threads > 1 else 0
     scope = pf._thread_scope
     scratch = pf._previous
     coordinates, histograms, bitmaps = pf._summary

@@ -239,7 +239,26 @@ def _pcg64_uniforms(state, out, count):
     _store_u64(pointer + 8, s_high)
 
 
-CHUNK = 8192       # draws per chunk of `parallel_uniforms` (fixed: the numbers do not depend on the threads)
+CHUNK = 8192       # draws per chunk of `parallel_uniforms`, about (the numbers do not depend on the chunks)
+
+
+@numba.njit(cache=True)
+def balanced_chunk(count, target):
+    """The chunk size for spreading `count` items over threads in chunks of about `target`: one chunk when
+    count <= target, else a number of chunks that is a multiple of 8 (for count up to target², 16.7 million
+    with the filter's 4 096; beyond, the chunks are so many that one more or less is nothing), all of one
+    size but the last.
+
+    numba's prange gives each thread an equal share of the iterations, so with 25 chunks (N = 10⁵ in chunks
+    of 4 096) one of two threads works 13 and the other 12: the step waits for the busier one. A multiple of
+    8 chunks splits evenly over 1, 2, 4 or 8 threads. The size depends on `count` alone, so results that
+    depend on the chunks do not depend on the threads.
+    """
+    chunks = (count + target - 1) // target
+    if chunks <= 1:
+        return target
+    chunks = (chunks + 7) // 8 * 8
+    return (count + chunks - 1) // chunks
 
 
 @numba.njit(cache=True, parallel=True)
@@ -254,10 +273,11 @@ def parallel_uniforms(function, state, out, count):
     s_low = _load_u64(pointer)
     inc_high = _load_u64(pointer + 24)
     inc_low = _load_u64(pointer + 16)
-    chunks = (count + CHUNK - 1) // CHUNK
+    chunk = balanced_chunk(count, CHUNK)
+    chunks = (count + chunk - 1) // chunk
     for t in numba.prange(chunks):
-        start = t * CHUNK
-        stop = min(start + CHUNK, count)
+        start = t * chunk
+        stop = min(start + chunk, count)
         high, low = _pcg64_jump(s_high, s_low, inc_high, inc_low, start)
         _pcg64_fill(high, low, inc_high, inc_low, out[start:stop], stop - start)
     high, low = _pcg64_jump(s_high, s_low, inc_high, inc_low, count)

@@ -22,7 +22,7 @@ from mcl.reference import PHASES, compiled_phases, full_step
 from mcl.resampling import SCHEMES, gather_with_jitter
 from mcl.weights import log_mean_likelihood, normalize
 from motion_models import ConstantNoise, MotionInput, VelocityLinear
-from motion_models._kernels import draw_variates
+from motion_models._kernels import CHUNK, balanced_chunk, draw_variates
 from sensing import LandmarkSensorModel, Observations
 
 FIELD = spl()
@@ -324,7 +324,7 @@ def run_threads(threads, n, numba_threads=None, steps=5):
 
 
 def test_threads_give_the_same_results_on_any_number_of_threads():
-    n = 20000                                           # three chunks
+    n = 20000                                           # eight chunks
     if numba.config.NUMBA_NUM_THREADS < 2:
         pytest.skip("numba has one thread here")
     for a, b in zip(run_threads(2, n), run_threads(2, n, numba_threads=1)):
@@ -338,6 +338,17 @@ def test_threads_match_one_thread_to_rounding():
         np.testing.assert_allclose(b[12], a[12], atol=1e-9)
         np.testing.assert_allclose(b[13], a[13], atol=1e-9)
         assert b[5] == pytest.approx(a[5], rel=1e-9)
+
+
+@given(st.integers(1, 4096 ** 2), st.sampled_from([4096, CHUNK]))
+def test_chunks_split_evenly_over_1_2_4_or_8_threads(count, target):
+    chunk = balanced_chunk(count, target)
+    chunks = -(-count // chunk)
+    if count <= target:
+        assert chunk == target                          # one chunk: the serial sums, bit for bit
+    else:
+        assert chunk <= target and chunks % 8 == 0      # prange's equal shares are equal work
+        assert chunks * chunk - count < chunk           # only the last chunk is short
 
 
 # -- what the benchmark calls -----------------------------------------------------------------------------------
