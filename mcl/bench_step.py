@@ -9,8 +9,7 @@ The step: predict (velocity-linear), correct with 10 detections of a 4-way ambig
 normalize and ESS, systematic resampling, estimate (dominant cluster), entropy. The numba step is timed
 through the filter's public calls (`step` + `entropy`, resampling forced every step); the numpy step is
 `mcl.reference.numpy_step`, the same computation in plain numpy. Each phase of `PHASES` pairs the numba call
-the filter makes with its numpy twin (`*_reference`); phases that are numpy in both (injection) or have no
-twin (recording) say so. Timings: the candidates are called in turn (A, B, A, B, ...) and the median is
+the filter makes with its numpy twin (`*_reference`); phases that have no twin (recording) say so. Timings: the candidates are called in turn (A, B, A, B, ...) and the median is
 taken, so a machine shared with other work biases both alike; ratios compare figures of one run.
 """
 from __future__ import annotations
@@ -37,7 +36,7 @@ from sensing.lines import LineSensorModel
 from . import resampling
 from .estimate import cluster_estimate_reference, grid_entropy_reference
 from .filter import AugmentedMCL, ParticleFilter
-from .reference import issue_shaped_step, numpy_step
+from .reference import issue_shaped_step, numpy_step, sample_injection_reference
 from .resampling import gather_with_jitter, gather_with_jitter_reference, systematic, systematic_reference
 from .weights import normalize, normalize_reference
 
@@ -134,9 +133,10 @@ PHASES = (
           f"mcl.resampling.{FUSED[0]} (fused, uniforms drawn in the kernel)" if FUSED else
           "mcl.resampling.systematic + gather_with_jitter",
           "mcl.resampling.systematic_reference + gather_with_jitter_reference"),
-    Phase("injection", "augmented-MCL injection of max_fraction (25 %) of N: half drawn from a detection "
-          "(sensor resetting), half uniform, as the filter draws them (numpy in the filter: no kernel)",
-          "LandmarkSensorModel.sample_poses + uniform draws", None),
+    Phase("injection", "augmented-MCL injection of max_fraction (25 %) of N: half drawn from the detections "
+          "(sensor resetting), half uniform over the field, headings around a trusted reference",
+          "ParticleFilter._sample_injection (numpy's integers and normals, the rest compiled)",
+          "mcl.reference.sample_injection_reference"),
     Phase("estimate", "estimate: dominant cluster (histogram seed, mean shift), weighted circular mean",
           "ParticleFilter.estimate (what it keeps dropped first)", "mcl.estimate.cluster_estimate_reference"),
     Phase("entropy", "grid entropy, position and orientation (Hoffmann eq. 27); where the filter shares its "
@@ -195,16 +195,17 @@ def measure(work: dict[str, Callable[[], object]], budget_s: float, min_samples:
 def bench_setup(n: int, bearing_model: str = "von_mises", seed: int = 0, **filter_options):
     """A filter of n particles around TRUE_POSE, a motion input, and 10 goalpost detections.
 
-    Resampling every step (threshold 1), injection off: the step does the same work every time.
-    `filter_options` go to `ParticleFilter`; its threads option, if it has one, is 1 unless given.
+    Resampling every step (threshold 1), injection off unless `augmented` is given: the step does the same work
+    every time. `filter_options` go to `ParticleFilter`; its threads option, if it has one, is 1 unless given.
     """
     option = threads_option()
     if option is not None:
         filter_options.setdefault(option, 1)
+    filter_options.setdefault("augmented", None)
     field = spl()
     sensor = LandmarkSensorModel(field, bearing_model=bearing_model)
     pf = ParticleFilter(field, VelocityLinear(), sensor, n_particles=n, seed=seed, resample_threshold=1.0,
-                        augmented=None, **filter_options)
+                        **filter_options)
     pf.reset_around(TRUE_POSE, (0.3, 0.3, 0.2))
     rng = np.random.default_rng(seed + 1)
     posts = field.landmarks_of("goalpost")
@@ -242,6 +243,26 @@ def full_step_work(n: int, bearing_model: str = "von_mises", **filter_options) -
     """One full numba step through the filter's public calls: `step` (predict, correct, resample, estimate)
     and `entropy`."""
     pf, u, observations = bench_setup(n, bearing_model, **filter_options)
+
+    def step():
+        pf.step(u, observations)
+        pf.entropy()
+    return step
+
+
+def injecting_setup(n: int):
+    """`bench_setup` with augmented MCL injecting every step: the detections' fit stays below `fit_threshold`
+    and the heading reference is trusted, so 5 % of N (`max_fraction_tracking`) are replaced each step, half
+    of them drawn from the detections."""
+    pf, u, observations = bench_setup(n, augmented=AugmentedMCL(fit_threshold=1e9))
+    pf._ever_confident = True
+    pf._heading_reference = float(TRUE_POSE[2])
+    return pf, u, observations
+
+
+def injecting_step_work(n: int) -> Callable[[], object]:
+    """The full step (`step` and `entropy`) of `injecting_setup`'s filter."""
+    pf, u, observations = injecting_setup(n)
 
     def step():
         pf.step(u, observations)
@@ -330,6 +351,7 @@ class PhaseScene:
     def numba_work(self) -> dict[str, Callable[[], object]]:
         pf, landmarks, n = self.pf, self.observations, self.n
         poses, state, quiet = self.poses["numba"], self.state["numba"], self.state_quiet["numba"]
+        injecting = self.injecting_filter()
 
         if FUSED is not None:
             resample = FUSED[1](self.weights, n, poses, self.jitter, self.resampled, self.rng)
@@ -347,7 +369,7 @@ class PhaseScene:
             "likelihood_lines": lambda: self.lines.log_likelihood(poses, self.observations, out=self.out),
             "normalize": lambda: normalize(self.log_weights + self.log_likelihood, self.weights),
             "resample": resample,
-            "injection": self.inject,
+            "injection": lambda: injecting._sample_injection(self.injected, landmarks),
             "estimate": lambda: fresh_estimate(pf),
             "entropy": lambda: fresh_entropy(pf),
         }
@@ -359,6 +381,7 @@ class PhaseScene:
     def numpy_work(self) -> dict[str, Callable[[], object]]:
         pf, landmarks, n = self.pf, self.observations, self.n
         poses, state, quiet = self.poses["numpy"], self.state["numpy"], self.state_quiet["numpy"]
+        injecting = self.injecting_filter()
         model = self.velocity_linear
         g = pf.grid
 
@@ -397,22 +420,20 @@ class PhaseScene:
             "likelihood_lines": lambda: self.lines.log_likelihood_reference(poses, self.observations),
             "normalize": lambda: normalize_reference(self.log_weights + self.log_likelihood),
             "resample": resample,
+            "injection": lambda: sample_injection_reference(injecting, self.injected, landmarks),
             "estimate": estimate,
             "entropy": entropy,
         }
 
-    def inject(self):
-        """The filter's injection draw: half from a detection (heading known), half uniform over the field."""
-        count, rng = self.injected, self.rng
-        sensor_count = count // 2
-        from_detections = self.von_mises.sample_poses(self.observations, sensor_count, rng, heading=TRUE_POSE[2])
-        rest = count - from_detections.shape[0]
-        field = self.pf.field
-        uniform = np.empty((rest, 3))
-        uniform[:, 0] = rng.uniform(-field.half_length, field.half_length, rest)
-        uniform[:, 1] = rng.uniform(-field.half_width, field.half_width, rest)
-        uniform[:, 2] = rng.uniform(-math.pi, math.pi, rest)
-        return np.concatenate([from_detections, uniform], axis=0)
+    def injecting_filter(self) -> ParticleFilter:
+        """A filter of N particles with augmented MCL whose heading reference is trusted (at TRUE_POSE's
+        heading), on the scene's sensor model and generator, for the injection phase."""
+        pf = ParticleFilter(self.pf.field, self.velocity_linear, self.von_mises, n_particles=self.n, seed=7,
+                            augmented=AugmentedMCL())
+        pf.rng = self.rng
+        pf._ever_confident = True
+        pf._heading_reference = float(TRUE_POSE[2])
+        return pf
 
     def record(self):
         if self._recorder is None:
@@ -432,7 +453,7 @@ class PhaseScene:
 def time_size(n: int, budget_s: float, exact: bool = True, recording: bool = True, min_samples: int = 3) -> dict:
     """The full step (numba, numpy, and numba with the exact bearing term) and every phase at one N."""
     work = {"full_step/numba": full_step_work(n), "full_step/numpy": numpy_step_work(n),
-            "issue_step/numba": issue_step_work(n)}
+            "issue_step/numba": issue_step_work(n), "injecting_step/numba": injecting_step_work(n)}
     if fast_option():
         work["full_step_fast/numba"] = full_step_work(n, fast=True)
         work["issue_step_fast/numba"] = issue_step_work(n, fast=True)
@@ -468,6 +489,7 @@ def time_size(n: int, budget_s: float, exact: bool = True, recording: bool = Tru
         "phases": {},
     }
     for key, name in (("full_step_back_to_back", "full_step_back_to_back/numba"), ("issue_step", "issue_step/numba"),
+                      ("injecting_step", "injecting_step/numba"),
                       ("full_step_fast", "full_step_fast/numba"),
                       ("issue_step_fast", "issue_step_fast/numba")):
         if name in timed:

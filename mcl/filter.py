@@ -59,9 +59,10 @@ import numba
 import numpy as np
 
 from field import Field
-from field.angles import wrap_angles
-from motion_models._kernels import (FAST, SQRT3, balanced_chunk, bit_generator_handle, draw_variates, fast_sincos,
-                                    move_chunked, move_range, move_range_fast, parallel_uniforms, MOVE_WORK, NO_WORK)
+from field.angles import wrap_angle, wrap_angles
+from motion_models._kernels import (FAST, SQRT3, balanced_chunk, bit_generator_handle, draw_uniforms, draw_variates,
+                                    fast_sincos, move_chunked, move_range, move_range_fast, parallel_uniforms,
+                                    MOVE_WORK, NO_WORK)
 from motion_models.base import BoundedNoiseModel, MotionInput, MotionModel
 from sensing.landmarks import BLOCK, COS, SIN, TOTAL, X, Y, block_work, load_block, prepare_detections, score_block
 from sensing.observations import Observations
@@ -696,7 +697,11 @@ class ParticleFilter:
             self.w_slow = w_slow
             self.w_fast = w_fast
         if status == _STEP_RESAMPLE:
-            self._resample(self._injection_count(fraction), observations)
+            count = self._injection_count(fraction)
+            if count > 0 and self._threads == 1 and self.resampling == "systematic" and self._motion_state is None:
+                self._finish_with_injection(count, observations, want_estimate, mean, covariance)
+            else:
+                self._resample(count, observations)
         else:
             self.resampled = resampled
             self.injected = 0
@@ -707,6 +712,31 @@ class ParticleFilter:
             if self._entropy_wanted:
                 self._entropy = Entropy(position, orientation)
         self._track_confidence()
+
+    def _finish_with_injection(self, count: int, observations: Observations, want_estimate: bool,
+                               mean: np.ndarray, covariance: np.ndarray) -> None:
+        """The end of a compiled step that injects (one thread, systematic resampling): `_resample` and the
+        estimate and entropy that follow it, in one call into compiled code (`_resample_and_summarize`) after
+        the injected poses are drawn. The same draws and results as `_resample` then `estimate()`/`entropy()`."""
+        n = self.n
+        injected = self._sample_injection(count, observations)
+        keep = n - count
+        coordinates, histograms, bitmaps = self._summary
+        weight, position, orientation = _resample_and_summarize(
+            self._weights, keep, self._previous, self.roughening, self.poses, self._trig, *self._generator(),
+            self._counts, injected, self.log_weights, self._grid_parameters, coordinates, histograms, bitmaps,
+            want_estimate, self._previous_estimate, self._has_previous_estimate, mean, covariance,
+            self._entropy_wanted, self._fast)
+        self.ess = float(n)
+        self.resampled = True
+        self.injected = count
+        self._changed()
+        self._summary_valid = True
+        if want_estimate:
+            self._estimate = Estimate(mean, covariance, weight)
+            self._has_previous_estimate = True
+        if self._entropy_wanted:
+            self._entropy = Entropy(position, orientation)
 
     def _track_confidence(self) -> None:
         """Keep the heading reference that guides injection.
@@ -763,26 +793,25 @@ class ParticleFilter:
         return int(round(min(fraction, cap) * self.n))
 
     def _sample_injection(self, count: int, observations: Observations) -> np.ndarray:
+        """`count` poses for augmented MCL to inject: `sensor_reset_fraction` of them from the sensor model's
+        `sample_poses` (those inside the injection region), the rest uniform over the region, headings around
+        the heading reference once it is trusted, else uniform. The uniforms come from the filter's stream in
+        the kernel (`place_injected`); bit for bit `mcl.reference.sample_injection_reference`."""
         heading = self._heading_reference if self._ever_confident else None
         sigma = self.augmented.heading_sigma
         x_min, x_max, y_min, y_max = self._injection_bounds
         n_sensor = int(round(count * self.augmented.sensor_reset_fraction))
         sampler = getattr(self.sensor_model, "sample_poses", None)
-        poses = np.empty((0, 3))
+        poses = _NO_VARIATES
         if n_sensor > 0 and sampler is not None and len(observations) > 0:
-            poses = sampler(observations, n_sensor, self.rng, heading=heading, heading_sigma=sigma)
-            inside = ((poses[:, 0] >= x_min) & (poses[:, 0] <= x_max)
-                      & (poses[:, 1] >= y_min) & (poses[:, 1] <= y_max))
-            poses = poses[inside]
-        rest = count - poses.shape[0]
-        uniform = np.empty((rest, 3))
-        uniform[:, 0] = self.rng.uniform(x_min, x_max, rest)
-        uniform[:, 1] = self.rng.uniform(y_min, y_max, rest)
-        if heading is None:
-            uniform[:, 2] = self.rng.uniform(-math.pi, math.pi, rest)
-        else:
-            uniform[:, 2] = wrap_angles(heading + sigma * self.rng.standard_normal(rest))
-        return np.concatenate([poses, uniform], axis=0)
+            poses = np.ascontiguousarray(sampler(observations, n_sensor, self.rng, heading=heading,
+                                                 heading_sigma=sigma), dtype=np.float64)
+        injected = np.empty((count, 3))
+        kept = place_injected(poses, float(x_min), float(x_max), float(y_min), float(y_max), heading is None,
+                              *self._generator(), injected)
+        if heading is not None and kept < count:
+            injected_headings(injected, kept, heading, sigma, self.rng.standard_normal(count - kept))
+        return injected
 
     def _resample(self, count: int, observations: Observations, since: np.ndarray | None = None) -> None:
         injected = self._sample_injection(count, observations) if count > 0 else _NO_VARIATES
@@ -945,6 +974,76 @@ def augmented_update(w_slow, w_fast, log_average, alpha_slow, alpha_fast, ratio_
     if absolute > fraction:
         fraction = absolute
     return w_slow, w_fast, fraction
+
+
+@numba.njit(cache=True)
+def place_injected(poses, x_min, x_max, y_min, y_max, uniform_heading, function, state, out):
+    """out[:kept] ← the `poses` inside [x_min, x_max] × [y_min, y_max], in order; out[kept:] ← uniform positions
+    in that box from the generator (x then y for every pose, as `rng.uniform` draws them), and uniform headings
+    on [-π, π) when `uniform_heading` (else left for `injected_headings`). Returns kept."""
+    kept = 0
+    for i in range(poses.shape[0]):
+        x = poses[i, 0]
+        y = poses[i, 1]
+        if (x >= x_min) & (x <= x_max) & (y >= y_min) & (y <= y_max):
+            out[kept, 0] = x
+            out[kept, 1] = y
+            out[kept, 2] = poses[i, 2]
+            kept += 1
+    rest = out.shape[0] - kept
+    columns = 3 if uniform_heading else 2
+    uniforms = np.empty(columns * rest)
+    draw_uniforms(function, state, uniforms, columns * rest)
+    lows = (x_min, y_min, -math.pi)
+    spans = (x_max - x_min, y_max - y_min, math.pi - -math.pi)
+    for column in range(columns):
+        low = lows[column]
+        span = spans[column]
+        for i in range(rest):
+            out[kept + i, column] = low + span * uniforms[column * rest + i]
+    return kept
+
+
+@numba.njit(cache=True)
+def injected_headings(out, first, heading, sigma, normals):
+    """out[first:, 2] ← wrap(heading + sigma · normals)."""
+    for i in range(normals.shape[0]):
+        out[first + i, 2] = wrap_angle(heading + sigma * normals[i])
+
+
+@numba.njit(cache=True)
+def _resample_and_summarize(weights, keep, scratch, roughening, poses, trig, function, state, counts, injected,
+                            log_weights, grid, coordinates, histograms, bitmaps, want_estimate, previous,
+                            use_previous, out_mean, out_cov, want_entropy, fast):
+    """After `_compiled_step` returned `_STEP_RESAMPLE` for injection (one thread): systematic resampling of
+    `keep` particles from `scratch` (the scored particles; trig their cos and sin) into poses[:keep] with
+    roughening, `injected` into poses[keep:], uniform weights; then the summary histograms, the estimate (when
+    `want_estimate`, moving `previous` to it) and the entropy (when `want_entropy`), as `_compiled_step`
+    computes them. Returns (estimate weight, position entropy, orientation entropy)."""
+    n = poses.shape[0]
+    bounds = np.empty(3)
+    for axis in range(3):
+        bounds[axis] = roughening[axis] * SQRT3
+    resample_with_jitter(weights, keep, scratch, bounds, poses, trig, function, state, counts, np.empty((3, 0)))
+    for i in range(n - keep):
+        for axis in range(3):
+            poses[keep + i, axis] = injected[i, axis]
+    log_weights[:] = -math.log(n)
+    weights[:] = 1.0 / n
+    summary_fill(grid, poses, weights, coordinates, histograms, bitmaps)
+    weight = 0.0
+    if want_estimate:
+        if fast:
+            weight = summary_estimate_fast(grid, coordinates, weights, histograms, bitmaps, previous, use_previous,
+                                           out_mean, out_cov)
+        else:
+            weight = summary_estimate(grid, coordinates, weights, histograms, bitmaps, previous, use_previous,
+                                      out_mean, out_cov)
+        previous[:] = out_mean
+    position = orientation = 0.0
+    if want_entropy:
+        position, orientation = summary_entropy(grid, histograms, bitmaps)
+    return weight, position, orientation
 
 
 @numba.njit(cache=True, fastmath=FAST, error_model="numpy")

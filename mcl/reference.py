@@ -8,6 +8,7 @@
         work[name]()                             # in this order; together one step that always resamples
     full_step(pf, u, observations)               # pf.step(u, observations) and pf.entropy(): one dispatch
     issue_shaped_step(pf, u, observations)()     # the C reference's shape: no roughening, no estimate
+    sample_injection_reference(pf, count, observations)   # augmented MCL's injected poses, in numpy
 
 `numpy_step` calls the `*_reference` twin of each kernel the filter uses; with the same generator state its
 results agree with the filter's to rounding (the draws are the same, in the same order).
@@ -28,6 +29,7 @@ from typing import Callable
 import numba
 import numpy as np
 
+from field.angles import wrap_angles
 from motion_models._kernels import (NO_WORK, SQRT3, draw_variates, move_chunked, move_range, move_range_fast,
                                     move_with_noise_reference, next_double, parallel_uniforms)
 from motion_models.base import MotionInput
@@ -119,6 +121,32 @@ def _issue_shaped_kernel(poses, scratch, trig, log_likelihood, log_weights, weig
     summary_fill(grid, np.empty((0, 3)), weights, coordinates, histograms, bitmaps)
     position, orientation = summary_entropy(grid, histograms, bitmaps)
     return ess, position, orientation
+
+
+def sample_injection_reference(pf, count: int, observations: Observations) -> np.ndarray:
+    """Plain numpy twin of `ParticleFilter._sample_injection` (augmented MCL's injected poses): the same draws
+    from `pf.rng`, the same poses bit for bit. Uses the sensor model's `sample_poses_reference` when it has one."""
+    heading = pf._heading_reference if pf._ever_confident else None
+    sigma = pf.augmented.heading_sigma
+    x_min, x_max, y_min, y_max = pf._injection_bounds
+    n_sensor = int(round(count * pf.augmented.sensor_reset_fraction))
+    sensor = pf.sensor_model
+    sampler = getattr(sensor, "sample_poses_reference", None) or getattr(sensor, "sample_poses", None)
+    poses = np.empty((0, 3))
+    if n_sensor > 0 and sampler is not None and len(observations) > 0:
+        poses = sampler(observations, n_sensor, pf.rng, heading=heading, heading_sigma=sigma)
+        inside = ((poses[:, 0] >= x_min) & (poses[:, 0] <= x_max)
+                  & (poses[:, 1] >= y_min) & (poses[:, 1] <= y_max))
+        poses = poses[inside]
+    rest = count - poses.shape[0]
+    uniform = np.empty((rest, 3))
+    uniform[:, 0] = pf.rng.uniform(x_min, x_max, rest)
+    uniform[:, 1] = pf.rng.uniform(y_min, y_max, rest)
+    if heading is None:
+        uniform[:, 2] = pf.rng.uniform(-math.pi, math.pi, rest)
+    else:
+        uniform[:, 2] = wrap_angles(heading + sigma * pf.rng.standard_normal(rest))
+    return np.concatenate([poses, uniform], axis=0)
 
 
 def issue_shaped_step(pf, u: MotionInput, observations: Observations) -> Callable[[], tuple]:

@@ -61,6 +61,7 @@ def test_rows_hold_the_full_step_and_every_phase(quick_run):
     for row in rows:
         assert row["speedup"] > 0 and row["ns_per_particle"] > 0
         assert row["full_step"]["numpy_s"] > 0 and row["full_step_exact_bearing"]["numba_s"] > 0
+        assert row["injecting_step"]["numba_s"] > 0
         assert set(row["phases"]) == set(bench_step.PHASE_NAMES)
         for phase in bench_step.PHASES:
             entry = row["phases"][phase.name]
@@ -191,6 +192,14 @@ def test_measure_interleaves_and_counts_samples():
 def test_bad_options_are_refused(argv):
     with pytest.raises(SystemExit):
         bench.main(argv)
+
+
+def test_the_injecting_step_injects_every_step():
+    """The `inject` column's filter replaces 5 % of N at every step (the cap once the heading is trusted)."""
+    pf, u, observations = bench_step.injecting_setup(200)
+    for _ in range(3):
+        pf.step(u, observations)
+        assert pf.injected == 10 and pf.resampled
 
 
 def test_adaptive_phase_starts_from_its_stationary_mix():

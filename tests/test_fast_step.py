@@ -18,7 +18,7 @@ from field import spl
 from mcl import AugmentedMCL, Entropy, Estimate, ParticleFilter
 from mcl.estimate import cluster_estimate, grid_entropy
 from mcl.filter import augmented_update
-from mcl.reference import PHASES, compiled_phases, full_step
+from mcl.reference import PHASES, compiled_phases, full_step, sample_injection_reference
 from mcl.resampling import SCHEMES, gather_with_jitter
 from mcl.weights import log_mean_likelihood, normalize
 from motion_models import ConstantNoise, MotionInput, VelocityLinear
@@ -39,8 +39,8 @@ class StagedLandmarks(LandmarkSensorModel):
 
 class PlainFilter(ParticleFilter):
     """The step as a sequence of plain calls, as the filter made them before it had compiled paths: the motion
-    model's own predict, `log_mean_likelihood` and `normalize`, a resampling scheme then `gather_with_jitter`
-    on `draw_variates`, `cluster_estimate` and `grid_entropy` on fresh histograms."""
+    model's own predict, `log_mean_likelihood` and `normalize`, injection drawn in numpy, a resampling scheme
+    then `gather_with_jitter` on `draw_variates`, `cluster_estimate` and `grid_entropy` on fresh histograms."""
 
     def _move(self, u):
         self.motion_model.predict(self.poses, u, self.rng)
@@ -72,6 +72,9 @@ class PlainFilter(ParticleFilter):
             self.resampled = False
             self.injected = 0
         self._track_confidence()
+
+    def _sample_injection(self, count, observations):
+        return sample_injection_reference(self, count, observations)
 
     def _resample(self, count, observations, since=None):
         injected = self._sample_injection(count, observations) if count > 0 else np.empty((0, 3))
@@ -195,6 +198,30 @@ def test_compiled_path_covers_injection_and_global_localization():
         resampled += pf.resampled and pf.injected == 0
         kept += not pf.resampled
     assert injected and resampled and kept
+
+
+@given(count=st.integers(1, 400), trusted=st.booleans(), heading=st.floats(-4.0, 4.0),
+       share=st.sampled_from([0.0, 0.5, 1.0]), region=st.sampled_from(["field", "own_half", "opponent_half"]),
+       seed=st.integers(0, 2**32 - 1))
+def test_injection_equals_its_numpy_twin_bit_for_bit(count, trusted, heading, share, region, seed):
+    """Sensor-reset poses inside the region kept in order, the rest uniform, headings around the reference once
+    trusted: the same poses as `sample_injection_reference`, and the generator left at the same place."""
+    rng = np.random.default_rng(seed)
+    obs = detections(TRUE_POSE + np.array([rng.uniform(-3, 3), rng.uniform(-2, 2), 0.0]), rng,
+                     count=int(rng.integers(1, 8)), kinds=("goalpost", "t_crossing", "penalty_mark"))
+    pfs = [make(n=500, seed=seed % 1000, augmented=AugmentedMCL(sensor_reset_fraction=share)) for _ in range(2)]
+    for pf in pfs:
+        pf.reset_uniform(region)
+        pf._ever_confident = trusted
+        pf._heading_reference = heading
+    compiled = pfs[0]._sample_injection(count, obs)
+    plain = sample_injection_reference(pfs[1], count, obs)
+    assert compiled.shape == (count, 3) and np.array_equal(compiled, plain)
+    assert pfs[0].rng.bit_generator.state == pfs[1].rng.bit_generator.state
+    x_min, x_max, y_min, y_max = pfs[0]._injection_bounds
+    assert (compiled[:, 0] >= x_min).all() and (compiled[:, 0] <= x_max).all()
+    assert (compiled[:, 1] >= y_min).all() and (compiled[:, 1] <= y_max).all()
+    assert (np.abs(compiled[:, 2]) <= math.pi).all()
 
 
 def test_step_equals_predict_then_correct_then_estimate():

@@ -179,6 +179,36 @@ def test_sampled_poses_explain_the_detection():
     assert model.sample_poses(Observations.empty(), 5, np.random.default_rng(0)).shape == (0, 3)
 
 
+@given(n=st.integers(0, 300), heading=st.one_of(st.none(), st.floats(-10.0, 10.0)),
+       heading_sigma=st.floats(0.0, 2.0), own_sigmas=st.booleans(), seed=st.integers(0, 2**32 - 1))
+def test_sampled_poses_equal_their_numpy_twin_bit_for_bit(n, heading, heading_sigma, own_sigmas, seed):
+    rng = np.random.default_rng(seed)
+    m = int(rng.integers(1, 12))
+    kinds = [("goalpost", "t_crossing", "l_crossing", "penalty_mark", "center_mark")[k] for k in rng.integers(0, 5, m)]
+    sigmas = np.where(rng.random(m) < 0.5, np.nan, rng.uniform(0.01, 0.5, m)) if own_sigmas else None
+    obs = Observations.from_arrays(kinds, rng.uniform(0.0, 8.0, m), rng.uniform(-3.2, 3.2, m), sigmas, sigmas)
+    model = LandmarkSensorModel(FIELD)
+    compiled_rng, plain_rng = np.random.default_rng(seed), np.random.default_rng(seed)
+    compiled = model.sample_poses(obs, n, compiled_rng, heading=heading, heading_sigma=heading_sigma)
+    plain = model.sample_poses_reference(obs, n, plain_rng, heading=heading, heading_sigma=heading_sigma)
+    assert compiled.shape == (n, 3) and np.array_equal(compiled, plain)
+    assert compiled_rng.bit_generator.state == plain_rng.bit_generator.state
+    assert np.isfinite(compiled).all() and (np.abs(compiled[:, 2]) <= math.pi).all()
+
+
+def test_sampling_poses_for_a_type_the_field_lacks_raises_and_draws_nothing():
+    model = LandmarkSensorModel(FIELD)
+    offsets = model._offsets.copy()                  # a table without X crossings, as above
+    offsets[LandmarkType.X_CROSSING + 1:] -= 2
+    object.__setattr__(model, "_offsets", offsets)
+    obs = Observations.from_arrays(["goalpost", "x_crossing"], [2.0, 3.0], [0.1, 0.2])
+    rng = np.random.default_rng(0)
+    before = rng.bit_generator.state
+    with pytest.raises(ValueError, match="observation 1"):
+        model.sample_poses(obs, 5, rng)
+    assert rng.bit_generator.state == before
+
+
 # -- the block kernel of the default model ------------------------------------------------------------------------
 @given(st.lists(detection, min_size=0, max_size=14), st.integers(1, 300), st.integers(0, 2**32 - 1),
        st.floats(0.01, 0.3), st.floats(0.0, 0.1), st.floats(0.005, 0.5), st.floats(1e-4, 0.9))
