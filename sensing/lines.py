@@ -8,7 +8,9 @@ As in nav2_amcl's likelihood-field model and Bit-Bots' localization: a distance 
 (`scipy.ndimage.distance_transform_edt`) of the rasterized line centre lines gives, for every cell of the
 carpet, the distance d to the nearest line. A line point p seen in the robot frame scores, for a particle at
 pose x, log(exp(-½(d(x ⊕ p)/σ)²) + outlier_weight). Points beyond the map score the floor. Neighbouring points
-on a line are not independent, so at most `max_points` (spread evenly over the detections) are used.
+on a line are not independent, so at most `max_points` (spread evenly over the detections) are used. The
+factor exp(-½(d/σ)²) + outlier_weight of every cell is computed once with the map (the likelihood field
+proper, as B-Human keeps it), so scoring a point is a lookup and a multiplication.
 """
 from __future__ import annotations
 
@@ -25,10 +27,24 @@ from .observations import Observations
 
 
 @numba.njit(cache=True)
-def line_log_likelihood(poses, points, distance, x0, y0, inverse_cell, inv_var, log_outlier, out):
-    """out[i] = Σ_points log(exp(-½ d²/σ²) + outlier), d looked up in the distance map (nearest cell)."""
-    ny, nx = distance.shape
+def line_factors(distance, inv_var, log_outlier):
+    """The likelihood field: exp(-½ d²/σ²) + outlier for every cell of the distance map, the factor a line
+    point falling in that cell contributes to a particle's likelihood (computed once per model, so that
+    scoring needs no exp per point)."""
     outlier = math.exp(log_outlier)
+    out = np.empty_like(distance)
+    for row in range(distance.shape[0]):
+        for col in range(distance.shape[1]):
+            d = distance[row, col]
+            out[row, col] = math.exp(-0.5 * d * d * inv_var) + outlier
+    return out
+
+
+@numba.njit(cache=True)
+def line_log_likelihood(poses, points, factors, x0, y0, inverse_cell, outlier, out):
+    """out[i] = Σ_points log(exp(-½ d²/σ²) + outlier), the factor looked up in the likelihood field
+    (`line_factors`, nearest cell); `outlier` beyond it."""
+    ny, nx = factors.shape
     m = points.shape[0]
     for i in range(poses.shape[0]):
         c = math.cos(poses[i, 2])
@@ -41,8 +57,7 @@ def line_log_likelihood(poses, points, distance, x0, y0, inverse_cell, inv_var, 
             col = int(math.floor((gx - x0) * inverse_cell))
             row = int(math.floor((gy - y0) * inverse_cell))
             if 0 <= col < nx and 0 <= row < ny:
-                d = distance[row, col]
-                product *= math.exp(-0.5 * d * d * inv_var) + outlier
+                product *= factors[row, col]
             else:
                 product *= outlier
             if (j & 15) == 15:  # each factor is in (outlier, 1 + outlier]: flush before it can underflow
@@ -75,6 +90,8 @@ class LineSensorModel:
     max_points: int = 12
     outlier_weight: float = 0.05
     _distance: np.ndarray = dataclass_field(init=False, repr=False)
+    _factors: np.ndarray = dataclass_field(init=False, repr=False)
+    _outlier: float = dataclass_field(init=False, repr=False)
     _origin: tuple[float, float] = dataclass_field(init=False, repr=False)
 
     def __post_init__(self) -> None:
@@ -99,6 +116,11 @@ class LineSensorModel:
         distance = np.ascontiguousarray(distance, dtype=np.float64)
         distance.flags.writeable = False
         object.__setattr__(self, "_distance", distance)
+        log_outlier = math.log(self.outlier_weight)
+        factors = line_factors(distance, 1.0 / self.sigma ** 2, log_outlier)
+        factors.flags.writeable = False
+        object.__setattr__(self, "_factors", factors)
+        object.__setattr__(self, "_outlier", math.exp(log_outlier))
         object.__setattr__(self, "_origin", (x0, y0))
 
     @property
@@ -130,8 +152,7 @@ class LineSensorModel:
             out[:] = 0.0
             return out
         x0, y0 = self._origin
-        return line_log_likelihood(poses, points, self._distance, x0, y0, 1.0 / self.resolution,
-                                   1.0 / self.sigma ** 2, math.log(self.outlier_weight), out)
+        return line_log_likelihood(poses, points, self._factors, x0, y0, 1.0 / self.resolution, self._outlier, out)
 
     def log_likelihood_reference(self, poses: np.ndarray, observations: Observations) -> np.ndarray:
         points = self.used_points(Observations.coerce(observations))

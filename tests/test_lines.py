@@ -44,6 +44,21 @@ def test_kernel_matches_numpy_reference(seed, n_points):
     assert LINES.terms(obs) == min(n_points, LINES.max_points)
 
 
+@pytest.mark.parametrize("sigma,outlier_weight", [(0.05, 0.2), (0.3, 0.01)])
+def test_likelihood_field_follows_the_model_parameters(sigma, outlier_weight):
+    """The per-cell factors the kernel looks up are exp(-½(d/σ)²) + outlier_weight of the distance map, and
+    scoring with them matches the numpy reference for other σ and outlier weights too."""
+    model = LineSensorModel(FIELD, sigma=sigma, outlier_weight=outlier_weight)
+    np.testing.assert_allclose(model._factors, np.exp(-0.5 * (model.distance_map / sigma) ** 2) + outlier_weight,
+                               rtol=1e-14)
+    assert not model._factors.flags.writeable
+    rng = np.random.default_rng(1)
+    poses = np.column_stack([rng.uniform(-6, 6, 50), rng.uniform(-4, 4, 50), rng.uniform(-math.pi, math.pi, 50)])
+    obs = Observations.from_arrays([], [], [], line_points=rng.uniform(-4, 4, (20, 2)))
+    np.testing.assert_allclose(model.log_likelihood(poses, obs), model.log_likelihood_reference(poses, obs),
+                               atol=1e-9)
+
+
 def test_true_pose_explains_the_line_points_best():
     pose = np.array([-2.0, 1.0, 0.4])
     on_lines = FIELD.line_points(spacing=0.2)
