@@ -43,9 +43,11 @@ Speed. With a bounded-noise motion model (velocity-linear, constant) and a senso
 `compiled_likelihood` (the landmark model's default variant), `step` and `correct` are one call into compiled
 code (`_compiled_step`): predict, likelihood, weights, resampling, the histograms the estimate and the entropy
 share, and the estimate, with the random numbers drawn in the kernels from the filter's generator. The results
-are those of the plain sequence of calls bit for bit (tests/test_fast_step.py runs both side by side); the
-rare branches (injection, particles that explain nothing) fall back to that sequence. Buffers are kept across
-steps. `fast=True` (vectorized polynomials for sin, cos and exp, reassociated sums) and `threads=n` (chunks of
+are those of the plain sequence of calls bit for bit (tests/test_fast_step.py runs both side by side). A step
+that injects draws the injected poses (`_sample_injection`: numpy's draws, compiled placement) and finishes in
+a second call (`_resample_and_summarize`); the rare branches (other resampling schemes, stateful motion
+models, threads with injection, particles that explain nothing) fall back to that sequence. Buffers are kept
+across steps. `fast=True` (vectorized polynomials for sin, cos and exp, reassociated sums) and `threads=n` (chunks of
 particles on n threads) trade the last bits for speed; `mcl.reference.compiled_phases` cuts the compiled
 step into its stages for the benchmark.
 """
