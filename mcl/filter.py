@@ -1032,7 +1032,17 @@ def _resample_and_summarize(weights, keep, scratch, roughening, poses, trig, fun
             poses[keep + i, axis] = injected[i, axis]
     log_weights[:] = -math.log(n)
     weights[:] = 1.0 / n
-    summary_fill(grid, poses, weights, coordinates, histograms, bitmaps)
+    return _summarize(grid, poses, weights, coordinates, histograms, bitmaps, want_estimate, previous, use_previous,
+                      out_mean, out_cov, want_entropy, fast)
+
+
+@numba.njit(cache=True)
+def _summarize(grid, source, weights, coordinates, histograms, bitmaps, want_estimate, previous, use_previous,
+               out_mean, out_cov, want_entropy, fast):
+    """The end of a step on one thread: the summary histograms (of `source`, or of the coordinates the
+    resampling wrote when it has no rows), the estimate when `want_estimate` (moving `previous` to it) and the
+    entropy when `want_entropy`. Returns (estimate weight, position entropy, orientation entropy)."""
+    summary_fill(grid, source, weights, coordinates, histograms, bitmaps)
     weight = 0.0
     if want_estimate:
         if fast:
@@ -1211,23 +1221,18 @@ def _compiled_step(poses, log_weights, weights, log_likelihood, scratch, trig, c
         else:
             reweigh(log_weights, log_likelihood, log_evidence)
         source = poses
-    weight = 0.0
     if chunk > 0:
         summary_fill_chunked(grid, source, weights, coordinates, histograms, bitmaps, local, chunk)
+        weight = 0.0
         if want_estimate:
             weight = summary_estimate_chunked(grid, coordinates, weights, histograms, bitmaps, previous, use_previous,
                                               out_mean, out_cov, chunk)
+            previous[:] = out_mean
+        position = orientation = 0.0
+        if want_entropy:
+            position, orientation = summary_entropy(grid, histograms, bitmaps)
     else:
-        summary_fill(grid, source, weights, coordinates, histograms, bitmaps)
-        if want_estimate and fast:
-            weight = summary_estimate_fast(grid, coordinates, weights, histograms, bitmaps, previous, use_previous,
-                                           out_mean, out_cov)
-        elif want_estimate:
-            weight = summary_estimate(grid, coordinates, weights, histograms, bitmaps, previous, use_previous,
-                                      out_mean, out_cov)
-    if want_estimate:
-        previous[:] = out_mean
-    position = orientation = 0.0
-    if want_entropy:
-        position, orientation = summary_entropy(grid, histograms, bitmaps)
+        weight, position, orientation = _summarize(grid, source, weights, coordinates, histograms, bitmaps,
+                                                   want_estimate, previous, use_previous, out_mean, out_cov,
+                                                   want_entropy, fast)
     return _STEP_DONE, native, ess, w_slow, w_fast, fraction, resample, weight, position, orientation

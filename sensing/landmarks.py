@@ -372,9 +372,8 @@ def sensor_reset_poses(table, offsets, kinds, ranges, bearings, range_sigmas, be
     """out[i] (M, 3): the pose that sees a landmark of detection `detection[i]`'s type (the one `landmark[i]`, a
     uniform on [0, 1), picks) at the detection's range and bearing with noise. The headings: `angles` (M) when
     it has M entries (uniforms on [0, 1): headings uniform on [-π, π)), else heading + heading_sigma ·
-    normals[:M]; then M normals for the ranges and M for the
-    bearings. Range and bearing σ: the detection's own, or the model's (range_noise_floor +
-    range_noise_growth·r², bearing_sigma) where NaN. Returns out."""
+    normals[:M]; then M normals for the ranges and M for the bearings. Range and bearing σ: the detection's
+    own, or the model's (range_noise_floor + range_noise_growth·r², bearing_sigma) where NaN. Returns out."""
     m = out.shape[0]
     uniform_heading = angles.shape[0] == m
     first = 0 if uniform_heading else m
