@@ -9,8 +9,9 @@ The step: predict (velocity-linear), correct with 10 detections of a 4-way ambig
 normalize and ESS, systematic resampling, estimate (dominant cluster), entropy. The numba step is timed
 through the filter's public calls (`step` + `entropy`, resampling forced every step); the numpy step is
 `mcl.reference.numpy_step`, the same computation in plain numpy. Each phase of `PHASES` pairs the numba call
-the filter makes with its numpy twin (`*_reference`); phases that have no twin (recording) say so. Timings: the candidates are called in turn (A, B, A, B, ...) and the median is
-taken, so a machine shared with other work biases both alike; ratios compare figures of one run.
+the filter makes with its numpy twin (`*_reference`); phases that have no twin (recording) say so.
+Timings: the candidates are called in turn (A, B, A, B, ...) and the median is taken, so a machine shared with
+other work biases both alike; ratios compare figures of one run.
 """
 from __future__ import annotations
 
@@ -255,9 +256,15 @@ def injecting_setup(n: int):
     and the heading reference is trusted, so 5 % of N (`max_fraction_tracking`) are replaced each step, half
     of them drawn from the detections."""
     pf, u, observations = bench_setup(n, augmented=AugmentedMCL(fit_threshold=1e9))
+    return trust_heading(pf), u, observations
+
+
+def trust_heading(pf: ParticleFilter) -> ParticleFilter:
+    """`pf` with its heading reference trusted at TRUE_POSE's heading, as after `confident_corrections`
+    confident corrections (the filter has no public call for it): injection draws headings around it."""
     pf._ever_confident = True
     pf._heading_reference = float(TRUE_POSE[2])
-    return pf, u, observations
+    return pf
 
 
 def injecting_step_work(n: int) -> Callable[[], object]:
@@ -431,9 +438,7 @@ class PhaseScene:
         pf = ParticleFilter(self.pf.field, self.velocity_linear, self.von_mises, n_particles=self.n, seed=7,
                             augmented=AugmentedMCL())
         pf.rng = self.rng
-        pf._ever_confident = True
-        pf._heading_reference = float(TRUE_POSE[2])
-        return pf
+        return trust_heading(pf)
 
     def record(self):
         if self._recorder is None:
