@@ -253,18 +253,9 @@ def full_step_work(n: int, bearing_model: str = "von_mises", **filter_options) -
 
 def injecting_setup(n: int):
     """`bench_setup` with augmented MCL injecting every step: the detections' fit stays below `fit_threshold`
-    and the heading reference is trusted, so 5 % of N (`max_fraction_tracking`) are replaced each step, half
-    of them drawn from the detections."""
-    pf, u, observations = bench_setup(n, augmented=AugmentedMCL(fit_threshold=1e9))
-    return trust_heading(pf), u, observations
-
-
-def trust_heading(pf: ParticleFilter) -> ParticleFilter:
-    """`pf` with its heading reference trusted at TRUE_POSE's heading, as after `confident_corrections`
-    confident corrections (the filter has no public call for it): injection draws headings around it."""
-    pf._ever_confident = True
-    pf._heading_reference = float(TRUE_POSE[2])
-    return pf
+    and the heading reference is trusted (`reset_around` takes TRUE_POSE as known), so 5 % of N
+    (`max_fraction_tracking`) are replaced each step, half of them drawn from the detections."""
+    return bench_setup(n, augmented=AugmentedMCL(fit_threshold=1e9))
 
 
 def injecting_step_work(n: int) -> Callable[[], object]:
@@ -433,12 +424,13 @@ class PhaseScene:
         }
 
     def injecting_filter(self) -> ParticleFilter:
-        """A filter of N particles with augmented MCL whose heading reference is trusted (at TRUE_POSE's
-        heading), on the scene's sensor model and generator, for the injection phase."""
+        """A filter of N particles with augmented MCL whose heading reference is trusted (`reset_around`
+        TRUE_POSE), on the scene's sensor model and generator, for the injection phase."""
         pf = ParticleFilter(self.pf.field, self.velocity_linear, self.von_mises, n_particles=self.n, seed=7,
                             augmented=AugmentedMCL())
+        pf.reset_around(TRUE_POSE, (0.3, 0.3, 0.2))
         pf.rng = self.rng
-        return trust_heading(pf)
+        return pf
 
     def record(self):
         if self._recorder is None:

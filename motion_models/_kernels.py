@@ -320,6 +320,66 @@ def skip_doubles(count, function, state):
         next_double(function, state)
 
 
+# -- bounded integers as numpy draws them ------------------------------------------------------------------------
+INTEGERS_LIMIT = 1 << 31     # `integers_function` handles rng.integers(0, high) for 1 <= high <= this
+
+
+def integers_function(rng: np.random.Generator) -> int:
+    """The address of `rng`'s bit generator's next_uint32, for `bounded_integers` (valid while it lives).
+
+    next_uint32 is the generator's own function: with numpy's PCG64 it hands out the two halves of one 64-bit
+    output in turn, and keeps the unused half in the bit generator's state, as `rng.integers` finds it."""
+    return ctypes.cast(rng.bit_generator.ctypes.next_uint32, ctypes.c_void_p).value
+
+
+_LAST_HANDLES: list[tuple] = []      # (bit generator, function, state, integers) of the last `draw_handles`
+
+
+def draw_handles(rng: np.random.Generator) -> tuple[int, int, int]:
+    """(function, state, integers): `bit_generator_handle(rng)` and `integers_function(rng)`, kept for the last
+    generator asked about (looking them up costs a few µs; a caller that draws a few numbers per step from
+    the same generator asks every step). The entry holds the bit generator, so the addresses stay valid."""
+    bit_generator = rng.bit_generator
+    last = _LAST_HANDLES[0] if _LAST_HANDLES else None
+    if last is None or last[0] is not bit_generator:
+        last = (bit_generator, *bit_generator_handle(rng), integers_function(rng))
+        _LAST_HANDLES[:] = [last]
+    return last[1], last[2], last[3]
+
+
+@intrinsic
+def _call_next_uint32(typingctx, function, state):
+    """One next_uint32 draw (zero-extended to 64 bits) from a bit generator's function and state addresses."""
+    signature = types.uint64(types.intp, types.intp)
+
+    def codegen(context, builder, sig, args):
+        void_pointer = ir.IntType(8).as_pointer()
+        function_type = ir.FunctionType(ir.IntType(32), [void_pointer])
+        callee = builder.inttoptr(args[0], function_type.as_pointer())
+        return builder.zext(builder.call(callee, [builder.inttoptr(args[1], void_pointer)]), ir.IntType(64))
+
+    return signature, codegen
+
+
+@numba.njit(cache=True)
+def bounded_integers(function, state, high, out):
+    """out[:] ← what `rng.integers(0, high, size=len(out))` returns, leaving the generator where it would:
+    Lemire's multiply-and-reject on next_uint32, as numpy draws int64 below 2³² (1 <= high <= INTEGERS_LIMIT;
+    function from `integers_function`, state from `bit_generator_handle`). high = 1 draws nothing."""
+    if high == 1:
+        out[:] = 0
+        return
+    span = np.uint64(high)                   # numpy's rng_excl: the count of values
+    low_mask = np.uint64(0xFFFFFFFF)
+    threshold = (low_mask - (span - np.uint64(1))) % span
+    for i in range(out.shape[0]):
+        m = _call_next_uint32(function, state) * span
+        if (m & low_mask) < span:            # rarely: reject the few products that would bias the result
+            while (m & low_mask) < threshold:
+                m = _call_next_uint32(function, state) * span
+        out[i] = np.int64(m >> np.uint64(32))
+
+
 _PCG64_LAYOUT: list[bool] = []
 
 

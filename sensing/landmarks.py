@@ -46,6 +46,7 @@ from numba.extending import intrinsic
 
 from field import Field, LandmarkType
 from field.angles import wrap_angle, wrap_angles
+from motion_models._kernels import INTEGERS_LIMIT, bounded_integers, draw_handles, draw_uniforms
 
 from .observations import Observations
 
@@ -366,6 +367,15 @@ def first_missing(offsets, kinds):
 
 
 @numba.njit(cache=True)
+def reset_choices(integers, function, state, m, detection, uniforms):
+    """The integer and uniform draws of `LandmarkSensorModel.sample_poses`: detection[:] ← rng.integers(0, m,
+    size) (`bounded_integers`; integers from `integers_function`), then uniforms[:] ← rng.random(size), from the
+    bit generator at `state` (function, state: `bit_generator_handle`)."""
+    bounded_integers(integers, state, m, detection)
+    draw_uniforms(function, state, uniforms, uniforms.shape[0])
+
+
+@numba.njit(cache=True)
 def sensor_reset_poses(table, offsets, kinds, ranges, bearings, range_sigmas, bearing_sigmas, range_noise_floor,
                        range_noise_growth, bearing_sigma, detection, landmark, angles, normals, heading,
                        heading_sigma, out):
@@ -555,9 +565,10 @@ class LandmarkSensorModel:
         whole field. Returns (n, 3); empty when there are no detections.
 
         The draws are numpy's (`rng.integers`, `rng.random`, then `rng.uniform` or `rng.standard_normal` for
-        the headings, `rng.standard_normal` for the ranges and bearings) and the poses come from them in one
-        compiled pass (`sensor_reset_poses`): bit for bit `sample_poses_reference`, with a few numpy calls in
-        place of some thirty.
+        the headings, `rng.standard_normal` for the ranges and bearings): the integers and uniforms drawn in
+        a kernel from the generator's own bit generator (`reset_choices`, the numbers numpy would give), the
+        normals by numpy, and the poses come from them in one compiled pass (`sensor_reset_poses`): bit for
+        bit `sample_poses_reference`.
         """
         observations = Observations.coerce(observations)
         self.check(observations)
@@ -565,10 +576,20 @@ class LandmarkSensorModel:
         if m == 0 or n <= 0:
             return np.empty((0, 3))
         n = int(n)
-        detection = rng.integers(0, m, size=n)
-        landmark = rng.random(n)
-        if heading is None:
-            angles = rng.random(n)                     # rng.uniform(-π, π, n) is -π + 2π·u on these
+        uniform_heading = heading is None
+        detection = np.empty(n, dtype=np.int64)
+        # The landmarks' n uniforms, then the headings' n when uniform (rng.uniform(-π, π, n) is -π + 2π·u on
+        # these): one stream, so rng.random(n) twice is rng.random(2n).
+        uniforms = np.empty(2 * n if uniform_heading else n)
+        if m <= INTEGERS_LIMIT:
+            function, state, integers = draw_handles(rng)
+            reset_choices(integers, function, state, m, detection, uniforms)
+        else:
+            detection[:] = rng.integers(0, m, size=n)
+            rng.random(out=uniforms)
+        landmark = uniforms[:n]
+        if uniform_heading:
+            angles = uniforms[n:]
             normals = rng.standard_normal(2 * n)       # = the ranges' n, then the bearings' n
             heading, heading_sigma = 0.0, 0.0
         else:

@@ -198,6 +198,33 @@ def same_state(a, b):
     return np.array_equal(a, b)
 
 
+# highs around the edge cases of Lemire's method: one value (no draw), two, small counts of detections, and
+# counts near 2³¹ where about a quarter of the 32-bit draws are rejected
+integer_highs = st.one_of(st.integers(1, 40), st.sampled_from([2**31 - 1, 2**31, 3 * 2**29 + 1]),
+                          st.integers(2**20, 2**31))
+
+
+@pytest.mark.parametrize("bit_generator", [np.random.PCG64, np.random.PCG64DXSM, np.random.MT19937,
+                                           np.random.Philox, np.random.SFC64])
+@given(st.integers(0, 2**32 - 1), st.lists(st.tuples(integer_highs, st.integers(0, 30)), min_size=1, max_size=5))
+def test_kernel_integers_are_the_generators_own(bit_generator, seed, draws):
+    """bounded_integers gives what rng.integers(0, high, size) gives, interleaved with uniforms, and leaves the
+    generator where numpy leaves it, the unused half of a 64-bit output included."""
+    from motion_models._kernels import bit_generator_handle, bounded_integers, integers_function, next_double
+
+    plain = np.random.Generator(bit_generator(seed))
+    drawn = np.random.Generator(bit_generator(seed))
+    function, state = bit_generator_handle(drawn)
+    for high, size in draws:
+        out = np.full(size, -1, dtype=np.int64)
+        bounded_integers(integers_function(drawn), state, high, out)
+        assert np.array_equal(out, plain.integers(0, high, size=size))
+        assert same_state(drawn.bit_generator.state, plain.bit_generator.state)
+        assert next_double(function, state) == plain.random()
+    assert same_state(drawn.bit_generator.state, plain.bit_generator.state)
+
+
+
 def test_the_default_generator_is_stepped_in_the_kernel():
     from motion_models._kernels import PCG64_INLINE, bit_generator_handle
 
