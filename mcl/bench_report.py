@@ -192,13 +192,13 @@ def format_report(result: dict) -> str:
              "systematic resampling with roughening, estimate, entropy; one thread; medians of interleaved runs",
              "b2b: the full step called back to back (warm caches); fast: the full step with fast=True; issue "
              "shape, its fast: the issue's step shape (the C reference's: no roughening, no estimate) on the same "
-             "kernels; inject: the full step when augmented MCL replaces 5 % of N every step; these five in ns "
-             "per particle"]
+             "kernels; inject: the full step when augmented MCL replaces 5 % of N every step; adaptive: the full "
+             "step with the adaptive motion model; these six in ns per particle"]
     avx = _section(result, "numpy_without_avx512")
     avx_rows = {r["n"]: r["numpy_s"] for r in avx["rows"]} if avx else {}
     lines.append(f"{'N':>9} {'numba':>11} {'ns/part.':>9} {'numpy':>12} {'speedup':>8} {'exact atan2':>12} "
                  f"{'numpy no-AVX512':>16} {'speedup':>8} {'b2b':>6} {'fast':>6} {'issue shape':>12} {'its fast':>9} "
-                 f"{'inject':>7}")
+                 f"{'inject':>7} {'adaptive':>9}")
 
     def per_particle(entry) -> str:
         return "-" if not entry else f"{entry['numba_ns_per_particle']:.1f}"
@@ -213,7 +213,7 @@ def format_report(result: dict) -> str:
                      f"{_ms(no_avx):>16} {no_avx_speedup:>8} {per_particle(row.get('full_step_back_to_back')):>6} "
                      f"{per_particle(row.get('full_step_fast')):>6} "
                      f"{per_particle(row.get('issue_step')):>12} {per_particle(row.get('issue_step_fast')):>9} "
-                     f"{per_particle(row.get('injecting_step')):>7}")
+                     f"{per_particle(row.get('injecting_step')):>7} {per_particle(row.get('adaptive_step')):>9}")
     if avx:
         ratios = ", ".join(f"N = {r['n']}: {r['off_over_on']:.2f}x" for r in avx["rows"])
         lines.append(f"  numpy no-AVX512: NPY_DISABLE_CPU_FEATURES=\"{avx['NPY_DISABLE_CPU_FEATURES']}\", fresh "

@@ -193,11 +193,12 @@ def measure(work: dict[str, Callable[[], object]], budget_s: float, min_samples:
 
 
 # -- the scene -------------------------------------------------------------------------------------------------
-def bench_setup(n: int, bearing_model: str = "von_mises", seed: int = 0, **filter_options):
+def bench_setup(n: int, bearing_model: str = "von_mises", seed: int = 0, motion_model=None, **filter_options):
     """A filter of n particles around TRUE_POSE, a motion input, and 10 goalpost detections.
 
     Resampling every step (threshold 1), injection off unless `augmented` is given: the step does the same work
-    every time. `filter_options` go to `ParticleFilter`; its threads option, if it has one, is 1 unless given.
+    every time. The motion model is velocity-linear unless given; the motion input reports no collision.
+    `filter_options` go to `ParticleFilter`; its threads option, if it has one, is 1 unless given.
     """
     option = threads_option()
     if option is not None:
@@ -205,8 +206,8 @@ def bench_setup(n: int, bearing_model: str = "von_mises", seed: int = 0, **filte
     filter_options.setdefault("augmented", None)
     field = spl()
     sensor = LandmarkSensorModel(field, bearing_model=bearing_model)
-    pf = ParticleFilter(field, VelocityLinear(), sensor, n_particles=n, seed=seed, resample_threshold=1.0,
-                        **filter_options)
+    pf = ParticleFilter(field, motion_model or VelocityLinear(), sensor, n_particles=n, seed=seed,
+                        resample_threshold=1.0, **filter_options)
     pf.reset_around(TRUE_POSE, (0.3, 0.3, 0.2))
     rng = np.random.default_rng(seed + 1)
     posts = field.landmarks_of("goalpost")
@@ -216,7 +217,7 @@ def bench_setup(n: int, bearing_model: str = "von_mises", seed: int = 0, **filte
     bearings = np.arctan2(d[:, 1], d[:, 0]) - TRUE_POSE[2] + 0.03 * rng.standard_normal(10)
     observations = Observations.from_arrays(["goalpost"] * 10, ranges, bearings,
                                             line_points=line_points(field, rng))
-    return pf, MotionInput(dt=0.01, command=(0.2, 0.0, 0.1)), observations
+    return pf, MotionInput(dt=0.01, command=(0.2, 0.0, 0.1), collision=NO_COLLISION), observations
 
 
 def line_points(field, rng: np.random.Generator, count: int = 12, reach: float = 3.0) -> np.ndarray:
@@ -240,15 +241,18 @@ def threads_option() -> str | None:
 
 
 # -- the full step ---------------------------------------------------------------------------------------------
-def full_step_work(n: int, bearing_model: str = "von_mises", **filter_options) -> Callable[[], object]:
-    """One full numba step through the filter's public calls: `step` (predict, correct, resample, estimate)
+def stepping(pf: ParticleFilter, u: MotionInput, observations: Observations) -> Callable[[], None]:
+    """One full step of `pf` through the filter's public calls: `step` (predict, correct, resample, estimate)
     and `entropy`."""
-    pf, u, observations = bench_setup(n, bearing_model, **filter_options)
-
     def step():
         pf.step(u, observations)
         pf.entropy()
     return step
+
+
+def full_step_work(n: int, bearing_model: str = "von_mises", **filter_options) -> Callable[[], object]:
+    """`stepping` on `bench_setup`'s filter."""
+    return stepping(*bench_setup(n, bearing_model, **filter_options))
 
 
 def injecting_setup(n: int):
@@ -259,13 +263,20 @@ def injecting_setup(n: int):
 
 
 def injecting_step_work(n: int) -> Callable[[], object]:
-    """The full step (`step` and `entropy`) of `injecting_setup`'s filter."""
-    pf, u, observations = injecting_setup(n)
+    """`stepping` on `injecting_setup`'s filter."""
+    return stepping(*injecting_setup(n))
 
-    def step():
-        pf.step(u, observations)
-        pf.entropy()
-    return step
+
+def adaptive_setup(n: int):
+    """`bench_setup` with Hoffmann's adaptive motion model in place of velocity-linear, walking without
+    collisions: its predict is its own kernel, the rest the compiled step, whose resampling carries each
+    particle's mobility state to its offspring."""
+    return bench_setup(n, motion_model=AdaptiveMotion())
+
+
+def adaptive_step_work(n: int) -> Callable[[], object]:
+    """`stepping` on `adaptive_setup`'s filter."""
+    return stepping(*adaptive_setup(n))
 
 
 def issue_step_work(n: int, **filter_options) -> Callable[[], object]:
@@ -450,7 +461,8 @@ class PhaseScene:
 def time_size(n: int, budget_s: float, exact: bool = True, recording: bool = True, min_samples: int = 3) -> dict:
     """The full step (numba, numpy, and numba with the exact bearing term) and every phase at one N."""
     work = {"full_step/numba": full_step_work(n), "full_step/numpy": numpy_step_work(n),
-            "issue_step/numba": issue_step_work(n), "injecting_step/numba": injecting_step_work(n)}
+            "issue_step/numba": issue_step_work(n), "injecting_step/numba": injecting_step_work(n),
+            "adaptive_step/numba": adaptive_step_work(n)}
     if fast_option():
         work["full_step_fast/numba"] = full_step_work(n, fast=True)
         work["issue_step_fast/numba"] = issue_step_work(n, fast=True)
@@ -486,7 +498,7 @@ def time_size(n: int, budget_s: float, exact: bool = True, recording: bool = Tru
         "phases": {},
     }
     for key, name in (("full_step_back_to_back", "full_step_back_to_back/numba"), ("issue_step", "issue_step/numba"),
-                      ("injecting_step", "injecting_step/numba"),
+                      ("injecting_step", "injecting_step/numba"), ("adaptive_step", "adaptive_step/numba"),
                       ("full_step_fast", "full_step_fast/numba"),
                       ("issue_step_fast", "issue_step_fast/numba")):
         if name in timed:

@@ -72,7 +72,8 @@ from sensing.observations import Observations
 from .estimate import (summary_buffers, summary_entropy, summary_estimate, summary_estimate_chunked,
                        summary_estimate_fast, summary_fill, summary_fill_chunked, summary_grid)
 from .latency import move_back, move_forward
-from .resampling import SCHEMES, gather_with_jitter, resample_with_jitter, resample_with_jitter_chunked
+from .resampling import (SCHEMES, gather_offspring_rows, gather_with_jitter, resample_with_jitter,
+                         resample_with_jitter_chunked)
 from .weights import log_mean_likelihood, normalize, reweigh, reweigh_chunked, weigh, weigh_chunked, weigh_fast
 
 REGIONS = ("field", "own_half", "opponent_half")
@@ -308,6 +309,9 @@ class ParticleFilter:
             if self._motion_state.shape[:1] != (self.n,):
                 raise ValueError(f"motion_model.particle_state({self.n}) must have {self.n} rows, "
                                  f"got shape {self._motion_state.shape}")
+        # The state as rows (a view), and rows to gather it through, for the kernels that resample
+        self._state_rows = _NO_STATE if self._motion_state is None else self._motion_state.reshape(self.n, -1)
+        self._state_scratch = np.empty_like(self._state_rows)
         self.reset_uniform("field")
 
     def _changed(self) -> None:
@@ -676,8 +680,8 @@ class ParticleFilter:
                 observations.bearing_sigmas, table, offsets, range_noise_floor, range_noise_growth, bearing_sigma,
                 log_outlier, n - self.injected, terms, augmented, alpha_slow, alpha_fast, ratio_threshold,
                 fit_threshold, self.w_slow, self.w_fast, cap, self.resample_threshold,
-                self.resampling == "systematic" and self._motion_state is None, self.roughening,
-                self._grid_parameters, coordinates, histograms, bitmaps, want_estimate, self._previous_estimate,
+                self.resampling == "systematic" and (self._motion_state is None or not chunk), self.roughening,
+                self._state_rows, self._state_scratch, self._grid_parameters, coordinates, histograms, bitmaps, want_estimate, self._previous_estimate,
                 self._has_previous_estimate, mean, covariance, self._entropy_wanted, chunk, self._fast)
         if status == _STEP_MISSING:
             self.sensor_model.check(observations)     # raises, naming the detection; nothing has changed
@@ -825,9 +829,12 @@ class ParticleFilter:
         # Roughening: uniform jitter of standard deviation `roughening`, in each particle's own frame so that
         # it commutes with rotating the world, fused with the copy from the ancestors.
         bounds = self.roughening * SQRT3
-        if self.resampling == "systematic" and self._motion_state is None:
-            resample_with_jitter(self._weights, keep, self._previous, bounds, self.poses, _NO_TRIG,
-                                 *self._generator(), self._counts, _NO_COORDINATES)
+        if self.resampling == "systematic":
+            u0 = resample_with_jitter(self._weights, keep, self._previous, bounds, self.poses, _NO_TRIG,
+                                      *self._generator(), self._counts, _NO_COORDINATES)
+            if self._motion_state is not None:
+                gather_offspring_rows(self._weights, keep, u0, self._counts, self._state_rows, self._state_scratch)
+                self._motion_state[keep:] = self.motion_model.particle_state(self.n - keep)
         else:
             ancestors = SCHEMES[self.resampling](self._weights, keep, self.rng)
             gather_with_jitter(self._previous, ancestors, bounds,
@@ -953,6 +960,7 @@ class _Threads:
 _NO_VARIATES = np.empty((0, 3))
 _NO_TRIG = np.empty((0, 2))
 _NO_COORDINATES = np.empty((3, 0))
+_NO_STATE = np.empty((0, 0))      # no per-particle motion state
 _NO_MOTION = (0.0,) * 6
 # `_compiled_step` status: done; a detection's type is missing (nothing changed); NaN or +inf likelihoods
 # (predicted only); no particle explains the detections; resampling (with injection) is left to Python.
@@ -1136,7 +1144,7 @@ def _compiled_step(poses, log_weights, weights, log_likelihood, scratch, trig, c
                    kinds, ranges, bearings, range_sigmas, bearing_sigmas, table, offsets, range_noise_floor,
                    range_noise_growth, bearing_sigma, log_outlier,
                    count, terms, augmented, alpha_slow, alpha_fast, ratio_threshold, fit_threshold, w_slow, w_fast,
-                   cap, resample_threshold, can_resample, roughening,
+                   cap, resample_threshold, can_resample, roughening, state_rows, state_scratch,
                    grid, coordinates, histograms, bitmaps, want_estimate, previous, use_previous, out_mean, out_cov,
                    want_entropy, chunk, fast):
     """predict (when `move`), the landmark likelihood, the weight update, augmented MCL's rates, systematic
@@ -1149,6 +1157,9 @@ def _compiled_step(poses, log_weights, weights, log_likelihood, scratch, trig, c
     cache, with cos and sin of their headings kept in `trig` for the roughening; resampling then copies from
     `scratch` into `poses`, and without resampling `scratch` is copied back. variates: the Gaussian motion
     noise drawn beforehand; for uniform noise, no rows (drawn here), or with `chunk` a (N, 3) scratch.
+    state_rows: a stateful motion model's per-particle state as rows (no rows: none), which resampling gathers
+    from the ancestors through `state_scratch` (`mcl.resampling.gather_offspring_rows`; one thread only: with
+    `chunk`, a filter with such state passes can_resample False and resamples in Python).
 
     chunk > 0: the threads variant. The particles go through the stages in chunks of `chunk` spread over
     threads, and every sum is taken chunk by chunk (`mcl.weights.weigh_chunked`,
@@ -1202,7 +1213,9 @@ def _compiled_step(poses, log_weights, weights, log_likelihood, scratch, trig, c
             resample_with_jitter_chunked(weights, n, scratch, bounds, poses, trig, function, state, counts,
                                          coordinates, variates.reshape(-1), chunk)
         else:
-            resample_with_jitter(weights, n, scratch, bounds, poses, trig, function, state, counts, coordinates)
+            u0 = resample_with_jitter(weights, n, scratch, bounds, poses, trig, function, state, counts, coordinates)
+            if state_rows.shape[0] > 0:
+                gather_offspring_rows(weights, n, u0, counts, state_rows, state_scratch)
         if chunk > 0:
             _fill_chunked(log_weights, -math.log(n), weights, 1.0 / n, chunk)
         else:

@@ -320,6 +320,22 @@ def resample_with_jitter(weights, m, source, bounds, out, trig, function, state,
 
 
 @numba.njit(cache=True)
+def gather_offspring_rows(weights, m, u0, counts, rows, scratch):
+    """rows[:M] ← the rows of the ancestors that `resample_with_jitter` with this u0 gave offspring 0..M-1
+    (a stateful motion model's per-particle state follows its particles). counts: (M + 1,) int64 zero on entry
+    and on return; scratch: at least M rows like `rows`."""
+    _passed_counts(weights, m, u0, counts)
+    j = 0
+    for k in range(m):
+        j += counts[k]
+        counts[k] = 0
+        for column in range(rows.shape[1]):
+            scratch[k, column] = rows[j, column]
+    counts[m] = 0
+    rows[:m] = scratch[:m]
+
+
+@numba.njit(cache=True)
 def systematic_with_jitter(weights, m, source, bounds, out, trig, function, state):
     """`resample_with_jitter` with its scratch allocated here."""
     return resample_with_jitter(weights, m, source, bounds, out, trig, function, state,

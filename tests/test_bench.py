@@ -202,6 +202,18 @@ def test_the_injecting_step_injects_every_step():
         assert pf.injected == 10 and pf.resampled
 
 
+def test_the_adaptive_step_resamples_in_the_compiled_step(monkeypatch):
+    """The `adaptive` column's filter keeps a per-particle state and resamples every step without the Python
+    fallback `_resample`."""
+    from mcl.filter import ParticleFilter
+
+    pf, u, observations = bench_step.adaptive_setup(200)
+    monkeypatch.setattr(ParticleFilter, "_resample", lambda *args, **kwargs: pytest.fail("Python resampling"))
+    for _ in range(3):
+        pf.step(u, observations)
+        assert pf.resampled and pf.motion_state.shape == (200, 4)
+
+
 def test_adaptive_phase_starts_from_its_stationary_mix():
     # The collision phase is timed from the stationary mix of its transitions, so its cost does not drift
     # with the number of calls: one more transition leaves the shares of the five states where they were.

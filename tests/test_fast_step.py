@@ -21,12 +21,14 @@ from mcl.filter import augmented_update
 from mcl.reference import PHASES, compiled_phases, full_step, sample_injection_reference
 from mcl.resampling import SCHEMES, gather_with_jitter
 from mcl.weights import log_mean_likelihood, normalize
-from motion_models import ConstantNoise, MotionInput, VelocityLinear
+from motion_models import AdaptiveMotion, ConstantNoise, MotionInput, VelocityLinear
 from motion_models._kernels import CHUNK, balanced_chunk, draw_variates
 from sensing import LandmarkSensorModel, Observations
+from sensing.collision import NO_COLLISION, CollisionPercept
 
 FIELD = spl()
 TRUE_POSE = np.array([1.0, 0.5, 0.3])
+COLLISION = CollisionPercept(left=True, s_rel_left=1.5, rate=0.3, recent_left=True)
 
 
 @dataclass(frozen=True, eq=False)
@@ -43,7 +45,10 @@ class PlainFilter(ParticleFilter):
     then `gather_with_jitter` on `draw_variates`, `cluster_estimate` and `grid_entropy` on fresh histograms."""
 
     def _move(self, u):
-        self.motion_model.predict(self.poses, u, self.rng)
+        if self._motion_state is None:
+            self.motion_model.predict(self.poses, u, self.rng)
+        else:
+            self.motion_model.predict(self.poses, u, self.rng, state=self._motion_state)
         self._carry_heading(u)
         self._changed()
 
@@ -83,6 +88,9 @@ class PlainFilter(ParticleFilter):
         previous = self.poses.copy()
         gather_with_jitter(previous, ancestors, self.roughening * math.sqrt(3.0), draw_variates(self.rng, keep, False),
                            self.poses)
+        if self._motion_state is not None:
+            self._motion_state[:keep] = self._motion_state[ancestors]
+            self._motion_state[keep:] = self.motion_model.particle_state(self.n - keep)
         self.poses[keep:] = injected
         self.log_weights[:] = -math.log(self.n)
         self._weights[:] = 1.0 / self.n
@@ -133,7 +141,7 @@ def state(pf):
     return (pf.poses.copy(), pf.log_weights.copy(), np.array(pf.weights), pf.w_slow, pf.w_fast, pf.ess,
             pf.resampled, pf.injected, pf.frame_fit, pf._heading_reference, pf._ever_confident,
             pf.rng.bit_generator.state, estimate.pose.copy(), estimate.covariance.copy(), estimate.weight,
-            entropy.position, entropy.orientation)
+            entropy.position, entropy.orientation, None if pf.motion_state is None else pf.motion_state.copy())
 
 
 def same(a, b):
@@ -152,7 +160,9 @@ def scenario(pf, steps=45, seed=1, use_step=True, kinds=("goalpost", "t_crossing
     truth = TRUE_POSE.copy()
     for k in range(steps):
         command = (0.2 * math.sin(0.1 * k), 0.05, 0.3 * math.cos(0.05 * k))
-        u = MotionInput(dt=0.033, command=command)
+        # (a stateful adaptive model also gets collisions now and then: its particles change mobility state)
+        collision = (COLLISION if k % 5 == 1 else NO_COLLISION) if isinstance(pf.motion_model, AdaptiveMotion) else None
+        u = MotionInput(dt=0.033, command=command, collision=collision)
         truth = truth + np.array([0.033 * command[0], 0.0, 0.033 * command[2]])
         if kidnap and k == steps // 2:
             truth = truth + np.array([-2.0, 1.0, 0.0])
@@ -175,6 +185,8 @@ def scenario(pf, steps=45, seed=1, use_step=True, kinds=("goalpost", "t_crossing
     dict(roughening=(0.0, 0.0, 0.0)),
     dict(n=1),
     dict(n=700),
+    dict(motion=AdaptiveMotion()),
+    dict(motion=AdaptiveMotion(), resample_threshold=1.0, augmented=None),
 ])
 @pytest.mark.parametrize("use_step", [True, False])
 def test_compiled_path_equals_the_plain_sequence_bit_for_bit(options, use_step):

@@ -111,6 +111,26 @@ def test_resampling_with_jitter_equals_systematic_then_gather(weights, seed, m, 
     assert np.array_equal(again, expected)
 
 
+@given(weight_lists, st.integers(0, 2**32 - 1), st.integers(0, 60), st.integers(1, 5))
+def test_motion_state_follows_the_resampled_particles(weights, seed, m, columns):
+    """gather_offspring_rows moves the ancestors' rows (a stateful motion model's per-particle state) to the
+    offspring `resample_with_jitter` placed with the same u0: those of `systematic`."""
+    from mcl.resampling import gather_offspring_rows, resample_with_jitter
+    from motion_models._kernels import bit_generator_handle
+
+    n = weights.shape[0]
+    rows = np.random.default_rng(seed).standard_normal((max(n, m), columns))
+    expected = rows.copy()
+    expected[:m] = rows[systematic(weights, m, np.random.default_rng(seed))]
+    counts, scratch = np.zeros(m + 1, dtype=np.int64), np.full((m, columns), np.nan)
+    generator = np.random.default_rng(seed)          # (kept: a handle does not keep its generator alive)
+    u0 = resample_with_jitter(weights, m, np.zeros((n, 3)), np.zeros(3), np.empty((m, 3)), np.empty((0, 2)),
+                              *bit_generator_handle(generator), counts, np.empty((3, 0)))
+    assert u0 == np.random.default_rng(seed).random()
+    gather_offspring_rows(weights, m, u0, counts, rows, scratch)
+    assert np.array_equal(rows, expected) and not counts.any()
+
+
 @settings(max_examples=20)
 @given(weight_lists, st.integers(0, 2**32 - 1))
 def test_chunked_resampling(weights, seed):
