@@ -134,7 +134,7 @@ def evaluate_targets(result: dict) -> list[dict]:
                 f"{rows[-1]['step_peak_bytes']:,} B at N = {rows[-1]['n']:,} ({memory['step_peak_ratio']:.1f}x)")
         counts = [row["numba_allocations_per_step"] for row in rows]
         if None not in counts:
-            note += (f"; arrays allocated in kernels per step {counts[0]:.0f} -> {counts[-1]:.0f}"
+            note += (f"; numba allocations per step {counts[0]:.0f} -> {counts[-1]:.0f}"
                      f"{' (grows with N)' if kernel_growth else ''}")
         targets.append(_target("steady_state_allocation", "steady-state step: no allocation growing with N",
                                value, "B/particle per step", met, note))
@@ -288,11 +288,11 @@ def format_report(result: dict) -> str:
             lines.append(f"memory at N = {r['n']:>7}: filter {r['filter_bytes'] / 1e6:.2f} MB; one step's scratch "
                          f"(tracemalloc peak) {r['step_peak_bytes'] / 1e6:.3f} MB = "
                          f"{r['step_peak_bytes_per_particle']:.1f} B/particle; kept per step "
-                         f"{r['retained_bytes_per_step']:.0f} B; arrays allocated in kernels per step "
+                         f"{r['retained_bytes_per_step']:.0f} B; numba allocations per step "
                          f"{'?' if allocations is None else f'{allocations:.0f}'}")
         lines.append(f"  step scratch grows with N: {'yes' if memory['grows_with_n'] else 'no'} "
                      f"({memory['step_peak_ratio']:.1f}x from N = {memory['sizes'][0]:,} to {memory['sizes'][-1]:,}); "
-                     f"arrays allocated in kernels grow with N: "
+                     f"numba allocations grow with N: "
                      f"{'yes' if memory.get('kernel_allocations_grow_with_n') else 'no'}")
     elif isinstance(result.get("memory"), dict):
         lines.append(f"memory: {_failure(result['memory'])}")

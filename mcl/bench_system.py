@@ -236,8 +236,9 @@ def memory_in_process(sizes, steps: int) -> list[dict]:
     filter_bytes: what building the filter allocated (its buffers). step_peak_bytes: the largest scratch
     memory of one step above what was allocated before it (its high-water mark, numpy and Python objects).
     retained_bytes_per_step: snapshot difference over `steps` steps, per step (> 0: the step keeps memory).
-    numba_allocations_per_step: arrays allocated inside the kernels (NUMBA_NRT_STATS; tracemalloc does not see
-    them), None when the counters are off."""
+    numba_allocations_per_step: numba's allocations during the step (NUMBA_NRT_STATS; tracemalloc does not see
+    them): the arrays made inside the kernels and the wrapper numba makes for each array handed to a kernel,
+    which is most of them; None when the counters are off."""
     import tracemalloc
 
     from numba.core.runtime import rtsys
@@ -303,5 +304,6 @@ def memory(sizes=(10_000, 100_000), steps: int = 40) -> dict:
             "grows_with_n": bool(len(rows) > 1 and ratio > 2.0),
             "kernel_allocations_grow_with_n": bool(None not in counts and counts[1] > 2 * counts[0] + 10),
             "retains_memory": bool(leak > 1024),
-            "note": "scratch memory per step from tracemalloc (numpy arrays and Python objects); arrays allocated "
-                    "inside numba kernels are counted (numba_allocations_per_step) but not sized"}
+            "note": "scratch memory per step from tracemalloc (numpy arrays and Python objects); numba's "
+                    "allocations (arrays made in kernels, wrappers of the arrays handed to them) are counted "
+                    "(numba_allocations_per_step) but not sized"}
