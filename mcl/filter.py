@@ -681,8 +681,9 @@ class ParticleFilter:
                 log_outlier, n - self.injected, terms, augmented, alpha_slow, alpha_fast, ratio_threshold,
                 fit_threshold, self.w_slow, self.w_fast, cap, self.resample_threshold,
                 self.resampling == "systematic" and (self._motion_state is None or not chunk), self.roughening,
-                self._state_rows, self._state_scratch, self._grid_parameters, coordinates, histograms, bitmaps, want_estimate, self._previous_estimate,
-                self._has_previous_estimate, mean, covariance, self._entropy_wanted, chunk, self._fast)
+                self._state_rows, self._state_scratch, self._grid_parameters, coordinates, histograms, bitmaps,
+                want_estimate, self._previous_estimate, self._has_previous_estimate, mean, covariance,
+                self._entropy_wanted, chunk, self._fast)
         if status == _STEP_MISSING:
             self.sensor_model.check(observations)     # raises, naming the detection; nothing has changed
             raise ValueError("a detection's landmark type is not on this field")

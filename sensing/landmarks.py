@@ -46,7 +46,7 @@ from numba.extending import intrinsic
 
 from field import Field, LandmarkType
 from field.angles import wrap_angle, wrap_angles
-from motion_models._kernels import INTEGERS_LIMIT, bounded_integers, draw_handles, draw_uniforms
+from motion_models._kernels import bounded_integers, draw_handles, draw_uniforms
 
 from .observations import Observations
 
@@ -581,12 +581,8 @@ class LandmarkSensorModel:
         # The landmarks' n uniforms, then the headings' n when uniform (rng.uniform(-π, π, n) is -π + 2π·u on
         # these): one stream, so rng.random(n) twice is rng.random(2n).
         uniforms = np.empty(2 * n if uniform_heading else n)
-        if m <= INTEGERS_LIMIT:
-            function, state, integers = draw_handles(rng)
-            reset_choices(integers, function, state, m, detection, uniforms)
-        else:
-            detection[:] = rng.integers(0, m, size=n)
-            rng.random(out=uniforms)
+        function, state, integers = draw_handles(rng)      # (m <= INTEGERS_LIMIT: far more than fit in memory)
+        reset_choices(integers, function, state, m, detection, uniforms)
         landmark = uniforms[:n]
         if uniform_heading:
             angles = uniforms[n:]
