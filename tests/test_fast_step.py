@@ -16,6 +16,7 @@ from hypothesis import strategies as st
 
 from field import spl
 from mcl import AugmentedMCL, Entropy, Estimate, ParticleFilter
+from mcl.bench_step import COLLISION
 from mcl.estimate import cluster_estimate, grid_entropy
 from mcl.filter import augmented_update
 from mcl.reference import PHASES, compiled_phases, full_step, sample_injection_reference
@@ -24,11 +25,10 @@ from mcl.weights import log_mean_likelihood, normalize
 from motion_models import AdaptiveMotion, ConstantNoise, MotionInput, VelocityLinear
 from motion_models._kernels import CHUNK, balanced_chunk, draw_variates
 from sensing import LandmarkSensorModel, Observations
-from sensing.collision import NO_COLLISION, CollisionPercept
+from sensing.collision import NO_COLLISION
 
 FIELD = spl()
 TRUE_POSE = np.array([1.0, 0.5, 0.3])
-COLLISION = CollisionPercept(left=True, s_rel_left=1.5, rate=0.3, recent_left=True)
 
 
 @dataclass(frozen=True, eq=False)
