@@ -62,11 +62,10 @@ import numpy as np
 
 from field import Field
 from field.angles import wrap_angle, wrap_angles
-from motion_models._kernels import (FAST, SQRT3, balanced_chunk, bit_generator_handle, draw_uniforms, draw_variates,
-                                    fast_sincos, move_chunked, move_range, move_range_fast, parallel_uniforms,
-                                    MOVE_WORK, NO_WORK)
+from motion_models._kernels import (SQRT3, balanced_chunk, bit_generator_handle, draw_uniforms, draw_variates,
+                                    move_chunked, move_range, move_range_fast, parallel_uniforms, MOVE_WORK, NO_WORK)
 from motion_models.base import BoundedNoiseModel, MotionInput, MotionModel
-from sensing.landmarks import BLOCK, COS, SIN, TOTAL, X, Y, block_work, load_block, prepare_detections, score_block
+from sensing.landmarks import BLOCK, TOTAL, block_work, load_block, prepare_detections, score_block
 from sensing.observations import Observations
 
 from .estimate import (summary_buffers, summary_entropy, summary_estimate, summary_estimate_chunked,
@@ -935,7 +934,6 @@ class ParticleFilter:
 # -- the compiled step ---------------------------------------------------------------------------------------------
 _CHUNK = 4096        # particles per chunk with threads > 1, about (`balanced_chunk`: a function of N alone, so the
                      # results do not depend on the threads)
-THETA = TOTAL        # `_load_block_fast` keeps the headings in the work array's row TOTAL until they are scored
 
 
 class _Threads:
@@ -1067,25 +1065,6 @@ def _summarize(grid, source, weights, coordinates, histograms, bitmaps, want_est
     return weight, position, orientation
 
 
-@numba.njit(cache=True, fastmath=FAST, error_model="numpy")
-def _trig_fast(work, count):
-    for p in range(count):
-        work[COS, p], work[SIN, p] = fast_sincos(work[THETA, p])
-
-
-@numba.njit(cache=True)
-def _load_block_fast(poses, start, count, work, trig):
-    """`load_block` with `fast_sincos` (the work array's rows TOTAL holds the headings meanwhile)."""
-    for p in range(count):
-        work[X, p] = poses[start + p, 0]
-        work[Y, p] = poses[start + p, 1]
-        work[THETA, p] = poses[start + p, 2]
-    _trig_fast(work, count)
-    for p in range(count):
-        trig[start + p, 0] = work[COS, p]
-        trig[start + p, 1] = work[SIN, p]
-
-
 @numba.njit(cache=True)
 def _predict_and_score(poses, scratch, trig, log_likelihood, move, dx, dy, dtheta, bound_x, bound_y, bound_theta,
                        gaussian, variates, function, state, table, offsets, detections, groups, log_outlier, start,
@@ -1104,10 +1083,7 @@ def _predict_and_score(poses, scratch, trig, log_likelihood, move, dx, dy, dthet
         else:
             move_range(poses, scratch, block, end, dx, dy, dtheta, bound_x, bound_y, bound_theta, gaussian,
                        variates, function, state, move_work)
-        if fast:
-            _load_block_fast(scratch, block, end - block, work, trig)
-        else:
-            load_block(scratch, block, end - block, work, trig)
+        load_block(scratch, block, end - block, work, trig, fast)
         score_block(work, end - block, table, offsets, detections, groups, log_outlier)
         log_likelihood[block:end] = work[TOTAL, :end - block]
 

@@ -25,6 +25,7 @@ import numba
 import numpy as np
 
 from field.angles import wrap_angle, wrap_angles
+from motion_models._kernels import sincos, sincos_reference
 
 IDENTITY = (0.0, 0.0, 0.0)
 SAME_TIME = 1e-6     # s: times closer than this are one instant (log stamps are integer nanoseconds)
@@ -43,7 +44,7 @@ def move_back(poses: np.ndarray, displacement: np.ndarray, out: np.ndarray) -> N
     dx, dy, dtheta = displacement[0], displacement[1], displacement[2]
     for i in range(poses.shape[0]):
         theta = poses[i, 2] - dtheta
-        c, s = math.cos(theta), math.sin(theta)
+        c, s = sincos(theta)
         out[i, 0] = poses[i, 0] - (c * dx - s * dy)
         out[i, 1] = poses[i, 1] - (s * dx + c * dy)
         out[i, 2] = wrap_angle(theta)
@@ -55,7 +56,7 @@ def move_forward(poses: np.ndarray, displacement: np.ndarray, out: np.ndarray) -
     dx, dy, dtheta = displacement[0], displacement[1], displacement[2]
     for i in range(poses.shape[0]):
         theta = poses[i, 2]
-        c, s = math.cos(theta), math.sin(theta)
+        c, s = sincos(theta)
         out[i, 0] = poses[i, 0] + (c * dx - s * dy)
         out[i, 1] = poses[i, 1] + (s * dx + c * dy)
         out[i, 2] = wrap_angle(theta + dtheta)
@@ -65,7 +66,7 @@ def move_back_reference(poses: np.ndarray, displacement) -> np.ndarray:
     """Plain numpy twin of `move_back`."""
     dx, dy, dtheta = displacement
     theta = poses[:, 2] - dtheta
-    c, s = np.cos(theta), np.sin(theta)
+    c, s = sincos_reference(theta)
     return np.column_stack([poses[:, 0] - (c * dx - s * dy), poses[:, 1] - (s * dx + c * dy), wrap_angles(theta)])
 
 

@@ -23,7 +23,7 @@ import numba
 import numpy as np
 
 from field.angles import wrap_angles
-from motion_models._kernels import draw_uniforms, next_double, parallel_uniforms, wrap
+from motion_models._kernels import draw_uniforms, next_double, parallel_uniforms, sincos, sincos_reference, wrap
 
 
 @numba.njit(cache=True, inline="always")
@@ -173,9 +173,9 @@ def gather_with_jitter(source, ancestors, bounds, uniforms, out):
     for k in range(ancestors.shape[0]):
         i = ancestors[k]
         theta = source[i, 2]
-        out[k, 0], out[k, 1], out[k, 2] = jitter_pose(source[i, 0], source[i, 1], theta, math.cos(theta),
-                                                      math.sin(theta), uniforms[k, 0], uniforms[k, 1],
-                                                      uniforms[k, 2], bx, by, bt)
+        c, s = sincos(theta)
+        out[k, 0], out[k, 1], out[k, 2] = jitter_pose(source[i, 0], source[i, 1], theta, c, s, uniforms[k, 0],
+                                                      uniforms[k, 1], uniforms[k, 2], bx, by, bt)
     return out
 
 
@@ -254,8 +254,7 @@ def _place(source, j, trig, known, uniforms, u, bx, by, bt, out, k, coordinates,
         c = trig[j, 0]
         s = trig[j, 1]
     else:
-        c = math.cos(theta)
-        s = math.sin(theta)
+        c, s = sincos(theta)
     x, y, theta = jitter_pose(source[j, 0], source[j, 1], theta, c, s, uniforms[u], uniforms[u + 1],
                               uniforms[u + 2], bx, by, bt)
     out[k, 0] = x
@@ -408,7 +407,7 @@ def gather_with_jitter_reference(source, ancestors, bounds, uniforms):
     """Numpy twin of `gather_with_jitter`."""
     picked = source[ancestors].copy()
     noise = (2.0 * uniforms - 1.0) * bounds
-    c, s = np.cos(picked[:, 2]), np.sin(picked[:, 2])
+    c, s = sincos_reference(picked[:, 2])
     picked[:, 0] += c * noise[:, 0] - s * noise[:, 1]
     picked[:, 1] += s * noise[:, 0] + c * noise[:, 1]
     picked[:, 2] = wrap_angles(picked[:, 2] + noise[:, 2])

@@ -13,6 +13,8 @@ is stepped in the kernel, eight independent steps at a time, and `parallel_unifo
 their chunks of the same stream (jumping ahead). `move_drawing_noise` draws so; its results equal
 `move_with_noise` on `draw_variates(rng, n, False)` bit for bit. `move_chunked` spreads the particles over
 threads (the same poses), and `move_range_fast` is the opt-in fast-math variant (poses to rounding).
+A heading's cos and sin come from `sincos`, a branch-free polynomial that vectorizes and gives the same bits on
+every machine (libm's vary with the C library), not from libm.
 """
 import ctypes
 import math
@@ -417,14 +419,113 @@ def _move_work(work):
     return work if work.shape[0] >= MOVE_WORK else np.empty(MOVE_WORK)
 
 
-@numba.njit(cache=True)
-def move_pose(x, y, theta, dx, dy, dtheta, ex, ey, et):
-    """One pose moved by the robot-frame displacement (dx, dy, dtheta) plus the robot-frame noise (ex, ey, et)."""
-    c = math.cos(theta)
-    s = math.sin(theta)
+# -- sin and cos without libm ----------------------------------------------------------------------------------------
+# A particle's heading needs its cos and sin at every motion update and every scoring. libm's are one call each,
+# which no loop can vectorize, and their last bits depend on the C library's version. `sincos` is the fdlibm
+# polynomial kernel after a Cody-Waite reduction by π/2, written branch-free so that a loop over particles
+# vectorizes: for |x| <= 100 it is within 2.3·10⁻¹⁶ of the exact values (within one unit in the last place of
+# libm's, which it equals in about three cases of four). It is inlined, so it is compiled with its caller's flags:
+# plain IEEE arithmetic in the default kernels, where it gives the same bits on every machine as its numpy twin
+# `sincos_reference`, and fast-math in the `fast=True` kernels.
+_PIO2_HIGH = 1.57079632673412561417e+00     # the first 33 bits of π/2
+_PIO2_LOW = 6.07710050650619224932e-11      # π/2 - _PIO2_HIGH
+_TWO_OVER_PI = 6.36619772367581382433e-01
+_S1, _S2, _S3 = -1.66666666666666324348e-01, 8.33333333332248946124e-03, -1.98412698298579493134e-04
+_S4, _S5, _S6 = 2.75573137070700676789e-06, -2.50507602534068634195e-08, 1.58969099521155010221e-10
+_C1, _C2, _C3 = 4.16666666666666019037e-02, -1.38888888888741095749e-03, 2.48015872894767294178e-05
+_C4, _C5, _C6 = -2.75573143513906633035e-07, 2.08757232129817482790e-09, -1.13596475577881948265e-11
+
+
+@numba.njit(cache=True, inline="always")
+def sincos(x):
+    """(cos x, sin x) within 2.3·10⁻¹⁶ for |x| <= 100, branch-free (vectorizes); `sincos_reference` bit for bit
+    in kernels compiled without fast-math."""
+    k = np.floor(x * _TWO_OVER_PI + 0.5)              # the nearest multiple of π/2 (either one at a tie)
+    r = (x - k * _PIO2_HIGH) - k * _PIO2_LOW
+    z = r * r
+    s = r + r * z * (_S1 + z * (_S2 + z * (_S3 + z * (_S4 + z * (_S5 + z * _S6)))))
+    c = 1.0 - 0.5 * z + z * z * (_C1 + z * (_C2 + z * (_C3 + z * (_C4 + z * (_C5 + z * _C6)))))
+    quadrant = k - 4.0 * np.floor(k * 0.25)         # k mod 4, kept in floats (AVX2 has no double → int64)
+    odd = (quadrant == 1.0) | (quadrant == 3.0)
+    sine = c if odd else s
+    cosine = s if odd else c
+    sine = -sine if quadrant >= 2.0 else sine
+    cosine = -cosine if (quadrant == 1.0) | (quadrant == 2.0) else cosine
+    return cosine, sine
+
+
+def sincos_reference(x) -> tuple[np.ndarray, np.ndarray]:
+    """Numpy twin of `sincos`: the same operations, elementwise, so the same bits."""
+    x = np.asarray(x, dtype=np.float64)
+    k = np.floor(x * _TWO_OVER_PI + 0.5)
+    r = (x - k * _PIO2_HIGH) - k * _PIO2_LOW
+    z = r * r
+    s = r + r * z * (_S1 + z * (_S2 + z * (_S3 + z * (_S4 + z * (_S5 + z * _S6)))))
+    c = 1.0 - 0.5 * z + z * z * (_C1 + z * (_C2 + z * (_C3 + z * (_C4 + z * (_C5 + z * _C6)))))
+    quadrant = k - 4.0 * np.floor(k * 0.25)
+    odd = (quadrant == 1.0) | (quadrant == 3.0)
+    sine = np.where(odd, c, s)
+    cosine = np.where(odd, s, c)
+    return (np.where((quadrant == 1.0) | (quadrant == 2.0), -cosine, cosine),
+            np.where(quadrant >= 2.0, -sine, sine))
+
+
+@numba.njit(cache=True, error_model="numpy")
+def _move_rows(rows, count, dx, dy, dtheta, bound_x, bound_y, bound_theta, gaussian, noise):
+    """Rows x, y, θ of a block moved by the robot-frame displacement (dx, dy, dθ) plus the robot-frame noise from
+    noise[3p:3p + 3] (a loop over the particles of separate rows vectorizes, with `sincos`; over (N, 3) rows it
+    does not)."""
+    if gaussian:
+        sx = bound_x / SQRT3
+        sy = bound_y / SQRT3
+        st = bound_theta / SQRT3
+        for p in range(count):
+            _move_row(rows, p, dx, dy, dtheta, noise[3 * p] * sx, noise[3 * p + 1] * sy, noise[3 * p + 2] * st)
+    else:
+        for p in range(count):
+            _move_row(rows, p, dx, dy, dtheta, (2.0 * noise[3 * p] - 1.0) * bound_x,
+                      (2.0 * noise[3 * p + 1] - 1.0) * bound_y, (2.0 * noise[3 * p + 2] - 1.0) * bound_theta)
+
+
+@numba.njit(cache=True, inline="always")
+def _move_row(rows, p, dx, dy, dtheta, ex, ey, et):
+    theta = rows[2, p]
+    c, s = sincos(theta)
     mx = dx + ex
     my = dy + ey
-    return x + (c * mx - s * my), y + (s * mx + c * my), wrap(theta + dtheta + et)
+    rows[0, p] += c * mx - s * my
+    rows[1, p] += s * mx + c * my
+    rows[2, p] = wrap(theta + dtheta + et)
+
+
+@numba.njit(cache=True, inline="always")
+def _move_blocks(source, out, start, stop, dx, dy, dtheta, bound_x, bound_y, bound_theta, gaussian, variates,
+                 function, state, work, fast):
+    """`move_range` (`move_range_fast` when `fast`, a literal): a block of DRAWS particles at a time, copied into
+    rows, moved there and copied out."""
+    work = _move_work(work)
+    uniforms = work[:3 * DRAWS]
+    rows = work[3 * DRAWS:MOVE_WORK].reshape((3, DRAWS))
+    for block in range(start, stop, DRAWS):
+        end = min(block + DRAWS, stop)
+        count = end - block
+        if variates.shape[0] == 0:
+            draw_uniforms(function, state, uniforms, 3 * count)
+            noise = uniforms
+        else:
+            noise = variates[block:end].reshape(-1)
+        for p in range(count):
+            rows[0, p] = source[block + p, 0]
+            rows[1, p] = source[block + p, 1]
+            rows[2, p] = source[block + p, 2]
+        if fast:
+            _move_fast_rows(rows, count, dx, dy, dtheta, bound_x, bound_y, bound_theta, gaussian, noise)
+        else:
+            _move_rows(rows, count, dx, dy, dtheta, bound_x, bound_y, bound_theta, gaussian, noise)
+        for p in range(count):
+            out[block + p, 0] = rows[0, p]
+            out[block + p, 1] = rows[1, p]
+            out[block + p, 2] = rows[2, p]
 
 
 @numba.njit(cache=True)
@@ -436,33 +537,8 @@ def move_range(source, out, start, stop, dx, dy, dtheta, bound_x, bound_y, bound
     here (x, y, θ in that order, as `rng.random((n, 3))` lays them out; uniform noise only). work: scratch of
     MOVE_WORK floats kept by a caller that moves a block at a time (`NO_WORK`: allocated here).
     """
-    sx = bound_x / SQRT3
-    sy = bound_y / SQRT3
-    st = bound_theta / SQRT3
-    if variates.shape[0] == 0:
-        uniforms = _move_work(work)[:3 * DRAWS]
-        for block in range(start, stop, DRAWS):
-            count = min(DRAWS, stop - block)
-            draw_uniforms(function, state, uniforms, 3 * count)
-            for p in range(count):
-                i = block + p
-                ex = (2.0 * uniforms[3 * p] - 1.0) * bound_x
-                ey = (2.0 * uniforms[3 * p + 1] - 1.0) * bound_y
-                et = (2.0 * uniforms[3 * p + 2] - 1.0) * bound_theta
-                out[i, 0], out[i, 1], out[i, 2] = move_pose(source[i, 0], source[i, 1], source[i, 2], dx, dy,
-                                                            dtheta, ex, ey, et)
-        return
-    for i in range(start, stop):
-        if gaussian:
-            ex = variates[i, 0] * sx
-            ey = variates[i, 1] * sy
-            et = variates[i, 2] * st
-        else:
-            ex = (2.0 * variates[i, 0] - 1.0) * bound_x
-            ey = (2.0 * variates[i, 1] - 1.0) * bound_y
-            et = (2.0 * variates[i, 2] - 1.0) * bound_theta
-        out[i, 0], out[i, 1], out[i, 2] = move_pose(source[i, 0], source[i, 1], source[i, 2], dx, dy, dtheta,
-                                                    ex, ey, et)
+    _move_blocks(source, out, start, stop, dx, dy, dtheta, bound_x, bound_y, bound_theta, gaussian, variates,
+                 function, state, work, False)
 
 
 @numba.njit(cache=True)
@@ -495,35 +571,10 @@ def move_chunked(poses, dx, dy, dtheta, bound_x, bound_y, bound_theta, gaussian,
 
 
 # -- the opt-in fast variant ----------------------------------------------------------------------------------------
-# libm's sin and cos are exact to the last bit or nearly, and a call each per particle is most of a motion update;
-# they cannot be vectorized without changing the last bits. `fast_sincos` is the fdlibm polynomial kernel after a
-# Cody-Waite reduction by π/2, written branch-free so that a loop over particles vectorizes; for |x| <= 100 it
-# agrees with libm to about 2·10⁻¹⁶. The filter uses it only with `fast=True`.
+# `move_range_fast`: the same polynomial sin and cos and a branch-free wrap, compiled with fast-math (contracted
+# into fused multiply-adds, reassociated): the same draws, the poses to rounding. The filter uses it only with
+# `fast=True`.
 FAST = {"nsz", "arcp", "contract", "afn", "reassoc"}    # fast-math without assuming no NaN / inf
-_PIO2_HIGH = 1.57079632673412561417e+00     # the first 33 bits of π/2
-_PIO2_LOW = 6.07710050650619224932e-11      # π/2 - _PIO2_HIGH
-_TWO_OVER_PI = 6.36619772367581382433e-01
-_S1, _S2, _S3 = -1.66666666666666324348e-01, 8.33333333332248946124e-03, -1.98412698298579493134e-04
-_S4, _S5, _S6 = 2.75573137070700676789e-06, -2.50507602534068634195e-08, 1.58969099521155010221e-10
-_C1, _C2, _C3 = 4.16666666666666019037e-02, -1.38888888888741095749e-03, 2.48015872894767294178e-05
-_C4, _C5, _C6 = -2.75573143513906633035e-07, 2.08757232129817482790e-09, -1.13596475577881948265e-11
-
-
-@numba.njit(cache=True, fastmath=FAST, inline="always")
-def fast_sincos(x):
-    """(cos x, sin x) to about 2·10⁻¹⁶ for |x| <= 100, branch-free (vectorizes)."""
-    k = np.floor(x * _TWO_OVER_PI + 0.5)              # the nearest multiple of π/2 (either one at a tie)
-    r = (x - k * _PIO2_HIGH) - k * _PIO2_LOW
-    z = r * r
-    s = r + r * z * (_S1 + z * (_S2 + z * (_S3 + z * (_S4 + z * (_S5 + z * _S6)))))
-    c = 1.0 - 0.5 * z + z * z * (_C1 + z * (_C2 + z * (_C3 + z * (_C4 + z * (_C5 + z * _C6)))))
-    quadrant = k - 4.0 * np.floor(k * 0.25)         # k mod 4, kept in floats (AVX2 has no double → int64)
-    odd = (quadrant == 1.0) | (quadrant == 3.0)
-    sine = c if odd else s
-    cosine = s if odd else c
-    sine = -sine if quadrant >= 2.0 else sine
-    cosine = -cosine if (quadrant == 1.0) | (quadrant == 2.0) else cosine
-    return cosine, sine
 
 
 @numba.njit(cache=True, fastmath=FAST, inline="always")
@@ -553,7 +604,7 @@ def _move_fast_rows(rows, count, dx, dy, dtheta, bound_x, bound_y, bound_theta, 
         ey = noise[3 * p + 1] * scale_y - shift_y
         et = noise[3 * p + 2] * scale_theta - shift_theta
         theta = rows[2, p]
-        c, s = fast_sincos(theta)
+        c, s = sincos(theta)
         mx = dx + ex
         my = dy + ey
         rows[0, p] += c * mx - s * my
@@ -564,27 +615,9 @@ def _move_fast_rows(rows, count, dx, dy, dtheta, bound_x, bound_y, bound_theta, 
 @numba.njit(cache=True)
 def move_range_fast(source, out, start, stop, dx, dy, dtheta, bound_x, bound_y, bound_theta, gaussian, variates,
                     function, state, work):
-    """`move_range` with `fast_sincos` and fast-math: the same draws, the poses to rounding."""
-    work = _move_work(work)
-    uniforms = work[:3 * DRAWS]
-    rows = work[3 * DRAWS:MOVE_WORK].reshape((3, DRAWS))
-    for block in range(start, stop, DRAWS):
-        end = min(block + DRAWS, stop)
-        count = end - block
-        if variates.shape[0] == 0:
-            draw_uniforms(function, state, uniforms, 3 * count)
-            noise = uniforms
-        else:
-            noise = variates[block:end].reshape(-1)
-        for p in range(count):
-            rows[0, p] = source[block + p, 0]
-            rows[1, p] = source[block + p, 1]
-            rows[2, p] = source[block + p, 2]
-        _move_fast_rows(rows, count, dx, dy, dtheta, bound_x, bound_y, bound_theta, gaussian, noise)
-        for p in range(count):
-            out[block + p, 0] = rows[0, p]
-            out[block + p, 1] = rows[1, p]
-            out[block + p, 2] = rows[2, p]
+    """`move_range` with fast-math: the same draws, the poses to rounding."""
+    _move_blocks(source, out, start, stop, dx, dy, dtheta, bound_x, bound_y, bound_theta, gaussian, variates,
+                 function, state, work, True)
 
 
 def move_with_noise_reference(poses, dx, dy, dtheta, bound_x, bound_y, bound_theta, gaussian, variates):
@@ -594,7 +627,7 @@ def move_with_noise_reference(poses, dx, dy, dtheta, bound_x, bound_y, bound_the
     else:
         noise = (2.0 * variates - 1.0) * np.array([bound_x, bound_y, bound_theta])
     theta = poses[:, 2].copy()
-    c, s = np.cos(theta), np.sin(theta)
+    c, s = sincos_reference(theta)
     mx = dx + noise[:, 0]
     my = dy + noise[:, 1]
     poses[:, 0] += c * mx - s * my

@@ -53,10 +53,10 @@ import numba
 import numpy as np
 import scipy.linalg
 
-from field.angles import wrap_angle, wrap_angles
+from field.angles import wrap_angles
 from sensing.collision import CollisionPercept
 
-from ._kernels import DRAWS, bit_generator_handle, draw_uniforms
+from ._kernels import DRAWS, bit_generator_handle, draw_uniforms, sincos, sincos_reference, wrap
 from .base import MotionInput, check_nonnegative, check_poses
 
 FREE, SLIPPAGE, HINDRANCE, PUSHED, STOPPED = range(5)
@@ -274,7 +274,7 @@ def adaptive_move(poses, state, cumulative, vx, vy, omega, dt, side, params, red
     share their chord, noise bounds and turn, so these are computed once; a stopped particle's displacement
     is exactly ±0, which leaves a non-zero coordinate unchanged, so only its heading is computed."""
     _adaptive_range(poses, state, cumulative, vx, vy, omega, dt, side, params, redraw_each_step, variates, 0, 0,
-                    poses.shape[0])
+                    poses.shape[0], np.empty((MOVE_ROWS, DRAWS)))
 
 
 @numba.njit(cache=True)
@@ -286,24 +286,60 @@ def adaptive_move_drawing(poses, state, cumulative, vx, vy, omega, dt, side, par
     n = poses.shape[0]
     variates = np.empty((DRAWS, VARIATES))
     flat = variates.reshape(-1)
+    rows = np.empty((MOVE_ROWS, DRAWS))
     for start in range(0, n, DRAWS):
         stop = min(start + DRAWS, n)
         draw_uniforms(function, generator, flat, VARIATES * (stop - start))
         _adaptive_range(poses, state, cumulative, vx, vy, omega, dt, side, params, redraw_each_step, variates,
-                        start, start, stop)
+                        start, start, stop, rows)
+
+
+MOVE_ROWS = 6      # `_adaptive_range`'s scratch rows: turned heading, dx, dy, new heading, cos, sin
 
 
 @numba.njit(cache=True)
 def _adaptive_range(poses, state, cumulative, vx, vy, omega, dt, side, params, redraw_each_step, all_variates, first,
-                    start, stop):
-    """`adaptive_move` of particles start..stop-1; particle i's variates are all_variates[i - first]."""
-    variates = all_variates[start - first:stop - first]
+                    start, stop, rows):
+    """`adaptive_move` of particles start..stop-1; particle i's variates are all_variates[i - first]. rows:
+    (MOVE_ROWS, DRAWS) scratch. A block of particles at a time, in two passes: each particle's state and
+    robot-frame displacement, then the rotation into the field frame, whose cos and sin take a loop that
+    vectorizes (`sincos`)."""
+    for block in range(start, stop, DRAWS):
+        end = min(block + DRAWS, stop)
+        _adaptive_block(poses, state, cumulative, vx, vy, omega, dt, side, params, redraw_each_step,
+                        all_variates[block - first:end - first], block, end - block, rows)
+        _rotate_rows(rows, end - block)
+        for p in range(end - block):
+            i = block + p
+            c = rows[4, p]
+            s = rows[5, p]
+            dx = rows[1, p]
+            dy = rows[2, p]
+            poses[i, 0] += c * dx - s * dy
+            poses[i, 1] += s * dx + c * dy
+            poses[i, 2] = rows[3, p]
+
+
+@numba.njit(cache=True, error_model="numpy")
+def _rotate_rows(rows, count):
+    """Rows 4 and 5 (cos and sin) from row 0, row 3 wrapped: a loop that vectorizes."""
+    for p in range(count):
+        rows[4, p], rows[5, p] = sincos(rows[0, p])
+        rows[3, p] = wrap(rows[3, p])
+
+
+@numba.njit(cache=True)
+def _adaptive_block(poses, state, cumulative, vx, vy, omega, dt, side, params, redraw_each_step, variates, start,
+                    count, rows):
+    """The states of particles start..start+count-1 (variates[p] for particle start + p), and into rows[:4, p]
+    the heading to rotate by, the robot-frame displacement and the new heading (not yet wrapped). A stopped particle whose
+    coordinates are both non-zero gets a displacement of exactly zero: ±0 added leaves them unchanged."""
     beta1, beta2, beta3, beta4 = params[0], params[1], params[2], params[3]
     beta5, beta6, beta7, beta_turn, separation = params[4], params[5], params[6], params[7], params[8]
     odo1, odo2, odo3, odo4 = params[9], params[10], params[11], params[12]
     speed = math.sqrt(vx * vx + vy * vy)
     free_half = 0.5 * omega * dt
-    free_chord = math.sin(free_half) / free_half if abs(free_half) > 1e-9 else 1.0
+    free_chord = sincos(free_half)[1] / free_half if abs(free_half) > 1e-9 else 1.0
     free_dx = (vx + 0.0) * dt * free_chord
     free_dy = (vy + 0.0) * dt * free_chord
     free_bound_x = odo1 * speed * dt
@@ -312,28 +348,24 @@ def _adaptive_range(poses, state, cumulative, vx, vy, omega, dt, side, params, r
     free_turn = omega * dt
     side_known = side == side        # not NaN
     stopped_turn_rate = speed / separation * side * beta_turn
-    poses = poses[start:stop]
-    state = state[start:stop]
-    for i in range(stop - start):
+    for p in range(count):
+        i = start + p
         old = int(state[i, 0])
         new = 0
-        while variates[i, 0] >= cumulative[old, new]:
+        while variates[p, 0] >= cumulative[old, new]:
             new += 1
         if (old == 0 and new != 0) or redraw_each_step:
-            state[i, 1] = variates[i, 1]
-            state[i, 2] = variates[i, 2]
-            state[i, 3] = variates[i, 3]
+            state[i, 1] = variates[p, 1]
+            state[i, 2] = variates[p, 2]
+            state[i, 3] = variates[p, 3]
         if new != old:
             state[i, 0] = new         # (unchanged states stay clean in the cache: no write-back at large N)
         theta = poses[i, 2]
         if new == 0:      # free: the request plus eq. 10's noise
-            dx = free_dx + (2.0 * variates[i, 4] - 1.0) * free_bound_x
-            dy = free_dy + (2.0 * variates[i, 5] - 1.0) * free_bound_y
-            c = math.cos(theta + free_half)
-            s = math.sin(theta + free_half)
-            poses[i, 0] += c * dx - s * dy
-            poses[i, 1] += s * dx + c * dy
-            poses[i, 2] = wrap_angle(theta + free_turn + (2.0 * variates[i, 6] - 1.0) * free_bound_theta)
+            rows[0, p] = theta + free_half
+            rows[1, p] = free_dx + (2.0 * variates[p, 4] - 1.0) * free_bound_x
+            rows[2, p] = free_dy + (2.0 * variates[p, 5] - 1.0) * free_bound_y
+            rows[3, p] = (theta + free_turn + (2.0 * variates[p, 6] - 1.0) * free_bound_theta)
             continue
         e1, e2, e3 = state[i, 1], state[i, 2], state[i, 3]
         px, py = 0.0, 0.0                 # push velocity
@@ -344,7 +376,10 @@ def _adaptive_range(poses, state, cumulative, vx, vy, omega, dt, side, params, r
                 w = beta7 * (2.0 * e1 - 1.0)
             if poses[i, 0] != 0.0 and poses[i, 1] != 0.0:
                 # With no walking speed the noise bound of eq. 10 is odo4·|ω'|·dt alone.
-                poses[i, 2] = wrap_angle(theta + w * dt + (2.0 * variates[i, 6] - 1.0) * (odo4 * abs(w) * dt))
+                rows[0, p] = theta
+                rows[1, p] = 0.0
+                rows[2, p] = 0.0
+                rows[3, p] = (theta + w * dt + (2.0 * variates[p, 6] - 1.0) * (odo4 * abs(w) * dt))
                 continue
             ex, ey = 0.0, 0.0             # at a zero coordinate the sign of the zero displacement shows
         elif new == 1:    # slippage, eq. 14-15
@@ -359,21 +394,19 @@ def _adaptive_range(poses, state, cumulative, vx, vy, omega, dt, side, params, r
             ex, ey = vx, vy
             alpha = math.pi * (2.0 * e1 - 1.0)
             push = beta5 * e2
-            px, py = push * math.cos(alpha), push * math.sin(alpha)
+            c, s = sincos(alpha)
+            px, py = push * c, push * s
             w = omega + beta6 * (2.0 * e3 - 1.0)
         walked = math.sqrt(ex * ex + ey * ey)
         bound_x = odo1 * walked * dt
         bound_y = odo2 * walked * dt
         bound_theta = (odo3 * walked + odo4 * abs(w)) * dt
         half = 0.5 * w * dt
-        chord = math.sin(half) / half if abs(half) > 1e-9 else 1.0
-        dx = (ex + px) * dt * chord + (2.0 * variates[i, 4] - 1.0) * bound_x
-        dy = (ey + py) * dt * chord + (2.0 * variates[i, 5] - 1.0) * bound_y
-        c = math.cos(theta + half)
-        s = math.sin(theta + half)
-        poses[i, 0] += c * dx - s * dy
-        poses[i, 1] += s * dx + c * dy
-        poses[i, 2] = wrap_angle(theta + w * dt + (2.0 * variates[i, 6] - 1.0) * bound_theta)
+        chord = sincos(half)[1] / half if abs(half) > 1e-9 else 1.0
+        rows[0, p] = theta + half
+        rows[1, p] = (ex + px) * dt * chord + (2.0 * variates[p, 4] - 1.0) * bound_x
+        rows[2, p] = (ey + py) * dt * chord + (2.0 * variates[p, 5] - 1.0) * bound_y
+        rows[3, p] = (theta + w * dt + (2.0 * variates[p, 6] - 1.0) * bound_theta)
 
 
 def adaptive_move_reference(poses, state, cumulative, vx, vy, omega, dt, side, params, redraw_each_step, variates):
@@ -394,8 +427,9 @@ def adaptive_move_reference(poses, state, cumulative, vx, vy, omega, dt, side, p
     w = np.where(slip, omega + beta2 * (2 * e2 - 1), w)
     w = np.where(hinder, omega * (beta4 + (1 - beta4) * e2), w)
     alpha = np.pi * (2 * e1 - 1)
-    px = np.where(pushed, beta5 * e2 * np.cos(alpha), 0.0)
-    py = np.where(pushed, beta5 * e2 * np.sin(alpha), 0.0)
+    cos_alpha, sin_alpha = sincos_reference(alpha)
+    px = np.where(pushed, beta5 * e2 * cos_alpha, 0.0)
+    py = np.where(pushed, beta5 * e2 * sin_alpha, 0.0)
     w = np.where(pushed, omega + beta6 * (2 * e3 - 1), w)
     ex, ey = np.where(stopped, 0.0, ex), np.where(stopped, 0.0, ey)
     speed = math.hypot(vx, vy)
@@ -406,11 +440,11 @@ def adaptive_move_reference(poses, state, cumulative, vx, vy, omega, dt, side, p
     noise = (2 * variates[:, 4:7] - 1) * bounds
     half = 0.5 * w * dt
     safe = np.where(np.abs(half) > 1e-9, half, 1.0)
-    chord = np.where(np.abs(half) > 1e-9, np.sin(safe) / safe, 1.0)
+    chord = np.where(np.abs(half) > 1e-9, sincos_reference(safe)[1] / safe, 1.0)
     dx = (ex + px) * dt * chord + noise[:, 0]
     dy = (ey + py) * dt * chord + noise[:, 1]
     theta = poses[:, 2].copy()
-    c, s = np.cos(theta + half), np.sin(theta + half)
+    c, s = sincos_reference(theta + half)
     poses[:, 0] += c * dx - s * dy
     poses[:, 1] += s * dx + c * dy
     poses[:, 2] = wrap_angles(theta + w * dt + noise[:, 2])

@@ -46,19 +46,14 @@ from numba.extending import intrinsic
 
 from field import Field, LandmarkType
 from field.angles import wrap_angle, wrap_angles
-from motion_models._kernels import bounded_integers, draw_handles, draw_uniforms
+from motion_models._kernels import FAST, bounded_integers, draw_handles, draw_uniforms, sincos
 
 from .observations import Observations
 
 BEARING_MODELS = ("von_mises", "exact")
 
 
-# Fast-math without the no-NaN/no-inf assumptions: the kernel tests for NaN ("noise not given") and starts
-# its maximum at -inf. Contraction and reassociation let LLVM fuse and vectorize the candidate loop.
-FAST = {"nsz", "arcp", "contract", "afn", "reassoc"}
-
-
-@numba.njit(cache=True, fastmath=FAST)
+@numba.njit(cache=True)
 def landmark_log_likelihood(poses, table, offsets, kinds, ranges, bearings, range_sigmas, bearing_sigmas,
                             range_noise_floor, range_noise_growth, bearing_sigma, exact, sum_mixture, log_outlier,
                             out):
@@ -69,6 +64,21 @@ def landmark_log_likelihood(poses, table, offsets, kinds, ranges, bearings, rang
     Detections are grouped by type first, so the geometry to a type's candidates is computed once per
     particle and shared by all its detections.
     """
+    trig = np.empty((poses.shape[0], 2))       # the headings' cos and sin, here without fast-math: the bits
+    for i in range(poses.shape[0]):           # of the block kernels' (`load_block`)
+        trig[i, 0], trig[i, 1] = sincos(poses[i, 2])
+    _landmark_log_likelihood(poses, trig, table, offsets, kinds, ranges, bearings, range_sigmas, bearing_sigmas,
+                             range_noise_floor, range_noise_growth, bearing_sigma, exact, sum_mixture, log_outlier,
+                             out)
+
+
+# `FAST` is fast-math without the no-NaN/no-inf assumptions: the kernel tests for NaN ("noise not given") and
+# starts its maximum at -inf. Contraction and reassociation let LLVM fuse and vectorize the candidate loop.
+@numba.njit(cache=True, fastmath=FAST)
+def _landmark_log_likelihood(poses, trig, table, offsets, kinds, ranges, bearings, range_sigmas, bearing_sigmas,
+                             range_noise_floor, range_noise_growth, bearing_sigma, exact, sum_mixture, log_outlier,
+                             out):
+    """`landmark_log_likelihood` with the cos and sin of each heading given in trig (N, 2)."""
     m = kinds.shape[0]
     order = np.argsort(kinds, kind="mergesort")
     obs_range = np.empty(m)
@@ -118,8 +128,8 @@ def landmark_log_likelihood(poses, table, offsets, kinds, ranges, bearings, rang
     for i in range(poses.shape[0]):
         x = poses[i, 0]
         y = poses[i, 1]
-        c = math.cos(poses[i, 2])
-        s = math.sin(poses[i, 2])
+        c = trig[i, 0]
+        s = trig[i, 1]
         total = 0.0
         product = 1.0
         pending = 0
@@ -257,23 +267,37 @@ def block_work(offsets, groups, columns):
     return np.empty((GEOMETRY + 3 * widest, columns))
 
 
-@numba.njit(cache=True)
-def load_block(poses, start, count, work, trig):
-    """Rows X, Y, COS, SIN of the work array from poses[start:start + count]; cos and sin also into
-    trig[start:start + count] when trig has rows (for a later pass over the same poses)."""
-    keep = trig.shape[0] > 0
+@numba.njit(cache=True, error_model="numpy")
+def _trig_rows(work, count):
+    """Rows COS and SIN of the work array from the headings in its row TOTAL (a loop that vectorizes)."""
     for p in range(count):
-        i = start + p
-        theta = poses[i, 2]
-        c = math.cos(theta)
-        s = math.sin(theta)
-        work[X, p] = poses[i, 0]
-        work[Y, p] = poses[i, 1]
-        work[COS, p] = c
-        work[SIN, p] = s
-        if keep:
-            trig[i, 0] = c
-            trig[i, 1] = s
+        work[COS, p], work[SIN, p] = sincos(work[TOTAL, p])
+
+
+@numba.njit(cache=True, fastmath=FAST, error_model="numpy")
+def _trig_rows_fast(work, count):
+    """`_trig_rows` with fast-math."""
+    for p in range(count):
+        work[COS, p], work[SIN, p] = sincos(work[TOTAL, p])
+
+
+@numba.njit(cache=True)
+def load_block(poses, start, count, work, trig, fast=False):
+    """Rows X, Y, COS, SIN of the work array from poses[start:start + count] (row TOTAL holds the headings
+    meanwhile); cos and sin also into trig[start:start + count] when trig has rows (for a later pass over the
+    same poses). fast: `sincos` compiled with fast-math (to rounding)."""
+    for p in range(count):
+        work[X, p] = poses[start + p, 0]
+        work[Y, p] = poses[start + p, 1]
+        work[TOTAL, p] = poses[start + p, 2]
+    if fast:
+        _trig_rows_fast(work, count)
+    else:
+        _trig_rows(work, count)
+    if trig.shape[0] > 0:
+        for p in range(count):
+            trig[start + p, 0] = work[COS, p]
+            trig[start + p, 1] = work[SIN, p]
 
 
 @numba.njit(cache=True, error_model="numpy")

@@ -22,6 +22,7 @@ import numpy as np
 from scipy import ndimage
 
 from field import Field
+from motion_models._kernels import sincos, sincos_reference
 
 from .observations import Observations
 
@@ -47,8 +48,7 @@ def line_log_likelihood(poses, points, factors, x0, y0, inverse_cell, outlier, o
     ny, nx = factors.shape
     m = points.shape[0]
     for i in range(poses.shape[0]):
-        c = math.cos(poses[i, 2])
-        s = math.sin(poses[i, 2])
+        c, s = sincos(poses[i, 2])
         total = 0.0
         product = 1.0
         for j in range(m):
@@ -69,7 +69,7 @@ def line_log_likelihood(poses, points, factors, x0, y0, inverse_cell, outlier, o
 
 def line_log_likelihood_reference(poses, points, distance, x0, y0, cell, sigma, outlier_weight):
     """Plain numpy version of `line_log_likelihood`."""
-    c, s = np.cos(poses[:, 2:3]), np.sin(poses[:, 2:3])
+    c, s = sincos_reference(poses[:, 2:3])
     gx = poses[:, 0:1] + c * points[None, :, 0] - s * points[None, :, 1]
     gy = poses[:, 1:2] + s * points[None, :, 0] + c * points[None, :, 1]
     col = np.floor((gx - x0) / cell).astype(np.int64)

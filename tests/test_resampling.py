@@ -5,6 +5,7 @@ from hypothesis import strategies as st
 
 from mcl.resampling import (SCHEMES, multinomial, multinomial_reference, stratified, stratified_reference,
                             systematic, systematic_reference)
+from motion_models._kernels import sincos_reference
 
 weight_lists = st.lists(st.floats(0.0, 1.0), min_size=1, max_size=40).filter(lambda w: sum(w) > 1e-6).map(
     lambda w: np.array(w) / np.sum(w))
@@ -101,7 +102,7 @@ def test_resampling_with_jitter_equals_systematic_then_gather(weights, seed, m, 
     plain, drawn = np.random.default_rng(seed + 1), np.random.default_rng(seed + 1)
     expected = gather_with_jitter(source, systematic(weights, m, plain), bounds, plain.random((m, 3)),
                                   np.empty((m, 3)))
-    trig = np.column_stack([np.cos(source[:, 2]), np.sin(source[:, 2])]) if known_trig else np.empty((0, 2))
+    trig = np.column_stack(sincos_reference(source[:, 2])) if known_trig else np.empty((0, 2))
     out, coordinates, counts = np.empty((m, 3)), np.empty((3, m)), np.zeros(m + 1, dtype=np.int64)
     resample_with_jitter(weights, m, source, bounds, out, trig, *bit_generator_handle(drawn), counts, coordinates)
     assert np.array_equal(out, expected) and np.array_equal(coordinates, expected.T) and not counts.any()
