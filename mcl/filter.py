@@ -207,8 +207,10 @@ class ParticleFilter:
                         units in the last place; resampling can differ where a point falls within rounding
                         of a running total). Worth it from about N = 10⁵.
     fast:               False (the default) keeps every result bit for bit as the plain kernels compute it. True
-                        lets the compiled step compute sin, cos and exp by vectorized polynomials and reassociate
-                        the sums of the weights and of the estimate: the same random draws, particles, weights
+                        compiles the step with fast-math: exp by a vectorized polynomial, the polynomial sin and
+                        cos (`motion_models._kernels.sincos`, which the default uses too) contracted into fused
+                        multiply-adds, and the sums of the weights and of the estimate reassociated: the same
+                        random draws, particles, weights
                         and estimate equal to about 10⁻¹⁴ after a step (and, like any rounding difference,
                         a run that resamples drifts apart from the default one over many steps).
     """
