@@ -271,8 +271,8 @@ def adaptive_move(poses, state, cumulative, vx, vy, omega, dt, side, params, red
     `redraw_each_step`), three odometry noise values]; `side` is c(z_c) or NaN.
 
     Every particle gets, bit for bit, the numbers of the general step at the end of the loop. Free particles
-    share their chord, noise bounds and turn, so these are computed once; a stopped particle's displacement
-    is exactly ±0, which leaves a non-zero coordinate unchanged, so only its heading is computed."""
+    share their chord, noise bounds and turn, so these are computed once; a stopped particle whose coordinates
+    are both non-zero is given a displacement of exactly ±0, which leaves them unchanged."""
     _adaptive_range(poses, state, cumulative, vx, vy, omega, dt, side, params, redraw_each_step, variates, 0, 0,
                     poses.shape[0], np.empty((MOVE_ROWS, DRAWS)))
 
