@@ -154,13 +154,14 @@ def _pcg64_double(typingctx, high, low):
 # independent multiplications instead of a chain of eight.
 _PCG64_MULTIPLIER = (2549297995355413924 << 64) + 4865540595714422341
 PCG64_LANES = 8    # `_pcg64_fill` spells out its eight lanes
+PCG64_STEPS = 2 * PCG64_LANES     # A_k and G_k are tabled for k = 1 ... PCG64_STEPS (index k - 1)
 
 
 def _pcg64_tables() -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     mask = (1 << 128) - 1
     powers, sums = [], []
     power, total = 1, 0
-    for _ in range(PCG64_LANES):
+    for _ in range(PCG64_STEPS):
         total = (total * _PCG64_MULTIPLIER + 1) & mask
         power = (power * _PCG64_MULTIPLIER) & mask
         powers.append(power)
@@ -313,6 +314,75 @@ def draw_uniforms(function, state, out, count):
     else:
         for i in range(count):
             out[i] = _call_next_double(function, state)
+
+
+@numba.njit(cache=True, inline="always")
+def _deferring_row(s_high, s_low, out, p, defer_from, defer_to, bases, increments):
+    """Row p of `draw_rows_deferring` from the state before it, but its last column."""
+    bases[p, 0] = s_high
+    bases[p, 1] = s_low
+    for j in range(defer_from):
+        high, low = _mul_add_128(_A_HIGH[j], _A_LOW[j], s_high, s_low, increments[j, 0], increments[j, 1])
+        out[p, j] = _pcg64_double(high, low)
+    for j in range(defer_to, out.shape[1] - 1):
+        high, low = _mul_add_128(_A_HIGH[j], _A_LOW[j], s_high, s_low, increments[j, 0], increments[j, 1])
+        out[p, j] = _pcg64_double(high, low)
+
+
+@numba.njit(cache=True)
+def draw_rows_deferring(function, state, out, count, defer_from, defer_to, bases, increments):
+    """out[:count] ← the generator's next uniforms as `rng.random((count, width))` lays them out, except that
+    with numpy's PCG64 the columns defer_from..defer_to-1 (a kernel needs them for a few rows only) are not
+    computed: bases[p] (high, low) keeps the state before row p and increments the G_k·inc, from which
+    `deferred_uniform(bases, increments, p, j)` computes out[p, j] when it is needed. The generator is left
+    where drawing every column leaves it. Returns True when columns were deferred; other generators draw every
+    column and return False, as PCG64 does unless width <= PCG64_LANES and defer_from < defer_to < width.
+    bases (>= count, 2) and increments (PCG64_STEPS, 2) are uint64 scratch.
+
+    A row costs one 128-bit multiply-add per computed column (width 7 with three deferred: four instead of
+    seven). Rows go in pairs, both states taken from the state before the pair, so that the chain from one
+    row's state to the next is one multiply-add per two rows."""
+    width = out.shape[1]
+    if function != PCG64_INLINE or width > PCG64_LANES or defer_to >= width or defer_from >= defer_to:
+        draw_uniforms(function, state, out.reshape(-1), width * count)
+        return False
+    pointer = np.intp(_load_u64(state))
+    s_high = _load_u64(pointer + 8)
+    s_low = _load_u64(pointer)
+    inc_high = _load_u64(pointer + 24)
+    inc_low = _load_u64(pointer + 16)
+    for k in range(2 * width):
+        increments[k, 0], increments[k, 1] = _lane(k, inc_high, inc_low)
+    last = width - 1
+    pair = 2 * width - 1
+    p = 0
+    while p + 1 < count:
+        t_high, t_low = _mul_add_128(_A_HIGH[last], _A_LOW[last], s_high, s_low, increments[last, 0],
+                                     increments[last, 1])
+        u_high, u_low = _mul_add_128(_A_HIGH[pair], _A_LOW[pair], s_high, s_low, increments[pair, 0],
+                                     increments[pair, 1])
+        _deferring_row(s_high, s_low, out, p, defer_from, defer_to, bases, increments)
+        out[p, last] = _pcg64_double(t_high, t_low)
+        _deferring_row(t_high, t_low, out, p + 1, defer_from, defer_to, bases, increments)
+        out[p + 1, last] = _pcg64_double(u_high, u_low)
+        s_high = u_high
+        s_low = u_low
+        p += 2
+    if p < count:
+        _deferring_row(s_high, s_low, out, p, defer_from, defer_to, bases, increments)
+        s_high, s_low = _mul_add_128(_A_HIGH[last], _A_LOW[last], s_high, s_low, increments[last, 0],
+                                     increments[last, 1])
+        out[p, last] = _pcg64_double(s_high, s_low)
+    _store_u64(pointer, s_low)
+    _store_u64(pointer + 8, s_high)
+    return True
+
+
+@numba.njit(cache=True, inline="always")
+def deferred_uniform(bases, increments, p, j):
+    """out[p, j] of a `draw_rows_deferring` call that deferred column j."""
+    high, low = _mul_add_128(_A_HIGH[j], _A_LOW[j], bases[p, 0], bases[p, 1], increments[j, 0], increments[j, 1])
+    return _pcg64_double(high, low)
 
 
 @numba.njit(cache=True)

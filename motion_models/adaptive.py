@@ -56,7 +56,8 @@ import scipy.linalg
 from field.angles import wrap_angles
 from sensing.collision import CollisionPercept
 
-from ._kernels import DRAWS, bit_generator_handle, draw_uniforms, sincos, sincos_reference, wrap
+from ._kernels import (DRAWS, PCG64_STEPS, bit_generator_handle, deferred_uniform, draw_rows_deferring, sincos,
+                       sincos_reference, wrap)
 from .base import MotionInput, check_nonnegative, check_poses
 
 FREE, SLIPPAGE, HINDRANCE, PUSHED, STOPPED = range(5)
@@ -273,8 +274,8 @@ def adaptive_move(poses, state, cumulative, vx, vy, omega, dt, side, params, red
     Every particle gets, bit for bit, the numbers of the general step at the end of the loop. Free particles
     share their chord, noise bounds and turn, so these are computed once; a stopped particle whose coordinates
     are both non-zero is given a displacement of exactly ±0, which leaves them unchanged."""
-    _adaptive_range(poses, state, cumulative, vx, vy, omega, dt, side, params, redraw_each_step, variates, 0, 0,
-                    poses.shape[0], np.empty((MOVE_ROWS, DRAWS)))
+    _adaptive_range(poses, state, cumulative, vx, vy, omega, dt, side, params, redraw_each_step, variates, False,
+                    _NO_BASES, _NO_BASES, 0, 0, poses.shape[0], np.empty((MOVE_ROWS, DRAWS)))
 
 
 @numba.njit(cache=True)
@@ -282,32 +283,41 @@ def adaptive_move_drawing(poses, state, cumulative, vx, vy, omega, dt, side, par
                           generator):
     """`adaptive_move` with its variates drawn here, a block of particles at a time, from a bit generator
     (`motion_models._kernels.bit_generator_handle`): the same poses and states as `adaptive_move(...,
-    rng.random((N, 7)))`, without the (N, 7) array."""
+    rng.random((N, 7)))`, without the (N, 7) array.
+
+    With numpy's PCG64 the three episode values of a particle are computed only when it takes them
+    (`draw_rows_deferring`): the generator steps past them all the same, so the numbers are those of the
+    (N, 7) array, at four 128-bit multiply-adds per particle instead of seven."""
     n = poses.shape[0]
     variates = np.empty((DRAWS, VARIATES))
-    flat = variates.reshape(-1)
+    bases = np.empty((DRAWS, 2), dtype=np.uint64)
+    increments = np.empty((PCG64_STEPS, 2), dtype=np.uint64)
     rows = np.empty((MOVE_ROWS, DRAWS))
     for start in range(0, n, DRAWS):
         stop = min(start + DRAWS, n)
-        draw_uniforms(function, generator, flat, VARIATES * (stop - start))
+        deferred = draw_rows_deferring(function, generator, variates, stop - start, 1, 4, bases, increments)
         _adaptive_range(poses, state, cumulative, vx, vy, omega, dt, side, params, redraw_each_step, variates,
-                        start, start, stop, rows)
+                        deferred, bases, increments, start, start, stop, rows)
 
 
 MOVE_ROWS = 6      # `_adaptive_range`'s scratch rows: turned heading, dx, dy, new heading, cos, sin
+_NO_BASES = np.empty((0, 2), dtype=np.uint64)     # no deferred episode values
 
 
 @numba.njit(cache=True)
-def _adaptive_range(poses, state, cumulative, vx, vy, omega, dt, side, params, redraw_each_step, all_variates, first,
-                    start, stop, rows):
-    """`adaptive_move` of particles start..stop-1; particle i's variates are all_variates[i - first]. rows:
+def _adaptive_range(poses, state, cumulative, vx, vy, omega, dt, side, params, redraw_each_step, all_variates,
+                    deferred, bases, increments, first, start, stop, rows):
+    """`adaptive_move` of particles start..stop-1; particle i's variates are all_variates[i - first], whose
+    episode values (columns 1-3) are computed from bases[i - first] and increments when `deferred`
+    (`motion_models._kernels.draw_rows_deferring`). rows:
     (MOVE_ROWS, DRAWS) scratch. A block of particles at a time, in two passes: each particle's state and
     robot-frame displacement, then the rotation into the field frame, whose cos and sin take a loop that
     vectorizes (`sincos`)."""
     for block in range(start, stop, DRAWS):
         end = min(block + DRAWS, stop)
         _adaptive_block(poses, state, cumulative, vx, vy, omega, dt, side, params, redraw_each_step,
-                        all_variates[block - first:end - first], block, end - block, rows)
+                        all_variates[block - first:end - first], deferred, bases[block - first:end - first],
+                        increments, block, end - block, rows)
         _rotate_rows(rows, end - block)
         for p in range(end - block):
             i = block + p
@@ -329,9 +339,10 @@ def _rotate_rows(rows, count):
 
 
 @numba.njit(cache=True)
-def _adaptive_block(poses, state, cumulative, vx, vy, omega, dt, side, params, redraw_each_step, variates, start,
-                    count, rows):
-    """The states of particles start..start+count-1 (variates[p] for particle start + p), and into rows[:4, p]
+def _adaptive_block(poses, state, cumulative, vx, vy, omega, dt, side, params, redraw_each_step, variates, deferred,
+                    bases, increments, start, count, rows):
+    """The states of particles start..start+count-1 (variates[p] for particle start + p, its episode values from
+    bases[p] when `deferred`), and into rows[:4, p]
     the heading to rotate by, the robot-frame displacement and the new heading (not yet wrapped). A stopped particle whose
     coordinates are both non-zero gets a displacement of exactly zero: ±0 added leaves them unchanged."""
     beta1, beta2, beta3, beta4 = params[0], params[1], params[2], params[3]
@@ -355,9 +366,14 @@ def _adaptive_block(poses, state, cumulative, vx, vy, omega, dt, side, params, r
         while variates[p, 0] >= cumulative[old, new]:
             new += 1
         if (old == 0 and new != 0) or redraw_each_step:
-            state[i, 1] = variates[p, 1]
-            state[i, 2] = variates[p, 2]
-            state[i, 3] = variates[p, 3]
+            if deferred:
+                state[i, 1] = deferred_uniform(bases, increments, p, 1)
+                state[i, 2] = deferred_uniform(bases, increments, p, 2)
+                state[i, 3] = deferred_uniform(bases, increments, p, 3)
+            else:
+                state[i, 1] = variates[p, 1]
+                state[i, 2] = variates[p, 2]
+                state[i, 3] = variates[p, 3]
         if new != old:
             state[i, 0] = new         # (unchanged states stay clean in the cache: no write-back at large N)
         theta = poses[i, 2]

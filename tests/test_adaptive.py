@@ -307,10 +307,12 @@ def test_same_seed_same_run():
     assert a.tobytes() == b.tobytes() and sa.tobytes() == sb.tobytes()
 
 
+@pytest.mark.parametrize("bit_generator", [np.random.PCG64, np.random.Philox])
 @given(st.integers(0, 2 ** 32 - 1), st.integers(1, 700), st.booleans(), st.sampled_from(CONDITIONS))
-def test_drawing_in_the_kernel_equals_the_drawn_variates(seed, n, redraw, condition):
-    # `predict` draws the 7 uniforms per particle inside the kernel, a block at a time: the same poses and
-    # states, bit for bit, as `adaptive_move` on rng.random((n, 7)), and the generator ends where that leaves it.
+def test_drawing_in_the_kernel_equals_the_drawn_variates(bit_generator, seed, n, redraw, condition):
+    # `predict` draws the 7 uniforms per particle inside the kernel, a block at a time (with PCG64 the episode
+    # values only for the particles that take them): the same poses and states, bit for bit, as `adaptive_move`
+    # on rng.random((n, 7)), and the generator ends where that leaves it.
     from motion_models._kernels import bit_generator_handle
     from motion_models.adaptive import adaptive_move_drawing
     setup = np.random.default_rng(seed)
@@ -321,7 +323,7 @@ def test_drawing_in_the_kernel_equals_the_drawn_variates(seed, n, redraw, condit
     arguments = AdaptiveMotion().kernel_arguments(MotionInput(DT, (0.2, 0.05, 0.4), collision=LEFT_HIT))
     args, params = arguments[1:6], arguments[6]
     a, sa, b, sb = poses.copy(), state.copy(), poses.copy(), state.copy()
-    drawn, inside = np.random.default_rng(seed + 1), np.random.default_rng(seed + 1)
+    drawn, inside = (np.random.Generator(bit_generator(seed + 1)) for _ in range(2))
     adaptive_move(a, sa, cumulative, *args, params, redraw, drawn.random((n, VARIATES)))
     adaptive_move_drawing(b, sb, cumulative, *args, params, redraw, *bit_generator_handle(inside))
     assert a.tobytes() == b.tobytes() and sa.tobytes() == sb.tobytes()

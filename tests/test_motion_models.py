@@ -225,6 +225,35 @@ def test_kernel_integers_are_the_generators_own(bit_generator, seed, draws):
     assert same_state(drawn.bit_generator.state, plain.bit_generator.state)
 
 
+@pytest.mark.parametrize("bit_generator", [np.random.PCG64, np.random.MT19937])
+@given(st.integers(0, 2**32 - 1), st.integers(1, 9), st.integers(0, 8), st.integers(0, 9),
+       st.lists(st.integers(0, 300), min_size=1, max_size=4))
+def test_deferred_columns_are_the_generators_own(bit_generator, seed, width, defer_from, defer_to, counts):
+    """draw_rows_deferring gives rng.random((count, width)) in the columns it computes, deferred_uniform the
+    deferred ones, and the generator ends where rng.random leaves it; with a shape it cannot defer (or another
+    bit generator), every column is drawn."""
+    from motion_models._kernels import (PCG64_INLINE, PCG64_LANES, PCG64_STEPS, bit_generator_handle,
+                                        deferred_uniform, draw_rows_deferring)
+
+    plain = np.random.Generator(bit_generator(seed))
+    drawn = np.random.Generator(bit_generator(seed))
+    function, state = bit_generator_handle(drawn)
+    can_defer = (function == PCG64_INLINE and width <= PCG64_LANES and defer_from < defer_to < width)
+    for count in counts:
+        out = np.full((count, width), -1.0)
+        bases = np.empty((count, 2), dtype=np.uint64)
+        increments = np.empty((PCG64_STEPS, 2), dtype=np.uint64)
+        deferred = draw_rows_deferring(function, state, out, count, defer_from, defer_to, bases, increments)
+        expected = plain.random((count, width))
+        assert deferred == can_defer
+        if deferred:
+            assert np.all(out[:, defer_from:defer_to] == -1.0)      # not computed
+            for p in range(count):
+                for j in range(defer_from, defer_to):
+                    out[p, j] = deferred_uniform(bases, increments, p, j)
+        assert np.array_equal(out, expected)
+        assert same_state(drawn.bit_generator.state, plain.bit_generator.state)
+
 
 def test_the_default_generator_is_stepped_in_the_kernel():
     from motion_models._kernels import PCG64_INLINE, bit_generator_handle
