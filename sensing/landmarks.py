@@ -64,12 +64,20 @@ def landmark_log_likelihood(poses, table, offsets, kinds, ranges, bearings, rang
     Detections are grouped by type first, so the geometry to a type's candidates is computed once per
     particle and shared by all its detections.
     """
-    trig = np.empty((poses.shape[0], 2))       # the headings' cos and sin, here without fast-math: the bits
-    for i in range(poses.shape[0]):           # of the block kernels' (`load_block`)
-        trig[i, 0], trig[i, 1] = sincos(poses[i, 2])
-    _landmark_log_likelihood(poses, trig, table, offsets, kinds, ranges, bearings, range_sigmas, bearing_sigmas,
-                             range_noise_floor, range_noise_growth, bearing_sigma, exact, sum_mixture, log_outlier,
-                             out)
+    # The headings' cos and sin, here without fast-math (the bits of the block kernels' `load_block`), for
+    # TRIG_CHUNK particles at a time: scratch of a fixed size, whatever N.
+    n = poses.shape[0]
+    trig = np.empty((min(n, TRIG_CHUNK), 2))
+    for start in range(0, n, TRIG_CHUNK):
+        stop = min(start + TRIG_CHUNK, n)
+        for i in range(start, stop):
+            trig[i - start, 0], trig[i - start, 1] = sincos(poses[i, 2])
+        _landmark_log_likelihood(poses[start:stop], trig[:stop - start], table, offsets, kinds, ranges, bearings,
+                                 range_sigmas, bearing_sigmas, range_noise_floor, range_noise_growth, bearing_sigma,
+                                 exact, sum_mixture, log_outlier, out[start:stop])
+
+
+TRIG_CHUNK = 4096      # particles per call of `_landmark_log_likelihood` from `landmark_log_likelihood`
 
 
 # `FAST` is fast-math without the no-NaN/no-inf assumptions: the kernel tests for NaN ("noise not given") and

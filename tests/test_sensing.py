@@ -233,6 +233,24 @@ def test_block_kernel_equals_the_particle_by_particle_kernel_bit_for_bit(detecti
     assert np.array_equal(model.log_likelihood(poses, obs), general)
 
 
+@pytest.mark.parametrize("bearing_model, mixture", [("exact", "max"), ("von_mises", "sum"), ("exact", "sum")])
+def test_general_kernel_scores_each_particle_alone(bearing_model, mixture):
+    """`landmark_log_likelihood` takes the headings' cos and sin TRIG_CHUNK particles at a time (fixed scratch
+    whatever N): across the chunks' edges every particle scores what it scores alone."""
+    from sensing.landmarks import TRIG_CHUNK
+
+    rng = np.random.default_rng(4)
+    n = 2 * TRIG_CHUNK + 37
+    poses = np.column_stack([rng.uniform(-6, 6, n), rng.uniform(-4, 4, n), rng.uniform(-math.pi, math.pi, n)])
+    obs = Observations.from_arrays(["goalpost", "t_crossing", "goalpost"], [2.0, 3.0, 4.5], [0.1, -0.4, 1.2])
+    model = LandmarkSensorModel(FIELD, bearing_model=bearing_model, mixture=mixture)
+    together = model.log_likelihood(poses, obs)
+    picked = np.r_[0, TRIG_CHUNK - 1, TRIG_CHUNK, TRIG_CHUNK + 1, 2 * TRIG_CHUNK, n - 1]
+    alone = np.array([model.log_likelihood(poses[i:i + 1], obs)[0] for i in picked])
+    assert np.array_equal(together[picked], alone)
+    np.testing.assert_allclose(together, model.log_likelihood_reference(poses, obs), rtol=1e-9, atol=1e-9)
+
+
 def test_block_kernel_keeps_cos_and_sin_of_the_headings():
     from motion_models._kernels import sincos_reference
     from sensing.landmarks import prepare_detections, von_mises_log_likelihood
