@@ -289,6 +289,19 @@ _LN2_HIGH = 6.93147180369123816490e-01
 _LN2_LOW = 1.90821492927058770002e-10
 
 
+_EXPONENT_SHIFTER = 4503599627370496.0 + 1023.0       # 2⁵² plus the exponent bias
+
+
+@intrinsic
+def _double_bits(typingctx, value):
+    signature = types.int64(types.float64)
+
+    def codegen(context, builder, sig, args):
+        return builder.bitcast(args[0], ir.IntType(64))
+
+    return signature, codegen
+
+
 @intrinsic
 def _bits_to_double(typingctx, bits):
     signature = types.float64(types.int64)
@@ -301,7 +314,13 @@ def _bits_to_double(typingctx, bits):
 
 @numba.njit(cache=True, fastmath=FAST, inline="always")
 def fast_exp(x):
-    """exp(x) for x <= 0 to about 2·10⁻¹⁶ relative (0 below -745), branch-free (vectorizes)."""
+    """exp(x) for x <= 0, 0 below -745.2; branch-free (vectorizes).
+
+    Compiled plainly it is within 4.8·10⁻¹⁶ relative (two units in the last place). Under the fast-math flags
+    of its callers (`FAST`), reassociation folds the two-part reduction by ln 2 into one, and the relative error
+    grows with |x|: within 6·10⁻¹⁶ + 3.5·10⁻¹⁷·|x| (1.6·10⁻¹⁵ at x = -40, 2.4·10⁻¹⁴ at -708). As a weight
+    relative to the largest (x <= 0), the error is below 2.3·10⁻¹⁶ absolute: a weight near 1 is accurate,
+    and one whose error is large in relative terms is negligible."""
     x = x if x > -745.2 else -745.2
     k = np.floor(x * _LOG2E + 0.5)
     r = (x - k * _LN2_HIGH) - k * _LN2_LOW               # |r| <= ln 2 / 2
@@ -309,8 +328,10 @@ def fast_exp(x):
         1.0 / 720 + r * (1.0 / 5040 + r * (1.0 / 40320 + r * (1.0 / 362880 + r * (1.0 / 3628800 + r * (
             1.0 / 39916800 + r / 479001600)))))))))))
     half = np.floor(k * 0.5)                             # 2ᵏ as two normal powers of two, for k down to -1075
-    first = _bits_to_double(np.int64(half + 1023.0) << 52)
-    second = _bits_to_double(np.int64(k - half + 1023.0) << 52)
+    # Their biased exponents e (integers in [0, 2¹¹)) are the low bits of the double 2⁵² + e, which a shift
+    # by 52 moves into place: no conversion to an integer, which AVX2 has no vector instruction for.
+    first = _bits_to_double(_double_bits(half + _EXPONENT_SHIFTER) << 52)
+    second = _bits_to_double(_double_bits(k - half + _EXPONENT_SHIFTER) << 52)
     return p * first * second
 
 
