@@ -29,6 +29,11 @@ medians taken; the machine may be busy with other work). JSON keys first, the --
 --quick: N = 100, 1 000, 10 000, fewer samples, no empty-cache compile (about half a minute).
 --json prints the result as JSON instead of the table; --save writes the JSON to a file; --plot draws the
 scaling curves to a PNG (needs matplotlib). Progress goes to stderr.
+
+A robot's instruction set on this machine: numba compiles for the target that NUMBA_CPU_NAME and
+NUMBA_CPU_FEATURES name (with a NUMBA_CACHE_DIR of its own), and the header says so. The NAO's Atom E3845,
+for one: NUMBA_CPU_NAME=silvermont NUMBA_CPU_FEATURES=+sse4.2,+popcnt,-avx,-avx2,-fma (the README's Speed
+section has the whole command).
 """
 from __future__ import annotations
 

@@ -185,9 +185,13 @@ def format_report(result: dict) -> str:
     flags = m.get("simd_flags") or {}
     simd = ", ".join(f"{name} {'yes' if flags.get(name) else 'no'}" for name in ("avx2", "avx512f")) if flags else "?"
     load = " ".join(f"{x:.2f}" for x in (m.get("load_average") or []))
+    target = ""
+    if m.get("numba_cpu_name") or m.get("numba_cpu_features"):
+        target = (f"; kernels compiled for {m.get('numba_cpu_name') or 'this CPU'}"
+                  f"{' (' + m['numba_cpu_features'] + ')' if m.get('numba_cpu_features') else ''}, not this CPU")
     lines = [f"robocup-mcl bench{' --quick' if result['settings']['quick'] else ''}: {m['cpu_model']}, "
              f"{m['cpus']} cores ({simd}); python {m['python']}, numpy {m['numpy']}, numba {m['numba']}; "
-             f"load {load}",
+             f"load {load}{target}",
              "full step: predict (velocity-linear), 10 goalpost detections (von Mises bearing), normalize + ESS, "
              "systematic resampling with roughening, estimate, entropy; one thread; medians of interleaved runs",
              "b2b: the full step called back to back (warm caches); fast: the full step with fast=True; issue "

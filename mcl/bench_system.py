@@ -80,6 +80,9 @@ def machine() -> dict:
         "numba_threads": numba.config.NUMBA_NUM_THREADS, "numba_threading_layer": numba.config.THREADING_LAYER,
         "numpy_cpu_dispatch": dispatch, "numpy_cpu_features_on": sorted(k for k, v in features.items() if v),
         "load_average": list(os.getloadavg()) if hasattr(os, "getloadavg") else None,
+        # numba's code-generation target when set (NUMBA_CPU_NAME, NUMBA_CPU_FEATURES), e.g. to time the
+        # kernels as compiled for a robot's instruction set on this machine; None: this machine's own
+        "numba_cpu_name": numba.config.CPU_NAME, "numba_cpu_features": numba.config.CPU_FEATURES,
     }
 
 

@@ -40,9 +40,6 @@ from dataclasses import dataclass, field as dataclass_field
 
 import numba
 import numpy as np
-from llvmlite import ir
-from numba import types
-from numba.extending import intrinsic
 
 from field import Field, LandmarkType
 from field.angles import wrap_angle, wrap_angles
@@ -80,9 +77,8 @@ def landmark_log_likelihood(poses, table, offsets, kinds, ranges, bearings, rang
 TRIG_CHUNK = 4096      # particles per call of `_landmark_log_likelihood` from `landmark_log_likelihood`
 
 
-# `FAST` is fast-math without the no-NaN/no-inf assumptions: the kernel tests for NaN ("noise not given") and
-# starts its maximum at -inf. Contraction and reassociation let LLVM fuse and vectorize the candidate loop.
-@numba.njit(cache=True, fastmath=FAST)
+# Plain IEEE arithmetic, no fast-math: the same bits on every machine, and those of the block kernels below.
+@numba.njit(cache=True)
 def _landmark_log_likelihood(poses, trig, table, offsets, kinds, ranges, bearings, range_sigmas, bearing_sigmas,
                              range_noise_floor, range_noise_growth, bearing_sigma, exact, sum_mixture, log_outlier,
                              out):
@@ -104,7 +100,7 @@ def _landmark_log_likelihood(poses, trig, table, offsets, kinds, ranges, bearing
         r = ranges[o]
         sr = range_sigmas[o]
         if np.isnan(sr):
-            sr = range_noise_floor + range_noise_growth * r * r
+            sr = range_noise_floor + range_noise_growth * r * r      # as `LandmarkSensorModel.range_sigma`
         sb = bearing_sigmas[o]
         if np.isnan(sb):
             sb = bearing_sigma
@@ -195,31 +191,20 @@ def _landmark_log_likelihood(poses, trig, table, offsets, kinds, ranges, bearing
 
 
 # -- the default model (von Mises bearing, max-mixture) in blocks of particles -------------------------------------
-# `landmark_log_likelihood` above computes every variant particle by particle; its fast-math flags let LLVM
-# contract some products into fused multiply-adds. The kernels below compute the default variant, the one the
-# filter runs every frame, bit for bit as that kernel does, but written with those fused multiply-adds spelled
-# out (`_fma`) and no fast-math: nothing is left to the compiler's choice, so the results stay the same
-# whichever way LLVM arranges the loops. They work on a block of particles at a time, with the candidates'
-# geometry and the running maxima in rows over the block, so that every inner loop runs over particles and
-# vectorizes (four particles per AVX2 instruction). The maxima alternate between two rows (`BEST`), because a
-# row that is read and written in the same loop becomes a masked store, which is slow on AMD processors.
+# `landmark_log_likelihood` above computes every variant particle by particle. The kernels below compute the
+# default variant, the one the filter runs every frame, bit for bit as that kernel does: the same operations
+# in the same order, in plain IEEE arithmetic (no fast-math, no fused multiply-add), so nothing is left to the
+# compiler's choice and the results are the same on every machine, whichever way LLVM arranges the loops. (A
+# fused multiply-add spelled out is one instruction with FMA3, but a call into libm's fma on a processor
+# without it, such as the NAO's Atom: scoring ten times slower.) They work on a block of particles at a time,
+# with the candidates' geometry and the running maxima in rows over the block, so that every inner loop runs
+# over particles and vectorizes (four particles per AVX2 instruction). The maxima alternate between two rows
+# (`BEST`), because a row that is read and written in the same loop becomes a masked store, which is slow on
+# AMD processors.
 
 BLOCK = 128        # particles per block: the rows below stay in L1
 X, Y, COS, SIN, TOTAL, BEST = 0, 1, 2, 3, 4, 5       # rows of the block work array; BEST takes rows 5 and 6
 GEOMETRY = 7       # then, for each candidate k of the widest type: distance, unit x, unit y (rows 7 + 3k ...)
-
-
-@intrinsic
-def _fma(typingctx, a, b, c):
-    """a·b + c rounded once (llvm.fma; one instruction with FMA3)."""
-    signature = types.float64(types.float64, types.float64, types.float64)
-
-    def codegen(context, builder, sig, args):
-        double = ir.DoubleType()
-        function = builder.module.declare_intrinsic("llvm.fma", [double], ir.FunctionType(double, [double] * 3))
-        return builder.call(function, args)
-
-    return signature, codegen
 
 
 @numba.njit(cache=True)
@@ -246,7 +231,7 @@ def prepare_detections(kinds, ranges, bearings, range_sigmas, bearing_sigmas, of
         r = ranges[o]
         sr = range_sigmas[o]
         if np.isnan(sr):
-            sr = _fma(r * r, range_noise_growth, range_noise_floor)
+            sr = range_noise_floor + range_noise_growth * r * r
         sb = bearing_sigmas[o]
         if np.isnan(sb):
             sb = bearing_sigma
@@ -328,9 +313,9 @@ def score_block(work, count, table, offsets, detections, groups, log_outlier):
                 dyw = ty - work[Y, p]
                 c = work[COS, p]
                 s = work[SIN, p]
-                rx = _fma(dyw, s, c * dxw)
-                ry = _fma(c, dyw, -(s * dxw))
-                d = math.sqrt(_fma(rx, rx, ry * ry))
+                rx = c * dxw + s * dyw
+                ry = -s * dxw + c * dyw
+                d = math.sqrt(rx * rx + ry * ry)
                 inverse = 1.0 / d
                 far = d > 1e-12
                 work[row, p] = d
@@ -349,7 +334,7 @@ def score_block(work, count, table, offsets, detections, groups, log_outlier):
                 target = BEST + 1 - k % 2
                 for p in range(count):
                     er = r - work[row, p]
-                    score = _fma(bs, work[row + 2, p], _fma(er * er, wr, bc * work[row + 1, p]))
+                    score = wr * er * er + bc * work[row + 1, p] + bs * work[row + 2, p]
                     best = work[source, p]
                     work[target, p] = score if score > best else best
             offset = detections[j, 4]

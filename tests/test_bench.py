@@ -79,6 +79,19 @@ def test_machine_description(quick_run):
     assert machine["cpus"] >= 1 and machine["cpu_model"]
     if machine["simd_flags"] is not None:
         assert {"avx2", "avx512f"} <= set(machine["simd_flags"])
+    assert {"numba_cpu_name", "numba_cpu_features"} <= set(machine)
+
+
+def test_the_header_names_a_foreign_compile_target():
+    """Timed with NUMBA_CPU_NAME / NUMBA_CPU_FEATURES (a robot's instruction set on this machine), the report
+    says the kernels were not compiled for this CPU; without them it says nothing of the kind."""
+    machine = {"cpu_model": "x", "cpus": 1, "python": "3", "numpy": "2", "numba": "0"}
+    base = {"settings": {"quick": True}, "targets": []}
+    text = format_report({**base, "machine": {**machine, "numba_cpu_name": "silvermont",
+                                              "numba_cpu_features": "-avx,-fma"}})
+    assert "kernels compiled for silvermont (-avx,-fma), not this CPU" in text.splitlines()[0]
+    assert "compiled for" not in format_report({**base, "machine": {**machine, "numba_cpu_name": None,
+                                                                     "numba_cpu_features": None}})
 
 
 def test_resampling_section_names_ours_and_the_peers(quick_run):
