@@ -342,9 +342,9 @@ def _rotate_rows(rows, count):
 def _adaptive_block(poses, state, cumulative, vx, vy, omega, dt, side, params, redraw_each_step, variates, deferred,
                     bases, increments, start, count, rows):
     """The states of particles start..start+count-1 (variates[p] for particle start + p, its episode values from
-    bases[p] when `deferred`), and into rows[:4, p]
-    the heading to rotate by, the robot-frame displacement and the new heading (not yet wrapped). A stopped particle whose
-    coordinates are both non-zero gets a displacement of exactly zero: ±0 added leaves them unchanged."""
+    bases[p] when `deferred`), and into rows[:4, p] the heading to rotate by, the robot-frame displacement and
+    the new heading (not yet wrapped). A stopped particle whose coordinates are both non-zero gets a
+    displacement of exactly zero: ±0 added leaves them unchanged."""
     beta1, beta2, beta3, beta4 = params[0], params[1], params[2], params[3]
     beta5, beta6, beta7, beta_turn, separation = params[4], params[5], params[6], params[7], params[8]
     odo1, odo2, odo3, odo4 = params[9], params[10], params[11], params[12]
