@@ -270,3 +270,36 @@ def test_block_kernel_keeps_cos_and_sin_of_the_headings():
     assert np.array_equal(trig[:, 0], cos) and np.array_equal(trig[:, 1], sin)
     assert LandmarkSensorModel(FIELD, bearing_model="exact").compiled_likelihood() is None
     assert LandmarkSensorModel(FIELD, mixture="sum").compiled_likelihood() is None
+
+
+_SCORE_SCRIPT = """
+import numpy as np
+from field import spl
+from sensing import LandmarkSensorModel, Observations
+rng = np.random.default_rng(3)
+poses = np.column_stack([rng.uniform(-5, 5, 700), rng.uniform(-3.5, 3.5, 700), rng.uniform(-4, 4, 700)])
+obs = Observations.from_arrays(["goalpost", "t_crossing", "goalpost", "penalty_mark"], [2.0, 3.0, 4.5, 1.2],
+                               [0.1, -0.4, 1.2, -2.0])
+print(LandmarkSensorModel(spl()).log_likelihood(poses, obs).tobytes().hex())
+"""
+
+
+def test_default_scoring_gives_the_same_bits_on_a_robots_instruction_set(tmp_path):
+    """The default likelihood (plain arithmetic, `sincos`: no fast-math, no fused multiply-add) compiled for the
+    NAO's Atom (SSE4.2, no AVX, no FMA) in a fresh process gives the bits it gives compiled for this machine."""
+    import os
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parent.parent
+
+    def run(name, extra):
+        env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / name), **extra}
+        done = subprocess.run([sys.executable, "-c", _SCORE_SCRIPT], cwd=root, env=env, capture_output=True,
+                              text=True, timeout=600)
+        assert done.returncode == 0, done.stderr
+        return done.stdout.strip()
+
+    atom = run("atom", {"NUMBA_CPU_NAME": "silvermont", "NUMBA_CPU_FEATURES": "+sse4.2,+popcnt,-avx,-avx2,-fma"})
+    assert len(atom) == 700 * 16 and atom == run("native", {})
