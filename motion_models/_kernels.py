@@ -317,16 +317,21 @@ def draw_uniforms(function, state, out, count):
 
 
 @numba.njit(cache=True, inline="always")
+def _column_uniform(s_high, s_low, j, increments):
+    """The uniform in column j of a row whose state before it is s: PCG64 j + 1 steps on, A_{j+1}·s + G_{j+1}·inc."""
+    high, low = _mul_add_128(_A_HIGH[j], _A_LOW[j], s_high, s_low, increments[j, 0], increments[j, 1])
+    return _pcg64_double(high, low)
+
+
+@numba.njit(cache=True, inline="always")
 def _deferring_row(s_high, s_low, out, p, defer_from, defer_to, bases, increments):
     """Row p of `draw_rows_deferring` from the state before it, but its last column."""
     bases[p, 0] = s_high
     bases[p, 1] = s_low
     for j in range(defer_from):
-        high, low = _mul_add_128(_A_HIGH[j], _A_LOW[j], s_high, s_low, increments[j, 0], increments[j, 1])
-        out[p, j] = _pcg64_double(high, low)
+        out[p, j] = _column_uniform(s_high, s_low, j, increments)
     for j in range(defer_to, out.shape[1] - 1):
-        high, low = _mul_add_128(_A_HIGH[j], _A_LOW[j], s_high, s_low, increments[j, 0], increments[j, 1])
-        out[p, j] = _pcg64_double(high, low)
+        out[p, j] = _column_uniform(s_high, s_low, j, increments)
 
 
 @numba.njit(cache=True)
@@ -381,8 +386,7 @@ def draw_rows_deferring(function, state, out, count, defer_from, defer_to, bases
 @numba.njit(cache=True, inline="always")
 def deferred_uniform(bases, increments, p, j):
     """out[p, j] of a `draw_rows_deferring` call that deferred column j."""
-    high, low = _mul_add_128(_A_HIGH[j], _A_LOW[j], bases[p, 0], bases[p, 1], increments[j, 0], increments[j, 1])
-    return _pcg64_double(high, low)
+    return _column_uniform(bases[p, 0], bases[p, 1], j, increments)
 
 
 @numba.njit(cache=True)

@@ -309,10 +309,9 @@ def _adaptive_range(poses, state, cumulative, vx, vy, omega, dt, side, params, r
                     deferred, bases, increments, first, start, stop, rows):
     """`adaptive_move` of particles start..stop-1; particle i's variates are all_variates[i - first], whose
     episode values (columns 1-3) are computed from bases[i - first] and increments when `deferred`
-    (`motion_models._kernels.draw_rows_deferring`). rows:
-    (MOVE_ROWS, DRAWS) scratch. A block of particles at a time, in two passes: each particle's state and
-    robot-frame displacement, then the rotation into the field frame, whose cos and sin take a loop that
-    vectorizes (`sincos`)."""
+    (`motion_models._kernels.draw_rows_deferring`). rows: (MOVE_ROWS, DRAWS) scratch. A block of particles at
+    a time, in two passes: each particle's state and robot-frame displacement, then the rotation into the
+    field frame, whose cos and sin take a loop that vectorizes (`sincos`)."""
     for block in range(start, stop, DRAWS):
         end = min(block + DRAWS, stop)
         _adaptive_block(poses, state, cumulative, vx, vy, omega, dt, side, params, redraw_each_step,
