@@ -42,24 +42,27 @@ class LandmarkType(enum.IntEnum):
         """The member for an enum member, its integer value, or its name (any case)."""
         if isinstance(kind, cls):
             return kind
-        valid = ", ".join(member.name for member in cls)
         if isinstance(kind, str):
             try:
                 return cls[kind.strip().upper()]
             except KeyError:
                 raise ValueError(
-                    f"landmark type {kind!r} is unknown; valid names: {valid}"
+                    f"landmark type {kind!r} is unknown; valid names: {cls._names()}"
                 ) from None
         if isinstance(kind, (int, np.integer)) and not isinstance(kind, bool):
             try:
                 return cls(int(kind))
             except ValueError:
                 raise ValueError(
-                    f"landmark type {kind!r} is unknown; valid values: 0..{len(cls) - 1} ({valid})"
+                    f"landmark type {kind!r} is unknown; valid values: 0..{len(cls) - 1} ({cls._names()})"
                 ) from None
         raise ValueError(
-            f"landmark type {kind!r} must be a LandmarkType, an int or a name ({valid})"
+            f"landmark type {kind!r} must be a LandmarkType, an int or a name ({cls._names()})"
         )
+
+    @classmethod
+    def _names(cls) -> str:
+        return ", ".join(member.name for member in cls)
 
 
 def _require_number(name: str, value: object) -> None:

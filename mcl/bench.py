@@ -21,7 +21,8 @@ medians taken; the machine may be busy with other work). JSON keys first, the --
   cache (the compile time) and with the cache found; `robocup-mcl demo walk --duration 0.1` with the cache;
 - numpy_without_avx512 [avx512]: the numpy step in processes with numpy's AVX-512 code switched off
   (NPY_DISABLE_CPU_FEATURES), alternated with processes with numpy as it is;
-- models [models]: LWPR update and predict (2 inputs), velocity-EKF predict and correct, in µs;
+- models [models]: LWPR update and predict (2 inputs), velocity-EKF predict and correct, and the README
+  robot loop's calls at N = 500 (predict, correct with a list of detections, building a batch), in µs;
 - bearing_accuracy [accuracy]: what the von Mises bearing term costs in accuracy (total-variation distance
   between its normalized weights and the exact term's);
 - machine, settings, targets (each "met", "NOT MET" or "not measured" with the reason), duration_s.
@@ -76,10 +77,11 @@ def _guarded(name: str, fn, *args, **kwargs) -> dict:
 
 
 def _models(budget_s: float) -> dict:
-    from .bench_models import time_ekf, time_lwpr
+    from .bench_models import time_ekf, time_lwpr, time_robot_loop
 
     result = {}
-    for key, fn, args in (("lwpr", time_lwpr, ()), ("ekf", time_ekf, (budget_s,))):
+    for key, fn, args in (("lwpr", time_lwpr, ()), ("ekf", time_ekf, (budget_s,)),
+                          ("robot_loop", time_robot_loop, (budget_s,))):
         try:
             result[key] = fn(*args)
         except Exception as error:

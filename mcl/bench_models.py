@@ -1,13 +1,18 @@
-"""The per-call costs `robocup-mcl bench` reports beside the filter step: LWPR and the velocity EKF.
+"""The per-call costs `robocup-mcl bench` reports beside the filter step: LWPR, the velocity EKF, and the calls of
+the README's robot loop.
 
-    from mcl.bench_models import time_lwpr, time_ekf
+    from mcl.bench_models import time_lwpr, time_ekf, time_robot_loop
 
 LWPR (`motion_models.lwpr`), 2 inputs and 1 output: the model of the cross benchmark (`demos.lwpr_cross`) after
 its 20 training epochs; µs per `update` in steady state and per `predict` of one point, as that benchmark
 times them (best of a few repetitions, validation and numba dispatch included). The velocity EKF
 (`sensing.velocity.VelocityEKF`): µs per `predict` (one IMU sample) and per `correct` (one leg-kinematics
 velocity), public calls with their validation, for the default filter (gyro bias in the state, 9 states)
-and the paper's (6 states).
+and the paper's (6 states). The robot loop (`time_robot_loop`): the public calls of the README's "Using it in a
+robot's loop", 500 particles, in µs per call: a motion input and `predict`, `correct` with a list of three
+`LandmarkObservation` (the batch built from the list included), that batch alone (`Observations.from_list`),
+a batch of 10 detections from arrays (`Observations.from_arrays`, types as integers), and `estimate` +
+`entropy` after a predict (less the predict).
 """
 from __future__ import annotations
 
@@ -50,3 +55,37 @@ def time_ekf(budget_s: float = 0.3) -> dict:
         result[label] = {"state_size": params.state_size, "predict_us": 1e6 * timed["predict"]["s"],
                          "correct_us": 1e6 * timed["correct"]["s"]}
     return result
+
+
+def time_robot_loop(budget_s: float = 0.3, n: int = 500) -> dict:
+    from field import spl
+    from motion_models import MotionInput, VelocityLinear
+    from sensing import LandmarkObservation, LandmarkSensorModel, Observations
+
+    from .filter import ParticleFilter
+
+    field = spl()
+    pf = ParticleFilter(field, VelocityLinear(), LandmarkSensorModel(field), n_particles=n, seed=0)
+    pf.reset_around(np.array([-2.0, 0.0, np.pi]), (0.2, 0.2, 0.1))
+    seen = [LandmarkObservation("penalty_mark", 1.2, 0.0), LandmarkObservation("goalpost", 2.65, 0.31),
+            LandmarkObservation("goalpost", 2.65, -0.31)]
+    kinds = np.zeros(10, dtype=np.int64)
+    ranges, bearings = np.linspace(1.0, 5.0, 10), np.linspace(-0.5, 0.5, 10)
+
+    def predict():
+        pf.predict(MotionInput(dt=0.01, command=(0.2, 0.0, 0.1)))
+
+    def summary():
+        predict()
+        pf.estimate()
+        pf.entropy()
+
+    timed = measure({"predict": predict, "correct": lambda: pf.correct(seen),
+                     "from_list": lambda: Observations.from_list(seen),
+                     "from_arrays": lambda: Observations.from_arrays(kinds, ranges, bearings),
+                     "summary": summary}, budget_s, min_samples=20)
+    us = {key: 1e6 * value["s"] for key, value in timed.items()}
+    return {"particles": n, "predict_us": us["predict"], "correct_list_us": us["correct"],
+            "from_list_us": us["from_list"], "from_arrays_us": us["from_arrays"],
+            "estimate_entropy_us": us["summary"] - us["predict"],
+            "method": "mcl.bench_models.time_robot_loop: the README loop's calls, interleaved medians"}

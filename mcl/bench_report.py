@@ -331,9 +331,15 @@ def format_report(result: dict) -> str:
             lines.append("velocity EKF: " + "; ".join(
                 f"{label} ({e['state_size']} states) predict {e['predict_us']:.2f} µs, correct {e['correct_us']:.2f} µs"
                 for label, e in ekf.items()))
-        for key in ("lwpr_error", "ekf_error"):
+        loop = models.get("robot_loop")
+        if loop:
+            lines.append(f"robot loop (README), N = {loop['particles']}: predict {loop['predict_us']:.1f} µs, "
+                         f"correct with a list of 3 detections {loop['correct_list_us']:.1f} µs, estimate + entropy "
+                         f"{loop['estimate_entropy_us']:.1f} µs; a batch from 3 LandmarkObservation "
+                         f"{loop['from_list_us']:.1f} µs, from arrays of 10 {loop['from_arrays_us']:.1f} µs")
+        for key in ("lwpr_error", "ekf_error", "robot_loop_error"):
             if key in models:
-                lines.append(f"{key.split('_')[0]}: {models[key]}")
+                lines.append(f"{key[:-len('_error')]}: {models[key]}")
     accuracy = _section(result, "bearing_accuracy")
     if accuracy:
         lines.append(f"von Mises versus exact bearing term: total-variation distance between the normalized weights "

@@ -18,9 +18,16 @@ import math
 from dataclasses import dataclass
 from typing import Iterable, Sequence
 
+import numba
 import numpy as np
 
 from field import LandmarkType
+
+# IS_KIND[v]: v is a landmark type's value (values index it from 0).
+IS_KIND = np.zeros(max(kind.value for kind in LandmarkType) + 1, dtype=np.bool_)
+IS_KIND[[kind.value for kind in LandmarkType]] = True
+# The checks of a batch's detections, in the order they are made (`first_invalid`).
+BAD_KIND, RANGE_NOT_FINITE, BEARING_NOT_FINITE, NEGATIVE_RANGE, BAD_RANGE_SIGMA, BAD_BEARING_SIGMA = range(6)
 
 
 def landmark_type(kind: LandmarkType | int | str) -> LandmarkType:
@@ -66,6 +73,62 @@ def _check_number(name: str, value: object) -> None:
         raise ValueError(f"{name} = {value!r} must be finite")
 
 
+@numba.njit(cache=True)
+def first_invalid(kinds, ranges, bearings, range_sigmas, bearing_sigmas, is_kind):
+    """(check, i): the first of the checks BAD_KIND, RANGE_NOT_FINITE, BEARING_NOT_FINITE, NEGATIVE_RANGE,
+    BAD_RANGE_SIGMA, BAD_BEARING_SIGMA that a detection fails, and the first detection failing it; (-1, -1)
+    when all pass. A noise fails when it is given (not NaN) and not finite and > 0. One pass per check, no
+    allocation; `first_invalid_reference` is the same in numpy."""
+    for i in range(kinds.shape[0]):
+        if kinds[i] < 0 or kinds[i] >= is_kind.shape[0] or not is_kind[kinds[i]]:
+            return BAD_KIND, i
+    for i in range(ranges.shape[0]):
+        if not math.isfinite(ranges[i]):
+            return RANGE_NOT_FINITE, i
+    for i in range(bearings.shape[0]):
+        if not math.isfinite(bearings[i]):
+            return BEARING_NOT_FINITE, i
+    for i in range(ranges.shape[0]):
+        if ranges[i] < 0:
+            return NEGATIVE_RANGE, i
+    for check, sigmas in ((BAD_RANGE_SIGMA, range_sigmas), (BAD_BEARING_SIGMA, bearing_sigmas)):
+        for i in range(sigmas.shape[0]):
+            if not math.isnan(sigmas[i]) and not (math.isfinite(sigmas[i]) and sigmas[i] > 0):
+                return check, i
+    return -1, -1
+
+
+def first_invalid_reference(kinds, ranges, bearings, range_sigmas, bearing_sigmas, is_kind) -> tuple[int, int]:
+    """`first_invalid` in numpy."""
+    inside = (kinds >= 0) & (kinds < is_kind.shape[0])
+    known = np.zeros(kinds.shape[0], dtype=bool)
+    known[inside] = is_kind[kinds[inside]]
+    failing = [~known, ~np.isfinite(ranges), ~np.isfinite(bearings), ranges < 0]
+    for sigmas in (range_sigmas, bearing_sigmas):
+        failing.append(~np.isnan(sigmas) & ~(np.isfinite(sigmas) & (sigmas > 0)))
+    for check, bad in enumerate(failing):
+        if bad.any():
+            return check, int(np.argmax(bad))
+    return -1, -1
+
+
+def _kind_values(kinds) -> np.ndarray:
+    """The int64 type values of `kinds` (members, values or names). An array of integers is taken as it is
+    when every value is a type's (`Observations` checks that again); anything else is parsed one by one, which
+    names the first bad entry."""
+    if isinstance(kinds, np.ndarray) and kinds.dtype.kind in "iu":
+        values = kinds.astype(np.int64).reshape(-1)
+        if first_invalid(values, _NO_VALUES, _NO_VALUES, _NO_VALUES, _NO_VALUES, IS_KIND)[0] < 0:
+            return values
+    items = np.atleast_1d(np.asarray(kinds, dtype=object))
+    if not len(items):
+        return np.zeros(0, np.int64)
+    return np.array([landmark_type(k).value for k in items], dtype=np.int64)
+
+
+_NO_VALUES = np.zeros(0)
+
+
 @dataclass(frozen=True, eq=False)
 class Observations:
     """One camera frame's detections as read-only arrays.
@@ -88,7 +151,7 @@ class Observations:
             points = np.array(raw, dtype=np.float64, copy=True).reshape(-1, 2)
         except (TypeError, ValueError):
             raise ValueError(f"line_points = {raw!r} must be an array of (x, y) points") from None
-        if not np.isfinite(points).all():
+        if points.size and not np.isfinite(points).all():
             i = int(np.argmin(np.isfinite(points).all(axis=1)))
             raise ValueError(f"line_points[{i}] = {points[i].tolist()!r} must be finite")
         points.flags.writeable = False
@@ -110,31 +173,23 @@ class Observations:
                 raise ValueError(f"{name} has {arr.shape[0]} entries, kinds has {n}")
             arr.flags.writeable = False
             object.__setattr__(self, name, arr)
-        valid = np.array([t.value for t in LandmarkType])
-        bad = ~np.isin(self.kinds, valid)
-        if bad.any():
-            raise ValueError(f"kinds[{int(np.argmax(bad))}] = {int(self.kinds[bad][0])} is not a landmark type")
-        for name in ("ranges", "bearings"):
-            arr = getattr(self, name)
-            if not np.isfinite(arr).all():
-                i = int(np.argmin(np.isfinite(arr)))
-                raise ValueError(f"{name}[{i}] = {arr[i]!r} must be finite")
-        if (self.ranges < 0).any():
-            i = int(np.argmax(self.ranges < 0))
-            raise ValueError(f"ranges[{i}] = {self.ranges[i]!r} must be >= 0")
-        for name in ("range_sigmas", "bearing_sigmas"):
-            arr = getattr(self, name)
-            given = ~np.isnan(arr)
-            if (given & ~(np.isfinite(arr) & (arr > 0))).any():
-                i = int(np.argmax(given & ~(np.isfinite(arr) & (arr > 0))))
-                raise ValueError(f"{name}[{i}] = {arr[i]!r} must be finite and > 0 (or NaN for 'not given')")
+        check, i = first_invalid(self.kinds, self.ranges, self.bearings, self.range_sigmas, self.bearing_sigmas,
+                                 IS_KIND)
+        if check == BAD_KIND:
+            raise ValueError(f"kinds[{i}] = {int(self.kinds[i])} is not a landmark type")
+        if check >= 0:
+            name = ("ranges", "bearings", "ranges", "range_sigmas", "bearing_sigmas")[check - 1]
+            value = getattr(self, name)[i]
+            rule = ("must be finite" if check < NEGATIVE_RANGE else "must be >= 0" if check == NEGATIVE_RANGE
+                    else "must be finite and > 0 (or NaN for 'not given')")
+            raise ValueError(f"{name}[{i}] = {value!r} {rule}")
 
     @classmethod
     def from_arrays(cls, kinds: Sequence, ranges: Sequence[float], bearings: Sequence[float],
                     range_sigmas: Sequence[float] | None = None,
                     bearing_sigmas: Sequence[float] | None = None, line_points=None) -> "Observations":
-        kinds_arr = np.array([landmark_type(k).value for k in np.atleast_1d(np.asarray(kinds, dtype=object))],
-                             dtype=np.int64) if len(np.atleast_1d(kinds)) else np.zeros(0, np.int64)
+        """A batch from equal-length sequences; kinds as LandmarkType members, their values or their names."""
+        kinds_arr = _kind_values(kinds)
         n = kinds_arr.shape[0]
         nan = np.full(n, np.nan)
         return cls(kinds_arr, ranges, bearings,

@@ -6,6 +6,7 @@ tiny sampling budget.
 import contextlib
 import io
 import json
+import math
 import sys
 
 import numpy as np
@@ -118,6 +119,11 @@ def test_memory_startup_models_sections(quick_run):
     models = result["models"]
     assert models["lwpr"]["inputs"] == 2 and models["lwpr"]["update_us"] > 0
     assert {"default", "paper"} == set(models["ekf"])
+    loop = models["robot_loop"]
+    assert loop["particles"] == 500
+    for key in ("predict_us", "correct_list_us", "from_list_us", "from_arrays_us", "estimate_entropy_us"):
+        assert math.isfinite(loop[key]), key
+    assert min(loop["predict_us"], loop["correct_list_us"], loop["from_list_us"], loop["from_arrays_us"]) > 0
     threads = result["threads"]
     assert threads["available"] in (True, False)
     if not threads["available"]:

@@ -47,6 +47,41 @@ def test_bad_batches_are_rejected():
         Observations.from_list([("goalpost", 1.0, 0.0)])
 
 
+ENTRIES = st.sampled_from([0.0, 1.5, -0.0, -2.0, 1e-300, float("nan"), float("inf"), -float("inf")])
+
+
+@given(st.integers(0, 6).flatmap(lambda m: st.tuples(
+    st.lists(st.integers(-2, 8), min_size=m, max_size=m), *(st.lists(ENTRIES, min_size=m, max_size=m),) * 4)))
+def test_batch_checks_match_their_numpy_twin(columns):
+    """`first_invalid` (compiled, one pass per check) names the check and the detection its numpy twin
+    names, and `Observations` raises for that detection, or accepts the batch when both find nothing."""
+    from sensing.observations import IS_KIND, first_invalid, first_invalid_reference
+
+    kinds, ranges, bearings, range_sigmas, bearing_sigmas = (
+        np.array(columns[0], dtype=np.int64), *(np.array(c, dtype=np.float64) for c in columns[1:]))
+    found = first_invalid(kinds, ranges, bearings, range_sigmas, bearing_sigmas, IS_KIND)
+    assert found == first_invalid_reference(kinds, ranges, bearings, range_sigmas, bearing_sigmas, IS_KIND)
+    if found[0] < 0:
+        batch = Observations(kinds, ranges, bearings, range_sigmas, bearing_sigmas)
+        assert np.array_equal(batch.ranges, ranges) and np.array_equal(batch.kinds, kinds)
+    else:
+        name = ("kinds", "ranges", "bearings", "ranges", "range_sigmas", "bearing_sigmas")[found[0]]
+        with pytest.raises(ValueError, match=rf"^{name}\[{found[1]}\] = "):
+            Observations(kinds, ranges, bearings, range_sigmas, bearing_sigmas)
+
+
+def test_kinds_given_as_values_names_or_members_make_the_same_batch():
+    names = ["goalpost", "T_crossing", "center_mark"]
+    members = [LandmarkType.GOALPOST, LandmarkType.T_CROSSING, LandmarkType.CENTER_MARK]
+    values = np.array([0, 2, 5])
+    for kinds in (names, members, values, values.astype(np.int32), values.astype(np.uint8), [0, 2, 5]):
+        assert np.array_equal(Observations.from_arrays(kinds, [1.0] * 3, [0.0] * 3).kinds, values)
+    with pytest.raises(ValueError, match="landmark type 9 is unknown"):
+        Observations.from_arrays(np.array([0, 9]), [1.0, 1.0], [0.0, 0.0])
+    with pytest.raises(ValueError, match="must be a LandmarkType"):
+        Observations.from_arrays(np.array([True]), [1.0], [0.0])
+
+
 def test_batches_are_read_only_and_convert_to_points():
     obs = Observations.from_list([LandmarkObservation(LandmarkType.T_CROSSING, 2.0, math.pi / 2)])
     assert not obs.ranges.flags.writeable
