@@ -300,8 +300,13 @@ class ParticleFilter:
         self._estimate: Estimate | None = None
         self._entropy: Entropy | None = None
         # Once `entropy()` has been asked for, the compiled step computes the entropy from the histograms it
-        # fills anyway, sparing the call its own dispatch into compiled code.
+        # fills anyway, sparing the call its own dispatch into compiled code. Once `estimate()` has been asked
+        # for, `predict` (one thread) computes the estimate in its own dispatch and keeps it pending: the next
+        # `estimate()` takes it and only then moves the hysteresis anchor `_previous_estimate` to it, so that
+        # the anchor moves exactly when the plain sequence of calls moves it.
         self._entropy_wanted = False
+        self._estimate_wanted = False
+        self._pending_estimate: Estimate | None = None
         self._previous_estimate = np.zeros(3)
         self._has_previous_estimate = False
         self._motion_state = None
@@ -319,6 +324,7 @@ class ParticleFilter:
         """The particles or their weights changed: the cached estimate and summary histograms are stale."""
         self._estimate = None
         self._entropy = None
+        self._pending_estimate = None
         self._summary_valid = False
 
     # -- resets ------------------------------------------------------------------------------------------
@@ -527,10 +533,35 @@ class ParticleFilter:
             else:
                 self.motion_model.predict(self.poses, u, self.rng, state=self._motion_state)
             self._carry_heading(u)
+        elif self._threads == 1 and (self._estimate_wanted or self._entropy_wanted):
+            self._move_and_summarize(motion)
+            self._heading_reference = math.remainder(self._heading_reference + motion[2], 2 * math.pi)
+            return
         else:
             self._move_compiled(motion)
             self._heading_reference = math.remainder(self._heading_reference + motion[2], 2 * math.pi)
         self._changed()
+
+    def _move_and_summarize(self, motion: tuple[float, ...]) -> None:
+        """`_move_compiled` on one thread, with the summary histograms, the estimate (kept pending, see
+        `estimate`) and the entropy that `estimate()` and `entropy()` would compute next, in the same dispatch
+        (`_move_then_summarize`)."""
+        gaussian = bool(self.motion_model.gaussian)
+        variates = draw_variates(self.rng, self.n, True, out=self._variates) if gaussian else _NO_VARIATES
+        mean = np.empty(3)
+        covariance = np.empty((3, 3))
+        coordinates, histograms, bitmaps = self._summary
+        want_estimate, want_entropy = self._estimate_wanted, self._entropy_wanted
+        weight, position, orientation = _move_then_summarize(
+            self.poses, *motion, gaussian, variates, *self._generator(), self._weights, self._grid_parameters,
+            coordinates, histograms, bitmaps, want_estimate, self._previous_estimate, self._has_previous_estimate,
+            mean, covariance, want_entropy, self._fast)
+        self._changed()
+        self._summary_valid = True
+        if want_estimate:
+            self._pending_estimate = Estimate(mean, covariance, weight)
+        if want_entropy:
+            self._entropy = Entropy(position, orientation)
 
     def _move_compiled(self, motion: tuple[float, ...]) -> None:
         """Move by (dx, dy, dθ, bounds) in the filter's kernels, with the noise the motion model would draw."""
@@ -895,6 +926,11 @@ class ParticleFilter:
         When no cluster holds half the weight, the one around the previous estimate is preferred if it is
         the heavier (hysteresis: see `mcl.estimate.cluster_estimate`).
         """
+        self._estimate_wanted = True
+        if self._estimate is None and self._pending_estimate is not None:
+            self._estimate, self._pending_estimate = self._pending_estimate, None
+            self._previous_estimate[:] = self._estimate.pose
+            self._has_previous_estimate = True
         if self._estimate is None:
             self._fill_summary()
             mean = np.empty(3)
@@ -1047,10 +1083,11 @@ def _resample_and_summarize(weights, keep, scratch, roughening, poses, trig, fun
 
 @numba.njit(cache=True)
 def _summarize(grid, source, weights, coordinates, histograms, bitmaps, want_estimate, previous, use_previous,
-               out_mean, out_cov, want_entropy, fast):
+               out_mean, out_cov, want_entropy, fast, commit=True):
     """The end of a step on one thread: the summary histograms (of `source`, or of the coordinates the
-    resampling wrote when it has no rows), the estimate when `want_estimate` (moving `previous` to it) and the
-    entropy when `want_entropy`. Returns (estimate weight, position entropy, orientation entropy)."""
+    resampling wrote when it has no rows), the estimate when `want_estimate` (moving `previous` to it when
+    `commit`) and the entropy when `want_entropy`. Returns (estimate weight, position entropy, orientation
+    entropy)."""
     summary_fill(grid, source, weights, coordinates, histograms, bitmaps)
     weight = 0.0
     if want_estimate:
@@ -1060,11 +1097,30 @@ def _summarize(grid, source, weights, coordinates, histograms, bitmaps, want_est
         else:
             weight = summary_estimate(grid, coordinates, weights, histograms, bitmaps, previous, use_previous,
                                       out_mean, out_cov)
-        previous[:] = out_mean
+        if commit:
+            previous[:] = out_mean
     position = orientation = 0.0
     if want_entropy:
         position, orientation = summary_entropy(grid, histograms, bitmaps)
     return weight, position, orientation
+
+
+@numba.njit(cache=True)
+def _move_then_summarize(poses, dx, dy, dtheta, bound_x, bound_y, bound_theta, gaussian, variates, function, state,
+                         weights, grid, coordinates, histograms, bitmaps, want_estimate, previous, use_previous,
+                         out_mean, out_cov, want_entropy, fast):
+    """`move_range` (`move_range_fast` when `fast`) of every particle in place, then `_summarize` of the moved
+    particles without moving the estimate's anchor `previous` (the filter moves it when `estimate()` takes the
+    estimate). Returns (estimate weight, position entropy, orientation entropy)."""
+    n = poses.shape[0]
+    if fast:
+        move_range_fast(poses, poses, 0, n, dx, dy, dtheta, bound_x, bound_y, bound_theta, gaussian, variates,
+                        function, state, np.empty(MOVE_WORK))
+    else:
+        move_range(poses, poses, 0, n, dx, dy, dtheta, bound_x, bound_y, bound_theta, gaussian, variates,
+                   function, state, np.empty(MOVE_WORK))
+    return _summarize(grid, poses, weights, coordinates, histograms, bitmaps, want_estimate, previous, use_previous,
+                      out_mean, out_cov, want_entropy, fast, False)
 
 
 @numba.njit(cache=True)
