@@ -22,7 +22,8 @@ medians taken; the machine may be busy with other work). JSON keys first, the --
 - numpy_without_avx512 [avx512]: the numpy step in processes with numpy's AVX-512 code switched off
   (NPY_DISABLE_CPU_FEATURES), alternated with processes with numpy as it is;
 - models [models]: LWPR update and predict (2 inputs), velocity-EKF predict and correct, and the README
-  robot loop's calls at N = 500 (predict, correct with a list of detections, building a batch), in µs;
+  robot loop's calls at N = 500 (a frame without detections, predict alone, correct with a list of
+  detections, building a batch), in µs;
 - bearing_accuracy [accuracy]: what the von Mises bearing term costs in accuracy (total-variation distance
   between its normalized weights and the exact term's);
 - machine, settings, targets (each "met", "NOT MET" or "not measured" with the reason), duration_s.
