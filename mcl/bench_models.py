@@ -10,7 +10,7 @@ times them (best of a few repetitions, validation and numba dispatch included). 
 velocity), public calls with their validation, for the default filter (gyro bias in the state, 9 states)
 and the paper's (6 states). The robot loop (`time_robot_loop`): the public calls of the README's "Using it in a
 robot's loop", 500 particles, in µs per call: a frame without detections (a motion input, `predict`,
-`estimate()`, `entropy()`), `predict` alone (a filter never asked for its estimate), `correct` with a list of
+`estimate()`, `entropy()`), `predict` alone (on a filter of its own), `correct` with a list of
 three `LandmarkObservation` (the batch built from the list included), that batch alone
 (`Observations.from_list`), and a batch of 10 detections from arrays (`Observations.from_arrays`, types as
 integers).
@@ -71,7 +71,7 @@ def time_robot_loop(budget_s: float = 0.3, n: int = 500) -> dict:
         pf.reset_around(np.array([-2.0, 0.0, np.pi]), (0.2, 0.2, 0.1))
         return pf
 
-    looping, predicting = make(), make()      # the second never asks for an estimate: its predict moves only
+    looping, predicting = make(), make()      # predict alone on a filter of its own
     u = MotionInput(dt=0.01, command=(0.2, 0.0, 0.1))
     seen = [LandmarkObservation("penalty_mark", 1.2, 0.0), LandmarkObservation("goalpost", 2.65, 0.31),
             LandmarkObservation("goalpost", 2.65, -0.31)]

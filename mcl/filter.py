@@ -299,14 +299,9 @@ class ParticleFilter:
         self._heading_reference = 0.0     # trusted heading, carried forward by odometry (see _track_confidence)
         self._estimate: Estimate | None = None
         self._entropy: Entropy | None = None
-        # Once `entropy()` has been asked for, the compiled step computes the entropy from the histograms it
-        # fills anyway, sparing the call its own dispatch into compiled code. Once `estimate()` has been asked
-        # for, `predict` (one thread) computes the estimate in its own dispatch and keeps it pending: the next
-        # `estimate()` takes it and only then moves the hysteresis anchor `_previous_estimate` to it, so that
-        # the anchor moves exactly when the plain sequence of calls moves it.
+        # Once `entropy()` has been asked for, the compiled step (and `estimate()`) computes the entropy from the
+        # histograms it fills anyway, sparing the call its own dispatch into compiled code.
         self._entropy_wanted = False
-        self._estimate_wanted = False
-        self._pending_estimate: Estimate | None = None
         self._previous_estimate = np.zeros(3)
         self._has_previous_estimate = False
         self._motion_state = None
@@ -324,7 +319,6 @@ class ParticleFilter:
         """The particles or their weights changed: the cached estimate and summary histograms are stale."""
         self._estimate = None
         self._entropy = None
-        self._pending_estimate = None
         self._summary_valid = False
 
     # -- resets ------------------------------------------------------------------------------------------
@@ -533,35 +527,10 @@ class ParticleFilter:
             else:
                 self.motion_model.predict(self.poses, u, self.rng, state=self._motion_state)
             self._carry_heading(u)
-        elif self._threads == 1 and (self._estimate_wanted or self._entropy_wanted):
-            self._move_and_summarize(motion)
-            self._heading_reference = math.remainder(self._heading_reference + motion[2], 2 * math.pi)
-            return
         else:
             self._move_compiled(motion)
             self._heading_reference = math.remainder(self._heading_reference + motion[2], 2 * math.pi)
         self._changed()
-
-    def _move_and_summarize(self, motion: tuple[float, ...]) -> None:
-        """`_move_compiled` on one thread, with the summary histograms, the estimate (kept pending, see
-        `estimate`) and the entropy that `estimate()` and `entropy()` would compute next, in the same dispatch
-        (`_move_then_summarize`)."""
-        gaussian = bool(self.motion_model.gaussian)
-        variates = draw_variates(self.rng, self.n, True, out=self._variates) if gaussian else _NO_VARIATES
-        mean = np.empty(3)
-        covariance = np.empty((3, 3))
-        coordinates, histograms, bitmaps = self._summary
-        want_estimate, want_entropy = self._estimate_wanted, self._entropy_wanted
-        weight, position, orientation = _move_then_summarize(
-            self.poses, *motion, gaussian, variates, *self._generator(), self._weights, self._grid_parameters,
-            coordinates, histograms, bitmaps, want_estimate, self._previous_estimate, self._has_previous_estimate,
-            mean, covariance, want_entropy, self._fast)
-        self._changed()
-        self._summary_valid = True
-        if want_estimate:
-            self._pending_estimate = Estimate(mean, covariance, weight)
-        if want_entropy:
-            self._entropy = Entropy(position, orientation)
 
     def _move_compiled(self, motion: tuple[float, ...]) -> None:
         """Move by (dx, dy, dθ, bounds) in the filter's kernels, with the noise the motion model would draw."""
@@ -926,30 +895,34 @@ class ParticleFilter:
         When no cluster holds half the weight, the one around the previous estimate is preferred if it is
         the heavier (hysteresis: see `mcl.estimate.cluster_estimate`).
         """
-        self._estimate_wanted = True
-        if self._estimate is None and self._pending_estimate is not None:
-            self._estimate, self._pending_estimate = self._pending_estimate, None
-            self._previous_estimate[:] = self._estimate.pose
-            self._has_previous_estimate = True
         if self._estimate is None:
-            self._fill_summary()
             mean = np.empty(3)
             cov = np.empty((3, 3))
             previous = self._previous_estimate
             coordinates, histograms, bitmaps = self._summary
-            if self._threads > 1:
-                with self._thread_scope:
-                    weight = summary_estimate_chunked(self._grid_parameters, coordinates, self._weights, histograms,
-                                                      bitmaps, previous, self._has_previous_estimate, mean, cov,
-                                                      self._chunk)
-            elif self._fast:
-                weight = summary_estimate_fast(self._grid_parameters, coordinates, self._weights, histograms, bitmaps,
-                                               previous, self._has_previous_estimate, mean, cov)
+            if self._threads == 1 and not self._summary_valid:
+                # One dispatch: the histograms, the estimate and (once asked for) the entropy.
+                weight, position, orientation = _summarize(
+                    self._grid_parameters, self.poses, self._weights, coordinates, histograms, bitmaps, True,
+                    previous, self._has_previous_estimate, mean, cov, self._entropy_wanted, self._fast)
+                self._summary_valid = True
+                if self._entropy_wanted:
+                    self._entropy = Entropy(float(position), float(orientation))
             else:
-                weight = summary_estimate(self._grid_parameters, coordinates, self._weights, histograms, bitmaps,
-                                          previous, self._has_previous_estimate, mean, cov)
+                self._fill_summary()
+                if self._threads > 1:
+                    with self._thread_scope:
+                        weight = summary_estimate_chunked(self._grid_parameters, coordinates, self._weights,
+                                                          histograms, bitmaps, previous, self._has_previous_estimate,
+                                                          mean, cov, self._chunk)
+                elif self._fast:
+                    weight = summary_estimate_fast(self._grid_parameters, coordinates, self._weights, histograms,
+                                                   bitmaps, previous, self._has_previous_estimate, mean, cov)
+                else:
+                    weight = summary_estimate(self._grid_parameters, coordinates, self._weights, histograms,
+                                              bitmaps, previous, self._has_previous_estimate, mean, cov)
+                previous[:] = mean
             self._estimate = Estimate(mean, cov, float(weight))
-            previous[:] = mean
             self._has_previous_estimate = True
         return self._estimate
 
@@ -958,8 +931,15 @@ class ParticleFilter:
         estimate shares (kept until the particles change)."""
         self._entropy_wanted = True
         if self._entropy is None:
-            self._fill_summary()
-            position, orientation = summary_entropy(self._grid_parameters, *self._summary[1:])
+            if self._threads == 1 and not self._summary_valid:
+                # One dispatch: the histograms and the entropy (no estimate: it would move the hysteresis anchor).
+                _, position, orientation = _summarize(
+                    self._grid_parameters, self.poses, self._weights, *self._summary, False,
+                    self._previous_estimate, False, _NO_MEAN, _NO_COVARIANCE, True, self._fast)
+                self._summary_valid = True
+            else:
+                self._fill_summary()
+                position, orientation = summary_entropy(self._grid_parameters, *self._summary[1:])
             self._entropy = Entropy(float(position), float(orientation))
         return self._entropy
 
@@ -998,6 +978,7 @@ _NO_VARIATES = np.empty((0, 3))
 _NO_TRIG = np.empty((0, 2))
 _NO_COORDINATES = np.empty((3, 0))
 _NO_STATE = np.empty((0, 0))      # no per-particle motion state
+_NO_MEAN, _NO_COVARIANCE = np.empty(3), np.empty((3, 3))     # out_mean, out_cov of a summary without estimate
 _NO_MOTION = (0.0,) * 6
 # `_compiled_step` status: done; a detection's type is missing (nothing changed); NaN or +inf likelihoods
 # (predicted only); no particle explains the detections; resampling (with injection) is left to Python.
@@ -1083,11 +1064,10 @@ def _resample_and_summarize(weights, keep, scratch, roughening, poses, trig, fun
 
 @numba.njit(cache=True)
 def _summarize(grid, source, weights, coordinates, histograms, bitmaps, want_estimate, previous, use_previous,
-               out_mean, out_cov, want_entropy, fast, commit=True):
+               out_mean, out_cov, want_entropy, fast):
     """The end of a step on one thread: the summary histograms (of `source`, or of the coordinates the
-    resampling wrote when it has no rows), the estimate when `want_estimate` (moving `previous` to it when
-    `commit`) and the entropy when `want_entropy`. Returns (estimate weight, position entropy, orientation
-    entropy)."""
+    resampling wrote when it has no rows), the estimate when `want_estimate` (moving `previous` to it) and the
+    entropy when `want_entropy`. Returns (estimate weight, position entropy, orientation entropy)."""
     summary_fill(grid, source, weights, coordinates, histograms, bitmaps)
     weight = 0.0
     if want_estimate:
@@ -1097,30 +1077,11 @@ def _summarize(grid, source, weights, coordinates, histograms, bitmaps, want_est
         else:
             weight = summary_estimate(grid, coordinates, weights, histograms, bitmaps, previous, use_previous,
                                       out_mean, out_cov)
-        if commit:
-            previous[:] = out_mean
+        previous[:] = out_mean
     position = orientation = 0.0
     if want_entropy:
         position, orientation = summary_entropy(grid, histograms, bitmaps)
     return weight, position, orientation
-
-
-@numba.njit(cache=True)
-def _move_then_summarize(poses, dx, dy, dtheta, bound_x, bound_y, bound_theta, gaussian, variates, function, state,
-                         weights, grid, coordinates, histograms, bitmaps, want_estimate, previous, use_previous,
-                         out_mean, out_cov, want_entropy, fast):
-    """`move_range` (`move_range_fast` when `fast`) of every particle in place, then `_summarize` of the moved
-    particles without moving the estimate's anchor `previous` (the filter moves it when `estimate()` takes the
-    estimate). Returns (estimate weight, position entropy, orientation entropy)."""
-    n = poses.shape[0]
-    if fast:
-        move_range_fast(poses, poses, 0, n, dx, dy, dtheta, bound_x, bound_y, bound_theta, gaussian, variates,
-                        function, state, np.empty(MOVE_WORK))
-    else:
-        move_range(poses, poses, 0, n, dx, dy, dtheta, bound_x, bound_y, bound_theta, gaussian, variates,
-                   function, state, np.empty(MOVE_WORK))
-    return _summarize(grid, poses, weights, coordinates, histograms, bitmaps, want_estimate, previous, use_previous,
-                      out_mean, out_cov, want_entropy, fast, False)
 
 
 @numba.njit(cache=True)
