@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import math
 from collections import deque
+from itertools import islice
 
 import numba
 import numpy as np
@@ -123,10 +124,15 @@ class MotionHistory:
         if self._start is not None and t < self._start - 1e-9:
             raise ValueError(f"an observation captured at {t:.3f} s is older than the motion history, which "
                              f"reaches back to {self._start:.3f} s (keep = {self.keep} s)")
-        total = IDENTITY
-        for t_end, dt, displacement in self._steps:
+        # The steps that end after t are a suffix (steps are kept in time order): found from the end, then
+        # composed in time order.
+        after = 0
+        for t_end, _, _ in reversed(self._steps):
             if t_end <= t + SAME_TIME:
-                continue
+                break
+            after += 1
+        total = IDENTITY
+        for t_end, dt, displacement in islice(self._steps, len(self._steps) - after, None):
             share = 1.0 if dt <= 0 or t_end - dt >= t else (t_end - t) / dt
             step = displacement if share == 1.0 else tuple(share * v for v in displacement)
             total = compose(total, step)

@@ -12,7 +12,7 @@ from demos.walk_sim import WalkScenario, simulate
 from field import spl
 from field.angles import wrap_angles
 from mcl import AugmentedMCL
-from mcl.latency import MotionHistory, compose, move_back, move_back_reference, move_forward
+from mcl.latency import SAME_TIME, MotionHistory, compose, move_back, move_back_reference, move_forward
 from mcl.localizer import Localizer, Quality, default_kickoff_positions, touchline_poses
 from mcl.replay import motion_events, replay
 from motion_models import MotionInput
@@ -64,6 +64,36 @@ def test_move_back_kernel_matches_its_reference(poses, displacement):
     out = np.empty_like(poses)
     move_back(poses, np.array(displacement), out)
     np.testing.assert_array_equal(out, move_back_reference(poses, displacement))
+
+
+def since_reference(steps, t):
+    """`MotionHistory.since` as a pass over every kept step (the steps ending by t skipped)."""
+    total = (0.0, 0.0, 0.0)
+    for t_end, dt, displacement in steps:
+        if t_end <= t + SAME_TIME:
+            continue
+        share = 1.0 if dt <= 0 or t_end - dt >= t else (t_end - t) / dt
+        total = compose(total, displacement if share == 1.0 else tuple(share * v for v in displacement))
+    return total
+
+
+@given(st.lists(st.tuples(st.sampled_from([0.0, 0.005, 0.01, 0.02]), displacements), min_size=1, max_size=40),
+       st.floats(0.0, 1.0), st.sampled_from([0.05, 0.3, 10.0]))
+def test_history_since_is_the_composition_over_the_steps_after_the_capture(steps, fraction, keep):
+    """From the end of the history back to the capture: the same compositions in the same order as a pass
+    over every kept step, bit for bit, for captures inside steps, at their ends and after the latest."""
+    history = MotionHistory(keep=keep)
+    t = 0.0
+    for dt, displacement in steps:
+        t += dt
+        history.record(t, dt, displacement)
+    kept = list(history._steps)
+    oldest, latest = history.oldest, history.latest
+    captures = [oldest + fraction * (latest - oldest), latest, oldest] + [
+        t_end + shift for t_end, _, _ in kept[-3:] for shift in (0.0, -0.5 * SAME_TIME, -2 * SAME_TIME)]
+    for capture in captures:
+        if capture >= oldest:
+            assert history.since(capture) == since_reference(kept, capture)
 
 
 def test_history_takes_the_part_of_a_step_after_the_capture_and_refuses_older_captures():
