@@ -65,7 +65,8 @@ from field.angles import wrap_angle, wrap_angles
 from motion_models._kernels import (SQRT3, balanced_chunk, bit_generator_handle, draw_uniforms, draw_variates,
                                     move_chunked, move_range, move_range_fast, parallel_uniforms, MOVE_WORK, NO_WORK)
 from motion_models.base import BoundedNoiseModel, MotionInput, MotionModel
-from sensing.landmarks import BLOCK, TOTAL, block_work, load_block, prepare_detections, score_block
+from sensing.landmarks import (BLOCK, TOTAL, block_work, load_block, move_block_back, prepare_detections,
+                               score_block)
 from sensing.observations import Observations
 
 from .estimate import (summary_buffers, summary_entropy, summary_estimate, summary_estimate_chunked,
@@ -569,18 +570,22 @@ class ParticleFilter:
         except ValueError:
             self.sensor_model.check(observations)     # the detections are checked first
             raise
-        if since is not None:
-            self.sensor_model.check(observations)
-            self._correct(observations, since)
-        else:
-            self._step_compiled(None, observations, False)
+        self._step_compiled(None, observations, False, since)
 
     @staticmethod
     def _check_since(since) -> np.ndarray | None:
         if since is None:
             return None
-        array = np.asarray(since, dtype=np.float64)
-        if array.shape != (3,) or not np.isfinite(array).all():
+        if type(since) is tuple and len(since) == 3 and all(type(v) is float for v in since):
+            # `MotionHistory.since` gives three floats: checked without numpy's calls on a tiny array
+            if not all(math.isfinite(v) for v in since):
+                raise ValueError(f"since = {since!r} must be three finite numbers (dx, dy, dθ)")
+            return None if since == (0.0, 0.0, 0.0) else np.array(since)
+        try:
+            array = np.asarray(since, dtype=np.float64)
+        except (TypeError, ValueError):
+            array = None
+        if array is None or array.shape != (3,) or not np.isfinite(array).all():
             raise ValueError(f"since = {since!r} must be three finite numbers (dx, dy, dθ)")
         return None if not array.any() else array
 
@@ -644,9 +649,10 @@ class ParticleFilter:
         self._step_compiled(motion, observations, True)
         return self.estimate()
 
-    def _step_compiled(self, motion: tuple | None, observations: Observations, in_step: bool) -> None:
-        """[predict by `motion`,] correct(observations): one call into `_compiled_step` (with the entropy, once
-        `entropy()` has been asked for)."""
+    def _step_compiled(self, motion: tuple | None, observations: Observations, in_step: bool,
+                       since: np.ndarray | None = None) -> None:
+        """[predict by `motion`,] correct(observations) [captured `since` ago]: one call into `_compiled_step`
+        (with the entropy, once `entropy()` has been asked for)."""
         n = self.n
         table, offsets, range_noise_floor, range_noise_growth, bearing_sigma, log_outlier = self._compiled_sensor
         move = motion is not None
@@ -684,7 +690,7 @@ class ParticleFilter:
                 self.resampling == "systematic" and (self._motion_state is None or not chunk), self.roughening,
                 self._state_rows, self._state_scratch, self._grid_parameters, coordinates, histograms, bitmaps,
                 want_estimate, self._previous_estimate, self._has_previous_estimate, mean, covariance,
-                self._entropy_wanted, chunk, self._fast)
+                self._entropy_wanted, chunk, self._fast, _NO_SINCE if since is None else since)
         if status == _STEP_MISSING:
             self.sensor_model.check(observations)     # raises, naming the detection; nothing has changed
             raise ValueError("a detection's landmark type is not on this field")
@@ -698,7 +704,7 @@ class ParticleFilter:
             self.frame_fit = math.exp(native_log_average / terms)
         if status == _STEP_UNEXPLAINED:
             self._weights[:] = 1.0 / n
-            self._resample(self._injection_count(1.0), observations)
+            self._resample(self._injection_count(1.0), observations, since)
             return
         self.ess = ess
         if augmented and terms > 0:
@@ -707,9 +713,9 @@ class ParticleFilter:
         if status == _STEP_RESAMPLE:
             count = self._injection_count(fraction)
             if count > 0 and self._threads == 1 and self.resampling == "systematic" and self._motion_state is None:
-                self._finish_with_injection(count, observations, want_estimate, mean, covariance)
+                self._finish_with_injection(count, observations, want_estimate, mean, covariance, since)
             else:
-                self._resample(count, observations)
+                self._resample(count, observations, since)
         else:
             self.resampled = resampled
             self.injected = 0
@@ -722,12 +728,14 @@ class ParticleFilter:
         self._track_confidence()
 
     def _finish_with_injection(self, count: int, observations: Observations, want_estimate: bool,
-                               mean: np.ndarray, covariance: np.ndarray) -> None:
+                               mean: np.ndarray, covariance: np.ndarray, since: np.ndarray | None = None) -> None:
         """The end of a compiled step that injects (one thread, systematic resampling): `_resample` and the
         estimate and entropy that follow it, in one call into compiled code (`_resample_and_summarize`) after
         the injected poses are drawn. The same draws and results as `_resample` then `estimate()`/`entropy()`."""
         n = self.n
         injected = self._sample_injection(count, observations)
+        if since is not None:                     # placed where the detections were captured: carried to now
+            move_forward(injected, since, injected)
         keep = n - count
         coordinates, histograms, bitmaps = self._summary
         weight, position, orientation = _resample_and_summarize(
@@ -980,6 +988,7 @@ _NO_COORDINATES = np.empty((3, 0))
 _NO_STATE = np.empty((0, 0))      # no per-particle motion state
 _NO_MEAN, _NO_COVARIANCE = np.empty(3), np.empty((3, 3))     # out_mean, out_cov of a summary without estimate
 _NO_MOTION = (0.0,) * 6
+_NO_SINCE = np.empty(0)           # detections captured now: nothing to move back
 # `_compiled_step` status: done; a detection's type is missing (nothing changed); NaN or +inf likelihoods
 # (predicted only); no particle explains the detections; resampling (with injection) is left to Python.
 _STEP_DONE, _STEP_MISSING, _STEP_INVALID, _STEP_UNEXPLAINED, _STEP_RESAMPLE = range(5)
@@ -1087,9 +1096,11 @@ def _summarize(grid, source, weights, coordinates, histograms, bitmaps, want_est
 @numba.njit(cache=True)
 def _predict_and_score(poses, scratch, trig, log_likelihood, move, dx, dy, dtheta, bound_x, bound_y, bound_theta,
                        gaussian, variates, function, state, table, offsets, detections, groups, log_outlier, start,
-                       stop, fast):
+                       stop, fast, since):
     """Particles start..stop moved (or copied) from `poses` into `scratch` a block at a time and scored there
-    while in cache; cos and sin of their headings into `trig` (for the roughening)."""
+    while in cache; cos and sin of their headings into `trig` (for the roughening). since: (dx, dy, dθ) when
+    the detections were captured earlier (copying only): each particle is scored where it was at capture, moved
+    back as `mcl.latency.move_back` moves it (`trig` keeps its heading now)."""
     work = block_work(offsets, groups, min(stop - start, BLOCK))
     move_work = np.empty(MOVE_WORK)
     for block in range(start, stop, BLOCK):
@@ -1103,6 +1114,8 @@ def _predict_and_score(poses, scratch, trig, log_likelihood, move, dx, dy, dthet
             move_range(poses, scratch, block, end, dx, dy, dtheta, bound_x, bound_y, bound_theta, gaussian,
                        variates, function, state, move_work)
         load_block(scratch, block, end - block, work, trig, fast)
+        if since.shape[0] > 0:
+            move_block_back(work, end - block, since, fast)
         score_block(work, end - block, table, offsets, detections, groups, log_outlier)
         log_likelihood[block:end] = work[TOTAL, :end - block]
 
@@ -1110,13 +1123,13 @@ def _predict_and_score(poses, scratch, trig, log_likelihood, move, dx, dy, dthet
 @numba.njit(cache=True, parallel=True)
 def _predict_and_score_chunked(poses, scratch, trig, log_likelihood, move, dx, dy, dtheta, bound_x, bound_y,
                                bound_theta, gaussian, variates, table, offsets, detections, groups, log_outlier,
-                               chunk, fast):
+                               chunk, fast, since):
     """`_predict_and_score` of all particles, the chunks on several threads (the noise drawn beforehand)."""
     n = poses.shape[0]
     for t in numba.prange(max(1, (n + chunk - 1) // chunk)):
         _predict_and_score(poses, scratch, trig, log_likelihood, move, dx, dy, dtheta, bound_x, bound_y,
                            bound_theta, gaussian, variates, 0, 0, table, offsets, detections, groups, log_outlier,
-                           t * chunk, min(n, (t + 1) * chunk), fast)
+                           t * chunk, min(n, (t + 1) * chunk), fast, since)
 
 
 @numba.njit(cache=True, parallel=True)
@@ -1142,7 +1155,7 @@ def _compiled_step(poses, log_weights, weights, log_likelihood, scratch, trig, c
                    count, terms, augmented, alpha_slow, alpha_fast, ratio_threshold, fit_threshold, w_slow, w_fast,
                    cap, resample_threshold, can_resample, roughening, state_rows, state_scratch,
                    grid, coordinates, histograms, bitmaps, want_estimate, previous, use_previous, out_mean, out_cov,
-                   want_entropy, chunk, fast):
+                   want_entropy, chunk, fast, since):
     """predict (when `move`), the landmark likelihood, the weight update, augmented MCL's rates, systematic
     resampling with roughening, the summary histograms, the estimate and (when `want_entropy`) the entropy, as
     ParticleFilter.predict, correct and entropy compute them. Returns (status, native log average, ESS, w_slow,
@@ -1175,12 +1188,12 @@ def _compiled_step(poses, log_weights, weights, log_likelihood, scratch, trig, c
             parallel_uniforms(function, state, variates.reshape(-1), 3 * n)
         _predict_and_score_chunked(poses, scratch, trig, log_likelihood, move, dx, dy, dtheta, bound_x, bound_y,
                                    bound_theta, gaussian, variates, table, offsets, detections, groups, log_outlier,
-                                   chunk, fast)
+                                   chunk, fast, since)
         valid, native, log_evidence, ess = weigh_chunked(log_weights, log_likelihood, count, weights, chunk)
     else:
         _predict_and_score(poses, scratch, trig, log_likelihood, move, dx, dy, dtheta, bound_x, bound_y, bound_theta,
                            gaussian, variates, function, state, table, offsets, detections, groups, log_outlier, 0,
-                           n, fast)
+                           n, fast, since)
         if fast:
             valid, native, log_evidence, ess = weigh_fast(log_weights, log_likelihood, count, weights)
         else:

@@ -40,7 +40,7 @@ from .estimate import (cluster_estimate_reference, grid_entropy_reference, summa
                        summary_estimate_chunked, summary_estimate_fast, summary_fill, summary_fill_chunked)
 from .resampling import (_systematic_counted, gather_with_jitter_reference, resample_with_jitter,
                          resample_with_jitter_chunked, systematic_reference)
-from .filter import _predict_and_score, _predict_and_score_chunked
+from .filter import _NO_SINCE as NO_SINCE, _predict_and_score, _predict_and_score_chunked
 from .weights import normalize_reference, weigh, weigh_chunked, weigh_fast
 
 PHASES = ("predict", "likelihood", "normalize", "resample", "estimate", "entropy")
@@ -110,7 +110,7 @@ def _issue_shaped_kernel(poses, scratch, trig, log_likelihood, log_weights, weig
     n = poses.shape[0]
     _predict_and_score(poses, scratch, trig, log_likelihood, True, dx, dy, dtheta, bound_x, bound_y, bound_theta,
                        False, np.empty((0, 3)), function, state, table, offsets, detections, groups, log_outlier, 0,
-                       n, fast)
+                       n, fast, np.empty(0))
     if fast:
         _, _, _, ess = weigh_fast(log_weights, log_likelihood, n, weights)
     else:
@@ -237,10 +237,11 @@ def compiled_phases(pf, u: MotionInput, observations: Observations) -> dict[str,
                 with scope:
                     _predict_and_score_chunked(scratch, scratch, pf._trig, pf._log_likelihood, False, *motion,
                                                False, no_variates, table, offsets, detections, groups, log_outlier,
-                                               chunk, pf.fast)
+                                               chunk, pf.fast, NO_SINCE)
             else:
                 _predict_and_score(scratch, scratch, pf._trig, pf._log_likelihood, False, *motion, False,
-                                   no_variates, 0, 0, table, offsets, detections, groups, log_outlier, 0, n, True)
+                                   no_variates, 0, 0, table, offsets, detections, groups, log_outlier, 0, n, True,
+                                   NO_SINCE)
         else:
             von_mises_log_likelihood(scratch, table, offsets, detections, groups, log_outlier, pf._log_likelihood,
                                      pf._trig)

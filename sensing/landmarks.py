@@ -321,6 +321,30 @@ def load_block(poses, start, count, work, trig, fast=False):
 
 
 @numba.njit(cache=True, error_model="numpy")
+def _move_rows_back(work, count, dx, dy, dtheta):
+    for p in range(count):
+        theta = work[TOTAL, p] - dtheta
+        c, s = sincos(theta)
+        work[X, p] = work[X, p] - (c * dx - s * dy)
+        work[Y, p] = work[Y, p] - (s * dx + c * dy)
+        work[TOTAL, p] = wrap_angle(theta)
+
+
+@numba.njit(cache=True)
+def move_block_back(work, count, displacement, fast=False):
+    """Rows X, Y, COS, SIN of a work array that `load_block` loaded (row TOTAL still holding the headings),
+    moved back by `displacement` (dx, dy, dθ, in the frame of the earlier pose): the operations of
+    `mcl.latency.move_back`, then of `load_block`, so that the block scores as the moved-back poses would, bit
+    for bit. Scores detections captured before the particles moved (camera latency) without writing the
+    moved-back poses anywhere (a loop over rows, which vectorizes)."""
+    _move_rows_back(work, count, displacement[0], displacement[1], displacement[2])
+    if fast:
+        _trig_rows_fast(work, count)
+    else:
+        _trig_rows(work, count)
+
+
+@numba.njit(cache=True, error_model="numpy")
 def score_block(work, count, table, offsets, detections, groups, log_outlier):
     """Row TOTAL of the work array: the log-likelihood (von Mises, max-mixture) of the block's `count` particles,
     whose rows X, Y, COS, SIN are loaded. Bit for bit `landmark_log_likelihood` with exact = sum_mixture = False."""

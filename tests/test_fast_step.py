@@ -282,6 +282,58 @@ def test_the_entropy_from_the_step_is_the_entropy_computed_afresh(options):
         assert (entropy.position, entropy.orientation) == fresh
 
 
+@pytest.mark.parametrize("options", [
+    dict(),
+    dict(augmented=None),
+    dict(resample_threshold=1.0, augmented=None),
+    dict(augmented=AugmentedMCL(fit_threshold=1e9)),          # injects every frame: sensor resetting moved forward
+    dict(motion=AdaptiveMotion()),
+    dict(resampling="stratified"),
+    dict(n=1),
+])
+def test_latency_compensated_correct_in_the_compiled_step_equals_the_plain_sequence(options):
+    """`correct(observations, since)` scores each particle where it was at capture in the compiled step (the
+    block moved back as `move_back` moves it); the filter that scores through `log_likelihood` on the poses
+    `move_back` wrote gives the same state bit for bit, frames that inject and frames no particle explains
+    included."""
+    options = {"n": 300, "motion": VelocityLinear(), **options}
+    n, motion = options.pop("n"), options.pop("motion")
+    compiled = ParticleFilter(FIELD, motion, LandmarkSensorModel(FIELD), n_particles=n, seed=2, **options)
+    plain = ParticleFilter(FIELD, motion, StagedLandmarks(FIELD), n_particles=n, seed=2, **options)
+    rng = np.random.default_rng(4)
+    sinces = [(0.03, 0.01, 0.05), (0.0, 0.0, 0.0), (-0.02, 0.0, -0.3), None, (0.1, -0.05, 3.0)]
+    for pf in (compiled, plain):
+        pf.reset_around(TRUE_POSE, (0.3, 0.3, 0.2))
+    u = MotionInput(dt=0.033, command=(0.2, 0.05, 0.3), collision=NO_COLLISION)
+    for k in range(25):
+        observations = detections(TRUE_POSE, rng, 1 + k % 6, ("goalpost", "t_crossing"))
+        if k == 11:                                   # nothing explains these: every particle at zero
+            observations = Observations.from_arrays(["goalpost"], [0.1], [math.pi])
+        since = sinces[k % len(sinces)]
+        for pf in (compiled, plain):
+            pf.predict(u)
+            pf.correct(observations, since=since)
+        assert same(state(compiled), state(plain)), k
+
+
+@pytest.mark.parametrize("since", [(float("nan"), 0.0, 0.0), (0.0, float("inf"), 0.0), (0.1, 0.2), "abc",
+                                   np.array([0.1, np.nan, 0.0]), (0.1, 0.2, 0.3, 0.4)])
+def test_a_bad_since_is_rejected_before_anything_changes(since):
+    pf = make(seed=6)
+    before = state(pf)
+    with pytest.raises(ValueError, match="since"):
+        pf.correct(detections(TRUE_POSE, np.random.default_rng(0)), since=since)
+    assert same(state(pf), before)
+
+
+@pytest.mark.parametrize("zero", [(0.0, 0.0, 0.0), (-0.0, 0.0, -0.0), np.zeros(3), [0, 0, 0]])
+def test_a_zero_since_scores_the_particles_as_they_are(zero):
+    a, b = make(seed=6), make(seed=6)
+    a.correct(detections(TRUE_POSE, np.random.default_rng(0)), since=zero)
+    b.correct(detections(TRUE_POSE, np.random.default_rng(0)))
+    assert same(state(a), state(b))
+
+
 class Unfused(ParticleFilter):
     """The filter as it was before `estimate()` and `entropy()` filled the histograms in the same dispatch: the
     histograms first (`_fill_summary`), then the estimate or the entropy, each a dispatch of its own."""
