@@ -206,3 +206,30 @@ def test_every_kernel_is_cached_and_found_again(tmp_path):
     misses = {label: count for label, count in again["cache_misses"].items()
               if label.rsplit(".", 1)[0] not in edited}
     assert misses == {}, f"compiled again although cached: {misses}"
+
+
+def test_a_changed_source_file_drops_the_cached_kernels(tmp_path):
+    """`conftest.forget_stale_numba_caches`: numba would load a kernel's old machine code when only a callee in
+    another file changed, so any change to a source file drops every cached kernel (and nothing else)."""
+    from conftest import PACKAGES, forget_stale_numba_caches
+
+    for package in PACKAGES:
+        (tmp_path / package / "__pycache__").mkdir(parents=True)
+        (tmp_path / package / "kernels.py").write_text("x = 1\n")
+    cached = [tmp_path / "mcl" / "__pycache__" / name for name in ("step-12.py311.nbi", "step-12.py311.0.nbc")]
+    kept = tmp_path / "mcl" / "__pycache__" / "kernels.cpython-311.pyc"
+    stamp = tmp_path / ".numba-sources"
+
+    def cache():
+        for path in (*cached, kept):
+            path.write_bytes(b"cached")
+
+    cache()
+    assert forget_stale_numba_caches(tmp_path, stamp)              # no stamp yet: dropped
+    assert not any(path.exists() for path in cached) and kept.exists() and stamp.exists()
+    cache()
+    assert not forget_stale_numba_caches(tmp_path, stamp)          # nothing changed: kept
+    assert all(path.exists() for path in cached)
+    (tmp_path / "sensing" / "kernels.py").write_text("x = 22\n")   # a callee in another package changed
+    assert forget_stale_numba_caches(tmp_path, stamp)
+    assert not any(path.exists() for path in cached) and kept.exists()
