@@ -1177,6 +1177,8 @@ def _compiled_step(poses, log_weights, weights, log_likelihood, scratch, trig, c
     histograms (`mcl.estimate.summary_fill_chunked`).
     fast: sin, cos and exp by vectorized polynomials and the sums of the weights and of the estimate
     reassociated; the same draws, results equal to rounding.
+    since: (dx, dy, dθ), the robot's motion since the detections were captured (no rows: captured now, or a
+    predict): each particle is scored moved back by it, and resampled where it is now.
     """
     n = poses.shape[0]
     detections, groups, missing = prepare_detections(kinds, ranges, bearings, range_sigmas, bearing_sigmas, offsets,

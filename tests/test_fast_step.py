@@ -316,6 +316,21 @@ def test_latency_compensated_correct_in_the_compiled_step_equals_the_plain_seque
         assert same(state(compiled), state(plain)), k
 
 
+def test_latency_compensated_correct_on_threads_matches_one_thread_to_rounding():
+    runs = []
+    for threads in (1, 2):
+        pf = make(n=20000, seed=7, threads=threads, augmented=None, resample_threshold=1.0)
+        pf.reset_around(TRUE_POSE, (0.3, 0.3, 0.2))
+        rng = np.random.default_rng(3)
+        for k in range(4):
+            pf.predict(MotionInput(dt=0.033, command=(0.2, 0.05, 0.3)))
+            pf.correct(detections(TRUE_POSE, rng, 6), since=(0.02, 0.01, 0.1 * (k - 1)))
+        runs.append(state(pf))
+    one, two = runs
+    np.testing.assert_allclose(two[0], one[0], rtol=0, atol=1e-9)      # the same offspring, particles to rounding
+    np.testing.assert_allclose(two[12], one[12], atol=1e-9)
+
+
 @pytest.mark.parametrize("since", [(float("nan"), 0.0, 0.0), (0.0, float("inf"), 0.0), (0.1, 0.2), "abc",
                                    np.array([0.1, np.nan, 0.0]), (0.1, 0.2, 0.3, 0.4)])
 def test_a_bad_since_is_rejected_before_anything_changes(since):
