@@ -122,7 +122,7 @@ class Recorder:
         self.stream.disconnect()
 
     def flush(self) -> None:
-        """Send the buffered series as columns."""
+        """Send what is buffered (the series, the particles and the detection arrows) as columns."""
         for path, rows in self._scalars.items():
             if rows:
                 steps, times, values = (np.array(column) for column in zip(*rows))
