@@ -137,28 +137,26 @@ class Recorder:
                                          columns=rr.Arrows2D.columns(origins=table[:, 2:4], vectors=table[:, 4:6],
                                                                      colors=color, radii=np.full(n, 0.03)))
         if self._particles:
-            steps, times, positions, colors = zip(*self._particles)
-            lengths = [p.shape[0] for p in positions]
-            self.stream.send_columns("particles", indexes=self._indexes(np.array(steps), np.array(times)),
-                                     columns=rr.Points2D.columns(
-                                         positions=np.concatenate(positions), colors=np.concatenate(colors),
-                                         radii=np.full(sum(lengths), PARTICLE_RADIUS, dtype=np.float32),
-                                     ).partition(lengths))
+            self._send_rows("particles", self._particles, PARTICLE_RADIUS, lambda positions, colors, radii:
+                            rr.Points2D.columns(positions=positions, colors=colors, radii=radii))
         if self._rays:
-            steps, times, origins, vectors, colors = zip(*self._rays)
-            lengths = [o.shape[0] for o in origins]
-            self.stream.send_columns("observations", indexes=self._indexes(np.array(steps), np.array(times)),
-                                     columns=rr.Arrows2D.columns(
-                                         origins=np.concatenate(origins), vectors=np.concatenate(vectors),
-                                         colors=np.concatenate(colors),
-                                         radii=np.full(sum(lengths), RAY_RADIUS, dtype=np.float32),
-                                     ).partition(lengths))
+            self._send_rows("observations", self._rays, RAY_RADIUS, lambda origins, vectors, colors, radii:
+                            rr.Arrows2D.columns(origins=origins, vectors=vectors, colors=colors, radii=radii))
         self._scalars = {}
         self._arrows = {}
         self._particles = []
         self._rays = []
         self._buffered_points = 0
         self._buffered_steps = 0
+
+    def _send_rows(self, path: str, rows: list, radius: float, columns) -> None:
+        """Rows (step, time, arrays of that step's entries) as one send of partitioned columns:
+        columns(*arrays concatenated over the rows, radii) makes them."""
+        steps, times, *arrays = zip(*rows)
+        lengths = [entries.shape[0] for entries in arrays[0]]
+        batch = columns(*(np.concatenate(parts) for parts in arrays), np.full(sum(lengths), radius, dtype=np.float32))
+        self.stream.send_columns(path, indexes=self._indexes(np.array(steps), np.array(times)),
+                                 columns=batch.partition(lengths))
 
     @staticmethod
     def _indexes(steps: np.ndarray, times: np.ndarray) -> list:
