@@ -23,7 +23,7 @@ medians taken; the machine may be busy with other work). JSON keys first, the --
   (NPY_DISABLE_CPU_FEATURES), alternated with processes with numpy as it is;
 - models [models]: LWPR update and predict (2 inputs), velocity-EKF predict and correct, and the README
   robot loop's calls at N = 500 (a frame without detections, predict alone, correct with a list of
-  detections, building a batch), in µs;
+  detections, building a batch; the Localizer's frame and its latency-compensated observe), in µs;
 - bearing_accuracy [accuracy]: what the von Mises bearing term costs in accuracy (total-variation distance
   between its normalized weights and the exact term's);
 - machine, settings, targets (each "met", "NOT MET" or "not measured" with the reason), duration_s.

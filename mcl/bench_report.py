@@ -337,7 +337,9 @@ def format_report(result: dict) -> str:
                          f"estimate, entropy) {loop['frame_us']:.1f} µs, predict alone {loop['predict_us']:.1f} µs, "
                          f"correct with a list of 3 detections {loop['correct_list_us']:.1f} µs; a batch from 3 "
                          f"LandmarkObservation {loop['from_list_us']:.1f} µs, from arrays of 10 "
-                         f"{loop['from_arrays_us']:.1f} µs")
+                         f"{loop['from_arrays_us']:.1f} µs; Localizer, walking: a frame (motion, pose, quality) "
+                         f"{loop['localizer_frame_us']:.1f} µs, observe 3 detections 30 ms old "
+                         f"{loop['localizer_observe_us']:.1f} µs")
         for key in ("lwpr_error", "ekf_error", "robot_loop_error"):
             if key in models:
                 lines.append(f"{key[:-len('_error')]}: {models[key]}")

@@ -121,7 +121,8 @@ def test_memory_startup_models_sections(quick_run):
     assert {"default", "paper"} == set(models["ekf"])
     loop = models["robot_loop"]
     assert loop["particles"] == 500
-    for key in ("frame_us", "predict_us", "correct_list_us", "from_list_us", "from_arrays_us"):
+    for key in ("frame_us", "predict_us", "correct_list_us", "from_list_us", "from_arrays_us", "localizer_frame_us",
+                "localizer_observe_us"):
         assert math.isfinite(loop[key]) and loop[key] > 0, key
     threads = result["threads"]
     assert threads["available"] in (True, False)
