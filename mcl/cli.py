@@ -17,6 +17,8 @@ from __future__ import annotations
 import importlib
 import sys
 
+from .numba_cache import guard_source_checkout
+
 DEMOS = {
     "walk": ("demos.walk", "the particle filter on the 60 s walk scenario with a kidnapping"),
     "velocity": ("demos.velocity", "IMU + leg kinematics velocity estimators against the truth"),
@@ -49,6 +51,7 @@ def _dispatch(table: dict, name: str, argv: list[str], what: str) -> int:
 
 def main(argv: list[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
+    guard_source_checkout()           # before any kernel runs (see mcl.numba_cache)
     if not argv or argv[0] in ("-h", "--help"):
         print(_usage())
         return 0 if argv else 2

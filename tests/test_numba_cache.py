@@ -209,9 +209,10 @@ def test_every_kernel_is_cached_and_found_again(tmp_path):
 
 
 def test_a_changed_source_file_drops_the_cached_kernels(tmp_path):
-    """`conftest.forget_stale_numba_caches`: numba would load a kernel's old machine code when only a callee in
-    another file changed, so any change to a source file drops every cached kernel (and nothing else)."""
-    from conftest import PACKAGES, forget_stale_numba_caches
+    """`mcl.numba_cache.forget_stale_numba_caches`: numba would load a kernel's old machine code when only a
+    callee in another file changed, so any change to a source file drops every cached kernel (and nothing
+    else)."""
+    from mcl.numba_cache import PACKAGES, forget_stale_numba_caches
 
     for package in PACKAGES:
         (tmp_path / package / "__pycache__").mkdir(parents=True)
@@ -233,3 +234,35 @@ def test_a_changed_source_file_drops_the_cached_kernels(tmp_path):
     (tmp_path / "sensing" / "kernels.py").write_text("x = 22\n")   # a callee in another package changed
     assert forget_stale_numba_caches(tmp_path, stamp)
     assert not any(path.exists() for path in cached) and kept.exists()
+
+
+def test_only_a_source_checkout_is_guarded(tmp_path):
+    """`guard_source_checkout` drops stale caches in the project's own tree, and leaves an installed copy (no
+    pyproject.toml of the project beside the packages) alone."""
+    from mcl.numba_cache import PACKAGES, SOURCES_STAMP, guard_source_checkout
+
+    for package in PACKAGES:
+        (tmp_path / package / "__pycache__").mkdir(parents=True)
+        (tmp_path / package / "kernels.py").write_text("x = 1\n")
+    cached = tmp_path / "field" / "__pycache__" / "kernel-3.py311.nbi"
+    cached.write_bytes(b"cached")
+    assert not guard_source_checkout(tmp_path)                      # an installed copy: left alone
+    assert cached.exists() and not (tmp_path / SOURCES_STAMP).exists()
+    (tmp_path / "pyproject.toml").write_text('[project]\nname = "another-project"\n')
+    assert not guard_source_checkout(tmp_path) and cached.exists()
+    (tmp_path / "pyproject.toml").write_text('[project]\nname = "robocup-mcl"\n')
+    assert guard_source_checkout(tmp_path)                          # the project's tree, no stamp yet
+    assert not cached.exists() and (tmp_path / SOURCES_STAMP).exists()
+    cached.write_bytes(b"cached")
+    assert not guard_source_checkout(tmp_path) and cached.exists()  # nothing changed since
+
+
+def test_the_command_line_guards_the_caches_before_running_anything(monkeypatch):
+    """`robocup-mcl` calls the guard first, so that a demo or a benchmark run from a checkout after an edit runs
+    the edited kernels."""
+    import mcl.cli
+
+    calls = []
+    monkeypatch.setattr(mcl.cli, "guard_source_checkout", lambda: calls.append("guard"))
+    assert mcl.cli.main(["--help"]) == 0
+    assert calls == ["guard"]
