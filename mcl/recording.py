@@ -16,20 +16,23 @@ downwards (the image convention), so each top-level entity carries a static y-fl
 appears as seen from above (+x right, +y up); the viewer's hover readout is in the view's coordinates (y
 negated), its selection panel shows the logged field-frame values.
 
-Logged arrays are fresh copies: Rerun keeps a reference until it flushes. `close()` (or the `with` block)
-writes the file's footer. Everything a step logs is buffered and sent as columns every `flush_every` steps
-(sooner when the buffered particles reach `max_points`): one `send_columns` call costs what one `log` call
-does, about 250 µs. The per-step series (entropy, errors, the pose arrows, `log_scalars`) are one row per
-step; the particles and the detection rays, whose lengths change from step to step, are partitioned columns
-(a row of N points, a row of as many rays as detections). A step with 10 detections and its particles took
-about 350 µs at N = 100 logged call by call, most of it the two `log` calls (see `robocup-mcl bench`'s
-recording phase for this version's figure).
+Logged arrays are fresh copies (or a detection batch's own read-only arrays): Rerun keeps a reference until it
+flushes. `close()` (or the `with` block) writes the file's footer. Everything a step logs is buffered and sent
+as columns every `flush_every` steps (sooner when the buffered particles reach `max_points`): one
+`send_columns` call costs what one `log` call does, about 250 µs. The per-step series (entropy, errors, the
+pose arrows, `log_scalars`) are one row per step; the particles and the detection rays, whose lengths change
+from step to step, are partitioned columns (a row of N points, a row of as many rays as detections). A step
+with 10 detections and its particles took about 350 µs at N = 100 logged call by call, most of it the two
+`log` calls. What remains per step is kept small: the particles' colours come from one compiled pass
+(`weight_colors`), and the detection arrows are computed for all the buffered steps at once when they are sent
+(see `robocup-mcl bench`'s recording phase for this version's figure).
 """
 from __future__ import annotations
 
 import math
 from pathlib import Path
 
+import numba
 import numpy as np
 import rerun as rr
 import rerun.blueprint as rrb
@@ -55,13 +58,53 @@ PARTICLE_RADIUS = 0.025
 RAY_RADIUS = 0.01
 
 
+_LOW = np.array([40.0, 30.0, 120.0])        # the lightest particle's colour (dark blue)
+_HIGH = np.array([255.0, 230.0, 40.0])      # the heaviest's (yellow)
+
+
 def weight_colors(weights: np.ndarray) -> np.ndarray:
-    """Map weights to RGB from dark blue (lightest) to yellow (heaviest), relative to the heaviest."""
+    """Map weights to RGB (N, 3) uint8 from dark blue (lightest) to yellow (heaviest), relative to the heaviest
+    (all dark blue when the heaviest is not positive). One pass in compiled code (`weight_colors_reference`,
+    bit for bit): numpy's half a dozen passes and (N, 3) temporaries cost more than the rest of a step's
+    recording at N >= 10 000, and their calls more than the particles at N = 100."""
+    weights = np.ascontiguousarray(weights, dtype=np.float64)
+    out = np.empty((weights.shape[0], 3), dtype=np.uint8)
+    _weight_colors(weights, _LOW, _HIGH, out)
+    return out
+
+
+@numba.njit(cache=True)
+def _weight_colors(weights, low, high, out):
+    n = weights.shape[0]
+    top = 1.0
+    if n > 0:
+        top = weights[0]
+        for i in range(1, n):
+            w = weights[i]
+            if w > top or w != w:             # np.max: the largest, NaN if there is one
+                top = w
+                if w != w:
+                    break
+    if not top > 0.0:
+        for i in range(n):
+            for k in range(3):
+                out[i, k] = np.uint8(low[k])
+        return
+    d0, d1, d2 = high[0] - low[0], high[1] - low[1], high[2] - low[2]
+    for i in range(n):
+        level = weights[i] / top
+        level = 0.0 if level < 0.0 else level     # np.clip (a NaN stays NaN)
+        level = 1.0 if level > 1.0 else level
+        out[i, 0] = np.uint8(low[0] + level * d0)
+        out[i, 1] = np.uint8(low[1] + level * d1)
+        out[i, 2] = np.uint8(low[2] + level * d2)
+
+
+def weight_colors_reference(weights: np.ndarray) -> np.ndarray:
+    """Plain numpy twin of `weight_colors`."""
     top = float(weights.max()) if weights.size else 1.0
     level = np.clip(weights / top, 0.0, 1.0) if top > 0 else np.zeros_like(weights)
-    low = np.array([40, 30, 120], dtype=np.float64)
-    high = np.array([255, 230, 40], dtype=np.float64)
-    return (low + level[:, None] * (high - low)).astype(np.uint8)
+    return (_LOW + level[:, None] * (_HIGH - _LOW)).astype(np.uint8)
 
 
 def default_blueprint(series: tuple[tuple[str, str], ...] = (("/entropy", "entropy [bits]"),
@@ -96,7 +139,7 @@ class Recorder:
         self._arrows: dict[str, list[tuple[int, float, float, float, float, float]]] = {}
         # Rows of varying length: (step, time, arrays of one row each), sent as partitioned columns.
         self._particles: list[tuple[int, float, np.ndarray, np.ndarray]] = []
-        self._rays: list[tuple[int, float, np.ndarray, np.ndarray, np.ndarray]] = []
+        self._rays: list[tuple[int, float, np.ndarray, np.ndarray, np.ndarray, tuple]] = []
         self._buffered_points = 0
         self._buffered_steps = 0
         if stream is None and path is None:
@@ -137,11 +180,10 @@ class Recorder:
                                          columns=rr.Arrows2D.columns(origins=table[:, 2:4], vectors=table[:, 4:6],
                                                                      colors=color, radii=np.full(n, 0.03)))
         if self._particles:
-            self._send_rows("particles", self._particles, PARTICLE_RADIUS, lambda positions, colors, radii:
+            self._send_rows("particles", self._particles, PARTICLE_RADIUS, lambda lengths, positions, colors, radii:
                             rr.Points2D.columns(positions=positions, colors=colors, radii=radii))
         if self._rays:
-            self._send_rows("observations", self._rays, RAY_RADIUS, lambda origins, vectors, colors, radii:
-                            rr.Arrows2D.columns(origins=origins, vectors=vectors, colors=colors, radii=radii))
+            self._send_rows("observations", self._rays, RAY_RADIUS, self._ray_columns)
         self._scalars = {}
         self._arrows = {}
         self._particles = []
@@ -150,13 +192,26 @@ class Recorder:
         self._buffered_steps = 0
 
     def _send_rows(self, path: str, rows: list, radius: float, columns) -> None:
-        """Rows (step, time, arrays of that step's entries) as one send of partitioned columns:
-        columns(*arrays concatenated over the rows, radii) makes them."""
+        """Rows (step, time, arrays of that step's entries[, a tuple of that step's values]) as one send of
+        partitioned columns: columns(row lengths, *arrays concatenated over the rows[, the tuples as an array
+        of one row per step], radii) makes them."""
         steps, times, *arrays = zip(*rows)
         lengths = [entries.shape[0] for entries in arrays[0]]
-        batch = columns(*(np.concatenate(parts) for parts in arrays), np.full(sum(lengths), radius, dtype=np.float32))
+        batch = columns(lengths, *(np.array(parts) if isinstance(parts[0], tuple) else np.concatenate(parts)
+                                   for parts in arrays), np.full(sum(lengths), radius, dtype=np.float32))
         self.stream.send_columns(path, indexes=self._indexes(np.array(steps), np.array(times)),
                                  columns=batch.partition(lengths))
+
+    @staticmethod
+    def _ray_columns(lengths, ranges, bearings, kinds, estimates, radii):
+        """The detection arrows of buffered rows: from the estimate at each row's step (`estimates`, one
+        (x, y, cos θ, sin θ) per row) to each detection, in the field frame."""
+        px, py = ranges * np.cos(bearings), ranges * np.sin(bearings)       # `Observations.points`
+        frames = np.repeat(estimates, lengths, axis=0)
+        c, s = frames[:, 2], frames[:, 3]
+        vectors = np.stack([c * px - s * py, s * px + c * py], axis=1)
+        return rr.Arrows2D.columns(origins=frames[:, :2], vectors=vectors, colors=LANDMARK_PALETTE[kinds],
+                                   radii=radii)
 
     @staticmethod
     def _indexes(steps: np.ndarray, times: np.ndarray) -> list:
@@ -216,22 +271,20 @@ class Recorder:
         entropy = entropy or pf.entropy()
         self._scalar("entropy/position", entropy.position)
         self._scalar("entropy/orientation", entropy.orientation)
-        estimate = pf.estimate()
-        pose = estimate.pose.copy()
-        self._arrow("robot/estimate", pose)
+        # The detection arrows are computed for all the buffered rows at once when they are sent: at robot
+        # sizes, numpy's calls on one step's few detections cost more than their elements.
+        x, y, theta = map(float, pf.estimate().pose)
+        self._arrow("robot/estimate", (x, y, theta))
         if truth is not None:
-            truth = np.asarray(truth, dtype=np.float64).copy()
-            self._arrow("robot/truth", truth)
-            self._scalar("error/position", float(np.hypot(*(pose[:2] - truth[:2]))))
-            self._scalar("error/heading", abs(math.remainder(pose[2] - truth[2], 2.0 * math.pi)))
+            tx, ty, ttheta = map(float, truth)
+            self._arrow("robot/truth", (tx, ty, ttheta))
+            self._scalar("error/position", float(np.hypot(x - tx, y - ty)))
+            self._scalar("error/heading", abs(math.remainder(theta - ttheta, 2.0 * math.pi)))
         if step % self.particles_every == 0:
             positions = pf.poses[:, :2].astype(np.float32)      # a copy, as Rerun stores positions
-            self._particles.append((self._step, self._time, positions, weight_colors(np.asarray(pf.weights))))
+            self._particles.append((self._step, self._time, positions, weight_colors(pf.weights)))
             self._buffered_points += positions.shape[0]
         if observations is not None and len(observations):
-            points = observations.points()
-            c, s = math.cos(pose[2]), math.sin(pose[2])
-            vectors = np.stack([c * points[:, 0] - s * points[:, 1], s * points[:, 0] + c * points[:, 1]], axis=1)
-            origins = np.broadcast_to(pose[:2], vectors.shape).copy()
-            colors = LANDMARK_PALETTE[observations.kinds]
-            self._rays.append((self._step, self._time, origins, vectors, colors))
+            # the batch's arrays are its own and read-only: kept as they are
+            self._rays.append((self._step, self._time, observations.ranges, observations.bearings,
+                               observations.kinds, (x, y, math.cos(theta), math.sin(theta))))
