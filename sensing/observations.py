@@ -127,6 +127,24 @@ def _kind_values(kinds) -> np.ndarray:
 
 
 _NO_VALUES = np.zeros(0)
+_LANDMARK_FIELDS = ("kinds", "ranges", "bearings", "range_sigmas", "bearing_sigmas")
+_NO_LINE_POINTS = np.zeros((0, 2))
+_NO_LINE_POINTS.flags.writeable = False       # shared by every batch without field-line points
+
+
+def _line_points(raw) -> np.ndarray:
+    """Field-line points as a read-only (P, 2) float64 copy (None: none)."""
+    if raw is None:
+        return _NO_LINE_POINTS
+    try:
+        points = np.asarray(raw, dtype=np.float64).reshape(-1, 2).copy()     # owning its data
+    except (TypeError, ValueError):
+        raise ValueError(f"line_points = {raw!r} must be an array of (x, y) points") from None
+    if points.size and not np.isfinite(points).all():
+        i = int(np.argmin(np.isfinite(points).all(axis=1)))
+        raise ValueError(f"line_points[{i}] = {points[i].tolist()!r} must be finite")
+    points.flags.writeable = False
+    return points
 
 
 @dataclass(frozen=True, eq=False)
@@ -146,25 +164,13 @@ class Observations:
     line_points: np.ndarray | None = None
 
     def __post_init__(self) -> None:
-        raw = np.zeros((0, 2)) if self.line_points is None else self.line_points
-        try:
-            points = np.array(raw, dtype=np.float64, copy=True).reshape(-1, 2)
-        except (TypeError, ValueError):
-            raise ValueError(f"line_points = {raw!r} must be an array of (x, y) points") from None
-        if points.size and not np.isfinite(points).all():
-            i = int(np.argmin(np.isfinite(points).all(axis=1)))
-            raise ValueError(f"line_points[{i}] = {points[i].tolist()!r} must be finite")
-        points.flags.writeable = False
-        object.__setattr__(self, "line_points", points)
-        self._check_landmarks()
-
-    def _check_landmarks(self) -> None:
+        object.__setattr__(self, "line_points", _line_points(self.line_points))
         n = None
-        for name in ("kinds", "ranges", "bearings", "range_sigmas", "bearing_sigmas"):
+        for name in _LANDMARK_FIELDS:
             dtype = np.int64 if name == "kinds" else np.float64
             raw = getattr(self, name)
             try:
-                arr = np.array(raw, dtype=dtype, copy=True).reshape(-1)
+                arr = np.asarray(raw, dtype=dtype).reshape(-1).copy()         # owning its data
             except (TypeError, ValueError):
                 raise ValueError(f"{name} = {raw!r} must be an array of numbers") from None
             if n is None:
@@ -173,6 +179,23 @@ class Observations:
                 raise ValueError(f"{name} has {arr.shape[0]} entries, kinds has {n}")
             arr.flags.writeable = False
             object.__setattr__(self, name, arr)
+        self._check_landmarks()
+
+    @classmethod
+    def _adopt(cls, kinds: np.ndarray, rows: np.ndarray, line_points=None) -> "Observations":
+        """A batch of arrays made for it, taken as they are instead of copied: kinds (n,) int64 and rows (4, n)
+        float64 (ranges, bearings, range_sigmas, bearing_sigmas), both C-contiguous; checked as the constructor
+        checks. Both become read-only."""
+        kinds.flags.writeable = False
+        rows.flags.writeable = False
+        batch = object.__new__(cls)
+        for name, arr in zip(_LANDMARK_FIELDS, (kinds, *rows)):
+            object.__setattr__(batch, name, arr)
+        object.__setattr__(batch, "line_points", _line_points(line_points))
+        batch._check_landmarks()
+        return batch
+
+    def _check_landmarks(self) -> None:
         check, i = first_invalid(self.kinds, self.ranges, self.bearings, self.range_sigmas, self.bearing_sigmas,
                                  IS_KIND)
         if check == BAD_KIND:
@@ -202,13 +225,12 @@ class Observations:
         for i, o in enumerate(items):
             if not isinstance(o, LandmarkObservation):
                 raise ValueError(f"observations[{i}] = {o!r} is not a LandmarkObservation")
-        return cls(
-            np.array([o.kind.value for o in items], dtype=np.int64),
-            [o.range for o in items], [o.bearing for o in items],
-            [np.nan if o.range_sigma is None else o.range_sigma for o in items],
-            [np.nan if o.bearing_sigma is None else o.bearing_sigma for o in items],
-            line_points,
-        )
+        # Two arrays built here, adopted as they are: a frame's few detections cost numpy calls, not elements.
+        rows = np.array([[o.range for o in items], [o.bearing for o in items],
+                         [math.nan if o.range_sigma is None else o.range_sigma for o in items],
+                         [math.nan if o.bearing_sigma is None else o.bearing_sigma for o in items]],
+                        dtype=np.float64)
+        return cls._adopt(np.array([o.kind.value for o in items], dtype=np.int64), rows, line_points)
 
     @classmethod
     def empty(cls) -> "Observations":

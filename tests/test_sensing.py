@@ -89,6 +89,39 @@ def test_batches_are_read_only_and_convert_to_points():
     assert len(Observations.coerce(None)) == 0
 
 
+SIGMAS = st.one_of(st.none(), st.floats(0.01, 2.0))
+
+
+@given(st.lists(st.tuples(st.sampled_from(list(LandmarkType)), st.floats(0.0, 12.0), st.floats(-3.2, 3.2),
+                          SIGMAS, SIGMAS), max_size=12),
+       st.one_of(st.none(), st.lists(st.tuples(st.floats(-5, 5), st.floats(-5, 5)), max_size=4)))
+def test_a_list_makes_the_batch_its_arrays_make(detections, line_points):
+    """`from_list` (which adopts the two arrays it builds) gives the batch `from_arrays` gives: the same
+    values, dtypes, contiguous read-only arrays, and nothing writable behind them."""
+    batch = Observations.from_list([LandmarkObservation(*d) for d in detections], line_points=line_points)
+    columns = list(zip(*detections)) or [[]] * 5
+    expected = Observations.from_arrays(
+        list(columns[0]), list(columns[1]), list(columns[2]),
+        [np.nan if v is None else v for v in columns[3]], [np.nan if v is None else v for v in columns[4]],
+        line_points=line_points)
+    for name in ("kinds", "ranges", "bearings", "range_sigmas", "bearing_sigmas", "line_points"):
+        got, want = getattr(batch, name), getattr(expected, name)
+        assert got.dtype == want.dtype and got.shape == want.shape
+        assert np.array_equal(got, want, equal_nan=True)
+        for array in (got, want):
+            assert array.flags.c_contiguous and not array.flags.writeable
+            assert array.base is None or not array.base.flags.writeable
+    assert len(batch) == len(detections)
+
+
+def test_a_list_is_checked_again_when_batched():
+    """A detection changed behind its frozen dataclass's back is still rejected by `from_list`."""
+    detection = LandmarkObservation(LandmarkType.GOALPOST, 2.0, 0.1)
+    object.__setattr__(detection, "range", -1.0)
+    with pytest.raises(ValueError, match=r"^ranges\[1\] = .*-1\.0\)? must be >= 0$"):
+        Observations.from_list([LandmarkObservation(LandmarkType.GOALPOST, 1.0, 0.0), detection])
+
+
 def test_type_absent_from_the_field_is_an_error(spl_field):
     model = LandmarkSensorModel(spl_field)
     model.check(Observations.from_arrays(["x_crossing"], [1.0], [0.0]))
