@@ -271,8 +271,6 @@ class Recorder:
         entropy = entropy or pf.entropy()
         self._scalar("entropy/position", entropy.position)
         self._scalar("entropy/orientation", entropy.orientation)
-        # The detection arrows are computed for all the buffered rows at once when they are sent: at robot
-        # sizes, numpy's calls on one step's few detections cost more than their elements.
         x, y, theta = map(float, pf.estimate().pose)
         self._arrow("robot/estimate", (x, y, theta))
         if truth is not None:
@@ -285,6 +283,8 @@ class Recorder:
             self._particles.append((self._step, self._time, positions, weight_colors(pf.weights)))
             self._buffered_points += positions.shape[0]
         if observations is not None and len(observations):
-            # the batch's arrays are its own and read-only: kept as they are
+            # The arrows are computed for all the buffered steps when they are sent (`_ray_columns`): at robot
+            # sizes, numpy's calls on one step's few detections cost more than their elements. The batch's
+            # arrays are its own and read-only: kept as they are.
             self._rays.append((self._step, self._time, observations.ranges, observations.bearings,
                                observations.kinds, (x, y, math.cos(theta), math.sin(theta))))
