@@ -184,6 +184,8 @@ def format_report(result: dict) -> str:
     m = result["machine"]
     flags = m.get("simd_flags") or {}
     simd = ", ".join(f"{name} {'yes' if flags.get(name) else 'no'}" for name in ("avx2", "avx512f")) if flags else "?"
+    if "numba_svml" in m:
+        simd += f"; SVML {'yes' if m['numba_svml'] else 'no'}"
     load = " ".join(f"{x:.2f}" for x in (m.get("load_average") or []))
     target = ""
     if m.get("numba_cpu_name") or m.get("numba_cpu_features"):

@@ -83,7 +83,20 @@ def machine() -> dict:
         # numba's code-generation target when set (NUMBA_CPU_NAME, NUMBA_CPU_FEATURES), e.g. to time the
         # kernels as compiled for a robot's instruction set on this machine; None: this machine's own
         "numba_cpu_name": numba.config.CPU_NAME, "numba_cpu_features": numba.config.CPU_FEATURES,
+        # Intel's SVML, which numba uses for vectorized exp, sin, atan2... in fast-math loops: only when the
+        # library is installed (intel-cmplr-lib-rt) and llvmlite's LLVM was built with numba's SVML patch
+        # (conda's is; PyPI's wheels are not, so a pip install never uses it)
+        "numba_svml": bool(numba.config.USING_SVML), "llvmlite_svml": _llvmlite_svml(),
     }
+
+
+def _llvmlite_svml() -> bool | None:
+    """Whether llvmlite's LLVM can use SVML (None: this llvmlite cannot say)."""
+    try:
+        from llvmlite.binding import targets
+        return bool(targets.has_svml())
+    except (ImportError, AttributeError):
+        return None
 
 
 def load_average() -> list[float] | None:

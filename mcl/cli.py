@@ -11,6 +11,7 @@
     robocup-mcl bench [--sizes ...] [--json]          # the filter step, numba versus numpy
     robocup-mcl bench lwpr [--seeds N] [--json]       # LWPR on the cross benchmark
     robocup-mcl bench replay [--minutes 10] [--json]  # log replay speed in multiples of real time
+    robocup-mcl bench compare REV [--rounds 3] [--json]  # this checkout against another revision, alternated
 """
 from __future__ import annotations
 
@@ -31,6 +32,7 @@ BENCHES = {
     "step": ("mcl.bench", "one full filter step per particle count, numba versus plain numpy"),
     "lwpr": ("demos.lwpr_cross", "LWPR on the cross benchmark: accuracy, receptive fields, speed"),
     "replay": ("demos.replay_speed", "a 10-minute MCAP log replayed, in multiples of real time"),
+    "compare": ("mcl.bench_compare", "this checkout's speed against another revision's, in alternated runs"),
 }
 
 

@@ -81,6 +81,9 @@ def test_machine_description(quick_run):
     if machine["simd_flags"] is not None:
         assert {"avx2", "avx512f"} <= set(machine["simd_flags"])
     assert {"numba_cpu_name", "numba_cpu_features"} <= set(machine)
+    import numba
+    assert machine["numba_svml"] is bool(numba.config.USING_SVML)
+    assert machine["llvmlite_svml"] in (True, False, None)
 
 
 def test_the_header_names_a_foreign_compile_target():
@@ -93,6 +96,15 @@ def test_the_header_names_a_foreign_compile_target():
     assert "kernels compiled for silvermont (-avx,-fma), not this CPU" in text.splitlines()[0]
     assert "compiled for" not in format_report({**base, "machine": {**machine, "numba_cpu_name": None,
                                                                      "numba_cpu_features": None}})
+
+
+def test_the_header_says_whether_numba_uses_svml():
+    machine = {"cpu_model": "x", "cpus": 1, "python": "3", "numpy": "2", "numba": "0",
+               "simd_flags": {"avx2": True, "avx512f": False}}
+    base = {"settings": {"quick": True}, "targets": []}
+    assert "(avx2 yes, avx512f no; SVML no)" in format_report({**base, "machine": {**machine, "numba_svml": False}})
+    assert "; SVML yes)" in format_report({**base, "machine": {**machine, "numba_svml": True}})
+    assert "SVML" not in format_report({**base, "machine": machine})      # a result saved before it was recorded
 
 
 def test_resampling_section_names_ours_and_the_peers(quick_run):
