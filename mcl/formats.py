@@ -57,6 +57,8 @@ _INT32_RANGE = (-(2 ** 31), 2 ** 31 - 1)
 
 
 def _finite_number(name: str, value: object) -> float:
+    if type(value) is float and math.isfinite(value):      # what a decoded message holds: no ABC check
+        return value
     if isinstance(value, bool) or not isinstance(value, numbers.Real):
         raise ValueError(f"{name} = {value!r} must be a number")
     number = float(value)
@@ -157,20 +159,17 @@ def pose_to_ros_pose(pose: object) -> dict:
             "orientation": {"x": qx, "y": qy, "z": qz, "w": qw}}
 
 
+_MISSING = object()
+
+
 def _member(message: object, path: str, root: str = "message") -> object:
     """message.a.b.c for path "a.b.c", through dict keys or attributes; a ValueError names what is missing."""
     value = message
-    walked = root
-    for name in path.split("."):
-        walked += "." + name
-        if isinstance(value, dict):
-            if name not in value:
-                raise ValueError(f"{walked} is missing")
-            value = value[name]
-        elif hasattr(value, name):
-            value = getattr(value, name)
-        else:
-            raise ValueError(f"{walked} is missing")
+    names = path.split(".")
+    for depth, name in enumerate(names):
+        value = value.get(name, _MISSING) if isinstance(value, dict) else getattr(value, name, _MISSING)
+        if value is _MISSING:
+            raise ValueError(f"{root}.{'.'.join(names[:depth + 1])} is missing")
     return value
 
 

@@ -10,7 +10,8 @@
         poses.write(t, pose, covariance)                    # t [s] from origin_ns, pose (3,), covariance (3, 3)
 
 No ROS install is needed: an MCAP file carries its message definitions (`ros2msg` schemas), which
-mcap_ros2 decodes; `write_mcap` writes the definitions of `mcl.logs.schemas` with the messages.
+mcap_ros2 parses and `mcl.logs.cdr` turns into compiled decoders (mcap_ros2's messages, several times
+faster); `write_mcap` writes the definitions of `mcl.logs.schemas` with the messages.
 
 Streams, their default topics and the message types accepted (`Topics`; a topic set to "" is not read):
 
@@ -82,7 +83,7 @@ import numpy as np
 from mcap.exceptions import EndOfFile, McapError
 from mcap.records import Channel, Chunk, Header, Message, MessageIndex, Metadata, Schema
 from mcap.stream_reader import CRCValidationError, StreamReader, breakup_chunk
-from mcap_ros2.decoder import DecoderFactory
+from .cdr import DecoderFactory
 from mcap_ros2.writer import Writer as Ros2Writer
 
 from field import LandmarkType
