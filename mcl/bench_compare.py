@@ -102,7 +102,9 @@ def base_side(revision: str, repository: Path = ROOT, cache: Path | None = None)
         staging = Path(tempfile.mkdtemp(prefix=f".{commit[:12]}-", dir=tree.parent))
         try:
             with tarfile.open(fileobj=io.BytesIO(archive)) as tar:
-                tar.extractall(staging)
+                # "data": plain files and folders only (Python >= 3.11.4 has the filter; before, git's own
+                # archive is taken as it is)
+                tar.extractall(staging, **({"filter": "data"} if hasattr(tarfile, "data_filter") else {}))
             if not is_source_checkout(staging):
                 raise CompareError(f"revision {revision} ({commit[:12]}) is not a robocup-mcl tree")
             try:

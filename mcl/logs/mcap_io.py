@@ -83,7 +83,6 @@ import numpy as np
 from mcap.exceptions import EndOfFile, McapError
 from mcap.records import Channel, Chunk, Header, Message, MessageIndex, Metadata, Schema
 from mcap.stream_reader import CRCValidationError, StreamReader, breakup_chunk
-from .cdr import DecoderFactory
 from mcap_ros2.writer import Writer as Ros2Writer
 
 from field import LandmarkType
@@ -92,6 +91,7 @@ from mcl.formats import (UNESTIMATED_VARIANCE, covariance3_to_ros6, pose_to_ros,
 from sensing.observations import Observations
 
 from . import schemas
+from .cdr import DecoderFactory
 from .robot_log import LogError, ReadReport, RobotLog, VisionFrame
 
 try:
