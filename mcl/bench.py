@@ -144,7 +144,8 @@ def run(sizes=SIZES, quick: bool = False, startup: bool = True, exact: bool = Tr
     return result
 
 
-def _sizes(parser: argparse.ArgumentParser, text: str) -> list[int]:
+def parse_sizes(parser: argparse.ArgumentParser, text: str) -> list[int]:
+    """--sizes: particle counts > 0, comma-separated (a parser error otherwise)."""
     try:
         sizes = [int(s) for s in text.split(",") if s.strip()]
     except ValueError:
@@ -172,7 +173,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--budget", type=float, help=f"seconds of samples per timed item (default {BUDGET_S}, "
                                                      f"--quick {QUICK_BUDGET_S})")
     args = parser.parse_args(argv)
-    sizes = _sizes(parser, args.sizes) if args.sizes else list(QUICK_SIZES if args.quick else SIZES)
+    sizes = parse_sizes(parser, args.sizes) if args.sizes else list(QUICK_SIZES if args.quick else SIZES)
     skip = [s.strip() for s in args.skip.split(",") if s.strip()]
     unknown = sorted(set(skip) - set(SECTIONS))
     if unknown:

@@ -278,12 +278,8 @@ def main(argv: list[str] | None = None) -> int:
         parser.error(f"--rounds {args.rounds} must be >= 1")
     if not 0 <= args.threshold < 1:
         parser.error(f"--threshold {args.threshold} must be within [0, 1)")
-    try:
-        sizes = [int(s) for s in args.sizes.split(",") if s.strip()]
-    except ValueError:
-        sizes = []
-    if not sizes or min(sizes) <= 0:
-        parser.error(f"--sizes {args.sizes!r} must name particle counts > 0, comma-separated")
+    from .bench import parse_sizes           # (imports the filter's modules: not for --help)
+    sizes = parse_sizes(parser, args.sizes)
     skip = [s.strip() for s in args.skip.split(",") if s.strip()]
     unknown = sorted(set(skip) - set(SKIPPABLE))
     if unknown:

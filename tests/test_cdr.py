@@ -129,6 +129,8 @@ def test_big_endian_data_goes_to_mcap_ros2():
     schema = Schema(id=1, name=name, encoding="ros2msg", data=text.encode())
     decoded = DecoderFactory().decoder_for("cdr", schema)(big)
     assert (decoded.x, decoded.y, decoded.z) == (1.0, -2.5, 3.25)
+    with pytest.raises(ValueError, match="big-endian"):        # never read as little-endian
+        compile_decoders(name, text)[name](big)
 
 
 def test_what_it_leaves_to_mcap_ros2():
@@ -138,6 +140,9 @@ def test_what_it_leaves_to_mcap_ros2():
     assert DecoderFactory().decoder_for("json", schema) is None                      # as mcap_ros2's factory
     with pytest.raises(ValueError, match="4-byte header"):
         compile_decoders(*SCHEMAS[0])[SCHEMAS[0][0]](b"\x00\x01")
+    with pytest.raises(ValueError, match="4-byte header"):                           # mcap_ros2's own error
+        DecoderFactory().decoder_for("cdr", Schema(id=1, name=SCHEMAS[0][0], encoding="ros2msg",
+                                                   data=SCHEMAS[0][1].encode()))(b"\x00\x01")
 
 
 def test_a_schema_that_does_not_parse_raises_as_mcap_ros2s():

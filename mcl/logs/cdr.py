@@ -129,18 +129,18 @@ def _function_code(key: str, definition, definitions: dict, functions: dict) -> 
     return lines
 
 
-def compile_decoders(schema_name: str, schema_text: str) -> dict[str, Callable[[bytes], Any]]:
-    """Decoders of little-endian CDR data for every message type `schema_text` defines, by full and short
-    name, as `mcap_ros2._dynamic.generate_dynamic` names them; empty when the definitions use what this
-    compiler leaves to mcap_ros2 (or when mcap_ros2's parser is not there). Raises what mcap_ros2's parser
-    raises for a definition that does not parse."""
+def _compile_readers(schema_name: str, schema_text: str) -> dict[str, Callable[[bytes, int], tuple[Any, int]]]:
+    """read(data, offset) -> (message, offset after it) for every message type `schema_text` defines, by full
+    and short name (one function per type); empty when the definitions use what this compiler leaves to
+    mcap_ros2 (or when mcap_ros2's parser is not there)."""
     if _for_each_msgdef is None:
         return {}
+    # by short name ("pkg/Type"), as fields name their types; the schema's own Time replaces this one
     definitions = {"builtin_interfaces/Time": TimeDefinition, "builtin_interfaces/Duration": TimeDefinition}
     names: list[tuple[str, str]] = []
 
     def collect(full_name, short_name, definition):
-        definitions[full_name] = definitions[short_name] = definition
+        definitions[short_name] = definition
         names.append((full_name, short_name))
 
     _for_each_msgdef(schema_name, schema_text, collect)
@@ -156,16 +156,29 @@ def compile_decoders(schema_name: str, schema_text: str) -> dict[str, Callable[[
     except _Unsupported:
         return {}
     exec(compile("\n".join(source), f"<cdr decoders for {schema_name}>", "exec"), namespace)
-    decoders = {}
+    readers = {}
     for full_name, short_name in names:
-        read = namespace[functions[full_name]]
+        readers[full_name] = readers[short_name] = namespace[functions[short_name]]
+    return readers
+
+
+def compile_decoders(schema_name: str, schema_text: str) -> dict[str, Callable[[bytes], Any]]:
+    """Decoders of little-endian CDR data for every message type `schema_text` defines, by full and short
+    name, as `mcap_ros2._dynamic.generate_dynamic` names them (big-endian data raises ValueError: it is
+    mcap_ros2's to read); empty when the definitions use what this compiler leaves to mcap_ros2 (or when
+    mcap_ros2's parser is not there). Raises what mcap_ros2's parser raises for a definition that does not
+    parse."""
+    decoders = {}
+    for name, read in _compile_readers(schema_name, schema_text).items():
 
         def decode(data, read=read):
             if len(data) < 4:
                 raise ValueError(f"Invalid CDR data size {len(data)}, must contain at least a 4-byte header")
+            if not data[1] & 1:           # CDR's second header byte: bit 0 set for little-endian
+                raise ValueError("big-endian CDR data: decode it with mcap_ros2")
             return read(data, 4)[0]
 
-        decoders[full_name] = decoders[short_name] = decode
+        decoders[name] = decode
     return decoders
 
 
@@ -183,14 +196,15 @@ class DecoderFactory(Ros2DecoderFactory):
             return general
         decoder = self._compiled.get(schema.id)
         if decoder is None:
-            compiled = compile_decoders(schema.name, schema.data.decode()).get(schema.name)
-            if compiled is None:
+            read = _compile_readers(schema.name, schema.data.decode()).get(schema.name)
+            if read is None:
                 decoder = general
             else:
-                def decoder(data, compiled=compiled, general=general):
-                    # CDR's second header byte: bit 0 set for little-endian, which the compiled code reads
-                    if len(data) >= 4 and not data[1] & 1:
+                def decoder(data, read=read, general=general):
+                    # shorter than the CDR header (mcap_ros2 raises) or big-endian (bit 0 of its second
+                    # byte clear): mcap_ros2's; else the compiled reader
+                    if len(data) < 4 or not data[1] & 1:
                         return general(data)
-                    return compiled(data)
+                    return read(data, 4)[0]
             self._compiled[schema.id] = decoder
         return decoder
