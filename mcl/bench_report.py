@@ -92,6 +92,11 @@ def evaluate_targets(result: dict) -> list[dict]:
         if warm and target["met"] is not None:
             target["note"] = f"back to back {scale * warm['numba_s']:.3g} {unit}"
         targets.append(target)
+        # The issue states these two for its own step shape, one dispatch into compiled code per step.
+        shaped = None if row is None else row.get("issue_step")
+        targets.append(_at_most(f"issue_step_{n}", f"the issue's step shape (one dispatch), N = {size}: <= {limit:g} "
+                                f"{unit}", None if shaped is None else scale * shaped["numba_s"], limit, unit,
+                                f"not measured: N = {size} not among the sizes"))
     targets.append(_at_least("speedup_10000", "full step >= 5x plain numpy at N >= 10 000 (worst N)",
                              min((row["speedup"] for row in big), default=None), 5.0, "x",
                              "not measured: no N >= 10 000"))

@@ -105,9 +105,12 @@ def _resample_copy(weights, source, out, coordinates, ancestors, counts, u0):
 
 @numba.njit(cache=True)
 def _issue_shaped_kernel(poses, scratch, trig, log_likelihood, log_weights, weights, ancestors, counts, dx, dy, dtheta,
-                         bound_x, bound_y, bound_theta, function, state, table, offsets, detections, groups,
+                         bound_x, bound_y, bound_theta, function, state, table, offsets, kinds, ranges, bearings,
+                         range_sigmas, bearing_sigmas, range_noise_floor, range_noise_growth, bearing_sigma,
                          log_outlier, grid, coordinates, histograms, bitmaps, fast):
     n = poses.shape[0]
+    detections, groups, _ = prepare_detections(kinds, ranges, bearings, range_sigmas, bearing_sigmas, offsets,
+                                               range_noise_floor, range_noise_growth, bearing_sigma)
     _predict_and_score(poses, scratch, trig, log_likelihood, True, dx, dy, dtheta, bound_x, bound_y, bound_theta,
                        False, np.empty((0, 3)), function, state, table, offsets, detections, groups, log_outlier, 0,
                        n, fast, np.empty(0))
@@ -152,9 +155,10 @@ def sample_injection_reference(pf, count: int, observations: Observations) -> np
 def issue_shaped_step(pf, u: MotionInput, observations: Observations) -> Callable[[], tuple]:
     """The performance issue's step shape on `pf`'s particles and buffers, one dispatch per call: predict
     (uniform noise drawn in the kernel), the landmark likelihood, normalize + ESS, systematic resampling of
-    every particle (a plain copy: no roughening), the grid entropy. No estimate. Returns a callable giving
-    (ESS before resampling, position entropy, orientation entropy). Needs what `compiled_phases` needs, with
-    uniform motion noise, one thread."""
+    every particle (a plain copy: no roughening), the grid entropy. No estimate. The motion input is turned into
+    numbers once; the detections' constants are prepared from the batch's arrays in every call, as the
+    filter's step prepares them. Returns a callable giving (ESS before resampling, position entropy,
+    orientation entropy). Needs what `compiled_phases` needs, with uniform motion noise, one thread."""
     motion = pf._kernel_motion(u)
     sensor = pf._sensor_kernel()
     if motion is None or sensor is None or pf.motion_model.gaussian or pf.threads > 1:
@@ -163,18 +167,17 @@ def issue_shaped_step(pf, u: MotionInput, observations: Observations) -> Callabl
     observations = Observations.coerce(observations)
     pf.sensor_model.check(observations)
     table, offsets, range_noise_floor, range_noise_growth, bearing_sigma, log_outlier = sensor
-    detections, groups, _ = prepare_detections(
-        observations.kinds, observations.ranges, observations.bearings, observations.range_sigmas,
-        observations.bearing_sigmas, offsets, range_noise_floor, range_noise_growth, bearing_sigma)
+    batch = (observations.kinds, observations.ranges, observations.bearings, observations.range_sigmas,
+             observations.bearing_sigmas)
     coordinates, histograms, bitmaps = pf._summary
     ancestors, counts = np.empty(pf.n, dtype=np.int64), np.zeros(pf.n + 1, dtype=np.int64)
 
     def step():
         pf._changed()
         return _issue_shaped_kernel(pf.poses, pf._previous, pf._trig, pf._log_likelihood, pf.log_weights,
-                                    pf._weights, ancestors, counts, *motion, *pf._generator(), table, offsets, detections,
-                                    groups, log_outlier, pf._grid_parameters, coordinates, histograms, bitmaps,
-                                    pf.fast)
+                                    pf._weights, ancestors, counts, *motion, *pf._generator(), table, offsets, *batch,
+                                    range_noise_floor, range_noise_growth, bearing_sigma, log_outlier,
+                                    pf._grid_parameters, coordinates, histograms, bitmaps, pf.fast)
     return step
 
 

@@ -187,7 +187,7 @@ def test_targets_judge_the_figures():
                 "full_step": {"numba_s": seconds}, "phases": phases,
                 "full_step_back_to_back": {"numba_s": 0.8 * seconds},
                 "full_step_fast": {"numba_ns_per_particle": 0.6e9 * seconds / n},
-                "issue_step": {"numba_ns_per_particle": 0.7e9 * seconds / n},
+                "issue_step": {"numba_s": 0.45 * seconds, "numba_ns_per_particle": 0.45e9 * seconds / n},
                 "issue_step_fast": {"numba_ns_per_particle": 0.3e9 * seconds / n}}
 
     result = {"rows": [row(100, 10e-6, 25.0), row(1000, 0.2e-3, 10.0), row(10_000, 0.5e-3, 6.0)],
@@ -202,6 +202,10 @@ def test_targets_judge_the_figures():
     notes = {t["id"]: t["note"] for t in evaluate_targets(result)}
     assert notes["full_step_1000"] == "back to back 0.16 ms"
     assert verdicts["full_step_1000"] is False and verdicts["full_step_100"] is True
+    assert verdicts["issue_step_1000"] is True and verdicts["issue_step_100"] is True   # 0.09 ms, 4.5 µs
+    assert {t["id"]: t["value"] for t in evaluate_targets(result)}["issue_step_1000"] == pytest.approx(0.09)
+    without = {t["id"]: t for t in evaluate_targets({**result, "rows": result["rows"][2:]})}
+    assert without["issue_step_100"]["met"] is None and "not among the sizes" in without["issue_step_100"]["note"]
     assert verdicts["speedup_10000"] is True and verdicts["speedup_100"] is True
     assert verdicts["two_threads"] is None and verdicts["resampling_1e6"] is None
     assert verdicts["steady_state_allocation"] is None and verdicts["demo_walk_cached"] is True
