@@ -24,6 +24,8 @@ medians taken; the machine may be busy with other work). JSON keys first, the --
 - models [models]: LWPR update and predict (2 inputs), velocity-EKF predict and correct, and the README
   robot loop's calls at N = 500 (a frame without detections, predict alone, correct with a list of
   detections, building a batch; the Localizer's frame and its latency-compensated observe), in µs;
+- between_frames [frames]: the full step and the issue's step shape at N <= 1 000, one call after each 10 ms
+  sleep (a 100 Hz loop: the caches as the time between frames leaves them), in µs;
 - bearing_accuracy [accuracy]: what the von Mises bearing term costs in accuracy (total-variation distance
   between its normalized weights and the exact term's);
 - machine, settings, targets (each "met", "NOT MET" or "not measured" with the reason), duration_s.
@@ -53,7 +55,7 @@ __all__ = ["main", "run", "bench_setup", "bearing_accuracy", "PHASES", "SIZES", 
 SIZES = (100, 1_000, 10_000, 100_000, 1_000_000)
 QUICK_SIZES = (100, 1_000, 10_000)
 MEMORY_SIZES = (10_000, 100_000)
-SECTIONS = ("peers", "threads", "memory", "avx512", "startup", "models", "recording", "accuracy")
+SECTIONS = ("peers", "threads", "memory", "avx512", "startup", "models", "frames", "recording", "accuracy")
 BUDGET_S = 0.4          # seconds of samples per timed item
 QUICK_BUDGET_S = 0.05
 SCHEMA = 2
@@ -136,6 +138,11 @@ def run(sizes=SIZES, quick: bool = False, startup: bool = True, exact: bool = Tr
         result["demo_walk"] = _guarded("demo walk", time_demo_walk, runs=1 if quick else 2)
     if "models" not in skip:
         result["models"] = _guarded("models", _models, budget)
+    if "frames" not in skip and any(n <= 1_000 for n in sizes):
+        from .bench_models import time_between_frames
+
+        _progress("between frames: the step after 10 ms asleep")
+        result["between_frames"] = _guarded("between frames", time_between_frames, sizes, samples=10 if quick else 40)
     if "accuracy" not in skip:
         result["bearing_accuracy"] = _guarded("bearing accuracy", bearing_accuracy)
     result["machine"]["load_average_end"] = load_average()

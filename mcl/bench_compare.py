@@ -195,6 +195,15 @@ def figures(result: dict) -> dict[str, tuple[str, float]]:
             for key, value in loop.items():
                 if key.endswith("_us"):
                     out[f"robot loop, N = {loop.get('particles', '?')}: {key[:-3].replace('_', ' ')}"] = ("µs", value)
+    frames = result.get("between_frames")
+    if isinstance(frames, dict):
+        for row in frames.get("rows", []):
+            for key, label in (("full_step_us", "full step"), ("issue_step_us", "the issue's step shape")):
+                if key in row:
+                    out[f"between frames, N = {row['n']}: {label}"] = ("µs", row[key])
+        for key, label in (("python_call_us", "a Python call"), ("numba_call_us", "a compiled call")):
+            if key in frames:
+                out[f"between frames: {label}"] = ("µs", frames[key])
     return out
 
 

@@ -15,12 +15,23 @@ three `LandmarkObservation` (the batch built from the list included), that batch
 (`Observations.from_list`), and a batch of 10 detections from arrays (`Observations.from_arrays`, types as
 integers); and the team-integration loop's `Localizer` on a walking robot: a frame (`motion`, `pose`,
 `quality`) and `observe` of a batch of three detections captured 30 ms earlier (latency compensated).
+
+Between frames (`time_between_frames`): the benchmark's full step and the issue's step shape at N <= 1 000, each
+call made after the thread has slept 10 ms, as a 100 Hz loop makes it. The other timings call the step back
+to back or interleaved with other work; this one says what a robot's loop pays once the step's code and data
+have had a frame's time to leave the caches (on a shared machine, other tenants evict them meanwhile).
 """
 from __future__ import annotations
 
+import statistics
+import time
+
+import numba
 import numpy as np
 
-from .bench_step import measure
+from .bench_step import full_step_work, issue_step_work, measure
+
+FRAME_S = 0.01          # the sleep before each call of `time_between_frames`: a 100 Hz loop
 
 
 def time_lwpr(seed: int = 0) -> dict:
@@ -113,3 +124,46 @@ def time_robot_loop(budget_s: float = 0.3, n: int = 500) -> dict:
             "from_list_us": us["from_list"], "from_arrays_us": us["from_arrays"],
             "localizer_frame_us": us["localizer_frame"], "localizer_observe_us": us["observe"],
             "method": "mcl.bench_models.time_robot_loop: the README loop's calls, interleaved medians"}
+
+
+@numba.njit(cache=True)
+def _first(values):
+    """A compiled call that does next to nothing (the between-frames baseline)."""
+    return values[0]
+
+
+def _nothing():
+    """A Python call that does nothing (the between-frames baseline)."""
+
+
+def time_between_frames(sizes, samples: int = 40, idle_s: float = FRAME_S) -> dict:
+    """Median µs of one call made after sleeping `idle_s`, for the full step (`pf.step` and `pf.entropy()`, as
+    the step table times it) and the issue's step shape (one dispatch) at each N of `sizes` up to 1 000, and, as
+    the machine's baseline, a Python function that does nothing and a compiled function given one array.
+    The items alternate, `samples` calls each; `back_to_back_us` holds the baselines called in a loop."""
+    clock = time.perf_counter
+    values = np.ones(4)
+    baseline = {"python_call": _nothing, "numba_call": lambda: _first(values)}
+    work = dict(baseline)
+    small = sorted(n for n in set(sizes) if n <= 1_000)
+    for n in small:
+        work[f"full_step/{n}"] = full_step_work(n)
+        work[f"issue_step/{n}"] = issue_step_work(n)
+    for fn in work.values():            # load the kernels, warm the buffers
+        fn()
+        fn()
+    times: dict[str, list[float]] = {name: [] for name in work}
+    for _ in range(samples):
+        for name, fn in work.items():
+            time.sleep(idle_s)
+            start = clock()
+            fn()
+            times[name].append(clock() - start)
+    us = {name: 1e6 * statistics.median(values) for name, values in times.items()}
+    warm = measure(baseline, budget_s=0.01, min_samples=20)
+    return {"idle_s": idle_s, "samples": samples,
+            "rows": [{"n": n, "full_step_us": us[f"full_step/{n}"], "issue_step_us": us[f"issue_step/{n}"]}
+                     for n in small],
+            "python_call_us": us["python_call"], "numba_call_us": us["numba_call"],
+            "back_to_back_us": {name: 1e6 * entry["s"] for name, entry in warm.items()},
+            "method": "mcl.bench_models.time_between_frames: one call after each sleep, medians"}

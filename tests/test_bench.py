@@ -47,11 +47,11 @@ def test_quick_run_writes_every_section(quick_run):
     result = quick_run["printed"]
     assert result == quick_run["saved"]
     for key in ("benchmark", "schema", "machine", "settings", "phases", "rows", "resampling", "threads", "memory",
-                "numpy_without_avx512", "startup", "demo_walk", "models", "bearing_accuracy", "targets",
-                "duration_s"):
+                "numpy_without_avx512", "startup", "demo_walk", "models", "between_frames", "bearing_accuracy",
+                "targets", "duration_s"):
         assert key in result, key
     for key in ("resampling", "threads", "memory", "numpy_without_avx512", "startup", "demo_walk", "models",
-                "bearing_accuracy"):
+                "between_frames", "bearing_accuracy"):
         assert "error" not in result[key], (key, result[key].get("traceback"))
     assert result["settings"]["quick"] is True and result["settings"]["sizes"] == [40, 120]
 
@@ -142,6 +142,38 @@ def test_memory_startup_models_sections(quick_run):
         assert "not available" in threads["note"]
     avx = result["numpy_without_avx512"]
     assert "NPY_DISABLE_CPU_FEATURES" in avx and "cpu_has_avx512" in avx
+
+
+def test_between_frames_times_both_steps_at_each_small_n(quick_run):
+    frames = quick_run["printed"]["between_frames"]
+    assert frames["idle_s"] == 0.01 and frames["samples"] == 10          # --quick
+    assert [row["n"] for row in frames["rows"]] == [40, 120]
+    for row in frames["rows"]:
+        for key in ("full_step_us", "issue_step_us"):
+            assert math.isfinite(row[key]) and row[key] > 0, key
+    for value in (frames["python_call_us"], frames["numba_call_us"], *frames["back_to_back_us"].values()):
+        assert math.isfinite(value) and value > 0
+    assert "between frames (one call after 10 ms asleep" in format_report(quick_run["printed"])
+
+
+def test_between_frames_sleeps_before_every_timed_call(monkeypatch):
+    from mcl import bench_models
+
+    events = []
+    monkeypatch.setattr(bench_models.time, "sleep", lambda seconds: events.append(("sleep", seconds)))
+    monkeypatch.setattr(bench_models, "full_step_work", lambda n: lambda: events.append(("full", n)))
+    monkeypatch.setattr(bench_models, "issue_step_work", lambda n: lambda: events.append(("issue", n)))
+    monkeypatch.setattr(bench_models, "_nothing", lambda: events.append(("python", 0)))
+    monkeypatch.setattr(bench_models, "_first", lambda values: events.append(("numba", 0)))
+    monkeypatch.setattr(bench_models, "measure", lambda work, **options: {name: {"s": 1e-7} for name in work})
+    result = bench_models.time_between_frames([5000, 100, 1000, 100], samples=3, idle_s=0.5)
+    assert [row["n"] for row in result["rows"]] == [100, 1000]           # N > 1 000 left out, each N once
+    items = [("python", 0), ("numba", 0), ("full", 100), ("issue", 100), ("full", 1000), ("issue", 1000)]
+    expected = [item for item in items for _ in range(2)]                           # warm-up, untimed
+    for _ in range(3):                                                              # each timed call after a sleep
+        expected += [event for item in items for event in (("sleep", 0.5), item)]
+    assert events == expected
+    assert result["back_to_back_us"] == pytest.approx({"python_call": 0.1, "numba_call": 0.1})
 
 
 def test_targets_are_all_reported(quick_run):

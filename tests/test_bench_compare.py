@@ -23,6 +23,8 @@ def _result(step: float, b2b: float, phase: float, loop_us: float = 30.0, n: int
         "models": {"lwpr": {"update_us": 6.0, "predict_us": 3.0},
                    "ekf": {"default": {"predict_us": 4.0, "correct_us": 2.0}},
                    "robot_loop": {"particles": 500, "frame_us": loop_us, "method": "..."}},
+        "between_frames": {"idle_s": 0.01, "samples": 40,
+                           "rows": [{"n": n, "full_step_us": 40.0, "issue_step_us": 20.0}]},
         "machine": {"cpu_model": "test CPU", "python": "3.11", "numba": "0"},
     }
 
@@ -36,6 +38,8 @@ def test_figures_pair_every_timed_figure_with_its_unit():
         "LWPR update": ("µs", 6.0), "LWPR predict": ("µs", 3.0),
         "velocity EKF (default) predict": ("µs", 4.0), "velocity EKF (default) correct": ("µs", 2.0),
         "robot loop, N = 500: frame": ("µs", 30.0),
+        "between frames, N = 100: full step": ("µs", 40.0),
+        "between frames, N = 100: the issue's step shape": ("µs", 20.0),
     }
     assert bc.figures({"rows": [], "models": {"lwpr": None, "ekf": None, "robot_loop": None}}) == {}
 
