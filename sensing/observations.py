@@ -130,6 +130,7 @@ _NO_VALUES = np.zeros(0)
 _LANDMARK_FIELDS = ("kinds", "ranges", "bearings", "range_sigmas", "bearing_sigmas")
 _NO_LINE_POINTS = np.zeros((0, 2))
 _NO_LINE_POINTS.flags.writeable = False       # shared by every batch without field-line points
+_EMPTY: dict[type, "Observations"] = {}        # `Observations.empty()` of each class
 
 
 def _line_points(raw) -> np.ndarray:
@@ -234,7 +235,12 @@ class Observations:
 
     @classmethod
     def empty(cls) -> "Observations":
-        return cls.from_arrays([], [], [])
+        """A batch without detections: one instance per class, made once (a batch cannot be changed), so that
+        a frame without detections (`step(u)`, `correct(None)`) does not build one."""
+        batch = _EMPTY.get(cls)
+        if batch is None:
+            batch = _EMPTY[cls] = cls.from_arrays([], [], [])
+        return batch
 
     @classmethod
     def coerce(cls, observations: "Observations | Iterable[LandmarkObservation] | None") -> "Observations":

@@ -249,6 +249,53 @@ def test_step_equals_predict_then_correct_then_estimate():
         assert np.array_equal(estimate.pose, b.estimate().pose) and same(state(a), state(b))
 
 
+@pytest.mark.parametrize("options", [dict(), dict(fast=True), dict(motion=VelocityLinear(gaussian=True)),
+                                     dict(motion=ConstantNoise(), augmented=None)])
+@pytest.mark.parametrize("entropy_wanted", [False, True])
+def test_a_step_without_detections_is_predict_then_estimate(options, entropy_wanted):
+    """`step(u)` with no detections (None, or an empty list) is `predict(u)` then `estimate()`, bit for bit,
+    with camera frames in between (they move the estimate's hysteresis anchor)."""
+    stepped, plain = make(seed=5, **options), make(seed=5, **options)
+    for pf in (stepped, plain):
+        pf.reset_around(TRUE_POSE, (0.3, 0.3, 0.2))
+        if entropy_wanted:
+            pf.entropy()
+    rng_stepped, rng_plain = np.random.default_rng(1), np.random.default_rng(1)
+    for k in range(16):
+        u = MotionInput(dt=0.02, command=(0.2, 0.05 * (k % 3), 0.3 * (-1) ** k))
+        if k % 4 == 3:
+            stepped.step(u, detections(TRUE_POSE, rng_stepped))
+            plain.predict(u)
+            plain.correct(detections(TRUE_POSE, rng_plain))
+            plain.estimate()
+            continue
+        a = stepped.step(u, None if k % 2 else [])
+        plain.predict(u)
+        b = plain.estimate()
+        assert np.array_equal(stepped.poses, plain.poses) and np.array_equal(stepped.log_weights, plain.log_weights)
+        assert np.array_equal(a.pose, b.pose) and np.array_equal(a.covariance, b.covariance) and a.weight == b.weight
+        assert stepped.rng.bit_generator.state == plain.rng.bit_generator.state
+        assert stepped._heading_reference == plain._heading_reference
+        # the hysteresis anchor the next estimate starts from
+        assert stepped._has_previous_estimate and plain._has_previous_estimate
+        assert np.array_equal(stepped._previous_estimate, plain._previous_estimate)
+        if entropy_wanted:
+            assert stepped.entropy() == plain.entropy()
+    assert same(state(stepped), state(plain))
+
+
+def test_a_step_without_detections_checks_its_input_before_anything_changes():
+    pf = make(seed=2)
+    pf.reset_around(TRUE_POSE, (0.3, 0.3, 0.2))
+    before = (pf.poses.copy(), pf.rng.bit_generator.state)
+    no_motion = MotionInput(dt=0.01)                 # neither command nor odometry: the model cannot move
+    with pytest.raises(ValueError, match="neither command nor odometry"):
+        pf.step(no_motion)
+    with pytest.raises(ValueError, match="must be a motion_models.MotionInput"):
+        pf.step("forward")
+    assert np.array_equal(pf.poses, before[0]) and pf.rng.bit_generator.state == before[1]
+
+
 @pytest.mark.parametrize("options", [dict(), dict(threads=2)])
 def test_the_entropy_from_the_step_is_the_entropy_computed_afresh(options):
     """Once asked for, the entropy comes out of the compiled step; it is what a fresh computation from the same

@@ -89,6 +89,24 @@ def test_batches_are_read_only_and_convert_to_points():
     assert len(Observations.coerce(None)) == 0
 
 
+def test_the_empty_batch_is_made_once_and_cannot_change():
+    empty = Observations.empty()
+    assert Observations.coerce(None) is empty and len(Observations.coerce([])) == 0 and empty.is_empty
+    assert Observations.empty() is empty
+    for name in ("kinds", "ranges", "bearings", "range_sigmas", "bearing_sigmas", "line_points"):
+        array = getattr(empty, name)
+        assert array.size == 0 and not array.flags.writeable
+        with pytest.raises(ValueError):
+            array.resize(4)
+    with pytest.raises(AttributeError):
+        empty.ranges = np.ones(2)
+
+    class Tagged(Observations):
+        pass
+
+    assert type(Tagged.empty()) is Tagged and Tagged.empty() is Tagged.empty() and Tagged.empty() is not empty
+
+
 SIGMAS = st.one_of(st.none(), st.floats(0.01, 2.0))
 
 
