@@ -142,8 +142,8 @@ def time_between_frames(sizes, samples: int = 40, idle_s: float = FRAME_S) -> di
     the machine's baseline, a Python function that does nothing and a compiled function given one array.
     The items alternate, `samples` calls each; `back_to_back_us` holds the baselines called in a loop."""
     clock = time.perf_counter
-    values = np.ones(4)
-    baseline = {"python_call": _nothing, "numba_call": lambda: _first(values)}
+    array = np.ones(4)
+    baseline = {"python_call": _nothing, "numba_call": lambda: _first(array)}
     work = dict(baseline)
     small = sorted(n for n in set(sizes) if n <= 1_000)
     for n in small:
@@ -159,7 +159,7 @@ def time_between_frames(sizes, samples: int = 40, idle_s: float = FRAME_S) -> di
             start = clock()
             fn()
             times[name].append(clock() - start)
-    us = {name: 1e6 * statistics.median(values) for name, values in times.items()}
+    us = {name: 1e6 * statistics.median(seconds) for name, seconds in times.items()}
     warm = measure(baseline, budget_s=0.01, min_samples=20)
     return {"idle_s": idle_s, "samples": samples,
             "rows": [{"n": n, "full_step_us": us[f"full_step/{n}"], "issue_step_us": us[f"issue_step/{n}"]}

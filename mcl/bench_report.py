@@ -352,13 +352,14 @@ def format_report(result: dict) -> str:
                 lines.append(f"{key[:-len('_error')]}: {models[key]}")
     frames = _section(result, "between_frames")
     if frames and frames["rows"]:
-        lines.append(f"between frames (one call after {1e3 * frames['idle_s']:g} ms asleep, as a 100 Hz loop makes it; "
-                     f"medians of {frames['samples']}): " + "; ".join(
-                         f"N = {row['n']}: full step {row['full_step_us']:.1f} µs, the issue's step shape "
-                         f"{row['issue_step_us']:.1f} µs" for row in frames["rows"])
-                     + f"; the machine's baseline, a Python call that does nothing {frames['python_call_us']:.1f} µs "
-                       f"and a compiled call given one array {frames['numba_call_us']:.1f} µs (back to back "
-                       f"{frames['back_to_back_us']['python_call']:.2f} and {frames['back_to_back_us']['numba_call']:.2f})")
+        warm = frames["back_to_back_us"]
+        steps = "; ".join(f"N = {row['n']}: full step {row['full_step_us']:.1f} µs, the issue's step shape "
+                          f"{row['issue_step_us']:.1f} µs" for row in frames["rows"])
+        lines.append(f"between frames (one call after {1e3 * frames['idle_s']:g} ms asleep, as a 100 Hz loop makes "
+                     f"it; medians of {frames['samples']}): {steps}; the machine's baseline, a Python call that does "
+                     f"nothing {frames['python_call_us']:.1f} µs and a compiled call given one array "
+                     f"{frames['numba_call_us']:.1f} µs (back to back {warm['python_call']:.2f} and "
+                     f"{warm['numba_call']:.2f})")
     elif "between_frames" in result:
         lines.append(f"between frames: {_failure(result['between_frames'])}")
     accuracy = _section(result, "bearing_accuracy")
