@@ -316,6 +316,13 @@ class ParticleFilter:
         self._state_scratch = np.empty_like(self._state_rows)
         self.reset_uniform("field")
 
+    def __getstate__(self) -> dict:
+        # Pickles and deep copies leave out the generator's kernel handle: it holds the addresses of this
+        # filter's bit generator, and a copy that kept them would draw from (and advance) the original's.
+        state = self.__dict__.copy()
+        state["_rng_handle"] = None
+        return state
+
     def _changed(self) -> None:
         """The particles or their weights changed: the cached estimate and summary histograms are stale."""
         self._estimate = None

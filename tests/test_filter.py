@@ -1,5 +1,6 @@
 import copy
 import math
+import pickle
 from dataclasses import dataclass
 
 import numpy as np
@@ -169,6 +170,26 @@ def test_same_seed_same_run_bit_for_bit():
     assert np.array_equal(a, b) and np.array_equal(pa, pb)
     c, _, _ = run_sequence(4)
     assert not np.array_equal(a, c)
+
+
+@pytest.mark.parametrize("clone", [copy.deepcopy, lambda pf: pickle.loads(pickle.dumps(pf))],
+                         ids=["deepcopy", "pickle"])
+def test_a_copied_filter_draws_from_its_own_generator(clone):
+    """A copy of a filter that has drawn in its kernels steps as the original does, and leaves the original's
+    generator where it was (the kernels draw through the addresses of a bit generator)."""
+    u = MotionInput(dt=0.033, command=(0.1, 0.05, 0.2))
+    pf = make(200, seed=5)
+    pf.step(u, detections(TRUE_POSE))
+    twin = clone(pf)
+    before = state(pf)
+    for _ in range(3):
+        twin.step(u, detections(TRUE_POSE))
+        twin.predict(u)
+    assert same_state(state(pf), before)
+    for _ in range(3):
+        pf.step(u, detections(TRUE_POSE))
+        pf.predict(u)
+    assert same_state(state(twin), state(pf))
 
 
 def test_mirrored_field_gives_mirrored_estimate():
