@@ -312,7 +312,7 @@ class ParticleFilter:
                 raise ValueError(f"motion_model.particle_state({self.n}) must have {self.n} rows, "
                                  f"got shape {self._motion_state.shape}")
         # The state as rows (a view), and rows to gather it through, for the kernels that resample
-        self._state_rows = _NO_STATE if self._motion_state is None else self._motion_state.reshape(self.n, -1)
+        self._bind_state_rows()
         self._state_scratch = np.empty_like(self._state_rows)
         self.reset_uniform("field")
 
@@ -321,7 +321,16 @@ class ParticleFilter:
         # filter's bit generator, and a copy that kept them would draw from (and advance) the original's.
         state = self.__dict__.copy()
         state["_rng_handle"] = None
+        del state["_state_rows"]
         return state
+
+    def __setstate__(self, state: dict) -> None:
+        self.__dict__.update(state)
+        self._bind_state_rows()
+
+    def _bind_state_rows(self) -> None:
+        """The motion state as rows: a view, which the kernels that resample gather through (a copy's own)."""
+        self._state_rows = _NO_STATE if self._motion_state is None else self._motion_state.reshape(self.n, -1)
 
     def _changed(self) -> None:
         """The particles or their weights changed: the cached estimate and summary histograms are stale."""

@@ -11,8 +11,9 @@ from hypothesis import strategies as st
 from field import spl
 from field.angles import wrap_angles
 from mcl import AugmentedMCL, Grid, ParticleFilter
-from motion_models import ConstantNoise, MotionInput, VelocityLinear
+from motion_models import AdaptiveMotion, ConstantNoise, MotionInput, VelocityLinear
 from sensing import LandmarkObservation, LandmarkSensorModel, Observations
+from sensing.collision import CollisionPercept
 
 FIELD = spl()
 SENSOR = LandmarkSensorModel(FIELD)
@@ -172,13 +173,20 @@ def test_same_seed_same_run_bit_for_bit():
     assert not np.array_equal(a, c)
 
 
+@pytest.mark.parametrize("adaptive", [False, True], ids=["velocity-linear", "adaptive"])
 @pytest.mark.parametrize("clone", [copy.deepcopy, lambda pf: pickle.loads(pickle.dumps(pf))],
                          ids=["deepcopy", "pickle"])
-def test_a_copied_filter_draws_from_its_own_generator(clone):
+def test_a_copied_filter_steps_as_the_original(clone, adaptive):
     """A copy of a filter that has drawn in its kernels steps as the original does, and leaves the original's
-    generator where it was (the kernels draw through the addresses of a bit generator)."""
-    u = MotionInput(dt=0.033, command=(0.1, 0.05, 0.2))
-    pf = make(200, seed=5)
+    generator where it was (the kernels draw through the addresses of a bit generator). With the adaptive
+    model, the particles' mobility states (which the compiled step resamples through a view) follow too."""
+    if adaptive:
+        hit = CollisionPercept(left=True, s_rel_left=2.0, rate=0.1, recent_left=True)
+        u = MotionInput(dt=0.033, command=(0.1, 0.05, 0.2), collision=hit)
+        pf = ParticleFilter(FIELD, AdaptiveMotion(), SENSOR, n_particles=200, seed=5, resample_threshold=1.0)
+    else:
+        u = MotionInput(dt=0.033, command=(0.1, 0.05, 0.2))
+        pf = make(200, seed=5)
     pf.step(u, detections(TRUE_POSE))
     twin = clone(pf)
     before = state(pf)
@@ -190,6 +198,9 @@ def test_a_copied_filter_draws_from_its_own_generator(clone):
         pf.step(u, detections(TRUE_POSE))
         pf.predict(u)
     assert same_state(state(twin), state(pf))
+    if adaptive:
+        assert len(np.unique(pf.motion_state[:, 0])) > 1      # the states differ: resampling moved them
+        np.testing.assert_array_equal(twin.motion_state, pf.motion_state)
 
 
 def test_mirrored_field_gives_mirrored_estimate():
