@@ -200,7 +200,8 @@ def format_report(result: dict) -> str:
              f"{m['cpus']} cores ({simd}); python {m['python']}, numpy {m['numpy']}, numba {m['numba']}; "
              f"load {load}{target}",
              "full step: predict (velocity-linear), 10 goalpost detections (von Mises bearing), normalize + ESS, "
-             "systematic resampling with roughening, estimate, entropy; one thread; medians of interleaved runs",
+             "systematic resampling with roughening, estimate, entropy; one thread; medians of single calls, each "
+             "after calls of every other timed item (phases included)",
              "b2b: the full step called back to back (warm caches); fast: the full step with fast=True; issue "
              "shape, its fast: the issue's step shape (the C reference's: no roughening, no estimate) on the same "
              "kernels; inject: the full step when augmented MCL replaces 5 % of N every step; adaptive: the full "

@@ -63,10 +63,14 @@ def test_rows_hold_the_full_step_and_every_phase(quick_run):
         assert row["speedup"] > 0 and row["ns_per_particle"] > 0
         assert row["full_step"]["numpy_s"] > 0 and row["full_step_exact_bearing"]["numba_s"] > 0
         assert row["injecting_step"]["numba_s"] > 0
+        # The interleaved items: one call per sample, each after calls of the others; back to back: many.
+        assert row["full_step"]["numba_calls_per_sample"] == row["full_step"]["numpy_calls_per_sample"] == 1
+        assert row["issue_step"]["numba_calls_per_sample"] == 1
+        assert row["full_step_back_to_back"]["numba_calls_per_sample"] > 1
         assert set(row["phases"]) == set(bench_step.PHASE_NAMES)
         for phase in bench_step.PHASES:
             entry = row["phases"][phase.name]
-            assert entry["numba_ns_per_particle"] > 0
+            assert entry["numba_ns_per_particle"] > 0 and entry["numba_calls_per_sample"] == 1
             assert (entry["numpy_s"] is None) == (phase.numpy_entry is None)
             if entry["numpy_s"] is not None:
                 assert entry["speedup"] == pytest.approx(entry["numpy_s"] / entry["numba_s"])
