@@ -264,8 +264,8 @@ class ParticleFilter:
         self._cluster_nx = max(1, math.ceil((self._x_max - self._x_min) / grid.cluster_cell))
         self._cluster_ny = max(1, math.ceil((self._y_max - self._y_min) / grid.cluster_cell))
         # Buffers kept across steps: a steady-state step allocates nothing that grows with N.
-        self.poses = np.zeros((self.n, 3))
-        self.log_weights = np.full(self.n, -math.log(self.n))
+        self._poses = np.zeros((self.n, 3))
+        self._log_weights = np.full(self.n, -math.log(self.n))
         self._weights = np.full(self.n, 1.0 / self.n)
         self._log_likelihood = np.empty(self.n)
         self._previous = np.empty((self.n, 3))          # the particles before resampling (the copy's source)
@@ -332,6 +332,28 @@ class ParticleFilter:
         """The motion state as rows: a view, which the kernels that resample gather through (a copy's own)."""
         self._state_rows = _NO_STATE if self._motion_state is None else self._motion_state.reshape(self.n, -1)
 
+    @property
+    def poses(self) -> np.ndarray:
+        """The particles, (N, 3) [x, y, θ]: the filter's own array, which its kernels work in. Replace them
+        with `set_particles` (validated; the kernels trust the array's shape)."""
+        return self._poses
+
+    @poses.setter
+    def poses(self, value) -> None:
+        raise AttributeError("ParticleFilter.poses cannot be rebound: use set_particles(poses, log_weights), "
+                             "which checks them")
+
+    @property
+    def log_weights(self) -> np.ndarray:
+        """The particles' log-weights, (N,): the filter's own array (normalized with `weights`). Replace them
+        with `set_particles`."""
+        return self._log_weights
+
+    @log_weights.setter
+    def log_weights(self, value) -> None:
+        raise AttributeError("ParticleFilter.log_weights cannot be rebound: use set_particles(poses, log_weights), "
+                             "which checks them and normalizes the weights")
+
     def _changed(self) -> None:
         """The particles or their weights changed: the cached estimate and summary histograms are stale."""
         self._estimate = None
@@ -358,9 +380,9 @@ class ParticleFilter:
         self._has_previous_estimate = False
         if self._motion_state is not None:
             self._motion_state[:] = self.motion_model.particle_state(self.n)
-        self.poses[:] = poses
-        self.poses[:, 2] = wrap_angles(self.poses[:, 2])
-        self.log_weights[:] = -math.log(self.n)
+        self._poses[:] = poses
+        self._poses[:, 2] = wrap_angles(self._poses[:, 2])
+        self._log_weights[:] = -math.log(self.n)
         self._weights[:] = 1.0 / self.n
         self.ess = float(self.n)
         self._changed()
@@ -411,7 +433,7 @@ class ParticleFilter:
 
     def reset_mirrored(self) -> None:
         """Mirror every particle through the centre mark: (x, y, θ) → (−x, −y, θ+π), weights kept."""
-        self.poses[:] = self.field.mirror_poses(self.poses)
+        self._poses[:] = self.field.mirror_poses(self._poses)
         self._heading_reference = math.remainder(self._heading_reference + math.pi, 2 * math.pi)
         self._has_previous_estimate = False
         self._changed()
@@ -445,9 +467,9 @@ class ParticleFilter:
         For what moved the robot without odometry seeing it (a fall and getting up, a push while standing).
         """
         sigma = self._check_sigma(sigma)
-        noisy = self.poses + sigma * self.rng.standard_normal((self.n, 3))
-        self.poses[:] = noisy
-        self.poses[:, 2] = wrap_angles(self.poses[:, 2])
+        noisy = self._poses + sigma * self.rng.standard_normal((self.n, 3))
+        self._poses[:] = noisy
+        self._poses[:, 2] = wrap_angles(self._poses[:, 2])
         self._has_previous_estimate = False
         self._changed()
 
@@ -481,7 +503,7 @@ class ParticleFilter:
             self._motion_state[:] = motion_state
         if log_weights is not None:
             total, self.ess = normalize(log_weights, self._weights)
-            self.log_weights[:] = log_weights - total
+            self._log_weights[:] = log_weights - total
 
     # -- the step ----------------------------------------------------------------------------------------
     # A bounded-noise motion model (velocity-linear, constant) and a sensor model that offers
@@ -540,9 +562,9 @@ class ParticleFilter:
         motion = self._kernel_motion(u)             # checks u first
         if motion is None:
             if self._motion_state is None:
-                self.motion_model.predict(self.poses, u, self.rng)
+                self.motion_model.predict(self._poses, u, self.rng)
             else:
-                self.motion_model.predict(self.poses, u, self.rng, state=self._motion_state)
+                self.motion_model.predict(self._poses, u, self.rng, state=self._motion_state)
             self._carry_heading(u)
         else:
             self._move_compiled(motion)
@@ -558,12 +580,12 @@ class ParticleFilter:
                 if not gaussian:
                     variates = self._variates
                     parallel_uniforms(*self._generator(), variates.reshape(-1), 3 * self.n)
-                move_chunked(self.poses, *motion, gaussian, variates, self._chunk)
+                move_chunked(self._poses, *motion, gaussian, variates, self._chunk)
         elif self._fast:
-            move_range_fast(self.poses, self.poses, 0, self.n, *motion, gaussian, variates, *self._generator(),
+            move_range_fast(self._poses, self._poses, 0, self.n, *motion, gaussian, variates, *self._generator(),
                             NO_WORK)
         else:
-            move_range(self.poses, self.poses, 0, self.n, *motion, gaussian, variates, *self._generator(), NO_WORK)
+            move_range(self._poses, self._poses, 0, self.n, *motion, gaussian, variates, *self._generator(), NO_WORK)
 
     def _carry_heading(self, u: MotionInput) -> None:
         """Turn the heading reference by the motion input's rotation, as a gyro would."""
@@ -608,13 +630,13 @@ class ParticleFilter:
     def _correct(self, observations: Observations, since: np.ndarray | None = None) -> None:
         if observations.is_empty:
             return
-        scored = self.poses
+        scored = self._poses
         if since is not None:
-            move_back(self.poses, since, self._capture_poses)
+            move_back(self._poses, since, self._capture_poses)
             scored = self._capture_poses
         log_likelihood = np.asarray(self.sensor_model.log_likelihood(scored, observations, out=self._log_likelihood),
                                     dtype=np.float64)
-        valid, native_log_average, log_evidence, ess = weigh(self.log_weights, log_likelihood,
+        valid, native_log_average, log_evidence, ess = weigh(self._log_weights, log_likelihood,
                                                              self.n - self.injected, self._weights)
         if not valid:
             raise ValueError("sensor model returned NaN or +inf log-likelihoods; filter left unchanged")
@@ -629,7 +651,7 @@ class ParticleFilter:
             self._weights[:] = 1.0 / self.n
             self._resample(self._injection_count(1.0), observations, since)
             return
-        reweigh(self.log_weights, log_likelihood, log_evidence)
+        reweigh(self._log_weights, log_likelihood, log_evidence)
         self.ess = ess
         fraction = 0.0
         if self.augmented is not None:
@@ -697,7 +719,7 @@ class ParticleFilter:
         with self._thread_scope:
             (status, native_log_average, ess, w_slow, w_fast, fraction, resampled, weight, position,
              orientation) = _compiled_step(
-                self.poses, self.log_weights, self._weights, self._log_likelihood, self._previous, self._trig,
+                self._poses, self._log_weights, self._weights, self._log_likelihood, self._previous, self._trig,
                 self._counts, self._local_histograms, move, *motion, gaussian, variates, *self._generator(),
                 observations.kinds, observations.ranges, observations.bearings, observations.range_sigmas,
                 observations.bearing_sigmas, table, offsets, range_noise_floor, range_noise_growth, bearing_sigma,
@@ -755,8 +777,8 @@ class ParticleFilter:
         keep = n - count
         coordinates, histograms, bitmaps = self._summary
         weight, position, orientation = _resample_and_summarize(
-            self._weights, keep, self._previous, self.roughening, self.poses, self._trig, *self._generator(),
-            self._counts, injected, self.log_weights, self._grid_parameters, coordinates, histograms, bitmaps,
+            self._weights, keep, self._previous, self.roughening, self._poses, self._trig, *self._generator(),
+            self._counts, injected, self._log_weights, self._grid_parameters, coordinates, histograms, bitmaps,
             want_estimate, self._previous_estimate, self._has_previous_estimate, mean, covariance,
             self._entropy_wanted, self._fast)
         self.ess = float(n)
@@ -803,7 +825,7 @@ class ParticleFilter:
         average, which asks for more injection: a feedback loop that tears a good cluster apart. They sit
         at the tail of the arrays until the next resampling.
         """
-        return log_mean_likelihood(self.log_weights, log_likelihood, self.n - self.injected)
+        return log_mean_likelihood(self._log_weights, log_likelihood, self.n - self.injected)
 
     def _update_augmented(self, log_average: float) -> float:
         """Update w_slow, w_fast with the per-detection average likelihood; return the injection share."""
@@ -851,12 +873,12 @@ class ParticleFilter:
             # Sensor resetting placed them where the detections were captured: carry them to now.
             move_forward(injected, since, injected)
         keep = self.n - injected.shape[0]
-        self._previous[:] = self.poses
+        self._previous[:] = self._poses
         # Roughening: uniform jitter of standard deviation `roughening`, in each particle's own frame so that
         # it commutes with rotating the world, fused with the copy from the ancestors.
         bounds = self.roughening * SQRT3
         if self.resampling == "systematic":
-            u0 = resample_with_jitter(self._weights, keep, self._previous, bounds, self.poses, _NO_TRIG,
+            u0 = resample_with_jitter(self._weights, keep, self._previous, bounds, self._poses, _NO_TRIG,
                                       *self._generator(), self._counts, _NO_COORDINATES)
             if self._motion_state is not None:
                 gather_offspring_rows(self._weights, keep, u0, self._counts, self._state_rows, self._state_scratch)
@@ -864,12 +886,12 @@ class ParticleFilter:
         else:
             ancestors = SCHEMES[self.resampling](self._weights, keep, self.rng)
             gather_with_jitter(self._previous, ancestors, bounds,
-                               draw_variates(self.rng, keep, False, out=self._variates), self.poses)
+                               draw_variates(self.rng, keep, False, out=self._variates), self._poses)
             if self._motion_state is not None:
                 self._motion_state[:keep] = self._motion_state[ancestors]
                 self._motion_state[keep:] = self.motion_model.particle_state(self.n - keep)
-        self.poses[keep:] = injected
-        self.log_weights[:] = -math.log(self.n)
+        self._poses[keep:] = injected
+        self._log_weights[:] = -math.log(self.n)
         self._weights[:] = 1.0 / self.n
         self.ess = float(self.n)
         self.resampled = True
@@ -907,10 +929,10 @@ class ParticleFilter:
         if not self._summary_valid:
             if self._threads > 1:
                 with self._thread_scope:
-                    summary_fill_chunked(self._grid_parameters, self.poses, self._weights, *self._summary,
+                    summary_fill_chunked(self._grid_parameters, self._poses, self._weights, *self._summary,
                                          self._local_histograms, self._chunk)
             else:
-                summary_fill(self._grid_parameters, self.poses, self._weights, *self._summary)
+                summary_fill(self._grid_parameters, self._poses, self._weights, *self._summary)
             self._summary_valid = True
 
     def estimate(self) -> Estimate:
@@ -927,7 +949,7 @@ class ParticleFilter:
             if self._threads == 1 and not self._summary_valid:
                 # One dispatch: the histograms, the estimate and (once asked for) the entropy.
                 weight, position, orientation = _summarize(
-                    self._grid_parameters, self.poses, self._weights, coordinates, histograms, bitmaps, True,
+                    self._grid_parameters, self._poses, self._weights, coordinates, histograms, bitmaps, True,
                     previous, self._has_previous_estimate, mean, cov, self._entropy_wanted, self._fast)
                 self._summary_valid = True
                 if self._entropy_wanted:
@@ -958,7 +980,7 @@ class ParticleFilter:
             if self._threads == 1 and not self._summary_valid:
                 # One dispatch: the histograms and the entropy (no estimate: it would move the hysteresis anchor).
                 _, position, orientation = _summarize(
-                    self._grid_parameters, self.poses, self._weights, *self._summary, False,
+                    self._grid_parameters, self._poses, self._weights, *self._summary, False,
                     self._previous_estimate, False, _NO_MEAN, _NO_COVARIANCE, True, self._fast)
                 self._summary_valid = True
             else:

@@ -107,6 +107,20 @@ def test_step_validates_observations_before_predicting():
     assert same_state(before, state(pf))
 
 
+@pytest.mark.parametrize("name,value", [("poses", np.zeros((5000, 3))), ("poses", np.zeros((300, 3))),
+                                        ("log_weights", np.zeros(300))])
+def test_the_particle_arrays_cannot_be_rebound(name, value):
+    """The kernels trust the particle arrays' shape (a larger array rebound in their place made the compiled
+    step write past the others); replacing them goes through set_particles, which checks them."""
+    pf = make()
+    pf.step(MotionInput(dt=0.033, command=(0.1, 0.05, 0.2)), detections(TRUE_POSE))
+    before = state(pf)
+    with pytest.raises(AttributeError, match="set_particles"):
+        setattr(pf, name, value)
+    assert same_state(state(pf), before)
+    assert getattr(pf, name) is getattr(pf, name) and getattr(pf, name).flags.writeable
+
+
 def test_bad_resets_are_rejected_unchanged():
     pf = make()
     before = state(pf)
