@@ -225,19 +225,14 @@ class ParticleFilter:
             raise ValueError(f"field = {field!r} must be a field.Field")
         if isinstance(n_particles, bool) or not isinstance(n_particles, (int, np.integer)) or n_particles <= 0:
             raise ValueError(f"n_particles = {n_particles!r} must be an integer > 0")
-        if resampling not in SCHEMES:
-            raise ValueError(f"resampling = {resampling!r} must be one of {tuple(SCHEMES)}")
-        if not (isinstance(resample_threshold, (int, float)) and 0 <= resample_threshold <= 1):
-            raise ValueError(f"resample_threshold = {resample_threshold!r} must be within [0, 1]")
+        self.resampling = resampling                  # (the setters check them)
+        self.resample_threshold = resample_threshold
         for name, obj, methods in (("motion_model", motion_model, ("check", "predict")),
                                    ("sensor_model", sensor_model, ("check", "log_likelihood"))):
             missing = [m for m in methods if not callable(getattr(obj, m, None))]
             if missing:
                 raise ValueError(f"{name} = {obj!r} lacks {', '.join(missing)}")
-        roughening_array = np.asarray(roughening, dtype=np.float64)
-        if roughening_array.shape != (3,) or not np.isfinite(roughening_array).all() or (roughening_array < 0).any():
-            raise ValueError(f"roughening = {roughening!r} must be three finite numbers >= 0")
-        self.roughening = roughening_array
+        self.roughening = roughening
         if isinstance(threads, bool) or not isinstance(threads, (int, np.integer)) or threads < 1:
             raise ValueError(f"threads = {threads!r} must be an integer >= 1")
         if not isinstance(fast, (bool, np.bool_)):
@@ -249,9 +244,7 @@ class ParticleFilter:
         self.field = field
         self.motion_model = motion_model
         self.sensor_model = sensor_model
-        self.n = int(n_particles)
-        self.resampling = resampling
-        self.resample_threshold = float(resample_threshold)
+        self._n = int(n_particles)
         self.augmented = augmented
         self.grid = grid
         self.rng = np.random.default_rng(seed)
@@ -264,21 +257,21 @@ class ParticleFilter:
         self._cluster_nx = max(1, math.ceil((self._x_max - self._x_min) / grid.cluster_cell))
         self._cluster_ny = max(1, math.ceil((self._y_max - self._y_min) / grid.cluster_cell))
         # Buffers kept across steps: a steady-state step allocates nothing that grows with N.
-        self._poses = np.zeros((self.n, 3))
-        self._log_weights = np.full(self.n, -math.log(self.n))
-        self._weights = np.full(self.n, 1.0 / self.n)
-        self._log_likelihood = np.empty(self.n)
-        self._previous = np.empty((self.n, 3))          # the particles before resampling (the copy's source)
-        self._capture_poses = np.empty((self.n, 3))
-        self._trig = np.empty((self.n, 2))              # cos, sin of the scored headings, for the roughening
-        self._variates = np.empty((self.n, 3))          # drawn Gaussian motion noise, resampling variates
-        self._counts = np.zeros(self.n + 1, dtype=np.int64)   # resampling scratch (zero between uses)
+        self._poses = np.zeros((self._n, 3))
+        self._log_weights = np.full(self._n, -math.log(self._n))
+        self._weights = np.full(self._n, 1.0 / self._n)
+        self._log_likelihood = np.empty(self._n)
+        self._previous = np.empty((self._n, 3))          # the particles before resampling (the copy's source)
+        self._capture_poses = np.empty((self._n, 3))
+        self._trig = np.empty((self._n, 2))              # cos, sin of the scored headings, for the roughening
+        self._variates = np.empty((self._n, 3))          # drawn Gaussian motion noise, resampling variates
+        self._counts = np.zeros(self._n + 1, dtype=np.int64)   # resampling scratch (zero between uses)
         # The estimate's and the entropy's histograms, filled in one pass and kept until the particles change.
         self._grid_parameters = summary_grid(self._x_min, self._y_min, grid.cluster_cell, self._cluster_nx,
                                              self._cluster_ny, grid.cluster_orientation_bins, grid.cluster_radius,
                                              grid.cluster_angle_radius, 3, grid.position_cell, self._entropy_nx,
                                              self._entropy_ny, grid.orientation_bins)
-        self._summary = summary_buffers(self._grid_parameters, self.n)
+        self._summary = summary_buffers(self._grid_parameters, self._n)
         # threads > 1: each thread's histograms, in fixed point (see mcl.estimate.summary_fill_chunked)
         self._local_histograms = np.zeros((numba.config.NUMBA_NUM_THREADS if self._threads > 1 else 0,
                                            self._summary[1].shape[0]), dtype=np.int64)
@@ -291,7 +284,7 @@ class ParticleFilter:
         self.w_slow = 0.0
         self.w_fast = 0.0
         self.frame_fit = math.nan     # the last correction's average likelihood per detection (augmented MCL)
-        self.ess = float(self.n)
+        self.ess = float(self._n)
         self.resampled = False        # whether the last correction resampled
         self.injected = 0             # particles injected by the last correction
         self._injection_bounds = self._region_bounds("field")
@@ -307,9 +300,9 @@ class ParticleFilter:
         self._has_previous_estimate = False
         self._motion_state = None
         if callable(getattr(motion_model, "particle_state", None)):
-            self._motion_state = np.ascontiguousarray(motion_model.particle_state(self.n))
-            if self._motion_state.shape[:1] != (self.n,):
-                raise ValueError(f"motion_model.particle_state({self.n}) must have {self.n} rows, "
+            self._motion_state = np.ascontiguousarray(motion_model.particle_state(self._n))
+            if self._motion_state.shape[:1] != (self._n,):
+                raise ValueError(f"motion_model.particle_state({self._n}) must have {self._n} rows, "
                                  f"got shape {self._motion_state.shape}")
         # The state as rows (a view), and rows to gather it through, for the kernels that resample
         self._bind_state_rows()
@@ -330,7 +323,48 @@ class ParticleFilter:
 
     def _bind_state_rows(self) -> None:
         """The motion state as rows: a view, which the kernels that resample gather through (a copy's own)."""
-        self._state_rows = _NO_STATE if self._motion_state is None else self._motion_state.reshape(self.n, -1)
+        self._state_rows = _NO_STATE if self._motion_state is None else self._motion_state.reshape(self._n, -1)
+
+    @property
+    def n(self) -> int:
+        """The number of particles N (fixed: the filter's arrays are made for it)."""
+        return self._n
+
+    @property
+    def resampling(self) -> str:
+        """The resampling scheme, one of `mcl.resampling.SCHEMES` (may be changed between steps)."""
+        return self._resampling
+
+    @resampling.setter
+    def resampling(self, value: str) -> None:
+        if not isinstance(value, str) or value not in SCHEMES:
+            raise ValueError(f"resampling = {value!r} must be one of {tuple(SCHEMES)}")
+        self._resampling = value
+
+    @property
+    def resample_threshold(self) -> float:
+        """Resample when the ESS falls below this share of N, in [0, 1] (may be changed between steps)."""
+        return self._resample_threshold
+
+    @resample_threshold.setter
+    def resample_threshold(self, value: float) -> None:
+        if isinstance(value, bool) or not (isinstance(value, (int, float, np.integer, np.floating)) and 0 <= value <= 1):
+            raise ValueError(f"resample_threshold = {value!r} must be within [0, 1]")
+        self._resample_threshold = float(value)
+
+    @property
+    def roughening(self) -> np.ndarray:
+        """The roughening's standard deviations (x [m], y [m], θ [rad]), read-only (may be replaced between
+        steps by three finite numbers >= 0)."""
+        return self._roughening
+
+    @roughening.setter
+    def roughening(self, value) -> None:
+        array = np.array(value, dtype=np.float64)
+        if array.shape != (3,) or not np.isfinite(array).all() or (array < 0).any():
+            raise ValueError(f"roughening = {value!r} must be three finite numbers >= 0")
+        array.flags.writeable = False
+        self._roughening = array
 
     @property
     def poses(self) -> np.ndarray:
@@ -379,12 +413,12 @@ class ParticleFilter:
     def _set_particles(self, poses: np.ndarray) -> None:
         self._has_previous_estimate = False
         if self._motion_state is not None:
-            self._motion_state[:] = self.motion_model.particle_state(self.n)
+            self._motion_state[:] = self.motion_model.particle_state(self._n)
         self._poses[:] = poses
         self._poses[:, 2] = wrap_angles(self._poses[:, 2])
-        self._log_weights[:] = -math.log(self.n)
-        self._weights[:] = 1.0 / self.n
-        self.ess = float(self.n)
+        self._log_weights[:] = -math.log(self._n)
+        self._weights[:] = 1.0 / self._n
+        self.ess = float(self._n)
         self._changed()
 
     def reset_uniform(self, region="field", heading: float | None = None, heading_sigma: float = 0.0) -> None:
@@ -403,13 +437,13 @@ class ParticleFilter:
                 raise ValueError(f"heading = {heading!r}, heading_sigma = {heading_sigma!r} must be finite "
                                  "numbers (sigma >= 0)")
         x_min, x_max, y_min, y_max = bounds
-        poses = np.empty((self.n, 3))
-        poses[:, 0] = self.rng.uniform(x_min, x_max, self.n)
-        poses[:, 1] = self.rng.uniform(y_min, y_max, self.n)
+        poses = np.empty((self._n, 3))
+        poses[:, 0] = self.rng.uniform(x_min, x_max, self._n)
+        poses[:, 1] = self.rng.uniform(y_min, y_max, self._n)
         if heading is None:
-            poses[:, 2] = self.rng.uniform(-math.pi, math.pi, self.n)
+            poses[:, 2] = self.rng.uniform(-math.pi, math.pi, self._n)
         else:
-            poses[:, 2] = heading + heading_sigma * self.rng.standard_normal(self.n)
+            poses[:, 2] = heading + heading_sigma * self.rng.standard_normal(self._n)
         self._set_particles(poses)
         self._injection_bounds = bounds
         self._ever_confident = False
@@ -425,7 +459,7 @@ class ParticleFilter:
         if pose.shape != (3,) or not np.isfinite(pose).all():
             raise ValueError(f"pose = {pose!r} must be three finite numbers")
         sigma = self._check_sigma(sigma)
-        self._set_particles(pose + sigma * self.rng.standard_normal((self.n, 3)))
+        self._set_particles(pose + sigma * self.rng.standard_normal((self._n, 3)))
         self._injection_bounds = self._region_bounds("field")
         self._ever_confident = True
         self._heading_reference = math.remainder(float(pose[2]), 2 * math.pi)
@@ -454,8 +488,8 @@ class ParticleFilter:
             raise ValueError(f"poses = {poses!r} must be one or more finite (x, y, θ) poses")
         sigma = self._check_sigma(sigma)
         bounds = self._region_bounds(region)
-        choice = np.arange(self.n) % candidates.shape[0]
-        self._set_particles(candidates[choice] + sigma * self.rng.standard_normal((self.n, 3)))
+        choice = np.arange(self._n) % candidates.shape[0]
+        self._set_particles(candidates[choice] + sigma * self.rng.standard_normal((self._n, 3)))
         self._injection_bounds = bounds
         self._ever_confident = False
         self._confident_streak = 0
@@ -467,7 +501,7 @@ class ParticleFilter:
         For what moved the robot without odometry seeing it (a fall and getting up, a push while standing).
         """
         sigma = self._check_sigma(sigma)
-        noisy = self._poses + sigma * self.rng.standard_normal((self.n, 3))
+        noisy = self._poses + sigma * self.rng.standard_normal((self._n, 3))
         self._poses[:] = noisy
         self._poses[:, 2] = wrap_angles(self._poses[:, 2])
         self._has_previous_estimate = False
@@ -491,11 +525,11 @@ class ParticleFilter:
             if motion_state.shape != self._motion_state.shape or not np.isfinite(motion_state).all():
                 raise ValueError(f"motion_state must be finite with shape {self._motion_state.shape}, "
                                  f"got {motion_state.shape}")
-        if poses.shape != (self.n, 3) or not np.isfinite(poses).all():
-            raise ValueError(f"poses must be finite with shape ({self.n}, 3), got {poses.shape}")
+        if poses.shape != (self._n, 3) or not np.isfinite(poses).all():
+            raise ValueError(f"poses must be finite with shape ({self._n}, 3), got {poses.shape}")
         if log_weights is not None:
             log_weights = np.asarray(log_weights, dtype=np.float64)
-            if (log_weights.shape != (self.n,) or np.isnan(log_weights).any() or np.isposinf(log_weights).any()
+            if (log_weights.shape != (self._n,) or np.isnan(log_weights).any() or np.isposinf(log_weights).any()
                     or not (log_weights > -np.inf).any()):
                 raise ValueError("log_weights must have shape (N,), no NaN or +inf, and at least one finite entry")
         self._set_particles(poses)
@@ -574,18 +608,18 @@ class ParticleFilter:
     def _move_compiled(self, motion: tuple[float, ...]) -> None:
         """Move by (dx, dy, dθ, bounds) in the filter's kernels, with the noise the motion model would draw."""
         gaussian = bool(self.motion_model.gaussian)
-        variates = draw_variates(self.rng, self.n, True, out=self._variates) if gaussian else _NO_VARIATES
+        variates = draw_variates(self.rng, self._n, True, out=self._variates) if gaussian else _NO_VARIATES
         if self._threads > 1:
             with self._thread_scope:
                 if not gaussian:
                     variates = self._variates
-                    parallel_uniforms(*self._generator(), variates.reshape(-1), 3 * self.n)
+                    parallel_uniforms(*self._generator(), variates.reshape(-1), 3 * self._n)
                 move_chunked(self._poses, *motion, gaussian, variates, self._chunk)
         elif self._fast:
-            move_range_fast(self._poses, self._poses, 0, self.n, *motion, gaussian, variates, *self._generator(),
+            move_range_fast(self._poses, self._poses, 0, self._n, *motion, gaussian, variates, *self._generator(),
                             NO_WORK)
         else:
-            move_range(self._poses, self._poses, 0, self.n, *motion, gaussian, variates, *self._generator(), NO_WORK)
+            move_range(self._poses, self._poses, 0, self._n, *motion, gaussian, variates, *self._generator(), NO_WORK)
 
     def _carry_heading(self, u: MotionInput) -> None:
         """Turn the heading reference by the motion input's rotation, as a gyro would."""
@@ -637,7 +671,7 @@ class ParticleFilter:
         log_likelihood = np.asarray(self.sensor_model.log_likelihood(scored, observations, out=self._log_likelihood),
                                     dtype=np.float64)
         valid, native_log_average, log_evidence, ess = weigh(self._log_weights, log_likelihood,
-                                                             self.n - self.injected, self._weights)
+                                                             self._n - self.injected, self._weights)
         if not valid:
             raise ValueError("sensor model returned NaN or +inf log-likelihoods; filter left unchanged")
         terms = getattr(self.sensor_model, "terms", len)(observations)
@@ -648,7 +682,7 @@ class ParticleFilter:
             # Every particle has zero likelihood: the belief cannot explain the detections. Recover by
             # keeping the particles with uniform weights and replacing the largest allowed share by
             # injected ones; nothing else (no NaN) can come out of this.
-            self._weights[:] = 1.0 / self.n
+            self._weights[:] = 1.0 / self._n
             self._resample(self._injection_count(1.0), observations, since)
             return
         reweigh(self._log_weights, log_likelihood, log_evidence)
@@ -657,7 +691,7 @@ class ParticleFilter:
         if self.augmented is not None:
             fraction = self._update_augmented(native_log_average / terms) if terms > 0 else 0.0
         count = self._injection_count(fraction)
-        if count > 0 or ess < self.resample_threshold * self.n:
+        if count > 0 or ess < self._resample_threshold * self._n:
             self._resample(count, observations, since)
         else:
             self.resampled = False
@@ -691,7 +725,7 @@ class ParticleFilter:
                        since: np.ndarray | None = None) -> None:
         """[predict by `motion`,] correct(observations) [captured `since` ago]: one call into `_compiled_step`
         (with the entropy, once `entropy()` has been asked for)."""
-        n = self.n
+        n = self._n
         table, offsets, range_noise_floor, range_noise_growth, bearing_sigma, log_outlier = self._compiled_sensor
         move = motion is not None
         chunk = self._chunk if self._threads > 1 else 0
@@ -724,8 +758,8 @@ class ParticleFilter:
                 observations.kinds, observations.ranges, observations.bearings, observations.range_sigmas,
                 observations.bearing_sigmas, table, offsets, range_noise_floor, range_noise_growth, bearing_sigma,
                 log_outlier, n - self.injected, terms, augmented, alpha_slow, alpha_fast, ratio_threshold,
-                fit_threshold, self.w_slow, self.w_fast, cap, self.resample_threshold,
-                self.resampling == "systematic" and (self._motion_state is None or not chunk), self.roughening,
+                fit_threshold, self.w_slow, self.w_fast, cap, self._resample_threshold,
+                self._resampling == "systematic" and (self._motion_state is None or not chunk), self._roughening,
                 self._state_rows, self._state_scratch, self._grid_parameters, coordinates, histograms, bitmaps,
                 want_estimate, self._previous_estimate, self._has_previous_estimate, mean, covariance,
                 self._entropy_wanted, chunk, self._fast, _NO_SINCE if since is None else since)
@@ -750,7 +784,7 @@ class ParticleFilter:
             self.w_fast = w_fast
         if status == _STEP_RESAMPLE:
             count = self._injection_count(fraction)
-            if count > 0 and self._threads == 1 and self.resampling == "systematic" and self._motion_state is None:
+            if count > 0 and self._threads == 1 and self._resampling == "systematic" and self._motion_state is None:
                 self._finish_with_injection(count, observations, want_estimate, mean, covariance, since)
             else:
                 self._resample(count, observations, since)
@@ -770,14 +804,14 @@ class ParticleFilter:
         """The end of a compiled step that injects (one thread, systematic resampling): `_resample` and the
         estimate and entropy that follow it, in one call into compiled code (`_resample_and_summarize`) after
         the injected poses are drawn. The same draws and results as `_resample` then `estimate()`/`entropy()`."""
-        n = self.n
+        n = self._n
         injected = self._sample_injection(count, observations)
         if since is not None:                     # placed where the detections were captured: carried to now
             move_forward(injected, since, injected)
         keep = n - count
         coordinates, histograms, bitmaps = self._summary
         weight, position, orientation = _resample_and_summarize(
-            self._weights, keep, self._previous, self.roughening, self._poses, self._trig, *self._generator(),
+            self._weights, keep, self._previous, self._roughening, self._poses, self._trig, *self._generator(),
             self._counts, injected, self._log_weights, self._grid_parameters, coordinates, histograms, bitmaps,
             want_estimate, self._previous_estimate, self._has_previous_estimate, mean, covariance,
             self._entropy_wanted, self._fast)
@@ -825,7 +859,7 @@ class ParticleFilter:
         average, which asks for more injection: a feedback loop that tears a good cluster apart. They sit
         at the tail of the arrays until the next resampling.
         """
-        return log_mean_likelihood(self._log_weights, log_likelihood, self.n - self.injected)
+        return log_mean_likelihood(self._log_weights, log_likelihood, self._n - self.injected)
 
     def _update_augmented(self, log_average: float) -> float:
         """Update w_slow, w_fast with the per-detection average likelihood; return the injection share."""
@@ -844,7 +878,7 @@ class ParticleFilter:
         if self.augmented is None:
             return 0
         cap = self.augmented.max_fraction_tracking if self._ever_confident else self.augmented.max_fraction
-        return int(round(min(fraction, cap) * self.n))
+        return int(round(min(fraction, cap) * self._n))
 
     def _sample_injection(self, count: int, observations: Observations) -> np.ndarray:
         """`count` poses for augmented MCL to inject: `sensor_reset_fraction` of them from the sensor model's
@@ -872,28 +906,28 @@ class ParticleFilter:
         if since is not None and injected.shape[0]:
             # Sensor resetting placed them where the detections were captured: carry them to now.
             move_forward(injected, since, injected)
-        keep = self.n - injected.shape[0]
+        keep = self._n - injected.shape[0]
         self._previous[:] = self._poses
         # Roughening: uniform jitter of standard deviation `roughening`, in each particle's own frame so that
         # it commutes with rotating the world, fused with the copy from the ancestors.
-        bounds = self.roughening * SQRT3
-        if self.resampling == "systematic":
+        bounds = self._roughening * SQRT3
+        if self._resampling == "systematic":
             u0 = resample_with_jitter(self._weights, keep, self._previous, bounds, self._poses, _NO_TRIG,
                                       *self._generator(), self._counts, _NO_COORDINATES)
             if self._motion_state is not None:
                 gather_offspring_rows(self._weights, keep, u0, self._counts, self._state_rows, self._state_scratch)
-                self._motion_state[keep:] = self.motion_model.particle_state(self.n - keep)
+                self._motion_state[keep:] = self.motion_model.particle_state(self._n - keep)
         else:
-            ancestors = SCHEMES[self.resampling](self._weights, keep, self.rng)
+            ancestors = SCHEMES[self._resampling](self._weights, keep, self.rng)
             gather_with_jitter(self._previous, ancestors, bounds,
                                draw_variates(self.rng, keep, False, out=self._variates), self._poses)
             if self._motion_state is not None:
                 self._motion_state[:keep] = self._motion_state[ancestors]
-                self._motion_state[keep:] = self.motion_model.particle_state(self.n - keep)
+                self._motion_state[keep:] = self.motion_model.particle_state(self._n - keep)
         self._poses[keep:] = injected
-        self._log_weights[:] = -math.log(self.n)
-        self._weights[:] = 1.0 / self.n
-        self.ess = float(self.n)
+        self._log_weights[:] = -math.log(self._n)
+        self._weights[:] = 1.0 / self._n
+        self.ess = float(self._n)
         self.resampled = True
         self.injected = int(injected.shape[0])
         self._changed()

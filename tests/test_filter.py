@@ -121,6 +121,38 @@ def test_the_particle_arrays_cannot_be_rebound(name, value):
     assert getattr(pf, name) is getattr(pf, name) and getattr(pf, name).flags.writeable
 
 
+@pytest.mark.parametrize("name,value", [("roughening", (0.1, -0.1, 0.0)), ("roughening", (0.1, 0.1)),
+                                        ("roughening", (np.nan, 0.0, 0.0)), ("resampling", "best"),
+                                        ("resampling", None), ("resample_threshold", 1.5),
+                                        ("resample_threshold", True), ("resample_threshold", "0.5")])
+def test_bad_settings_between_steps_are_refused_unchanged(name, value):
+    pf = make()
+    u = MotionInput(dt=0.033, command=(0.1, 0.05, 0.2))
+    pf.step(u, detections(TRUE_POSE))
+    before, setting = state(pf), copy.deepcopy(getattr(pf, name))
+    with pytest.raises(ValueError, match=name):
+        setattr(pf, name, value)
+    assert same_state(state(pf), before) and np.array_equal(getattr(pf, name), setting)
+
+
+def test_settings_changed_between_steps_take_effect():
+    u = MotionInput(dt=0.033, command=(0.1, 0.05, 0.2))
+    made = make(seed=3, resample_threshold=1.0, roughening=(0.0, 0.0, 0.0), resampling="stratified")
+    changed = make(seed=3)
+    changed.roughening = [0.0, 0.0, 0.0]
+    changed.resample_threshold = 1
+    changed.resampling = "stratified"
+    for pf in (made, changed):
+        for _ in range(3):
+            pf.step(u, detections(TRUE_POSE))
+    assert same_state(state(made), state(changed)) and changed.resampled
+    assert changed.resample_threshold == 1.0 and isinstance(changed.resample_threshold, float)
+    with pytest.raises(ValueError):
+        changed.roughening[0] = 1.0              # read-only: a new value goes through the setter's checks
+    with pytest.raises(AttributeError):
+        changed.n = 10
+
+
 def test_bad_resets_are_rejected_unchanged():
     pf = make()
     before = state(pf)
