@@ -246,7 +246,9 @@ class ParticleFilter:
         self.sensor_model = sensor_model
         self._n = int(n_particles)
         self.augmented = augmented
-        self.grid = grid
+        if not isinstance(grid, Grid):
+            raise ValueError(f"grid = {grid!r} must be an mcl.Grid")
+        self._grid = grid
         self.rng = np.random.default_rng(seed)
         # Carpet bounds: the field plus its border strip.
         border = field.dims.border_strip_width
@@ -351,6 +353,22 @@ class ParticleFilter:
         if isinstance(value, bool) or not (isinstance(value, (int, float, np.integer, np.floating)) and 0 <= value <= 1):
             raise ValueError(f"resample_threshold = {value!r} must be within [0, 1]")
         self._resample_threshold = float(value)
+
+    @property
+    def augmented(self) -> AugmentedMCL | None:
+        """Augmented MCL's parameters, or None: no injection (may be changed between steps)."""
+        return self._augmented
+
+    @augmented.setter
+    def augmented(self, value: AugmentedMCL | None) -> None:
+        if value is not None and not isinstance(value, AugmentedMCL):
+            raise ValueError(f"augmented = {value!r} must be an AugmentedMCL or None")
+        self._augmented = value
+
+    @property
+    def grid(self) -> Grid:
+        """The entropy and estimate grid (fixed: the filter's histograms are made for it)."""
+        return self._grid
 
     @property
     def roughening(self) -> np.ndarray:
@@ -688,7 +706,7 @@ class ParticleFilter:
         reweigh(self._log_weights, log_likelihood, log_evidence)
         self.ess = ess
         fraction = 0.0
-        if self.augmented is not None:
+        if self._augmented is not None:
             fraction = self._update_augmented(native_log_average / terms) if terms > 0 else 0.0
         count = self._injection_count(fraction)
         if count > 0 or ess < self._resample_threshold * self._n:
@@ -736,7 +754,7 @@ class ParticleFilter:
         elif gaussian:
             self.sensor_model.check(observations)     # before the noise is drawn
             variates = draw_variates(self.rng, n, True, out=self._variates)
-        a = self.augmented
+        a = self._augmented
         if a is None:
             augmented, alpha_slow, alpha_fast, ratio_threshold, fit_threshold, cap = False, 0.0, 0.0, 1.0, 0.0, 0.0
         else:
@@ -837,18 +855,18 @@ class ParticleFilter:
         uses the reference once the estimate has been confident for `confident_corrections` corrections in
         a row: early in global localization a wrong cluster can be tight for a moment.
         """
-        if self.augmented is None:
+        if self._augmented is None:
             return
         estimate = self.estimate()
         confident = estimate.is_confident()
-        if confident and self.w_fast >= self.augmented.fit_threshold:
+        if confident and self.w_fast >= self._augmented.fit_threshold:
             offset = math.remainder(estimate.theta - self._heading_reference, 2 * math.pi)
-            if not self._ever_confident or abs(offset) <= self.augmented.heading_gate:
+            if not self._ever_confident or abs(offset) <= self._augmented.heading_gate:
                 self._heading_reference = estimate.theta
         if self._ever_confident:
             return
         self._confident_streak = self._confident_streak + 1 if confident else 0
-        if self._confident_streak >= self.augmented.confident_corrections:
+        if self._confident_streak >= self._augmented.confident_corrections:
             self._ever_confident = True
             self._injection_bounds = self._region_bounds("field")
 
@@ -863,7 +881,7 @@ class ParticleFilter:
 
     def _update_augmented(self, log_average: float) -> float:
         """Update w_slow, w_fast with the per-detection average likelihood; return the injection share."""
-        a = self.augmented
+        a = self._augmented
         average = math.exp(log_average)
         if self.w_slow == 0.0:
             self.w_slow = self.w_fast = average
@@ -875,9 +893,9 @@ class ParticleFilter:
         return max(0.0, relative, absolute)
 
     def _injection_count(self, fraction: float) -> int:
-        if self.augmented is None:
+        if self._augmented is None:
             return 0
-        cap = self.augmented.max_fraction_tracking if self._ever_confident else self.augmented.max_fraction
+        cap = self._augmented.max_fraction_tracking if self._ever_confident else self._augmented.max_fraction
         return int(round(min(fraction, cap) * self._n))
 
     def _sample_injection(self, count: int, observations: Observations) -> np.ndarray:
@@ -886,9 +904,9 @@ class ParticleFilter:
         the heading reference once it is trusted, else uniform. The uniforms come from the filter's stream in
         the kernel (`place_injected`); bit for bit `mcl.reference.sample_injection_reference`."""
         heading = self._heading_reference if self._ever_confident else None
-        sigma = self.augmented.heading_sigma
+        sigma = self._augmented.heading_sigma
         x_min, x_max, y_min, y_max = self._injection_bounds
-        n_sensor = int(round(count * self.augmented.sensor_reset_fraction))
+        n_sensor = int(round(count * self._augmented.sensor_reset_fraction))
         sampler = getattr(self.sensor_model, "sample_poses", None)
         poses = _NO_VARIATES
         if n_sensor > 0 and sampler is not None and len(observations) > 0:
@@ -1026,7 +1044,7 @@ class ParticleFilter:
     @property
     def entropy_bounds(self) -> tuple[float, float]:
         """The largest possible position and orientation entropies: log2 of the cell counts."""
-        return math.log2(self._entropy_nx * self._entropy_ny), math.log2(self.grid.orientation_bins)
+        return math.log2(self._entropy_nx * self._entropy_ny), math.log2(self._grid.orientation_bins)
 
 
 # -- the compiled step ---------------------------------------------------------------------------------------------

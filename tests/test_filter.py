@@ -124,7 +124,8 @@ def test_the_particle_arrays_cannot_be_rebound(name, value):
 @pytest.mark.parametrize("name,value", [("roughening", (0.1, -0.1, 0.0)), ("roughening", (0.1, 0.1)),
                                         ("roughening", (np.nan, 0.0, 0.0)), ("resampling", "best"),
                                         ("resampling", None), ("resample_threshold", 1.5),
-                                        ("resample_threshold", True), ("resample_threshold", "0.5")])
+                                        ("resample_threshold", True), ("resample_threshold", "0.5"),
+                                        ("augmented", {"alpha_slow": 0.01})])
 def test_bad_settings_between_steps_are_refused_unchanged(name, value):
     pf = make()
     u = MotionInput(dt=0.033, command=(0.1, 0.05, 0.2))
@@ -137,11 +138,13 @@ def test_bad_settings_between_steps_are_refused_unchanged(name, value):
 
 def test_settings_changed_between_steps_take_effect():
     u = MotionInput(dt=0.033, command=(0.1, 0.05, 0.2))
-    made = make(seed=3, resample_threshold=1.0, roughening=(0.0, 0.0, 0.0), resampling="stratified")
+    made = make(seed=3, resample_threshold=1.0, roughening=(0.0, 0.0, 0.0), resampling="stratified",
+                augmented=None)
     changed = make(seed=3)
     changed.roughening = [0.0, 0.0, 0.0]
     changed.resample_threshold = 1
     changed.resampling = "stratified"
+    changed.augmented = None
     for pf in (made, changed):
         for _ in range(3):
             pf.step(u, detections(TRUE_POSE))
@@ -149,8 +152,11 @@ def test_settings_changed_between_steps_take_effect():
     assert changed.resample_threshold == 1.0 and isinstance(changed.resample_threshold, float)
     with pytest.raises(ValueError):
         changed.roughening[0] = 1.0              # read-only: a new value goes through the setter's checks
-    with pytest.raises(AttributeError):
-        changed.n = 10
+    for fixed, value in (("n", 10), ("grid", Grid())):     # the filter's arrays are made for them
+        with pytest.raises(AttributeError):
+            setattr(changed, fixed, value)
+    with pytest.raises(ValueError, match="grid"):
+        make(grid={"position_cell": 0.2})
 
 
 def test_bad_resets_are_rejected_unchanged():
