@@ -350,7 +350,8 @@ class ParticleFilter:
 
     @resample_threshold.setter
     def resample_threshold(self, value: float) -> None:
-        if isinstance(value, bool) or not (isinstance(value, (int, float, np.integer, np.floating)) and 0 <= value <= 1):
+        number = isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, bool)
+        if not (number and 0 <= value <= 1):
             raise ValueError(f"resample_threshold = {value!r} must be within [0, 1]")
         self._resample_threshold = float(value)
 
@@ -378,9 +379,7 @@ class ParticleFilter:
 
     @roughening.setter
     def roughening(self, value) -> None:
-        array = np.array(value, dtype=np.float64)
-        if array.shape != (3,) or not np.isfinite(array).all() or (array < 0).any():
-            raise ValueError(f"roughening = {value!r} must be three finite numbers >= 0")
+        array = self._check_sigma(value, "roughening").copy()
         array.flags.writeable = False
         self._roughening = array
 
@@ -526,10 +525,10 @@ class ParticleFilter:
         self._changed()
 
     @staticmethod
-    def _check_sigma(sigma) -> np.ndarray:
+    def _check_sigma(sigma, name: str = "sigma") -> np.ndarray:
         array = np.asarray(sigma, dtype=np.float64)
         if array.shape != (3,) or not np.isfinite(array).all() or (array < 0).any():
-            raise ValueError(f"sigma = {sigma!r} must be three finite numbers >= 0")
+            raise ValueError(f"{name} = {sigma!r} must be three finite numbers >= 0")
         return array
 
     def set_particles(self, poses, log_weights=None, motion_state=None) -> None:
