@@ -241,7 +241,7 @@ class ParticleFilter:
         self._chunk = int(balanced_chunk(int(n_particles), _CHUNK))   # particles per chunk with threads > 1
         self._fast = bool(fast)
         self._thread_scope = _Threads(self._threads)
-        self.field = field
+        self._field = field
         self.motion_model = motion_model
         self.sensor_model = sensor_model
         self._n = int(n_particles)
@@ -367,6 +367,11 @@ class ParticleFilter:
         self._augmented = value
 
     @property
+    def field(self) -> Field:
+        """The field (fixed: the carpet's bounds, the grid and the injection region are made for it)."""
+        return self._field
+
+    @property
     def grid(self) -> Grid:
         """The entropy and estimate grid (fixed: the filter's histograms are made for it)."""
         return self._grid
@@ -413,7 +418,7 @@ class ParticleFilter:
 
     # -- resets ------------------------------------------------------------------------------------------
     def _region_bounds(self, region) -> tuple[float, float, float, float]:
-        hl, hw = self.field.half_length, self.field.half_width
+        hl, hw = self._field.half_length, self._field.half_width
         if isinstance(region, str):
             if region not in REGIONS:
                 raise ValueError(f"region = {region!r} must be one of {REGIONS} or (x_min, x_max, y_min, y_max)")
@@ -484,7 +489,7 @@ class ParticleFilter:
 
     def reset_mirrored(self) -> None:
         """Mirror every particle through the centre mark: (x, y, θ) → (−x, −y, θ+π), weights kept."""
-        self._poses[:] = self.field.mirror_poses(self._poses)
+        self._poses[:] = self._field.mirror_poses(self._poses)
         self._heading_reference = math.remainder(self._heading_reference + math.pi, 2 * math.pi)
         self._has_previous_estimate = False
         self._changed()

@@ -152,7 +152,7 @@ def test_settings_changed_between_steps_take_effect():
     assert changed.resample_threshold == 1.0 and isinstance(changed.resample_threshold, float)
     with pytest.raises(ValueError):
         changed.roughening[0] = 1.0              # read-only: a new value goes through the setter's checks
-    for fixed, value in (("n", 10), ("grid", Grid())):     # the filter's arrays are made for them
+    for fixed, value in (("n", 10), ("grid", Grid()), ("field", FIELD)):     # the filter's arrays are made for them
         with pytest.raises(AttributeError):
             setattr(changed, fixed, value)
     with pytest.raises(ValueError, match="grid"):
