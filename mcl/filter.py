@@ -377,6 +377,16 @@ class ParticleFilter:
         return self._grid
 
     @property
+    def threads(self) -> int:
+        """The number of threads the compiled step runs on (a constructor option)."""
+        return self._threads
+
+    @property
+    def fast(self) -> bool:
+        """Whether the compiled step computes sin, cos, exp and its sums the fast way (a constructor option)."""
+        return self._fast
+
+    @property
     def roughening(self) -> np.ndarray:
         """The roughening's standard deviations (x [m], y [m], θ [rad]), read-only (may be replaced between
         steps by three finite numbers >= 0)."""
@@ -953,16 +963,6 @@ class ParticleFilter:
         self.resampled = True
         self.injected = int(injected.shape[0])
         self._changed()
-
-    @property
-    def threads(self) -> int:
-        """The number of threads the compiled step runs on (a constructor option)."""
-        return self._threads
-
-    @property
-    def fast(self) -> bool:
-        """Whether the compiled step computes sin, cos, exp and its sums the fast way (a constructor option)."""
-        return self._fast
 
     # -- summaries ---------------------------------------------------------------------------------------
     @property
