@@ -544,6 +544,79 @@ def sincos_reference(x) -> tuple[np.ndarray, np.ndarray]:
             np.where(quadrant >= 2.0, -sine, sine))
 
 
+
+# -- atan2 without libm ----------------------------------------------------------------------------------------------
+# The exact bearing term needs the direction of each candidate landmark as an angle: one atan2 per particle and
+# candidate. libm's is a call (about 24 ns in a loop over 2·10⁶ points) that no loop can vectorize. `atan2_poly`
+# is fdlibm's atan kernel (its polynomial on three ranges of [0, 1], each with its own offset) on the smaller of
+# |y|/|x| and |x|/|y|, then the quadrant, all written with selects, so that a loop over particles vectorizes
+# (about 4 ns a point). Within two units in the last place of libm's atan2, equal to it in about three cases of
+# four; the signs of zeros as atan2's. Inlined: compiled with its caller's flags; in plain IEEE arithmetic it
+# gives the bits of its numpy twin `atan2_poly_reference` on every machine.
+_AT0, _AT1, _AT2 = 3.33333333333329318027e-01, -1.99999999998764832476e-01, 1.42857142725034663711e-01
+_AT3, _AT4, _AT5 = -1.11111104054623557880e-01, 9.09088713343650656196e-02, -7.69187620504482999495e-02
+_AT6, _AT7, _AT8 = 6.66107313738753120669e-02, -5.83357013379057348645e-02, 4.97687799461593236017e-02
+_AT9, _AT10 = -3.65315727442169155270e-02, 1.62858201153657823623e-02
+_ATAN_HALF_HIGH, _ATAN_HALF_LOW = 4.63647609000806093515e-01, 2.26987774529616870924e-17    # atan(1/2)
+_ATAN_ONE_HIGH, _ATAN_ONE_LOW = 7.85398163397448278999e-01, 3.06161699786838301793e-17      # atan(1)
+_HALF_PI_HIGH, _HALF_PI_LOW = 1.57079632679489655800e+00, 6.12323399573676603587e-17
+_PI_HIGH, _PI_LOW = 3.14159265358979311600e+00, 1.22464679914735317720e-16
+
+
+@numba.njit(cache=True, inline="always")
+def atan2_poly(y, x):
+    """atan2(y, x) in [-π, π] for finite x and y, branch-free (vectorizes); `atan2_poly_reference` bit for bit in
+    kernels compiled without fast-math. Zeros give ±0 or ±π as atan2 does; NaN in, NaN out."""
+    ax = abs(x)
+    ay = abs(y)
+    steep = ay > ax
+    numerator = ax if steep else ay
+    denominator = ay if steep else ax
+    a = numerator / denominator                               # in [0, 1]
+    a = a if numerator > 0.0 else numerator + 0.0 * denominator     # 0/0 is 0 here; NaN stays NaN
+    upper = a >= 0.6875
+    middle = (a >= 0.4375) & (a < 0.6875)
+    t = (a - 1.0 if upper else (2.0 * a - 1.0 if middle else a)) / (
+        a + 1.0 if upper else (2.0 + a if middle else 1.0))
+    high = _ATAN_ONE_HIGH if upper else (_ATAN_HALF_HIGH if middle else 0.0)
+    low = _ATAN_ONE_LOW if upper else (_ATAN_HALF_LOW if middle else 0.0)
+    z = t * t
+    w = z * z
+    s1 = z * (_AT0 + w * (_AT2 + w * (_AT4 + w * (_AT6 + w * (_AT8 + w * _AT10)))))
+    s2 = w * (_AT1 + w * (_AT3 + w * (_AT5 + w * (_AT7 + w * _AT9))))
+    r = high - ((t * (s1 + s2) - low) - t)                     # atan(a), in [0, π/4]
+    r = (_HALF_PI_HIGH - r) + _HALF_PI_LOW if steep else r
+    r = (_PI_HIGH - r) + _PI_LOW if math.copysign(1.0, x) < 0.0 else r
+    return math.copysign(r, y)
+
+
+def atan2_poly_reference(y, x) -> np.ndarray:
+    """Numpy twin of `atan2_poly`: the same operations, elementwise, so the same bits."""
+    y = np.asarray(y, dtype=np.float64)
+    x = np.asarray(x, dtype=np.float64)
+    ax = np.abs(x)
+    ay = np.abs(y)
+    steep = ay > ax
+    numerator = np.where(steep, ax, ay)
+    denominator = np.where(steep, ay, ax)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        a = numerator / denominator
+    a = np.where(numerator > 0.0, a, numerator + 0.0 * denominator)
+    upper = a >= 0.6875
+    middle = (a >= 0.4375) & (a < 0.6875)
+    t = (np.where(upper, a - 1.0, np.where(middle, 2.0 * a - 1.0, a))
+         / np.where(upper, a + 1.0, np.where(middle, 2.0 + a, 1.0)))
+    high = np.where(upper, _ATAN_ONE_HIGH, np.where(middle, _ATAN_HALF_HIGH, 0.0))
+    low = np.where(upper, _ATAN_ONE_LOW, np.where(middle, _ATAN_HALF_LOW, 0.0))
+    z = t * t
+    w = z * z
+    s1 = z * (_AT0 + w * (_AT2 + w * (_AT4 + w * (_AT6 + w * (_AT8 + w * _AT10)))))
+    s2 = w * (_AT1 + w * (_AT3 + w * (_AT5 + w * (_AT7 + w * _AT9))))
+    r = high - ((t * (s1 + s2) - low) - t)
+    r = np.where(steep, (_HALF_PI_HIGH - r) + _HALF_PI_LOW, r)
+    r = np.where(np.copysign(1.0, x) < 0.0, (_PI_HIGH - r) + _PI_LOW, r)
+    return np.copysign(r, y)
+
 @numba.njit(cache=True, error_model="numpy")
 def _move_rows(rows, count, dx, dy, dtheta, bound_x, bound_y, bound_theta, gaussian, noise):
     """Rows x, y, θ of a block moved by the robot-frame displacement (dx, dy, dθ) plus the robot-frame noise from

@@ -31,7 +31,10 @@ Kernels. `landmark_log_likelihood` computes every variant particle by particle. 
 max-mixture) runs in `von_mises_log_likelihood`, which takes the particles a block at a time so that its
 loops vectorize across particles, with the same results bit for bit (see the comment above it);
 `prepare_detections` turns a batch into its per-detection constants, grouped by type, once per call. A
-compiled filter step calls `load_block` and `score_block` itself (`compiled_likelihood`).
+compiled filter step calls `load_block` and `score_block` itself (`compiled_likelihood`). The exact bearing
+term with the max-mixture runs in blocks too (`exact_log_likelihood`, `score_block_exact`), with a
+polynomial atan2 that vectorizes (`motion_models._kernels.atan2_poly`): equal to the particle-by-particle
+kernel, which takes libm's atan2, to rounding, and about 4.5 times faster.
 """
 from __future__ import annotations
 
@@ -42,8 +45,8 @@ import numba
 import numpy as np
 
 from field import Field, LandmarkType
-from field.angles import wrap_angle, wrap_angles
-from motion_models._kernels import FAST, bounded_integers, draw_handles, draw_uniforms, sincos
+from field.angles import TWO_PI, wrap_angle, wrap_angles
+from motion_models._kernels import FAST, atan2_poly, bounded_integers, draw_handles, draw_uniforms, sincos
 
 from .observations import Observations
 
@@ -95,7 +98,8 @@ def _landmark_log_likelihood(poses, trig, table, offsets, kinds, ranges, bearing
 # The exact bearing term and the sum-mixture with fast-math (`FAST` leaves out the no-NaN and no-inf
 # assumptions: the kernel tests for NaN, "noise not given", and starts its maximum at -inf): 16 % faster for
 # the exact term, whose results may then differ in the last bits from one machine to another (fused
-# multiply-adds where the processor has them).
+# multiply-adds where the processor has them). `LandmarkSensorModel` runs the exact term with the max-mixture
+# in blocks instead (`exact_log_likelihood`); this kernel scores it with the sum-mixture, and as the reference.
 @numba.njit(cache=True, fastmath=FAST)
 def _landmark_log_likelihood_fast(poses, trig, table, offsets, kinds, ranges, bearings, range_sigmas, bearing_sigmas,
                                   range_noise_floor, range_noise_growth, bearing_sigma, exact, sum_mixture,
@@ -236,12 +240,13 @@ GEOMETRY = 7       # then, for each candidate k of the widest type: distance, un
 
 @numba.njit(cache=True)
 def prepare_detections(kinds, ranges, bearings, range_sigmas, bearing_sigmas, offsets, range_noise_floor,
-                       range_noise_growth, bearing_sigma):
-    """The per-detection constants of the von Mises max-mixture, grouped by type.
+                       range_noise_growth, bearing_sigma, exact=False):
+    """The per-detection constants of the von Mises max-mixture (with `exact`, of the exact bearing term's),
+    grouped by type.
 
-    Returns (detections (m, 5): range, -½/σ_r², κ cos b, κ sin b, -κ; groups (g, 3): type, first row, end row;
-    missing): detections sorted by type (stable), as `landmark_log_likelihood` sums them, and `missing`, the
-    first detection whose type has no landmark on the field (-1 if none).
+    Returns (detections (m, 5): range, -½/σ_r², κ cos b, κ sin b, -κ (exact: range, -½/σ_r², -½κ, b, 0); groups
+    (g, 3): type, first row, end row; missing): detections sorted by type (stable), as `landmark_log_likelihood`
+    sums them, and `missing`, the first detection whose type has no landmark on the field (-1 if none).
     """
     m = kinds.shape[0]
     missing = -1
@@ -265,9 +270,14 @@ def prepare_detections(kinds, ranges, bearings, range_sigmas, bearing_sigmas, of
         kappa = 1.0 / (sb * sb)
         detections[j, 0] = r
         detections[j, 1] = -0.5 / (sr * sr)
-        detections[j, 2] = math.cos(bearings[o]) * kappa
-        detections[j, 3] = math.sin(bearings[o]) * kappa
-        detections[j, 4] = -kappa
+        if exact:
+            detections[j, 2] = -0.5 * kappa
+            detections[j, 3] = wrap_angle(bearings[o])
+            detections[j, 4] = 0.0
+        else:
+            detections[j, 2] = math.cos(bearings[o]) * kappa
+            detections[j, 3] = math.sin(bearings[o]) * kappa
+            detections[j, 4] = -kappa
         kind = kinds[o]
         if n_groups == 0 or groups[n_groups - 1, 0] != kind:
             groups[n_groups, 0] = kind
@@ -395,6 +405,55 @@ def score_block(work, count, table, offsets, detections, groups, log_outlier):
                 work[TOTAL, p] += log_outlier if log_outlier > best else best
 
 
+@numba.njit(cache=True, error_model="numpy")
+def score_block_exact(work, count, table, offsets, detections, groups, log_outlier):
+    """`score_block` with the exact bearing term, -½((wrap(b - b̂))/σ_b)² (max-mixture; `prepare_detections`
+    with exact made the detections): the candidates' distances and bearings b̂ (`atan2_poly`) in rows over the
+    block, so that every loop vectorizes. `landmark_log_likelihood` with exact = True, sum_mixture = False to
+    rounding (that kernel takes libm's atan2 and fast-math)."""
+    for p in range(count):
+        work[TOTAL, p] = 0.0
+    for g in range(groups.shape[0]):
+        kind = groups[g, 0]
+        first = offsets[kind]
+        n_cand = offsets[kind + 1] - first
+        for k in range(n_cand):
+            tx = table[first + k, 0]
+            ty = table[first + k, 1]
+            row = GEOMETRY + 3 * k
+            for p in range(count):
+                dxw = tx - work[X, p]
+                dyw = ty - work[Y, p]
+                c = work[COS, p]
+                s = work[SIN, p]
+                rx = c * dxw + s * dyw
+                ry = -s * dxw + c * dyw
+                work[row, p] = math.sqrt(rx * rx + ry * ry)
+                work[row + 1, p] = atan2_poly(ry, rx)
+        for j in range(groups[g, 1], groups[g, 2]):
+            r = detections[j, 0]
+            wr = detections[j, 1]
+            wb = detections[j, 2]
+            b = detections[j, 3]
+            for p in range(count):
+                work[BEST, p] = -np.inf
+            for k in range(n_cand):
+                row = GEOMETRY + 3 * k
+                source = BEST + k % 2
+                target = BEST + 1 - k % 2
+                for p in range(count):
+                    er = r - work[row, p]
+                    eb = b - work[row + 1, p]            # in [-2π, 2π]: b is wrapped, atan2 in [-π, π]
+                    eb = eb - TWO_PI if eb > math.pi else eb
+                    eb = eb + TWO_PI if eb <= -math.pi else eb
+                    score = wr * er * er + wb * eb * eb
+                    best = work[source, p]
+                    work[target, p] = score if score > best else best
+            last = BEST + n_cand % 2
+            for p in range(count):
+                best = work[last, p]
+                work[TOTAL, p] += log_outlier if log_outlier > best else best
+
 @numba.njit(cache=True)
 def von_mises_log_likelihood(poses, table, offsets, detections, groups, log_outlier, out, trig):
     """out[i] = the von Mises max-mixture log-likelihood of particle i (`prepare_detections` made the
@@ -421,6 +480,32 @@ def _von_mises_log_likelihood(poses, table, offsets, kinds, ranges, bearings, ra
         von_mises_log_likelihood(poses, table, offsets, detections, groups, log_outlier, out, np.empty((0, 2)))
     return missing
 
+
+@numba.njit(cache=True)
+def exact_log_likelihood(poses, table, offsets, detections, groups, log_outlier, out):
+    """out[i] = the exact-bearing max-mixture log-likelihood of particle i (`prepare_detections` with exact made
+    the detections), a block of particles at a time (`score_block_exact`)."""
+    n = poses.shape[0]
+    work = block_work(offsets, groups, min(n, BLOCK))
+    for start in range(0, n, BLOCK):
+        count = min(BLOCK, n - start)
+        load_block(poses, start, count, work, np.empty((0, 2)))
+        score_block_exact(work, count, table, offsets, detections, groups, log_outlier)
+        for p in range(count):
+            out[start + p] = work[TOTAL, p]
+    return out
+
+
+@numba.njit(cache=True)
+def _exact_log_likelihood(poses, table, offsets, kinds, ranges, bearings, range_sigmas, bearing_sigmas,
+                          range_noise_floor, range_noise_growth, bearing_sigma, log_outlier, out):
+    """`LandmarkSensorModel.log_likelihood` of the exact bearing term with the max-mixture in one call; returns the
+    first detection whose type has no landmark on the field (nothing written), or -1."""
+    detections, groups, missing = prepare_detections(kinds, ranges, bearings, range_sigmas, bearing_sigmas, offsets,
+                                                     range_noise_floor, range_noise_growth, bearing_sigma, True)
+    if missing < 0:
+        exact_log_likelihood(poses, table, offsets, detections, groups, log_outlier, out)
+    return missing
 
 _NO_ANGLES = np.empty(0)
 
@@ -585,12 +670,13 @@ class LandmarkSensorModel:
         n = poses.shape[0]
         if out is None:
             out = np.empty(n)
-        if self.bearing_model == "von_mises" and self.mixture == "max":
+        if self.mixture == "max":
             # The type check runs inside the kernel, before anything is written; check() then names the culprit.
-            if _von_mises_log_likelihood(poses, self._table, self._offsets, observations.kinds, observations.ranges,
-                                         observations.bearings, observations.range_sigmas, observations.bearing_sigmas,
-                                         self.range_noise_floor, self.range_noise_growth, self.bearing_sigma,
-                                         math.log(self.outlier_weight), out) >= 0:
+            kernel = _von_mises_log_likelihood if self.bearing_model == "von_mises" else _exact_log_likelihood
+            if kernel(poses, self._table, self._offsets, observations.kinds, observations.ranges,
+                      observations.bearings, observations.range_sigmas, observations.bearing_sigmas,
+                      self.range_noise_floor, self.range_noise_growth, self.bearing_sigma,
+                      math.log(self.outlier_weight), out) >= 0:
                 self.check(observations)
             return out
         self.check(observations)

@@ -8,8 +8,8 @@ from hypothesis import strategies as st
 
 from field.angles import wrap_angle, wrap_angles
 from motion_models import ConstantNoise, MotionInput, VelocityLinear
-from motion_models._kernels import (draw_variates, move_with_noise, move_with_noise_reference, sincos,
-                                    sincos_reference, wrap)
+from motion_models._kernels import (atan2_poly, atan2_poly_reference, draw_variates, move_with_noise,
+                                    move_with_noise_reference, sincos, sincos_reference, wrap)
 
 finite = st.floats(-5, 5, allow_nan=False)
 speeds = st.tuples(st.floats(-0.4, 0.4), st.floats(-0.2, 0.2), st.floats(-1.5, 1.5))
@@ -332,3 +332,45 @@ def test_sincos_equals_its_numpy_twin_bit_for_bit(angles):
     cos, sin = sincos_reference(values)
     assert np.array_equal(out[:, 0], cos) and np.array_equal(out[:, 1], sin)
     assert np.array_equal(np.signbit(out[:, 1]), np.signbit(sin))
+
+
+@numba.njit(error_model="numpy")
+def _atan2_all(y, x, out):
+    for i in range(y.shape[0]):
+        out[i] = atan2_poly(y[i], x[i])
+
+
+def _atan2_of(y, x):
+    out = np.empty(np.shape(y))
+    _atan2_all(np.asarray(y, dtype=np.float64), np.asarray(x, dtype=np.float64), out)
+    return out
+
+
+def test_atan2_is_within_two_units_in_the_last_place_of_libm():
+    rng = np.random.default_rng(0)
+    angles = rng.uniform(-math.pi, math.pi, 200_000)
+    radii = np.exp(rng.uniform(-30, 30, 200_000))
+    y = np.concatenate([radii * np.sin(angles), rng.uniform(-1, 1, 1000) * 1e-300, rng.uniform(-1, 1, 1000)])
+    x = np.concatenate([radii * np.cos(angles), rng.uniform(-1, 1, 1000), rng.uniform(-1, 1, 1000) * 1e-300])
+    out, libm = _atan2_of(y, x), np.arctan2(y, x)
+    assert (np.abs(out - libm) <= 2 * np.spacing(np.abs(libm))).all()
+    assert np.mean(out == libm) > 0.7
+
+
+def test_atan2_at_zeros_axes_and_nan_is_atan2():
+    values = [0.0, -0.0, 1.0, -1.0, 2.5, -3.0, 1e-310, -1e-310, 1e300, -1e300]
+    y, x = (a.ravel() for a in np.meshgrid(values, values))
+    out, libm = _atan2_of(y, x), np.arctan2(y, x)
+    assert (np.abs(out - libm) <= 2 * np.spacing(np.abs(libm))).all()
+    assert np.array_equal(np.signbit(out), np.signbit(libm))       # ±0 and ±π as atan2 gives them
+    assert np.isnan(_atan2_of([np.nan, 1.0, np.nan, 0.0], [1.0, np.nan, np.nan, np.nan])).all()
+
+
+@given(st.lists(st.tuples(st.floats(-1e6, 1e6), st.floats(-1e6, 1e6)), min_size=1, max_size=60))
+def test_atan2_equals_its_numpy_twin_bit_for_bit(points):
+    """The kernels' atan2 (no libm) is the same bits as `atan2_poly_reference`'s elementwise numpy; the ranges'
+    boundaries (|y/x| = 7/16, 11/16, 1), the axes and signed zeros included."""
+    y = np.array([p[0] for p in points] + [7.0, 11.0, 1.0, -1.0, 0.0, -0.0, 0.0, -0.0, 3.0])
+    x = np.array([p[1] for p in points] + [16.0, 16.0, 1.0, -1.0, 0.0, -0.0, -2.0, 2.0, 0.0])
+    out, twin = _atan2_of(y, x), atan2_poly_reference(y, x)
+    assert np.array_equal(out, twin) and np.array_equal(np.signbit(out), np.signbit(twin))

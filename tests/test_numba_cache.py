@@ -62,10 +62,11 @@ if part in ("filter", "all"):
     with contextlib.redirect_stdout(io.StringIO()):
         walk_main(["--duration", "0.5", "--particles", "60", "--lines", "--json"])
 
-    for bearing_model in ("von_mises", "exact"):
+    for bearing_model, mixture in (("von_mises", "max"), ("exact", "max"), ("exact", "sum")):
         for scheme in SCHEMES:
             pf = ParticleFilter(field, VelocityLinear(gaussian=scheme == "residual"),
-                                LandmarkSensorModel(field, bearing_model=bearing_model), n_particles=64, seed=1,
+                                LandmarkSensorModel(field, bearing_model=bearing_model, mixture=mixture),
+                                n_particles=64, seed=1,
                                 resampling=scheme, resample_threshold=1.0,
                                 augmented=AugmentedMCL(fit_threshold=10.0))
             pf.step(MotionInput(dt=0.01, command=(0.2, 0.0, 0.1)), observations)

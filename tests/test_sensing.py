@@ -358,6 +358,37 @@ def test_block_kernel_keeps_cos_and_sin_of_the_headings():
     assert LandmarkSensorModel(FIELD, mixture="sum").compiled_likelihood() is None
 
 
+@given(st.lists(st.tuples(kinds, st.floats(0.0, 8.0), st.floats(-10.0, 10.0), st.one_of(st.none(), st.floats(0.01, 1.0))),
+                min_size=1, max_size=12), st.integers(0, 2**32 - 1))
+def test_exact_block_kernel_matches_the_general_kernel(detections, seed):
+    """The exact bearing term with the max-mixture runs a block of particles at a time (`score_block_exact`:
+    `atan2_poly`, detections' bearings wrapped once); it equals the particle-by-particle kernel (libm's atan2)
+    to rounding: bearings beyond ±π, particles on a landmark (distance 0, atan2(0, 0)) and headings beyond ±π
+    included."""
+    from sensing.landmarks import exact_log_likelihood, landmark_log_likelihood, prepare_detections
+
+    rng = np.random.default_rng(seed)
+    poses = np.column_stack([rng.uniform(-6, 6, 300), rng.uniform(-4, 4, 300), rng.uniform(-7, 7, 300)])
+    model = LandmarkSensorModel(FIELD, bearing_model="exact")
+    table, offsets = model._table, model._offsets
+    poses[:len(table), :2] = table[:300]                     # standing on a landmark
+    obs = Observations.from_arrays([d[0] for d in detections], [d[1] for d in detections],
+                                   [d[2] for d in detections], [np.nan if d[3] is None else d[3] for d in detections])
+    log_outlier = math.log(model.outlier_weight)
+    general = np.empty(300)
+    landmark_log_likelihood(poses, table, offsets, obs.kinds, obs.ranges, obs.bearings, obs.range_sigmas,
+                            obs.bearing_sigmas, model.range_noise_floor, model.range_noise_growth, model.bearing_sigma,
+                            True, False, log_outlier, general)
+    prepared, groups, missing = prepare_detections(obs.kinds, obs.ranges, obs.bearings, obs.range_sigmas,
+                                                   obs.bearing_sigmas, offsets, model.range_noise_floor,
+                                                   model.range_noise_growth, model.bearing_sigma, True)
+    assert missing == -1
+    blocks = exact_log_likelihood(poses, table, offsets, prepared, groups, log_outlier, np.empty(300))
+    assert np.isfinite(blocks).all()
+    np.testing.assert_allclose(blocks, general, rtol=1e-12, atol=1e-12)
+    assert np.array_equal(model.log_likelihood(poses, obs), blocks)
+
+
 _SCORE_SCRIPT = """
 import numpy as np
 from field import spl
