@@ -40,7 +40,7 @@ passed to `predict(poses, u, rng, state=...)`, follows each particle through res
 reset and injected particles. `pf.motion_state` shows it (read-only).
 
 Speed. With a bounded-noise motion model (velocity-linear, constant) and a sensor model that offers
-`compiled_likelihood` (the landmark model's default variant), `step` and `correct` are one call into compiled
+`compiled_likelihood` (the landmark model with the max-mixture), `step` and `correct` are one call into compiled
 code (`_compiled_step`): predict, likelihood, weights, resampling, the histograms the estimate and the entropy
 share, and the estimate, with the random numbers drawn in the kernels from the filter's generator. The results
 are those of the plain sequence of calls bit for bit (tests/test_fast_step.py runs both side by side). A step
@@ -66,7 +66,7 @@ from motion_models._kernels import (SQRT3, balanced_chunk, bit_generator_handle,
                                     move_chunked, move_range, move_range_fast, parallel_uniforms, MOVE_WORK, NO_WORK)
 from motion_models.base import BoundedNoiseModel, MotionInput, MotionModel
 from sensing.landmarks import (BLOCK, TOTAL, block_work, load_block, move_block_back, prepare_detections,
-                               score_block)
+                               score_block, score_block_exact)
 from sensing.observations import Observations
 
 from .estimate import (summary_buffers, summary_entropy, summary_estimate, summary_estimate_chunked,
@@ -573,7 +573,7 @@ class ParticleFilter:
 
     # -- the step ----------------------------------------------------------------------------------------
     # A bounded-noise motion model (velocity-linear, constant) and a sensor model that offers
-    # `compiled_likelihood` (the landmark model's default variant) run inside the filter's own kernels:
+    # `compiled_likelihood` (the landmark model with the max-mixture) run inside the filter's own kernels:
     # `predict` draws its noise in the kernel, and `correct` and `step` are one call into compiled code
     # (`_compiled_step`: predict, likelihood, weights, resampling, the summary histograms and the estimate).
     # Every path gives the particles, weights, draws and estimates of the plain sequence of calls bit for bit;
@@ -758,7 +758,7 @@ class ParticleFilter:
         """[predict by `motion`,] correct(observations) [captured `since` ago]: one call into `_compiled_step`
         (with the entropy, once `entropy()` has been asked for)."""
         n = self._n
-        table, offsets, range_noise_floor, range_noise_growth, bearing_sigma, log_outlier = self._compiled_sensor
+        table, offsets, range_noise_floor, range_noise_growth, bearing_sigma, log_outlier, exact = self._compiled_sensor
         move = motion is not None
         chunk = self._chunk if self._threads > 1 else 0
         gaussian = move and bool(self.motion_model.gaussian)
@@ -789,7 +789,7 @@ class ParticleFilter:
                 self._counts, self._local_histograms, move, *motion, gaussian, variates, *self._generator(),
                 observations.kinds, observations.ranges, observations.bearings, observations.range_sigmas,
                 observations.bearing_sigmas, table, offsets, range_noise_floor, range_noise_growth, bearing_sigma,
-                log_outlier, n - self.injected, terms, augmented, alpha_slow, alpha_fast, ratio_threshold,
+                log_outlier, exact, n - self.injected, terms, augmented, alpha_slow, alpha_fast, ratio_threshold,
                 fit_threshold, self.w_slow, self.w_fast, cap, self._resample_threshold,
                 self._resampling == "systematic" and (self._motion_state is None or not chunk), self._roughening,
                 self._state_rows, self._state_scratch, self._grid_parameters, coordinates, histograms, bitmaps,
@@ -1189,12 +1189,13 @@ def _summarize(grid, source, weights, coordinates, histograms, bitmaps, want_est
 
 @numba.njit(cache=True)
 def _predict_and_score(poses, scratch, trig, log_likelihood, move, dx, dy, dtheta, bound_x, bound_y, bound_theta,
-                       gaussian, variates, function, state, table, offsets, detections, groups, log_outlier, start,
-                       stop, fast, since):
+                       gaussian, variates, function, state, table, offsets, detections, groups, log_outlier, exact,
+                       start, stop, fast, since):
     """Particles start..stop moved (or copied) from `poses` into `scratch` a block at a time and scored there
-    while in cache; cos and sin of their headings into `trig` (for the roughening). since: (dx, dy, dθ) when
-    the detections were captured earlier (copying only): each particle is scored where it was at capture, moved
-    back as `mcl.latency.move_back` moves it (`trig` keeps its heading now)."""
+    while in cache (`score_block`, or `score_block_exact` when `exact`); cos and sin of their headings into `trig`
+    (for the roughening). since: (dx, dy, dθ) when the detections were captured earlier (copying only): each
+    particle is scored where it was at capture, moved back as `mcl.latency.move_back` moves it (`trig` keeps its
+    heading now)."""
     work = block_work(offsets, groups, min(stop - start, BLOCK))
     move_work = np.empty(MOVE_WORK)
     for block in range(start, stop, BLOCK):
@@ -1210,20 +1211,23 @@ def _predict_and_score(poses, scratch, trig, log_likelihood, move, dx, dy, dthet
         load_block(scratch, block, end - block, work, trig, fast)
         if since.shape[0] > 0:
             move_block_back(work, end - block, since, fast)
-        score_block(work, end - block, table, offsets, detections, groups, log_outlier)
+        if exact:
+            score_block_exact(work, end - block, table, offsets, detections, groups, log_outlier)
+        else:
+            score_block(work, end - block, table, offsets, detections, groups, log_outlier)
         log_likelihood[block:end] = work[TOTAL, :end - block]
 
 
 @numba.njit(cache=True, parallel=True)
 def _predict_and_score_chunked(poses, scratch, trig, log_likelihood, move, dx, dy, dtheta, bound_x, bound_y,
                                bound_theta, gaussian, variates, table, offsets, detections, groups, log_outlier,
-                               chunk, fast, since):
+                               exact, chunk, fast, since):
     """`_predict_and_score` of all particles, the chunks on several threads (the noise drawn beforehand)."""
     n = poses.shape[0]
     for t in numba.prange(max(1, (n + chunk - 1) // chunk)):
         _predict_and_score(poses, scratch, trig, log_likelihood, move, dx, dy, dtheta, bound_x, bound_y,
                            bound_theta, gaussian, variates, 0, 0, table, offsets, detections, groups, log_outlier,
-                           t * chunk, min(n, (t + 1) * chunk), fast, since)
+                           exact, t * chunk, min(n, (t + 1) * chunk), fast, since)
 
 
 @numba.njit(cache=True, parallel=True)
@@ -1245,7 +1249,7 @@ def _copy_chunked(source, out, chunk):
 def _compiled_step(poses, log_weights, weights, log_likelihood, scratch, trig, counts, local,
                    move, dx, dy, dtheta, bound_x, bound_y, bound_theta, gaussian, variates, function, state,
                    kinds, ranges, bearings, range_sigmas, bearing_sigmas, table, offsets, range_noise_floor,
-                   range_noise_growth, bearing_sigma, log_outlier,
+                   range_noise_growth, bearing_sigma, log_outlier, exact,
                    count, terms, augmented, alpha_slow, alpha_fast, ratio_threshold, fit_threshold, w_slow, w_fast,
                    cap, resample_threshold, can_resample, roughening, state_rows, state_scratch,
                    grid, coordinates, histograms, bitmaps, want_estimate, previous, use_previous, out_mean, out_cov,
@@ -1276,7 +1280,7 @@ def _compiled_step(poses, log_weights, weights, log_likelihood, scratch, trig, c
     """
     n = poses.shape[0]
     detections, groups, missing = prepare_detections(kinds, ranges, bearings, range_sigmas, bearing_sigmas, offsets,
-                                                     range_noise_floor, range_noise_growth, bearing_sigma)
+                                                     range_noise_floor, range_noise_growth, bearing_sigma, exact)
     if missing >= 0:
         return _STEP_MISSING, 0.0, 0.0, w_slow, w_fast, 0.0, False, 0.0, 0.0, 0.0
     if chunk > 0:
@@ -1284,12 +1288,12 @@ def _compiled_step(poses, log_weights, weights, log_likelihood, scratch, trig, c
             parallel_uniforms(function, state, variates.reshape(-1), 3 * n)
         _predict_and_score_chunked(poses, scratch, trig, log_likelihood, move, dx, dy, dtheta, bound_x, bound_y,
                                    bound_theta, gaussian, variates, table, offsets, detections, groups, log_outlier,
-                                   chunk, fast, since)
+                                   exact, chunk, fast, since)
         valid, native, log_evidence, ess = weigh_chunked(log_weights, log_likelihood, count, weights, chunk)
     else:
         _predict_and_score(poses, scratch, trig, log_likelihood, move, dx, dy, dtheta, bound_x, bound_y, bound_theta,
-                           gaussian, variates, function, state, table, offsets, detections, groups, log_outlier, 0,
-                           n, fast, since)
+                           gaussian, variates, function, state, table, offsets, detections, groups, log_outlier,
+                           exact, 0, n, fast, since)
         if fast:
             valid, native, log_evidence, ess = weigh_fast(log_weights, log_likelihood, count, weights)
         else:

@@ -107,13 +107,13 @@ def _resample_copy(weights, source, out, coordinates, ancestors, counts, u0):
 def _issue_shaped_kernel(poses, scratch, trig, log_likelihood, log_weights, weights, ancestors, counts, dx, dy, dtheta,
                          bound_x, bound_y, bound_theta, function, state, table, offsets, kinds, ranges, bearings,
                          range_sigmas, bearing_sigmas, range_noise_floor, range_noise_growth, bearing_sigma,
-                         log_outlier, grid, coordinates, histograms, bitmaps, fast):
+                         log_outlier, exact, grid, coordinates, histograms, bitmaps, fast):
     n = poses.shape[0]
     detections, groups, _ = prepare_detections(kinds, ranges, bearings, range_sigmas, bearing_sigmas, offsets,
-                                               range_noise_floor, range_noise_growth, bearing_sigma)
+                                               range_noise_floor, range_noise_growth, bearing_sigma, exact)
     _predict_and_score(poses, scratch, trig, log_likelihood, True, dx, dy, dtheta, bound_x, bound_y, bound_theta,
-                       False, np.empty((0, 3)), function, state, table, offsets, detections, groups, log_outlier, 0,
-                       n, fast, np.empty(0))
+                       False, np.empty((0, 3)), function, state, table, offsets, detections, groups, log_outlier,
+                       exact, 0, n, fast, np.empty(0))
     if fast:
         _, _, _, ess = weigh_fast(log_weights, log_likelihood, n, weights)
     else:
@@ -166,7 +166,7 @@ def issue_shaped_step(pf, u: MotionInput, observations: Observations) -> Callabl
                          "compiled_likelihood() and one thread")
     observations = Observations.coerce(observations)
     pf.sensor_model.check(observations)
-    table, offsets, range_noise_floor, range_noise_growth, bearing_sigma, log_outlier = sensor
+    table, offsets, range_noise_floor, range_noise_growth, bearing_sigma, log_outlier, exact = sensor
     batch = (observations.kinds, observations.ranges, observations.bearings, observations.range_sigmas,
              observations.bearing_sigmas)
     coordinates, histograms, bitmaps = pf._summary
@@ -176,7 +176,7 @@ def issue_shaped_step(pf, u: MotionInput, observations: Observations) -> Callabl
         pf._changed()
         return _issue_shaped_kernel(pf.poses, pf._previous, pf._trig, pf._log_likelihood, pf.log_weights,
                                     pf._weights, ancestors, counts, *motion, *pf._generator(), table, offsets, *batch,
-                                    range_noise_floor, range_noise_growth, bearing_sigma, log_outlier,
+                                    range_noise_floor, range_noise_growth, bearing_sigma, log_outlier, exact,
                                     pf._grid_parameters, coordinates, histograms, bitmaps, pf.fast)
     return step
 
@@ -191,7 +191,7 @@ def full_step(pf, u: MotionInput, observations: Observations):
 def compiled_phases(pf, u: MotionInput, observations: Observations) -> dict[str, Callable[[], object]]:
     """The compiled step's stages as separate calls on `pf` (see the module docstring); call them in the
     order of PHASES. Needs what the fused step needs: a bounded-noise motion model (velocity-linear,
-    constant) and a sensor model with `compiled_likelihood` (the landmark model's default variant); it
+    constant) and a sensor model with `compiled_likelihood` (the landmark model with the max-mixture); it
     resamples every time (the benchmark's setting, `resample_threshold=1`)."""
     motion = pf._kernel_motion(u)
     sensor = pf._sensor_kernel()
@@ -200,7 +200,7 @@ def compiled_phases(pf, u: MotionInput, observations: Observations) -> dict[str,
                          "compiled_likelihood()")
     observations = Observations.coerce(observations)
     pf.sensor_model.check(observations)
-    table, offsets, range_noise_floor, range_noise_growth, bearing_sigma, log_outlier = sensor
+    table, offsets, range_noise_floor, range_noise_growth, bearing_sigma, log_outlier, exact = sensor
     n = pf.n
     gaussian = bool(pf.motion_model.gaussian)
     chunk = pf._chunk if pf.threads > 1 else 0
@@ -234,17 +234,17 @@ def compiled_phases(pf, u: MotionInput, observations: Observations) -> dict[str,
     def likelihood():
         detections, groups, _ = prepare_detections(
             observations.kinds, observations.ranges, observations.bearings, observations.range_sigmas,
-            observations.bearing_sigmas, offsets, range_noise_floor, range_noise_growth, bearing_sigma)
-        if chunk or pf.fast:
+            observations.bearing_sigmas, offsets, range_noise_floor, range_noise_growth, bearing_sigma, exact)
+        if chunk or pf.fast or exact:
             if chunk:
                 with scope:
                     _predict_and_score_chunked(scratch, scratch, pf._trig, pf._log_likelihood, False, *motion,
                                                False, no_variates, table, offsets, detections, groups, log_outlier,
-                                               chunk, pf.fast, NO_SINCE)
+                                               exact, chunk, pf.fast, NO_SINCE)
             else:
                 _predict_and_score(scratch, scratch, pf._trig, pf._log_likelihood, False, *motion, False,
-                                   no_variates, 0, 0, table, offsets, detections, groups, log_outlier, 0, n, True,
-                                   NO_SINCE)
+                                   no_variates, 0, 0, table, offsets, detections, groups, log_outlier, exact, 0, n,
+                                   pf.fast, NO_SINCE)
         else:
             von_mises_log_likelihood(scratch, table, offsets, detections, groups, log_outlier, pf._log_likelihood,
                                      pf._trig)

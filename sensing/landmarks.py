@@ -32,7 +32,8 @@ max-mixture) runs in `von_mises_log_likelihood`, which takes the particles a blo
 loops vectorize across particles, with the same results bit for bit (see the comment above it);
 `prepare_detections` turns a batch into its per-detection constants, grouped by type, once per call. A
 compiled filter step calls `load_block` and `score_block` itself (`compiled_likelihood`). The exact bearing
-term with the max-mixture runs in blocks too (`exact_log_likelihood`, `score_block_exact`), with a
+term with the max-mixture runs in blocks too (`exact_log_likelihood`, `score_block_exact`, which a compiled
+filter step calls the same way), with a
 polynomial atan2 that vectorizes (`motion_models._kernels.atan2_poly`): equal to the particle-by-particle
 kernel, which takes libm's atan2, to rounding, and about 4.5 times faster.
 """
@@ -691,14 +692,14 @@ class LandmarkSensorModel:
         return out
 
     def compiled_likelihood(self) -> tuple | None:
-        """What a compiled filter step needs to run this model's likelihood itself (`von_mises_log_likelihood`
-        on `prepare_detections`): (table, offsets, range_noise_floor, range_noise_growth, bearing_sigma,
-        log outlier_weight); None for the variants it does not cover (exact bearing, sum mixture), which the
-        filter scores through `log_likelihood`. A subclass that changes `log_likelihood` must return None."""
-        if self.bearing_model != "von_mises" or self.mixture != "max":
+        """What a compiled filter step needs to run this model's likelihood itself (`prepare_detections`, then
+        `score_block`, or `score_block_exact` for the exact bearing term): (table, offsets, range_noise_floor,
+        range_noise_growth, bearing_sigma, log outlier_weight, exact); None for the sum mixture, which the filter
+        scores through `log_likelihood`. A subclass that changes `log_likelihood` must return None."""
+        if self.mixture != "max":
             return None
         return (self._table, self._offsets, float(self.range_noise_floor), float(self.range_noise_growth),
-                float(self.bearing_sigma), math.log(self.outlier_weight))
+                float(self.bearing_sigma), math.log(self.outlier_weight), self.bearing_model == "exact")
 
     def log_likelihood_reference(self, poses: np.ndarray, observations: Observations) -> np.ndarray:
         """The same, in plain numpy (slow; for tests and the benchmark)."""

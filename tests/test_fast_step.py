@@ -187,13 +187,17 @@ def scenario(pf, steps=45, seed=1, use_step=True, kinds=("goalpost", "t_crossing
     dict(n=700),
     dict(motion=AdaptiveMotion()),
     dict(motion=AdaptiveMotion(), resample_threshold=1.0, augmented=None),
+    dict(bearing_model="exact"),
+    dict(bearing_model="exact", motion=AdaptiveMotion(), resample_threshold=1.0),
 ])
 @pytest.mark.parametrize("use_step", [True, False])
 def test_compiled_path_equals_the_plain_sequence_bit_for_bit(options, use_step):
-    compiled = make(**options)
+    options = dict(options)
+    bearing_model = options.pop("bearing_model", "von_mises")
+    compiled = make(sensor=LandmarkSensorModel(FIELD, bearing_model=bearing_model), **options)
     options = {"n": 300, "motion": VelocityLinear(), **options}
-    plain = PlainFilter(FIELD, options.pop("motion"), StagedLandmarks(FIELD), n_particles=options.pop("n"), seed=0,
-                        **options)
+    plain = PlainFilter(FIELD, options.pop("motion"), StagedLandmarks(FIELD, bearing_model=bearing_model),
+                        n_particles=options.pop("n"), seed=0, **options)
     for pf in (compiled, plain):
         pf.reset_uniform("own_half")
     for _ in zip(scenario(compiled, use_step=use_step), scenario(plain, use_step=use_step)):
@@ -337,16 +341,19 @@ def test_the_entropy_from_the_step_is_the_entropy_computed_afresh(options):
     dict(motion=AdaptiveMotion()),
     dict(resampling="stratified"),
     dict(n=1),
+    dict(bearing_model="exact"),
 ])
 def test_latency_compensated_correct_in_the_compiled_step_equals_the_plain_sequence(options):
     """`correct(observations, since)` scores each particle where it was at capture in the compiled step (the
     block moved back as `move_back` moves it); the filter that scores through `log_likelihood` on the poses
     `move_back` wrote gives the same state bit for bit, frames that inject and frames no particle explains
     included."""
-    options = {"n": 300, "motion": VelocityLinear(), **options}
-    n, motion = options.pop("n"), options.pop("motion")
-    compiled = ParticleFilter(FIELD, motion, LandmarkSensorModel(FIELD), n_particles=n, seed=2, **options)
-    plain = ParticleFilter(FIELD, motion, StagedLandmarks(FIELD), n_particles=n, seed=2, **options)
+    options = {"n": 300, "motion": VelocityLinear(), "bearing_model": "von_mises", **options}
+    n, motion, bearing_model = options.pop("n"), options.pop("motion"), options.pop("bearing_model")
+    compiled = ParticleFilter(FIELD, motion, LandmarkSensorModel(FIELD, bearing_model=bearing_model), n_particles=n,
+                              seed=2, **options)
+    plain = ParticleFilter(FIELD, motion, StagedLandmarks(FIELD, bearing_model=bearing_model), n_particles=n, seed=2,
+                           **options)
     rng = np.random.default_rng(4)
     sinces = [(0.03, 0.01, 0.05), (0.0, 0.0, 0.0), (-0.02, 0.0, -0.3), None, (0.1, -0.05, 3.0)]
     for pf in (compiled, plain):
@@ -536,8 +543,9 @@ def test_fast_matches_the_default_to_rounding(threshold):
         assert fast.entropy().position == pytest.approx(default.entropy().position, abs=1e-9)
 
 
-def run_threads(threads, n, numba_threads=None, steps=5):
-    pf = make(n=n, resample_threshold=0.9, threads=threads)
+def run_threads(threads, n, numba_threads=None, steps=5, bearing_model="von_mises"):
+    pf = make(n=n, resample_threshold=0.9, threads=threads,
+              sensor=LandmarkSensorModel(FIELD, bearing_model=bearing_model))
     pf.reset_around(TRUE_POSE, (0.3, 0.3, 0.2))
     if numba_threads is not None:
         pf._thread_scope.threads = numba_threads
@@ -562,8 +570,10 @@ def test_threads_give_the_same_results_on_any_number_of_threads():
         assert same(a, b)
 
 
-def test_threads_match_one_thread_to_rounding():
-    for a, b in zip(run_threads(1, 20000), run_threads(2, 20000)):
+@pytest.mark.parametrize("bearing_model", ["von_mises", "exact"])
+def test_threads_match_one_thread_to_rounding(bearing_model):
+    one, two = (run_threads(threads, 20000, bearing_model=bearing_model) for threads in (1, 2))
+    for a, b in zip(one, two):
         np.testing.assert_allclose(b[0], a[0], rtol=0, atol=1e-9)     # the same offspring, particles to rounding
         np.testing.assert_allclose(b[1], a[1], rtol=0, atol=1e-9)
         np.testing.assert_allclose(b[12], a[12], atol=1e-9)

@@ -78,6 +78,7 @@ if part in ("filter", "all"):
                                       n_particles=20_000, seed=3, resample_threshold=1.0, threads=2)
             threaded.step(MotionInput(dt=0.01, command=(0.2, 0.0, 0.1)), observations)
             threaded.estimate(), threaded.entropy()
+        threaded.predict(MotionInput(dt=0.01, command=(0.2, 0.0, 0.1)))     # moved on threads alone
 
     from sensing.collision import CollisionPercept
     adaptive = ParticleFilter(field, AdaptiveMotion(), LandmarkSensorModel(field), n_particles=64, seed=2)
@@ -113,6 +114,7 @@ if part in ("filter", "all"):
         scheme(weights, len(weights), rng)
     systematic_with_jitter(weights, len(poses), poses, np.full(3, 0.02), out, np.empty((0, 2)),
                            *bit_generator_handle(rng))
+    LandmarkSensorModel(field, bearing_model="exact").log_likelihood(poses, observations)
     move_with_noise(poses, 0.01, 0.0, 0.01, 0.001, 0.001, 0.001, False, rng.random((len(poses), 3)))
     move_drawing_noise(poses, 0.01, 0.0, 0.01, 0.001, 0.001, 0.001, *bit_generator_handle(rng))
     skip_doubles(3, *bit_generator_handle(rng))

@@ -345,7 +345,8 @@ def test_block_kernel_keeps_cos_and_sin_of_the_headings():
     poses = np.column_stack([rng.uniform(-4, 4, 300), rng.uniform(-3, 3, 300), rng.uniform(-3, 3, 300)])
     obs = Observations.from_arrays(["goalpost", "t_crossing"], [2.0, 3.0], [0.1, -0.4])
     model = LandmarkSensorModel(FIELD)
-    table, offsets, floor, growth, bearing_sigma, log_outlier = model.compiled_likelihood()
+    table, offsets, floor, growth, bearing_sigma, log_outlier, exact = model.compiled_likelihood()
+    assert not exact
     detections, groups, missing = prepare_detections(obs.kinds, obs.ranges, obs.bearings, obs.range_sigmas,
                                                      obs.bearing_sigmas, offsets, floor, growth, bearing_sigma)
     assert missing == -1 and groups[:, 0].tolist() == [0, 2]
@@ -354,8 +355,9 @@ def test_block_kernel_keeps_cos_and_sin_of_the_headings():
     assert np.array_equal(out, model.log_likelihood(poses, obs))
     cos, sin = sincos_reference(poses[:, 2])
     assert np.array_equal(trig[:, 0], cos) and np.array_equal(trig[:, 1], sin)
-    assert LandmarkSensorModel(FIELD, bearing_model="exact").compiled_likelihood() is None
+    assert LandmarkSensorModel(FIELD, bearing_model="exact").compiled_likelihood()[-1] is True
     assert LandmarkSensorModel(FIELD, mixture="sum").compiled_likelihood() is None
+    assert LandmarkSensorModel(FIELD, bearing_model="exact", mixture="sum").compiled_likelihood() is None
 
 
 @given(st.lists(st.tuples(kinds, st.floats(0.0, 8.0), st.floats(-10.0, 10.0), st.one_of(st.none(), st.floats(0.01, 1.0))),
