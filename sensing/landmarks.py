@@ -32,10 +32,10 @@ max-mixture) runs in `von_mises_log_likelihood`, which takes the particles a blo
 loops vectorize across particles, with the same results bit for bit (see the comment above it);
 `prepare_detections` turns a batch into its per-detection constants, grouped by type, once per call. A
 compiled filter step calls `load_block` and `score_block` itself (`compiled_likelihood`). The exact bearing
-term with the max-mixture runs in blocks too (`exact_log_likelihood`, `score_block_exact`, which a compiled
-filter step calls the same way), with a
-polynomial atan2 that vectorizes (`motion_models._kernels.atan2_poly`): equal to the particle-by-particle
-kernel, which takes libm's atan2, to rounding, and about 4.5 times faster.
+term with the max-mixture runs in blocks too (`exact_log_likelihood`; `score_block_exact`, which a compiled
+filter step calls the same way), with a polynomial atan2 that vectorizes (`motion_models._kernels.atan2_poly`)
+and the detections' bearings wrapped once: equal to the particle-by-particle kernel, which takes libm's atan2,
+to rounding, and about 4.5 times faster.
 """
 from __future__ import annotations
 
@@ -408,10 +408,11 @@ def score_block(work, count, table, offsets, detections, groups, log_outlier):
 
 @numba.njit(cache=True, error_model="numpy")
 def score_block_exact(work, count, table, offsets, detections, groups, log_outlier):
-    """`score_block` with the exact bearing term, -½((wrap(b - b̂))/σ_b)² (max-mixture; `prepare_detections`
-    with exact made the detections): the candidates' distances and bearings b̂ (`atan2_poly`) in rows over the
-    block, so that every loop vectorizes. `landmark_log_likelihood` with exact = True, sum_mixture = False to
-    rounding (that kernel takes libm's atan2 and fast-math)."""
+    """`score_block` with the exact bearing term, -½(wrap(b - b̂)/σ_b)² (max-mixture; `prepare_detections` with
+    exact made the detections, their bearings b wrapped): the candidates' distances and bearings b̂ (`atan2_poly`)
+    in rows over the block, and the error b - b̂, within [-2π, 2π], wrapped by two selects, so that every loop
+    vectorizes. `landmark_log_likelihood` with exact = True, sum_mixture = False to rounding (that kernel takes
+    libm's atan2 and fast-math)."""
     for p in range(count):
         work[TOTAL, p] = 0.0
     for g in range(groups.shape[0]):
