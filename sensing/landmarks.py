@@ -456,6 +456,7 @@ def score_block_exact(work, count, table, offsets, detections, groups, log_outli
                 best = work[last, p]
                 work[TOTAL, p] += log_outlier if log_outlier > best else best
 
+
 @numba.njit(cache=True)
 def von_mises_log_likelihood(poses, table, offsets, detections, groups, log_outlier, out, trig):
     """out[i] = the von Mises max-mixture log-likelihood of particle i (`prepare_detections` made the
