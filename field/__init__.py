@@ -9,6 +9,7 @@ Example::
     field = preset("spl")                                 # or spl(), kidsize(), adultsize()
     posts = field.landmarks_of(LandmarkType.GOALPOST)     # (4, 2) [x, y], metres
     marks = field.landmarks_of("penalty_mark")            # [[-3.2, 0.0], [3.2, 0.0]]
+    tees = field.landmarks_of("T")                        # an alias: LANDMARK_TYPE_ALIASES
     points = field.line_points(spacing=0.05)              # for drawing or a likelihood field
     lab = load_field("my_lab.toml")                       # preset = "spl" plus overrides
 
@@ -36,10 +37,11 @@ Invalid input raises `ValueError` naming the key and value (and the file, if any
 """
 
 from .dimensions import FieldDimensions
-from .geometry import Field, LandmarkType
+from .geometry import LANDMARK_TYPE_ALIASES, Field, LandmarkType
 from .io import PRESET_NAMES, adultsize, kidsize, load_field, preset, save_field, spl, to_toml
 
 __all__ = [
+    "LANDMARK_TYPE_ALIASES",
     "PRESET_NAMES",
     "Field",
     "FieldDimensions",

@@ -17,6 +17,7 @@ from __future__ import annotations
 import enum
 import math
 import numbers
+import re
 import types
 from collections.abc import Mapping
 from dataclasses import dataclass, field as dataclass_field
@@ -28,7 +29,13 @@ from .dimensions import FieldDimensions
 
 
 class LandmarkType(enum.IntEnum):
-    """Kinds of landmark a robot's vision reports; line crossings are named by shape."""
+    """Kinds of landmark a robot's vision reports; line crossings are named by shape.
+
+    `parse` takes a member, its integer value, its name or one of the common short names in
+    `LANDMARK_TYPE_ALIASES` (``L``, ``T``, ``X``, ``post``, ``penalty``, ``center``, ``centre``,
+    ``centre_mark``), in any case, with hyphens or spaces for underscores (``"l-crossing"``,
+    ``"penalty mark"``).
+    """
 
     GOALPOST = 0
     L_CROSSING = 1
@@ -39,16 +46,25 @@ class LandmarkType(enum.IntEnum):
 
     @classmethod
     def parse(cls, kind: LandmarkType | int | str) -> LandmarkType:
-        """The member for an enum member, its integer value, or its name (any case)."""
+        """The member for an enum member, its integer value, or its name or an alias.
+
+        A name or alias (`LANDMARK_TYPE_ALIASES`) is matched in any case, surrounding white
+        space ignored, hyphens and spaces read as underscores: "T_CROSSING", "t-crossing",
+        "T crossing" and "t" are all `T_CROSSING`.
+        """
         if isinstance(kind, cls):
             return kind
         if isinstance(kind, str):
-            try:
-                return cls[kind.strip().upper()]
-            except KeyError:
+            key = _name_key(kind)
+            member = cls.__members__.get(key)
+            if member is None:
+                member = LANDMARK_TYPE_ALIASES.get(key)
+            if member is None:
                 raise ValueError(
-                    f"landmark type {kind!r} is unknown; valid names: {cls._names()}"
-                ) from None
+                    f"landmark type {kind!r} is unknown; valid names: {cls._names()}; "
+                    f"aliases: {_aliases_text()} (any case, '-' or ' ' for '_')"
+                )
+            return member
         if isinstance(kind, (int, np.integer)) and not isinstance(kind, bool):
             try:
                 return cls(int(kind))
@@ -57,12 +73,42 @@ class LandmarkType(enum.IntEnum):
                     f"landmark type {kind!r} is unknown; valid values: 0..{len(cls) - 1} ({cls._names()})"
                 ) from None
         raise ValueError(
-            f"landmark type {kind!r} must be a LandmarkType, an int or a name ({cls._names()})"
+            f"landmark type {kind!r} must be a LandmarkType, an int or a name ({cls._names()}; "
+            f"aliases: {_aliases_text()})"
         )
 
     @classmethod
     def _names(cls) -> str:
         return ", ".join(member.name for member in cls)
+
+
+def _name_key(text: str) -> str:
+    """A type name as `LandmarkType.parse` looks it up: upper case, '_' for each run of
+    hyphens and white space."""
+    return re.sub(r"[\s\-]+", "_", text.strip()).upper()
+
+
+LANDMARK_TYPE_ALIASES: Mapping[str, LandmarkType] = types.MappingProxyType({
+    "L": LandmarkType.L_CROSSING,
+    "T": LandmarkType.T_CROSSING,
+    "X": LandmarkType.X_CROSSING,
+    "POST": LandmarkType.GOALPOST,
+    "PENALTY": LandmarkType.PENALTY_MARK,
+    "CENTER": LandmarkType.CENTER_MARK,
+    "CENTRE": LandmarkType.CENTER_MARK,
+    "CENTRE_MARK": LandmarkType.CENTER_MARK,
+})
+"""Short names `LandmarkType.parse` accepts besides the members' names, keyed as it looks
+them up (upper case, '_' for hyphens and spaces): L, T, X (the crossings), post (goalpost),
+penalty (penalty mark), center, centre, centre_mark (centre mark)."""
+
+
+def _aliases_text() -> str:
+    """The aliases grouped by member, as an error message lists them: "L (L_CROSSING), ..."."""
+    groups: dict[LandmarkType, list[str]] = {}
+    for alias, member in LANDMARK_TYPE_ALIASES.items():
+        groups.setdefault(member, []).append(alias if len(alias) == 1 else alias.lower())
+    return ", ".join(f"{', '.join(aliases)} ({member.name})" for member, aliases in groups.items())
 
 
 def _require_number(name: str, value: object) -> None:
@@ -151,8 +197,9 @@ class Field:
     def landmarks_of(self, kind: LandmarkType | int | str) -> np.ndarray:
         """(K, 2) read-only positions of one landmark type.
 
-        `kind` is a `LandmarkType`, its integer value, or its name in any case
-        ("goalpost", "T_CROSSING"). Anything else raises `ValueError`.
+        `kind` is a `LandmarkType`, its integer value, or its name or alias in any case
+        ("goalpost", "T_CROSSING", "t", "penalty"; see `LandmarkType.parse`). Anything else
+        raises `ValueError`.
         """
         return self.landmarks[LandmarkType.parse(kind)]
 

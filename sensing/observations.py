@@ -6,7 +6,13 @@
     obs = Observations.from_list([
         LandmarkObservation(LandmarkType.GOALPOST, range=3.2, bearing=0.15),
         LandmarkObservation("T_CROSSING", range=1.1, bearing=-0.4, range_sigma=0.08),
+        LandmarkObservation("L", range=2.5, bearing=0.9),             # an alias: L_CROSSING
     ])
+
+A landmark type is given as a `LandmarkType` member, its value, its name or a common short name, in any case
+and with hyphens or spaces for underscores (`LandmarkType.parse`): "L", "T", "X" (the crossings, also
+"l-crossing", "T crossing"), "post" (GOALPOST), "penalty" (PENALTY_MARK), "center", "centre", "centre_mark"
+(CENTER_MARK).
 
 `Observations` is the struct-of-arrays form the sensor kernels take. It validates everything on construction
 (finite values, range >= 0, a known landmark type, positive noise), so a bad observation is rejected before
@@ -31,7 +37,8 @@ BAD_KIND, RANGE_NOT_FINITE, BEARING_NOT_FINITE, NEGATIVE_RANGE, BAD_RANGE_SIGMA,
 
 
 def landmark_type(kind: LandmarkType | int | str) -> LandmarkType:
-    """Parse a landmark type given as the enum, its value or its name (case-insensitive)."""
+    """Parse a landmark type given as the enum, its value, its name or an alias such as "T" or "post"
+    (`LandmarkType.parse`: any case, hyphens and spaces for underscores); ValueError naming `kind` otherwise."""
     try:
         return LandmarkType.parse(kind)
     except ValueError as error:
@@ -41,6 +48,9 @@ def landmark_type(kind: LandmarkType | int | str) -> LandmarkType:
 @dataclass(frozen=True)
 class LandmarkObservation:
     """One detection. range [m] >= 0; bearing [rad], counter-clockwise from the robot's +x.
+
+    kind: a `LandmarkType`, its value, its name or an alias ("L", "T", "X", "post", "penalty", "center",
+    "centre"; see the module docstring), stored as the member.
 
     range_sigma and bearing_sigma are this detection's noise (standard deviations); None lets the sensor
     model's noise model decide (noise growing with range, as with a camera).
@@ -212,7 +222,8 @@ class Observations:
     def from_arrays(cls, kinds: Sequence, ranges: Sequence[float], bearings: Sequence[float],
                     range_sigmas: Sequence[float] | None = None,
                     bearing_sigmas: Sequence[float] | None = None, line_points=None) -> "Observations":
-        """A batch from equal-length sequences; kinds as LandmarkType members, their values or their names."""
+        """A batch from equal-length sequences; kinds as LandmarkType members, their values, their names or
+        aliases ("T", "post", ...; see the module docstring)."""
         kinds_arr = _kind_values(kinds)
         n = kinds_arr.shape[0]
         nan = np.full(n, np.nan)

@@ -166,6 +166,21 @@ def test_hand_written_csv_needs_only_what_it_has(tmp_path):
     assert report.dropped == {("notes.csv", "not a file of the columnar format"): 1}
 
 
+def test_hand_written_csv_may_name_kinds_by_alias(tmp_path):
+    (tmp_path / "meta.csv").write_text("key,value\norigin_ns,5\nformat_version,1\n")
+    (tmp_path / "vision_frames.csv").write_text("stamp_s,received_s\n0.1,0.13\n")
+    rows = "".join(f"0.1,0.13,{kind},1.0,0.0,,\n" for kind in ("post", "L", "t-crossing", "X", "penalty mark",
+                                                                  "centre"))
+    (tmp_path / "vision_landmarks.csv").write_text(
+        "stamp_s,received_s,kind,range_m,bearing_rad,range_sigma_m,bearing_sigma_rad\n" + rows)
+    log, _ = read_csv(tmp_path)
+    np.testing.assert_array_equal(log.vision[0].observations.kinds, np.arange(6))
+    (tmp_path / "vision_landmarks.csv").write_text(
+        "stamp_s,received_s,kind,range_m,bearing_rad,range_sigma_m,bearing_sigma_rad\n0.1,0.13,corner,1,0,,\n")
+    with pytest.raises(LogError, match=r"line 2.*'corner'.*aliases"):
+        read_csv(tmp_path)
+
+
 def test_hand_written_npz_may_leave_streams_out(tmp_path):
     with open(tmp_path / "log.npz", "wb") as file:
         np.savez(file, format_version=np.int32(1), origin_ns=np.int64(7), truth_times=np.float32([0.0, 0.5]),

@@ -16,6 +16,7 @@ from hypothesis import strategies as st
 from scipy.spatial import cKDTree
 
 from field import (
+    LANDMARK_TYPE_ALIASES,
     Field,
     FieldDimensions,
     LandmarkType,
@@ -238,6 +239,60 @@ def test_landmarks_of_accepts_enum_int_and_name(kind):
 def test_landmarks_of_rejects_unknown_kind(kind):
     with pytest.raises(ValueError, match=re.escape(repr(kind))):
         spl().landmarks_of(kind)
+
+
+ALIASES = {
+    "L": LandmarkType.L_CROSSING, "T": LandmarkType.T_CROSSING, "X": LandmarkType.X_CROSSING,
+    "goalpost": LandmarkType.GOALPOST, "post": LandmarkType.GOALPOST,
+    "penalty_mark": LandmarkType.PENALTY_MARK, "penalty": LandmarkType.PENALTY_MARK,
+    "center_mark": LandmarkType.CENTER_MARK, "centre_mark": LandmarkType.CENTER_MARK,
+    "center": LandmarkType.CENTER_MARK, "centre": LandmarkType.CENTER_MARK,
+    "L-crossing": LandmarkType.L_CROSSING, "l_crossing": LandmarkType.L_CROSSING,
+    "T crossing": LandmarkType.T_CROSSING, "x-Crossing": LandmarkType.X_CROSSING,
+    "penalty mark": LandmarkType.PENALTY_MARK, "Centre-Mark": LandmarkType.CENTER_MARK,
+}
+
+
+@pytest.mark.parametrize("name,member", ALIASES.items())
+def test_parse_takes_the_common_short_names(name, member):
+    assert LandmarkType.parse(name) is member
+    assert spl().landmarks_of(name) is spl().landmarks[member]
+
+
+def spellings(text: str) -> st.SearchStrategy[str]:
+    """`text` in any case, each underscore as '_', '-' or ' ', with white space around it."""
+    parts = text.split("_")
+    cased = st.tuples(*(st.tuples(*(st.sampled_from([c.lower(), c.upper()]) for c in part)) for part in parts))
+    separators = st.lists(st.sampled_from(["_", "-", " "]), min_size=len(parts) - 1, max_size=len(parts) - 1)
+    padding = st.sampled_from(["", " ", "\t"])
+
+    def join(drawn):
+        (chars, seps), left, right = drawn
+        words = ["".join(part) for part in chars]
+        return left + words[0] + "".join(sep + word for sep, word in zip(seps, words[1:])) + right
+
+    return st.tuples(st.tuples(cased, separators), padding, padding).map(join)
+
+
+NAMES = [(member.name, member) for member in LandmarkType] + list(LANDMARK_TYPE_ALIASES.items())
+
+
+@given(st.sampled_from(NAMES).flatmap(lambda entry: st.tuples(spellings(entry[0]), st.just(entry[1]))))
+def test_names_and_aliases_parse_in_any_spelling(drawn):
+    text, member = drawn
+    assert LandmarkType.parse(text) is member
+
+
+def test_an_unknown_name_lists_the_names_and_the_aliases():
+    with pytest.raises(ValueError) as error:
+        LandmarkType.parse("corner")
+    message = str(error.value)
+    assert "'corner'" in message
+    for member in LandmarkType:
+        assert member.name in message
+    for alias in ("L (L_CROSSING)", "T (T_CROSSING)", "X (X_CROSSING)", "post (GOALPOST)",
+                  "penalty (PENALTY_MARK)", "center, centre, centre_mark (CENTER_MARK)"):
+        assert alias in message
 
 
 def test_line_points_cover_every_line():

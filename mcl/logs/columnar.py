@@ -69,7 +69,8 @@ accepted); blank lines are skipped. Line numbers in errors count the header as l
 Only `meta.csv` is required. A detection or line point belongs to the frame of `vision_frames.csv` with the same
 `stamp_s` and `received_s` (write both files with the same number formatting); within a frame they keep
 their order in the file, and no two frames may share both times. A noise column left empty (or `nan`)
-means "not given". `kind` is a landmark type's name or its value:
+means "not given". `kind` is a landmark type's name or its value, or an alias that `field.LandmarkType.parse`
+takes (`L`, `T`, `X`, `post`, `penalty`, `center`, `centre`, `centre_mark`; any case, `-` or a space for `_`):
 
 | kind           | value |     | kind           | value |
 |----------------|-------|-----|----------------|-------|
