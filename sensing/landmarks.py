@@ -15,7 +15,9 @@ The outlier term is a floor, so a false positive costs every particle about the 
 the right ones. This is the max-mixture of Olson & Agarwal (RSS 2012): it needs no exp or log per detection
 and differs from the sum-mixture log(exp(best) + outlier_weight) (`mixture="sum"`) by at most log 2, at the
 floor. Range noise grows with range as for a camera at height h: a pitch error δ moves the ground
-point by δ·(h² + r²)/h, hence σ_r(r) = range_noise_floor + range_noise_growth·r².
+point by δ·(h² + r²)/h, hence by default σ_r(r) = range_noise_floor + range_noise_growth·r². A linear term
+(`range_noise_linear`) gives the general law σ_r(r) = a + b·r + c·r², so constant (b = c = 0), linear (c = 0)
+and quadratic growth can all be expressed.
 
 Two bearing terms: "exact", -½(wrap(b - b̂)/σ_b)², needs one atan2 per particle and candidate; "von_mises",
 κ(cos(b - b̂) - 1) with κ = 1/σ_b², which equals the Gaussian to second order in the error and is computed from
@@ -44,6 +46,8 @@ from dataclasses import dataclass, field as dataclass_field
 
 import numba
 import numpy as np
+from numba.core import types as numba_types
+from numba.extending import overload
 
 from field import Field, LandmarkType
 from field.angles import TWO_PI, wrap_angle, wrap_angles
@@ -54,6 +58,33 @@ from .observations import Observations
 BEARING_MODELS = ("von_mises", "exact")
 
 
+# -- the range noise law -------------------------------------------------------------------------------------------
+# The kernels take the law as (range_noise_floor, range_noise_growth): the growth is a float c, for
+# σ_r = floor + c·r², or the pair (b, c), for σ_r = floor + b·r + c·r² (b is
+# `LandmarkSensorModel.range_noise_linear`). A model with b = 0 passes the float, so that its kernels compute what
+# they computed before the linear term existed, bit for bit; only a model with a linear term compiles the pair's.
+def range_noise_sigma(r, range_noise_floor, range_noise_growth):
+    """σ_r [m] at range r [m] (a number or an array): floor + growth·r² for a float growth [1/m], and
+    floor + b·r + c·r² for growth = (b, c) (b dimensionless, c [1/m]). In compiled code the overload below picks
+    the form by the type of `range_noise_growth` and is inlined: the same operations in the same order."""
+    if isinstance(range_noise_growth, tuple):
+        linear, quadratic = range_noise_growth
+        return range_noise_floor + linear * r + quadratic * r * r
+    return range_noise_floor + range_noise_growth * r * r
+
+
+@overload(range_noise_sigma, inline="always")
+def _range_noise_sigma_compiled(r, range_noise_floor, range_noise_growth):
+    if isinstance(range_noise_growth, numba_types.BaseTuple):
+        def law(r, range_noise_floor, range_noise_growth):
+            return range_noise_floor + range_noise_growth[0] * r + range_noise_growth[1] * r * r
+        return law
+
+    def quadratic_law(r, range_noise_floor, range_noise_growth):
+        return range_noise_floor + range_noise_growth * r * r
+    return quadratic_law
+
+
 @numba.njit(cache=True)
 def landmark_log_likelihood(poses, table, offsets, kinds, ranges, bearings, range_sigmas, bearing_sigmas,
                             range_noise_floor, range_noise_growth, bearing_sigma, exact, sum_mixture, log_outlier,
@@ -61,7 +92,8 @@ def landmark_log_likelihood(poses, table, offsets, kinds, ranges, bearings, rang
     """out[i] = Σ_detections max(max_k score_ik, log outlier) for every particle i (the max-mixture), or
     with `sum_mixture`, Σ log(exp(max_k score_ik) + outlier).
 
-    The candidates of type t are table[offsets[t]:offsets[t+1]]. A NaN sigma means "use the noise model".
+    The candidates of type t are table[offsets[t]:offsets[t+1]]. A NaN sigma means "use the noise model":
+    σ_r = `range_noise_sigma(r, range_noise_floor, range_noise_growth)` (growth a float c or the pair (b, c)).
     Detections are grouped by type first, so the geometry to a type's candidates is computed once per
     particle and shared by all its detections.
     """
@@ -131,7 +163,7 @@ def _general_likelihood(poses, trig, table, offsets, kinds, ranges, bearings, ra
         r = ranges[o]
         sr = range_sigmas[o]
         if np.isnan(sr):
-            sr = range_noise_floor + range_noise_growth * r * r      # as `LandmarkSensorModel.range_sigma`
+            sr = range_noise_sigma(r, range_noise_floor, range_noise_growth)   # `LandmarkSensorModel.range_sigma`
         sb = bearing_sigmas[o]
         if np.isnan(sb):
             sb = bearing_sigma
@@ -248,6 +280,7 @@ def prepare_detections(kinds, ranges, bearings, range_sigmas, bearing_sigmas, of
     Returns (detections (m, 5): range, -½/σ_r², κ cos b, κ sin b, -κ (exact: range, -½/σ_r², -½κ, b, 0); groups
     (g, 3): type, first row, end row; missing): detections sorted by type (stable), as `landmark_log_likelihood`
     sums them, and `missing`, the first detection whose type has no landmark on the field (-1 if none).
+    range_noise_growth: c, or the pair (b, c) of a law with a linear term (`range_noise_sigma`).
     """
     m = kinds.shape[0]
     missing = -1
@@ -264,7 +297,7 @@ def prepare_detections(kinds, ranges, bearings, range_sigmas, bearing_sigmas, of
         r = ranges[o]
         sr = range_sigmas[o]
         if np.isnan(sr):
-            sr = range_noise_floor + range_noise_growth * r * r
+            sr = range_noise_sigma(r, range_noise_floor, range_noise_growth)
         sb = bearing_sigmas[o]
         if np.isnan(sb):
             sb = bearing_sigma
@@ -539,7 +572,8 @@ def sensor_reset_poses(table, offsets, kinds, ranges, bearings, range_sigmas, be
     uniform on [0, 1), picks) at the detection's range and bearing with noise. The headings: `angles` (M) when
     it has M entries (uniforms on [0, 1): headings uniform on [-π, π)), else heading + heading_sigma ·
     normals[:M]; then M normals for the ranges and M for the bearings. Range and bearing σ: the detection's
-    own, or the model's (range_noise_floor + range_noise_growth·r², bearing_sigma) where NaN. Returns out."""
+    own, or the model's (`range_noise_sigma`: floor + growth·r², or floor + b·r + c·r² with growth = (b, c);
+    bearing_sigma) where NaN. Returns out."""
     m = out.shape[0]
     uniform_heading = angles.shape[0] == m
     first = 0 if uniform_heading else m
@@ -554,7 +588,7 @@ def sensor_reset_poses(table, offsets, kinds, ranges, bearings, range_sigmas, be
             theta = heading + heading_sigma * normals[i]
         range_sigma = range_sigmas[j]
         if math.isnan(range_sigma):
-            range_sigma = range_noise_floor + range_noise_growth * ranges[j] * ranges[j]
+            range_sigma = range_noise_sigma(ranges[j], range_noise_floor, range_noise_growth)
         sigma = bearing_sigmas[j]
         if math.isnan(sigma):
             sigma = bearing_sigma
@@ -591,7 +625,10 @@ def landmark_log_likelihood_reference(poses, candidates_by_kind, kinds, ranges, 
 class LandmarkSensorModel:
     """Range-bearing landmark likelihood for a field. Frozen; parameters in SI units.
 
-    range_noise_floor [m], range_noise_growth [1/m]: σ_r(r) = floor + growth·r² (a camera's pitch error).
+    Range noise: σ_r(r) = range_noise_floor + range_noise_linear·r + range_noise_growth·r², with
+    range_noise_floor a [m] > 0, range_noise_linear b (dimensionless) >= 0 and range_noise_growth c [1/m] >= 0.
+    The default (a = 0.05 m, b = 0, c = 0.02 /m) is a camera's pitch error, growing with r²; constant noise
+    (b = c = 0), linear growth (c = 0) and any mix of the three terms can be expressed as well.
     bearing_sigma [rad]: σ_b, the same at every range.
     bearing_model: "von_mises" (no atan2, the default) or "exact".
     outlier_weight: the likelihood floor of one detection relative to a perfect match (false positives).
@@ -605,6 +642,7 @@ class LandmarkSensorModel:
     bearing_model: str = "von_mises"
     outlier_weight: float = 0.01
     mixture: str = "max"
+    range_noise_linear: float = 0.0
     _table: np.ndarray = dataclass_field(init=False, repr=False)
     _offsets: np.ndarray = dataclass_field(init=False, repr=False)
 
@@ -618,6 +656,10 @@ class LandmarkSensorModel:
         if not (isinstance(self.range_noise_growth, (int, float)) and math.isfinite(self.range_noise_growth)
                 and self.range_noise_growth >= 0):
             raise ValueError(f"range_noise_growth = {self.range_noise_growth!r} must be finite and >= 0")
+        linear = self.range_noise_linear
+        if isinstance(linear, bool) or not (isinstance(linear, (int, float)) and math.isfinite(linear)
+                                            and linear >= 0):
+            raise ValueError(f"range_noise_linear = {linear!r} must be a finite number >= 0")
         if self.mixture not in ("max", "sum"):
             raise ValueError(f"mixture = {self.mixture!r} must be 'max' or 'sum'")
         if self.bearing_model not in BEARING_MODELS:
@@ -636,9 +678,16 @@ class LandmarkSensorModel:
 
     # -- noise model --------------------------------------------------------------------------------------
     def range_sigma(self, ranges: np.ndarray) -> np.ndarray:
-        """σ_r at the given ranges."""
+        """σ_r [m] at the given ranges [m]: floor + linear·r + growth·r² (the kernels' `range_noise_sigma`)."""
         ranges = np.asarray(ranges, dtype=np.float64)
-        return self.range_noise_floor + self.range_noise_growth * ranges * ranges
+        return range_noise_sigma(ranges, self.range_noise_floor, self._range_noise_growth())
+
+    def _range_noise_growth(self) -> float | tuple[float, float]:
+        """The kernels' `range_noise_growth` argument: the float c without a linear term (the kernels then compute
+        floor + c·r² as they always did), else the pair (b, c)."""
+        if self.range_noise_linear == 0:
+            return float(self.range_noise_growth)
+        return float(self.range_noise_linear), float(self.range_noise_growth)
 
     def candidates(self, kind: LandmarkType | int) -> np.ndarray:
         k = int(kind)
@@ -678,7 +727,7 @@ class LandmarkSensorModel:
             kernel = _von_mises_log_likelihood if self.bearing_model == "von_mises" else _exact_log_likelihood
             if kernel(poses, self._table, self._offsets, observations.kinds, observations.ranges,
                       observations.bearings, observations.range_sigmas, observations.bearing_sigmas,
-                      self.range_noise_floor, self.range_noise_growth, self.bearing_sigma,
+                      self.range_noise_floor, self._range_noise_growth(), self.bearing_sigma,
                       math.log(self.outlier_weight), out) >= 0:
                 self.check(observations)
             return out
@@ -689,7 +738,7 @@ class LandmarkSensorModel:
         landmark_log_likelihood(
             poses, self._table, self._offsets, observations.kinds, observations.ranges, observations.bearings,
             observations.range_sigmas, observations.bearing_sigmas, self.range_noise_floor,
-            self.range_noise_growth, self.bearing_sigma, self.bearing_model == "exact", self.mixture == "sum",
+            self._range_noise_growth(), self.bearing_sigma, self.bearing_model == "exact", self.mixture == "sum",
             math.log(self.outlier_weight), out)
         return out
 
@@ -697,10 +746,12 @@ class LandmarkSensorModel:
         """What a compiled filter step needs to run this model's likelihood itself (`prepare_detections`, then
         `score_block`, or `score_block_exact` for the exact bearing term): (table, offsets, range_noise_floor,
         range_noise_growth, bearing_sigma, log outlier_weight, exact); None for the sum mixture, which the filter
-        scores through `log_likelihood`. A subclass that changes `log_likelihood` must return None."""
+        scores through `log_likelihood`. A subclass that changes `log_likelihood` must return None.
+        range_noise_growth is the float c, or the pair (range_noise_linear, c) when the model has a linear term:
+        the kernels take either (`range_noise_sigma`)."""
         if self.mixture != "max":
             return None
-        return (self._table, self._offsets, float(self.range_noise_floor), float(self.range_noise_growth),
+        return (self._table, self._offsets, float(self.range_noise_floor), self._range_noise_growth(),
                 float(self.bearing_sigma), math.log(self.outlier_weight), self.bearing_model == "exact")
 
     def log_likelihood_reference(self, poses: np.ndarray, observations: Observations) -> np.ndarray:
@@ -752,7 +803,7 @@ class LandmarkSensorModel:
             normals = rng.standard_normal(3 * n)       # = the headings' n, the ranges' n, the bearings' n
         return sensor_reset_poses(self._table, self._offsets, observations.kinds, observations.ranges,
                                   observations.bearings, observations.range_sigmas, observations.bearing_sigmas,
-                                  self.range_noise_floor, self.range_noise_growth, self.bearing_sigma, detection,
+                                  self.range_noise_floor, self._range_noise_growth(), self.bearing_sigma, detection,
                                   landmark, angles, normals, float(heading), float(heading_sigma),
                                   np.empty((n, 3)))
 

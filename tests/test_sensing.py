@@ -82,6 +82,20 @@ def test_kinds_given_as_values_names_or_members_make_the_same_batch():
         Observations.from_arrays(np.array([True]), [1.0], [0.0])
 
 
+def test_every_path_taking_a_kind_string_accepts_the_aliases():
+    aliases = ["post", "L", "t", "X-crossing", "penalty", "centre"]
+    values = np.arange(6)
+    assert np.array_equal(Observations.from_arrays(aliases, [1.0] * 6, [0.0] * 6).kinds, values)
+    assert np.array_equal(Observations.from_arrays(np.array(aliases), [1.0] * 6, [0.0] * 6).kinds, values)
+    batch = Observations.from_list([LandmarkObservation(alias, 1.0, 0.0) for alias in aliases])
+    assert np.array_equal(batch.kinds, values)
+    assert LandmarkObservation("centre mark", 1.0, 0.0).kind is LandmarkType.CENTER_MARK
+    with pytest.raises(ValueError, match=r"kind = 'corner'.*aliases: L \(L_CROSSING\)"):
+        LandmarkObservation("corner", 1.0, 0.0)
+    with pytest.raises(ValueError, match=r"aliases: .*post \(GOALPOST\)"):
+        Observations.from_arrays(["post", "corner"], [1.0, 1.0], [0.0, 0.0])
+
+
 def test_batches_are_read_only_and_convert_to_points():
     obs = Observations.from_list([LandmarkObservation(LandmarkType.T_CROSSING, 2.0, math.pi / 2)])
     assert not obs.ranges.flags.writeable
@@ -242,6 +256,105 @@ def test_range_noise_grows_with_range():
     model = LandmarkSensorModel(FIELD)
     sigmas = model.range_sigma(np.array([0.5, 2.0, 5.0]))
     assert np.all(np.diff(sigmas) > 0)
+
+
+# -- the range noise law σ_r = floor + linear·r + growth·r² -------------------------------------------------------
+@pytest.mark.parametrize("floor,linear,growth", [(0.05, 0.0, 0.02), (0.05, 0.03, 0.0), (0.1, 0.0, 0.0),
+                                                 (0.02, 0.01, 0.005)])
+def test_range_sigma_is_floor_plus_linear_plus_quadratic_term(floor, linear, growth):
+    model = LandmarkSensorModel(FIELD, range_noise_floor=floor, range_noise_linear=linear, range_noise_growth=growth)
+    for r in (0.0, 0.5, 2.0, 7.5):
+        assert model.range_sigma(np.array([r]))[0] == pytest.approx(floor + linear * r + growth * r * r, rel=1e-15)
+    assert np.array_equal(model.range_sigma(np.array([0.0, 3.0])) > floor, [False, linear + growth > 0])
+
+
+def test_the_default_law_is_the_quadratic_one_and_passes_the_kernels_a_float():
+    """Without a linear term the kernels get the float growth, as before the term existed (the same compiled
+    kernels, the same bits); with one, the pair (linear, growth)."""
+    model = LandmarkSensorModel(FIELD)
+    assert model.range_noise_linear == 0.0
+    assert type(model.compiled_likelihood()[3]) is float and model.compiled_likelihood()[3] == 0.02
+    r = np.array([0.5, 2.0, 5.0])
+    assert np.array_equal(model.range_sigma(r), 0.05 + 0.02 * r * r)
+    linear = LandmarkSensorModel(FIELD, range_noise_linear=0.04)
+    assert linear.compiled_likelihood()[3] == (0.04, 0.02)
+
+
+@pytest.mark.parametrize("value", [-0.01, float("nan"), float("inf"), True, "0.1", None])
+def test_a_bad_linear_range_noise_is_rejected(value):
+    with pytest.raises(ValueError, match=r"range_noise_linear = "):
+        LandmarkSensorModel(FIELD, range_noise_linear=value)
+
+
+@pytest.mark.parametrize("bearing_model", ["von_mises", "exact"])
+@pytest.mark.parametrize("mixture", ["max", "sum"])
+def test_a_linear_law_scores_the_hand_computed_gaussian(bearing_model, mixture):
+    """One goalpost seen at its bearing and 0.3 m too far: every path scores -½((r - d)/σ_r)² with
+    σ_r = floor + linear·r + growth·r² at the measured range r."""
+    from sensing.landmarks import prepare_detections, von_mises_log_likelihood
+
+    floor, linear, growth = 0.05, 0.08, 0.01
+    outlier = 1e-30                               # a floor far below the score
+    model = LandmarkSensorModel(FIELD, range_noise_floor=floor, range_noise_linear=linear,
+                                range_noise_growth=growth, bearing_model=bearing_model, mixture=mixture,
+                                outlier_weight=outlier)
+    post = FIELD.landmarks_of("goalpost")[0]
+    poses = np.array([[post[0] + 2.0, post[1], math.pi], [post[0] + 1.5, post[1] + 0.2, math.pi - 0.3]])
+    d, b = observe(poses[0], "goalpost", index=0)
+    r = d + 0.3
+    sigma = floor + linear * r + growth * r * r
+    expected = -0.5 * ((r - d) / sigma) ** 2
+    if mixture == "sum":
+        expected = math.log(math.exp(expected) + outlier)
+    obs = Observations.from_arrays(["goalpost"], [r], [b])
+    scores = model.log_likelihood(poses, obs)
+    assert scores[0] == pytest.approx(expected, rel=1e-9, abs=1e-12)
+    assert model.log_likelihood_reference(poses, obs)[0] == pytest.approx(expected, rel=1e-9, abs=1e-12)
+    np.testing.assert_allclose(scores, model.log_likelihood_reference(poses, obs), rtol=1e-9, atol=1e-12)
+    # The same law with only the quadratic term would score otherwise: the linear term is used.
+    quadratic = LandmarkSensorModel(FIELD, range_noise_floor=floor, range_noise_growth=growth,
+                                    bearing_model=bearing_model, mixture=mixture, outlier_weight=outlier)
+    assert abs(quadratic.log_likelihood(poses, obs)[0] - expected) > 1.0
+    if mixture == "max" and bearing_model == "von_mises":
+        table, offsets, range_floor, range_growth, bearing_sigma, log_outlier, _ = model.compiled_likelihood()
+        prepared, groups, _ = prepare_detections(obs.kinds, obs.ranges, obs.bearings, obs.range_sigmas,
+                                                 obs.bearing_sigmas, offsets, range_floor, range_growth, bearing_sigma)
+        assert prepared[0, 1] == -0.5 / (sigma * sigma)
+        out = von_mises_log_likelihood(poses, table, offsets, prepared, groups, log_outlier, np.empty(2),
+                                       np.empty((0, 2)))
+        assert np.array_equal(out, scores)
+
+
+@given(st.lists(st.tuples(kinds, st.floats(0.0, 8.0), st.floats(-3.2, 3.2), st.one_of(st.none(), st.floats(0.01, 1.0))),
+                max_size=10),
+       st.integers(0, 2**32 - 1), st.floats(0.01, 0.3), st.floats(0.0, 0.2), st.floats(0.0, 0.05))
+def test_kernels_with_a_linear_law_equal_their_twins(detections, seed, floor, linear, growth):
+    """With a linear term: the block kernel equals the particle-by-particle kernel bit for bit, both equal the
+    numpy reference to rounding (exact bearing term too), and sensor resetting equals its numpy twin bit for
+    bit."""
+    from sensing.landmarks import landmark_log_likelihood
+
+    rng = np.random.default_rng(seed)
+    n = 150
+    poses = np.column_stack([rng.uniform(-6, 6, n), rng.uniform(-4, 4, n), rng.uniform(-math.pi, math.pi, n)])
+    obs = Observations.from_arrays([d[0] for d in detections], [d[1] for d in detections],
+                                   [d[2] for d in detections], [np.nan if d[3] is None else d[3] for d in detections])
+    for bearing_model in ("von_mises", "exact"):
+        model = LandmarkSensorModel(FIELD, range_noise_floor=floor, range_noise_linear=linear,
+                                    range_noise_growth=growth, bearing_model=bearing_model)
+        scores = model.log_likelihood(poses, obs)
+        np.testing.assert_allclose(scores, model.log_likelihood_reference(poses, obs), rtol=1e-9, atol=1e-9)
+        if bearing_model == "von_mises":
+            general = np.empty(n)
+            landmark_log_likelihood(poses, model._table, model._offsets, obs.kinds, obs.ranges, obs.bearings,
+                                    obs.range_sigmas, obs.bearing_sigmas, floor, model.compiled_likelihood()[3],
+                                    model.bearing_sigma, False, False, math.log(model.outlier_weight), general)
+            assert np.array_equal(scores, general)
+    if len(obs):
+        compiled_rng, plain_rng = np.random.default_rng(seed), np.random.default_rng(seed)
+        compiled = model.sample_poses(obs, 40, compiled_rng, heading=0.3)
+        plain = model.sample_poses_reference(obs, 40, plain_rng, heading=0.3)
+        assert np.array_equal(compiled, plain)
 
 
 def test_no_observations_give_zero():
