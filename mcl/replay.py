@@ -20,6 +20,26 @@ The replay is the robot's loop (`mcl.localizer.Localizer`) driven by the log in 
   written to the recording and the pose output).
 Events at the same instant (within 1 µs): motion first, then vision. Nothing is skipped silently: what the
 localizer could not use is counted in `result.dropped` with its reason.
+
+A log that cannot drive a replay is refused before anything runs (`check_inputs`, a `LogError`; the command
+exits with status 1 and names what is missing): one with no motion input (neither two odometry poses nor a walk
+command) or no camera frame with a detection (the estimates would be the start belief moved by dead
+reckoning). For an MCAP log the reader picks each stream's topic by name, or by message type when the default
+topic is absent and exactly one topic of the log has the type (`mcl.logs.mcap_io`); the report lists every
+choice and how it was made (`report.topics`, under "topics" in the JSON).
+
+The estimates written with `--out poses.npz` (`poses_out`; numpy's `np.load`), one row per motion step:
+
+- `times` (M,) float64 [s]: the end of each motion step (the odometry message's stamp, or the next walk
+  command's time), in seconds after `origin_ns`;
+- `poses` (M, 3) float64 [m, m, rad]: the estimate x, y, θ in the field frame, θ in (-π, π];
+- `covariances` (M, 3, 3) float64 [m², m·rad, rad²]: the estimate's covariance over (x, y, θ);
+- `quality` (M,) int8: 2 superb, 1 okay, 0 poor (`QUALITY_CODES`);
+- `lost` (M,) bool: the "lost" flag (`Localizer.is_lost`);
+- `origin_ns` () int64 [ns since the Unix epoch]: what t = 0 is, the log's origin. For an MCAP log that is
+  the log time of its first message (any topic), or the origin a file written by `write_mcap` records; for
+  the columnar format, its `origin_ns`. Times are header stamps relative to it, so a stamp taken before the
+  first message was logged gives a negative time.
 """
 from __future__ import annotations
 
@@ -37,7 +57,7 @@ from motion_models import ConstantNoise, MotionInput, VelocityLinear
 
 from .latency import SAME_TIME
 from .localizer import Localizer, Quality
-from .logs import LogError, RobotLog
+from .logs import LogError, ReadReport, RobotLog
 
 MODELS = {"velocity-linear": VelocityLinear, "constant": ConstantNoise}
 STARTS = ("own_half", "field", "initial", "penalty")
@@ -124,6 +144,48 @@ class ReplayResult:
         return "\n".join(lines)
 
 
+def check_inputs(log: RobotLog, report: ReadReport | None = None, topics=None, require_vision: bool = True) -> None:
+    """Raise `LogError` when `log` cannot drive a replay: it has no motion input (neither two or more odometry
+    poses nor a walk command), or (with `require_vision`) no camera frame with a detection. The message names
+    what is missing; with the MCAP reader's `report` and the `topics` it was read with (default `Topics()`),
+    also which topic each of those streams was read from, or looked for, and the options that name a topic."""
+    problems = []
+    if log.odometry_times.shape[0] < 2 and log.command_times.shape[0] == 0:
+        problems.append(("no motion input: the log has neither odometry (two or more poses) nor walk commands, "
+                         "so nothing moves the filter", ("odometry", "commands")))
+    if require_vision and not any(not frame.observations.is_empty for frame in log.vision):
+        seen = (f"{len(log.vision)} camera frames, none with a detection" if log.vision
+                else "no camera frames")
+        problems.append((f"no detections: the log has {seen}, so nothing corrects the filter (the estimates "
+                         f"would be the start belief moved by dead reckoning)", ("goalposts", "markings")))
+    if not problems:
+        return
+    messages = []
+    for text, streams in problems:
+        if report is not None and report.path.endswith(".mcap"):
+            options = " or ".join(f"--topic-{stream}" for stream in streams)
+            text += ("; " + "; ".join(_stream_source(stream, report, topics) for stream in streams)
+                     + f"; name a topic with {options} (--list shows the log's topics)")
+        messages.append(text)
+    where = "" if report is None else f"{report.path}: "
+    raise LogError(where + "; and ".join(messages))
+
+
+def _stream_source(stream: str, report: ReadReport, topics) -> str:
+    """Where an MCAP log's `stream` came from, or was looked for, for `check_inputs`'s message."""
+    from .logs.mcap_io import DISCOVERY_TYPES, Topics
+
+    if stream in report.topics:
+        topic, how = report.topics[stream]
+        dropped = sum(count for (where, _), count in report.dropped.items() if where == topic)
+        return (f"{stream}: {topic} (chosen by {'type' if how == 'type' else 'name'}), "
+                f"{report.messages.get(topic, 0)} messages, {dropped} dropped")
+    topic = getattr(topics if topics is not None else Topics(), stream)
+    if not topic:
+        return f"{stream}: not read (its topic is '')"
+    return f"{stream}: no topic {topic} and none of type {' or '.join(DISCOVERY_TYPES[stream])} in the log"
+
+
 def motion_events(log: RobotLog) -> tuple[np.ndarray, list[MotionInput]]:
     """The motion steps a log drives the filter with: end times (M,) and their `MotionInput`s.
 
@@ -166,8 +228,11 @@ def _commands_at(log: RobotLog, times: np.ndarray) -> np.ndarray | None:
 def replay(log: RobotLog, field: Field, model: str = "velocity-linear", particles: int = 500, seed: int = 0,
            compensate_latency: bool = True, history: float = 1.0, start="own_half", rrd: str | None = None,
            poses_out: str | None = None, record_every: int = 5, progress: bool = False,
-           localizer: Localizer | None = None) -> ReplayResult:
+           localizer: Localizer | None = None, require_vision: bool = True) -> ReplayResult:
     """Run the log through a `Localizer` and collect the estimates (see the module docstring).
+
+    A log without motion input, or (unless `require_vision` is False: dead reckoning from `start`) without a
+    camera frame with a detection, raises `LogError` (`check_inputs`).
 
     start: where the belief starts: "own_half" (uniform, kick-off side), "field" (uniform), "initial"
            (`initial_placement`: the touchlines), "penalty" (`penalty_return`), or a pose (x, y, θ).
@@ -176,6 +241,7 @@ def replay(log: RobotLog, field: Field, model: str = "velocity-linear", particle
     """
     if model not in MODELS:
         raise ValueError(f"model = {model!r} must be one of {tuple(MODELS)}")
+    check_inputs(log, require_vision=require_vision)
     times, inputs = motion_events(log)
     if localizer is None:
         localizer = Localizer(field, MODELS[model](), n_particles=particles, seed=seed, history=history,
@@ -363,7 +429,7 @@ def main(argv: list[str] | None = None) -> int:
     from dataclasses import fields
 
     from .logs import read_log
-    from .logs.mcap_io import Topics, list_topics
+    from .logs.mcap_io import DISCOVERY_TYPES, Topics, list_topics
 
     parser = argparse.ArgumentParser(
         prog="robocup-mcl replay", description="Replay a robot's log (ROS 2 MCAP, .npz, or a CSV folder) "
@@ -389,8 +455,10 @@ def main(argv: list[str] | None = None) -> int:
     defaults = Topics()
     for f in fields(Topics):
         if f.name != "pose_out":
+            found = "; when the log lacks it, its only topic of the type" if f.name in DISCOVERY_TYPES else ""
             parser.add_argument(f"--topic-{f.name.replace('_', '-')}", dest=f"topic_{f.name}",
-                                help=f"topic of the {f.name.replace('_', ' ')} (default {getattr(defaults, f.name)})")
+                                help=f"topic of the {f.name.replace('_', ' ')} (default {getattr(defaults, f.name)}"
+                                     f"{found}; '' reads none)")
     args = parser.parse_args(argv)
     if args.particles <= 0:
         parser.error(f"--particles {args.particles} must be > 0")
@@ -410,6 +478,7 @@ def main(argv: list[str] | None = None) -> int:
         field = _field(args.field)
         start = _parse_start(args.start)
         log, report = read_log(args.log, topics=topics, gap=args.gap)
+        check_inputs(log, report, topics)
         progress = sys.stderr.isatty() if args.progress == "auto" else args.progress == "on"
         result = replay(log, field, model=args.model, particles=args.particles, seed=args.seed,
                         compensate_latency=not args.no_latency, history=args.history, start=start, rrd=args.rrd,

@@ -262,6 +262,57 @@ def test_a_missing_topic_is_an_error_only_when_named(tmp_path):
         Topics(commands="/motion_odometry")
 
 
+RENAMED = Topics(odometry="/odom", commands="/walk/cmd_vel", imu="/imu/raw", goalposts="/vision/posts",
+                 markings="/vision/markings", truth="/sim/truth", joint_commands="")
+
+
+def test_a_default_topic_the_log_lacks_is_found_by_its_type(tmp_path):
+    log = full_log()
+    write_mcap(log, tmp_path / "renamed.mcap", RENAMED)
+    back, report = read_mcap(tmp_path / "renamed.mcap")
+    for name in ("odometry_times", "odometry", "command_times", "commands", "imu_times", "gyro", "acceleration",
+                 "joint_reading_times", "joint_readings"):
+        np.testing.assert_allclose(getattr(back, name), getattr(log, name), rtol=0, atol=1e-9, err_msg=name)
+    assert len(back.vision) == 1
+    np.testing.assert_allclose(canonical(back.vision[0].observations), canonical(log.vision[0].observations),
+                               atol=1e-9)
+    assert report.topics == {"odometry": ("/odom", "type"), "commands": ("/walk/cmd_vel", "type"),
+                             "joint_states": ("/joint_states", "default name"), "imu": ("/imu/raw", "type"),
+                             "goalposts": ("/vision/posts", "type"), "markings": ("/vision/markings", "type")}
+    # Ground truth is never guessed from a pose topic, and a JointState topic is not taken for the commands.
+    assert not back.has_truth and back.joint_command_times.shape == (0,)
+    assert report.missing == ["/joint_commands", "/ground_truth"]
+    summary = report.summary()
+    assert "odometry from /odom (by type: the log's only nav_msgs/msg/Odometry topic)" in summary
+    assert "joint states from /joint_states (by name, the default)" in summary
+    assert report.to_json()["topics"]["commands"] == {"topic": "/walk/cmd_vel", "by": "type"}
+    _, named = read_mcap(tmp_path / "renamed.mcap", Topics(truth="/sim/truth", odometry="/odom"))
+    assert named.topics["truth"] == ("/sim/truth", "name") and named.topics["odometry"] == ("/odom", "name")
+
+
+def test_several_topics_of_a_missing_streams_type_are_an_error_naming_them(tmp_path):
+    write_raw(tmp_path / "two.mcap", [("/odom", schemas.ODOMETRY, odometry(ORIGIN_NS, 1.0), ORIGIN_NS),
+                                      ("/odometry/filtered", schemas.ODOMETRY, odometry(ORIGIN_NS, 2.0), ORIGIN_NS)])
+    with pytest.raises(LogError, match=r"/motion_odometry \(odometry\) is not in the log.*2 topics carry "
+                                       r"nav_msgs/Odometry: /odom, /odometry/filtered; choose one with "
+                                       r"--topic-odometry"):
+        read_mcap(tmp_path / "two.mcap")
+    log, report = read_mcap(tmp_path / "two.mcap", Topics(odometry="/odometry/filtered"))
+    assert log.odometry[:, 0].tolist() == [2.0] and report.topics["odometry"] == ("/odometry/filtered", "name")
+    # The default topic, when there, is read whatever else the log holds.
+    write_raw(tmp_path / "default.mcap", [
+        ("/odom", schemas.ODOMETRY, odometry(ORIGIN_NS, 1.0), ORIGIN_NS),
+        ("/motion_odometry", schemas.ODOMETRY, odometry(ORIGIN_NS, 3.0), ORIGIN_NS)])
+    log, report = read_mcap(tmp_path / "default.mcap")
+    assert log.odometry[:, 0].tolist() == [3.0] and report.topics["odometry"] == ("/motion_odometry", "default name")
+    # Joint readings and commands share a type: two JointState topics and no /joint_states cannot be told apart.
+    write_mcap(full_log(), tmp_path / "joints.mcap", Topics(joint_states="/js", joint_commands="/jc"))
+    with pytest.raises(LogError, match=r"/jc, /js; choose one with --topic-joint-states"):
+        read_mcap(tmp_path / "joints.mcap")
+    log, _ = read_mcap(tmp_path / "joints.mcap", Topics(joint_states="/js", joint_commands="/jc"))
+    assert log.joint_names == ("head_pan", "l_knee")
+
+
 def test_a_topic_of_the_wrong_type_is_an_error_naming_both(tmp_path):
     twist = {"linear": point(0.1, 0.0), "angular": point(0.0, 0.0)}
     write_raw(tmp_path / "w.mcap", [("/motion_odometry", schemas.TWIST, twist, ORIGIN_NS)])

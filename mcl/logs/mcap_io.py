@@ -56,7 +56,15 @@ written by `write_mcap` records, so a round trip keeps every time):
 - a truncated or corrupt file yields everything before the break; `report.stop_reason` says what broke and
   `report.stopped_at` is the log time [s] of the last message read. A topic the user named (one that is
   not its default, `Topics.required`) that the log lacks, a topic of an unexpected type, or a file that is
-  not MCAP raise `LogError`; a default topic the log lacks is an empty stream, listed in `report.missing`.
+  not MCAP raise `LogError`.
+- a default topic the log lacks is looked for by its message type: when exactly one topic of the log (not
+  already read for another stream) carries a type the stream is found by (`DISCOVERY_TYPES`: every accepted
+  type, except that joint commands are found only as bitbots_msgs/JointCommand, since a JointState topic may
+  as well be the readings, and ground truth is never guessed: another pose topic may be an estimate), that
+  topic is read. Several such topics are a `LogError` listing them (name one with `Topics`, or
+  `--topic-<stream>` on the command line); none leaves the stream empty and its default topic listed in
+  `report.missing`. `report.topics` says, for every stream read, its topic and how it was chosen: "name"
+  (named in `Topics`), "default name" or "type".
 
 Writing (`write_mcap`): one message per row of every non-empty stream, header stamp = capture time, log
 time = the stamp (arrival for vision), frame ids "odom" (odometry), "map" (truth), "base_footprint"
@@ -183,6 +191,13 @@ ACCEPTED_TYPES: dict[str, tuple[str, ...]] = {
     "truth": ("geometry_msgs/PoseStamped", "geometry_msgs/PoseWithCovarianceStamped"),
 }
 
+# The types a stream's topic is found by when its default topic is absent (see the module docstring): not
+# JointState for joint commands (it may as well be the readings), nothing for ground truth.
+DISCOVERY_TYPES: dict[str, tuple[str, ...]] = {
+    **{stream: types for stream, types in ACCEPTED_TYPES.items() if stream not in ("joint_commands", "truth")},
+    "joint_commands": ("bitbots_msgs/JointCommand",),
+}
+
 
 # ---------------------------------------------------------------------------------------------------------
 # Header stamps (poses and covariances convert with mcl.formats)
@@ -264,9 +279,11 @@ def _unchunked(records: Iterable) -> Iterable:
         yield from inner
 
 
-def _scan(path: str, keep_topics: set[str]) -> _Scan:
-    """Read every record in file order, keeping the messages of `keep_topics`, until the footer or a break."""
+def _scan(path: str, keep_topics: set[str], keep_types: frozenset[str] = frozenset()) -> _Scan:
+    """Read every record in file order, keeping the messages of `keep_topics` and of the channels whose message
+    type (short name, `schemas.short_name`) is in `keep_types`, until the footer or a break."""
     scan = _Scan()
+    kept_channels: set[int] = set()
     size = os.path.getsize(path)
     with open(path, "rb") as file:
         records = StreamReader(_ExactReads(file, size), emit_chunks=True, validate_crcs=True,
@@ -291,12 +308,17 @@ def _scan(path: str, keep_topics: set[str]) -> _Scan:
                     scan.first_ns[cid] = min(scan.first_ns.get(cid, record.log_time), record.log_time)
                     scan.last_ns[cid] = max(scan.last_ns.get(cid, record.log_time), record.log_time)
                     scan.last_read_ns = record.log_time
-                    if channel.topic in keep_topics:
+                    if cid in kept_channels:
                         scan.kept.setdefault(cid, []).append(record)
                 elif isinstance(record, Schema):
                     scan.schemas[record.id] = record
                 elif isinstance(record, Channel):
                     scan.channels[record.id] = record
+                    if (record.topic in keep_topics
+                            or (keep_types and schemas.short_name(scan.type_of(record)) in keep_types)):
+                        kept_channels.add(record.id)
+                    else:
+                        kept_channels.discard(record.id)
                 elif isinstance(record, Metadata) and record.name == ORIGIN_METADATA:
                     scan.origin_ns = _origin_from(record)
         except BROKEN_FILE_ERRORS as error:
@@ -628,8 +650,8 @@ def read_mcap(path: str | os.PathLike, topics: Topics = Topics(), gap: float = 1
     if not isinstance(topics, Topics):
         raise ValueError(f"topics = {topics!r} must be a Topics")
     path = os.fspath(path)
-    wanted, required = topics.by_stream(), topics.required
-    scan = _scan(path, set(wanted.values()))
+    wanted = topics.by_stream()
+    scan = _scan(path, set(wanted.values()), _DISCOVERY_KEEP)
     report = ReadReport(path)
     report.stop_reason = scan.stop_reason
     if scan.orphans:
@@ -640,15 +662,9 @@ def read_mcap(path: str | os.PathLike, topics: Topics = Topics(), gap: float = 1
 
     factory = DecoderFactory()
     accepted: dict[str, list[_Accepted]] = {}
-    for stream, topic in wanted.items():
+    chosen = _choose_topics(path, scan, topics, report)
+    for stream, topic in chosen.items():
         channels = [(cid, channel) for cid, channel in scan.channels.items() if channel.topic == topic]
-        if not channels:
-            if stream in required:
-                where = " (before the file broke)" if scan.stop_reason else ""
-                raise LogError(f"{path}: topic {topic} ({stream}) is not in the log{where}; the log has: "
-                               f"{', '.join(scan.topics()) or 'no topics'}")
-            report.missing.append(topic)
-            continue
         messages: list[tuple[Message, Any]] = []
         for cid, channel in channels:
             type_name = scan.type_of(channel)
@@ -680,8 +696,48 @@ def read_mcap(path: str | os.PathLike, topics: Topics = Topics(), gap: float = 1
                    imu_times=times("imu"), gyro=imu[:, :3], acceleration=imu[:, 3:],
                    truth_times=times("truth"), truth=_rows(accepted.get("truth", []), 3),
                    vision=_vision_frames(accepted, origin_ns),
-                   **_joint_streams(wanted, accepted, report, origin_ns))
+                   **_joint_streams(chosen, accepted, report, origin_ns))
     return log, report
+
+
+_DISCOVERY_KEEP = frozenset(type_name for types in DISCOVERY_TYPES.values() for type_name in types)
+
+
+def _choose_topics(path: str, scan: _Scan, topics: Topics, report: ReadReport) -> dict[str, str]:
+    """stream -> the topic to read it from, in `Topics.STREAMS` order, each choice noted in `report.topics`: the
+    topic named in `topics` when the log has it (a named topic that is not its default must be there), else the
+    only topic of a type the stream is found by (`DISCOVERY_TYPES`) that no other stream reads. Several such
+    topics raise `LogError` listing them; none lists the default topic in `report.missing`."""
+    wanted, required = topics.by_stream(), topics.required
+    present = set(scan.topics())
+    chosen: dict[str, str] = {}
+    for stream, topic in wanted.items():
+        if topic in present:
+            chosen[stream] = topic
+            report.topics[stream] = (topic, "name" if stream in required else "default name")
+        elif stream in required:
+            where = " (before the file broke)" if scan.stop_reason else ""
+            raise LogError(f"{path}: topic {topic} ({stream}) is not in the log{where}; the log has: "
+                           f"{', '.join(scan.topics()) or 'no topics'}")
+    taken = set(chosen.values())
+    for stream, topic in wanted.items():
+        if stream in chosen:
+            continue
+        types = DISCOVERY_TYPES.get(stream, ())
+        candidates = sorted({channel.topic for channel in scan.channels.values()
+                             if channel.topic not in taken and schemas.short_name(scan.type_of(channel)) in types})
+        if len(candidates) > 1:
+            option = f"--topic-{stream.replace('_', '-')}"
+            raise LogError(f"{path}: topic {topic} ({stream}) is not in the log, and {len(candidates)} topics carry "
+                           f"{' or '.join(types)}: {', '.join(candidates)}; choose one with {option} TOPIC "
+                           f"(Topics.{stream} in Python), or {option} '' to read none")
+        if candidates:
+            chosen[stream] = candidates[0]
+            taken.add(candidates[0])
+            report.topics[stream] = (candidates[0], "type")
+        else:
+            report.missing.append(topic)
+    return {stream: chosen[stream] for stream in Topics.STREAMS if stream in chosen}
 
 
 # ---------------------------------------------------------------------------------------------------------

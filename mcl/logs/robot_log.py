@@ -167,6 +167,8 @@ class ReadReport:
     stopped_at: float | None = None        # log time [s] of the last message read from a broken log
     stop_reason: str | None = None
     missing: list[str] = dataclass_field(default_factory=list)   # default topics the log does not have
+    # stream -> (topic, how it was chosen: "name", "default name" or "type"); MCAP logs only
+    topics: dict[str, tuple[str, str]] = dataclass_field(default_factory=dict)
 
     def drop(self, topic: str, reason: str, count: int = 1) -> None:
         self.dropped[(topic, reason)] = self.dropped.get((topic, reason), 0) + count
@@ -184,6 +186,10 @@ class ReadReport:
         lines = [f"{self.path}: {sum(self.messages.values())} messages on {len(self.messages)} topics"]
         for topic in sorted(self.messages):
             lines.append(f"  {topic} ({self.types.get(topic, '?')}): {self.messages[topic]}")
+        for stream, (topic, how) in self.topics.items():
+            why = {"name": "by name, as given", "default name": "by name, the default",
+                   "type": f"by type: the log's only {self.types.get(topic, 'such')} topic"}.get(how, how)
+            lines.append(f"  {stream.replace('_', ' ')} from {topic} ({why})")
         for (topic, reason), count in sorted(self.dropped.items()):
             lines.append(f"  dropped {count} on {topic}: {reason}")
         for topic, start, length in self.gaps:
@@ -200,4 +206,5 @@ class ReadReport:
                 "dropped": [{"topic": t, "reason": r, "count": c} for (t, r), c in sorted(self.dropped.items())],
                 "gaps": [{"topic": t, "start_s": s, "length_s": g} for t, s, g in self.gaps],
                 "complete": self.complete, "stopped_at_s": self.stopped_at, "stop_reason": self.stop_reason,
-                "missing": list(self.missing)}
+                "missing": list(self.missing),
+                "topics": {stream: {"topic": topic, "by": how} for stream, (topic, how) in self.topics.items()}}
