@@ -12,6 +12,7 @@
     robocup-mcl bench lwpr [--seeds N] [--json]       # LWPR on the cross benchmark
     robocup-mcl bench replay [--minutes 10] [--json]  # log replay speed in multiples of real time
     robocup-mcl bench compare REV [--rounds 3] [--json]  # this checkout against another revision, alternated
+    robocup-mcl eval [--families ...] [--split train|holdout|both] [--json] [--save PATH]   # the scenario battery
 """
 from __future__ import annotations
 
@@ -66,6 +67,8 @@ def main(argv: list[str] | None = None) -> int:
     if command == "replay":
         from .replay import main as replay_main
         return replay_main(rest)
+    if command == "eval":
+        return int(importlib.import_module("demos.battery").main(rest) or 0)
     if command == "bench":
         if rest and not rest[0].startswith("-"):
             return _dispatch(BENCHES, rest[0], rest[1:], "benchmark")

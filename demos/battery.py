@@ -1,0 +1,395 @@
+"""`robocup-mcl eval`: the localizer on a battery of scenarios it was not tuned on.
+
+    robocup-mcl eval [--families tracking,kidnap,...] [--split train|holdout|both] [--seeds 10]
+                     [--duration 60] [--particles 500] [--jobs 2] [--progress] [--json] [--save PATH]
+
+Each family (see `demos.battery_sim`) is run on K seeds per split: training seeds 0..K-1 (tune on these),
+held-out seeds 1000..1000+K-1 (report on these; the default). Every run is simulated independently of the
+filter, then driven through `mcl.localizer.Localizer` as a team's code drives it: its defaults and
+`--particles` particles, started with `anywhere_in_own_half()`; per 100 Hz step `motion(t, odometry)`, then
+the step's game events (`penalty_return()`, `manual_placement()`, `fallen()`, `got_up()`), then every camera
+frame that arrived during the step, `observe(detections, capture_time=)` (a frame captured before the last
+reset is refused by the localizer and counted as dropped); then the pose, quality and `is_lost` are sampled.
+
+The table per family (figures defined in `mcl.evaluation`), median and worst over the runs:
+- converge [s]: from t = 0 to the first second-long stretch within 0.3 m and 20°; "never" counts the runs
+  without one (start_unknown's figure of interest);
+- reconverge [s]: the same, from the end of the event (kidnapping, placement, collision, getting up, the last
+  burst's or the blackout's end; the worst over a run's windows); for collisions also over the stuck runs
+  whose odometry ran at least 0.5 m ahead;
+- fail share: the share of time with position error > 0.5 m or on the mirrored pose; mirrored share: on the
+  mirrored pose (−x, −y, θ+π) only; on mirror: runs that held the mirrored pose for 2 s or more;
+- RMSE position [m] and heading [°]: over the samples that have not failed;
+- pooled over the family's samples: for SUPERB, OKAY and POOR, the share of samples at that level with error
+  > 0.5 m (quality says it is good when it is not); SUPERB coverage: the share of samples within 0.3 m that
+  are SUPERB; lost recall: of the samples 2 s into an episode of > 2 s with error > 1 m, the share flagged
+  `is_lost`; lost false alarms: of the samples within 0.3 m, the share flagged `is_lost`.
+The overall section pools the quality and lost figures of every run. `--json` writes everything to stdout
+(each run's figures and drawn parameters, the family aggregates); `--save PATH` writes the same to a file.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import sys
+import time
+from dataclasses import fields
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from multiprocessing import get_context
+
+import numpy as np
+
+from mcl.evaluation import QUALITY_CODE, QUALITY_LEVELS, evaluate, median_worst, pool_counts
+from mcl.localizer import Localizer, QualityThresholds
+from mcl.relocalization import RelocalizationPrior, SoccerRelocalization
+from motion_models import MotionInput
+
+from .battery_sim import FAMILIES, BatteryRun, simulate
+
+TRAIN_FIRST = 0
+HOLDOUT_FIRST = 1000
+SPLITS = ("train", "holdout")
+MAX_SEEDS = HOLDOUT_FIRST - TRAIN_FIRST     # keeps the two splits disjoint
+STRONG_EXCESS = 0.5                          # m: collisions whose odometry ran this far ahead, reported apart
+
+
+def split_seeds(split: str, k: int) -> list[int]:
+    """The K seeds of a split: train 0..K-1, holdout 1000..1000+K-1."""
+    if split not in SPLITS:
+        raise ValueError(f"split = {split!r} must be one of {', '.join(SPLITS)}")
+    first = TRAIN_FIRST if split == "train" else HOLDOUT_FIRST
+    return list(range(first, first + k))
+
+
+def make_localizer(field, seed: int, particles: int = 500, prior: dict | None = None,
+                   quality: dict | None = None) -> Localizer:
+    """The localizer under test: `Localizer` with its defaults, except the `RelocalizationPrior` and
+    `QualityThresholds` fields named in `prior` and `quality` (for measuring variants; the report says so)."""
+    options = {}
+    if prior:
+        options["relocalization"] = SoccerRelocalization(RelocalizationPrior(**prior))
+    if quality:
+        options["quality"] = QualityThresholds(**quality)
+    return Localizer(field, n_particles=particles, seed=seed, **options)
+
+
+def localize(run: BatteryRun, particles: int = 500, prior: dict | None = None,
+             quality: dict | None = None) -> dict:
+    """Drive a `Localizer` through the run (see the module docstring); returns estimates (T, 3), quality
+    codes (T,), lost (T,), dropped frames and the seconds the loop took."""
+    loc = make_localizer(run.field, run.seed, particles, prior, quality)
+    loc.anywhere_in_own_half()
+    n = run.times.shape[0]
+    frames_at: dict[int, list] = {}
+    for frame in run.frames:
+        frames_at.setdefault(frame.arrival_step, []).append(frame)
+    calls_at: dict[int, list] = {}
+    for call in run.calls:
+        calls_at.setdefault(call.step, []).append(getattr(loc, call.name))
+    estimates = np.empty((n, 3))
+    quality = np.empty(n, dtype=np.int8)
+    lost = np.empty(n, dtype=bool)
+    codes = QUALITY_CODE
+    dropped = 0
+    dt = run.dt
+    times = run.times.tolist()
+    odometry = [tuple(row) for row in run.odometry.tolist()]
+    started = time.perf_counter()
+    for k in range(n):
+        loc.motion(times[k], MotionInput(dt, odometry=odometry[k]))
+        for call in calls_at.get(k, ()):
+            call()
+        for frame in frames_at.get(k, ()):
+            try:
+                loc.observe(frame.observations, capture_time=frame.capture_time)
+            except ValueError:
+                dropped += 1          # captured before the last reset (the localizer refuses it)
+        estimates[k] = loc.pose().pose
+        quality[k] = codes[loc.quality()]
+        lost[k] = loc.is_lost
+    return {"estimates": estimates, "quality": quality, "lost": lost, "dropped_frames": dropped,
+            "loop_s": time.perf_counter() - started}
+
+
+def _jsonable(value):
+    """Plain JSON data: inf/NaN become None, numpy scalars Python numbers, tuples lists."""
+    if isinstance(value, dict):
+        return {str(k): _jsonable(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_jsonable(v) for v in value]
+    if isinstance(value, (np.integer,)):
+        return int(value)
+    if isinstance(value, (float, np.floating)):
+        value = float(value)
+        return value if math.isfinite(value) else None
+    if isinstance(value, np.bool_):
+        return bool(value)
+    return value
+
+
+def run_case(family: str, seed: int, duration: float = 60.0, particles: int = 500, prior: dict | None = None,
+             quality: dict | None = None) -> dict:
+    """Simulate one run, localize it, and return its figures (JSON-ready; "never" is None)."""
+    run = simulate(family, seed, duration)
+    out = localize(run, particles, prior, quality)
+    figures = evaluate(run.times, run.truth, out["estimates"], out["quality"], out["lost"], run.windows)
+    heading = figures.pop("rmse_heading_rad")
+    figures["rmse_heading_deg"] = None if heading is None else math.degrees(heading)
+    event = run.params["event"]
+    figures.update({"family": family, "seed": seed, "field": run.field.name, "event": event["type"],
+                    "excess_m": event.get("excess"), "windows": run.windows, "frames": len(run.frames),
+                    "dropped_frames": out["dropped_frames"], "loop_s": out["loop_s"], "params": run.params})
+    return _jsonable(figures)
+
+
+def _never(value) -> float:
+    return math.inf if value is None else value
+
+
+def summarize_family(runs: list[dict]) -> dict:
+    """A family's aggregates over its runs (medians, worsts, counts, pooled quality and lost figures)."""
+    out: dict = {"runs": len(runs), "fields": {}}
+    for r in runs:
+        out["fields"][r["field"]] = out["fields"].get(r["field"], 0) + 1
+
+    def times(rows, key):
+        values = [_never(r[key]) for r in rows if key in r and not (key == "reconverge_s" and not r["windows"])]
+        median, worst, count = median_worst(values)
+        return {"median": median, "worst": worst, "never": sum(v == math.inf for v in values), "runs": count}
+
+    out["converge_s"] = times(runs, "converge_s")
+    out["reconverge_s"] = times(runs, "reconverge_s")
+    strong = [r for r in runs if r.get("excess_m") is not None and r["excess_m"] >= STRONG_EXCESS]
+    if any(r.get("excess_m") is not None for r in runs):
+        out["reconverge_strong_excess_s"] = times(strong, "reconverge_s")
+    for key in ("fail_share", "mirrored_share", "rmse_position_m", "rmse_heading_deg"):
+        median, worst, count = median_worst([r[key] for r in runs])
+        out[key] = {"median": median, "worst": worst, "runs": count}
+    out["on_mirror"] = sum(bool(r["on_mirror"]) for r in runs)
+    out["pooled"] = pool_counts(runs)
+    out["dropped_frames"] = sum(r["dropped_frames"] for r in runs)
+    return out
+
+
+def _percent(value) -> str:
+    return "–" if value is None else f"{100 * value:.1f} %"
+
+
+def format_family(name: str, s: dict) -> list[str]:
+    """The table of one family's aggregates (`summarize_family`), as lines."""
+    fields = ", ".join(f"{f} {n}" for f, n in sorted(s["fields"].items()))
+    lines = [f"{name} ({s['runs']} runs: {fields})", f"  {'':<34}{'median':>10}{'worst':>10}   never"]
+
+    def row_times(label, t):
+        if not t["runs"]:
+            lines.append(f"  {label:<34}{'–':>10}{'–':>10}")
+            return
+        lines.append(f"  {label:<34}{_fmt_time(t['median']):>10}{_fmt_time(t['worst']):>10}   "
+                     f"{t['never']}/{t['runs']}")
+
+    def row_values(label, v, fmt):
+        if not v["runs"]:
+            lines.append(f"  {label:<34}{'–':>10}{'–':>10}")
+            return
+        lines.append(f"  {label:<34}{fmt(v['median']):>10}{fmt(v['worst']):>10}")
+
+    row_times("converge from start [s]", s["converge_s"])
+    row_times("reconverge after event [s]", s["reconverge_s"])
+    if "reconverge_strong_excess_s" in s:
+        row_times(f"  stuck, odometry ≥ {STRONG_EXCESS} m ahead [s]", s["reconverge_strong_excess_s"])
+    row_values("fail share", s["fail_share"], _percent)
+    row_values("mirrored share", s["mirrored_share"], _percent)
+    lines.append(f"  {'runs on the mirror (≥ 2 s)':<34}{s['on_mirror']:>10}")
+    row_values("tracking RMSE position [m]", s["rmse_position_m"], lambda v: f"{v:.3f}")
+    row_values("tracking RMSE heading [°]", s["rmse_heading_deg"], lambda v: f"{v:.1f}")
+    lines += _pooled_lines(s["pooled"])
+    return lines
+
+
+def _fmt_time(value) -> str:
+    return "never" if value is None or value == math.inf else f"{value:.2f}"
+
+
+def _pooled_lines(p: dict) -> list[str]:
+    lines = []
+    for level in QUALITY_LEVELS:
+        q = p[level.name]
+        lines.append(f"  {level.name + ' wrong (err > 0.5 m)':<34}{_percent(q['share']):>10}   of {q['steps']} steps")
+    c = p["superb_coverage"]
+    lines.append(f"  {'SUPERB coverage (of err < 0.3 m)':<34}{_percent(c['share']):>10}   of {c['steps']} steps")
+    r = p["recall"]
+    lines.append(f"  {'lost recall (err > 1 m, > 2 s)':<34}{_percent(r['share']):>10}   of {r['steps']} steps")
+    f = p["false_alarm"]
+    lines.append(f"  {'lost false alarms (err < 0.3 m)':<34}{_percent(f['share']):>10}   of {f['steps']} steps")
+    return lines
+
+
+class Progress:
+    """A one-line progress bar on stderr: `[#####     ] 12/80 kidnap seed 3`."""
+
+    def __init__(self, total: int, enabled: bool, width: int = 30) -> None:
+        self.total, self.enabled, self.width, self.done = total, enabled, width, 0
+
+    def step(self, label: str) -> None:
+        """One more case done; `label` names it."""
+        self.done += 1
+        if not self.enabled:
+            return
+        filled = int(self.width * self.done / max(self.total, 1))
+        sys.stderr.write(f"\r[{'#' * filled}{' ' * (self.width - filled)}] {self.done}/{self.total} {label:<30}")
+        sys.stderr.flush()
+
+    def close(self) -> None:
+        """End the bar's line."""
+        if self.enabled:
+            sys.stderr.write("\n")
+            sys.stderr.flush()
+
+
+def run_battery(families, splits, k: int, duration: float = 60.0, particles: int = 500, jobs: int = 2,
+                progress: bool = False, prior: dict | None = None, quality: dict | None = None) -> dict:
+    """Run every family × split × seed; returns the results (JSON-ready): per split, per family, the runs
+    (sorted by seed) and their summary, and the overall pooled figures."""
+    cases = [(split, family, seed) for split in splits for seed in split_seeds(split, k) for family in families]
+    bar = Progress(len(cases), progress)
+    results: dict = {}
+    started = time.perf_counter()
+
+    def keep(case, result):
+        split, family, seed = case
+        results.setdefault(split, {}).setdefault(family, []).append(result)
+        bar.step(f"{family} seed {seed}")
+
+    if jobs <= 1:
+        for case in cases:
+            keep(case, run_case(case[1], case[2], duration, particles, prior, quality))
+    else:
+        with ProcessPoolExecutor(max_workers=jobs, mp_context=get_context("spawn")) as pool:
+            futures = {pool.submit(run_case, family, seed, duration, particles, prior, quality): (split, family, seed)
+                       for split, family, seed in cases}
+            for future in as_completed(futures):
+                keep(futures[future], future.result())
+    bar.close()
+    out: dict = {"particles": particles, "duration_s": duration, "seeds_per_family": k, "jobs": jobs,
+                 "variant": {"prior": dict(prior or {}), "quality": dict(quality or {})}, "splits": {}}
+    for split in splits:
+        per_family = {}
+        everything = []
+        for family in families:
+            runs = sorted(results[split][family], key=lambda r: r["seed"])
+            everything += runs
+            per_family[family] = {"summary": summarize_family(runs), "runs": runs}
+        out["splits"][split] = {"seeds": split_seeds(split, k), "families": per_family,
+                                "overall": {"runs": len(everything), "pooled": pool_counts(everything)}}
+    out["elapsed_s"] = time.perf_counter() - started
+    return _jsonable(out)
+
+
+def format_report(results: dict) -> str:
+    """The printed report: per split, a table per family, then the overall pooled figures."""
+    lines = []
+    for split, data in results["splits"].items():
+        seeds = data["seeds"]
+        variant = results.get("variant") or {}
+        changed = [f"{name}={value}" for group in ("prior", "quality") for name, value in variant.get(group, {}).items()]
+        setting = f"VARIANT ({', '.join(changed)})" if changed else "Localizer defaults"
+        lines.append(f"split {split}: seeds {seeds[0]}–{seeds[-1]} per family, {results['particles']} particles, "
+                     f"{results['duration_s']:g} s runs, {setting}, start anywhere_in_own_half()")
+        lines.append("")
+        for family, f in data["families"].items():
+            lines += format_family(family, f["summary"])
+            lines.append("")
+        overall = data["overall"]
+        lines.append(f"overall, {split} ({overall['runs']} runs), pooled over every step:")
+        lines += _pooled_lines(overall["pooled"])
+        lines.append("")
+    lines.append(f"total time {results['elapsed_s']:.1f} s ({results['jobs']} jobs)")
+    return "\n".join(lines)
+
+
+def _positive_int(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not an integer") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"{value} must be at least 1")
+    return value
+
+
+def _overrides(parser, option: str, items: list[str], kind) -> dict:
+    """NAME=VALUE strings as a dict of numbers, checked against the dataclass `kind` (exit 2 when wrong)."""
+    names = {f.name: f for f in fields(kind)}
+    out: dict = {}
+    for item in items:
+        name, _, text = item.partition("=")
+        name = name.strip()
+        if name not in names or not text:
+            parser.error(f"{option} {item!r}: expected NAME=VALUE with NAME one of {', '.join(names)}")
+        try:
+            value = float(text)
+        except ValueError:
+            parser.error(f"{option} {item!r}: {text!r} is not a number")
+        out[name] = int(value) if names[name].type in (int, "int") and value.is_integer() else value
+    try:
+        kind(**out)
+    except (TypeError, ValueError) as error:
+        parser.error(f"{option}: {error}")
+    return out
+
+
+def main(argv: list[str] | None = None) -> int:
+    """The command line (see the module docstring); exit 2 on bad arguments."""
+    parser = argparse.ArgumentParser(prog="robocup-mcl eval", description=__doc__.split("\n\n")[0])
+    parser.add_argument("--families", default=",".join(FAMILIES),
+                        help=f"comma-separated, from: {', '.join(FAMILIES)} (default: all)")
+    parser.add_argument("--split", default="holdout", choices=("train", "holdout", "both"),
+                        help="training seeds 0..K-1, held-out seeds 1000..1000+K-1, or both (default holdout)")
+    parser.add_argument("--seeds", type=_positive_int, default=10, help="seeds per family and split (default 10)")
+    parser.add_argument("--duration", type=float, default=60.0, help="seconds per run (default 60, at least 10)")
+    parser.add_argument("--particles", type=_positive_int, default=500, help="particles (default 500)")
+    parser.add_argument("--jobs", type=_positive_int, default=2, help="worker processes (default 2)")
+    parser.add_argument("--progress", action="store_true", help="progress bar on stderr even when not a TTY")
+    parser.add_argument("--prior", action="append", default=[], metavar="NAME=VALUE",
+                        help="a variant: set a field of mcl.relocalization.RelocalizationPrior (repeatable)")
+    parser.add_argument("--quality", action="append", default=[], metavar="NAME=VALUE",
+                        help="a variant: set a field of mcl.localizer.QualityThresholds (repeatable)")
+    parser.add_argument("--json", action="store_true", help="the results as JSON on stdout instead of tables")
+    parser.add_argument("--save", metavar="PATH", help="also write the JSON results to PATH")
+    args = parser.parse_args(argv)
+    families = [f.strip() for f in args.families.split(",") if f.strip()]
+    unknown = [f for f in families if f not in FAMILIES]
+    if not families or unknown:
+        parser.error(f"--families: unknown {', '.join(map(repr, unknown)) or 'empty list'}; "
+                     f"choose from {', '.join(FAMILIES)}")
+    families = list(dict.fromkeys(families))
+    if args.seeds > MAX_SEEDS:
+        parser.error(f"--seeds {args.seeds} must be at most {MAX_SEEDS} (training and held-out seeds stay apart)")
+    if not (math.isfinite(args.duration) and args.duration >= 10.0):
+        parser.error(f"--duration {args.duration} must be at least 10 s")
+    if args.save:
+        directory = os.path.dirname(os.path.abspath(args.save))
+        if not os.path.isdir(directory):
+            parser.error(f"--save {args.save}: directory {directory} does not exist")
+    prior = _overrides(parser, "--prior", args.prior, RelocalizationPrior)
+    quality = _overrides(parser, "--quality", args.quality, QualityThresholds)
+    splits = list(SPLITS) if args.split == "both" else [args.split]
+    results = run_battery(families, splits, args.seeds, args.duration, args.particles, args.jobs,
+                          progress=args.progress or sys.stderr.isatty(), prior=prior, quality=quality)
+    text = json.dumps(results, indent=2)
+    if args.save:
+        with open(args.save, "w", encoding="utf-8") as handle:
+            handle.write(text + "\n")
+    if args.json:
+        print(text)
+    else:
+        print(format_report(results))
+        if args.save:
+            print(f"results written to {args.save}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
