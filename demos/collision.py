@@ -17,8 +17,9 @@ simulated free walking (seed 1000, never a test seed).
 
 With vision, augmented MCL's injection is off unless `--injection` is given: the figures then show what the
 motion model alone does for re-localization, as the paper argues it. (With injection on, a filter can also
-recover by re-seeding; its heading reference is carried by the motion input, which does not know of the turn a
-collision causes: see the README.)
+recover by re-seeding; the relocalization's anchor is carried by the motion input, which does not know of the
+turn a collision causes, so the re-seeded poses are weighed by a prior that is off by that turn: see the
+README.)
 
 Measured per run: grid entropy (eq. 27) of position and orientation each step; without vision, whether the true
 pose lies inside the smallest region holding 95 % of the belief (`mcl.estimate.credible_region_contains`), at

@@ -25,7 +25,7 @@ learning set as noise), averaged over the walks: position RMSE and median error,
 of the time the estimate is more than 0.5 m off, and the worst error of all walks; with the camera on all
 the time and with the camera looking away (no detections) for the second half of every 10 s, as while
 watching the ball.
-Particles move only at support swaps; the filter's gyro-carried heading reference follows the sensor yaw.
+Particles move only at support swaps; the relocalization's dead-reckoned anchor follows the sensor yaw.
 
 Seeds: log i of surface s is `simulate(seed=1000·seed + 10·s + i)`; the particle filter runs use seeds
 derived from `seed` as well. Same seed, same figures, bit for bit (timings aside).

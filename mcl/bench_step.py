@@ -257,8 +257,9 @@ def full_step_work(n: int, bearing_model: str = "von_mises", **filter_options) -
 
 def injecting_setup(n: int):
     """`bench_setup` with augmented MCL injecting every step: the detections' fit stays below `fit_threshold`
-    and the heading reference is trusted (`reset_around` takes TRUE_POSE as known), so 5 % of N
-    (`max_fraction_tracking`) are replaced each step, half of them drawn from the detections."""
+    and the pose is known (`reset_around` takes TRUE_POSE as the relocalization's anchor), so 5 % of N
+    (`max_fraction_tracking`) are replaced each step, chosen by `mcl.relocalization` among candidates drawn
+    from the detections."""
     return bench_setup(n, augmented=AugmentedMCL(fit_threshold=1e9))
 
 
@@ -435,8 +436,8 @@ class PhaseScene:
         }
 
     def injecting_filter(self) -> ParticleFilter:
-        """A filter of N particles with augmented MCL whose heading reference is trusted (`reset_around`
-        TRUE_POSE), on the scene's sensor model and generator, for the injection phase."""
+        """A filter of N particles with augmented MCL whose pose is known (`reset_around` TRUE_POSE: the
+        relocalization's anchor), on the scene's sensor model and generator, for the injection phase."""
         pf = ParticleFilter(self.pf.field, self.velocity_linear, self.von_mises, n_particles=self.n, seed=7,
                             augmented=AugmentedMCL())
         pf.reset_around(TRUE_POSE, (0.3, 0.3, 0.2))

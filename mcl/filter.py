@@ -24,15 +24,12 @@ sensor resetting, 1 - w_fast/fit_threshold when the fit is poor in absolute term
 robot from a uniform start (where w_slow is as poor as w_fast). Freshly injected particles are left out of
 that average: they explain the detections badly and would ask for ever more injection.
 
-Injected particles explain a current detection (sensor resetting) or are uniform over the injection
-region. Once the estimate has been confident for `AugmentedMCL.confident_corrections` corrections in a row
-(one sweep of a panning head), their heading is drawn around a heading reference: the heading of the last
-confident, well-fitting estimate, carried forward by the motion inputs (as a gyro would carry it). That is
-the guard against the point-symmetric field: the mirror pose (−x, −y, θ+π) differs by π in heading, and a
-robot's heading survives being carried, so a filter that re-seeds after a kidnapping does not land on the
-mirror. Until then, injection stays inside the region of the last uniform reset (the own half at kick-off,
-where the rules place the robot) with uniform headings, and at most `max_fraction` of the particles are
-replaced per correction; afterwards at most `max_fraction_tracking`.
+Which particles are injected is the relocalization's choice (`mcl.relocalization`, given as
+`relocalization=`; `SoccerRelocalization` by default): candidates that explain the current detections, from
+pairs and single detections with any heading and a few uniform ones, weighed by how well they explain the
+frame and by a prior (continuity with the last confident pose, the heading kept, the placement region) that
+is evidence with a weight, never a gate. At most `max_fraction` of the particles are replaced per correction
+until the filter has been confident after a reset, `max_fraction_tracking` afterwards.
 
 Stateful motion models. A motion model with a `particle_state(n)` method (the adaptive model's mobility state:
 a jump-Markov particle filter) gets a per-particle state array that the filter keeps beside the poses: it is
@@ -61,8 +58,8 @@ import numba
 import numpy as np
 
 from field import Field
-from field.angles import wrap_angle, wrap_angles
-from motion_models._kernels import (SQRT3, balanced_chunk, bit_generator_handle, draw_uniforms, draw_variates,
+from field.angles import wrap_angles
+from motion_models._kernels import (SQRT3, balanced_chunk, bit_generator_handle, draw_variates,
                                     move_chunked, move_range, move_range_fast, parallel_uniforms, MOVE_WORK, NO_WORK)
 from motion_models.base import BoundedNoiseModel, MotionInput, MotionModel
 from sensing.landmarks import (BLOCK, TOTAL, block_work, load_block, move_block_back, prepare_detections,
@@ -72,11 +69,14 @@ from sensing.observations import Observations
 from .estimate import (summary_buffers, summary_entropy, summary_estimate, summary_estimate_chunked,
                        summary_estimate_fast, summary_fill, summary_fill_chunked, summary_grid)
 from .latency import move_back, move_forward
+from .relocalization import SoccerRelocalization
 from .resampling import (SCHEMES, gather_offspring_rows, gather_with_jitter, resample_with_jitter,
                          resample_with_jitter_chunked)
 from .weights import log_mean_likelihood, normalize, reweigh, reweigh_chunked, weigh, weigh_chunked, weigh_fast
 
 REGIONS = ("field", "own_half", "opponent_half")
+# what the filter asks of its relocalization (`mcl.relocalization.SoccerRelocalization` is the default)
+RELOCALIZATION_METHODS = ("bind", "reset_region", "reset_pose", "mirror", "carry", "confirm", "propose")
 
 
 @dataclass(frozen=True)
@@ -130,35 +130,23 @@ class AugmentedMCL:
                                          # 1st percentile of w_fast while tracking (0.29 over every frame of
                                          # `robocup-mcl demo walk --seeds 0-9`), so it rarely fires then;
                                          # 0 switches it off
-    sensor_reset_fraction: float = 0.5   # share of injected particles drawn from a detection
-    heading_sigma: float = 0.3           # rad, spread of injected headings around the heading reference
-    heading_gate: float = 0.5            # rad: once trusted, the reference follows a confident estimate only
-                                         # within this (odometry drifts by less; a wrong cluster differs more)
     max_fraction: float = 0.25           # never replace more than this share of the particles at once ...
-    max_fraction_tracking: float = 0.05  # ... nor more than this once the heading is trusted: sensor resetting
-                                         # around a known heading needs few particles to find a kidnapped
-                                         # robot, and a streak of false positives must not dissolve a
-                                         # correct cluster (at 25 % a frame, 90 % of it is gone in 8 frames)
-    confident_corrections: int = 120     # corrections in a row the estimate must be confident before its
-                                         # heading guides injection: one sweep of a head panning every 4 s
-                                         # at 30 Hz, so the hypothesis has met everything the camera sees
+    max_fraction_tracking: float = 0.05  # ... nor more than this once the filter has been confident (the
+                                         # relocalization's `tracking`): a streak of false positives must not
+                                         # dissolve a correct cluster (at 25 % a frame, 90 % of it is gone in 8
+                                         # frames); the injected poses are chosen among many candidates for how
+                                         # well they explain the frame, so few are needed
 
     def __post_init__(self) -> None:
         if not (0 < self.alpha_slow < self.alpha_fast <= 1):
             raise ValueError(f"alpha_slow = {self.alpha_slow!r}, alpha_fast = {self.alpha_fast!r}: "
                              "need 0 < alpha_slow < alpha_fast <= 1")
-        for name in ("sensor_reset_fraction", "max_fraction", "max_fraction_tracking", "ratio_threshold"):
+        for name in ("max_fraction", "max_fraction_tracking", "ratio_threshold"):
             value = getattr(self, name)
             if not 0 <= value <= 1:
                 raise ValueError(f"{name} = {value!r} must be within [0, 1]")
-        for name in ("heading_sigma", "heading_gate"):
-            value = getattr(self, name)
-            if not (math.isfinite(value) and value > 0):
-                raise ValueError(f"{name} = {value!r} must be finite and > 0")
         if not (math.isfinite(self.fit_threshold) and self.fit_threshold >= 0):
             raise ValueError(f"fit_threshold = {self.fit_threshold!r} must be finite and >= 0")
-        if not (isinstance(self.confident_corrections, int) and self.confident_corrections >= 1):
-            raise ValueError(f"confident_corrections = {self.confident_corrections!r} must be an integer >= 1")
 
 
 @dataclass(frozen=True)
@@ -220,7 +208,7 @@ class ParticleFilter:
                  seed: int | None = 0, resampling: str = "systematic", resample_threshold: float = 0.5,
                  augmented: AugmentedMCL | None = AugmentedMCL(), grid: Grid = Grid(),
                  roughening: tuple[float, float, float] = (0.02, 0.02, 0.02), threads: int = 1,
-                 fast: bool = False) -> None:
+                 fast: bool = False, relocalization=None) -> None:
         if not isinstance(field, Field):
             raise ValueError(f"field = {field!r} must be a field.Field")
         if isinstance(n_particles, bool) or not isinstance(n_particles, (int, np.integer)) or n_particles <= 0:
@@ -289,10 +277,13 @@ class ParticleFilter:
         self.ess = float(self._n)
         self.resampled = False        # whether the last correction resampled
         self.injected = 0             # particles injected by the last correction
-        self._injection_bounds = self._region_bounds("field")
-        self._ever_confident = False
-        self._confident_streak = 0
-        self._heading_reference = 0.0     # trusted heading, carried forward by odometry (see _track_confidence)
+        if relocalization is None:
+            relocalization = SoccerRelocalization()
+        missing = [m for m in RELOCALIZATION_METHODS if not callable(getattr(relocalization, m, None))]
+        if missing:
+            raise ValueError(f"relocalization = {relocalization!r} lacks {', '.join(missing)}")
+        self.relocalization = relocalization      # which poses to inject, and what tells them apart
+        relocalization.bind((self._x_min, self._x_max, self._y_min, self._y_max))
         self._estimate: Estimate | None = None
         self._entropy: Entropy | None = None
         # Once `entropy()` has been asked for, the compiled step (and `estimate()`) computes the entropy from the
@@ -477,9 +468,7 @@ class ParticleFilter:
         else:
             poses[:, 2] = heading + heading_sigma * self.rng.standard_normal(self._n)
         self._set_particles(poses)
-        self._injection_bounds = bounds
-        self._ever_confident = False
-        self._confident_streak = 0
+        self.relocalization.reset_region(bounds)
         self.w_slow = self.w_fast = 0.0
 
     def reset_around(self, pose, sigma=(0.1, 0.1, 0.1)) -> None:
@@ -492,15 +481,13 @@ class ParticleFilter:
             raise ValueError(f"pose = {pose!r} must be three finite numbers")
         sigma = self._check_sigma(sigma)
         self._set_particles(pose + sigma * self.rng.standard_normal((self._n, 3)))
-        self._injection_bounds = self._region_bounds("field")
-        self._ever_confident = True
-        self._heading_reference = math.remainder(float(pose[2]), 2 * math.pi)
+        self.relocalization.reset_pose(pose)
         self.w_slow = self.w_fast = 0.0
 
     def reset_mirrored(self) -> None:
         """Mirror every particle through the centre mark: (x, y, θ) → (−x, −y, θ+π), weights kept."""
         self._poses[:] = self._field.mirror_poses(self._poses)
-        self._heading_reference = math.remainder(self._heading_reference + math.pi, 2 * math.pi)
+        self.relocalization.mirror()
         self._has_previous_estimate = False
         self._changed()
 
@@ -522,9 +509,7 @@ class ParticleFilter:
         bounds = self._region_bounds(region)
         choice = np.arange(self._n) % candidates.shape[0]
         self._set_particles(candidates[choice] + sigma * self.rng.standard_normal((self._n, 3)))
-        self._injection_bounds = bounds
-        self._ever_confident = False
-        self._confident_streak = 0
+        self.relocalization.reset_region(bounds)
         self.w_slow = self.w_fast = 0.0
 
     def diffuse(self, sigma=(0.1, 0.1, 0.3)) -> None:
@@ -631,10 +616,10 @@ class ParticleFilter:
                 self.motion_model.predict(self._poses, u, self.rng)
             else:
                 self.motion_model.predict(self._poses, u, self.rng, state=self._motion_state)
-            self._carry_heading(u)
+            self.relocalization.carry(*u.displacement())
         else:
             self._move_compiled(motion)
-            self._heading_reference = math.remainder(self._heading_reference + motion[2], 2 * math.pi)
+            self.relocalization.carry(motion[0], motion[1], motion[2])
         self._changed()
 
     def _move_compiled(self, motion: tuple[float, ...]) -> None:
@@ -652,10 +637,6 @@ class ParticleFilter:
                             NO_WORK)
         else:
             move_range(self._poses, self._poses, 0, self._n, *motion, gaussian, variates, *self._generator(), NO_WORK)
-
-    def _carry_heading(self, u: MotionInput) -> None:
-        """Turn the heading reference by the motion input's rotation, as a gyro would."""
-        self._heading_reference = math.remainder(self._heading_reference + u.displacement()[2], 2 * math.pi)
 
     def correct(self, observations: Observations | Iterable | None, since=None) -> None:
         """Weigh the particles by the detections, then resample (and inject) if needed.
@@ -774,7 +755,7 @@ class ParticleFilter:
         else:
             augmented, alpha_slow, alpha_fast = True, a.alpha_slow, a.alpha_fast
             ratio_threshold, fit_threshold = a.ratio_threshold, a.fit_threshold
-            cap = a.max_fraction_tracking if self._ever_confident else a.max_fraction
+            cap = a.max_fraction_tracking if self.relocalization.tracking else a.max_fraction
         terms = getattr(self.sensor_model, "terms", len)(observations)
         # Only an estimate the plain sequence of calls computes (after a correction with augmentation, or at the
         # end of `step`) may be computed here: computing one moves the hysteresis anchor `_previous_estimate`.
@@ -799,7 +780,7 @@ class ParticleFilter:
             self.sensor_model.check(observations)     # raises, naming the detection; nothing has changed
             raise ValueError("a detection's landmark type is not on this field")
         if move:                                      # the particles have moved, whatever follows
-            self._heading_reference = math.remainder(self._heading_reference + motion[2], 2 * math.pi)
+            self.relocalization.carry(motion[0], motion[1], motion[2])
             self._changed()
         if status == _STEP_INVALID:
             raise ValueError("sensor model returned NaN or +inf log-likelihoods; filter left unchanged")
@@ -859,30 +840,20 @@ class ParticleFilter:
             self._entropy = Entropy(position, orientation)
 
     def _track_confidence(self) -> None:
-        """Keep the heading reference that guides injection.
-
-        The reference is anchored to the estimate only while the estimate is confident and explains the
-        detections (w_fast at least the fit threshold), and, once trusted, only within `heading_gate` of
-        where the motion inputs have carried it, as a gyro's heading is corrected but not replaced. A lost
-        filter's estimate hops between clusters, and one of them can fit a few detections with the wrong
-        heading; following it would walk the reference away until injection seeds the mirror. Injection
-        uses the reference once the estimate has been confident for `confident_corrections` corrections in
-        a row: early in global localization a wrong cluster can be tight for a moment.
-        """
+        """Tell the relocalization what the correction left: the estimate, whether it is confident, and whether
+        the belief explains the detections as well as it usually does (w_fast at least `ratio_threshold` of
+        w_slow: no injection asked for by a drop of the fit; an absolute level would depend on how noisy the
+        camera is)."""
         if self._augmented is None:
             return
         estimate = self.estimate()
-        confident = estimate.is_confident()
-        if confident and self.w_fast >= self._augmented.fit_threshold:
-            offset = math.remainder(estimate.theta - self._heading_reference, 2 * math.pi)
-            if not self._ever_confident or abs(offset) <= self._augmented.heading_gate:
-                self._heading_reference = estimate.theta
-        if self._ever_confident:
-            return
-        self._confident_streak = self._confident_streak + 1 if confident else 0
-        if self._confident_streak >= self._augmented.confident_corrections:
-            self._ever_confident = True
-            self._injection_bounds = self._region_bounds("field")
+        if self.relocalization.confirm(estimate.pose, estimate.is_confident(),
+                                       self.w_fast >= self._augmented.ratio_threshold * self.w_slow):
+            # The relocalization's prior puts the belief on the mirror side of the field, which the detections
+            # cannot tell from this one (the field is point-symmetric): the particles go there, weights kept.
+            self._poses[:] = self._field.mirror_poses(self._poses)
+            self._has_previous_estimate = False
+            self._changed()
 
     def _native_log_average(self, log_likelihood: np.ndarray) -> float:
         """log(Σ wᵢ pᵢ / Σ wᵢ) over the particles not injected by the previous resampling (prior weights).
@@ -909,29 +880,13 @@ class ParticleFilter:
     def _injection_count(self, fraction: float) -> int:
         if self._augmented is None:
             return 0
-        cap = self._augmented.max_fraction_tracking if self._ever_confident else self._augmented.max_fraction
+        cap = self._augmented.max_fraction_tracking if self.relocalization.tracking else self._augmented.max_fraction
         return int(round(min(fraction, cap) * self._n))
 
     def _sample_injection(self, count: int, observations: Observations) -> np.ndarray:
-        """`count` poses for augmented MCL to inject: `sensor_reset_fraction` of them from the sensor model's
-        `sample_poses` (those inside the injection region), the rest uniform over the region, headings around
-        the heading reference once it is trusted, else uniform. The uniforms come from the filter's stream in
-        the kernel (`place_injected`); bit for bit `mcl.reference.sample_injection_reference`."""
-        heading = self._heading_reference if self._ever_confident else None
-        sigma = self._augmented.heading_sigma
-        x_min, x_max, y_min, y_max = self._injection_bounds
-        n_sensor = int(round(count * self._augmented.sensor_reset_fraction))
-        sampler = getattr(self.sensor_model, "sample_poses", None)
-        poses = _NO_VARIATES
-        if n_sensor > 0 and sampler is not None and len(observations) > 0:
-            poses = np.ascontiguousarray(sampler(observations, n_sensor, self.rng, heading=heading,
-                                                 heading_sigma=sigma), dtype=np.float64)
-        injected = np.empty((count, 3))
-        kept = place_injected(poses, float(x_min), float(x_max), float(y_min), float(y_max), heading is None,
-                              *self._generator(), injected)
-        if heading is not None and kept < count:
-            injected_headings(injected, kept, heading, sigma, self.rng.standard_normal(count - kept))
-        return injected
+        """`count` poses for augmented MCL to inject, as the relocalization proposes them (`propose`)."""
+        return np.ascontiguousarray(self.relocalization.propose(count, observations, self.sensor_model, self.rng),
+                                    dtype=np.float64)
 
     def _resample(self, count: int, observations: Observations, since: np.ndarray | None = None) -> None:
         injected = self._sample_injection(count, observations) if count > 0 else _NO_VARIATES
@@ -1105,41 +1060,6 @@ def augmented_update(w_slow, w_fast, log_average, alpha_slow, alpha_fast, ratio_
     if absolute > fraction:
         fraction = absolute
     return w_slow, w_fast, fraction
-
-
-@numba.njit(cache=True)
-def place_injected(poses, x_min, x_max, y_min, y_max, uniform_heading, function, state, out):
-    """out[:kept] ← the `poses` inside [x_min, x_max] × [y_min, y_max], in order; out[kept:] ← uniform positions
-    in that box from the generator (x then y for every pose, as `rng.uniform` draws them), and uniform headings
-    on [-π, π) when `uniform_heading` (else left for `injected_headings`). Returns kept."""
-    kept = 0
-    for i in range(poses.shape[0]):
-        x = poses[i, 0]
-        y = poses[i, 1]
-        if (x >= x_min) & (x <= x_max) & (y >= y_min) & (y <= y_max):
-            out[kept, 0] = x
-            out[kept, 1] = y
-            out[kept, 2] = poses[i, 2]
-            kept += 1
-    rest = out.shape[0] - kept
-    columns = 3 if uniform_heading else 2
-    uniforms = np.empty(columns * rest)
-    draw_uniforms(function, state, uniforms, columns * rest)
-    lows = (x_min, y_min, -math.pi)
-    spans = (x_max - x_min, y_max - y_min, math.pi - -math.pi)
-    for column in range(columns):
-        low = lows[column]
-        span = spans[column]
-        for i in range(rest):
-            out[kept + i, column] = low + span * uniforms[column * rest + i]
-    return kept
-
-
-@numba.njit(cache=True)
-def injected_headings(out, first, heading, sigma, normals):
-    """out[first:, 2] ← wrap(heading + sigma · normals)."""
-    for i in range(normals.shape[0]):
-        out[first + i, 2] = wrap_angle(heading + sigma * normals[i])
 
 
 @numba.njit(cache=True)

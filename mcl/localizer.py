@@ -22,35 +22,40 @@ Game events (what the SPL and Humanoid League rules make happen to a robot):
 | `initial_placement()` | INITIAL / entering the field | along both own touchlines, facing into the field |
 | `kickoff_placement(poses)` | placed at kick-off positions | around the given poses (default: a typical line-up) |
 | `manual_placement(poses)` | the referee placed it | around the given poses (default: anywhere in the own half, facing the opponent goal) |
+| `anywhere_in_own_half()` | switched on or carried in, pose unknown | uniform over the own half, any heading |
 | `penalty_return()` | back from a penalty | at the penalty-mark line on either own touchline, facing into the field |
 | `fallen()` / `got_up()` | fall detected / standing again | corrections and motion paused; then widened by `getup_sigma` |
 | `place(pose)` | pose known (a test stand, a set piece) | around that pose, its heading trusted |
 
-After a reset whose candidates differ in heading (both touchlines), augmented MCL injects only inside the own
-half with uniform headings until the estimate is confident again: the point mirror of a touchline pose lies in
-the other half, so the filter cannot settle there.
+After a reset over a region (the own half, both touchlines), re-localization treats the region as evidence
+(`mcl.relocalization`): the point mirror of an own-half pose lies in the other half, so the filter settles on
+the right one.
 
 Latency. `observe(..., capture_time=)` scores the detections against where each particle was when the image
 was taken (`mcl.latency`): the motion of the last `history` seconds is kept. An observation older than that is
 refused with ValueError, and the filter is left as it was.
 
-Quality (`QualityThresholds`), from the dominant cluster's covariance and weight, the belief's grid entropy,
-and how well the last detections fit (`fit`: the likelihood per detection, averaged over the last few frames;
-faster than augmented MCL's w_fast, which takes a third of a second to notice a kidnapping):
-- SUPERB: tight (position σ, heading σ small), one cluster, low entropy, detections explained;
-- OKAY: usable for behaviour, but wider or with less support;
-- POOR: anything else. `is_lost` is POOR for `lost_after` seconds in a row.
+Quality (`QualityThresholds`), from how well the estimate explains the recent detections (`fit`: the share of
+the detections of the last 1.5 s that a landmark of their type explains from the estimate, and how long ago one
+was last explained), the dominant cluster's covariance and weight, the belief's grid entropy, and the mirror
+odds of the last re-localization (the mirror pose explains every detection as well; only the prior tells them
+apart, see `mcl.relocalization`):
+- SUPERB: tight (position σ, heading σ small), one cluster, low entropy, recent detections explained, the
+  mirror ruled out by odds of 10 or more;
+- OKAY: usable for behaviour, but wider or with less support, odds of 2 or more;
+- POOR: anything else. `is_lost` is POOR for `lost_after` seconds (1 s) in a row.
 """
 from __future__ import annotations
 
 import enum
 import math
-from collections import Counter
+from collections import Counter, deque
 from dataclasses import dataclass
 
 import numpy as np
 
 from field import Field
+from field.angles import wrap_angles
 from motion_models import MotionInput
 from sensing import LandmarkSensorModel
 from sensing.observations import Observations
@@ -69,7 +74,14 @@ class Quality(enum.Enum):
 
 @dataclass(frozen=True)
 class QualityThresholds:
-    """Limits for each quality level; a level needs all of its limits met."""
+    """Limits for each quality level; a level needs all of its limits met.
+
+    The fit is the share of the recent detections that the estimate explains: a detection is explained when
+    a landmark of its type lies within `gate` standard deviations (the sensor model's range and bearing
+    noise, widened by `range_slack` and `bearing_slack`) of where the estimate says it was seen. Recent: the
+    detections captured in the last `fit_window` seconds. A belief can be tight and wrong (after a kidnap,
+    until re-localization); it cannot explain what the camera sees and be wrong, except on the mirror pose.
+    """
 
     superb_position: float = 0.15      # m, sqrt(var x + var y) of the dominant cluster
     superb_heading: float = 0.1        # rad
@@ -79,17 +91,70 @@ class QualityThresholds:
     okay_heading: float = 0.3
     okay_weight: float = 0.6
     okay_entropy: float = 9.0
-    superb_fit: float = 0.15           # recent fit: likelihood per detection (1 = perfect match), averaged over
-    okay_fit: float = 0.03             # camera frames with weight `fit_rate` (see `Localizer.fit`)
-    fit_rate: float = 0.5
-    lost_after: float = 2.0            # s of POOR in a row before is_lost
+    superb_fit: float = 0.7            # share of the recent detections the estimate explains ...
+    superb_detections: int = 3         # ... of at least this many explained ...
+    superb_age: float = 1.5            # s: ... the last explained one captured at most this long ago
+    superb_mirror_odds: float = 10.0   # the last re-localization preferred its pose to the mirror pose by this
+                                       # much at least (`SoccerRelocalization.mirror_log_odds`; the mirror
+                                       # explains every detection as well, so nothing seen afterwards can)
+    okay_mirror_odds: float = 2.0      # below these odds the pose is close to a coin toss against its mirror
+    okay_fit: float = 0.4
+    okay_age: float = 6.0
+    fit_window: float = 1.5            # s of detections the fit is taken over
+    gate: float = 3.0                  # standard deviations within which a detection is explained
+    range_slack: float = 0.1           # m, added to the sensor model's range σ (the model's noise is a guess)
+    bearing_slack: float = 0.03        # rad, added to its bearing σ
+    lost_after: float = 1.0            # s of POOR in a row before is_lost
 
     def __post_init__(self) -> None:
         for name, value in self.__dict__.items():
-            if not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0):
+            if isinstance(value, bool) or not (isinstance(value, (int, float)) and math.isfinite(value)
+                                               and value >= 0):
                 raise ValueError(f"{name} = {value!r} must be a finite number >= 0")
-        if not 0 < self.fit_rate <= 1:
-            raise ValueError(f"fit_rate = {self.fit_rate!r} must be within (0, 1]")
+        for name in ("superb_fit", "okay_fit"):
+            if getattr(self, name) > 1:
+                raise ValueError(f"{name} = {getattr(self, name)!r} must be within [0, 1]")
+        if self.fit_window <= 0 or self.gate <= 0:
+            raise ValueError(f"fit_window = {self.fit_window!r}, gate = {self.gate!r} must be > 0")
+
+
+def _log(odds: float) -> float:
+    return math.log(odds) if odds > 0 else -math.inf
+
+
+def explained_detections(sensor_model, pose, observations: Observations, gate: float = 3.0,
+                         range_slack: float = 0.0, bearing_slack: float = 0.0) -> np.ndarray | None:
+    """Which detections (bool per detection) the pose (x, y, θ) explains: a landmark of the detection's type
+    lies within `gate` standard deviations in range and bearing (σ: the detection's own, else the sensor
+    model's, plus the slacks). None when the sensor model has no landmarks to ask (`candidates`,
+    `range_sigma`, `bearing_sigma`)."""
+    candidates_of = getattr(sensor_model, "candidates", None)
+    if not callable(candidates_of) or not callable(getattr(sensor_model, "range_sigma", None)):
+        return None
+    m = len(observations)
+    explained = np.zeros(m, dtype=bool)
+    if m == 0:
+        return explained
+    x, y, theta = float(pose[0]), float(pose[1]), float(pose[2])
+    ranges = observations.ranges
+    range_sigmas = np.where(np.isnan(observations.range_sigmas), sensor_model.range_sigma(ranges),
+                            observations.range_sigmas) + range_slack
+    bearing_sigmas = np.where(np.isnan(observations.bearing_sigmas), float(sensor_model.bearing_sigma),
+                              observations.bearing_sigmas) + bearing_slack
+    for kind in np.unique(observations.kinds):
+        rows = np.flatnonzero(observations.kinds == kind)
+        landmarks = candidates_of(int(kind))
+        if landmarks.shape[0] == 0:
+            continue
+        dx = landmarks[:, 0] - x
+        dy = landmarks[:, 1] - y
+        expected_range = np.hypot(dx, dy)
+        expected_bearing = np.arctan2(dy, dx) - theta
+        range_error = (ranges[rows, None] - expected_range[None, :]) / range_sigmas[rows, None]
+        bearing_error = wrap_angles(observations.bearings[rows, None] - expected_bearing[None, :]) \
+            / bearing_sigmas[rows, None]
+        explained[rows] = (range_error ** 2 + bearing_error ** 2).min(axis=1) <= gate * gate
+    return explained
 
 
 def touchline_poses(field: Field, x_values) -> np.ndarray:
@@ -155,7 +220,8 @@ class Localizer:
         self.counts: Counter = Counter()
         self._poor_since: float | None = None
         self._quality: Quality | None = None
-        self.fit = 0.0
+        self._frames: deque = deque()   # (capture time, detections, explained) of the recent frames
+        self._last_explained: float | None = None   # capture time of the last frame with an explained detection
 
     # -- the loop ----------------------------------------------------------------------------------------
     def motion(self, t: float, u: MotionInput) -> None:
@@ -197,9 +263,7 @@ class Localizer:
             self.counts["observation while fallen"] += 1
             return False
         self.filter.correct(observations, since=since)
-        frame_fit = self.filter.frame_fit
-        if not math.isnan(frame_fit):
-            self.fit += self.thresholds.fit_rate * (frame_fit - self.fit)
+        self._record_fit(observations, since, self.time if capture_time is None else capture_time)
         self._quality = None
         self._update_lost()
         return True
@@ -218,21 +282,61 @@ class Localizer:
             self._quality = self._assess()
         return self._quality
 
+    @property
+    def fit(self) -> float:
+        """The share of the detections of the last `fit_window` seconds that the estimate explained when they
+        were scored (NaN when there were none)."""
+        seen = sum(frame[1] for frame in self._frames)
+        return sum(frame[2] for frame in self._frames) / seen if seen else math.nan
+
+    def _record_fit(self, observations: Observations, since, capture_time: float | None) -> None:
+        """Score the frame against the estimate where it was at capture; keep `fit_window` seconds of frames."""
+        m = len(observations)
+        if m == 0:
+            return
+        q = self.thresholds
+        pose = self.filter.estimate().pose
+        if since is not None:
+            dx, dy, dtheta = since                 # the motion since capture, in the robot frame at capture
+            theta = pose[2] - dtheta
+            c, s = math.cos(theta), math.sin(theta)
+            pose = np.array([pose[0] - (c * dx - s * dy), pose[1] - (s * dx + c * dy), theta])
+        explained = explained_detections(self.filter.sensor_model, pose, observations, q.gate, q.range_slack,
+                                         q.bearing_slack)
+        if explained is None:                      # a sensor model without landmarks: the frame's own fit
+            frame_fit = self.filter.frame_fit
+            count = int(m * frame_fit >= 0.5 * m) * m if not math.isnan(frame_fit) else 0
+        else:
+            count = int(explained.sum())
+        now = capture_time if capture_time is not None else 0.0
+        self._frames.append((now, m, count))
+        while self._frames and self._frames[0][0] < now - q.fit_window:
+            self._frames.popleft()
+        if count:
+            self._last_explained = now
+
     def _assess(self) -> Quality:
         q = self.thresholds
+        if self.is_fallen:
+            return Quality.POOR
         estimate = self.filter.estimate()
         cov = estimate.covariance
         position_sigma = math.sqrt(max(cov[0, 0] + cov[1, 1], 0.0))
         heading_sigma = math.sqrt(max(cov[2, 2], 0.0))
         entropy = self.filter.entropy().position
+        now = self.time if self.time is not None else 0.0
+        age = math.inf if self._last_explained is None else now - self._last_explained
         fit = self.fit
-        if self.is_fallen:
-            return Quality.POOR
+        explained = sum(frame[2] for frame in self._frames)
+        mirror_log_odds = getattr(self.filter.relocalization, "mirror_log_odds", math.inf)
         if (position_sigma <= q.superb_position and heading_sigma <= q.superb_heading
-                and estimate.weight >= q.superb_weight and entropy <= q.superb_entropy and fit >= q.superb_fit):
+                and estimate.weight >= q.superb_weight and entropy <= q.superb_entropy and fit >= q.superb_fit
+                and explained >= q.superb_detections and age <= q.superb_age
+                and mirror_log_odds >= _log(q.superb_mirror_odds)):
             return Quality.SUPERB
         if (position_sigma <= q.okay_position and heading_sigma <= q.okay_heading
-                and estimate.weight >= q.okay_weight and entropy <= q.okay_entropy and fit >= q.okay_fit):
+                and estimate.weight >= q.okay_weight and entropy <= q.okay_entropy and age <= q.okay_age
+                and not fit < q.okay_fit and mirror_log_odds >= _log(q.okay_mirror_odds)):
             return Quality.OKAY
         return Quality.POOR
 
@@ -276,6 +380,12 @@ class Localizer:
         self.filter.reset_uniform("own_half", heading=0.0, heading_sigma=0.3)
         self._after_reset()
 
+    def anywhere_in_own_half(self) -> None:
+        """The robot is somewhere in the own half, heading unknown (a robot switched on or carried in without
+        a known placement): particles uniform over the own half with uniform headings."""
+        self.filter.reset_uniform("own_half")
+        self._after_reset()
+
     def place(self, pose, sigma=None) -> None:
         """The pose is known: particles around it, its heading trusted for injection."""
         self.filter.reset_around(pose, self.placement_sigma if sigma is None else sigma)
@@ -298,7 +408,8 @@ class Localizer:
         self._after_reset()
 
     def _after_reset(self) -> None:
-        self.fit = 0.0
+        self._frames.clear()
+        self._last_explained = None
         self._quality = None
         self._poor_since = None
         self.history.clear(self.time)

@@ -29,7 +29,6 @@ from typing import Callable
 import numba
 import numpy as np
 
-from field.angles import wrap_angles
 from motion_models._kernels import (NO_WORK, SQRT3, draw_variates, move_chunked, move_range, move_range_fast,
                                     move_with_noise_reference, next_double, parallel_uniforms)
 from motion_models.base import MotionInput
@@ -128,28 +127,8 @@ def _issue_shaped_kernel(poses, scratch, trig, log_likelihood, log_weights, weig
 
 def sample_injection_reference(pf, count: int, observations: Observations) -> np.ndarray:
     """Plain numpy twin of `ParticleFilter._sample_injection` (augmented MCL's injected poses): the same draws
-    from `pf.rng`, the same poses bit for bit. Uses the sensor model's `sample_poses_reference` when it has one."""
-    heading = pf._heading_reference if pf._ever_confident else None
-    sigma = pf.augmented.heading_sigma
-    x_min, x_max, y_min, y_max = pf._injection_bounds
-    n_sensor = int(round(count * pf.augmented.sensor_reset_fraction))
-    sensor = pf.sensor_model
-    sampler = getattr(sensor, "sample_poses_reference", None) or getattr(sensor, "sample_poses", None)
-    poses = np.empty((0, 3))
-    if n_sensor > 0 and sampler is not None and len(observations) > 0:
-        poses = sampler(observations, n_sensor, pf.rng, heading=heading, heading_sigma=sigma)
-        inside = ((poses[:, 0] >= x_min) & (poses[:, 0] <= x_max)
-                  & (poses[:, 1] >= y_min) & (poses[:, 1] <= y_max))
-        poses = poses[inside]
-    rest = count - poses.shape[0]
-    uniform = np.empty((rest, 3))
-    uniform[:, 0] = pf.rng.uniform(x_min, x_max, rest)
-    uniform[:, 1] = pf.rng.uniform(y_min, y_max, rest)
-    if heading is None:
-        uniform[:, 2] = pf.rng.uniform(-math.pi, math.pi, rest)
-    else:
-        uniform[:, 2] = wrap_angles(heading + sigma * pf.rng.standard_normal(rest))
-    return np.concatenate([poses, uniform], axis=0)
+    from `pf.rng`, the same poses bit for bit, with the sensor model's `sample_poses_reference`."""
+    return pf.relocalization.propose(count, observations, pf.sensor_model, pf.rng, reference=True)
 
 
 def issue_shaped_step(pf, u: MotionInput, observations: Observations) -> Callable[[], tuple]:
@@ -228,7 +207,7 @@ def compiled_phases(pf, u: MotionInput, observations: Observations) -> dict[str,
             move_range_fast(pf.poses, scratch, 0, n, *motion, gaussian, variates, function, generator, NO_WORK)
         else:
             move_range(pf.poses, scratch, 0, n, *motion, gaussian, variates, function, generator, NO_WORK)
-        pf._heading_reference = math.remainder(pf._heading_reference + motion[2], 2 * math.pi)
+        pf.relocalization.carry(motion[0], motion[1], motion[2])
         pf._changed()
 
     def likelihood():

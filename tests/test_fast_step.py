@@ -20,6 +20,7 @@ from mcl.bench_step import COLLISION
 from mcl.estimate import cluster_estimate, grid_entropy
 from mcl.filter import augmented_update
 from mcl.reference import PHASES, compiled_phases, full_step, sample_injection_reference
+from mcl.relocalization import RelocalizationPrior, SoccerRelocalization
 from mcl.resampling import SCHEMES, gather_with_jitter
 from mcl.weights import log_mean_likelihood, normalize
 from motion_models import AdaptiveMotion, ConstantNoise, MotionInput, VelocityLinear
@@ -49,7 +50,7 @@ class PlainFilter(ParticleFilter):
             self.motion_model.predict(self.poses, u, self.rng)
         else:
             self.motion_model.predict(self.poses, u, self.rng, state=self._motion_state)
-        self._carry_heading(u)
+        self.relocalization.carry(*u.displacement())
         self._changed()
 
     def _correct(self, observations, since=None):
@@ -135,11 +136,16 @@ def detections(pose, rng, count=10, kinds=("goalpost",), false_positives=0):
     return Observations.from_arrays(*zip(*rows))
 
 
+def relocalization_state(relocalization):
+    return repr({name: (value.tolist() if isinstance(value, np.ndarray) else value)
+                 for name, value in vars(relocalization).items()})
+
+
 def state(pf):
     estimate = pf.estimate()
     entropy = pf.entropy()
     return (pf.poses.copy(), pf.log_weights.copy(), np.array(pf.weights), pf.w_slow, pf.w_fast, pf.ess,
-            pf.resampled, pf.injected, pf.frame_fit, pf._heading_reference, pf._ever_confident,
+            pf.resampled, pf.injected, pf.frame_fit, relocalization_state(pf.relocalization),
             pf.rng.bit_generator.state, estimate.pose.copy(), estimate.covariance.copy(), estimate.weight,
             entropy.position, entropy.orientation, None if pf.motion_state is None else pf.motion_state.copy())
 
@@ -204,6 +210,27 @@ def test_compiled_path_equals_the_plain_sequence_bit_for_bit(options, use_step):
         assert same(state(compiled), state(plain))
 
 
+@pytest.mark.parametrize("law", [dict(range_noise_linear=0.04, range_noise_growth=0.005),
+                                 dict(range_noise_floor=0.08, range_noise_linear=0.02, range_noise_growth=0.0),
+                                 dict(range_noise_linear=0.03, bearing_model="exact")])
+@pytest.mark.parametrize("use_step", [True, False])
+def test_compiled_path_with_a_linear_range_noise_law_equals_the_plain_sequence_bit_for_bit(law, use_step):
+    """σ_r = floor + linear·r + growth·r² reaches the compiled step through `compiled_likelihood()` (the pair
+    (linear, growth)): the one-dispatch step, sensor resetting included, gives what the plain calls give."""
+    compiled = make(sensor=LandmarkSensorModel(FIELD, **law))
+    plain = PlainFilter(FIELD, VelocityLinear(), StagedLandmarks(FIELD, **law), n_particles=300, seed=0)
+    assert compiled._sensor_kernel()[3] == (law["range_noise_linear"], law.get("range_noise_growth", 0.02))
+    for pf in (compiled, plain):
+        pf.reset_uniform("own_half")
+    for _ in zip(scenario(compiled, use_step=use_step), scenario(plain, use_step=use_step)):
+        assert same(state(compiled), state(plain))
+    default = make(sensor=LandmarkSensorModel(FIELD))
+    default.reset_uniform("own_half")
+    for _ in scenario(default, use_step=use_step):
+        pass
+    assert not np.array_equal(default.poses, compiled.poses)      # the law changed what the filter did
+
+
 def test_compiled_path_covers_injection_and_global_localization():
     """The scenario above reaches the Python fallbacks of the compiled step: injection and resampling."""
     pf = make(n=400)
@@ -216,27 +243,30 @@ def test_compiled_path_covers_injection_and_global_localization():
     assert injected and resampled and kept
 
 
-@given(count=st.integers(1, 400), trusted=st.booleans(), heading=st.floats(-4.0, 4.0),
-       share=st.sampled_from([0.0, 0.5, 1.0]), region=st.sampled_from(["field", "own_half", "opponent_half"]),
+@given(count=st.integers(1, 400), anchored=st.booleans(), heading=st.floats(-4.0, 4.0),
+       share=st.sampled_from([0.0, 0.5, 0.9]), region=st.sampled_from(["field", "own_half", "opponent_half"]),
        seed=st.integers(0, 2**32 - 1))
-def test_injection_equals_its_numpy_twin_bit_for_bit(count, trusted, heading, share, region, seed):
-    """Sensor-reset poses inside the region kept in order, the rest uniform, headings around the reference once
-    trusted: the same poses as `sample_injection_reference`, and the generator left at the same place."""
+def test_injection_equals_its_numpy_twin_bit_for_bit(count, anchored, heading, share, region, seed):
+    """The relocalization's proposal with the compiled single-detection sampler gives the same poses as
+    `sample_injection_reference` (its numpy twin), and leaves the generator at the same place; every injected
+    pose is on the carpet (up to the jitter)."""
     rng = np.random.default_rng(seed)
     obs = detections(TRUE_POSE + np.array([rng.uniform(-3, 3), rng.uniform(-2, 2), 0.0]), rng,
                      count=int(rng.integers(1, 8)), kinds=("goalpost", "t_crossing", "penalty_mark"))
-    pfs = [make(n=500, seed=seed % 1000, augmented=AugmentedMCL(sensor_reset_fraction=share)) for _ in range(2)]
+    prior = RelocalizationPrior(pair_share=share, uniform_share=min(0.1, 1.0 - share))
+    pfs = [make(n=500, seed=seed % 1000, relocalization=SoccerRelocalization(prior)) for _ in range(2)]
     for pf in pfs:
         pf.reset_uniform(region)
-        pf._ever_confident = trusted
-        pf._heading_reference = heading
+        if anchored:
+            pf.relocalization.reset_pose((0.5, -0.5, heading))
     compiled = pfs[0]._sample_injection(count, obs)
     plain = sample_injection_reference(pfs[1], count, obs)
     assert compiled.shape == (count, 3) and np.array_equal(compiled, plain)
     assert pfs[0].rng.bit_generator.state == pfs[1].rng.bit_generator.state
-    x_min, x_max, y_min, y_max = pfs[0]._injection_bounds
-    assert (compiled[:, 0] >= x_min).all() and (compiled[:, 0] <= x_max).all()
-    assert (compiled[:, 1] >= y_min).all() and (compiled[:, 1] <= y_max).all()
+    slack = 5 * max(prior.jitter)
+    x_min, x_max, y_min, y_max = pfs[0].relocalization.carpet
+    assert (compiled[:, 0] >= x_min - slack).all() and (compiled[:, 0] <= x_max + slack).all()
+    assert (compiled[:, 1] >= y_min - slack).all() and (compiled[:, 1] <= y_max + slack).all()
     assert (np.abs(compiled[:, 2]) <= math.pi).all()
 
 
@@ -279,7 +309,7 @@ def test_a_step_without_detections_is_predict_then_estimate(options, entropy_wan
         assert np.array_equal(stepped.poses, plain.poses) and np.array_equal(stepped.log_weights, plain.log_weights)
         assert np.array_equal(a.pose, b.pose) and np.array_equal(a.covariance, b.covariance) and a.weight == b.weight
         assert stepped.rng.bit_generator.state == plain.rng.bit_generator.state
-        assert stepped._heading_reference == plain._heading_reference
+        assert relocalization_state(stepped.relocalization) == relocalization_state(plain.relocalization)
         # the hysteresis anchor the next estimate starts from
         assert stepped._has_previous_estimate and plain._has_previous_estimate
         assert np.array_equal(stepped._previous_estimate, plain._previous_estimate)

@@ -11,6 +11,7 @@ from hypothesis import strategies as st
 from field import spl
 from field.angles import wrap_angles
 from mcl import AugmentedMCL, Grid, ParticleFilter
+from mcl.relocalization import RelocalizationPrior
 from motion_models import AdaptiveMotion, ConstantNoise, MotionInput, VelocityLinear
 from sensing import LandmarkObservation, LandmarkSensorModel, Observations
 from sensing.collision import CollisionPercept
@@ -33,9 +34,14 @@ def make(n=300, seed=0, **kwargs):
     return ParticleFilter(FIELD, VelocityLinear(), SENSOR, n_particles=n, seed=seed, **kwargs)
 
 
+def relocalization_state(relocalization):
+    return repr({name: (value.tolist() if isinstance(value, np.ndarray) else value)
+                 for name, value in vars(relocalization).items()})
+
+
 def state(pf):
     return (pf.poses.copy(), pf.log_weights.copy(), np.array(pf.weights), pf.w_slow, pf.w_fast,
-            pf.rng.bit_generator.state, pf.ess, pf._injection_bounds, pf._ever_confident)
+            pf.rng.bit_generator.state, pf.ess, relocalization_state(pf.relocalization))
 
 
 def same_state(a, b):
@@ -369,25 +375,29 @@ def test_constant_model_plugs_in_unchanged():
     assert np.hypot(e.x - TRUE_POSE[0], e.y - TRUE_POSE[1]) < 0.2
 
 
-def test_heading_reference_follows_odometry_and_gates_a_contradicting_cluster():
-    """The reference that guides injection behaves like a gyro: carried by the motion inputs, corrected by a
-    confident well-fitting estimate, never replaced by one that contradicts it (the mirror guard)."""
+def test_the_anchor_follows_odometry_and_a_confident_cluster_on_its_mirror_is_put_back():
+    """The relocalization's anchor is carried by the motion inputs (dead reckoning) and follows a confident,
+    well-fitting estimate. A tight cluster that settles on the mirror image of where the anchor says the robot
+    is explains every detection as well, so the prior decides: the particles are mirrored back."""
     pf = make(n=500, seed=4)
     pf.reset_around(TRUE_POSE, (0.05, 0.05, 0.02))
-    assert pf._heading_reference == pytest.approx(TRUE_POSE[2])
+    np.testing.assert_allclose(pf.relocalization.anchor, TRUE_POSE)
     for _ in range(10):                                   # turn at 1 rad/s for 0.5 s, no camera
         pf.predict(MotionInput(dt=0.05, command=(0.0, 0.0, 1.0)))
-    assert pf._heading_reference == pytest.approx(TRUE_POSE[2] + 0.5, abs=1e-9)
+    assert pf.relocalization.anchor[2] == pytest.approx(TRUE_POSE[2] + 0.5, abs=1e-9)
     turned = TRUE_POSE + np.array([0.0, 0.0, 0.5])
-    for _ in range(10):                                   # a consistent confident estimate corrects it
+    for _ in range(10):                                   # a consistent confident estimate becomes the anchor
         pf.step(MotionInput(dt=0.033, command=(0, 0, 0)), detections(turned))
-    assert abs(math.remainder(pf._heading_reference - turned[2], 2 * math.pi)) < 0.05
+    assert abs(math.remainder(pf.relocalization.anchor[2] - turned[2], 2 * math.pi)) < 0.05
     mirror = FIELD.mirror_poses(turned[None])[0]          # a tight cluster at the mirror pose fits just as well
     pf.set_particles(mirror + np.random.default_rng(0).normal(0, 0.02, (pf.n, 3)))
-    for _ in range(10):
+    for _ in range(RelocalizationPrior().jump_corrections + 2):
         pf.step(MotionInput(dt=0.033, command=(0, 0, 0)), detections(mirror))
-    assert pf.estimate().is_confident()
-    assert abs(math.remainder(pf._heading_reference - turned[2], 2 * math.pi)) < 0.05
+    estimate = pf.estimate()
+    assert estimate.is_confident()
+    assert np.hypot(estimate.x - turned[0], estimate.y - turned[1]) < 0.2
+    assert abs(math.remainder(estimate.theta - turned[2], 2 * math.pi)) < 0.1
+    assert pf.relocalization.mirror_log_odds > math.log(RelocalizationPrior().mirror_odds)
 
 
 def test_weigh_is_log_mean_likelihood_and_normalize_bit_for_bit():

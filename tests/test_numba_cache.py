@@ -89,10 +89,10 @@ if part in ("filter", "all"):
     arguments = model.kernel_arguments(MotionInput(dt=0.01, command=(0.2, 0.0, 0.0), collision=percept))
     adaptive_move(adaptive.poses.copy(), model.particle_state(64), *arguments, rng.random((64, VARIATES)))
 
-    # Injection once the heading reference is trusted (the headings around it: `injected_headings`).
+    # Injection around a known pose (the relocalization's proposal: the single-detection sampler).
     injecting = ParticleFilter(field, VelocityLinear(), LandmarkSensorModel(field), n_particles=64, seed=4,
                                augmented=AugmentedMCL())
-    injecting._ever_confident = True
+    injecting.reset_around((0.5, 0.5, 0.0))
     injecting._sample_injection(8, observations)
 
     # Kernels that are public on their own (the tests compare them with their numpy twins) beside the fused

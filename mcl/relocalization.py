@@ -1,0 +1,331 @@
+"""Re-localization on a soccer field: which fresh hypotheses a lost filter injects, and what the robot knows
+that tells a pose from its mirror.
+
+    from mcl import ParticleFilter
+    from mcl.relocalization import RelocalizationPrior, SoccerRelocalization
+
+    pf = ParticleFilter(field, motion, sensor, relocalization=SoccerRelocalization(RelocalizationPrior()))
+
+The particle filter (`mcl.filter`) decides *how many* particles to replace (augmented MCL: when the
+detections are poorly explained); this module decides *which*. It is the one place where soccer knowledge
+enters the filter, and it enters as evidence with a weight, never as a gate:
+
+1. **Every pose that explains the detections is a candidate, whatever its heading.** The candidates are the
+   poses that explain two detections at once (`sensing.resetting.poses_from_pairs`: every consistent
+   association, so the true pose and its mirror both), poses that explain one detection with a heading drawn
+   from the whole circle (the sensor model's `sample_poses`), and a few uniform over the carpet. A kidnap
+   that turns the robot cannot put the true pose beyond reach.
+2. **Each candidate is weighed by how well it explains the whole frame and by a prior** (sampling-importance-
+   resampling: `pool` candidates per injected particle, `count` of them drawn in proportion to
+   likelihood × prior). The prior is what the robot knows of where it can be:
+   - *continuity*: the anchor, the last confident pose that explained the detections, carried forward by
+     the motion inputs as dead reckoning. A robot that is carried, pushed or spun moves a few metres at
+     most: the prior falls off as a normal of `kidnap_sigma` (widened by `drift` of the distance dead-reckoned
+     since) with a floor `tail` so that no pose on the carpet is ruled out;
+   - *heading*: a share `heading_weight` of the prior says the heading was kept (normal of `heading_sigma`
+     around the anchor's heading), the rest is uniform: odometry does not see a carried or spun robot turn;
+   - *placement region*: before the filter has been confident once after a reset over a region (the own
+     half at kick-off), a pose outside it gets `region_tail` of the prior.
+   The mirror pose (−x, −y, θ + π) explains every detection exactly as well as the true one, so the prior
+   alone tells them apart: continuity does when the robot is away from the centre, the heading when the
+   kidnap kept it. When nothing tells them apart, both are injected in equal numbers and the estimate's
+   weight (and `mcl.localizer`'s quality) shows a split belief.
+3. **The anchor is evidence too.** It follows the estimate only while the estimate is confident and explains
+   the detections (`confirm`), and whatever its heading: a kidnap may turn the robot. Resets set it: a known
+   pose (`reset_pose`) sets it, a region (`reset_region`) clears it.
+
+The filter knows this class only by its methods (`reset_region`, `reset_pose`, `mirror`, `carry`,
+`confirm`, `tracking`, `propose`), so a team with other rules writes another class with the same methods.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from field.angles import wrap_angles
+from sensing.observations import Observations
+from sensing.resetting import poses_from_pairs
+
+TWO_PI = 2.0 * math.pi
+
+
+@dataclass(frozen=True)
+class RelocalizationPrior:
+    """Where the robot can be, given the anchor (its last confident pose, dead-reckoned since): a mixture of
+    three densities over (x, y, θ) (see the module docstring).
+
+    kidnap_share:     prior probability that something odometry did not see moved the robot (carried, pushed,
+                      spun): then its position is normal around the anchor with `kidnap_sigma`
+    kidnap_sigma:     m
+    heading_kept:     share of such displacements that keep the heading (normal of `track_heading_sigma` around
+                      the anchor's); the rest turn the robot by any angle. Evidence, not a gate: a carried
+                      robot's heading usually survives, a pushed or spun one's does not
+    tail_share:       prior probability of anywhere on the carpet, any heading: no pose is ruled out
+    track_sigma:      m, otherwise (1 − kidnap_share − tail_share) the robot is where the anchor says, normal
+                      with this spread in position ...
+    track_heading_sigma: rad, ... and this in heading
+    drift:            share of the distance dead-reckoned since the anchor that widens both position sigmas
+    region_tail:      prior factor outside the placement region, before the first confident estimate after it
+    pool:             candidates drawn per injected particle (each also with its mirror image)
+    pair_share:       share of the candidates taken from detection pairs (when a frame has two or more)
+    uniform_share:    share of the candidates uniform over the carpet
+    jitter:           (x [m], y [m], θ [rad]) normal noise added to each injected candidate
+    mirror_odds:      a candidate whose prior beats its mirror image's by more than this is injected without
+                      the mirror image (and the other way round); closer odds inject both
+    jump_corrections: corrections in a row a confident estimate away from the anchor must hold (within 0.5 m
+                      and 0.5 rad from one to the next) before it becomes the anchor
+    confident_corrections: corrections in a row the estimate must be confident before the placement region
+                      is lifted and injection is capped at the filter's tracking share
+    """
+
+    kidnap_share: float = 0.1
+    kidnap_sigma: float = 2.5
+    heading_kept: float = 0.5
+    tail_share: float = 0.01
+    track_sigma: float = 0.3
+    track_heading_sigma: float = 0.3
+    drift: float = 0.3
+    region_tail: float = 0.05
+    pool: int = 4
+    pair_share: float = 0.6
+    uniform_share: float = 0.1
+    jitter: tuple = (0.03, 0.03, 0.03)
+    mirror_odds: float = 2.0
+    jump_corrections: int = 10
+    confident_corrections: int = 120
+
+    def __post_init__(self) -> None:
+        for name in ("kidnap_sigma", "track_sigma", "track_heading_sigma"):
+            value = getattr(self, name)
+            if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
+                raise ValueError(f"{name} = {value!r} must be a finite number > 0")
+        for name in ("kidnap_share", "heading_kept", "tail_share", "drift", "region_tail", "pair_share", "uniform_share"):
+            value = getattr(self, name)
+            if not (isinstance(value, (int, float)) and math.isfinite(value) and 0 <= value <= 1):
+                raise ValueError(f"{name} = {value!r} must be within [0, 1]")
+        if self.tail_share <= 0 or self.region_tail <= 0:
+            raise ValueError(f"tail_share = {self.tail_share!r}, region_tail = {self.region_tail!r} must be > 0: "
+                             "a prior of zero would be a gate")
+        if self.kidnap_share + self.tail_share >= 1:
+            raise ValueError(f"kidnap_share + tail_share = {self.kidnap_share + self.tail_share!r} must be < 1")
+        if self.pair_share + self.uniform_share > 1:
+            raise ValueError(f"pair_share + uniform_share = {self.pair_share + self.uniform_share!r} must be <= 1")
+        for name in ("pool", "jump_corrections", "confident_corrections"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+                raise ValueError(f"{name} = {value!r} must be an integer >= 1")
+        if not (isinstance(self.mirror_odds, (int, float)) and math.isfinite(self.mirror_odds)
+                and self.mirror_odds >= 1):
+            raise ValueError(f"mirror_odds = {self.mirror_odds!r} must be a finite number >= 1")
+        jitter = np.asarray(self.jitter, dtype=np.float64)
+        if jitter.shape != (3,) or not np.isfinite(jitter).all() or (jitter < 0).any():
+            raise ValueError(f"jitter = {self.jitter!r} must be three finite numbers >= 0")
+
+
+class SoccerRelocalization:
+    """The soccer field's re-localization rules as evidence (see the module docstring); one per filter."""
+
+    def __init__(self, prior: RelocalizationPrior = RelocalizationPrior()) -> None:
+        if not isinstance(prior, RelocalizationPrior):
+            raise ValueError(f"prior = {prior!r} must be an mcl.relocalization.RelocalizationPrior")
+        self.prior = prior
+        self.anchor: np.ndarray | None = None    # last confident pose, dead-reckoned since
+        self.travelled = 0.0                     # m dead-reckoned since the anchor was confirmed
+        self.region: tuple[float, float, float, float] | None = None
+        self.tracking = False                    # confident once since the last reset
+        self._pending: np.ndarray | None = None  # a confident estimate away from the anchor, not yet accepted
+        self._pending_count = 0
+        # the prior's log odds of the last re-localized pose against its mirror image (+inf: none since a known
+        # pose): how sure the filter can be that it is not on the mirror (see `confirm`)
+        self.mirror_log_odds = math.inf
+        self._streak = 0
+        self._carpet = (-1.0, 1.0, -1.0, 1.0)
+
+    @property
+    def carpet(self) -> tuple[float, float, float, float]:
+        """The carpet's bounds (x_min, x_max, y_min, y_max), as the filter gave them (`bind`)."""
+        return self._carpet
+
+    def bind(self, carpet: tuple[float, float, float, float]) -> None:
+        """The carpet's bounds (x_min, x_max, y_min, y_max): where uniform candidates are drawn."""
+        self._carpet = tuple(float(v) for v in carpet)
+
+    # -- what the filter tells it -------------------------------------------------------------------------
+    def reset_region(self, bounds) -> None:
+        """The robot is somewhere in `bounds` (x_min, x_max, y_min, y_max), nothing else known."""
+        self.region = tuple(float(v) for v in bounds)
+        self.mirror_log_odds = math.inf
+        self.anchor = None
+        self.travelled = 0.0
+        self.tracking = False
+        self._streak = 0
+        self._pending = None
+
+    def reset_pose(self, pose) -> None:
+        """The robot is at `pose` (x, y, θ): the anchor, trusted at once."""
+        self.anchor = np.array([float(pose[0]), float(pose[1]), math.remainder(float(pose[2]), TWO_PI)])
+        self.travelled = 0.0
+        self.region = None
+        self.mirror_log_odds = math.inf
+        self.tracking = True
+        self._streak = 0
+        self._pending = None
+
+    def mirror(self) -> None:
+        """The belief was mirrored through the centre mark: so is the anchor (and the region)."""
+        if self.anchor is not None:
+            x, y, theta = self.anchor
+            self.anchor = np.array([-x, -y, math.remainder(theta + math.pi, TWO_PI)])
+        if self.region is not None:
+            x_min, x_max, y_min, y_max = self.region
+            self.region = (-x_max, -x_min, -y_max, -y_min)
+
+    def carry(self, dx: float, dy: float, dtheta: float) -> None:
+        """Dead-reckon the anchor by a robot-frame displacement (the motion input of a step)."""
+        anchor = self.anchor
+        if anchor is None:
+            return
+        c, s = math.cos(anchor[2]), math.sin(anchor[2])
+        anchor[0] += c * dx - s * dy
+        anchor[1] += s * dx + c * dy
+        anchor[2] = math.remainder(anchor[2] + dtheta, TWO_PI)
+        self.travelled += math.hypot(dx, dy)
+
+    def confirm(self, pose: np.ndarray, confident: bool, explains: bool) -> bool:
+        """After a correction: the estimate `pose`, whether it is confident, and whether the belief explains
+        the detections. Returns whether the filter should mirror its particles through the centre mark.
+
+        A confident estimate that explains the detections becomes the anchor. When it lies beyond the tracking
+        part of the prior (3 σ from the dead-reckoned anchor, or there was no anchor), the filter has
+        re-localized, and the prior weighs the new pose against its mirror image, which explains every
+        detection exactly as well: when the mirror image is the more probable by more than `mirror_odds`, the
+        belief belongs there (returns True, and the anchor is the mirror image). `mirror_log_odds` keeps the
+        odds of the pose kept against its mirror image: nothing seen afterwards can change them."""
+        flip = False
+        if confident and explains:
+            pose = np.array([float(pose[0]), float(pose[1]), float(pose[2])])
+            jumped = self.anchor is None
+            if not jumped:
+                sigma = math.hypot(self.prior.track_sigma, self.prior.drift * self.travelled)
+                jumped = math.hypot(pose[0] - self.anchor[0], pose[1] - self.anchor[1]) > 3 * sigma
+            if jumped:
+                # a new place must hold for `jump_corrections` corrections in a row before it counts: early in
+                # a re-localization a wrong cluster can be tight and fit a few detections for a moment
+                previous = self._pending
+                if previous is not None and math.hypot(pose[0] - previous[0], pose[1] - previous[1]) <= 0.5 \
+                        and abs(math.remainder(pose[2] - previous[2], TWO_PI)) <= 0.5:
+                    self._pending_count += 1
+                else:
+                    self._pending_count = 1
+                self._pending = pose
+                if self._pending_count < self.prior.jump_corrections:
+                    return self._count_streak(confident, flip)
+                mirror = np.array([-pose[0], -pose[1], math.remainder(pose[2] + math.pi, TWO_PI)])
+                log_prior = self.log_prior(np.stack([pose, mirror]))
+                odds = float(log_prior[0] - log_prior[1])
+                if odds < -math.log(self.prior.mirror_odds):
+                    pose, odds, flip = mirror, -odds, True
+                self.mirror_log_odds = odds
+            self.anchor = pose
+            self.travelled = 0.0
+            self._pending = None
+        else:
+            self._pending = None
+        return self._count_streak(confident, flip)
+
+    def _count_streak(self, confident: bool, flip: bool) -> bool:
+        if self.tracking:
+            return flip
+        self._streak = self._streak + 1 if confident else 0
+        if self._streak >= self.prior.confident_corrections:
+            self.tracking = True
+            self.region = None
+        return flip
+
+    # -- what it gives the filter -------------------------------------------------------------------------
+    def log_prior(self, poses: np.ndarray) -> np.ndarray:
+        """The prior's log-density at each pose (N, 3) (see `RelocalizationPrior`); without an anchor, uniform
+        (times `region_tail` outside the placement region)."""
+        p = self.prior
+        x_min, x_max, y_min, y_max = self._carpet
+        uniform = 1.0 / ((x_max - x_min) * (y_max - y_min) * TWO_PI)
+        if self.anchor is None:
+            log_prior = np.full(poses.shape[0], math.log(uniform))
+        else:
+            widen = (p.drift * self.travelled) ** 2
+            d2 = (poses[:, 0] - self.anchor[0]) ** 2 + (poses[:, 1] - self.anchor[1]) ** 2
+            track2 = p.track_sigma ** 2 + widen
+            kidnap2 = p.kidnap_sigma ** 2 + widen
+            turn = wrap_angles(poses[:, 2] - self.anchor[2])
+            heading = np.exp(-0.5 * (turn / p.track_heading_sigma) ** 2) / (math.sqrt(TWO_PI) * p.track_heading_sigma)
+            kidnap_heading = (1.0 - p.heading_kept) / TWO_PI + p.heading_kept * heading
+            density = ((1.0 - p.kidnap_share - p.tail_share) * np.exp(-0.5 * d2 / track2) / (TWO_PI * track2) * heading
+                       + p.kidnap_share * np.exp(-0.5 * d2 / kidnap2) / (TWO_PI * kidnap2) * kidnap_heading
+                       + p.tail_share * uniform)
+            log_prior = np.log(density)
+        if self.region is not None:
+            x_min, x_max, y_min, y_max = self.region
+            inside = ((poses[:, 0] >= x_min) & (poses[:, 0] <= x_max)
+                      & (poses[:, 1] >= y_min) & (poses[:, 1] <= y_max))
+            log_prior += np.where(inside, 0.0, math.log(p.region_tail))
+        return log_prior
+
+    def propose(self, count: int, observations: Observations, sensor_model, rng: np.random.Generator,
+                reference: bool = False) -> np.ndarray:
+        """`count` poses (count, 3) to inject: candidates drawn from the detections, weighed by how well they
+        explain the whole frame and by the prior, `count` of them drawn in proportion (systematic).
+        reference: use the sensor model's plain numpy twins (`sample_poses_reference`), for tests."""
+        p = self.prior
+        if count <= 0:
+            return np.empty((0, 3))
+        pool = p.pool * count                   # candidates before their mirror images are added
+        parts = []
+        n_pairs = 0
+        if len(observations) >= 2 and callable(getattr(sensor_model, "candidates", None)):
+            pairs = poses_from_pairs(sensor_model, observations)
+            n_pairs = min(pairs.shape[0], int(round(p.pair_share * pool)), pool - 1)
+            if n_pairs:
+                parts.append(pairs if n_pairs == pairs.shape[0] else pairs[rng.permutation(pairs.shape[0])[:n_pairs]])
+        n_uniform = max(1, int(round(p.uniform_share * pool)))
+        sampler = getattr(sensor_model, "sample_poses_reference" if reference else "sample_poses", None)
+        n_single = pool - n_pairs - n_uniform
+        if n_single > 0 and sampler is not None and len(observations) > 0:
+            parts.append(np.asarray(sampler(observations, n_single, rng, heading=None), dtype=np.float64))
+        else:
+            n_uniform = pool - n_pairs          # at least one: a uniform candidate is always on the carpet
+        x_min, x_max, y_min, y_max = self.region if self.region is not None and not parts else self._carpet
+        uniform = np.empty((n_uniform, 3))
+        uniform[:, 0] = rng.uniform(x_min, x_max, n_uniform)
+        uniform[:, 1] = rng.uniform(y_min, y_max, n_uniform)
+        uniform[:, 2] = rng.uniform(-math.pi, math.pi, n_uniform)
+        parts.append(uniform)
+        # Every candidate with its mirror image: the two explain the frame equally well, so only the prior
+        # tells them apart, and it does so exactly (not by which of the two the draws happened to hit).
+        base = np.concatenate(parts)
+        mirrored = np.column_stack([-base[:, 0], -base[:, 1], wrap_angles(base[:, 2] + math.pi)])
+        candidates = np.concatenate([base, mirrored])
+        x_min, x_max, y_min, y_max = self._carpet
+        on_carpet = ((candidates[:, 0] >= x_min) & (candidates[:, 0] <= x_max)
+                     & (candidates[:, 1] >= y_min) & (candidates[:, 1] <= y_max))
+        log_prior = self.log_prior(candidates)
+        # Of a twin pair, the side the prior prefers by more than `mirror_odds` is kept alone: the likelihood
+        # cannot tell the two apart, and a few particles' noise would otherwise decide which cluster grows.
+        # Closer than that, both are kept, in proportion to their prior.
+        half = base.shape[0]
+        margin = log_prior[:half] - log_prior[half:]
+        drop = np.concatenate([margin < -math.log(p.mirror_odds), margin > math.log(p.mirror_odds)])
+        score = np.where(drop, -np.inf, log_prior)
+        if len(observations) > 0:
+            score = score + np.asarray(sensor_model.log_likelihood(candidates, observations), dtype=np.float64)
+        score = np.where(on_carpet & np.isfinite(score), score, -np.inf)
+        if not np.isfinite(score).any():          # nothing explains anything: any candidate on the carpet
+            score = np.where(on_carpet, 0.0, -np.inf)
+        weights = np.exp(score - score.max())
+        weights /= weights.sum()
+        positions = (rng.random() + np.arange(count)) / count
+        chosen = np.minimum(np.searchsorted(np.cumsum(weights), positions, side="right"), candidates.shape[0] - 1)
+        injected = candidates[chosen] + np.asarray(p.jitter) * rng.standard_normal((count, 3))
+        injected[:, 2] = wrap_angles(injected[:, 2])
+        return injected
