@@ -840,15 +840,14 @@ class ParticleFilter:
             self._entropy = Entropy(position, orientation)
 
     def _track_confidence(self) -> None:
-        """Tell the relocalization what the correction left: the estimate, whether it is confident, and whether
-        the belief explains the detections as well as it usually does (w_fast at least `ratio_threshold` of
+        """Tell the relocalization what the correction left: the estimate, and whether the belief explains the
+        detections as well as it usually does (w_fast at least `ratio_threshold` of
         w_slow: no injection asked for by a drop of the fit; an absolute level would depend on how noisy the
         camera is)."""
         if self._augmented is None:
             return
         estimate = self.estimate()
-        if self.relocalization.confirm(estimate.pose, estimate.is_confident(),
-                                       self.w_fast >= self._augmented.ratio_threshold * self.w_slow):
+        if self.relocalization.confirm(estimate, self.w_fast >= self._augmented.ratio_threshold * self.w_slow):
             # The relocalization's prior puts the belief on the mirror side of the field, which the detections
             # cannot tell from this one (the field is point-symmetric): the particles go there, weights kept.
             self._poses[:] = self._field.mirror_poses(self._poses)

@@ -42,7 +42,7 @@ odds of the last re-localization (the mirror pose explains every detection as we
 apart, see `mcl.relocalization`):
 - SUPERB: tight (position σ, heading σ small), one cluster, low entropy, recent detections explained, the
   mirror ruled out by odds of 10 or more;
-- OKAY: usable for behaviour, but wider or with less support, odds of 2 or more;
+- OKAY: usable for behaviour, but wider or with less support, the pose at least as probable as its mirror;
 - POOR: anything else. `is_lost` is POOR for `lost_after` seconds (1 s) in a row.
 """
 from __future__ import annotations
@@ -97,7 +97,7 @@ class QualityThresholds:
     superb_mirror_odds: float = 10.0   # the last re-localization preferred its pose to the mirror pose by this
                                        # much at least (`SoccerRelocalization.mirror_log_odds`; the mirror
                                        # explains every detection as well, so nothing seen afterwards can)
-    okay_mirror_odds: float = 2.0      # below these odds the pose is close to a coin toss against its mirror
+    okay_mirror_odds: float = 1.0      # below these odds the mirror pose is the more probable one
     okay_fit: float = 0.4
     okay_age: float = 6.0
     fit_window: float = 1.5            # s of detections the fit is taken over
@@ -342,12 +342,13 @@ class Localizer:
 
     @property
     def is_lost(self) -> bool:
-        """POOR quality for at least `lost_after` seconds in a row."""
+        """POOR quality for at least `lost_after` seconds in a row while standing (a fallen robot's pose is
+        POOR, but it is not lost: `got_up` widens the belief, and the clock starts then)."""
         return (self._poor_since is not None and self.time is not None
                 and self.time - self._poor_since >= self.thresholds.lost_after)
 
     def _update_lost(self) -> None:
-        if self.quality() is Quality.POOR:
+        if self.quality() is Quality.POOR and not self.is_fallen:
             if self._poor_since is None:
                 self._poor_since = self.time if self.time is not None else 0.0
         else:
@@ -395,6 +396,7 @@ class Localizer:
         """The robot fell: motion and detections are ignored (and counted) until `got_up`."""
         self.is_fallen = True
         self._quality = None
+        self._poor_since = None
 
     def got_up(self) -> None:
         """Standing again: the belief is widened by `getup_sigma` (falling and rising move and turn the robot)."""

@@ -74,6 +74,7 @@ class RelocalizationPrior:
     jitter:           (x [m], y [m], θ [rad]) normal noise added to each injected candidate
     mirror_odds:      a candidate whose prior beats its mirror image's by more than this is injected without
                       the mirror image (and the other way round); closer odds inject both
+    confident_weight: share of the belief the estimate's cluster must hold to be confident (with 0.3 m, 0.2 rad)
     jump_corrections: corrections in a row a confident estimate away from the anchor must hold (within 0.5 m
                       and 0.5 rad from one to the next) before it becomes the anchor
     confident_corrections: corrections in a row the estimate must be confident before the placement region
@@ -94,6 +95,7 @@ class RelocalizationPrior:
     jitter: tuple = (0.03, 0.03, 0.03)
     mirror_odds: float = 2.0
     jump_corrections: int = 10
+    confident_weight: float = 0.8
     confident_corrections: int = 120
 
     def __post_init__(self) -> None:
@@ -101,7 +103,8 @@ class RelocalizationPrior:
             value = getattr(self, name)
             if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
                 raise ValueError(f"{name} = {value!r} must be a finite number > 0")
-        for name in ("kidnap_share", "heading_kept", "tail_share", "drift", "region_tail", "pair_share", "uniform_share"):
+        for name in ("kidnap_share", "heading_kept", "tail_share", "confident_weight", "drift", "region_tail",
+                     "pair_share", "uniform_share"):
             value = getattr(self, name)
             if not (isinstance(value, (int, float)) and math.isfinite(value) and 0 <= value <= 1):
                 raise ValueError(f"{name} = {value!r} must be within [0, 1]")
@@ -193,9 +196,13 @@ class SoccerRelocalization:
         anchor[2] = math.remainder(anchor[2] + dtheta, TWO_PI)
         self.travelled += math.hypot(dx, dy)
 
-    def confirm(self, pose: np.ndarray, confident: bool, explains: bool) -> bool:
-        """After a correction: the estimate `pose`, whether it is confident, and whether the belief explains
-        the detections. Returns whether the filter should mirror its particles through the centre mark.
+    def confirm(self, estimate, explains: bool) -> bool:
+        """After a correction: the filter's estimate (`mcl.filter.Estimate`: pose, covariance, the dominant
+        cluster's weight) and whether the belief explains the detections. Returns whether the filter should
+        mirror its particles through the centre mark.
+
+        The estimate is confident when its cluster is tight (0.3 m, 0.2 rad) and holds `confident_weight` of
+        the belief.
 
         A confident estimate that explains the detections becomes the anchor. When it lies beyond the tracking
         part of the prior (3 σ from the dead-reckoned anchor, or there was no anchor), the filter has
@@ -204,8 +211,9 @@ class SoccerRelocalization:
         belief belongs there (returns True, and the anchor is the mirror image). `mirror_log_odds` keeps the
         odds of the pose kept against its mirror image: nothing seen afterwards can change them."""
         flip = False
+        confident = estimate.is_confident(weight=self.prior.confident_weight)
         if confident and explains:
-            pose = np.array([float(pose[0]), float(pose[1]), float(pose[2])])
+            pose = np.array([float(v) for v in estimate.pose])
             jumped = self.anchor is None
             if not jumped:
                 sigma = math.hypot(self.prior.track_sigma, self.prior.drift * self.travelled)

@@ -308,7 +308,8 @@ def test_short_tracking_run_end_to_end():
 def test_command_line(capsys, tmp_path):
     assert split_seeds("train", 3) == [0, 1, 2] and split_seeds("holdout", 2) == [1000, 1001]
     for bad in (["--families", "tracking,nope"], ["--split", "dev"], ["--seeds", "0"], ["--duration", "2"],
-                ["--particles", "-5"], ["--jobs", "x"]):
+                ["--particles", "-5"], ["--jobs", "x"], ["--prior", "bogus=1"], ["--prior", "pool=0"],
+                ["--quality", "gate=x"], ["--quality", "superb_fit=2"]):
         with pytest.raises(SystemExit) as exit_info:
             battery_main(bad)
         assert exit_info.value.code == 2
@@ -319,3 +320,8 @@ def test_command_line(capsys, tmp_path):
     printed = json.loads(capsys.readouterr().out)
     assert printed["splits"]["train"]["seeds"] == [0]
     assert json.loads(path.read_text())["splits"]["train"]["families"]["tracking"]["runs"][0]["seed"] == 0
+    # a variant is labelled as one, in the report and in the results
+    assert battery_main(["--families", "tracking", "--split", "train", "--seeds", "1", "--duration", "10",
+                         "--jobs", "1", "--prior", "kidnap_sigma=1.5", "--quality", "lost_after=2"]) == 0
+    report = capsys.readouterr().out
+    assert "VARIANT (kidnap_sigma=1.5, lost_after=2.0)" in report

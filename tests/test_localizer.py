@@ -219,6 +219,9 @@ def test_fallen_robot_ignores_motion_and_detections_and_getting_up_widens_the_be
     np.testing.assert_array_equal(loc.filter.poses, before)
     assert loc.quality() is Quality.POOR
     assert loc.counts == {"motion while fallen": 1, "observation while fallen": 1}
+    for k in range(2, 400):                     # lying for 4 s: POOR, but not lost (it knows why)
+        loc.motion(0.01 * k, MotionInput(dt=0.01, command=(0.0, 0.0, 0.0)))
+    assert loc.quality() is Quality.POOR and not loc.is_lost
     loc.got_up()
     spread_before = np.std(before, axis=0)
     spread_after = np.std(loc.filter.poses, axis=0)

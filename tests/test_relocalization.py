@@ -9,7 +9,7 @@ from hypothesis import strategies as st
 
 from field import LandmarkType, spl
 from field.angles import wrap_angles
-from mcl import ParticleFilter
+from mcl import Estimate, ParticleFilter
 from mcl.localizer import Localizer, explained_detections
 from mcl.relocalization import RelocalizationPrior, SoccerRelocalization
 from motion_models import MotionInput, VelocityLinear
@@ -154,13 +154,14 @@ def test_a_confident_cluster_on_the_less_likely_side_is_mirrored_after_it_holds(
     relocalization.bind((-5.2, 5.2, -3.7, 3.7))
     relocalization.reset_pose((-3.0, -1.0, 0.0))
     mirror_side = np.array([2.0, 2.0, 1.0])       # the truth would be (-2, -2, 1 - π): 1 m from the anchor
-    flips = [relocalization.confirm(mirror_side, True, True) for _ in range(RelocalizationPrior().jump_corrections)]
+    confident = Estimate(mirror_side, np.diag([1e-3, 1e-3, 1e-3]), 1.0)
+    flips = [relocalization.confirm(confident, True) for _ in range(RelocalizationPrior().jump_corrections)]
     assert flips[-1] and not any(flips[:-1])
     np.testing.assert_allclose(relocalization.anchor[:2], -mirror_side[:2])
     assert relocalization.mirror_log_odds > math.log(RelocalizationPrior().mirror_odds)
     # a cluster that does not explain the detections moves nothing
     before = relocalization.anchor.copy()
-    assert not relocalization.confirm(np.array([4.0, 0.0, 0.0]), True, False)
+    assert not relocalization.confirm(Estimate(np.array([4.0, 0.0, 0.0]), np.diag([1e-3] * 3), 1.0), False)
     np.testing.assert_array_equal(relocalization.anchor, before)
 
 
