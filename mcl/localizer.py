@@ -55,7 +55,6 @@ from dataclasses import dataclass
 import numpy as np
 
 from field import Field
-from field.angles import wrap_angles
 from motion_models import MotionInput
 from sensing import LandmarkSensorModel
 from sensing.observations import Observations
@@ -124,37 +123,13 @@ def _log(odds: float) -> float:
 
 def explained_detections(sensor_model, pose, observations: Observations, gate: float = 3.0,
                          range_slack: float = 0.0, bearing_slack: float = 0.0) -> np.ndarray | None:
-    """Which detections (bool per detection) the pose (x, y, θ) explains: a landmark of the detection's type
-    lies within `gate` standard deviations in range and bearing (σ: the detection's own, else the sensor
-    model's, plus the slacks). None when the sensor model has no landmarks to ask (`candidates`,
-    `range_sigma`, `bearing_sigma`)."""
-    candidates_of = getattr(sensor_model, "candidates", None)
-    if not callable(candidates_of) or not callable(getattr(sensor_model, "range_sigma", None)):
+    """Which detections (bool per detection) the pose (x, y, θ) explains, as the sensor model says
+    (`explained(pose, observations, gate, range_slack, bearing_slack)`, a capability `LandmarkSensorModel`
+    offers); None when the model cannot say."""
+    explained = getattr(sensor_model, "explained", None)
+    if not callable(explained):
         return None
-    m = len(observations)
-    explained = np.zeros(m, dtype=bool)
-    if m == 0:
-        return explained
-    x, y, theta = float(pose[0]), float(pose[1]), float(pose[2])
-    ranges = observations.ranges
-    range_sigmas = np.where(np.isnan(observations.range_sigmas), sensor_model.range_sigma(ranges),
-                            observations.range_sigmas) + range_slack
-    bearing_sigmas = np.where(np.isnan(observations.bearing_sigmas), float(sensor_model.bearing_sigma),
-                              observations.bearing_sigmas) + bearing_slack
-    for kind in np.unique(observations.kinds):
-        rows = np.flatnonzero(observations.kinds == kind)
-        landmarks = candidates_of(int(kind))
-        if landmarks.shape[0] == 0:
-            continue
-        dx = landmarks[:, 0] - x
-        dy = landmarks[:, 1] - y
-        expected_range = np.hypot(dx, dy)
-        expected_bearing = np.arctan2(dy, dx) - theta
-        range_error = (ranges[rows, None] - expected_range[None, :]) / range_sigmas[rows, None]
-        bearing_error = wrap_angles(observations.bearings[rows, None] - expected_bearing[None, :]) \
-            / bearing_sigmas[rows, None]
-        explained[rows] = (range_error ** 2 + bearing_error ** 2).min(axis=1) <= gate * gate
-    return explained
+    return explained(pose, observations, gate, range_slack, bearing_slack)
 
 
 def touchline_poses(field: Field, x_values) -> np.ndarray:

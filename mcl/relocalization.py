@@ -42,11 +42,12 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 
-from field.angles import wrap_angles
+from field.angles import wrap_angle, wrap_angles
 from sensing.observations import Observations
-from sensing.resetting import poses_from_pairs
+from sensing.resetting import poses_from_pairs, poses_from_pairs_reference
 
 TWO_PI = 2.0 * math.pi
 
@@ -134,17 +135,23 @@ class SoccerRelocalization:
         if not isinstance(prior, RelocalizationPrior):
             raise ValueError(f"prior = {prior!r} must be an mcl.relocalization.RelocalizationPrior")
         self.prior = prior
-        self.anchor: np.ndarray | None = None    # last confident pose, dead-reckoned since
+        self._anchor: list[float] | None = None  # last confident pose, dead-reckoned since
         self.travelled = 0.0                     # m dead-reckoned since the anchor was confirmed
         self.region: tuple[float, float, float, float] | None = None
         self.tracking = False                    # confident once since the last reset
-        self._pending: np.ndarray | None = None  # a confident estimate away from the anchor, not yet accepted
+        self._pending: list[float] | None = None  # a confident estimate away from the anchor, not yet accepted
         self._pending_count = 0
         # the prior's log odds of the last re-localized pose against its mirror image (+inf: none since a known
         # pose): how sure the filter can be that it is not on the mirror (see `confirm`)
         self.mirror_log_odds = math.inf
         self._streak = 0
         self._carpet = (-1.0, 1.0, -1.0, 1.0)
+
+    @property
+    def anchor(self) -> np.ndarray | None:
+        """The anchor (x, y, θ): the last confident pose that explained the detections, dead-reckoned since
+        (None after a reset over a region, until the first one)."""
+        return None if self._anchor is None else np.array(self._anchor)
 
     @property
     def carpet(self) -> tuple[float, float, float, float]:
@@ -160,7 +167,7 @@ class SoccerRelocalization:
         """The robot is somewhere in `bounds` (x_min, x_max, y_min, y_max), nothing else known."""
         self.region = tuple(float(v) for v in bounds)
         self.mirror_log_odds = math.inf
-        self.anchor = None
+        self._anchor = None
         self.travelled = 0.0
         self.tracking = False
         self._streak = 0
@@ -168,7 +175,7 @@ class SoccerRelocalization:
 
     def reset_pose(self, pose) -> None:
         """The robot is at `pose` (x, y, θ): the anchor, trusted at once."""
-        self.anchor = np.array([float(pose[0]), float(pose[1]), math.remainder(float(pose[2]), TWO_PI)])
+        self._anchor = [float(pose[0]), float(pose[1]), math.remainder(float(pose[2]), TWO_PI)]
         self.travelled = 0.0
         self.region = None
         self.mirror_log_odds = math.inf
@@ -178,16 +185,16 @@ class SoccerRelocalization:
 
     def mirror(self) -> None:
         """The belief was mirrored through the centre mark: so is the anchor (and the region)."""
-        if self.anchor is not None:
-            x, y, theta = self.anchor
-            self.anchor = np.array([-x, -y, math.remainder(theta + math.pi, TWO_PI)])
+        if self._anchor is not None:
+            x, y, theta = self._anchor
+            self._anchor = [-x, -y, math.remainder(theta + math.pi, TWO_PI)]
         if self.region is not None:
             x_min, x_max, y_min, y_max = self.region
             self.region = (-x_max, -x_min, -y_max, -y_min)
 
     def carry(self, dx: float, dy: float, dtheta: float) -> None:
         """Dead-reckon the anchor by a robot-frame displacement (the motion input of a step)."""
-        anchor = self.anchor
+        anchor = self._anchor
         if anchor is None:
             return
         c, s = math.cos(anchor[2]), math.sin(anchor[2])
@@ -213,11 +220,12 @@ class SoccerRelocalization:
         flip = False
         confident = estimate.is_confident(weight=self.prior.confident_weight)
         if confident and explains:
-            pose = np.array([float(v) for v in estimate.pose])
-            jumped = self.anchor is None
+            pose = estimate.pose.tolist()
+            anchor = self._anchor
+            jumped = anchor is None
             if not jumped:
                 sigma = math.hypot(self.prior.track_sigma, self.prior.drift * self.travelled)
-                jumped = math.hypot(pose[0] - self.anchor[0], pose[1] - self.anchor[1]) > 3 * sigma
+                jumped = math.hypot(pose[0] - anchor[0], pose[1] - anchor[1]) > 3 * sigma
             if jumped:
                 # a new place must hold for `jump_corrections` corrections in a row before it counts: early in
                 # a re-localization a wrong cluster can be tight and fit a few detections for a moment
@@ -230,13 +238,13 @@ class SoccerRelocalization:
                 self._pending = pose
                 if self._pending_count < self.prior.jump_corrections:
                     return self._count_streak(confident, flip)
-                mirror = np.array([-pose[0], -pose[1], math.remainder(pose[2] + math.pi, TWO_PI)])
-                log_prior = self.log_prior(np.stack([pose, mirror]))
+                mirror = [-pose[0], -pose[1], math.remainder(pose[2] + math.pi, TWO_PI)]
+                log_prior = self.log_prior(np.array([pose, mirror]))
                 odds = float(log_prior[0] - log_prior[1])
                 if odds < -math.log(self.prior.mirror_odds):
                     pose, odds, flip = mirror, -odds, True
                 self.mirror_log_odds = odds
-            self.anchor = pose
+            self._anchor = pose
             self.travelled = 0.0
             self._pending = None
         else:
@@ -253,46 +261,61 @@ class SoccerRelocalization:
         return flip
 
     # -- what it gives the filter -------------------------------------------------------------------------
-    def log_prior(self, poses: np.ndarray) -> np.ndarray:
-        """The prior's log-density at each pose (N, 3) (see `RelocalizationPrior`); without an anchor, uniform
-        (times `region_tail` outside the placement region)."""
+    def _prior_arguments(self) -> tuple:
+        """The prior's parameters as `log_prior_kernel` takes them."""
         p = self.prior
         x_min, x_max, y_min, y_max = self._carpet
         uniform = 1.0 / ((x_max - x_min) * (y_max - y_min) * TWO_PI)
-        if self.anchor is None:
+        widen = (p.drift * self.travelled) ** 2
+        anchor = (0.0, 0.0, 0.0) if self._anchor is None else tuple(self._anchor)
+        region = (0.0, 0.0, 0.0, 0.0) if self.region is None else tuple(self.region)
+        return (self._anchor is not None, *anchor, p.track_sigma ** 2 + widen, p.kidnap_sigma ** 2 + widen,
+                p.track_heading_sigma, p.kidnap_share, p.tail_share, p.heading_kept, uniform,
+                self.region is not None, *region, math.log(p.region_tail))
+
+    def log_prior(self, poses: np.ndarray) -> np.ndarray:
+        """The prior's log-density at each pose (N, 3) (see `RelocalizationPrior`); without an anchor, uniform
+        (times `region_tail` outside the placement region). Compiled (`log_prior_kernel`); the numpy twin is
+        `log_prior_reference`."""
+        poses = np.ascontiguousarray(poses, dtype=np.float64)
+        return log_prior_kernel(poses, *self._prior_arguments(), np.empty(poses.shape[0]))
+
+    def log_prior_reference(self, poses: np.ndarray) -> np.ndarray:
+        """Plain numpy twin of `log_prior`."""
+        (has_anchor, ax, ay, at, track2, kidnap2, heading_sigma, kidnap_share, tail_share, heading_kept, uniform,
+         has_region, x_min, x_max, y_min, y_max, log_region_tail) = self._prior_arguments()
+        poses = np.asarray(poses, dtype=np.float64)
+        if not has_anchor:
             log_prior = np.full(poses.shape[0], math.log(uniform))
         else:
-            widen = (p.drift * self.travelled) ** 2
-            d2 = (poses[:, 0] - self.anchor[0]) ** 2 + (poses[:, 1] - self.anchor[1]) ** 2
-            track2 = p.track_sigma ** 2 + widen
-            kidnap2 = p.kidnap_sigma ** 2 + widen
-            turn = wrap_angles(poses[:, 2] - self.anchor[2])
-            heading = np.exp(-0.5 * (turn / p.track_heading_sigma) ** 2) / (math.sqrt(TWO_PI) * p.track_heading_sigma)
-            kidnap_heading = (1.0 - p.heading_kept) / TWO_PI + p.heading_kept * heading
-            density = ((1.0 - p.kidnap_share - p.tail_share) * np.exp(-0.5 * d2 / track2) / (TWO_PI * track2) * heading
-                       + p.kidnap_share * np.exp(-0.5 * d2 / kidnap2) / (TWO_PI * kidnap2) * kidnap_heading
-                       + p.tail_share * uniform)
+            d2 = (poses[:, 0] - ax) ** 2 + (poses[:, 1] - ay) ** 2
+            turn = wrap_angles(poses[:, 2] - at)
+            heading = np.exp(-0.5 * (turn / heading_sigma) ** 2) / (math.sqrt(TWO_PI) * heading_sigma)
+            kidnap_heading = (1.0 - heading_kept) / TWO_PI + heading_kept * heading
+            density = ((1.0 - kidnap_share - tail_share) * np.exp(-0.5 * d2 / track2) / (TWO_PI * track2) * heading
+                       + kidnap_share * np.exp(-0.5 * d2 / kidnap2) / (TWO_PI * kidnap2) * kidnap_heading
+                       + tail_share * uniform)
             log_prior = np.log(density)
-        if self.region is not None:
-            x_min, x_max, y_min, y_max = self.region
+        if has_region:
             inside = ((poses[:, 0] >= x_min) & (poses[:, 0] <= x_max)
                       & (poses[:, 1] >= y_min) & (poses[:, 1] <= y_max))
-            log_prior += np.where(inside, 0.0, math.log(p.region_tail))
+            log_prior = log_prior + np.where(inside, 0.0, log_region_tail)
         return log_prior
 
     def propose(self, count: int, observations: Observations, sensor_model, rng: np.random.Generator,
                 reference: bool = False) -> np.ndarray:
         """`count` poses (count, 3) to inject: candidates drawn from the detections, weighed by how well they
         explain the whole frame and by the prior, `count` of them drawn in proportion (systematic).
-        reference: use the sensor model's plain numpy twins (`sample_poses_reference`), for tests."""
+        reference: use the plain numpy twins (`sample_poses_reference`, `poses_from_pairs_reference`), for
+        tests."""
         p = self.prior
         if count <= 0:
             return np.empty((0, 3))
         pool = p.pool * count                   # candidates before their mirror images are added
         parts = []
         n_pairs = 0
-        if len(observations) >= 2 and callable(getattr(sensor_model, "candidates", None)):
-            pairs = poses_from_pairs(sensor_model, observations)
+        if len(observations) >= 2 and getattr(sensor_model, "landmark_table", None) is not None:
+            pairs = (poses_from_pairs_reference if reference else poses_from_pairs)(sensor_model, observations)
             n_pairs = min(pairs.shape[0], int(round(p.pair_share * pool)), pool - 1)
             if n_pairs:
                 parts.append(pairs if n_pairs == pairs.shape[0] else pairs[rng.permutation(pairs.shape[0])[:n_pairs]])
@@ -337,3 +360,30 @@ class SoccerRelocalization:
         injected = candidates[chosen] + np.asarray(p.jitter) * rng.standard_normal((count, 3))
         injected[:, 2] = wrap_angles(injected[:, 2])
         return injected
+
+
+@numba.njit(cache=True)
+def log_prior_kernel(poses, has_anchor, ax, ay, at, track2, kidnap2, heading_sigma, kidnap_share, tail_share,
+                     heading_kept, uniform, has_region, x_min, x_max, y_min, y_max, log_region_tail, out):
+    """out[i] ← the prior's log-density at poses[i] (`SoccerRelocalization.log_prior`; numpy twin
+    `SoccerRelocalization.log_prior_reference`, the same operations in the same order). Returns out."""
+    for i in range(poses.shape[0]):
+        if has_anchor:
+            d2 = (poses[i, 0] - ax) ** 2 + (poses[i, 1] - ay) ** 2
+            turn = wrap_angle(poses[i, 2] - at)
+            heading = math.exp(-0.5 * (turn / heading_sigma) ** 2) / (math.sqrt(TWO_PI) * heading_sigma)
+            kidnap_heading = (1.0 - heading_kept) / TWO_PI + heading_kept * heading
+            density = ((1.0 - kidnap_share - tail_share) * math.exp(-0.5 * d2 / track2) / (TWO_PI * track2)
+                       * heading
+                       + kidnap_share * math.exp(-0.5 * d2 / kidnap2) / (TWO_PI * kidnap2) * kidnap_heading
+                       + tail_share * uniform)
+            value = math.log(density)
+        else:
+            value = math.log(uniform)
+        if has_region:
+            x = poses[i, 0]
+            y = poses[i, 1]
+            inside = (x >= x_min) & (x <= x_max) & (y >= y_min) & (y <= y_max)
+            value = value + (0.0 if inside else log_region_tail)
+        out[i] = value
+    return out

@@ -621,6 +621,36 @@ def landmark_log_likelihood_reference(poses, candidates_by_kind, kinds, ranges, 
     return total
 
 
+@numba.njit(cache=True)
+def explained_detections(table, offsets, x, y, theta, kinds, ranges, bearings, range_sigmas, bearing_sigmas,
+                         range_noise_floor, range_noise_growth, bearing_sigma, gate, range_slack, bearing_slack, out):
+    """out[j] ← whether a landmark of detection j's type lies within `gate` standard deviations of where the
+    pose (x, y, θ) would see it, range and bearing errors together (`LandmarkSensorModel.explained`; numpy twin
+    `LandmarkSensorModel.explained_reference`). Returns out."""
+    limit = gate * gate
+    for j in range(kinds.shape[0]):
+        r = ranges[j]
+        range_sigma = range_sigmas[j]
+        if math.isnan(range_sigma):
+            range_sigma = range_noise_sigma(r, range_noise_floor, range_noise_growth)
+        range_sigma += range_slack
+        sigma = bearing_sigmas[j]
+        if math.isnan(sigma):
+            sigma = bearing_sigma
+        sigma += bearing_slack
+        found = False
+        for k in range(offsets[kinds[j]], offsets[kinds[j] + 1]):
+            dx = table[k, 0] - x
+            dy = table[k, 1] - y
+            range_error = (r - math.hypot(dx, dy)) / range_sigma
+            bearing_error = wrap_angle(bearings[j] - (math.atan2(dy, dx) - theta)) / sigma
+            if range_error ** 2 + bearing_error ** 2 <= limit:
+                found = True
+                break
+        out[j] = found
+    return out
+
+
 @dataclass(frozen=True, eq=False)
 class LandmarkSensorModel:
     """Range-bearing landmark likelihood for a field. Frozen; parameters in SI units.
@@ -692,6 +722,47 @@ class LandmarkSensorModel:
     def candidates(self, kind: LandmarkType | int) -> np.ndarray:
         k = int(kind)
         return self._table[self._offsets[k]:self._offsets[k + 1]]
+
+    def explained(self, pose, observations: Observations, gate: float = 3.0, range_slack: float = 0.0,
+                  bearing_slack: float = 0.0) -> np.ndarray:
+        """Which detections (bool per detection) the pose (x, y, θ) explains: a landmark of the detection's type
+        lies within `gate` standard deviations, in range and bearing together (σ: the detection's own, else
+        the model's, plus the slacks). Compiled (`explained_detections`); numpy twin `explained_reference`."""
+        observations = Observations.coerce(observations)
+        self.check(observations)
+        return explained_detections(self._table, self._offsets, float(pose[0]), float(pose[1]), float(pose[2]),
+                                    observations.kinds, observations.ranges, observations.bearings,
+                                    observations.range_sigmas, observations.bearing_sigmas, self.range_noise_floor,
+                                    self._range_noise_growth(), self.bearing_sigma, float(gate), float(range_slack),
+                                    float(bearing_slack), np.empty(len(observations), dtype=np.bool_))
+
+    def explained_reference(self, pose, observations: Observations, gate: float = 3.0, range_slack: float = 0.0,
+                            bearing_slack: float = 0.0) -> np.ndarray:
+        """Plain numpy twin of `explained`."""
+        observations = Observations.coerce(observations)
+        self.check(observations)
+        m = len(observations)
+        explained = np.zeros(m, dtype=bool)
+        x, y, theta = float(pose[0]), float(pose[1]), float(pose[2])
+        range_sigmas, bearing_sigmas = self._sigmas(observations)
+        range_sigmas = range_sigmas + range_slack
+        bearing_sigmas = bearing_sigmas + bearing_slack
+        for kind in np.unique(observations.kinds):
+            rows = np.flatnonzero(observations.kinds == kind)
+            landmarks = self.candidates(int(kind))
+            dx = landmarks[:, 0] - x
+            dy = landmarks[:, 1] - y
+            range_error = (observations.ranges[rows, None] - np.hypot(dx, dy)[None, :]) / range_sigmas[rows, None]
+            bearing_error = wrap_angles(observations.bearings[rows, None] - (np.arctan2(dy, dx) - theta)[None, :]) \
+                / bearing_sigmas[rows, None]
+            explained[rows] = (range_error ** 2 + bearing_error ** 2 <= gate * gate).any(axis=1)
+        return explained
+
+    @property
+    def landmark_table(self) -> tuple[np.ndarray, np.ndarray]:
+        """The landmarks as the kernels take them (read-only): `table` (L, 2) [x, y] sorted by type, and
+        `offsets`, so that the landmarks of type value k are table[offsets[k]:offsets[k + 1]]."""
+        return self._table, self._offsets
 
     def check(self, observations: Observations) -> None:
         """Raise ValueError if a detection's type has no landmark on this field."""

@@ -15,72 +15,126 @@ deviations of the two range errors (plus `slack` metres): a pair of real detecti
 association, and on the point-symmetric field its mirror (−x, −y, θ + π) too.
 
 This is the proposal that lets a lost filter consider every pose that explains what the camera sees, whatever
-the heading: `mcl.relocalization` scores these poses and decides which to inject. Plain numpy (it runs only
-when a filter injects); deterministic: no random draws.
+the heading: `mcl.relocalization` scores these poses and decides which to inject. `pair_poses` is the compiled
+kernel, `pair_poses_reference` its plain Python twin (the same poses in the same order, bit for bit); no random
+draws.
 """
 from __future__ import annotations
 
 import math
 
+import numba
 import numpy as np
 
-from field.angles import wrap_angles
+from field.angles import wrap_angle
 
 from .observations import Observations
 
 MAX_DETECTIONS = 8      # detections used per frame (the closest ones): 28 pairs at most
 
 
-def poses_from_pairs(model, observations: Observations, gate: float = 3.0, slack: float = 0.1,
-                     max_detections: int = MAX_DETECTIONS) -> np.ndarray:
-    """Every pose (P, 3) that sees two of the frame's detections where they were seen, one per consistent
-    association of the pair with landmarks of their types (see the module docstring). Needs a landmark
-    model with `candidates(kind)` and `range_sigma(ranges)`; empty (0, 3) with fewer than two detections."""
-    observations = Observations.coerce(observations)
-    m = len(observations)
-    if m < 2:
-        return np.empty((0, 3))
-    ranges = observations.ranges
-    order = np.argsort(ranges, kind="stable")[:max_detections]      # near detections are the precise ones
-    kinds = observations.kinds[order]
-    ranges = ranges[order]
+def _nearest(model, observations: Observations, max_detections: int):
+    """The `max_detections` nearest detections: kinds, robot-frame points (D, 2), range σ (the detection's own
+    or the model's)."""
+    order = np.argsort(observations.ranges, kind="stable")[:max_detections]
+    ranges = observations.ranges[order]
     bearings = observations.bearings[order]
     given = observations.range_sigmas[order]
     range_sigmas = np.where(np.isnan(given), model.range_sigma(ranges), given)
     points = np.column_stack([ranges * np.cos(bearings), ranges * np.sin(bearings)])
-    out = []
-    count = len(order)
+    return np.ascontiguousarray(observations.kinds[order]), np.ascontiguousarray(points), range_sigmas
+
+
+def poses_from_pairs(model, observations: Observations, gate: float = 3.0, slack: float = 0.1,
+                     max_detections: int = MAX_DETECTIONS) -> np.ndarray:
+    """Every pose (P, 3) that sees two of the frame's detections where they were seen, one per consistent
+    association of the pair with landmarks of their types (see the module docstring). Needs a landmark
+    model with `landmark_table` and `range_sigma(ranges)`; empty (0, 3) with fewer than two detections."""
+    observations = Observations.coerce(observations)
+    if len(observations) < 2:
+        return np.empty((0, 3))
+    table, offsets = model.landmark_table
+    kinds, points, range_sigmas = _nearest(model, observations, max_detections)
+    return pair_poses(table, offsets, kinds, points, range_sigmas, float(gate), float(slack))
+
+
+def poses_from_pairs_reference(model, observations: Observations, gate: float = 3.0, slack: float = 0.1,
+                               max_detections: int = MAX_DETECTIONS) -> np.ndarray:
+    """`poses_from_pairs` on `pair_poses_reference` (plain Python)."""
+    observations = Observations.coerce(observations)
+    if len(observations) < 2:
+        return np.empty((0, 3))
+    table, offsets = model.landmark_table
+    kinds, points, range_sigmas = _nearest(model, observations, max_detections)
+    return pair_poses_reference(table, offsets, kinds, points, range_sigmas, float(gate), float(slack))
+
+
+@numba.njit(cache=True)
+def pair_poses(table, offsets, kinds, points, range_sigmas, gate, slack):
+    """The poses of every consistent association of every pair (i < j) of detections, pairs in order and, in
+    each pair, landmark i's candidates outer and landmark j's inner (as `pair_poses_reference`). `table` and
+    `offsets` as `LandmarkSensorModel.landmark_table`; `points` (D, 2) the detections in the robot frame."""
+    count = kinds.shape[0]
+    total = 0
     for i in range(count - 1):
-        candidates_i = model.candidates(int(kinds[i]))
-        if candidates_i.shape[0] == 0:
-            continue
         for j in range(i + 1, count):
-            candidates_j = model.candidates(int(kinds[j]))
-            if candidates_j.shape[0] == 0:
-                continue
-            seen = points[j] - points[i]
-            seen_length = math.hypot(seen[0], seen[1])
+            total += (offsets[kinds[i] + 1] - offsets[kinds[i]]) * (offsets[kinds[j] + 1] - offsets[kinds[j]])
+    out = np.empty((total, 3))
+    n = 0
+    for i in range(count - 1):
+        for j in range(i + 1, count):
+            seen_x = points[j, 0] - points[i, 0]
+            seen_y = points[j, 1] - points[i, 1]
+            seen_length = math.hypot(seen_x, seen_y)
             if seen_length < 1e-6:
                 continue
-            # every (landmark for i, landmark for j) association, as (Ki·Kj, 2) arrays
-            li = np.repeat(candidates_i, candidates_j.shape[0], axis=0)
-            lj = np.tile(candidates_j, (candidates_i.shape[0], 1))
-            apart = lj - li
-            length = np.hypot(apart[:, 0], apart[:, 1])
+            seen_angle = math.atan2(seen_y, seen_x)
+            middle_seen_x = 0.5 * (points[i, 0] + points[j, 0])
+            middle_seen_y = 0.5 * (points[i, 1] + points[j, 1])
             tolerance = gate * math.hypot(range_sigmas[i], range_sigmas[j]) + slack
-            keep = (np.abs(length - seen_length) <= tolerance) & (length > 1e-6)
-            if not keep.any():
+            for a in range(offsets[kinds[i]], offsets[kinds[i] + 1]):
+                for b in range(offsets[kinds[j]], offsets[kinds[j] + 1]):
+                    apart_x = table[b, 0] - table[a, 0]
+                    apart_y = table[b, 1] - table[a, 1]
+                    length = math.hypot(apart_x, apart_y)
+                    if not (abs(length - seen_length) <= tolerance and length > 1e-6):
+                        continue
+                    theta = math.atan2(apart_y, apart_x) - seen_angle
+                    c = math.cos(theta)
+                    s = math.sin(theta)
+                    middle_x = 0.5 * (table[a, 0] + table[b, 0])
+                    middle_y = 0.5 * (table[a, 1] + table[b, 1])
+                    out[n, 0] = middle_x - (c * middle_seen_x - s * middle_seen_y)
+                    out[n, 1] = middle_y - (s * middle_seen_x + c * middle_seen_y)
+                    out[n, 2] = wrap_angle(theta)
+                    n += 1
+    return out[:n].copy()
+
+
+def pair_poses_reference(table, offsets, kinds, points, range_sigmas, gate, slack):
+    """Plain Python twin of `pair_poses`: the same poses in the same order, bit for bit (the same operations
+    on the same floats, with Python's `math`, as the kernel's)."""
+    out = []
+    count = kinds.shape[0]
+    for i in range(count - 1):
+        for j in range(i + 1, count):
+            seen_x = float(points[j, 0]) - float(points[i, 0])
+            seen_y = float(points[j, 1]) - float(points[i, 1])
+            seen_length = math.hypot(seen_x, seen_y)
+            if seen_length < 1e-6:
                 continue
-            li, lj, apart = li[keep], lj[keep], apart[keep]
-            theta = np.arctan2(apart[:, 1], apart[:, 0]) - math.atan2(seen[1], seen[0])
-            cos, sin = np.cos(theta), np.sin(theta)
-            middle_seen = 0.5 * (points[i] + points[j])
-            middle = 0.5 * (li + lj)
-            poses = np.empty((theta.shape[0], 3))
-            poses[:, 0] = middle[:, 0] - (cos * middle_seen[0] - sin * middle_seen[1])
-            poses[:, 1] = middle[:, 1] - (sin * middle_seen[0] + cos * middle_seen[1])
-            poses[:, 2] = wrap_angles(theta)
-            out.append(poses)
-    if not out:
-        return np.empty((0, 3))
-    return np.concatenate(out)
+            seen_angle = math.atan2(seen_y, seen_x)
+            middle_seen_x = 0.5 * (float(points[i, 0]) + float(points[j, 0]))
+            middle_seen_y = 0.5 * (float(points[i, 1]) + float(points[j, 1]))
+            tolerance = gate * math.hypot(float(range_sigmas[i]), float(range_sigmas[j])) + slack
+            for a in range(int(offsets[kinds[i]]), int(offsets[kinds[i] + 1])):
+                for b in range(int(offsets[kinds[j]]), int(offsets[kinds[j] + 1])):
+                    ax, ay, bx, by = (float(v) for v in (table[a, 0], table[a, 1], table[b, 0], table[b, 1]))
+                    length = math.hypot(bx - ax, by - ay)
+                    if not (abs(length - seen_length) <= tolerance and length > 1e-6):
+                        continue
+                    theta = math.atan2(by - ay, bx - ax) - seen_angle
+                    c, s = math.cos(theta), math.sin(theta)
+                    out.append((0.5 * (ax + bx) - (c * middle_seen_x - s * middle_seen_y),
+                                0.5 * (ay + by) - (s * middle_seen_x + c * middle_seen_y), wrap_angle(theta)))
+    return np.array(out, dtype=np.float64).reshape(-1, 3)

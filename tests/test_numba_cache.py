@@ -94,6 +94,7 @@ if part in ("filter", "all"):
                                augmented=AugmentedMCL())
     injecting.reset_around((0.5, 0.5, 0.0))
     injecting._sample_injection(8, observations)
+    injecting.sensor_model.explained((0.5, 0.5, 0.0), observations)      # the localizer's quality
 
     # Kernels that are public on their own (the tests compare them with their numpy twins) beside the fused
     # code the filter runs.

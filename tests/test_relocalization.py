@@ -219,3 +219,30 @@ def test_explained_detections_at_the_truth_and_away_from_it():
     away = pose + np.array([1.5, -1.0, 0.6])
     assert explained_detections(SENSOR, away, observations).mean() < 0.5
     assert explained_detections(object(), pose, observations) is None
+
+
+# -- kernels against their numpy twins ------------------------------------------------------------------------------
+@settings(max_examples=60, deadline=None)
+@given(pose=poses_on_field, seed=st.integers(0, 2**32 - 1), linear=st.sampled_from([0.0, 0.05]))
+def test_kernels_equal_their_numpy_twins(pose, seed, linear):
+    """Pair poses (bit for bit), which detections a pose explains (exactly), and the prior (to rounding:
+    numpy's vectorized exp differs from libm's in the last bits)."""
+    from sensing.resetting import poses_from_pairs_reference
+    rng = np.random.default_rng(seed)
+    model = LandmarkSensorModel(FIELD, range_noise_linear=linear)
+    pose = np.array(pose)
+    observations = seen_from(pose, max_range=7.0, fov=math.radians(100), noise=(0.1, 0.05), rng=rng)
+    np.testing.assert_array_equal(poses_from_pairs(model, observations),
+                                  poses_from_pairs_reference(model, observations))
+    probe = pose + rng.normal(0, 0.3, 3)
+    np.testing.assert_array_equal(model.explained(probe, observations, 2.5, 0.1, 0.03),
+                                  model.explained_reference(probe, observations, 2.5, 0.1, 0.03))
+    relocalization = SoccerRelocalization()
+    relocalization.bind((-5.2, 5.2, -3.7, 3.7))
+    poses = np.column_stack([rng.uniform(-6, 6, 50), rng.uniform(-4, 4, 50), rng.uniform(-7, 7, 50)])
+    for reset in (lambda: None, lambda: relocalization.reset_region((-5.2, 0.0, -3.7, 3.7)),
+                  lambda: relocalization.reset_pose(probe)):
+        reset()
+        relocalization.travelled = float(rng.uniform(0, 5))
+        np.testing.assert_allclose(relocalization.log_prior(poses), relocalization.log_prior_reference(poses),
+                                   rtol=0, atol=1e-12)
