@@ -47,7 +47,7 @@ import numpy as np
 
 from field.angles import wrap_angle, wrap_angles
 from sensing.observations import Observations
-from sensing.resetting import poses_from_pairs, poses_from_pairs_reference
+from sensing.resetting import poses_from_pairs
 
 TWO_PI = 2.0 * math.pi
 
@@ -306,7 +306,7 @@ class SoccerRelocalization:
                 reference: bool = False) -> np.ndarray:
         """`count` poses (count, 3) to inject: candidates drawn from the detections, weighed by how well they
         explain the whole frame and by the prior, `count` of them drawn in proportion (systematic).
-        reference: use the plain numpy twins (`sample_poses_reference`, `poses_from_pairs_reference`), for
+        reference: use the plain twins (`sample_poses_reference`, `poses_from_pairs(..., reference=True)`), for
         tests."""
         p = self.prior
         if count <= 0:
@@ -315,7 +315,7 @@ class SoccerRelocalization:
         parts = []
         n_pairs = 0
         if len(observations) >= 2 and getattr(sensor_model, "landmark_table", None) is not None:
-            pairs = (poses_from_pairs_reference if reference else poses_from_pairs)(sensor_model, observations)
+            pairs = poses_from_pairs(sensor_model, observations, reference=reference)
             n_pairs = min(pairs.shape[0], int(round(p.pair_share * pool)), pool - 1)
             if n_pairs:
                 parts.append(pairs if n_pairs == pairs.shape[0] else pairs[rng.permutation(pairs.shape[0])[:n_pairs]])

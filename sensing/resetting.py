@@ -46,27 +46,18 @@ def _nearest(model, observations: Observations, max_detections: int):
 
 
 def poses_from_pairs(model, observations: Observations, gate: float = 3.0, slack: float = 0.1,
-                     max_detections: int = MAX_DETECTIONS) -> np.ndarray:
+                     max_detections: int = MAX_DETECTIONS, reference: bool = False) -> np.ndarray:
     """Every pose (P, 3) that sees two of the frame's detections where they were seen, one per consistent
     association of the pair with landmarks of their types (see the module docstring). Needs a landmark
-    model with `landmark_table` and `range_sigma(ranges)`; empty (0, 3) with fewer than two detections."""
+    model with `landmark_table` and `range_sigma(ranges)`; empty (0, 3) with fewer than two detections.
+    reference: compute them with `pair_poses_reference` (plain Python, the same bits) instead of the kernel."""
     observations = Observations.coerce(observations)
     if len(observations) < 2:
         return np.empty((0, 3))
     table, offsets = model.landmark_table
     kinds, points, range_sigmas = _nearest(model, observations, max_detections)
-    return pair_poses(table, offsets, kinds, points, range_sigmas, float(gate), float(slack))
-
-
-def poses_from_pairs_reference(model, observations: Observations, gate: float = 3.0, slack: float = 0.1,
-                               max_detections: int = MAX_DETECTIONS) -> np.ndarray:
-    """`poses_from_pairs` on `pair_poses_reference` (plain Python)."""
-    observations = Observations.coerce(observations)
-    if len(observations) < 2:
-        return np.empty((0, 3))
-    table, offsets = model.landmark_table
-    kinds, points, range_sigmas = _nearest(model, observations, max_detections)
-    return pair_poses_reference(table, offsets, kinds, points, range_sigmas, float(gate), float(slack))
+    compute = pair_poses_reference if reference else pair_poses
+    return compute(table, offsets, kinds, points, range_sigmas, float(gate), float(slack))
 
 
 @numba.njit(cache=True)

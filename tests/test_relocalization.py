@@ -227,13 +227,12 @@ def test_explained_detections_at_the_truth_and_away_from_it():
 def test_kernels_equal_their_numpy_twins(pose, seed, linear):
     """Pair poses (bit for bit), which detections a pose explains (exactly), and the prior (to rounding:
     numpy's vectorized exp differs from libm's in the last bits)."""
-    from sensing.resetting import poses_from_pairs_reference
     rng = np.random.default_rng(seed)
     model = LandmarkSensorModel(FIELD, range_noise_linear=linear)
     pose = np.array(pose)
     observations = seen_from(pose, max_range=7.0, fov=math.radians(100), noise=(0.1, 0.05), rng=rng)
     np.testing.assert_array_equal(poses_from_pairs(model, observations),
-                                  poses_from_pairs_reference(model, observations))
+                                  poses_from_pairs(model, observations, reference=True))
     probe = pose + rng.normal(0, 0.3, 3)
     np.testing.assert_array_equal(model.explained(probe, observations, 2.5, 0.1, 0.03),
                                   model.explained_reference(probe, observations, 2.5, 0.1, 0.03))
