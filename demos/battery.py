@@ -319,6 +319,63 @@ def _positive_int(text: str) -> int:
     return value
 
 
+def headline(results: dict, split: str) -> dict:
+    """Per family, the headline figures of a results file's split: re-convergence median / worst / never
+    (event runs), fail share median / worst, runs on the mirror, tracking RMSE medians; and the pooled quality
+    figures (`overall`)."""
+    data = results["splits"][split]
+    out = {}
+    for family, f in data["families"].items():
+        runs = f["runs"]
+        events = [_never(r["reconverge_s"]) for r in runs if r["event"] not in (None, "none")]
+        fails = [r["fail_share"] for r in runs]
+        positions = [r["rmse_position_m"] for r in runs if r["rmse_position_m"] is not None]
+        headings = [r["rmse_heading_deg"] for r in runs if r["rmse_heading_deg"] is not None]
+        out[family] = {
+            "reconverge_median_s": float(np.median(events)) if events else None,
+            "reconverge_worst_s": max(events) if events else None,
+            "never": sum(math.isinf(v) for v in events),
+            "fail_median": float(np.median(fails)), "fail_worst": max(fails),
+            "on_mirror": sum(bool(r["on_mirror"]) for r in runs),
+            "rmse_position_m": float(np.median(positions)) if positions else None,
+            "rmse_heading_deg": float(np.median(headings)) if headings else None}
+    pooled = data["overall"]["pooled"]
+    out["overall"] = {name: pooled[key]["share"] for name, key in
+                      (("superb_wrong", "SUPERB"), ("okay_wrong", "OKAY"), ("superb_coverage", "superb_coverage"),
+                       ("lost_recall", "recall"), ("lost_false_alarms", "false_alarm"))}
+    return out
+
+
+def format_comparison(base: dict, current: dict, split: str, names=("base", "current")) -> str:
+    """Two results files side by side (`--compare`): per family the headline figures, then the quality."""
+    a, b = headline(base, split), headline(current, split)
+
+    def seconds(v):
+        return "–" if v is None else ("never" if math.isinf(v) else f"{v:.2f}")
+
+    def number(v, scale=1.0, digits=1):
+        return "–" if v is None else f"{scale * v:.{digits}f}"
+
+    lines = [f"split {split}: {names[0]} | {names[1]}",
+             f"{'family':<17} {'reconverge median / worst [s], never':>40} {'fail median / worst':>27} "
+             f"{'on mirror':>11} {'RMSE m / °':>23}"]
+    for family in a:
+        if family == "overall":
+            continue
+        x, y = a[family], b[family]
+        reconverge = (f"{seconds(x['reconverge_median_s'])} / {seconds(x['reconverge_worst_s'])}, {x['never']} | "
+                      f"{seconds(y['reconverge_median_s'])} / {seconds(y['reconverge_worst_s'])}, {y['never']}")
+        fail = (f"{100 * x['fail_median']:.1f} / {100 * x['fail_worst']:.0f} | "
+                f"{100 * y['fail_median']:.1f} / {100 * y['fail_worst']:.0f} %")
+        rmse = (f"{number(x['rmse_position_m'], digits=3)}/{number(x['rmse_heading_deg'])} | "
+                f"{number(y['rmse_position_m'], digits=3)}/{number(y['rmse_heading_deg'])}")
+        lines.append(f"{family:<17} {reconverge:>40} {fail:>27} {x['on_mirror']:>4} | {y['on_mirror']:<4} {rmse:>23}")
+    lines.append("quality, pooled: " + "; ".join(
+        f"{name.replace('_', ' ')} {number(a['overall'][name], 100)} | {number(b['overall'][name], 100)} %"
+        for name in a["overall"]))
+    return "\n".join(lines)
+
+
 def _overrides(parser, option: str, items: list[str], kind) -> dict:
     """NAME=VALUE strings as a dict of numbers, checked against the dataclass `kind` (exit 2 when wrong)."""
     names = {f.name: f for f in fields(kind)}
@@ -356,9 +413,28 @@ def main(argv: list[str] | None = None) -> int:
                         help="a variant: set a field of mcl.relocalization.RelocalizationPrior (repeatable)")
     parser.add_argument("--quality", action="append", default=[], metavar="NAME=VALUE",
                         help="a variant: set a field of mcl.localizer.QualityThresholds (repeatable)")
+    parser.add_argument("--compare", nargs=2, metavar=("BASE", "CURRENT"),
+                        help="print two saved results files side by side (for the split given) and run nothing")
     parser.add_argument("--json", action="store_true", help="the results as JSON on stdout instead of tables")
     parser.add_argument("--save", metavar="PATH", help="also write the JSON results to PATH")
     args = parser.parse_args(argv)
+    if args.compare:
+        files = []
+        for path in args.compare:
+            try:
+                with open(path, encoding="utf-8") as handle:
+                    files.append(json.load(handle))
+            except (OSError, ValueError) as error:
+                parser.error(f"--compare {path}: {error}")
+        split = "holdout" if args.split == "both" else args.split
+        if not all(split in f.get("splits", {}) for f in files):
+            parser.error(f"--compare: both files need the {split} split (--split)")
+        if args.json:
+            print(json.dumps({"split": split, "base": headline(files[0], split),
+                              "current": headline(files[1], split)}, indent=2))
+        else:
+            print(format_comparison(files[0], files[1], split, tuple(os.path.basename(p) for p in args.compare)))
+        return 0
     families = [f.strip() for f in args.families.split(",") if f.strip()]
     unknown = [f for f in families if f not in FAMILIES]
     if not families or unknown:

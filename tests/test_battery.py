@@ -320,6 +320,14 @@ def test_command_line(capsys, tmp_path):
     printed = json.loads(capsys.readouterr().out)
     assert printed["splits"]["train"]["seeds"] == [0]
     assert json.loads(path.read_text())["splits"]["train"]["families"]["tracking"]["runs"][0]["seed"] == 0
+    # two saved results side by side; a missing split or file is an error
+    assert battery_main(["--compare", str(path), str(path), "--split", "train"]) == 0
+    compared = capsys.readouterr().out
+    assert "tracking" in compared and "lost recall" in compared
+    for bad in (["--compare", str(path), str(path)], ["--compare", str(path), str(tmp_path / "none.json")]):
+        with pytest.raises(SystemExit) as exit_info:
+            battery_main(bad)
+        assert exit_info.value.code == 2
     # a variant is labelled as one, in the report and in the results
     assert battery_main(["--families", "tracking", "--split", "train", "--seeds", "1", "--duration", "10",
                          "--jobs", "1", "--prior", "kidnap_sigma=1.5", "--quality", "lost_after=2"]) == 0
