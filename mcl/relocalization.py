@@ -16,26 +16,29 @@ enters the filter, and it enters as evidence with a weight, never as a gate:
    from the whole circle (the sensor model's `sample_poses`), and a few uniform over the carpet. A kidnap
    that turns the robot cannot put the true pose beyond reach.
 2. **Each candidate is weighed by how well it explains the whole frame and by a prior** (sampling-importance-
-   resampling: `pool` candidates per injected particle, `count` of them drawn in proportion to
-   likelihood × prior). The prior is what the robot knows of where it can be:
-   - *continuity*: the anchor, the last confident pose that explained the detections, carried forward by
-     the motion inputs as dead reckoning. A robot that is carried, pushed or spun moves a few metres at
-     most: the prior falls off as a normal of `kidnap_sigma` (widened by `drift` of the distance dead-reckoned
-     since) with a floor `tail` so that no pose on the carpet is ruled out;
-   - *heading*: a share `heading_weight` of the prior says the heading was kept (normal of `heading_sigma`
-     around the anchor's heading), the rest is uniform: odometry does not see a carried or spun robot turn;
-   - *placement region*: before the filter has been confident once after a reset over a region (the own
-     half at kick-off), a pose outside it gets `region_tail` of the prior.
-   The mirror pose (−x, −y, θ + π) explains every detection exactly as well as the true one, so the prior
-   alone tells them apart: continuity does when the robot is away from the centre, the heading when the
-   kidnap kept it. When nothing tells them apart, both are injected in equal numbers and the estimate's
-   weight (and `mcl.localizer`'s quality) shows a split belief.
-3. **The anchor is evidence too.** It follows the estimate only while the estimate is confident and explains
-   the detections (`confirm`), and whatever its heading: a kidnap may turn the robot. Resets set it: a known
-   pose (`reset_pose`) sets it, a region (`reset_region`) clears it.
+   resampling: `pool` candidates per injected particle, each with its mirror image, `count` of them drawn in
+   proportion to likelihood × prior). The prior is what the robot knows of where it can be, around the
+   *anchor*: the last confident pose that explained the detections, carried forward by the motion inputs as
+   dead reckoning. It mixes three parts (`RelocalizationPrior`): not moved (normal of `track_sigma` and
+   `track_heading_sigma`, widened by `drift` of the distance dead-reckoned since); carried, pushed or spun
+   (`kidnap_share`: normal of `kidnap_sigma`, the heading kept for a share `heading_kept` and any heading
+   otherwise, since odometry does not see a carried or spun robot turn); anywhere (`tail_share`, so that no
+   pose on the carpet is ruled out). Before the filter has been confident after a reset over a region (the
+   own half at kick-off), a pose outside the region gets `region_tail` of the prior.
+3. **The prior alone tells a pose from its mirror** (−x, −y, θ + π), which explains every detection exactly as
+   well. Of each candidate pair, the side the prior prefers by more than `mirror_odds` is injected alone;
+   closer odds inject both, in proportion. When a confident estimate settles somewhere new (`confirm`: for
+   `jump_corrections` corrections in a row), the prior weighs it against its mirror image; if the mirror image
+   is the more probable by more than `mirror_odds`, the filter mirrors its particles (the likelihood cannot
+   tell the two apart, so that is exact). The odds are kept (`mirror_log_odds`): `mcl.localizer`'s quality
+   uses them.
+4. **The anchor is evidence too.** It follows the estimate only while the estimate is confident and explains
+   the detections, whatever its heading: a kidnap may turn the robot. Resets set it: a known pose
+   (`reset_pose`) sets it, a region (`reset_region`) clears it.
 
-The filter knows this class only by its methods (`reset_region`, `reset_pose`, `mirror`, `carry`,
-`confirm`, `tracking`, `propose`), so a team with other rules writes another class with the same methods.
+The filter knows this class only by its methods (`bind`, `reset_region`, `reset_pose`, `mirror`, `carry`,
+`confirm`, `propose`, and the attribute `tracking`), so a team with other rules writes another class with the
+same methods. The design, the alternatives measured and the limits: docs/relocalization.md.
 """
 from __future__ import annotations
 
