@@ -16,6 +16,12 @@ from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
 
+# The largest pose change one motion input may ask for: far beyond any robot's step (a field is at most 22 m
+# long), small enough that every pose a filter computes from it stays finite. A larger one is refused with a
+# ValueError naming the input, before any filter state changes.
+MAX_STEP_DISTANCE = 100.0     # m, |(dx, dy)|
+MAX_STEP_TURN = 100.0         # rad, |dθ|
+
 
 def _finite_triple(name: str, value: Any) -> tuple[float, float, float] | None:
     if value is None:
@@ -36,6 +42,8 @@ class MotionInput:
     """What the robot did since the previous filter step.
 
     dt:        time since the previous step [s], finite and >= 0.
+    The pose change the input implies (`displacement()`) must be finite and at most `MAX_STEP_DISTANCE` (100 m)
+    and `MAX_STEP_TURN` (100 rad): anything larger is refused here, so no filter computes a non-finite pose.
     command:   the walk request m = (vx, vy, omega) [m/s, m/s, rad/s] (Hoffmann eq. 4).
     odometry:  measured pose change (dx, dy, dtheta) [m, m, rad] in the robot frame at the previous pose.
     collision: a collision percept (used by collision-aware models).
@@ -58,6 +66,17 @@ class MotionInput:
         object.__setattr__(self, "dt", dt)
         object.__setattr__(self, "command", _finite_triple("command", self.command))
         object.__setattr__(self, "odometry", _finite_triple("odometry", self.odometry))
+        if self.odometry is not None or self.command is not None:
+            try:
+                dx, dy, dtheta = self.displacement()
+            except (ValueError, OverflowError):          # sin/cos of an infinite turn
+                dx = dy = dtheta = math.inf
+            name = "odometry" if self.odometry is not None else f"dt = {dt!r} with command"
+            value = self.odometry if self.odometry is not None else self.command
+            distance = math.hypot(dx, dy)
+            if not (distance <= MAX_STEP_DISTANCE and abs(dtheta) <= MAX_STEP_TURN):
+                raise ValueError(f"{name} = {value!r} moves the robot by {distance:.3g} m and {dtheta:.3g} rad in "
+                                 f"one step; at most {MAX_STEP_DISTANCE:g} m and {MAX_STEP_TURN:g} rad are accepted")
 
     def displacement(self) -> tuple[float, float, float]:
         """The intended pose change (dx, dy, dtheta) in the robot frame: odometry if given, else dt * command.

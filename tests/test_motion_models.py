@@ -3,7 +3,7 @@ import math
 import numba
 import numpy as np
 import pytest
-from hypothesis import given
+from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from field.angles import wrap_angle, wrap_angles
@@ -374,3 +374,68 @@ def test_atan2_equals_its_numpy_twin_bit_for_bit(points):
     x = np.array([p[1] for p in points] + [16.0, 16.0, 1.0, -1.0, 0.0, -0.0, -2.0, 2.0, 0.0])
     out, twin = _atan2_of(y, x), atan2_poly_reference(y, x)
     assert np.array_equal(out, twin) and np.array_equal(np.signbit(out), np.signbit(twin))
+
+
+# -- bounds of a motion input (a step that would make a pose non-finite is refused) -----------------------------
+def _filter(model):
+    from field import spl
+    from mcl import ParticleFilter
+    from sensing import LandmarkSensorModel
+    field = spl()
+    return ParticleFilter(field, model, LandmarkSensorModel(field), n_particles=64, seed=3)
+
+
+@pytest.mark.parametrize("kwargs", [dict(dt=1e300, command=(1e300, 0.0, 0.0)),
+                                    dict(dt=0.01, odometry=(0.0, 0.0, -1e300)),
+                                    dict(dt=1e12, command=(0.0, -3e11, -5e11)),
+                                    dict(dt=1e300, command=(0.0, 0.0, 1e300)),
+                                    dict(dt=0.01, odometry=(1e6, 0.0, 0.0))])
+def test_a_step_beyond_the_bounds_is_refused_naming_the_input(kwargs):
+    from motion_models.base import MAX_STEP_DISTANCE
+    with pytest.raises(ValueError, match=r"odometry|command") as error:
+        MotionInput(**kwargs)
+    assert f"{MAX_STEP_DISTANCE:g} m" in str(error.value)
+
+
+def test_the_inputs_that_crashed_the_process_are_refused_in_a_child_process():
+    """These finite inputs used to make poses inf or NaN, and a compiled kernel then read out of bounds
+    (SIGSEGV). Run in a child process, so that a crash fails this test instead of ending the run."""
+    import subprocess
+    import sys
+    script = """
+from field import spl
+from mcl import ParticleFilter
+from motion_models import ConstantNoise, MotionInput, VelocityLinear
+from sensing import LandmarkObservation as Seen, LandmarkSensorModel
+field = spl()
+refused = 0
+for model, make in ((VelocityLinear(), lambda: MotionInput(dt=1e300, command=(1e300, 0, 0))),
+                    (ConstantNoise(), lambda: MotionInput(dt=1e300, command=(1e300, 0, 0))),
+                    (VelocityLinear(), lambda: MotionInput(dt=0.01, odometry=(0, 0, -1e300)))):
+    pf = ParticleFilter(field, model, LandmarkSensorModel(field), n_particles=100, seed=0)
+    pf.reset_around((-2, 0, 0))
+    try:
+        pf.step(make(), [Seen("penalty_mark", 1.2, 0), Seen("goalpost", 2.65, 0.31)])
+    except ValueError:
+        refused += 1
+    pf.estimate()
+print("refused", refused)
+"""
+    done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=600)
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert done.stdout.strip() == "refused 3"
+
+
+@settings(max_examples=80, deadline=None)
+@given(dt=st.floats(0.0, 1e6), triple=st.tuples(*[st.floats(-1e9, 1e9)] * 3), odometry=st.booleans(),
+       constant=st.booleans())
+def test_every_accepted_step_keeps_the_poses_finite_and_wrapped(dt, triple, odometry, constant):
+    pf = _filter(ConstantNoise() if constant else VelocityLinear())
+    pf.reset_around((-1.0, 0.5, 3.0), (0.1, 0.1, 0.1))
+    try:
+        u = MotionInput(dt=dt, odometry=triple) if odometry else MotionInput(dt=dt, command=triple)
+    except ValueError:
+        return
+    pf.predict(u)
+    assert np.isfinite(pf.poses).all() and (np.abs(pf.poses[:, 2]) <= math.pi).all()
+    assert np.isfinite(pf.estimate().pose).all()
