@@ -486,8 +486,12 @@ class ParticleFilter:
 
     def reset_mirrored(self) -> None:
         """Mirror every particle through the centre mark: (x, y, θ) → (−x, −y, θ+π), weights kept."""
-        self._poses[:] = self._field.mirror_poses(self._poses)
+        self._mirror_particles()
         self.relocalization.mirror()
+
+    def _mirror_particles(self) -> None:
+        """Every particle through the centre mark, weights kept; the estimate's hysteresis starts afresh."""
+        self._poses[:] = self._field.mirror_poses(self._poses)
         self._has_previous_estimate = False
         self._changed()
 
@@ -850,9 +854,7 @@ class ParticleFilter:
         if self.relocalization.confirm(estimate, self.w_fast >= self._augmented.ratio_threshold * self.w_slow):
             # The relocalization's prior puts the belief on the mirror side of the field, which the detections
             # cannot tell from this one (the field is point-symmetric): the particles go there, weights kept.
-            self._poses[:] = self._field.mirror_poses(self._poses)
-            self._has_previous_estimate = False
-            self._changed()
+            self._mirror_particles()
 
     def _native_log_average(self, log_likelihood: np.ndarray) -> float:
         """log(Σ wᵢ pᵢ / Σ wᵢ) over the particles not injected by the previous resampling (prior weights).
@@ -879,7 +881,8 @@ class ParticleFilter:
     def _injection_count(self, fraction: float) -> int:
         if self._augmented is None:
             return 0
-        cap = self._augmented.max_fraction_tracking if self.relocalization.tracking else self._augmented.max_fraction
+        a = self._augmented
+        cap = a.max_fraction_tracking if self.relocalization.tracking else a.max_fraction
         return int(round(min(fraction, cap) * self._n))
 
     def _sample_injection(self, count: int, observations: Observations) -> np.ndarray:

@@ -60,7 +60,7 @@ from sensing import LandmarkSensorModel
 from sensing.observations import Observations
 
 from .filter import Entropy, Estimate, ParticleFilter
-from .latency import MotionHistory
+from .latency import MotionHistory, move_back
 
 
 class Quality(enum.Enum):
@@ -79,7 +79,8 @@ class QualityThresholds:
     a landmark of its type lies within `gate` standard deviations (the sensor model's range and bearing
     noise, widened by `range_slack` and `bearing_slack`) of where the estimate says it was seen. Recent: the
     detections captured in the last `fit_window` seconds. A belief can be tight and wrong (after a kidnap,
-    until re-localization); it cannot explain what the camera sees and be wrong, except on the mirror pose.
+    until re-localization). Explaining what the camera sees is harder to fake, but the mirror pose explains it
+    as well, and with few landmarks in view a wrong pose can too (see docs/relocalization.md, "Limits").
     """
 
     superb_position: float = 0.15      # m, sqrt(var x + var y) of the dominant cluster
@@ -271,16 +272,15 @@ class Localizer:
             return
         q = self.thresholds
         pose = self.filter.estimate().pose
-        if since is not None:
-            dx, dy, dtheta = since                 # the motion since capture, in the robot frame at capture
-            theta = pose[2] - dtheta
-            c, s = math.cos(theta), math.sin(theta)
-            pose = np.array([pose[0] - (c * dx - s * dy), pose[1] - (s * dx + c * dy), theta])
+        if since is not None:                      # where the estimate was at capture
+            at_capture = np.empty((1, 3))
+            move_back(pose[None], np.asarray(since, dtype=np.float64), at_capture)
+            pose = at_capture[0]
         explained = explained_detections(self.filter.sensor_model, pose, observations, q.gate, q.range_slack,
                                          q.bearing_slack)
         if explained is None:                      # a sensor model without landmarks: the frame's own fit
             frame_fit = self.filter.frame_fit
-            count = int(m * frame_fit >= 0.5 * m) * m if not math.isnan(frame_fit) else 0
+            count = m if frame_fit >= 0.5 else 0    # (False for NaN)
         else:
             count = int(explained.sum())
         now = capture_time if capture_time is not None else 0.0

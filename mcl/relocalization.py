@@ -48,9 +48,12 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
+from field import Field
 from field.angles import wrap_angle, wrap_angles
 from sensing.observations import Observations
 from sensing.resetting import poses_from_pairs
+
+from .resampling import systematic
 
 TWO_PI = 2.0 * math.pi
 
@@ -338,8 +341,7 @@ class SoccerRelocalization:
         # Every candidate with its mirror image: the two explain the frame equally well, so only the prior
         # tells them apart, and it does so exactly (not by which of the two the draws happened to hit).
         base = np.concatenate(parts)
-        mirrored = np.column_stack([-base[:, 0], -base[:, 1], wrap_angles(base[:, 2] + math.pi)])
-        candidates = np.concatenate([base, mirrored])
+        candidates = np.concatenate([base, Field.mirror_poses(base)])
         x_min, x_max, y_min, y_max = self._carpet
         on_carpet = ((candidates[:, 0] >= x_min) & (candidates[:, 0] <= x_max)
                      & (candidates[:, 1] >= y_min) & (candidates[:, 1] <= y_max))
@@ -358,9 +360,7 @@ class SoccerRelocalization:
             score = np.where(on_carpet, 0.0, -np.inf)
         weights = np.exp(score - score.max())
         weights /= weights.sum()
-        positions = (rng.random() + np.arange(count)) / count
-        chosen = np.minimum(np.searchsorted(np.cumsum(weights), positions, side="right"), candidates.shape[0] - 1)
-        injected = candidates[chosen] + np.asarray(p.jitter) * rng.standard_normal((count, 3))
+        injected = candidates[systematic(weights, count, rng)] + np.asarray(p.jitter) * rng.standard_normal((count, 3))
         injected[:, 2] = wrap_angles(injected[:, 2])
         return injected
 
