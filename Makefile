@@ -4,7 +4,7 @@ VENV   := .venv
 PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed
 
-.PHONY: demo test bench clean
+.PHONY: demo test fuzz bench clean
 
 $(PY):
 	$(PYTHON) -m venv $(VENV)
@@ -20,6 +20,11 @@ demo: $(STAMP)
 
 test: $(STAMP)
 	$(PY) -m pytest
+
+# The fuzz suite's full profile: >= 10 000 fresh generated cases over every public entry point and loader
+# (tests/fuzz_run.py; `make test` runs its fixed CI profile). Results in recordings/fuzz.json.
+fuzz: $(STAMP)
+	$(PY) tests/fuzz_run.py --profile full --save recordings/fuzz.json
 
 # The benchmark also needs the `bench` extra (filterpy and particles to compare with, matplotlib to plot).
 BENCH_STAMP := $(VENV)/.installed-bench

@@ -59,6 +59,8 @@ import numpy as np
 
 from field import Field
 from field.angles import wrap_angles
+from field.checks import (LARGEST_ANGLE, LARGEST_COORDINATE, LARGEST_SIGMA, ArgumentTypeError, integer, real,
+                          reals)
 from motion_models._kernels import (SQRT3, balanced_chunk, bit_generator_handle, draw_variates,
                                     move_chunked, move_range, move_range_fast, parallel_uniforms, MOVE_WORK, NO_WORK)
 from motion_models.base import BoundedNoiseModel, MotionInput, MotionModel
@@ -75,8 +77,42 @@ from .resampling import (SCHEMES, gather_offspring_rows, gather_with_jitter, res
 from .weights import log_mean_likelihood, normalize, reweigh, reweigh_chunked, weigh, weigh_chunked, weigh_fast
 
 REGIONS = ("field", "own_half", "opponent_half")
+MAX_PARTICLES = 10**7
+"""The most particles a filter may have (about 2 GB of buffers); more is refused with a ValueError."""
+MAX_THREADS = 1024
+MAX_GRID_CELLS = 5 * 10**7
+"""The most cells the entropy or the estimate's histograms may have (the grid's cells times its bins)."""
 # what the filter asks of its relocalization (`mcl.relocalization.SoccerRelocalization` is the default)
 RELOCALIZATION_METHODS = ("bind", "reset_region", "reset_pose", "mirror", "carry", "confirm", "propose")
+
+
+def check_pose(name: str, pose) -> np.ndarray:
+    """A pose (x, y, θ) as float64 (3,): |x|, |y| at most `LARGEST_COORDINATE`, |θ| at most `LARGEST_ANGLE`."""
+    array = reals(name, pose, 3)
+    if max(abs(array[0]), abs(array[1])) > LARGEST_COORDINATE or abs(array[2]) > LARGEST_ANGLE:
+        raise ValueError(f"{name} = {pose!r} must be within {LARGEST_COORDINATE:g} m and {LARGEST_ANGLE:g} rad")
+    return array
+
+
+def check_poses(name: str, poses) -> np.ndarray:
+    """Poses (K, 3) (or one (3,)) as float64 (K, 3), each within the bounds of `check_pose`."""
+    if isinstance(poses, (str, bytes, dict)) or poses is None or np.ndim(poses) == 0:
+        raise ArgumentTypeError(f"{name} = {poses!r} must be (x, y, θ) poses, not {type(poses).__name__}")
+    try:
+        array = np.array(poses, dtype=np.float64)
+    except (TypeError, ValueError, OverflowError):
+        raise ArgumentTypeError(f"{name} = {poses!r} must be (x, y, θ) poses") from None
+    if array.ndim == 1 and array.shape[0] == 3:
+        array = array.reshape(1, 3)
+    if array.ndim != 2 or array.shape[1] != 3:
+        raise ValueError(f"{name} must have shape (K, 3), got {array.shape}")
+    inside = (np.isfinite(array).all(axis=1) & (np.abs(array[:, :2]) <= LARGEST_COORDINATE).all(axis=1)
+              & (np.abs(array[:, 2]) <= LARGEST_ANGLE))
+    if not inside.all():
+        i = int(np.argmin(inside))
+        raise ValueError(f"{name}[{i}] = {array[i].tolist()!r} must be finite, within {LARGEST_COORDINATE:g} m "
+                         f"and {LARGEST_ANGLE:g} rad")
+    return array
 
 
 @dataclass(frozen=True)
@@ -138,15 +174,14 @@ class AugmentedMCL:
                                          # well they explain the frame, so few are needed
 
     def __post_init__(self) -> None:
+        real("alpha_slow", self.alpha_slow)
+        real("alpha_fast", self.alpha_fast)
         if not (0 < self.alpha_slow < self.alpha_fast <= 1):
             raise ValueError(f"alpha_slow = {self.alpha_slow!r}, alpha_fast = {self.alpha_fast!r}: "
                              "need 0 < alpha_slow < alpha_fast <= 1")
         for name in ("max_fraction", "max_fraction_tracking", "ratio_threshold"):
-            value = getattr(self, name)
-            if not 0 <= value <= 1:
-                raise ValueError(f"{name} = {value!r} must be within [0, 1]")
-        if not (math.isfinite(self.fit_threshold) and self.fit_threshold >= 0):
-            raise ValueError(f"fit_threshold = {self.fit_threshold!r} must be finite and >= 0")
+            real(name, getattr(self, name), 0.0, 1.0)
+        real("fit_threshold", self.fit_threshold, 0.0)
 
 
 @dataclass(frozen=True)
@@ -161,14 +196,12 @@ class Grid:
     cluster_angle_radius: float = 0.8     # rad
 
     def __post_init__(self) -> None:
-        for name in ("position_cell", "cluster_cell", "cluster_radius", "cluster_angle_radius"):
-            value = getattr(self, name)
-            if not (math.isfinite(value) and value > 0):
-                raise ValueError(f"{name} = {value!r} must be finite and > 0")
-        for name in ("orientation_bins", "cluster_orientation_bins"):
-            value = getattr(self, name)
-            if not (isinstance(value, int) and value >= 1):
-                raise ValueError(f"{name} = {value!r} must be an integer >= 1")
+        # Cells of at least 1 cm and at most 3600 orientation bins: the histograms stay within memory.
+        for name in ("position_cell", "cluster_cell", "cluster_radius"):
+            real(name, getattr(self, name), 0.01, 100.0)
+        real("cluster_angle_radius", self.cluster_angle_radius, 0.0, 10.0, low_open=True)
+        integer("orientation_bins", self.orientation_bins, 1, 3600)
+        integer("cluster_orientation_bins", self.cluster_orientation_bins, 1, 360)
 
 
 class ParticleFilter:
@@ -210,9 +243,10 @@ class ParticleFilter:
                  roughening: tuple[float, float, float] = (0.02, 0.02, 0.02), threads: int = 1,
                  fast: bool = False, relocalization=None) -> None:
         if not isinstance(field, Field):
-            raise ValueError(f"field = {field!r} must be a field.Field")
-        if isinstance(n_particles, bool) or not isinstance(n_particles, (int, np.integer)) or n_particles <= 0:
-            raise ValueError(f"n_particles = {n_particles!r} must be an integer > 0")
+            raise ArgumentTypeError(f"field = {field!r} must be a field.Field, not {type(field).__name__}")
+        integer("n_particles", n_particles, 1, MAX_PARTICLES)
+        if seed is not None and not isinstance(seed, np.random.SeedSequence):
+            integer("seed", seed, 0)
         self.resampling = resampling                  # (the setters check them)
         self.resample_threshold = resample_threshold
         for name, obj, methods in (("motion_model", motion_model, ("check", "predict")),
@@ -221,10 +255,9 @@ class ParticleFilter:
             if missing:
                 raise ValueError(f"{name} = {obj!r} lacks {', '.join(missing)}")
         self.roughening = roughening
-        if isinstance(threads, bool) or not isinstance(threads, (int, np.integer)) or threads < 1:
-            raise ValueError(f"threads = {threads!r} must be an integer >= 1")
+        integer("threads", threads, 1, MAX_THREADS)
         if not isinstance(fast, (bool, np.bool_)):
-            raise ValueError(f"fast = {fast!r} must be True or False")
+            raise ArgumentTypeError(f"fast = {fast!r} must be True or False, not {type(fast).__name__}")
         self._threads = int(threads)
         self._chunk = int(balanced_chunk(int(n_particles), _CHUNK))   # particles per chunk with threads > 1
         self._fast = bool(fast)
@@ -235,7 +268,7 @@ class ParticleFilter:
         self._n = int(n_particles)
         self.augmented = augmented
         if not isinstance(grid, Grid):
-            raise ValueError(f"grid = {grid!r} must be an mcl.Grid")
+            raise ArgumentTypeError(f"grid = {grid!r} must be an mcl.Grid, not {type(grid).__name__}")
         self._grid = grid
         self.rng = np.random.default_rng(seed)
         # Carpet bounds: the field plus its border strip.
@@ -246,6 +279,11 @@ class ParticleFilter:
         self._entropy_ny = max(1, math.ceil((self._y_max - self._y_min) / grid.position_cell))
         self._cluster_nx = max(1, math.ceil((self._x_max - self._x_min) / grid.cluster_cell))
         self._cluster_ny = max(1, math.ceil((self._y_max - self._y_min) / grid.cluster_cell))
+        for what, cells in (("position", self._entropy_nx * self._entropy_ny * grid.orientation_bins),
+                            ("cluster", self._cluster_nx * self._cluster_ny * grid.cluster_orientation_bins)):
+            if cells > MAX_GRID_CELLS:
+                raise ValueError(f"grid = {grid!r} makes {cells} {what} cells on this field; at most "
+                                 f"{MAX_GRID_CELLS} are accepted (larger cells, fewer bins)")
         # Buffers kept across steps: a steady-state step allocates nothing that grows with N.
         self._poses = np.zeros((self._n, 3))
         self._log_weights = np.full(self._n, -math.log(self._n))
@@ -330,7 +368,9 @@ class ParticleFilter:
 
     @resampling.setter
     def resampling(self, value: str) -> None:
-        if not isinstance(value, str) or value not in SCHEMES:
+        if not isinstance(value, str):
+            raise ArgumentTypeError(f"resampling = {value!r} must be a string, one of {tuple(SCHEMES)}")
+        if value not in SCHEMES:
             raise ValueError(f"resampling = {value!r} must be one of {tuple(SCHEMES)}")
         self._resampling = value
 
@@ -341,10 +381,7 @@ class ParticleFilter:
 
     @resample_threshold.setter
     def resample_threshold(self, value: float) -> None:
-        number = isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, bool)
-        if not (number and 0 <= value <= 1):
-            raise ValueError(f"resample_threshold = {value!r} must be within [0, 1]")
-        self._resample_threshold = float(value)
+        self._resample_threshold = real("resample_threshold", value, 0.0, 1.0)
 
     @property
     def augmented(self) -> AugmentedMCL | None:
@@ -354,7 +391,8 @@ class ParticleFilter:
     @augmented.setter
     def augmented(self, value: AugmentedMCL | None) -> None:
         if value is not None and not isinstance(value, AugmentedMCL):
-            raise ValueError(f"augmented = {value!r} must be an AugmentedMCL or None")
+            raise ArgumentTypeError(f"augmented = {value!r} must be an AugmentedMCL or None, "
+                                    f"not {type(value).__name__}")
         self._augmented = value
 
     @property
@@ -425,12 +463,10 @@ class ParticleFilter:
                 raise ValueError(f"region = {region!r} must be one of {REGIONS} or (x_min, x_max, y_min, y_max)")
             return {"field": (-hl, hl, -hw, hw), "own_half": (-hl, 0.0, -hw, hw),
                     "opponent_half": (0.0, hl, -hw, hw)}[region]
-        try:
-            x_min, x_max, y_min, y_max = (float(v) for v in region)
-        except (TypeError, ValueError):
-            raise ValueError(f"region = {region!r} must be a name or (x_min, x_max, y_min, y_max)") from None
-        if not all(math.isfinite(v) for v in (x_min, x_max, y_min, y_max)) or x_min >= x_max or y_min >= y_max:
-            raise ValueError(f"region = {region!r} must be finite with x_min < x_max and y_min < y_max")
+        x_min, x_max, y_min, y_max = (float(v) for v in reals("region", region, 4, -LARGEST_COORDINATE,
+                                                              LARGEST_COORDINATE))
+        if x_min >= x_max or y_min >= y_max:
+            raise ValueError(f"region = {region!r} must have x_min < x_max and y_min < y_max")
         return x_min, x_max, y_min, y_max
 
     def _set_particles(self, poses: np.ndarray) -> None:
@@ -452,13 +488,8 @@ class ParticleFilter:
         """
         bounds = self._region_bounds(region)
         if heading is not None:
-            try:
-                valid = math.isfinite(heading) and math.isfinite(heading_sigma) and heading_sigma >= 0
-            except TypeError:
-                valid = False
-            if not valid:
-                raise ValueError(f"heading = {heading!r}, heading_sigma = {heading_sigma!r} must be finite "
-                                 "numbers (sigma >= 0)")
+            heading = real("heading", heading, -LARGEST_ANGLE, LARGEST_ANGLE)
+            heading_sigma = real("heading_sigma", heading_sigma, 0.0, LARGEST_SIGMA)
         x_min, x_max, y_min, y_max = bounds
         poses = np.empty((self._n, 3))
         poses[:, 0] = self.rng.uniform(x_min, x_max, self._n)
@@ -476,9 +507,7 @@ class ParticleFilter:
 
         The pose is taken as known: its heading guides injection from now on (as after a confident sweep).
         """
-        pose = np.asarray(pose, dtype=np.float64)
-        if pose.shape != (3,) or not np.isfinite(pose).all():
-            raise ValueError(f"pose = {pose!r} must be three finite numbers")
+        pose = check_pose("pose", pose)
         sigma = self._check_sigma(sigma)
         self._set_particles(pose + sigma * self.rng.standard_normal((self._n, 3)))
         self.relocalization.reset_pose(pose)
@@ -503,12 +532,9 @@ class ParticleFilter:
         confident again (as after `reset_uniform`): the candidates' headings differ, so no single heading
         reference guides it yet.
         """
-        candidates = np.asarray(poses, dtype=np.float64)
-        if candidates.ndim == 1:
-            candidates = candidates.reshape(1, -1)
-        if candidates.ndim != 2 or candidates.shape[1] != 3 or candidates.shape[0] == 0 \
-                or not np.isfinite(candidates).all():
-            raise ValueError(f"poses = {poses!r} must be one or more finite (x, y, θ) poses")
+        candidates = check_poses("poses", poses)
+        if candidates.shape[0] == 0:
+            raise ValueError(f"poses = {poses!r} must be one or more (x, y, θ) poses")
         sigma = self._check_sigma(sigma)
         bounds = self._region_bounds(region)
         choice = np.arange(self._n) % candidates.shape[0]
@@ -530,26 +556,29 @@ class ParticleFilter:
 
     @staticmethod
     def _check_sigma(sigma, name: str = "sigma") -> np.ndarray:
-        array = np.asarray(sigma, dtype=np.float64)
-        if array.shape != (3,) or not np.isfinite(array).all() or (array < 0).any():
-            raise ValueError(f"{name} = {sigma!r} must be three finite numbers >= 0")
-        return array
+        return reals(name, sigma, 3, 0.0, LARGEST_SIGMA)
 
     def set_particles(self, poses, log_weights=None, motion_state=None) -> None:
         """Replace the particle set (N, 3) and optionally its log-weights (N,) and, for a stateful motion model,
         its per-particle state (fresh when not given); validated first."""
-        poses = np.asarray(poses, dtype=np.float64)
+        poses = check_poses("poses", poses)
         if motion_state is not None:
             if self._motion_state is None:
                 raise ValueError("motion_state given, but the motion model keeps no per-particle state")
-            motion_state = np.asarray(motion_state, dtype=self._motion_state.dtype)
+            try:
+                motion_state = np.asarray(motion_state, dtype=self._motion_state.dtype)
+            except (TypeError, ValueError):
+                raise ArgumentTypeError(f"motion_state = {motion_state!r} must be an array of numbers") from None
             if motion_state.shape != self._motion_state.shape or not np.isfinite(motion_state).all():
                 raise ValueError(f"motion_state must be finite with shape {self._motion_state.shape}, "
                                  f"got {motion_state.shape}")
-        if poses.shape != (self._n, 3) or not np.isfinite(poses).all():
-            raise ValueError(f"poses must be finite with shape ({self._n}, 3), got {poses.shape}")
+        if poses.shape != (self._n, 3):
+            raise ValueError(f"poses must have shape ({self._n}, 3), got {poses.shape}")
         if log_weights is not None:
-            log_weights = np.asarray(log_weights, dtype=np.float64)
+            try:
+                log_weights = np.asarray(log_weights, dtype=np.float64)
+            except (TypeError, ValueError):
+                raise ArgumentTypeError(f"log_weights = {log_weights!r} must be an array of numbers") from None
             if (log_weights.shape != (self._n,) or np.isnan(log_weights).any() or np.isposinf(log_weights).any()
                     or not (log_weights > -np.inf).any()):
                 raise ValueError("log_weights must have shape (N,), no NaN or +inf, and at least one finite entry")
@@ -574,7 +603,7 @@ class ParticleFilter:
 
     def _check_motion(self, u: MotionInput) -> None:
         if not isinstance(u, MotionInput):
-            raise ValueError(f"u = {u!r} must be a motion_models.MotionInput")
+            raise ArgumentTypeError(f"u = {u!r} must be a motion_models.MotionInput, not {type(u).__name__}")
         self.motion_model.check(u)
 
     def _kernel_motion(self, u: MotionInput) -> tuple[float, ...] | None:
@@ -582,7 +611,7 @@ class ParticleFilter:
         moves as `BoundedNoiseModel` does (displacement plus bounded robot-frame noise), so the filter's
         kernels can move the particles themselves, else None."""
         if not isinstance(u, MotionInput):
-            raise ValueError(f"u = {u!r} must be a motion_models.MotionInput")
+            raise ArgumentTypeError(f"u = {u!r} must be a motion_models.MotionInput, not {type(u).__name__}")
         model = self.motion_model
         if model is not self._bounded_of:             # (asked once per motion model: this runs every step)
             kind = type(model)
@@ -667,15 +696,13 @@ class ParticleFilter:
             return None
         if type(since) is tuple and len(since) == 3 and all(type(v) is float for v in since):
             # `MotionHistory.since` gives three floats: checked without numpy's calls on a tiny array
-            if not all(math.isfinite(v) for v in since):
-                raise ValueError(f"since = {since!r} must be three finite numbers (dx, dy, dθ)")
+            if not (math.hypot(since[0], since[1]) <= LARGEST_COORDINATE and abs(since[2]) <= LARGEST_ANGLE):
+                return ParticleFilter._check_since(list(since))       # raises, naming the rule
             return None if since == (0.0, 0.0, 0.0) else np.array(since)
-        try:
-            array = np.asarray(since, dtype=np.float64)
-        except (TypeError, ValueError):
-            array = None
-        if array is None or array.shape != (3,) or not np.isfinite(array).all():
-            raise ValueError(f"since = {since!r} must be three finite numbers (dx, dy, dθ)")
+        array = reals("since", since, 3)
+        if math.hypot(array[0], array[1]) > LARGEST_COORDINATE or abs(array[2]) > LARGEST_ANGLE:
+            raise ValueError(f"since = {since!r} must move at most {LARGEST_COORDINATE:g} m and turn at most "
+                             f"{LARGEST_ANGLE:g} rad")
         return None if not array.any() else array
 
     def _correct(self, observations: Observations, since: np.ndarray | None = None) -> None:

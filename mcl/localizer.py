@@ -55,6 +55,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from field import Field
+from field.checks import ArgumentTypeError, real
 from motion_models import MotionInput
 from sensing import LandmarkSensorModel
 from sensing.observations import Observations
@@ -204,7 +205,7 @@ class Localizer:
         """The robot's motion during the step that ends at time `t` [s] (times never go back)."""
         t = self._check_time(t)
         if not isinstance(u, MotionInput):
-            raise ValueError(f"u = {u!r} must be a motion_models.MotionInput")
+            raise ArgumentTypeError(f"u = {u!r} must be a motion_models.MotionInput, not {type(u).__name__}")
         if self.is_fallen:
             # A fallen robot's odometry says nothing about where it lies; got_up widens the belief instead.
             self.counts["motion while fallen"] += 1
@@ -226,9 +227,7 @@ class Localizer:
         observations = Observations.coerce(observations)
         since = None
         if capture_time is not None:
-            capture_time = float(capture_time)
-            if not math.isfinite(capture_time):
-                raise ValueError(f"capture_time = {capture_time!r} must be finite")
+            capture_time = real("capture_time", capture_time)
             if self.compensate_latency:
                 try:
                     since = self.history.since(capture_time)
@@ -333,6 +332,8 @@ class Localizer:
     def initial_placement(self, spacing: float = 0.25) -> None:
         """INITIAL: the robot stands on one of the own touchlines (which one it cannot know), facing in."""
         hl = self.field.half_length
+        # Between 5 cm (at most a few hundred candidate poses) and the half's length (one).
+        spacing = real("spacing", spacing, 0.05, hl)
         xs = np.arange(-hl + 0.5 * spacing, 0.0, spacing)
         self._reset(touchline_poses(self.field, xs), (0.5 * spacing, 0.08, 0.15))
 
@@ -343,6 +344,8 @@ class Localizer:
 
     def kickoff_placement(self, poses=None, kicking: bool = True) -> None:
         """Placed at kick-off positions: around `poses` (K, 3), or `default_kickoff_positions`."""
+        if not isinstance(kicking, (bool, np.bool_)):
+            raise ArgumentTypeError(f"kicking = {kicking!r} must be True or False, not {type(kicking).__name__}")
         if poses is None:
             poses = default_kickoff_positions(self.field, kicking)
         self._reset(poses, self.placement_sigma)
@@ -392,12 +395,7 @@ class Localizer:
         self.history.clear(self.time)
 
     def _check_time(self, t) -> float:
-        try:
-            t = float(t)
-        except (TypeError, ValueError):
-            raise ValueError(f"t = {t!r} must be a time in seconds") from None
-        if not math.isfinite(t):
-            raise ValueError(f"t = {t!r} must be finite")
+        t = real("t", t)
         if self.time is not None and t < self.time:
             raise ValueError(f"t = {t:.6f} s is before the previous step's {self.time:.6f} s: times never go back")
         return t

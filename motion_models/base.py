@@ -16,32 +16,29 @@ from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
 
+from field.checks import LARGEST_ANGLE, real, reals
+
 # The largest pose change one motion input may ask for: far beyond any robot's step (a field is at most 22 m
 # long), small enough that every pose a filter computes from it stays finite. A larger one is refused with a
 # ValueError naming the input, before any filter state changes.
 MAX_STEP_DISTANCE = 100.0     # m, |(dx, dy)|
-MAX_STEP_TURN = 100.0         # rad, |dθ|
+MAX_STEP_TURN = LARGEST_ANGLE  # rad, |dθ|
+MAX_STEP_DT = 3600.0          # s: one step of at most an hour (a log's longest gap)
 
 
 def _finite_triple(name: str, value: Any) -> tuple[float, float, float] | None:
     if value is None:
         return None
-    try:
-        triple = tuple(float(v) for v in value)
-    except (TypeError, ValueError):
-        raise ValueError(f"{name} = {value!r} must be three numbers") from None
-    if len(triple) != 3:
-        raise ValueError(f"{name} = {value!r} must have three components, not {len(triple)}")
-    if not all(math.isfinite(v) for v in triple):
-        raise ValueError(f"{name} = {value!r} must be finite")
-    return triple  # type: ignore[return-value]
+    if type(value) is tuple and len(value) == 3 and all(type(v) is float and math.isfinite(v) for v in value):
+        return value                              # the common case, without numpy
+    return tuple(float(v) for v in reals(name, value, 3))  # type: ignore[return-value]
 
 
 @dataclass(frozen=True)
 class MotionInput:
     """What the robot did since the previous filter step.
 
-    dt:        time since the previous step [s], finite and >= 0.
+    dt:        time since the previous step [s], finite, >= 0 and at most `MAX_STEP_DT` (an hour).
     The pose change the input implies (`displacement()`) must be finite and at most `MAX_STEP_DISTANCE` (100 m)
     and `MAX_STEP_TURN` (100 rad): anything larger is refused here, so no filter computes a non-finite pose.
     command:   the walk request m = (vx, vy, omega) [m/s, m/s, rad/s] (Hoffmann eq. 4).
@@ -57,12 +54,7 @@ class MotionInput:
     footstep: Any = None
 
     def __post_init__(self) -> None:
-        try:
-            dt = float(self.dt)
-        except (TypeError, ValueError):
-            raise ValueError(f"dt = {self.dt!r} must be a number of seconds") from None
-        if not math.isfinite(dt) or dt < 0.0:
-            raise ValueError(f"dt = {self.dt!r} must be finite and >= 0")
+        dt = real("dt", self.dt, 0.0, MAX_STEP_DT)
         object.__setattr__(self, "dt", dt)
         object.__setattr__(self, "command", _finite_triple("command", self.command))
         object.__setattr__(self, "odometry", _finite_triple("odometry", self.odometry))

@@ -51,6 +51,7 @@ from numba.extending import overload
 
 from field import Field, LandmarkType
 from field.angles import TWO_PI, wrap_angle, wrap_angles
+from field.checks import LARGEST_SIGMA, SMALLEST_SIGMA, ArgumentTypeError, real
 from motion_models._kernels import FAST, atan2_poly, bounded_integers, draw_handles, draw_uniforms, sincos
 
 from .observations import Observations
@@ -678,18 +679,17 @@ class LandmarkSensorModel:
 
     def __post_init__(self) -> None:
         if not isinstance(self.field, Field):
-            raise ValueError(f"field = {self.field!r} must be a field.Field")
-        for name in ("range_noise_floor", "bearing_sigma", "outlier_weight"):
-            value = getattr(self, name)
-            if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
-                raise ValueError(f"{name} = {value!r} must be a finite number > 0")
-        if not (isinstance(self.range_noise_growth, (int, float)) and math.isfinite(self.range_noise_growth)
-                and self.range_noise_growth >= 0):
-            raise ValueError(f"range_noise_growth = {self.range_noise_growth!r} must be finite and >= 0")
-        linear = self.range_noise_linear
-        if isinstance(linear, bool) or not (isinstance(linear, (int, float)) and math.isfinite(linear)
-                                            and linear >= 0):
-            raise ValueError(f"range_noise_linear = {linear!r} must be a finite number >= 0")
+            raise ArgumentTypeError(f"field = {self.field!r} must be a field.Field, not {type(self.field).__name__}")
+        # Noises within [SMALLEST_SIGMA, LARGEST_SIGMA]; the growth with range keeps σ_r finite (at most 10⁹ m)
+        # at any range a detection may have (`MAX_RANGE`, 1 km).
+        for name in ("range_noise_floor", "bearing_sigma"):
+            real(name, getattr(self, name), SMALLEST_SIGMA, LARGEST_SIGMA)
+        real("outlier_weight", self.outlier_weight, 0.0, 1.0, low_open=True)
+        real("range_noise_growth", self.range_noise_growth, 0.0, LARGEST_SIGMA)
+        real("range_noise_linear", self.range_noise_linear, 0.0, LARGEST_SIGMA)
+        if not isinstance(self.mixture, str) or not isinstance(self.bearing_model, str):
+            raise ArgumentTypeError(f"mixture = {self.mixture!r}, bearing_model = {self.bearing_model!r} must be "
+                                    "strings")
         if self.mixture not in ("max", "sum"):
             raise ValueError(f"mixture = {self.mixture!r} must be 'max' or 'sum'")
         if self.bearing_model not in BEARING_MODELS:

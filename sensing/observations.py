@@ -14,9 +14,13 @@ and with hyphens or spaces for underscores (`LandmarkType.parse`): "L", "T", "X"
 "l-crossing", "T crossing"), "post" (GOALPOST), "penalty" (PENALTY_MARK), "center", "centre", "centre_mark"
 (CENTER_MARK).
 
-`Observations` is the struct-of-arrays form the sensor kernels take. It validates everything on construction
-(finite values, range >= 0, a known landmark type, positive noise), so a bad observation is rejected before
-it reaches a filter. A noise left as NaN ("not given") is filled in by the sensor model from its noise model.
+`Observations` is the struct-of-arrays form the sensor kernels take. It validates everything on construction,
+so a bad observation is rejected before it reaches a filter: a known landmark type; a range within
+[0, `MAX_RANGE`] (1 km); a bearing within ±`MAX_BEARING` (100 rad); a noise, when given, within
+[`field.checks.SMALLEST_SIGMA`, `field.checks.LARGEST_SIGMA`] (1e-6 to 1e3); line points (P, 2) within 1 km.
+A value of the wrong type raises TypeError (`field.checks.ArgumentTypeError`, also a ValueError), a bad value
+ValueError, each naming the argument. A noise left as NaN ("not given") is filled in by the sensor model from
+its noise model.
 """
 from __future__ import annotations
 
@@ -28,12 +32,20 @@ import numba
 import numpy as np
 
 from field import LandmarkType
+from field.checks import ArgumentTypeError, LARGEST_ANGLE, LARGEST_COORDINATE, LARGEST_SIGMA, SMALLEST_SIGMA, real
+
+MAX_RANGE = LARGEST_COORDINATE
+"""The largest range a detection may have (m); a farther one is refused with the frame."""
+MAX_BEARING = LARGEST_ANGLE
+"""The largest |bearing| a detection may have (rad)."""
 
 # IS_KIND[v]: v is a landmark type's value (values index it from 0).
 IS_KIND = np.zeros(max(kind.value for kind in LandmarkType) + 1, dtype=np.bool_)
 IS_KIND[[kind.value for kind in LandmarkType]] = True
 # The checks of a batch's detections, in the order they are made (`first_invalid`).
 BAD_KIND, RANGE_NOT_FINITE, BEARING_NOT_FINITE, NEGATIVE_RANGE, BAD_RANGE_SIGMA, BAD_BEARING_SIGMA = range(6)
+_RULES = ("", "must be finite", "must be finite", "", f"must be within [{SMALLEST_SIGMA:g}, {LARGEST_SIGMA:g}] "
+          "(or NaN for 'not given')", f"must be within [{SMALLEST_SIGMA:g}, {LARGEST_SIGMA:g}] (or NaN for 'not given')")
 
 
 def landmark_type(kind: LandmarkType | int | str) -> LandmarkType:
@@ -64,31 +76,21 @@ class LandmarkObservation:
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "kind", landmark_type(self.kind))
-        for name in ("range", "bearing"):
-            _check_number(name, getattr(self, name))
-        if self.range < 0:
-            raise ValueError(f"range = {self.range!r} must be >= 0")
+        real("range", self.range, 0.0, MAX_RANGE)
+        real("bearing", self.bearing, -MAX_BEARING, MAX_BEARING)
         for name in ("range_sigma", "bearing_sigma"):
             value = getattr(self, name)
             if value is not None:
-                _check_number(name, value)
-                if value <= 0:
-                    raise ValueError(f"{name} = {value!r} must be > 0")
-
-
-def _check_number(name: str, value: object) -> None:
-    if isinstance(value, bool) or not isinstance(value, (int, float, np.floating, np.integer)):
-        raise ValueError(f"{name} = {value!r} must be a number")
-    if not math.isfinite(float(value)):
-        raise ValueError(f"{name} = {value!r} must be finite")
+                real(name, value, SMALLEST_SIGMA, LARGEST_SIGMA)
 
 
 @numba.njit(cache=True)
 def first_invalid(kinds, ranges, bearings, range_sigmas, bearing_sigmas, is_kind):
-    """(check, i): the first of the checks BAD_KIND, RANGE_NOT_FINITE, BEARING_NOT_FINITE, NEGATIVE_RANGE,
-    BAD_RANGE_SIGMA, BAD_BEARING_SIGMA that a detection fails, and the first detection failing it; (-1, -1)
-    when all pass. A noise fails when it is given (not NaN) and not finite and > 0. One pass per check, no
-    allocation; `first_invalid_reference` is the same in numpy."""
+    """(check, i): the first of the checks BAD_KIND, RANGE_NOT_FINITE, BEARING_NOT_FINITE, NEGATIVE_RANGE (a
+    range outside [0, MAX_RANGE] or a bearing outside ±MAX_BEARING), BAD_RANGE_SIGMA, BAD_BEARING_SIGMA that a
+    detection fails, and the first detection failing it; (-1, -1) when all pass. A noise fails when it is given
+    (not NaN) and outside [SMALLEST_SIGMA, LARGEST_SIGMA]. One pass per check, no allocation;
+    `first_invalid_reference` is the same in numpy."""
     for i in range(kinds.shape[0]):
         if kinds[i] < 0 or kinds[i] >= is_kind.shape[0] or not is_kind[kinds[i]]:
             return BAD_KIND, i
@@ -99,11 +101,11 @@ def first_invalid(kinds, ranges, bearings, range_sigmas, bearing_sigmas, is_kind
         if not math.isfinite(bearings[i]):
             return BEARING_NOT_FINITE, i
     for i in range(ranges.shape[0]):
-        if ranges[i] < 0:
+        if not (0.0 <= ranges[i] <= MAX_RANGE and abs(bearings[i]) <= MAX_BEARING):
             return NEGATIVE_RANGE, i
     for check, sigmas in ((BAD_RANGE_SIGMA, range_sigmas), (BAD_BEARING_SIGMA, bearing_sigmas)):
         for i in range(sigmas.shape[0]):
-            if not math.isnan(sigmas[i]) and not (math.isfinite(sigmas[i]) and sigmas[i] > 0):
+            if not math.isnan(sigmas[i]) and not (SMALLEST_SIGMA <= sigmas[i] <= LARGEST_SIGMA):
                 return check, i
     return -1, -1
 
@@ -113,9 +115,10 @@ def first_invalid_reference(kinds, ranges, bearings, range_sigmas, bearing_sigma
     inside = (kinds >= 0) & (kinds < is_kind.shape[0])
     known = np.zeros(kinds.shape[0], dtype=bool)
     known[inside] = is_kind[kinds[inside]]
-    failing = [~known, ~np.isfinite(ranges), ~np.isfinite(bearings), ranges < 0]
+    failing = [~known, ~np.isfinite(ranges), ~np.isfinite(bearings),
+               ~((ranges >= 0) & (ranges <= MAX_RANGE) & (np.abs(bearings) <= MAX_BEARING))]
     for sigmas in (range_sigmas, bearing_sigmas):
-        failing.append(~np.isnan(sigmas) & ~(np.isfinite(sigmas) & (sigmas > 0)))
+        failing.append(~np.isnan(sigmas) & ~((sigmas >= SMALLEST_SIGMA) & (sigmas <= LARGEST_SIGMA)))
     for check, bad in enumerate(failing):
         if bad.any():
             return check, int(np.argmax(bad))
@@ -147,13 +150,21 @@ def _line_points(raw) -> np.ndarray:
     """Field-line points as a read-only (P, 2) float64 copy (None: none)."""
     if raw is None:
         return _NO_LINE_POINTS
+    if isinstance(raw, (str, bytes, dict)) or np.ndim(raw) == 0 and not isinstance(raw, np.ndarray):
+        raise ArgumentTypeError(f"line_points = {raw!r} must be an array of (x, y) points, not {type(raw).__name__}")
     try:
-        points = np.asarray(raw, dtype=np.float64).reshape(-1, 2).copy()     # owning its data
-    except (TypeError, ValueError):
-        raise ValueError(f"line_points = {raw!r} must be an array of (x, y) points") from None
-    if points.size and not np.isfinite(points).all():
-        i = int(np.argmin(np.isfinite(points).all(axis=1)))
-        raise ValueError(f"line_points[{i}] = {points[i].tolist()!r} must be finite")
+        points = np.array(raw, dtype=np.float64)                              # owning its data
+    except (TypeError, ValueError, OverflowError):
+        raise ArgumentTypeError(f"line_points = {raw!r} must be an array of (x, y) points") from None
+    if points.size == 0:
+        return _NO_LINE_POINTS
+    if points.ndim != 2 or points.shape[1] != 2:
+        raise ValueError(f"line_points must have shape (P, 2), got {points.shape}")
+    inside = np.isfinite(points).all(axis=1) & (np.abs(points) <= LARGEST_COORDINATE).all(axis=1)
+    if not inside.all():
+        i = int(np.argmin(inside))
+        raise ValueError(f"line_points[{i}] = {points[i].tolist()!r} must be finite and within "
+                         f"{LARGEST_COORDINATE:g} m")
     points.flags.writeable = False
     return points
 
@@ -180,10 +191,16 @@ class Observations:
         for name in _LANDMARK_FIELDS:
             dtype = np.int64 if name == "kinds" else np.float64
             raw = getattr(self, name)
+            if isinstance(raw, (str, bytes, dict)):
+                raise ArgumentTypeError(f"{name} = {raw!r} must be an array of numbers, not {type(raw).__name__}")
             try:
-                arr = np.asarray(raw, dtype=dtype).reshape(-1).copy()         # owning its data
-            except (TypeError, ValueError):
-                raise ValueError(f"{name} = {raw!r} must be an array of numbers") from None
+                arr = np.array(raw, dtype=dtype)                              # owning its data
+            except (TypeError, ValueError, OverflowError):
+                raise ArgumentTypeError(f"{name} = {raw!r} must be an array of numbers") from None
+            if arr.ndim > 1:
+                raise ValueError(f"{name} must be one-dimensional, got shape {arr.shape}")
+            if arr.ndim == 0:
+                arr = arr.reshape(1).copy()
             if n is None:
                 n = arr.shape[0]
             elif arr.shape[0] != n:
@@ -213,9 +230,15 @@ class Observations:
             raise ValueError(f"kinds[{i}] = {int(self.kinds[i])} is not a landmark type")
         if check >= 0:
             name = ("ranges", "bearings", "ranges", "range_sigmas", "bearing_sigmas")[check - 1]
+            rule = _RULES[check]
+            if check == NEGATIVE_RANGE:
+                if self.ranges[i] < 0:
+                    rule = "must be >= 0"
+                elif self.ranges[i] > MAX_RANGE:
+                    rule = f"must be <= {MAX_RANGE:g} m"
+                else:
+                    name, rule = "bearings", f"must be within ±{MAX_BEARING:g} rad"
             value = getattr(self, name)[i]
-            rule = ("must be finite" if check < NEGATIVE_RANGE else "must be >= 0" if check == NEGATIVE_RANGE
-                    else "must be finite and > 0 (or NaN for 'not given')")
             raise ValueError(f"{name}[{i}] = {value!r} {rule}")
 
     @classmethod
@@ -233,10 +256,14 @@ class Observations:
 
     @classmethod
     def from_list(cls, observations: Iterable[LandmarkObservation], line_points=None) -> "Observations":
-        items = list(observations)
+        try:
+            items = list(observations)
+        except TypeError:
+            raise ArgumentTypeError(f"observations = {observations!r} must be an Observations, a list of "
+                            f"LandmarkObservation or None, not {type(observations).__name__}") from None
         for i, o in enumerate(items):
             if not isinstance(o, LandmarkObservation):
-                raise ValueError(f"observations[{i}] = {o!r} is not a LandmarkObservation")
+                raise ArgumentTypeError(f"observations[{i}] = {o!r} is not a LandmarkObservation")
         # Two arrays built here, adopted as they are: a frame's few detections cost numpy calls, not elements.
         rows = np.array([[o.range for o in items], [o.bearing for o in items],
                          [math.nan if o.range_sigma is None else o.range_sigma for o in items],

@@ -392,9 +392,12 @@ def _filter(model):
                                     dict(dt=0.01, odometry=(1e6, 0.0, 0.0))])
 def test_a_step_beyond_the_bounds_is_refused_naming_the_input(kwargs):
     from motion_models.base import MAX_STEP_DISTANCE
-    with pytest.raises(ValueError, match=r"odometry|command") as error:
+    from motion_models.base import MAX_STEP_DT
+    with pytest.raises(ValueError, match=r"^(odometry|dt = .* with command|dt) = ") as error:
         MotionInput(**kwargs)
-    assert f"{MAX_STEP_DISTANCE:g} m" in str(error.value)
+    bound = f"{MAX_STEP_DT:g}" if str(error.value).startswith("dt = ") and "command" not in str(error.value) \
+        else f"{MAX_STEP_DISTANCE:g} m"
+    assert bound in str(error.value)
 
 
 def test_the_inputs_that_crashed_the_process_are_refused_in_a_child_process():

@@ -1,0 +1,405 @@
+"""The fuzz targets: every public entry point of the filter, the localizer, the models and the loaders, called
+with generated (mostly hostile) arguments through `fuzzing.attempt`.
+
+A target is a hypothesis test; `TARGETS` names them for `tests/fuzz_run.py`, which runs each in a child process
+with the profile it is given ("ci" or "full") and counts the cases.
+"""
+from __future__ import annotations
+
+import math
+import os
+import tempfile
+
+import numpy as np
+from hypothesis import given
+from hypothesis import strategies as st
+
+from field import LandmarkType, preset
+from fuzzing import (attempt, check_estimate, check_filter, junk, number_or_junk, numbers, record_case, sane,
+                     triples)
+from mcl import AugmentedMCL, Grid, ParticleFilter
+from mcl.localizer import Localizer, QualityThresholds
+from motion_models import AdaptiveMotion, ConstantNoise, MotionInput, VelocityLinear
+from sensing import CombinedSensorModel, LandmarkObservation, LandmarkSensorModel, LineSensorModel, Observations
+from sensing.collision import NO_COLLISION, CollisionPercept
+
+FIELDS = {name: preset(name) for name in ("spl", "kidsize", "adultsize")}
+KIND_NAMES = [kind.name for kind in LandmarkType] + ["L", "T", "X", "goalpost", "penalty_mark", "center_mark",
+                                                       "post", "centre"]
+BAD_KINDS = ["nope", "", 99, -1, 1.5, None, True]
+_LINE_MODELS: dict = {}
+
+
+def _line_model(field_name: str) -> LineSensorModel:
+    if field_name not in _LINE_MODELS:                  # its likelihood field takes a while to build
+        _LINE_MODELS[field_name] = LineSensorModel(FIELDS[field_name])
+    return _LINE_MODELS[field_name]
+
+
+# -- arguments -------------------------------------------------------------------------------------------------
+def motion_args():
+    """Keyword arguments of a MotionInput: often sane, often not."""
+    sane_step = st.fixed_dictionaries({"dt": st.sampled_from([0.0, 0.01, 0.033, 0.1]),
+                                       "command": st.tuples(sane(-0.5, 0.5), sane(-0.3, 0.3), sane(-1, 1))})
+    sane_odometry = st.fixed_dictionaries({"dt": st.sampled_from([0.01, 0.02]),
+                                           "odometry": st.tuples(sane(-0.05, 0.05), sane(-0.05, 0.05),
+                                                                 sane(-0.2, 0.2))})
+    hostile = st.fixed_dictionaries({"dt": number_or_junk()},
+                                    optional={"command": triples(5.0), "odometry": triples(5.0),
+                                              "collision": st.one_of(st.just(NO_COLLISION), junk(),
+                                                                     st.just(CollisionPercept(left=True, rate=0.5,
+                                                                                              recent_left=True)))})
+    return st.one_of(sane_step, sane_step, sane_odometry, hostile)
+
+
+def detection_args():
+    """One detection as (kind, range, bearing, range_sigma, bearing_sigma)."""
+    kind = st.one_of(st.sampled_from(KIND_NAMES), st.sampled_from(KIND_NAMES), st.sampled_from(BAD_KINDS))
+    sigma = st.one_of(st.none(), st.none(), sane(0.01, 0.5), numbers(), junk())
+    return st.one_of(st.tuples(kind, sane(0.1, 8.0), sane(-1.5, 1.5), st.none(), st.none()),
+                     st.tuples(kind, number_or_junk(), number_or_junk(), sigma, sigma))
+
+
+def observation_args():
+    """A frame's detections: a list of detections, as `from_list` or `from_arrays` takes them, or junk."""
+    detections = st.lists(detection_args(), max_size=5)
+    line_points = st.one_of(st.none(), st.lists(st.tuples(sane(-4, 4), sane(-4, 4)), max_size=6),
+                            st.lists(st.tuples(numbers(), numbers()), max_size=3), junk(),
+                            st.just(np.zeros((2, 3))), st.just(np.ones((3,))))
+    return st.one_of(st.tuples(st.just("list"), detections, line_points),
+                     st.tuples(st.just("arrays"), detections, line_points),
+                     st.tuples(st.just("junk"), junk(), st.none()))
+
+
+def build_observations(args):
+    how, detections, line_points = args
+    if how == "junk":
+        return detections
+    if how == "list":
+        if line_points is None:
+            return [LandmarkObservation(*d) for d in detections]
+        return Observations.from_list([LandmarkObservation(*d) for d in detections], line_points=line_points)
+    columns = list(zip(*detections)) if detections else [[], [], [], [], []]
+    kinds, ranges, bearings, range_sigmas, bearing_sigmas = columns
+    range_sigmas = None if all(v is None for v in range_sigmas) else [math.nan if v is None else v
+                                                                      for v in range_sigmas]
+    bearing_sigmas = None if all(v is None for v in bearing_sigmas) else [math.nan if v is None else v
+                                                                          for v in bearing_sigmas]
+    return Observations.from_arrays(list(kinds), list(ranges), list(bearings), range_sigmas, bearing_sigmas,
+                                    line_points)
+
+
+def filter_config():
+    return st.fixed_dictionaries({
+        "field": st.sampled_from(sorted(FIELDS)),
+        "motion": st.sampled_from(["velocity_linear", "velocity_linear_gaussian", "constant", "adaptive"]),
+        "sensor": st.sampled_from(["landmarks", "landmarks", "landmarks_sum", "lines", "combined"]),
+        "n": st.sampled_from([1, 2, 7, 64]),
+        "seed": st.integers(0, 3),
+        "fast": st.booleans(),
+        "augmented": st.booleans(),
+        "resampling": st.sampled_from(["systematic", "stratified", "residual", "multinomial"]),
+    })
+
+
+def make_filter(config) -> ParticleFilter:
+    field = FIELDS[config["field"]]
+    motion = {"velocity_linear": VelocityLinear(), "velocity_linear_gaussian": VelocityLinear(gaussian=True),
+              "constant": ConstantNoise(), "adaptive": AdaptiveMotion()}[config["motion"]]
+    sensor = config["sensor"]
+    if sensor == "lines":
+        sensor_model = _line_model(config["field"])
+    elif sensor == "combined":
+        sensor_model = CombinedSensorModel((LandmarkSensorModel(field), _line_model(config["field"])))
+    else:
+        sensor_model = LandmarkSensorModel(field, mixture="sum" if sensor == "landmarks_sum" else "max")
+    return ParticleFilter(field, motion, sensor_model, n_particles=config["n"], seed=config["seed"],
+                          fast=config["fast"], resampling=config["resampling"],
+                          augmented=AugmentedMCL() if config["augmented"] else None)
+
+
+def motion_input(kwargs, adaptive: bool) -> MotionInput:
+    kwargs = dict(kwargs)
+    if adaptive:
+        kwargs.setdefault("collision", NO_COLLISION)
+    return MotionInput(**kwargs)
+
+
+REGIONS = st.one_of(st.sampled_from(["field", "own_half", "opponent_half", "nowhere"]),
+                    st.tuples(sane(-5, 0), sane(0.1, 5), sane(-3, 0), sane(0.1, 3)),
+                    st.tuples(numbers(), numbers(), numbers(), numbers()), junk())
+SIGMAS = st.one_of(st.tuples(sane(0, 0.5), sane(0, 0.5), sane(0, 0.5)), triples(1.0))
+POSES = st.one_of(st.tuples(sane(-4, 4), sane(-3, 3), sane(-3.2, 3.2)), triples(5.0))
+
+
+def filter_operations():
+    return st.lists(st.one_of(
+        st.tuples(st.just("predict"), motion_args()),
+        st.tuples(st.just("step"), motion_args(), observation_args()),
+        st.tuples(st.just("step"), motion_args(), observation_args()),
+        st.tuples(st.just("correct"), observation_args(), st.one_of(st.none(), triples(0.2))),
+        st.tuples(st.just("reset_uniform"), REGIONS, st.one_of(st.none(), number_or_junk()), number_or_junk()),
+        st.tuples(st.just("reset_around"), POSES, SIGMAS),
+        st.tuples(st.just("reset_candidates"), st.one_of(st.lists(POSES, max_size=3), junk()), SIGMAS, REGIONS),
+        st.tuples(st.just("diffuse"), SIGMAS),
+        st.tuples(st.just("reset_mirrored")),
+        st.tuples(st.just("set_particles"), st.sampled_from(["valid", "huge", "nan", "shape", "weights",
+                                                             "bad_weights"])),
+        st.tuples(st.just("setting"), st.sampled_from(["resampling", "resample_threshold", "roughening",
+                                                        "augmented"]), number_or_junk()),
+        st.tuples(st.just("estimate")),
+    ), min_size=1, max_size=8)
+
+
+def apply_filter_operation(pf: ParticleFilter, op, adaptive: bool) -> None:
+    name = op[0]
+    n = pf.n
+    if name == "predict":
+        attempt("filter", pf, lambda: pf.predict(motion_input(op[1], adaptive)), check_filter)
+    elif name == "step":
+        attempt("filter", pf, lambda: pf.step(motion_input(op[1], adaptive), build_observations(op[2])),
+                check_filter)
+    elif name == "correct":
+        attempt("filter", pf, lambda: pf.correct(build_observations(op[1]), since=op[2]), check_filter)
+    elif name == "reset_uniform":
+        attempt("filter", pf, lambda: pf.reset_uniform(op[1], op[2], op[3]), check_filter)
+    elif name == "reset_around":
+        attempt("filter", pf, lambda: pf.reset_around(op[1], op[2]), check_filter)
+    elif name == "reset_candidates":
+        attempt("filter", pf, lambda: pf.reset_candidates(op[1], op[2], op[3]), check_filter)
+    elif name == "diffuse":
+        attempt("filter", pf, lambda: pf.diffuse(op[1]), check_filter)
+    elif name == "reset_mirrored":
+        attempt("filter", pf, pf.reset_mirrored, check_filter)
+    elif name == "set_particles":
+        kind = op[1]
+        poses = np.zeros((n, 3))
+        poses[:, 0] = np.linspace(-1, 1, n)
+        weights = None
+        if kind == "huge":
+            poses[:, 0] = 1e300
+        elif kind == "nan":
+            poses[-1, 1] = math.nan
+        elif kind == "shape":
+            poses = np.zeros((n + 1, 3))
+        elif kind == "weights":
+            weights = np.linspace(-3, 0, n)
+        elif kind == "bad_weights":
+            weights = np.full(n, -math.inf)
+        attempt("filter", pf, lambda: pf.set_particles(poses, weights), check_filter)
+    elif name == "setting":
+        attempt("filter", pf, lambda: setattr(pf, op[1], op[2]), check_filter)
+    elif name == "estimate":
+        attempt("filter", pf, lambda: check_estimate(pf))
+
+
+@given(config=filter_config(), operations=filter_operations())
+def fuzz_filter(config, operations):
+    """ParticleFilter: predict, step, correct, the resets, set_particles, the settings, the estimate."""
+    record_case("filter", (config, operations))
+    pf = make_filter(config)
+    for op in operations:
+        apply_filter_operation(pf, op, config["motion"] == "adaptive")
+    check_filter(pf)
+    check_estimate(pf)
+
+
+@given(kwargs=motion_args())
+def fuzz_motion_input(kwargs):
+    """MotionInput: an accepted input has a finite displacement within the documented bounds."""
+    record_case("motion_input", kwargs)
+    from motion_models.base import MAX_STEP_DISTANCE, MAX_STEP_TURN
+    holder = []
+    if attempt("motion_input", None, lambda: holder.append(MotionInput(**kwargs))):
+        u = holder[0]
+        if u.command is not None or u.odometry is not None:
+            dx, dy, dtheta = u.displacement()
+            assert math.hypot(dx, dy) <= MAX_STEP_DISTANCE and abs(dtheta) <= MAX_STEP_TURN
+
+
+@given(detections=st.lists(detection_args(), max_size=4), how=st.sampled_from(["list", "arrays"]),
+       line_points=st.one_of(st.none(), st.lists(st.tuples(numbers(), numbers()), max_size=3), junk(),
+                             st.just(np.zeros((2, 3))), st.just(np.zeros((2, 2, 2)))),
+       shape=st.sampled_from([None, (2, 2), (1, 4), (4, 1)]))
+def fuzz_observations(detections, how, line_points, shape):
+    """Observations and LandmarkObservation: accepted batches hold finite, in-bound, 1-D arrays."""
+    record_case("observations", (detections, how, line_points, shape))
+    holder = []
+
+    def build():
+        if shape is not None and how == "arrays" and len(detections) == 4:
+            holder.append(Observations.from_arrays([d[0] for d in detections],
+                                                   np.reshape([d[1] for d in detections], shape),
+                                                   [d[2] for d in detections]))
+        else:
+            holder.append(Observations.coerce(build_observations((how, detections, line_points))))
+
+    if attempt("observations", None, build):
+        batch = holder[0]
+        for name in ("ranges", "bearings", "range_sigmas", "bearing_sigmas"):
+            assert getattr(batch, name).ndim == 1
+        assert np.isfinite(batch.ranges).all() and np.isfinite(batch.bearings).all()
+        assert batch.line_points.ndim == 2 and batch.line_points.shape[1] == 2
+        assert np.isfinite(batch.line_points).all()
+
+
+@given(kwargs=st.fixed_dictionaries({}, optional={
+    "n_particles": st.one_of(st.sampled_from([0, -1, 10**13, 2**63, 1.5, True, 10**7 + 1]), junk()),
+    "seed": st.one_of(st.integers(-5, 10**30), junk()),
+    "resampling": st.one_of(st.sampled_from(["systematic", "bogus"]), junk()),
+    "resample_threshold": number_or_junk(),
+    "roughening": triples(1.0),
+    "threads": st.one_of(st.sampled_from([0, -1, 10**9, 1.0]), junk()),
+    "fast": st.one_of(st.booleans(), junk()),
+    "augmented": st.one_of(st.just(AugmentedMCL()), junk()),
+    "grid": st.one_of(st.just("grid"), junk()),
+    "relocalization": junk(),
+}), grid=st.fixed_dictionaries({}, optional={"position_cell": number_or_junk(), "orientation_bins":
+                                             number_or_junk(), "cluster_cell": number_or_junk()}),
+   augmented=st.fixed_dictionaries({}, optional={"alpha_slow": number_or_junk(), "alpha_fast": number_or_junk(),
+                                                 "max_fraction": number_or_junk(),
+                                                 "fit_threshold": number_or_junk()}))
+def fuzz_filter_construction(kwargs, grid, augmented):
+    """ParticleFilter, Grid and AugmentedMCL constructors: refused with ValueError/TypeError, or a filter
+    that steps."""
+    record_case("filter_construction", (kwargs, grid, augmented))
+    field = FIELDS["spl"]
+    holder = []
+
+    def build():
+        options = dict(kwargs)
+        if options.get("grid") == "grid":
+            options["grid"] = Grid(**grid)
+        if augmented:
+            options["augmented"] = AugmentedMCL(**augmented)
+        holder.append(ParticleFilter(field, VelocityLinear(), LandmarkSensorModel(field), **options))
+
+    if attempt("filter_construction", None, build):
+        pf = holder[0]
+        if pf.n <= 5000:
+            pf.step(MotionInput(dt=0.01, command=(0.2, 0.0, 0.1)),
+                    [LandmarkObservation("goalpost", 2.0, 0.3), LandmarkObservation("T", 1.0, -0.5)])
+            check_filter(pf)
+            check_estimate(pf)
+
+
+@given(kwargs=st.fixed_dictionaries({}, optional={
+    "range_noise_floor": number_or_junk(), "range_noise_growth": number_or_junk(),
+    "range_noise_linear": number_or_junk(), "bearing_sigma": number_or_junk(), "outlier_weight": number_or_junk(),
+    "mixture": st.one_of(st.sampled_from(["max", "sum", "x"]), junk()),
+    "bearing_model": st.one_of(st.sampled_from(["von_mises", "gaussian", "x"]), junk())}),
+    line_kwargs=st.fixed_dictionaries({}, optional={
+        "sigma": number_or_junk(), "resolution": st.one_of(st.sampled_from([1e-9, 0.0, -1.0, 1e-300]), junk()),
+        "max_points": number_or_junk(), "outlier_weight": number_or_junk()}),
+    motion_kwargs=st.fixed_dictionaries({}, optional={"beta1": number_or_junk(), "beta4": number_or_junk(),
+                                                      "gaussian": st.one_of(st.booleans(), junk())}),
+    constant_kwargs=st.fixed_dictionaries({}, optional={"rate_x": number_or_junk(), "rate_theta": number_or_junk()}),
+    observations=observation_args())
+def fuzz_models(kwargs, line_kwargs, motion_kwargs, constant_kwargs, observations):
+    """The models' constructors: refused cleanly, or models a filter steps with."""
+    record_case("models", (kwargs, line_kwargs, motion_kwargs, constant_kwargs, observations))
+    field = FIELDS["kidsize"]
+    models = []
+    attempt("models", None, lambda: models.append(("sensor", LandmarkSensorModel(field, **kwargs))))
+    if line_kwargs:
+        attempt("models", None, lambda: models.append(("sensor", LineSensorModel(field, **line_kwargs))))
+    attempt("models", None, lambda: models.append(("motion", VelocityLinear(**motion_kwargs))))
+    attempt("models", None, lambda: models.append(("motion", ConstantNoise(**constant_kwargs))))
+    sensors = [m for kind, m in models if kind == "sensor"] or [LandmarkSensorModel(field)]
+    motions = [m for kind, m in models if kind == "motion"] or [VelocityLinear()]
+    for sensor in sensors:
+        for motion in motions:
+            pf = ParticleFilter(field, motion, sensor, n_particles=32, seed=1)
+            attempt("models", pf, lambda: pf.step(MotionInput(dt=0.05, command=(0.3, 0.1, 0.5)),
+                                                  build_observations(observations)), check_filter)
+            check_estimate(pf)
+
+
+def localizer_operations():
+    return st.lists(st.one_of(
+        st.tuples(st.just("motion"), st.one_of(sane(0, 0.05), number_or_junk()), motion_args()),
+        st.tuples(st.just("motion"), sane(0, 0.05), motion_args()),
+        st.tuples(st.just("observe"), observation_args(), st.one_of(st.none(), sane(-0.2, 0.0), number_or_junk())),
+        st.tuples(st.just("initial_placement"), st.one_of(sane(0.05, 1.0), number_or_junk())),
+        st.tuples(st.just("penalty_return")),
+        st.tuples(st.just("kickoff_placement"), st.one_of(st.none(), st.lists(POSES, max_size=3), junk()),
+                  st.one_of(st.booleans(), junk())),
+        st.tuples(st.just("manual_placement"), st.one_of(st.none(), st.lists(POSES, max_size=3), junk())),
+        st.tuples(st.just("anywhere_in_own_half")),
+        st.tuples(st.just("place"), POSES, st.one_of(st.none(), SIGMAS)),
+        st.tuples(st.just("fallen")),
+        st.tuples(st.just("got_up")),
+        st.tuples(st.just("quality")),
+    ), min_size=1, max_size=10)
+
+
+def check_localizer(loc) -> None:
+    check_filter(loc.filter)
+
+
+@given(field_name=st.sampled_from(sorted(FIELDS)), n=st.sampled_from([1, 16, 64]),
+       operations=localizer_operations(),
+       options=st.fixed_dictionaries({}, optional={"history": number_or_junk(),
+                                                   "getup_sigma": SIGMAS, "placement_sigma": SIGMAS,
+                                                   "compensate_latency": st.booleans()}))
+def fuzz_localizer(field_name, n, operations, options):
+    """Localizer: the loop (motion, observe), the game events, the quality."""
+    record_case("localizer", (field_name, n, operations, options))
+    field = FIELDS[field_name]
+    holder = []
+    if not attempt("localizer", None, lambda: holder.append(Localizer(field, n_particles=n, seed=3, **options))):
+        return
+    loc = holder[0]
+    clock = [0.0]
+    for op in operations:
+        name = op[0]
+        if name == "motion":
+            dt = op[1]
+
+            def motion():
+                t = clock[0] + float(dt)
+                loc.motion(t, MotionInput(**op[2]))
+                clock[0] = t
+            attempt("localizer", loc, motion, check_localizer)
+        elif name == "observe":
+            offset = op[2]
+            attempt("localizer", loc, lambda: loc.observe(build_observations(op[1]), None if offset is None else
+                                                          clock[0] + offset), check_localizer)
+        elif name == "initial_placement":
+            attempt("localizer", loc, lambda: loc.initial_placement(op[1]), check_localizer)
+        elif name == "kickoff_placement":
+            attempt("localizer", loc, lambda: loc.kickoff_placement(op[1], op[2]), check_localizer)
+        elif name == "manual_placement":
+            attempt("localizer", loc, lambda: loc.manual_placement(op[1]), check_localizer)
+        elif name == "place":
+            attempt("localizer", loc, lambda: loc.place(op[1], op[2]), check_localizer)
+        elif name == "quality":
+            attempt("localizer", loc, lambda: (loc.quality(), loc.is_lost, loc.fit))
+        else:
+            attempt("localizer", loc, getattr(loc, name), check_localizer)
+    check_estimate(loc.filter)
+
+
+@given(value=st.integers(0, 10))
+def fuzz_crash(value):
+    """Not a target of the suite: dies of SIGSEGV, so the runner's crash report can be tested."""
+    record_case("_crash", value)
+    if value >= 0:
+        import ctypes
+        import faulthandler
+        faulthandler.disable()
+        ctypes.string_at(0)
+
+
+TARGETS = {
+    "motion_input": fuzz_motion_input,
+    "observations": fuzz_observations,
+    "filter": fuzz_filter,
+    "filter_construction": fuzz_filter_construction,
+    "models": fuzz_models,
+    "localizer": fuzz_localizer,
+}
+HIDDEN = {"_crash": fuzz_crash}        # run by name only
+# The share of a profile's examples each target gets (the filter and the localizer hold the most).
+WEIGHTS = {"motion_input": 1, "observations": 1, "filter": 3, "filter_construction": 1, "models": 1,
+           "localizer": 3}
