@@ -445,10 +445,8 @@ def main(argv: list[str] | None = None) -> int:
         parser.error(f"--seeds {args.seeds} must be at most {MAX_SEEDS} (training and held-out seeds stay apart)")
     if not (math.isfinite(args.duration) and args.duration >= 10.0):
         parser.error(f"--duration {args.duration} must be at least 10 s")
-    if args.save:
-        directory = os.path.dirname(os.path.abspath(args.save))
-        if not os.path.isdir(directory):
-            parser.error(f"--save {args.save}: directory {directory} does not exist")
+    from mcl.cli_checks import check_output_file
+    check_output_file(args.save, "--save", make_parents=False)   # before the battery runs, not after it
     prior = _overrides(parser, "--prior", args.prior, RelocalizationPrior)
     quality = _overrides(parser, "--quality", args.quality, QualityThresholds)
     splits = list(SPLITS) if args.split == "both" else [args.split]

@@ -414,7 +414,10 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--rrd", help="write a Rerun recording here (one case, one model, one seed)")
     parser.add_argument("--json", action="store_true", help="print JSON instead of text")
     args = parser.parse_args(argv)
-    seeds = parse_seeds(args.seeds) if args.seeds else [args.seed]
+    try:
+        seeds = parse_seeds(args.seeds) if args.seeds else [args.seed]
+    except ValueError:
+        parser.error(f"--seeds {args.seeds!r}: give seeds as 3, 0-9 or 1,4,7")
     cases = CASES if args.case == "all" else (args.case,)
     models = ("velocity-linear", "adaptive") if args.model == "both" else (args.model,)
     particles = args.particles or (500 if args.vision else 100)
@@ -422,6 +425,8 @@ def main(argv: list[str] | None = None) -> int:
         parser.error(f"--particles {particles} must be > 0")
     if args.rrd and (len(seeds) > 1 or len(cases) > 1 or len(models) > 1):
         parser.error("--rrd records one run: give --case, --model (not both) and --seed")
+    from mcl.cli_checks import check_output_file
+    check_output_file(args.rrd, "--rrd")          # before the run, not after it
     reference = free_walk_reference()
     result: dict = {}
     if args.report:

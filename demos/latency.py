@@ -62,10 +62,16 @@ def main(argv: list[str] | None = None) -> int:
         parser.error(f"--latency {args.latency} must be within [0, 1] s")
     if args.particles <= 0:
         parser.error(f"--particles {args.particles} must be > 0")
+    if not (math.isfinite(args.duration) and args.duration > 0):
+        parser.error(f"--duration {args.duration} must be > 0 s")
+    try:
+        seeds = parse_seeds(args.seeds)
+    except ValueError:
+        parser.error(f"--seeds {args.seeds!r}: give seeds as 3, 0-9 or 1,4,7")
     result = {"latency_s": args.latency, "particles": args.particles, "duration_s": args.duration}
     for pace, changes in PACES:
         scenario = replace(WalkScenario(), duration=args.duration, kidnap_time=None, **changes)
-        runs = [run_seed(seed, args.latency, args.particles, scenario) for seed in parse_seeds(args.seeds)]
+        runs = [run_seed(seed, args.latency, args.particles, scenario) for seed in seeds]
         result[pace] = {"runs": runs, "summary": summarize(runs)}
     if args.json:
         json.dump(result, sys.stdout, indent=2)

@@ -359,9 +359,12 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--half", action="store_true", help="with --train: learn on the first half of the log")
     parser.add_argument("--save", metavar="DIR", help="with --train: save the models to DIR/apriori, DIR/online")
     args = parser.parse_args(argv)
+    from mcl.cli_checks import check_input_file, check_output_directory, check_output_file
     if args.train or args.save:
         if not (args.train and args.save):
             parser.error("--train LOG and --save DIR go together")
+        check_input_file(args.train, "--train")       # before the training, not after it
+        check_output_directory(args.save, "--save")
         try:
             result = train_command(args.train, args.save, args.seed, half=args.half)
         except ValueError as exc:
@@ -373,6 +376,7 @@ def main(argv: list[str] | None = None) -> int:
                           for k, v in result["saved"].items()))
         return 0
     if args.record:
+        check_output_file(args.record, "--record")
         surface = "grass" if args.surface == "both" else args.surface
         try:
             log = simulate(args.duration, surface, args.seed)

@@ -92,8 +92,12 @@ def main(argv: list[str] | None = None) -> int:
         parser.error(f"--particles {args.particles} must be > 0")
     if not (math.isfinite(args.duration) and args.duration >= 3.0):
         parser.error(f"--duration {args.duration} must be at least 3 s")
+    try:
+        seeds = parse_seeds(args.seeds)
+    except ValueError:
+        parser.error(f"--seeds {args.seeds!r}: give seeds as 3, 0-9 or 1,4,7")
     scenario = replace(WalkScenario(), duration=args.duration, kidnap_time=None)
-    runs = [run_seed(seed, args.particles, scenario) for seed in parse_seeds(args.seeds)]
+    runs = [run_seed(seed, args.particles, scenario) for seed in seeds]
     summary = summarize(runs)
     if args.json:
         json.dump({"particles": args.particles, "duration_s": args.duration, "runs": runs, "summary": summary},

@@ -785,6 +785,8 @@ def main(argv: list[str] | None = None) -> int:
         parser.error(f"--particles must be at least 1, got {args.particles}")
     if not (math.isfinite(args.duration) and args.duration >= 4.0):
         parser.error(f"--duration must be at least 4 s, got {args.duration}")
+    from mcl.cli_checks import check_output_file
+    check_output_file(args.rrd, "--rrd")          # before the simulations, not after them
     report = build_report(args.seed, args.duration, args.twist, args.slip, args.seeds, args.particles, args.rrd)
     if args.json:
         json.dump(report, sys.stdout, indent=2)

@@ -206,9 +206,16 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     if args.particles <= 0:
         parser.error(f"--particles {args.particles} must be > 0")
-    seeds = parse_seeds(args.seeds) if args.seeds else [args.seed]
+    if not (math.isfinite(args.duration) and args.duration > 0):
+        parser.error(f"--duration {args.duration} must be > 0 s")
+    try:
+        seeds = parse_seeds(args.seeds) if args.seeds else [args.seed]
+    except ValueError:
+        parser.error(f"--seeds {args.seeds!r}: give seeds as 3, 0-9 or 1,4,7")
     if args.rrd and len(seeds) > 1:
         parser.error("--rrd records one run: give --seed, not --seeds")
+    from mcl.cli_checks import check_output_file
+    check_output_file(args.rrd, "--rrd")          # before the run, not after it
     scenario = WalkScenario(lines=args.lines)
     if args.duration != scenario.duration:
         kidnap = scenario.kidnap_time if args.duration > (scenario.kidnap_time or 0) + 5 else None

@@ -13,13 +13,30 @@
     robocup-mcl bench replay [--minutes 10] [--json]  # log replay speed in multiples of real time
     robocup-mcl bench compare REV [--rounds 3] [--json]  # this checkout against another revision, alternated
     robocup-mcl eval [--families ...] [--split train|holdout|both] [--json] [--save PATH]   # the scenario battery
+    robocup-mcl soak [--minutes 60] [--particles 500] [--seed S] [--json] [--save PATH]  # an hour in the loop
+
+Errors. A command that cannot run as asked prints one line on stderr, `robocup-mcl: <message>` (the replay's
+own: `robocup-mcl replay: <message>`), and exits 1, never a traceback: bad values (ValueError, TypeError),
+files it cannot read or write (OSError: a missing log, an unwritable output path, no permission), and the
+library's own errors (`mcl.logs.LogError`, `mcl.cli_checks.CommandError`, `mcl.bench_compare.CompareError`).
+The commands check their output paths (`--rrd`, `--save`, `--out`, `--plot`, `--record`) right after parsing
+their arguments, before a long run starts (`mcl.cli_checks`). Usage errors (an unknown option, a malformed
+value) are argparse's: the usage line and the message, exit 2. Ctrl-C prints `robocup-mcl: interrupted` and
+exits 130. Any other exception is a bug in robocup-mcl: one line naming its type and message, a hint to set
+the debug variable, exit 1. With `ROBOCUP_MCL_DEBUG=1` in the environment nothing is caught: every error
+raises with its full traceback. (docs/reliability.md, "Command-line errors".)
 """
 from __future__ import annotations
 
 import importlib
+import os
 import sys
 
+from .cli_checks import CommandError, one_line
 from .numba_cache import guard_source_checkout
+
+DEBUG_VARIABLE = "ROBOCUP_MCL_DEBUG"
+EXIT_ERROR, EXIT_USAGE, EXIT_INTERRUPTED = 1, 2, 130
 
 DEMOS = {
     "walk": ("demos.walk", "the particle filter on the 60 s walk scenario with a kidnapping"),
@@ -47,34 +64,126 @@ def _usage() -> str:
 def _dispatch(table: dict, name: str, argv: list[str], what: str) -> int:
     if name not in table:
         print(f"robocup-mcl: unknown {what} {name!r}; choose from {', '.join(table)}", file=sys.stderr)
-        return 2
+        return EXIT_USAGE
+    if (what, name) in OUTPUT_OPTIONS:
+        _check_outputs(argv, OUTPUT_OPTIONS[(what, name)])
     module = importlib.import_module(table[name][0])
     return int(module.main(argv) or 0)
 
 
-def main(argv: list[str] | None = None) -> int:
+# Output options of commands whose own main does not check them before its run (the step benchmark runs for
+# minutes and writes --save and --plot at the end): checked here, before dispatch.
+OUTPUT_OPTIONS = {("benchmark", "step"): ("--save", "--plot")}
+
+
+def _check_outputs(argv: list[str], options: tuple[str, ...]) -> None:
+    """`check_output_file` for each of `options` given in `argv` (exact option names, `--opt PATH` or
+    `--opt=PATH`); anything else, including malformed arguments, is left to the command's own parser."""
+    import argparse
+
+    from .cli_checks import check_output_file
+
+    class _Lenient(argparse.ArgumentParser):
+        def error(self, message):            # the command's parser reports usage errors, not this one
+            raise CommandError(message)
+
+    parser = _Lenient(add_help=False, allow_abbrev=False)
+    for option in options:
+        parser.add_argument(option)
+    try:
+        known, _ = parser.parse_known_args(argv)
+    except CommandError:
+        return
+    for option in options:
+        check_output_file(getattr(known, option.lstrip("-").replace("-", "_")), option)
+
+
+def _run(argv: list[str] | None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     guard_source_checkout()           # before any kernel runs (see mcl.numba_cache)
     if not argv or argv[0] in ("-h", "--help"):
         print(_usage())
-        return 0 if argv else 2
+        return 0 if argv else EXIT_USAGE
     command, rest = argv[0], argv[1:]
     if command == "demo":
         if not rest or rest[0] in ("-h", "--help"):
             print(_usage())
-            return 0 if rest else 2
+            return 0 if rest else EXIT_USAGE
         return _dispatch(DEMOS, rest[0], rest[1:], "demo")
     if command == "replay":
         from .replay import main as replay_main
         return replay_main(rest)
     if command == "eval":
         return int(importlib.import_module("demos.battery").main(rest) or 0)
+    if command == "soak":
+        from .soak import main as soak_main
+        return soak_main(rest)
     if command == "bench":
         if rest and not rest[0].startswith("-"):
             return _dispatch(BENCHES, rest[0], rest[1:], "benchmark")
         return _dispatch(BENCHES, "step", rest, "benchmark")
     print(f"robocup-mcl: unknown command {command!r}\n\n{_usage()}", file=sys.stderr)
-    return 2
+    return EXIT_USAGE
+
+
+def debugging() -> bool:
+    """Whether ROBOCUP_MCL_DEBUG asks for tracebacks (set, and neither empty nor "0")."""
+    return os.environ.get(DEBUG_VARIABLE, "") not in ("", "0")
+
+
+def _user_errors() -> tuple[type[BaseException], ...]:
+    """The exceptions that mean "cannot run as asked" rather than a bug (see the module docstring)."""
+    errors: list[type[BaseException]] = [ValueError, TypeError, OSError, CommandError]
+    for module, name in (("mcl.logs", "LogError"), ("mcl.bench_compare", "CompareError")):
+        loaded = sys.modules.get(module)     # raised only by a module already imported
+        if loaded is not None and hasattr(loaded, name):
+            errors.append(getattr(loaded, name))
+    return tuple(errors)
+
+
+def _say(message: str) -> None:
+    try:
+        print(f"robocup-mcl: {message}", file=sys.stderr, flush=True)
+    except OSError:                          # stderr itself is gone: nothing left to tell
+        pass
+
+
+def _silence_stdout() -> None:
+    """After a broken pipe on stdout (`robocup-mcl ... | head`): point it at /dev/null, so the interpreter's
+    final flush does not fail again."""
+    try:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+    except (OSError, ValueError, AttributeError):
+        pass
+
+
+def main(argv: list[str] | None = None) -> int:
+    """The `robocup-mcl` command; returns the exit status (see the module docstring for errors)."""
+    try:
+        code = _run(argv)
+        sys.stdout.flush()
+        return code
+    except KeyboardInterrupt:
+        if debugging():
+            raise
+        _say("interrupted")
+        return EXIT_INTERRUPTED
+    except BrokenPipeError:
+        # The reader of stdout went away (`| head`): not an error worth a message.
+        if debugging():
+            raise
+        _silence_stdout()
+        return EXIT_ERROR
+    except Exception as error:  # noqa: BLE001 - the command's last line of defence, see the module docstring
+        if debugging():
+            raise
+        if isinstance(error, _user_errors()):
+            _say(one_line(error))
+        else:
+            _say(f"internal error: {type(error).__name__}: {one_line(error)} "
+                 f"(a bug in robocup-mcl; set {DEBUG_VARIABLE}=1 for the traceback)")
+        return EXIT_ERROR
 
 
 if __name__ == "__main__":

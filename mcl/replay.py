@@ -428,6 +428,7 @@ def main(argv: list[str] | None = None) -> int:
     import json
     from dataclasses import fields
 
+    from .cli_checks import CommandError, check_output_file, one_line
     from .logs import read_log
     from .logs.mcap_io import DISCOVERY_TYPES, Topics, list_topics
 
@@ -477,6 +478,11 @@ def main(argv: list[str] | None = None) -> int:
         topics = Topics(**given) if given else None
         field = _field(args.field)
         start = _parse_start(args.start)
+        # Outputs checked before the log is read and replayed (a long log takes minutes): mcl.cli_checks.
+        if args.out and Path(args.out).suffix not in POSE_SUFFIXES:
+            raise CommandError(f"--out {args.out}: must end in one of {', '.join(POSE_SUFFIXES)}")
+        check_output_file(args.rrd, "--rrd")
+        check_output_file(args.out, "--out")
         log, report = read_log(args.log, topics=topics, gap=args.gap)
         check_inputs(log, report, topics)
         progress = sys.stderr.isatty() if args.progress == "auto" else args.progress == "on"
@@ -484,7 +490,7 @@ def main(argv: list[str] | None = None) -> int:
                         compensate_latency=not args.no_latency, history=args.history, start=start, rrd=args.rrd,
                         poses_out=args.out, progress=progress and not args.json)
     except (ValueError, OSError) as error:
-        print(f"robocup-mcl replay: {error}", file=sys.stderr)
+        print(f"robocup-mcl replay: {one_line(error)}", file=sys.stderr)
         return 1
     if args.json:
         json.dump({"log": report.to_json(), "replay": result.figures(), "rrd": args.rrd, "out": args.out},

@@ -1,0 +1,119 @@
+"""Checks a command makes before its run: can it write its outputs, can it read its inputs.
+
+A demo or a benchmark may run for minutes before it writes its recording or its results file. A path it
+cannot write (a missing or read-only directory, `/proc`, a directory where a file should be) would then fail at
+the very end, after the work was done. The commands call these checks right after parsing their arguments:
+
+    from mcl.cli_checks import check_output_file
+    check_output_file(args.rrd, "--rrd")                              # creates missing directories
+    check_output_file(args.save, "--save", make_parents=False)        # the directory must exist
+
+Each check raises `CommandError` (a ValueError) with a one-line message naming the option and the path; the
+`robocup-mcl` command prints it as `robocup-mcl: <message>` and exits 1 (see `mcl.cli`).
+
+Writability is tried, not inferred from permission bits (which say nothing for root, nor for `/proc` or a
+read-only mount): the check opens the file for appending when it exists (nothing is truncated or written), or
+creates it and removes it again.
+"""
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+
+class CommandError(ValueError):
+    """A command cannot run as asked (an output it cannot write, an input it cannot read); the message is one
+    line naming the option and the path."""
+
+
+def _reason(error: OSError) -> str:
+    return error.strerror or str(error) or type(error).__name__
+
+
+def check_output_file(path, option: str, make_parents: bool = True) -> Path | None:
+    """Make sure the file `path` (given with `option`, e.g. "--rrd") can be written; returns it as a Path (None
+    for None: the option was not given).
+
+    make_parents: create missing directories (as the writers of recordings and pose files do); otherwise a
+    missing directory is an error.
+    """
+    if path is None:
+        return None
+    path = Path(path)
+    if str(path) == "" or path.name in ("", ".", ".."):
+        raise CommandError(f"{option} {str(path)!r}: not a file name")
+    if path.is_dir():
+        raise CommandError(f"{option} {path}: is a directory, not a file")
+    parent = path.parent
+    if not parent.exists():
+        if not make_parents:
+            raise CommandError(f"{option} {path}: directory {parent} does not exist")
+        try:
+            parent.mkdir(parents=True, exist_ok=True)
+        except OSError as error:
+            raise CommandError(f"{option} {path}: cannot create directory {parent}: {_reason(error)}") from None
+    elif not parent.is_dir():
+        raise CommandError(f"{option} {path}: {parent} is not a directory")
+    try:
+        if path.exists():
+            with open(path, "ab"):          # appending writes nothing and truncates nothing
+                pass
+        else:
+            with open(path, "xb"):
+                pass
+            path.unlink()
+    except FileExistsError:                   # created in between by someone else: it exists, fine
+        pass
+    except OSError as error:
+        raise CommandError(f"{option} {path}: cannot write there: {_reason(error)}") from None
+    return path
+
+
+def check_output_directory(path, option: str) -> Path | None:
+    """Make sure files can be written into the directory `path` (created if missing); returns it as a Path."""
+    if path is None:
+        return None
+    path = Path(path)
+    if path.exists() and not path.is_dir():
+        raise CommandError(f"{option} {path}: exists and is not a directory")
+    try:
+        path.mkdir(parents=True, exist_ok=True)
+    except OSError as error:
+        raise CommandError(f"{option} {path}: cannot create directory: {_reason(error)}") from None
+    probe = path / f".robocup-mcl-write-check-{os.getpid()}"
+    try:
+        with open(probe, "xb"):
+            pass
+        probe.unlink()
+    except OSError as error:
+        raise CommandError(f"{option} {path}: cannot write into this directory: {_reason(error)}") from None
+    return path
+
+
+def check_input_file(path, option: str) -> Path | None:
+    """Make sure the file `path` exists and can be opened for reading; returns it as a Path."""
+    if path is None:
+        return None
+    path = Path(path)
+    if not path.exists():
+        raise CommandError(f"{option} {path}: no such file")
+    if path.is_dir():
+        raise CommandError(f"{option} {path}: is a directory, not a file")
+    try:
+        with open(path, "rb"):
+            pass
+    except OSError as error:
+        raise CommandError(f"{option} {path}: cannot read: {_reason(error)}") from None
+    return path
+
+
+def one_line(error: BaseException) -> str:
+    """An exception's message on one line: an OSError as "path: reason", other messages with their line breaks
+    turned into "; ", an empty message as the exception's type name."""
+    if isinstance(error, OSError) and error.strerror:
+        names = [str(name) for name in (error.filename, error.filename2) if name is not None]
+        text = f"{' -> '.join(names)}: {error.strerror}" if names else error.strerror
+    else:
+        text = str(error)
+    lines = [line.strip() for line in text.splitlines() if line.strip()]
+    return "; ".join(lines) if lines else type(error).__name__
