@@ -10,7 +10,8 @@ extent along y (touchline to touchline); for the penalty and goal areas, length 
 the depth from the goal line into the field and width is the extent along the goal
 line. A `FieldDimensions` that exists is geometrically possible: every check below
 runs in `__post_init__`, and a violation raises a `ValueError` that names the key
-and its value.
+and its value. It is also physically plausible: the carpet (the field and its border
+strip) measures at most `MAX_FIELD_EXTENT` metres along either axis.
 """
 
 from __future__ import annotations
@@ -18,7 +19,31 @@ from __future__ import annotations
 import dataclasses
 import math
 import numbers
+import reprlib
 from dataclasses import dataclass
+
+MAX_FIELD_EXTENT = 200.0
+"""Largest size of the carpet along either axis, in metres: both
+``length + 2 * border_strip_width`` and ``width + 2 * border_strip_width`` must be at most
+this, and so must every single dimension. A full-size soccer pitch (105 m x 68 m plus a
+border) fits; a larger value is a unit mistake (millimetres for metres, say) or a damaged
+file, and would make grids over the field (a likelihood field, for one) too big to build."""
+
+_SHORT_REPR = reprlib.Repr()
+_SHORT_REPR.maxlevel = 3
+_SHORT_REPR.maxstring = 100
+_SHORT_REPR.maxlong = 100
+_SHORT_REPR.maxother = 100
+
+
+def short_repr(value: object) -> str:
+    """`repr(value)` for an error message: at most about 100 characters and 3 levels of
+    nesting, so that a huge string or a deeply nested table in a file cannot blow up the
+    message (or the recursion limit) of the error that reports it."""
+    try:
+        return _SHORT_REPR.repr(value)
+    except Exception:  # an int beyond Python's digit limit, a broken __repr__, ...
+        return f"<{type(value).__name__}>"
 
 
 @dataclass(frozen=True)
@@ -29,6 +54,9 @@ class FieldDimensions:
     `ValueError` naming the offending key and value:
 
     - every value is a finite number greater than zero (booleans are not numbers);
+    - the carpet fits into `MAX_FIELD_EXTENT` (200 m) along either axis:
+      ``length + 2 * border_strip_width`` and ``width + 2 * border_strip_width`` are at
+      most that, and so is every value;
     - the penalty area fits into one half: ``penalty_area_length < length / 2`` and
       ``penalty_area_width < width``;
     - the goal area fits into the penalty area (both length and width);
@@ -58,17 +86,32 @@ class FieldDimensions:
         for key in self.keys():
             value = getattr(self, key)
             if isinstance(value, bool) or not isinstance(value, numbers.Real):
-                raise ValueError(f"{key} = {value!r} must be a number (metres)")
+                raise ValueError(f"{key} = {short_repr(value)} must be a number (metres)")
             try:
                 value = float(value)
             except OverflowError:  # an int too large for a float
-                raise ValueError(f"{key} = {value!r} must be finite") from None
+                raise ValueError(f"{key} = {short_repr(value)} must be finite") from None
+            except (TypeError, ValueError):  # a Real type whose float() fails
+                raise ValueError(f"{key} = {short_repr(value)} must be a number (metres)") from None
             if not math.isfinite(value):
                 raise ValueError(f"{key} = {value!r} must be finite")
             if value <= 0.0:
                 raise ValueError(f"{key} = {value!r} must be greater than 0")
+            if value > MAX_FIELD_EXTENT:
+                raise ValueError(
+                    f"{key} = {value!r} must be at most "
+                    f"MAX_FIELD_EXTENT = {MAX_FIELD_EXTENT!r} (metres)"
+                )
             # Frozen dataclass: normalising ints to floats needs object.__setattr__.
             object.__setattr__(self, key, value)
+        for key in ("length", "width"):
+            extent = getattr(self, key) + 2.0 * self.border_strip_width
+            if not extent <= MAX_FIELD_EXTENT:
+                raise ValueError(
+                    f"{key} + 2 * border_strip_width = {round(extent, 9)!r} (with {key} = "
+                    f"{getattr(self, key)!r}, border_strip_width = {self.border_strip_width!r}) "
+                    f"must be at most MAX_FIELD_EXTENT = {MAX_FIELD_EXTENT!r} (metres)"
+                )
         self._check_relations()
 
     @classmethod

@@ -25,7 +25,11 @@ from dataclasses import dataclass, field as dataclass_field
 import numpy as np
 
 from .angles import wrap_angles
-from .dimensions import FieldDimensions
+from .dimensions import FieldDimensions, short_repr
+
+MAX_NAME_LENGTH = 1000
+"""Longest field name `Field` accepts, in characters. A name labels a field in messages and
+files; anything longer is damage (a whole file pasted into it, say), not a name."""
 
 
 class LandmarkType(enum.IntEnum):
@@ -134,7 +138,9 @@ class Field:
     """An immutable soccer field: a name, its dimensions and everything derived from them.
 
     Build one with `Field(name, dims)`, or get one from `field.preset` / `field.load_field`.
-    Two fields are equal when their names and dimensions are.
+    Two fields are equal when their names and dimensions are. The name is a non-empty string
+    of at most `MAX_NAME_LENGTH` characters; `dims` is a `FieldDimensions`, which has checked
+    every dimension (including the `field.dimensions.MAX_FIELD_EXTENT` bound on the size).
 
     Attributes (all derived in `__post_init__`, all arrays read-only float64):
 
@@ -174,9 +180,14 @@ class Field:
 
     def __post_init__(self) -> None:
         if not isinstance(self.name, str) or not self.name.strip():
-            raise ValueError(f"name = {self.name!r} must be a non-empty string")
+            raise ValueError(f"name = {short_repr(self.name)} must be a non-empty string")
+        if len(self.name) > MAX_NAME_LENGTH:
+            raise ValueError(
+                f"name = {short_repr(self.name)} has {len(self.name)} characters; "
+                f"at most MAX_NAME_LENGTH = {MAX_NAME_LENGTH} are allowed"
+            )
         if not isinstance(self.dims, FieldDimensions):
-            raise ValueError(f"dims = {self.dims!r} must be a FieldDimensions")
+            raise ValueError(f"dims = {short_repr(self.dims)} must be a FieldDimensions")
         # Frozen dataclass: derived attributes are set once, here.
         object.__setattr__(self, "landmarks", types.MappingProxyType(self._derive_landmarks()))
         object.__setattr__(self, "segments", self._derive_segments())

@@ -14,8 +14,16 @@ A field file is a table with these top-level keys:
 - ``dimensions``: a table of `FieldDimensions` keys, in metres. Without ``preset`` every
   key is required; with ``preset`` it is optional and overrides only the keys it has.
 
+Any other key is an error. Bounds: a file holds at most `MAX_FIELD_FILE_BYTES` (1 MiB) of
+UTF-8 text; the name has at most `field.geometry.MAX_NAME_LENGTH` (1000) characters; every
+dimension is a finite number greater than 0 (not a boolean), and the carpet, field plus
+border strip, measures at most `field.dimensions.MAX_FIELD_EXTENT` (200 m) along either
+axis, besides the geometric rules `FieldDimensions` lists.
+
 Every problem with a file raises a `ValueError` whose message names the file, and the
-key and value at fault.
+key and value at fault; this includes text nested too deeply for the parser (a
+``RecursionError`` is reported as such a `ValueError`). A path that is not a string or
+``os.PathLike`` raises `TypeError`.
 """
 
 from __future__ import annotations
@@ -28,11 +36,16 @@ import tomllib
 from importlib import resources
 from pathlib import Path
 
-from .dimensions import FieldDimensions
+from .dimensions import FieldDimensions, short_repr
 from .geometry import Field
 
 PRESET_NAMES: tuple[str, ...] = ("spl", "kidsize", "adultsize")
 """Names accepted by `preset` (and by a file's ``preset`` key), lower case."""
+
+MAX_FIELD_FILE_BYTES = 1 << 20
+"""Largest field file `load_field` reads, in bytes (1 MiB). A field file is a few hundred
+bytes; the bound is checked before the file is read, so a huge or endless file (a device,
+say) is refused rather than read into memory."""
 
 _TOP_LEVEL_KEYS = ("name", "preset", "dimensions")
 _EXTENSIONS = (".toml", ".json")
@@ -41,7 +54,9 @@ _EXTENSIONS = (".toml", ".json")
 def preset(name: str) -> Field:
     """The built-in field called `name` (any case): "spl", "kidsize" or "adultsize"."""
     if not isinstance(name, str) or name.strip().lower() not in PRESET_NAMES:
-        raise ValueError(f"preset = {name!r} is unknown; valid names: {', '.join(PRESET_NAMES)}")
+        raise ValueError(
+            f"preset = {short_repr(name)} is unknown; valid names: {', '.join(PRESET_NAMES)}"
+        )
     return _load_preset(name.strip().lower())
 
 
@@ -69,9 +84,13 @@ def _load_preset(name: str) -> Field:
 
 def load_field(path: str | os.PathLike) -> Field:
     """The field described by a ``.toml`` or ``.json`` file (format in the module docstring)."""
-    path = Path(path)
+    path = _checked_path(path)
     suffix = _checked_suffix(path)
-    if not path.is_file():
+    try:
+        exists = path.is_file()
+    except (OSError, ValueError) as error:  # a name too long for the file system, say
+        raise ValueError(f"{path}: cannot access field file: {error}") from None
+    if not exists:
         raise ValueError(f"{path}: field file does not exist")
     document = _parse(path, suffix)
     try:
@@ -82,7 +101,7 @@ def load_field(path: str | os.PathLike) -> Field:
 
 def save_field(field: Field, path: str | os.PathLike) -> None:
     """Write `field` to a ``.toml`` or ``.json`` file that `load_field` reads back equal."""
-    path = Path(path)
+    path = _checked_path(path)
     suffix = _checked_suffix(path)
     if suffix == ".json":
         text = json.dumps(field.to_dict(), indent=2, ensure_ascii=False) + "\n"
@@ -96,6 +115,14 @@ def to_toml(field: Field) -> str:
     lines = [f"name = {_toml_string(field.name)}", "", "[dimensions]"]
     lines += [f"{key} = {value!r}" for key, value in field.dims.to_dict().items()]
     return "\n".join(lines) + "\n"
+
+
+def _checked_path(path: object) -> Path:
+    if not isinstance(path, (str, os.PathLike)):
+        raise TypeError(
+            f"path = {short_repr(path)} must be a str or os.PathLike, not {type(path).__name__}"
+        )
+    return Path(path)
 
 
 def _checked_suffix(path: Path) -> str:
@@ -121,22 +148,34 @@ def _toml_string(text: str) -> str:
 
 def _parse(path: Path, suffix: str) -> object:
     try:
-        data = path.read_bytes()
+        size = path.stat().st_size
+        if size <= MAX_FIELD_FILE_BYTES:
+            with path.open("rb") as file:
+                # Read one byte past the bound: the file may have grown since stat.
+                data = file.read(MAX_FIELD_FILE_BYTES + 1)
+            size = len(data)
     except OSError as error:
         raise ValueError(f"{path}: cannot read field file: {error}") from None
+    if size > MAX_FIELD_FILE_BYTES:
+        raise ValueError(
+            f"{path}: field file holds more than MAX_FIELD_FILE_BYTES = {MAX_FIELD_FILE_BYTES} "
+            "bytes; a field file is a few hundred"
+        )
     try:
         text = data.decode("utf-8")
     except UnicodeDecodeError as error:
         raise ValueError(f"{path}: not UTF-8 text: {error}") from None
-    if suffix == ".toml":
-        try:
-            return tomllib.loads(text)
-        except tomllib.TOMLDecodeError as error:
-            raise ValueError(f"{path}: not valid TOML: {error}") from None
+    kind = "TOML" if suffix == ".toml" else "JSON"
     try:
+        if suffix == ".toml":
+            return tomllib.loads(text)
         return json.loads(text)
-    except json.JSONDecodeError as error:
-        raise ValueError(f"{path}: not valid JSON: {error}") from None
+    except RecursionError:
+        raise ValueError(f"{path}: not valid {kind}: nested too deeply to parse") from None
+    # JSONDecodeError and TOMLDecodeError are ValueErrors, and so is a number beyond
+    # Python's integer digit limit.
+    except ValueError as error:
+        raise ValueError(f"{path}: not valid {kind}: {error}") from None
 
 
 def _field_from_document(document: object, default_name: str) -> Field:
@@ -150,24 +189,26 @@ def _field_from_document(document: object, default_name: str) -> Field:
                 # Most likely a dimension written above the [dimensions] header.
                 hint = f"; {close[0]!r} belongs in the [dimensions] table"
             raise ValueError(
-                f"unknown key {key!r} = {document[key]!r} at the top level "
+                f"unknown key {short_repr(key)} = {short_repr(document[key])} at the top level "
                 f"(valid: {', '.join(_TOP_LEVEL_KEYS)}){hint}"
             )
 
     base: FieldDimensions | None = None
     preset_name = document.get("preset")
-    if preset_name is not None:
+    if "preset" in document:
         if not isinstance(preset_name, str):
-            raise ValueError(f"preset = {preset_name!r} must be a string")
+            raise ValueError(f"preset = {short_repr(preset_name)} must be a string")
         base = preset(preset_name).dims
 
     name = document.get("name", preset_name.strip().lower() if base is not None else default_name)
     if not isinstance(name, str) or not name.strip():
-        raise ValueError(f"name = {name!r} must be a non-empty string")
+        raise ValueError(f"name = {short_repr(name)} must be a non-empty string")
 
     overrides = document.get("dimensions", {})
     if not isinstance(overrides, dict):
-        raise ValueError(f"dimensions = {overrides!r} must be a table of key = value pairs")
+        raise ValueError(
+            f"dimensions = {short_repr(overrides)} must be a table of key = value pairs"
+        )
     return Field(name, _dimensions(overrides, base))
 
 
@@ -176,7 +217,8 @@ def _dimensions(overrides: dict, base: FieldDimensions | None) -> FieldDimension
     for key, value in overrides.items():
         if key not in keys:
             raise ValueError(
-                f"unknown key {key!r} = {value!r} in [dimensions]{_suggestion(key, keys)}"
+                f"unknown key {short_repr(key)} = {short_repr(value)} in [dimensions]"
+                f"{_suggestion(key, keys)}"
             )
     values = base.to_dict() if base is not None else {}
     values.update(overrides)

@@ -36,15 +36,18 @@ learning: the raw displacement with a constant noise calibrated on training data
 
 Errors: inputs of the wrong dimension, non-finite training data or too few samples, an event that lacks
 what the input set needs, and a model directory that is incomplete, truncated or of another format version
-raise ValueError naming the problem. Training builds new models and returns a new holder only when done;
-`updated` trains copies: a holder's models are never left half-updated. The same data and seed give the same
-models, bit for bit.
+raise ValueError naming the problem. `load` checks the metadata file (at most `MAX_META_FILE_BYTES`, a JSON
+object with exactly the keys `save` writes, each of its type and range, model files named without a directory)
+before it reads a model; a problem raises ValueError naming the file and the key. Training builds new models
+and returns a new holder only when done; `updated` trains copies: a holder's models are never left
+half-updated. The same data and seed give the same models, bit for bit.
 """
 from __future__ import annotations
 
 import json
 import math
 import os
+import reprlib
 from dataclasses import dataclass
 
 import numpy as np
@@ -58,6 +61,12 @@ OUTPUTS = ("dx", "dy", "dtheta")
 MODEL_FORMAT = "robocup-mcl learned footstep odometry"
 MODEL_FORMAT_VERSION = 1
 META_FILE = "footstep_odometry.json"
+MAX_META_FILE_BYTES = 1 << 20
+"""Largest metadata file `LearnedFootstepOdometry.load` reads, in bytes (1 MiB; `save` writes about 500)."""
+_META_KEYS = ("format", "format_version", "inputs", "n_inputs", "models", "fallback_sigma", "noise_scale",
+              "min_sigma", "residual")
+_SHORT_REPR = reprlib.Repr()
+_SHORT_REPR.maxstring = _SHORT_REPR.maxother = _SHORT_REPR.maxlong = 100
 MIN_SAMPLES = 10
 NO_FIELD = 1e19     # LWPR's bound where no receptive field is active is 1e20·norm_out
 
@@ -123,10 +132,10 @@ def _training_arrays(inputs, targets, kind: str) -> tuple[np.ndarray, np.ndarray
 def _sigma_triple(name: str, value) -> tuple[float, float, float]:
     try:
         triple = tuple(float(v) for v in value)
-    except (TypeError, ValueError):
-        raise ValueError(f"{name} = {value!r} must be three numbers") from None
+    except (TypeError, ValueError, OverflowError):
+        raise ValueError(f"{name} = {_short_repr(value)} must be three numbers") from None
     if len(triple) != 3 or not all(math.isfinite(v) and v >= 0 for v in triple):
-        raise ValueError(f"{name} = {value!r} must be three finite numbers >= 0")
+        raise ValueError(f"{name} = {_short_repr(value)} must be three finite numbers >= 0")
     return triple  # type: ignore[return-value]
 
 
@@ -165,9 +174,8 @@ class LearnedFootstepOdometry:
         object.__setattr__(self, "models", models)
         object.__setattr__(self, "fallback_sigma", _sigma_triple("fallback_sigma", self.fallback_sigma))
         object.__setattr__(self, "min_sigma", _sigma_triple("min_sigma", self.min_sigma))
-        if not (isinstance(self.noise_scale, (int, float)) and math.isfinite(self.noise_scale)
-                and self.noise_scale >= 0):
-            raise ValueError(f"noise_scale = {self.noise_scale!r} must be a finite number >= 0")
+        if not _finite_number(self.noise_scale) >= 0:
+            raise ValueError(f"noise_scale = {_short_repr(self.noise_scale)} must be a finite number >= 0")
 
     # -- training ---------------------------------------------------------------------------------------
     @classmethod
@@ -280,34 +288,108 @@ class LearnedFootstepOdometry:
 
     @classmethod
     def load(cls, directory: str | os.PathLike) -> "LearnedFootstepOdometry":
-        """Read a directory written by `save`. Missing, truncated or foreign files and another format
-        version raise ValueError naming the file and the problem."""
+        """Read a directory written by `save`. Missing, truncated or foreign files, another format version,
+        and a metadata key that is unknown, missing or of the wrong type or value raise ValueError naming the
+        file and the key (the metadata is checked before any model file is read); a directory that is not a
+        str or os.PathLike raises TypeError."""
+        if not isinstance(directory, (str, os.PathLike)) or not isinstance(os.fspath(directory), str):
+            raise TypeError(f"directory = {_short_repr(directory)} must be a str or os.PathLike, not "
+                            f"{type(directory).__name__}")
         directory = os.fspath(directory)
         path = os.path.join(directory, META_FILE)
         if not os.path.isfile(path):
             raise ValueError(f"{directory!r} holds no {META_FILE}: not a saved LearnedFootstepOdometry")
+        meta = _read_meta(path)
         try:
-            with open(path) as f:
-                meta = json.load(f)
-        except (OSError, ValueError) as exc:
-            raise ValueError(f"{path!r} is truncated or not JSON: {exc}") from None
-        if not isinstance(meta, dict) or meta.get("format") != MODEL_FORMAT:
-            raise ValueError(f"{path!r} is not a learned footstep odometry file")
-        if meta.get("format_version") != MODEL_FORMAT_VERSION:
-            raise ValueError(f"{path!r} has format version {meta.get('format_version')!r}; this version of "
-                             f"robocup-mcl reads version {MODEL_FORMAT_VERSION}")
-        try:
-            kind = meta["inputs"]
-            _check_kind(kind)
             models = tuple(LWPR.load(os.path.join(directory, meta["models"][name])) for name in OUTPUTS)
-            return cls(models, kind, meta["fallback_sigma"], meta["noise_scale"], meta["min_sigma"],
-                       meta["residual"])
         except FileNotFoundError as exc:
             raise ValueError(f"{directory!r} lacks a model file: {exc.filename}") from None
-        except (KeyError, TypeError) as exc:
-            raise ValueError(f"{path!r} lacks or garbles the field {exc}") from None
         except ValueError as exc:
             raise ValueError(f"{directory!r}: {exc}") from None
+        try:
+            return cls(models, meta["inputs"], meta["fallback_sigma"], meta["noise_scale"], meta["min_sigma"],
+                       meta["residual"])
+        except ValueError as exc:
+            raise ValueError(f"{path!r}: {exc}") from None
+
+
+def _short_repr(value) -> str:
+    """repr(value) cut to about 100 characters, for an error message about a value from a file."""
+    try:
+        return _SHORT_REPR.repr(value)
+    except Exception:  # an int beyond Python's digit limit, a broken __repr__, ...
+        return f"<{type(value).__name__}>"
+
+
+def _read_meta(path: str) -> dict:
+    """The metadata of a saved model directory, every key checked (see `LearnedFootstepOdometry.load`)."""
+    try:
+        with open(path, "rb") as f:
+            data = f.read(MAX_META_FILE_BYTES + 1)
+    except OSError as exc:
+        raise ValueError(f"{path!r} cannot be read: {exc}") from None
+    if len(data) > MAX_META_FILE_BYTES:
+        raise ValueError(f"{path!r} holds more than MAX_META_FILE_BYTES = {MAX_META_FILE_BYTES} bytes; "
+                         "not a learned footstep odometry file")
+    try:
+        meta = json.loads(data)
+    except RecursionError:
+        raise ValueError(f"{path!r} is not JSON that can be read: nested too deeply") from None
+    except ValueError as exc:   # JSONDecodeError, bad UTF-8, a number beyond Python's digit limit
+        raise ValueError(f"{path!r} is truncated or not JSON: {exc}") from None
+    if not isinstance(meta, dict) or meta.get("format") != MODEL_FORMAT:
+        shown = _short_repr(meta.get("format")) if isinstance(meta, dict) else f"a JSON {type(meta).__name__}"
+        raise ValueError(f"{path!r} is not a learned footstep odometry file (format {shown})")
+    version = meta.get("format_version")
+    if isinstance(version, bool) or version != MODEL_FORMAT_VERSION:
+        raise ValueError(f"{path!r} has format version {_short_repr(version)} (format_version); this version "
+                         f"of robocup-mcl reads version {MODEL_FORMAT_VERSION}")
+    for key in meta:
+        if key not in _META_KEYS:
+            raise ValueError(f"{path!r}: unknown key {_short_repr(key)} = {_short_repr(meta[key])} "
+                             f"(valid: {', '.join(_META_KEYS)})")
+    for key in _META_KEYS:
+        if key not in meta:
+            raise ValueError(f"{path!r} lacks the key {key!r}")
+
+    def bad(key: str, must: str) -> ValueError:
+        return ValueError(f"{path!r}: {key} = {_short_repr(meta[key])} must be {must}")
+
+    kind = meta["inputs"]
+    if not isinstance(kind, str) or kind not in INPUT_KINDS:
+        raise bad("inputs", f"one of {INPUT_KINDS}")
+    n_inputs = meta["n_inputs"]
+    if isinstance(n_inputs, bool) or n_inputs != N_INPUTS[kind]:
+        raise bad("n_inputs", f"{N_INPUTS[kind]}, the size of the {kind} input set")
+    models = meta["models"]
+    if not isinstance(models, dict) or sorted(models) != sorted(OUTPUTS):
+        raise bad("models", f"a table of a model file name for each of {', '.join(OUTPUTS)}")
+    for name in OUTPUTS:
+        file = models[name]
+        if not (isinstance(file, str) and 0 < len(file) <= 255 and file not in (".", "..") and "\0" not in file
+                and os.path.basename(file) == file and "/" not in file and os.sep not in file):
+            raise ValueError(f"{path!r}: models.{name} = {_short_repr(file)} must be the name of a file in the "
+                             "same directory")
+    for key in ("fallback_sigma", "min_sigma"):
+        value = meta[key]
+        if not (isinstance(value, list) and len(value) == 3 and all(_finite_number(v) >= 0 for v in value)):
+            raise bad(key, "three finite numbers >= 0")
+    if not _finite_number(meta["noise_scale"]) >= 0:
+        raise bad("noise_scale", "a finite number >= 0")
+    if not isinstance(meta["residual"], bool):
+        raise bad("residual", "true or false")
+    return meta
+
+
+def _finite_number(value) -> float:
+    """`value` as a float if it is a finite int or float (not a boolean), else NaN."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        return math.nan
+    try:
+        value = float(value)
+    except OverflowError:
+        return math.nan
+    return value if math.isfinite(value) else math.nan
 
 
 def _fit(models: list, X: np.ndarray, Y: np.ndarray, seed: int, epochs: int) -> None:

@@ -32,9 +32,13 @@ Parameters (settable attributes, validated): ``init_D`` (25·I), ``init_alpha`` 
 :meth:`LWPR.copy` an independent copy.
 
 Errors: a wrong shape, a non-finite value, predicting before any update, or a model file that is truncated,
-of another format version or missing a field raise ``ValueError`` naming the problem. Inputs are checked
-before any state changes, so a rejected call leaves the model exactly as it was; an accepted update runs to
-completion in one compiled call. The same data in the same order give the same model, bit for bit.
+of another format version or missing a field raise ``ValueError`` naming the problem. Sizes are bounded:
+``n_in`` at most ``MAX_INPUTS`` (1000), ``n_out`` at most ``MAX_OUTPUTS`` (1000), and the storage a new model
+allocates at most ``MAX_INITIAL_BYTES`` (1 GiB); :meth:`LWPR.load` checks every field of a file (type, shape,
+range) against these before it allocates anything, so a damaged or hostile file raises ``ValueError`` naming
+the file and the field (a missing file stays ``FileNotFoundError``, a path of the wrong type is a
+``TypeError``). Inputs are checked before any state changes, so a rejected call leaves the model exactly as it
+was; an accepted update runs to completion in one compiled call. The same data in the same order give the same model, bit for bit.
 
 Implementation: each output's RFs live in preallocated numpy arrays (capacity doubles when full) and the
 update and prediction loops are ``numba.njit(cache=True)`` kernels. The whole model is four flat buffers, so a
@@ -47,7 +51,10 @@ from __future__ import annotations
 
 import math
 import os
+import reprlib
+import struct
 import zipfile
+import zlib
 from typing import Any
 
 import numba
@@ -56,11 +63,22 @@ from numba.core.imputils import impl_ret_borrowed
 from numba.extending import intrinsic
 from numpy.lib.stride_tricks import as_strided
 
-__all__ = ["LWPR", "FORMAT_VERSION"]
+__all__ = ["LWPR", "FORMAT_VERSION", "MAX_INPUTS", "MAX_OUTPUTS", "MAX_INITIAL_BYTES"]
 
 #: Version of the ``.npz`` model file layout written by :meth:`LWPR.save`.
 FORMAT_VERSION = 1
 _FORMAT_NAME = "robocup-mcl LWPR model"
+
+#: Largest input dimension ``n_in`` of a model (constructor and model files). A receptive field stores nine
+#: n_in × n_in matrices (72·n_in² bytes: 72 MB at 1000 inputs), and the metric update costs O(n_in²) per field
+#: and sample; the footstep models here have 7 or 9 inputs.
+MAX_INPUTS = 1000
+#: Largest output dimension ``n_out`` of a model (constructor and model files); each output has receptive
+#: fields of its own.
+MAX_OUTPUTS = 1000
+#: Most bytes a new model may allocate: its parameters and room for its first receptive fields (8 per output).
+#: ``LWPR(1000, 1)`` needs 0.6 GB and fits; ``LWPR(1000, 2)`` or ``LWPR(100, 1000)`` do not.
+MAX_INITIAL_BYTES = 1 << 30
 
 # ---------------------------------------------------------------------------------------------------------
 # Packed receptive-field storage. Every array is indexed [output, rf, field, ...]; R_max = n_in.
@@ -787,6 +805,43 @@ def _scalar(value: Any, name: str) -> float:
     return v
 
 
+_SHORT_REPR = reprlib.Repr()
+_SHORT_REPR.maxstring = _SHORT_REPR.maxother = _SHORT_REPR.maxlong = 100
+
+
+def _short_repr(value: Any) -> str:
+    """repr(value) cut to about 100 characters, for an error message about a value from a file."""
+    if isinstance(value, np.ndarray):
+        if value.ndim == 0:
+            return _short_repr(value.item())
+        return f"<array of shape {value.shape}, dtype {value.dtype}>"
+    try:
+        return _SHORT_REPR.repr(value)
+    except Exception:  # an int beyond Python's digit limit, a broken __repr__, ...
+        return f"<{type(value).__name__}>"
+
+
+def _check_size(n: int, n_out: int) -> None:
+    """Raise ValueError unless a model of n inputs and n_out outputs is within MAX_INPUTS, MAX_OUTPUTS and
+    MAX_INITIAL_BYTES."""
+    if n > MAX_INPUTS:
+        raise ValueError(f"LWPR n_in must be at most MAX_INPUTS = {MAX_INPUTS}, got {n}")
+    if n_out > MAX_OUTPUTS:
+        raise ValueError(f"LWPR n_out must be at most MAX_OUTPUTS = {MAX_OUTPUTS}, got {n_out}")
+    need = LWPR._initial_bytes(n, n_out)
+    if need > MAX_INITIAL_BYTES:
+        raise ValueError(f"LWPR n_in = {n} with n_out = {n_out} needs {need / 2**30:.2f} GiB for the model and "
+                         f"its first {LWPR._INITIAL_CAPACITY} receptive fields per output; at most "
+                         f"MAX_INITIAL_BYTES = {MAX_INITIAL_BYTES} bytes (1 GiB)")
+
+
+def _checked_path(path: Any) -> str | bytes:
+    """os.fspath(path), or TypeError naming the argument when it is no path."""
+    if not isinstance(path, (str, bytes, os.PathLike)):
+        raise TypeError(f"path = {_short_repr(path)} must be a str or os.PathLike, not {type(path).__name__}")
+    return os.fspath(path)
+
+
 def _as_float_array(value: Any, name: str) -> np.ndarray:
     try:
         return np.asarray(value, dtype=np.float64)
@@ -824,8 +879,9 @@ class LWPR:
             return
         for name, value in (("n_in", n_in), ("n_out", n_out)):
             if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer)) or value < 1:
-                raise ValueError(f"LWPR {name} must be a positive integer, got {value!r}")
+                raise ValueError(f"LWPR {name} must be a positive integer, got {_short_repr(value)}")
         n, n_out = int(n_in), int(n_out)
+        _check_size(n, n_out)
         self._n_in = n
         self._n_out = n_out
         # The four flat buffers the kernels take (see "Packed receptive-field storage"); every other array
@@ -871,6 +927,14 @@ class LWPR:
             getattr(self, "_" + name)[:, :used] = array
 
     # --------------------------------------------------------------- properties
+    @staticmethod
+    def _initial_bytes(n: int, n_out: int) -> int:
+        """Bytes ``LWPR(n, n_out)`` allocates: the model buffer and the first `_INITIAL_CAPACITY` RFs."""
+        per_rf = _N_VEC * n + (_N_MAT + _N_PROJ) * n * n + _N_REG * n + _N_SCAL
+        floats = n + n_out + _N_FLOAT_PARAMS + 3 * n * n + 2 * n + n_out * LWPR._INITIAL_CAPACITY * per_rf
+        ints = len(_BOOL_DEFAULTS) + 2 + 2 * n_out + n_out * LWPR._INITIAL_CAPACITY * _N_INTS
+        return 8 * (floats + ints)
+
     @property
     def n_in(self) -> int:
         """Input dimension."""
@@ -1154,71 +1218,101 @@ class LWPR:
     @classmethod
     def load(cls, path: str | os.PathLike) -> LWPR:
         """Read a model written by :meth:`save`. A truncated or foreign file, another format version, a
-        missing field or inconsistent shapes raise ValueError naming the file and the problem."""
-        path = os.fspath(path)
+        missing field, a field of the wrong type, shape or range, or sizes beyond ``MAX_INPUTS``,
+        ``MAX_OUTPUTS`` or ``MAX_INITIAL_BYTES`` raise ValueError naming the file and the field; every field is
+        checked before the model is allocated. A missing file raises FileNotFoundError, a path that is not a
+        str or os.PathLike TypeError."""
+        path = _checked_path(path)
         data = load_npz(path, "an LWPR model file")
+        where = f"LWPR model file {path!r}"
+        kinds = {"f": "real numbers", "i": "integers", "iu": "integers", "b": "a bool", "U": "a string"}
 
-        def need(key: str) -> np.ndarray:
+        def need(key: str, kind: str, shape: tuple | None = None) -> np.ndarray:
+            """The field `key`, checked: present, of dtype kind `kind` ("f" also takes integers), of `shape`
+            (if given), finite if numeric."""
             if key not in data:
-                raise ValueError(f"LWPR model file {path!r} lacks the field {key!r}")
-            return data[key]
+                raise ValueError(f"{where} lacks the field {key!r}")
+            array = data[key]
+            accepted = "fiu" if kind == "f" else kind
+            if array.dtype.kind not in accepted:
+                raise ValueError(f"{where}: field {key!r} = {_short_repr(array)} has dtype {array.dtype}; "
+                                 f"expected {kinds[kind]}")
+            if shape is not None and array.shape != shape:
+                raise ValueError(f"{where}: field {key!r} has shape {array.shape}, expected {shape}")
+            if kind == "f" and not np.all(np.isfinite(array)):
+                raise ValueError(f"{where}: field {key!r} holds non-finite values")
+            return array
 
-        if str(need("format")) != _FORMAT_NAME:
-            raise ValueError(f"LWPR model file {path!r} is not an LWPR model file (format {need('format')!r})")
-        version = int(need("format_version"))
+        def integer(key: str, low: int, high: int) -> int:
+            value = int(need(key, "i" if key != "n_data" else "iu", ()))
+            if not low <= value <= high:
+                raise ValueError(f"{where}: field {key!r} = {value} must lie in [{low}, {high}]")
+            return value
+
+        fmt = data.get("format")
+        if fmt is None:
+            raise ValueError(f"{where} lacks the field 'format'")
+        if fmt.shape != () or fmt.dtype.kind != "U" or str(fmt) != _FORMAT_NAME:
+            raise ValueError(f"{where} is not an LWPR model file (format {_short_repr(fmt)})")
+        version = int(need("format_version", "i", ()))
         if version != FORMAT_VERSION:
-            raise ValueError(f"LWPR model file {path!r} has format version {version}; this version of "
+            raise ValueError(f"{where} has format version {version}; this version of "
                              f"robocup-mcl reads version {FORMAT_VERSION}")
+        # The header scalars, then every array against the sizes they give; nothing is allocated before all
+        # of them passed.
+        n = integer("n_in", 1, MAX_INPUTS)
+        n_out = integer("n_out", 1, MAX_OUTPUTS)
         try:
-            model = cls(int(need("n_in")), int(need("n_out")))
-            for name in _FLOAT_PARAMS:
-                setattr(model, name, float(need(name)))
-            for name in _BOOL_PARAMS:
-                setattr(model, name, bool(need(name)))
-            model.kernel = str(need("kernel"))
-            model.init_D = need("init_D")
-            init_M = need("init_M")
-            if init_M.shape != (model._n_in, model._n_in):
-                raise ValueError(f"field 'init_M' has shape {init_M.shape}")
-            model._init[_INIT_M] = init_M
-            model.init_alpha = need("init_alpha")
-            model.norm_in = need("norm_in")
-            model.norm_out = need("norm_out")
-            n, n_out = model._n_in, model._n_out
-            for row, key in enumerate(("mean_x", "var_x")):
-                if need(key).shape != (n,):
-                    raise ValueError(f"field {key!r} has shape {need(key).shape}, expected ({n},)")
-                model._xstats[row] = need(key)
-            model._ipar[_SAMPLES] = int(need("n_data"))
-            counts = need("counts")
-            if counts.shape != (n_out, 2) or counts.dtype.kind != "i":
-                raise ValueError(f"field 'counts' has shape {counts.shape}, dtype {counts.dtype}")
-            arrays = {name: need("rf_" + name) for name in _RF_ARRAYS}
-            used = arrays["vec"].shape[1] if arrays["vec"].ndim > 1 else -1
-            expected = {
-                "vec": (n_out, used, _N_VEC, n), "mat": (n_out, used, _N_MAT, n, n),
-                "proj": (n_out, used, _N_PROJ, n, n), "reg": (n_out, used, _N_REG, n),
-                "scal": (n_out, used, _N_SCAL), "ints": (n_out, used, _N_INTS),
-            }
-            for name, shape in expected.items():
-                if arrays[name].shape != shape:
-                    raise ValueError(f"field 'rf_{name}' has shape {arrays[name].shape}, expected {shape}")
-                if not np.all(np.isfinite(arrays[name])):
-                    raise ValueError(f"field 'rf_{name}' holds non-finite values")
-            if counts.min() < 0 or counts[:, _NUM_RFS].max() > used:
-                raise ValueError(f"field 'counts' = {counts.tolist()} does not fit {used} stored RFs")
-            n_reg = arrays["ints"][..., _NREG]
-            for o in range(n_out):
-                live = n_reg[o, : counts[o, _NUM_RFS]]
-                if live.size and (live.min() < 1 or live.max() > n):
-                    raise ValueError(f"an RF of output {o} has {live.min()}..{live.max()} projections, "
-                                     f"outside [1, {n}]")
-            if model.n_data < 0 or not np.all(np.isfinite(model._xstats)):
-                raise ValueError("fields 'n_data', 'mean_x' or 'var_x' are invalid")
-        except (ValueError, TypeError) as exc:
-            if str(exc).startswith(f"LWPR model file {path!r}"):
-                raise
-            raise ValueError(f"LWPR model file {path!r} is inconsistent: {exc}") from None
+            _check_size(n, n_out)
+        except ValueError as exc:
+            raise ValueError(f"{where}: fields 'n_in' and 'n_out': {exc}") from None
+        n_data = integer("n_data", 0, np.iinfo(np.int64).max)
+        floats = {name: float(need(name, "f", ())) for name in _FLOAT_PARAMS}
+        bools = {name: bool(need(name, "b", ())) for name in _BOOL_PARAMS}
+        kernel = str(need("kernel", "U", ()))
+        square = {key: need(key, "f", (n, n)) for key in ("init_D", "init_M", "init_alpha")}
+        norm_in = need("norm_in", "f", (n,))
+        norm_out = need("norm_out", "f", (n_out,))
+        xstats = [need(key, "f", (n,)) for key in ("mean_x", "var_x")]
+        counts = need("counts", "i", (n_out, 2))
+        vec = need("rf_vec", "f")
+        if vec.ndim != 4:
+            raise ValueError(f"{where}: field 'rf_vec' has shape {vec.shape}, expected (n_out, used, {_N_VEC}, "
+                             f"{n}) with n_out = {n_out}")
+        used = vec.shape[1]
+        expected = {
+            "vec": (n_out, used, _N_VEC, n), "mat": (n_out, used, _N_MAT, n, n),
+            "proj": (n_out, used, _N_PROJ, n, n), "reg": (n_out, used, _N_REG, n),
+            "scal": (n_out, used, _N_SCAL), "ints": (n_out, used, _N_INTS),
+        }
+        arrays = {name: need("rf_" + name, "i" if name == "ints" else "f", shape)
+                  for name, shape in expected.items()}
+        if counts.min() < 0 or counts[:, _NUM_RFS].max() > used:
+            raise ValueError(f"{where}: field 'counts' = {_short_repr(counts.tolist())} does not fit {used} "
+                             "stored RFs")
+        n_reg = arrays["ints"][..., _NREG]
+        for o in range(n_out):
+            live = n_reg[o, : counts[o, _NUM_RFS]]
+            if live.size and (live.min() < 1 or live.max() > n):
+                raise ValueError(f"{where}: field 'rf_ints': an RF of output {o} has {live.min()}..{live.max()} "
+                                 f"projections, outside [1, {n}]")
+        try:
+            model = cls(n, n_out)
+            for name, value in floats.items():
+                setattr(model, name, value)
+            for name, value in bools.items():
+                setattr(model, name, value)
+            model.kernel = kernel
+            model.init_D = square["init_D"]
+            model._init[_INIT_M] = square["init_M"]
+            model.init_alpha = square["init_alpha"]
+            model.norm_in = norm_in
+            model.norm_out = norm_out
+        except ValueError as exc:
+            raise ValueError(f"{where} is inconsistent: {exc}") from None
+        for row, array in enumerate(xstats):
+            model._xstats[row] = array
+        model._ipar[_SAMPLES] = n_data
         capacity = max(cls._INITIAL_CAPACITY, 2 * used)
         model._allocate(capacity)
         for name, array in arrays.items():
@@ -1227,16 +1321,64 @@ class LWPR:
         return model
 
 
-def load_npz(path: str, what: str) -> dict[str, np.ndarray]:
-    """Every array of an `.npz` file; a truncated or foreign file raises ValueError saying it is not `what`
-    (a missing file stays FileNotFoundError)."""
+#: Deflate cannot expand data by more than this factor: a zip member claiming more is damaged.
+_MAX_DEFLATE_RATIO = 1032
+
+
+def load_npz(path: str | bytes, what: str) -> dict[str, np.ndarray]:
+    """Every array of an `.npz` file; a truncated, damaged or foreign file raises ValueError saying it is not
+    `what` (a missing file stays FileNotFoundError).
+
+    Each member's zip entry and ``.npy`` header are checked before its array is allocated: stored or deflated,
+    not encrypted, no larger than the file can hold, no Python objects, and the header's shape and dtype
+    exactly the size of the data. So no file makes this allocate more than the data it really holds.
+    Members whose names do not end in ``.npy`` are skipped."""
     try:
-        with np.load(path, allow_pickle=False) as npz:
-            return {key: npz[key] for key in npz.files}
+        archive_size = os.path.getsize(path)
+        with zipfile.ZipFile(path) as archive:
+            arrays = {}
+            for info in archive.infolist():
+                if info.filename.endswith(".npy"):
+                    arrays[info.filename[:-4]] = _read_npy(archive, info, archive_size)
+            return arrays
     except FileNotFoundError:
         raise
-    except (zipfile.BadZipFile, EOFError, OSError, ValueError, KeyError) as exc:
+    # zipfile raises NotImplementedError for an unknown compression method, RuntimeError for an encrypted
+    # member, zlib.error and struct.error for damaged data; numpy raises ValueError for a bad header.
+    except (zipfile.BadZipFile, zipfile.LargeZipFile, EOFError, OSError, ValueError, KeyError, NotImplementedError,
+            RuntimeError, OverflowError, zlib.error, struct.error) as exc:
         raise ValueError(f"{path!r} is truncated or not {what}: {exc}") from None
+
+
+def _read_npy(archive: zipfile.ZipFile, info: zipfile.ZipInfo, archive_size: int) -> np.ndarray:
+    """The array of one ``.npy`` member, its sizes checked before it is allocated (see `load_npz`)."""
+    name = info.filename
+    if info.flag_bits & 0x1:
+        raise ValueError(f"member {name!r} is encrypted")
+    if info.compress_type not in (zipfile.ZIP_STORED, zipfile.ZIP_DEFLATED):
+        raise ValueError(f"member {name!r} uses compression method {info.compress_type}; only stored and "
+                         "deflated members are read")
+    ratio = 1 if info.compress_type == zipfile.ZIP_STORED else _MAX_DEFLATE_RATIO
+    if info.compress_size > archive_size or info.file_size > ratio * info.compress_size:
+        raise ValueError(f"member {name!r} claims {info.file_size} bytes from {info.compress_size} stored bytes, "
+                         f"in a file of {archive_size} bytes")
+    with archive.open(info) as member:
+        version = np.lib.format.read_magic(member)
+        if version == (1, 0):
+            shape, _, dtype = np.lib.format.read_array_header_1_0(member)
+        elif version in ((2, 0), (3, 0)):
+            shape, _, dtype = np.lib.format.read_array_header_2_0(member)
+        else:
+            raise ValueError(f"member {name!r} has .npy format version {version}")
+        if dtype.hasobject:
+            raise ValueError(f"member {name!r} holds Python objects")
+        count = math.prod(shape)
+        data_bytes = info.file_size - member.tell()
+        if dtype.itemsize == 0 or count < 0 or count * dtype.itemsize != data_bytes:
+            raise ValueError(f"member {name!r} declares shape {_short_repr(shape)} of {dtype} but holds "
+                             f"{data_bytes} bytes of data")
+        member.seek(0)
+        return np.lib.format.read_array(member, allow_pickle=False)
 
 
 def save_npz_atomically(path: str | os.PathLike, fields: dict) -> None:

@@ -28,12 +28,17 @@ often detected in bursts, once per step: the recent window bridges the gaps betw
 the other side, soon after, replaces the side rather than cancelling it.
 
 Errors: arrays of mismatched shapes, NaN readings or commands, and a reference learned from too little free
-walking raise ValueError naming the problem; a rejected `update` leaves the detector as it was.
+walking raise ValueError naming the problem; a rejected `update` leaves the detector as it was. A
+`CollisionReference` checks itself when it is made (see its docstring for the rules, with the bounds `MAX_JOINTS`,
+`MAX_DELAY`, `MAX_WINDOW` and `MIN_REFERENCE`), so any reference that exists, learned or loaded, works with the
+detector; `CollisionReference.load` checks every field of a file before it builds anything, and a damaged or
+foreign file raises ValueError naming the file and the field (a missing file stays FileNotFoundError).
 """
 from __future__ import annotations
 
 import math
-import zipfile
+import os
+import reprlib
 from collections import deque
 from dataclasses import dataclass
 from pathlib import Path
@@ -43,6 +48,22 @@ import numpy as np
 LEFT_LEG, RIGHT_LEG = 0, 1
 FORMAT = "robocup-mcl collision reference"
 FORMAT_VERSION = 1
+
+MAX_JOINTS = 100
+"""Most joints a `CollisionReference` covers. A humanoid's legs have 10 to 14 servos; the detector keeps a ring
+buffer of (longest delay + 1) x joints commands."""
+MAX_DELAY = 1000
+"""Longest servo delay a `CollisionReference` holds, in frames (10 s at 100 Hz; real servos lag a few frames)."""
+MAX_WINDOW = 1000
+"""Longest deviation window a `CollisionReference` holds, in frames (10 s at 100 Hz; a gait cycle is about 60)."""
+
+MIN_REFERENCE = 1e-12
+"""Smallest reference value R a `CollisionReference` holds, in rad². S_rel = D / R divides by it: R = 0 would
+make S_rel infinite or NaN, and a subnormal R would overflow it for any deviation. A free walk deviates far more
+(servo sensors resolve about 1e-3 rad, 1e-6 rad²; learned tables are around 1e-3), so a smaller R is damage."""
+
+_SHORT_REPR = reprlib.Repr()
+_SHORT_REPR.maxstring = _SHORT_REPR.maxother = _SHORT_REPR.maxlong = 100
 
 
 def _as_2d(name: str, value, columns: int | None = None) -> np.ndarray:
@@ -101,6 +122,12 @@ class CollisionReference:
 
     delays (J,) frames per joint; joint_sides (J,) LEFT_LEG (0) or RIGHT_LEG (1) per joint; window (frames);
     speeds (S,) walking speeds the free walk covered; table (2, S, phase_bins) the reference R per side.
+
+    Checked on construction, each violation a ValueError naming the field and its value: 1 <= J <= `MAX_JOINTS`;
+    delays integers in [0, `MAX_DELAY`]; joint_sides integers 0 or 1, both sides present; window an integer in
+    [1, `MAX_WINDOW`]; speeds finite, >= 0 and strictly increasing, S >= 1; table finite and at least
+    `MIN_REFERENCE` (S_rel = D / R divides by it), phase_bins >= 1; half_stance a finite number > 0. Integer arrays
+    are stored as int64, speeds and table as float64, window as an int and half_stance as a float.
     """
 
     delays: np.ndarray
@@ -109,6 +136,54 @@ class CollisionReference:
     speeds: np.ndarray
     table: np.ndarray
     half_stance: float
+
+    def __post_init__(self) -> None:
+        delays = _array("delays", self.delays, "iu", np.int64, 1)
+        joints = delays.shape[0]
+        if not 1 <= joints <= MAX_JOINTS:
+            raise ValueError(f"delays covers {joints} joints; a reference needs 1 to MAX_JOINTS = {MAX_JOINTS}")
+        if delays.min() < 0 or delays.max() > MAX_DELAY:
+            raise ValueError(f"delays = {_short_repr(delays.tolist())} must be frames in [0, MAX_DELAY = "
+                             f"{MAX_DELAY}]")
+        sides = _array("joint_sides", self.joint_sides, "iu", np.int64, 1)
+        if sides.shape != (joints,) or not np.isin(sides, (LEFT_LEG, RIGHT_LEG)).all():
+            raise ValueError(f"joint_sides = {_short_repr(sides.tolist())} must be {joints} values of 0 (left) or "
+                             "1 (right), one per delay")
+        for side, name in ((LEFT_LEG, "left"), (RIGHT_LEG, "right")):
+            if not (sides == side).any():
+                raise ValueError(f"joint_sides = {_short_repr(sides.tolist())} has no {name} joint")
+        window = self.window
+        if isinstance(window, (bool, np.bool_)) or not isinstance(window, (int, np.integer)) \
+                or not 1 <= window <= MAX_WINDOW:
+            raise ValueError(f"window = {_short_repr(window)} must be an integer in [1, MAX_WINDOW = {MAX_WINDOW}]")
+        speeds = _array("speeds", self.speeds, "fiu", np.float64, 1)
+        if speeds.shape[0] == 0 or not np.isfinite(speeds).all() or speeds.min() < 0 \
+                or (np.diff(speeds) <= 0).any():
+            raise ValueError(f"speeds = {_short_repr(speeds.tolist())} must be one or more finite walking speeds "
+                             ">= 0, strictly increasing")
+        table = _array("table", self.table, "fiu", np.float64, 3)
+        if table.shape[:2] != (2, speeds.shape[0]) or table.shape[2] == 0:
+            raise ValueError(f"table has shape {table.shape}; expected (2, {speeds.shape[0]}, phase_bins) with "
+                             "phase_bins >= 1 (sides, speeds, phase bins)")
+        bad = ~(np.isfinite(table) & (table >= MIN_REFERENCE))
+        if bad.any():
+            side, speed, phase_bin = (int(i) for i in np.argwhere(bad)[0])
+            value = float(table[side, speed, phase_bin])
+            raise ValueError(f"table[{side}, {speed}, {phase_bin}] = {value!r} must be finite and at least "
+                             f"MIN_REFERENCE = {MIN_REFERENCE!r} (S_rel = D / R divides by it)")
+        half_stance = self.half_stance
+        number = not isinstance(half_stance, (bool, np.bool_)) and isinstance(
+            half_stance, (int, float, np.integer, np.floating))
+        try:
+            half_stance = float(half_stance) if number else math.nan
+        except OverflowError:  # an int too large for a float
+            half_stance = math.inf
+        if not (math.isfinite(half_stance) and half_stance > 0):
+            raise ValueError(f"half_stance = {_short_repr(self.half_stance)} must be a finite number > 0 (metres)")
+        # Frozen dataclass: the normalised values are set with object.__setattr__.
+        for name, value in (("delays", delays), ("joint_sides", sides), ("window", int(window)), ("speeds", speeds),
+                            ("table", table), ("half_stance", float(half_stance))):
+            object.__setattr__(self, name, value)
 
     @property
     def n_joints(self) -> int:
@@ -142,14 +217,71 @@ class CollisionReference:
 
     @classmethod
     def load(cls, path: str | Path) -> "CollisionReference":
+        """Read a reference written by `save`. A truncated, damaged or foreign file, another format version,
+        or a field of the wrong type, shape or value raise ValueError naming the file and the field (every
+        field is checked before anything is built); a missing file raises FileNotFoundError, a path that is not
+        a str or os.PathLike TypeError."""
+        if not isinstance(path, (str, bytes, os.PathLike)):
+            raise TypeError(f"path = {_short_repr(path)} must be a str or os.PathLike, not {type(path).__name__}")
+        path = os.fspath(path)
+        # Imported here: motion_models imports this module (AdaptiveMotion takes its percepts).
+        from motion_models.lwpr import load_npz
+
+        data = load_npz(path, "a collision reference")
+        where = f"collision reference {path!r}"
+
+        def need(key: str, kinds: str, ndim: int) -> np.ndarray:
+            if key not in data:
+                raise ValueError(f"{where} lacks the field {key!r}")
+            array = data[key]
+            if array.dtype.kind not in kinds or array.ndim != ndim:
+                raise ValueError(f"{where}: field {key!r} = {_short_repr(array)} has dtype {array.dtype} and "
+                                 f"{array.ndim} dimensions; expected {_KIND_NAMES[kinds]} in {ndim} dimensions")
+            return array
+
+        fmt = data.get("format")
+        if fmt is None or fmt.dtype.kind != "U" or fmt.shape != () or str(fmt) != FORMAT:
+            raise ValueError(f"{where} is not a collision reference (format {_short_repr(fmt)})")
+        version = int(need("version", "iu", 0))
+        if version != FORMAT_VERSION:
+            raise ValueError(f"{where} has format version {version}; this version of robocup-mcl reads version "
+                             f"{FORMAT_VERSION}")
+        fields = {"delays": need("delays", "iu", 1), "joint_sides": need("joint_sides", "iu", 1),
+                  "window": int(need("window", "iu", 0)), "speeds": need("speeds", "fiu", 1),
+                  "table": need("table", "fiu", 3), "half_stance": float(need("half_stance", "fiu", 0))}
         try:
-            with np.load(path, allow_pickle=False) as data:
-                if str(data["format"]) != FORMAT or int(data["version"]) != FORMAT_VERSION:
-                    raise ValueError(f"{path}: not a version-{FORMAT_VERSION} collision reference")
-                return cls(data["delays"].astype(np.int64), data["joint_sides"].astype(np.int64),
-                           int(data["window"]), data["speeds"], data["table"], float(data["half_stance"]))
-        except (KeyError, OSError, EOFError, zipfile.BadZipFile) as error:
-            raise ValueError(f"{path}: cannot read a collision reference ({error})") from None
+            return cls(**fields)
+        except ValueError as error:
+            raise ValueError(f"{where}: {error}") from None
+
+
+_KIND_NAMES = {"iu": "integers", "fiu": "real numbers"}
+
+
+def _short_repr(value) -> str:
+    """repr(value) cut to about 100 characters, for an error message about a value from a file."""
+    if isinstance(value, np.ndarray):
+        if value.ndim == 0:
+            return _short_repr(value.item())
+        return f"<array of shape {value.shape}, dtype {value.dtype}>"
+    try:
+        return _SHORT_REPR.repr(value)
+    except Exception:  # an int beyond Python's digit limit, a broken __repr__, ...
+        return f"<{type(value).__name__}>"
+
+
+def _array(name: str, value, kinds: str, dtype, ndim: int) -> np.ndarray:
+    """`value` as a `dtype` array of `ndim` dimensions, or ValueError unless its dtype kind is one of `kinds`
+    (booleans are not numbers)."""
+    try:
+        array = np.asarray(value)
+    except (TypeError, ValueError) as error:
+        raise ValueError(f"{name} = {_short_repr(value)} is not an array: {error}") from None
+    if array.dtype.kind not in kinds:
+        raise ValueError(f"{name} = {_short_repr(value)} has dtype {array.dtype}; expected {_KIND_NAMES[kinds]}")
+    if array.ndim != ndim:
+        raise ValueError(f"{name} has shape {array.shape}; expected {ndim} dimension{'s' if ndim > 1 else ''}")
+    return array.astype(dtype, copy=False)
 
 
 def learn_reference(commands, readings, phase, walk_commands, joint_sides, *, window: int = 10,
@@ -346,6 +478,8 @@ def detect(reference: CollisionReference, commands, readings, phase, walk_comman
     walk_commands = _as_2d("walk_commands", walk_commands, 3)
     if phase.shape != (n,) or walk_commands.shape[0] != n:
         raise ValueError(f"phase {phase.shape} and walk_commands {walk_commands.shape} must have {n} rows")
+    if not np.isfinite(phase).all():
+        raise ValueError(f"phase has a non-finite value at row {int(np.argwhere(~np.isfinite(phase))[0, 0])}")
     deviation = windowed_deviation(commands, readings, reference.delays, reference.joint_sides, reference.window)
     ref = reference.reference(phase, gait_speed(walk_commands, reference.half_stance))
     s_rel = np.where(np.isfinite(deviation), deviation / ref, 0.0)
