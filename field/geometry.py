@@ -27,6 +27,8 @@ import numpy as np
 from .angles import wrap_angles
 from .dimensions import FieldDimensions, short_repr
 
+MIN_LINE_SPACING = 1e-3
+"""The finest spacing `Field.line_points` accepts (m): a millimetre (a few million points on the largest field)."""
 MAX_NAME_LENGTH = 1000
 """Longest field name `Field` accepts, in characters. A name labels a field in messages and
 files; anything longer is damage (a whole file pasted into it, say), not a name."""
@@ -223,8 +225,8 @@ class Field:
         array is a fresh, writable copy.
         """
         _require_number("spacing", spacing)
-        if not (math.isfinite(spacing) and spacing > 0.0):
-            raise ValueError(f"spacing = {spacing!r} must be finite and greater than 0")
+        if not (math.isfinite(spacing) and spacing >= MIN_LINE_SPACING):
+            raise ValueError(f"spacing = {spacing!r} must be finite and at least {MIN_LINE_SPACING:g} m")
         pieces = []
         for start, end in self.segments:
             length = float(np.hypot(*(end - start)))

@@ -77,6 +77,10 @@ from .resampling import (SCHEMES, gather_offspring_rows, gather_with_jitter, res
 from .weights import log_mean_likelihood, normalize, reweigh, reweigh_chunked, weigh, weigh_chunked, weigh_fast
 
 REGIONS = ("field", "own_half", "opponent_half")
+# A sensor model's defect, not a refused input (the library's models give finite or -inf log-likelihoods for
+# every input they accept): `correct` then changes nothing, `step` has moved the particles already.
+_INVALID_LIKELIHOODS = "sensor model returned NaN or +inf log-likelihoods"
+_MOVED = "; the particles moved by u (the prediction ran), their weights are unchanged"
 MAX_PARTICLES = 10**7
 """The most particles a filter may have (about 2 GB of buffers); more is refused with a ValueError."""
 MAX_THREADS = 1024
@@ -717,7 +721,7 @@ class ParticleFilter:
         valid, native_log_average, log_evidence, ess = weigh(self._log_weights, log_likelihood,
                                                              self._n - self.injected, self._weights)
         if not valid:
-            raise ValueError("sensor model returned NaN or +inf log-likelihoods; filter left unchanged")
+            raise ValueError(_INVALID_LIKELIHOODS + "; filter left unchanged")
         terms = getattr(self.sensor_model, "terms", len)(observations)
         if terms > 0:
             self.frame_fit = math.exp(native_log_average / terms)
@@ -752,7 +756,12 @@ class ParticleFilter:
             self.sensor_model.check(observations)
             self._check_motion(u)
             self._move(u)
-            self._correct(observations)
+            try:
+                self._correct(observations)
+            except ValueError as error:
+                if str(error).startswith(_INVALID_LIKELIHOODS):
+                    raise ValueError(_INVALID_LIKELIHOODS + _MOVED) from None
+                raise
             return self.estimate()
         try:
             motion = self._kernel_motion(u)
@@ -814,7 +823,7 @@ class ParticleFilter:
             self.relocalization.carry(motion[0], motion[1], motion[2])
             self._changed()
         if status == _STEP_INVALID:
-            raise ValueError("sensor model returned NaN or +inf log-likelihoods; filter left unchanged")
+            raise ValueError(_INVALID_LIKELIHOODS + (_MOVED if move else "; filter left unchanged"))
         self._changed()
         if terms > 0:
             self.frame_fit = math.exp(native_log_average / terms)

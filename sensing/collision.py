@@ -458,10 +458,14 @@ class CollisionDetector:
         return CollisionPercept(left, right, s_left, s_right, rate, recent_left, recent_right)
 
 
+MAX_FRAMES = 100_000
+"""The most frames `recent_frames` and `side_frames` may span (over a quarter of an hour at 100 Hz)."""
+
+
 def _check_frames(recent_frames, side_frames) -> None:
     for name, value in (("recent_frames", recent_frames), ("side_frames", side_frames)):
-        if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
-            raise ValueError(f"{name} = {value!r} must be an integer >= 1")
+        if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or not 1 <= value <= MAX_FRAMES:
+            raise ValueError(f"{name} = {value!r} must be an integer within [1, {MAX_FRAMES}]")
 
 
 def detect(reference: CollisionReference, commands, readings, phase, walk_commands,

@@ -22,6 +22,7 @@ import numpy as np
 from scipy import ndimage
 
 from field import Field
+from field.checks import LARGEST_SIGMA, SMALLEST_SIGMA, ArgumentTypeError, integer, real
 from motion_models._kernels import sincos, sincos_reference
 
 from .observations import Observations
@@ -80,6 +81,12 @@ def line_log_likelihood_reference(poses, points, distance, x0, y0, cell, sigma, 
     return np.log(match + outlier_weight).sum(axis=1)
 
 
+MIN_RESOLUTION = 0.005
+"""The finest likelihood-field cell accepted (m)."""
+MAX_CELLS = 2 * 10**7
+"""The most cells a likelihood field may have (two float64 maps of this size: 320 MB)."""
+
+
 @dataclass(frozen=True, eq=False)
 class LineSensorModel:
     """Likelihood field of the field lines. sigma [m]: spread of a line point around its line."""
@@ -96,13 +103,17 @@ class LineSensorModel:
 
     def __post_init__(self) -> None:
         if not isinstance(self.field, Field):
-            raise ValueError(f"field = {self.field!r} must be a field.Field")
-        for name in ("sigma", "resolution", "outlier_weight"):
-            value = getattr(self, name)
-            if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
-                raise ValueError(f"{name} = {value!r} must be a finite number > 0")
-        if isinstance(self.max_points, bool) or not isinstance(self.max_points, int) or self.max_points < 1:
-            raise ValueError(f"max_points = {self.max_points!r} must be an integer >= 1")
+            raise ArgumentTypeError(f"field = {self.field!r} must be a field.Field, not {type(self.field).__name__}")
+        real("sigma", self.sigma, SMALLEST_SIGMA, LARGEST_SIGMA)
+        real("resolution", self.resolution, MIN_RESOLUTION, 1.0)
+        real("outlier_weight", self.outlier_weight, 0.0, 1.0, low_open=True)
+        integer("max_points", self.max_points, 1, 10**6)
+        border = self.field.dims.border_strip_width
+        cells = (math.ceil(2 * (self.field.half_length + border) / self.resolution)
+                 * math.ceil(2 * (self.field.half_width + border) / self.resolution))
+        if cells > MAX_CELLS:
+            raise ValueError(f"resolution = {self.resolution!r} makes {cells} cells on field {self.field.name!r}; "
+                             f"at most {MAX_CELLS} are accepted (a coarser resolution)")
         border = self.field.dims.border_strip_width
         x0, y0 = -self.field.half_length - border, -self.field.half_width - border
         nx = int(math.ceil(2 * (self.field.half_length + border) / self.resolution))

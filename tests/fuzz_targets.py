@@ -380,6 +380,99 @@ def fuzz_localizer(field_name, n, operations, options):
     check_estimate(loc.filter)
 
 
+# -- loaders ---------------------------------------------------------------------------------------------------
+_VALID_FILES: dict = {}
+
+
+def _valid_files() -> dict:
+    """One valid file of each kind the library reads, as bytes (made once): what the mutations start from."""
+    if _VALID_FILES:
+        return _VALID_FILES
+    from field import save_field
+    from motion_models.learned_odometry import LearnedFootstepOdometry
+    from motion_models.lwpr import LWPR
+    from sensing.collision import CollisionReference
+
+    rng = np.random.default_rng(0)
+    with tempfile.TemporaryDirectory() as tmp:
+        for suffix in (".toml", ".json"):
+            save_field(FIELDS["kidsize"], os.path.join(tmp, "field" + suffix))
+        model = LWPR(2, 1)
+        for x in rng.uniform(-1, 1, (60, 2)):
+            model.update(x, [math.sin(3 * x[0]) + x[1]])
+        model.save(os.path.join(tmp, "lwpr.npz"))
+        CollisionReference(np.array([1, 2]), np.array([0, 1]), 5, np.array([0.0, 0.1]),
+                           rng.uniform(0.01, 0.1, (2, 2, 4)), 0.05).save(os.path.join(tmp, "collision.npz"))
+        inputs = rng.uniform(-0.05, 0.05, (80, 9))
+        odometry = LearnedFootstepOdometry.train(inputs, inputs[:, :3] * 1.1, "online")
+        odometry.save(os.path.join(tmp, "odometry"))
+        for name in sorted(os.listdir(tmp)):
+            path = os.path.join(tmp, name)
+            if os.path.isdir(path):
+                for inner in sorted(os.listdir(path)):
+                    _VALID_FILES[f"{name}/{inner}"] = open(os.path.join(path, inner), "rb").read()
+            else:
+                _VALID_FILES[name] = open(path, "rb").read()
+    return _VALID_FILES
+
+
+def _load(name: str, path: str):
+    from field import load_field
+    from motion_models.learned_odometry import LearnedFootstepOdometry
+    from motion_models.lwpr import LWPR
+    from sensing.collision import CollisionDetector, CollisionReference
+
+    if name.startswith("field"):
+        return load_field(path)
+    if name == "lwpr.npz":
+        model = LWPR.load(path)
+        model.predict(np.zeros(model.n_in) if hasattr(model, "n_in") else np.zeros(2))
+        return model
+    if name == "collision.npz":
+        reference = CollisionReference.load(path)
+        detector = CollisionDetector(reference)
+        commands = np.zeros(reference.n_joints)
+        for _ in range(reference.window + 2):
+            detector.update(commands, commands + 0.01, 0.3, (0.1, 0.0, 0.0))
+        return reference
+    return LearnedFootstepOdometry.load(os.path.dirname(path))
+
+
+@given(data=st.data())
+def fuzz_loaders(data):
+    """Field files, LWPR models, collision references and learned odometry: valid files with bytes flipped,
+    cut, inserted or replaced, read by their loaders: a loaded object that works, or a ValueError/TypeError."""
+    files = _valid_files()
+    name = data.draw(st.sampled_from(sorted(files)), label="file")
+    content = bytearray(files[name])
+    how = data.draw(st.sampled_from(["flip", "flips", "truncate", "insert", "replace"]), label="how")
+    if how in ("flip", "flips"):
+        for _ in range(1 if how == "flip" else data.draw(st.integers(2, 20), label="count")):
+            offset = data.draw(st.integers(0, len(content) - 1), label="offset")
+            content[offset] ^= data.draw(st.integers(1, 255), label="mask")
+    elif how == "truncate":
+        del content[data.draw(st.integers(0, len(content) - 1), label="length"):]
+    elif how == "insert":
+        offset = data.draw(st.integers(0, len(content)), label="offset")
+        content[offset:offset] = data.draw(st.binary(min_size=1, max_size=64), label="bytes")
+    else:
+        offset = data.draw(st.integers(0, len(content) - 1), label="offset")
+        chunk = data.draw(st.sampled_from([b"\xff" * 8, b"\x00" * 8, b"9" * 30, b"[" * 200, b"-1e400", b"nan",
+                                           b"\x7f\xff\xff\xff\xff\xff\xff\xff"]), label="chunk")
+        content[offset:offset + len(chunk)] = chunk
+    record_case("loaders", (name, how, bytes(content[:64])))
+    with tempfile.TemporaryDirectory() as tmp:
+        if "/" in name:                                   # a directory of files: the others stay valid
+            directory, _ = name.split("/")
+            os.makedirs(os.path.join(tmp, directory))
+            for other, valid in files.items():
+                if other.startswith(directory + "/"):
+                    open(os.path.join(tmp, other), "wb").write(valid)
+        path = os.path.join(tmp, name)
+        open(path, "wb").write(bytes(content))
+        attempt("loaders", None, lambda: _load(name, path))
+
+
 @given(value=st.integers(0, 10))
 def fuzz_crash(value):
     """Not a target of the suite: dies of SIGSEGV, so the runner's crash report can be tested."""
@@ -398,8 +491,9 @@ TARGETS = {
     "filter_construction": fuzz_filter_construction,
     "models": fuzz_models,
     "localizer": fuzz_localizer,
+    "loaders": fuzz_loaders,
 }
 HIDDEN = {"_crash": fuzz_crash}        # run by name only
 # The share of a profile's examples each target gets (the filter and the localizer hold the most).
 WEIGHTS = {"motion_input": 1, "observations": 1, "filter": 3, "filter_construction": 1, "models": 1,
-           "localizer": 3}
+           "localizer": 3, "loaders": 2}
