@@ -39,7 +39,8 @@ def observations(draw):
     landmark = st.tuples(st.sampled_from(list(LandmarkType)), st.floats(0.0, 20.0), st.floats(-math.pi, math.pi),
                          noises, noises)
     rows = draw(st.lists(landmark, min_size=count, max_size=count))
-    points = draw(st.lists(st.tuples(values, values), max_size=3))
+    coordinates = st.floats(-1e3, 1e3, allow_nan=False)         # line points within 1 km (MAX_RANGE)
+    points = draw(st.lists(st.tuples(coordinates, coordinates), max_size=3))
     columns = list(zip(*rows)) if rows else [[]] * 5
     return Observations(np.array([int(kind) for kind in columns[0]], dtype=np.int64), *columns[1:],
                         line_points=np.array(points).reshape(-1, 2))

@@ -12,8 +12,11 @@ without ROS.
 """
 from __future__ import annotations
 
+import math
 import os
 from pathlib import Path
+
+import numpy as np
 
 from .robot_log import LogError, ReadReport, RobotLog, VisionFrame
 
@@ -21,7 +24,22 @@ __all__ = ["RobotLog", "VisionFrame", "ReadReport", "LogError", "read_log", "wri
 
 
 def read_log(path: str | os.PathLike, topics=None, gap: float = 1.0) -> tuple[RobotLog, ReadReport]:
-    """Read a log by its name: `.mcap` (ROS 2, `topics` = `mcap_io.Topics`), `.npz`, or a folder of CSV files."""
+    """Read a log by its name: `.mcap` (ROS 2, `topics` = `mcap_io.Topics`), `.npz`, or a folder of CSV files.
+
+    Whatever the file holds, the answer is a `RobotLog` or a `LogError` (a ValueError) naming the file and
+    what is wrong with it. An argument of the wrong type raises TypeError, a bad `gap` (seconds, > 0) ValueError;
+    both are checked whatever the log's form (`topics` and `gap` apply to MCAP logs only).
+    """
+    if not isinstance(path, (str, os.PathLike)) or not isinstance(os.fspath(path), str):
+        raise TypeError(f"path = {path!r} must be a file or folder name (str or os.PathLike)")
+    if isinstance(gap, (bool, np.bool_)) or not isinstance(gap, (int, float, np.integer, np.floating)):
+        raise TypeError(f"gap = {gap!r} must be a number of seconds")
+    if not (math.isfinite(gap) and gap > 0):
+        raise ValueError(f"gap = {gap!r} must be a positive number of seconds")
+    if topics is not None:
+        from .mcap_io import Topics
+        if not isinstance(topics, Topics):
+            raise TypeError(f"topics = {topics!r} must be a mcl.logs.mcap_io.Topics (or None for the defaults)")
     path = Path(path)
     if path.is_dir():
         from .columnar import read_csv

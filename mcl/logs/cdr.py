@@ -12,6 +12,13 @@ equal (`tests/test_mcap_io.py` checks it on every schema the reader accepts, for
 What this does not decode it leaves to mcap_ros2, message by message: big-endian data, and definitions with a
 wstring field (which mcap_ros2 cannot decode either). If mcap_ros2's internals it uses go away, the factory
 returns mcap_ros2's decoders for everything.
+
+Hostile data: every length read from the data is bounded by the bytes left before anything is made of it (a
+string or byte array longer than the rest of the message raises ValueError; numeric arrays are checked by
+`struct` before it allocates; a sequence of messages ends at the data's end), so a message of n bytes never
+yields much more than n values. Definitions that contain themselves, directly or not, or nest deeper than
+`MAX_NESTING` (which a decoder would follow until Python's recursion limit) raise ValueError when their
+decoders are asked for, as ROS 2 does not define them.
 """
 from __future__ import annotations
 
@@ -33,6 +40,7 @@ __all__ = ["DecoderFactory", "compile_decoders"]
 _NUMERIC = {"char": ("b", 1), "int8": ("b", 1), "int16": ("h", 2), "uint16": ("H", 2), "int32": ("i", 4),
             "uint32": ("I", 4), "int64": ("q", 8), "uint64": ("Q", 8), "float32": ("f", 4), "float64": ("d", 8)}
 _UINT32 = struct.Struct("<I").unpack_from
+MAX_NESTING = 64      # the deepest nesting of message types accepted (ROS's own are under 10 deep)
 
 
 class _Unsupported(Exception):
@@ -58,6 +66,8 @@ def _string(lines: list[str], indent: str, target: str) -> None:
     """A length-prefixed, NUL-terminated string into `target` (as mcap_ros2 reads it: length 0 or 1 is "")."""
     _align(lines, indent, 4)
     lines.append(f"{indent}k = U32(data, o)[0]; o += 4")
+    lines.append(f"{indent}if o + k > len(data):")
+    lines.append(f"{indent}    raise ValueError(f'a string of {{k}} bytes at byte {{o}} of {{len(data)}}')")
     lines.append(f"{indent}{target} = data[o:o + k - 1].decode('utf-8') if k > 1 else ''; o += k")
 
 
@@ -101,6 +111,8 @@ def _field_code(field, definitions: dict, functions: dict, lines: list[str], ind
         _string(lines, indent + "    ", "item")
         lines.append(f"{indent}    value.append(item)")
     elif name in ("byte", "uint8"):
+        lines.append(f"{indent}if o + n > len(data):")
+        lines.append(f"{indent}    raise ValueError(f'an array of {{n}} bytes at byte {{o}} of {{len(data)}}')")
         lines.append(f"{indent}value = data[o:o + n]; o += n")
     elif name == "bool":
         lines.append(f"{indent}value = [b != 0 for b in unpack_from(f'<{{n}}B', data, o)]; o += n")
@@ -112,6 +124,31 @@ def _field_code(field, definitions: dict, functions: dict, lines: list[str], ind
         lines.append(f"{indent}    value = list(unpack_from(f'<{{n}}{code}', data, o)); o += n * {size}")
         lines.append(f"{indent}else:")
         lines.append(f"{indent}    value = []")
+
+
+def _check_nesting(schema_name: str, definitions: dict) -> None:
+    """ValueError when a type of `definitions` contains itself or nests deeper than MAX_NESTING."""
+    def nested(definition) -> set[str]:
+        return {f"{field.type.pkg_name}/{field.type.type}" for field in definition.fields
+                if not field.type.is_primitive_type()} & definitions.keys()
+
+    depth: dict[str, int] = {}            # type -> how many types deep its fields nest (itself counted)
+
+    def visit(key: str, path: list[str]) -> int:
+        if key in depth:
+            return depth[key]
+        if key in path:
+            raise ValueError(f"{schema_name}: the message type {key} contains itself "
+                             f"({' -> '.join(path[path.index(key):] + [key])})")
+        if len(path) < MAX_NESTING:
+            depth[key] = 1 + max((visit(inner, path + [key]) for inner in nested(definitions[key])), default=0)
+        if depth.get(key, MAX_NESTING + 1) > MAX_NESTING:
+            raise ValueError(f"{schema_name}: message types nest more than MAX_NESTING = {MAX_NESTING} deep "
+                             f"(from {key})")
+        return depth[key]
+
+    for key in definitions:
+        visit(key, [])
 
 
 def _function_code(key: str, definition, definitions: dict, functions: dict) -> list[str]:
@@ -144,6 +181,7 @@ def _compile_readers(schema_name: str, schema_text: str) -> dict[str, Callable[[
         names.append((full_name, short_name))
 
     _for_each_msgdef(schema_name, schema_text, collect)
+    _check_nesting(schema_name, definitions)
     functions = {key: f"_read_{i}" for i, key in enumerate(definitions)}
     classes: dict[str, type] = {}
     namespace: dict[str, Any] = {"unpack_from": struct.unpack_from, "U32": _UINT32,
@@ -167,7 +205,7 @@ def compile_decoders(schema_name: str, schema_text: str) -> dict[str, Callable[[
     name, as `mcap_ros2._dynamic.generate_dynamic` names them (big-endian data raises ValueError: it is
     mcap_ros2's to read); empty when the definitions use what this compiler leaves to mcap_ros2 (or when
     mcap_ros2's parser is not there). Raises what mcap_ros2's parser raises for a definition that does not
-    parse."""
+    parse, and ValueError for one that contains itself or nests too deep (see the module docstring)."""
     decoders = {}
     for name, read in _compile_readers(schema_name, schema_text).items():
 

@@ -8,17 +8,19 @@
     log, report = read_csv("game_csv")
 
 Both forms hold the streams of `mcl.logs.robot_log.RobotLog` in SI units. Every time is float64 seconds
-after `origin_ns`, the log's origin in integer nanoseconds since the epoch. The times of a stream increase
-strictly; vision frames are listed in the order they arrived (`received` never decreases). A stream the robot
-did not record is left out or has no rows; the writers write every stream. This is format version 1; a
-reader refuses another version. A file that breaks these rules raises `LogError` (a `ValueError`) naming the
-file and the key, or the line and column, and for times out of order the stream and the time. A missing
+after `origin_ns`, the log's origin in integer nanoseconds since the epoch (it fits int64), and lies within
+`MAX_TIME` (1e11 s) of it. The times of a stream increase strictly; vision frames are listed in the order they
+arrived (`received` never decreases). A stream the robot did not record is left out or has no rows; the
+writers write every stream. This is format version 1; a reader refuses another version. A file that breaks
+these rules raises `LogError` (a `ValueError`) naming the file and the key, or the line and column, and for
+times out of order the stream and the time; so does one whose sizes do not fit its bytes. A missing
 file or folder raises `FileNotFoundError`. Keys or CSV files of no stream are ignored and listed in the
 report's `dropped`.
 
-NPZ: numpy's zip of `.npy` arrays (`np.savez`; C++ can write it with cnpy). It is read with
-`allow_pickle=False`, so every array must be of numbers or (for `joint_names`) unicode strings. Float arrays
-may be float32 or float64, integer arrays of any width. The keys of one stream come together or not at all.
+NPZ: numpy's zip of `.npy` arrays (`np.savez` or `np.savez_compressed`; C++ can write it with cnpy). Pickled
+(object) arrays are refused, so every array must be of numbers or (for `joint_names`) unicode strings. Float
+arrays may be float32 or float64, integer arrays of any width. The keys of one stream come together or not at
+all.
 
 | key                            | shape, type    | unit               | meaning                                      |
 |--------------------------------|----------------|--------------------|----------------------------------------------|
@@ -83,6 +85,8 @@ The CSV writer writes kinds by name and a noise that was not given as an empty c
 from __future__ import annotations
 
 import csv
+import math
+import os
 from contextlib import contextmanager
 import zipfile
 import zlib
@@ -95,9 +99,12 @@ import numpy as np
 from field import LandmarkType
 from sensing.observations import Observations
 
-from .robot_log import LogError, ReadReport, RobotLog, VisionFrame
+from .robot_log import MAX_TIME, LogError, ReadReport, RobotLog, VisionFrame
 
 FORMAT_VERSION = 1
+INT64_RANGE = (-2 ** 63, 2 ** 63 - 1)
+# deflate writes at least one bit per 258 bytes: a member claiming more per compressed byte is corrupt
+_DEFLATE_MAX_RATIO = 1032
 
 _JOINT_UNIT = "_rad"
 
@@ -141,6 +148,8 @@ _JOINT_STREAMS = tuple(stream for stream in _STREAMS if stream.blocks[0][1] is N
 # What a value must be: a test on an array, and what a failing value is told.
 _RULES: dict[str, tuple[Callable[[np.ndarray], np.ndarray], str]] = {
     "finite": (np.isfinite, "must be finite"),
+    "time": (lambda v: np.isfinite(v) & (np.abs(v) <= MAX_TIME),
+             f"must be finite and within MAX_TIME = {MAX_TIME:g} s of origin_ns"),
     "nonnegative": (lambda v: np.isfinite(v) & (v >= 0), "must be finite and >= 0"),
     "noise": (lambda v: np.isnan(v) | (np.isfinite(v) & (v > 0)), "must be > 0 (or empty / NaN: not given)"),
     "kind": (lambda v: np.isin(v, [member.value for member in LandmarkType]), "is not a landmark type value"),
@@ -159,6 +168,7 @@ _LINE_COLUMNS = ("x_m", "y_m")
 _VISION_KEYS = ("vision_stamps", "vision_received", "vision_landmark_counts", "vision_line_point_counts",
                 "vision_line_points") + tuple(key for _, key, _, _ in _LANDMARK_FIELDS)
 _META_KEYS = ("format_version", "origin_ns")
+_NPZ_KEYS = frozenset(_META_KEYS + ("joint_names",) + _VISION_KEYS + tuple(k for s in _STREAMS for k in s.keys))
 
 
 # -- checks shared by both forms ----------------------------------------------------------------------------------
@@ -185,8 +195,9 @@ def _check_order(times: np.ndarray, stream: str, where: Callable[[tuple[int, ...
 
 def _vision_frames(stamps: np.ndarray, received: np.ndarray, landmark_frames: np.ndarray,
                    landmarks: dict[str, np.ndarray], line_frames: np.ndarray,
-                   line_points: np.ndarray) -> tuple[VisionFrame, ...]:
-    """The frames, given each landmark's and line point's frame index (their order within a frame is kept)."""
+                   line_points: np.ndarray, where: Callable[[int], str]) -> tuple[VisionFrame, ...]:
+    """The frames, given each landmark's and line point's frame index (their order within a frame is kept);
+    a LogError naming the frame (`where(i)`) when `Observations` refuses its detections."""
     count = stamps.shape[0]
 
     def per_frame(frame_of: np.ndarray, arrays: list[np.ndarray]) -> list[list[np.ndarray]]:
@@ -198,7 +209,11 @@ def _vision_frames(stamps: np.ndarray, received: np.ndarray, landmark_frames: np
     (points_per_frame,) = per_frame(line_frames, [line_points])
     frames = []
     for i in range(count):
-        observations = Observations(*(column[i] for column in landmark_columns), line_points=points_per_frame[i])
+        try:
+            observations = Observations(*(column[i] for column in landmark_columns),
+                                        line_points=points_per_frame[i])
+        except ValueError as error:
+            raise LogError(f"{where(i)}: {error}") from None
         frames.append(VisionFrame(float(stamps[i]), float(received[i]), observations))
     return tuple(frames)
 
@@ -246,32 +261,82 @@ def write_npz(log: RobotLog, path: str | Path) -> None:
 
 
 def read_npz(path: str | Path) -> tuple[RobotLog, ReadReport]:
-    """Read a log written by `write_npz` (or by anyone following the module's table)."""
+    """Read a log written by `write_npz` (or by anyone following the module's table).
+
+    Each array's `.npy` header (dtype, shape) is checked against the bytes its member holds before anything
+    is allocated; keys of no stream are listed in the report without being read.
+    """
     path = Path(path)
     try:
-        archive = np.load(path, allow_pickle=False)
-    except FileNotFoundError:
+        with open(path, "rb") as file:
+            if file.read(len(np.lib.format.MAGIC_PREFIX)) == np.lib.format.MAGIC_PREFIX:
+                raise LogError(f"{path}: holds a single array, not an NPZ archive of named arrays")
+            file.seek(0)
+            with zipfile.ZipFile(file) as archive:
+                members = {info.filename.removesuffix(".npy"): info for info in archive.infolist()}
+                size = os.fstat(file.fileno()).st_size
+                arrays = {key: _npz_member(path, archive, key, info, size) if key in _NPZ_KEYS else None
+                          for key, info in members.items()}
+    except (FileNotFoundError, LogError):
         raise
-    except (OSError, ValueError, EOFError, zipfile.BadZipFile) as error:
-        raise LogError(f"{path}: not an NPZ file ({error})") from None
-    if not isinstance(archive, np.lib.npyio.NpzFile):
-        raise LogError(f"{path}: holds a single array, not an NPZ archive of named arrays")
-    with archive:
-        arrays = {}
-        for key in archive.files:
-            try:
-                arrays[key] = archive[key]
-            except (OSError, ValueError, EOFError, zipfile.BadZipFile, zlib.error) as error:
-                raise LogError(f"{path}: {key} cannot be read ({error})") from None
+    except (OSError, ValueError, EOFError, zipfile.BadZipFile, zipfile.LargeZipFile, NotImplementedError) as error:
+        # zipfile reports an unsupported zip version as NotImplementedError, a name not UTF-8 as ValueError
+        raise LogError(f"{path}: not an NPZ file ({type(error).__name__}: {error})") from None
     return _NpzReader(path, arrays).read()
+
+
+def _npz_member(path: Path, archive: zipfile.ZipFile, key: str, info: zipfile.ZipInfo, size: int) -> np.ndarray:
+    """The array of one member, read only after its header and claimed sizes fit the file: its data is never
+    given more memory than the member holds."""
+    def fail(reason: str) -> LogError:
+        return LogError(f"{path}: {key} {reason}")
+
+    if info.flag_bits & 0x61:              # encrypted (bits 0 and 6), or compressed patched data (bit 5)
+        raise fail("is encrypted or patched: numpy writes neither")
+    if info.compress_type not in (zipfile.ZIP_STORED, zipfile.ZIP_DEFLATED):
+        raise fail(f"is compressed with zip method {info.compress_type}: numpy writes stored or deflated members")
+    if info.compress_size > size or info.file_size > (
+            info.compress_size if info.compress_type == zipfile.ZIP_STORED
+            else _DEFLATE_MAX_RATIO * info.compress_size + 64):
+        raise fail(f"claims {info.file_size} bytes ({info.compress_size} compressed) in a file of {size} bytes")
+    try:
+        with archive.open(info) as member:
+            version = np.lib.format.read_magic(member)
+            if version == (1, 0):
+                shape, fortran_order, dtype = np.lib.format.read_array_header_1_0(member)
+            elif version in ((2, 0), (3, 0)):        # 3.0 differs in the header's text encoding only
+                shape, fortran_order, dtype = np.lib.format.read_array_header_2_0(member)
+            else:
+                raise fail(f"is a .npy array of format version {version}, not 1, 2 or 3")
+            if dtype.hasobject:
+                raise fail(f"cannot be read: it holds Python objects (dtype {dtype}), and pickled data is not "
+                           f"read")
+            if any(length < 0 for length in shape):
+                raise fail(f"has shape {shape}: a length is negative")
+            count = math.prod(shape)
+            needed = count * dtype.itemsize
+            if count and dtype.itemsize == 0:
+                raise fail(f"has {count} elements of dtype {dtype}, which holds nothing")
+            available = info.file_size - member.tell()
+            if needed > available:
+                raise fail(f"has shape {shape} of {dtype}: {needed} bytes, but the member holds {available}")
+            data = member.read(needed)
+    except (ValueError, EOFError, zipfile.BadZipFile, zlib.error, UnicodeDecodeError) as error:
+        if isinstance(error, LogError):
+            raise
+        # numpy's header checks (magic, version, a header that is not a dict of shape, fortran_order, descr)
+        raise fail(f"cannot be read ({type(error).__name__}: {error})") from None
+    if len(data) != needed:
+        raise fail(f"has shape {shape} of {dtype}: {needed} bytes, but its data ends after {len(data)}")
+    return np.frombuffer(data, dtype=dtype, count=count).reshape(shape, order="F" if fortran_order else "C")
 
 
 class _NpzReader:
     """Checks the arrays of one NPZ file and turns them into a RobotLog."""
 
-    def __init__(self, path: Path, arrays: dict[str, np.ndarray]) -> None:
+    def __init__(self, path: Path, arrays: dict[str, np.ndarray | None]) -> None:
         self.path = path
-        self.arrays = arrays
+        self.arrays = arrays      # None for a key of no stream (not read)
 
     def where(self, key: str) -> Callable[[tuple[int, ...]], str]:
         return lambda index: f"{self.path}: {key}[{', '.join(map(str, index))}]"
@@ -286,6 +351,9 @@ class _NpzReader:
         if array.dtype.kind not in ("iu" if integer else "iuf"):
             raise LogError(f"{self.path}: {key} has dtype {array.dtype}, expected "
                            f"{'integers' if integer else 'numbers'}")
+        if integer and array.dtype.kind == "u" and array.size and int(array.max()) > INT64_RANGE[1]:
+            index = np.unravel_index(int(np.argmax(array)), array.shape)
+            raise LogError(f"{self.where(key)(index)} = {int(array[index])} does not fit int64")
         if array.size == 0 and array.ndim == 1 and len(shape) == 2:
             array = array.reshape(0, shape[1])
         if array.ndim != len(shape) or any(want is not None and have != want
@@ -320,14 +388,26 @@ class _NpzReader:
             if names.dtype.kind not in "US" or names.ndim != 1:
                 raise LogError(f"{self.path}: joint_names has dtype {names.dtype} and shape {names.shape}, "
                                f"expected (n,) strings")
-            joint_names = tuple(name.decode() if isinstance(name, bytes) else str(name) for name in names.tolist())
+            if names.dtype.kind == "U" and names.size and names.dtype.itemsize:
+                # UTF-32 code units: numpy cannot make a str of one beyond U+10FFFF, nor is a surrogate text
+                codes = names.astype(names.dtype.newbyteorder("<")).view("<u4").reshape(names.shape[0], -1)
+                bad = (codes > 0x10FFFF) | ((codes >= 0xD800) & (codes <= 0xDFFF))
+                if bad.any():
+                    i, j = (int(k) for k in np.argwhere(bad)[0])
+                    raise LogError(f"{self.path}: joint_names[{i}] holds {int(codes[i, j]):#x}, not a Unicode "
+                                   f"character")
+            try:
+                joint_names = tuple(name.decode() if isinstance(name, bytes) else str(name)
+                                    for name in names.tolist())
+            except UnicodeDecodeError as error:
+                raise LogError(f"{self.path}: joint_names holds a name that is not UTF-8 ({error})") from None
         fields["joint_names"] = joint_names
         sources = {}
         for stream in _STREAMS:
             if not self.group(stream.keys, stream.name):
                 continue
             times = self.array(stream.times, (None,))
-            _check_values(times, "finite", self.where(stream.times))
+            _check_values(times, "time", self.where(stream.times))
             _check_order(times, stream.name, self.where(stream.times))
             fields[stream.times] = times
             rows_are = f"one row per {stream.times}" + (", one column per joint_names entry"
@@ -342,8 +422,7 @@ class _NpzReader:
             sources["vision"] = "npz vision_*"
         log = _log(self.path, fields)
         report = _report(self.path, log, sources)
-        known = set(_META_KEYS) | {"joint_names"} | set(_VISION_KEYS) | {k for s in _STREAMS for k in s.keys}
-        for key in sorted(set(self.arrays) - known):
+        for key in sorted(set(self.arrays) - _NPZ_KEYS):
             report.drop(key, "not a key of the columnar format")
         return log, report
 
@@ -351,24 +430,26 @@ class _NpzReader:
         stamps = self.array("vision_stamps", (None,))
         received = self.array("vision_received", (stamps.shape[0],), "one per vision_stamps")
         for key, times in (("vision_stamps", stamps), ("vision_received", received)):
-            _check_values(times, "finite", self.where(key))
+            _check_values(times, "time", self.where(key))
         _check_order(received, "vision", self.where("vision_received"), strictly=False)
         counts = {}
         for key in ("vision_landmark_counts", "vision_line_point_counts"):
             counts[key] = self.array(key, (stamps.shape[0],), "one per vision_stamps", integer=True)
             _check_values(counts[key], "nonnegative", self.where(key))
-        landmark_total = int(counts["vision_landmark_counts"].sum())
+        # summed as Python integers: an int64 sum of corrupt counts could wrap around to the arrays' length
+        landmark_total = sum(counts["vision_landmark_counts"].tolist())
         landmarks = {}
         for name, key, _, rule in _LANDMARK_FIELDS:
             landmarks[name] = self.array(key, (landmark_total,), "the sum of vision_landmark_counts",
                                          integer=name == "kinds")
             _check_values(landmarks[name], rule, self.where(key))
-        line_points = self.array("vision_line_points", (int(counts["vision_line_point_counts"].sum()), 2),
+        line_points = self.array("vision_line_points", (sum(counts["vision_line_point_counts"].tolist()), 2),
                                  "the sum of vision_line_point_counts")
         _check_values(line_points, "finite", self.where("vision_line_points"))
         frame_indices = np.arange(stamps.shape[0])
         return _vision_frames(stamps, received, np.repeat(frame_indices, counts["vision_landmark_counts"]),
-                              landmarks, np.repeat(frame_indices, counts["vision_line_point_counts"]), line_points)
+                              landmarks, np.repeat(frame_indices, counts["vision_line_point_counts"]), line_points,
+                              lambda i: f"{self.path}: vision frame {i} (vision_stamps[{i}])")
 
 
 # -- CSV ----------------------------------------------------------------------------------------------------------
@@ -529,6 +610,9 @@ def _read_meta(path: Path) -> dict[str, int]:
     if meta["format_version"] != FORMAT_VERSION:
         raise LogError(f"{path}: format_version = {meta['format_version']}, this reader reads version "
                        f"{FORMAT_VERSION}")
+    if not INT64_RANGE[0] <= meta["origin_ns"] <= INT64_RANGE[1]:
+        raise LogError(f"{path}: origin_ns = {meta['origin_ns']} does not fit int64 (nanoseconds since the epoch, "
+                       f"as the NPZ form holds it)")
     return meta
 
 
@@ -561,7 +645,7 @@ def _read_vision(folder: Path) -> tuple[VisionFrame, ...] | None:
             if path.is_file():
                 raise LogError(f"{path} needs {frames_path.name}, the list of every frame's stamp_s and received_s")
         return None
-    frames = _read_table(frames_path, dict.fromkeys(_FRAME_COLUMNS, "finite"))
+    frames = _read_table(frames_path, dict.fromkeys(_FRAME_COLUMNS, "time"))
     stamps, received = frames.columns["stamp_s"], frames.columns["received_s"]
     _check_order(received, "vision", frames.where("received_s"), strictly=False)
     frame_of_key: dict[tuple[float, float], int] = {}
@@ -580,8 +664,8 @@ def _read_vision(folder: Path) -> tuple[VisionFrame, ...] | None:
             indices[row] = frame_of_key[key]
         return indices
 
-    landmark_rules = dict.fromkeys(_FRAME_COLUMNS, "finite") | {column: rule for _, _, column, rule in _LANDMARK_FIELDS}
-    line_rules = dict.fromkeys(_FRAME_COLUMNS + _LINE_COLUMNS, "finite")
+    landmark_rules = dict.fromkeys(_FRAME_COLUMNS, "time") | {column: rule for _, _, column, rule in _LANDMARK_FIELDS}
+    line_rules = dict.fromkeys(_FRAME_COLUMNS, "time") | dict.fromkeys(_LINE_COLUMNS, "finite")
     landmarks = {name: np.zeros(0) for name, _, _, _ in _LANDMARK_FIELDS}
     landmark_frames = line_frames = np.zeros(0, dtype=np.int64)
     line_points = np.zeros((0, 2))
@@ -594,7 +678,8 @@ def _read_vision(folder: Path) -> tuple[VisionFrame, ...] | None:
         table = _read_table(detection_paths[1], line_rules)
         line_points = np.column_stack([table.columns[column] for column in _LINE_COLUMNS])
         line_frames = frame_indices(table)
-    return _vision_frames(stamps, received, landmark_frames, landmarks, line_frames, line_points)
+    return _vision_frames(stamps, received, landmark_frames, landmarks, line_frames, line_points,
+                          lambda i: f"{frames_path}, line {frames.lines[i]}: the frame's detections")
 
 
 def read_csv(folder: str | Path) -> tuple[RobotLog, ReadReport]:
@@ -609,7 +694,7 @@ def read_csv(folder: str | Path) -> tuple[RobotLog, ReadReport]:
         if not path.is_file():
             continue
         blocks = stream.block_columns(fields["joint_names"])
-        table = _read_table(path, dict.fromkeys(["t_s"] + [c for columns in blocks for c in columns], "finite"))
+        table = _read_table(path, {"t_s": "time"} | dict.fromkeys([c for columns in blocks for c in columns], "finite"))
         _check_order(table.columns["t_s"], stream.name, table.where("t_s"))
         fields[stream.times] = table.columns["t_s"]
         for (key, _), columns in zip(stream.blocks, blocks):

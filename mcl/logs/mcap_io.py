@@ -41,22 +41,27 @@ written by `write_mcap` records, so a round trip keeps every time):
   intersection of 2, 3 or 4 rays (`num_rays`) an L_, T_ or X_CROSSING (any other count is dropped and
   counted, one a detection); an ellipse of diameter < 0.5 m a PENALTY_MARK, a larger one the CENTER_MARK
   at its centre; a segment becomes line points every 0.15 m at most, both ends included (one point for a
-  segment of zero length). A frame's order: goalposts, then intersections, then ellipses. Confidences are
-  ignored. A GoalpostArray and a MarkingArray with the same stamp are one camera frame, received at the
-  later log time. Detections are taken as given in the robot frame (the header's frame_id is not
-  transformed).
+  segment of zero length; a segment longer than 30 m, `MAX_SEGMENT_LENGTH`, is dropped and counted). A
+  frame's order: goalposts, then intersections, then ellipses. Confidences are ignored. A GoalpostArray and
+  a MarkingArray with the same stamp are one camera frame, received at the later log time; a frame whose
+  detections `Observations` refuses is left out, its messages counted. Detections are taken as given in the
+  robot frame (the header's frame_id is not transformed).
 - joints: the names and their order are those of the first message on the joint_states topic; commands
   are mapped by name, a joint a command leaves out keeps its previous command (until its first command,
   its latest reading); command names the readings lack are ignored. A bitbots_msgs/JointCommand is read
   by its joint_names and positions fields.
 - nothing is skipped silently: every message not used is counted in `report.dropped` under (topic,
   reason): "cannot decode ...", "non-finite value", "duplicate" (same topic, stamp and bytes),
-  "time went backwards", "same stamp as the previous message", and joint and vision reasons.
+  "time went backwards", "same stamp as the previous message" (also: stamps that are one float64 time in
+  seconds from the origin), joint and vision reasons, and those of a message type the file defines unlike
+  ROS ("no field ... in the message", "a field holds str, not a number", "... not an array").
 - a gap longer than `gap` seconds between accepted messages of a topic is listed in `report.gaps`.
 - a truncated or corrupt file yields everything before the break; `report.stop_reason` says what broke and
-  `report.stopped_at` is the log time [s] of the last message read. A topic the user named (one that is
-  not its default, `Topics.required`) that the log lacks, a topic of an unexpected type, or a file that is
-  not MCAP raise `LogError`.
+  `report.stopped_at` is the log time [s] of the last message read. Sizes a file claims (records, chunks,
+  compressed frames, CDR lengths, offsets) are checked against its bytes before anything is allocated or
+  sought. A topic the user named (one that is not its default, `Topics.required`) that the log lacks, a
+  topic of an unexpected type, or a file that is not MCAP raise `LogError`; arguments of the wrong type
+  raise TypeError.
 - a default topic the log lacks is looked for by its message type: when exactly one topic of the log (not
   already read for another stream) carries a type the stream is found by (`DISCOVERY_TYPES`: every accepted
   type, except that joint commands are found only as bitbots_msgs/JointCommand, since a JointState topic may
@@ -80,6 +85,7 @@ of z, roll and pitch (`unestimated_variance=0.0` gives nav2_amcl's zeros). `read
 """
 from __future__ import annotations
 
+import bisect
 import hashlib
 import math
 import os
@@ -88,7 +94,7 @@ from dataclasses import dataclass, field as dataclass_field, fields, replace
 from typing import Any, Callable, ClassVar, Iterable
 
 import numpy as np
-from mcap.exceptions import EndOfFile, McapError
+from mcap.exceptions import EndOfFile, McapError, UnsupportedCompressionError
 from mcap.records import Channel, Chunk, Header, Message, MessageIndex, Metadata, Schema
 from mcap.stream_reader import CRCValidationError, StreamReader, breakup_chunk
 from mcap_ros2.writer import Writer as Ros2Writer
@@ -103,9 +109,15 @@ from .cdr import DecoderFactory
 from .robot_log import LogError, ReadReport, RobotLog, VisionFrame
 
 try:
+    import zstandard
     from zstandard import ZstdError
-except ImportError:          # without zstandard, mcap reports a zstd chunk as unsupported (an McapError)
+except ImportError:          # without zstandard, a zstd chunk is unsupported (an McapError)
+    zstandard = None
     ZstdError = McapError
+try:
+    import lz4.frame as lz4_frame
+except ImportError:          # without lz4, an lz4 chunk is unsupported
+    lz4_frame = None
 
 # What a truncated or corrupt file raises while its records are read: mcap's own errors (EndOfFile,
 # a record longer than the file, bad magic), a record cut inside a field (struct), a bad checksum, a chunk
@@ -118,7 +130,9 @@ ORIGIN_METADATA = "robocup_mcl.origin"
 MCAP0_MAGIC = b"\x89MCAP0\r\n"
 FOOTER_RECORD_BYTES = 1 + 8 + 20     # opcode, length, then summary start, summary offset start, CRC
 MAX_CHUNK_BYTES = 1 << 30        # a chunk claiming more (uncompressed) is taken for corrupt
+_DECOMPRESS_BLOCK = 1 << 20      # [bytes] a chunk is decompressed this much at a time
 SEGMENT_SPACING = 0.15          # [m] the largest distance between line points sampled along a segment
+MAX_SEGMENT_LENGTH = 30.0       # [m] a longer segment (no field line is seen that long) is dropped, not sampled
 PENALTY_MARK_MAX_DIAMETER = 0.5  # [m] a smaller ellipse is the penalty mark, a larger one the centre circle
 PENALTY_MARK_DIAMETER = 0.1     # [m] written for a penalty mark
 CENTER_CIRCLE_DIAMETER = 1.5    # [m] written for the centre mark
@@ -203,7 +217,12 @@ DISCOVERY_TYPES: dict[str, tuple[str, ...]] = {
 # Header stamps (poses and covariances convert with mcl.formats)
 
 def _stamp_ns(header: Any) -> int:
-    return int(header.stamp.sec) * 1_000_000_000 + int(header.stamp.nanosec)
+    sec, nanosec = header.stamp.sec, header.stamp.nanosec
+    if not all(isinstance(v, int) and not isinstance(v, bool) for v in (sec, nanosec)):
+        raise _Drop("the header stamp is not integer sec and nanosec")
+    if not (-2 ** 31 <= sec < 2 ** 31 and 0 <= nanosec < 2 ** 32):
+        raise _Drop("the header stamp does not fit builtin_interfaces/Time (int32 sec, uint32 nanosec)")
+    return sec * 1_000_000_000 + nanosec
 
 
 def _header(stamp_ns: int, frame_id: str) -> dict[str, Any]:
@@ -217,7 +236,8 @@ def _header(stamp_ns: int, frame_id: str) -> dict[str, Any]:
 class _ExactReads:
     """A file whose reads return every byte asked for or raise EndOfFile, so that a record cut by the end
     of the file fails where it breaks instead of coming back short (and a corrupt length asking for more
-    than the file holds fails before anything is allocated)."""
+    than the file holds fails before anything is allocated); a seek outside the file (a corrupt offset in
+    the footer or an index) raises McapError."""
 
     def __init__(self, file, size: int) -> None:
         self._file = file
@@ -229,6 +249,15 @@ class _ExactReads:
             raise EndOfFile(f"the file ends {size - (self._size - position)} bytes before the end of a record "
                             f"(a record read from byte {position})")
         return self._file.read(size)
+
+    def seek(self, offset: int, whence: int = os.SEEK_SET) -> int:
+        base = {os.SEEK_SET: 0, os.SEEK_CUR: self._file.tell(), os.SEEK_END: self._size}[whence]
+        if not 0 <= base + offset <= self._size:
+            raise McapError(f"an offset points at byte {base + offset}, outside the file ({self._size} bytes)")
+        return self._file.seek(base + offset)
+
+    def tell(self) -> int:
+        return self._file.tell()
 
 
 @dataclass
@@ -257,15 +286,49 @@ class _Scan:
 
 
 def _origin_from(metadata: Metadata) -> int | None:
+    """The origin `write_mcap` records, or None when the record does not hold one (an integer of nanoseconds
+    from -2^63 to the largest MCAP log time, 2^64 - 1)."""
     try:
-        return int(metadata.metadata["origin_ns"])
-    except (KeyError, ValueError):
+        origin = int(metadata.metadata["origin_ns"])
+    except (KeyError, ValueError, TypeError):
         return None
+    return origin if -2 ** 63 <= origin < 2 ** 64 else None
+
+
+def _decompressed(chunk: Chunk) -> bytes:
+    """A chunk's records, decompressed a block at a time: memory grows with the data that comes out, never
+    beyond the chunk's claimed uncompressed size (a corrupt or hostile size claimed in the chunk or in its
+    compressed frame's header is not allocated up front, as the decompressors' one-call forms would)."""
+    if chunk.compression == "zstd":
+        if zstandard is None:
+            raise UnsupportedCompressionError("zstd")
+        reader = zstandard.ZstdDecompressor().stream_reader(chunk.data)
+
+        def read() -> bytes:
+            return reader.read(_DECOMPRESS_BLOCK)
+    elif chunk.compression == "lz4":
+        if lz4_frame is None:
+            raise UnsupportedCompressionError("lz4")
+        decompressor, pending = lz4_frame.LZ4FrameDecompressor(), [chunk.data]
+
+        def read() -> bytes:
+            if decompressor.eof or (decompressor.needs_input and not pending):
+                return b""
+            return decompressor.decompress(pending.pop() if pending else b"", max_length=_DECOMPRESS_BLOCK)
+    else:
+        return chunk.data            # uncompressed (mcap reads an unknown compression as none)
+    blocks, size = [], 0
+    while block := read():
+        size += len(block)
+        if size > chunk.uncompressed_size:
+            raise McapError(f"a chunk decompresses to more than the {chunk.uncompressed_size} bytes it claims")
+        blocks.append(block)
+    return b"".join(blocks)
 
 
 def _unchunked(records: Iterable) -> Iterable:
-    """The records with each chunk opened, after checking its claimed size (a corrupt size would otherwise
-    ask the decompressor for terabytes)."""
+    """The records with each chunk opened, after checking its claimed size, and decompressed by
+    `_decompressed` (a corrupt size must not make the decompressor ask for gigabytes)."""
     for record in records:
         if not isinstance(record, Chunk):
             yield record
@@ -273,7 +336,8 @@ def _unchunked(records: Iterable) -> Iterable:
         if record.uncompressed_size > MAX_CHUNK_BYTES:
             raise McapError(f"a chunk claims {record.uncompressed_size} bytes uncompressed")
         try:
-            inner = breakup_chunk(record, validate_crc=True)
+            data = _decompressed(record)
+            inner = breakup_chunk(replace(record, compression="", data=data), validate_crc=True)
         except (MemoryError, OverflowError) as error:
             raise McapError(f"a chunk's compressed data is corrupt ({type(error).__name__})") from None
         yield from inner
@@ -342,7 +406,7 @@ def _topics_from_summary(path: str) -> list[dict] | None:
         return None                  # too short to hold a header and a footer: the scan says what it is
     with open(path, "rb") as file:
         try:
-            summary = SeekingReader(file, record_size_limit=size).get_summary()
+            summary = SeekingReader(_ExactReads(file, size), record_size_limit=size).get_summary()
             if summary is None or summary.statistics is None:
                 return None
             first: dict[int, int] = {}
@@ -383,6 +447,16 @@ def _topic_row(topic: str, type_name: str, count: int, first_ns: int | None, las
             "last_s": seconds(last_ns)}
 
 
+def _mcap_path(path: str | os.PathLike) -> str:
+    """`path` as a str; TypeError when it is not a name, LogError for a folder."""
+    if not isinstance(path, (str, os.PathLike)) or not isinstance(os.fspath(path), str):
+        raise TypeError(f"path = {path!r} must be a file name (str or os.PathLike)")
+    path = os.fspath(path)
+    if os.path.isdir(path):
+        raise LogError(f"{path} is a folder, not an MCAP file")
+    return path
+
+
 def list_topics(path: str | os.PathLike) -> list[dict]:
     """The topics of an MCAP file: dicts of topic, type, count, first_s, last_s, sorted by topic.
 
@@ -390,7 +464,7 @@ def list_topics(path: str | os.PathLike) -> list[dict]:
     without messages. Read from the summary section; a file without one (a truncated file, say) is
     scanned instead, and then the counts cover what could be read before the break.
     """
-    path = os.fspath(path)
+    path = _mcap_path(path)
     rows = _topics_from_summary(path)
     if rows is None:
         scan = _scan(path, set())
@@ -415,7 +489,12 @@ def list_topics(path: str | os.PathLike) -> list[dict]:
 # Reading: decode, convert, check order, assemble
 
 class _Drop(Exception):
-    """A message that cannot be used; the argument is the reason counted in the report."""
+    """A message that cannot be used; the argument is the reason counted in the report.
+
+    A message whose type the file defines differently from ROS (a field missing, or of another kind: a text
+    where a number belongs) is dropped as well: the value functions below read fields by name and check
+    what they find (`_finite`, `_sequence`), and `_accept` counts a missing field.
+    """
 
 
 @dataclass
@@ -425,11 +504,24 @@ class _Accepted:
     value: Any
 
 
-def _finite(values: Iterable[float]) -> list[float]:
+def _finite(values: Iterable[Any]) -> list[float]:
+    """The values as floats; _Drop for one that is not a number (as a field of another type gives) or not
+    finite."""
+    values = list(values)
+    for v in values:
+        if isinstance(v, bool) or not isinstance(v, (int, float)):
+            raise _Drop(f"a field holds {type(v).__name__}, not a number")
     values = [float(v) for v in values]
     if not all(math.isfinite(v) for v in values):
         raise _Drop("non-finite value")
     return values
+
+
+def _sequence(value: Any, what: str) -> list:
+    """`value` when it is an array field (a list); _Drop otherwise."""
+    if not isinstance(value, list):
+        raise _Drop(f"{what} is {type(value).__name__}, not an array")
+    return value
 
 
 def _pose_value(pose: Any) -> list[float]:
@@ -465,6 +557,9 @@ def _joint_value(msg: Any) -> dict[str, float]:
         names, positions = msg.joint_names, msg.positions
     else:
         positions = msg.position
+    names, positions = _sequence(names, "the joint names"), _sequence(positions, "the joint positions")
+    if not all(isinstance(name, str) for name in names):
+        raise _Drop("a joint name is not text")
     if len(names) != len(positions):
         raise _Drop(f"{len(names)} joint names but {len(positions)} positions")
     return dict(zip(names, _finite(positions)))
@@ -476,7 +571,7 @@ def _xy(point: Any) -> tuple[float, float]:
 
 
 def _goalpost_value(msg: Any) -> tuple[list, list, list[str]]:
-    points = [_xy(post.bb.center) for post in msg.posts]
+    points = [_xy(post.bb.center) for post in _sequence(msg.posts, "posts")]
     _finite(v for p in points for v in p)
     return [(LandmarkType.GOALPOST, x, y) for x, y in points], [], []
 
@@ -492,21 +587,26 @@ def _segment_points(start: tuple[float, float], end: tuple[float, float]) -> lis
 
 def _marking_value(msg: Any) -> tuple[list, list, list[str]]:
     landmarks, item_drops = [], []
-    for intersection in msg.intersections:
-        kind = CROSSING_RAYS.get(int(intersection.num_rays))
+    for intersection in _sequence(msg.intersections, "intersections"):
+        rays = intersection.num_rays
+        if isinstance(rays, bool) or not isinstance(rays, int):
+            raise _Drop(f"num_rays holds {type(rays).__name__}, not an integer")
+        kind = CROSSING_RAYS.get(rays)
         if kind is None:
-            item_drops.append(f"intersection with {int(intersection.num_rays)} rays")
+            item_drops.append(f"intersection with {rays} rays")
             continue
         landmarks.append((kind, *_xy(intersection.center)))
-    for ellipse in msg.ellipses:
-        kind = (LandmarkType.PENALTY_MARK if ellipse.diameter < PENALTY_MARK_MAX_DIAMETER
-                else LandmarkType.CENTER_MARK)
-        _finite([ellipse.diameter])
+    for ellipse in _sequence(msg.ellipses, "ellipses"):
+        (diameter,) = _finite([ellipse.diameter])
+        kind = LandmarkType.PENALTY_MARK if diameter < PENALTY_MARK_MAX_DIAMETER else LandmarkType.CENTER_MARK
         landmarks.append((kind, *_xy(ellipse.center)))
     line_points = []
-    for segment in msg.segments:
+    for segment in _sequence(msg.segments, "segments"):
         start, end = _xy(segment.start), _xy(segment.end)
         _finite(start + end)
+        if math.hypot(end[0] - start[0], end[1] - start[1]) > MAX_SEGMENT_LENGTH:
+            item_drops.append(f"segment longer than {MAX_SEGMENT_LENGTH:g} m")
+            continue
         line_points.extend(_segment_points(start, end))
     _finite(v for item in landmarks for v in item[1:])
     return landmarks, line_points, item_drops
@@ -519,8 +619,12 @@ _VALUE_OF: dict[str, Callable[[Any], Any]] = {
 }
 
 
-def _accept(topic: str, stream: str, messages: list[tuple[Message, Any]], report: ReadReport) -> list[_Accepted]:
-    """Decode and convert a topic's messages (in log-time order); drop, counting why, those not usable."""
+def _accept(topic: str, stream: str, messages: list[tuple[Message, Any]], report: ReadReport,
+            origin_ns: int) -> list[_Accepted]:
+    """Decode and convert a topic's messages (in log-time order); drop, counting why, those not usable.
+
+    Stamps must increase in float64 seconds from `origin_ns` too (as `RobotLog` holds them): far from the
+    origin, stamps a few nanoseconds apart are one time."""
     accepted: list[_Accepted] = []
     seen: set[bytes] = set()
     value_of = _VALUE_OF[stream]
@@ -530,12 +634,15 @@ def _accept(topic: str, stream: str, messages: list[tuple[Message, Any]], report
         except _DECODE_ERRORS as error:
             report.drop(topic, f"cannot decode: {type(error).__name__}")
             continue
-        header = getattr(decoded, "header", None)
-        stamp = _stamp_ns(header) if header is not None else message.log_time
         try:
+            header = getattr(decoded, "header", None)
+            stamp = _stamp_ns(header) if header is not None else message.log_time
             value = value_of(decoded)
         except _Drop as reason:
             report.drop(topic, str(reason))
+            continue
+        except AttributeError as error:      # the file defines the message type without a field read here
+            report.drop(topic, f"no field {error.name or error} in the message (its schema is not the ROS one)")
             continue
         fingerprint = hashlib.blake2b(stamp.to_bytes(16, "little", signed=True) + bytes(message.data),
                                       digest_size=16).digest()
@@ -546,7 +653,8 @@ def _accept(topic: str, stream: str, messages: list[tuple[Message, Any]], report
         if accepted and stamp < accepted[-1].stamp_ns:
             report.drop(topic, "time went backwards")
             continue
-        if accepted and stamp == accepted[-1].stamp_ns:
+        if accepted and (stamp == accepted[-1].stamp_ns
+                         or (stamp - origin_ns) / 1e9 == (accepted[-1].stamp_ns - origin_ns) / 1e9):
             report.drop(topic, "same stamp as the previous message")
             continue
         if stream in ("goalposts", "markings"):
@@ -586,7 +694,7 @@ def _joint_streams(topics: dict[str, str], accepted: dict[str, list[_Accepted]],
         row = [item.value.get(name, current[i]) for i, name in enumerate(names)]
         if reading_ns:
             # A joint not commanded yet holds where it stands: its latest reading.
-            latest = int(np.searchsorted(reading_ns, item.stamp_ns, side="right")) - 1
+            latest = bisect.bisect_right(reading_ns, item.stamp_ns) - 1
             if latest >= 0:
                 row = [reading_rows[latest][i] if math.isnan(v) else v for i, v in enumerate(row)]
         if any(math.isnan(v) for v in row):
@@ -604,23 +712,33 @@ def _joint_streams(topics: dict[str, str], accepted: dict[str, list[_Accepted]],
             "joint_commands": np.array(command_rows, dtype=np.float64).reshape(len(command_rows), n)}
 
 
-def _vision_frames(accepted: dict[str, list[_Accepted]], origin_ns: int) -> tuple[VisionFrame, ...]:
+def _vision_frames(topics: dict[str, str], accepted: dict[str, list[_Accepted]], report: ReadReport,
+                   origin_ns: int) -> tuple[VisionFrame, ...]:
+    """The camera frames of the accepted vision messages; a frame whose detections `Observations` refuses (a
+    landmark too far, say) is left out, each of its messages counted as dropped with the reason."""
     frames: dict[int, dict[str, Any]] = {}
     for stream in ("goalposts", "markings"):          # goalposts first: a frame's order
         for item in accepted.get(stream, []):
-            frame = frames.setdefault(item.stamp_ns, {"received": item.log_ns, "landmarks": [], "points": []})
+            frame = frames.setdefault(item.stamp_ns, {"received": item.log_ns, "landmarks": [], "points": [],
+                                                      "topics": []})
             frame["received"] = max(frame["received"], item.log_ns)
             landmarks, points, _ = item.value
             frame["landmarks"].extend(landmarks)
             frame["points"].extend(points)
+            frame["topics"].append(topics[stream])
     out = []
     for stamp_ns, frame in sorted(frames.items(), key=lambda entry: (entry[1]["received"], entry[0])):
         landmarks = frame["landmarks"]
-        observations = Observations.from_arrays(
-            [int(kind) for kind, _, _ in landmarks],
-            [math.hypot(x, y) for _, x, y in landmarks],
-            [math.atan2(y, x) for _, x, y in landmarks],
-            line_points=np.array(frame["points"], dtype=np.float64).reshape(-1, 2))
+        try:
+            observations = Observations.from_arrays(
+                [int(kind) for kind, _, _ in landmarks],
+                [math.hypot(x, y) for _, x, y in landmarks],
+                [math.atan2(y, x) for _, x, y in landmarks],
+                line_points=np.array(frame["points"], dtype=np.float64).reshape(-1, 2))
+        except ValueError as error:
+            for topic in frame["topics"]:
+                report.drop(topic, f"detections refused: {error}")
+            continue
         out.append(VisionFrame((stamp_ns - origin_ns) / 1e9, (frame["received"] - origin_ns) / 1e9, observations))
     return tuple(out)
 
@@ -645,11 +763,13 @@ def read_mcap(path: str | os.PathLike, topics: Topics = Topics(), gap: float = 1
     `topics` names the topic of each stream (see `Topics`); `gap` [s] is the longest silence on a topic
     that is not listed in `report.gaps`. See the module docstring for how each message is read.
     """
-    if isinstance(gap, bool) or not isinstance(gap, (int, float)) or not math.isfinite(gap) or gap <= 0:
+    if isinstance(gap, (bool, np.bool_)) or not isinstance(gap, (int, float, np.integer, np.floating)):
+        raise TypeError(f"gap = {gap!r} must be a number of seconds")
+    if not (math.isfinite(gap) and gap > 0):
         raise ValueError(f"gap = {gap!r} must be a positive number of seconds")
     if not isinstance(topics, Topics):
-        raise ValueError(f"topics = {topics!r} must be a Topics")
-    path = os.fspath(path)
+        raise TypeError(f"topics = {topics!r} must be a Topics")
+    path = _mcap_path(path)
     wanted = topics.by_stream()
     scan = _scan(path, set(wanted.values()), _DISCOVERY_KEEP)
     report = ReadReport(path)
@@ -681,7 +801,7 @@ def read_mcap(path: str | os.PathLike, topics: Topics = Topics(), gap: float = 1
             messages.extend((message, decoder) for message in kept)
         messages.sort(key=lambda entry: entry[0].log_time)     # stable: file order among equal log times
         report.messages[topic] = sum(scan.counts.get(cid, 0) for cid, _ in channels)
-        accepted[stream] = _accept(topic, stream, messages, report)
+        accepted[stream] = _accept(topic, stream, messages, report, origin_ns)
         stamps = _seconds([a.stamp_ns for a in accepted[stream]], origin_ns)
         for i in np.flatnonzero(np.diff(stamps) > gap):
             report.gaps.append((topic, float(stamps[i]), float(stamps[i + 1] - stamps[i])))
@@ -690,13 +810,16 @@ def read_mcap(path: str | os.PathLike, topics: Topics = Topics(), gap: float = 1
         return _seconds([a.stamp_ns for a in accepted.get(stream, [])], origin_ns)
 
     imu = _rows(accepted.get("imu", []), 6)
-    log = RobotLog(origin_ns=origin_ns,
-                   odometry_times=times("odometry"), odometry=_rows(accepted.get("odometry", []), 3),
-                   command_times=times("commands"), commands=_rows(accepted.get("commands", []), 3),
-                   imu_times=times("imu"), gyro=imu[:, :3], acceleration=imu[:, 3:],
-                   truth_times=times("truth"), truth=_rows(accepted.get("truth", []), 3),
-                   vision=_vision_frames(accepted, origin_ns),
-                   **_joint_streams(chosen, accepted, report, origin_ns))
+    try:
+        log = RobotLog(origin_ns=origin_ns,
+                       odometry_times=times("odometry"), odometry=_rows(accepted.get("odometry", []), 3),
+                       command_times=times("commands"), commands=_rows(accepted.get("commands", []), 3),
+                       imu_times=times("imu"), gyro=imu[:, :3], acceleration=imu[:, 3:],
+                       truth_times=times("truth"), truth=_rows(accepted.get("truth", []), 3),
+                       vision=_vision_frames(chosen, accepted, report, origin_ns),
+                       **_joint_streams(chosen, accepted, report, origin_ns))
+    except LogError as error:
+        raise LogError(f"{path}: {error}") from None
     return log, report
 
 
@@ -910,7 +1033,7 @@ def read_poses(path: str | os.PathLike, topic: str = Topics.pose_out) -> tuple[n
     decoded or converted (a non-finite value, an asymmetric covariance) is left out: use `read_mcap`, with
     the topic as its truth, for a report of what was dropped.
     """
-    path = os.fspath(path)
+    path = _mcap_path(path)
     scan = _scan(path, {topic})
     channels = [(cid, channel) for cid, channel in scan.channels.items() if channel.topic == topic]
     if not channels:

@@ -16,6 +16,11 @@ Streams (each `*_times` array is strictly increasing):
 - vision: `vision`, a tuple of `VisionFrame` sorted by arrival time: capture `stamp`, arrival `received`,
   and the detections as `sensing.Observations` in the robot frame.
 - ground truth: `truth_times` (G,), `truth` (G, 3) field-frame pose [x, y, θ] (empty when not recorded).
+
+The constructor refuses (`LogError`, naming the stream) values that are not finite, times out of order, and
+times more than `MAX_TIME` from the origin: no clock a log comes from reaches that far (MCAP's unsigned
+nanoseconds span 584 years), so such a time is corrupt, and bounded times keep every duration finite.
+Arguments of the wrong type (text, complex numbers, an origin that is not an integer) raise `TypeError`.
 """
 from __future__ import annotations
 
@@ -25,6 +30,8 @@ from dataclasses import dataclass, field as dataclass_field
 import numpy as np
 
 from sensing.observations import Observations
+
+MAX_TIME = 1e11      # [s] the farthest a time may lie from the origin, before or after (about 3 000 years)
 
 
 class LogError(ValueError):
@@ -43,6 +50,19 @@ class VisionFrame:
     def latency(self) -> float:
         """Seconds between capture and arrival."""
         return self.received - self.stamp
+
+
+def _real_array(name: str, value) -> np.ndarray:
+    """`value` as a contiguous float64 array; TypeError naming `name` when it is not real numbers."""
+    if isinstance(value, (str, bytes)):
+        raise TypeError(f"{name} = {value!r} must be an array of numbers, not text")
+    try:
+        array = np.asarray(value)
+    except ValueError as error:          # ragged nested sequences
+        raise TypeError(f"{name} must be an array of numbers ({error})") from None
+    if array.dtype.kind not in "biuf":
+        raise TypeError(f"{name} has dtype {array.dtype}, expected real numbers")
+    return np.ascontiguousarray(array, dtype=np.float64)
 
 
 def _empty(columns: int | None = None) -> np.ndarray:
@@ -74,12 +94,17 @@ class RobotLog:
                ("imu_times", "acceleration", 3), ("truth_times", "truth", 3))
 
     def __post_init__(self) -> None:
+        if isinstance(self.origin_ns, (bool, np.bool_)) or not isinstance(self.origin_ns, (int, np.integer)):
+            raise TypeError(f"origin_ns = {self.origin_ns!r} must be an integer (nanoseconds since the epoch)")
+        object.__setattr__(self, "origin_ns", int(self.origin_ns))
+        if isinstance(self.joint_names, (str, bytes)):
+            raise TypeError(f"joint_names = {self.joint_names!r} must be a sequence of names, not one string")
         n_joints = len(self.joint_names)
         for times_name, values_name, columns in self.STREAMS + (
                 ("joint_command_times", "joint_commands", n_joints),
                 ("joint_reading_times", "joint_readings", n_joints)):
-            times = np.ascontiguousarray(getattr(self, times_name), dtype=np.float64).reshape(-1)
-            values = np.ascontiguousarray(getattr(self, values_name), dtype=np.float64)
+            times = _real_array(times_name, getattr(self, times_name)).reshape(-1)
+            values = _real_array(values_name, getattr(self, values_name))
             if values.size == 0:
                 values = values.reshape(times.shape[0] if times.shape[0] and columns == 0 else 0, columns)
             if values.ndim != 2 or values.shape != (times.shape[0], columns):
@@ -87,6 +112,10 @@ class RobotLog:
                                f"to match {times_name}")
             if not (np.isfinite(times).all() and np.isfinite(values).all()):
                 raise LogError(f"{times_name} / {values_name} hold a NaN or an infinity")
+            if times.shape[0] and np.abs(times).max() > MAX_TIME:
+                i = int(np.argmax(np.abs(times) > MAX_TIME))
+                raise LogError(f"{times_name}[{i}] = {float(times[i])!r} s lies more than MAX_TIME = {MAX_TIME:g} s "
+                               f"from the origin")
             if times.shape[0] > 1 and not (np.diff(times) > 0).all():
                 i = int(np.argmax(np.diff(times) <= 0)) + 1
                 raise LogError(f"{times_name}[{i}] = {times[i]:.6f} s does not follow {times[i - 1]:.6f} s")
@@ -97,8 +126,17 @@ class RobotLog:
         for i, frame in enumerate(frames):
             if not isinstance(frame, VisionFrame):
                 raise LogError(f"vision[{i}] = {frame!r} is not a VisionFrame")
+            if not isinstance(frame.observations, Observations):
+                raise LogError(f"vision[{i}].observations = {frame.observations!r} is not an Observations")
+            for name in ("stamp", "received"):
+                value = getattr(frame, name)
+                if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, float, np.integer, np.floating)):
+                    raise TypeError(f"vision[{i}].{name} = {value!r} must be a number of seconds")
             if not (math.isfinite(frame.stamp) and math.isfinite(frame.received)):
                 raise LogError(f"vision[{i}] has a non-finite time")
+            if max(abs(frame.stamp), abs(frame.received)) > MAX_TIME:
+                raise LogError(f"vision[{i}] (stamp {float(frame.stamp)!r} s, received {float(frame.received)!r} s) "
+                               f"lies more than MAX_TIME = {MAX_TIME:g} s from the origin")
             if i and frame.received < frames[i - 1].received:
                 raise LogError(f"vision[{i}] arrives at {frame.received:.6f} s, before vision[{i - 1}] "
                                f"({frames[i - 1].received:.6f} s): frames are sorted by arrival")
