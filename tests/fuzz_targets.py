@@ -406,6 +406,11 @@ def _valid_files() -> dict:
         inputs = rng.uniform(-0.05, 0.05, (80, 9))
         odometry = LearnedFootstepOdometry.train(inputs, inputs[:, :3] * 1.1, "online")
         odometry.save(os.path.join(tmp, "odometry"))
+        from mcl.logs import write_log
+        log = _small_log()
+        write_log(log, os.path.join(tmp, "log.mcap"))
+        write_log(log, os.path.join(tmp, "log.npz"))
+        write_log(log, os.path.join(tmp, "csv"))
         for name in sorted(os.listdir(tmp)):
             path = os.path.join(tmp, name)
             if os.path.isdir(path):
@@ -416,6 +421,23 @@ def _valid_files() -> dict:
     return _VALID_FILES
 
 
+def _small_log():
+    """A log with every stream, a few rows each, and two camera frames."""
+    from mcl.logs import RobotLog, VisionFrame
+
+    t = np.arange(5) * 0.1
+    rng = np.random.default_rng(5)
+    seen = Observations.from_arrays(["goalpost", "T", "penalty_mark"], [1.0, 2.5, 3.0], [0.1, -0.2, 0.4],
+                                    line_points=[[1.0, 2.0], [3.0, 4.0]])
+    return RobotLog(origin_ns=1_700_000_000 * 10**9, odometry_times=t, odometry=rng.uniform(-1, 1, (5, 3)),
+                    command_times=t, commands=rng.uniform(-1, 1, (5, 3)), imu_times=t,
+                    gyro=rng.uniform(-1, 1, (5, 3)), acceleration=rng.uniform(-1, 1, (5, 3)),
+                    joint_names=("HeadYaw", "HeadPitch"), joint_command_times=t,
+                    joint_commands=rng.uniform(-1, 1, (5, 2)), joint_reading_times=t,
+                    joint_readings=rng.uniform(-1, 1, (5, 2)), truth_times=t, truth=rng.uniform(-1, 1, (5, 3)),
+                    vision=(VisionFrame(0.0, 0.02, seen), VisionFrame(0.15, 0.17, Observations.empty())))
+
+
 def _load(name: str, path: str):
     from field import load_field
     from motion_models.learned_odometry import LearnedFootstepOdometry
@@ -424,6 +446,14 @@ def _load(name: str, path: str):
 
     if name.startswith("field"):
         return load_field(path)
+    if name.startswith("log") or name.startswith("csv/"):
+        from mcl.logs import read_log
+        from mcl.logs.mcap_io import list_topics
+        log, report = read_log(path if name.startswith("log") else os.path.dirname(path))
+        assert math.isfinite(log.duration) and np.isfinite(log.odometry).all()
+        if name == "log.mcap":
+            list_topics(path)
+        return log
     if name == "lwpr.npz":
         model = LWPR.load(path)
         model.predict(np.zeros(model.n_in) if hasattr(model, "n_in") else np.zeros(2))
@@ -442,8 +472,23 @@ def _load(name: str, path: str):
 def fuzz_loaders(data):
     """Field files, LWPR models, collision references and learned odometry: valid files with bytes flipped,
     cut, inserted or replaced, read by their loaders: a loaded object that works, or a ValueError/TypeError."""
+    _fuzz_files(data, "loaders", [name for name in _valid_files() if not _is_log(name)])
+
+
+def _is_log(name: str) -> bool:
+    return name.startswith("log") or name.startswith("csv/")
+
+
+@given(data=st.data())
+def fuzz_logs(data):
+    """Robot logs (ROS 2 MCAP, .npz, a folder of CSV files) with bytes flipped, cut, inserted or replaced, read
+    by `mcl.logs.read_log` (and `list_topics`): a usable log, or a ValueError naming the file."""
+    _fuzz_files(data, "logs", [name for name in _valid_files() if _is_log(name)])
+
+
+def _fuzz_files(data, target: str, names: list[str]) -> None:
     files = _valid_files()
-    name = data.draw(st.sampled_from(sorted(files)), label="file")
+    name = data.draw(st.sampled_from(sorted(names)), label="file")
     content = bytearray(files[name])
     how = data.draw(st.sampled_from(["flip", "flips", "truncate", "insert", "replace"]), label="how")
     if how in ("flip", "flips"):
@@ -460,7 +505,7 @@ def fuzz_loaders(data):
         chunk = data.draw(st.sampled_from([b"\xff" * 8, b"\x00" * 8, b"9" * 30, b"[" * 200, b"-1e400", b"nan",
                                            b"\x7f\xff\xff\xff\xff\xff\xff\xff"]), label="chunk")
         content[offset:offset + len(chunk)] = chunk
-    record_case("loaders", (name, how, bytes(content[:64])))
+    record_case(target, (name, how, bytes(content[:64])))
     with tempfile.TemporaryDirectory() as tmp:
         if "/" in name:                                   # a directory of files: the others stay valid
             directory, _ = name.split("/")
@@ -470,7 +515,7 @@ def fuzz_loaders(data):
                     open(os.path.join(tmp, other), "wb").write(valid)
         path = os.path.join(tmp, name)
         open(path, "wb").write(bytes(content))
-        attempt("loaders", None, lambda: _load(name, path))
+        attempt(target, None, lambda: _load(name, path))
 
 
 @given(value=st.integers(0, 10))
@@ -492,8 +537,9 @@ TARGETS = {
     "models": fuzz_models,
     "localizer": fuzz_localizer,
     "loaders": fuzz_loaders,
+    "logs": fuzz_logs,
 }
 HIDDEN = {"_crash": fuzz_crash}        # run by name only
 # The share of a profile's examples each target gets (the filter and the localizer hold the most).
 WEIGHTS = {"motion_input": 1, "observations": 1, "filter": 3, "filter_construction": 1, "models": 1,
-           "localizer": 3, "loaders": 2}
+           "localizer": 3, "loaders": 2, "logs": 2}
