@@ -58,7 +58,7 @@ from sensing.collision import CollisionPercept
 
 from ._kernels import (DRAWS, PCG64_STEPS, bit_generator_handle, deferred_uniform, draw_rows_deferring, sincos,
                        sincos_reference, wrap)
-from .base import MotionInput, check_nonnegative, check_poses
+from .base import MAX_NOISE_PARAMETER, MotionInput, check_nonnegative, check_poses
 
 FREE, SLIPPAGE, HINDRANCE, PUSHED, STOPPED = range(5)
 STATES = ("free", "slippage", "hindrance", "pushed", "stopped")
@@ -168,9 +168,10 @@ class AdaptiveMotion:
                 and self.foot_separation > 0):
             raise ValueError(f"foot_separation = {self.foot_separation!r} must be finite and > 0")
         odometry = tuple(self.odometry)
-        if len(odometry) != 4 or not all(isinstance(b, (int, float)) and math.isfinite(b) and b >= 0
-                                         for b in odometry):
-            raise ValueError(f"odometry = {self.odometry!r} must be four finite numbers >= 0 (eq. 10's β1..β4)")
+        if len(odometry) != 4 or not all(isinstance(b, (int, float)) and math.isfinite(b)
+                                         and 0 <= b <= MAX_NOISE_PARAMETER for b in odometry):
+            raise ValueError(f"odometry = {self.odometry!r} must be four numbers within [0, {MAX_NOISE_PARAMETER:g}] "
+                             "(eq. 10's β1..β4)")
         object.__setattr__(self, "odometry", tuple(float(b) for b in odometry))
         if not (isinstance(self.frequent_rate, (int, float)) and 0 < self.frequent_rate <= 1):
             raise ValueError(f"frequent_rate = {self.frequent_rate!r} must be within (0, 1]")

@@ -151,3 +151,19 @@ def test_the_argument_checks():
         reals("v", [1.0, "2", 3.0], 3)
     with pytest.raises(ValueError, match="> 0"):
         real("x", 0.0, 0.0, low_open=True)
+
+
+@pytest.mark.parametrize("make", [lambda: VelocityLinear(beta3=1e100), lambda: VelocityLinear(beta1=101.0)])
+def test_noise_parameters_are_bounded(make):
+    with pytest.raises(ValueError, match="must be finite and >= 0 and <= 100"):
+        make()
+
+
+def test_the_largest_noise_of_the_largest_step_stays_finite_and_wrapped():
+    from motion_models import ConstantNoise
+    from motion_models.base import MAX_NOISE_PARAMETER, MAX_STEP_DT
+    for model in (ConstantNoise(*(3 * [MAX_NOISE_PARAMETER])), VelocityLinear(*(4 * [MAX_NOISE_PARAMETER]))):
+        pf = ParticleFilter(FIELD, model, LandmarkSensorModel(FIELD), n_particles=64, seed=1)
+        pf.step(MotionInput(dt=MAX_STEP_DT, command=(0.0, 0.0, 0.02)), [LandmarkObservation("goalpost", 2.0, 0.3)])
+        check_filter(pf)
+        assert np.isfinite(pf.estimate().pose).all()
