@@ -43,6 +43,8 @@ from typing import NamedTuple, Sequence
 import numba
 import numpy as np
 
+from field.checks import LARGEST_SIGMA, SMALLEST_SIGMA, real
+
 from sensing.kinematics import LegChain
 
 
@@ -468,8 +470,8 @@ def _vector3(value, name: str) -> np.ndarray:
             raise ValueError(f"{name} must have shape (3,), got {arr.shape}")
         arr = np.ascontiguousarray(arr)
     x, y, z = arr.tolist()
-    if not (math.isfinite(x) and math.isfinite(y) and math.isfinite(z)):
-        raise ValueError(f"{name} must be finite, got {arr.tolist()}")
+    if not (abs(x) <= MAX_SAMPLE and abs(y) <= MAX_SAMPLE and abs(z) <= MAX_SAMPLE):
+        raise ValueError(f"{name} must be finite and within ±{MAX_SAMPLE:g}, got {arr.tolist()}")
     return arr
 
 
@@ -480,11 +482,14 @@ def _time(value, name: str = "time") -> float:
     return t
 
 
-def _positive(value, name: str) -> float:
-    x = float(value)
-    if not (math.isfinite(x) and x > 0.0):
-        raise ValueError(f"{name} must be a positive finite number, got {value!r}")
-    return x
+MAX_SAMPLE = 1e4
+"""The largest |component| of a gyro (rad/s), accelerometer (m/s²) or velocity (m/s) sample: far beyond any IMU's
+range, small enough that the filter's products stay finite."""
+
+
+def _positive(value, name: str, low: float = 0.0) -> float:
+    """A number within (low, LARGEST_SIGMA] (ValueError naming `name` otherwise)."""
+    return real(name, value, low, LARGEST_SIGMA, low_open=True)
 
 
 def _standing_gyro_bias(gyro_samples) -> np.ndarray:
@@ -626,8 +631,9 @@ class VelocityEKFParams:
 
     def __post_init__(self):
         for name in ("gyro_noise", "accel_noise", "velocity_noise", "initial_gravity_std",
-                     "initial_velocity_std", "max_imu_gap", "max_prediction_time", "initial_gyro_bias_std",
-                     "gyro_bias_random_walk"):
+                     "initial_velocity_std", "initial_gyro_bias_std"):
+            real(name, getattr(self, name), SMALLEST_SIGMA, LARGEST_SIGMA)
+        for name in ("max_imu_gap", "max_prediction_time", "gyro_bias_random_walk"):
             _positive(getattr(self, name), name)
 
     @property
@@ -731,7 +737,7 @@ class VelocityEKF(_GravityVelocityState):
     def correct(self, measured_velocity, noise: float | None = None) -> None:
         """Correction with a velocity v^KG of the IMU in its immobile frame (eq. 32–37), at the current time."""
         measured = _vector3(measured_velocity, "measured_velocity")
-        sigma_v = self.params.velocity_noise if noise is None else _positive(noise, "noise")
+        sigma_v = self.params.velocity_noise if noise is None else real("noise", noise, SMALLEST_SIGMA, LARGEST_SIGMA)
         if self.backend == "numba":
             ekf_correct_kernel(self._state, self._cov, measured, sigma_v)
         else:

@@ -33,3 +33,13 @@ def spl_field():
 @pytest.fixture
 def rng():
     return np.random.default_rng(12345)
+
+
+def pytest_terminal_summary(terminalreporter):
+    """The fuzz suite's counts per target, when tests/test_fuzz.py ran (its table, as the runner printed it)."""
+    module = __import__("sys").modules.get("test_fuzz")
+    report = getattr(module, "REPORT", None)
+    if report:
+        terminalreporter.write_sep("-", "fuzz suite (CI profile)")
+        for line in report:
+            terminalreporter.write_line(line)

@@ -518,6 +518,87 @@ def _fuzz_files(data, target: str, names: list[str]) -> None:
         attempt(target, None, lambda: _load(name, path))
 
 
+# -- estimators and helpers -------------------------------------------------------------------------------------
+VECTOR3 = st.one_of(st.tuples(sane(-3, 3), sane(-3, 3), sane(-12, 12)), triples(10.0))
+
+
+def estimator_operations():
+    return st.lists(st.one_of(
+        st.tuples(st.just("ekf_predict"), st.one_of(sane(0.001, 0.05), number_or_junk()), VECTOR3, VECTOR3),
+        st.tuples(st.just("ekf_correct"), VECTOR3, st.one_of(st.none(), number_or_junk())),
+        st.tuples(st.just("history_record"), st.one_of(sane(0.0, 0.05), number_or_junk()),
+                  st.one_of(sane(0.0, 0.05), number_or_junk()), triples(0.1)),
+        st.tuples(st.just("history_since"), st.one_of(sane(-1.0, 0.1), number_or_junk())),
+        st.tuples(st.just("lwpr_update"), st.one_of(st.tuples(sane(-1, 1), sane(-1, 1)), triples(1.0)),
+                  st.one_of(sane(-1, 1), number_or_junk())),
+        st.tuples(st.just("lwpr_predict"), st.one_of(st.tuples(sane(-1, 1), sane(-1, 1)), triples(1.0))),
+        st.tuples(st.just("collision"), st.one_of(st.lists(sane(-1, 1), min_size=2, max_size=2), triples(1.0)),
+                  st.one_of(st.lists(sane(-1, 1), min_size=2, max_size=2), triples(1.0)),
+                  st.one_of(sane(0, 1), number_or_junk()), VECTOR3),
+        st.tuples(st.just("footstep"), st.one_of(st.sampled_from([1, -1]), number_or_junk()),
+                  st.one_of(st.tuples(sane(-0.1, 0.1), sane(-0.1, 0.1), sane(-0.3, 0.3)), triples(1.0)),
+                  st.one_of(st.none(), triples(0.1)), st.one_of(st.none(), sane(0.2, 0.5), number_or_junk())),
+    ), min_size=1, max_size=10)
+
+
+@given(operations=estimator_operations())
+def fuzz_estimators(operations):
+    """The velocity EKF, the motion history (latency), LWPR's update and predict, the collision detector, the
+    footstep model through a filter: sequences of calls with hostile arguments."""
+    record_case("estimators", operations)
+    from mcl.latency import MotionHistory
+    from motion_models import FootstepEvent, RawFootstepOdometry
+    from motion_models.lwpr import LWPR
+    from sensing.collision import CollisionDetector, CollisionReference
+    from sensing.velocity import VelocityEKF
+
+    ekf = VelocityEKF.from_standing(np.tile([0.0, 0.0, 9.81], (10, 1)), 0.0)
+    history = MotionHistory(1.0)
+    model = LWPR(2, 1)
+    detector = CollisionDetector(CollisionReference(np.array([1, 2]), np.array([0, 1]), 5, np.array([0.0, 0.1]),
+                                                    np.full((2, 2, 4), 0.05), 0.05))
+    field = FIELDS["kidsize"]
+    pf = ParticleFilter(field, RawFootstepOdometry(), LandmarkSensorModel(field), n_particles=16, seed=2)
+    clock = {"ekf": 0.0, "history": 0.0}
+
+    def ekf_predict(dt, gyro, accel):
+        t = clock["ekf"] + dt
+        ekf.predict(t, gyro, accel)
+        clock["ekf"] = t
+
+    def history_record(dt_end, dt, displacement):
+        t = clock["history"] + dt_end
+        history.record(t, dt, displacement)
+        clock["history"] = t
+
+    def check_ekf(e):
+        assert np.isfinite(e.state).all() and np.isfinite(e.covariance).all(), "non-finite EKF state"
+
+    for op in operations:
+        name = op[0]
+        if name == "ekf_predict":
+            attempt("estimators", ekf, lambda: ekf_predict(op[1], op[2], op[3]), check_ekf)
+        elif name == "ekf_correct":
+            attempt("estimators", ekf, lambda: ekf.correct(op[1], op[2]), check_ekf)
+        elif name == "history_record":
+            attempt("estimators", history, lambda: history_record(op[1], op[2], op[3]))
+        elif name == "history_since":
+            result = []
+            if attempt("estimators", history, lambda: result.append(history.since(clock["history"] + op[1]))):
+                assert np.isfinite(result[0]).all(), "non-finite displacement"
+        elif name == "lwpr_update":
+            attempt("estimators", model, lambda: model.update(op[1], [op[2]]))
+        elif name == "lwpr_predict":
+            result = []
+            if attempt("estimators", model, lambda: result.append(model.predict(op[1]))):
+                assert np.isfinite(result[0]).all(), "non-finite LWPR prediction"
+        elif name == "collision":
+            attempt("estimators", detector, lambda: detector.update(op[1], op[2], op[3], op[4]))
+        elif name == "footstep":
+            attempt("estimators", pf, lambda: pf.predict(MotionInput(
+                dt=0.3, footstep=FootstepEvent(op[1], op[2], sensor=op[3], duration=op[4]))), check_filter)
+
+
 @given(value=st.integers(0, 10))
 def fuzz_crash(value):
     """Not a target of the suite: dies of SIGSEGV, so the runner's crash report can be tested."""
@@ -538,8 +619,9 @@ TARGETS = {
     "localizer": fuzz_localizer,
     "loaders": fuzz_loaders,
     "logs": fuzz_logs,
+    "estimators": fuzz_estimators,
 }
 HIDDEN = {"_crash": fuzz_crash}        # run by name only
 # The share of a profile's examples each target gets (the filter and the localizer hold the most).
 WEIGHTS = {"motion_input": 1, "observations": 1, "filter": 3, "filter_construction": 1, "models": 1,
-           "localizer": 3, "loaders": 2, "logs": 2}
+           "localizer": 3, "loaders": 2, "logs": 2, "estimators": 2}
