@@ -26,6 +26,7 @@ import numba
 import numpy as np
 
 from field.angles import wrap_angle, wrap_angles
+from field.checks import LARGEST_ANGLE, LARGEST_COORDINATE, real, reals
 from motion_models._kernels import sincos, sincos_reference
 
 IDENTITY = (0.0, 0.0, 0.0)
@@ -102,12 +103,20 @@ class MotionHistory:
         return self._start
 
     def record(self, t_end: float, dt: float, displacement) -> None:
-        if not (math.isfinite(t_end) and math.isfinite(dt) and dt >= 0):
-            raise ValueError(f"t_end = {t_end!r}, dt = {dt!r} must be finite (dt >= 0)")
+        """A motion step of `dt` seconds ending at `t_end`, which moved the robot by `displacement` (dx, dy, dθ)
+        in its frame at the step's start (at most 1 km and 100 rad)."""
+        t_end = real("t_end", t_end)
+        dt = real("dt", dt, 0.0)
+        if not (type(displacement) is tuple and len(displacement) == 3
+                and all(type(v) is float and abs(v) <= LARGEST_COORDINATE for v in displacement)):
+            displacement = tuple(float(v) for v in reals("displacement", displacement, 3, -LARGEST_COORDINATE,
+                                                         LARGEST_COORDINATE))
+        if abs(displacement[2]) > LARGEST_ANGLE:
+            raise ValueError(f"displacement = {displacement!r} turns by more than {LARGEST_ANGLE:g} rad")
         latest = self.latest
         if latest is not None and t_end < latest:
             raise ValueError(f"motion step ending at {t_end:.6f} s is older than the latest ({latest:.6f} s)")
-        self._steps.append((float(t_end), float(dt), tuple(float(v) for v in displacement)))
+        self._steps.append((t_end, dt, displacement))
         if self._start is None:
             self._start = t_end - dt
         while self._steps and self._steps[0][0] < t_end - self.keep:
@@ -119,8 +128,7 @@ class MotionHistory:
         A step that began before `t` counts with the share of it after `t` (its displacement scaled: a step
         is short). A `t` at or after the latest step gives (0, 0, 0).
         """
-        if not math.isfinite(t):
-            raise ValueError(f"capture time {t!r} must be finite")
+        t = real("t", t)
         if self._start is not None and t < self._start - 1e-9:
             raise ValueError(f"an observation captured at {t:.3f} s is older than the motion history, which "
                              f"reaches back to {self._start:.3f} s (keep = {self.keep} s)")
