@@ -535,6 +535,14 @@ def estimator_operations():
         st.tuples(st.just("collision"), st.one_of(st.lists(sane(-1, 1), min_size=2, max_size=2), triples(1.0)),
                   st.one_of(st.lists(sane(-1, 1), min_size=2, max_size=2), triples(1.0)),
                   st.one_of(sane(0, 1), number_or_junk()), VECTOR3),
+        st.tuples(st.just("leg_imu"), st.one_of(sane(0.001, 0.02), number_or_junk()), VECTOR3, VECTOR3),
+        st.tuples(st.just("leg_kinematics"), st.one_of(sane(0.0, 0.02), number_or_junk()),
+                  st.one_of(st.lists(st.lists(sane(-1, 1), min_size=6, max_size=6), min_size=2, max_size=2),
+                            st.lists(st.lists(numbers(), min_size=6, max_size=6), min_size=2, max_size=2),
+                            st.lists(numbers(), max_size=13), junk()),
+                  st.one_of(st.lists(st.lists(st.booleans(), min_size=4, max_size=4), min_size=2, max_size=2),
+                            junk(), st.lists(numbers(), max_size=3))),
+        st.tuples(st.just("leg_take")),
         st.tuples(st.just("footstep"), st.one_of(st.sampled_from([1, -1]), number_or_junk()),
                   st.one_of(st.tuples(sane(-0.1, 0.1), sane(-0.1, 0.1), sane(-0.3, 0.3)), triples(1.0)),
                   st.one_of(st.none(), triples(0.1)), st.one_of(st.none(), sane(0.2, 0.5), number_or_junk())),
@@ -559,7 +567,21 @@ def fuzz_estimators(operations):
                                                     np.full((2, 2, 4), 0.05), 0.05))
     field = FIELDS["kidsize"]
     pf = ParticleFilter(field, RawFootstepOdometry(), LandmarkSensorModel(field), n_particles=16, seed=2)
-    clock = {"ekf": 0.0, "history": 0.0}
+    from sensing.kinematics import nao_leg
+    from sensing.velocity import LegOdometry
+    from sensing.velocity_odometry import EKFOdometry
+    legs = EKFOdometry(LegOdometry((nao_leg("left"), nao_leg("right")),
+                                   VelocityEKF.from_standing(np.tile([0.0, 0.0, 9.81], (10, 1)), 0.0)))
+    clock = {"ekf": 0.0, "history": 0.0, "legs": 0.0}
+
+    def leg_imu(dt, gyro, accel):
+        t = clock["legs"] + dt
+        legs.imu(t, gyro, accel)
+        clock["legs"] = t
+
+    def check_legs(o):
+        check_ekf(o.ekf)
+        assert np.isfinite(o.sum.peek().odometry).all(), "non-finite odometry sum"
 
     def ekf_predict(dt, gyro, accel):
         t = clock["ekf"] + dt
@@ -594,6 +616,14 @@ def fuzz_estimators(operations):
                 assert np.isfinite(result[0]).all(), "non-finite LWPR prediction"
         elif name == "collision":
             attempt("estimators", detector, lambda: detector.update(op[1], op[2], op[3], op[4]))
+        elif name == "leg_imu":
+            attempt("estimators", legs, lambda: leg_imu(op[1], op[2], op[3]), check_legs)
+        elif name == "leg_kinematics":
+            attempt("estimators", legs, lambda: legs.kinematics(clock["legs"] + op[1], op[2], op[3]), check_legs)
+        elif name == "leg_take":
+            result = []
+            if attempt("estimators", legs, lambda: result.append(legs.take())):
+                assert np.isfinite(result[0].odometry).all() and math.isfinite(result[0].dt)
         elif name == "footstep":
             attempt("estimators", pf, lambda: pf.predict(MotionInput(
                 dt=0.3, footstep=FootstepEvent(op[1], op[2], sensor=op[3], duration=op[4]))), check_filter)
