@@ -38,6 +38,7 @@ import rerun as rr
 import rerun.blueprint as rrb
 
 from field import Field, LandmarkType
+from field.checks import ArgumentTypeError, integer, real, reals
 from sensing.observations import Observations
 
 LANDMARK_COLORS = {
@@ -119,6 +120,10 @@ def default_blueprint(series: tuple[tuple[str, str], ...] = (("/entropy", "entro
         ),
         collapse_panels=True,
     )
+
+
+def _step_and_time(step, t) -> tuple[int, float]:
+    return integer("step", step, 0, 2**62), real("t", t)
 
 
 class Recorder:
@@ -251,19 +256,32 @@ class Recorder:
             log(path, rr.SeriesLines(names=name, colors=[color]), static=True)
 
     def set_time(self, step: int, t: float) -> None:
-        self._step, self._time = int(step), float(t)
+        """The step (an integer within [0, 2⁶²]) and time [s] what follows is logged at."""
+        self._step, self._time = _step_and_time(step, t)
         self.stream.set_time("step", sequence=self._step)
         self.stream.set_time("time", duration=self._time)
 
     def log_scalars(self, values: dict[str, float]) -> None:
-        """Log scalar series at the current time, e.g. {"proprioception/s_rel": 0.8} (buffered)."""
-        for path, value in values.items():
+        """Log scalar series at the current time, e.g. {"proprioception/s_rel": 0.8} (buffered). Each value
+        must be a finite number, each key a string; checked before any is logged."""
+        if not isinstance(values, dict):
+            raise ArgumentTypeError(f"values = {values!r} must be a dict of entity path to number")
+        checked = [(path, real(f"values[{path!r}]", value)) for path, value in values.items()]
+        for path, _ in checked:
+            if not isinstance(path, str) or not path:
+                raise ArgumentTypeError(f"values has the key {path!r}; entity paths are non-empty strings")
+        for path, value in checked:
             self._scalar(path, value)
 
     def log_step(self, step: int, t: float, pf, truth=None, observations: Observations | None = None,
                  entropy=None) -> None:
         """Log one filter step: entropy and pose every step, particles every `particles_every` steps (buffered,
         see the module's docstring)."""
+        step, t = _step_and_time(step, t)
+        if truth is not None:
+            truth = reals("truth", truth, 3)
+        if observations is not None and not isinstance(observations, Observations):
+            raise ArgumentTypeError(f"observations = {observations!r} must be an Observations or None")
         if self._buffered_steps >= self.flush_every or self._buffered_points >= self.max_points:
             self.flush()
         self._buffered_steps += 1

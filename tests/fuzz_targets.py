@@ -629,6 +629,54 @@ def fuzz_estimators(operations):
                 dt=0.3, footstep=FootstepEvent(op[1], op[2], sensor=op[3], duration=op[4]))), check_filter)
 
 
+def recorder_operations():
+    return st.lists(st.one_of(
+        st.tuples(st.just("log_step"), st.one_of(st.integers(0, 20), number_or_junk()),
+                  st.one_of(sane(0, 5), number_or_junk()), st.one_of(st.none(), POSES, triples(1.0)),
+                  st.one_of(st.none(), observation_args())),
+        st.tuples(st.just("log_scalars"), st.one_of(st.dictionaries(st.sampled_from(["a/b", "c", ""]),
+                                                                    number_or_junk(), max_size=3), junk())),
+        st.tuples(st.just("set_time"), st.one_of(st.integers(0, 20), number_or_junk()), number_or_junk()),
+        st.tuples(st.just("flush")),
+    ), min_size=1, max_size=8)
+
+
+@given(operations=recorder_operations(), particles_every=st.one_of(st.sampled_from([1, 2, 5]), number_or_junk()))
+def fuzz_recorder(operations, particles_every):
+    """mcl.recording.Recorder: its constructor and sequences of log_step, log_scalars, set_time, flush into an
+    .rrd file, then close."""
+    record_case("recorder", (operations, particles_every))
+    from mcl.recording import Recorder
+
+    field = FIELDS["spl"]
+    pf = _RECORDED.get("pf")
+    if pf is None:
+        pf = _RECORDED["pf"] = ParticleFilter(field, VelocityLinear(), LandmarkSensorModel(field), n_particles=32)
+    with tempfile.TemporaryDirectory() as tmp:
+        holder = []
+        if not attempt("recorder", None, lambda: holder.append(Recorder(os.path.join(tmp, "run.rrd"), field,
+                                                                        particles_every=particles_every))):
+            return
+        recorder = holder[0]
+        for op in operations:
+            if op[0] == "log_step":
+                def log_step(op=op):
+                    observations = None if op[4] is None else Observations.coerce(build_observations(op[4]))
+                    recorder.log_step(op[1], op[2], pf, truth=op[3], observations=observations)
+                attempt("recorder", recorder, log_step)
+            elif op[0] == "log_scalars":
+                attempt("recorder", recorder, lambda: recorder.log_scalars(op[1]))
+            elif op[0] == "set_time":
+                attempt("recorder", recorder, lambda: recorder.set_time(op[1], op[2]))
+            else:
+                attempt("recorder", recorder, recorder.flush)
+        recorder.close()
+        assert os.path.getsize(os.path.join(tmp, "run.rrd")) > 0
+
+
+_RECORDED: dict = {}
+
+
 @given(value=st.integers(0, 10))
 def fuzz_crash(value):
     """Not a target of the suite: dies of SIGSEGV, so the runner's crash report can be tested."""
@@ -650,8 +698,9 @@ TARGETS = {
     "loaders": fuzz_loaders,
     "logs": fuzz_logs,
     "estimators": fuzz_estimators,
+    "recorder": fuzz_recorder,
 }
 HIDDEN = {"_crash": fuzz_crash}        # run by name only
 # The share of a profile's examples each target gets (the filter and the localizer hold the most).
 WEIGHTS = {"motion_input": 1, "observations": 1, "filter": 3, "filter_construction": 1, "models": 1,
-           "localizer": 3, "loaders": 2, "logs": 2, "estimators": 2}
+           "localizer": 3, "loaders": 2, "logs": 2, "estimators": 2, "recorder": 1}
