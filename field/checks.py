@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import math
 import numbers
+import reprlib
 
 import numpy as np
 
@@ -38,10 +39,23 @@ class ArgumentTypeError(TypeError, ValueError):
     """An argument of the wrong type: a TypeError, and a ValueError like every other refused call."""
 
 
-def show(value, limit: int = 80) -> str:
-    """`repr(value)`, shortened to `limit` characters for an error message."""
-    text = repr(value)
-    return text if len(text) <= limit else text[:limit - 3] + "..."
+_SHORT = reprlib.Repr()
+_SHORT.maxlevel = 3
+_SHORT.maxstring = _SHORT.maxlong = _SHORT.maxother = 100
+
+
+def show(value) -> str:
+    """`repr(value)` for an error message: at most about 100 characters and 3 levels of nesting (an array by its
+    shape and dtype), so that a huge value, or a deeply nested one read from a file, cannot blow up the message
+    (or the recursion limit) of the error that reports it."""
+    if isinstance(value, np.ndarray):
+        if value.ndim:
+            return f"<array of shape {value.shape}, dtype {value.dtype}>"
+        value = value.item()
+    try:
+        return _SHORT.repr(value)
+    except Exception:  # an int beyond Python's digit limit, a broken __repr__, ...
+        return f"<{type(value).__name__}>"
 
 
 def _is_real(value) -> bool:

@@ -19,8 +19,9 @@ from __future__ import annotations
 import dataclasses
 import math
 import numbers
-import reprlib
 from dataclasses import dataclass
+
+from .checks import show as short_repr
 
 MAX_FIELD_EXTENT = 200.0
 """Largest size of the carpet along either axis, in metres: both
@@ -28,22 +29,6 @@ MAX_FIELD_EXTENT = 200.0
 this, and so must every single dimension. A full-size soccer pitch (105 m x 68 m plus a
 border) fits; a larger value is a unit mistake (millimetres for metres, say) or a damaged
 file, and would make grids over the field (a likelihood field, for one) too big to build."""
-
-_SHORT_REPR = reprlib.Repr()
-_SHORT_REPR.maxlevel = 3
-_SHORT_REPR.maxstring = 100
-_SHORT_REPR.maxlong = 100
-_SHORT_REPR.maxother = 100
-
-
-def short_repr(value: object) -> str:
-    """`repr(value)` for an error message: at most about 100 characters and 3 levels of
-    nesting, so that a huge string or a deeply nested table in a file cannot blow up the
-    message (or the recursion limit) of the error that reports it."""
-    try:
-        return _SHORT_REPR.repr(value)
-    except Exception:  # an int beyond Python's digit limit, a broken __repr__, ...
-        return f"<{type(value).__name__}>"
 
 
 @dataclass(frozen=True)

@@ -47,10 +47,11 @@ from __future__ import annotations
 import json
 import math
 import os
-import reprlib
 from dataclasses import dataclass
 
 import numpy as np
+
+from field.checks import show as _short_repr
 
 from ._kernels import SQRT3, move_with_noise
 from .base import MotionInput, check_poses
@@ -65,8 +66,6 @@ MAX_META_FILE_BYTES = 1 << 20
 """Largest metadata file `LearnedFootstepOdometry.load` reads, in bytes (1 MiB; `save` writes about 500)."""
 _META_KEYS = ("format", "format_version", "inputs", "n_inputs", "models", "fallback_sigma", "noise_scale",
               "min_sigma", "residual")
-_SHORT_REPR = reprlib.Repr()
-_SHORT_REPR.maxstring = _SHORT_REPR.maxother = _SHORT_REPR.maxlong = 100
 MIN_SAMPLES = 10
 NO_FIELD = 1e19     # LWPR's bound where no receptive field is active is 1e20·norm_out
 
@@ -311,14 +310,6 @@ class LearnedFootstepOdometry:
                        meta["residual"])
         except ValueError as exc:
             raise ValueError(f"{path!r}: {exc}") from None
-
-
-def _short_repr(value) -> str:
-    """repr(value) cut to about 100 characters, for an error message about a value from a file."""
-    try:
-        return _SHORT_REPR.repr(value)
-    except Exception:  # an int beyond Python's digit limit, a broken __repr__, ...
-        return f"<{type(value).__name__}>"
 
 
 def _read_meta(path: str) -> dict:

@@ -51,7 +51,6 @@ from __future__ import annotations
 
 import math
 import os
-import reprlib
 import struct
 import zipfile
 import zlib
@@ -59,6 +58,8 @@ from typing import Any
 
 import numba
 import numpy as np
+
+from field.checks import show as _short_repr
 from numba.core.imputils import impl_ret_borrowed
 from numba.extending import intrinsic
 from numpy.lib.stride_tricks import as_strided
@@ -803,22 +804,6 @@ def _scalar(value: Any, name: str) -> float:
     if not math.isfinite(v):
         raise ValueError(f"LWPR.{name} must be finite, got {value!r}")
     return v
-
-
-_SHORT_REPR = reprlib.Repr()
-_SHORT_REPR.maxstring = _SHORT_REPR.maxother = _SHORT_REPR.maxlong = 100
-
-
-def _short_repr(value: Any) -> str:
-    """repr(value) cut to about 100 characters, for an error message about a value from a file."""
-    if isinstance(value, np.ndarray):
-        if value.ndim == 0:
-            return _short_repr(value.item())
-        return f"<array of shape {value.shape}, dtype {value.dtype}>"
-    try:
-        return _SHORT_REPR.repr(value)
-    except Exception:  # an int beyond Python's digit limit, a broken __repr__, ...
-        return f"<{type(value).__name__}>"
 
 
 def _check_size(n: int, n_out: int) -> None:

@@ -38,12 +38,13 @@ from __future__ import annotations
 
 import math
 import os
-import reprlib
 from collections import deque
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+
+from field.checks import show as _short_repr
 
 LEFT_LEG, RIGHT_LEG = 0, 1
 FORMAT = "robocup-mcl collision reference"
@@ -61,10 +62,6 @@ MIN_REFERENCE = 1e-12
 """Smallest reference value R a `CollisionReference` holds, in rad². S_rel = D / R divides by it: R = 0 would
 make S_rel infinite or NaN, and a subnormal R would overflow it for any deviation. A free walk deviates far more
 (servo sensors resolve about 1e-3 rad, 1e-6 rad²; learned tables are around 1e-3), so a smaller R is damage."""
-
-_SHORT_REPR = reprlib.Repr()
-_SHORT_REPR.maxstring = _SHORT_REPR.maxother = _SHORT_REPR.maxlong = 100
-
 
 def _as_2d(name: str, value, columns: int | None = None) -> np.ndarray:
     array = np.asarray(value, dtype=np.float64)
@@ -256,18 +253,6 @@ class CollisionReference:
 
 
 _KIND_NAMES = {"iu": "integers", "fiu": "real numbers"}
-
-
-def _short_repr(value) -> str:
-    """repr(value) cut to about 100 characters, for an error message about a value from a file."""
-    if isinstance(value, np.ndarray):
-        if value.ndim == 0:
-            return _short_repr(value.item())
-        return f"<array of shape {value.shape}, dtype {value.dtype}>"
-    try:
-        return _SHORT_REPR.repr(value)
-    except Exception:  # an int beyond Python's digit limit, a broken __repr__, ...
-        return f"<{type(value).__name__}>"
 
 
 def _array(name: str, value, kinds: str, dtype, ndim: int) -> np.ndarray:

@@ -143,7 +143,7 @@ def test_the_argument_checks():
     for bad in (True, "1", None, [1.0], np.array([1.0])):
         with pytest.raises(ArgumentTypeError, match="x = "):
             real("x", bad)
-    with pytest.raises(ValueError, match=r"x = 1000000.{60,80} must be finite"):
+    with pytest.raises(ValueError, match=r"x = 1000000\d+\.\.\.\d+ must be finite$"):
         real("x", 10**400)
     with pytest.raises(ValueError, match="must be 3 numbers, got shape"):
         reals("v", [1.0, 2.0], 3)
