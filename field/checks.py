@@ -77,21 +77,20 @@ def real(name: str, value, low: float | None = None, high: float | None = None, 
 
     TypeError unless `value` is a real number (int, float, numpy number; not bool); ValueError unless it is
     finite and within the bounds."""
-    if not _is_real(value):
+    if type(value) is float:                      # the common case, checked without the number ABCs
+        number = value
+    elif not _is_real(value):
         raise ArgumentTypeError(f"{name} = {show(value)} must be a number, not {type(value).__name__}")
-    try:
-        number = float(value)
-    except OverflowError:
-        number = math.inf if value > 0 else -math.inf
+    else:
+        try:
+            number = float(value)
+        except OverflowError:
+            number = math.inf if value > 0 else -math.inf
+    if (math.isfinite(number) and (low is None or number > low or (number == low and not low_open))
+            and (high is None or number < high or (number == high and not high_open))):
+        return number
     bounds = _bounds_text(low, high, low_open, high_open)
-    rule = f"must be finite{' and ' + bounds if bounds else ''}"
-    if not math.isfinite(number):
-        raise ValueError(f"{name} = {show(value)} {rule}")
-    if low is not None and (number < low or (low_open and number == low)):
-        raise ValueError(f"{name} = {show(value)} {rule}")
-    if high is not None and (number > high or (high_open and number == high)):
-        raise ValueError(f"{name} = {show(value)} {rule}")
-    return number
+    raise ValueError(f"{name} = {show(value)} must be finite{' and ' + bounds if bounds else ''}")
 
 
 def integer(name: str, value, low: int | None = None, high: int | None = None) -> int:
