@@ -41,10 +41,13 @@ from multiprocessing import get_context
 
 import numpy as np
 
+from field import spl
 from mcl.evaluation import QUALITY_CODE, QUALITY_LEVELS, evaluate, median_worst, pool_counts
 from mcl.localizer import Localizer, QualityThresholds
 from mcl.relocalization import RelocalizationPrior, SoccerRelocalization
 from motion_models import MotionInput
+from sensing import LandmarkSensorModel
+from sensing.view import CameraView
 
 from .battery_sim import FAMILIES, BatteryRun, simulate
 
@@ -64,7 +67,7 @@ def split_seeds(split: str, k: int) -> list[int]:
 
 
 def make_localizer(field, seed: int, particles: int = 500, prior: dict | None = None,
-                   quality: dict | None = None) -> Localizer:
+                   quality: dict | None = None, sensor: dict | None = None) -> Localizer:
     """The localizer under test: `Localizer` with its defaults, except the `RelocalizationPrior` and
     `QualityThresholds` fields named in `prior` and `quality` (for measuring variants; the report says so)."""
     options = {}
@@ -72,14 +75,23 @@ def make_localizer(field, seed: int, particles: int = 500, prior: dict | None = 
         options["relocalization"] = SoccerRelocalization(RelocalizationPrior(**prior))
     if quality:
         options["quality"] = QualityThresholds(**quality)
+    if sensor:
+        options["sensor_model"] = LandmarkSensorModel(field, **sensor)
     return Localizer(field, n_particles=particles, seed=seed, **options)
 
 
+def camera_view(run: BatteryRun, frame) -> CameraView:
+    """The frame's view as the robot knows it: its head's pan at capture, its camera's field of view and its
+    vision's range limits (the run's drawn camera)."""
+    p = run.params
+    return CameraView(frame.head, 0.5 * math.radians(p["fov_deg"]), p["max_range"], p["min_range"])
+
+
 def localize(run: BatteryRun, particles: int = 500, prior: dict | None = None,
-             quality: dict | None = None) -> dict:
+             quality: dict | None = None, view: bool = False, sensor: dict | None = None) -> dict:
     """Drive a `Localizer` through the run (see the module docstring); returns estimates (T, 3), quality
     codes (T,), lost (T,), dropped frames and the seconds the loop took."""
-    loc = make_localizer(run.field, run.seed, particles, prior, quality)
+    loc = make_localizer(run.field, run.seed, particles, prior, quality, sensor)
     loc.anywhere_in_own_half()
     n = run.times.shape[0]
     frames_at: dict[int, list] = {}
@@ -103,7 +115,8 @@ def localize(run: BatteryRun, particles: int = 500, prior: dict | None = None,
             call()
         for frame in frames_at.get(k, ()):
             try:
-                loc.observe(frame.observations, capture_time=frame.capture_time)
+                loc.observe(frame.observations, capture_time=frame.capture_time,
+                            view=camera_view(run, frame) if view else None)
             except ValueError:
                 dropped += 1          # captured before the last reset (the localizer refuses it)
         estimates[k] = loc.pose().pose
@@ -130,10 +143,11 @@ def _jsonable(value):
 
 
 def run_case(family: str, seed: int, duration: float = 60.0, particles: int = 500, prior: dict | None = None,
-             quality: dict | None = None) -> dict:
-    """Simulate one run, localize it, and return its figures (JSON-ready; "never" is None)."""
+             quality: dict | None = None, view: bool = False, sensor: dict | None = None) -> dict:
+    """Simulate one run, localize it, and return its figures (JSON-ready; "never" is None). view: pass each
+    frame's camera view to `observe` (`camera_view`)."""
     run = simulate(family, seed, duration)
-    out = localize(run, particles, prior, quality)
+    out = localize(run, particles, prior, quality, view, sensor)
     figures = evaluate(run.times, run.truth, out["estimates"], out["quality"], out["lost"], run.windows)
     heading = figures.pop("rmse_heading_rad")
     figures["rmse_heading_deg"] = None if heading is None else math.degrees(heading)
@@ -249,9 +263,10 @@ class Progress:
 
 
 def run_battery(families, splits, k: int, duration: float = 60.0, particles: int = 500, jobs: int = 2,
-                progress: bool = False, prior: dict | None = None, quality: dict | None = None) -> dict:
+                progress: bool = False, prior: dict | None = None, quality: dict | None = None,
+                view: bool = False, sensor: dict | None = None) -> dict:
     """Run every family × split × seed; returns the results (JSON-ready): per split, per family, the runs
-    (sorted by seed) and their summary, and the overall pooled figures."""
+    (sorted by seed) and their summary, and the overall pooled figures. view: as `run_case`."""
     cases = [(split, family, seed) for split in splits for seed in split_seeds(split, k) for family in families]
     bar = Progress(len(cases), progress)
     results: dict = {}
@@ -264,16 +279,18 @@ def run_battery(families, splits, k: int, duration: float = 60.0, particles: int
 
     if jobs <= 1:
         for case in cases:
-            keep(case, run_case(case[1], case[2], duration, particles, prior, quality))
+            keep(case, run_case(case[1], case[2], duration, particles, prior, quality, view, sensor))
     else:
         with ProcessPoolExecutor(max_workers=jobs, mp_context=get_context("spawn")) as pool:
-            futures = {pool.submit(run_case, family, seed, duration, particles, prior, quality): (split, family, seed)
-                       for split, family, seed in cases}
+            futures = {pool.submit(run_case, family, seed, duration, particles, prior, quality, view, sensor):
+                       (split, family, seed) for split, family, seed in cases}
             for future in as_completed(futures):
                 keep(futures[future], future.result())
     bar.close()
     out: dict = {"particles": particles, "duration_s": duration, "seeds_per_family": k, "jobs": jobs,
-                 "variant": {"prior": dict(prior or {}), "quality": dict(quality or {})}, "splits": {}}
+                 "variant": {"prior": dict(prior or {}), "quality": dict(quality or {}), "sensor": dict(sensor or {})},
+                 "view": bool(view),
+                 "splits": {}}
     for split in splits:
         per_family = {}
         everything = []
@@ -293,8 +310,10 @@ def format_report(results: dict) -> str:
     for split, data in results["splits"].items():
         seeds = data["seeds"]
         variant = results.get("variant") or {}
-        changed = [f"{name}={value}" for group in ("prior", "quality") for name, value in variant.get(group, {}).items()]
+        changed = [f"{name}={value}" for group in ("prior", "quality", "sensor")
+                   for name, value in variant.get(group, {}).items()]
         setting = f"VARIANT ({', '.join(changed)})" if changed else "Localizer defaults"
+        setting += ", frames with their camera view" if results.get("view") else ", detections only (no view)"
         lines.append(f"split {split}: seeds {seeds[0]}–{seeds[-1]} per family, {results['particles']} particles, "
                      f"{results['duration_s']:g} s runs, {setting}, start anywhere_in_own_half()")
         lines.append("")
@@ -376,9 +395,10 @@ def format_comparison(base: dict, current: dict, split: str, names=("base", "cur
     return "\n".join(lines)
 
 
-def _overrides(parser, option: str, items: list[str], kind) -> dict:
-    """NAME=VALUE strings as a dict of numbers, checked against the dataclass `kind` (exit 2 when wrong)."""
-    names = {f.name: f for f in fields(kind)}
+def _overrides(parser, option: str, items: list[str], kind, build=None) -> dict:
+    """NAME=VALUE strings as a dict of numbers, checked against the dataclass `kind`'s numeric fields by
+    building one (`build(**values)`, default `kind(**values)`; exit 2 when wrong)."""
+    names = {f.name: f for f in fields(kind) if f.init and f.type in (int, float, "int", "float")}
     out: dict = {}
     for item in items:
         name, _, text = item.partition("=")
@@ -391,7 +411,7 @@ def _overrides(parser, option: str, items: list[str], kind) -> dict:
             parser.error(f"{option} {item!r}: {text!r} is not a number")
         out[name] = int(value) if names[name].type in (int, "int") and value.is_integer() else value
     try:
-        kind(**out)
+        (build or kind)(**out)
     except (TypeError, ValueError) as error:
         parser.error(f"{option}: {error}")
     return out
@@ -413,6 +433,10 @@ def main(argv: list[str] | None = None) -> int:
                         help="a variant: set a field of mcl.relocalization.RelocalizationPrior (repeatable)")
     parser.add_argument("--quality", action="append", default=[], metavar="NAME=VALUE",
                         help="a variant: set a field of mcl.localizer.QualityThresholds (repeatable)")
+    parser.add_argument("--sensor", action="append", default=[], metavar="NAME=VALUE",
+                        help="a variant: set a number of sensing.LandmarkSensorModel (repeatable)")
+    parser.add_argument("--view", action="store_true",
+                        help="pass each frame's camera view (head pan, field of view, ranges) to observe()")
     parser.add_argument("--compare", nargs=2, metavar=("BASE", "CURRENT"),
                         help="print two saved results files side by side (for the split given) and run nothing")
     parser.add_argument("--json", action="store_true", help="the results as JSON on stdout instead of tables")
@@ -449,9 +473,12 @@ def main(argv: list[str] | None = None) -> int:
     check_output_file(args.save, "--save", make_parents=False)   # before the battery runs, not after it
     prior = _overrides(parser, "--prior", args.prior, RelocalizationPrior)
     quality = _overrides(parser, "--quality", args.quality, QualityThresholds)
+    sensor = _overrides(parser, "--sensor", args.sensor, LandmarkSensorModel,
+                        lambda **values: LandmarkSensorModel(spl(), **values))
     splits = list(SPLITS) if args.split == "both" else [args.split]
     results = run_battery(families, splits, args.seeds, args.duration, args.particles, args.jobs,
-                          progress=args.progress or sys.stderr.isatty(), prior=prior, quality=quality)
+                          progress=args.progress or sys.stderr.isatty(), prior=prior, quality=quality,
+                          view=args.view, sensor=sensor)
     text = json.dumps(results, indent=2)
     if args.save:
         with open(args.save, "w", encoding="utf-8") as handle:

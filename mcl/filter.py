@@ -637,6 +637,14 @@ class ParticleFilter:
             handle = self._rng_handle = (bit_generator, *bit_generator_handle(self.rng))
         return handle[1], handle[2]
 
+    def _scores_view(self, observations: Observations) -> bool:
+        """Whether the sensor model scores this frame's view (negative information), which the compiled step
+        does not: such a frame is scored through `log_likelihood`."""
+        if observations.view is None:
+            return False
+        scores_view = getattr(self.sensor_model, "scores_view", None)
+        return bool(scores_view(observations)) if callable(scores_view) else False
+
     def _sensor_kernel(self) -> tuple | None:
         """The sensor model's `compiled_likelihood()` arguments (None: score through `log_likelihood`)."""
         sensor_model = self.sensor_model
@@ -681,9 +689,13 @@ class ParticleFilter:
         since: for detections captured earlier (camera latency), the robot's motion (dx, dy, dθ) from their
                capture to now, in the robot frame at capture (`mcl.latency.MotionHistory.since`). Each particle
                is scored where it was at capture: moved back along `since`. None or (0, 0, 0): scored as it is.
+
+        A frame that comes with its camera view (`Observations.view`) is also scored by the landmarks each
+        particle puts in view that the frame did not report, when the sensor model does so (`scores_view`,
+        negative information); such a frame is scored through the model's `log_likelihood`.
         """
         observations = Observations.coerce(observations)
-        if len(observations) == 0 or self._sensor_kernel() is None:
+        if len(observations) == 0 or self._sensor_kernel() is None or self._scores_view(observations):
             self.sensor_model.check(observations)
             self._correct(observations, self._check_since(since))
             return
@@ -752,7 +764,7 @@ class ParticleFilter:
         Both inputs are validated before anything changes.
         """
         observations = Observations.coerce(observations)
-        if len(observations) == 0 or self._sensor_kernel() is None:
+        if len(observations) == 0 or self._sensor_kernel() is None or self._scores_view(observations):
             self.sensor_model.check(observations)
             self._check_motion(u)
             self._move(u)

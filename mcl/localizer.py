@@ -59,6 +59,7 @@ from field.checks import ArgumentTypeError, real
 from motion_models import MotionInput
 from sensing import LandmarkSensorModel
 from sensing.observations import Observations
+from sensing.view import CameraView
 
 from .filter import Entropy, Estimate, ParticleFilter
 from .latency import MotionHistory, move_back
@@ -106,17 +107,23 @@ class QualityThresholds:
     range_slack: float = 0.1           # m, added to the sensor model's range σ (the model's noise is a guess)
     bearing_slack: float = 0.03        # rad, added to its bearing σ
     lost_after: float = 1.0            # s of POOR in a row before is_lost
+    superb_seen: float = 0.4           # with views (`observe(..., view=)`): the share of the landmarks the estimate
+    okay_seen: float = 0.3             # expects in view that were detected (`seen_share`), at least this ...
+    view_expected: int = 4             # ... once the recent frames expected this many
+    view_inset: float = 0.8            # a landmark is expected inside this share of the view (`CameraView.inset`)
 
     def __post_init__(self) -> None:
         for name, value in self.__dict__.items():
             if isinstance(value, bool) or not (isinstance(value, (int, float)) and math.isfinite(value)
                                                and value >= 0):
                 raise ValueError(f"{name} = {value!r} must be a finite number >= 0")
-        for name in ("superb_fit", "okay_fit"):
+        for name in ("superb_fit", "okay_fit", "superb_seen", "okay_seen"):
             if getattr(self, name) > 1:
                 raise ValueError(f"{name} = {getattr(self, name)!r} must be within [0, 1]")
         if self.fit_window <= 0 or self.gate <= 0:
             raise ValueError(f"fit_window = {self.fit_window!r}, gate = {self.gate!r} must be > 0")
+        if not 0 < self.view_inset <= 1:
+            raise ValueError(f"view_inset = {self.view_inset!r} must be within (0, 1]")
 
 
 def _log(odds: float) -> float:
@@ -197,7 +204,7 @@ class Localizer:
         self.counts: Counter = Counter()
         self._poor_since: float | None = None
         self._quality: Quality | None = None
-        self._frames: deque = deque()   # (capture time, detections, explained) of the recent frames
+        self._frames: deque = deque()   # (capture time, detections, explained, expected in view, seen) per frame
         self._last_explained: float | None = None   # capture time of the last frame with an explained detection
 
     # -- the loop ----------------------------------------------------------------------------------------
@@ -218,13 +225,21 @@ class Localizer:
         self._quality = None
         self._update_lost()
 
-    def observe(self, observations, capture_time: float | None = None) -> bool:
+    def observe(self, observations, capture_time: float | None = None, view: CameraView | None = None) -> bool:
         """Correct with one camera frame's detections, captured at `capture_time` (None: now).
 
+        view: where the camera looked (`sensing.view.CameraView`: head pan, field of view, ranges), optional
+        (None: the observations' own `view`, if any). With it, the correction also weighs each particle by the
+        landmarks it puts in view that the frame did not report (negative information, `LandmarkSensorModel`'s
+        `detection_rate`), and the quality counts them for the estimate (`seen_share`, `QualityThresholds`).
+
         Returns False when the frame was not used (the robot is fallen); raises ValueError for a frame
-        captured before the kept motion history, leaving the filter unchanged.
+        captured before the kept motion history, or a view that is not a `CameraView`, leaving the filter
+        unchanged.
         """
         observations = Observations.coerce(observations)
+        if view is not None:
+            observations = observations.with_view(view)      # TypeError unless a CameraView
         since = None
         if capture_time is not None:
             capture_time = real("capture_time", capture_time)
@@ -264,6 +279,15 @@ class Localizer:
         seen = sum(frame[1] for frame in self._frames)
         return sum(frame[2] for frame in self._frames) / seen if seen else math.nan
 
+    @property
+    def seen_share(self) -> float:
+        """Of the landmarks the estimate put inside the camera's view in the frames of the last `fit_window`
+        seconds that came with a view and at least one detection, the share that a detection of their type
+        explained (NaN when none was expected). A frame without any detection is left out: a blind or covered
+        camera says nothing about the pose."""
+        expected = sum(frame[3] for frame in self._frames)
+        return sum(frame[4] for frame in self._frames) / expected if expected else math.nan
+
     def _record_fit(self, observations: Observations, since, capture_time: float | None) -> None:
         """Score the frame against the estimate where it was at capture; keep `fit_window` seconds of frames."""
         m = len(observations)
@@ -282,8 +306,13 @@ class Localizer:
             count = m if frame_fit >= 0.5 else 0    # (False for NaN)
         else:
             count = int(explained.sum())
+        expected = seen = 0
+        counter = getattr(self.filter.sensor_model, "seen", None)
+        if observations.view is not None and callable(counter):
+            expected, seen = counter(pose, observations, observations.view.inset(q.view_inset), q.gate,
+                                     q.range_slack, q.bearing_slack)
         now = capture_time if capture_time is not None else 0.0
-        self._frames.append((now, m, count))
+        self._frames.append((now, m, count, expected, seen))
         while self._frames and self._frames[0][0] < now - q.fit_window:
             self._frames.popleft()
         if count:
@@ -303,14 +332,17 @@ class Localizer:
         fit = self.fit
         explained = sum(frame[2] for frame in self._frames)
         mirror_log_odds = getattr(self.filter.relocalization, "mirror_log_odds", math.inf)
+        # negative information, when frames came with their view: judged once enough landmarks were expected
+        expected = sum(frame[3] for frame in self._frames)
+        seen = sum(frame[4] for frame in self._frames) / expected if expected >= q.view_expected else 1.0
         if (position_sigma <= q.superb_position and heading_sigma <= q.superb_heading
                 and estimate.weight >= q.superb_weight and entropy <= q.superb_entropy and fit >= q.superb_fit
                 and explained >= q.superb_detections and age <= q.superb_age
-                and mirror_log_odds >= _log(q.superb_mirror_odds)):
+                and mirror_log_odds >= _log(q.superb_mirror_odds) and seen >= q.superb_seen):
             return Quality.SUPERB
         if (position_sigma <= q.okay_position and heading_sigma <= q.okay_heading
                 and estimate.weight >= q.okay_weight and entropy <= q.okay_entropy and age <= q.okay_age
-                and not fit < q.okay_fit and mirror_log_odds >= _log(q.okay_mirror_odds)):
+                and not fit < q.okay_fit and mirror_log_odds >= _log(q.okay_mirror_odds) and seen >= q.okay_seen):
             return Quality.OKAY
         return Quality.POOR
 

@@ -55,6 +55,7 @@ from field.checks import LARGEST_SIGMA, SMALLEST_SIGMA, ArgumentTypeError, real
 from motion_models._kernels import FAST, atan2_poly, bounded_integers, draw_handles, draw_uniforms, sincos
 
 from .observations import Observations
+from .view import CameraView
 
 BEARING_MODELS = ("von_mises", "exact")
 
@@ -652,6 +653,82 @@ def explained_detections(table, offsets, x, y, theta, kinds, ranges, bearings, r
     return out
 
 
+# Negative information: a landmark in view counts as seen when a detection of its type lies within VIEW_GATE
+# standard deviations, the model's σ widened by these slacks (the noise model is a guess; a pose a little off
+# should still see what it sees).
+VIEW_GATE = 3.0
+VIEW_RANGE_SLACK = 0.1      # m
+VIEW_BEARING_SLACK = 0.03   # rad
+
+
+@numba.njit(inline="always")
+def _view_counts(table, table_kinds, x, y, theta, kinds, ranges, bearings, range_sigmas, bearing_sigmas,
+                 range_noise_floor, range_noise_growth, bearing_sigma, limit, range_slack, bearing_slack, yaw,
+                 half_fov, min_range, max_range):
+    """(expected, seen) for one pose: see `landmarks_in_view`."""
+    expected = 0
+    seen = 0
+    for k in range(table.shape[0]):
+        dx = table[k, 0] - x
+        dy = table[k, 1] - y
+        r = math.hypot(dx, dy)
+        bearing = math.atan2(dy, dx) - theta
+        if r < min_range or r > max_range or abs(wrap_angle(bearing - yaw)) > half_fov:
+            continue
+        expected += 1
+        for j in range(kinds.shape[0]):
+            if kinds[j] != table_kinds[k]:
+                continue
+            range_sigma = range_sigmas[j]
+            if math.isnan(range_sigma):
+                range_sigma = range_noise_sigma(ranges[j], range_noise_floor, range_noise_growth)
+            range_sigma += range_slack
+            sigma = bearing_sigmas[j]
+            if math.isnan(sigma):
+                sigma = bearing_sigma
+            sigma += bearing_slack
+            range_error = (ranges[j] - r) / range_sigma
+            bearing_error = wrap_angle(bearings[j] - bearing) / sigma
+            if range_error ** 2 + bearing_error ** 2 <= limit:
+                seen += 1
+                break
+    return expected, seen
+
+
+@numba.njit(cache=True)
+def landmarks_in_view(table, table_kinds, x, y, theta, kinds, ranges, bearings, range_sigmas, bearing_sigmas,
+                      range_noise_floor, range_noise_growth, bearing_sigma, gate, range_slack, bearing_slack, yaw,
+                      half_fov, min_range, max_range, out):
+    """out[0] ← how many landmarks the pose (x, y, θ) puts inside the view (bearing within `half_fov` of `yaw`,
+    range within [min_range, max_range]); out[1] ← how many of those a detection of their type lies within
+    `gate` standard deviations of (range and bearing errors together; σ: the detection's own, else the model's
+    at the detected range, plus the slacks, as `explained_detections`). `table_kinds[k]` is landmark k's type
+    value. (`LandmarkSensorModel.seen`; numpy twin `LandmarkSensorModel.seen_reference`.) Returns out."""
+    expected, seen = _view_counts(table, table_kinds, x, y, theta, kinds, ranges, bearings, range_sigmas,
+                                  bearing_sigmas, range_noise_floor, range_noise_growth, bearing_sigma, gate * gate,
+                                  range_slack, bearing_slack, yaw, half_fov, min_range, max_range)
+    out[0] = expected
+    out[1] = seen
+    return out
+
+
+@numba.njit(cache=True)
+def add_missed_in_view(poses, table, table_kinds, kinds, ranges, bearings, range_sigmas, bearing_sigmas,
+                       range_noise_floor, range_noise_growth, bearing_sigma, gate, range_slack, bearing_slack, yaw,
+                       half_fov, min_range, max_range, log_miss, out):
+    """out[i] += log_miss × the landmarks pose i puts inside the view that no detection of their type explains
+    (`landmarks_in_view`'s expected − seen): negative information (`LandmarkSensorModel.log_likelihood` with a
+    view; numpy twin `missed_in_view_reference`). Returns out."""
+    limit = gate * gate
+    for i in range(poses.shape[0]):
+        expected, seen = _view_counts(table, table_kinds, poses[i, 0], poses[i, 1], poses[i, 2], kinds, ranges,
+                                      bearings, range_sigmas, bearing_sigmas, range_noise_floor, range_noise_growth,
+                                      bearing_sigma, limit, range_slack, bearing_slack, yaw, half_fov, min_range,
+                                      max_range)
+        out[i] += (expected - seen) * log_miss
+    return out
+
+
 @dataclass(frozen=True, eq=False)
 class LandmarkSensorModel:
     """Range-bearing landmark likelihood for a field. Frozen; parameters in SI units.
@@ -664,6 +741,14 @@ class LandmarkSensorModel:
     bearing_model: "von_mises" (no atan2, the default) or "exact".
     outlier_weight: the likelihood floor of one detection relative to a perfect match (false positives).
     mixture: "max" (the floor as a maximum, the default) or "sum" (added as a mixture component).
+    detection_rate: negative information, for a frame that comes with its camera view (`Observations.view`):
+        the probability that a landmark inside the view (shrunk to `view_inset`, `CameraView.inset`) is
+        reported. Each landmark a pose puts there that no detection of its type explains (within 3 σ, σ widened
+        by `VIEW_RANGE_SLACK` and `VIEW_BEARING_SLACK`) multiplies that pose's likelihood by 1 − detection_rate.
+        Low by default (0.3): robots, occlusion and the detector hide many landmarks, and a wrong pose that
+        explains a few detections (aliasing) usually expects several that were not reported. 0 turns it off; a
+        frame without a view, or without any detection (a blind camera says nothing), is scored without it.
+    view_inset: within (0, 1].
     """
 
     field: Field
@@ -674,8 +759,11 @@ class LandmarkSensorModel:
     outlier_weight: float = 0.01
     mixture: str = "max"
     range_noise_linear: float = 0.0
+    detection_rate: float = 0.3
+    view_inset: float = 0.8
     _table: np.ndarray = dataclass_field(init=False, repr=False)
     _offsets: np.ndarray = dataclass_field(init=False, repr=False)
+    _table_kinds: np.ndarray = dataclass_field(init=False, repr=False)
 
     def __post_init__(self) -> None:
         if not isinstance(self.field, Field):
@@ -685,6 +773,8 @@ class LandmarkSensorModel:
         for name in ("range_noise_floor", "bearing_sigma"):
             real(name, getattr(self, name), SMALLEST_SIGMA, LARGEST_SIGMA)
         real("outlier_weight", self.outlier_weight, 0.0, 1.0, low_open=True)
+        real("detection_rate", self.detection_rate, 0.0, 1.0, high_open=True)
+        real("view_inset", self.view_inset, 0.0, 1.0, low_open=True)
         real("range_noise_growth", self.range_noise_growth, 0.0, LARGEST_SIGMA)
         real("range_noise_linear", self.range_noise_linear, 0.0, LARGEST_SIGMA)
         if not isinstance(self.mixture, str) or not isinstance(self.bearing_model, str):
@@ -705,6 +795,9 @@ class LandmarkSensorModel:
         offsets.flags.writeable = False
         object.__setattr__(self, "_table", table)
         object.__setattr__(self, "_offsets", offsets)
+        table_kinds = np.repeat(np.arange(offsets.shape[0] - 1, dtype=np.int64), np.diff(offsets))
+        table_kinds.flags.writeable = False
+        object.__setattr__(self, "_table_kinds", table_kinds)
 
     # -- noise model --------------------------------------------------------------------------------------
     def range_sigma(self, ranges: np.ndarray) -> np.ndarray:
@@ -758,6 +851,48 @@ class LandmarkSensorModel:
             explained[rows] = (range_error ** 2 + bearing_error ** 2 <= gate * gate).any(axis=1)
         return explained
 
+    def seen(self, pose, observations: Observations, view: CameraView, gate: float = 3.0,
+             range_slack: float = 0.0, bearing_slack: float = 0.0) -> tuple[int, int]:
+        """Negative information: (expected, seen), how many landmarks the pose (x, y, θ) puts inside the camera's
+        `view` (`sensing.view.CameraView`), and how many of those a detection of their type lies within `gate`
+        standard deviations of (σ as in `explained`). A right pose sees most of what it expects; a wrong pose
+        that happens to explain a few detections (aliasing) usually expects landmarks the frame did not report.
+        Compiled (`landmarks_in_view`); numpy twin `seen_reference`."""
+        observations = Observations.coerce(observations)
+        self.check(observations)
+        if not isinstance(view, CameraView):
+            raise ArgumentTypeError(f"view = {view!r} must be a sensing.view.CameraView, not {type(view).__name__}")
+        out = landmarks_in_view(self._table, self._table_kinds, float(pose[0]), float(pose[1]), float(pose[2]),
+                                observations.kinds, observations.ranges, observations.bearings,
+                                observations.range_sigmas, observations.bearing_sigmas, self.range_noise_floor,
+                                self._range_noise_growth(), self.bearing_sigma, float(gate), float(range_slack),
+                                float(bearing_slack), view.yaw, view.half_fov, view.min_range, view.max_range,
+                                np.zeros(2, dtype=np.int64))
+        return int(out[0]), int(out[1])
+
+    def seen_reference(self, pose, observations: Observations, view: CameraView, gate: float = 3.0,
+                       range_slack: float = 0.0, bearing_slack: float = 0.0) -> tuple[int, int]:
+        """Plain numpy twin of `seen`."""
+        observations = Observations.coerce(observations)
+        self.check(observations)
+        x, y, theta = float(pose[0]), float(pose[1]), float(pose[2])
+        dx = self._table[:, 0] - x
+        dy = self._table[:, 1] - y
+        r = np.hypot(dx, dy)
+        bearing = np.arctan2(dy, dx) - theta
+        inside = ((r >= view.min_range) & (r <= view.max_range)
+                  & (np.abs(wrap_angles(bearing - view.yaw)) <= view.half_fov))
+        range_sigmas, bearing_sigmas = self._sigmas(observations)
+        range_sigmas = range_sigmas + range_slack
+        bearing_sigmas = bearing_sigmas + bearing_slack
+        seen = 0
+        for k in np.flatnonzero(inside):
+            rows = observations.kinds == self._table_kinds[k]
+            range_error = (observations.ranges[rows] - r[k]) / range_sigmas[rows]
+            bearing_error = wrap_angles(observations.bearings[rows] - bearing[k]) / bearing_sigmas[rows]
+            seen += bool((range_error ** 2 + bearing_error ** 2 <= gate * gate).any())
+        return int(inside.sum()), seen
+
     @property
     def landmark_table(self) -> tuple[np.ndarray, np.ndarray]:
         """The landmarks as the kernels take them (read-only): `table` (L, 2) [x, y] sorted by type, and
@@ -801,17 +936,41 @@ class LandmarkSensorModel:
                       self.range_noise_floor, self._range_noise_growth(), self.bearing_sigma,
                       math.log(self.outlier_weight), out) >= 0:
                 self.check(observations)
-            return out
-        self.check(observations)
-        if len(observations) == 0:
-            out[:] = 0.0
-            return out
-        landmark_log_likelihood(
-            poses, self._table, self._offsets, observations.kinds, observations.ranges, observations.bearings,
-            observations.range_sigmas, observations.bearing_sigmas, self.range_noise_floor,
-            self._range_noise_growth(), self.bearing_sigma, self.bearing_model == "exact", self.mixture == "sum",
-            math.log(self.outlier_weight), out)
+        else:
+            self.check(observations)
+            if len(observations) == 0:
+                out[:] = 0.0
+                return out
+            landmark_log_likelihood(
+                poses, self._table, self._offsets, observations.kinds, observations.ranges, observations.bearings,
+                observations.range_sigmas, observations.bearing_sigmas, self.range_noise_floor,
+                self._range_noise_growth(), self.bearing_sigma, self.bearing_model == "exact", self.mixture == "sum",
+                math.log(self.outlier_weight), out)
+        if self.scores_view(observations):
+            view = observations.view.inset(self.view_inset)
+            add_missed_in_view(poses, self._table, self._table_kinds, observations.kinds, observations.ranges,
+                               observations.bearings, observations.range_sigmas, observations.bearing_sigmas,
+                               self.range_noise_floor, self._range_noise_growth(), self.bearing_sigma, VIEW_GATE,
+                               VIEW_RANGE_SLACK, VIEW_BEARING_SLACK, view.yaw, view.half_fov, view.min_range,
+                               view.max_range, math.log1p(-self.detection_rate), out)
         return out
+
+    def scores_view(self, observations: Observations) -> bool:
+        """Whether the likelihood of `observations` includes negative information: the frame has a view, at
+        least one detection, and `detection_rate` > 0. The filter's compiled step scores without it, so the
+        filter scores such a frame through `log_likelihood`."""
+        return observations.view is not None and self.detection_rate > 0 and observations.kinds.shape[0] > 0
+
+    def missed_in_view_reference(self, poses: np.ndarray, observations: Observations) -> np.ndarray:
+        """Plain numpy twin of the negative-information term `log_likelihood` adds (zeros when
+        `scores_view` is False)."""
+        poses = np.asarray(poses, dtype=np.float64)
+        if not self.scores_view(observations):
+            return np.zeros(poses.shape[0])
+        view = observations.view.inset(self.view_inset)
+        missed = np.array([np.subtract(*self.seen_reference(pose, observations, view, VIEW_GATE, VIEW_RANGE_SLACK,
+                                                            VIEW_BEARING_SLACK)) for pose in poses], dtype=np.float64)
+        return missed * math.log1p(-self.detection_rate)
 
     def compiled_likelihood(self) -> tuple | None:
         """What a compiled filter step needs to run this model's likelihood itself (`prepare_detections`, then
@@ -833,7 +992,8 @@ class LandmarkSensorModel:
         by_kind = {t.value: self.candidates(t) for t in LandmarkType}
         return landmark_log_likelihood_reference(
             poses, by_kind, observations.kinds, observations.ranges, observations.bearings, range_sigmas,
-            bearing_sigmas, self.bearing_model == "exact", self.outlier_weight, self.mixture == "sum")
+            bearing_sigmas, self.bearing_model == "exact", self.outlier_weight, self.mixture == "sum") \
+            + self.missed_in_view_reference(poses, observations)
 
     # -- sensor resetting ---------------------------------------------------------------------------------
     def sample_poses(self, observations: Observations, n: int, rng: np.random.Generator,

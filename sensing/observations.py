@@ -34,6 +34,8 @@ import numpy as np
 from field import LandmarkType
 from field.checks import ArgumentTypeError, LARGEST_ANGLE, LARGEST_COORDINATE, LARGEST_SIGMA, SMALLEST_SIGMA, real
 
+from .view import CameraView
+
 MAX_RANGE = LARGEST_COORDINATE
 """The largest range a detection may have (m); a farther one is refused with the frame."""
 MAX_BEARING = LARGEST_ANGLE
@@ -46,6 +48,12 @@ IS_KIND[[kind.value for kind in LandmarkType]] = True
 BAD_KIND, RANGE_NOT_FINITE, BEARING_NOT_FINITE, NEGATIVE_RANGE, BAD_RANGE_SIGMA, BAD_BEARING_SIGMA = range(6)
 _RULES = ("", "must be finite", "must be finite", "", f"must be within [{SMALLEST_SIGMA:g}, {LARGEST_SIGMA:g}] "
           "(or NaN for 'not given')", f"must be within [{SMALLEST_SIGMA:g}, {LARGEST_SIGMA:g}] (or NaN for 'not given')")
+
+
+def _check_view(view) -> None:
+    if view is not None and not isinstance(view, CameraView):
+        raise ArgumentTypeError(f"view = {view!r} must be a sensing.view.CameraView or None, "
+                                f"not {type(view).__name__}")
 
 
 def landmark_type(kind: LandmarkType | int | str) -> LandmarkType:
@@ -175,7 +183,9 @@ class Observations:
 
     Landmarks, arrays of equal length: kinds (int64 landmark type values), ranges, bearings, range_sigmas,
     bearing_sigmas (NaN = not given). Field lines: line_points, (P, 2) points on detected lines in the
-    robot frame [m] (empty when the vision reports none).
+    robot frame [m] (empty when the vision reports none). view: where the camera looked
+    (`sensing.view.CameraView`), or None (not known); with it, `LandmarkSensorModel` also scores the landmarks a
+    pose puts in view that the frame did not report (negative information). `with_view` attaches one.
     """
 
     kinds: np.ndarray
@@ -184,8 +194,10 @@ class Observations:
     range_sigmas: np.ndarray
     bearing_sigmas: np.ndarray
     line_points: np.ndarray | None = None
+    view: CameraView | None = None
 
     def __post_init__(self) -> None:
+        _check_view(self.view)
         object.__setattr__(self, "line_points", _line_points(self.line_points))
         n = None
         for name in _LANDMARK_FIELDS:
@@ -220,6 +232,7 @@ class Observations:
         for name, arr in zip(_LANDMARK_FIELDS, (kinds, *rows)):
             object.__setattr__(batch, name, arr)
         object.__setattr__(batch, "line_points", _line_points(line_points))
+        object.__setattr__(batch, "view", None)
         batch._check_landmarks()
         return batch
 
@@ -288,6 +301,18 @@ class Observations:
         if isinstance(observations, Observations):
             return observations
         return cls.from_list(observations)
+
+    def with_view(self, view: CameraView | None) -> "Observations":
+        """The same detections (the read-only arrays shared, not copied) with the camera's `view` (None: without
+        one). TypeError (`field.checks.ArgumentTypeError`) unless `view` is a `CameraView` or None."""
+        _check_view(view)
+        if view is self.view:
+            return self
+        batch = object.__new__(type(self))
+        for name in (*_LANDMARK_FIELDS, "line_points"):
+            object.__setattr__(batch, name, getattr(self, name))
+        object.__setattr__(batch, "view", view)
+        return batch
 
     def __len__(self) -> int:
         """The number of landmark detections (line points are counted by `is_empty` and the line model)."""

@@ -95,6 +95,9 @@ if part in ("filter", "all"):
     injecting.reset_around((0.5, 0.5, 0.0))
     injecting._sample_injection(8, observations)
     injecting.sensor_model.explained((0.5, 0.5, 0.0), observations)      # the localizer's quality
+    from sensing.view import CameraView                                  # ... and its negative information
+    injecting.sensor_model.seen((0.5, 0.5, 0.0), observations, CameraView(0.0, 0.5, 5.0))
+    injecting.sensor_model.log_likelihood(injecting.poses, observations.with_view(CameraView(0.0, 0.5, 5.0)))
 
     # Kernels that are public on their own (the tests compare them with their numpy twins) beside the fused
     # code the filter runs.
