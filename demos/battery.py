@@ -49,13 +49,14 @@ from motion_models import MotionInput
 from sensing import LandmarkSensorModel
 from sensing.view import CameraView
 
-from .battery_sim import FAMILIES, BatteryRun, simulate
+from .battery_sim import FAMILIES, BatteryRun, kidnap_mirror_log_odds, simulate
 
 TRAIN_FIRST = 0
 HOLDOUT_FIRST = 1000
 SPLITS = ("train", "holdout")
 MAX_SEEDS = HOLDOUT_FIRST - TRAIN_FIRST     # keeps the two splits disjoint
 STRONG_EXCESS = 0.5                          # m: collisions whose odometry ran this far ahead, reported apart
+MIRROR_CLEAR = 2.0                           # odds of truth against mirror that count as telling them apart
 
 
 def split_seeds(split: str, k: int) -> list[int]:
@@ -152,6 +153,7 @@ def run_case(family: str, seed: int, duration: float = 60.0, particles: int = 50
     heading = figures.pop("rmse_heading_rad")
     figures["rmse_heading_deg"] = None if heading is None else math.degrees(heading)
     event = run.params["event"]
+    figures["kidnap_log_odds"] = kidnap_mirror_log_odds(run.field, event)
     figures.update({"family": family, "seed": seed, "field": run.field.name, "event": event["type"],
                     "excess_m": event.get("excess"), "windows": run.windows, "frames": len(run.frames),
                     "dropped_frames": out["dropped_frames"], "loop_s": out["loop_s"], "params": run.params})
@@ -182,6 +184,19 @@ def summarize_family(runs: list[dict]) -> dict:
         median, worst, count = median_worst([r[key] for r in runs])
         out[key] = {"median": median, "worst": worst, "runs": count}
     out["on_mirror"] = sum(bool(r["on_mirror"]) for r in runs)
+    kidnaps = [r for r in runs if r.get("event") in ("kidnap", "kidnap_special")]
+    if kidnaps:
+        # The kidnappings by what the robot could know (the simulator's own law, `kidnap_mirror_log_odds`): the
+        # truth at least MIRROR_CLEAR times as probable as its mirror image, the mirror image that much more
+        # probable, or in between; and of each, how many runs ended on the mirror.
+        classes = {"clear": [], "even": [], "mirror": []}
+        for r in kidnaps:
+            odds = r.get("kidnap_log_odds")
+            odds = math.inf if odds is None else odds
+            key = ("clear" if odds >= math.log(MIRROR_CLEAR) else
+                   "mirror" if odds <= -math.log(MIRROR_CLEAR) else "even")
+            classes[key].append(bool(r["on_mirror"]))
+        out["kidnap_odds"] = {key: {"runs": len(v), "on_mirror": sum(v)} for key, v in classes.items()}
     out["pooled"] = pool_counts(runs)
     out["dropped_frames"] = sum(r["dropped_frames"] for r in runs)
     return out
@@ -216,6 +231,11 @@ def format_family(name: str, s: dict) -> list[str]:
     row_values("fail share", s["fail_share"], _percent)
     row_values("mirrored share", s["mirrored_share"], _percent)
     lines.append(f"  {'runs on the mirror (≥ 2 s)':<34}{s['on_mirror']:>10}")
+    if "kidnap_odds" in s:
+        k = s["kidnap_odds"]
+        lines.append(f"    {'split by the kidnap law odds:':<32}truth ≥ {MIRROR_CLEAR:g}:1 {k['clear']['on_mirror']}/"
+                     f"{k['clear']['runs']}, even {k['even']['on_mirror']}/{k['even']['runs']}, mirror ≥ "
+                     f"{MIRROR_CLEAR:g}:1 {k['mirror']['on_mirror']}/{k['mirror']['runs']}")
     row_values("tracking RMSE position [m]", s["rmse_position_m"], lambda v: f"{v:.3f}")
     row_values("tracking RMSE heading [°]", s["rmse_heading_deg"], lambda v: f"{v:.1f}")
     lines += _pooled_lines(s["pooled"])

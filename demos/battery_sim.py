@@ -269,6 +269,41 @@ def _kidnap_target(rng: np.random.Generator, field: Field, xy: np.ndarray, dista
     raise RuntimeError("no kidnapping target inside the field")
 
 
+def kidnap_mirror_log_odds(field: Field, event: dict) -> float | None:
+    """For a kidnapping (`kidnap`, `kidnap_special`): the log odds of the true landing pose against its mirror
+    image (−x, −y, θ + π) under this simulator's own kidnapping law, knowing the exact pose it started from;
+    None for other events. The filter never sees this: the battery reports with it which runs on the mirror
+    the robot could have told apart at all.
+
+    The law: a distance uniform in `KIDNAP_DISTANCE`, a direction uniform among those that land inside the
+    field, and a heading change that the mirror cannot be told from (uniform over the circle, or `SPECIAL_TURNS`,
+    which is closed under a half turn). So the odds are those of the two landing points' densities,
+    1 / (d · share of the circle of radius d inside the field), and +inf when the mirror image lies at a
+    distance the law never draws."""
+    if event.get("type") not in ("kidnap", "kidnap_special") or "to" not in event:
+        return None
+    start = np.asarray(event["from"][:2], dtype=np.float64)
+    land = np.asarray(event["to"][:2], dtype=np.float64)
+    angles = np.linspace(-math.pi, math.pi, 720, endpoint=False)
+    directions = np.column_stack([np.cos(angles), np.sin(angles)])
+
+    def density(point: np.ndarray) -> float:
+        d = float(math.hypot(*(point - start)))
+        if not KIDNAP_DISTANCE[0] - 1e-9 <= d <= KIDNAP_DISTANCE[1] + 1e-9:
+            return 0.0
+        ring = start + d * directions
+        inside = float(((np.abs(ring[:, 0]) <= field.half_length - INSIDE)
+                        & (np.abs(ring[:, 1]) <= field.half_width - INSIDE)).mean())
+        return 1.0 / (d * max(inside, 1.0 / angles.shape[0]))
+
+    truth, mirror = density(land), density(-land)
+    if mirror == 0.0:
+        return math.inf
+    if truth == 0.0:
+        return -math.inf
+    return math.log(truth / mirror)
+
+
 class _Walker:
     """The robot's behaviour: a mode (walk to a waypoint, stop, turn on the spot, sidestep) and its command."""
 

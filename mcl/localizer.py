@@ -36,12 +36,14 @@ was taken (`mcl.latency`): the motion of the last `history` seconds is kept. An 
 refused with ValueError, and the filter is left as it was.
 
 Quality (`QualityThresholds`), from how well the estimate explains the recent detections (`fit`: the share of
-the detections of the last 1.5 s that a landmark of their type explains from the estimate, and how long ago one
-was last explained), the dominant cluster's covariance and weight, the belief's grid entropy, and the mirror
-odds of the last re-localization (the mirror pose explains every detection as well; only the prior tells them
-apart, see `mcl.relocalization`):
-- SUPERB: tight (position σ, heading σ small), one cluster, low entropy, recent detections explained, the
-  mirror ruled out by odds of 10 or more;
+the detections of the last 1.5 s that a landmark of their type explains from the estimate, how long ago one
+was last explained and how far the robot has walked since), what it should have seen (`seen_share`, for frames
+passed with their camera view: the share of the landmarks the estimate puts in view that were detected), the
+dominant cluster's covariance and weight, the belief's grid entropy, and the mirror odds of the last
+re-localization (the mirror pose explains every detection as well; only the prior tells them apart, and the
+odds must hold without the heading reference, see `mcl.relocalization`):
+- SUPERB: tight (position σ, heading σ small), one cluster, low entropy, recent detections explained, most of
+  what should be in view seen, the mirror ruled out by odds of 10 or more;
 - OKAY: usable for behaviour, but wider or with less support, the pose at least as probable as its mirror;
 - POOR: anything else. `is_lost` is POOR for `lost_after` seconds (1 s) in a row.
 """
@@ -101,12 +103,13 @@ class QualityThresholds:
                                        # explains every detection as well, so nothing seen afterwards can)
     okay_mirror_odds: float = 1.0      # below these odds the mirror pose is the more probable one
     okay_fit: float = 0.4
-    okay_age: float = 6.0
+    okay_age: float = 10.0             # s since the last explained detection, at most
     fit_window: float = 1.5            # s of detections the fit is taken over
     gate: float = 3.0                  # standard deviations within which a detection is explained
     range_slack: float = 0.1           # m, added to the sensor model's range σ (the model's noise is a guess)
     bearing_slack: float = 0.03        # rad, added to its bearing σ
     lost_after: float = 1.0            # s of POOR in a row before is_lost
+    okay_walked: float = 2.0           # m dead-reckoned since the last explained detection, at most
     superb_seen: float = 0.4           # with views (`observe(..., view=)`): the share of the landmarks the estimate
     okay_seen: float = 0.3             # expects in view that were detected (`seen_share`), at least this ...
     view_expected: int = 4             # ... once the recent frames expected this many
@@ -206,6 +209,7 @@ class Localizer:
         self._quality: Quality | None = None
         self._frames: deque = deque()   # (capture time, detections, explained, expected in view, seen) per frame
         self._last_explained: float | None = None   # capture time of the last frame with an explained detection
+        self._walked = 0.0         # m dead-reckoned since then (since the last reset, before the first one)
 
     # -- the loop ----------------------------------------------------------------------------------------
     def motion(self, t: float, u: MotionInput) -> None:
@@ -221,6 +225,7 @@ class Localizer:
             displacement = u.displacement() if (u.odometry is not None or u.command is not None) else (0, 0, 0)
             self.filter.predict(u)
             self.history.record(t, u.dt, displacement)
+            self._walked += math.hypot(displacement[0], displacement[1])
         self.time = t
         self._quality = None
         self._update_lost()
@@ -317,6 +322,7 @@ class Localizer:
             self._frames.popleft()
         if count:
             self._last_explained = now
+            self._walked = 0.0
 
     def _assess(self) -> Quality:
         q = self.thresholds
@@ -329,6 +335,7 @@ class Localizer:
         entropy = self.filter.entropy().position
         now = self.time if self.time is not None else 0.0
         age = math.inf if self._last_explained is None else now - self._last_explained
+        walked = self._walked
         fit = self.fit
         explained = sum(frame[2] for frame in self._frames)
         mirror_log_odds = getattr(self.filter.relocalization, "mirror_log_odds", math.inf)
@@ -342,6 +349,7 @@ class Localizer:
             return Quality.SUPERB
         if (position_sigma <= q.okay_position and heading_sigma <= q.okay_heading
                 and estimate.weight >= q.okay_weight and entropy <= q.okay_entropy and age <= q.okay_age
+                and walked <= q.okay_walked
                 and not fit < q.okay_fit and mirror_log_odds >= _log(q.okay_mirror_odds) and seen >= q.okay_seen):
             return Quality.OKAY
         return Quality.POOR
@@ -422,6 +430,7 @@ class Localizer:
     def _after_reset(self) -> None:
         self._frames.clear()
         self._last_explained = None
+        self._walked = 0.0
         self._quality = None
         self._poor_since = None
         self.history.clear(self.time)

@@ -30,8 +30,9 @@ enters the filter, and it enters as evidence with a weight, never as a gate:
    closer odds inject both, in proportion. When a confident estimate settles somewhere new (`confirm`: for
    `jump_corrections` corrections in a row), the prior weighs it against its mirror image; if the mirror image
    is the more probable by more than `mirror_odds`, the filter mirrors its particles (the likelihood cannot
-   tell the two apart, so that is exact). The odds are kept (`mirror_log_odds`): `mcl.localizer`'s quality
-   uses them.
+   tell the two apart, so that is exact). The odds are kept (`mirror_log_odds`) for `mcl.localizer`'s quality,
+   as the smaller of the prior's odds and the odds of position alone (`heading_kept` = 0): how sure the filter
+   may be must not rest on a heading reference that the event may have destroyed.
 4. **The anchor is evidence too.** It follows the estimate only while the estimate is confident and explains
    the detections, whatever its heading: a kidnap may turn the robot. Resets set it: a known pose
    (`reset_pose`) sets it, a region (`reset_region`) clears it.
@@ -222,7 +223,8 @@ class SoccerRelocalization:
         re-localized, and the prior weighs the new pose against its mirror image, which explains every
         detection exactly as well: when the mirror image is the more probable by more than `mirror_odds`, the
         belief belongs there (returns True, and the anchor is the mirror image). `mirror_log_odds` keeps the
-        odds of the pose kept against its mirror image: nothing seen afterwards can change them."""
+        odds of the pose kept against its mirror image, the smaller of the prior's and those of position alone
+        (`log_prior(..., heading_kept=0)`): nothing seen afterwards can change them."""
         flip = False
         confident = estimate.is_confident(weight=self.prior.confident_weight)
         if confident and explains:
@@ -245,11 +247,17 @@ class SoccerRelocalization:
                 if self._pending_count < self.prior.jump_corrections:
                     return self._count_streak(confident, flip)
                 mirror = [-pose[0], -pose[1], math.remainder(pose[2] + math.pi, TWO_PI)]
-                log_prior = self.log_prior(np.array([pose, mirror]))
+                pair = np.array([pose, mirror])
+                log_prior = self.log_prior(pair)
                 odds = float(log_prior[0] - log_prior[1])
+                # the same odds without the heading reference: how far position alone tells the pair apart
+                log_prior = self.log_prior(pair, heading_kept=0.0)
+                position_odds = float(log_prior[0] - log_prior[1])
                 if odds < -math.log(self.prior.mirror_odds):
-                    pose, odds, flip = mirror, -odds, True
-                self.mirror_log_odds = odds
+                    pose, odds, position_odds, flip = mirror, -odds, -position_odds, True
+                # How sure the filter may be: the odds must hold whether or not the heading reference survived
+                # the event (a carried, pushed or spun robot may have been turned any way).
+                self.mirror_log_odds = min(odds, position_odds)
             self._anchor = pose
             self.travelled = 0.0
             self._pending = None
@@ -267,8 +275,8 @@ class SoccerRelocalization:
         return flip
 
     # -- what it gives the filter -------------------------------------------------------------------------
-    def _prior_arguments(self) -> tuple:
-        """The prior's parameters as `log_prior_kernel` takes them."""
+    def _prior_arguments(self, heading_kept: float | None = None) -> tuple:
+        """The prior's parameters as `log_prior_kernel` takes them (`heading_kept`: instead of the prior's)."""
         p = self.prior
         x_min, x_max, y_min, y_max = self._carpet
         uniform = 1.0 / ((x_max - x_min) * (y_max - y_min) * TWO_PI)
@@ -276,20 +284,22 @@ class SoccerRelocalization:
         anchor = (0.0, 0.0, 0.0) if self._anchor is None else tuple(self._anchor)
         region = (0.0, 0.0, 0.0, 0.0) if self.region is None else tuple(self.region)
         return (self._anchor is not None, *anchor, p.track_sigma ** 2 + widen, p.kidnap_sigma ** 2 + widen,
-                p.track_heading_sigma, p.kidnap_share, p.tail_share, p.heading_kept, uniform,
+                p.track_heading_sigma, p.kidnap_share, p.tail_share,
+                p.heading_kept if heading_kept is None else heading_kept, uniform,
                 self.region is not None, *region, math.log(p.region_tail))
 
-    def log_prior(self, poses: np.ndarray) -> np.ndarray:
+    def log_prior(self, poses: np.ndarray, heading_kept: float | None = None) -> np.ndarray:
         """The prior's log-density at each pose (N, 3) (see `RelocalizationPrior`); without an anchor, uniform
-        (times `region_tail` outside the placement region). Compiled (`log_prior_kernel`); the numpy twin is
-        `log_prior_reference`."""
+        (times `region_tail` outside the placement region). heading_kept: instead of the prior's (0: a
+        displacement odometry did not see says nothing of the heading). Compiled (`log_prior_kernel`); the numpy
+        twin is `log_prior_reference`."""
         poses = np.ascontiguousarray(poses, dtype=np.float64)
-        return log_prior_kernel(poses, *self._prior_arguments(), np.empty(poses.shape[0]))
+        return log_prior_kernel(poses, *self._prior_arguments(heading_kept), np.empty(poses.shape[0]))
 
-    def log_prior_reference(self, poses: np.ndarray) -> np.ndarray:
+    def log_prior_reference(self, poses: np.ndarray, heading_kept: float | None = None) -> np.ndarray:
         """Plain numpy twin of `log_prior`."""
         (has_anchor, ax, ay, at, track2, kidnap2, heading_sigma, kidnap_share, tail_share, heading_kept, uniform,
-         has_region, x_min, x_max, y_min, y_max, log_region_tail) = self._prior_arguments()
+         has_region, x_min, x_max, y_min, y_max, log_region_tail) = self._prior_arguments(heading_kept)
         poses = np.asarray(poses, dtype=np.float64)
         if not has_anchor:
             log_prior = np.full(poses.shape[0], math.log(uniform))

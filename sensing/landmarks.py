@@ -745,7 +745,7 @@ class LandmarkSensorModel:
         the probability that a landmark inside the view (shrunk to `view_inset`, `CameraView.inset`) is
         reported. Each landmark a pose puts there that no detection of its type explains (within 3 σ, σ widened
         by `VIEW_RANGE_SLACK` and `VIEW_BEARING_SLACK`) multiplies that pose's likelihood by 1 − detection_rate.
-        Low by default (0.3): robots, occlusion and the detector hide many landmarks, and a wrong pose that
+        Low by default (0.2): robots, occlusion and the detector hide many landmarks, and a wrong pose that
         explains a few detections (aliasing) usually expects several that were not reported. 0 turns it off; a
         frame without a view, or without any detection (a blind camera says nothing), is scored without it.
     view_inset: within (0, 1].
@@ -759,7 +759,7 @@ class LandmarkSensorModel:
     outlier_weight: float = 0.01
     mixture: str = "max"
     range_noise_linear: float = 0.0
-    detection_rate: float = 0.3
+    detection_rate: float = 0.2
     view_inset: float = 0.8
     _table: np.ndarray = dataclass_field(init=False, repr=False)
     _offsets: np.ndarray = dataclass_field(init=False, repr=False)

@@ -165,6 +165,28 @@ def test_a_confident_cluster_on_the_less_likely_side_is_mirrored_after_it_holds(
     np.testing.assert_array_equal(relocalization.anchor, before)
 
 
+def test_the_mirror_odds_must_hold_without_the_heading_reference():
+    """A jump whose side only the heading reference decides: the pose kept is the prior's choice, but the odds
+    kept for the quality are those of position alone (a carried robot may have been turned any way)."""
+    relocalization = SoccerRelocalization()
+    relocalization.bind((-5.2, 5.2, -3.7, 3.7))
+    relocalization.reset_pose((-0.5, 0.0, 0.0))
+    # 2.5 m from the anchor either way; the heading of the left one is the anchor's, its mirror's is opposite
+    pose = np.array([-0.5, 2.5, 0.0])
+    pair = np.array([pose, FIELD.mirror_poses(pose[None])[0]])
+    full = relocalization.log_prior(pair)
+    position = relocalization.log_prior(pair, heading_kept=0.0)
+    np.testing.assert_allclose(relocalization.log_prior_reference(pair, heading_kept=0.0), position, rtol=1e-12)
+    assert full[0] - full[1] > math.log(RelocalizationPrior().mirror_odds)      # the heading prefers it ...
+    assert abs(position[0] - position[1]) < 0.2                                  # ... position cannot tell
+    confident = Estimate(pose, np.diag([1e-3, 1e-3, 1e-3]), 1.0)
+    flips = [relocalization.confirm(confident, True) for _ in range(RelocalizationPrior().jump_corrections)]
+    assert not any(flips)
+    np.testing.assert_allclose(relocalization.anchor, pose)
+    assert relocalization.mirror_log_odds == pytest.approx(min(full[0] - full[1], position[0] - position[1]))
+    assert relocalization.mirror_log_odds < math.log(2.0)
+
+
 # -- end to end: a kidnap that turns the robot -------------------------------------------------------------------
 @pytest.mark.parametrize("turn", [math.pi / 2, -math.pi / 2, math.pi, 2.3])
 def test_a_filter_recovers_from_a_kidnap_that_turns_the_robot(turn):

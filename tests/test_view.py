@@ -251,3 +251,17 @@ def test_the_filter_scores_a_frame_with_a_view_as_the_plain_calls_do():
     expected = SENSOR.log_likelihood_reference(poses, observations)
     expected = np.exp(expected - expected.max())
     np.testing.assert_allclose(pf.weights, expected / expected.sum(), rtol=1e-9, atol=1e-15)
+
+
+def test_dead_reckoning_far_without_an_explained_detection_is_no_longer_okay():
+    """A blind stretch (frames without detections): standing still the estimate stays usable; after walking
+    more than `okay_walked` metres on odometry alone it is POOR, and lost a second later."""
+    for walk, expected in ((0.0, Quality.OKAY), (0.05, Quality.POOR)):
+        loc = tracking_localizer(np.array([-2.0, 1.0, 0.0]))
+        t = loc.time
+        for k in range(100):                         # 4 s; 5 m when walking
+            t += 0.04
+            loc.motion(t, MotionInput(0.04, odometry=(walk, 0.0, 0.0)))
+            loc.observe(Observations.empty(), capture_time=t)
+        assert loc.quality() is expected
+        assert loc.is_lost == (expected is Quality.POOR)
