@@ -27,6 +27,8 @@ from mcl import ParticleFilter
 from motion_models import ConstantNoise, MotionInput, VelocityLinear
 from sensing import CombinedSensorModel, LandmarkSensorModel, LineSensorModel
 
+from sensing.view import CameraView
+
 from .walk_sim import WalkLog, WalkScenario, simulate
 
 MODELS = {"constant": ConstantNoise, "velocity-linear": VelocityLinear}
@@ -46,10 +48,18 @@ def settle_time(errors: np.ndarray, times: np.ndarray, start: int, end: int, dt:
     return None
 
 
+def camera_view(scenario: WalkScenario, frame) -> CameraView:
+    """The frame's camera view: the head's pan, the scenario's field of view and its landmark ranges."""
+    return CameraView(frame.head_angle, 0.5 * scenario.field_of_view, scenario.max_range, scenario.min_range)
+
+
 def run_walk(model: str = "velocity-linear", particles: int = 500, seed: int = 0, rrd: str | None = None,
              scenario: WalkScenario = WalkScenario(), sensor: LandmarkSensorModel | None = None,
-             record_every: int = 5, series: bool = False) -> dict:
+             record_every: int = 5, series: bool = False, view: bool = False) -> dict:
     """Simulate the scenario with `seed`, run the filter on it, and return the figures.
+
+    With `view`, each frame comes with its camera view (`sensing.view.CameraView`: the head's pan, the
+    scenario's field of view and ranges), so the landmark model also scores what should have been seen.
 
     With `series`, the result also holds "series": times, truth, estimates and entropy per step (arrays).
     """
@@ -74,7 +84,7 @@ def run_walk(model: str = "velocity-linear", particles: int = 500, seed: int = 0
         pf.predict(MotionInput(dt=log.dt, command=tuple(log.commands[k])))
         frame = frames.get(k)
         if frame is not None:
-            pf.correct(frame.observations)
+            pf.correct(frame.observations.with_view(camera_view(scenario, frame)) if view else frame.observations)
             fit[k] = pf.w_fast
         estimates[k] = pf.estimate().pose
         h = pf.entropy()
@@ -201,6 +211,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--duration", type=float, default=60.0, help="seconds of walking (default 60)")
     parser.add_argument("--lines", action="store_true",
                         help="the camera also reports points on field lines, scored by the line model")
+    parser.add_argument("--view", action="store_true",
+                        help="pass each frame's camera view: the landmark model also scores what should have been seen")
     parser.add_argument("--rrd", help="write a Rerun recording here (one seed only)")
     parser.add_argument("--json", action="store_true", help="print JSON instead of a table")
     args = parser.parse_args(argv)
@@ -220,7 +232,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.duration != scenario.duration:
         kidnap = scenario.kidnap_time if args.duration > (scenario.kidnap_time or 0) + 5 else None
         scenario = replace(scenario, duration=args.duration, kidnap_time=kidnap)
-    runs = [run_walk(args.model, args.particles, s, args.rrd, scenario) for s in seeds]
+    runs = [run_walk(args.model, args.particles, s, args.rrd, scenario, view=args.view) for s in seeds]
     summary = aggregate(runs)
     runs = [{k: v for k, v in r.items() if not k.startswith("_")} for r in runs]
     result = {"runs": runs, "summary": summary} if len(runs) > 1 else runs[0]
@@ -230,7 +242,8 @@ def main(argv: list[str] | None = None) -> int:
         return 0
     print(f"walk scenario: {scenario.duration:.0f} s on {scenario.field.name}, model {args.model}, "
           f"{args.particles} particles, kidnapping at {scenario.kidnap_time} s, "
-          f"{'landmarks and lines' if scenario.lines else 'landmarks only'}")
+          f"{'landmarks and lines' if scenario.lines else 'landmarks only'}"
+          f"{', frames with their camera view' if args.view else ''}")
     print(f"{'seed':>4} {'pos RMSE':>9} {'head RMSE':>9} {'converge':>9} {'reconv.':>8} {'mirror':>7} {'ms/step':>8}")
     for r in runs:
         print(f"{r['seed']:>4} {_fmt(r['position_rmse_m'], ' m'):>9} {_fmt(r['heading_rmse_deg'], '°', 2):>9} "

@@ -668,13 +668,18 @@ def _view_counts(table, table_kinds, x, y, theta, kinds, ranges, bearings, range
     """(expected, seen) for one pose: see `landmarks_in_view`."""
     expected = 0
     seen = 0
+    # In view: the angle between the landmark and the optical axis (θ + yaw) is at most half_fov, tested as
+    # d·axis >= |d|·cos(half_fov), without an atan2 per landmark (half_fov <= π).
+    axis_x = math.cos(theta + yaw)
+    axis_y = math.sin(theta + yaw)
+    cos_half = math.cos(half_fov)
     for k in range(table.shape[0]):
         dx = table[k, 0] - x
         dy = table[k, 1] - y
         r = math.hypot(dx, dy)
-        bearing = math.atan2(dy, dx) - theta
-        if r < min_range or r > max_range or abs(wrap_angle(bearing - yaw)) > half_fov:
+        if r < min_range or r > max_range or dx * axis_x + dy * axis_y < r * cos_half:
             continue
+        bearing = math.atan2(dy, dx) - theta
         expected += 1
         for j in range(kinds.shape[0]):
             if kinds[j] != table_kinds[k]:
