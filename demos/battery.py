@@ -192,7 +192,7 @@ def summarize_family(runs: list[dict]) -> dict:
         classes = {"clear": [], "even": [], "mirror": []}
         for r in kidnaps:
             odds = r.get("kidnap_log_odds")
-            odds = math.inf if odds is None else odds
+            odds = math.inf if odds is None else odds      # (JSON has no infinity: certain, the mirror undrawable)
             key = ("clear" if odds >= math.log(MIRROR_CLEAR) else
                    "mirror" if odds <= -math.log(MIRROR_CLEAR) else "even")
             classes[key].append(bool(r["on_mirror"]))

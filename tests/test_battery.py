@@ -8,7 +8,7 @@ import pytest
 from demos.battery import localize, main as battery_main, run_case, split_seeds, summarize_family
 from demos.battery_sim import (BLACKOUT, BURST_SECONDS, EVENT_AT, FAMILIES, FIELDS, KIDNAP_DISTANCE, LYING,
                                MAX_RANGE, RANGES, SPECIAL_TURNS, SPIN_DEG, STUCK_EXCESS, STUCK_SECONDS,
-                               simulate)
+                               field_for, kidnap_mirror_log_odds, simulate)
 from field.angles import wrap_angles
 from mcl.evaluation import (QUALITY_CODE, convergence_time, evaluate, failed, has_stretch, hold_last,
                             lost_counts, mirrored, pool_counts, pose_errors, quality_codes, quality_counts,
@@ -309,7 +309,8 @@ def test_command_line(capsys, tmp_path):
     assert split_seeds("train", 3) == [0, 1, 2] and split_seeds("holdout", 2) == [1000, 1001]
     for bad in (["--families", "tracking,nope"], ["--split", "dev"], ["--seeds", "0"], ["--duration", "2"],
                 ["--particles", "-5"], ["--jobs", "x"], ["--prior", "bogus=1"], ["--prior", "pool=0"],
-                ["--quality", "gate=x"], ["--quality", "superb_fit=2"]):
+                ["--quality", "gate=x"], ["--quality", "superb_fit=2"], ["--sensor", "detection_rate=1"],
+                ["--sensor", "field=1"], ["--sensor", "bogus=0.1"]):
         with pytest.raises(SystemExit) as exit_info:
             battery_main(bad)
         assert exit_info.value.code == 2
@@ -333,3 +334,35 @@ def test_command_line(capsys, tmp_path):
                          "--jobs", "1", "--prior", "kidnap_sigma=1.5", "--quality", "lost_after=2"]) == 0
     report = capsys.readouterr().out
     assert "VARIANT (kidnap_sigma=1.5, lost_after=2.0)" in report
+
+
+def test_a_view_and_a_sensor_variant_are_labelled_and_the_view_is_passed(capsys):
+    assert battery_main(["--families", "tracking", "--split", "train", "--seeds", "1", "--duration", "10",
+                         "--jobs", "1", "--view", "--sensor", "detection_rate=0.4"]) == 0
+    report = capsys.readouterr().out
+    assert "VARIANT (detection_rate=0.4), frames with their camera view" in report
+    run = simulate("tracking", 3, 10.0)
+    with_view = localize(run, particles=300, view=True)
+    without = localize(run, particles=300)
+    assert not np.array_equal(with_view["estimates"], without["estimates"])     # the view changes the weights
+
+
+def test_kidnap_mirror_odds_follow_the_simulators_own_law():
+    """The odds the battery splits kidnappings by: +inf when the mirror image lies at a distance the law never
+    draws, about even when both lie as far from the start, None for other events."""
+    field = field_for(0)                                                            # SPL
+    start = [-2.0, 0.5, 0.0]
+    far_mirror = {"type": "kidnap", "from": start, "to": [-1.0, -1.0, 1.0]}       # mirror (1, 1): 3.04 m
+    assert math.isfinite(kidnap_mirror_log_odds(field, far_mirror))
+    clear = {"type": "kidnap_special", "from": start, "to": [-3.5, 1.5, 0.0]}      # mirror (3.5, -1.5): 5.6 m
+    assert kidnap_mirror_log_odds(field, clear) == math.inf
+    # the start on the centre mark: the landing point and its mirror are equally far, so the odds are even
+    even = {"type": "kidnap", "from": [0.0, 0.0, 0.0], "to": [1.5, 1.0, 2.0]}
+    assert abs(kidnap_mirror_log_odds(field, even)) < 1e-9
+    assert kidnap_mirror_log_odds(field, {"type": "blackout"}) is None
+    assert kidnap_mirror_log_odds(field, {"type": "kidnap"}) is None              # not happened yet
+    # in the results (JSON has no infinity: None, which the summary reads as certain for a kidnapping)
+    fig = run_case("kidnap", 2, 20.0, 300)
+    assert fig["event"] == "kidnap" and "kidnap_log_odds" in fig
+    summary = summarize_family([fig])
+    assert sum(v["runs"] for v in summary["kidnap_odds"].values()) == 1
