@@ -21,6 +21,7 @@ from mcl import AugmentedMCL, Grid, ParticleFilter
 from mcl.localizer import Localizer, QualityThresholds
 from motion_models import AdaptiveMotion, ConstantNoise, MotionInput, VelocityLinear
 from sensing import CombinedSensorModel, LandmarkObservation, LandmarkSensorModel, LineSensorModel, Observations
+from sensing.view import CameraView
 from sensing.collision import NO_COLLISION, CollisionPercept
 
 FIELDS = {name: preset(name) for name in ("spl", "kidsize", "adultsize")}
@@ -320,6 +321,7 @@ def localizer_operations():
         st.tuples(st.just("motion"), st.one_of(sane(0, 0.05), number_or_junk()), motion_args()),
         st.tuples(st.just("motion"), sane(0, 0.05), motion_args()),
         st.tuples(st.just("observe"), observation_args(), st.one_of(st.none(), sane(-0.2, 0.0), number_or_junk())),
+        st.tuples(st.just("observe"), observation_args(), st.none(), view_args()),
         st.tuples(st.just("initial_placement"), st.one_of(sane(0.05, 1.0), number_or_junk())),
         st.tuples(st.just("penalty_return")),
         st.tuples(st.just("kickoff_placement"), st.one_of(st.none(), st.lists(POSES, max_size=3), junk()),
@@ -331,6 +333,16 @@ def localizer_operations():
         st.tuples(st.just("got_up")),
         st.tuples(st.just("quality")),
     ), min_size=1, max_size=10)
+
+
+def view_args():
+    """A camera view as `CameraView` takes it (sane or not), or something that is not one."""
+    return st.one_of(st.tuples(sane(-3.5, 3.5), sane(0.1, 1.6), sane(1.0, 9.0), sane(0.0, 0.5)),
+                     st.tuples(number_or_junk(), number_or_junk(), number_or_junk(), number_or_junk()), junk())
+
+
+def build_view(args):
+    return CameraView(*args) if isinstance(args, tuple) else args
 
 
 def check_localizer(loc) -> None:
@@ -363,8 +375,11 @@ def fuzz_localizer(field_name, n, operations, options):
             attempt("localizer", loc, motion, check_localizer)
         elif name == "observe":
             offset = op[2]
+            view = op[3] if len(op) > 3 else None
             attempt("localizer", loc, lambda: loc.observe(build_observations(op[1]), None if offset is None else
-                                                          clock[0] + offset), check_localizer)
+                                                          clock[0] + offset,
+                                                          None if view is None else build_view(view)),
+                    check_localizer)
         elif name == "initial_placement":
             attempt("localizer", loc, lambda: loc.initial_placement(op[1]), check_localizer)
         elif name == "kickoff_placement":
@@ -374,7 +389,7 @@ def fuzz_localizer(field_name, n, operations, options):
         elif name == "place":
             attempt("localizer", loc, lambda: loc.place(op[1], op[2]), check_localizer)
         elif name == "quality":
-            attempt("localizer", loc, lambda: (loc.quality(), loc.is_lost, loc.fit))
+            attempt("localizer", loc, lambda: (loc.quality(), loc.is_lost, loc.fit, loc.seen_share))
         else:
             attempt("localizer", loc, getattr(loc, name), check_localizer)
     check_estimate(loc.filter)
