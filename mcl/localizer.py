@@ -335,13 +335,12 @@ class Localizer:
         entropy = self.filter.entropy().position
         now = self.time if self.time is not None else 0.0
         age = math.inf if self._last_explained is None else now - self._last_explained
-        walked = self._walked
         fit = self.fit
         explained = sum(frame[2] for frame in self._frames)
         mirror_log_odds = getattr(self.filter.relocalization, "mirror_log_odds", math.inf)
         # negative information, when frames came with their view: judged once enough landmarks were expected
         expected = sum(frame[3] for frame in self._frames)
-        seen = sum(frame[4] for frame in self._frames) / expected if expected >= q.view_expected else 1.0
+        seen = self.seen_share if expected >= q.view_expected else 1.0
         if (position_sigma <= q.superb_position and heading_sigma <= q.superb_heading
                 and estimate.weight >= q.superb_weight and entropy <= q.superb_entropy and fit >= q.superb_fit
                 and explained >= q.superb_detections and age <= q.superb_age
@@ -349,7 +348,7 @@ class Localizer:
             return Quality.SUPERB
         if (position_sigma <= q.okay_position and heading_sigma <= q.okay_heading
                 and estimate.weight >= q.okay_weight and entropy <= q.okay_entropy and age <= q.okay_age
-                and walked <= q.okay_walked
+                and self._walked <= q.okay_walked
                 and not fit < q.okay_fit and mirror_log_odds >= _log(q.okay_mirror_odds) and seen >= q.okay_seen):
             return Quality.OKAY
         return Quality.POOR

@@ -566,6 +566,20 @@ def reset_choices(integers, function, state, m, detection, uniforms):
     draw_uniforms(function, state, uniforms, uniforms.shape[0])
 
 
+@numba.njit(inline="always")
+def _detection_sigmas(j, ranges, range_sigmas, bearing_sigmas, range_noise_floor, range_noise_growth,
+                      bearing_sigma, range_slack, bearing_slack):
+    """(σ_r, σ_b) of detection j: its own, else the model's (σ_r at its range), each widened by its slack (the
+    gates of `explained_detections` and `landmarks_in_view`; 0 for `sensor_reset_poses`)."""
+    range_sigma = range_sigmas[j]
+    if math.isnan(range_sigma):
+        range_sigma = range_noise_sigma(ranges[j], range_noise_floor, range_noise_growth)
+    sigma = bearing_sigmas[j]
+    if math.isnan(sigma):
+        sigma = bearing_sigma
+    return range_sigma + range_slack, sigma + bearing_slack
+
+
 @numba.njit(cache=True)
 def sensor_reset_poses(table, offsets, kinds, ranges, bearings, range_sigmas, bearing_sigmas, range_noise_floor,
                        range_noise_growth, bearing_sigma, detection, landmark, angles, normals, heading,
@@ -588,12 +602,8 @@ def sensor_reset_poses(table, offsets, kinds, ranges, bearings, range_sigmas, be
             theta = -math.pi + (math.pi - -math.pi) * angles[i]    # rng.uniform(-π, π)
         else:
             theta = heading + heading_sigma * normals[i]
-        range_sigma = range_sigmas[j]
-        if math.isnan(range_sigma):
-            range_sigma = range_noise_sigma(ranges[j], range_noise_floor, range_noise_growth)
-        sigma = bearing_sigmas[j]
-        if math.isnan(sigma):
-            sigma = bearing_sigma
+        range_sigma, sigma = _detection_sigmas(j, ranges, range_sigmas, bearing_sigmas, range_noise_floor,
+                                               range_noise_growth, bearing_sigma, 0.0, 0.0)
         r = max(ranges[j] + range_sigma * normals[first + i], 0.0)
         direction = theta + (bearings[j] + sigma * normals[first + m + i])
         out[i, 0] = table[k, 0] - r * math.cos(direction)
@@ -632,14 +642,8 @@ def explained_detections(table, offsets, x, y, theta, kinds, ranges, bearings, r
     limit = gate * gate
     for j in range(kinds.shape[0]):
         r = ranges[j]
-        range_sigma = range_sigmas[j]
-        if math.isnan(range_sigma):
-            range_sigma = range_noise_sigma(r, range_noise_floor, range_noise_growth)
-        range_sigma += range_slack
-        sigma = bearing_sigmas[j]
-        if math.isnan(sigma):
-            sigma = bearing_sigma
-        sigma += bearing_slack
+        range_sigma, sigma = _detection_sigmas(j, ranges, range_sigmas, bearing_sigmas, range_noise_floor,
+                                               range_noise_growth, bearing_sigma, range_slack, bearing_slack)
         found = False
         for k in range(offsets[kinds[j]], offsets[kinds[j] + 1]):
             dx = table[k, 0] - x
@@ -684,14 +688,8 @@ def _view_counts(table, table_kinds, x, y, theta, kinds, ranges, bearings, range
         for j in range(kinds.shape[0]):
             if kinds[j] != table_kinds[k]:
                 continue
-            range_sigma = range_sigmas[j]
-            if math.isnan(range_sigma):
-                range_sigma = range_noise_sigma(ranges[j], range_noise_floor, range_noise_growth)
-            range_sigma += range_slack
-            sigma = bearing_sigmas[j]
-            if math.isnan(sigma):
-                sigma = bearing_sigma
-            sigma += bearing_slack
+            range_sigma, sigma = _detection_sigmas(j, ranges, range_sigmas, bearing_sigmas, range_noise_floor,
+                                                   range_noise_growth, bearing_sigma, range_slack, bearing_slack)
             range_error = (ranges[j] - r) / range_sigma
             bearing_error = wrap_angle(bearings[j] - bearing) / sigma
             if range_error ** 2 + bearing_error ** 2 <= limit:

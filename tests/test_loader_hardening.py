@@ -117,15 +117,20 @@ def write(tmp_path, name: str, text: str | bytes):
     return path
 
 
-def assert_field_error(path, *fragments: str) -> str:
+def assert_load_error(load, path, *fragments: str) -> str:
+    """`load(path)` raises ValueError whose message names the path and holds each fragment, briefly."""
     with pytest.raises(ValueError) as error:
-        load_field(path)
+        load(path)
     message = str(error.value)
     assert str(path) in message
     for fragment in fragments:
         assert fragment in message, (fragment, message)
     assert len(message) < 2000, "the message repeats a huge value"
     return message
+
+
+def assert_field_error(path, *fragments: str) -> str:
+    return assert_load_error(load_field, path, *fragments)
 
 
 @pytest.mark.parametrize(("name", "text"), [
@@ -303,14 +308,7 @@ def lwpr_file(tmp_path_factory):
 
 
 def assert_lwpr_error(path, *fragments: str) -> str:
-    with pytest.raises(ValueError) as error:
-        LWPR.load(path)
-    message = str(error.value)
-    assert str(path) in message
-    for fragment in fragments:
-        assert fragment in message, (fragment, message)
-    assert len(message) < 2000
-    return message
+    return assert_load_error(LWPR.load, path, *fragments)
 
 
 @pytest.mark.parametrize(("field", "value", "fragments"), [
@@ -640,14 +638,7 @@ def meta_of(directory) -> dict:
 
 
 def assert_odometry_error(directory, *fragments: str) -> str:
-    with pytest.raises(ValueError) as error:
-        LearnedFootstepOdometry.load(directory)
-    message = str(error.value)
-    assert str(directory) in message
-    for fragment in fragments:
-        assert fragment in message, (fragment, message)
-    assert len(message) < 2000
-    return message
+    return assert_load_error(LearnedFootstepOdometry.load, directory, *fragments)
 
 
 @pytest.mark.parametrize("text", [
