@@ -7,7 +7,7 @@ Per seed: 500 training points uniform on [-1, 1]², targets cross(x) + N(0, 0.1�
 fresh random order; test nMSE on the noiseless 41×41 grid; number of receptive fields; time per update
 (the ``LWPR.update`` call, 10 000 calls, input validation and numba dispatch included) and per prediction
 (``LWPR.predict`` on one point, over the grid, and per point of one batched ``predict`` call over the grid).
-The plain reference implementation (``motion_models._lwpr_reference``) is timed on the first seed and the
+The plain reference implementation (``motion_models.lwpr_reference``) is timed on the first seed and the
 numba/reference speed ratio is reported. Reference library (C, one core): nMSE 0.039 ± 0.004, 47.5 ± 1.8 RFs,
 1.3–1.7 µs per update, 0.7–0.9 µs per prediction.
 """
@@ -22,7 +22,7 @@ import time
 
 import numpy as np
 
-from motion_models._lwpr_reference import ReferenceLWPR
+from motion_models.lwpr_reference import ReferenceLWPR
 from motion_models.lwpr import LWPR
 
 N_TRAIN = 500

@@ -1,8 +1,12 @@
-"""Monte Carlo localization core: the particle filter, resampling, estimate, entropy, recording.
+"""Monte Carlo localization: the particle filter core, and the robot-facing layer on top of it.
 
     from mcl import ParticleFilter
 
-See `mcl.filter` for a complete example. The core knows motion and sensor models only by their interfaces.
+See `mcl.filter` for a complete example. The core (`mcl.filter`, its fused compiled step `mcl.step`, and its
+kernels `mcl.weights`, `mcl.resampling`, `mcl.estimate`, `mcl.latency`) knows motion and sensor models only by
+their contracts (`mcl.contracts`); the soccer rules are `mcl.relocalization`. On top: `mcl.localizer` (a robot's
+loop), `mcl.logs` and `mcl.replay`, `mcl.recording` (Rerun), `mcl.cli`. `mcl.testing` holds hypothesis
+strategies and invariant checks for a team's own tests. The layers: docs/architecture.md.
 """
 from .filter import AugmentedMCL, Entropy, Estimate, Grid, ParticleFilter
 

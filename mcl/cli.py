@@ -18,7 +18,7 @@
 Errors. A command that cannot run as asked prints one line on stderr, `robocup-mcl: <message>` (the replay's
 own: `robocup-mcl replay: <message>`), and exits 1, never a traceback: bad values (ValueError, TypeError),
 files it cannot read or write (OSError: a missing log, an unwritable output path, no permission), and the
-library's own errors (`mcl.logs.LogError`, `mcl.cli_checks.CommandError`, `mcl.bench_compare.CompareError`).
+library's own errors (`mcl.logs.LogError`, `mcl.cli_checks.CommandError`, `benchmarks.compare.CompareError`).
 The commands check their output paths (`--rrd`, `--save`, `--out`, `--plot`, `--record`) right after parsing
 their arguments, before a long run starts (`mcl.cli_checks`). Usage errors (an unknown option, a malformed
 value) are argparse's: the usage line and the message, exit 2. Ctrl-C prints `robocup-mcl: interrupted` and
@@ -47,10 +47,10 @@ DEMOS = {
     "penalty": ("demos.penalty", "returning from a penalty on an unknown touchline: convergence, mirror share"),
 }
 BENCHES = {
-    "step": ("mcl.bench", "one full filter step per particle count, numba versus plain numpy"),
+    "step": ("benchmarks.bench", "one full filter step per particle count, numba versus plain numpy"),
     "lwpr": ("demos.lwpr_cross", "LWPR on the cross benchmark: accuracy, receptive fields, speed"),
     "replay": ("demos.replay_speed", "a 10-minute MCAP log replayed, in multiples of real time"),
-    "compare": ("mcl.bench_compare", "this checkout's speed against another revision's, in alternated runs"),
+    "compare": ("benchmarks.compare", "this checkout's speed against another revision's, in alternated runs"),
 }
 
 
@@ -67,8 +67,20 @@ def _dispatch(table: dict, name: str, argv: list[str], what: str) -> int:
         return EXIT_USAGE
     if (what, name) in OUTPUT_OPTIONS:
         _check_outputs(argv, OUTPUT_OPTIONS[(what, name)])
-    module = importlib.import_module(table[name][0])
-    return int(module.main(argv) or 0)
+    return int(_harness(table[name][0]).main(argv) or 0)
+
+
+def _harness(name: str):
+    """The demo or benchmark module `name`, found by name at run time: the library never imports `demos` or
+    `benchmarks`; they run from a clone (`benchmarks` is not installed with the package)."""
+    try:
+        return importlib.import_module(name)
+    except ModuleNotFoundError as error:
+        package = name.split(".")[0]
+        if error.name != package:
+            raise
+        raise CommandError(f"{name} is not here: the {package} run from a clone of the repository "
+                           "(git clone, then `make demo` or `.venv/bin/robocup-mcl ...` in it)") from None
 
 
 # Output options of commands whose own main does not check them before its run (the step benchmark runs for
@@ -114,10 +126,9 @@ def _run(argv: list[str] | None) -> int:
         from .replay import main as replay_main
         return replay_main(rest)
     if command == "eval":
-        return int(importlib.import_module("demos.battery").main(rest) or 0)
+        return int(_harness("demos.battery").main(rest) or 0)
     if command == "soak":
-        from .soak import main as soak_main
-        return soak_main(rest)
+        return int(_harness("benchmarks.soak").main(rest) or 0)
     if command == "bench":
         if rest and not rest[0].startswith("-"):
             return _dispatch(BENCHES, rest[0], rest[1:], "benchmark")
@@ -134,7 +145,7 @@ def debugging() -> bool:
 def _user_errors() -> tuple[type[BaseException], ...]:
     """The exceptions that mean "cannot run as asked" rather than a bug (see the module docstring)."""
     errors: list[type[BaseException]] = [ValueError, TypeError, OSError, CommandError]
-    for module, name in (("mcl.logs", "LogError"), ("mcl.bench_compare", "CompareError")):
+    for module, name in (("mcl.logs", "LogError"), ("benchmarks.compare", "CompareError")):
         loaded = sys.modules.get(module)     # raised only by a module already imported
         if loaded is not None and hasattr(loaded, name):
             errors.append(getattr(loaded, name))

@@ -31,7 +31,7 @@ from numba import types
 from numba.extending import intrinsic
 
 from field.angles import wrap_angles
-from motion_models._kernels import wrap
+from numerics.trig import wrap
 
 
 @numba.njit(cache=True, inline="always")

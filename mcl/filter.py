@@ -12,8 +12,8 @@
     est = pf.estimate()          # est.pose [x, y, θ], est.covariance (3, 3), est.weight
     h = pf.entropy()             # h.position, h.orientation in bits
 
-The filter knows the motion and sensor models only through their interfaces (`check`/`predict`,
-`check`/`log_likelihood`). Every public call validates its input before it changes anything: a rejected
+The filter knows the motion and sensor models only through their contracts (`mcl.contracts`: `check`/`predict`,
+`check`/`log_likelihood`, and the optional capabilities it uses when a model offers them). Every public call validates its input before it changes anything: a rejected
 call raises ValueError and leaves the filter exactly as it was.
 
 Resampling happens when the effective sample size falls below `resample_threshold`·N, or when augmented MCL
@@ -36,16 +36,19 @@ a jump-Markov particle filter) gets a per-particle state array that the filter k
 passed to `predict(poses, u, rng, state=...)`, follows each particle through resampling, and starts fresh for
 reset and injected particles. `pf.motion_state` shows it (read-only).
 
-Speed. With a bounded-noise motion model (velocity-linear, constant) and a sensor model that offers
-`compiled_likelihood` (the landmark model with the max-mixture), `step` and `correct` are one call into compiled
-code (`_compiled_step`): predict, likelihood, weights, resampling, the histograms the estimate and the entropy
-share, and the estimate, with the random numbers drawn in the kernels from the filter's generator. The results
+Speed. With a bounded-noise motion model (velocity-linear, constant, or any `BoundedNoiseModel`) and a sensor
+model that offers its likelihood as compiled kernels (`fused_likelihood`: the landmark model with the
+max-mixture, or any model in the calling convention of `sensing.fused`), `step` and `correct` are one call into
+compiled code (`mcl.step`, compiled once for each kind of sensor model): predict, likelihood, weights,
+resampling, the histograms the estimate and the entropy share, and the estimate, with the random numbers drawn
+in the kernels from the filter's generator. `mcl.contracts.fast_path(motion_model, sensor_model)` says whether
+a pair of models gets it. The results
 are those of the plain sequence of calls bit for bit (tests/test_fast_step.py runs both side by side). A step
 that injects draws the injected poses (`_sample_injection`: numpy's draws, compiled placement) and finishes in
-a second call (`_resample_and_summarize`); the rare branches (other resampling schemes, stateful motion
+a second call (`mcl.step.resample_and_summarize`); the rare branches (other resampling schemes, stateful motion
 models, threads with injection, particles that explain nothing) fall back to that sequence. Buffers are kept
 across steps. `fast=True` (vectorized polynomials for sin, cos and exp, reassociated sums) and `threads=n` (chunks of
-particles on n threads) trade the last bits for speed; `mcl.reference.compiled_phases` cuts the compiled
+particles on n threads) trade the last bits for speed; `benchmarks.reference.compiled_phases` cuts the compiled
 step into its stages for the benchmark.
 """
 from __future__ import annotations
@@ -59,24 +62,24 @@ import numpy as np
 
 from field import Field
 from field.angles import wrap_angles
-from field.checks import (LARGEST_ANGLE, LARGEST_COORDINATE, LARGEST_SIGMA, ArgumentTypeError, integer, real,
-                          reals)
-from motion_models._kernels import (SQRT3, balanced_chunk, bit_generator_handle, draw_variates,
-                                    move_chunked, move_range, move_range_fast, parallel_uniforms, MOVE_WORK, NO_WORK)
-from motion_models.base import BoundedNoiseModel, MotionInput, MotionModel
-from sensing.landmarks import (BLOCK, TOTAL, block_work, load_block, move_block_back, prepare_detections,
-                               score_block, score_block_exact)
+from field.checks import LARGEST_ANGLE, LARGEST_COORDINATE, LARGEST_SIGMA, ArgumentTypeError, integer, real, reals
+from motion_models.base import MotionInput, MotionModel
+from motion_models.kernels import NO_WORK, move_chunked, move_range, move_range_fast
+from numerics.chunks import balanced_chunk
+from numerics.random import bit_generator_handle, draw_variates, parallel_uniforms
+from numerics.trig import SQRT3
 from sensing.observations import Observations
 
+from .contracts import fused_kernels, moves_by_bounded_noise
 from .estimate import (summary_buffers, summary_entropy, summary_estimate, summary_estimate_chunked,
                        summary_estimate_fast, summary_fill, summary_fill_chunked, summary_grid)
 from .latency import move_back, move_forward
-from .relocalization import SoccerRelocalization
-from .resampling import (SCHEMES, gather_offspring_rows, gather_with_jitter, resample_with_jitter,
-                         resample_with_jitter_chunked)
-from .weights import log_mean_likelihood, normalize, reweigh, reweigh_chunked, weigh, weigh_chunked, weigh_fast
+from .relocalization import SoccerRelocalization, region_bounds
+from .resampling import SCHEMES, gather_offspring_rows, gather_with_jitter, resample_with_jitter
+from .step import (NO_SINCE, NO_VARIATES, STEP_INVALID, STEP_MISSING, STEP_RESAMPLE, STEP_UNEXPLAINED, fused_step,
+                   resample_and_summarize, summarize)
+from .weights import log_mean_likelihood, normalize, reweigh, weigh
 
-REGIONS = ("field", "own_half", "opponent_half")
 # A sensor model's defect, not a refused input (the library's models give finite or -inf log-likelihoods for
 # every input they accept): `correct` then changes nothing, `step` has moved the particles already.
 _INVALID_LIKELIHOODS = "sensor model returned NaN or +inf log-likelihoods"
@@ -234,7 +237,7 @@ class ParticleFilter:
                         of a running total). Worth it from about N = 10⁵.
     fast:               False (the default) keeps every result bit for bit as the plain kernels compute it. True
                         compiles the step with fast-math: exp by a vectorized polynomial, the polynomial sin and
-                        cos (`motion_models._kernels.sincos`, which the default uses too) contracted into fused
+                        cos (`numerics.trig.sincos`, which the default uses too) contracted into fused
                         multiply-adds, and the sums of the weights and of the estimate reassociated: the same
                         random draws, particles, weights
                         and estimate equal to about 10⁻¹⁴ after a step (and, like any rounding difference,
@@ -271,11 +274,26 @@ class ParticleFilter:
         self.sensor_model = sensor_model
         self._n = int(n_particles)
         self.augmented = augmented
+        self.rng = np.random.default_rng(seed)
+        self._set_up_grid(grid)
+        self._allocate_buffers()
+        self.w_slow = 0.0
+        self.w_fast = 0.0
+        self.frame_fit = math.nan     # the last correction's average likelihood per detection (augmented MCL)
+        self.ess = float(self._n)
+        self.resampled = False        # whether the last correction resampled
+        self.injected = 0             # particles injected by the last correction
+        self._bind_relocalization(SoccerRelocalization() if relocalization is None else relocalization)
+        self._bind_motion_state()
+        self.reset_uniform("field")
+
+    def _set_up_grid(self, grid: Grid) -> None:
+        """The carpet (the field and its border strip) and the entropy's and the estimate's grids on it."""
         if not isinstance(grid, Grid):
             raise ArgumentTypeError(f"grid = {grid!r} must be an mcl.Grid, not {type(grid).__name__}")
         self._grid = grid
-        self.rng = np.random.default_rng(seed)
         # Carpet bounds: the field plus its border strip.
+        field = self._field
         border = field.dims.border_strip_width
         self._x_min, self._x_max = -field.half_length - border, field.half_length + border
         self._y_min, self._y_max = -field.half_width - border, field.half_width + border
@@ -288,7 +306,10 @@ class ParticleFilter:
             if cells > MAX_GRID_CELLS:
                 raise ValueError(f"grid = {grid!r} makes {cells} {what} cells on this field; at most "
                                  f"{MAX_GRID_CELLS} are accepted (larger cells, fewer bins)")
-        # Buffers kept across steps: a steady-state step allocates nothing that grows with N.
+
+    def _allocate_buffers(self) -> None:
+        """The particles and every buffer a step uses, kept across steps: a steady-state step allocates
+        nothing that grows with N; and the summary's cached state (estimate, entropy, hysteresis anchor)."""
         self._poses = np.zeros((self._n, 3))
         self._log_weights = np.full(self._n, -math.log(self._n))
         self._weights = np.full(self._n, 1.0 / self._n)
@@ -299,6 +320,7 @@ class ParticleFilter:
         self._variates = np.empty((self._n, 3))          # drawn Gaussian motion noise, resampling variates
         self._counts = np.zeros(self._n + 1, dtype=np.int64)   # resampling scratch (zero between uses)
         # The estimate's and the entropy's histograms, filled in one pass and kept until the particles change.
+        grid = self._grid
         self._grid_parameters = summary_grid(self._x_min, self._y_min, grid.cluster_cell, self._cluster_nx,
                                              self._cluster_ny, grid.cluster_orientation_bins, grid.cluster_radius,
                                              grid.cluster_angle_radius, 3, grid.position_cell, self._entropy_nx,
@@ -313,19 +335,7 @@ class ParticleFilter:
         self._bounded_of = None                         # the motion model `_bounded` was asked of
         self._bounded = False                           # whether it moves as BoundedNoiseModel does
         self._compiled_sensor = None
-        self.w_slow = 0.0
-        self.w_fast = 0.0
-        self.frame_fit = math.nan     # the last correction's average likelihood per detection (augmented MCL)
-        self.ess = float(self._n)
-        self.resampled = False        # whether the last correction resampled
-        self.injected = 0             # particles injected by the last correction
-        if relocalization is None:
-            relocalization = SoccerRelocalization()
-        missing = [m for m in RELOCALIZATION_METHODS if not callable(getattr(relocalization, m, None))]
-        if missing:
-            raise ValueError(f"relocalization = {relocalization!r} lacks {', '.join(missing)}")
-        self.relocalization = relocalization      # which poses to inject, and what tells them apart
-        relocalization.bind((self._x_min, self._x_max, self._y_min, self._y_max))
+        self._fused_step = None                         # `mcl.step.fused_step` of the sensor model's kernels
         self._estimate: Estimate | None = None
         self._entropy: Entropy | None = None
         # Once `entropy()` has been asked for, the compiled step (and `estimate()`) computes the entropy from the
@@ -333,6 +343,18 @@ class ParticleFilter:
         self._entropy_wanted = False
         self._previous_estimate = np.zeros(3)
         self._has_previous_estimate = False
+
+    def _bind_relocalization(self, relocalization) -> None:
+        """Check and bind the relocalization (`mcl.contracts.Relocalization`) to the carpet."""
+        missing = [m for m in RELOCALIZATION_METHODS if not callable(getattr(relocalization, m, None))]
+        if missing:
+            raise ValueError(f"relocalization = {relocalization!r} lacks {', '.join(missing)}")
+        self.relocalization = relocalization      # which poses to inject, and what tells them apart
+        relocalization.bind((self._x_min, self._x_max, self._y_min, self._y_max))
+
+    def _bind_motion_state(self) -> None:
+        """A stateful motion model's per-particle state (`mcl.contracts.ParticleState`), kept beside the poses."""
+        motion_model = self.motion_model
         self._motion_state = None
         if callable(getattr(motion_model, "particle_state", None)):
             self._motion_state = np.ascontiguousarray(motion_model.particle_state(self._n))
@@ -342,7 +364,6 @@ class ParticleFilter:
         # The state as rows (a view), and rows to gather it through, for the kernels that resample
         self._bind_state_rows()
         self._state_scratch = np.empty_like(self._state_rows)
-        self.reset_uniform("field")
 
     def __getstate__(self) -> dict:
         # Pickles and deep copies leave out the generator's kernel handle: it holds the addresses of this
@@ -460,19 +481,6 @@ class ParticleFilter:
         self._summary_valid = False
 
     # -- resets ------------------------------------------------------------------------------------------
-    def _region_bounds(self, region) -> tuple[float, float, float, float]:
-        hl, hw = self._field.half_length, self._field.half_width
-        if isinstance(region, str):
-            if region not in REGIONS:
-                raise ValueError(f"region = {region!r} must be one of {REGIONS} or (x_min, x_max, y_min, y_max)")
-            return {"field": (-hl, hl, -hw, hw), "own_half": (-hl, 0.0, -hw, hw),
-                    "opponent_half": (0.0, hl, -hw, hw)}[region]
-        x_min, x_max, y_min, y_max = (float(v) for v in reals("region", region, 4, -LARGEST_COORDINATE,
-                                                              LARGEST_COORDINATE))
-        if x_min >= x_max or y_min >= y_max:
-            raise ValueError(f"region = {region!r} must have x_min < x_max and y_min < y_max")
-        return x_min, x_max, y_min, y_max
-
     def _set_particles(self, poses: np.ndarray) -> None:
         self._has_previous_estimate = False
         if self._motion_state is not None:
@@ -490,7 +498,7 @@ class ParticleFilter:
         heading: None for uniform headings, else headings around it with `heading_sigma` (rad). Injection
         stays in this region until the filter is first confident (see the module docstring).
         """
-        bounds = self._region_bounds(region)
+        bounds = region_bounds(self._field, region)
         if heading is not None:
             heading = real("heading", heading, -LARGEST_ANGLE, LARGEST_ANGLE)
             heading_sigma = real("heading_sigma", heading_sigma, 0.0, LARGEST_SIGMA)
@@ -540,7 +548,7 @@ class ParticleFilter:
         if candidates.shape[0] == 0:
             raise ValueError(f"poses = {poses!r} must be one or more (x, y, θ) poses")
         sigma = self._check_sigma(sigma)
-        bounds = self._region_bounds(region)
+        bounds = region_bounds(self._field, region)
         choice = np.arange(self._n) % candidates.shape[0]
         self._set_particles(candidates[choice] + sigma * self.rng.standard_normal((self._n, 3)))
         self.relocalization.reset_region(bounds)
@@ -595,9 +603,9 @@ class ParticleFilter:
 
     # -- the step ----------------------------------------------------------------------------------------
     # A bounded-noise motion model (velocity-linear, constant) and a sensor model that offers
-    # `compiled_likelihood` (the landmark model with the max-mixture) run inside the filter's own kernels:
+    # `fused_likelihood` (the landmark model with the max-mixture) run inside the filter's own kernels:
     # `predict` draws its noise in the kernel, and `correct` and `step` are one call into compiled code
-    # (`_compiled_step`: predict, likelihood, weights, resampling, the summary histograms and the estimate).
+    # (`mcl.step.compiled_step`: predict, likelihood, weights, resampling, the summary histograms and the estimate).
     # Every path gives the particles, weights, draws and estimates of the plain sequence of calls bit for bit;
     # other models take that sequence.
 
@@ -618,9 +626,7 @@ class ParticleFilter:
             raise ArgumentTypeError(f"u = {u!r} must be a motion_models.MotionInput, not {type(u).__name__}")
         model = self.motion_model
         if model is not self._bounded_of:             # (asked once per motion model: this runs every step)
-            kind = type(model)
-            self._bounded = (isinstance(model, BoundedNoiseModel) and kind.predict is BoundedNoiseModel.predict
-                             and kind.check is BoundedNoiseModel.check)
+            self._bounded = moves_by_bounded_noise(model)
             self._bounded_of = model
         if self._motion_state is not None or not self._bounded:
             model.check(u)
@@ -630,7 +636,7 @@ class ParticleFilter:
         return float(dx), float(dy), float(dtheta), float(bound_x), float(bound_y), float(bound_theta)
 
     def _generator(self) -> tuple[int, int]:
-        """The filter generator's handle for drawing in kernels (`motion_models._kernels.bit_generator_handle`)."""
+        """The filter generator's handle for drawing in kernels (`numerics.random.bit_generator_handle`)."""
         bit_generator = self.rng.bit_generator
         handle = self._rng_handle
         if handle is None or handle[0] is not bit_generator:
@@ -646,11 +652,12 @@ class ParticleFilter:
         return bool(scores_view(observations)) if callable(scores_view) else False
 
     def _sensor_kernel(self) -> tuple | None:
-        """The sensor model's `compiled_likelihood()` arguments (None: score through `log_likelihood`)."""
+        """The sensor model's fused-likelihood kernels (`mcl.contracts.fused_kernels`; None: score through
+        `log_likelihood`)."""
         sensor_model = self.sensor_model
         if sensor_model is not self._compiled_sensor_of:
-            compiled = getattr(sensor_model, "compiled_likelihood", None)
-            self._compiled_sensor = compiled() if callable(compiled) else None
+            self._compiled_sensor = fused_kernels(sensor_model)
+            self._fused_step = None if self._compiled_sensor is None else fused_step(self._compiled_sensor)
             self._compiled_sensor_of = sensor_model
         return self._compiled_sensor
 
@@ -670,7 +677,7 @@ class ParticleFilter:
     def _move_compiled(self, motion: tuple[float, ...]) -> None:
         """Move by (dx, dy, dθ, bounds) in the filter's kernels, with the noise the motion model would draw."""
         gaussian = bool(self.motion_model.gaussian)
-        variates = draw_variates(self.rng, self._n, True, out=self._variates) if gaussian else _NO_VARIATES
+        variates = draw_variates(self.rng, self._n, True, out=self._variates) if gaussian else NO_VARIATES
         if self._threads > 1:
             with self._thread_scope:
                 if not gaussian:
@@ -788,14 +795,14 @@ class ParticleFilter:
 
     def _step_compiled(self, motion: tuple | None, observations: Observations, in_step: bool,
                        since: np.ndarray | None = None) -> None:
-        """[predict by `motion`,] correct(observations) [captured `since` ago]: one call into `_compiled_step`
+        """[predict by `motion`,] correct(observations) [captured `since` ago]: one call into `mcl.step.compiled_step`
         (with the entropy, once `entropy()` has been asked for)."""
         n = self._n
-        table, offsets, range_noise_floor, range_noise_growth, bearing_sigma, log_outlier, exact = self._compiled_sensor
+        sensor = self._compiled_sensor
         move = motion is not None
         chunk = self._chunk if self._threads > 1 else 0
         gaussian = move and bool(self.motion_model.gaussian)
-        variates = self._variates if chunk else _NO_VARIATES
+        variates = self._variates if chunk else NO_VARIATES
         if not move:
             motion = _NO_MOTION
         elif gaussian:
@@ -814,32 +821,32 @@ class ParticleFilter:
         want_estimate = in_step or a is not None
         mean = np.empty(3)
         covariance = np.empty((3, 3))
-        coordinates, histograms, bitmaps = self._summary
+        particles = (self._poses, self._log_weights, self._weights, self._log_likelihood, self._previous, self._trig,
+                     self._counts, self._local_histograms)
+        weighting = (n - self.injected, terms, augmented, alpha_slow, alpha_fast, ratio_threshold, fit_threshold,
+                     self.w_slow, self.w_fast, cap)
+        resampling = (self._resample_threshold, self._resampling == "systematic" and (self._motion_state is None
+                                                                                     or not chunk),
+                      self._roughening, self._state_rows, self._state_scratch)
         with self._thread_scope:
             (status, native_log_average, ess, w_slow, w_fast, fraction, resampled, weight, position,
-             orientation) = _compiled_step(
-                self._poses, self._log_weights, self._weights, self._log_likelihood, self._previous, self._trig,
-                self._counts, self._local_histograms, move, *motion, gaussian, variates, *self._generator(),
-                observations.kinds, observations.ranges, observations.bearings, observations.range_sigmas,
-                observations.bearing_sigmas, table, offsets, range_noise_floor, range_noise_growth, bearing_sigma,
-                log_outlier, exact, n - self.injected, terms, augmented, alpha_slow, alpha_fast, ratio_threshold,
-                fit_threshold, self.w_slow, self.w_fast, cap, self._resample_threshold,
-                self._resampling == "systematic" and (self._motion_state is None or not chunk), self._roughening,
-                self._state_rows, self._state_scratch, self._grid_parameters, coordinates, histograms, bitmaps,
-                want_estimate, self._previous_estimate, self._has_previous_estimate, mean, covariance,
-                self._entropy_wanted, chunk, self._fast, _NO_SINCE if since is None else since)
-        if status == _STEP_MISSING:
+             orientation) = self._fused_step.compiled_step(
+                particles, (move, *motion, gaussian, variates), self._generator(),
+                (sensor.params, sensor.inputs(observations)),
+                weighting, resampling, self._summary_group(want_estimate, mean, covariance), chunk, self._fast,
+                NO_SINCE if since is None else since)
+        if status == STEP_MISSING:
             self.sensor_model.check(observations)     # raises, naming the detection; nothing has changed
             raise ValueError("a detection's landmark type is not on this field")
         if move:                                      # the particles have moved, whatever follows
             self.relocalization.carry(motion[0], motion[1], motion[2])
             self._changed()
-        if status == _STEP_INVALID:
+        if status == STEP_INVALID:
             raise ValueError(_INVALID_LIKELIHOODS + (_MOVED if move else "; filter left unchanged"))
         self._changed()
         if terms > 0:
             self.frame_fit = math.exp(native_log_average / terms)
-        if status == _STEP_UNEXPLAINED:
+        if status == STEP_UNEXPLAINED:
             self._weights[:] = 1.0 / n
             self._resample(self._injection_count(1.0), observations, since)
             return
@@ -847,7 +854,7 @@ class ParticleFilter:
         if augmented and terms > 0:
             self.w_slow = w_slow
             self.w_fast = w_fast
-        if status == _STEP_RESAMPLE:
+        if status == STEP_RESAMPLE:
             count = self._injection_count(fraction)
             if count > 0 and self._threads == 1 and self._resampling == "systematic" and self._motion_state is None:
                 self._finish_with_injection(count, observations, want_estimate, mean, covariance, since)
@@ -874,12 +881,10 @@ class ParticleFilter:
         if since is not None:                     # placed where the detections were captured: carried to now
             move_forward(injected, since, injected)
         keep = n - count
-        coordinates, histograms, bitmaps = self._summary
-        weight, position, orientation = _resample_and_summarize(
-            self._weights, keep, self._previous, self._roughening, self._poses, self._trig, *self._generator(),
-            self._counts, injected, self._log_weights, self._grid_parameters, coordinates, histograms, bitmaps,
-            want_estimate, self._previous_estimate, self._has_previous_estimate, mean, covariance,
-            self._entropy_wanted, self._fast)
+        weight, position, orientation = resample_and_summarize(
+            self._weights, keep, self._previous, self._roughening, self._poses, self._trig, self._generator(),
+            self._counts, injected, self._log_weights, self._summary_group(want_estimate, mean, covariance),
+            self._fast)
         self.ess = float(n)
         self.resampled = True
         self.injected = count
@@ -939,7 +944,7 @@ class ParticleFilter:
                                     dtype=np.float64)
 
     def _resample(self, count: int, observations: Observations, since: np.ndarray | None = None) -> None:
-        injected = self._sample_injection(count, observations) if count > 0 else _NO_VARIATES
+        injected = self._sample_injection(count, observations) if count > 0 else NO_VARIATES
         if since is not None and injected.shape[0]:
             # Sensor resetting placed them where the detections were captured: carry them to now.
             move_forward(injected, since, injected)
@@ -986,6 +991,15 @@ class ParticleFilter:
         view.flags.writeable = False
         return view
 
+    def _summary_group(self, want_estimate: bool, mean: np.ndarray, covariance: np.ndarray,
+                       use_previous: bool | None = None, want_entropy: bool | None = None) -> tuple:
+        """The summary's arguments of the compiled step (`mcl.step`): the grid and its histograms, whether to
+        compute the estimate (into `mean`, `covariance`; its hysteresis anchor) and the entropy."""
+        coordinates, histograms, bitmaps = self._summary
+        return (self._grid_parameters, coordinates, histograms, bitmaps, want_estimate, self._previous_estimate,
+                self._has_previous_estimate if use_previous is None else use_previous, mean, covariance,
+                self._entropy_wanted if want_entropy is None else want_entropy)
+
     def _fill_summary(self) -> None:
         if not self._summary_valid:
             if self._threads > 1:
@@ -1009,9 +1023,8 @@ class ParticleFilter:
             coordinates, histograms, bitmaps = self._summary
             if self._threads == 1 and not self._summary_valid:
                 # One dispatch: the histograms, the estimate and (once asked for) the entropy.
-                weight, position, orientation = _summarize(
-                    self._grid_parameters, self._poses, self._weights, coordinates, histograms, bitmaps, True,
-                    previous, self._has_previous_estimate, mean, cov, self._entropy_wanted, self._fast)
+                weight, position, orientation = summarize(self._poses, self._weights,
+                                                          self._summary_group(True, mean, cov), self._fast)
                 self._summary_valid = True
                 if self._entropy_wanted:
                     self._entropy = Entropy(float(position), float(orientation))
@@ -1040,9 +1053,8 @@ class ParticleFilter:
         if self._entropy is None:
             if self._threads == 1 and not self._summary_valid:
                 # One dispatch: the histograms and the entropy (no estimate: it would move the hysteresis anchor).
-                _, position, orientation = _summarize(
-                    self._grid_parameters, self._poses, self._weights, *self._summary, False,
-                    self._previous_estimate, False, _NO_MEAN, _NO_COVARIANCE, True, self._fast)
+                _, position, orientation = summarize(self._poses, self._weights, self._summary_group(
+                    False, _NO_MEAN, _NO_COVARIANCE, use_previous=False, want_entropy=True), self._fast)
                 self._summary_valid = True
             else:
                 self._fill_summary()
@@ -1081,250 +1093,8 @@ class _Threads:
             numba.set_num_threads(self.previous)
 
 
-_NO_VARIATES = np.empty((0, 3))
 _NO_TRIG = np.empty((0, 2))
 _NO_COORDINATES = np.empty((3, 0))
 _NO_STATE = np.empty((0, 0))      # no per-particle motion state
 _NO_MEAN, _NO_COVARIANCE = np.empty(3), np.empty((3, 3))     # out_mean, out_cov of a summary without estimate
 _NO_MOTION = (0.0,) * 6
-_NO_SINCE = np.empty(0)           # detections captured now: nothing to move back
-# `_compiled_step` status: done; a detection's type is missing (nothing changed); NaN or +inf likelihoods
-# (predicted only); no particle explains the detections; resampling (with injection) is left to Python.
-_STEP_DONE, _STEP_MISSING, _STEP_INVALID, _STEP_UNEXPLAINED, _STEP_RESAMPLE = range(5)
-
-
-@numba.njit(cache=True)
-def augmented_update(w_slow, w_fast, log_average, alpha_slow, alpha_fast, ratio_threshold, fit_threshold):
-    """`ParticleFilter._update_augmented` in compiled code: (w_slow, w_fast, injection share)."""
-    average = math.exp(log_average)
-    if w_slow == 0.0:
-        w_slow = w_fast = average
-    else:
-        w_slow += alpha_slow * (average - w_slow)
-        w_fast += alpha_fast * (average - w_fast)
-    relative = 1.0 - w_fast / (ratio_threshold * w_slow) if w_slow > 0 else 1.0
-    absolute = 1.0 - w_fast / fit_threshold if fit_threshold > 0 else 0.0
-    fraction = 0.0                       # max(0.0, relative, absolute), resolved as Python's max resolves it
-    if relative > fraction:
-        fraction = relative
-    if absolute > fraction:
-        fraction = absolute
-    return w_slow, w_fast, fraction
-
-
-@numba.njit(cache=True)
-def _resample_and_summarize(weights, keep, scratch, roughening, poses, trig, function, state, counts, injected,
-                            log_weights, grid, coordinates, histograms, bitmaps, want_estimate, previous,
-                            use_previous, out_mean, out_cov, want_entropy, fast):
-    """After `_compiled_step` returned `_STEP_RESAMPLE` for injection (one thread): systematic resampling of
-    `keep` particles from `scratch` (the scored particles; trig their cos and sin) into poses[:keep] with
-    roughening, `injected` into poses[keep:], uniform weights; then the summary histograms, the estimate (when
-    `want_estimate`, moving `previous` to it) and the entropy (when `want_entropy`), as `_compiled_step`
-    computes them. Returns (estimate weight, position entropy, orientation entropy)."""
-    n = poses.shape[0]
-    bounds = np.empty(3)
-    for axis in range(3):
-        bounds[axis] = roughening[axis] * SQRT3
-    resample_with_jitter(weights, keep, scratch, bounds, poses, trig, function, state, counts, np.empty((3, 0)))
-    for i in range(n - keep):
-        for axis in range(3):
-            poses[keep + i, axis] = injected[i, axis]
-    log_weights[:] = -math.log(n)
-    weights[:] = 1.0 / n
-    return _summarize(grid, poses, weights, coordinates, histograms, bitmaps, want_estimate, previous, use_previous,
-                      out_mean, out_cov, want_entropy, fast)
-
-
-@numba.njit(cache=True)
-def _summarize(grid, source, weights, coordinates, histograms, bitmaps, want_estimate, previous, use_previous,
-               out_mean, out_cov, want_entropy, fast):
-    """The end of a step on one thread: the summary histograms (of `source`, or of the coordinates the
-    resampling wrote when it has no rows), the estimate when `want_estimate` (moving `previous` to it) and the
-    entropy when `want_entropy`. Returns (estimate weight, position entropy, orientation entropy)."""
-    summary_fill(grid, source, weights, coordinates, histograms, bitmaps)
-    weight = 0.0
-    if want_estimate:
-        if fast:
-            weight = summary_estimate_fast(grid, coordinates, weights, histograms, bitmaps, previous, use_previous,
-                                           out_mean, out_cov)
-        else:
-            weight = summary_estimate(grid, coordinates, weights, histograms, bitmaps, previous, use_previous,
-                                      out_mean, out_cov)
-        previous[:] = out_mean
-    position = orientation = 0.0
-    if want_entropy:
-        position, orientation = summary_entropy(grid, histograms, bitmaps)
-    return weight, position, orientation
-
-
-@numba.njit(cache=True)
-def _predict_and_score(poses, scratch, trig, log_likelihood, move, dx, dy, dtheta, bound_x, bound_y, bound_theta,
-                       gaussian, variates, function, state, table, offsets, detections, groups, log_outlier, exact,
-                       start, stop, fast, since):
-    """Particles start..stop moved (or copied) from `poses` into `scratch` a block at a time and scored there
-    while in cache (`score_block`, or `score_block_exact` when `exact`); cos and sin of their headings into `trig`
-    (for the roughening). since: (dx, dy, dθ) when the detections were captured earlier (copying only): each
-    particle is scored where it was at capture, moved back as `mcl.latency.move_back` moves it (`trig` keeps its
-    heading now)."""
-    work = block_work(offsets, groups, min(stop - start, BLOCK))
-    move_work = np.empty(MOVE_WORK)
-    for block in range(start, stop, BLOCK):
-        end = min(block + BLOCK, stop)
-        if not move:
-            scratch[block:end] = poses[block:end]
-        elif fast:
-            move_range_fast(poses, scratch, block, end, dx, dy, dtheta, bound_x, bound_y, bound_theta, gaussian,
-                            variates, function, state, move_work)
-        else:
-            move_range(poses, scratch, block, end, dx, dy, dtheta, bound_x, bound_y, bound_theta, gaussian,
-                       variates, function, state, move_work)
-        load_block(scratch, block, end - block, work, trig, fast)
-        if since.shape[0] > 0:
-            move_block_back(work, end - block, since, fast)
-        if exact:
-            score_block_exact(work, end - block, table, offsets, detections, groups, log_outlier)
-        else:
-            score_block(work, end - block, table, offsets, detections, groups, log_outlier)
-        log_likelihood[block:end] = work[TOTAL, :end - block]
-
-
-@numba.njit(cache=True, parallel=True)
-def _predict_and_score_chunked(poses, scratch, trig, log_likelihood, move, dx, dy, dtheta, bound_x, bound_y,
-                               bound_theta, gaussian, variates, table, offsets, detections, groups, log_outlier,
-                               exact, chunk, fast, since):
-    """`_predict_and_score` of all particles, the chunks on several threads (the noise drawn beforehand)."""
-    n = poses.shape[0]
-    for t in numba.prange(max(1, (n + chunk - 1) // chunk)):
-        _predict_and_score(poses, scratch, trig, log_likelihood, move, dx, dy, dtheta, bound_x, bound_y,
-                           bound_theta, gaussian, variates, 0, 0, table, offsets, detections, groups, log_outlier,
-                           exact, t * chunk, min(n, (t + 1) * chunk), fast, since)
-
-
-@numba.njit(cache=True, parallel=True)
-def _fill_chunked(first, first_value, second, second_value, chunk):
-    n = first.shape[0]
-    for t in numba.prange(max(1, (n + chunk - 1) // chunk)):
-        first[t * chunk:min(n, (t + 1) * chunk)] = first_value
-        second[t * chunk:min(n, (t + 1) * chunk)] = second_value
-
-
-@numba.njit(cache=True, parallel=True)
-def _copy_chunked(source, out, chunk):
-    n = source.shape[0]
-    for t in numba.prange(max(1, (n + chunk - 1) // chunk)):
-        out[t * chunk:min(n, (t + 1) * chunk)] = source[t * chunk:min(n, (t + 1) * chunk)]
-
-
-@numba.njit(cache=True)
-def _compiled_step(poses, log_weights, weights, log_likelihood, scratch, trig, counts, local,
-                   move, dx, dy, dtheta, bound_x, bound_y, bound_theta, gaussian, variates, function, state,
-                   kinds, ranges, bearings, range_sigmas, bearing_sigmas, table, offsets, range_noise_floor,
-                   range_noise_growth, bearing_sigma, log_outlier, exact,
-                   count, terms, augmented, alpha_slow, alpha_fast, ratio_threshold, fit_threshold, w_slow, w_fast,
-                   cap, resample_threshold, can_resample, roughening, state_rows, state_scratch,
-                   grid, coordinates, histograms, bitmaps, want_estimate, previous, use_previous, out_mean, out_cov,
-                   want_entropy, chunk, fast, since):
-    """predict (when `move`), the landmark likelihood, the weight update, augmented MCL's rates, systematic
-    resampling with roughening, the summary histograms, the estimate and (when `want_entropy`) the entropy, as
-    ParticleFilter.predict, correct and entropy compute them. Returns (status, native log average, ESS, w_slow,
-    w_fast, injection share, resampled, estimate weight, position entropy, orientation entropy: zero unless
-    computed); with an estimate, `previous` becomes its mean.
-
-    The particles are moved (or copied) block by block into `scratch` and scored there while they are in
-    cache, with cos and sin of their headings kept in `trig` for the roughening; resampling then copies from
-    `scratch` into `poses`, and without resampling `scratch` is copied back. variates: the Gaussian motion
-    noise drawn beforehand; for uniform noise, no rows (drawn here), or with `chunk` a (N, 3) scratch.
-    state_rows: a stateful motion model's per-particle state as rows (no rows: none), which resampling gathers
-    from the ancestors through `state_scratch` (`mcl.resampling.gather_offspring_rows`; one thread only: with
-    `chunk`, a filter with such state passes can_resample False and resamples in Python).
-
-    chunk > 0: the threads variant. The particles go through the stages in chunks of `chunk` spread over
-    threads, and every sum is taken chunk by chunk (`mcl.weights.weigh_chunked`,
-    `mcl.resampling.resample_with_jitter_chunked`, `mcl.estimate.summary_estimate_chunked`): the same
-    results for any number of threads, equal to the serial ones to rounding. `local`: the threads' fixed-point
-    histograms (`mcl.estimate.summary_fill_chunked`).
-    fast: sin, cos and exp by vectorized polynomials and the sums of the weights and of the estimate
-    reassociated; the same draws, results equal to rounding.
-    since: (dx, dy, dθ), the robot's motion since the detections were captured (no rows: captured now, or a
-    predict): each particle is scored moved back by it, and resampled where it is now.
-    """
-    n = poses.shape[0]
-    detections, groups, missing = prepare_detections(kinds, ranges, bearings, range_sigmas, bearing_sigmas, offsets,
-                                                     range_noise_floor, range_noise_growth, bearing_sigma, exact)
-    if missing >= 0:
-        return _STEP_MISSING, 0.0, 0.0, w_slow, w_fast, 0.0, False, 0.0, 0.0, 0.0
-    if chunk > 0:
-        if move and not gaussian:
-            parallel_uniforms(function, state, variates.reshape(-1), 3 * n)
-        _predict_and_score_chunked(poses, scratch, trig, log_likelihood, move, dx, dy, dtheta, bound_x, bound_y,
-                                   bound_theta, gaussian, variates, table, offsets, detections, groups, log_outlier,
-                                   exact, chunk, fast, since)
-        valid, native, log_evidence, ess = weigh_chunked(log_weights, log_likelihood, count, weights, chunk)
-    else:
-        _predict_and_score(poses, scratch, trig, log_likelihood, move, dx, dy, dtheta, bound_x, bound_y, bound_theta,
-                           gaussian, variates, function, state, table, offsets, detections, groups, log_outlier,
-                           exact, 0, n, fast, since)
-        if fast:
-            valid, native, log_evidence, ess = weigh_fast(log_weights, log_likelihood, count, weights)
-        else:
-            valid, native, log_evidence, ess = weigh(log_weights, log_likelihood, count, weights)
-    if not valid or log_evidence == -np.inf:
-        if move:
-            poses[:, :] = scratch
-        return (_STEP_INVALID if not valid else _STEP_UNEXPLAINED, native, 0.0, w_slow, w_fast, 0.0, False, 0.0,
-                0.0, 0.0)
-    fraction = 0.0
-    if augmented and terms > 0:
-        w_slow, w_fast, fraction = augmented_update(w_slow, w_fast, native / terms, alpha_slow, alpha_fast,
-                                                    ratio_threshold, fit_threshold)
-    # `_injection_count`: round(min(fraction, cap)·N) > 0, i.e. the product exceeds one half.
-    inject = augmented and (cap if cap < fraction else fraction) * n > 0.5
-    resample = ess < resample_threshold * n
-    if inject or (resample and not can_resample):
-        if move:
-            poses[:, :] = scratch
-        return _STEP_RESAMPLE, native, ess, w_slow, w_fast, fraction, False, 0.0, 0.0, 0.0
-    if resample:
-        bounds = np.empty(3)
-        for axis in range(3):
-            bounds[axis] = roughening[axis] * SQRT3
-        if chunk > 0:
-            resample_with_jitter_chunked(weights, n, scratch, bounds, poses, trig, function, state, counts,
-                                         coordinates, variates.reshape(-1), chunk)
-        else:
-            u0 = resample_with_jitter(weights, n, scratch, bounds, poses, trig, function, state, counts, coordinates)
-            if state_rows.shape[0] > 0:
-                gather_offspring_rows(weights, n, u0, counts, state_rows, state_scratch)
-        if chunk > 0:
-            _fill_chunked(log_weights, -math.log(n), weights, 1.0 / n, chunk)
-        else:
-            log_weights[:] = -math.log(n)
-            weights[:] = 1.0 / n
-        ess = float(n)
-        source = _NO_VARIATES                   # the coordinates were written by the resampling
-    else:
-        if move:
-            if chunk > 0:
-                _copy_chunked(scratch, poses, chunk)
-            else:
-                poses[:, :] = scratch
-        if chunk > 0:
-            reweigh_chunked(log_weights, log_likelihood, log_evidence, chunk)
-        else:
-            reweigh(log_weights, log_likelihood, log_evidence)
-        source = poses
-    if chunk > 0:
-        summary_fill_chunked(grid, source, weights, coordinates, histograms, bitmaps, local, chunk)
-        weight = 0.0
-        if want_estimate:
-            weight = summary_estimate_chunked(grid, coordinates, weights, histograms, bitmaps, previous, use_previous,
-                                              out_mean, out_cov, chunk)
-            previous[:] = out_mean
-        position = orientation = 0.0
-        if want_entropy:
-            position, orientation = summary_entropy(grid, histograms, bitmaps)
-    else:
-        weight, position, orientation = _summarize(grid, source, weights, coordinates, histograms, bitmaps,
-                                                   want_estimate, previous, use_previous, out_mean, out_cov,
-                                                   want_entropy, fast)
-    return _STEP_DONE, native, ess, w_slow, w_fast, fraction, resample, weight, position, orientation

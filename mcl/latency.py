@@ -27,7 +27,7 @@ import numpy as np
 
 from field.angles import wrap_angle, wrap_angles
 from field.checks import LARGEST_ANGLE, LARGEST_COORDINATE, real, reals
-from motion_models._kernels import sincos, sincos_reference
+from numerics.trig import moved_back, sincos, sincos_reference
 
 IDENTITY = (0.0, 0.0, 0.0)
 SAME_TIME = 1e-6     # s: times closer than this are one instant (log stamps are integer nanoseconds)
@@ -45,11 +45,7 @@ def move_back(poses: np.ndarray, displacement: np.ndarray, out: np.ndarray) -> N
     """out = each pose moved back by `displacement` (dx, dy, dθ), given in the frame of the earlier pose."""
     dx, dy, dtheta = displacement[0], displacement[1], displacement[2]
     for i in range(poses.shape[0]):
-        theta = poses[i, 2] - dtheta
-        c, s = sincos(theta)
-        out[i, 0] = poses[i, 0] - (c * dx - s * dy)
-        out[i, 1] = poses[i, 1] - (s * dx + c * dy)
-        out[i, 2] = wrap_angle(theta)
+        out[i, 0], out[i, 1], out[i, 2] = moved_back(poses[i, 0], poses[i, 1], poses[i, 2], dx, dy, dtheta)
 
 
 @numba.njit(cache=True)

@@ -17,7 +17,7 @@ import hashlib
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
-PACKAGES = ("field", "sensing", "motion_models", "mcl", "demos")
+PACKAGES = ("field", "numerics", "motion_models", "sensing", "mcl", "demos", "benchmarks")
 SOURCES_STAMP = ".numba-sources"
 
 

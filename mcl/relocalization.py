@@ -39,7 +39,9 @@ enters the filter, and it enters as evidence with a weight, never as a gate:
 
 The filter knows this class only by its methods (`bind`, `reset_region`, `reset_pose`, `mirror`, `carry`,
 `confirm`, `propose`, and the attribute `tracking`), so a team with other rules writes another class with the
-same methods. The design, the alternatives measured and the limits: docs/relocalization.md.
+same methods (`mcl.contracts.Relocalization`). The soccer rules live here: the named regions a belief is spread
+over (`REGIONS`, `region_bounds`), the heading reference, the mirror guard. The design, the alternatives measured
+and the limits: docs/relocalization.md.
 """
 from __future__ import annotations
 
@@ -51,12 +53,32 @@ import numpy as np
 
 from field import Field
 from field.angles import wrap_angle, wrap_angles
+from field.checks import LARGEST_COORDINATE, reals
 from sensing.observations import Observations
 from sensing.resetting import poses_from_pairs
 
 from .resampling import systematic
 
 TWO_PI = 2.0 * math.pi
+
+
+REGIONS = ("field", "own_half", "opponent_half")
+"""The named regions a belief can be spread over (the own half is x < 0: the team plays towards +x)."""
+
+
+def region_bounds(field: Field, region) -> tuple[float, float, float, float]:
+    """(x_min, x_max, y_min, y_max) of a named region of `field` (`REGIONS`) or of given bounds (checked)."""
+    hl, hw = field.half_length, field.half_width
+    if isinstance(region, str):
+        if region not in REGIONS:
+            raise ValueError(f"region = {region!r} must be one of {REGIONS} or (x_min, x_max, y_min, y_max)")
+        return {"field": (-hl, hl, -hw, hw), "own_half": (-hl, 0.0, -hw, hw),
+                "opponent_half": (0.0, hl, -hw, hw)}[region]
+    x_min, x_max, y_min, y_max = (float(v) for v in reals("region", region, 4, -LARGEST_COORDINATE,
+                                                          LARGEST_COORDINATE))
+    if x_min >= x_max or y_min >= y_max:
+        raise ValueError(f"region = {region!r} must have x_min < x_max and y_min < y_max")
+    return x_min, x_max, y_min, y_max
 
 
 @dataclass(frozen=True)

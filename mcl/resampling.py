@@ -11,7 +11,7 @@ variates drawn beforehand; the `*_reference` functions are plain numpy twins tha
 
 The filter resamples with `resample_with_jitter` (`systematic_with_jitter` allocates its scratch):
 systematic resampling, the copy from the ancestors and the roughening jitter in one pass, drawing its
-uniforms in the kernel from the filter's generator (see `motion_models._kernels.next_double`); the same
+uniforms in the kernel from the filter's generator (see `numerics.random.next_double`); the same
 particles, bit for bit, as `systematic` followed by `gather_with_jitter` on `rng.random((M, 3))`, without
 the ancestor array or the variate array.
 """
@@ -23,7 +23,8 @@ import numba
 import numpy as np
 
 from field.angles import wrap_angles
-from motion_models._kernels import draw_uniforms, next_double, parallel_uniforms, sincos, sincos_reference, wrap
+from numerics.random import draw_uniforms, next_double, parallel_uniforms
+from numerics.trig import sincos, sincos_reference, wrap
 
 
 @numba.njit(cache=True, inline="always")
@@ -213,7 +214,7 @@ def _passed_counts(weights, m, u0, counts):
 
 
 @numba.njit(cache=True)
-def _systematic_counted(weights, m, u0, out, counts):
+def systematic_counted(weights, m, u0, out, counts):
     """`_systematic` by counting; counts (M + 1,) int64 zero on entry and on return."""
     _passed_counts(weights, m, u0, counts)
     ancestor = 0

@@ -54,11 +54,12 @@ import numpy as np
 import scipy.linalg
 
 from field.angles import wrap_angles
-from sensing.collision import CollisionPercept
+from numerics.random import PCG64_STEPS, bit_generator_handle, deferred_uniform, draw_rows_deferring
+from numerics.trig import sincos, sincos_reference, wrap
 
-from ._kernels import (DRAWS, PCG64_STEPS, bit_generator_handle, deferred_uniform, draw_rows_deferring, sincos,
-                       sincos_reference, wrap)
 from .base import MAX_NOISE_PARAMETER, MotionInput, check_nonnegative, check_poses
+from .kernels import DRAWS
+from .percepts import CollisionPercept
 
 FREE, SLIPPAGE, HINDRANCE, PUSHED, STOPPED = range(5)
 STATES = ("free", "slippage", "hindrance", "pushed", "stopped")
@@ -283,7 +284,7 @@ def adaptive_move(poses, state, cumulative, vx, vy, omega, dt, side, params, red
 def adaptive_move_drawing(poses, state, cumulative, vx, vy, omega, dt, side, params, redraw_each_step, function,
                           generator):
     """`adaptive_move` with its variates drawn here, a block of particles at a time, from a bit generator
-    (`motion_models._kernels.bit_generator_handle`): the same poses and states as `adaptive_move(...,
+    (`numerics.random.bit_generator_handle`): the same poses and states as `adaptive_move(...,
     rng.random((N, 7)))`, without the (N, 7) array.
 
     With numpy's PCG64 the three episode values of a particle are computed only when it takes them
@@ -310,7 +311,7 @@ def _adaptive_range(poses, state, cumulative, vx, vy, omega, dt, side, params, r
                     deferred, bases, increments, first, start, stop, rows):
     """`adaptive_move` of particles start..stop-1; particle i's variates are all_variates[i - first], whose
     episode values (columns 1-3) are computed from bases[i - first] and increments when `deferred`
-    (`motion_models._kernels.draw_rows_deferring`). rows: (MOVE_ROWS, DRAWS) scratch. A block of particles at
+    (`numerics.random.draw_rows_deferring`). rows: (MOVE_ROWS, DRAWS) scratch. A block of particles at
     a time, in two passes: each particle's state and robot-frame displacement, then the rotation into the
     field frame, whose cos and sin take a loop that vectorizes (`sincos`)."""
     for block in range(start, stop, DRAWS):

@@ -17,6 +17,9 @@ from typing import Any, Protocol, runtime_checkable
 import numpy as np
 
 from field.checks import LARGEST_ANGLE, real, reals
+from numerics.random import draw_variates
+
+from .kernels import move_with_noise
 
 # The largest pose change one motion input may ask for: far beyond any robot's step (a field is at most 22 m
 # long), small enough that every pose a filter computes from it stays finite. A larger one is refused with a
@@ -136,8 +139,6 @@ class BoundedNoiseModel:
         raise NotImplementedError
 
     def predict(self, poses: np.ndarray, u: MotionInput, rng: np.random.Generator) -> None:
-        from ._kernels import draw_variates, move_with_noise
-
         check_poses(poses)
         dx, dy, dtheta = u.displacement()
         bx, by, bt = self.noise_bounds(u)

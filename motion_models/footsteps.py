@@ -14,7 +14,7 @@ A footstep displacement is the change of the robot's reference pose between two 
 swaps, expressed in the robot frame at the earlier swap (+x forward, +y left): for poses p_k = (x, y, θ)
 at the swaps, Δ_k = (R(-θ_k)·(x_{k+1} - x_k, y_{k+1} - y_k), wrap(θ_{k+1} - θ_k)). `integrate` composes
 them back: the paper's "re-integration" of predicted footsteps (section III-D). Both are vectorized numpy;
-the per-particle hot path of a footstep model is `motion_models._kernels.move_with_noise`.
+the per-particle hot path of a footstep model is `motion_models.kernels.move_with_noise`.
 
 Support foot: `LEFT` (+1) when the left foot is on the ground during the step, `RIGHT` (-1) otherwise; the
 LWPR inputs use this ±1 value as the paper's binary support-foot variable.

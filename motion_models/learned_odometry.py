@@ -52,10 +52,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from field.checks import show as _short_repr
+from numerics.trig import SQRT3
 
-from ._kernels import SQRT3, move_with_noise
 from .base import MotionInput, check_poses
 from .footsteps import INPUT_KINDS, N_INPUTS, FootstepEvent
+from .kernels import move_with_noise
 from .lwpr import LWPR
 
 OUTPUTS = ("dx", "dy", "dtheta")

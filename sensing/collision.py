@@ -45,6 +45,8 @@ from pathlib import Path
 import numpy as np
 
 from field.checks import show as _short_repr
+from motion_models.lwpr import load_npz
+from motion_models.percepts import NO_COLLISION, CollisionPercept  # noqa: F401 (re-exported: the detector's percept)
 
 LEFT_LEG, RIGHT_LEG = 0, 1
 FORMAT = "robocup-mcl collision reference"
@@ -221,9 +223,6 @@ class CollisionReference:
         if not isinstance(path, (str, bytes, os.PathLike)):
             raise TypeError(f"path = {_short_repr(path)} must be a str or os.PathLike, not {type(path).__name__}")
         path = os.fspath(path)
-        # Imported here: motion_models imports this module (AdaptiveMotion takes its percepts).
-        from motion_models.lwpr import load_npz
-
         data = load_npz(path, "a collision reference")
         where = f"collision reference {path!r}"
 
@@ -332,49 +331,6 @@ def learn_reference(commands, readings, phase, walk_commands, joint_sides, *, wi
     return CollisionReference(delays, joint_sides, int(window), grid[kept], table[:, kept, :], float(half_stance))
 
 
-@dataclass(frozen=True)
-class CollisionPercept:
-    """What the detector says about one frame.
-
-    left, right:        a collision on that side now (S_rel > 1)
-    s_rel_left/right:   the relative deviations S_rel = D / R
-    rate:               share of the recent frames (the detector's `recent_frames`) with a collision
-    recent_left/right:  the side(s) of the latest collision, while it is recent
-    """
-
-    left: bool = False
-    right: bool = False
-    s_rel_left: float = 0.0
-    s_rel_right: float = 0.0
-    rate: float = 0.0
-    recent_left: bool = False
-    recent_right: bool = False
-
-    def __post_init__(self) -> None:
-        for name in ("s_rel_left", "s_rel_right", "rate"):
-            value = getattr(self, name)
-            if not (isinstance(value, (int, float, np.floating)) and math.isfinite(value) and value >= 0):
-                raise ValueError(f"{name} = {value!r} must be a finite number >= 0")
-        if self.rate > 1:
-            raise ValueError(f"rate = {self.rate!r} must be within [0, 1]")
-
-    @property
-    def collision(self) -> bool:
-        return self.left or self.right
-
-    @property
-    def side(self) -> int | None:
-        """c(z_c) of Hoffmann eq. 26 over the recent frames: +1 left, -1 right, 0 both, None for no collision."""
-        if self.recent_left and self.recent_right:
-            return 0
-        if self.recent_left:
-            return 1
-        if self.recent_right:
-            return -1
-        return None
-
-
-NO_COLLISION = CollisionPercept()
 
 
 class CollisionDetector:

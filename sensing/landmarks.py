@@ -33,16 +33,18 @@ Kernels. `landmark_log_likelihood` computes every variant particle by particle. 
 max-mixture) runs in `von_mises_log_likelihood`, which takes the particles a block at a time so that its
 loops vectorize across particles, with the same results bit for bit (see the comment above it);
 `prepare_detections` turns a batch into its per-detection constants, grouped by type, once per call. A
-compiled filter step calls `load_block` and `score_block` itself (`compiled_likelihood`). The exact bearing
+compiled filter step calls `fused_score` (which runs `score_block`) on each block of particles itself
+(`fused_likelihood`, in the calling convention of `sensing.fused`). The exact bearing
 term with the max-mixture runs in blocks too (`exact_log_likelihood`; `score_block_exact`, which a compiled
-filter step calls the same way), with a polynomial atan2 that vectorizes (`motion_models._kernels.atan2_poly`)
+filter step calls the same way), with a polynomial atan2 that vectorizes (`numerics.trig.atan2_poly`)
 and the detections' bearings wrapped once: equal to the particle-by-particle kernel, which takes libm's atan2,
 to rounding, and about 4.5 times faster.
 """
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field as dataclass_field
+from dataclasses import dataclass
+from dataclasses import field as dataclass_field
 
 import numba
 import numpy as np
@@ -52,8 +54,11 @@ from numba.extending import overload
 from field import Field, LandmarkType
 from field.angles import TWO_PI, wrap_angle, wrap_angles
 from field.checks import LARGEST_SIGMA, SMALLEST_SIGMA, ArgumentTypeError, real
-from motion_models._kernels import FAST, atan2_poly, bounded_integers, draw_handles, draw_uniforms, sincos
+from numerics.compile import variant
+from numerics.random import bounded_integers, draw_handles, draw_uniforms
+from numerics.trig import FAST, atan2_poly, moved_back, sincos, sincos_rows, sincos_rows_fast
 
+from .fused import FusedLikelihoodKernels
 from .observations import Observations
 from .view import CameraView
 
@@ -135,13 +140,8 @@ def _landmark_log_likelihood(poses, trig, table, offsets, kinds, ranges, bearing
 # the exact term, whose results may then differ in the last bits from one machine to another (fused
 # multiply-adds where the processor has them). `LandmarkSensorModel` runs the exact term with the max-mixture
 # in blocks instead (`exact_log_likelihood`); this kernel scores it with the sum-mixture, and as the reference.
-@numba.njit(cache=True, fastmath=FAST)
-def _landmark_log_likelihood_fast(poses, trig, table, offsets, kinds, ranges, bearings, range_sigmas, bearing_sigmas,
-                                  range_noise_floor, range_noise_growth, bearing_sigma, exact, sum_mixture,
-                                  log_outlier, out):
-    """`_landmark_log_likelihood` compiled with fast-math."""
-    _general_likelihood(poses, trig, table, offsets, kinds, ranges, bearings, range_sigmas, bearing_sigmas,
-                        range_noise_floor, range_noise_growth, bearing_sigma, exact, sum_mixture, log_outlier, out)
+_landmark_log_likelihood_fast = variant(_landmark_log_likelihood.py_func, "fast", fastmath=FAST)
+"""`_landmark_log_likelihood` compiled with fast-math."""
 
 
 @numba.njit(cache=True, inline="always")
@@ -333,18 +333,13 @@ def block_work(offsets, groups, columns):
     return np.empty((GEOMETRY + 3 * widest, columns))
 
 
-@numba.njit(cache=True, error_model="numpy")
-def _trig_rows(work, count):
-    """Rows COS and SIN of the work array from the headings in its row TOTAL (a loop that vectorizes)."""
-    for p in range(count):
-        work[COS, p], work[SIN, p] = sincos(work[TOTAL, p])
-
-
-@numba.njit(cache=True, fastmath=FAST, error_model="numpy")
-def _trig_rows_fast(work, count):
-    """`_trig_rows` with fast-math."""
-    for p in range(count):
-        work[COS, p], work[SIN, p] = sincos(work[TOTAL, p])
+@numba.njit(cache=True, inline="always")
+def _trig_rows(work, count, fast):
+    """Rows COS and SIN of the work array from the headings in its row TOTAL (`numerics.trig.sincos_rows`)."""
+    if fast:
+        sincos_rows_fast(work[TOTAL], work[COS], work[SIN], count)
+    else:
+        sincos_rows(work[TOTAL], work[COS], work[SIN], count)
 
 
 @numba.njit(cache=True)
@@ -356,10 +351,7 @@ def load_block(poses, start, count, work, trig, fast=False):
         work[X, p] = poses[start + p, 0]
         work[Y, p] = poses[start + p, 1]
         work[TOTAL, p] = poses[start + p, 2]
-    if fast:
-        _trig_rows_fast(work, count)
-    else:
-        _trig_rows(work, count)
+    _trig_rows(work, count, fast)
     if trig.shape[0] > 0:
         for p in range(count):
             trig[start + p, 0] = work[COS, p]
@@ -369,11 +361,7 @@ def load_block(poses, start, count, work, trig, fast=False):
 @numba.njit(cache=True, error_model="numpy")
 def _move_rows_back(work, count, dx, dy, dtheta):
     for p in range(count):
-        theta = work[TOTAL, p] - dtheta
-        c, s = sincos(theta)
-        work[X, p] = work[X, p] - (c * dx - s * dy)
-        work[Y, p] = work[Y, p] - (s * dx + c * dy)
-        work[TOTAL, p] = wrap_angle(theta)
+        work[X, p], work[Y, p], work[TOTAL, p] = moved_back(work[X, p], work[Y, p], work[TOTAL, p], dx, dy, dtheta)
 
 
 @numba.njit(cache=True)
@@ -384,10 +372,7 @@ def move_block_back(work, count, displacement, fast=False):
     for bit. Scores detections captured before the particles moved (camera latency) without writing the
     moved-back poses anywhere (a loop over rows, which vectorizes)."""
     _move_rows_back(work, count, displacement[0], displacement[1], displacement[2])
-    if fast:
-        _trig_rows_fast(work, count)
-    else:
-        _trig_rows(work, count)
+    _trig_rows(work, count, fast)
 
 
 @numba.njit(cache=True, error_model="numpy")
@@ -490,6 +475,52 @@ def score_block_exact(work, count, table, offsets, detections, groups, log_outli
             for p in range(count):
                 best = work[last, p]
                 work[TOTAL, p] += log_outlier if log_outlier > best else best
+
+
+# -- the fused step's kernels (`sensing.fused`: the calling convention) -------------------------------------------
+@numba.njit(cache=True)
+def fused_prepare(inputs, params):
+    """`prepare` of `LandmarkSensorModel.fused_likelihood`: the frame (table, offsets, the detections and their
+    groups by type (`prepare_detections`), log outlier weight, exact) and the first detection whose type has no
+    landmark (-1 if none)."""
+    kinds, ranges, bearings, range_sigmas, bearing_sigmas = inputs
+    _, offsets, range_noise_floor, range_noise_growth, bearing_sigma, _, exact = params
+    detections, groups, missing = prepare_detections(kinds, ranges, bearings, range_sigmas, bearing_sigmas, offsets,
+                                                     range_noise_floor, range_noise_growth, bearing_sigma, exact)
+    return (params[0], offsets, detections, groups, params[5], exact), missing
+
+
+@numba.njit(cache=True)
+def fused_workspace(frame, columns):
+    """`workspace`: the work array `score_block` needs for `columns` particles (`block_work`)."""
+    return block_work(frame[1], frame[3], columns)
+
+
+@numba.njit(cache=True)
+def fused_score(poses, trig, start, count, work, since, fast, frame, out):
+    """`score`: out[start:start + count] = the log-likelihoods of poses[start:start + count] (cos and sin of
+    their headings in trig), moved back by `since` when it has rows, by `score_block` (or `score_block_exact`)."""
+    table, offsets, detections, groups, log_outlier, exact = frame
+    for p in range(count):
+        work[X, p] = poses[start + p, 0]
+        work[Y, p] = poses[start + p, 1]
+        work[TOTAL, p] = poses[start + p, 2]
+        work[COS, p] = trig[start + p, 0]
+        work[SIN, p] = trig[start + p, 1]
+    if since.shape[0] > 0:
+        move_block_back(work, count, since, fast)
+    if exact:
+        score_block_exact(work, count, table, offsets, detections, groups, log_outlier)
+    else:
+        score_block(work, count, table, offsets, detections, groups, log_outlier)
+    for p in range(count):
+        out[start + p] = work[TOTAL, p]
+
+
+def _fused_inputs(observations: Observations) -> tuple:
+    """`inputs`: the detections' arrays, as `fused_prepare` takes them."""
+    return (observations.kinds, observations.ranges, observations.bearings, observations.range_sigmas,
+            observations.bearing_sigmas)
 
 
 @numba.njit(cache=True)
@@ -975,17 +1006,18 @@ class LandmarkSensorModel:
                                                             VIEW_BEARING_SLACK)) for pose in poses], dtype=np.float64)
         return missed * math.log1p(-self.detection_rate)
 
-    def compiled_likelihood(self) -> tuple | None:
-        """What a compiled filter step needs to run this model's likelihood itself (`prepare_detections`, then
-        `score_block`, or `score_block_exact` for the exact bearing term): (table, offsets, range_noise_floor,
-        range_noise_growth, bearing_sigma, log outlier_weight, exact); None for the sum mixture, which the filter
-        scores through `log_likelihood`. A subclass that changes `log_likelihood` must return None.
-        range_noise_growth is the float c, or the pair (range_noise_linear, c) when the model has a linear term:
-        the kernels take either (`range_noise_sigma`)."""
+    def fused_likelihood(self) -> FusedLikelihoodKernels | None:
+        """This model's likelihood for the filter's fused compiled step (`sensing.fused`): `fused_prepare`,
+        `fused_workspace` and `fused_score` with params (table, offsets, range_noise_floor, range_noise_growth,
+        bearing_sigma, log outlier_weight, exact); None for the sum mixture, which the filter scores through
+        `log_likelihood`. A subclass that changes `log_likelihood` must return None. range_noise_growth is the
+        float c, or the pair (range_noise_linear, c) when the model has a linear term: the kernels take either
+        (`range_noise_sigma`). A frame with a camera view is scored through `log_likelihood` (`scores_view`)."""
         if self.mixture != "max":
             return None
-        return (self._table, self._offsets, float(self.range_noise_floor), self._range_noise_growth(),
-                float(self.bearing_sigma), math.log(self.outlier_weight), self.bearing_model == "exact")
+        params = (self._table, self._offsets, float(self.range_noise_floor), self._range_noise_growth(),
+                  float(self.bearing_sigma), math.log(self.outlier_weight), self.bearing_model == "exact")
+        return FusedLikelihoodKernels(fused_prepare, fused_workspace, fused_score, params, _fused_inputs)
 
     def log_likelihood_reference(self, poses: np.ndarray, observations: Observations) -> np.ndarray:
         """The same, in plain numpy (slow; for tests and the benchmark)."""

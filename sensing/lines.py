@@ -15,7 +15,8 @@ proper, as B-Human keeps it), so scoring a point is a lookup and a multiplicatio
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field as dataclass_field
+from dataclasses import dataclass
+from dataclasses import field as dataclass_field
 
 import numba
 import numpy as np
@@ -23,7 +24,7 @@ from scipy import ndimage
 
 from field import Field
 from field.checks import LARGEST_SIGMA, SMALLEST_SIGMA, ArgumentTypeError, integer, real
-from motion_models._kernels import sincos, sincos_reference
+from numerics.trig import sincos, sincos_reference
 
 from .observations import Observations
 

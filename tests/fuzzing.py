@@ -17,6 +17,7 @@ import types
 from collections import Counter, deque
 
 import numpy as np
+from numba.core.dispatcher import Dispatcher
 from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
 
@@ -100,7 +101,8 @@ def snapshot(obj, _seen=None):
         return ("scalar", obj.dtype.str, obj.tobytes())
     if isinstance(obj, np.random.Generator):
         return ("generator", repr(obj.bit_generator.state))
-    if isinstance(obj, (types.FunctionType, types.BuiltinFunctionType, types.MethodType, types.ModuleType, type)):
+    if isinstance(obj, (types.FunctionType, types.BuiltinFunctionType, types.MethodType, types.ModuleType, type,
+                        Dispatcher)):
         return ("callable", getattr(obj, "__qualname__", repr(obj)))
     params = getattr(type(obj), "__dataclass_params__", None)
     if params is not None and params.frozen:

@@ -6,7 +6,8 @@ import pickle
 
 import numpy as np
 import pytest
-from hypothesis import given, strategies as st
+from hypothesis import given
+from hypothesis import strategies as st
 
 from field import spl
 from mcl import ParticleFilter
@@ -313,8 +314,8 @@ def test_drawing_in_the_kernel_equals_the_drawn_variates(bit_generator, seed, n,
     # `predict` draws the 7 uniforms per particle inside the kernel, a block at a time (with PCG64 the episode
     # values only for the particles that take them): the same poses and states, bit for bit, as `adaptive_move`
     # on rng.random((n, 7)), and the generator ends where that leaves it.
-    from motion_models._kernels import bit_generator_handle
     from motion_models.adaptive import adaptive_move_drawing
+    from numerics.random import bit_generator_handle
     setup = np.random.default_rng(seed)
     poses = np.column_stack([setup.uniform(-4, 4, n), setup.uniform(-3, 3, n), setup.uniform(-3, 3, n)])
     state = np.column_stack([setup.integers(0, 5, n), setup.random((n, 3))]).astype(np.float64)

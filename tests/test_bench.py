@@ -12,8 +12,9 @@ import sys
 import numpy as np
 import pytest
 
-from mcl import bench, bench_step
-from mcl.bench_report import evaluate_targets, format_report
+from benchmarks import bench
+from benchmarks import step as bench_step
+from benchmarks.report import evaluate_targets, format_report
 from mcl.cli import main as cli_main
 
 TINY = ["--quick", "--sizes", "40,120", "--budget", "0.002"]
@@ -161,7 +162,7 @@ def test_between_frames_times_both_steps_at_each_small_n(quick_run):
 
 
 def test_between_frames_sleeps_before_every_timed_call(monkeypatch):
-    from mcl import bench_models
+    from benchmarks import models as bench_models
 
     events = []
     monkeypatch.setattr(bench_models.time, "sleep", lambda seconds: events.append(("sleep", seconds)))
@@ -288,7 +289,7 @@ def test_the_adaptive_step_resamples_in_the_compiled_step(monkeypatch):
 def test_adaptive_phase_starts_from_its_stationary_mix():
     # The collision phase is timed from the stationary mix of its transitions, so its cost does not drift
     # with the number of calls: one more transition leaves the shares of the five states where they were.
-    from mcl.bench_step import COLLISION, stationary_mobility
+    from benchmarks.step import COLLISION, stationary_mobility
     from motion_models import AdaptiveMotion, MotionInput
     model = AdaptiveMotion()
     u = MotionInput(dt=0.01, command=(0.2, 0.0, 0.1), collision=COLLISION)
@@ -301,7 +302,7 @@ def test_adaptive_phase_starts_from_its_stationary_mix():
 
 
 def test_adaptive_ratio_takes_the_slower_scenario():
-    from mcl.bench_report import adaptive_ratios
+    from benchmarks.report import adaptive_ratios
     phases = {"predict_adaptive": {"numba_s": 1.2}, "predict_adaptive_quiet": {"numba_s": 1.6},
               "predict_velocity_linear": {"numba_s": 1.0}}
     assert adaptive_ratios({"rows": [{"n": 10, "phases": phases}]}) == [(10, 1.6)]

@@ -9,8 +9,8 @@ from pathlib import Path
 
 import pytest
 
-from mcl import bench_compare as bc
-from mcl.bench_compare import CompareError, Side
+from benchmarks import compare as bc
+from benchmarks.compare import CompareError, Side
 
 
 def _result(step: float, b2b: float, phase: float, loop_us: float = 30.0, n: int = 100) -> dict:

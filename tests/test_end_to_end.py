@@ -113,6 +113,6 @@ def test_walk_with_lines_runs(capsys):
 
 
 def test_bench_reports_the_accuracy_cost_of_the_fast_bearing_term():
-    from mcl.bench import bearing_accuracy
+    from benchmarks.bench import bearing_accuracy
     accuracy = bearing_accuracy(n=500)
     assert 0.0 <= accuracy["total_variation"] < 0.01

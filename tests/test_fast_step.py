@@ -14,17 +14,18 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
+from benchmarks.reference import PHASES, compiled_phases, full_step, sample_injection_reference
+from benchmarks.step import COLLISION
 from field import spl
 from mcl import AugmentedMCL, Entropy, Estimate, ParticleFilter
-from mcl.bench_step import COLLISION
 from mcl.estimate import cluster_estimate, grid_entropy
-from mcl.filter import augmented_update
-from mcl.reference import PHASES, compiled_phases, full_step, sample_injection_reference
 from mcl.relocalization import RelocalizationPrior, SoccerRelocalization
 from mcl.resampling import SCHEMES, gather_with_jitter
+from mcl.step import augmented_update
 from mcl.weights import log_mean_likelihood, normalize
 from motion_models import AdaptiveMotion, ConstantNoise, MotionInput, VelocityLinear
-from motion_models._kernels import CHUNK, balanced_chunk, draw_variates
+from numerics.chunks import CHUNK, balanced_chunk
+from numerics.random import draw_variates
 from sensing import LandmarkSensorModel, Observations
 from sensing.collision import NO_COLLISION
 
@@ -34,9 +35,9 @@ TRUE_POSE = np.array([1.0, 0.5, 0.3])
 
 @dataclass(frozen=True, eq=False)
 class StagedLandmarks(LandmarkSensorModel):
-    """The landmark model without `compiled_likelihood`: the filter scores through `log_likelihood`."""
+    """The landmark model without `fused_likelihood`: the filter scores through `log_likelihood`."""
 
-    def compiled_likelihood(self):
+    def fused_likelihood(self):
         return None
 
 
@@ -215,11 +216,11 @@ def test_compiled_path_equals_the_plain_sequence_bit_for_bit(options, use_step):
                                  dict(range_noise_linear=0.03, bearing_model="exact")])
 @pytest.mark.parametrize("use_step", [True, False])
 def test_compiled_path_with_a_linear_range_noise_law_equals_the_plain_sequence_bit_for_bit(law, use_step):
-    """σ_r = floor + linear·r + growth·r² reaches the compiled step through `compiled_likelihood()` (the pair
+    """σ_r = floor + linear·r + growth·r² reaches the compiled step through `fused_likelihood()` (the pair
     (linear, growth)): the one-dispatch step, sensor resetting included, gives what the plain calls give."""
     compiled = make(sensor=LandmarkSensorModel(FIELD, **law))
     plain = PlainFilter(FIELD, VelocityLinear(), StagedLandmarks(FIELD, **law), n_particles=300, seed=0)
-    assert compiled._sensor_kernel()[3] == (law["range_noise_linear"], law.get("range_noise_growth", 0.02))
+    assert compiled._sensor_kernel().params[3] == (law["range_noise_linear"], law.get("range_noise_growth", 0.02))
     for pf in (compiled, plain):
         pf.reset_uniform("own_half")
     for _ in zip(scenario(compiled, use_step=use_step), scenario(plain, use_step=use_step)):
@@ -667,12 +668,12 @@ def test_a_steady_state_step_allocates_nothing_that_grows_with_n(options):
 def test_issue_shaped_step_equals_its_numpy_twin(fast):
     # The benchmark's C-reference-shaped step (predict, likelihood, normalize + ESS, systematic resampling
     # without roughening, grid entropy) against the numpy references fed the same draws.
-    from mcl.bench_step import bench_setup
+    from benchmarks.reference import issue_shaped_step
+    from benchmarks.step import bench_setup
     from mcl.estimate import grid_entropy_reference
-    from mcl.reference import issue_shaped_step
     from mcl.resampling import systematic_reference
     from mcl.weights import normalize_reference
-    from motion_models._kernels import move_with_noise_reference
+    from motion_models.kernels import move_with_noise_reference
 
     pf, u, observations = bench_setup(700, fast=fast)
     pf.step(u, observations)

@@ -11,7 +11,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from motion_models._lwpr_reference import ReferenceLWPR
+from motion_models.lwpr_reference import ReferenceLWPR
 from motion_models.lwpr import FORMAT_VERSION, LWPR
 
 

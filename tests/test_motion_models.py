@@ -8,8 +8,9 @@ from hypothesis import strategies as st
 
 from field.angles import wrap_angle, wrap_angles
 from motion_models import ConstantNoise, MotionInput, VelocityLinear
-from motion_models._kernels import (atan2_poly, atan2_poly_reference, draw_variates, move_with_noise,
-                                    move_with_noise_reference, sincos, sincos_reference, wrap)
+from motion_models.kernels import move_with_noise, move_with_noise_reference
+from numerics.random import draw_variates
+from numerics.trig import atan2_poly, atan2_poly_reference, sincos, sincos_reference, wrap
 
 finite = st.floats(-5, 5, allow_nan=False)
 speeds = st.tuples(st.floats(-0.4, 0.4), st.floats(-0.2, 0.2), st.floats(-1.5, 1.5))
@@ -174,7 +175,7 @@ def test_predict_rejects_bad_pose_arrays():
 def test_kernel_draws_are_the_generators_own(bit_generator, seed, counts, jump):
     """draw_uniforms, next_double and parallel_uniforms give what rng.random gives and leave the generator where
     rng.random leaves it (numpy's PCG64 is stepped in the kernel, the others through next_double)."""
-    from motion_models._kernels import bit_generator_handle, draw_uniforms, next_double, parallel_uniforms
+    from numerics.random import bit_generator_handle, draw_uniforms, next_double, parallel_uniforms
 
     plain = np.random.Generator(bit_generator(seed))
     drawn = np.random.Generator(bit_generator(seed))
@@ -211,7 +212,7 @@ integer_highs = st.one_of(st.integers(1, 40), st.sampled_from([2**31 - 1, 2**31,
 def test_kernel_integers_are_the_generators_own(bit_generator, seed, draws):
     """bounded_integers gives what rng.integers(0, high, size) gives, interleaved with uniforms, and leaves the
     generator where numpy leaves it, the unused half of a 64-bit output included."""
-    from motion_models._kernels import bit_generator_handle, bounded_integers, integers_function, next_double
+    from numerics.random import bit_generator_handle, bounded_integers, integers_function, next_double
 
     plain = np.random.Generator(bit_generator(seed))
     drawn = np.random.Generator(bit_generator(seed))
@@ -232,8 +233,8 @@ def test_deferred_columns_are_the_generators_own(bit_generator, seed, width, def
     """draw_rows_deferring gives rng.random((count, width)) in the columns it computes, deferred_uniform the
     deferred ones, and the generator ends where rng.random leaves it; with a shape it cannot defer (or another
     bit generator), every column is drawn."""
-    from motion_models._kernels import (PCG64_INLINE, PCG64_LANES, PCG64_STEPS, bit_generator_handle,
-                                        deferred_uniform, draw_rows_deferring)
+    from numerics.random import (PCG64_INLINE, PCG64_LANES, PCG64_STEPS, bit_generator_handle, deferred_uniform,
+                                 draw_rows_deferring)
 
     plain = np.random.Generator(bit_generator(seed))
     drawn = np.random.Generator(bit_generator(seed))
@@ -256,7 +257,7 @@ def test_deferred_columns_are_the_generators_own(bit_generator, seed, width, def
 
 
 def test_the_default_generator_is_stepped_in_the_kernel():
-    from motion_models._kernels import PCG64_INLINE, bit_generator_handle
+    from numerics.random import PCG64_INLINE, bit_generator_handle
 
     assert bit_generator_handle(np.random.default_rng(0))[0] == PCG64_INLINE
     assert bit_generator_handle(np.random.Generator(np.random.MT19937(0)))[0] != PCG64_INLINE
@@ -264,7 +265,8 @@ def test_the_default_generator_is_stepped_in_the_kernel():
 
 @given(poses_strategy(40), speeds, st.integers(0, 2**32 - 1))
 def test_drawing_kernel_equals_the_kernel_on_drawn_variates(poses, command, seed):
-    from motion_models._kernels import bit_generator_handle, move_drawing_noise
+    from motion_models.kernels import move_drawing_noise
+    from numerics.random import bit_generator_handle
 
     model = VelocityLinear()
     u = MotionInput(dt=0.01, command=command)
@@ -293,7 +295,8 @@ def test_wrap_is_wrap_angle_bit_for_bit(angles):
 @given(poses_strategy(60), speeds, st.booleans(), st.integers(0, 2**32 - 1))
 def test_fast_motion_matches_to_rounding(poses, command, gaussian, seed):
     """The opt-in fast kernel: polynomial sin and cos (sincos), the same draws."""
-    from motion_models._kernels import NO_WORK, bit_generator_handle, move_range, move_range_fast
+    from motion_models.kernels import NO_WORK, move_range, move_range_fast
+    from numerics.random import bit_generator_handle
 
     model = VelocityLinear(gaussian=gaussian)
     u = MotionInput(dt=0.02, command=command)
@@ -391,8 +394,7 @@ def _filter(model):
                                     dict(dt=1e300, command=(0.0, 0.0, 1e300)),
                                     dict(dt=0.01, odometry=(1e6, 0.0, 0.0))])
 def test_a_step_beyond_the_bounds_is_refused_naming_the_input(kwargs):
-    from motion_models.base import MAX_STEP_DISTANCE
-    from motion_models.base import MAX_STEP_DT
+    from motion_models.base import MAX_STEP_DISTANCE, MAX_STEP_DT
     with pytest.raises(ValueError, match=r"^(odometry|dt = .* with command|dt) = ") as error:
         MotionInput(**kwargs)
     bound = f"{MAX_STEP_DT:g}" if str(error.value).startswith("dt = ") and "command" not in str(error.value) \

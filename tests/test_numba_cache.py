@@ -30,7 +30,7 @@ warnings.filterwarnings("error", message=".*cach", category=NumbaWarning)
 
 import numpy as np
 
-PACKAGES = ("field", "sensing", "motion_models", "mcl", "demos")
+PACKAGES = ("field", "numerics", "sensing", "motion_models", "mcl", "demos", "benchmarks")
 modules = []
 for package_name in PACKAGES:
     package = importlib.import_module(package_name)
@@ -52,9 +52,10 @@ if part in ("filter", "all"):
     from mcl.estimate import cluster_estimate, grid_entropy
     from mcl.filter import AugmentedMCL
     from mcl.latency import move_back, move_forward
-    from mcl.resampling import SCHEMES, systematic_with_jitter
+    from mcl.resampling import SCHEMES, systematic_counted, systematic_with_jitter
     from mcl.weights import log_mean_likelihood, normalize
-    from motion_models._kernels import bit_generator_handle, move_drawing_noise, move_with_noise, skip_doubles
+    from motion_models.kernels import move_drawing_noise, move_with_noise
+    from numerics.random import bit_generator_handle, skip_doubles
 
     # The walk demo with field lines: velocity-linear, landmark and line likelihoods, normalize, augmented
     # MCL, systematic resampling with roughening, estimate, entropy.
@@ -118,6 +119,8 @@ if part in ("filter", "all"):
         scheme(weights, len(weights), rng)
     systematic_with_jitter(weights, len(poses), poses, np.full(3, 0.02), out, np.empty((0, 2)),
                            *bit_generator_handle(rng))
+    systematic_counted(weights, len(weights), 0.5, np.empty(len(weights), dtype=np.int64),
+                       np.zeros(len(weights) + 1, dtype=np.int64))
     LandmarkSensorModel(field, bearing_model="exact").log_likelihood(poses, observations)
     move_with_noise(poses, 0.01, 0.0, 0.01, 0.001, 0.001, 0.001, False, rng.random((len(poses), 3)))
     move_drawing_noise(poses, 0.01, 0.0, 0.01, 0.001, 0.001, 0.001, *bit_generator_handle(rng))
@@ -187,7 +190,7 @@ def _report(process: subprocess.Popen) -> dict:
 def _sources() -> dict[str, float]:
     """Modification time of every project module, by module name."""
     times = {}
-    for package in ("field", "sensing", "motion_models", "mcl", "demos"):
+    for package in ("field", "numerics", "sensing", "motion_models", "mcl", "demos", "benchmarks"):
         for path in (ROOT / package).rglob("*.py"):
             module = ".".join(path.relative_to(ROOT).with_suffix("").parts)
             times[module.removesuffix(".__init__")] = path.stat().st_mtime

@@ -7,7 +7,7 @@ import rerun.chunk as rrc
 from hypothesis import given
 from hypothesis import strategies as st
 
-from mcl.bench_step import TRUE_POSE, bench_setup
+from benchmarks.step import TRUE_POSE, bench_setup
 from mcl.recording import LANDMARK_COLORS, Recorder, weight_colors, weight_colors_reference
 from field import LandmarkType
 

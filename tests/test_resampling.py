@@ -3,9 +3,9 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from mcl.resampling import (SCHEMES, multinomial, multinomial_reference, stratified, stratified_reference,
-                            systematic, systematic_reference)
-from motion_models._kernels import sincos_reference
+from mcl.resampling import (SCHEMES, multinomial, multinomial_reference, stratified, stratified_reference, systematic,
+                            systematic_reference)
+from numerics.trig import sincos_reference
 
 weight_lists = st.lists(st.floats(0.0, 1.0), min_size=1, max_size=40).filter(lambda w: sum(w) > 1e-6).map(
     lambda w: np.array(w) / np.sum(w))
@@ -76,16 +76,16 @@ uniform_starts = st.one_of(st.just(0.0), st.floats(0.0, 1.0, exclude_max=True))
 
 @given(weight_lists, uniform_starts, st.integers(0, 90), st.booleans())
 def test_counting_equals_the_merge_bit_for_bit(weights, u0, m, equal):
-    """The ancestors by counting (`_systematic_counted`, what the filter's resampler runs, and
+    """The ancestors by counting (`systematic_counted`, what the filter's resampler runs, and
     `_systematic_in_place`, what `systematic` runs) against the merge loop (`_systematic`), including equal
     weights at u0 = 0, where points fall exactly on running totals."""
-    from mcl.resampling import _systematic, _systematic_counted, _systematic_in_place
+    from mcl.resampling import _systematic, systematic_counted, _systematic_in_place
 
     if equal:
         weights = np.full(weights.shape[0], 1.0 / weights.shape[0])
     counts = np.zeros(m + 1, dtype=np.int64)
     merged = _systematic(weights, m, u0, np.empty(m, dtype=np.int64))
-    assert np.array_equal(_systematic_counted(weights, m, u0, np.empty(m, dtype=np.int64), counts), merged)
+    assert np.array_equal(systematic_counted(weights, m, u0, np.empty(m, dtype=np.int64), counts), merged)
     assert not counts.any()
     assert np.array_equal(_systematic_in_place(weights, m, u0, np.zeros(m, dtype=np.int64)), merged)
 
@@ -93,7 +93,7 @@ def test_counting_equals_the_merge_bit_for_bit(weights, u0, m, equal):
 @given(weight_lists, st.integers(0, 2**32 - 1), st.integers(0, 60), st.booleans())
 def test_resampling_with_jitter_equals_systematic_then_gather(weights, seed, m, known_trig):
     from mcl.resampling import gather_with_jitter, resample_with_jitter, systematic_with_jitter
-    from motion_models._kernels import bit_generator_handle
+    from numerics.random import bit_generator_handle
 
     n = weights.shape[0]
     rng = np.random.default_rng(seed)
@@ -117,7 +117,7 @@ def test_motion_state_follows_the_resampled_particles(weights, seed, m, columns)
     """gather_offspring_rows moves the ancestors' rows (a stateful motion model's per-particle state) to the
     offspring `resample_with_jitter` placed with the same u0: those of `systematic`."""
     from mcl.resampling import gather_offspring_rows, resample_with_jitter
-    from motion_models._kernels import bit_generator_handle
+    from numerics.random import bit_generator_handle
 
     n = weights.shape[0]
     rows = np.random.default_rng(seed).standard_normal((max(n, m), columns))
@@ -138,7 +138,7 @@ def test_chunked_resampling(weights, seed):
     """On several threads: with one chunk, the serial resampler bit for bit; with small chunks the running
     totals are summed by chunk, and the offspring stay those of systematic resampling."""
     from mcl.resampling import resample_with_jitter, resample_with_jitter_chunked
-    from motion_models._kernels import bit_generator_handle
+    from numerics.random import bit_generator_handle
 
     n = m = weights.shape[0]
     rng = np.random.default_rng(seed)

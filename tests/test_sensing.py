@@ -273,11 +273,11 @@ def test_the_default_law_is_the_quadratic_one_and_passes_the_kernels_a_float():
     kernels, the same bits); with one, the pair (linear, growth)."""
     model = LandmarkSensorModel(FIELD)
     assert model.range_noise_linear == 0.0
-    assert type(model.compiled_likelihood()[3]) is float and model.compiled_likelihood()[3] == 0.02
+    assert type(model.fused_likelihood().params[3]) is float and model.fused_likelihood().params[3] == 0.02
     r = np.array([0.5, 2.0, 5.0])
     assert np.array_equal(model.range_sigma(r), 0.05 + 0.02 * r * r)
     linear = LandmarkSensorModel(FIELD, range_noise_linear=0.04)
-    assert linear.compiled_likelihood()[3] == (0.04, 0.02)
+    assert linear.fused_likelihood().params[3] == (0.04, 0.02)
 
 
 @pytest.mark.parametrize("value", [-0.01, float("nan"), float("inf"), True, "0.1", None])
@@ -316,7 +316,7 @@ def test_a_linear_law_scores_the_hand_computed_gaussian(bearing_model, mixture):
                                     bearing_model=bearing_model, mixture=mixture, outlier_weight=outlier)
     assert abs(quadratic.log_likelihood(poses, obs)[0] - expected) > 1.0
     if mixture == "max" and bearing_model == "von_mises":
-        table, offsets, range_floor, range_growth, bearing_sigma, log_outlier, _ = model.compiled_likelihood()
+        table, offsets, range_floor, range_growth, bearing_sigma, log_outlier, _ = model.fused_likelihood().params
         prepared, groups, _ = prepare_detections(obs.kinds, obs.ranges, obs.bearings, obs.range_sigmas,
                                                  obs.bearing_sigmas, offsets, range_floor, range_growth, bearing_sigma)
         assert prepared[0, 1] == -0.5 / (sigma * sigma)
@@ -347,7 +347,7 @@ def test_kernels_with_a_linear_law_equal_their_twins(detections, seed, floor, li
         if bearing_model == "von_mises":
             general = np.empty(n)
             landmark_log_likelihood(poses, model._table, model._offsets, obs.kinds, obs.ranges, obs.bearings,
-                                    obs.range_sigmas, obs.bearing_sigmas, floor, model.compiled_likelihood()[3],
+                                    obs.range_sigmas, obs.bearing_sigmas, floor, model.fused_likelihood().params[3],
                                     model.bearing_sigma, False, False, math.log(model.outlier_weight), general)
             assert np.array_equal(scores, general)
     if len(obs):
@@ -451,14 +451,14 @@ def test_general_kernel_scores_each_particle_alone(bearing_model, mixture):
 
 
 def test_block_kernel_keeps_cos_and_sin_of_the_headings():
-    from motion_models._kernels import sincos_reference
+    from numerics.trig import sincos_reference
     from sensing.landmarks import prepare_detections, von_mises_log_likelihood
 
     rng = np.random.default_rng(1)
     poses = np.column_stack([rng.uniform(-4, 4, 300), rng.uniform(-3, 3, 300), rng.uniform(-3, 3, 300)])
     obs = Observations.from_arrays(["goalpost", "t_crossing"], [2.0, 3.0], [0.1, -0.4])
     model = LandmarkSensorModel(FIELD)
-    table, offsets, floor, growth, bearing_sigma, log_outlier, exact = model.compiled_likelihood()
+    table, offsets, floor, growth, bearing_sigma, log_outlier, exact = model.fused_likelihood().params
     assert not exact
     detections, groups, missing = prepare_detections(obs.kinds, obs.ranges, obs.bearings, obs.range_sigmas,
                                                      obs.bearing_sigmas, offsets, floor, growth, bearing_sigma)
@@ -468,9 +468,9 @@ def test_block_kernel_keeps_cos_and_sin_of_the_headings():
     assert np.array_equal(out, model.log_likelihood(poses, obs))
     cos, sin = sincos_reference(poses[:, 2])
     assert np.array_equal(trig[:, 0], cos) and np.array_equal(trig[:, 1], sin)
-    assert LandmarkSensorModel(FIELD, bearing_model="exact").compiled_likelihood()[-1] is True
-    assert LandmarkSensorModel(FIELD, mixture="sum").compiled_likelihood() is None
-    assert LandmarkSensorModel(FIELD, bearing_model="exact", mixture="sum").compiled_likelihood() is None
+    assert LandmarkSensorModel(FIELD, bearing_model="exact").fused_likelihood().params[-1] is True
+    assert LandmarkSensorModel(FIELD, mixture="sum").fused_likelihood() is None
+    assert LandmarkSensorModel(FIELD, bearing_model="exact", mixture="sum").fused_likelihood() is None
 
 
 @given(st.lists(st.tuples(kinds, st.floats(0.0, 8.0), st.floats(-10.0, 10.0), st.one_of(st.none(), st.floats(0.01, 1.0))),

@@ -41,7 +41,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
 
-from .numba_cache import ROOT, is_source_checkout
+from mcl.numba_cache import ROOT, is_source_checkout
 
 DEFAULT_SIZES = (100, 1_000, 10_000, 100_000)
 DEFAULT_SKIP = ("startup", "exact", "peers", "threads", "memory", "avx512", "accuracy")
@@ -287,7 +287,7 @@ def main(argv: list[str] | None = None) -> int:
         parser.error(f"--rounds {args.rounds} must be >= 1")
     if not 0 <= args.threshold < 1:
         parser.error(f"--threshold {args.threshold} must be within [0, 1)")
-    from .bench import parse_sizes           # (imports the filter's modules: not for --help)
+    from .bench import parse_sizes  # (imports the filter's modules: not for --help)
     sizes = parse_sizes(parser, args.sizes)
     skip = [s.strip() for s in args.skip.split(",") if s.strip()]
     unknown = sorted(set(skip) - set(SKIPPABLE))

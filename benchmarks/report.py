@@ -1,6 +1,6 @@
 """The targets of `robocup-mcl bench`, its text report and its scaling plot.
 
-    from mcl.bench_report import evaluate_targets, format_report, plot
+    from benchmarks.report import evaluate_targets, format_report, plot
     result["targets"] = evaluate_targets(result)   # each: target, value, met (True / False / None: not measured)
     print(format_report(result))
     plot(result, "bench.png")                      # needs matplotlib (pip install -e '.[bench]')
@@ -10,8 +10,7 @@ this run says why ("not measured: ..." or "not available: ...").
 """
 from __future__ import annotations
 
-from .bench_step import PHASES
-
+from .step import PHASES
 
 ADAPTIVE_PHASES = ("predict_adaptive", "predict_adaptive_quiet")     # during collisions, walking freely
 

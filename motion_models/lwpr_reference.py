@@ -5,7 +5,7 @@ time, with Python loops and small NumPy vectors. It is slow on purpose: it is th
 numba kernels of :mod:`motion_models.lwpr` are tested against (same numbers to rounding) and timed
 against (``demos/lwpr_cross.py`` reports the speed ratio). Use :class:`motion_models.lwpr.LWPR` in code.
 
-    from motion_models._lwpr_reference import ReferenceLWPR
+    from motion_models.lwpr_reference import ReferenceLWPR
 
     ref = ReferenceLWPR(2, 1)
     ref.init_D = 50.0 * np.eye(2)

@@ -9,7 +9,7 @@ medians taken; the machine may be busy with other work). JSON keys first, the --
 
 - rows: the full step (predict, 10 goalpost detections, normalize + ESS, systematic resampling, estimate,
   entropy) and each phase, in ns per particle at each N (default 100 ... 1 000 000), numba against the plain
-  numpy twin (`mcl.reference`): motion models (velocity-linear, adaptive), landmark likelihood (von Mises
+  numpy twin (`benchmarks.reference`): motion models (velocity-linear, adaptive), landmark likelihood (von Mises
   and exact atan2 bearing [exact: --no-exact]), line likelihood, normalize + ESS, resampling, injection,
   estimate, entropy, recording to Rerun [recording]; `phases` says what each phase calls;
 - resampling [peers]: our systematic resampler against filterpy's and particles' (`pip install -e
@@ -48,7 +48,7 @@ import time
 import traceback
 from pathlib import Path
 
-from .bench_step import PHASES, bench_setup, bearing_accuracy
+from .step import PHASES, bearing_accuracy, bench_setup
 
 __all__ = ["main", "run", "bench_setup", "bearing_accuracy", "PHASES", "SIZES", "QUICK_SIZES", "SECTIONS"]
 
@@ -80,7 +80,7 @@ def _guarded(name: str, fn, *args, **kwargs) -> dict:
 
 
 def _models(budget_s: float) -> dict:
-    from .bench_models import time_ekf, time_lwpr, time_robot_loop
+    from .models import time_ekf, time_lwpr, time_robot_loop
 
     result = {}
     for key, fn, args in (("lwpr", time_lwpr, ()), ("ekf", time_ekf, (budget_s,)),
@@ -96,10 +96,9 @@ def _models(budget_s: float) -> dict:
 def run(sizes=SIZES, quick: bool = False, startup: bool = True, exact: bool = True, skip=(),
         budget_s: float | None = None) -> dict:
     """The whole suite; returns the result (see the module docstring for its sections)."""
-    from .bench_report import evaluate_targets
-    from .bench_step import time_resamplers, time_size, time_threads
-    from .bench_system import (load_average, machine, memory, numpy_without_avx512, time_demo_walk,
-                               time_startup)
+    from .report import evaluate_targets
+    from .step import time_resamplers, time_size, time_threads
+    from .system import load_average, machine, memory, numpy_without_avx512, time_demo_walk, time_startup
 
     skip = set(skip)
     if not startup:
@@ -139,7 +138,7 @@ def run(sizes=SIZES, quick: bool = False, startup: bool = True, exact: bool = Tr
     if "models" not in skip:
         result["models"] = _guarded("models", _models, budget)
     if "frames" not in skip and any(n <= 1_000 for n in sizes):
-        from .bench_models import time_between_frames
+        from .models import time_between_frames
 
         _progress("between frames: the step after 10 ms asleep")
         result["between_frames"] = _guarded("between frames", time_between_frames, sizes, samples=10 if quick else 40)
@@ -188,7 +187,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.budget is not None and not args.budget > 0:
         parser.error(f"--budget {args.budget!r} must be > 0")
     if args.plot:
-        from .bench_report import matplotlib_missing
+        from .report import matplotlib_missing
         if matplotlib_missing():
             parser.error("--plot needs matplotlib: pip install -e '.[bench]'")
     result = run(sizes, quick=args.quick, startup=not args.no_startup, exact=not args.no_exact, skip=skip,
@@ -201,12 +200,12 @@ def main(argv: list[str] | None = None) -> int:
             json.dump(result, file, indent=2)
             file.write("\n")
     if args.plot:
-        from .bench_report import plot
+        from .report import plot
         plot(result, args.plot)
     if args.json:
         json.dump(result, sys.stdout, indent=2)
         print()
     else:
-        from .bench_report import format_report
+        from .report import format_report
         print(format_report(result))
     return 0

@@ -1,7 +1,7 @@
 """The per-call costs `robocup-mcl bench` reports beside the filter step: LWPR, the velocity EKF, and the calls of
 the README's robot loop.
 
-    from mcl.bench_models import time_lwpr, time_ekf, time_robot_loop
+    from benchmarks.models import time_lwpr, time_ekf, time_robot_loop
 
 LWPR (`motion_models.lwpr`), 2 inputs and 1 output: the model of the cross benchmark (`demos.lwpr_cross`) after
 its 20 training epochs; µs per `update` in steady state and per `predict` of one point, as that benchmark
@@ -29,7 +29,7 @@ import time
 import numba
 import numpy as np
 
-from .bench_step import full_step_work, issue_step_work, measure
+from .step import full_step_work, issue_step_work, measure
 
 FRAME_S = 0.01          # the sleep before each call of `time_between_frames`: a 100 Hz loop
 
@@ -72,11 +72,10 @@ def time_ekf(budget_s: float = 0.3) -> dict:
 
 def time_robot_loop(budget_s: float = 0.3, n: int = 500) -> dict:
     from field import spl
+    from mcl.filter import ParticleFilter
+    from mcl.localizer import Localizer
     from motion_models import MotionInput, VelocityLinear
     from sensing import LandmarkObservation, LandmarkSensorModel, Observations
-
-    from .filter import ParticleFilter
-    from .localizer import Localizer
 
     def make():
         field = spl()
@@ -123,7 +122,7 @@ def time_robot_loop(budget_s: float = 0.3, n: int = 500) -> dict:
     return {"particles": n, "frame_us": us["frame"], "predict_us": us["predict"], "correct_list_us": us["correct"],
             "from_list_us": us["from_list"], "from_arrays_us": us["from_arrays"],
             "localizer_frame_us": us["localizer_frame"], "localizer_observe_us": us["observe"],
-            "method": "mcl.bench_models.time_robot_loop: the README loop's calls, interleaved medians"}
+            "method": "benchmarks.models.time_robot_loop: the README loop's calls, interleaved medians"}
 
 
 @numba.njit(cache=True)
@@ -166,4 +165,4 @@ def time_between_frames(sizes, samples: int = 40, idle_s: float = FRAME_S) -> di
                      for n in small],
             "python_call_us": us["python_call"], "numba_call_us": us["numba_call"],
             "back_to_back_us": {name: 1e6 * entry["s"] for name, entry in warm.items()},
-            "method": "mcl.bench_models.time_between_frames: one call after each sleep, medians"}
+            "method": "benchmarks.models.time_between_frames: one call after each sleep, medians"}

@@ -1,6 +1,6 @@
 """What `robocup-mcl bench` measures in fresh processes, and the description of the machine.
 
-    from mcl.bench_system import machine, time_startup, time_demo_walk, numpy_without_avx512, memory
+    from benchmarks.system import machine, time_startup, time_demo_walk, numpy_without_avx512, memory
 
 - `machine()`: CPU model, cores, SIMD flags, python/numpy/numba versions, load average.
 - `time_startup()`: a fresh process to its first step with an empty numba cache (it compiles every kernel
@@ -104,7 +104,7 @@ def load_average() -> list[float] | None:
 
 
 # -- fresh processes -------------------------------------------------------------------------------------------
-_PROBE = ("import time; t = time.perf_counter(); from mcl.bench_step import bench_setup; "
+_PROBE = ("import time; t = time.perf_counter(); from benchmarks.step import bench_setup; "
           "pf, u, obs = bench_setup(1000); pf.step(u, obs); pf.entropy(); "
           "print(time.perf_counter() - t)")
 
@@ -191,8 +191,8 @@ def avx512_features() -> list[str]:
 
 _NUMPY_PROBE = """
 import json, sys
-from mcl.bench_step import numpy_full_step
-from mcl.bench_system import numpy_cpu_dispatch
+from benchmarks.step import numpy_full_step
+from benchmarks.system import numpy_cpu_dispatch
 sizes, budget = json.loads(sys.argv[1])
 _, features = numpy_cpu_dispatch()
 print(json.dumps({"features_on": sorted(k for k, v in features.items() if v),
@@ -240,7 +240,7 @@ def numpy_without_avx512(sizes, budget_s: float, rounds: int = 1) -> dict:
 # -- memory ----------------------------------------------------------------------------------------------------
 _MEMORY_PROBE = """
 import json, sys
-from mcl.bench_system import memory_in_process
+from benchmarks.system import memory_in_process
 sizes, steps = json.loads(sys.argv[1])
 print(json.dumps(memory_in_process(sizes, steps)))
 """
@@ -259,7 +259,7 @@ def memory_in_process(sizes, steps: int) -> list[dict]:
 
     from numba.core.runtime import rtsys
 
-    from .bench_step import bench_setup
+    from .step import bench_setup
 
     def numba_allocations():
         try:

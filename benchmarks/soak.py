@@ -58,7 +58,8 @@ import os
 import sys
 import time
 from collections import deque
-from dataclasses import asdict, dataclass, field as dataclass_field
+from dataclasses import asdict, dataclass
+from dataclasses import field as dataclass_field
 
 import numpy as np
 
@@ -324,7 +325,7 @@ def run_soak(minutes: float = 60.0, particles: int = 500, seed: int = 0, scenari
              on_minute=None) -> dict:
     """Run the soak (see the module docstring); returns the results as JSON-ready data. `on_minute(row)` is
     called with each minute's row as it ends."""
-    from .localizer import Localizer
+    from mcl.localizer import Localizer
 
     if not (isinstance(minutes, (int, float)) and math.isfinite(minutes) and minutes > 0):
         raise ValueError(f"minutes = {minutes!r} must be finite and > 0")
@@ -479,7 +480,7 @@ def main(argv: list[str] | None = None) -> int:
     """`robocup-mcl soak` (see the module docstring); exit 0 when the verdict holds, 1 otherwise."""
     import argparse
 
-    from .cli_checks import check_output_file
+    from mcl.cli_checks import check_output_file
 
     parser = argparse.ArgumentParser(prog="robocup-mcl soak", description=__doc__.split("\n\n")[0])
     parser.add_argument("--minutes", type=float, default=60.0, help="simulated minutes (default 60; fractions "

@@ -1,6 +1,6 @@
 """The filter step in plain numpy, and the compiled step phase by phase: what the benchmark times.
 
-    from mcl.reference import PHASES, numpy_step, compiled_phases, full_step, issue_shaped_step
+    from benchmarks.reference import PHASES, numpy_step, compiled_phases, full_step, issue_shaped_step
 
     numpy_step(pf, u, observations, timings)     # the step in plain numpy, on a copy of pf's particles
     work = compiled_phases(pf, u, observations)  # {phase: callable}, the compiled step cut into its stages
@@ -13,7 +13,7 @@
 `numpy_step` calls the `*_reference` twin of each kernel the filter uses; with the same generator state its
 results agree with the filter's to rounding (the draws are the same, in the same order).
 
-`compiled_phases` calls, one dispatch each, the kernels that `mcl.filter._compiled_step` runs in a single
+`compiled_phases` calls, one dispatch each, the kernels that `mcl.step.compiled_step` runs in a single
 dispatch, on the filter's own buffers and with its options (`fast`, `threads`): predict (moving the particles
 into the scratch copy the likelihood scores), likelihood (and cos, sin of the headings for the roughening),
 normalize (+ ESS and augmented MCL's average), resample (systematic, the copy and the roughening in one pass),
@@ -29,18 +29,18 @@ from typing import Callable
 import numba
 import numpy as np
 
-from motion_models._kernels import (NO_WORK, SQRT3, draw_variates, move_chunked, move_range, move_range_fast,
-                                    move_with_noise_reference, next_double, parallel_uniforms)
+from mcl.estimate import (cluster_estimate_reference, grid_entropy_reference, summary_entropy, summary_estimate,
+                          summary_estimate_chunked, summary_estimate_fast, summary_fill, summary_fill_chunked)
+from mcl.resampling import (gather_with_jitter_reference, resample_with_jitter, resample_with_jitter_chunked,
+                            systematic_counted, systematic_reference)
+from mcl.step import NO_SINCE, STEP_BLOCK, fused_step
+from mcl.weights import normalize_reference, weigh, weigh_chunked, weigh_fast
 from motion_models.base import MotionInput
-from sensing.landmarks import prepare_detections, von_mises_log_likelihood
+from motion_models.kernels import NO_WORK, move_chunked, move_range, move_range_fast, move_with_noise_reference
+from numerics.compile import variant
+from numerics.random import draw_variates, next_double, parallel_uniforms
+from numerics.trig import SQRT3
 from sensing.observations import Observations
-
-from .estimate import (cluster_estimate_reference, grid_entropy_reference, summary_entropy, summary_estimate,
-                       summary_estimate_chunked, summary_estimate_fast, summary_fill, summary_fill_chunked)
-from .resampling import (_systematic_counted, gather_with_jitter_reference, resample_with_jitter,
-                         resample_with_jitter_chunked, systematic_reference)
-from .filter import _NO_SINCE as NO_SINCE, _predict_and_score, _predict_and_score_chunked
-from .weights import normalize_reference, weigh, weigh_chunked, weigh_fast
 
 PHASES = ("predict", "likelihood", "normalize", "resample", "estimate", "entropy")
 
@@ -94,7 +94,7 @@ def _resample_copy(weights, source, out, coordinates, ancestors, counts, u0):
     """Systematic resampling of all N particles from `source` into `out` (and the rows of `coordinates`): the
     ancestors by `mcl.resampling`'s counting, then a plain copy (no roughening). counts (N + 1,) zero on entry
     and on return; ancestors (N,) scratch."""
-    _systematic_counted(weights, weights.shape[0], u0, ancestors, counts)
+    systematic_counted(weights, weights.shape[0], u0, ancestors, counts)
     for k in range(ancestors.shape[0]):
         j = ancestors[k]
         for axis in range(3):
@@ -102,22 +102,23 @@ def _resample_copy(weights, source, out, coordinates, ancestors, counts, u0):
             coordinates[axis, k] = source[j, axis]
 
 
-@numba.njit(cache=True)
-def _issue_shaped_kernel(poses, scratch, trig, log_likelihood, log_weights, weights, ancestors, counts, dx, dy, dtheta,
-                         bound_x, bound_y, bound_theta, function, state, table, offsets, kinds, ranges, bearings,
-                         range_sigmas, bearing_sigmas, range_noise_floor, range_noise_growth, bearing_sigma,
-                         log_outlier, exact, grid, coordinates, histograms, bitmaps, fast):
+# Bound by `numerics.compile.variant` in the template below: the sensor model's kernels and its fused step's
+# predict_and_score.
+prepare = workspace = predict_and_score = None
+
+
+def _issue_shaped_kernel(poses, scratch, trig, log_likelihood, log_weights, weights, ancestors, counts, motion, draws,
+                         params, inputs, grid, coordinates, histograms, bitmaps, fast):
+    """(A template: `issue_shaped_step` compiles it with the sensor model's kernels bound, `numerics.compile.variant`.)"""
     n = poses.shape[0]
-    detections, groups, _ = prepare_detections(kinds, ranges, bearings, range_sigmas, bearing_sigmas, offsets,
-                                               range_noise_floor, range_noise_growth, bearing_sigma, exact)
-    _predict_and_score(poses, scratch, trig, log_likelihood, True, dx, dy, dtheta, bound_x, bound_y, bound_theta,
-                       False, np.empty((0, 3)), function, state, table, offsets, detections, groups, log_outlier,
-                       exact, 0, n, fast, np.empty(0))
+    frame, _ = prepare(inputs, params)
+    work = workspace(frame, min(n, STEP_BLOCK))
+    predict_and_score(poses, scratch, trig, log_likelihood, motion, draws, frame, work, 0, n, fast, np.empty(0))
     if fast:
         _, _, _, ess = weigh_fast(log_weights, log_likelihood, n, weights)
     else:
         _, _, _, ess = weigh(log_weights, log_likelihood, n, weights)
-    _resample_copy(weights, scratch, poses, coordinates, ancestors, counts, next_double(function, state))
+    _resample_copy(weights, scratch, poses, coordinates, ancestors, counts, next_double(draws[0], draws[1]))
     log_weights[:] = -math.log(n)
     weights[:] = 1.0 / n
     summary_fill(grid, np.empty((0, 3)), weights, coordinates, histograms, bitmaps)
@@ -142,21 +143,22 @@ def issue_shaped_step(pf, u: MotionInput, observations: Observations) -> Callabl
     sensor = pf._sensor_kernel()
     if motion is None or sensor is None or pf.motion_model.gaussian or pf.threads > 1:
         raise ValueError("issue_shaped_step needs a bounded uniform-noise motion model, a sensor model with "
-                         "compiled_likelihood() and one thread")
+                         "fused_likelihood() and one thread")
     observations = Observations.coerce(observations)
     pf.sensor_model.check(observations)
-    table, offsets, range_noise_floor, range_noise_growth, bearing_sigma, log_outlier, exact = sensor
-    batch = (observations.kinds, observations.ranges, observations.bearings, observations.range_sigmas,
-             observations.bearing_sigmas)
+    fused = fused_step(sensor)
+    kernel = variant(_issue_shaped_kernel, fused.key, {"prepare": sensor.prepare, "workspace": sensor.workspace,
+                                                       "predict_and_score": fused.predict_and_score})
+    inputs = sensor.inputs(observations)
     coordinates, histograms, bitmaps = pf._summary
     ancestors, counts = np.empty(pf.n, dtype=np.int64), np.zeros(pf.n + 1, dtype=np.int64)
+    moving = (True, *motion, False, np.empty((0, 3)))
 
     def step():
         pf._changed()
-        return _issue_shaped_kernel(pf.poses, pf._previous, pf._trig, pf._log_likelihood, pf.log_weights,
-                                    pf._weights, ancestors, counts, *motion, *pf._generator(), table, offsets, *batch,
-                                    range_noise_floor, range_noise_growth, bearing_sigma, log_outlier, exact,
-                                    pf._grid_parameters, coordinates, histograms, bitmaps, pf.fast)
+        return kernel(pf.poses, pf._previous, pf._trig, pf._log_likelihood, pf.log_weights, pf._weights, ancestors,
+                      counts, moving, pf._generator(), sensor.params, inputs, pf._grid_parameters, coordinates,
+                      histograms, bitmaps, pf.fast)
     return step
 
 
@@ -170,16 +172,16 @@ def full_step(pf, u: MotionInput, observations: Observations):
 def compiled_phases(pf, u: MotionInput, observations: Observations) -> dict[str, Callable[[], object]]:
     """The compiled step's stages as separate calls on `pf` (see the module docstring); call them in the
     order of PHASES. Needs what the fused step needs: a bounded-noise motion model (velocity-linear,
-    constant) and a sensor model with `compiled_likelihood` (the landmark model with the max-mixture); it
+    constant) and a sensor model with `fused_likelihood` (the landmark model with the max-mixture); it
     resamples every time (the benchmark's setting, `resample_threshold=1`)."""
     motion = pf._kernel_motion(u)
     sensor = pf._sensor_kernel()
     if motion is None or sensor is None:
         raise ValueError("compiled_phases needs a bounded-noise motion model and a sensor model with "
-                         "compiled_likelihood()")
+                         "fused_likelihood()")
     observations = Observations.coerce(observations)
     pf.sensor_model.check(observations)
-    table, offsets, range_noise_floor, range_noise_growth, bearing_sigma, log_outlier, exact = sensor
+    fused = fused_step(sensor)
     n = pf.n
     gaussian = bool(pf.motion_model.gaussian)
     chunk = pf._chunk if pf.threads > 1 else 0
@@ -211,22 +213,16 @@ def compiled_phases(pf, u: MotionInput, observations: Observations) -> dict[str,
         pf._changed()
 
     def likelihood():
-        detections, groups, _ = prepare_detections(
-            observations.kinds, observations.ranges, observations.bearings, observations.range_sigmas,
-            observations.bearing_sigmas, offsets, range_noise_floor, range_noise_growth, bearing_sigma, exact)
-        if chunk or pf.fast or exact:
-            if chunk:
-                with scope:
-                    _predict_and_score_chunked(scratch, scratch, pf._trig, pf._log_likelihood, False, *motion,
-                                               False, no_variates, table, offsets, detections, groups, log_outlier,
-                                               exact, chunk, pf.fast, NO_SINCE)
-            else:
-                _predict_and_score(scratch, scratch, pf._trig, pf._log_likelihood, False, *motion, False,
-                                   no_variates, 0, 0, table, offsets, detections, groups, log_outlier, exact, 0, n,
-                                   pf.fast, NO_SINCE)
+        frame, _ = sensor.prepare(sensor.inputs(observations), sensor.params)
+        copying = (False, *motion, False, no_variates)
+        if chunk:
+            with scope:
+                fused.predict_and_score_chunked(scratch, scratch, pf._trig, pf._log_likelihood, copying, frame, chunk,
+                                                pf.fast, NO_SINCE)
         else:
-            von_mises_log_likelihood(scratch, table, offsets, detections, groups, log_outlier, pf._log_likelihood,
-                                     pf._trig)
+            work = sensor.workspace(frame, min(n, STEP_BLOCK))
+            fused.predict_and_score(scratch, scratch, pf._trig, pf._log_likelihood, copying, (0, 0), frame, work, 0,
+                                    n, pf.fast, NO_SINCE)
 
     def normalize():
         count = n - pf.injected

@@ -1,6 +1,6 @@
 """The filter step of `robocup-mcl bench`, timed whole and phase by phase against plain numpy.
 
-    from mcl.bench_step import bench_setup, measure, time_size
+    from benchmarks.step import bench_setup, measure, time_size
     pf, u, observations = bench_setup(10_000)     # a filter, a motion input, 10 goalposts and 12 line points
     row = time_size(10_000, budget_s=0.2)         # full step and every phase, numba and numpy
     timed = measure({"a": f, "b": g}, budget_s=0.5)   # medians of f() and g(), called in turn
@@ -8,7 +8,7 @@
 The step: predict (velocity-linear), correct with 10 detections of a 4-way ambiguous type (goalposts),
 normalize and ESS, systematic resampling, estimate (dominant cluster), entropy. The numba step is timed
 through the filter's public calls (`step` + `entropy`, resampling forced every step); the numpy step is
-`mcl.reference.numpy_step`, the same computation in plain numpy. Each phase of `PHASES` pairs the numba call
+`benchmarks.reference.numpy_step`, the same computation in plain numpy. Each phase of `PHASES` pairs the numba call
 the filter makes with its numpy twin (`*_reference`); phases that have no twin (recording) say so.
 Timings: the candidates are called in turn (A, B, A, B, ...) and the median is taken, so a machine shared with
 other work biases both alike; ratios compare figures of one run.
@@ -27,19 +27,21 @@ from typing import Callable
 import numpy as np
 
 from field import spl
+from mcl import resampling
+from mcl.estimate import cluster_estimate_reference, grid_entropy_reference
+from mcl.filter import AugmentedMCL, ParticleFilter
+from mcl.resampling import gather_with_jitter, gather_with_jitter_reference, systematic, systematic_reference
+from mcl.weights import normalize, normalize_reference
 from motion_models import AdaptiveMotion, MotionInput, VelocityLinear
-from motion_models._kernels import SQRT3, draw_variates, move_with_noise_reference
 from motion_models.adaptive import VARIATES, adaptive_move_reference
+from motion_models.kernels import move_with_noise_reference
+from numerics.random import draw_variates
+from numerics.trig import SQRT3
 from sensing import LandmarkSensorModel, Observations
 from sensing.collision import NO_COLLISION, CollisionPercept
 from sensing.lines import LineSensorModel
 
-from . import resampling
-from .estimate import cluster_estimate_reference, grid_entropy_reference
-from .filter import AugmentedMCL, ParticleFilter
 from .reference import issue_shaped_step, numpy_step, sample_injection_reference
-from .resampling import gather_with_jitter, gather_with_jitter_reference, systematic, systematic_reference
-from .weights import normalize, normalize_reference
 
 TRUE_POSE = np.array([1.0, 0.5, 0.3])
 # The fused resampling kernels the filter may call (resampling, copy and roughening in one pass, uniforms drawn
@@ -58,7 +60,7 @@ def fused_resampler():
     `source` into `out` as the filter does: scratch allocated once, as the filter keeps it, and the cos and sin
     of the source headings known, as the step's scoring leaves them for the roughening (computed here once, from
     the headings `source` has now)."""
-    from motion_models import _kernels
+    from numerics import random as _kernels
 
     handle = getattr(_kernels, "bit_generator_handle", None)
     if handle is None:
@@ -114,7 +116,7 @@ class Phase:
 
 PHASES = (
     Phase("predict_velocity_linear", "motion model: velocity-linear (Hoffmann eq. 10), variates drawn included",
-          "VelocityLinear.predict", "motion_models._kernels.move_with_noise_reference"),
+          "VelocityLinear.predict", "motion_models.kernels.move_with_noise_reference"),
     Phase("predict_adaptive", "motion model: adaptive, five mobility states, during frequent collisions (Hoffmann "
           "eq. 11-26), the states in that condition's stationary mix",
           "AdaptiveMotion.predict(state=...)", "motion_models.adaptive.adaptive_move_reference"),
@@ -137,7 +139,7 @@ PHASES = (
     Phase("injection", "augmented-MCL injection of max_fraction (25 %) of N: half drawn from the detections "
           "(sensor resetting), half uniform over the field, headings around a trusted reference",
           "ParticleFilter._sample_injection (numpy's integers and normals, the rest compiled)",
-          "mcl.reference.sample_injection_reference"),
+          "benchmarks.reference.sample_injection_reference"),
     Phase("estimate", "estimate: dominant cluster (histogram seed, mean shift), weighted circular mean",
           "ParticleFilter.estimate (what it keeps dropped first)", "mcl.estimate.cluster_estimate_reference"),
     Phase("entropy", "grid entropy, position and orientation (Hoffmann eq. 27); where the filter shares its "
@@ -281,7 +283,7 @@ def adaptive_step_work(n: int) -> Callable[[], object]:
 
 
 def issue_step_work(n: int, **filter_options) -> Callable[[], object]:
-    """The issue's step shape (`mcl.reference.issue_shaped_step`: no roughening, no estimate) on the filter's
+    """The issue's step shape (`benchmarks.reference.issue_shaped_step`: no roughening, no estimate) on the filter's
     kernels and buffers."""
     pf, u, observations = bench_setup(n, **filter_options)
     return issue_shaped_step(pf, u, observations)
@@ -293,7 +295,7 @@ def fast_option() -> bool:
 
 
 def numpy_step_work(n: int) -> Callable[[], object]:
-    """The same step in plain numpy (`mcl.reference.numpy_step`, on a copy of the particles)."""
+    """The same step in plain numpy (`benchmarks.reference.numpy_step`, on a copy of the particles)."""
     pf, u, observations = bench_setup(n)
     return lambda: numpy_step(pf, u, observations)
 
@@ -330,7 +332,7 @@ class PhaseScene:
         pf.step(u, observations)
         if fresh_estimate(pf) is fresh_estimate(pf):
             raise RuntimeError("ParticleFilter.estimate() does not recompute after _changed() / _estimate = None: "
-                               "mcl.bench_step._forget_summary needs the filter's new way to drop its estimate")
+                               "benchmarks.step._forget_summary needs the filter's new way to drop its estimate")
         self.pf, self.u, self.observations = pf, u, observations
         self.rng = np.random.default_rng(7)
         field = pf.field
@@ -446,7 +448,7 @@ class PhaseScene:
 
     def record(self):
         if self._recorder is None:
-            from .recording import Recorder
+            from mcl.recording import Recorder
             path = Path(self.recording_dir) / f"bench-{self.n}.rrd"
             self._recorder = Recorder(path, self.pf.field, particles_every=1)
         self._step += 1
