@@ -282,6 +282,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--threshold", type=float, default=THRESHOLD,
                         help="the smallest change of the medians a verdict names, a share (default %(default)s)")
     parser.add_argument("--json", action="store_true", help="print the comparison as JSON")
+    parser.add_argument("--save", metavar="PATH", help="also write the comparison as JSON to PATH (and the table "
+                        "beside it, PATH with .txt)")
     args = parser.parse_args(argv)
     if args.rounds < 1:
         parser.error(f"--rounds {args.rounds} must be >= 1")
@@ -304,14 +306,21 @@ def main(argv: list[str] | None = None) -> int:
         print(f"robocup-mcl bench compare: {error}", file=sys.stderr)
         return 1
     items = compare(base_runs, current_runs, args.threshold)
+    result = {"base": {"label": base.label, "root": str(base.root)},
+              "current": {"label": current.label, "root": str(current.root)},
+              "rounds": args.rounds, "threshold": args.threshold, "arguments": arguments, "items": items,
+              "runs": {"base": base_runs, "current": current_runs}}
+    table = report(base, current, args.rounds, items, current_runs[-1].get("machine"), args.threshold)
+    if args.save:
+        path = Path(args.save)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_text(json.dumps(result, indent=2) + "\n")
+        path.with_suffix(".txt").write_text(table + "\n")
     if args.json:
-        json.dump({"base": {"label": base.label, "root": str(base.root)},
-                   "current": {"label": current.label, "root": str(current.root)},
-                   "rounds": args.rounds, "threshold": args.threshold, "arguments": arguments, "items": items,
-                   "runs": {"base": base_runs, "current": current_runs}}, sys.stdout, indent=2)
+        json.dump(result, sys.stdout, indent=2)
         print()
     else:
-        print(report(base, current, args.rounds, items, current_runs[-1].get("machine"), args.threshold))
+        print(table)
     return 0
 
 

@@ -85,7 +85,7 @@ def _harness(name: str):
 
 # Output options of commands whose own main does not check them before its run (the step benchmark runs for
 # minutes and writes --save and --plot at the end): checked here, before dispatch.
-OUTPUT_OPTIONS = {("benchmark", "step"): ("--save", "--plot")}
+OUTPUT_OPTIONS = {("benchmark", "step"): ("--save", "--plot"), ("benchmark", "compare"): ("--save",)}
 
 
 def _check_outputs(argv: list[str], options: tuple[str, ...]) -> None:
