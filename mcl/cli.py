@@ -29,11 +29,12 @@ raises with its full traceback. (docs/reliability.md, "Command-line errors".)
 from __future__ import annotations
 
 import importlib
+import importlib.util
 import os
 import sys
 
 from .cli_checks import CommandError, one_line
-from .numba_cache import guard_source_checkout
+from .numba_cache import ROOT, guard_source_checkout, is_source_checkout
 
 DEBUG_VARIABLE = "ROBOCUP_MCL_DEBUG"
 EXIT_ERROR, EXIT_USAGE, EXIT_INTERRUPTED = 1, 2, 130
@@ -73,10 +74,12 @@ def _dispatch(table: dict, name: str, argv: list[str], what: str) -> int:
 def _harness(name: str):
     """The demo or benchmark module `name`, found by name at run time: the library never imports `demos` or
     `benchmarks`; they run from a clone (`benchmarks` is not installed with the package)."""
+    package = name.split(".")[0]
+    if importlib.util.find_spec(package) is None and is_source_checkout() and str(ROOT) not in sys.path:
+        sys.path.append(str(ROOT))          # a clone: its benchmarks/ beside the installed packages
     try:
         return importlib.import_module(name)
     except ModuleNotFoundError as error:
-        package = name.split(".")[0]
         if error.name != package:
             raise
         raise CommandError(f"{name} is not here: the {package} run from a clone of the repository "
