@@ -109,7 +109,8 @@ prepare = workspace = predict_and_score = None
 
 def _issue_shaped_kernel(poses, scratch, trig, log_likelihood, log_weights, weights, ancestors, counts, motion, draws,
                          params, inputs, grid, coordinates, histograms, bitmaps, fast):
-    """(A template: `issue_shaped_step` compiles it with the sensor model's kernels bound, `numerics.compile.variant`.)"""
+    """(A template: `issue_shaped_step` compiles it with the sensor model's kernels bound,
+    `numerics.compile.variant`.)"""
     n = poses.shape[0]
     frame, _ = prepare(inputs, params)
     work = workspace(frame, min(n, STEP_BLOCK))

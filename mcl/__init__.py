@@ -8,6 +8,7 @@ their contracts (`mcl.contracts`); the soccer rules are `mcl.relocalization`. On
 loop), `mcl.logs` and `mcl.replay`, `mcl.recording` (Rerun), `mcl.cli`. `mcl.testing` holds hypothesis
 strategies and invariant checks for a team's own tests. The layers: docs/architecture.md.
 """
-from .filter import AugmentedMCL, Entropy, Estimate, Grid, ParticleFilter
+from .filter import AugmentedMCL, ParticleFilter
+from .summary import Entropy, Estimate, Grid
 
 __all__ = ["ParticleFilter", "AugmentedMCL", "Estimate", "Entropy", "Grid"]

@@ -13,8 +13,14 @@
     h = pf.entropy()             # h.position, h.orientation in bits
 
 The filter knows the motion and sensor models only through their contracts (`mcl.contracts`: `check`/`predict`,
-`check`/`log_likelihood`, and the optional capabilities it uses when a model offers them). Every public call validates its input before it changes anything: a rejected
-call raises ValueError and leaves the filter exactly as it was.
+`check`/`log_likelihood`, and the optional capabilities it uses when a model offers them). Every public call
+validates its input before it changes anything: a rejected call raises ValueError and leaves the filter exactly
+as it was.
+
+The filter is a particle set (`mcl.particles.ParticleSet`: the particles, their weights and the step's buffers)
+and a belief summary (`mcl.summary.BeliefSummary`: the estimate and the entropy, cached); this module is the loop
+that moves, weighs and resamples them, and augmented MCL's injection. The soccer rules (regions, heading
+reference, mirror guard, which poses to inject) are `mcl.relocalization`.
 
 Resampling happens when the effective sample size falls below `resample_threshold`·N, or when augmented MCL
 (Thrun et al., Probabilistic Robotics, table 8.3) asks for fresh particles: w_slow and w_fast track the
@@ -61,7 +67,6 @@ import numba
 import numpy as np
 
 from field import Field
-from field.angles import wrap_angles
 from field.checks import LARGEST_ANGLE, LARGEST_COORDINATE, LARGEST_SIGMA, ArgumentTypeError, integer, real, reals
 from motion_models.base import MotionInput, MotionModel
 from motion_models.kernels import NO_WORK, move_chunked, move_range, move_range_fast
@@ -71,14 +76,14 @@ from numerics.trig import SQRT3
 from sensing.observations import Observations
 
 from .contracts import fused_kernels, moves_by_bounded_noise
-from .estimate import (summary_buffers, summary_entropy, summary_estimate, summary_estimate_chunked,
-                       summary_estimate_fast, summary_fill, summary_fill_chunked, summary_grid)
 from .latency import move_back, move_forward
 from .relocalization import SoccerRelocalization, region_bounds
 from .resampling import SCHEMES, gather_offspring_rows, gather_with_jitter, resample_with_jitter
+from .particles import ParticleSet, check_pose, check_poses
 from .step import (NO_SINCE, NO_VARIATES, STEP_INVALID, STEP_MISSING, STEP_RESAMPLE, STEP_UNEXPLAINED, fused_step,
-                   resample_and_summarize, summarize)
-from .weights import log_mean_likelihood, normalize, reweigh, weigh
+                   resample_and_summarize)
+from .summary import BeliefSummary, Entropy, Estimate, Grid
+from .weights import log_mean_likelihood, reweigh, weigh
 
 # A sensor model's defect, not a refused input (the library's models give finite or -inf log-likelihoods for
 # every input they accept): `correct` then changes nothing, `step` has moved the particles already.
@@ -87,74 +92,8 @@ _MOVED = "; the particles moved by u (the prediction ran), their weights are unc
 MAX_PARTICLES = 10**7
 """The most particles a filter may have (about 2 GB of buffers); more is refused with a ValueError."""
 MAX_THREADS = 1024
-MAX_GRID_CELLS = 5 * 10**7
-"""The most cells the entropy or the estimate's histograms may have (the grid's cells times its bins)."""
 # what the filter asks of its relocalization (`mcl.relocalization.SoccerRelocalization` is the default)
 RELOCALIZATION_METHODS = ("bind", "reset_region", "reset_pose", "mirror", "carry", "confirm", "propose")
-
-
-def check_pose(name: str, pose) -> np.ndarray:
-    """A pose (x, y, θ) as float64 (3,): |x|, |y| at most `LARGEST_COORDINATE`, |θ| at most `LARGEST_ANGLE`."""
-    array = reals(name, pose, 3)
-    if max(abs(array[0]), abs(array[1])) > LARGEST_COORDINATE or abs(array[2]) > LARGEST_ANGLE:
-        raise ValueError(f"{name} = {pose!r} must be within {LARGEST_COORDINATE:g} m and {LARGEST_ANGLE:g} rad")
-    return array
-
-
-def check_poses(name: str, poses) -> np.ndarray:
-    """Poses (K, 3) (or one (3,)) as float64 (K, 3), each within the bounds of `check_pose`."""
-    if isinstance(poses, (str, bytes, dict)) or poses is None or np.ndim(poses) == 0:
-        raise ArgumentTypeError(f"{name} = {poses!r} must be (x, y, θ) poses, not {type(poses).__name__}")
-    try:
-        array = np.array(poses, dtype=np.float64)
-    except (TypeError, ValueError, OverflowError):
-        raise ArgumentTypeError(f"{name} = {poses!r} must be (x, y, θ) poses") from None
-    if array.ndim == 1 and array.shape[0] == 3:
-        array = array.reshape(1, 3)
-    if array.ndim != 2 or array.shape[1] != 3:
-        raise ValueError(f"{name} must have shape (K, 3), got {array.shape}")
-    inside = (np.isfinite(array).all(axis=1) & (np.abs(array[:, :2]) <= LARGEST_COORDINATE).all(axis=1)
-              & (np.abs(array[:, 2]) <= LARGEST_ANGLE))
-    if not inside.all():
-        i = int(np.argmin(inside))
-        raise ValueError(f"{name}[{i}] = {array[i].tolist()!r} must be finite, within {LARGEST_COORDINATE:g} m "
-                         f"and {LARGEST_ANGLE:g} rad")
-    return array
-
-
-@dataclass(frozen=True)
-class Estimate:
-    """The pose of the dominant cluster: pose [x, y, θ], its covariance (3, 3), and the cluster's weight."""
-
-    pose: np.ndarray
-    covariance: np.ndarray
-    weight: float
-
-    @property
-    def x(self) -> float:
-        return float(self.pose[0])
-
-    @property
-    def y(self) -> float:
-        return float(self.pose[1])
-
-    @property
-    def theta(self) -> float:
-        return float(self.pose[2])
-
-    def is_confident(self, position_sigma: float = 0.3, heading_sigma: float = 0.2, weight: float = 0.8) -> bool:
-        """True when the cluster holds most of the weight and is tight in position and heading."""
-        position_std = math.sqrt(max(self.covariance[0, 0] + self.covariance[1, 1], 0.0))
-        return (self.weight >= weight and position_std <= position_sigma
-                and math.sqrt(max(self.covariance[2, 2], 0.0)) <= heading_sigma)
-
-
-@dataclass(frozen=True)
-class Entropy:
-    """Grid entropy of the belief in bits (Hoffmann eq. 27)."""
-
-    position: float
-    orientation: float
 
 
 @dataclass(frozen=True)
@@ -191,27 +130,7 @@ class AugmentedMCL:
         real("fit_threshold", self.fit_threshold, 0.0)
 
 
-@dataclass(frozen=True)
-class Grid:
-    """Cell sizes for the entropy (and the estimate's seed histogram)."""
-
-    position_cell: float = 0.1            # m
-    orientation_bins: int = 36            # 10° bins
-    cluster_cell: float = 0.5             # m, seed histogram of the estimate
-    cluster_orientation_bins: int = 8
-    cluster_radius: float = 0.75          # m, mean-shift kernel
-    cluster_angle_radius: float = 0.8     # rad
-
-    def __post_init__(self) -> None:
-        # Cells of at least 1 cm and at most 3600 orientation bins: the histograms stay within memory.
-        for name in ("position_cell", "cluster_cell", "cluster_radius"):
-            real(name, getattr(self, name), 0.01, 100.0)
-        real("cluster_angle_radius", self.cluster_angle_radius, 0.0, 10.0, low_open=True)
-        integer("orientation_bins", self.orientation_bins, 1, 3600)
-        integer("cluster_orientation_bins", self.cluster_orientation_bins, 1, 360)
-
-
-class ParticleFilter:
+class ParticleFilter(ParticleSet, BeliefSummary):
     """Monte Carlo localization: particles `poses` (N, 3) [x, y, θ] with `log_weights` (N,).
 
     field:              the field (bounds for resets, injection and the entropy grid)
@@ -287,62 +206,20 @@ class ParticleFilter:
         self._bind_motion_state()
         self.reset_uniform("field")
 
-    def _set_up_grid(self, grid: Grid) -> None:
-        """The carpet (the field and its border strip) and the entropy's and the estimate's grids on it."""
-        if not isinstance(grid, Grid):
-            raise ArgumentTypeError(f"grid = {grid!r} must be an mcl.Grid, not {type(grid).__name__}")
-        self._grid = grid
-        # Carpet bounds: the field plus its border strip.
-        field = self._field
-        border = field.dims.border_strip_width
-        self._x_min, self._x_max = -field.half_length - border, field.half_length + border
-        self._y_min, self._y_max = -field.half_width - border, field.half_width + border
-        self._entropy_nx = max(1, math.ceil((self._x_max - self._x_min) / grid.position_cell))
-        self._entropy_ny = max(1, math.ceil((self._y_max - self._y_min) / grid.position_cell))
-        self._cluster_nx = max(1, math.ceil((self._x_max - self._x_min) / grid.cluster_cell))
-        self._cluster_ny = max(1, math.ceil((self._y_max - self._y_min) / grid.cluster_cell))
-        for what, cells in (("position", self._entropy_nx * self._entropy_ny * grid.orientation_bins),
-                            ("cluster", self._cluster_nx * self._cluster_ny * grid.cluster_orientation_bins)):
-            if cells > MAX_GRID_CELLS:
-                raise ValueError(f"grid = {grid!r} makes {cells} {what} cells on this field; at most "
-                                 f"{MAX_GRID_CELLS} are accepted (larger cells, fewer bins)")
-
     def _allocate_buffers(self) -> None:
-        """The particles and every buffer a step uses, kept across steps: a steady-state step allocates
-        nothing that grows with N; and the summary's cached state (estimate, entropy, hysteresis anchor)."""
-        self._poses = np.zeros((self._n, 3))
-        self._log_weights = np.full(self._n, -math.log(self._n))
-        self._weights = np.full(self._n, 1.0 / self._n)
-        self._log_likelihood = np.empty(self._n)
-        self._previous = np.empty((self._n, 3))          # the particles before resampling (the copy's source)
-        self._capture_poses = np.empty((self._n, 3))
-        self._trig = np.empty((self._n, 2))              # cos, sin of the scored headings, for the roughening
-        self._variates = np.empty((self._n, 3))          # drawn Gaussian motion noise, resampling variates
-        self._counts = np.zeros(self._n + 1, dtype=np.int64)   # resampling scratch (zero between uses)
-        # The estimate's and the entropy's histograms, filled in one pass and kept until the particles change.
-        grid = self._grid
-        self._grid_parameters = summary_grid(self._x_min, self._y_min, grid.cluster_cell, self._cluster_nx,
-                                             self._cluster_ny, grid.cluster_orientation_bins, grid.cluster_radius,
-                                             grid.cluster_angle_radius, 3, grid.position_cell, self._entropy_nx,
-                                             self._entropy_ny, grid.orientation_bins)
-        self._summary = summary_buffers(self._grid_parameters, self._n)
-        # threads > 1: each thread's histograms, in fixed point (see mcl.estimate.summary_fill_chunked)
-        self._local_histograms = np.zeros((numba.config.NUMBA_NUM_THREADS if self._threads > 1 else 0,
-                                           self._summary[1].shape[0]), dtype=np.int64)
-        self._summary_valid = False
+        """The particle set's buffers, the summary's, and the step's caches: a steady-state step allocates
+        nothing that grows with N."""
+        self._allocate_particles()
+        self._allocate_summary()
+        # the compiled step's particle arguments (`mcl.step`), the same arrays for the filter's life
+        self._particle_group = (self._poses, self._log_weights, self._weights, self._log_likelihood, self._previous,
+                                self._trig, self._counts, self._local_histograms)
         self._rng_handle: tuple | None = None           # (bit generator, its kernel handle)
         self._compiled_sensor_of = None                 # the sensor model `_compiled_sensor` was asked of
         self._bounded_of = None                         # the motion model `_bounded` was asked of
         self._bounded = False                           # whether it moves as BoundedNoiseModel does
         self._compiled_sensor = None
         self._fused_step = None                         # `mcl.step.fused_step` of the sensor model's kernels
-        self._estimate: Estimate | None = None
-        self._entropy: Entropy | None = None
-        # Once `entropy()` has been asked for, the compiled step (and `estimate()`) computes the entropy from the
-        # histograms it fills anyway, sparing the call its own dispatch into compiled code.
-        self._entropy_wanted = False
-        self._previous_estimate = np.zeros(3)
-        self._has_previous_estimate = False
 
     def _bind_relocalization(self, relocalization) -> None:
         """Check and bind the relocalization (`mcl.contracts.Relocalization`) to the carpet."""
@@ -352,39 +229,19 @@ class ParticleFilter:
         self.relocalization = relocalization      # which poses to inject, and what tells them apart
         relocalization.bind((self._x_min, self._x_max, self._y_min, self._y_max))
 
-    def _bind_motion_state(self) -> None:
-        """A stateful motion model's per-particle state (`mcl.contracts.ParticleState`), kept beside the poses."""
-        motion_model = self.motion_model
-        self._motion_state = None
-        if callable(getattr(motion_model, "particle_state", None)):
-            self._motion_state = np.ascontiguousarray(motion_model.particle_state(self._n))
-            if self._motion_state.shape[:1] != (self._n,):
-                raise ValueError(f"motion_model.particle_state({self._n}) must have {self._n} rows, "
-                                 f"got shape {self._motion_state.shape}")
-        # The state as rows (a view), and rows to gather it through, for the kernels that resample
-        self._bind_state_rows()
-        self._state_scratch = np.empty_like(self._state_rows)
-
     def __getstate__(self) -> dict:
         # Pickles and deep copies leave out the generator's kernel handle: it holds the addresses of this
         # filter's bit generator, and a copy that kept them would draw from (and advance) the original's.
+        # The sensor model's compiled kernels are asked for again (a copy's sensor model is a copy too).
         state = self.__dict__.copy()
         state["_rng_handle"] = None
+        state["_compiled_sensor_of"] = state["_compiled_sensor"] = state["_fused_step"] = None
         del state["_state_rows"]
         return state
 
     def __setstate__(self, state: dict) -> None:
         self.__dict__.update(state)
         self._bind_state_rows()
-
-    def _bind_state_rows(self) -> None:
-        """The motion state as rows: a view, which the kernels that resample gather through (a copy's own)."""
-        self._state_rows = _NO_STATE if self._motion_state is None else self._motion_state.reshape(self._n, -1)
-
-    @property
-    def n(self) -> int:
-        """The number of particles N (fixed: the filter's arrays are made for it)."""
-        return self._n
 
     @property
     def resampling(self) -> str:
@@ -426,11 +283,6 @@ class ParticleFilter:
         return self._field
 
     @property
-    def grid(self) -> Grid:
-        """The entropy and estimate grid (fixed: the filter's histograms are made for it)."""
-        return self._grid
-
-    @property
     def threads(self) -> int:
         """The number of threads the compiled step runs on (a constructor option)."""
         return self._threads
@@ -452,45 +304,7 @@ class ParticleFilter:
         array.flags.writeable = False
         self._roughening = array
 
-    @property
-    def poses(self) -> np.ndarray:
-        """The particles, (N, 3) [x, y, θ]: the filter's own array, which its kernels work in. Replace them
-        with `set_particles` (validated; the kernels trust the array's shape)."""
-        return self._poses
-
-    @poses.setter
-    def poses(self, value) -> None:
-        raise AttributeError("ParticleFilter.poses cannot be rebound: use set_particles(poses, log_weights), "
-                             "which checks them")
-
-    @property
-    def log_weights(self) -> np.ndarray:
-        """The particles' log-weights, (N,): the filter's own array (normalized with `weights`). Replace them
-        with `set_particles`."""
-        return self._log_weights
-
-    @log_weights.setter
-    def log_weights(self, value) -> None:
-        raise AttributeError("ParticleFilter.log_weights cannot be rebound: use set_particles(poses, log_weights), "
-                             "which checks them and normalizes the weights")
-
-    def _changed(self) -> None:
-        """The particles or their weights changed: the cached estimate and summary histograms are stale."""
-        self._estimate = None
-        self._entropy = None
-        self._summary_valid = False
-
     # -- resets ------------------------------------------------------------------------------------------
-    def _set_particles(self, poses: np.ndarray) -> None:
-        self._has_previous_estimate = False
-        if self._motion_state is not None:
-            self._motion_state[:] = self.motion_model.particle_state(self._n)
-        self._poses[:] = poses
-        self._poses[:, 2] = wrap_angles(self._poses[:, 2])
-        self._log_weights[:] = -math.log(self._n)
-        self._weights[:] = 1.0 / self._n
-        self.ess = float(self._n)
-        self._changed()
 
     def reset_uniform(self, region="field", heading: float | None = None, heading_sigma: float = 0.0) -> None:
         """Spread the particles uniformly over a region ("field", "own_half", "opponent_half", or bounds).
@@ -530,12 +344,6 @@ class ParticleFilter:
         self._mirror_particles()
         self.relocalization.mirror()
 
-    def _mirror_particles(self) -> None:
-        """Every particle through the centre mark, weights kept; the estimate's hysteresis starts afresh."""
-        self._poses[:] = self._field.mirror_poses(self._poses)
-        self._has_previous_estimate = False
-        self._changed()
-
     def reset_candidates(self, poses, sigma=(0.1, 0.1, 0.1), region="field") -> None:
         """Spread the particles evenly over several candidate poses (K, 3), normal around each with `sigma`.
 
@@ -553,53 +361,6 @@ class ParticleFilter:
         self._set_particles(candidates[choice] + sigma * self.rng.standard_normal((self._n, 3)))
         self.relocalization.reset_region(bounds)
         self.w_slow = self.w_fast = 0.0
-
-    def diffuse(self, sigma=(0.1, 0.1, 0.3)) -> None:
-        """Widen the belief: add normal noise `sigma` (x [m], y [m], θ [rad]) to every particle, weights kept.
-
-        For what moved the robot without odometry seeing it (a fall and getting up, a push while standing).
-        """
-        sigma = self._check_sigma(sigma)
-        noisy = self._poses + sigma * self.rng.standard_normal((self._n, 3))
-        self._poses[:] = noisy
-        self._poses[:, 2] = wrap_angles(self._poses[:, 2])
-        self._has_previous_estimate = False
-        self._changed()
-
-    @staticmethod
-    def _check_sigma(sigma, name: str = "sigma") -> np.ndarray:
-        return reals(name, sigma, 3, 0.0, LARGEST_SIGMA)
-
-    def set_particles(self, poses, log_weights=None, motion_state=None) -> None:
-        """Replace the particle set (N, 3) and optionally its log-weights (N,) and, for a stateful motion model,
-        its per-particle state (fresh when not given); validated first."""
-        poses = check_poses("poses", poses)
-        if motion_state is not None:
-            if self._motion_state is None:
-                raise ValueError("motion_state given, but the motion model keeps no per-particle state")
-            try:
-                motion_state = np.asarray(motion_state, dtype=self._motion_state.dtype)
-            except (TypeError, ValueError):
-                raise ArgumentTypeError(f"motion_state = {motion_state!r} must be an array of numbers") from None
-            if motion_state.shape != self._motion_state.shape or not np.isfinite(motion_state).all():
-                raise ValueError(f"motion_state must be finite with shape {self._motion_state.shape}, "
-                                 f"got {motion_state.shape}")
-        if poses.shape != (self._n, 3):
-            raise ValueError(f"poses must have shape ({self._n}, 3), got {poses.shape}")
-        if log_weights is not None:
-            try:
-                log_weights = np.asarray(log_weights, dtype=np.float64)
-            except (TypeError, ValueError):
-                raise ArgumentTypeError(f"log_weights = {log_weights!r} must be an array of numbers") from None
-            if (log_weights.shape != (self._n,) or np.isnan(log_weights).any() or np.isposinf(log_weights).any()
-                    or not (log_weights > -np.inf).any()):
-                raise ValueError("log_weights must have shape (N,), no NaN or +inf, and at least one finite entry")
-        self._set_particles(poses)
-        if motion_state is not None:
-            self._motion_state[:] = motion_state
-        if log_weights is not None:
-            total, self.ess = normalize(log_weights, self._weights)
-            self._log_weights[:] = log_weights - total
 
     # -- the step ----------------------------------------------------------------------------------------
     # A bounded-noise motion model (velocity-linear, constant) and a sensor model that offers
@@ -821,8 +582,6 @@ class ParticleFilter:
         want_estimate = in_step or a is not None
         mean = np.empty(3)
         covariance = np.empty((3, 3))
-        particles = (self._poses, self._log_weights, self._weights, self._log_likelihood, self._previous, self._trig,
-                     self._counts, self._local_histograms)
         weighting = (n - self.injected, terms, augmented, alpha_slow, alpha_fast, ratio_threshold, fit_threshold,
                      self.w_slow, self.w_fast, cap)
         resampling = (self._resample_threshold, self._resampling == "systematic" and (self._motion_state is None
@@ -831,7 +590,7 @@ class ParticleFilter:
         with self._thread_scope:
             (status, native_log_average, ess, w_slow, w_fast, fraction, resampled, weight, position,
              orientation) = self._fused_step.compiled_step(
-                particles, (move, *motion, gaussian, variates), self._generator(),
+                self._particle_group, (move, *motion, gaussian, variates), self._generator(),
                 (sensor.params, sensor.inputs(observations)),
                 weighting, resampling, self._summary_group(want_estimate, mean, covariance), chunk, self._fast,
                 NO_SINCE if since is None else since)
@@ -974,99 +733,6 @@ class ParticleFilter:
         self.injected = int(injected.shape[0])
         self._changed()
 
-    # -- summaries ---------------------------------------------------------------------------------------
-    @property
-    def motion_state(self) -> np.ndarray | None:
-        """The stateful motion model's per-particle state (a read-only view), or None for a stateless model."""
-        if self._motion_state is None:
-            return None
-        view = self._motion_state.view()
-        view.flags.writeable = False
-        return view
-
-    @property
-    def weights(self) -> np.ndarray:
-        """Normalized weights (a read-only view)."""
-        view = self._weights.view()
-        view.flags.writeable = False
-        return view
-
-    def _summary_group(self, want_estimate: bool, mean: np.ndarray, covariance: np.ndarray,
-                       use_previous: bool | None = None, want_entropy: bool | None = None) -> tuple:
-        """The summary's arguments of the compiled step (`mcl.step`): the grid and its histograms, whether to
-        compute the estimate (into `mean`, `covariance`; its hysteresis anchor) and the entropy."""
-        coordinates, histograms, bitmaps = self._summary
-        return (self._grid_parameters, coordinates, histograms, bitmaps, want_estimate, self._previous_estimate,
-                self._has_previous_estimate if use_previous is None else use_previous, mean, covariance,
-                self._entropy_wanted if want_entropy is None else want_entropy)
-
-    def _fill_summary(self) -> None:
-        if not self._summary_valid:
-            if self._threads > 1:
-                with self._thread_scope:
-                    summary_fill_chunked(self._grid_parameters, self._poses, self._weights, *self._summary,
-                                         self._local_histograms, self._chunk)
-            else:
-                summary_fill(self._grid_parameters, self._poses, self._weights, *self._summary)
-            self._summary_valid = True
-
-    def estimate(self) -> Estimate:
-        """Weighted circular mean and covariance of the dominant cluster (cached until the particles change).
-
-        When no cluster holds half the weight, the one around the previous estimate is preferred if it is
-        the heavier (hysteresis: see `mcl.estimate.cluster_estimate`).
-        """
-        if self._estimate is None:
-            mean = np.empty(3)
-            cov = np.empty((3, 3))
-            previous = self._previous_estimate
-            coordinates, histograms, bitmaps = self._summary
-            if self._threads == 1 and not self._summary_valid:
-                # One dispatch: the histograms, the estimate and (once asked for) the entropy.
-                weight, position, orientation = summarize(self._poses, self._weights,
-                                                          self._summary_group(True, mean, cov), self._fast)
-                self._summary_valid = True
-                if self._entropy_wanted:
-                    self._entropy = Entropy(float(position), float(orientation))
-            else:
-                self._fill_summary()
-                if self._threads > 1:
-                    with self._thread_scope:
-                        weight = summary_estimate_chunked(self._grid_parameters, coordinates, self._weights,
-                                                          histograms, bitmaps, previous, self._has_previous_estimate,
-                                                          mean, cov, self._chunk)
-                elif self._fast:
-                    weight = summary_estimate_fast(self._grid_parameters, coordinates, self._weights, histograms,
-                                                   bitmaps, previous, self._has_previous_estimate, mean, cov)
-                else:
-                    weight = summary_estimate(self._grid_parameters, coordinates, self._weights, histograms,
-                                              bitmaps, previous, self._has_previous_estimate, mean, cov)
-                previous[:] = mean
-            self._estimate = Estimate(mean, cov, float(weight))
-            self._has_previous_estimate = True
-        return self._estimate
-
-    def entropy(self) -> Entropy:
-        """Position and orientation entropy in bits on the grid (Hoffmann eq. 27), from the histograms the
-        estimate shares (kept until the particles change)."""
-        self._entropy_wanted = True
-        if self._entropy is None:
-            if self._threads == 1 and not self._summary_valid:
-                # One dispatch: the histograms and the entropy (no estimate: it would move the hysteresis anchor).
-                _, position, orientation = summarize(self._poses, self._weights, self._summary_group(
-                    False, _NO_MEAN, _NO_COVARIANCE, use_previous=False, want_entropy=True), self._fast)
-                self._summary_valid = True
-            else:
-                self._fill_summary()
-                position, orientation = summary_entropy(self._grid_parameters, *self._summary[1:])
-            self._entropy = Entropy(float(position), float(orientation))
-        return self._entropy
-
-    @property
-    def entropy_bounds(self) -> tuple[float, float]:
-        """The largest possible position and orientation entropies: log2 of the cell counts."""
-        return math.log2(self._entropy_nx * self._entropy_ny), math.log2(self._grid.orientation_bins)
-
 
 # -- the compiled step ---------------------------------------------------------------------------------------------
 _CHUNK = 4096        # particles per chunk with threads > 1, about (`balanced_chunk`: a function of N alone, so the
@@ -1095,6 +761,4 @@ class _Threads:
 
 _NO_TRIG = np.empty((0, 2))
 _NO_COORDINATES = np.empty((3, 0))
-_NO_STATE = np.empty((0, 0))      # no per-particle motion state
-_NO_MEAN, _NO_COVARIANCE = np.empty(3), np.empty((3, 3))     # out_mean, out_cov of a summary without estimate
 _NO_MOTION = (0.0,) * 6

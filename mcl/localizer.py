@@ -63,7 +63,8 @@ from sensing import LandmarkSensorModel
 from sensing.observations import Observations
 from sensing.view import CameraView
 
-from .filter import Entropy, Estimate, ParticleFilter
+from .filter import ParticleFilter
+from .summary import Entropy, Estimate
 from .latency import MotionHistory, move_back
 
 

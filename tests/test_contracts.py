@@ -209,3 +209,54 @@ def test_a_filter_with_every_shipped_model_keeps_its_invariants(case):
         mt.assert_same_seed_same_run(make, steps)
 
     run()
+
+
+# -- the fast path ------------------------------------------------------------------------------------------------
+# Which shipped models reach the filter's fused compiled step (`mcl.contracts.fast_path`), and that a filter with
+# them gives, there, the particles the plain sequence of calls gives (the same models seen through the required
+# methods only) bit for bit.
+FAST_MOTION = {"constant", "constant-gaussian", "velocity-linear", "velocity-linear-gaussian"}
+FAST_SENSORS = {"landmark-von_mises-max", "landmark-exact-max", "landmark-linear-noise-no-view"}
+
+
+class _Plain:
+    """A model with everything but the fast path: its capabilities but `fused_likelihood`, and not a
+    `BoundedNoiseModel` (so the filter calls its `predict`)."""
+
+    def __init__(self, model):
+        self._model = model
+
+    def __getattr__(self, name):
+        if name == "fused_likelihood":
+            raise AttributeError(name)
+        return getattr(self._model, name)
+
+
+@pytest.mark.parametrize("name", MOTION_MODELS)
+def test_which_shipped_motion_models_get_the_fast_path(name):
+    from mcl.contracts import fast_path, moves_by_bounded_noise
+    model = motion_model(name)
+    assert moves_by_bounded_noise(model) == (name in FAST_MOTION)
+    assert fast_path(model, LandmarkSensorModel(FIELD))["step"] == (name in FAST_MOTION)
+
+
+@pytest.mark.parametrize("name", list(SENSOR_MODELS))
+def test_which_shipped_sensor_models_get_the_fast_path(name):
+    from mcl.contracts import fast_path
+    assert fast_path(VelocityLinear(), SENSOR_MODELS[name])["likelihood"] == (name in FAST_SENSORS)
+
+
+@pytest.mark.parametrize("motion, sensor", [("velocity-linear", "landmark-von_mises-max"),
+                                           ("constant-gaussian", "landmark-exact-max")])
+def test_the_fast_path_gives_the_plain_calls_particles(motion, sensor):
+    from mcl.contracts import fast_path
+    from sensing import Observations
+    plain_motion, plain_sensor = _Plain(motion_model(motion)), _Plain(SENSOR_MODELS[sensor])
+    assert not any(fast_path(plain_motion, plain_sensor).values())
+    fast = ParticleFilter(FIELD, motion_model(motion), SENSOR_MODELS[sensor], n_particles=200, seed=5)
+    plain = ParticleFilter(FIELD, plain_motion, plain_sensor, n_particles=200, seed=5)
+    frame = Observations.from_arrays(["goalpost", "T", "L"], [3.0, 2.2, 4.0], [0.3, -0.5, 1.0])
+    for k in range(25):
+        for pf in (fast, plain):
+            pf.step(STEP, frame if k % 2 else None)
+        assert fast.poses.tobytes() == plain.poses.tobytes() and fast.weights.tobytes() == plain.weights.tobytes()
