@@ -128,8 +128,9 @@ def summarize(source, weights, summary, fast):
 
 @numba.njit(cache=True)
 def block_trig(poses, start, count, trig, rows, fast):
-    """trig[start:start + count] = (cos, sin) of the headings of poses[start:start + count], through the
-    contiguous scratch `rows` (3, ≥ count). fast: `sincos` compiled with fast-math (to rounding)."""
+    """rows[1:3, :count] = (cos, sin) of the headings of poses[start:start + count] (contiguous rows, for the
+    sensor model's `score`), and the same into trig[start:start + count] (for the roughening); rows (3, ≥ count)
+    scratch. fast: `sincos` compiled with fast-math (to rounding)."""
     for p in range(count):
         rows[0, p] = poses[start + p, 2]
     if fast:
@@ -143,8 +144,8 @@ def block_trig(poses, start, count, trig, rows, fast):
 
 def predict_and_score(poses, scratch, trig, log_likelihood, motion, draws, frame, work, start, stop, fast, since):
     """Particles start..stop moved (or copied) from `poses` into `scratch` a block at a time, cos and sin of
-    their headings into `trig` (for the scoring and the roughening), and scored there while in cache by the
-    sensor model's `score` (`sensing.fused`) into `log_likelihood`. since: (dx, dy, dθ) when the detections
+    their headings computed once (given to the scoring as contiguous rows, kept in `trig` for the roughening),
+    and scored there while in cache by the sensor model's `score` (`sensing.fused`) into `log_likelihood`. since: (dx, dy, dθ) when the detections
     were captured earlier (copying only): the model scores each particle where it was at capture (`trig`
     keeps its heading now)."""
     move, dx, dy, dtheta, bound_x, bound_y, bound_theta, gaussian, variates = motion
@@ -161,7 +162,7 @@ def predict_and_score(poses, scratch, trig, log_likelihood, motion, draws, frame
             move_range(poses, scratch, block, end, dx, dy, dtheta, bound_x, bound_y, bound_theta, gaussian,
                        variates, draws[0], draws[1], move_work)
         block_trig(scratch, block, end - block, trig, rows, fast)
-        score(scratch, trig, block, end - block, work, since, fast, frame, log_likelihood)
+        score(scratch, rows[1:3], block, end - block, work, since, fast, frame, log_likelihood)
 
 
 def predict_and_score_chunked(poses, scratch, trig, log_likelihood, motion, frame, chunk, fast, since):

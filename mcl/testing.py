@@ -74,7 +74,7 @@ __all__ = [
     "assert_unchanged", "assert_refused_leaves_state", "assert_same_seed_same_run",
     # model contracts
     "ContractReport", "assert_motion_contract", "assert_sensor_contract", "check_motion_model",
-    "check_sensor_model",
+    "check_sensor_model", "assert_fused_likelihood",
 ]
 
 REFUSALS = (ValueError, TypeError)
@@ -1125,6 +1125,59 @@ def _bound_of(bound, observations) -> float | None:
     if bound is None:
         return None
     return float(bound(observations)) if callable(bound) else float(bound)
+
+
+def assert_fused_likelihood(model, poses, observations: Observations, since=None) -> bool:
+    """The sensor model's fused-likelihood kernels (`sensing.fused`), run as the filter's fused step runs them,
+    give `log_likelihood` bit for bit; with `since` (camera latency), `log_likelihood` of the poses moved back.
+
+    Parameters
+    ----------
+    model : sensor model
+        Any sensor model; one without the capability (`fused_likelihood` absent or returning None) passes.
+    poses : array_like, (N, 3)
+        The particles.
+    observations : Observations
+        A frame the model accepts (no camera view: a frame with one is scored through `log_likelihood`).
+    since : sequence of 3 floats, optional
+        The robot's motion (dx, dy, dθ) since the frame was captured.
+
+    Returns
+    -------
+    bool
+        Whether the model offers the capability (and so was compared).
+
+    Raises
+    ------
+    AssertionError
+        Naming the first particle whose scores differ.
+    """
+    from mcl.contracts import fused_kernels
+    from mcl.latency import move_back
+    from mcl.step import NO_SINCE, STEP_BLOCK, fused_step
+
+    kernels = fused_kernels(model)
+    if kernels is None:
+        return False
+    poses = np.ascontiguousarray(poses, dtype=np.float64)
+    n = poses.shape[0]
+    displacement = NO_SINCE if since is None else np.asarray(since, dtype=np.float64)
+    frame, missing = kernels.prepare(kernels.inputs(observations), kernels.params)
+    assert missing < 0, f"the kernels refuse detection {missing}, which `check` accepted"
+    fused = np.empty(n)
+    work = kernels.workspace(frame, min(max(n, 1), STEP_BLOCK))
+    copying = (False, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, False, np.empty((0, 3)))
+    fused_step(kernels).predict_and_score(poses, np.empty_like(poses), np.empty((n, 2)), fused, copying, (0, 0),
+                                          frame, work, 0, n, False, displacement)
+    scored = poses
+    if since is not None:
+        scored = np.empty_like(poses)
+        move_back(poses, displacement, scored)
+    plain = np.asarray(model.log_likelihood(scored, observations), dtype=np.float64)
+    differ = np.flatnonzero(fused.view(np.int64) != plain.view(np.int64))
+    assert differ.size == 0, (f"{_name(model)}: the fused kernels score particle {differ[0]} "
+                              f"{fused[differ[0]]!r}, log_likelihood {plain[differ[0]]!r}")
+    return True
 
 
 def assert_sensor_contract(model, poses, observations: Observations, *,

@@ -21,13 +21,14 @@ The calling convention (every argument is positional; `params` and the frame are
         # compiled, once per call (per thread): scratch for scoring up to `columns` particles at a time
     score(poses, trig, start, count, work, since, fast, frame, out) -> None
         # compiled, per block: out[start:start + count] = the log-likelihoods of poses[start:start + count]
-        # (finite or -inf). trig[i] = (cos, sin) of poses[i]'s heading, computed by the filter. since: (dx, dy,
+        # (finite or -inf). trig (2, ≥ count): trig[0, p], trig[1, p] = cos, sin of the heading of
+        # poses[start + p], computed by the filter (contiguous rows: a loop over them vectorizes). since: (dx, dy,
         # dθ) when the detections were captured before the particles moved (score each particle moved back by
         # it, as `mcl.latency.move_back` moves it), or an empty array. fast: the filter's `fast` option (the
         # model may score to rounding instead of bit for bit when True).
 
-The results must equal `log_likelihood` bit for bit when `fast` is False (`mcl.testing.check_sensor_model`
-checks it), since the filter picks either path by what the frame needs.
+The results must equal `log_likelihood` bit for bit when `fast` is False, since the filter picks either path
+by what the frame needs (`mcl.testing.assert_fused_likelihood` checks it).
 """
 from __future__ import annotations
 

@@ -498,15 +498,17 @@ def fused_workspace(frame, columns):
 
 @numba.njit(cache=True)
 def fused_score(poses, trig, start, count, work, since, fast, frame, out):
-    """`score`: out[start:start + count] = the log-likelihoods of poses[start:start + count] (cos and sin of
-    their headings in trig), moved back by `since` when it has rows, by `score_block` (or `score_block_exact`)."""
+    """`score`: out[start:start + count] = the log-likelihoods of poses[start:start + count] (trig[0, p],
+    trig[1, p]: cos and sin of the heading of poses[start + p]), moved back by `since` when it has rows, by
+    `score_block` (or `score_block_exact`)."""
     table, offsets, detections, groups, log_outlier, exact = frame
     for p in range(count):
         work[X, p] = poses[start + p, 0]
         work[Y, p] = poses[start + p, 1]
         work[TOTAL, p] = poses[start + p, 2]
-        work[COS, p] = trig[start + p, 0]
-        work[SIN, p] = trig[start + p, 1]
+    for p in range(count):
+        work[COS, p] = trig[0, p]
+        work[SIN, p] = trig[1, p]
     if since.shape[0] > 0:
         move_block_back(work, count, since, fast)
     if exact:

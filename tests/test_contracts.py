@@ -260,3 +260,14 @@ def test_the_fast_path_gives_the_plain_calls_particles(motion, sensor):
         for pf in (fast, plain):
             pf.step(STEP, frame if k % 2 else None)
         assert fast.poses.tobytes() == plain.poses.tobytes() and fast.weights.tobytes() == plain.weights.tobytes()
+
+
+@settings(max_examples=EXAMPLES, deadline=None, derandomize=True, database=None)
+@given(poses=mt.pose_arrays(FIELD, n=(1, 300)), observations=mt.observations(FIELD, min_detections=1),
+       since=st.none() | st.tuples(*[st.floats(-0.2, 0.2)] * 3))
+def test_the_fused_kernels_of_every_shipped_sensor_model_equal_its_log_likelihood(poses, observations, since):
+    from mcl.contracts import fused_kernels
+    offered = [name for name, model in SENSOR_MODELS.items()
+               if mt.assert_fused_likelihood(model, poses, observations.with_view(None), since)]
+    assert set(offered) == FAST_SENSORS
+    assert all(fused_kernels(SENSOR_MODELS[name]) is not None for name in offered)

@@ -49,6 +49,11 @@ def test_the_examples_get_the_fast_path(namespace):
     motion, sensor = namespace["ProportionalNoise"](), namespace["RangeOnlyModel"](spl())
     assert fast_path(motion, sensor)["step"]
     assert not fast_path(_Plain(motion), _Plain(sensor))["step"]
+    from mcl.testing import assert_fused_likelihood
+    poses = np.random.default_rng(2).uniform([-5, -3, -4], [5, 3, 4], (300, 3))
+    frame = Observations.from_arrays(["goalpost", "T", "X"], [3.2, 2.0, 1.1], [0.0, 0.0, 0.0])
+    assert assert_fused_likelihood(sensor, poses, frame) and assert_fused_likelihood(sensor, poses, frame,
+                                                                                     (0.1, -0.05, 0.2))
 
 
 @pytest.mark.parametrize("latency", [False, True])
