@@ -233,6 +233,7 @@ def compare(base_runs: list[dict], current_runs: list[dict], threshold: float = 
         c = [f[label][1] for f in current]
         items.append({"item": label, "unit": unit, "base": b, "current": c,
                       "ratio": statistics.median(c) / statistics.median(b) if statistics.median(b) > 0 else None,
+                      "best_ratio": min(c) / min(b) if min(b) > 0 else None,
                       "verdict": verdict(b, c, threshold)})
     return items
 
@@ -250,17 +251,24 @@ def report(base: Side, current: Side, rounds: int, items: list[dict], machine: d
              f"{'s' if rounds != 1 else ''}, alternated" + (f"; {machine.get('cpu_model')}, python "
                                                              f"{machine.get('python')}, numba {machine.get('numba')}"
                                                              if machine else ""),
-             "values over the rounds; ratio: medians, current / base (< 1: faster); verdict: faster or slower when "
+             "values over the rounds; ratio: medians, current / base (< 1: faster); best: the sides' fastest rounds, "
+             "current / base (the least disturbed runs); verdict: faster or slower when "
              f"the ranges do not overlap and the ratio is beyond 1 ± {threshold:g}, else ~",
-             f"{'item':<52} {'unit':<12} {'base':>15} {'current':>15} {'ratio':>7}  verdict"]
+             f"{'item':<52} {'unit':<12} {'base':>15} {'current':>15} {'ratio':>7} {'best':>6}  verdict"]
     for item in items:
         ratio = "-" if item["ratio"] is None else f"{item['ratio']:.2f}"
+        best = "-" if item.get("best_ratio") is None else f"{item['best_ratio']:.2f}"
         lines.append(f"{item['item']:<52} {item['unit']:<12} {_span(item['base']):>15} "
-                     f"{_span(item['current']):>15} {ratio:>7}  {item['verdict']}")
+                     f"{_span(item['current']):>15} {ratio:>7} {best:>6}  {item['verdict']}")
     counts = {v: sum(1 for i in items if i["verdict"] == v) for v in ("faster", "slower", "~")}
     if rounds > 1:
         lines.append(f"{counts['faster']} faster, {counts['slower']} slower, {counts['~']} within the spread "
                      f"(of {len(items)})")
+        best = [i for i in items if i.get("best_ratio") is not None]
+        worst = max(best, key=lambda i: i["best_ratio"], default=None)
+        if worst is not None:
+            lines.append(f"best rounds: {sum(1 for i in best if i['best_ratio'] > 1.05)} of {len(best)} items more "
+                         f"than 5 % slower; the largest ratio {worst['best_ratio']:.2f} ({worst['item']})")
     return "\n".join(lines)
 
 
@@ -272,7 +280,10 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="robocup-mcl bench compare", description=__doc__.split("\n\n")[0],
                                      formatter_class=argparse.RawDescriptionHelpFormatter,
                                      epilog=__doc__.split("\n\n", 2)[2])
-    parser.add_argument("revision", help="a git revision of this repository, or another checkout's directory")
+    parser.add_argument("revision", nargs="?",
+                        help="a git revision of this repository, or another checkout's directory")
+    parser.add_argument("--report", metavar="PATH", help="print the table of a comparison saved with --save "
+                        "(recomputing its ratios) instead of running one")
     parser.add_argument("--rounds", type=int, default=3, help="runs of each side, alternated (default 3)")
     parser.add_argument("--sizes", default=",".join(str(n) for n in DEFAULT_SIZES),
                         help="particle counts, comma-separated (default %(default)s)")
@@ -285,6 +296,19 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--save", metavar="PATH", help="also write the comparison as JSON to PATH (and the table "
                         "beside it, PATH with .txt)")
     args = parser.parse_args(argv)
+    if args.report:
+        try:
+            saved = json.loads(Path(args.report).read_text())
+            items = compare(saved["runs"]["base"], saved["runs"]["current"], saved["threshold"])
+            base, current = (Side(saved[k]["label"], Path(saved[k]["root"])) for k in ("base", "current"))
+        except (OSError, ValueError, KeyError, TypeError) as error:
+            print(f"robocup-mcl bench compare: {args.report} is not a saved comparison ({error})", file=sys.stderr)
+            return 1
+        print(report(base, current, saved["rounds"], items, saved["runs"]["current"][-1].get("machine"),
+                     saved["threshold"]))
+        return 0
+    if args.revision is None:
+        parser.error("give a revision to compare with (or --report PATH)")
     if args.rounds < 1:
         parser.error(f"--rounds {args.rounds} must be >= 1")
     if not 0 <= args.threshold < 1:
