@@ -80,7 +80,26 @@ def test_compare_takes_the_medians_and_keeps_only_figures_of_every_run():
     text = bc.report(Side("base", Path("/b")), Side("working tree", Path("/c")), 3, list(items.values()),
                      current[0]["machine"])
     assert "full step, N = 100" in text and "0.81" in text and "test CPU" in text
-    assert text.splitlines()[-1].startswith("1 faster, 0 slower,")
+    assert step["best_ratio"] == pytest.approx(80.0 / 100.0)     # the fastest rounds of each side
+    assert text.splitlines()[-2].startswith("1 faster, 0 slower,")
+    worst = max(items.values(), key=lambda item: item["best_ratio"])
+    assert text.splitlines()[-1] == (f"best rounds: {sum(1 for i in items.values() if i['best_ratio'] > 1.05)} of "
+                                     f"{len(items)} items more than 5 % slower; the largest ratio "
+                                     f"{worst['best_ratio']:.2f} ({worst['item']})")
+
+
+def test_a_saved_comparison_is_reported_again(tmp_path, capsys):
+    base = [_result(100.0, 60.0, 8.0), _result(110.0, 61.0, 9.0), _result(105.0, 62.0, 7.0)]
+    current = [_result(80.0, 60.5, 8.5), _result(90.0, 61.5, 8.0), _result(85.0, 59.0, 7.5)]
+    saved = tmp_path / "compare.json"
+    saved.write_text(json.dumps({"base": {"label": "base", "root": "/b"}, "current": {"label": "now", "root": "/c"},
+                                 "rounds": 3, "threshold": 0.1, "runs": {"base": base, "current": current}}))
+    assert bc.main(["--report", str(saved)]) == 0
+    out = capsys.readouterr().out
+    assert "base base, current now; 3 rounds" in out and "full step, N = 100" in out and "0.81" in out
+    (tmp_path / "junk.json").write_text("{}")
+    assert bc.main(["--report", str(tmp_path / "junk.json")]) == 1
+    assert "is not a saved comparison" in capsys.readouterr().err
 
 
 def test_runs_alternate_which_side_goes_first():
