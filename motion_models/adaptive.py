@@ -66,6 +66,7 @@ STATES = ("free", "slippage", "hindrance", "pushed", "stopped")
 CONDITIONS = ("quiet", "collision", "frequent")
 STATE_COLUMNS = 4          # per particle: mobility state, then the three rand() values of its episode
 VARIATES = 7               # per particle and step: transition, three fresh episode values, three odometry noise
+MAX_ODOMETRY_SPEED = 1000.0  # m/s and rad/s: the most odometry over dt may imply (a shorter step is a clock glitch)
 _CUMULATIVE_MEMO = 64      # (condition, dt) pairs an AdaptiveMotion keeps the cumulative transition rows of
 
 
@@ -214,6 +215,19 @@ class AdaptiveMotion:
             raise ValueError(f"AdaptiveMotion needs MotionInput.collision, a sensing.collision.CollisionPercept "
                              f"(sensing.collision.NO_COLLISION when nothing was detected); got {u.collision!r}")
         u.displacement()
+        self._check_speed(u)
+
+    @staticmethod
+    def _check_speed(u: MotionInput) -> None:
+        """The model moves by speeds (odometry / dt) and squares them: odometry over a step so short that its
+        speed exceeds `MAX_ODOMETRY_SPEED` (a timestamp glitch) is refused, before anything moves, rather than
+        turned into infinite poses."""
+        if u.command is None and u.odometry is not None and u.dt > 0:
+            speed = max(abs(v) for v in u.odometry) / u.dt
+            if not speed <= MAX_ODOMETRY_SPEED:
+                raise ValueError(f"odometry = {u.odometry!r} over dt = {u.dt!r} s implies {speed:.3g} m/s or rad/s; "
+                                 f"AdaptiveMotion takes at most {MAX_ODOMETRY_SPEED:g} (a step that short is a "
+                                 "timestamp glitch)")
 
     def condition(self, percept: CollisionPercept) -> str:
         """Which transition set applies: "frequent", "collision" or "quiet"."""
@@ -258,6 +272,7 @@ class AdaptiveMotion:
         percept = u.collision
         if not isinstance(percept, CollisionPercept) or (u.command is None and u.odometry is None):
             self.check(u)                   # raises the ValueError that names what is missing
+        self._check_speed(u)
         n = poses.shape[0]
         if state is None:
             state = self.particle_state(n)
