@@ -414,7 +414,8 @@ def motion_inputs(kind: str = "any", collision: bool = False, max_dt: float = 0.
         Give each input a collision percept (`collision_percepts`), as `AdaptiveMotion` needs (default False:
         none).
     max_dt : float, optional
-        The longest time step [s] (default 0.1); dt is drawn from [0, max_dt].
+        The longest time step [s] (default 0.1); dt is drawn from [0, max_dt], for a measured step (odometry,
+        footstep) 0 or at least 1 ms (a measured step over less is a clock glitch, which models may refuse).
 
     Returns
     -------
@@ -425,6 +426,7 @@ def motion_inputs(kind: str = "any", collision: bool = False, max_dt: float = 0.
     if not (isinstance(max_dt, (int, float)) and 0 < max_dt <= 10.0):
         raise ValueError(f"max_dt = {max_dt!r} must be within (0, 10] s")
     dt = st.floats(0.0, float(max_dt))
+    measured_dt = st.just(0.0) | st.floats(min(1e-3, float(max_dt)), float(max_dt))
     percept = collision_percepts() if collision else st.none()
     command = st.tuples(st.floats(-0.5, 0.5), st.floats(-0.3, 0.3), st.floats(-1.5, 1.5))
     odometry = st.tuples(st.floats(-0.1, 0.1), st.floats(-0.05, 0.05), st.floats(-0.5, 0.5))
@@ -435,8 +437,8 @@ def motion_inputs(kind: str = "any", collision: bool = False, max_dt: float = 0.
 
     by_kind = {
         "command": st.builds(MotionInput, dt=dt, command=command, collision=percept),
-        "odometry": st.builds(MotionInput, dt=dt, odometry=odometry, collision=percept),
-        "footstep": st.builds(footstep_input, dt, st.one_of(footstep_events(), footstep_events(), st.none()),
+        "odometry": st.builds(MotionInput, dt=measured_dt, odometry=odometry, collision=percept),
+        "footstep": st.builds(footstep_input, measured_dt, st.one_of(footstep_events(), footstep_events(), st.none()),
                               _STEP, percept),
     }
     if kind == "any":
