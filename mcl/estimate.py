@@ -36,12 +36,14 @@ from numerics.trig import wrap
 
 @numba.njit(cache=True, inline="always")
 def _cell(value, origin, size, count):
-    c = int(math.floor((value - origin) / size))
-    if c < 0:
+    """The cell of `value` among `count` cells of `size` from `origin`, clamped to the first and last cell; a
+    NaN falls in the first (a broken model's poses must not index outside the histograms)."""
+    q = math.floor((value - origin) / size)
+    if not q >= 0.0:
         return 0
-    if c >= count:
+    if q >= count:
         return count - 1
-    return c
+    return int(q)
 
 
 BLOCK = 256        # particles per block of the vectorized loops below
@@ -49,9 +51,9 @@ BLOCK = 256        # particles per block of the vectorized loops below
 
 @numba.njit(cache=True, inline="always")
 def _cell_float(value, origin, size, count):
-    """`_cell` as a float (exact), for vectorized loops."""
+    """`_cell` as a float (exact), for vectorized loops (a NaN falls in the first cell, as in `_cell`)."""
     c = np.floor((value - origin) / size)
-    c = 0.0 if c < 0.0 else c
+    c = c if c >= 0.0 else 0.0
     return count - 1.0 if c >= count else c
 
 

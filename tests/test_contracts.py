@@ -279,3 +279,30 @@ def test_the_fused_kernels_of_every_shipped_sensor_model_equal_its_log_likelihoo
                if mt.assert_fused_likelihood(model, poses, observations.with_view(None), since)]
     assert set(offered) == FAST_SENSORS
     assert all(fused_kernels(SENSOR_MODELS[name]) is not None for name in offered)
+
+
+def test_a_motion_model_that_returns_nan_poses_does_not_crash_the_filter():
+    """A broken model's NaN poses fall in the summary's first cell: the estimate and the entropy are computed,
+    not an out-of-bounds write (run in a child process: a crash must fail the test, not end the run)."""
+    import subprocess
+    import sys
+    code = """
+import numpy as np
+from field import spl
+from mcl import ParticleFilter
+from motion_models import MotionInput
+from sensing import LandmarkSensorModel
+
+class Broken:
+    def check(self, u):
+        pass
+    def predict(self, poses, u, rng):
+        poses[::3] = np.nan
+
+pf = ParticleFilter(spl(), Broken(), LandmarkSensorModel(spl()), n_particles=90, seed=0)
+pf.predict(MotionInput(dt=0.01, command=(0.1, 0.0, 0.0)))
+print("estimate", pf.estimate().weight, "entropy", pf.entropy().position)
+"""
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=600)
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert "estimate" in done.stdout and "entropy" in done.stdout
