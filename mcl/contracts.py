@@ -43,7 +43,7 @@ from sensing.observations import Observations
 
 __all__ = ["MotionModel", "SensorModel", "Relocalization", "FusedLikelihood", "FusedLikelihoodKernels", "TermCount",
            "SensorResetting", "ViewScoring", "ParticleState", "BoundedNoise", "capabilities",
-           "moves_by_bounded_noise", "fused_kernels", "fast_path"]
+           "moves_by_bounded_noise", "fused_kernels", "fast_path", "REQUIRED_METHODS", "lacks"]
 
 
 @runtime_checkable
@@ -136,6 +136,16 @@ class BoundedNoise(Protocol):
 
     def noise_bounds(self, u: MotionInput) -> tuple[float, float, float]:
         """The noise's half-widths (x [m], y [m], θ [rad]) for `u` (uniform; Gaussian of the same variance)."""
+
+
+REQUIRED_METHODS = {MotionModel: ("check", "predict"), SensorModel: ("check", "log_likelihood"),
+                    Relocalization: ("bind", "reset_region", "reset_pose", "mirror", "carry", "confirm", "propose")}
+"""The methods the filter calls on each required collaborator (what `lacks` checks before it takes one)."""
+
+
+def lacks(obj, contract) -> list[str]:
+    """The methods of `contract` (a key of `REQUIRED_METHODS`) that `obj` does not have as callables."""
+    return [name for name in REQUIRED_METHODS[contract] if not callable(getattr(obj, name, None))]
 
 
 _CAPABILITIES = (("fused likelihood", FusedLikelihood), ("per-term fit", TermCount),

@@ -75,7 +75,7 @@ from numerics.random import bit_generator_handle, draw_variates, parallel_unifor
 from numerics.trig import SQRT3
 from sensing.observations import Observations
 
-from .contracts import fused_kernels, moves_by_bounded_noise
+from .contracts import Relocalization, SensorModel, fused_kernels, lacks, moves_by_bounded_noise
 from .latency import move_back, move_forward
 from .relocalization import SoccerRelocalization, region_bounds
 from .resampling import SCHEMES, gather_offspring_rows, gather_with_jitter, resample_with_jitter
@@ -92,8 +92,6 @@ _MOVED = "; the particles moved by u (the prediction ran), their weights are unc
 MAX_PARTICLES = 10**7
 """The most particles a filter may have (about 2 GB of buffers); more is refused with a ValueError."""
 MAX_THREADS = 1024
-# what the filter asks of its relocalization (`mcl.relocalization.SoccerRelocalization` is the default)
-RELOCALIZATION_METHODS = ("bind", "reset_region", "reset_pose", "mirror", "carry", "confirm", "propose")
 
 
 @dataclass(frozen=True)
@@ -175,9 +173,9 @@ class ParticleFilter(ParticleSet, BeliefSummary):
             integer("seed", seed, 0)
         self.resampling = resampling                  # (the setters check them)
         self.resample_threshold = resample_threshold
-        for name, obj, methods in (("motion_model", motion_model, ("check", "predict")),
-                                   ("sensor_model", sensor_model, ("check", "log_likelihood"))):
-            missing = [m for m in methods if not callable(getattr(obj, m, None))]
+        for name, obj, contract in (("motion_model", motion_model, MotionModel),
+                                    ("sensor_model", sensor_model, SensorModel)):
+            missing = lacks(obj, contract)
             if missing:
                 raise ValueError(f"{name} = {obj!r} lacks {', '.join(missing)}")
         self.roughening = roughening
@@ -223,7 +221,7 @@ class ParticleFilter(ParticleSet, BeliefSummary):
 
     def _bind_relocalization(self, relocalization) -> None:
         """Check and bind the relocalization (`mcl.contracts.Relocalization`) to the carpet."""
-        missing = [m for m in RELOCALIZATION_METHODS if not callable(getattr(relocalization, m, None))]
+        missing = lacks(relocalization, Relocalization)
         if missing:
             raise ValueError(f"relocalization = {relocalization!r} lacks {', '.join(missing)}")
         self.relocalization = relocalization      # which poses to inject, and what tells them apart
@@ -556,8 +554,8 @@ class ParticleFilter(ParticleSet, BeliefSummary):
 
     def _step_compiled(self, motion: tuple | None, observations: Observations, in_step: bool,
                        since: np.ndarray | None = None) -> None:
-        """[predict by `motion`,] correct(observations) [captured `since` ago]: one call into `mcl.step.compiled_step`
-        (with the entropy, once `entropy()` has been asked for)."""
+        """[predict by `motion`,] correct(observations) [captured `since` ago]: one call into
+        `mcl.step.compiled_step` (with the entropy, once `entropy()` has been asked for)."""
         n = self._n
         sensor = self._compiled_sensor
         move = motion is not None
@@ -596,7 +594,8 @@ class ParticleFilter(ParticleSet, BeliefSummary):
                 NO_SINCE if since is None else since)
         if status == STEP_MISSING:
             self.sensor_model.check(observations)     # raises, naming the detection; nothing has changed
-            raise ValueError("a detection's landmark type is not on this field")
+            raise ValueError("the sensor model's fused kernels refuse a detection that its check() accepts; "
+                             "filter left unchanged")
         if move:                                      # the particles have moved, whatever follows
             self.relocalization.carry(motion[0], motion[1], motion[2])
             self._changed()

@@ -46,7 +46,7 @@ import numpy as np
 from motion_models.kernels import MOVE_WORK, move_range, move_range_fast
 from numerics.compile import variant
 from numerics.random import parallel_uniforms
-from numerics.trig import SQRT3, sincos_rows, sincos_rows_fast
+from numerics.trig import SQRT3, sincos_rows_as
 
 from .estimate import (summary_entropy, summary_estimate, summary_estimate_chunked, summary_estimate_fast, summary_fill,
                        summary_fill_chunked)
@@ -133,10 +133,7 @@ def block_trig(poses, start, count, trig, rows, fast):
     scratch. fast: `sincos` compiled with fast-math (to rounding)."""
     for p in range(count):
         rows[0, p] = poses[start + p, 2]
-    if fast:
-        sincos_rows_fast(rows[0], rows[1], rows[2], count)
-    else:
-        sincos_rows(rows[0], rows[1], rows[2], count)
+    sincos_rows_as(rows[0], rows[1], rows[2], count, fast)
     for p in range(count):
         trig[start + p, 0] = rows[1, p]
         trig[start + p, 1] = rows[2, p]
@@ -145,9 +142,9 @@ def block_trig(poses, start, count, trig, rows, fast):
 def predict_and_score(poses, scratch, trig, log_likelihood, motion, draws, frame, work, start, stop, fast, since):
     """Particles start..stop moved (or copied) from `poses` into `scratch` a block at a time, cos and sin of
     their headings computed once (given to the scoring as contiguous rows, kept in `trig` for the roughening),
-    and scored there while in cache by the sensor model's `score` (`sensing.fused`) into `log_likelihood`. since: (dx, dy, dθ) when the detections
-    were captured earlier (copying only): the model scores each particle where it was at capture (`trig`
-    keeps its heading now)."""
+    and scored there while in cache by the sensor model's `score` (`sensing.fused`) into `log_likelihood`.
+    since: (dx, dy, dθ) when the detections were captured earlier (copying only): the model scores each
+    particle where it was at capture (`trig` keeps its heading now)."""
     move, dx, dy, dtheta, bound_x, bound_y, bound_theta, gaussian, variates = motion
     move_work = np.empty(MOVE_WORK)
     rows = np.empty((3, STEP_BLOCK))

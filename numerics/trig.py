@@ -93,6 +93,15 @@ sincos_rows_fast = variant(sincos_rows.py_func, "fast", fastmath=FAST, error_mod
 """`sincos_rows` compiled with fast-math (to rounding)."""
 
 
+@numba.njit(cache=True, inline="always")
+def sincos_rows_as(angles, cos_out, sin_out, count, fast):
+    """`sincos_rows_fast` when `fast`, else `sincos_rows` (the kernels' `fast` option)."""
+    if fast:
+        sincos_rows_fast(angles, cos_out, sin_out, count)
+    else:
+        sincos_rows(angles, cos_out, sin_out, count)
+
+
 def sincos_reference(x) -> tuple[np.ndarray, np.ndarray]:
     """Numpy twin of `sincos`: the same operations, elementwise, so the same bits."""
     x = np.asarray(x, dtype=np.float64)

@@ -56,7 +56,7 @@ from field.angles import TWO_PI, wrap_angle, wrap_angles
 from field.checks import LARGEST_SIGMA, SMALLEST_SIGMA, ArgumentTypeError, real
 from numerics.compile import variant
 from numerics.random import bounded_integers, draw_handles, draw_uniforms
-from numerics.trig import FAST, atan2_poly, moved_back, sincos, sincos_rows, sincos_rows_fast
+from numerics.trig import FAST, atan2_poly, moved_back, sincos, sincos_rows_as
 
 from .fused import FusedLikelihoodKernels
 from .observations import Observations
@@ -333,15 +333,6 @@ def block_work(offsets, groups, columns):
     return np.empty((GEOMETRY + 3 * widest, columns))
 
 
-@numba.njit(cache=True, inline="always")
-def _trig_rows(work, count, fast):
-    """Rows COS and SIN of the work array from the headings in its row TOTAL (`numerics.trig.sincos_rows`)."""
-    if fast:
-        sincos_rows_fast(work[TOTAL], work[COS], work[SIN], count)
-    else:
-        sincos_rows(work[TOTAL], work[COS], work[SIN], count)
-
-
 @numba.njit(cache=True)
 def load_block(poses, start, count, work, trig, fast=False):
     """Rows X, Y, COS, SIN of the work array from poses[start:start + count] (row TOTAL holds the headings
@@ -351,7 +342,7 @@ def load_block(poses, start, count, work, trig, fast=False):
         work[X, p] = poses[start + p, 0]
         work[Y, p] = poses[start + p, 1]
         work[TOTAL, p] = poses[start + p, 2]
-    _trig_rows(work, count, fast)
+    sincos_rows_as(work[TOTAL], work[COS], work[SIN], count, fast)
     if trig.shape[0] > 0:
         for p in range(count):
             trig[start + p, 0] = work[COS, p]
@@ -372,7 +363,7 @@ def move_block_back(work, count, displacement, fast=False):
     for bit. Scores detections captured before the particles moved (camera latency) without writing the
     moved-back poses anywhere (a loop over rows, which vectorizes)."""
     _move_rows_back(work, count, displacement[0], displacement[1], displacement[2])
-    _trig_rows(work, count, fast)
+    sincos_rows_as(work[TOTAL], work[COS], work[SIN], count, fast)
 
 
 @numba.njit(cache=True, error_model="numpy")
