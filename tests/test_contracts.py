@@ -306,3 +306,87 @@ print("estimate", pf.estimate().weight, "entropy", pf.entropy().position)
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=600)
     assert done.returncode == 0, done.stderr[-2000:]
     assert "estimate" in done.stdout and "entropy" in done.stdout
+
+
+# -- models a team registers ------------------------------------------------------------------------------------
+# Models registered in this process or declared by an installed package (entry points "robocup_mcl.motion_models"
+# and "robocup_mcl.sensor_models") go through the same checks; with none installed the parametrized test below
+# is reported as skipped (an empty parameter set).
+@pytest.mark.parametrize("entry", mt.registered_models(), ids=lambda entry: f"{entry.kind}-{entry.name}")
+def test_every_registered_model_keeps_the_contract(entry):
+    reports = [r for r in mt.check_registered(FIELD, kind=entry.kind, max_examples=EXAMPLES)
+               if r.model.name == entry.name]
+    assert len(reports) == 1 and reports[0].contract.accepted > 0
+
+
+class _Unseeded:
+    """A motion model that draws from numpy's global generator: not the same run from the same seed."""
+
+    def check(self, u):
+        if u.command is None:
+            raise ValueError("needs a command")
+
+    def predict(self, poses, u, rng):
+        self.check(u)
+        poses[:, :2] += np.random.normal(0.0, 0.01, (poses.shape[0], 2))
+
+
+class _Shrinking:
+    """A motion model that drops particles."""
+
+    def check(self, u):
+        pass
+
+    def predict(self, poses, u, rng):
+        poses.resize((0, 3), refcheck=False)
+
+
+@pytest.mark.parametrize("model, says", [(_Unseeded, "same seed"), (_Shrinking, "shape")])
+def test_a_registered_model_that_breaks_the_contract_is_named(model, says):
+    mt.register_motion_model("broken", model)
+    try:
+        with pytest.raises(AssertionError, match="broken") as failed:
+            mt.check_registered(FIELD, max_examples=5)
+        assert says in str(failed.value)
+    finally:
+        mt.unregister("motion", "broken")
+    assert all(entry.name != "broken" for entry in mt.registered_models())
+
+
+@pytest.mark.parametrize("name, make, refused, error", [
+    ("", ConstantNoise, (), ValueError), ("  ", ConstantNoise, (), ValueError), (3, ConstantNoise, (), ValueError),
+    ("x", "ConstantNoise", (), TypeError), ("x", ConstantNoise, ("not an input",), TypeError)])
+def test_a_refused_registration_registers_nothing(name, make, refused, error):
+    before = mt.registered_models()
+    with pytest.raises(error):
+        mt.register_motion_model(name, make, refused=refused)
+    assert mt.registered_models() == before
+
+
+def test_a_name_is_registered_once():
+    mt.register_sensor_model("once", LandmarkSensorModel)
+    try:
+        with pytest.raises(ValueError, match="already registered"):
+            mt.register_sensor_model("once", LineSensorModel)
+        assert [e.make for e in mt.registered_models("sensor") if e.name == "once"] == [LandmarkSensorModel]
+    finally:
+        mt.unregister("sensor", "once")
+    with pytest.raises(KeyError):
+        mt.unregister("sensor", "once")
+
+
+def test_models_declared_by_an_installed_package_are_found(tmp_path, monkeypatch):
+    """An entry point of an installed distribution (a dist-info folder on the path) is listed and checked."""
+    package = tmp_path / "team_models.py"
+    package.write_text("from motion_models import VelocityLinear\n\n"
+                       "def odometry():\n    return VelocityLinear(gaussian=True)\n")
+    info = tmp_path / "team_models-1.0.dist-info"
+    info.mkdir()
+    (info / "METADATA").write_text("Metadata-Version: 2.1\nName: team-models\nVersion: 1.0\n")
+    (info / "entry_points.txt").write_text("[robocup_mcl.motion_models]\nteam-odometry = team_models:odometry\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    found = [e for e in mt.registered_models("motion") if e.name == "team-odometry"]
+    assert len(found) == 1 and found[0].source == "entry point team_models:odometry"
+    reports = [r for r in mt.check_registered(FIELD, kind="motion", max_examples=5)
+               if r.model.name == "team-odometry"]
+    assert len(reports) == 1 and reports[0].fast_path["motion"]

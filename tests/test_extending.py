@@ -105,3 +105,19 @@ def test_a_refused_step_changes_nothing(namespace):
         pf.step(MotionInput(dt=0.02, command=(0.1, 0.0, 0.0)), Observations.from_arrays(["goalpost"], [np.nan], [0.0]))
     assert np.array_equal(pf.poses, before[0]) and np.array_equal(pf.weights, before[1])
     assert pf.rng.bit_generator.state == before[2]
+
+
+def test_the_examples_pass_the_registered_contract_checks(namespace):
+    """Registered, the two models go through the checks the shipped ones pass, and reach the fast path."""
+    from mcl import testing as mt
+    mt.register_motion_model("extending-proportional-noise", namespace["ProportionalNoise"])
+    mt.register_sensor_model("extending-range-only", namespace["RangeOnlyModel"])
+    try:
+        reports = {r.model.name: r for r in mt.check_registered(max_examples=8)}
+    finally:
+        mt.unregister("motion", "extending-proportional-noise")
+        mt.unregister("sensor", "extending-range-only")
+    assert {"extending-proportional-noise", "extending-range-only"} <= set(reports)
+    assert reports["extending-proportional-noise"].fast_path["motion"]
+    assert reports["extending-range-only"].fast_path["likelihood"]
+    assert all(r.contract.accepted > 0 for r in reports.values())
