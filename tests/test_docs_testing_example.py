@@ -92,3 +92,15 @@ def test_the_parametrized_example_runs(load):
         module.test_motion_model_contract(model)
     for model in module.OUR_SENSOR_MODELS:
         module.test_sensor_model_contract(model)
+
+
+def test_the_registration_example_runs_and_leaves_nothing_registered(load, capsys):
+    from mcl import testing as mt
+    team = load(team_file(), "docs_testing_team_registered")
+    block = next(block for block in python_blocks() if "register_motion_model" in block)
+    module = load(block, "docs_testing_registration", {k: v for k, v in vars(team).items() if not k.startswith("__")})
+    before = mt.registered_models()
+    module.test_every_registered_model()
+    printed = capsys.readouterr().out
+    assert "scaled-odometry" in printed and "exact-bearings" in printed
+    assert mt.registered_models() == before
