@@ -4,7 +4,7 @@ VENV   := .venv
 PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed
 
-.PHONY: demo test fuzz bench clean
+.PHONY: demo test docs fuzz bench clean
 
 $(PY):
 	$(PYTHON) -m venv $(VENV)
@@ -12,7 +12,7 @@ $(PY):
 # Reinstall whenever the package metadata changes.
 $(STAMP): pyproject.toml | $(PY)
 	$(PY) -m pip install --quiet --upgrade pip
-	$(PY) -m pip install --quiet -e '.[test]'
+	$(PY) -m pip install --quiet -e '.[test,docs]'
 	touch $(STAMP)
 
 demo: $(STAMP)
@@ -20,6 +20,10 @@ demo: $(STAMP)
 
 test: $(STAMP)
 	$(PY) -m pytest
+
+# The documentation site (MkDocs + Material + mkdocstrings) into site/; `make test` builds it with --strict.
+docs: $(STAMP)
+	NO_MKDOCS_2_WARNING=1 $(PY) -m mkdocs build
 
 # The fuzz suite's full profile: >= 10 000 fresh generated cases over every public entry point and loader
 # (tests/fuzz_run.py; `make test` runs its fixed CI profile). Results in recordings/fuzz.json.
@@ -36,4 +40,4 @@ bench: $(BENCH_STAMP)
 	$(VENV)/bin/robocup-mcl bench --save recordings/bench.json --plot recordings/bench.png
 
 clean:
-	rm -rf $(VENV) recordings .pytest_cache .hypothesis
+	rm -rf $(VENV) recordings site .pytest_cache .hypothesis

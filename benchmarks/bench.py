@@ -61,7 +61,17 @@ QUICK_BUDGET_S = 0.05
 SCHEMA = 2
 
 
-def _progress(text: str) -> None:
+_BAR = None        # the run's progress bar (`run` with progress=True), else None: one line per section
+
+
+def _progress(text: str, done: bool = False) -> None:
+    """Say which section starts (or, `done`, ends): the bar's label (and count) when a bar is on, else one line
+    on stderr."""
+    if _BAR is not None:
+        _BAR.set_postfix_str(text, refresh=not done)
+        if done:
+            _BAR.update(1)
+        return
     print(f"bench: {text}", file=sys.stderr, flush=True)
 
 
@@ -75,7 +85,7 @@ def _guarded(name: str, fn, *args, **kwargs) -> dict:
                    "traceback": traceback.format_exc(limit=4)}
     if isinstance(section, dict):
         section["seconds"] = time.perf_counter() - start
-    _progress(f"{name} done in {time.perf_counter() - start:.1f} s")
+    _progress(f"{name} done in {time.perf_counter() - start:.1f} s", done=True)
     return section
 
 
@@ -94,8 +104,23 @@ def _models(budget_s: float) -> dict:
 
 
 def run(sizes=SIZES, quick: bool = False, startup: bool = True, exact: bool = True, skip=(),
-        budget_s: float | None = None) -> dict:
-    """The whole suite; returns the result (see the module docstring for its sections)."""
+        budget_s: float | None = None, progress: bool = False) -> dict:
+    """The whole suite; returns the result (see the module docstring for its sections). progress: a bar on
+    stderr counting the sections, with the current one's name and the time spent (instead of a line each)."""
+    global _BAR
+    from mcl.cli_checks import progress_bar
+
+    _BAR = progress_bar(enabled=True, desc="bench", unit="section",
+                        bar_format="{desc}: {n} sections done [{elapsed}] {postfix}") if progress else None
+    try:
+        return _run(sizes, quick, startup, exact, skip, budget_s)
+    finally:
+        if _BAR is not None:
+            _BAR.close()
+        _BAR = None
+
+
+def _run(sizes, quick: bool, startup: bool, exact: bool, skip, budget_s: float | None) -> dict:
     from .report import evaluate_targets
     from .step import time_resamplers, time_size, time_threads
     from .system import load_average, machine, memory, numpy_without_avx512, time_demo_walk, time_startup
@@ -161,8 +186,14 @@ def parse_sizes(parser: argparse.ArgumentParser, text: str) -> list[int]:
     return sizes
 
 
-def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="robocup-mcl bench", description=__doc__.split("\n\n")[0],
+PROG = "robocup-mcl bench"
+
+
+def build_parser(prog: str = PROG) -> argparse.ArgumentParser:
+    """The command's argument parser, named `prog` in its usage line."""
+    from mcl.cli_checks import add_progress_option, description
+
+    parser = argparse.ArgumentParser(prog=prog, description=description(__doc__),
                                      formatter_class=argparse.RawDescriptionHelpFormatter,
                                      epilog=__doc__.split("\n\n", 2)[2])
     parser.add_argument("--sizes", help="particle counts, comma-separated (default 100,1000,10000,100000,1000000; "
@@ -178,6 +209,13 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--skip", default="", help=f"sections to leave out, comma-separated: {', '.join(SECTIONS)}")
     parser.add_argument("--budget", type=float, help=f"seconds of samples per timed item (default {BUDGET_S}, "
                                                      f"--quick {QUICK_BUDGET_S})")
+    add_progress_option(parser)
+    return parser
+
+
+def main(argv: list[str] | None = None, prog: str = PROG) -> int:
+    """`robocup-mcl bench` (see --help); returns the exit status."""
+    parser = build_parser(prog)
     args = parser.parse_args(argv)
     sizes = parse_sizes(parser, args.sizes) if args.sizes else list(QUICK_SIZES if args.quick else SIZES)
     skip = [s.strip() for s in args.skip.split(",") if s.strip()]
@@ -190,8 +228,9 @@ def main(argv: list[str] | None = None) -> int:
         from .report import matplotlib_missing
         if matplotlib_missing():
             parser.error("--plot needs matplotlib: pip install -e '.[bench]'")
+    from mcl.cli_checks import progress_wanted
     result = run(sizes, quick=args.quick, startup=not args.no_startup, exact=not args.no_exact, skip=skip,
-                 budget_s=args.budget)
+                 budget_s=args.budget, progress=progress_wanted(args))
     for path in (args.save, args.plot):
         if path:
             Path(path).parent.mkdir(parents=True, exist_ok=True)

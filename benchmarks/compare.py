@@ -276,8 +276,14 @@ def _progress(text: str) -> None:
     print(f"bench compare: {text}", file=sys.stderr, flush=True)
 
 
-def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="robocup-mcl bench compare", description=__doc__.split("\n\n")[0],
+PROG = "robocup-mcl bench compare"
+
+
+def build_parser(prog: str = PROG) -> argparse.ArgumentParser:
+    """The command's argument parser, named `prog` in its usage line."""
+    from mcl.cli_checks import add_progress_option, description
+
+    parser = argparse.ArgumentParser(prog=prog, description=description(__doc__),
                                      formatter_class=argparse.RawDescriptionHelpFormatter,
                                      epilog=__doc__.split("\n\n", 2)[2])
     parser.add_argument("revision", nargs="?",
@@ -295,6 +301,12 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--json", action="store_true", help="print the comparison as JSON")
     parser.add_argument("--save", metavar="PATH", help="also write the comparison as JSON to PATH (and the table "
                         "beside it, PATH with .txt)")
+    return parser
+
+
+def main(argv: list[str] | None = None, prog: str = PROG) -> int:
+    """`robocup-mcl bench compare` (see --help); returns the exit status."""
+    parser = build_parser(prog)
     args = parser.parse_args(argv)
     if args.report:
         try:

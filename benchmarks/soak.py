@@ -339,6 +339,15 @@ def run_soak(minutes: float = 60.0, particles: int = 500, seed: int = 0, scenari
     n_minutes = -(-total // per_minute)
     started = time.perf_counter()
     stream = SoakStream(s, seed, BLOCK_STEPS)
+    add_progress_option(parser)
+    return parser
+
+
+def main(argv: list[str] | None = None, prog: str = PROG) -> int:
+    """`robocup-mcl soak` (see the module docstring); exit 0 when the verdict holds, 1 otherwise."""
+    from mcl.cli_checks import check_output_file
+
+    parser = build_parser(prog)
     loc = Localizer(s.field, n_particles=particles, seed=seed)
     loc.initial_placement()
     # Buffers for the measurement, allocated once.
@@ -476,13 +485,16 @@ def table_row(row: dict) -> str:
             f"{row['error_median_m']:>7.3f}")
 
 
-def main(argv: list[str] | None = None) -> int:
-    """`robocup-mcl soak` (see the module docstring); exit 0 when the verdict holds, 1 otherwise."""
+PROG = "robocup-mcl soak"
+
+
+def build_parser(prog: str = PROG) -> argparse.ArgumentParser:
+    """The command's argument parser, named `prog` in its usage line."""
     import argparse
 
-    from mcl.cli_checks import check_output_file
+    from mcl.cli_checks import add_progress_option, description
 
-    parser = argparse.ArgumentParser(prog="robocup-mcl soak", description=__doc__.split("\n\n")[0])
+    parser = argparse.ArgumentParser(prog=prog, description=description(__doc__))
     parser.add_argument("--minutes", type=float, default=60.0, help="simulated minutes (default 60; fractions "
                                                                     "allowed, e.g. 0.5)")
     parser.add_argument("--particles", type=int, default=500, help="particles (default 500)")
@@ -507,7 +519,20 @@ def main(argv: list[str] | None = None) -> int:
               f"camera at {scenario.camera_rate} Hz ({1e3 * scenario.latency:.0f} ms late), {args.particles} "
               f"particles, seed {args.seed}")
         print(table_header(), flush=True)
-    result = run_soak(args.minutes, args.particles, args.seed, scenario, on_minute=None if args.json else show)
+    from mcl.cli_checks import progress_bar, progress_wanted
+    bar = progress_bar(enabled=progress_wanted(args), total=math.ceil(args.minutes), desc="soak",
+                       unit="simulated min")
+
+    def on_minute(row: dict) -> None:
+        if not args.json:
+            bar.clear()
+            show(row)
+        bar.update(1)
+
+    try:
+        result = run_soak(args.minutes, args.particles, args.seed, scenario, on_minute=on_minute)
+    finally:
+        bar.close()
     text = json.dumps(result, indent=2)
     if args.save:
         with open(args.save, "w", encoding="utf-8") as handle:

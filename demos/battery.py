@@ -260,42 +260,23 @@ def _pooled_lines(p: dict) -> list[str]:
     return lines
 
 
-class Progress:
-    """A one-line progress bar on stderr: `[#####     ] 12/80 kidnap seed 3`."""
-
-    def __init__(self, total: int, enabled: bool, width: int = 30) -> None:
-        self.total, self.enabled, self.width, self.done = total, enabled, width, 0
-
-    def step(self, label: str) -> None:
-        """One more case done; `label` names it."""
-        self.done += 1
-        if not self.enabled:
-            return
-        filled = int(self.width * self.done / max(self.total, 1))
-        sys.stderr.write(f"\r[{'#' * filled}{' ' * (self.width - filled)}] {self.done}/{self.total} {label:<30}")
-        sys.stderr.flush()
-
-    def close(self) -> None:
-        """End the bar's line."""
-        if self.enabled:
-            sys.stderr.write("\n")
-            sys.stderr.flush()
-
-
 def run_battery(families, splits, k: int, duration: float = 60.0, particles: int = 500, jobs: int = 2,
                 progress: bool = False, prior: dict | None = None, quality: dict | None = None,
                 view: bool = False, sensor: dict | None = None) -> dict:
     """Run every family × split × seed; returns the results (JSON-ready): per split, per family, the runs
     (sorted by seed) and their summary, and the overall pooled figures. view: as `run_case`."""
     cases = [(split, family, seed) for split in splits for seed in split_seeds(split, k) for family in families]
-    bar = Progress(len(cases), progress)
+    from mcl.cli_checks import progress_bar
+
+    bar = progress_bar(enabled=progress, total=len(cases), desc="eval", unit="run")
     results: dict = {}
     started = time.perf_counter()
 
     def keep(case, result):
         split, family, seed = case
         results.setdefault(split, {}).setdefault(family, []).append(result)
-        bar.step(f"{family} seed {seed}")
+        bar.set_postfix_str(f"{family} seed {seed}", refresh=False)
+        bar.update(1)
 
     if jobs <= 1:
         for case in cases:
@@ -437,9 +418,14 @@ def _overrides(parser, option: str, items: list[str], kind, build=None) -> dict:
     return out
 
 
-def main(argv: list[str] | None = None) -> int:
-    """The command line (see the module docstring); exit 2 on bad arguments."""
-    parser = argparse.ArgumentParser(prog="robocup-mcl eval", description=__doc__.split("\n\n")[0])
+PROG = "robocup-mcl eval"
+
+
+def build_parser(prog: str = PROG) -> argparse.ArgumentParser:
+    """The command's argument parser, named `prog` in its usage line."""
+    from mcl.cli_checks import add_progress_option, description
+
+    parser = argparse.ArgumentParser(prog=prog, description=description(__doc__))
     parser.add_argument("--families", default=",".join(FAMILIES),
                         help=f"comma-separated, from: {', '.join(FAMILIES)} (default: all)")
     parser.add_argument("--split", default="holdout", choices=("train", "holdout", "both"),
@@ -448,7 +434,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--duration", type=float, default=60.0, help="seconds per run (default 60, at least 10)")
     parser.add_argument("--particles", type=_positive_int, default=500, help="particles (default 500)")
     parser.add_argument("--jobs", type=_positive_int, default=2, help="worker processes (default 2)")
-    parser.add_argument("--progress", action="store_true", help="progress bar on stderr even when not a TTY")
+    parser.add_argument("--progress", action="store_true", help="progress bar on stderr even when it is not a terminal (not with --json or --no-progress)")
     parser.add_argument("--prior", action="append", default=[], metavar="NAME=VALUE",
                         help="a variant: set a field of mcl.relocalization.RelocalizationPrior (repeatable)")
     parser.add_argument("--quality", action="append", default=[], metavar="NAME=VALUE",
@@ -461,6 +447,13 @@ def main(argv: list[str] | None = None) -> int:
                         help="print two saved results files side by side (for the split given) and run nothing")
     parser.add_argument("--json", action="store_true", help="the results as JSON on stdout instead of tables")
     parser.add_argument("--save", metavar="PATH", help="also write the JSON results to PATH")
+    add_progress_option(parser)
+    return parser
+
+
+def main(argv: list[str] | None = None, prog: str = PROG) -> int:
+    """The command line (see the module docstring); exit 2 on bad arguments."""
+    parser = build_parser(prog)
     args = parser.parse_args(argv)
     if args.compare:
         files = []
@@ -489,7 +482,7 @@ def main(argv: list[str] | None = None) -> int:
         parser.error(f"--seeds {args.seeds} must be at most {MAX_SEEDS} (training and held-out seeds stay apart)")
     if not (math.isfinite(args.duration) and args.duration >= 10.0):
         parser.error(f"--duration {args.duration} must be at least 10 s")
-    from mcl.cli_checks import check_output_file
+    from mcl.cli_checks import check_output_file, progress_wanted
     check_output_file(args.save, "--save", make_parents=False)   # before the battery runs, not after it
     prior = _overrides(parser, "--prior", args.prior, RelocalizationPrior)
     quality = _overrides(parser, "--quality", args.quality, QualityThresholds)
@@ -497,7 +490,7 @@ def main(argv: list[str] | None = None) -> int:
                         lambda **values: LandmarkSensorModel(spl(), **values))
     splits = list(SPLITS) if args.split == "both" else [args.split]
     results = run_battery(families, splits, args.seeds, args.duration, args.particles, args.jobs,
-                          progress=args.progress or sys.stderr.isatty(), prior=prior, quality=quality,
+                          progress=progress_wanted(args, force=args.progress), prior=prior, quality=quality,
                           view=args.view, sensor=sensor)
     text = json.dumps(results, indent=2)
     if args.save:

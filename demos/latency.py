@@ -50,13 +50,30 @@ def summarize(runs: list[dict]) -> dict:
             for name, _, _ in VARIANTS}
 
 
-def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="robocup-mcl demo latency", description=__doc__.split("\n\n")[0])
+PROG = "robocup-mcl demo latency"
+
+
+def build_parser(prog: str = PROG) -> argparse.ArgumentParser:
+    """The command's argument parser, named `prog` in its usage line."""
+    from mcl.cli_checks import add_progress_option, description
+
+    parser = argparse.ArgumentParser(prog=prog, description=description(__doc__))
     parser.add_argument("--latency", type=float, default=0.08, help="camera latency [s] (default 0.08)")
-    parser.add_argument("--seeds", default="0-9")
-    parser.add_argument("--particles", type=int, default=500)
-    parser.add_argument("--duration", type=float, default=60.0)
-    parser.add_argument("--json", action="store_true")
+    parser.add_argument("--seeds", default="0-9", help='seeds: "0-9", "3" or "1,4,7" (default 0-9)')
+    parser.add_argument("--particles", type=int, default=500, help="particles (default 500)")
+    parser.add_argument("--duration", type=float, default=60.0, help="seconds of each walk (default 60)")
+    parser.add_argument("--json", action="store_true", help="print JSON instead of a table")
+    add_progress_option(parser)
+    return parser
+
+
+def main(argv: list[str] | None = None, prog: str = PROG) -> int:
+    """`robocup-mcl demo latency` (see --help); returns the exit status."""
+    from mcl.cli_checks import progress_bar, progress_wanted
+
+    from .walk import warm_up_walk
+
+    parser = build_parser(prog)
     args = parser.parse_args(argv)
     if not (math.isfinite(args.latency) and 0 <= args.latency <= 1.0):
         parser.error(f"--latency {args.latency} must be within [0, 1] s")
@@ -68,11 +85,19 @@ def main(argv: list[str] | None = None) -> int:
         seeds = parse_seeds(args.seeds)
     except ValueError:
         parser.error(f"--seeds {args.seeds!r}: give seeds as 3, 0-9 or 1,4,7")
+    progress = progress_wanted(args)
+    warm_up_walk(WalkScenario(), "velocity-linear", progress=progress)      # the first run says it compiles
     result = {"latency_s": args.latency, "particles": args.particles, "duration_s": args.duration}
+    bar = progress_bar(enabled=progress, total=len(PACES) * len(seeds), desc="latency", unit="seed")
     for pace, changes in PACES:
         scenario = replace(WalkScenario(), duration=args.duration, kidnap_time=None, **changes)
-        runs = [run_seed(seed, args.latency, args.particles, scenario) for seed in seeds]
+        runs = []
+        for seed in seeds:
+            bar.set_postfix_str(f"{pace}, seed {seed}")
+            runs.append(run_seed(seed, args.latency, args.particles, scenario))
+            bar.update(1)
         result[pace] = {"runs": runs, "summary": summarize(runs)}
+    bar.close()
     if args.json:
         json.dump(result, sys.stdout, indent=2)
         print()

@@ -344,10 +344,17 @@ def train_command(log_path: str, directory: str, seed: int, kinds=KINDS, half: b
     return out
 
 
-def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="robocup-mcl demo odometry", description=__doc__.split("\n\n")[0])
-    parser.add_argument("--surface", choices=("carpet", "grass", "both"), default="both")
-    parser.add_argument("--seed", type=int, default=0)
+PROG = "robocup-mcl demo odometry"
+
+
+def build_parser(prog: str = PROG) -> argparse.ArgumentParser:
+    """The command's argument parser, named `prog` in its usage line."""
+    from mcl.cli_checks import add_progress_option, description
+
+    parser = argparse.ArgumentParser(prog=prog, description=description(__doc__))
+    parser.add_argument("--surface", choices=("carpet", "grass", "both"), default="both",
+                        help="the walking surface (default both)")
+    parser.add_argument("--seed", type=int, default=0, help="seed of the simulated walks (default 0)")
     parser.add_argument("--curve", action="store_true", help="the learning curve (drift against learning time)")
     parser.add_argument("--filter", action="store_true", help="particle filter: learned versus raw odometry")
     parser.add_argument("--filter-runs", type=int, default=3, help="field walks per surface for --filter")
@@ -358,6 +365,13 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--train", metavar="LOG", help="train on this recorded .npz log (needs --save)")
     parser.add_argument("--half", action="store_true", help="with --train: learn on the first half of the log")
     parser.add_argument("--save", metavar="DIR", help="with --train: save the models to DIR/apriori, DIR/online")
+    add_progress_option(parser)
+    return parser
+
+
+def main(argv: list[str] | None = None, prog: str = PROG) -> int:
+    """`robocup-mcl demo odometry` (see --help); returns the exit status."""
+    parser = build_parser(prog)
     args = parser.parse_args(argv)
     from mcl.cli_checks import check_input_file, check_output_directory, check_output_file
     if args.train or args.save:
@@ -388,9 +402,10 @@ def main(argv: list[str] | None = None) -> int:
     if args.filter_runs < 1:
         parser.error(f"--filter-runs {args.filter_runs} must be >= 1")
     surfaces = ["carpet", "grass"] if args.surface == "both" else [args.surface]
+    from mcl.cli_checks import progress_bar, progress_wanted
     started = time.perf_counter()
     result: dict = {"surfaces": {}}
-    for surface in surfaces:
+    for surface in progress_bar(surfaces, enabled=progress_wanted(args), desc="odometry", unit="surface"):
         r = evaluate(surface, args.seed)
         entry = {"evaluation": r}
         if args.curve:

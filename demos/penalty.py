@@ -81,12 +81,30 @@ def summarize(runs: list[dict]) -> dict:
     return summary
 
 
-def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="robocup-mcl demo penalty", description=__doc__.split("\n\n")[0])
-    parser.add_argument("--seeds", default="0-19")
-    parser.add_argument("--particles", type=int, default=500)
-    parser.add_argument("--duration", type=float, default=20.0)
-    parser.add_argument("--json", action="store_true")
+PROG = "robocup-mcl demo penalty"
+
+
+def build_parser(prog: str = PROG) -> argparse.ArgumentParser:
+    """The command's argument parser, named `prog` in its usage line."""
+    from mcl.cli_checks import add_progress_option, description
+
+    parser = argparse.ArgumentParser(prog=prog, description=description(__doc__))
+    parser.add_argument("--seeds", default="0-19", help='seeds: "0-19", "3" or "1,4,7" (default 0-19)')
+    parser.add_argument("--particles", type=int, default=500, help="particles (default 500)")
+    parser.add_argument("--duration", type=float, default=20.0,
+                        help="seconds of walking after the return (default 20, at least 3)")
+    parser.add_argument("--json", action="store_true", help="print JSON instead of the summary")
+    add_progress_option(parser)
+    return parser
+
+
+def main(argv: list[str] | None = None, prog: str = PROG) -> int:
+    """`robocup-mcl demo penalty` (see --help); returns the exit status."""
+    from mcl.cli_checks import progress_bar, progress_wanted
+
+    from .walk import warm_up_walk
+
+    parser = build_parser(prog)
     args = parser.parse_args(argv)
     if args.particles <= 0:
         parser.error(f"--particles {args.particles} must be > 0")
@@ -97,7 +115,10 @@ def main(argv: list[str] | None = None) -> int:
     except ValueError:
         parser.error(f"--seeds {args.seeds!r}: give seeds as 3, 0-9 or 1,4,7")
     scenario = replace(WalkScenario(), duration=args.duration, kidnap_time=None)
-    runs = [run_seed(seed, args.particles, scenario) for seed in seeds]
+    progress = progress_wanted(args)
+    warm_up_walk(WalkScenario(), "velocity-linear", progress=progress)      # the first run says it compiles
+    runs = [run_seed(seed, args.particles, scenario)
+            for seed in progress_bar(seeds, enabled=progress, desc="penalty", unit="seed")]
     summary = summarize(runs)
     if args.json:
         json.dump({"particles": args.particles, "duration_s": args.duration, "runs": runs, "summary": summary},

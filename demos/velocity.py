@@ -691,8 +691,19 @@ def _format_odometry(odometry: dict) -> list[str]:
 
 
 def build_report(seed: int, duration: float, twist: bool, slip: bool, n_seeds: int = 5, particles: int = 500,
-                 rrd: str | None = None) -> dict:
-    """Every figure, from fresh simulations; with `rrd`, the recording of figures 1 and 5's straight walk."""
+                 rrd: str | None = None, progress: bool = False) -> dict:
+    """Every figure, from fresh simulations; with `rrd`, the recording of figures 1 and 5's straight walk.
+    progress: a bar on stderr over the simulated walks and the figures."""
+    from mcl.cli_checks import progress_bar
+
+    bar = progress_bar(enabled=progress, total=n_seeds + 8, desc="velocity", unit="part")
+    try:
+        return _build_report(seed, duration, twist, slip, n_seeds, particles, rrd, bar)
+    finally:
+        bar.close()
+
+
+def _build_report(seed, duration, twist, slip, n_seeds, particles, rrd, bar) -> dict:
     base_disturbances = DisturbanceParams()
     slip_probability = base_disturbances.slip_probability if slip else 0.0
 
@@ -708,6 +719,7 @@ def build_report(seed: int, duration: float, twist: bool, slip: bool, n_seeds: i
               "tilt": tilt_figures(straight, result), "rmse": {}}
     raw = average_forward_velocity(straight, run_estimators(straight, zero_gyro=False))
     report["ekf_gyro_not_zeroed"] = {name: raw[name] for name in variants}
+    bar.update(2)
     walks = {("straight", seed): straight}         # the twist setting of figure 1, reused by figure 5
     spread = {"seeds": list(range(seed, seed + n_seeds)), "kinematics+gyro_error_percent": []}
     for name in variants:
@@ -721,6 +733,7 @@ def build_report(seed: int, duration: float, twist: bool, slip: bool, n_seeds: i
             figures = average_forward_velocity(other_run, run_estimators(other_run))
         for name in variants + ("kinematics+gyro",):
             spread[f"{name}_error_percent"].append(figures[name]["error_percent"])
+        bar.update(1)
     report["seed_spread"] = spread
     for walk in ("straight", "turning"):
         for twist_on in (True, False):
@@ -733,10 +746,13 @@ def build_report(seed: int, duration: float, twist: bool, slip: bool, n_seeds: i
                 if twist_on == twist:
                     walks[walk, seed] = run
             report["rmse"][f"{walk} walk, twist {'on' if twist_on else 'off'}"] = rmse_windows(run, res)
+            bar.update(1)
     report["timing"] = {name: timing(result, name) for name in variants}
+    bar.update(1)
     report["ekf_params"] = {name: dataclasses.asdict(result["params"][name]) for name in variants}
     report["odometry"] = odometry_report(walks, result, spread["seeds"], duration, disturbances(twist), particles,
                                          rrd)
+    bar.update(1)
     return report
 
 
@@ -763,10 +779,16 @@ def odometry_report(walks: dict, result: dict, seeds: list[int], duration: float
     return out
 
 
-def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m demos.velocity", description=__doc__.splitlines()[0])
+PROG = "robocup-mcl demo velocity"
+
+
+def build_parser(prog: str = PROG) -> argparse.ArgumentParser:
+    """The command's argument parser, named `prog` in its usage line."""
+    from mcl.cli_checks import add_progress_option, description
+
+    parser = argparse.ArgumentParser(prog=prog, description=description(__doc__))
     parser.add_argument("--json", action="store_true", help="print the figures as JSON")
-    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--seed", type=int, default=0, help="seed of the first simulated walk (default 0)")
     parser.add_argument("--duration", type=float, default=28.0, help="seconds of each simulated walk")
     parser.add_argument("--twist", action=argparse.BooleanOptionalAction, default=True,
                         help="foot twist episodes in the walk of figures 1, 3 and 4")
@@ -778,6 +800,13 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--rrd", metavar="PATH",
                         help="write a Rerun recording: the velocities of figure 1 (the paper's Fig. 3) and the "
                              "filters of figure 5 on the same straight walk")
+    add_progress_option(parser)
+    return parser
+
+
+def main(argv: list[str] | None = None, prog: str = PROG) -> int:
+    """`robocup-mcl demo velocity` (see --help); returns the exit status."""
+    parser = build_parser(prog)
     args = parser.parse_args(argv)
     if args.seeds < 1:
         parser.error(f"--seeds must be at least 1, got {args.seeds}")
@@ -787,7 +816,9 @@ def main(argv: list[str] | None = None) -> int:
         parser.error(f"--duration must be at least 4 s, got {args.duration}")
     from mcl.cli_checks import check_output_file
     check_output_file(args.rrd, "--rrd")          # before the simulations, not after them
-    report = build_report(args.seed, args.duration, args.twist, args.slip, args.seeds, args.particles, args.rrd)
+    from mcl.cli_checks import progress_wanted
+    report = build_report(args.seed, args.duration, args.twist, args.slip, args.seeds, args.particles, args.rrd,
+                          progress=progress_wanted(args))
     if args.json:
         json.dump(report, sys.stdout, indent=2)
         sys.stdout.write("\n")

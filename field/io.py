@@ -99,6 +99,23 @@ def load_field(path: str | os.PathLike) -> Field:
         raise ValueError(f"{path}: {error}") from None
 
 
+def field_by_name_or_path(text: str | os.PathLike) -> Field:
+    """The field a command-line option names: a preset name (any case, see `PRESET_NAMES`) or a field file
+    (``.toml`` or ``.json``, see `load_field`). A name that is neither (no such preset, not a file name with a
+    field file's extension) raises a one-line `ValueError` listing the presets, with the closest one, e.g.
+    "unknown field 'spll' (did you mean 'spl'?); presets: spl, kidsize, adultsize, or a path to a .toml or
+    .json field file"."""
+    if isinstance(text, str) and text.strip().lower() in PRESET_NAMES:
+        return preset(text)
+    path = _checked_path(text)
+    if path.suffix.lower() not in _EXTENSIONS and not path.is_file():
+        close = difflib.get_close_matches(str(text).strip().lower(), PRESET_NAMES, n=1)
+        hint = f" (did you mean {close[0]!r}?)" if close else ""
+        raise ValueError(f"unknown field {str(text)!r}{hint}; presets: {', '.join(PRESET_NAMES)}, "
+                         f"or a path to a {' or '.join(_EXTENSIONS)} field file")
+    return load_field(path)
+
+
 def save_field(field: Field, path: str | os.PathLike) -> None:
     """Write `field` to a ``.toml`` or ``.json`` file that `load_field` reads back equal."""
     path = _checked_path(path)

@@ -14,6 +14,13 @@
     robocup-mcl bench compare REV [--rounds 3] [--json]  # this checkout against another revision, alternated
     robocup-mcl eval [--families ...] [--split train|holdout|both] [--json] [--save PATH]   # the scenario battery
     robocup-mcl soak [--minutes 60] [--particles 500] [--seed S] [--json] [--save PATH]  # an hour in the loop
+    robocup-mcl --version                             # the installed version
+    robocup-mcl COMMAND --help                        # every option of a command, each with its help
+
+First run. The filter's kernels are compiled by numba on a machine's first run (a minute or more) and cached;
+the commands warm them up before they measure anything, say so on stderr when compiling, and report the time
+apart ("compiled in 41 s"; compile_seconds in --json output). Progress bars go to stderr, only when it is a
+terminal, never with --json, and not with --no-progress (docs/getting-started.md).
 
 Errors. A command that cannot run as asked prints one line on stderr, `robocup-mcl: <message>` (the replay's
 own: `robocup-mcl replay: <message>`), and exits 1, never a traceback: bad values (ValueError, TypeError),
@@ -62,13 +69,44 @@ def _usage() -> str:
     return "\n".join(lines)
 
 
-def _dispatch(table: dict, name: str, argv: list[str], what: str) -> int:
+PROGRAM = "robocup-mcl"
+PACKAGE = "robocup-mcl"
+
+
+def version() -> str:
+    """The installed distribution's version (importlib.metadata), else the `mcl` package's __version__, else
+    "unknown" (a clone run without installing)."""
+    from importlib import metadata
+
+    try:
+        return metadata.version(PACKAGE)
+    except metadata.PackageNotFoundError:
+        import mcl
+        return str(getattr(mcl, "__version__", "unknown"))
+
+
+def _dispatch(table: dict, name: str, argv: list[str], what: str, prog: str) -> int:
     if name not in table:
         print(f"robocup-mcl: unknown {what} {name!r}; choose from {', '.join(table)}", file=sys.stderr)
         return EXIT_USAGE
     if (what, name) in OUTPUT_OPTIONS:
         _check_outputs(argv, OUTPUT_OPTIONS[(what, name)])
-    return int(_harness(table[name][0]).main(argv) or 0)
+    return _call(table[name][0], argv, prog)
+
+
+def _call(module: str, argv: list[str], prog: str) -> int:
+    """The harness `module`'s main(argv, prog=prog): its usage line names the command as typed."""
+    return int(_harness(module).main(argv, prog=prog) or 0)
+
+
+def commands() -> dict[str, str]:
+    """Every subcommand's program name (as its usage line shows it) and the module whose `build_parser(prog)`
+    and `main(argv, prog)` run it."""
+    table = {f"{PROGRAM} demo {name}": module for name, (module, _) in DEMOS.items()}
+    table.update({f"{PROGRAM} bench {name}": module for name, (module, _) in BENCHES.items()})
+    table.update({f"{PROGRAM} bench": BENCHES["step"][0], f"{PROGRAM} eval": "demos.battery",
+                  f"{PROGRAM} soak": "benchmarks.soak", f"{PROGRAM} replay": "mcl.replay"})
+    return table
 
 
 def _harness(name: str):
@@ -119,23 +157,26 @@ def _run(argv: list[str] | None) -> int:
     if not argv or argv[0] in ("-h", "--help"):
         print(_usage())
         return 0 if argv else EXIT_USAGE
+    if argv[0] in ("-V", "--version"):
+        print(f"{PROGRAM} {version()}")
+        return 0
     command, rest = argv[0], argv[1:]
     if command == "demo":
         if not rest or rest[0] in ("-h", "--help"):
             print(_usage())
             return 0 if rest else EXIT_USAGE
-        return _dispatch(DEMOS, rest[0], rest[1:], "demo")
+        return _dispatch(DEMOS, rest[0], rest[1:], "demo", f"{PROGRAM} demo {rest[0]}")
     if command == "replay":
         from .replay import main as replay_main
-        return replay_main(rest)
+        return replay_main(rest, prog=f"{PROGRAM} replay")
     if command == "eval":
-        return int(_harness("demos.battery").main(rest) or 0)
+        return _call("demos.battery", rest, f"{PROGRAM} eval")
     if command == "soak":
-        return int(_harness("benchmarks.soak").main(rest) or 0)
+        return _call("benchmarks.soak", rest, f"{PROGRAM} soak")
     if command == "bench":
         if rest and not rest[0].startswith("-"):
-            return _dispatch(BENCHES, rest[0], rest[1:], "benchmark")
-        return _dispatch(BENCHES, "step", rest, "benchmark")
+            return _dispatch(BENCHES, rest[0], rest[1:], "benchmark", f"{PROGRAM} bench {rest[0]}")
+        return _dispatch(BENCHES, "step", rest, "benchmark", f"{PROGRAM} bench")
     print(f"robocup-mcl: unknown command {command!r}\n\n{_usage()}", file=sys.stderr)
     return EXIT_USAGE
 

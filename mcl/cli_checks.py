@@ -117,3 +117,91 @@ def one_line(error: BaseException) -> str:
         text = str(error)
     lines = [line.strip() for line in text.splitlines() if line.strip()]
     return "; ".join(lines) if lines else type(error).__name__
+
+
+# Progress bars. A command that runs for more than a few seconds shows a tqdm bar on stderr, by one rule: bars
+# are shown when stderr is a terminal, never with --json (whose output a program reads) nor with --no-progress;
+# a command may offer a way to force them on (`force`, e.g. `robocup-mcl eval --progress` into a log file).
+# Bars leave nothing behind when they close, so the command's report and its JSON stay as they were.
+
+NO_PROGRESS_HELP = "no progress bars (they go to stderr, only when it is a terminal, and never with --json)"
+
+
+def add_progress_option(parser) -> None:
+    """Add `--no-progress` to the argparse `parser` (see `progress_wanted`)."""
+    parser.add_argument("--no-progress", action="store_true", help=NO_PROGRESS_HELP)
+
+
+def progress_wanted(args=None, *, json_output: bool | None = None, no_progress: bool | None = None,
+                    force: bool = False, stream=None) -> bool:
+    """Whether a command shows progress bars: not with --json or --no-progress (read from `args`, a parsed
+    namespace, unless given), otherwise when `force` or when `stream` (default stderr) is a terminal."""
+    import sys
+
+    if json_output is None:
+        json_output = bool(getattr(args, "json", False))
+    if no_progress is None:
+        no_progress = bool(getattr(args, "no_progress", False))
+    if json_output or no_progress:
+        return False
+    if force:
+        return True
+    stream = sys.stderr if stream is None else stream
+    try:
+        return bool(stream.isatty())
+    except (AttributeError, ValueError, OSError):       # closed or replaced by something without a terminal
+        return False
+
+
+def progress_bar(iterable=None, *, enabled: bool, total: int | None = None, desc: str | None = None,
+                 unit: str = "it", **options):
+    """A tqdm bar on stderr over `iterable` (or updated by hand up to `total`) when `enabled`; otherwise, or
+    without tqdm installed, a pass-through with the same `update`, `set_postfix_str` and `close`. The bar is
+    cleared when it closes (`leave=False`)."""
+    import sys
+
+    try:
+        from tqdm import tqdm
+    except ImportError:
+        return _NoBar(iterable)
+    options.setdefault("leave", False)
+    options.setdefault("dynamic_ncols", True)
+    return tqdm(iterable, total=total, desc=desc, unit=unit, file=sys.stderr, disable=not enabled, **options)
+
+
+class _NoBar:
+    """The bar when tqdm is missing: iterates and ignores the calls."""
+
+    def __init__(self, iterable=None) -> None:
+        self._iterable = iterable
+
+    def __iter__(self):
+        return iter(self._iterable if self._iterable is not None else ())
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    def update(self, n: int = 1) -> None:
+        """Nothing to show."""
+
+    def set_postfix_str(self, text: str = "", refresh: bool = True) -> None:
+        """Nothing to show."""
+
+    def clear(self) -> None:
+        """Nothing to clear."""
+
+    def close(self) -> None:
+        """Nothing to close."""
+
+
+def description(doc: str | None) -> str:
+    """A command's description for its --help, from its module docstring: the first paragraph, its lines joined
+    and its backquotes dropped, ending with a full stop ("robocup-mcl demo walk: the particle filter on ...")."""
+    paragraph = (doc or "").strip().split("\n\n")[0]
+    text = " ".join(line.strip() for line in paragraph.splitlines()).replace("`", "").strip()
+    if text and text[-1] not in ".!?":
+        text = text.rstrip(":;,") + "."
+    return text

@@ -1,0 +1,32 @@
+"""The documentation site builds with `mkdocs build --strict`: a dead link, a page left out of the navigation, a
+missing anchor or a broken API reference fails the build, and so this test."""
+import os
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parent.parent
+
+pytest.importorskip("mkdocs", reason="the docs extra is installed by `make test`")
+
+
+def test_the_site_builds_strict(tmp_path):
+    done = subprocess.run([sys.executable, "-m", "mkdocs", "build", "--strict", "--site-dir", str(tmp_path / "site")],
+                          cwd=ROOT, capture_output=True, text=True, timeout=900,
+                          env={**os.environ, "NO_MKDOCS_2_WARNING": "1"})
+    assert done.returncode == 0, done.stderr[-4000:]
+    assert (tmp_path / "site" / "index.html").exists()
+    api = (tmp_path / "site" / "api" / "mcl" / "index.html").read_text()
+    assert "ParticleFilter" in api and "Localizer" in api        # the reference is generated, not empty
+
+
+def test_no_page_links_outside_the_repository_but_to_public_urls():
+    for page in (ROOT / "docs").rglob("*.md"):
+        text = page.read_text()
+        assert "../shared" not in text, f"{page} points at files outside the repository"
+        for target in re.findall(r"\]\(([^)\s]+)\)", text):
+            if re.match(r"[a-z]+://", target):
+                assert target.startswith("https://"), f"{page}: {target} is not a public https URL"
