@@ -122,6 +122,9 @@ def run_case(case: str, model: str, seed: int, reference: CollisionReference, pa
             if stateful:
                 values.update({f"motion/state_belief/{name}": belief[k, i] for i, name in enumerate(STATES)})
             recorder.log_scalars(values)
+            hit = bool(percept.left or percept.right)
+            recorder.log_change("collision", hit, "collision detected (S_rel > 1)" if hit else "no collision",
+                                level="WARN" if hit else "INFO", initial=False)
     elapsed = time.perf_counter() - started
     if recorder is not None:
         recorder.close()
@@ -316,16 +319,44 @@ def predict_cost(particles: int = 1000, steps: int = 2000, repeats: int = 5) -> 
             "adaptive_us": 1e6 * best["adaptive"], "ratio": best["adaptive"] / best["velocity-linear"]}
 
 
-def run_cases(cases, models, seeds, reference, particles, vision, injection: bool = False) -> dict:
+def run_cases(cases, models, seeds, reference, particles, vision, injection: bool = False,
+              progress: bool = False) -> dict:
+    """Every case with every model over `seeds` (progress: a bar over the runs on stderr)."""
+    from mcl.cli_checks import progress_bar
+
     out = {}
+    bar = progress_bar(enabled=progress, total=len(cases) * len(models) * len(seeds), desc="collision", unit="run")
     for case in cases:
         out[case] = {}
         for model in models:
-            runs = [run_case(case, model, seed, reference, particles, vision, injection=injection) for seed in seeds]
+            runs = []
+            for seed in seeds:
+                bar.set_postfix_str(f"{case}, {model}, seed {seed}")
+                runs.append(run_case(case, model, seed, reference, particles, vision, injection=injection))
+                bar.update(1)
             out[case][model] = {"runs": runs, "summary": case_summary(runs)}
         if case == "none" and "velocity-linear" in models and "adaptive" in models:
             out[case]["entropy"] = compare_entropy(out[case]["velocity-linear"]["runs"], out[case]["adaptive"]["runs"])
+    bar.close()
     return out
+
+
+WARM_UP_PARTICLES = 16
+
+
+def warm_up_collision(case: str, models, reference, vision: bool, injection: bool = False, progress: bool = False):
+    """Compile (or load from numba's cache) the kernels the runs reach, one model at a time, on short runs of a few
+    particles, before anything is timed; returns the `mcl.numba_cache.WarmUp` (a machine's first run says so on
+    stderr, and "compiled in N s" after)."""
+    from mcl.estimate import summary_fill
+    from mcl.numba_cache import warm_up
+    from motion_models.adaptive import adaptive_move_drawing
+    from motion_models.kernels import move_range
+
+    stages = [(f"{model} model", lambda model=model: run_case(case, model, 0, reference, WARM_UP_PARTICLES, vision,
+                                                              injection=injection))
+              for model in models]
+    return warm_up(stages, (move_range, adaptive_move_drawing, summary_fill), progress=progress)
 
 
 def particle_sweep(counts, seeds, reference, cases=("single", "double"), baseline: int = 500) -> dict:
@@ -396,12 +427,20 @@ def print_cases(results: dict, label: str) -> None:
             print("; ".join(parts))
 
 
-def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="robocup-mcl demo collision", description=__doc__.split("\n\n")[0])
-    parser.add_argument("--case", choices=CASES + ("all",), default="all")
-    parser.add_argument("--model", choices=sorted(MODELS) + ["both"], default="both")
+PROG = "robocup-mcl demo collision"
+
+
+def build_parser(prog: str = PROG) -> argparse.ArgumentParser:
+    """The command's argument parser, named `prog` in its usage line."""
+    from mcl.cli_checks import add_progress_option, description
+
+    parser = argparse.ArgumentParser(prog=prog, description=description(__doc__))
+    parser.add_argument("--case", choices=CASES + ("all",), default="all",
+                        help="the experiment: no collision, a single or a double collision, or all (default all)")
+    parser.add_argument("--model", choices=sorted(MODELS) + ["both"], default="both",
+                        help="the motion model, or both velocity-linear and adaptive (default both)")
     parser.add_argument("--particles", type=int, default=None, help="default: 100 without vision, 500 with")
-    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--seed", type=int, default=0, help="seed of the run (default 0)")
     parser.add_argument("--seeds", help='several seeds: "0-19" or "0,3,5" (overrides --seed)')
     parser.add_argument("--vision", action="store_true", help="correct with landmark observations")
     parser.add_argument("--injection", action="store_true",
@@ -413,6 +452,15 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--report", action="store_true", help="every figure of the README (takes minutes)")
     parser.add_argument("--rrd", help="write a Rerun recording here (one case, one model, one seed)")
     parser.add_argument("--json", action="store_true", help="print JSON instead of text")
+    add_progress_option(parser)
+    return parser
+
+
+def main(argv: list[str] | None = None, prog: str = PROG) -> int:
+    """`robocup-mcl demo collision` (see --help); returns the exit status."""
+    from mcl.cli_checks import progress_wanted
+
+    parser = build_parser(prog)
     args = parser.parse_args(argv)
     try:
         seeds = parse_seeds(args.seeds) if args.seeds else [args.seed]
@@ -428,6 +476,8 @@ def main(argv: list[str] | None = None) -> int:
     from mcl.cli_checks import check_output_file
     check_output_file(args.rrd, "--rrd")          # before the run, not after it
     reference = free_walk_reference()
+    progress = progress_wanted(args)
+    warm = warm_up_collision(cases[0], models, reference, args.vision, args.injection, progress)
     result: dict = {}
     if args.report:
         report_seeds = parse_seeds(args.seeds) if args.seeds else list(range(20))
@@ -455,7 +505,9 @@ def main(argv: list[str] | None = None) -> int:
                            injection=args.injection)
             result[key] = {cases[0]: {models[0]: {"runs": [run], "summary": case_summary([run])}}}
         else:
-            result[key] = run_cases(cases, models, seeds, reference, particles, args.vision, args.injection)
+            result[key] = run_cases(cases, models, seeds, reference, particles, args.vision, args.injection,
+                                    progress=progress)
+    result.update(warm.as_dict())           # the warm-up's time, apart from every step time
     if args.json:
         json.dump(_strip(result), sys.stdout, indent=2)
         print()

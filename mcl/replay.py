@@ -250,7 +250,8 @@ def replay(log: RobotLog, field: Field, model: str = "velocity-linear", particle
     recorder = None
     if rrd:
         from .recording import Recorder, default_blueprint
-        recorder = Recorder(rrd, field, particles_every=record_every, blueprint=default_blueprint(
+        recorder = Recorder(rrd, field, particles_every=record_every, origin_ns=log.origin_ns,
+                            blueprint=default_blueprint(
             (("/entropy", "entropy [bits]"), ("/error", "error [m, rad]"),
              ("/localization", "quality (2 superb, 1 okay, 0 poor), lost"))))
     writer = _pose_writer(poses_out, log.origin_ns) if poses_out else None
@@ -261,7 +262,7 @@ def replay(log: RobotLog, field: Field, model: str = "velocity-linear", particle
     truth = log.truth_at(times)
     frames = log.vision
     next_frame, frames_used = 0, 0
-    bar = _Progress(m) if progress else None
+    bar = _progress_bar(times, progress)
     notes: list[str] = []
 
     def note(text: str) -> None:
@@ -297,10 +298,15 @@ def replay(log: RobotLog, field: Field, model: str = "velocity-linear", particle
                 recorder.log_step(k, t, localizer.filter, truth=None if np.isnan(truth[k, 0]) else truth[k],
                                   observations=step_observations, entropy=h)
                 recorder.log_scalars({"localization/quality": float(quality[k]), "localization/lost": float(lost[k])})
+                if k == 0:
+                    recorder.log_event("reset", f"the belief starts: {start if isinstance(start, str) else 'a pose'}")
+                recorder.log_change("quality", localizer.quality().value, f"quality {localizer.quality().value}")
+                recorder.log_change("lost", bool(lost[k]), "lost" if lost[k] else "no longer lost",
+                                    level="WARN" if lost[k] else "INFO")
             if writer is not None:
                 writer.write(t, estimate.pose, estimate.covariance, localizer.quality(), bool(lost[k]))
             if bar is not None:
-                bar.update(k + 1, t)
+                bar.update(t - bar.n)
     finally:
         if recorder is not None:
             recorder.close()
@@ -381,33 +387,22 @@ def _pose_writer(path, origin_ns: int) -> _PoseOutput:
     return _PoseOutput(path, origin_ns)
 
 
-class _Progress:
-    """A one-line progress bar on stderr."""
-
-    def __init__(self, total: int, width: int = 30) -> None:
-        self.total, self.width = max(total, 1), width
-        self.started = time.perf_counter()
-        self._shown = -1
-
-    def update(self, done: int, t: float) -> None:
-        percent = int(100 * done / self.total)
-        if percent == self._shown:
-            return
-        self._shown = percent
-        filled = self.width * done // self.total
-        elapsed = time.perf_counter() - self.started
-        speed = f"{t / elapsed:.0f}x real time" if elapsed > 0 and t > 0 else ""
-        sys.stderr.write(f"\rreplay [{'#' * filled}{'.' * (self.width - filled)}] {percent:3d} %  {t:7.1f} s  {speed}")
-        sys.stderr.flush()
-
-    def close(self) -> None:
-        sys.stderr.write("\n")
-        sys.stderr.flush()
+def _progress_bar(times: np.ndarray, enabled: bool):
+    """A bar over the log's seconds on stderr (`mcl.cli_checks.progress_bar`; None when not `enabled`): its rate
+    is the replay's speed in seconds of log per second, i.e. in multiples of real time."""
+    if not enabled:
+        return None
+    from .cli_checks import progress_bar
+    total = float(times[-1]) if times.shape[0] else 0.0
+    return progress_bar(enabled=True, total=total, desc="replay", unit="s",
+                        bar_format="{desc}: {percentage:3.0f}%|{bar}| {n:.1f}/{total:.1f} s of log "
+                                   "[{elapsed}<{remaining}, {rate_noinv_fmt} = x real time]")
 
 
 def _field(name: str) -> Field:
-    from field import PRESET_NAMES, load_field, preset
-    return preset(name) if name in PRESET_NAMES else load_field(name)
+    """The field `--field` names: a preset or a field file (`field.io.field_by_name_or_path`)."""
+    from field.io import field_by_name_or_path
+    return field_by_name_or_path(name)
 
 
 def _parse_start(text: str):
@@ -422,37 +417,44 @@ def _parse_start(text: str):
     return pose
 
 
-def main(argv: list[str] | None = None) -> int:
-    """`robocup-mcl replay LOG ...` (see `robocup-mcl replay --help`)."""
+PROG = "robocup-mcl replay"
+WARM_UP_PARTICLES = 64
+WARM_UP_STEPS = 200          # motion steps of the log the warm-up localizer follows (about 2 s at 100 Hz)
+
+
+def build_parser(prog: str = PROG):
+    """The command's argument parser, named `prog` in its usage line."""
     import argparse
-    import json
     from dataclasses import fields
 
-    from .cli_checks import CommandError, check_output_file, one_line
-    from .logs import read_log
-    from .logs.mcap_io import DISCOVERY_TYPES, Topics, list_topics
+    from .cli_checks import NO_PROGRESS_HELP
+    from .logs.mcap_io import DISCOVERY_TYPES, Topics
 
     parser = argparse.ArgumentParser(
-        prog="robocup-mcl replay", description="Replay a robot's log (ROS 2 MCAP, .npz, or a CSV folder) "
-        "through the filter: estimates, errors against ground truth, a Rerun recording, poses out.")
+        prog=prog, description="Replay a robot's log (ROS 2 MCAP, .npz, or a CSV folder) through the filter: "
+        "estimates, errors against ground truth, a Rerun recording, poses out.")
     parser.add_argument("log", help="the log: .mcap, .npz, or a folder of CSV files")
     parser.add_argument("--list", action="store_true", help="list the log's topics (MCAP) and stop")
-    parser.add_argument("--field", default="spl", help="spl, kidsize, adultsize, or a field file (.toml/.json)")
-    parser.add_argument("--model", choices=sorted(MODELS), default="velocity-linear")
-    parser.add_argument("--particles", type=int, default=500)
-    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--field", default="spl",
+                        help="spl, kidsize, adultsize, or a field file (.toml/.json) (default spl)")
+    parser.add_argument("--model", choices=sorted(MODELS), default="velocity-linear",
+                        help="the motion model (default velocity-linear)")
+    parser.add_argument("--particles", type=int, default=500, help="particles (default 500)")
+    parser.add_argument("--seed", type=int, default=0, help="seed of the filter (default 0)")
     parser.add_argument("--start", default="own_half",
                         help=f"initial belief: {', '.join(STARTS)}, or a pose x,y,theta (default own_half)")
     parser.add_argument("--no-latency", action="store_true",
                         help="score camera frames as if current (default: at their capture time)")
-    parser.add_argument("--history", type=float, default=1.0, help="seconds of motion kept for late frames")
-    parser.add_argument("--gap", type=float, default=1.0, help="report gaps longer than this [s]")
+    parser.add_argument("--history", type=float, default=1.0,
+                        help="seconds of motion kept for late frames (default 1)")
+    parser.add_argument("--gap", type=float, default=1.0, help="report gaps longer than this [s] (default 1)")
     parser.add_argument("--rrd", help="write a Rerun recording here")
     parser.add_argument("--out", help="write the estimates here: .mcap (PoseWithCovarianceStamped), "
                                       ".csv (SPL convention: mm, rad), .npz")
     parser.add_argument("--json", action="store_true", help="print the figures and the read report as JSON")
     parser.add_argument("--progress", choices=("auto", "on", "off"), default="auto",
-                        help="progress bar on stderr (auto: when stderr is a terminal)")
+                        help="progress bar on stderr (auto: when stderr is a terminal and without --json)")
+    parser.add_argument("--no-progress", action="store_true", help=NO_PROGRESS_HELP + "; as --progress off")
     defaults = Topics()
     for f in fields(Topics):
         if f.name != "pose_out":
@@ -460,6 +462,57 @@ def main(argv: list[str] | None = None) -> int:
             parser.add_argument(f"--topic-{f.name.replace('_', '-')}", dest=f"topic_{f.name}",
                                 help=f"topic of the {f.name.replace('_', ' ')} (default {getattr(defaults, f.name)}"
                                      f"{found}; '' reads none)")
+    return parser
+
+
+def warm_up_replay(log: RobotLog, field: Field, model: str, compensate_latency: bool = True,
+                   history: float = 1.0, progress: bool = False):
+    """Compile (or load from numba's cache) the kernels a replay reaches, on a throw-away localizer of a few
+    particles, before the replay is timed; returns the `mcl.numba_cache.WarmUp`. The filter's groups of kernels
+    come one by one (`mcl.numba_cache.filter_stages`, with the log's first motion step and first frame with
+    detections), then the localizer follows the log's first motion steps and frames."""
+    from .numba_cache import filter_kernels, filter_stages, warm_up
+
+    times, inputs = motion_events(log)
+    localizer = Localizer(field, MODELS[model](), n_particles=WARM_UP_PARTICLES, seed=0, history=history,
+                          compensate_latency=compensate_latency)
+    localizer.filter.reset_uniform("own_half")
+    follower = Localizer(field, MODELS[model](), n_particles=WARM_UP_PARTICLES, seed=0, history=history,
+                         compensate_latency=compensate_latency)
+    follower.filter.reset_uniform("own_half")
+    frames = [frame for frame in log.vision if len(frame.observations) > 0]
+    stages = filter_stages(localizer.filter, inputs[0], frames[0].observations) if frames else []
+
+    def follow():
+        next_frame = 0
+        for k in range(min(WARM_UP_STEPS, len(inputs))):
+            t = float(times[k])
+            follower.motion(t, inputs[k])
+            while next_frame < len(log.vision) and log.vision[next_frame].received <= t + SAME_TIME:
+                frame = log.vision[next_frame]
+                next_frame += 1
+                try:
+                    follower.observe(frame.observations, capture_time=frame.stamp)
+                except ValueError:
+                    pass
+            follower.pose()
+            follower.entropy()
+            follower.quality()
+
+    stages.append(("the log's first seconds", follow))
+    return warm_up(stages, filter_kernels(localizer.filter), progress=progress)
+
+
+def main(argv: list[str] | None = None, prog: str = PROG) -> int:
+    """`robocup-mcl replay LOG ...` (see `robocup-mcl replay --help`)."""
+    import json
+    from dataclasses import fields
+
+    from .cli_checks import CommandError, check_output_file, one_line, progress_wanted
+    from .logs import read_log
+    from .logs.mcap_io import Topics, list_topics
+
+    parser = build_parser(prog)
     args = parser.parse_args(argv)
     if args.particles <= 0:
         parser.error(f"--particles {args.particles} must be > 0")
@@ -485,20 +538,23 @@ def main(argv: list[str] | None = None) -> int:
         check_output_file(args.out, "--out")
         log, report = read_log(args.log, topics=topics, gap=args.gap)
         check_inputs(log, report, topics)
-        progress = sys.stderr.isatty() if args.progress == "auto" else args.progress == "on"
+        progress = (args.progress != "off" and
+                    progress_wanted(args, force=args.progress == "on", no_progress=args.no_progress))
+        warm = warm_up_replay(log, field, args.model, not args.no_latency, args.history, progress)
         result = replay(log, field, model=args.model, particles=args.particles, seed=args.seed,
                         compensate_latency=not args.no_latency, history=args.history, start=start, rrd=args.rrd,
-                        poses_out=args.out, progress=progress and not args.json)
+                        poses_out=args.out, progress=progress)
     except (ValueError, OSError) as error:
         print(f"robocup-mcl replay: {one_line(error)}", file=sys.stderr)
         return 1
     if args.json:
-        json.dump({"log": report.to_json(), "replay": result.figures(), "rrd": args.rrd, "out": args.out},
-                  sys.stdout, indent=2)
+        json.dump({"log": report.to_json(), "replay": result.figures(), "rrd": args.rrd, "out": args.out,
+                   **warm.as_dict()}, sys.stdout, indent=2)
         print()
         return 0
     print(report.summary())
     print(result.summary())
+    print(f"warm-up: {warm.summary()}, not counted in the replay's speed")
     if args.rrd:
         print(f"recording written to {args.rrd} (open it with: rerun {args.rrd})")
     if args.out:
