@@ -207,9 +207,11 @@ def compiled_phases(pf, u: MotionInput, observations: Observations) -> dict[str,
                 scratch[:] = pf.poses
                 move_chunked(scratch, *motion, gaussian, variates, chunk)
         elif pf.fast:
-            move_range_fast(pf.poses, scratch, 0, n, *motion, gaussian, variates, function, generator, NO_WORK)
+            move_range_fast(pf.poses, scratch, 0, n, motion[:3], motion[3:], gaussian, variates,
+                            (function, generator), NO_WORK)
         else:
-            move_range(pf.poses, scratch, 0, n, *motion, gaussian, variates, function, generator, NO_WORK)
+            move_range(pf.poses, scratch, 0, n, motion[:3], motion[3:], gaussian, variates, (function, generator),
+                       NO_WORK)
         pf.relocalization.carry(motion[0], motion[1], motion[2])
         pf._changed()
 

@@ -164,10 +164,12 @@ def _cell_centre(best, x_min, y_min, cell_size, ny, n_theta):
 
 
 @numba.njit(cache=True)
-def _dominant_cluster(xs, ys, ts, weights, best, x_min, y_min, cell_size, ny, n_theta, radius, angle_radius,
-                      iterations, previous, use_previous, out_mean, out_cov):
+def _dominant_cluster(xs, ys, ts, weights, best, cells, shift, previous, use_previous, out_mean, out_cov):
     """Mean shift from the centre of histogram cell `best` (and from `previous`), then the covariance; returns
-    the cluster's weight. xs, ys, ts: the particles' coordinates as separate arrays."""
+    the cluster's weight. xs, ys, ts: the particles' coordinates as separate arrays; cells, shift: the groups of
+    `cluster_estimate`."""
+    x_min, y_min, cell_size, _, ny, n_theta = cells
+    radius, angle_radius, iterations = shift
     rows = np.empty((6, BLOCK))
     # Seed: the centre of the heaviest cell; the kernel is wider than a cell, so mean shift merges its
     # neighbours and walks to the mode.
@@ -189,15 +191,17 @@ def _dominant_cluster(xs, ys, ts, weights, best, x_min, y_min, cell_size, ny, n_
 
 
 @numba.njit(cache=True)
-def cluster_estimate(poses, weights, x_min, y_min, cell_size, nx, ny, n_theta, radius, angle_radius,
-                     iterations, histogram, previous, use_previous, out_mean, out_cov):
+def cluster_estimate(poses, weights, cells, shift, histogram, previous, use_previous, out_mean, out_cov):
     """Mean and covariance of the dominant cluster; returns the cluster's weight.
 
-    histogram: scratch of nx·ny·n_theta floats. out_mean (3,), out_cov (3, 3) are written. When the cluster
+    Two groups of parameters: cells (x_min, y_min, cell_size, nx, ny, n_theta), the histogram's grid of
+    cell_size-wide cells from (x_min, y_min) and n_theta orientation bins; shift (radius, angle_radius,
+    iterations), the mean shift's kernel and its iterations. histogram: scratch of nx·ny·n_theta floats. out_mean (3,), out_cov (3, 3) are written. When the cluster
     grown from the heaviest cell holds less than half the weight and `use_previous`, the mean shift also
     starts from `previous` (the last estimate) and the heavier of the two clusters wins: a tight cluster
     split across cell boundaries then is not lost to a clump that fits in one cell.
     """
+    x_min, y_min, cell_size, nx, ny, n_theta = cells
     histogram[:] = 0.0
     theta_size = 2.0 * math.pi / n_theta
     for i in range(poses.shape[0]):
@@ -206,9 +210,8 @@ def cluster_estimate(poses, weights, x_min, y_min, cell_size, nx, ny, n_theta, r
         ct = _cell(poses[i, 2], -math.pi, theta_size, n_theta)
         histogram[(cx * ny + cy) * n_theta + ct] += weights[i]
     return _dominant_cluster(np.ascontiguousarray(poses[:, 0]), np.ascontiguousarray(poses[:, 1]),
-                             np.ascontiguousarray(poses[:, 2]), weights, np.argmax(histogram), x_min, y_min,
-                             cell_size, ny, n_theta, radius, angle_radius, iterations, previous, use_previous,
-                             out_mean, out_cov)
+                             np.ascontiguousarray(poses[:, 2]), weights, np.argmax(histogram), cells, shift, previous,
+                             use_previous, out_mean, out_cov)
 
 
 @numba.njit(cache=True)
@@ -440,14 +443,22 @@ def summary_fill(grid, poses, weights, coordinates, histograms, bitmaps):
         orientation[orientation_cell] = orientation_sum
 
 
+@numba.njit(cache=True, inline="always")
+def _cluster_groups(grid):
+    """The groups cells and shift of `cluster_estimate`, from the summary's parameter array."""
+    cells = (grid[G_X_MIN], grid[G_Y_MIN], grid[G_CLUSTER_CELL], int(grid[G_CLUSTER_NX]), int(grid[G_CLUSTER_NY]),
+             int(grid[G_CLUSTER_NT]))
+    return cells, (grid[G_RADIUS], grid[G_ANGLE_RADIUS], int(grid[G_ITERATIONS]))
+
+
 @numba.njit(cache=True)
 def summary_estimate(grid, coordinates, weights, histograms, bitmaps, previous, use_previous, out_mean, out_cov):
     """`cluster_estimate` from the filled summary: the same mean, covariance and weight."""
     cluster, _, _, cluster_bits, _, _ = _parts(grid, histograms, bitmaps)
+    cells, shift = _cluster_groups(grid)
     return _dominant_cluster(coordinates[0], coordinates[1], coordinates[2], weights,
-                             _marked_argmax(cluster, cluster_bits), grid[G_X_MIN], grid[G_Y_MIN],
-                             grid[G_CLUSTER_CELL], int(grid[G_CLUSTER_NY]), int(grid[G_CLUSTER_NT]), grid[G_RADIUS],
-                             grid[G_ANGLE_RADIUS], int(grid[G_ITERATIONS]), previous, use_previous, out_mean, out_cov)
+                             _marked_argmax(cluster, cluster_bits), cells, shift, previous, use_previous, out_mean,
+                             out_cov)
 
 
 @numba.njit(cache=True)
@@ -534,9 +545,11 @@ def _kernel_covariance_chunked(xs, ys, ts, weights, mx, my, mt, radius, angle_ra
 
 
 @numba.njit(cache=True)
-def _dominant_cluster_chunked(xs, ys, ts, weights, best, x_min, y_min, cell_size, ny, n_theta, radius,
-                              angle_radius, iterations, previous, use_previous, out_mean, out_cov, chunk):
+def _dominant_cluster_chunked(xs, ys, ts, weights, best, cells, shift, previous, use_previous, out_mean, out_cov,
+                              chunk):
     """`_dominant_cluster` with `_kernel_mean_chunked` and `_kernel_covariance_chunked`."""
+    x_min, y_min, cell_size, _, ny, n_theta = cells
+    radius, angle_radius, iterations = shift
     mx, my, mt = _cell_centre(best, x_min, y_min, cell_size, ny, n_theta)
     total = 0.0
     for _ in range(iterations):
@@ -559,11 +572,10 @@ def summary_estimate_chunked(grid, coordinates, weights, histograms, bitmaps, pr
                              out_cov, chunk):
     """`summary_estimate` with its sums in chunks on several threads (see above)."""
     cluster, _, _, cluster_bits, _, _ = _parts(grid, histograms, bitmaps)
+    cells, shift = _cluster_groups(grid)
     return _dominant_cluster_chunked(coordinates[0], coordinates[1], coordinates[2], weights,
-                                     _marked_argmax(cluster, cluster_bits), grid[G_X_MIN], grid[G_Y_MIN],
-                                     grid[G_CLUSTER_CELL], int(grid[G_CLUSTER_NY]), int(grid[G_CLUSTER_NT]),
-                                     grid[G_RADIUS], grid[G_ANGLE_RADIUS], int(grid[G_ITERATIONS]), previous,
-                                     use_previous, out_mean, out_cov, chunk)
+                                     _marked_argmax(cluster, cluster_bits), cells, shift, previous, use_previous,
+                                     out_mean, out_cov, chunk)
 
 
 # Several threads fill the histograms in fixed point (weights in units of 2⁻⁶⁰, one row of `local` per thread),

@@ -444,10 +444,11 @@ class ParticleFilter(ParticleSet, BeliefSummary):
                     parallel_uniforms(*self._generator(), variates.reshape(-1), 3 * self._n)
                 move_chunked(self._poses, *motion, gaussian, variates, self._chunk)
         elif self._fast:
-            move_range_fast(self._poses, self._poses, 0, self._n, *motion, gaussian, variates, *self._generator(),
-                            NO_WORK)
+            move_range_fast(self._poses, self._poses, 0, self._n, motion[:3], motion[3:], gaussian, variates,
+                            self._generator(), NO_WORK)
         else:
-            move_range(self._poses, self._poses, 0, self._n, *motion, gaussian, variates, *self._generator(), NO_WORK)
+            move_range(self._poses, self._poses, 0, self._n, motion[:3], motion[3:], gaussian, variates,
+                       self._generator(), NO_WORK)
 
     def correct(self, observations: Observations | Iterable | None, since=None) -> None:
         """Weigh the particles by the detections, then resample (and inject) if needed.

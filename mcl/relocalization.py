@@ -298,17 +298,18 @@ class SoccerRelocalization:
 
     # -- what it gives the filter -------------------------------------------------------------------------
     def _prior_arguments(self, heading_kept: float | None = None) -> tuple:
-        """The prior's parameters as `log_prior_kernel` takes them (`heading_kept`: instead of the prior's)."""
+        """The prior's parameters as `log_prior_kernel` takes them, in its three groups anchor, mixture and
+        region (`heading_kept`: instead of the prior's)."""
         p = self.prior
         x_min, x_max, y_min, y_max = self._carpet
         uniform = 1.0 / ((x_max - x_min) * (y_max - y_min) * TWO_PI)
         widen = (p.drift * self.travelled) ** 2
         anchor = (0.0, 0.0, 0.0) if self._anchor is None else tuple(self._anchor)
         region = (0.0, 0.0, 0.0, 0.0) if self.region is None else tuple(self.region)
-        return (self._anchor is not None, *anchor, p.track_sigma ** 2 + widen, p.kidnap_sigma ** 2 + widen,
-                p.track_heading_sigma, p.kidnap_share, p.tail_share,
-                p.heading_kept if heading_kept is None else heading_kept, uniform,
-                self.region is not None, *region, math.log(p.region_tail))
+        return ((self._anchor is not None, *anchor),
+                (p.track_sigma ** 2 + widen, p.kidnap_sigma ** 2 + widen, p.track_heading_sigma, p.kidnap_share,
+                 p.tail_share, p.heading_kept if heading_kept is None else heading_kept, uniform),
+                (self.region is not None, *region, math.log(p.region_tail)))
 
     def log_prior(self, poses: np.ndarray, heading_kept: float | None = None) -> np.ndarray:
         """The prior's log-density at each pose (N, 3) (see `RelocalizationPrior`); without an anchor, uniform
@@ -320,8 +321,10 @@ class SoccerRelocalization:
 
     def log_prior_reference(self, poses: np.ndarray, heading_kept: float | None = None) -> np.ndarray:
         """Plain numpy twin of `log_prior`."""
-        (has_anchor, ax, ay, at, track2, kidnap2, heading_sigma, kidnap_share, tail_share, heading_kept, uniform,
-         has_region, x_min, x_max, y_min, y_max, log_region_tail) = self._prior_arguments(heading_kept)
+        anchor, mixture, region = self._prior_arguments(heading_kept)
+        has_anchor, ax, ay, at = anchor
+        track2, kidnap2, heading_sigma, kidnap_share, tail_share, heading_kept, uniform = mixture
+        has_region, x_min, x_max, y_min, y_max, log_region_tail = region
         poses = np.asarray(poses, dtype=np.float64)
         if not has_anchor:
             log_prior = np.full(poses.shape[0], math.log(uniform))
@@ -398,10 +401,20 @@ class SoccerRelocalization:
 
 
 @numba.njit(cache=True)
-def log_prior_kernel(poses, has_anchor, ax, ay, at, track2, kidnap2, heading_sigma, kidnap_share, tail_share,
-                     heading_kept, uniform, has_region, x_min, x_max, y_min, y_max, log_region_tail, out):
+def log_prior_kernel(poses, anchor, mixture, region, out):
     """out[i] ← the prior's log-density at poses[i] (`SoccerRelocalization.log_prior`; numpy twin
-    `SoccerRelocalization.log_prior_reference`, the same operations in the same order). Returns out."""
+    `SoccerRelocalization.log_prior_reference`, the same operations in the same order). Returns out.
+
+    Its parameters come in three groups (`SoccerRelocalization._prior_arguments` builds them):
+
+        anchor   (has_anchor, ax, ay, at): whether there is an anchor pose, and that pose
+        mixture  (track2, kidnap2, heading_sigma, kidnap_share, tail_share, heading_kept, uniform): the
+                 tracking and kidnap components' variances and shares, and the uniform density
+        region   (has_region, x_min, x_max, y_min, y_max, log_region_tail): the placement region
+    """
+    has_anchor, ax, ay, at = anchor
+    track2, kidnap2, heading_sigma, kidnap_share, tail_share, heading_kept, uniform = mixture
+    has_region, x_min, x_max, y_min, y_max, log_region_tail = region
     for i in range(poses.shape[0]):
         if has_anchor:
             d2 = (poses[i, 0] - ax) ** 2 + (poses[i, 1] - ay) ** 2

@@ -246,10 +246,17 @@ def _systematic_in_place(weights, m, u0, out):
 DRAWS = 256        # offspring per block of drawn uniforms
 
 
+# `_place`, `_place_run` and `_place_range` take three groups (tuples): ancestors (source, trig), the particles
+# resampled from and their headings' cos and sin (trig without rows: computed here); bounds (bx, by, bt), the
+# roughening's half-widths; offspring (out, coordinates), where the offspring go (coordinates without columns:
+# nowhere else).
 @numba.njit(cache=True, inline="always")
-def _place(source, j, trig, known, uniforms, u, bx, by, bt, out, k, coordinates, split):
+def _place(ancestors, j, known, uniforms, u, bounds, offspring, k, split):
     """Offspring k of ancestor j: its pose jittered by uniforms[u:u + 3] (with the ancestor's cos/sin from
     `trig` when `known`), written to out[k] and, when `split`, to coordinates[:, k]."""
+    source, trig = ancestors
+    bx, by, bt = bounds
+    out, coordinates = offspring
     theta = source[j, 2]
     if known:
         c = trig[j, 0]
@@ -268,32 +275,31 @@ def _place(source, j, trig, known, uniforms, u, bx, by, bt, out, k, coordinates,
 
 
 @numba.njit(cache=True, inline="always")
-def _place_run(source, j, trig, known, uniforms, u, bx, by, bt, out, first, stop, counts, coordinates, split):
+def _place_run(ancestors, j, known, uniforms, u, bounds, offspring, first, stop, counts, split):
     """Offspring first..stop-1, their ancestors the running sum of `counts` from j (counts zeroed on the way),
     their uniforms from uniforms[u:]; returns the last ancestor. Called with literal `known` and `split`."""
     for k in range(first, stop):
         j += counts[k]
         counts[k] = 0
-        _place(source, j, trig, known, uniforms, u + 3 * (k - first), bx, by, bt, out, k, coordinates, split)
+        _place(ancestors, j, known, uniforms, u + 3 * (k - first), bounds, offspring, k, split)
     return j
 
 
-@numba.njit(cache=True, inline="always")
-def _place_range(source, j, trig, uniforms, u, bx, by, bt, out, first, stop, counts, coordinates):
+# Not inlined: `resample_with_jitter_chunked` calls it in a parallel loop, and numba's parallel loops lose the
+# writes of an inlined function that writes through a tuple of arrays (the groups above); a call keeps them.
+@numba.njit(cache=True)
+def _place_range(ancestors, j, uniforms, u, bounds, offspring, first, stop, counts):
     """`_place_run` with `known` (trig has rows) and `split` (coordinates has columns) decided once, outside
     the loop: with a flag tested inside it, LLVM computes the cos and sin of the other branch anyway (they are
     speculatable intrinsics), which made the loop four times slower."""
-    known = trig.shape[0] > 0
-    if coordinates.shape[1] > 0:
+    known = ancestors[1].shape[0] > 0
+    if offspring[1].shape[1] > 0:
         if known:
-            return _place_run(source, j, trig, True, uniforms, u, bx, by, bt, out, first, stop, counts, coordinates,
-                              True)
-        return _place_run(source, j, trig, False, uniforms, u, bx, by, bt, out, first, stop, counts, coordinates,
-                          True)
+            return _place_run(ancestors, j, True, uniforms, u, bounds, offspring, first, stop, counts, True)
+        return _place_run(ancestors, j, False, uniforms, u, bounds, offspring, first, stop, counts, True)
     if known:
-        return _place_run(source, j, trig, True, uniforms, u, bx, by, bt, out, first, stop, counts, coordinates,
-                          False)
-    return _place_run(source, j, trig, False, uniforms, u, bx, by, bt, out, first, stop, counts, coordinates, False)
+        return _place_run(ancestors, j, True, uniforms, u, bounds, offspring, first, stop, counts, False)
+    return _place_run(ancestors, j, False, uniforms, u, bounds, offspring, first, stop, counts, False)
 
 
 @numba.njit(cache=True)
@@ -314,7 +320,8 @@ def resample_with_jitter(weights, m, source, bounds, out, trig, function, state,
     for start in range(0, m, DRAWS):
         count = min(DRAWS, m - start)
         draw_uniforms(function, state, uniforms, 3 * count)
-        j = _place_range(source, j, trig, uniforms, 0, bx, by, bt, out, start, start + count, counts, coordinates)
+        j = _place_range((source, trig), j, uniforms, 0, (bx, by, bt), (out, coordinates), start, start + count,
+                         counts)
     counts[m] = 0
     return u0
 
@@ -398,8 +405,8 @@ def resample_with_jitter_chunked(weights, m, source, bounds, out, trig, function
         running_start += total
     bx, by, bt = bounds[0], bounds[1], bounds[2]
     for t in numba.prange(k_chunks):
-        _place_range(source, starts[t], trig, uniforms, 3 * t * chunk, bx, by, bt, out, t * chunk,
-                     min(m, (t + 1) * chunk), counts, coordinates)
+        _place_range((source, trig), starts[t], uniforms, 3 * t * chunk, (bx, by, bt), (out, coordinates), t * chunk,
+                     min(m, (t + 1) * chunk), counts)
     counts[m] = 0
     return u0
 

@@ -153,11 +153,11 @@ def predict_and_score(poses, scratch, trig, log_likelihood, motion, draws, frame
         if not move:
             scratch[block:end] = poses[block:end]
         elif fast:
-            move_range_fast(poses, scratch, block, end, dx, dy, dtheta, bound_x, bound_y, bound_theta, gaussian,
-                            variates, draws[0], draws[1], move_work)
+            move_range_fast(poses, scratch, block, end, (dx, dy, dtheta), (bound_x, bound_y, bound_theta), gaussian,
+                            variates, draws, move_work)
         else:
-            move_range(poses, scratch, block, end, dx, dy, dtheta, bound_x, bound_y, bound_theta, gaussian,
-                       variates, draws[0], draws[1], move_work)
+            move_range(poses, scratch, block, end, (dx, dy, dtheta), (bound_x, bound_y, bound_theta), gaussian,
+                       variates, draws, move_work)
         block_trig(scratch, block, end - block, trig, rows, fast)
         score(scratch, rows[1:3], block, end - block, work, since, fast, frame, log_likelihood)
 

@@ -291,8 +291,9 @@ def adaptive_move(poses, state, cumulative, vx, vy, omega, dt, side, params, red
     Every particle gets, bit for bit, the numbers of the general step at the end of the loop. Free particles
     share their chord, noise bounds and turn, so these are computed once; a stopped particle whose coordinates
     are both non-zero is given a displacement of exactly ±0, which leaves them unchanged."""
-    _adaptive_range(poses, state, cumulative, vx, vy, omega, dt, side, params, redraw_each_step, variates, False,
-                    _NO_BASES, _NO_BASES, 0, 0, poses.shape[0], np.empty((MOVE_ROWS, DRAWS)))
+    model, odometry = _step_groups(cumulative, vx, vy, omega, dt, side, params, redraw_each_step)
+    _adaptive_range(poses, state, model, odometry, (variates, False, _NO_BASES, _NO_BASES), 0, 0, poses.shape[0],
+                    np.empty((MOVE_ROWS, DRAWS)))
 
 
 @numba.njit(cache=True)
@@ -310,30 +311,42 @@ def adaptive_move_drawing(poses, state, cumulative, vx, vy, omega, dt, side, par
     bases = np.empty((DRAWS, 2), dtype=np.uint64)
     increments = np.empty((PCG64_STEPS, 2), dtype=np.uint64)
     rows = np.empty((MOVE_ROWS, DRAWS))
+    model, odometry = _step_groups(cumulative, vx, vy, omega, dt, side, params, redraw_each_step)
     for start in range(0, n, DRAWS):
         stop = min(start + DRAWS, n)
         deferred = draw_rows_deferring(function, generator, variates, stop - start, 1, 4, bases, increments)
-        _adaptive_range(poses, state, cumulative, vx, vy, omega, dt, side, params, redraw_each_step, variates,
-                        deferred, bases, increments, start, start, stop, rows)
+        _adaptive_range(poses, state, model, odometry, (variates, deferred, bases, increments), start, start, stop,
+                        rows)
 
 
 MOVE_ROWS = 6      # `_adaptive_range`'s scratch rows: turned heading, dx, dy, new heading, cos, sin
 _NO_BASES = np.empty((0, 2), dtype=np.uint64)     # no deferred episode values
 
 
+# `_adaptive_range` and `_adaptive_block` take their arguments in groups (tuples):
+#     model     (cumulative, params, redraw_each_step): the transition table, β and odometry-noise parameters
+#     odometry  (vx, vy, omega, dt, side): the step's request and the stopped turn's side c(z_c) (or NaN)
+#     draws     (variates, deferred, bases, increments): the particles' uniforms, and whether their episode values
+#               are computed from bases and increments (`numerics.random.draw_rows_deferring`)
+@numba.njit(cache=True, inline="always")
+def _step_groups(cumulative, vx, vy, omega, dt, side, params, redraw_each_step):
+    """The groups model and odometry of `_adaptive_range` from `adaptive_move`'s arguments."""
+    return (cumulative, params, redraw_each_step), (vx, vy, omega, dt, side)
+
+
 @numba.njit(cache=True)
-def _adaptive_range(poses, state, cumulative, vx, vy, omega, dt, side, params, redraw_each_step, all_variates,
-                    deferred, bases, increments, first, start, stop, rows):
-    """`adaptive_move` of particles start..stop-1; particle i's variates are all_variates[i - first], whose
-    episode values (columns 1-3) are computed from bases[i - first] and increments when `deferred`
-    (`numerics.random.draw_rows_deferring`). rows: (MOVE_ROWS, DRAWS) scratch. A block of particles at
-    a time, in two passes: each particle's state and robot-frame displacement, then the rotation into the
-    field frame, whose cos and sin take a loop that vectorizes (`sincos`)."""
+def _adaptive_range(poses, state, model, odometry, draws, first, start, stop, rows):
+    """`adaptive_move` of particles start..stop-1 (model, odometry, draws: the groups above); particle i's
+    variates are all_variates[i - first], whose episode values (columns 1-3) are computed from bases[i - first]
+    and increments when `deferred` (`numerics.random.draw_rows_deferring`). rows: (MOVE_ROWS, DRAWS) scratch. A
+    block of particles at a time, in two passes: each particle's state and robot-frame displacement, then the
+    rotation into the field frame, whose cos and sin take a loop that vectorizes (`sincos`)."""
+    all_variates, deferred, bases, increments = draws
     for block in range(start, stop, DRAWS):
         end = min(block + DRAWS, stop)
-        _adaptive_block(poses, state, cumulative, vx, vy, omega, dt, side, params, redraw_each_step,
-                        all_variates[block - first:end - first], deferred, bases[block - first:end - first],
-                        increments, block, end - block, rows)
+        _adaptive_block(poses, state, model, odometry,
+                        (all_variates[block - first:end - first], deferred, bases[block - first:end - first],
+                         increments), block, end - block, rows)
         _rotate_rows(rows, end - block)
         for p in range(end - block):
             i = block + p
@@ -355,12 +368,14 @@ def _rotate_rows(rows, count):
 
 
 @numba.njit(cache=True)
-def _adaptive_block(poses, state, cumulative, vx, vy, omega, dt, side, params, redraw_each_step, variates, deferred,
-                    bases, increments, start, count, rows):
-    """The states of particles start..start+count-1 (variates[p] for particle start + p, its episode values from
-    bases[p] when `deferred`), and into rows[:4, p] the heading to rotate by, the robot-frame displacement and
-    the new heading (not yet wrapped). A stopped particle whose coordinates are both non-zero gets a
-    displacement of exactly zero: ±0 added leaves them unchanged."""
+def _adaptive_block(poses, state, model, odometry, draws, start, count, rows):
+    """The states of particles start..start+count-1 (model, odometry, draws: the groups above; variates[p] for
+    particle start + p, its episode values from bases[p] when `deferred`), and into rows[:4, p] the heading to
+    rotate by, the robot-frame displacement and the new heading (not yet wrapped). A stopped particle whose
+    coordinates are both non-zero gets a displacement of exactly zero: ±0 added leaves them unchanged."""
+    cumulative, params, redraw_each_step = model
+    vx, vy, omega, dt, side = odometry
+    variates, deferred, bases, increments = draws
     beta1, beta2, beta3, beta4 = params[0], params[1], params[2], params[3]
     beta5, beta6, beta7, beta_turn, separation = params[4], params[5], params[6], params[7], params[8]
     odo1, odo2, odo3, odo4 = params[9], params[10], params[11], params[12]

@@ -9,6 +9,10 @@ their plain numpy reference.
 step calls it block by block), `move_chunked` spreads the particles over threads (the same poses), and
 `move_range_fast` is the opt-in fast-math variant (poses to rounding). A heading's cos and sin come from
 `numerics.trig.sincos`, not from libm.
+
+`move_range` and `move_range_fast` take three groups (tuples): displacement (dx, dy, dθ), the robot-frame
+displacement; bounds (bound_x, bound_y, bound_θ), the noise bounds; draws (function, state), the bit generator's
+handle (`numerics.random.bit_generator_handle`; (0, 0) when the variates are given).
 """
 import numba
 import numpy as np
@@ -57,10 +61,12 @@ def _move_row(rows, p, dx, dy, dtheta, ex, ey, et):
 
 
 @numba.njit(cache=True, inline="always")
-def _move_blocks(source, out, start, stop, dx, dy, dtheta, bound_x, bound_y, bound_theta, gaussian, variates,
-                 function, state, work, fast):
+def _move_blocks(source, out, start, stop, displacement, bounds, gaussian, variates, draws, work, fast):
     """`move_range` (`move_range_fast` when `fast`, a literal): a block of DRAWS particles at a time, copied into
     rows, moved there and copied out."""
+    dx, dy, dtheta = displacement
+    bound_x, bound_y, bound_theta = bounds
+    function, state = draws
     work = _move_work(work)
     uniforms = work[:3 * DRAWS]
     rows = work[3 * DRAWS:MOVE_WORK].reshape((3, DRAWS))
@@ -87,16 +93,16 @@ def _move_blocks(source, out, start, stop, dx, dy, dtheta, bound_x, bound_y, bou
 
 
 @numba.njit(cache=True)
-def move_range(source, out, start, stop, dx, dy, dtheta, bound_x, bound_y, bound_theta, gaussian, variates,
-               function, state, work):
-    """out[i] = source[i] moved, for i in [start, stop) (out may be source).
+def move_range(source, out, start, stop, displacement, bounds, gaussian, variates, draws, work):
+    """out[i] = source[i] moved by displacement (dx, dy, dθ) plus noise within bounds (bound_x, bound_y,
+    bound_θ), for i in [start, stop) (out may be source).
 
     The noise of particle i comes from variates[i] when `variates` has rows, else from three uniforms drawn
-    here (x, y, θ in that order, as `rng.random((n, 3))` lays them out; uniform noise only). work: scratch of
-    MOVE_WORK floats kept by a caller that moves a block at a time (`NO_WORK`: allocated here).
+    here from the bit generator draws (function, state) (x, y, θ in that order, as `rng.random((n, 3))` lays
+    them out; uniform noise only). work: scratch of MOVE_WORK floats kept by a caller that moves a block at a
+    time (`NO_WORK`: allocated here).
     """
-    _move_blocks(source, out, start, stop, dx, dy, dtheta, bound_x, bound_y, bound_theta, gaussian, variates,
-                 function, state, work, False)
+    _move_blocks(source, out, start, stop, displacement, bounds, gaussian, variates, draws, work, False)
 
 
 @numba.njit(cache=True)
@@ -107,16 +113,16 @@ def move_with_noise(poses, dx, dy, dtheta, bound_x, bound_y, bound_theta, gaussi
     (2u - 1)·bound, or, with `gaussian`, normal with the same variance (sigma = bound / sqrt(3)), so that
     switching the distribution keeps the spread. `variates` (N, 3) come from `draw_variates`.
     """
-    move_range(poses, poses, 0, poses.shape[0], dx, dy, dtheta, bound_x, bound_y, bound_theta, gaussian, variates,
-               0, 0, np.empty(0))
+    move_range(poses, poses, 0, poses.shape[0], (dx, dy, dtheta), (bound_x, bound_y, bound_theta), gaussian,
+               variates, (0, 0), np.empty(0))
 
 
 @numba.njit(cache=True)
 def move_drawing_noise(poses, dx, dy, dtheta, bound_x, bound_y, bound_theta, function, state):
     """`move_with_noise` with uniform noise whose variates are drawn in the kernel from a bit generator
     (`bit_generator_handle`): the same poses as `move_with_noise(..., False, rng.random((N, 3)))`."""
-    move_range(poses, poses, 0, poses.shape[0], dx, dy, dtheta, bound_x, bound_y, bound_theta, False,
-               np.empty((0, 3)), function, state, np.empty(0))
+    move_range(poses, poses, 0, poses.shape[0], (dx, dy, dtheta), (bound_x, bound_y, bound_theta), False,
+               np.empty((0, 3)), (function, state), np.empty(0))
 
 
 @numba.njit(cache=True, parallel=True)
@@ -124,8 +130,8 @@ def move_chunked(poses, dx, dy, dtheta, bound_x, bound_y, bound_theta, gaussian,
     """`move_with_noise` with chunks of `chunk` particles on several threads (elementwise: the same poses)."""
     n = poses.shape[0]
     for t in numba.prange(max(1, (n + chunk - 1) // chunk)):
-        move_range(poses, poses, t * chunk, min(n, (t + 1) * chunk), dx, dy, dtheta, bound_x, bound_y,
-                   bound_theta, gaussian, variates, 0, 0, np.empty(0))
+        move_range(poses, poses, t * chunk, min(n, (t + 1) * chunk), (dx, dy, dtheta), (bound_x, bound_y, bound_theta),
+                   gaussian, variates, (0, 0), np.empty(0))
 
 
 # -- the opt-in fast variant ----------------------------------------------------------------------------------------
@@ -162,11 +168,9 @@ def _move_fast_rows(rows, count, dx, dy, dtheta, bound_x, bound_y, bound_theta, 
 
 
 @numba.njit(cache=True)
-def move_range_fast(source, out, start, stop, dx, dy, dtheta, bound_x, bound_y, bound_theta, gaussian, variates,
-                    function, state, work):
+def move_range_fast(source, out, start, stop, displacement, bounds, gaussian, variates, draws, work):
     """`move_range` with fast-math: the same draws, the poses to rounding."""
-    _move_blocks(source, out, start, stop, dx, dy, dtheta, bound_x, bound_y, bound_theta, gaussian, variates,
-                 function, state, work, True)
+    _move_blocks(source, out, start, stop, displacement, bounds, gaussian, variates, draws, work, True)
 
 
 def move_with_noise_reference(poses, dx, dy, dtheta, bound_x, bound_y, bound_theta, gaussian, variates):

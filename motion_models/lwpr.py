@@ -237,9 +237,15 @@ def _project(z, U, P, n_reg, s, xu):
                 xu[i] -= P[j, i] * sj
 
 
+# The update and prediction kernels take the packed arrays in groups (tuples):
+#     rfs         (vec, mat, proj, reg, scal, ints, counts): the receptive fields, as `_rf_views` returns them
+#     params      (fpar, ipar): the float and integer parameters
+#     activation  (w, dwdq, ddwdqdq): an RF's activation and its derivatives (`_activation`)
+#     scratch     (work, mwork): the update's vector and matrix scratch
 @numba.njit(cache=True)
-def _init_rf(o, k, template, xn, yn, fpar, init, vec, mat, proj, reg, scal, ints):
+def _init_rf(o, k, template, xn, yn, fpar, init, rfs):
     """LWPR.md "update(x, y)" step 4: a new RF at x, from ``template`` (an RF index) or from the defaults."""
+    vec, mat, proj, reg, scal, ints, _ = rfs
     n = xn.shape[0]
     vec[o, k] = 0.0
     mat[o, k] = 0.0
@@ -275,9 +281,12 @@ def _init_rf(o, k, template, xn, yn, fpar, init, vec, mat, proj, reg, scal, ints
 
 
 @numba.njit(cache=True, inline="always")
-def _update_metric(o, k, xn, w, dwdq, ddwdqdq, e_star, e, fpar, ipar, vec, mat, reg, scal, ints, work,
-                   mwork):
+def _update_metric(o, k, xn, activation, e_star, e, params, rfs, scratch):
     """LWPR.md "Metric update (per RF)": gradient step on M (optionally IDBD meta-learning of α)."""
+    w, dwdq, ddwdqdq = activation
+    fpar, ipar = params
+    vec, mat, _, reg, scal, ints, _ = rfs
+    work, mwork = scratch
     n = xn.shape[0]
     R = ints[o, k, _NREG]
     s = reg[o, k, _S]
@@ -460,8 +469,12 @@ def _check_add_projection(o, k, n, fpar, proj, reg, scal, ints):
 
 
 @numba.njit(cache=True, inline="always")
-def _update_rf(o, k, xn, yn, w, dwdq, ddwdqdq, fpar, ipar, vec, mat, proj, reg, scal, ints, work, mwork):
+def _update_rf(o, k, xn, yn, activation, params, rfs, scratch):
     """LWPR.md "update(x, y)" step 2 for one activated RF; returns the RF's prediction ŷ + β0."""
+    w = activation[0]
+    fpar, ipar = params
+    vec, _, proj, reg, scal, ints, _ = rfs
+    work, mwork = scratch
     n = xn.shape[0]
     R = ints[o, k, _NREG]
     mean_x = vec[o, k, _MEAN_X]
@@ -559,8 +572,7 @@ def _update_rf(o, k, xn, yn, w, dwdq, ddwdqdq, fpar, ipar, vec, mat, proj, reg, 
         ints[o, k, _TRUST] = 1
 
     if ipar[_UPDATE_D] != 0:
-        _update_metric(o, k, xn, w, dwdq, ddwdqdq, e_star, e, fpar, ipar, vec, mat, reg, scal, ints, work,
-                       mwork)
+        _update_metric(o, k, xn, activation, e_star, e, params, rfs, scratch)
     _check_add_projection(o, k, n, fpar, proj, reg, scal, ints)
     tau = fpar[_TAU_LAMBDA]
     final = fpar[_FINAL_LAMBDA]
@@ -571,8 +583,11 @@ def _update_rf(o, k, xn, yn, w, dwdq, ddwdqdq, fpar, ipar, vec, mat, proj, reg, 
 
 
 @numba.njit(cache=True)
-def _update_output(o, xn, yn, fpar, ipar, init, vec, mat, proj, reg, scal, ints, counts, work, mwork):
+def _update_output(o, xn, yn, params, init, rfs, scratch):
     """LWPR.md "update(x, y)" for one output: update every activated RF, then create or prune."""
+    fpar, ipar = params
+    vec, mat, proj, reg, scal, ints, counts = rfs
+    work = scratch[0]
     n = xn.shape[0]
     kernel = ipar[_KERNEL]
     num = counts[o, _NUM_RFS]
@@ -599,9 +614,9 @@ def _update_output(o, xn, yn, fpar, ipar, init, vec, mat, proj, reg, scal, ints,
     for k in range(num):
         if scal[o, k, _W] == 0.0:
             continue
-        w, dwdq, ddwdqdq = _activation(_distance(xn, vec, mat, o, k, dx), kernel)
-        yp_k = _update_rf(o, k, xn, yn, w, dwdq, ddwdqdq, fpar, ipar, vec, mat, proj, reg, scal, ints,
-                          work, mwork)
+        activation = _activation(_distance(xn, vec, mat, o, k, dx), kernel)
+        w = activation[0]
+        yp_k = _update_rf(o, k, xn, yn, activation, params, rfs, scratch)
         if ints[o, k, _TRUST] != 0:
             sum_wy += w * yp_k
             sum_w += w
@@ -611,7 +626,7 @@ def _update_output(o, xn, yn, fpar, ipar, init, vec, mat, proj, reg, scal, ints,
         template = -1
         if w_max > 0.1 * fpar[_W_GEN] and ints[o, ind_max, _TRUST] != 0:
             template = ind_max
-        _init_rf(o, num, template, xn, yn, fpar, init, vec, mat, proj, reg, scal, ints)
+        _init_rf(o, num, template, xn, yn, fpar, init, rfs)
         counts[o, _NUM_RFS] = num + 1
     elif w_sec > fpar[_W_PRUNE]:
         tr_max = 0.0
@@ -646,7 +661,8 @@ def _update_kernel(x, y, model, ipar, rf, rf_int, y_train):
         if not np.isfinite(y[i]):
             return -2
     norm_in, norm_out, fpar, init, xstats = _model_views(model, n, n_out)
-    vec, mat, proj, reg, scal, ints, counts = _rf_views(rf, rf_int, n, n_out)
+    rfs = _rf_views(rf, rf_int, n, n_out)
+    counts = rfs[6]
     # Model-wide input statistics, on the unscaled input as the library keeps them.
     prev = float(ipar[_SAMPLES])
     ipar[_SAMPLES] += 1
@@ -659,22 +675,23 @@ def _update_kernel(x, y, model, ipar, rf, rf_int, y_train):
     xn = np.empty(n)
     for i in range(n):
         xn[i] = x[i] / norm_in[i]
-    work = np.zeros((8, n))
-    mwork = np.zeros((5, n, n))
+    scratch = (np.zeros((8, n)), np.zeros((5, n, n)))
     largest = 0
     for o in range(n_out):
         yn = y[o] / norm_out[o]
-        y_train[o] = _update_output(o, xn, yn, fpar, ipar, init, vec, mat, proj, reg, scal, ints, counts,
-                                    work, mwork) * norm_out[o]
+        y_train[o] = _update_output(o, xn, yn, (fpar, ipar), init, rfs, scratch) * norm_out[o]
         if counts[o, _NUM_RFS] > largest:
             largest = counts[o, _NUM_RFS]
     return largest
 
 
 @numba.njit(cache=True, inline="always")
-def _predict_point(x, cutoff, kernel, norm_in, norm_out, vec, mat, proj, reg, scal, ints, counts, y, conf,
-                   with_conf, xn, z, dx):
-    """LWPR.md "predict(x, cutoff=0.001)" at one point x (n,), into y and conf (n_out,); xn, z, dx: scratch."""
+def _predict_point(x, cutoff, kernel, norms, rfs, y, conf, with_conf, scratch):
+    """LWPR.md "predict(x, cutoff=0.001)" at one point x (n,), into y and conf (n_out,); norms: (norm_in,
+    norm_out); rfs: the group above; scratch: (xn, z, dx)."""
+    norm_in, norm_out = norms
+    vec, mat, proj, reg, scal, ints, counts = rfs
+    xn, z, dx = scratch
     n = x.shape[0]
     for i in range(n):
         xn[i] = x[i] / norm_in[i]
@@ -740,13 +757,10 @@ def _predict_kernel(X, cutoff, model, ipar, rf, rf_int, Y, CONF, with_conf):
             if not np.isfinite(X[p, i]):
                 return p
     norm_in, norm_out, _, _, _ = _model_views(model, n, n_out)
-    vec, mat, proj, reg, scal, ints, counts = _rf_views(rf, rf_int, n, n_out)
-    xn = np.empty(n)
-    z = np.empty(n)
-    dx = np.empty(n)
+    rfs = _rf_views(rf, rf_int, n, n_out)
+    scratch = (np.empty(n), np.empty(n), np.empty(n))
     for p in range(m):
-        _predict_point(X[p], cutoff, ipar[_KERNEL], norm_in, norm_out, vec, mat, proj, reg, scal, ints, counts,
-                       Y[p], CONF[p], with_conf, xn, z, dx)
+        _predict_point(X[p], cutoff, ipar[_KERNEL], (norm_in, norm_out), rfs, Y[p], CONF[p], with_conf, scratch)
     return -1
 
 
@@ -760,10 +774,10 @@ def _predict_one_kernel(x, cutoff, model, ipar, rf, rf_int, y, conf, with_conf):
         if not np.isfinite(x[i]):
             return 0
     norm_in, norm_out, _, _, _ = _model_views(model, n, n_out)
-    vec, mat, proj, reg, scal, ints, counts = _rf_views(rf, rf_int, n, n_out)
+    rfs = _rf_views(rf, rf_int, n, n_out)
     scratch = np.empty((3, n))
-    _predict_point(x, cutoff, ipar[_KERNEL], norm_in, norm_out, vec, mat, proj, reg, scal, ints, counts, y, conf,
-                   with_conf, scratch[0], scratch[1], scratch[2])
+    _predict_point(x, cutoff, ipar[_KERNEL], (norm_in, norm_out), rfs, y, conf, with_conf,
+                   (scratch[0], scratch[1], scratch[2]))
     return -1
 
 

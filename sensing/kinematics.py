@@ -98,13 +98,14 @@ def _cross(u0, u1, u2, w0, w1, w2):
 
 
 @numba.njit(cache=True)
-def leg_velocities_kernel(theta_offset, a, d, alpha, base_rotation, base_position, imu_rotation, imu_position,
-                          angles, rates, gyro, out_vk, out_vkg):
+def leg_velocities_kernel(chain, angles, rates, gyro, out_vk, out_vkg):
     """Eq. 5–14 for one sample: IMU velocity from the leg, in the IMU frame, into out_vk (eq. 10), out_vkg (14).
 
-    Walks the chain from the IMU down to the foot, carrying the IMU position p (eq. 5, 7), its velocity relative
+    chain: the leg's arrays (theta_offset, a, d, alpha, base_rotation, base_position, imu_rotation,
+    imu_position), as `LegChain.kernel_chain` gives them. Walks the chain from the IMU down to the foot, carrying the IMU position p (eq. 5, 7), its velocity relative
     to the current frame (eq. 6, 8), the IMU axes (eq. 9) and the link's angular velocity (eq. 11, 12).
     """
+    theta_offset, a, d, alpha, base_rotation, base_position, imu_rotation, imu_position = chain
     n = a.shape[0]
     p = imu_position.copy()                      # eq. 5 (p_{n+1}; zero when the IMU sits at the frame origin)
     v = np.zeros(3)                              # eq. 6
@@ -153,12 +154,10 @@ def leg_velocities_kernel(theta_offset, a, d, alpha, base_rotation, base_positio
 
 
 @numba.njit(cache=True)
-def leg_velocities_batch_kernel(theta_offset, a, d, alpha, base_rotation, base_position, imu_rotation,
-                                imu_position, angles, rates, gyro, out_vk, out_vkg):
+def leg_velocities_batch_kernel(chain, angles, rates, gyro, out_vk, out_vkg):
     """`leg_velocities_kernel` over rows of (N, n) angles and rates and (N, 3) gyro samples."""
     for i in range(angles.shape[0]):
-        leg_velocities_kernel(theta_offset, a, d, alpha, base_rotation, base_position, imu_rotation,
-                              imu_position, angles[i], rates[i], gyro[i], out_vk[i], out_vkg[i])
+        leg_velocities_kernel(chain, angles[i], rates[i], gyro[i], out_vk[i], out_vkg[i])
 
 
 # ---------------------------------------------------------------------------------------------------------
@@ -278,6 +277,12 @@ class LegChain:
         return jac
 
     # --- velocities (eq. 5–14) ---------------------------------------------------------------------------
+    def kernel_chain(self) -> tuple[np.ndarray, ...]:
+        """The group `chain` of the velocity kernels: (theta_offset, a, d, alpha, base_rotation, base_position,
+        imu_rotation, imu_position)."""
+        return (self.theta_offset, self.a, self.d, self.alpha, self.base_rotation, self.base_position,
+                self.imu_rotation, self.imu_position)
+
     def velocities(self, angles, rates, gyro=(0.0, 0.0, 0.0)) -> tuple[np.ndarray, np.ndarray]:
         """(v^K, v^KG): IMU velocity in its immobile frame from the leg alone (eq. 10) and with the gyro (eq. 14)."""
         angles = self._joint_vector(angles, "angles")
@@ -286,8 +291,7 @@ class LegChain:
         if gyro.shape != (3,) or not np.all(np.isfinite(gyro)):
             raise ValueError(f"gyro must be 3 finite numbers, got {np.asarray(gyro).tolist()}")
         vk, vkg = np.empty(3), np.empty(3)
-        leg_velocities_kernel(self.theta_offset, self.a, self.d, self.alpha, self.base_rotation,
-                              self.base_position, self.imu_rotation, self.imu_position, angles, rates, gyro, vk, vkg)
+        leg_velocities_kernel(self.kernel_chain(), angles, rates, gyro, vk, vkg)
         return vk, vkg
 
     def velocities_batch(self, angles, rates, gyro) -> tuple[np.ndarray, np.ndarray]:
@@ -307,9 +311,7 @@ class LegChain:
                 raise ValueError(f"{name} must be finite")
         vk = np.empty((angles.shape[0], 3))
         vkg = np.empty((angles.shape[0], 3))
-        leg_velocities_batch_kernel(self.theta_offset, self.a, self.d, self.alpha, self.base_rotation,
-                                    self.base_position, self.imu_rotation, self.imu_position, angles, rates, gyro,
-                                    vk, vkg)
+        leg_velocities_batch_kernel(self.kernel_chain(), angles, rates, gyro, vk, vkg)
         return vk, vkg
 
     # --- inverse kinematics ------------------------------------------------------------------------------

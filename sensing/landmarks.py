@@ -39,6 +39,18 @@ term with the max-mixture runs in blocks too (`exact_log_likelihood`; `score_blo
 filter step calls the same way), with a polynomial atan2 that vectorizes (`numerics.trig.atan2_poly`)
 and the detections' bearings wrapped once: equal to the particle-by-particle kernel, which takes libm's atan2,
 to rounding, and about 4.5 times faster.
+
+The kernels that take a batch of detections take their arguments in groups (tuples), each built in one place:
+
+    landmarks  (table, offsets, table_kinds): the landmarks sorted by type, where each type starts, and each
+               landmark's type value (`LandmarkSensorModel.landmark_group`)
+    batch      (kinds, ranges, bearings, range_sigmas, bearing_sigmas): a frame's detections (`detection_batch`)
+    noise      (range_noise_floor, range_noise_growth, bearing_sigma): the noise law
+               (`LandmarkSensorModel.noise_group`; the growth a float c or the pair (b, c), `range_noise_sigma`)
+    pose       (x, y, θ): one pose
+    gate       (gate, range_slack, bearing_slack): how many σ a detection may lie from a landmark, σ widened by
+               the slacks (`gate_group`)
+    view       (yaw, half_fov, min_range, max_range): the camera's view (`view_group`)
 """
 from __future__ import annotations
 
@@ -93,13 +105,12 @@ def _range_noise_sigma_compiled(r, range_noise_floor, range_noise_growth):
 
 
 @numba.njit(cache=True)
-def landmark_log_likelihood(poses, table, offsets, kinds, ranges, bearings, range_sigmas, bearing_sigmas,
-                            range_noise_floor, range_noise_growth, bearing_sigma, exact, sum_mixture, log_outlier,
-                            out):
+def landmark_log_likelihood(poses, landmarks, batch, noise, exact, sum_mixture, log_outlier, out):
     """out[i] = Σ_detections max(max_k score_ik, log outlier) for every particle i (the max-mixture), or
     with `sum_mixture`, Σ log(exp(max_k score_ik) + outlier).
 
-    The candidates of type t are table[offsets[t]:offsets[t+1]]. A NaN sigma means "use the noise model":
+    landmarks, batch, noise: the groups of the module docstring. The candidates of type t are
+    table[offsets[t]:offsets[t+1]]. A NaN sigma means "use the noise model":
     σ_r = `range_noise_sigma(r, range_noise_floor, range_noise_growth)` (growth a float c or the pair (b, c)).
     Detections are grouped by type first, so the geometry to a type's candidates is computed once per
     particle and shared by all its detections.
@@ -112,9 +123,8 @@ def landmark_log_likelihood(poses, table, offsets, kinds, ranges, bearings, rang
         stop = min(start + TRIG_CHUNK, n)
         for i in range(start, stop):
             trig[i - start, 0], trig[i - start, 1] = sincos(poses[i, 2])
-        chunk = (poses[start:stop], trig[:stop - start], table, offsets, kinds, ranges, bearings, range_sigmas,
-                 bearing_sigmas, range_noise_floor, range_noise_growth, bearing_sigma, exact, sum_mixture,
-                 log_outlier, out[start:stop])
+        chunk = (poses[start:stop], trig[:stop - start], landmarks, batch, noise, exact, sum_mixture, log_outlier,
+                 out[start:stop])
         if exact or sum_mixture:
             _landmark_log_likelihood_fast(*chunk)
         else:
@@ -127,12 +137,9 @@ TRIG_CHUNK = 4096      # particles per call of the general kernel from `landmark
 # The default variant (von Mises, max-mixture) in plain IEEE arithmetic, no fast-math: the same bits on every
 # machine, and those of the block kernels below.
 @numba.njit(cache=True)
-def _landmark_log_likelihood(poses, trig, table, offsets, kinds, ranges, bearings, range_sigmas, bearing_sigmas,
-                             range_noise_floor, range_noise_growth, bearing_sigma, exact, sum_mixture, log_outlier,
-                             out):
+def _landmark_log_likelihood(poses, trig, landmarks, batch, noise, exact, sum_mixture, log_outlier, out):
     """`landmark_log_likelihood` with the cos and sin of each heading given in trig (N, 2)."""
-    _general_likelihood(poses, trig, table, offsets, kinds, ranges, bearings, range_sigmas, bearing_sigmas,
-                        range_noise_floor, range_noise_growth, bearing_sigma, exact, sum_mixture, log_outlier, out)
+    _general_likelihood(poses, trig, landmarks, batch, noise, exact, sum_mixture, log_outlier, out)
 
 
 # The exact bearing term and the sum-mixture with fast-math (`FAST` leaves out the no-NaN and no-inf
@@ -145,9 +152,11 @@ _landmark_log_likelihood_fast = variant(_landmark_log_likelihood.py_func, "fast"
 
 
 @numba.njit(cache=True, inline="always")
-def _general_likelihood(poses, trig, table, offsets, kinds, ranges, bearings, range_sigmas, bearing_sigmas,
-                        range_noise_floor, range_noise_growth, bearing_sigma, exact, sum_mixture, log_outlier, out):
+def _general_likelihood(poses, trig, landmarks, batch, noise, exact, sum_mixture, log_outlier, out):
     """The body of both (inlined: compiled with each one's flags)."""
+    table, offsets, _ = landmarks
+    kinds, ranges, bearings, range_sigmas, bearing_sigmas = batch
+    range_noise_floor, range_noise_growth, bearing_sigma = noise
     m = kinds.shape[0]
     order = np.argsort(kinds, kind="mergesort")
     obs_range = np.empty(m)
@@ -510,8 +519,9 @@ def fused_score(poses, trig, start, count, work, since, fast, frame, out):
         out[start + p] = work[TOTAL, p]
 
 
-def _fused_inputs(observations: Observations) -> tuple:
-    """`inputs`: the detections' arrays, as `fused_prepare` takes them."""
+def detection_batch(observations: Observations) -> tuple:
+    """The group `batch` of the kernels (kinds, ranges, bearings, range_sigmas, bearing_sigmas): the detections'
+    arrays, as `fused_prepare` (its `inputs`) and the batch kernels take them."""
     return (observations.kinds, observations.ranges, observations.bearings, observations.range_sigmas,
             observations.bearing_sigmas)
 
@@ -532,10 +542,13 @@ def von_mises_log_likelihood(poses, table, offsets, detections, groups, log_outl
 
 
 @numba.njit(cache=True)
-def _von_mises_log_likelihood(poses, table, offsets, kinds, ranges, bearings, range_sigmas, bearing_sigmas,
-                              range_noise_floor, range_noise_growth, bearing_sigma, log_outlier, out):
-    """`LandmarkSensorModel.log_likelihood` of the default variant in one call; returns the first detection
-    whose type has no landmark on the field (nothing written), or -1."""
+def _von_mises_log_likelihood(poses, landmarks, batch, noise, log_outlier, out):
+    """`LandmarkSensorModel.log_likelihood` of the default variant in one call (landmarks, batch, noise: the
+    module docstring's groups); returns the first detection whose type has no landmark on the field (nothing
+    written), or -1."""
+    table, offsets, _ = landmarks
+    kinds, ranges, bearings, range_sigmas, bearing_sigmas = batch
+    range_noise_floor, range_noise_growth, bearing_sigma = noise
     detections, groups, missing = prepare_detections(kinds, ranges, bearings, range_sigmas, bearing_sigmas, offsets,
                                                      range_noise_floor, range_noise_growth, bearing_sigma)
     if missing < 0:
@@ -559,10 +572,13 @@ def exact_log_likelihood(poses, table, offsets, detections, groups, log_outlier,
 
 
 @numba.njit(cache=True)
-def _exact_log_likelihood(poses, table, offsets, kinds, ranges, bearings, range_sigmas, bearing_sigmas,
-                          range_noise_floor, range_noise_growth, bearing_sigma, log_outlier, out):
-    """`LandmarkSensorModel.log_likelihood` of the exact bearing term with the max-mixture in one call; returns the
-    first detection whose type has no landmark on the field (nothing written), or -1."""
+def _exact_log_likelihood(poses, landmarks, batch, noise, log_outlier, out):
+    """`LandmarkSensorModel.log_likelihood` of the exact bearing term with the max-mixture in one call (landmarks,
+    batch, noise: the module docstring's groups); returns the first detection whose type has no landmark on the
+    field (nothing written), or -1."""
+    table, offsets, _ = landmarks
+    kinds, ranges, bearings, range_sigmas, bearing_sigmas = batch
+    range_noise_floor, range_noise_growth, bearing_sigma = noise
     detections, groups, missing = prepare_detections(kinds, ranges, bearings, range_sigmas, bearing_sigmas, offsets,
                                                      range_noise_floor, range_noise_growth, bearing_sigma, True)
     if missing < 0:
@@ -591,10 +607,11 @@ def reset_choices(integers, function, state, m, detection, uniforms):
 
 
 @numba.njit(inline="always")
-def _detection_sigmas(j, ranges, range_sigmas, bearing_sigmas, range_noise_floor, range_noise_growth,
-                      bearing_sigma, range_slack, bearing_slack):
-    """(σ_r, σ_b) of detection j: its own, else the model's (σ_r at its range), each widened by its slack (the
-    gates of `explained_detections` and `landmarks_in_view`; 0 for `sensor_reset_poses`)."""
+def _detection_sigmas(j, batch, noise, range_slack, bearing_slack):
+    """(σ_r, σ_b) of detection j of `batch`: its own, else the model's (`noise`; σ_r at its range), each widened
+    by its slack (the gates of `explained_detections` and `landmarks_in_view`; 0 for `sensor_reset_poses`)."""
+    _, ranges, _, range_sigmas, bearing_sigmas = batch
+    range_noise_floor, range_noise_growth, bearing_sigma = noise
     range_sigma = range_sigmas[j]
     if math.isnan(range_sigma):
         range_sigma = range_noise_sigma(ranges[j], range_noise_floor, range_noise_growth)
@@ -605,15 +622,19 @@ def _detection_sigmas(j, ranges, range_sigmas, bearing_sigmas, range_noise_floor
 
 
 @numba.njit(cache=True)
-def sensor_reset_poses(table, offsets, kinds, ranges, bearings, range_sigmas, bearing_sigmas, range_noise_floor,
-                       range_noise_growth, bearing_sigma, detection, landmark, angles, normals, heading,
-                       heading_sigma, out):
+def sensor_reset_poses(landmarks, batch, noise, draws, heading_noise, out):
     """out[i] (M, 3): the pose that sees a landmark of detection `detection[i]`'s type (the one `landmark[i]`, a
-    uniform on [0, 1), picks) at the detection's range and bearing with noise. The headings: `angles` (M) when
-    it has M entries (uniforms on [0, 1): headings uniform on [-π, π)), else heading + heading_sigma ·
-    normals[:M]; then M normals for the ranges and M for the bearings. Range and bearing σ: the detection's
-    own, or the model's (`range_noise_sigma`: floor + growth·r², or floor + b·r + c·r² with growth = (b, c);
-    bearing_sigma) where NaN. Returns out."""
+    uniform on [0, 1), picks) at the detection's range and bearing with noise. landmarks, batch, noise: the
+    module docstring's groups; draws: (detection, landmark, angles, normals); heading_noise: (heading,
+    heading_sigma).
+    The headings: `angles` (M) when it has M entries (uniforms on [0, 1): headings uniform on [-π, π)), else
+    heading + heading_sigma · normals[:M]; then M normals for the ranges and M for the bearings. Range and
+    bearing σ: the detection's own, or the model's (`range_noise_sigma`: floor + growth·r², or floor + b·r + c·r²
+    with growth = (b, c); bearing_sigma) where NaN. Returns out."""
+    table, offsets, _ = landmarks
+    kinds, ranges, bearings, _, _ = batch
+    detection, landmark, angles, normals = draws
+    heading, heading_sigma = heading_noise
     m = out.shape[0]
     uniform_heading = angles.shape[0] == m
     first = 0 if uniform_heading else m
@@ -626,8 +647,7 @@ def sensor_reset_poses(table, offsets, kinds, ranges, bearings, range_sigmas, be
             theta = -math.pi + (math.pi - -math.pi) * angles[i]    # rng.uniform(-π, π)
         else:
             theta = heading + heading_sigma * normals[i]
-        range_sigma, sigma = _detection_sigmas(j, ranges, range_sigmas, bearing_sigmas, range_noise_floor,
-                                               range_noise_growth, bearing_sigma, 0.0, 0.0)
+        range_sigma, sigma = _detection_sigmas(j, batch, noise, 0.0, 0.0)
         r = max(ranges[j] + range_sigma * normals[first + i], 0.0)
         direction = theta + (bearings[j] + sigma * normals[first + m + i])
         out[i, 0] = table[k, 0] - r * math.cos(direction)
@@ -658,16 +678,19 @@ def landmark_log_likelihood_reference(poses, candidates_by_kind, kinds, ranges, 
 
 
 @numba.njit(cache=True)
-def explained_detections(table, offsets, x, y, theta, kinds, ranges, bearings, range_sigmas, bearing_sigmas,
-                         range_noise_floor, range_noise_growth, bearing_sigma, gate, range_slack, bearing_slack, out):
+def explained_detections(landmarks, pose, batch, noise, gate, out):
     """out[j] ← whether a landmark of detection j's type lies within `gate` standard deviations of where the
-    pose (x, y, θ) would see it, range and bearing errors together (`LandmarkSensorModel.explained`; numpy twin
+    pose (x, y, θ) would see it, range and bearing errors together (landmarks, pose, batch, noise, gate: the
+    module docstring's groups; `LandmarkSensorModel.explained`; numpy twin
     `LandmarkSensorModel.explained_reference`). Returns out."""
-    limit = gate * gate
+    table, offsets, _ = landmarks
+    x, y, theta = pose
+    kinds, ranges, bearings, _, _ = batch
+    gate_sigmas, range_slack, bearing_slack = gate
+    limit = gate_sigmas * gate_sigmas
     for j in range(kinds.shape[0]):
         r = ranges[j]
-        range_sigma, sigma = _detection_sigmas(j, ranges, range_sigmas, bearing_sigmas, range_noise_floor,
-                                               range_noise_growth, bearing_sigma, range_slack, bearing_slack)
+        range_sigma, sigma = _detection_sigmas(j, batch, noise, range_slack, bearing_slack)
         found = False
         for k in range(offsets[kinds[j]], offsets[kinds[j] + 1]):
             dx = table[k, 0] - x
@@ -689,11 +712,25 @@ VIEW_RANGE_SLACK = 0.1      # m
 VIEW_BEARING_SLACK = 0.03   # rad
 
 
+def gate_group(gate: float, range_slack: float, bearing_slack: float) -> tuple[float, float, float]:
+    """The group `gate` of the kernels: (gate, range_slack, bearing_slack) as floats."""
+    return float(gate), float(range_slack), float(bearing_slack)
+
+
+def view_group(view: CameraView) -> tuple[float, float, float, float]:
+    """The group `view` of the kernels: (yaw, half_fov, min_range, max_range) of a `CameraView`."""
+    return view.yaw, view.half_fov, view.min_range, view.max_range
+
+
 @numba.njit(inline="always")
-def _view_counts(table, table_kinds, x, y, theta, kinds, ranges, bearings, range_sigmas, bearing_sigmas,
-                 range_noise_floor, range_noise_growth, bearing_sigma, limit, range_slack, bearing_slack, yaw,
-                 half_fov, min_range, max_range):
+def _view_counts(landmarks, pose, batch, noise, gate, view):
     """(expected, seen) for one pose: see `landmarks_in_view`."""
+    table, _, table_kinds = landmarks
+    x, y, theta = pose
+    kinds, ranges, bearings, _, _ = batch
+    gate_sigmas, range_slack, bearing_slack = gate
+    yaw, half_fov, min_range, max_range = view
+    limit = gate_sigmas * gate_sigmas
     expected = 0
     seen = 0
     # In view: the angle between the landmark and the optical axis (θ + yaw) is at most half_fov, tested as
@@ -712,8 +749,7 @@ def _view_counts(table, table_kinds, x, y, theta, kinds, ranges, bearings, range
         for j in range(kinds.shape[0]):
             if kinds[j] != table_kinds[k]:
                 continue
-            range_sigma, sigma = _detection_sigmas(j, ranges, range_sigmas, bearing_sigmas, range_noise_floor,
-                                                   range_noise_growth, bearing_sigma, range_slack, bearing_slack)
+            range_sigma, sigma = _detection_sigmas(j, batch, noise, range_slack, bearing_slack)
             range_error = (ranges[j] - r) / range_sigma
             bearing_error = wrap_angle(bearings[j] - bearing) / sigma
             if range_error ** 2 + bearing_error ** 2 <= limit:
@@ -723,35 +759,27 @@ def _view_counts(table, table_kinds, x, y, theta, kinds, ranges, bearings, range
 
 
 @numba.njit(cache=True)
-def landmarks_in_view(table, table_kinds, x, y, theta, kinds, ranges, bearings, range_sigmas, bearing_sigmas,
-                      range_noise_floor, range_noise_growth, bearing_sigma, gate, range_slack, bearing_slack, yaw,
-                      half_fov, min_range, max_range, out):
+def landmarks_in_view(landmarks, pose, batch, noise, gate, view, out):
     """out[0] ← how many landmarks the pose (x, y, θ) puts inside the view (bearing within `half_fov` of `yaw`,
     range within [min_range, max_range]); out[1] ← how many of those a detection of their type lies within
     `gate` standard deviations of (range and bearing errors together; σ: the detection's own, else the model's
-    at the detected range, plus the slacks, as `explained_detections`). `table_kinds[k]` is landmark k's type
-    value. (`LandmarkSensorModel.seen`; numpy twin `LandmarkSensorModel.seen_reference`.) Returns out."""
-    expected, seen = _view_counts(table, table_kinds, x, y, theta, kinds, ranges, bearings, range_sigmas,
-                                  bearing_sigmas, range_noise_floor, range_noise_growth, bearing_sigma, gate * gate,
-                                  range_slack, bearing_slack, yaw, half_fov, min_range, max_range)
+    at the detected range, plus the slacks, as `explained_detections`). landmarks, pose, batch, noise, gate,
+    view: the module docstring's groups (`table_kinds[k]` is landmark k's type value). (`LandmarkSensorModel.seen`;
+    numpy twin `LandmarkSensorModel.seen_reference`.) Returns out."""
+    expected, seen = _view_counts(landmarks, pose, batch, noise, gate, view)
     out[0] = expected
     out[1] = seen
     return out
 
 
 @numba.njit(cache=True)
-def add_missed_in_view(poses, table, table_kinds, kinds, ranges, bearings, range_sigmas, bearing_sigmas,
-                       range_noise_floor, range_noise_growth, bearing_sigma, gate, range_slack, bearing_slack, yaw,
-                       half_fov, min_range, max_range, log_miss, out):
+def add_missed_in_view(poses, landmarks, batch, noise, gate, view, log_miss, out):
     """out[i] += log_miss × the landmarks pose i puts inside the view that no detection of their type explains
-    (`landmarks_in_view`'s expected − seen): negative information (`LandmarkSensorModel.log_likelihood` with a
-    view; numpy twin `missed_in_view_reference`). Returns out."""
-    limit = gate * gate
+    (`landmarks_in_view`'s expected − seen; landmarks, batch, noise, gate, view: the module docstring's groups):
+    negative information (`LandmarkSensorModel.log_likelihood` with a view; numpy twin
+    `missed_in_view_reference`). Returns out."""
     for i in range(poses.shape[0]):
-        expected, seen = _view_counts(table, table_kinds, poses[i, 0], poses[i, 1], poses[i, 2], kinds, ranges,
-                                      bearings, range_sigmas, bearing_sigmas, range_noise_floor, range_noise_growth,
-                                      bearing_sigma, limit, range_slack, bearing_slack, yaw, half_fov, min_range,
-                                      max_range)
+        expected, seen = _view_counts(landmarks, (poses[i, 0], poses[i, 1], poses[i, 2]), batch, noise, gate, view)
         out[i] += (expected - seen) * log_miss
     return out
 
@@ -791,6 +819,7 @@ class LandmarkSensorModel:
     _table: np.ndarray = dataclass_field(init=False, repr=False)
     _offsets: np.ndarray = dataclass_field(init=False, repr=False)
     _table_kinds: np.ndarray = dataclass_field(init=False, repr=False)
+    _landmarks: tuple = dataclass_field(init=False, repr=False)
 
     def __post_init__(self) -> None:
         if not isinstance(self.field, Field):
@@ -825,6 +854,7 @@ class LandmarkSensorModel:
         table_kinds = np.repeat(np.arange(offsets.shape[0] - 1, dtype=np.int64), np.diff(offsets))
         table_kinds.flags.writeable = False
         object.__setattr__(self, "_table_kinds", table_kinds)
+        object.__setattr__(self, "_landmarks", (table, offsets, table_kinds))
 
     # -- noise model --------------------------------------------------------------------------------------
     def range_sigma(self, ranges: np.ndarray) -> np.ndarray:
@@ -839,6 +869,17 @@ class LandmarkSensorModel:
             return float(self.range_noise_growth)
         return float(self.range_noise_linear), float(self.range_noise_growth)
 
+    def noise_group(self) -> tuple:
+        """The group `noise` of the kernels: (range_noise_floor, range_noise_growth, bearing_sigma), the growth as
+        `_range_noise_growth` gives it."""
+        return float(self.range_noise_floor), self._range_noise_growth(), float(self.bearing_sigma)
+
+    @property
+    def landmark_group(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The group `landmarks` of the kernels (read-only arrays): (table, offsets, table_kinds), the
+        `landmark_table` and each landmark's type value."""
+        return self._landmarks
+
     def candidates(self, kind: LandmarkType | int) -> np.ndarray:
         k = int(kind)
         return self._table[self._offsets[k]:self._offsets[k + 1]]
@@ -850,11 +891,10 @@ class LandmarkSensorModel:
         the model's, plus the slacks). Compiled (`explained_detections`); numpy twin `explained_reference`."""
         observations = Observations.coerce(observations)
         self.check(observations)
-        return explained_detections(self._table, self._offsets, float(pose[0]), float(pose[1]), float(pose[2]),
-                                    observations.kinds, observations.ranges, observations.bearings,
-                                    observations.range_sigmas, observations.bearing_sigmas, self.range_noise_floor,
-                                    self._range_noise_growth(), self.bearing_sigma, float(gate), float(range_slack),
-                                    float(bearing_slack), np.empty(len(observations), dtype=np.bool_))
+        return explained_detections(self._landmarks, (float(pose[0]), float(pose[1]), float(pose[2])),
+                                    detection_batch(observations), self.noise_group(),
+                                    gate_group(gate, range_slack, bearing_slack),
+                                    np.empty(len(observations), dtype=np.bool_))
 
     def explained_reference(self, pose, observations: Observations, gate: float = 3.0, range_slack: float = 0.0,
                             bearing_slack: float = 0.0) -> np.ndarray:
@@ -889,11 +929,9 @@ class LandmarkSensorModel:
         self.check(observations)
         if not isinstance(view, CameraView):
             raise ArgumentTypeError(f"view = {view!r} must be a sensing.view.CameraView, not {type(view).__name__}")
-        out = landmarks_in_view(self._table, self._table_kinds, float(pose[0]), float(pose[1]), float(pose[2]),
-                                observations.kinds, observations.ranges, observations.bearings,
-                                observations.range_sigmas, observations.bearing_sigmas, self.range_noise_floor,
-                                self._range_noise_growth(), self.bearing_sigma, float(gate), float(range_slack),
-                                float(bearing_slack), view.yaw, view.half_fov, view.min_range, view.max_range,
+        out = landmarks_in_view(self._landmarks, (float(pose[0]), float(pose[1]), float(pose[2])),
+                                detection_batch(observations), self.noise_group(),
+                                gate_group(gate, range_slack, bearing_slack), view_group(view),
                                 np.zeros(2, dtype=np.int64))
         return int(out[0]), int(out[1])
 
@@ -958,9 +996,7 @@ class LandmarkSensorModel:
         if self.mixture == "max":
             # The type check runs inside the kernel, before anything is written; check() then names the culprit.
             kernel = _von_mises_log_likelihood if self.bearing_model == "von_mises" else _exact_log_likelihood
-            if kernel(poses, self._table, self._offsets, observations.kinds, observations.ranges,
-                      observations.bearings, observations.range_sigmas, observations.bearing_sigmas,
-                      self.range_noise_floor, self._range_noise_growth(), self.bearing_sigma,
+            if kernel(poses, self._landmarks, detection_batch(observations), self.noise_group(),
                       math.log(self.outlier_weight), out) >= 0:
                 self.check(observations)
         else:
@@ -968,18 +1004,14 @@ class LandmarkSensorModel:
             if len(observations) == 0:
                 out[:] = 0.0
                 return out
-            landmark_log_likelihood(
-                poses, self._table, self._offsets, observations.kinds, observations.ranges, observations.bearings,
-                observations.range_sigmas, observations.bearing_sigmas, self.range_noise_floor,
-                self._range_noise_growth(), self.bearing_sigma, self.bearing_model == "exact", self.mixture == "sum",
-                math.log(self.outlier_weight), out)
+            landmark_log_likelihood(poses, self._landmarks, detection_batch(observations), self.noise_group(),
+                                    self.bearing_model == "exact", self.mixture == "sum",
+                                    math.log(self.outlier_weight), out)
         if self.scores_view(observations):
             view = observations.view.inset(self.view_inset)
-            add_missed_in_view(poses, self._table, self._table_kinds, observations.kinds, observations.ranges,
-                               observations.bearings, observations.range_sigmas, observations.bearing_sigmas,
-                               self.range_noise_floor, self._range_noise_growth(), self.bearing_sigma, VIEW_GATE,
-                               VIEW_RANGE_SLACK, VIEW_BEARING_SLACK, view.yaw, view.half_fov, view.min_range,
-                               view.max_range, math.log1p(-self.detection_rate), out)
+            add_missed_in_view(poses, self._landmarks, detection_batch(observations), self.noise_group(),
+                               gate_group(VIEW_GATE, VIEW_RANGE_SLACK, VIEW_BEARING_SLACK), view_group(view),
+                               math.log1p(-self.detection_rate), out)
         return out
 
     def scores_view(self, observations: Observations) -> bool:
@@ -1010,7 +1042,7 @@ class LandmarkSensorModel:
             return None
         params = (self._table, self._offsets, float(self.range_noise_floor), self._range_noise_growth(),
                   float(self.bearing_sigma), math.log(self.outlier_weight), self.bearing_model == "exact")
-        return FusedLikelihoodKernels(fused_prepare, fused_workspace, fused_score, params, _fused_inputs)
+        return FusedLikelihoodKernels(fused_prepare, fused_workspace, fused_score, params, detection_batch)
 
     def log_likelihood_reference(self, poses: np.ndarray, observations: Observations) -> np.ndarray:
         """The same, in plain numpy (slow; for tests and the benchmark)."""
@@ -1060,10 +1092,8 @@ class LandmarkSensorModel:
         else:
             angles = _NO_ANGLES
             normals = rng.standard_normal(3 * n)       # = the headings' n, the ranges' n, the bearings' n
-        return sensor_reset_poses(self._table, self._offsets, observations.kinds, observations.ranges,
-                                  observations.bearings, observations.range_sigmas, observations.bearing_sigmas,
-                                  self.range_noise_floor, self._range_noise_growth(), self.bearing_sigma, detection,
-                                  landmark, angles, normals, float(heading), float(heading_sigma),
+        return sensor_reset_poses(self._landmarks, detection_batch(observations), self.noise_group(),
+                                  (detection, landmark, angles, normals), (float(heading), float(heading_sigma)),
                                   np.empty((n, 3)))
 
     def sample_poses_reference(self, observations: Observations, n: int, rng: np.random.Generator,

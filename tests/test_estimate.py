@@ -19,7 +19,7 @@ def entropy(poses, weights, **grid):
 
 def estimate(poses, weights, previous=None):
     mean, cov = np.empty(3), np.empty((3, 3))
-    weight = cluster_estimate(poses, weights, -5.2, -3.7, 0.5, 21, 15, 8, 0.75, 0.8, 3, np.empty(21 * 15 * 8),
+    weight = cluster_estimate(poses, weights, (-5.2, -3.7, 0.5, 21, 15, 8), (0.75, 0.8, 3), np.empty(21 * 15 * 8),
                               np.zeros(3) if previous is None else np.asarray(previous, float), previous is not None,
                               mean, cov)
     return mean, cov, weight

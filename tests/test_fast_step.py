@@ -105,10 +105,10 @@ class PlainFilter(ParticleFilter):
         if self._estimate is None:
             g = self.grid
             mean, cov = np.empty(3), np.empty((3, 3))
-            weight = cluster_estimate(self.poses, self._weights, self._x_min, self._y_min, g.cluster_cell,
-                                      self._cluster_nx, self._cluster_ny, g.cluster_orientation_bins, g.cluster_radius,
-                                      g.cluster_angle_radius, 3, np.empty(self._cluster_nx * self._cluster_ny
-                                                                          * g.cluster_orientation_bins),
+            cells = (self._x_min, self._y_min, g.cluster_cell, self._cluster_nx, self._cluster_ny,
+                     g.cluster_orientation_bins)
+            weight = cluster_estimate(self.poses, self._weights, cells, (g.cluster_radius, g.cluster_angle_radius, 3),
+                                      np.empty(self._cluster_nx * self._cluster_ny * g.cluster_orientation_bins),
                                       self._previous_estimate, self._has_previous_estimate, mean, cov)
             self._estimate = Estimate(mean, cov, float(weight))
             self._previous_estimate[:] = mean

@@ -302,10 +302,10 @@ def test_fast_motion_matches_to_rounding(poses, command, gaussian, seed):
     u = MotionInput(dt=0.02, command=command)
     variates = draw_variates(np.random.default_rng(seed), poses.shape[0], True) if gaussian else np.empty((0, 3))
     a, b = poses.copy(), poses.copy()
-    args = (*u.displacement(), *model.noise_bounds(u), gaussian, variates)
+    args = (tuple(u.displacement()), tuple(model.noise_bounds(u)), gaussian, variates)
     generators = np.random.default_rng(seed), np.random.default_rng(seed)     # (a handle does not keep them)
-    move_range(a, a, 0, a.shape[0], *args, *bit_generator_handle(generators[0]), NO_WORK)
-    move_range_fast(b, b, 0, b.shape[0], *args, *bit_generator_handle(generators[1]), NO_WORK)
+    move_range(a, a, 0, a.shape[0], *args, bit_generator_handle(generators[0]), NO_WORK)
+    move_range_fast(b, b, 0, b.shape[0], *args, bit_generator_handle(generators[1]), NO_WORK)
     np.testing.assert_allclose(b[:, :2], a[:, :2], rtol=0, atol=1e-12)
     assert np.abs(wrap_angles(b[:, 2] - a[:, 2])).max() < 1e-12
     assert (b[:, 2] > -math.pi).all() and (b[:, 2] <= math.pi).all()

@@ -113,8 +113,8 @@ if part in ("filter", "all"):
     from mcl.recording import weight_colors                    # the recorded particles' colours
     weight_colors(weights)
     grid_entropy(poses, weights, -5.0, -3.5, 0.1, 100, 70, 36, np.empty(7000), np.empty(36))
-    cluster_estimate(poses, weights, -5.0, -3.5, 0.5, 20, 14, 8, 0.75, 0.8, 3, np.empty(20 * 14 * 8), np.zeros(3),
-                     False, np.empty(3), np.empty((3, 3)))
+    cluster_estimate(poses, weights, (-5.0, -3.5, 0.5, 20, 14, 8), (0.75, 0.8, 3), np.empty(20 * 14 * 8),
+                     np.zeros(3), False, np.empty(3), np.empty((3, 3)))
     for scheme in SCHEMES.values():
         scheme(weights, len(weights), rng)
     systematic_with_jitter(weights, len(poses), poses, np.full(3, 0.02), out, np.empty((0, 2)),

@@ -332,7 +332,7 @@ def test_kernels_with_a_linear_law_equal_their_twins(detections, seed, floor, li
     """With a linear term: the block kernel equals the particle-by-particle kernel bit for bit, both equal the
     numpy reference to rounding (exact bearing term too), and sensor resetting equals its numpy twin bit for
     bit."""
-    from sensing.landmarks import landmark_log_likelihood
+    from sensing.landmarks import detection_batch, landmark_log_likelihood
 
     rng = np.random.default_rng(seed)
     n = 150
@@ -346,9 +346,9 @@ def test_kernels_with_a_linear_law_equal_their_twins(detections, seed, floor, li
         np.testing.assert_allclose(scores, model.log_likelihood_reference(poses, obs), rtol=1e-9, atol=1e-9)
         if bearing_model == "von_mises":
             general = np.empty(n)
-            landmark_log_likelihood(poses, model._table, model._offsets, obs.kinds, obs.ranges, obs.bearings,
-                                    obs.range_sigmas, obs.bearing_sigmas, floor, model.fused_likelihood().params[3],
-                                    model.bearing_sigma, False, False, math.log(model.outlier_weight), general)
+            landmark_log_likelihood(poses, model.landmark_group, detection_batch(obs),
+                                    (floor, model.fused_likelihood().params[3], model.bearing_sigma), False, False,
+                                    math.log(model.outlier_weight), general)
             assert np.array_equal(scores, general)
     if len(obs):
         compiled_rng, plain_rng = np.random.default_rng(seed), np.random.default_rng(seed)
@@ -415,7 +415,7 @@ def test_block_kernel_equals_the_particle_by_particle_kernel_bit_for_bit(detecti
                                                                          bearing_sigma, outlier_weight):
     """`von_mises_log_likelihood` (what `log_likelihood` runs for the default model) against the general kernel
     `landmark_log_likelihood`, which computes every variant particle by particle."""
-    from sensing.landmarks import landmark_log_likelihood
+    from sensing.landmarks import detection_batch, landmark_log_likelihood
 
     rng = np.random.default_rng(seed)
     poses = np.column_stack([rng.uniform(-6, 6, n), rng.uniform(-4, 4, n), rng.uniform(-math.pi, math.pi, n)])
@@ -426,9 +426,8 @@ def test_block_kernel_equals_the_particle_by_particle_kernel_bit_for_bit(detecti
     model = LandmarkSensorModel(FIELD, range_noise_floor=floor, range_noise_growth=growth,
                                 bearing_sigma=bearing_sigma, outlier_weight=outlier_weight)
     general = np.empty(n)
-    landmark_log_likelihood(poses, model._table, model._offsets, obs.kinds, obs.ranges, obs.bearings, obs.range_sigmas,
-                            obs.bearing_sigmas, floor, growth, bearing_sigma, False, False, math.log(outlier_weight),
-                            general)
+    landmark_log_likelihood(poses, model.landmark_group, detection_batch(obs), (floor, growth, bearing_sigma), False,
+                            False, math.log(outlier_weight), general)
     assert np.array_equal(model.log_likelihood(poses, obs), general)
 
 
@@ -480,7 +479,7 @@ def test_exact_block_kernel_matches_the_general_kernel(detections, seed):
     `atan2_poly`, detections' bearings wrapped once); it equals the particle-by-particle kernel (libm's atan2)
     to rounding: bearings beyond ±π, particles on a landmark (distance 0, atan2(0, 0)) and headings beyond ±π
     included."""
-    from sensing.landmarks import exact_log_likelihood, landmark_log_likelihood, prepare_detections
+    from sensing.landmarks import detection_batch, exact_log_likelihood, landmark_log_likelihood, prepare_detections
 
     rng = np.random.default_rng(seed)
     poses = np.column_stack([rng.uniform(-6, 6, 300), rng.uniform(-4, 4, 300), rng.uniform(-7, 7, 300)])
@@ -491,9 +490,9 @@ def test_exact_block_kernel_matches_the_general_kernel(detections, seed):
                                    [d[2] for d in detections], [np.nan if d[3] is None else d[3] for d in detections])
     log_outlier = math.log(model.outlier_weight)
     general = np.empty(300)
-    landmark_log_likelihood(poses, table, offsets, obs.kinds, obs.ranges, obs.bearings, obs.range_sigmas,
-                            obs.bearing_sigmas, model.range_noise_floor, model.range_noise_growth, model.bearing_sigma,
-                            True, False, log_outlier, general)
+    landmark_log_likelihood(poses, model.landmark_group, detection_batch(obs),
+                            (model.range_noise_floor, model.range_noise_growth, model.bearing_sigma), True, False,
+                            log_outlier, general)
     prepared, groups, missing = prepare_detections(obs.kinds, obs.ranges, obs.bearings, obs.range_sigmas,
                                                    obs.bearing_sigmas, offsets, model.range_noise_floor,
                                                    model.range_noise_growth, model.bearing_sigma, True)
