@@ -199,7 +199,7 @@ def warm_up(stages, dispatchers=(), progress: bool = False, quiet: bool = False,
     try:
         for label, call in stages:
             if bar is not None:
-                bar.set_postfix_str(label, refresh=True)
+                bar.set_description_str(label, refresh=True)
             call()
             if bar is not None:
                 bar.update(1)
@@ -222,5 +222,5 @@ def _stage_bar(total: int, stream):
         from tqdm import tqdm
     except ImportError:
         return None
-    return tqdm(total=total, desc="compiling", unit="group", file=stream, leave=False, dynamic_ncols=True,
-                bar_format="{desc}: {n}/{total} groups |{bar:20}| {elapsed} {postfix}")
+    return tqdm(total=total, desc="", unit="group", file=stream, leave=False, dynamic_ncols=True,
+                bar_format="compiling: {n}/{total} groups |{bar:20}| {elapsed} {desc}")
