@@ -13,9 +13,9 @@ every K-th step) to PATH (a temporary file unless `--rrd` is given), or with `--
   rrd_stats         what `rerun rrd stats` says (when the `rerun` command is found next to this Python or on
                     PATH): its chunk count, the optimization check's lower bound and effective count, and
                     whether it warns that the file may be unoptimized
-  record_seconds    the wall time of the demo run with its recording, closing (and any compilation of the
-                    kernels) included; filter_seconds: the demo's step loop alone, the recorder's calls included
-                    (both not with `--file`)
+  record_seconds    the wall time of the demo run with its recording, closing included; filter_seconds: the
+                    demo's step loop alone, the recorder's calls included (both not with `--file`; after a 2 s
+                    walk without recording, which compiles the kernels or loads them from numba's cache)
 """
 from __future__ import annotations
 
@@ -107,8 +107,12 @@ def revision() -> str | None:
 
 def record_walk(path: Path, particles: int, seed: int, every: int) -> tuple[float, dict]:
     """Record the walk demo to `path`; the wall time (closing included) and the run's settings."""
-    from demos.walk import run_walk
+    from dataclasses import replace
 
+    from demos.walk import run_walk
+    from demos.walk_sim import WalkScenario
+
+    run_walk(particles=particles, seed=seed, scenario=replace(WalkScenario(), duration=2.0))  # compiles, unrecorded
     started = time.perf_counter()
     result = run_walk(particles=particles, seed=seed, rrd=str(path), record_every=every)
     elapsed = time.perf_counter() - started
