@@ -2,7 +2,8 @@
 
     robocup-mcl soak [--minutes 60] [--particles 500] [--seed 0] [--json] [--save PATH]
 
-What runs. A robot walks a smooth random path on the SPL field (`SoakScenario`): it starts on one of its own
+What runs. A robot walks a smooth random path on the SPL field (`SoakScenario`, the walking simulator's
+`demos.walk_sim.StreamScenario`: the same robot and camera as the walk demo's): it starts on one of its own
 touchlines facing into the field (the localizer starts with `initial_placement()`), then turns toward random
 waypoints and walks to them, slowing in turns. Every 10 ms (100 Hz) the loop calls `motion(t, u)` with the
 walking engine's odometry (the true pose change with a per-run scale error and step-to-step noise, in the
@@ -50,6 +51,7 @@ run's `poses_sha256` digests every step's estimate and the final particles); onl
 """
 from __future__ import annotations
 
+import argparse
 import gc
 import hashlib
 import json
@@ -59,14 +61,14 @@ import sys
 import time
 from collections import deque
 from dataclasses import asdict, dataclass
-from dataclasses import field as dataclass_field
 
 import numpy as np
 
-from field import Field, LandmarkType, spl
 from field.angles import wrap_angles
 from motion_models import MotionInput
 from sensing.observations import Observations
+
+from demos.walk_sim import StreamScenario, WalkStream
 
 MAX_GROWTH_MB = 1.0          # MB (2^20 bytes) of RSS growth after the first minute the verdict allows
 MAX_DRIFT_PER_HOUR = 0.10    # relative upward drift of the median step time per hour the verdict allows
@@ -77,163 +79,9 @@ BLOCK_STEPS = 500            # motion steps generated at a time (5 s: the genera
 TABLE_COLUMNS = ("minute", "steps", "frames", "median ms", "p99 ms", "RSS MB", "growth MB", "NaN", "error m")
 
 
-@dataclass(frozen=True)
-class SoakScenario:
-    """The simulated robot, camera and walking engine (SI units; rates in Hz as integers)."""
-
-    field: Field = dataclass_field(default_factory=spl)
-    motion_rate: int = 100                 # Hz, motion steps
-    camera_rate: int = 30                  # Hz, camera frames
-    latency: float = 0.04                  # s from capture to arrival of a frame
-    max_speed: float = 0.25                # m/s
-    max_turn_rate: float = 0.8             # rad/s
-    lateral_speed: float = 0.05            # m/s, amplitude of the sideways sway of the request
-    margin: float = 0.6                    # m, waypoints stay this far inside the field lines
-    field_of_view: float = math.radians(60.0)
-    head_pan_amplitude: float = math.radians(45.0)
-    head_pan_period: float = 4.0           # s
-    min_range: float = 0.3                 # m
-    max_range: float = 6.0                 # m
-    detection_near: float = 0.9            # detection probability at min_range ...
-    detection_far: float = 0.3             # ... falling linearly to this at max_range
-    range_noise_floor: float = 0.03        # m
-    range_noise_growth: float = 0.015      # 1/m (σ_r = floor + growth·r²)
-    bearing_noise: float = 0.03            # rad
-    false_positive_rate: float = 0.15      # false detections per frame (Poisson)
-    odometry_scale_sigma: float = 0.03     # per-run scale error of the odometry on each axis (1σ)
-    step_noise: float = 0.05               # relative step-to-step noise of the true motion
-    odometry_noise: float = 0.05           # relative noise of each odometry reading
-
-    @property
-    def dt(self) -> float:
-        return 1.0 / self.motion_rate
-
-    @property
-    def latency_steps(self) -> int:
-        return int(round(self.latency * self.motion_rate))
-
-
-@dataclass
-class Chunk:
-    """A stretch of the scenario: `truth` and `odometry` (n, 3) views of the stream's buffers; the camera frames
-    captured in it: `capture_steps` (F,) global step indices, detections `kinds`, `ranges`, `bearings` with
-    frame f's in [offsets[f], offsets[f + 1])."""
-
-    first_step: int
-    truth: np.ndarray
-    odometry: np.ndarray
-    capture_steps: np.ndarray
-    kinds: np.ndarray
-    ranges: np.ndarray
-    bearings: np.ndarray
-    offsets: np.ndarray
-
-
-class SoakStream:
-    """The scenario as a stream of chunks: the robot's path, its odometry and the camera frames."""
-
-    def __init__(self, scenario: SoakScenario, seed: int, chunk_steps: int) -> None:
-        s = self.scenario = scenario
-        # Its own stream of random numbers, apart from the filter's (which is seeded with `seed` itself).
-        self.rng = np.random.default_rng(np.random.SeedSequence([int(seed), 0x50A4]))
-        self.step = 0
-        self.truth = np.empty((chunk_steps, 3))
-        self.odometry = np.empty((chunk_steps, 3))
-        self.scale = 1.0 + s.odometry_scale_sigma * self.rng.standard_normal(3)
-        self.phase = float(self.rng.uniform(0.0, 2.0 * math.pi))
-        hl, hw = s.field.half_length, s.field.half_width
-        side = 1.0 if self.rng.random() < 0.5 else -1.0          # which own touchline
-        x = float(self.rng.uniform(-hl + s.margin, -0.5))
-        heading = -side * math.pi / 2 + float(self.rng.normal(0.0, 0.05))
-        self.start = np.array([x, side * hw, heading])
-        self.pose = [x, side * hw, heading]
-        self.waypoint = self._waypoint()
-        kinds, points = [], []
-        for kind in LandmarkType:
-            at = np.asarray(s.field.landmarks_of(kind), dtype=np.float64).reshape(-1, 2)
-            points.append(at)
-            kinds.append(np.full(at.shape[0], int(kind), dtype=np.int64))
-        self.landmarks = np.concatenate(points)
-        self.landmark_kinds = np.concatenate(kinds)
-        self.kind_values = np.array([int(kind) for kind in LandmarkType], dtype=np.int64)
-
-    def _waypoint(self) -> tuple[float, float]:
-        s = self.scenario
-        hl, hw = s.field.half_length - s.margin, s.field.half_width - s.margin
-        return float(self.rng.uniform(-hl, hl)), float(self.rng.uniform(-hw, hw))
-
-    def next_chunk(self, n: int) -> Chunk:
-        """The next `n` motion steps (n at most the buffers' length) and the frames captured during them."""
-        s = self.scenario
-        dt = s.dt
-        noise = self.rng.standard_normal((n, 6)).tolist()
-        truth, odometry = self.truth[:n], self.odometry[:n]
-        x, y, th = self.pose
-        wx, wy = self.waypoint
-        sx, sy, sth = (float(v) for v in self.scale)
-        for k in range(n):
-            t = (self.step + k + 1) * dt
-            dx, dy = wx - x, wy - y
-            if dx * dx + dy * dy < 0.16:
-                wx, wy = self._waypoint()
-                dx, dy = wx - x, wy - y
-            error = math.remainder(math.atan2(dy, dx) - th, 2.0 * math.pi)
-            omega = max(-s.max_turn_rate, min(s.max_turn_rate, 1.5 * error))
-            vx = s.max_speed * max(0.0, math.cos(error)) ** 2
-            vy = s.lateral_speed * math.sin(0.4 * t + self.phase)
-            e = noise[k]
-            ddx = vx * (1.0 + s.step_noise * e[0]) * dt          # the true motion, robot frame
-            ddy = vy * (1.0 + s.step_noise * e[1]) * dt
-            dth = omega * (1.0 + s.step_noise * e[2]) * dt
-            c, sn = math.cos(0.5 * dth), math.sin(0.5 * dth)
-            ox, oy = c * ddx - sn * ddy, sn * ddx + c * ddy      # the pose change in the previous robot frame
-            c, sn = math.cos(th), math.sin(th)
-            x += c * ox - sn * oy
-            y += sn * ox + c * oy
-            th = math.remainder(th + dth, 2.0 * math.pi)
-            truth[k, 0], truth[k, 1], truth[k, 2] = x, y, th
-            odometry[k, 0] = ox * sx * (1.0 + s.odometry_noise * e[3])
-            odometry[k, 1] = oy * sy * (1.0 + s.odometry_noise * e[4])
-            odometry[k, 2] = dth * sth * (1.0 + s.odometry_noise * e[5])
-        self.pose = [x, y, th]
-        self.waypoint = (wx, wy)
-        first = self.step
-        self.step += n
-        return Chunk(first, truth, odometry, *self._frames(first, truth))
-
-    def _frames(self, first: int, truth: np.ndarray):
-        """The camera frames captured during the steps from `first` (vectorized over the frames)."""
-        s, rng = self.scenario, self.rng
-        g = np.arange(first, first + truth.shape[0], dtype=np.int64)
-        captured = ((g + 1) * s.camera_rate) // s.motion_rate > (g * s.camera_rate) // s.motion_rate
-        steps = g[captured]
-        poses = truth[steps - first]
-        n_frames = steps.shape[0]
-        head = s.head_pan_amplitude * np.sin(2.0 * math.pi * (steps + 1) * s.dt / s.head_pan_period)
-        d = self.landmarks[None, :, :] - poses[:, None, :2]                       # (F, L, 2)
-        r = np.hypot(d[..., 0], d[..., 1])
-        bearing = wrap_angles(np.arctan2(d[..., 1], d[..., 0]) - poses[:, 2:3])
-        share = np.clip((r - s.min_range) / (s.max_range - s.min_range), 0.0, 1.0)
-        probability = s.detection_near + share * (s.detection_far - s.detection_near)
-        half_fov = 0.5 * s.field_of_view
-        seen = ((np.abs(wrap_angles(bearing - head[:, None])) <= half_fov) & (r >= s.min_range)
-                & (r <= s.max_range) & (rng.random(r.shape) < probability))
-        frame, landmark = np.nonzero(seen)
-        true_range = r[frame, landmark]
-        ranges = np.maximum(true_range + (s.range_noise_floor + s.range_noise_growth * true_range ** 2)
-                            * rng.standard_normal(true_range.shape[0]), 0.0)
-        bearings = bearing[frame, landmark] + s.bearing_noise * rng.standard_normal(true_range.shape[0])
-        kinds = self.landmark_kinds[landmark]
-        false = rng.poisson(s.false_positive_rate, n_frames)
-        false_frame = np.repeat(np.arange(n_frames), false)
-        m = false_frame.shape[0]
-        frame = np.concatenate([frame, false_frame])
-        kinds = np.concatenate([kinds, self.kind_values[rng.integers(0, self.kind_values.shape[0], m)]])
-        ranges = np.concatenate([ranges, rng.uniform(s.min_range, 0.6 * s.max_range, m)])
-        bearings = np.concatenate([bearings, head[false_frame] + rng.uniform(-half_fov, half_fov, m)])
-        order = np.argsort(frame, kind="stable")
-        offsets = np.searchsorted(frame[order], np.arange(n_frames + 1))
-        return steps, kinds[order], ranges[order], wrap_angles(bearings[order]), offsets
+# The scenario and its stream are the walking simulator's (demos.walk_sim), under the soak's names.
+SoakScenario = StreamScenario
+SoakStream = WalkStream
 
 
 # -- the verdict's figures ---------------------------------------------------------------------------------
@@ -332,22 +180,13 @@ def run_soak(minutes: float = 60.0, particles: int = 500, seed: int = 0, scenari
     if particles <= 0:
         raise ValueError(f"particles = {particles!r} must be > 0")
     s = SoakScenario() if scenario is None else scenario
-    per_minute = 60 * s.motion_rate
+    per_minute = int(round(60 * s.motion_rate))
     total = int(round(minutes * per_minute))
     if total < 1:
         raise ValueError(f"minutes = {minutes!r} is shorter than one motion step")
     n_minutes = -(-total // per_minute)
     started = time.perf_counter()
     stream = SoakStream(s, seed, BLOCK_STEPS)
-    add_progress_option(parser)
-    return parser
-
-
-def main(argv: list[str] | None = None, prog: str = PROG) -> int:
-    """`robocup-mcl soak` (see the module docstring); exit 0 when the verdict holds, 1 otherwise."""
-    from mcl.cli_checks import check_output_file
-
-    parser = build_parser(prog)
     loc = Localizer(s.field, n_particles=particles, seed=seed)
     loc.initial_placement()
     # Buffers for the measurement, allocated once.
@@ -490,8 +329,6 @@ PROG = "robocup-mcl soak"
 
 def build_parser(prog: str = PROG) -> argparse.ArgumentParser:
     """The command's argument parser, named `prog` in its usage line."""
-    import argparse
-
     from mcl.cli_checks import add_progress_option, description
 
     parser = argparse.ArgumentParser(prog=prog, description=description(__doc__))
@@ -501,6 +338,15 @@ def build_parser(prog: str = PROG) -> argparse.ArgumentParser:
     parser.add_argument("--seed", type=int, default=0, help="seed of the scenario and the filter (default 0)")
     parser.add_argument("--json", action="store_true", help="print the results as JSON instead of the table")
     parser.add_argument("--save", metavar="PATH", help="also write the JSON results to PATH")
+    add_progress_option(parser)
+    return parser
+
+
+def main(argv: list[str] | None = None, prog: str = PROG) -> int:
+    """`robocup-mcl soak` (see the module docstring); exit 0 when the verdict holds, 1 otherwise."""
+    from mcl.cli_checks import check_output_file
+
+    parser = build_parser(prog)
     args = parser.parse_args(argv)
     if not (math.isfinite(args.minutes) and 0 < args.minutes <= 24 * 60):
         parser.error(f"--minutes {args.minutes} must be > 0 and at most {24 * 60} (a day)")
@@ -515,8 +361,8 @@ def build_parser(prog: str = PROG) -> argparse.ArgumentParser:
 
     scenario = SoakScenario()
     if not args.json:
-        print(f"soak: {args.minutes:g} simulated min on {scenario.field.name}, motion at {scenario.motion_rate} Hz, "
-              f"camera at {scenario.camera_rate} Hz ({1e3 * scenario.latency:.0f} ms late), {args.particles} "
+        print(f"soak: {args.minutes:g} simulated min on {scenario.field.name}, motion at {scenario.motion_rate:g} Hz, "
+              f"camera at {scenario.camera_rate:g} Hz ({1e3 * scenario.latency:.0f} ms late), {args.particles} "
               f"particles, seed {args.seed}")
         print(table_header(), flush=True)
     from mcl.cli_checks import progress_bar, progress_wanted
