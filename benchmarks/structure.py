@@ -35,9 +35,13 @@ import subprocess
 import sys
 import tarfile
 import tempfile
-import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:                                   # Python 3.10: the same parser, as the tomli package
+    import tomli as tomllib
 
 EXCLUDED = ("tests", "demos", "benchmarks")        # top-level packages that are not the library
 CONSUMERS = ("demos", "benchmarks")                 # the layers the library must not import

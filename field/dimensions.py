@@ -52,6 +52,33 @@ class FieldDimensions:
       than the border strip they stand on, so every landmark is on the carpet;
     - lines are thinner than the narrowest gap between any two of them, so no two
       lines merge into one.
+
+    Parameters
+    ----------
+    length, width : float
+        The field inside the outer lines' centre lines along x (goal to goal) and y
+        (touchline to touchline) [m].
+    line_width : float
+        Width of every painted line [m].
+    penalty_area_length, penalty_area_width : float
+        Depth of a penalty area from its goal line and its extent along the goal line [m].
+    goal_area_length, goal_area_width : float
+        The same for a goal area [m].
+    penalty_mark_distance : float
+        Distance of a penalty mark from its goal line [m].
+    center_circle_diameter : float
+        Diameter of the centre circle [m].
+    goal_inner_width : float
+        Clear width between the goalposts [m].
+    goalpost_diameter : float
+        Diameter of a goalpost [m].
+    border_strip_width : float
+        Width of the carpet outside the outer lines [m].
+
+    Raises
+    ------
+    ValueError
+        If a value or a relation above fails (naming the key and its value).
     """
 
     length: float

@@ -23,6 +23,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field as dataclass_field
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from .angles import wrap_angles
 from .dimensions import FieldDimensions, short_repr
@@ -57,6 +58,21 @@ class LandmarkType(enum.IntEnum):
         A name or alias (`LANDMARK_TYPE_ALIASES`) is matched in any case, surrounding white
         space ignored, hyphens and spaces read as underscores: "T_CROSSING", "t-crossing",
         "T crossing" and "t" are all `T_CROSSING`.
+
+        Parameters
+        ----------
+        kind : LandmarkType, int or str
+            A member, its integer value, or its name or alias.
+
+        Returns
+        -------
+        LandmarkType
+            The member.
+
+        Raises
+        ------
+        ValueError
+            If `kind` names or numbers no landmark type.
         """
         if isinstance(kind, cls):
             return kind
@@ -144,6 +160,18 @@ class Field:
     of at most `MAX_NAME_LENGTH` characters; `dims` is a `FieldDimensions`, which has checked
     every dimension (including the `field.dimensions.MAX_FIELD_EXTENT` bound on the size).
 
+    Parameters
+    ----------
+    name : str
+        Non-empty name, at most `MAX_NAME_LENGTH` characters.
+    dims : FieldDimensions
+        The field's (already checked) dimensions.
+
+    Raises
+    ------
+    ValueError
+        If `name` is empty or too long, or `dims` is not a `FieldDimensions`.
+
     Attributes (all derived in `__post_init__`, all arrays read-only float64):
 
     - ``landmarks``: read-only mapping from every `LandmarkType` to a (K, 2) array of
@@ -213,6 +241,21 @@ class Field:
         `kind` is a `LandmarkType`, its integer value, or its name or alias in any case
         ("goalpost", "T_CROSSING", "t", "penalty"; see `LandmarkType.parse`). Anything else
         raises `ValueError`.
+
+        Parameters
+        ----------
+        kind : LandmarkType, int or str
+            The landmark type, in any form `LandmarkType.parse` accepts.
+
+        Returns
+        -------
+        np.ndarray
+            (K, 2) read-only float64 positions [m], rows sorted by x, then y.
+
+        Raises
+        ------
+        ValueError
+            If `kind` is not a landmark type.
         """
         return self.landmarks[LandmarkType.parse(kind)]
 
@@ -223,6 +266,22 @@ class Field:
         the circle contributes evenly spaced points (at least 16). Points shared by
         segments (corners, crossings) appear once. Rows are sorted by x, then by y. The
         array is a fresh, writable copy.
+
+        Parameters
+        ----------
+        spacing : float, optional
+            The largest distance between neighbouring points [m], at least `MIN_LINE_SPACING`;
+            default 0.05.
+
+        Returns
+        -------
+        np.ndarray
+            (P, 2) float64 points [m] on the lines' centre lines.
+
+        Raises
+        ------
+        ValueError
+            If `spacing` is not a finite number of at least `MIN_LINE_SPACING`.
         """
         _require_number("spacing", spacing)
         if not (math.isfinite(spacing) and spacing >= MIN_LINE_SPACING):
@@ -239,11 +298,28 @@ class Field:
         pieces.append(np.column_stack((cx + radius * np.cos(angles), cy + radius * np.sin(angles))))
         return np.ascontiguousarray(np.unique(np.concatenate(pieces), axis=0))
 
-    def contains(self, xy, margin: float = 0.0) -> np.ndarray:
+    def contains(self, xy: ArrayLike, margin: float = 0.0) -> np.ndarray:
         """Whether each point lies on the carpet: the field plus its border strip, plus `margin`.
 
         `xy` is array-like with shape (..., 2); the result is a bool array of shape (...).
         Edges count as inside. A negative `margin` shrinks the region.
+
+        Parameters
+        ----------
+        xy : array_like
+            (..., 2) points (x, y) [m] in the field frame.
+        margin : float, optional
+            Added to the border strip on every side [m]; default 0.
+
+        Returns
+        -------
+        np.ndarray
+            (...) bool, True for a point on the carpet.
+
+        Raises
+        ------
+        ValueError
+            If `margin` is not finite or `xy` does not have shape (..., 2).
         """
         _require_number("margin", margin)
         if not math.isfinite(margin):
@@ -264,6 +340,21 @@ class Field:
         has shape (N, 3) (any (..., 3) works); returns a new float64 array of the same
         shape with θ wrapped into (−π, π] by `field.angles.wrap_angles`. Applying it
         twice gives the original poses (θ up to a multiple of 2π).
+
+        Parameters
+        ----------
+        poses : np.ndarray
+            (N, 3) poses (x [m], y [m], θ [rad]); anything array-like with a last axis of 3.
+
+        Returns
+        -------
+        np.ndarray
+            The mirrored poses, float64, same shape.
+
+        Raises
+        ------
+        ValueError
+            If the last axis is not of length 3.
         """
         poses = np.asarray(poses, dtype=np.float64)
         if poses.ndim == 0 or poses.shape[-1] != 3:

@@ -32,12 +32,17 @@ import difflib
 import functools
 import json
 import os
-import tomllib
+import sys
 from importlib import resources
 from pathlib import Path
 
 from .dimensions import FieldDimensions, short_repr
 from .geometry import Field
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:                                   # Python 3.10: the same parser, as the tomli package
+    import tomli as tomllib
 
 PRESET_NAMES: tuple[str, ...] = ("spl", "kidsize", "adultsize")
 """Names accepted by `preset` (and by a file's ``preset`` key), lower case."""
@@ -52,7 +57,23 @@ _EXTENSIONS = (".toml", ".json")
 
 
 def preset(name: str) -> Field:
-    """The built-in field called `name` (any case): "spl", "kidsize" or "adultsize"."""
+    """The built-in field called `name` (any case): "spl", "kidsize" or "adultsize".
+
+    Parameters
+    ----------
+    name : str
+        A name of `PRESET_NAMES`, in any case, surrounding white space ignored.
+
+    Returns
+    -------
+    Field
+        The preset field (loaded once, then shared).
+
+    Raises
+    ------
+    ValueError
+        If `name` is not a preset's name.
+    """
     if not isinstance(name, str) or name.strip().lower() not in PRESET_NAMES:
         raise ValueError(
             f"preset = {short_repr(name)} is unknown; valid names: {', '.join(PRESET_NAMES)}"
@@ -83,7 +104,26 @@ def _load_preset(name: str) -> Field:
 
 
 def load_field(path: str | os.PathLike) -> Field:
-    """The field described by a ``.toml`` or ``.json`` file (format in the module docstring)."""
+    """The field described by a ``.toml`` or ``.json`` file (format in the module docstring).
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The field file; its extension (``.toml`` or ``.json``, any case) selects the format.
+
+    Returns
+    -------
+    Field
+        The field the file describes.
+
+    Raises
+    ------
+    ValueError
+        If the file is missing, unreadable, too large, malformed, or describes an impossible field
+        (the message starts with the path).
+    TypeError
+        If `path` is not a str or os.PathLike.
+    """
     path = _checked_path(path)
     suffix = _checked_suffix(path)
     try:
@@ -117,7 +157,24 @@ def field_by_name_or_path(text: str | os.PathLike) -> Field:
 
 
 def save_field(field: Field, path: str | os.PathLike) -> None:
-    """Write `field` to a ``.toml`` or ``.json`` file that `load_field` reads back equal."""
+    """Write `field` to a ``.toml`` or ``.json`` file that `load_field` reads back equal.
+
+    Parameters
+    ----------
+    field : Field
+        The field to write.
+    path : str or os.PathLike
+        The file; its extension (``.toml`` or ``.json``) selects the format. An existing file is replaced.
+
+    Raises
+    ------
+    ValueError
+        If the extension is neither.
+    TypeError
+        If `path` is not a str or os.PathLike.
+    OSError
+        If the file cannot be written.
+    """
     path = _checked_path(path)
     suffix = _checked_suffix(path)
     if suffix == ".json":
@@ -128,7 +185,18 @@ def save_field(field: Field, path: str | os.PathLike) -> None:
 
 
 def to_toml(field: Field) -> str:
-    """The TOML text of a field file for `field`."""
+    """The TOML text of a field file for `field`.
+
+    Parameters
+    ----------
+    field : Field
+        The field to describe.
+
+    Returns
+    -------
+    str
+        The file's text: its name and a ``[dimensions]`` table, newline-terminated.
+    """
     lines = [f"name = {_toml_string(field.name)}", "", "[dimensions]"]
     lines += [f"{key} = {value!r}" for key, value in field.dims.to_dict().items()]
     return "\n".join(lines) + "\n"
@@ -217,7 +285,7 @@ def _field_from_document(document: object, default_name: str) -> Field:
             raise ValueError(f"preset = {short_repr(preset_name)} must be a string")
         base = preset(preset_name).dims
 
-    name = document.get("name", preset_name.strip().lower() if base is not None else default_name)
+    name = document.get("name", preset_name.strip().lower() if isinstance(preset_name, str) else default_name)
     if not isinstance(name, str) or not name.strip():
         raise ValueError(f"name = {short_repr(name)} must be a non-empty string")
 

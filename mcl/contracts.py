@@ -33,7 +33,7 @@ the kernels' motion, so the two paths agree bit for bit). `capabilities(model)` 
 """
 from __future__ import annotations
 
-from typing import Protocol, runtime_checkable
+from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
 
@@ -51,11 +51,37 @@ class SensorModel(Protocol):
     """A sensor model: scores particles by a frame's observations."""
 
     def check(self, observations: Observations) -> None:
-        """Raise ValueError if the model cannot score `observations`; change nothing."""
+        """Raise ValueError if the model cannot score `observations`; change nothing.
+
+        Parameters
+        ----------
+        observations : Observations
+            One camera frame's detections.
+
+        Raises
+        ------
+        ValueError
+            If the model cannot score `observations` (naming what it lacks).
+        """
 
     def log_likelihood(self, poses: np.ndarray, observations: Observations,
                        out: np.ndarray | None = None) -> np.ndarray:
-        """(N,) log-likelihoods of `observations` at `poses` (N, 3): finite or -inf, never NaN or +inf."""
+        """(N,) log-likelihoods of `observations` at `poses` (N, 3): finite or -inf, never NaN or +inf.
+
+        Parameters
+        ----------
+        poses : np.ndarray
+            (N, 3) float64 particle poses (x [m], y [m], θ [rad]) in the field frame.
+        observations : Observations
+            One camera frame's detections.
+        out : np.ndarray or None, optional
+            (N,) float64 array to write the result into; None (the default) allocates one.
+
+        Returns
+        -------
+        np.ndarray
+            (N,) log-likelihoods, up to a constant shared by all poses (`out` when given).
+        """
 
 
 @runtime_checkable
@@ -65,26 +91,83 @@ class Relocalization(Protocol):
     tracking: bool                    # whether the filter has been confident since the last reset
 
     def bind(self, carpet: tuple[float, float, float, float]) -> None:
-        """The carpet (x_min, x_max, y_min, y_max) the filter's particles live on."""
+        """The carpet (x_min, x_max, y_min, y_max) the filter's particles live on.
+
+        Parameters
+        ----------
+        carpet : tuple of float
+            (x_min, x_max, y_min, y_max) [m] of the carpet, in the field frame.
+        """
 
     def reset_region(self, bounds: tuple[float, float, float, float]) -> None:
-        """The belief was spread over `bounds`: inject there until confident."""
+        """The belief was spread over `bounds`: inject there until confident.
+
+        Parameters
+        ----------
+        bounds : tuple of float
+            (x_min, x_max, y_min, y_max) [m] of the region the particles were spread over.
+        """
 
     def reset_pose(self, pose: np.ndarray) -> None:
-        """The belief was set around a known pose."""
+        """The belief was set around a known pose.
+
+        Parameters
+        ----------
+        pose : np.ndarray
+            (3,) pose (x [m], y [m], θ [rad]) the particles were set around.
+        """
 
     def mirror(self) -> None:
         """The particles were mirrored through the centre mark."""
 
     def carry(self, dx: float, dy: float, dtheta: float) -> None:
-        """The robot moved by (dx, dy, dθ) in its frame."""
+        """The robot moved by (dx, dy, dθ) in its frame.
 
-    def confirm(self, estimate, explains: bool) -> bool:
+        Parameters
+        ----------
+        dx, dy : float
+            Displacement [m] in the robot frame (x forward, y left).
+        dtheta : float
+            Rotation [rad], counter-clockwise.
+        """
+
+    def confirm(self, estimate: Any, explains: bool) -> bool:
         """After a correction: the estimate, and whether the belief explains the detections as usual; True asks
-        the filter to mirror its particles."""
+        the filter to mirror its particles.
 
-    def propose(self, count: int, observations: Observations, sensor_model, rng: np.random.Generator) -> np.ndarray:
-        """(count, 3) poses to inject, drawn from `rng`."""
+        Parameters
+        ----------
+        estimate : mcl.Estimate
+            The filter's estimate after the correction.
+        explains : bool
+            Whether the belief explains the frame's detections as usual.
+
+        Returns
+        -------
+        bool
+            True to ask the filter to mirror its particles through the centre mark.
+        """
+
+    def propose(self, count: int, observations: Observations, sensor_model: Any,
+                rng: np.random.Generator) -> np.ndarray:
+        """(count, 3) poses to inject, drawn from `rng`.
+
+        Parameters
+        ----------
+        count : int
+            How many poses to propose.
+        observations : Observations
+            The frame that triggered the injection.
+        sensor_model : SensorModel
+            The filter's sensor model (used when it offers `SensorResetting`).
+        rng : np.random.Generator
+            The only source of randomness.
+
+        Returns
+        -------
+        np.ndarray
+            (count, 3) float64 poses (x [m], y [m], θ [rad]).
+        """
 
 
 @runtime_checkable
@@ -100,7 +183,18 @@ class TermCount(Protocol):
     """Capability: how many independent terms a frame's likelihood sums (augmented MCL averages per term)."""
 
     def terms(self, observations: Observations) -> int:
-        """The number of terms (>= 0)."""
+        """The number of terms (>= 0).
+
+        Parameters
+        ----------
+        observations : Observations
+            One camera frame's detections.
+
+        Returns
+        -------
+        int
+            How many independent terms the frame's log-likelihood sums.
+        """
 
 
 @runtime_checkable
@@ -109,7 +203,26 @@ class SensorResetting(Protocol):
 
     def sample_poses(self, observations: Observations, n: int, rng: np.random.Generator,
                      heading: float | None = None, heading_sigma: float = 0.3) -> np.ndarray:
-        """(n, 3) poses that explain `observations`, drawn from `rng`."""
+        """(n, 3) poses that explain `observations`, drawn from `rng`.
+
+        Parameters
+        ----------
+        observations : Observations
+            The frame whose detections the poses must explain.
+        n : int
+            How many poses to draw.
+        rng : np.random.Generator
+            The only source of randomness.
+        heading : float or None, optional
+            A known heading [rad] to draw around (e.g. from the IMU); None (the default) when unknown.
+        heading_sigma : float, optional
+            Standard deviation [rad] around `heading`; default 0.3.
+
+        Returns
+        -------
+        np.ndarray
+            (n, 3) float64 poses (x [m], y [m], θ [rad]).
+        """
 
 
 @runtime_checkable
@@ -117,7 +230,18 @@ class ViewScoring(Protocol):
     """Capability: negative information, the landmarks a frame's camera view should have shown."""
 
     def scores_view(self, observations: Observations) -> bool:
-        """Whether `log_likelihood` of this frame includes its view (the fused step does not)."""
+        """Whether `log_likelihood` of this frame includes its view (the fused step does not).
+
+        Parameters
+        ----------
+        observations : Observations
+            One camera frame's detections, with or without a camera view.
+
+        Returns
+        -------
+        bool
+            True when the frame's view adds negative information to `log_likelihood`.
+        """
 
 
 @runtime_checkable
@@ -125,7 +249,18 @@ class ParticleState(Protocol):
     """Capability: a state per particle that `predict(poses, u, rng, state=...)` reads and updates."""
 
     def particle_state(self, n: int) -> np.ndarray:
-        """A fresh state for `n` particles (n rows); the filter gathers the rows through resampling."""
+        """A fresh state for `n` particles (n rows); the filter gathers the rows through resampling.
+
+        Parameters
+        ----------
+        n : int
+            The number of particles.
+
+        Returns
+        -------
+        np.ndarray
+            An array with `n` rows, one state per particle.
+        """
 
 
 @runtime_checkable
@@ -135,16 +270,45 @@ class BoundedNoise(Protocol):
     gaussian: bool
 
     def noise_bounds(self, u: MotionInput) -> tuple[float, float, float]:
-        """The noise's half-widths (x [m], y [m], θ [rad]) for `u` (uniform; Gaussian of the same variance)."""
+        """The noise's half-widths (x [m], y [m], θ [rad]) for `u` (uniform; Gaussian of the same variance).
+
+        Parameters
+        ----------
+        u : MotionInput
+            One control period's motion input.
+
+        Returns
+        -------
+        tuple of float
+            The half-widths (x [m], y [m], θ [rad]).
+        """
 
 
-REQUIRED_METHODS = {MotionModel: ("check", "predict"), SensorModel: ("check", "log_likelihood"),
+REQUIRED_METHODS: dict[type, tuple[str, ...]] = {MotionModel: ("check", "predict"), SensorModel: ("check", "log_likelihood"),
                     Relocalization: ("bind", "reset_region", "reset_pose", "mirror", "carry", "confirm", "propose")}
 """The methods the filter calls on each required collaborator (what `lacks` checks before it takes one)."""
 
 
-def lacks(obj, contract) -> list[str]:
-    """The methods of `contract` (a key of `REQUIRED_METHODS`) that `obj` does not have as callables."""
+def lacks(obj: object, contract: type) -> list[str]:
+    """The methods of `contract` (a key of `REQUIRED_METHODS`) that `obj` does not have as callables.
+
+    Parameters
+    ----------
+    obj : object
+        The would-be collaborator.
+    contract : type
+        `MotionModel`, `SensorModel` or `Relocalization`.
+
+    Returns
+    -------
+    list of str
+        The names of the missing methods, in the contract's order; empty when `obj` has them all.
+
+    Raises
+    ------
+    KeyError
+        If `contract` is not a key of `REQUIRED_METHODS`.
+    """
     return [name for name in REQUIRED_METHODS[contract] if not callable(getattr(obj, name, None))]
 
 
@@ -153,22 +317,59 @@ _CAPABILITIES = (("fused likelihood", FusedLikelihood), ("per-term fit", TermCou
                  ("per-particle state", ParticleState), ("bounded noise", BoundedNoise))
 
 
-def capabilities(model) -> tuple[str, ...]:
-    """The optional capabilities `model` offers (by the protocols' names in the module docstring's table)."""
+def capabilities(model: object) -> tuple[str, ...]:
+    """The optional capabilities `model` offers (by the protocols' names in the module docstring's table).
+
+    Parameters
+    ----------
+    model : object
+        A motion or sensor model.
+
+    Returns
+    -------
+    tuple of str
+        The capabilities' names ("fused likelihood", "per-term fit", ...), in the table's order.
+    """
     return tuple(name for name, protocol in _CAPABILITIES if isinstance(model, protocol))
 
 
-def moves_by_bounded_noise(model) -> bool:
+def moves_by_bounded_noise(model: object) -> bool:
     """Whether the filter may move the particles itself for `model`: a `BoundedNoiseModel` whose `predict` and
-    `check` are the base class's (so that the kernels' motion is the model's, bit for bit)."""
-    kind = type(model)
+    `check` are the base class's (so that the kernels' motion is the model's, bit for bit).
+
+    Parameters
+    ----------
+    model : object
+        A motion model.
+
+    Returns
+    -------
+    bool
+        True when the filter's kernels may move the particles for `model`.
+    """
+    kind: Any = type(model)
     return (isinstance(model, BoundedNoiseModel) and kind.predict is BoundedNoiseModel.predict
             and kind.check is BoundedNoiseModel.check)
 
 
-def fused_kernels(sensor_model) -> FusedLikelihoodKernels | None:
+def fused_kernels(sensor_model: object) -> FusedLikelihoodKernels | None:
     """The sensor model's fused-likelihood kernels, or None (no such capability, or none in this configuration).
-    Anything else returned by `fused_likelihood` raises TypeError naming the model."""
+
+    Parameters
+    ----------
+    sensor_model : object
+        A sensor model.
+
+    Returns
+    -------
+    FusedLikelihoodKernels or None
+        What the model's `fused_likelihood()` returned; None when it has no such method or returned None.
+
+    Raises
+    ------
+    TypeError
+        If `fused_likelihood` returns anything else (naming the model).
+    """
     offer = getattr(sensor_model, "fused_likelihood", None)
     if not callable(offer):
         return None
@@ -181,10 +382,28 @@ def fused_kernels(sensor_model) -> FusedLikelihoodKernels | None:
     return kernels
 
 
-def fast_path(motion_model, sensor_model) -> dict[str, bool]:
+def fast_path(motion_model: object, sensor_model: object) -> dict[str, bool]:
     """Which parts of a filter step with these models run in the fused compiled call: {"motion": the filter
     moves the particles in its kernels, "likelihood": the sensor model is scored there, "step": both, so
-    `step` is one call}. A stateful motion model (`ParticleState`) moves itself."""
+    `step` is one call}. A stateful motion model (`ParticleState`) moves itself.
+
+    Parameters
+    ----------
+    motion_model : object
+        The filter's motion model.
+    sensor_model : object
+        The filter's sensor model.
+
+    Returns
+    -------
+    dict of str to bool
+        {"motion": ..., "likelihood": ..., "step": ...} as above.
+
+    Raises
+    ------
+    TypeError
+        If the sensor model's `fused_likelihood` returns neither kernels nor None (see `fused_kernels`).
+    """
     motion = moves_by_bounded_noise(motion_model) and not isinstance(motion_model, ParticleState)
     likelihood = fused_kernels(sensor_model) is not None
     return {"motion": motion, "likelihood": likelihood, "step": motion and likelihood}

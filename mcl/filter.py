@@ -73,6 +73,7 @@ from motion_models.kernels import NO_WORK, move_chunked, move_range, move_range_
 from numerics.chunks import balanced_chunk
 from numerics.random import bit_generator_handle, draw_variates, parallel_uniforms
 from numerics.trig import SQRT3
+from sensing.fused import FusedLikelihoodKernels
 from sensing.observations import Observations
 
 from .contracts import Relocalization, SensorModel, fused_kernels, lacks, moves_by_bounded_noise
@@ -80,8 +81,8 @@ from .latency import move_back, move_forward
 from .relocalization import SoccerRelocalization, region_bounds
 from .resampling import SCHEMES, gather_offspring_rows, gather_with_jitter, resample_with_jitter
 from .particles import ParticleSet, check_pose, check_poses
-from .step import (NO_SINCE, NO_VARIATES, STEP_INVALID, STEP_MISSING, STEP_RESAMPLE, STEP_UNEXPLAINED, fused_step,
-                   resample_and_summarize)
+from .step import (NO_SINCE, NO_VARIATES, STEP_INVALID, STEP_MISSING, STEP_RESAMPLE, STEP_UNEXPLAINED, StepKernels,
+                   fused_step, resample_and_summarize)
 from .summary import BeliefSummary, Entropy, Estimate, Grid
 from .weights import log_mean_likelihood, reweigh, weigh
 
@@ -216,8 +217,8 @@ class ParticleFilter(ParticleSet, BeliefSummary):
         self._compiled_sensor_of = None                 # the sensor model `_compiled_sensor` was asked of
         self._bounded_of = None                         # the motion model `_bounded` was asked of
         self._bounded = False                           # whether it moves as BoundedNoiseModel does
-        self._compiled_sensor = None
-        self._fused_step = None                         # `mcl.step.fused_step` of the sensor model's kernels
+        self._compiled_sensor: FusedLikelihoodKernels | None = None
+        self._fused_step: StepKernels | None = None     # `mcl.step.fused_step` of the sensor model's kernels
 
     def _bind_relocalization(self, relocalization) -> None:
         """Check and bind the relocalization (`mcl.contracts.Relocalization`) to the carpet."""
@@ -563,7 +564,7 @@ class ParticleFilter(ParticleSet, BeliefSummary):
         chunk = self._chunk if self._threads > 1 else 0
         gaussian = move and bool(self.motion_model.gaussian)
         variates = self._variates if chunk else NO_VARIATES
-        if not move:
+        if motion is None:                            # (not move)
             motion = _NO_MOTION
         elif gaussian:
             self.sensor_model.check(observations)     # before the noise is drawn
@@ -586,9 +587,11 @@ class ParticleFilter(ParticleSet, BeliefSummary):
         resampling = (self._resample_threshold, self._resampling == "systematic" and (self._motion_state is None
                                                                                      or not chunk),
                       self._roughening, self._state_rows, self._state_scratch)
+        fused = self._fused_step
+        assert fused is not None and sensor is not None       # the fused path is taken only with both bound
         with self._thread_scope:
             (status, native_log_average, ess, w_slow, w_fast, fraction, resampled, weight, position,
-             orientation) = self._fused_step.compiled_step(
+             orientation) = fused.compiled_step(
                 self._particle_group, (move, *motion, gaussian, variates), self._generator(),
                 (sensor.params, sensor.inputs(observations)),
                 weighting, resampling, self._summary_group(want_estimate, mean, covariance), chunk, self._fast,
@@ -680,6 +683,7 @@ class ParticleFilter(ParticleSet, BeliefSummary):
     def _update_augmented(self, log_average: float) -> float:
         """Update w_slow, w_fast with the per-detection average likelihood; return the injection share."""
         a = self._augmented
+        assert a is not None                          # called with augmented MCL on only
         average = math.exp(log_average)
         if self.w_slow == 0.0:
             self.w_slow = self.w_fast = average

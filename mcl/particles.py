@@ -13,6 +13,7 @@ filter's generator `rng`. The particles' motion and scoring are the filter's loo
 from __future__ import annotations
 
 import math
+from typing import TYPE_CHECKING, Any, Callable
 
 import numpy as np
 
@@ -20,6 +21,9 @@ from field.angles import wrap_angles
 from field.checks import LARGEST_ANGLE, LARGEST_COORDINATE, LARGEST_SIGMA, ArgumentTypeError, reals
 
 from .weights import normalize
+
+if TYPE_CHECKING:
+    from field import Field
 
 _NO_STATE = np.empty((0, 0))      # no per-particle motion state
 
@@ -55,6 +59,14 @@ def check_poses(name: str, poses) -> np.ndarray:
 class ParticleSet:
     """N particles: `poses` (N, 3) [x, y, θ], `log_weights` (N,), `weights` (N,), a stateful motion model's
     `motion_state`, and the step's buffers (see the module docstring)."""
+
+    # Set by the filter that is also a `BeliefSummary` (`mcl.filter.ParticleFilter`), declared for type checkers.
+    _n: int
+    _field: Field
+    motion_model: Any              # a MotionModel, whose optional capabilities (`particle_state`) are looked up
+    rng: np.random.Generator
+    _changed: Callable[[], None]
+    _forget_anchor: Callable[[], None]
 
     def _allocate_particles(self) -> None:
         """The particles and the buffers a step works in (N = `self._n`)."""
@@ -186,7 +198,7 @@ class ParticleSet:
                     or not (log_weights > -np.inf).any()):
                 raise ValueError("log_weights must have shape (N,), no NaN or +inf, and at least one finite entry")
         self._set_particles(poses)
-        if motion_state is not None:
+        if motion_state is not None and self._motion_state is not None:    # (checked above: both or neither)
             self._motion_state[:] = motion_state
         if log_weights is not None:
             total, self.ess = normalize(log_weights, self._weights)

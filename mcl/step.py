@@ -38,7 +38,7 @@ from __future__ import annotations
 
 import hashlib
 import math
-from typing import NamedTuple
+from typing import Any, Callable, NamedTuple
 
 import numba
 import numpy as np
@@ -313,9 +313,9 @@ class StepKernels(NamedTuple):
     """The compiled step for one kind of sensor model (`fused_step`)."""
 
     key: str
-    compiled_step: object                 # numba dispatcher
-    predict_and_score: object
-    predict_and_score_chunked: object
+    compiled_step: Callable[..., Any]     # numba dispatchers
+    predict_and_score: Callable[..., Any]
+    predict_and_score_chunked: Callable[..., Any]
 
 
 _STEPS: dict[str, StepKernels] = {}

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import TYPE_CHECKING, ContextManager
 
 import numba
 import numpy as np
@@ -23,6 +24,9 @@ from .estimate import (summary_buffers, summary_entropy, summary_estimate, summa
                        summary_estimate_fast, summary_fill, summary_fill_chunked, summary_grid)
 from .step import summarize
 
+if TYPE_CHECKING:
+    from field import Field
+
 MAX_GRID_CELLS = 5 * 10**7
 """The most cells the entropy or the estimate's histograms may have (the grid's cells times its bins)."""
 _NO_MEAN, _NO_COVARIANCE = np.empty(3), np.empty((3, 3))     # out_mean, out_cov of a summary without estimate
@@ -30,7 +34,17 @@ _NO_MEAN, _NO_COVARIANCE = np.empty(3), np.empty((3, 3))     # out_mean, out_cov
 
 @dataclass(frozen=True)
 class Estimate:
-    """The pose of the dominant cluster: pose [x, y, θ], its covariance (3, 3), and the cluster's weight."""
+    """The pose of the dominant cluster: pose [x, y, θ], its covariance (3, 3), and the cluster's weight.
+
+    Attributes
+    ----------
+    pose : np.ndarray
+        (3,) float64 pose (x [m], y [m], θ [rad]) in the field frame.
+    covariance : np.ndarray
+        (3, 3) float64 covariance of the cluster's particles about `pose` [m², m·rad, rad²].
+    weight : float
+        The share of the particles' weight the cluster holds, in [0, 1].
+    """
 
     pose: np.ndarray
     covariance: np.ndarray
@@ -38,32 +52,79 @@ class Estimate:
 
     @property
     def x(self) -> float:
+        """The estimate's x [m]."""
         return float(self.pose[0])
 
     @property
     def y(self) -> float:
+        """The estimate's y [m]."""
         return float(self.pose[1])
 
     @property
     def theta(self) -> float:
+        """The estimate's heading θ [rad]."""
         return float(self.pose[2])
 
     def is_confident(self, position_sigma: float = 0.3, heading_sigma: float = 0.2, weight: float = 0.8) -> bool:
-        """True when the cluster holds most of the weight and is tight in position and heading."""
+        """True when the cluster holds most of the weight and is tight in position and heading.
+
+        Parameters
+        ----------
+        position_sigma : float, optional
+            The largest position spread sqrt(var x + var y) [m]; default 0.3.
+        heading_sigma : float, optional
+            The largest heading standard deviation [rad]; default 0.2.
+        weight : float, optional
+            The least weight share of the cluster; default 0.8.
+
+        Returns
+        -------
+        bool
+            True when all three hold.
+        """
         position_std = math.sqrt(max(self.covariance[0, 0] + self.covariance[1, 1], 0.0))
         return (self.weight >= weight and position_std <= position_sigma
                 and math.sqrt(max(self.covariance[2, 2], 0.0)) <= heading_sigma)
 
 @dataclass(frozen=True)
 class Entropy:
-    """Grid entropy of the belief in bits (Hoffmann eq. 27)."""
+    """Grid entropy of the belief in bits (Hoffmann eq. 27).
+
+    Attributes
+    ----------
+    position : float
+        Entropy of the particles' weight over the position cells [bit].
+    orientation : float
+        Entropy over the orientation bins [bit].
+    """
 
     position: float
     orientation: float
 
 @dataclass(frozen=True)
 class Grid:
-    """Cell sizes for the entropy (and the estimate's seed histogram)."""
+    """Cell sizes for the entropy (and the estimate's seed histogram).
+
+    Parameters
+    ----------
+    position_cell : float, optional
+        Side of the entropy's position cells [m], within [0.01, 100]; default 0.1.
+    orientation_bins : int, optional
+        Orientation bins of the entropy, within [1, 3600]; default 36 (10°).
+    cluster_cell : float, optional
+        Side of the estimate's seed histogram cells [m], within [0.01, 100]; default 0.5.
+    cluster_orientation_bins : int, optional
+        Orientation bins of the seed histogram, within [1, 360]; default 8.
+    cluster_radius : float, optional
+        Position radius of the estimate's mean-shift kernel [m], within [0.01, 100]; default 0.75.
+    cluster_angle_radius : float, optional
+        Heading radius of the mean-shift kernel [rad], within (0, 10]; default 0.8.
+
+    Raises
+    ------
+    ValueError
+        If a value is out of range (TypeError, `field.checks.ArgumentTypeError`, for the wrong type).
+    """
 
     position_cell: float = 0.1            # m
     orientation_bins: int = 36            # 10° bins
@@ -83,6 +144,16 @@ class Grid:
 
 class BeliefSummary:
     """The estimate and the entropy of the particle set, cached until it changes (see the module docstring)."""
+
+    # Set by the filter that is also a `ParticleSet` (`mcl.filter.ParticleFilter`), declared for type checkers.
+    _n: int
+    _field: Field
+    _poses: np.ndarray
+    _weights: np.ndarray
+    _threads: int
+    _chunk: int
+    _fast: bool
+    _thread_scope: ContextManager[object]
 
     def _allocate_summary(self) -> None:
         """The histograms the estimate and the entropy share, and the summary's cached state."""

@@ -51,7 +51,6 @@ from dataclasses import dataclass, field, fields
 
 import numba
 import numpy as np
-import scipy.linalg
 
 from field.angles import wrap_angles
 from numerics.random import PCG64_STEPS, bit_generator_handle, deferred_uniform, draw_rows_deferring
@@ -128,6 +127,7 @@ class MobilityTransitions:
 
 @functools.lru_cache(maxsize=64)
 def _transition_matrix(transitions: MobilityTransitions, condition: str, dt: float) -> np.ndarray:
+    import scipy.linalg                  # here, not at module level: `import mcl` does not load scipy.linalg
     p = scipy.linalg.expm(transitions.generator(condition) * dt)
     p = np.clip(p, 0.0, None)
     return p / p.sum(axis=1, keepdims=True)

@@ -48,6 +48,26 @@ class MotionInput:
     odometry:  measured pose change (dx, dy, dtheta) [m, m, rad] in the robot frame at the previous pose.
     collision: a collision percept (used by collision-aware models).
     footstep:  a support-foot swap event (used by footstep models).
+
+    Parameters
+    ----------
+    dt : float
+        Time since the previous step [s], within [0, `MAX_STEP_DT`].
+    command : tuple of float or None, optional
+        The walk request (vx [m/s], vy [m/s], omega [rad/s]); None (the default) when not known.
+    odometry : tuple of float or None, optional
+        Measured pose change (dx [m], dy [m], dtheta [rad]) in the robot frame; None (the default) when not
+        measured.
+    collision : object, optional
+        A collision percept (`sensing.collision`) for collision-aware models; default None.
+    footstep : object, optional
+        A support-foot swap event (`motion_models.footsteps.FootstepEvent`) for footstep models; default None.
+
+    Raises
+    ------
+    ValueError
+        If `dt` is out of range, `command` or `odometry` is not three finite numbers, or the implied pose
+        change is too large (naming the field).
     """
 
     dt: float
@@ -96,10 +116,31 @@ class MotionModel(Protocol):
     """Moves particles by one motion input. Implementations are frozen dataclasses."""
 
     def check(self, u: MotionInput) -> None:
-        """Raise ValueError if `u` lacks what this model needs. Must not draw random numbers."""
+        """Raise ValueError if `u` lacks what this model needs. Must not draw random numbers.
+
+        Parameters
+        ----------
+        u : MotionInput
+            One control period's motion input.
+
+        Raises
+        ------
+        ValueError
+            If `u` lacks what the model needs (naming the field).
+        """
 
     def predict(self, poses: np.ndarray, u: MotionInput, rng: np.random.Generator) -> None:
-        """Update `poses` (N, 3) float64 C-contiguous in place."""
+        """Update `poses` (N, 3) float64 C-contiguous in place.
+
+        Parameters
+        ----------
+        poses : np.ndarray
+            (N, 3) float64 C-contiguous, writeable particle poses (x [m], y [m], θ [rad]), moved in place.
+        u : MotionInput
+            One control period's motion input.
+        rng : np.random.Generator
+            The only source of randomness.
+        """
 
 
 def check_poses(poses: np.ndarray) -> None:
@@ -133,12 +174,35 @@ class BoundedNoiseModel:
     gaussian: bool
 
     def check(self, u: MotionInput) -> None:
+        """Raise ValueError if `u` has neither a command nor odometry (it has no displacement).
+
+        Parameters
+        ----------
+        u : MotionInput
+            As `MotionModel.check`; ValueError when it has neither `command` nor `odometry`.
+        """
         u.displacement()
 
     def noise_bounds(self, u: MotionInput) -> tuple[float, float, float]:
+        """The uniform noise's half-widths (x [m], y [m], θ [rad]) for `u` (with `gaussian`, sqrt(3) times the
+        standard deviations); each subclass defines them (`mcl.contracts.BoundedNoise`).
+
+        Parameters
+        ----------
+        u : MotionInput
+            The period's motion input.
+        """
         raise NotImplementedError
 
     def predict(self, poses: np.ndarray, u: MotionInput, rng: np.random.Generator) -> None:
+        """Move `poses` in place by the input's displacement plus robot-frame noise within `noise_bounds(u)`.
+
+        Parameters
+        ----------
+        poses, u, rng
+            As `MotionModel.predict`; ValueError when `poses` breaks the particle array contract or `u` has no
+            displacement.
+        """
         check_poses(poses)
         dx, dy, dtheta = u.displacement()
         bx, by, bt = self.noise_bounds(u)

@@ -18,7 +18,22 @@ from .base import BoundedNoiseModel, MotionInput, check_nonnegative
 
 @dataclass(frozen=True)
 class ConstantNoise(BoundedNoiseModel):
-    """Noise bounds grow with time only. Rates in m/s (x, y) and rad/s (theta)."""
+    """Noise bounds grow with time only. Rates in m/s (x, y) and rad/s (theta).
+
+    Parameters
+    ----------
+    rate_x, rate_y : float, optional
+        Noise half-width per second along and across the robot's heading [m/s]; defaults 0.35 and 0.2.
+    rate_theta : float, optional
+        Heading noise half-width per second [rad/s]; default 0.3.
+    gaussian : bool, optional
+        Gaussian noise of the same variance instead of uniform; default False.
+
+    Raises
+    ------
+    ValueError
+        If a rate is not within [0, `MAX_NOISE_PARAMETER`].
+    """
 
     rate_x: float = 0.35
     rate_y: float = 0.2
@@ -29,4 +44,16 @@ class ConstantNoise(BoundedNoiseModel):
         check_nonnegative(self, ("rate_x", "rate_y", "rate_theta"))
 
     def noise_bounds(self, u: MotionInput) -> tuple[float, float, float]:
+        """The half-widths dt·rate per axis.
+
+        Parameters
+        ----------
+        u : MotionInput
+            One control period's motion input (only `dt` is used).
+
+        Returns
+        -------
+        tuple of float
+            (dt·rate_x [m], dt·rate_y [m], dt·rate_theta [rad]).
+        """
         return (u.dt * self.rate_x, u.dt * self.rate_y, u.dt * self.rate_theta)

@@ -108,6 +108,24 @@ class FootstepEvent:
     previous_sensor:    the same for the step before.
     duration:           the step's duration between the two swaps the pressure sensors detected [s].
     previous_duration:  the same for the step before.
+
+    Parameters
+    ----------
+    support : int
+        `LEFT` (+1) or `RIGHT` (-1).
+    commanded : tuple of float
+        (dx [m], dy [m], dθ [rad]) of the step from the gait command.
+    previous_commanded : tuple of float, optional
+        The same for the step before; default (0, 0, 0).
+    sensor, previous_sensor : tuple of float or None, optional
+        Sensor-based (dx [m], dy [m], dθ [rad]) of the step and of the one before; default None.
+    duration, previous_duration : float or None, optional
+        Durations [s] of the step and of the one before; default None.
+
+    Raises
+    ------
+    ValueError
+        If `support` is neither foot, a displacement is not three finite numbers, or a duration is invalid.
     """
 
     support: int
@@ -140,15 +158,31 @@ class FootstepEvent:
 
         apriori: Δ(x, y, θ)_t, Δ(x, y, θ)_{t-1} commanded, support foot.
         online:  Δ(x, y, θ)_t, Δ(x, y, θ)_{t-1} sensor-based, support foot, step durations t and t-1.
+
+        Parameters
+        ----------
+        kind : str
+            "apriori" or "online" (`INPUT_KINDS`).
+
+        Returns
+        -------
+        np.ndarray
+            (7,) or (9,) float64 input vector.
+
+        Raises
+        ------
+        ValueError
+            If `kind` is neither, or "online" and the event lacks a sensor displacement or a duration.
         """
         if kind == "apriori":
             return np.array([*self.commanded, *self.previous_commanded, float(self.support)])
         if kind == "online":
-            if not self.has_online_inputs():
+            sensor, previous_sensor = self.sensor, self.previous_sensor
+            if sensor is None or previous_sensor is None or self.duration is None or self.previous_duration is None:
                 missing = [n for n in ("sensor", "previous_sensor", "duration", "previous_duration")
                            if getattr(self, n) is None]
                 raise ValueError(f"footstep event lacks {', '.join(missing)}: the online inputs need them")
-            return np.array([*self.sensor, *self.previous_sensor, float(self.support),
+            return np.array([*sensor, *previous_sensor, float(self.support),
                              self.duration, self.previous_duration])
         raise ValueError(f"kind = {kind!r} must be one of {INPUT_KINDS}")
 

@@ -50,6 +50,7 @@ import os
 from dataclasses import dataclass
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from field.checks import show as _short_repr
 from numerics.trig import SQRT3
@@ -136,7 +137,7 @@ def _sigma_triple(name: str, value) -> tuple[float, float, float]:
         raise ValueError(f"{name} = {_short_repr(value)} must be three numbers") from None
     if len(triple) != 3 or not all(math.isfinite(v) and v >= 0 for v in triple):
         raise ValueError(f"{name} = {_short_repr(value)} must be three finite numbers >= 0")
-    return triple  # type: ignore[return-value]
+    return triple
 
 
 def _raw_rms(X: np.ndarray, Y: np.ndarray) -> tuple[float, float, float]:
@@ -149,6 +150,27 @@ class LearnedFootstepOdometry:
     """Three trained LWPR models (dx, dy, dθ) and how their predictions move particles.
 
     Build one with `train` or `load`; the LWPR objects must not be updated in place (use `updated`).
+
+    Parameters
+    ----------
+    models : tuple of LWPR
+        Three trained models (dx, dy, dθ), each mapping the input set to one output.
+    inputs : str, optional
+        The input set, "online" (9 inputs, the default) or "apriori" (7).
+    fallback_sigma : tuple of float, optional
+        Noise standard deviations (x [m], y [m], θ [rad]) of a step outside every receptive field (moved by
+        its raw displacement); default (0.01, 0.01, 0.05).
+    noise_scale : float, optional
+        Factor on the models' confidence bounds to get the noise standard deviations, >= 0; default 1.
+    min_sigma : tuple of float, optional
+        The smallest noise standard deviations (x [m], y [m], θ [rad]); default (0.001, 0.001, 0.003).
+    residual : bool, optional
+        Whether the models learned the correction of the raw displacement (added back); default False.
+
+    Raises
+    ------
+    ValueError
+        If the models are not three trained LWPR models for the input set, or a value is invalid.
     """
 
     models: tuple
@@ -179,11 +201,36 @@ class LearnedFootstepOdometry:
 
     # -- training ---------------------------------------------------------------------------------------
     @classmethod
-    def train(cls, inputs, targets, kind: str = "online", *, seed: int = 0,
+    def train(cls, inputs: ArrayLike, targets: ArrayLike, kind: str = "online", *, seed: int = 0,
               settings: LWPRSettings = LWPRSettings(), noise_scale: float = 1.0) -> "LearnedFootstepOdometry":
         """Train three new LWPR models on inputs (n, 7|9) and true displacements targets (n, 3).
 
         Everything is validated first; nothing is returned until all three models are trained.
+
+        Parameters
+        ----------
+        inputs : array_like
+            (n, 7) or (n, 9) float inputs (`motion_models.footsteps.input_matrix`) of the input set.
+        targets : array_like
+            (n, 3) true displacements (dx [m], dy [m], dθ [rad]) of the same steps.
+        kind : str, optional
+            The input set, "online" (the default) or "apriori".
+        seed : int, optional
+            Seeds the order of the training passes; default 0.
+        settings : LWPRSettings, optional
+            LWPR meta-parameters; default `LWPRSettings()`.
+        noise_scale : float, optional
+            Factor on the models' confidence bounds (see the class); default 1.
+
+        Returns
+        -------
+        LearnedFootstepOdometry
+            The trained holder; its `fallback_sigma` is the raw displacement's RMS error on the data.
+
+        Raises
+        ------
+        ValueError
+            If the arrays' shapes do not match the input set or a value is not finite.
         """
         X, Y = _training_arrays(inputs, targets, kind)
         residual = settings.residual_for(kind)
@@ -206,9 +253,30 @@ class LearnedFootstepOdometry:
         _fit(models, X, fit, seed, settings.epochs)
         return cls(tuple(models), kind, _raw_rms(X, Y), noise_scale, residual=residual)
 
-    def updated(self, inputs, targets, *, seed: int = 0, epochs: int = 1) -> "LearnedFootstepOdometry":
+    def updated(self, inputs: ArrayLike, targets: ArrayLike, *, seed: int = 0,
+                epochs: int = 1) -> "LearnedFootstepOdometry":
         """A new holder whose models are copies of these trained further on (inputs, targets); this one is
-        untouched (online learning without ever exposing a half-updated model)."""
+        untouched (online learning without ever exposing a half-updated model).
+
+        Parameters
+        ----------
+        inputs, targets
+            As `train`, for the holder's input set.
+        seed : int, optional
+            Seeds the order of the training passes; default 0.
+        epochs : int, optional
+            Passes over the data, >= 1; default 1.
+
+        Returns
+        -------
+        LearnedFootstepOdometry
+            The new holder, with this one's settings.
+
+        Raises
+        ------
+        ValueError
+            If the arrays do not fit the input set or `epochs` is not an integer >= 1.
+        """
         X, Y = _training_arrays(inputs, targets, self.inputs)
         if not (isinstance(epochs, int) and epochs >= 1):
             raise ValueError(f"epochs = {epochs!r} must be an integer >= 1")
@@ -218,8 +286,26 @@ class LearnedFootstepOdometry:
                                        self.min_sigma, self.residual)
 
     # -- prediction -------------------------------------------------------------------------------------
-    def predict_steps(self, inputs) -> tuple[np.ndarray, np.ndarray]:
-        """Predicted displacements (m, 3) and their noise standard deviations (m, 3) for input rows (m, n)."""
+    def predict_steps(self, inputs: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
+        """Predicted displacements (m, 3) and their noise standard deviations (m, 3) for input rows (m, n).
+
+        Parameters
+        ----------
+        inputs : array_like
+            (m, n) finite input rows, n = 7 ("apriori") or 9 ("online") as the holder's input set.
+
+        Returns
+        -------
+        mean : np.ndarray
+            (m, 3) displacements (dx [m], dy [m], dθ [rad]); the raw displacement outside every receptive field.
+        sigma : np.ndarray
+            (m, 3) noise standard deviations [m, m, rad]; `fallback_sigma` outside every receptive field.
+
+        Raises
+        ------
+        ValueError
+            If `inputs` has the wrong shape or a value that is not finite.
+        """
         X = np.asarray(inputs, dtype=np.float64)
         n_in = N_INPUTS[self.inputs]
         if X.ndim != 2 or X.shape[1] != n_in:
@@ -243,7 +329,25 @@ class LearnedFootstepOdometry:
         return mean, sigma
 
     def predict_event(self, event: FootstepEvent) -> tuple[np.ndarray, np.ndarray]:
-        """Predicted displacement (3,) and noise standard deviation (3,) of the step `event` ends."""
+        """Predicted displacement (3,) and noise standard deviation (3,) of the step `event` ends.
+
+        Parameters
+        ----------
+        event : FootstepEvent
+            The support swap that ended the step.
+
+        Returns
+        -------
+        mean : np.ndarray
+            (3,) displacement (dx [m], dy [m], dθ [rad]).
+        sigma : np.ndarray
+            (3,) noise standard deviations [m, m, rad].
+
+        Raises
+        ------
+        ValueError
+            If `event` is not a `FootstepEvent` or lacks the holder's input set's fields.
+        """
         if not isinstance(event, FootstepEvent):
             raise ValueError(f"footstep = {event!r} must be a motion_models.footsteps.FootstepEvent")
         mean, sigma = self.predict_steps(event.inputs(self.inputs)[None, :])
@@ -251,12 +355,25 @@ class LearnedFootstepOdometry:
 
     # -- the motion model interface ---------------------------------------------------------------------
     def check(self, u: MotionInput) -> None:
-        """Raise ValueError unless `u.footstep` is None or a FootstepEvent with this input set's fields."""
+        """Raise ValueError unless `u.footstep` is None or a FootstepEvent with this input set's fields.
+
+        Parameters
+        ----------
+        u : MotionInput
+            As `motion_models.base.MotionModel.check`.
+        """
         _check_footstep(u, self.inputs)
 
     def predict(self, poses: np.ndarray, u: MotionInput, rng: np.random.Generator) -> None:
         """At a support swap, move every pose by the predicted step plus N(0, σ²) robot-frame noise; between
-        swaps, leave the poses (and the generator) untouched."""
+        swaps, leave the poses (and the generator) untouched.
+
+        Parameters
+        ----------
+        poses, u, rng
+            As `motion_models.base.MotionModel.predict`; `u.footstep` (None between swaps) drives the motion.
+            ValueError when `poses` breaks the particle array contract or `u` fails `check`.
+        """
         check_poses(poses)
         self.check(u)
         if u.footstep is None:
@@ -267,7 +384,18 @@ class LearnedFootstepOdometry:
     # -- files ------------------------------------------------------------------------------------------
     def save(self, directory: str | os.PathLike) -> None:
         """Write the three models and their settings into `directory` (created if needed). Each file is
-        written to a temporary name and renamed; the metadata file, written last, names the models."""
+        written to a temporary name and renamed; the metadata file, written last, names the models.
+
+        Parameters
+        ----------
+        directory : str or os.PathLike
+            The directory to write into (created if needed); files of a previous save are replaced.
+
+        Raises
+        ------
+        OSError
+            If a file cannot be written.
+        """
         directory = os.fspath(directory)
         os.makedirs(directory, exist_ok=True)
         for name, m in zip(OUTPUTS, self.models):
@@ -291,7 +419,25 @@ class LearnedFootstepOdometry:
         """Read a directory written by `save`. Missing, truncated or foreign files, another format version,
         and a metadata key that is unknown, missing or of the wrong type or value raise ValueError naming the
         file and the key (the metadata is checked before any model file is read); a directory that is not a
-        str or os.PathLike raises TypeError."""
+        str or os.PathLike raises TypeError.
+
+        Parameters
+        ----------
+        directory : str or os.PathLike
+            A directory written by `save`.
+
+        Returns
+        -------
+        LearnedFootstepOdometry
+            The holder, equal in its predictions to the one saved.
+
+        Raises
+        ------
+        ValueError
+            If a file is missing, unreadable or invalid (naming the file and the key).
+        TypeError
+            If `directory` is not a str or os.PathLike.
+        """
         if not isinstance(directory, (str, os.PathLike)) or not isinstance(os.fspath(directory), str):
             raise TypeError(f"directory = {_short_repr(directory)} must be a str or os.PathLike, not "
                             f"{type(directory).__name__}")
@@ -404,7 +550,20 @@ def _move_gaussian(poses: np.ndarray, mean, sigma, rng: np.random.Generator) -> 
 @dataclass(frozen=True)
 class RawFootstepOdometry:
     """The footstep displacement without learning: the event's commanded ("apriori") or sensor ("online")
-    displacement plus constant Gaussian robot-frame noise `sigma` (m, m, rad) per step."""
+    displacement plus constant Gaussian robot-frame noise `sigma` (m, m, rad) per step.
+
+    Parameters
+    ----------
+    inputs : str, optional
+        "online" (the sensor displacement, the default) or "apriori" (the commanded one).
+    sigma : tuple of float, optional
+        Noise standard deviations (x [m], y [m], θ [rad]) per step; default (0.01, 0.01, 0.03).
+
+    Raises
+    ------
+    ValueError
+        If `inputs` is neither or `sigma` is not three finite numbers >= 0.
+    """
 
     inputs: str = "online"
     sigma: tuple[float, float, float] = (0.01, 0.01, 0.03)
@@ -414,16 +573,47 @@ class RawFootstepOdometry:
         object.__setattr__(self, "sigma", _sigma_triple("sigma", self.sigma))
 
     @classmethod
-    def calibrate(cls, inputs, targets, kind: str = "online") -> "RawFootstepOdometry":
-        """Noise = the raw displacement's RMS error against the truth on training data (bias included)."""
+    def calibrate(cls, inputs: ArrayLike, targets: ArrayLike, kind: str = "online") -> "RawFootstepOdometry":
+        """Noise = the raw displacement's RMS error against the truth on training data (bias included).
+
+        Parameters
+        ----------
+        inputs, targets, kind
+            As `LearnedFootstepOdometry.train`.
+
+        Returns
+        -------
+        RawFootstepOdometry
+            The model with `sigma` the per-axis RMS error.
+
+        Raises
+        ------
+        ValueError
+            If the arrays' shapes do not match the input set or a value is not finite.
+        """
         X, Y = _training_arrays(inputs, targets, kind)
         return cls(kind, _raw_rms(X, Y))
 
     def check(self, u: MotionInput) -> None:
-        """Raise ValueError unless `u.footstep` is None or a FootstepEvent with this input set's fields."""
+        """Raise ValueError unless `u.footstep` is None or a FootstepEvent with this input set's fields.
+
+        Parameters
+        ----------
+        u : MotionInput
+            As `motion_models.base.MotionModel.check`.
+        """
         _check_footstep(u, self.inputs)
 
     def predict(self, poses: np.ndarray, u: MotionInput, rng: np.random.Generator) -> None:
+        """At a support swap, move every pose by the event's raw displacement plus N(0, σ²) robot-frame noise;
+        between swaps, leave the poses (and the generator) untouched.
+
+        Parameters
+        ----------
+        poses, u, rng
+            As `motion_models.base.MotionModel.predict`; `u.footstep` (None between swaps) drives the motion.
+            ValueError when `poses` breaks the particle array contract or `u` fails `check`.
+        """
         check_poses(poses)
         self.check(u)
         if u.footstep is None:

@@ -30,7 +30,26 @@ from .base import BoundedNoiseModel, MotionInput, check_nonnegative
 
 @dataclass(frozen=True)
 class VelocityLinear(BoundedNoiseModel):
-    """Hoffmann eq. 10 with documented SI defaults (see the module docstring)."""
+    """Hoffmann eq. 10 with documented SI defaults (see the module docstring).
+
+    Parameters
+    ----------
+    beta1 : float, optional
+        Along-track noise per unit speed; default 1.7.
+    beta2 : float, optional
+        Lateral noise per unit speed; default 1.0.
+    beta3 : float, optional
+        Heading noise per unit translational speed [rad/m]; default 1.0.
+    beta4 : float, optional
+        Heading noise per unit angular speed; default 1.0.
+    gaussian : bool, optional
+        Gaussian noise of the same variance instead of uniform; default False.
+
+    Raises
+    ------
+    ValueError
+        If a β is not within [0, `MAX_NOISE_PARAMETER`].
+    """
 
     beta1: float = 1.7   # along-track noise per unit speed
     beta2: float = 1.0   # lateral noise per unit speed
@@ -42,7 +61,24 @@ class VelocityLinear(BoundedNoiseModel):
         check_nonnegative(self, ("beta1", "beta2", "beta3", "beta4"))
 
     def noise_bounds(self, u: MotionInput) -> tuple[float, float, float]:
-        """The half-widths Δt·β|v|... of eq. 10 for this input."""
+        """The half-widths Δt·β|v|... of eq. 10 for this input.
+
+        Parameters
+        ----------
+        u : MotionInput
+            One control period's motion input: its command (speed and turn rate) when given, else the
+            displacement of its odometry.
+
+        Returns
+        -------
+        tuple of float
+            The half-widths (x [m], y [m], θ [rad]).
+
+        Raises
+        ------
+        ValueError
+            If `u` has neither a command nor odometry.
+        """
         if u.command is not None:
             speed, omega = math.hypot(u.command[0], u.command[1]), abs(u.command[2])
             dt = u.dt

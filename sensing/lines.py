@@ -20,7 +20,6 @@ from dataclasses import field as dataclass_field
 
 import numba
 import numpy as np
-from scipy import ndimage
 
 from field import Field
 from field.checks import LARGEST_SIGMA, SMALLEST_SIGMA, ArgumentTypeError, integer, real
@@ -90,7 +89,27 @@ MAX_CELLS = 2 * 10**7
 
 @dataclass(frozen=True, eq=False)
 class LineSensorModel:
-    """Likelihood field of the field lines. sigma [m]: spread of a line point around its line."""
+    """Likelihood field of the field lines. sigma [m]: spread of a line point around its line.
+
+    Parameters
+    ----------
+    field : Field
+        The field whose lines are scored.
+    sigma : float, optional
+        Spread of a detected line point around its line [m]; default 0.1.
+    resolution : float, optional
+        Cell size of the likelihood field [m], within [`MIN_RESOLUTION`, 1]; default 0.02.
+    max_points : int, optional
+        The most line points scored per frame (spread evenly over the detections); default 12.
+    outlier_weight : float, optional
+        Likelihood floor of a point far from every line, in (0, 1]; default 0.05.
+
+    Raises
+    ------
+    ValueError
+        If a value is out of range or the field would have more than `MAX_CELLS` cells; TypeError
+        (`field.checks.ArgumentTypeError`) if `field` is not a `Field`.
+    """
 
     field: Field
     sigma: float = 0.1
@@ -124,6 +143,7 @@ class LineSensorModel:
         cols = np.clip(((points[:, 0] - x0) / self.resolution).astype(np.int64), 0, nx - 1)
         rows = np.clip(((points[:, 1] - y0) / self.resolution).astype(np.int64), 0, ny - 1)
         on_line[rows, cols] = False
+        from scipy import ndimage                  # here, not at module level: `import sensing` stays light
         distance = ndimage.distance_transform_edt(on_line) * self.resolution
         distance = np.ascontiguousarray(distance, dtype=np.float64)
         distance.flags.writeable = False
@@ -141,10 +161,27 @@ class LineSensorModel:
         return self._distance
 
     def check(self, observations: Observations) -> None:
-        """Line points need no field-specific check (they were validated as finite when built)."""
+        """Line points need no field-specific check (they were validated as finite when built).
+
+        Parameters
+        ----------
+        observations : Observations
+            One camera frame's detections (accepted as they are).
+        """
 
     def used_points(self, observations: Observations) -> np.ndarray:
-        """The at most `max_points` line points scored, spread evenly over the detections."""
+        """The at most `max_points` line points scored, spread evenly over the detections.
+
+        Parameters
+        ----------
+        observations : Observations
+            One camera frame's detections.
+
+        Returns
+        -------
+        np.ndarray
+            (P, 2) float64 line points in the robot frame [m], P <= `max_points`.
+        """
         points = observations.line_points
         if points.shape[0] <= self.max_points:
             return points
@@ -152,11 +189,27 @@ class LineSensorModel:
         return np.ascontiguousarray(points[index])
 
     def terms(self, observations: Observations) -> int:
-        """How many independent terms the likelihood sums (for the filter's per-term fit)."""
+        """How many independent terms the likelihood sums (for the filter's per-term fit): the number of line
+        points scored.
+
+        Parameters
+        ----------
+        observations : Observations
+            As `used_points`.
+        """
         return int(self.used_points(observations).shape[0])
 
     def log_likelihood(self, poses: np.ndarray, observations: Observations,
                        out: np.ndarray | None = None) -> np.ndarray:
+        """(N,) log-likelihoods of the frame's line points at `poses`: Σ log(exp(-½ d²/σ²) + outlier_weight),
+        d the distance of a point to the nearest line (looked up in the likelihood field, nearest cell).
+
+        Parameters
+        ----------
+        poses, observations, out
+            As `mcl.contracts.SensorModel.log_likelihood` (observations: anything `Observations.coerce`
+            accepts; landmarks are ignored). Zeros when the frame has no line points.
+        """
         observations = Observations.coerce(observations)
         out = np.empty(poses.shape[0]) if out is None else out
         points = self.used_points(observations)
@@ -167,6 +220,13 @@ class LineSensorModel:
         return line_log_likelihood(poses, points, self._factors, x0, y0, 1.0 / self.resolution, self._outlier, out)
 
     def log_likelihood_reference(self, poses: np.ndarray, observations: Observations) -> np.ndarray:
+        """`log_likelihood` in plain numpy, from the distance map (exp per point), for tests.
+
+        Parameters
+        ----------
+        poses, observations
+            As `log_likelihood`.
+        """
         points = self.used_points(Observations.coerce(observations))
         if points.shape[0] == 0:
             return np.zeros(poses.shape[0])

@@ -26,7 +26,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Iterable, Sequence
+from typing import Any, Iterable, Sequence
 
 import numba
 import numpy as np
@@ -74,6 +74,25 @@ class LandmarkObservation:
 
     range_sigma and bearing_sigma are this detection's noise (standard deviations); None lets the sensor
     model's noise model decide (noise growing with range, as with a camera).
+
+    Attributes
+    ----------
+    kind : LandmarkType
+        The landmark's type (given as a member, its value, its name or an alias).
+    range : float
+        Distance to the landmark [m], within [0, `MAX_RANGE`].
+    bearing : float
+        Direction to the landmark [rad], counter-clockwise from the robot's +x, within ±`MAX_BEARING`.
+    range_sigma : float or None, optional
+        Standard deviation of `range` [m]; None (the default) lets the sensor model decide.
+    bearing_sigma : float or None, optional
+        Standard deviation of `bearing` [rad]; None (the default) lets the sensor model decide.
+
+    Raises
+    ------
+    ValueError
+        If `kind` is not a landmark type or a value is out of range (naming it); TypeError
+        (`field.checks.ArgumentTypeError`) for a value of the wrong type.
     """
 
     kind: LandmarkType
@@ -186,6 +205,30 @@ class Observations:
     robot frame [m] (empty when the vision reports none). view: where the camera looked
     (`sensing.view.CameraView`), or None (not known); with it, `LandmarkSensorModel` also scores the landmarks a
     pose puts in view that the frame did not report (negative information). `with_view` attaches one.
+
+    Attributes
+    ----------
+    kinds : np.ndarray
+        (n,) int64 landmark type values (`LandmarkType.value`).
+    ranges : np.ndarray
+        (n,) float64 ranges [m].
+    bearings : np.ndarray
+        (n,) float64 bearings [rad], counter-clockwise from the robot's +x.
+    range_sigmas : np.ndarray
+        (n,) float64 range standard deviations [m]; NaN = not given.
+    bearing_sigmas : np.ndarray
+        (n,) float64 bearing standard deviations [rad]; NaN = not given.
+    line_points : np.ndarray
+        (P, 2) float64 points on detected field lines in the robot frame [m]; given as None (the default) or
+        anything array-like, stored as a read-only array, (0, 2) when there are none.
+    view : CameraView or None, optional
+        Where the camera looked; None (the default) when not known.
+
+    Raises
+    ------
+    ValueError
+        If arrays differ in length, a type is unknown or a value is out of range (naming the entry); TypeError
+        (`field.checks.ArgumentTypeError`) for a value of the wrong type.
     """
 
     kinds: np.ndarray
@@ -193,7 +236,8 @@ class Observations:
     bearings: np.ndarray
     range_sigmas: np.ndarray
     bearing_sigmas: np.ndarray
-    line_points: np.ndarray | None = None
+    # None (no line points) is replaced by a read-only (0, 2) array in __post_init__: the attribute is never None
+    line_points: np.ndarray = None                                            # type: ignore[assignment]
     view: CameraView | None = None
 
     def __post_init__(self) -> None:
@@ -255,20 +299,65 @@ class Observations:
             raise ValueError(f"{name}[{i}] = {value!r} {rule}")
 
     @classmethod
-    def from_arrays(cls, kinds: Sequence, ranges: Sequence[float], bearings: Sequence[float],
-                    range_sigmas: Sequence[float] | None = None,
-                    bearing_sigmas: Sequence[float] | None = None, line_points=None) -> "Observations":
+    def from_arrays(cls, kinds: Sequence | np.ndarray, ranges: Sequence[float] | np.ndarray,
+                    bearings: Sequence[float] | np.ndarray, range_sigmas: Sequence[float] | np.ndarray | None = None,
+                    bearing_sigmas: Sequence[float] | np.ndarray | None = None,
+                    line_points: Any = None) -> "Observations":
         """A batch from equal-length sequences; kinds as LandmarkType members, their values, their names or
-        aliases ("T", "post", ...; see the module docstring)."""
+        aliases ("T", "post", ...; see the module docstring).
+
+        Parameters
+        ----------
+        kinds : sequence or np.ndarray
+            (n,) landmark types: `LandmarkType` members, values, names or aliases.
+        ranges : sequence of float or np.ndarray
+            (n,) ranges [m].
+        bearings : sequence of float or np.ndarray
+            (n,) bearings [rad], counter-clockwise from the robot's +x.
+        range_sigmas, bearing_sigmas : sequence of float or np.ndarray or None, optional
+            (n,) standard deviations [m] and [rad]; None (the default) or NaN entries: not given.
+        line_points : array_like or None, optional
+            (P, 2) points on detected field lines in the robot frame [m]; None (the default): none.
+
+        Returns
+        -------
+        Observations
+            The validated batch (the arrays copied).
+
+        Raises
+        ------
+        ValueError
+            As the constructor (an unknown type, lengths that differ, a value out of range).
+        """
         kinds_arr = _kind_values(kinds)
         n = kinds_arr.shape[0]
         nan = np.full(n, np.nan)
-        return cls(kinds_arr, ranges, bearings,
-                   nan if range_sigmas is None else range_sigmas,
-                   nan if bearing_sigmas is None else bearing_sigmas, line_points)
+        # the constructor converts the sequences to arrays (and refuses the rest naming the argument)
+        arguments: tuple[Any, ...] = (kinds_arr, ranges, bearings, nan if range_sigmas is None else range_sigmas,
+                                      nan if bearing_sigmas is None else bearing_sigmas, line_points)
+        return cls(*arguments)
 
     @classmethod
-    def from_list(cls, observations: Iterable[LandmarkObservation], line_points=None) -> "Observations":
+    def from_list(cls, observations: Iterable[LandmarkObservation], line_points: Any = None) -> "Observations":
+        """A batch from `LandmarkObservation` objects.
+
+        Parameters
+        ----------
+        observations : iterable of LandmarkObservation
+            The frame's detections (each already validated).
+        line_points : array_like or None, optional
+            (P, 2) points on detected field lines in the robot frame [m]; None (the default): none.
+
+        Returns
+        -------
+        Observations
+            The batch.
+
+        Raises
+        ------
+        TypeError
+            (`field.checks.ArgumentTypeError`) if `observations` is not iterable or holds anything else.
+        """
         try:
             items = list(observations)
         except TypeError:
@@ -295,7 +384,23 @@ class Observations:
 
     @classmethod
     def coerce(cls, observations: "Observations | Iterable[LandmarkObservation] | None") -> "Observations":
-        """Accept a batch, a list of LandmarkObservation, or None (no observations)."""
+        """Accept a batch, a list of LandmarkObservation, or None (no observations).
+
+        Parameters
+        ----------
+        observations : Observations, iterable of LandmarkObservation, or None
+            A frame's detections in any accepted form.
+
+        Returns
+        -------
+        Observations
+            `observations` itself when it is a batch; else a batch built from it (`empty()` for None).
+
+        Raises
+        ------
+        TypeError
+            (`field.checks.ArgumentTypeError`) for anything else.
+        """
         if observations is None:
             return cls.empty()
         if isinstance(observations, Observations):
@@ -304,7 +409,18 @@ class Observations:
 
     def with_view(self, view: CameraView | None) -> "Observations":
         """The same detections (the read-only arrays shared, not copied) with the camera's `view` (None: without
-        one). TypeError (`field.checks.ArgumentTypeError`) unless `view` is a `CameraView` or None."""
+        one). TypeError (`field.checks.ArgumentTypeError`) unless `view` is a `CameraView` or None.
+
+        Parameters
+        ----------
+        view : CameraView or None
+            Where the camera looked, or None to drop the view.
+
+        Returns
+        -------
+        Observations
+            `self` when `view` is already its view, else a new batch sharing the arrays.
+        """
         _check_view(view)
         if view is self.view:
             return self
