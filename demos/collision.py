@@ -6,7 +6,7 @@
     robocup-mcl demo collision --detection                         # the collision detector alone
     robocup-mcl demo collision --particle-sweep 50,100,200,500     # claim (a): fewer particles
     robocup-mcl demo collision --cost                              # predict cost, adaptive / velocity-linear
-    robocup-mcl demo collision --report [--json]                   # all of the README's figures
+    robocup-mcl demo collision --report [--json] [--save PATH]     # all of the figures of docs/papers/hoffmann.md
 
 The robot walks forward at 200 mm/s for 10 s; the filter's particles all start at the true pose (section 4.1).
 Cases: "none" (4.1), "single" (4.2: a collision of about 2 s on the left, during which the robot is held back,
@@ -449,9 +449,10 @@ def build_parser(prog: str = PROG) -> argparse.ArgumentParser:
     parser.add_argument("--minutes", type=float, default=10.0, help="minutes per seed for --detection")
     parser.add_argument("--particle-sweep", help='adaptive particle counts to try, e.g. "50,100,200,500"')
     parser.add_argument("--cost", action="store_true", help="predict cost, adaptive / velocity-linear, N = 1000")
-    parser.add_argument("--report", action="store_true", help="every figure of the README (takes minutes)")
+    parser.add_argument("--report", action="store_true", help="every figure of docs/papers/hoffmann.md (takes minutes)")
     parser.add_argument("--rrd", help="write a Rerun recording here (one case, one model, one seed)")
     parser.add_argument("--json", action="store_true", help="print JSON instead of text")
+    parser.add_argument("--save", metavar="PATH", help="also write the JSON results to PATH")
     add_progress_option(parser)
     return parser
 
@@ -475,6 +476,7 @@ def main(argv: list[str] | None = None, prog: str = PROG) -> int:
         parser.error("--rrd records one run: give --case, --model (not both) and --seed")
     from mcl.cli_checks import check_output_file
     check_output_file(args.rrd, "--rrd")          # before the run, not after it
+    check_output_file(args.save, "--save")
     reference = free_walk_reference()
     progress = progress_wanted(args)
     warm = warm_up_collision(cases[0], models, reference, args.vision, args.injection, progress)
@@ -508,6 +510,10 @@ def main(argv: list[str] | None = None, prog: str = PROG) -> int:
             result[key] = run_cases(cases, models, seeds, reference, particles, args.vision, args.injection,
                                     progress=progress)
     result.update(warm.as_dict())           # the warm-up's time, apart from every step time
+    if args.save:
+        with open(args.save, "w", encoding="utf-8") as handle:
+            json.dump(_strip(result), handle, indent=2)
+            handle.write("\n")
     if args.json:
         json.dump(_strip(result), sys.stdout, indent=2)
         print()

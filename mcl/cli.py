@@ -45,6 +45,8 @@ from .numba_cache import ROOT, guard_source_checkout, is_source_checkout
 
 DEBUG_VARIABLE = "ROBOCUP_MCL_DEBUG"
 EXIT_ERROR, EXIT_USAGE, EXIT_INTERRUPTED = 1, 2, 130
+NO_RERUN = ("Rerun recordings (--rrd, the recording benchmark) need the rerun-sdk package, 0.41, which needs "
+            "Python >= 3.11: pip install 'rerun-sdk~=0.41.0'")
 
 DEMOS = {
     "walk": ("demos.walk", "the particle filter on the 60 s walk scenario with a kidnapping"),
@@ -91,7 +93,14 @@ def _dispatch(table: dict, name: str, argv: list[str], what: str, prog: str) -> 
         return EXIT_USAGE
     if (what, name) in OUTPUT_OPTIONS:
         _check_outputs(argv, OUTPUT_OPTIONS[(what, name)])
+    if any(a == "--rrd" or a.startswith("--rrd=") for a in argv) and not rerun_available():
+        raise CommandError(NO_RERUN)       # before a run of minutes, not after it
     return _call(table[name][0], argv, prog)
+
+
+def rerun_available() -> bool:
+    """Whether the rerun-sdk package can be imported (it needs Python >= 3.11)."""
+    return importlib.util.find_spec("rerun") is not None
 
 
 def _call(module: str, argv: list[str], prog: str) -> int:
@@ -233,7 +242,9 @@ def main(argv: list[str] | None = None) -> int:
     except Exception as error:  # noqa: BLE001 - the command's last line of defence, see the module docstring
         if debugging():
             raise
-        if isinstance(error, _user_errors()):
+        if isinstance(error, ModuleNotFoundError) and (error.name or "").split(".")[0] == "rerun":
+            _say(NO_RERUN)
+        elif isinstance(error, _user_errors()):
             _say(one_line(error))
         else:
             _say(f"internal error: {type(error).__name__}: {one_line(error)} "

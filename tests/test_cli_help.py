@@ -176,3 +176,26 @@ def test_kernel_cached_reads_numba_s_cache(tmp_path, monkeypatch):
         assert numba_cache.kernel_cached(len) is None              # not a numba kernel: cannot tell
     finally:
         sys.modules.pop("fresh_kernel_module", None)
+
+
+def test_a_command_without_rerun_says_so_in_one_line(monkeypatch, capsys, tmp_path):
+    """On a Python without rerun-sdk (3.10), a command asked for a recording fails at once with one line naming
+    the package; the same command without --rrd runs."""
+    import mcl.cli as cli
+    monkeypatch.setattr(cli, "rerun_available", lambda: False)
+    assert cli_main(["demo", "walk", "--duration", "1", "--rrd", str(tmp_path / "walk.rrd")]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "rerun-sdk" in err[0] and err[0].startswith("robocup-mcl")
+    assert not (tmp_path / "walk.rrd").exists()
+
+
+def test_an_import_of_rerun_that_fails_inside_a_command_is_one_line_too(monkeypatch, capsys):
+    import mcl.cli as cli
+
+    def fails(argv):
+        raise ModuleNotFoundError("No module named 'rerun'", name="rerun")
+
+    monkeypatch.setattr(cli, "_run", fails)
+    assert cli_main(["demo", "walk"]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == [f"robocup-mcl: {cli.NO_RERUN}"]
