@@ -167,35 +167,36 @@ class Field:
     dims : FieldDimensions
         The field's (already checked) dimensions.
 
+    Attributes
+    ----------
+    landmarks : Mapping[LandmarkType, numpy.ndarray]
+        Read-only mapping from every `LandmarkType` to a (K, 2) array of [x, y], rows sorted by x, then by y
+        (both ascending). Derived in `__post_init__`, like every attribute below, all arrays read-only
+        float64. Line crossings are classified as vision sees them, at the crossing of the line centre lines:
+
+        - L: the 4 field corners, the 4 front corners of the goal areas, the 4 front corners of the penalty
+          areas;
+        - T: goal-area and penalty-area side lines meeting the goal lines (8), the centre line meeting the
+          touchlines (2);
+        - X: the centre line crossing the centre circle (2);
+        - PENALTY_MARK: (±(length/2 − penalty_mark_distance), 0);
+        - CENTER_MARK: (0, 0);
+        - GOALPOST: post centres at x = ±(length/2 + (goalpost_diameter − line_width)/2),
+          y = ±(goal_inner_width/2 + goalpost_diameter/2). That is, the field-facing side of each post is
+          flush with the field-side edge of the goal line, and ``goal_inner_width`` is the clear width
+          between the posts.
+    segments : numpy.ndarray
+        (17, 2, 2) straight lines as [[x0, y0], [x1, y1]], start point the smaller in (x, y) order. Order:
+        the two touchlines (y = −w/2, then +w/2), the two goal lines (x = −l/2, then +l/2), the centre line;
+        then for the own half (−x) and then the opponent half (+x): the penalty-area front line, its right
+        and left side lines, the goal-area front line, its right and left side lines.
+    center_circle : tuple of float
+        (cx, cy, radius) of the centre circle's centre line.
+
     Raises
     ------
     ValueError
         If `name` is empty or too long, or `dims` is not a `FieldDimensions`.
-
-    Attributes (all derived in `__post_init__`, all arrays read-only float64):
-
-    - ``landmarks``: read-only mapping from every `LandmarkType` to a (K, 2) array of
-      [x, y], rows sorted by x, then by y (both ascending). Line crossings are
-      classified as vision sees them, at the crossing of the line centre lines:
-
-      - L: the 4 field corners, the 4 front corners of the goal areas, the 4 front
-        corners of the penalty areas;
-      - T: goal-area and penalty-area side lines meeting the goal lines (8), the centre
-        line meeting the touchlines (2);
-      - X: the centre line crossing the centre circle (2);
-      - PENALTY_MARK: (±(length/2 − penalty_mark_distance), 0);
-      - CENTER_MARK: (0, 0);
-      - GOALPOST: post centres at x = ±(length/2 + (goalpost_diameter − line_width)/2),
-        y = ±(goal_inner_width/2 + goalpost_diameter/2). That is, the field-facing side
-        of each post is flush with the field-side edge of the goal line, and
-        ``goal_inner_width`` is the clear width between the posts.
-
-    - ``segments``: (17, 2, 2) straight lines as [[x0, y0], [x1, y1]], start point the
-      smaller in (x, y) order. Order: the two touchlines (y = −w/2, then +w/2), the two
-      goal lines (x = −l/2, then +l/2), the centre line; then for the own half (−x) and
-      then the opponent half (+x): the penalty-area front line, its right and left side
-      lines, the goal-area front line, its right and left side lines.
-    - ``center_circle``: (cx, cy, radius) of the centre circle's centre line.
     """
 
     name: str

@@ -153,7 +153,7 @@ def progress_wanted(args=None, *, json_output: bool | None = None, no_progress: 
         return False
 
 
-def progress_bar(iterable=None, *, enabled: bool, total: int | None = None, desc: str | None = None,
+def progress_bar(iterable=None, *, enabled: bool, total: float | None = None, desc: str | None = None,
                  unit: str = "it", **options):
     """A tqdm bar on stderr over `iterable` (or updated by hand up to `total`) when `enabled`; otherwise, or
     without tqdm installed, a pass-through with the same `update`, `set_postfix_str` and `close`. The bar is

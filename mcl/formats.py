@@ -182,7 +182,7 @@ def ros_pose_to_pose(pose_message: object, name: str = "pose") -> np.ndarray:
             for axis in "xy")
     orientation = [_member(pose_message, f"orientation.{axis}", name) for axis in "xyzw"]
     try:
-        yaw = quaternion_to_yaw(*orientation)
+        yaw = quaternion_to_yaw(*(_finite_number(axis, value) for axis, value in zip("xyzw", orientation)))
     except ValueError as error:
         raise ValueError(f"{name}.orientation: {error}") from None
     return np.array([x, y, yaw])
@@ -216,7 +216,7 @@ def ros_to_pose(message: object) -> tuple[int, np.ndarray, np.ndarray]:
     for name, limit in (("sec", None), ("nanosec", _NANOSECONDS_PER_SECOND)):
         value = _member(message, f"header.stamp.{name}")
         if isinstance(value, bool) or not isinstance(value, numbers.Integral) or \
-                (limit is not None and not 0 <= value < limit):
+                (limit is not None and not 0 <= int(value) < limit):
             raise ValueError(f"message.header.stamp.{name} = {value!r} must be an integer"
                              + ("" if limit is None else f" in [0, {limit})"))
         stamp[name] = int(value)

@@ -288,9 +288,9 @@ class Recorder:
                 steps, times, values = (np.array(column) for column in zip(*rows))
                 self.stream.send_columns(path, indexes=self._indexes(steps, times),
                                          columns=rr.Scalars.columns(scalars=values))
-        for path, rows in self._arrows.items():
-            if rows:
-                table = np.array(rows)      # colours and radii: static (`_log_field`)
+        for path, arrow_rows in self._arrows.items():
+            if arrow_rows:
+                table = np.array(arrow_rows)      # colours and radii: static (`_log_field`)
                 self.stream.send_columns(path, indexes=self._indexes(table[:, 0].astype(np.int64), table[:, 1]),
                                          columns=rr.Arrows2D.columns(origins=table[:, 2:4], vectors=table[:, 4:6]))
         if self._particles:
@@ -299,10 +299,10 @@ class Recorder:
         if self._headings:
             self._send_rows("particles/headings", self._headings, lambda lengths, origins, vectors:
                             rr.Arrows2D.columns(origins=origins, vectors=vectors))
-        for path, rows in self._ellipses.items():
-            if rows:
-                steps, times, outlines = zip(*rows)
-                self.stream.send_columns(path, indexes=self._indexes(np.array(steps), np.array(times)),
+        for path, ellipse_rows in self._ellipses.items():
+            if ellipse_rows:
+                at_steps, at_times, outlines = zip(*ellipse_rows)
+                self.stream.send_columns(path, indexes=self._indexes(np.array(at_steps), np.array(at_times)),
                                          columns=rr.LineStrips2D.columns(strips=np.stack(outlines))
                                          .partition(np.ones(len(outlines), dtype=np.int64)))
         if self._rays:
@@ -366,7 +366,7 @@ class Recorder:
     def _scalar(self, path: str, value: float) -> None:
         self._scalars.setdefault(path, []).append((self._step, self._time, float(value)))
 
-    def _arrow(self, path: str, pose: np.ndarray) -> None:
+    def _arrow(self, path: str, pose: tuple[float, float, float]) -> None:
         self._arrows.setdefault(path, []).append((self._step, self._time, float(pose[0]), float(pose[1]),
                                                   0.35 * math.cos(pose[2]), 0.35 * math.sin(pose[2])))
 
@@ -400,8 +400,8 @@ class Recorder:
         log("observations", rr.Arrows2D.from_fields(radii=RAY_RADIUS), static=True)
         for path, color in ARROW_COLORS.items():
             log(path, rr.Arrows2D.from_fields(colors=[color], radii=ARROW_RADIUS), static=True)
-        for path, color in ELLIPSE_COLORS.items():
-            log(path, rr.LineStrips2D.from_fields(colors=[color], radii=ELLIPSE_RADIUS), static=True)
+        for path, ellipse_color in ELLIPSE_COLORS.items():
+            log(path, rr.LineStrips2D.from_fields(colors=[ellipse_color], radii=ELLIPSE_RADIUS), static=True)
 
     def set_time(self, step: int, t: float) -> None:
         """The step (an integer within [0, 2⁶²]) and time [s] what follows is logged at (and, with an origin,

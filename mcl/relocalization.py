@@ -189,12 +189,14 @@ class SoccerRelocalization:
 
     def bind(self, carpet: tuple[float, float, float, float]) -> None:
         """The carpet's bounds (x_min, x_max, y_min, y_max): where uniform candidates are drawn."""
-        self._carpet = tuple(float(v) for v in carpet)
+        x_min, x_max, y_min, y_max = (float(v) for v in carpet)
+        self._carpet = (x_min, x_max, y_min, y_max)
 
     # -- what the filter tells it -------------------------------------------------------------------------
     def reset_region(self, bounds) -> None:
         """The robot is somewhere in `bounds` (x_min, x_max, y_min, y_max), nothing else known."""
-        self.region = tuple(float(v) for v in bounds)
+        x_min, x_max, y_min, y_max = (float(v) for v in bounds)
+        self.region = (x_min, x_max, y_min, y_max)
         self.mirror_log_odds = math.inf
         self._anchor = None
         self.travelled = 0.0
@@ -252,8 +254,8 @@ class SoccerRelocalization:
         if confident and explains:
             pose = estimate.pose.tolist()
             anchor = self._anchor
-            jumped = anchor is None
-            if not jumped:
+            jumped = True
+            if anchor is not None:
                 sigma = math.hypot(self.prior.track_sigma, self.prior.drift * self.travelled)
                 jumped = math.hypot(pose[0] - anchor[0], pose[1] - anchor[1]) > 3 * sigma
             if jumped:

@@ -362,8 +362,10 @@ def edge_observations(field: Field | None = None, max_detections: int = 6) -> st
 
     def build(args) -> Observations:
         rows, line_points, camera = args
-        columns = [list(column) for column in zip(*rows)] if rows else [[], [], [], [], []]
-        batch = Observations.from_arrays(*columns, line_points=np.array(line_points, dtype=np.float64).reshape(-1, 2))
+        kinds, ranges, bearings, range_sigmas, bearing_sigmas = \
+            [list(column) for column in zip(*rows)] if rows else [[], [], [], [], []]
+        batch = Observations.from_arrays(kinds, ranges, bearings, range_sigmas, bearing_sigmas,
+                                         line_points=np.array(line_points, dtype=np.float64).reshape(-1, 2))
         return batch if camera is None else batch.with_view(camera)
 
     return st.tuples(st.lists(detection, max_size=max_detections), points,
@@ -598,9 +600,11 @@ def _frozen(value) -> Any:
     return value
 
 
-def _copy(array) -> np.ndarray | None:
-    if array is None:
-        return None
+def _copy(array: Any) -> np.ndarray | None:
+    return None if array is None else _copy_array(array)
+
+
+def _copy_array(array: Any) -> np.ndarray:
     out = np.array(array, copy=True)
     out.flags.writeable = False
     return out
@@ -695,14 +699,15 @@ class FilterSnapshot:
             difference = _scalar_difference(name, mine.get(name), theirs.get(name))
             if difference:
                 found.append(difference)
-        if (self.estimate is None) != (other.estimate is None):
-            found.append(f"estimate: {self.estimate!r} -> {other.estimate!r}")
-        elif self.estimate is not None:
-            for label, a, b in zip(("estimate.pose", "estimate.covariance"), self.estimate[:2], other.estimate[:2]):
+        before, after = self.estimate, other.estimate
+        if (before is None) != (after is None):
+            found.append(f"estimate: {before!r} -> {after!r}")
+        elif before is not None and after is not None:
+            for label, a, b in zip(("estimate.pose", "estimate.covariance"), before[:2], after[:2]):
                 difference = _array_difference(label, a, b)
                 if difference:
                     found.append(difference)
-            difference = _scalar_difference("estimate.weight", self.estimate[2], other.estimate[2])
+            difference = _scalar_difference("estimate.weight", before[2], after[2])
             if difference:
                 found.append(difference)
         return found
@@ -754,7 +759,7 @@ def snapshot(pf, estimate: bool = True) -> FilterSnapshot:
                    float(e.weight))
     motion_state = getattr(pf, "motion_state", None)
     return FilterSnapshot(
-        poses=_copy(pf.poses), log_weights=_copy(pf.log_weights), weights=_copy(pf.weights),
+        poses=_copy_array(pf.poses), log_weights=_copy_array(pf.log_weights), weights=_copy_array(pf.weights),
         rng_state=_frozen(pf.rng.bit_generator.state), motion_state=_copy(motion_state), scalars=tuple(scalars),
         roughening=_copy(roughening), anchor=_copy(anchor), estimate=summary)
 
@@ -1031,11 +1036,12 @@ def _assert_predict_refuses(model, start: np.ndarray, u: MotionInput, seed: int,
 def _run(test: Callable, max_examples: int, strategies: dict, shrink: bool | None) -> None:
     """Run `test` on `max_examples` examples drawn from `strategies`: the same examples on every run, nothing
     stored; the phases of the loaded hypothesis profile unless `shrink` says whether to shrink a failure."""
-    options = {} if shrink is None else {
-        "phases": tuple(Phase) if shrink else (Phase.explicit, Phase.reuse, Phase.generate)}
     configured = settings(max_examples=max_examples, deadline=None, derandomize=True, database=None,
                           suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large,
-                                                 HealthCheck.filter_too_much], **options)
+                                                 HealthCheck.filter_too_much])
+    if shrink is not None:
+        configured = settings(configured, phases=tuple(Phase) if shrink else (Phase.explicit, Phase.reuse,
+                                                                                Phase.generate))
     configured(given(**strategies)(test))()
 
 

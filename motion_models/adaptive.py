@@ -48,6 +48,7 @@ from __future__ import annotations
 import functools
 import math
 from dataclasses import dataclass, field, fields
+from typing import TYPE_CHECKING, ClassVar
 
 import numba
 import numpy as np
@@ -159,6 +160,9 @@ class AdaptiveMotion:
                                   # frequency": a burst each step, or a quarter second of continuous contact
     transitions: MobilityTransitions = field(default_factory=MobilityTransitions)
     redraw: str = "episode"       # "episode" or "step": when the rand() of eq. 14-26 are drawn
+    if TYPE_CHECKING:             # per-instance memos `_memoize` sets, not fields (ClassVar keeps them out of
+        _kernel_params: ClassVar[np.ndarray]                      # the dataclass's fields for mypy)
+        _cumulative_rows: ClassVar[dict[tuple[str, float], np.ndarray]]
 
     def __post_init__(self) -> None:
         check_nonnegative(self, ("beta2", "beta5", "beta6", "beta7", "beta_turn"))

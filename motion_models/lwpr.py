@@ -879,6 +879,7 @@ class LWPR:
         for name, value in (("n_in", n_in), ("n_out", n_out)):
             if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer)) or value < 1:
                 raise ValueError(f"LWPR {name} must be a positive integer, got {_short_repr(value)}")
+        assert n_out is not None                    # checked above
         n, n_out = int(n_in), int(n_out)
         _check_size(n, n_out)
         self._n_in = n
@@ -1221,9 +1222,9 @@ class LWPR:
         ``MAX_OUTPUTS`` or ``MAX_INITIAL_BYTES`` raise ValueError naming the file and the field; every field is
         checked before the model is allocated. A missing file raises FileNotFoundError, a path that is not a
         str or os.PathLike TypeError."""
-        path = _checked_path(path)
-        data = load_npz(path, "an LWPR model file")
-        where = f"LWPR model file {path!r}"
+        file = _checked_path(path)
+        data = load_npz(file, "an LWPR model file")
+        where = f"LWPR model file {file!r}"
         kinds = {"f": "real numbers", "i": "integers", "iu": "integers", "b": "a bool", "U": "a string"}
 
         def need(key: str, kind: str, shape: tuple | None = None) -> np.ndarray:
@@ -1334,7 +1335,7 @@ def load_npz(path: str | bytes, what: str) -> dict[str, np.ndarray]:
     Members whose names do not end in ``.npy`` are skipped."""
     try:
         archive_size = os.path.getsize(path)
-        with zipfile.ZipFile(path) as archive:
+        with zipfile.ZipFile(os.fsdecode(path)) as archive:         # zipfile takes no bytes path
             arrays = {}
             for info in archive.infolist():
                 if info.filename.endswith(".npy"):

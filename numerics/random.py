@@ -13,6 +13,7 @@ is stepped in the kernel, eight independent steps at a time, and `parallel_unifo
 their chunks of the same stream (jumping ahead). `bounded_integers` draws `rng.integers(0, high)` likewise.
 """
 import ctypes
+from typing import Any
 
 import numba
 import numpy as np
@@ -56,7 +57,15 @@ def bit_generator_handle(rng: np.random.Generator) -> tuple[int, int]:
     interface = bit_generator.ctypes
     if type(bit_generator) is np.random.PCG64 and _pcg64_layout_ok():
         return PCG64_INLINE, interface.state_address
-    return ctypes.cast(interface.next_double, ctypes.c_void_p).value, interface.state_address
+    return _address(interface.next_double), interface.state_address
+
+
+def _address(function: Any) -> int:
+    """The address of a ctypes function pointer (a bit generator's are never null)."""
+    address = ctypes.cast(function, ctypes.c_void_p).value
+    if address is None:
+        raise ValueError("the bit generator has a null function pointer")
+    return address
 
 
 @intrinsic
@@ -366,7 +375,7 @@ def integers_function(rng: np.random.Generator) -> int:
 
     next_uint32 is the generator's own function: with numpy's PCG64 it hands out the two halves of one 64-bit
     output in turn, and keeps the unused half in the bit generator's state, as `rng.integers` finds it."""
-    return ctypes.cast(rng.bit_generator.ctypes.next_uint32, ctypes.c_void_p).value
+    return _address(rng.bit_generator.ctypes.next_uint32)
 
 
 _LAST_HANDLES: list[tuple] = []      # (bit generator, function, state, integers) of the last `draw_handles`

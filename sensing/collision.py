@@ -180,9 +180,11 @@ class CollisionReference:
         if not (math.isfinite(half_stance) and half_stance > 0):
             raise ValueError(f"half_stance = {_short_repr(self.half_stance)} must be a finite number > 0 (metres)")
         # Frozen dataclass: the normalised values are set with object.__setattr__.
-        for name, value in (("delays", delays), ("joint_sides", sides), ("window", int(window)), ("speeds", speeds),
-                            ("table", table), ("half_stance", float(half_stance))):
-            object.__setattr__(self, name, value)
+        normalised: tuple[tuple[str, object], ...] = (
+            ("delays", delays), ("joint_sides", sides), ("window", int(window)), ("speeds", speeds), ("table", table),
+            ("half_stance", float(half_stance)))
+        for name, normal in normalised:
+            object.__setattr__(self, name, normal)
 
     @property
     def n_joints(self) -> int:
@@ -242,11 +244,12 @@ class CollisionReference:
         if version != FORMAT_VERSION:
             raise ValueError(f"{where} has format version {version}; this version of robocup-mcl reads version "
                              f"{FORMAT_VERSION}")
-        fields = {"delays": need("delays", "iu", 1), "joint_sides": need("joint_sides", "iu", 1),
-                  "window": int(need("window", "iu", 0)), "speeds": need("speeds", "fiu", 1),
-                  "table": need("table", "fiu", 3), "half_stance": float(need("half_stance", "fiu", 0))}
+        delays, joint_sides = need("delays", "iu", 1), need("joint_sides", "iu", 1)
+        window, speeds = int(need("window", "iu", 0)), need("speeds", "fiu", 1)
+        table, half_stance = need("table", "fiu", 3), float(need("half_stance", "fiu", 0))
         try:
-            return cls(**fields)
+            return cls(delays=delays, joint_sides=joint_sides, window=window, speeds=speeds, table=table,
+                       half_stance=half_stance)
         except ValueError as error:
             raise ValueError(f"{where}: {error}") from None
 
@@ -351,8 +354,8 @@ class CollisionDetector:
         longest = int(self.reference.delays.max())
         self._commands = np.zeros((longest + 1, self.reference.n_joints))   # ring buffer of past commands
         self._frames = 0
-        self._deviation = deque(maxlen=self.reference.window)               # per-frame (left, right) sums
-        self._recent = deque(maxlen=self.recent_frames)                     # per-frame collision flags
+        self._deviation: deque[tuple[float, float]] = deque(maxlen=self.reference.window)  # (left, right) sums
+        self._recent: deque[bool] = deque(maxlen=self.recent_frames)                     # per-frame collision flags
         self._last = [-math.inf, -math.inf]                                 # frame of each side's last collision
 
     def update(self, command, reading, phase: float, walk_command) -> CollisionPercept:

@@ -1007,7 +1007,7 @@ class LandmarkSensorModel:
             landmark_log_likelihood(poses, self._landmarks, detection_batch(observations), self.noise_group(),
                                     self.bearing_model == "exact", self.mixture == "sum",
                                     math.log(self.outlier_weight), out)
-        if self.scores_view(observations):
+        if observations.view is not None and self.scores_view(observations):
             view = observations.view.inset(self.view_inset)
             add_missed_in_view(poses, self._landmarks, detection_batch(observations), self.noise_group(),
                                gate_group(VIEW_GATE, VIEW_RANGE_SLACK, VIEW_BEARING_SLACK), view_group(view),
@@ -1024,7 +1024,7 @@ class LandmarkSensorModel:
         """Plain numpy twin of the negative-information term `log_likelihood` adds (zeros when
         `scores_view` is False)."""
         poses = np.asarray(poses, dtype=np.float64)
-        if not self.scores_view(observations):
+        if observations.view is None or not self.scores_view(observations):
             return np.zeros(poses.shape[0])
         view = observations.view.inset(self.view_inset)
         missed = np.array([np.subtract(*self.seen_reference(pose, observations, view, VIEW_GATE, VIEW_RANGE_SLACK,
@@ -1078,6 +1078,7 @@ class LandmarkSensorModel:
             return np.empty((0, 3))
         n = int(n)
         uniform_heading = heading is None
+        heading_mean = 0.0 if heading is None else heading
         detection = np.empty(n, dtype=np.int64)
         # The landmarks' n uniforms, then the headings' n when uniform (rng.uniform(-π, π, n) is -π + 2π·u on
         # these): one stream, so rng.random(n) twice is rng.random(2n).
@@ -1088,12 +1089,12 @@ class LandmarkSensorModel:
         if uniform_heading:
             angles = uniforms[n:]
             normals = rng.standard_normal(2 * n)       # = the ranges' n, then the bearings' n
-            heading, heading_sigma = 0.0, 0.0
+            heading_mean, heading_sigma = 0.0, 0.0
         else:
             angles = _NO_ANGLES
             normals = rng.standard_normal(3 * n)       # = the headings' n, the ranges' n, the bearings' n
         return sensor_reset_poses(self._landmarks, detection_batch(observations), self.noise_group(),
-                                  (detection, landmark, angles, normals), (float(heading), float(heading_sigma)),
+                                  (detection, landmark, angles, normals), (float(heading_mean), float(heading_sigma)),
                                   np.empty((n, 3)))
 
     def sample_poses_reference(self, observations: Observations, n: int, rng: np.random.Generator,

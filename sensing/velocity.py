@@ -850,7 +850,7 @@ class LegOdometry:
         foot = -1
         nan = np.full(3, np.nan)
         vk, vkg = nan, nan
-        if self._previous_time is not None:
+        if self._previous_time is not None and self._previous_angles is not None:   # set together
             usable = np.where((down & self._previous_down)[:, None], contacts, False)
             foot = support_foot(usable, self._previous_foot, self.min_pressed)
             if foot >= 0:

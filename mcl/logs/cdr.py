@@ -32,7 +32,7 @@ from mcap_ros2.decoder import DecoderFactory as Ros2DecoderFactory
 try:                                   # the parser and the message classes mcap_ros2 decodes into
     from mcap_ros2._dynamic import TimeDefinition, _for_each_msgdef, _message_class
 except ImportError:                    # pragma: no cover - a mcap_ros2 without them: its own decoders throughout
-    _for_each_msgdef = None
+    _for_each_msgdef = None  # type: ignore[assignment]  # no parser: compile_decoders checks for None
 
 __all__ = ["DecoderFactory", "compile_decoders"]
 
@@ -206,7 +206,7 @@ def compile_decoders(schema_name: str, schema_text: str) -> dict[str, Callable[[
     mcap_ros2's to read); empty when the definitions use what this compiler leaves to mcap_ros2 (or when
     mcap_ros2's parser is not there). Raises what mcap_ros2's parser raises for a definition that does not
     parse, and ValueError for one that contains itself or nests too deep (see the module docstring)."""
-    decoders = {}
+    decoders: dict[str, Callable[[bytes], Any]] = {}
     for name, read in _compile_readers(schema_name, schema_text).items():
 
         def decode(data, read=read):

@@ -92,12 +92,15 @@ import zipfile
 import zlib
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable, Iterator, Sequence
+from typing import TYPE_CHECKING, Callable, Iterator, Sequence
 
 import numpy as np
 
 from field import LandmarkType
 from sensing.observations import Observations
+
+if TYPE_CHECKING:
+    from _csv import Reader as _CsvReader
 
 from .robot_log import MAX_TIME, LogError, ReadReport, RobotLog, VisionFrame
 
@@ -205,12 +208,13 @@ def _vision_frames(stamps: np.ndarray, received: np.ndarray, landmark_frames: np
         bounds = np.cumsum(np.bincount(frame_of, minlength=count))[:-1]
         return [np.split(array[order], bounds) for array in arrays]
 
-    landmark_columns = per_frame(landmark_frames, [landmarks[name] for name, _, _, _ in _LANDMARK_FIELDS])
+    kinds, ranges, bearings, range_sigmas, bearing_sigmas = per_frame(
+        landmark_frames, [landmarks[name] for name, _, _, _ in _LANDMARK_FIELDS])
     (points_per_frame,) = per_frame(line_frames, [line_points])
     frames = []
     for i in range(count):
         try:
-            observations = Observations(*(column[i] for column in landmark_columns),
+            observations = Observations(kinds[i], ranges[i], bearings[i], range_sigmas[i], bearing_sigmas[i],
                                         line_points=points_per_frame[i])
         except ValueError as error:
             raise LogError(f"{where(i)}: {error}") from None
@@ -257,7 +261,7 @@ def write_npz(log: RobotLog, path: str | Path) -> None:
     arrays["vision_line_points"] = np.concatenate([frame.observations.line_points for frame in frames]
                                                   + [np.zeros((0, 2))])
     with open(path, "wb") as file:
-        np.savez(file, **arrays)
+        np.savez(file, **arrays)  # type: ignore[arg-type]  # numpy's stub: a key could be allow_pickle
 
 
 def read_npz(path: str | Path) -> tuple[RobotLog, ReadReport]:
@@ -347,14 +351,14 @@ class _NpzReader:
 
         An empty (0,) array stands for an empty table too: a writer need not give it its columns.
         """
-        array = self.arrays[key]
+        array = self.present(key)
         if array.dtype.kind not in ("iu" if integer else "iuf"):
             raise LogError(f"{self.path}: {key} has dtype {array.dtype}, expected "
                            f"{'integers' if integer else 'numbers'}")
         if integer and array.dtype.kind == "u" and array.size and int(array.max()) > INT64_RANGE[1]:
-            index = np.unravel_index(int(np.argmax(array)), array.shape)
+            index = tuple(int(i) for i in np.unravel_index(int(np.argmax(array)), array.shape))
             raise LogError(f"{self.where(key)(index)} = {int(array[index])} does not fit int64")
-        if array.size == 0 and array.ndim == 1 and len(shape) == 2:
+        if array.size == 0 and array.ndim == 1 and len(shape) == 2 and shape[1] is not None:
             array = array.reshape(0, shape[1])
         if array.ndim != len(shape) or any(want is not None and have != want
                                            for have, want in zip(array.shape, shape)):
@@ -363,6 +367,13 @@ class _NpzReader:
             raise LogError(f"{self.path}: {key} has shape {array.shape}, expected {expected}"
                            + (f" ({rows_are})" if rows_are else ""))
         return array.astype(np.int64 if integer else np.float64)
+
+    def present(self, key: str) -> np.ndarray:
+        """arrays[key], which the reader read (a key of a stream it reads)."""
+        array = self.arrays[key]
+        if array is None:
+            raise LogError(f"{self.path}: {key} is not one of the keys this reader reads")
+        return array
 
     def scalar(self, key: str) -> int:
         if key not in self.arrays:
@@ -384,7 +395,7 @@ class _NpzReader:
         fields: dict = {"origin_ns": self.scalar("origin_ns")}
         joint_names: tuple[str, ...] = ()
         if "joint_names" in self.arrays:
-            names = self.arrays["joint_names"]
+            names = self.present("joint_names")
             if names.dtype.kind not in "US" or names.ndim != 1:
                 raise LogError(f"{self.path}: joint_names has dtype {names.dtype} and shape {names.shape}, "
                                f"expected (n,) strings")
@@ -489,7 +500,8 @@ def write_csv(log: RobotLog, folder: str | Path) -> None:
         table = np.column_stack([getattr(log, key) for key in stream.keys])
         _write_rows(folder / stream.file, header, table.tolist())
     _write_rows(folder / "vision_frames.csv", _FRAME_COLUMNS, keys)
-    landmark_rows, line_rows = [], []
+    landmark_rows: list[list[object]] = []
+    line_rows: list[list[object]] = []
     for frame, (stamp, received) in zip(log.vision, keys):
         seen = frame.observations
         for kind, *numbers in zip(seen.kinds.tolist(), seen.ranges, seen.bearings, seen.range_sigmas,
@@ -529,7 +541,7 @@ class _Table:
 
 
 @contextmanager
-def _csv_rows(path: Path) -> Iterator[Iterator[list[str]]]:
+def _csv_rows(path: Path) -> Iterator[_CsvReader]:
     """A csv.reader over `path`; text that is not UTF-8 or not CSV is a LogError naming the file."""
     try:
         with open(path, newline="", encoding="utf-8") as file:

@@ -91,7 +91,7 @@ import math
 import os
 import struct
 from dataclasses import dataclass, field as dataclass_field, fields, replace
-from typing import Any, Callable, ClassVar, Iterable
+from typing import IO, Any, Callable, ClassVar, Iterable, cast
 
 import numpy as np
 from mcap.exceptions import EndOfFile, McapError, UnsupportedCompressionError
@@ -110,10 +110,8 @@ from .robot_log import LogError, ReadReport, RobotLog, VisionFrame
 
 try:
     import zstandard
-    from zstandard import ZstdError
 except ImportError:          # without zstandard, a zstd chunk is unsupported (an McapError)
-    zstandard = None
-    ZstdError = McapError
+    zstandard = None  # type: ignore[assignment]  # an optional package, None when it is not installed
 try:
     import lz4.frame as lz4_frame
 except ImportError:          # without lz4, an lz4 chunk is unsupported
@@ -122,7 +120,8 @@ except ImportError:          # without lz4, an lz4 chunk is unsupported
 # What a truncated or corrupt file raises while its records are read: mcap's own errors (EndOfFile,
 # a record longer than the file, bad magic), a record cut inside a field (struct), a bad checksum, a chunk
 # that does not decompress (zstd; lz4 reports a corrupt frame as RuntimeError), a name that is not UTF-8.
-BROKEN_FILE_ERRORS = (McapError, CRCValidationError, struct.error, ZstdError, RuntimeError, UnicodeDecodeError)
+BROKEN_FILE_ERRORS = (McapError, CRCValidationError, struct.error, RuntimeError, UnicodeDecodeError) \
+    + ((zstandard.ZstdError,) if zstandard is not None else ())
 # What decoding one message's CDR bytes raises when they do not fit the schema.
 _DECODE_ERRORS = (McapError, struct.error, ValueError, IndexError, UnicodeDecodeError, NotImplementedError)
 
@@ -350,7 +349,7 @@ def _scan(path: str, keep_topics: set[str], keep_types: frozenset[str] = frozens
     kept_channels: set[int] = set()
     size = os.path.getsize(path)
     with open(path, "rb") as file:
-        records = StreamReader(_ExactReads(file, size), emit_chunks=True, validate_crcs=True,
+        records = StreamReader(cast(IO[bytes], _ExactReads(file, size)), emit_chunks=True, validate_crcs=True,
                                record_size_limit=max(size, 1)).records
         try:
             first = next(records)
@@ -394,7 +393,7 @@ def _record_at(file, offset: int, size: int):
     if not 0 <= offset < size:
         raise McapError(f"an index points at byte {offset}, outside the file ({size} bytes)")
     file.seek(offset)
-    return next(StreamReader(_ExactReads(file, size), skip_magic=True, record_size_limit=size).records)
+    return next(StreamReader(cast(IO[bytes], _ExactReads(file, size)), skip_magic=True, record_size_limit=size).records)
 
 
 def _topics_from_summary(path: str) -> list[dict] | None:
@@ -406,7 +405,7 @@ def _topics_from_summary(path: str) -> list[dict] | None:
         return None                  # too short to hold a header and a footer: the scan says what it is
     with open(path, "rb") as file:
         try:
-            summary = SeekingReader(_ExactReads(file, size), record_size_limit=size).get_summary()
+            summary = SeekingReader(cast(IO[bytes], _ExactReads(file, size)), record_size_limit=size).get_summary()
             if summary is None or summary.statistics is None:
                 return None
             first: dict[int, int] = {}
@@ -423,8 +422,9 @@ def _topics_from_summary(path: str) -> list[dict] | None:
             for metadata_index in summary.metadata_indexes:
                 if metadata_index.name == ORIGIN_METADATA:
                     metadata = _record_at(file, metadata_index.offset, size)
-                    if isinstance(metadata, Metadata) and _origin_from(metadata) is not None:
-                        origin = _origin_from(metadata)
+                    found = _origin_from(metadata) if isinstance(metadata, Metadata) else None
+                    if found is not None:
+                        origin = found
         except BROKEN_FILE_ERRORS:
             return None
     counts = summary.statistics.channel_message_counts
@@ -638,8 +638,8 @@ def _accept(topic: str, stream: str, messages: list[tuple[Message, Any]], report
             header = getattr(decoded, "header", None)
             stamp = _stamp_ns(header) if header is not None else message.log_time
             value = value_of(decoded)
-        except _Drop as reason:
-            report.drop(topic, str(reason))
+        except _Drop as drop:
+            report.drop(topic, str(drop))
             continue
         except AttributeError as error:      # the file defines the message type without a field read here
             report.drop(topic, f"no field {error.name or error} in the message (its schema is not the ROS one)")
