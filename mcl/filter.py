@@ -61,7 +61,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Iterable
+from typing import Iterable, Sequence
 
 import numba
 import numpy as np
@@ -97,7 +97,30 @@ MAX_THREADS = 1024
 
 @dataclass(frozen=True)
 class AugmentedMCL:
-    """Augmented MCL parameters: averaging rates of w_slow and w_fast (0 < alpha_slow << alpha_fast <= 1)."""
+    """Augmented MCL parameters: averaging rates of w_slow and w_fast (0 < alpha_slow << alpha_fast <= 1).
+
+    Parameters
+    ----------
+    alpha_slow : float, default 0.002
+        Averaging rate of w_slow, the long-term average likelihood per detection.
+    alpha_fast : float, default 0.1
+        Averaging rate of w_fast, the short-term one (0 < alpha_slow < alpha_fast <= 1).
+    ratio_threshold : float, default 0.5
+        Inject 1 - (w_fast/w_slow)/ratio_threshold of the particles, in [0, 1]: only when the short-term fit
+        drops below this share of the long-term one (1.0 is plain augmented MCL).
+    fit_threshold : float, default 0.2
+        Also inject 1 - w_fast/fit_threshold when the fit is poor in absolute terms (sensor resetting),
+        >= 0; 0 switches it off.
+    max_fraction : float, default 0.25
+        Never replace more than this share of the particles at once, in [0, 1].
+    max_fraction_tracking : float, default 0.05
+        Nor more than this once the filter has been confident (the relocalization's `tracking`), in [0, 1].
+
+    Raises
+    ------
+    ValueError
+        If a value is out of its range (the comments below say why each default is what it is).
+    """
 
     alpha_slow: float = 0.002
     alpha_fast: float = 0.1
@@ -132,41 +155,63 @@ class AugmentedMCL:
 class ParticleFilter(ParticleSet, BeliefSummary):
     """Monte Carlo localization: particles `poses` (N, 3) [x, y, θ] with `log_weights` (N,).
 
-    field:              the field (bounds for resets, injection and the entropy grid)
-    motion_model:       any motion model (`motion_models`)
-    sensor_model:       any sensor model with `check(observations)` and `log_likelihood(poses, observations)`;
-                        optional: `terms(observations)` (independent terms scored, default: detections)
-                        and `sample_poses` (sensor resetting)
-    n_particles:        N > 0
-    seed:               seed of the filter's one random generator (same seed, same run)
-    resampling:         "systematic" (default), "stratified", "residual" or "multinomial"
-    resample_threshold: resample when ESS < threshold·N (0..1)
-    augmented:          AugmentedMCL parameters, or None to switch injection off
-    grid:               entropy and estimate grid parameters
-    roughening:         standard deviations (x [m], y [m], θ [rad]) of the uniform jitter added to
-                        resampled particles in their own frame (Gordon et al. 1993). Without it a standing
-                        robot, whose velocity-linear noise is zero (eq. 10), collapses onto copies of one
-                        particle after a few corrections. (0, 0, 0) switches it off.
-    threads:            1 (the default) computes every step on one thread. With 2 or more, the compiled
-                        step, correction, prediction, estimate and entropy spread chunks of particles over that
-                        many threads, and take their sums chunk by chunk: the same results for any number of
-                        threads (and from run to run), equal to the one-thread results to rounding (a few
-                        units in the last place; resampling can differ where a point falls within rounding
-                        of a running total). Worth it from about N = 10⁵.
-    fast:               False (the default) keeps every result bit for bit as the plain kernels compute it. True
-                        compiles the step with fast-math: exp by a vectorized polynomial, the polynomial sin and
-                        cos (`numerics.trig.sincos`, which the default uses too) contracted into fused
-                        multiply-adds, and the sums of the weights and of the estimate reassociated: the same
-                        random draws, particles, weights
-                        and estimate equal to about 10⁻¹⁴ after a step (and, like any rounding difference,
-                        a run that resamples drifts apart from the default one over many steps).
+    Parameters
+    ----------
+    field : Field
+        The field (bounds for resets, injection and the entropy grid).
+    motion_model : MotionModel
+        Any motion model (`motion_models`).
+    sensor_model : SensorModel
+        Any sensor model with `check(observations)` and `log_likelihood(poses, observations)`; optional:
+        `terms(observations)` (independent terms scored, default: detections) and `sample_poses` (sensor
+        resetting).
+    n_particles : int, default 500
+        N > 0 (at most `MAX_PARTICLES`).
+    seed : int or None, default 0
+        Seed of the filter's one random generator (same seed, same run); None seeds it from the operating
+        system (a `numpy.random.SeedSequence` is taken too).
+    resampling : str, default "systematic"
+        "systematic", "stratified", "residual" or "multinomial".
+    resample_threshold : float, default 0.5
+        Resample when ESS < threshold·N (0..1).
+    augmented : AugmentedMCL or None, default AugmentedMCL()
+        Augmented MCL parameters, or None to switch injection off.
+    grid : Grid, default Grid()
+        Entropy and estimate grid parameters.
+    roughening : tuple of float, default (0.02, 0.02, 0.02)
+        Standard deviations (x [m], y [m], θ [rad]) of the uniform jitter added to resampled particles in
+        their own frame (Gordon et al. 1993). Without it a standing robot, whose velocity-linear noise is zero
+        (eq. 10), collapses onto copies of one particle after a few corrections. (0, 0, 0) switches it off.
+    threads : int, default 1
+        1 computes every step on one thread. With 2 or more, the compiled step, correction, prediction,
+        estimate and entropy spread chunks of particles over that many threads, and take their sums chunk by
+        chunk: the same results for any number of threads (and from run to run), equal to the one-thread
+        results to rounding (a few units in the last place; resampling can differ where a point falls within
+        rounding of a running total). Worth it from about N = 10⁵. At most `MAX_THREADS`.
+    fast : bool, default False
+        False keeps every result bit for bit as the plain kernels compute it. True compiles the step with
+        fast-math: exp by a vectorized polynomial, the polynomial sin and cos (`numerics.trig.sincos`, which
+        the default uses too) contracted into fused multiply-adds, and the sums of the weights and of the
+        estimate reassociated: the same random draws, particles, weights and estimate equal to about 10⁻¹⁴
+        after a step (and, like any rounding difference, a run that resamples drifts apart from the default
+        one over many steps).
+    relocalization : Relocalization or None, default None
+        The soccer rules the filter resets and injects by (`mcl.contracts.Relocalization`); None makes a
+        `mcl.relocalization.SoccerRelocalization` with its default prior.
+
+    Raises
+    ------
+    ValueError
+        If a number is out of range, `resampling` is unknown, or a model lacks a method of its contract.
+    ArgumentTypeError
+        If an argument has the wrong type (`field` not a `Field`, `fast` not a bool, ...); a ValueError too.
     """
 
-    def __init__(self, field: Field, motion_model: MotionModel, sensor_model, n_particles: int = 500,
+    def __init__(self, field: Field, motion_model: MotionModel, sensor_model: SensorModel, n_particles: int = 500,
                  seed: int | None = 0, resampling: str = "systematic", resample_threshold: float = 0.5,
                  augmented: AugmentedMCL | None = AugmentedMCL(), grid: Grid = Grid(),
                  roughening: tuple[float, float, float] = (0.02, 0.02, 0.02), threads: int = 1,
-                 fast: bool = False, relocalization=None) -> None:
+                 fast: bool = False, relocalization: Relocalization | None = None) -> None:
         if not isinstance(field, Field):
             raise ArgumentTypeError(f"field = {field!r} must be a field.Field, not {type(field).__name__}")
         integer("n_particles", n_particles, 1, MAX_PARTICLES)
@@ -214,8 +259,8 @@ class ParticleFilter(ParticleSet, BeliefSummary):
         self._particle_group = (self._poses, self._log_weights, self._weights, self._log_likelihood, self._previous,
                                 self._trig, self._counts, self._local_histograms)
         self._rng_handle: tuple | None = None           # (bit generator, its kernel handle)
-        self._compiled_sensor_of = None                 # the sensor model `_compiled_sensor` was asked of
-        self._bounded_of = None                         # the motion model `_bounded` was asked of
+        self._compiled_sensor_of: SensorModel | None = None   # the sensor model `_compiled_sensor` was asked of
+        self._bounded_of: MotionModel | None = None                         # the motion model `_bounded` was asked of
         self._bounded = False                           # whether it moves as BoundedNoiseModel does
         self._compiled_sensor: FusedLikelihoodKernels | None = None
         self._fused_step: StepKernels | None = None     # `mcl.step.fused_step` of the sensor model's kernels
@@ -305,11 +350,25 @@ class ParticleFilter(ParticleSet, BeliefSummary):
 
     # -- resets ------------------------------------------------------------------------------------------
 
-    def reset_uniform(self, region="field", heading: float | None = None, heading_sigma: float = 0.0) -> None:
+    def reset_uniform(self, region: str | Sequence[float] = "field", heading: float | None = None,
+                      heading_sigma: float = 0.0) -> None:
         """Spread the particles uniformly over a region ("field", "own_half", "opponent_half", or bounds).
 
-        heading: None for uniform headings, else headings around it with `heading_sigma` (rad). Injection
-        stays in this region until the filter is first confident (see the module docstring).
+        Injection stays in this region until the filter is first confident (see the module docstring).
+
+        Parameters
+        ----------
+        region : str or sequence of float, default "field"
+            A name of `mcl.relocalization.REGIONS` or bounds (x_min, x_max, y_min, y_max) [m].
+        heading : float or None, default None
+            None for uniform headings, else the headings' mean [rad].
+        heading_sigma : float, default 0.0
+            Standard deviation of the headings around `heading` [rad] (unused when `heading` is None).
+
+        Raises
+        ------
+        ValueError
+            If the region is unknown or its bounds are out of order, or a number is out of range.
         """
         bounds = region_bounds(self._field, region)
         if heading is not None:
@@ -327,10 +386,23 @@ class ParticleFilter(ParticleSet, BeliefSummary):
         self.relocalization.reset_region(bounds)
         self.w_slow = self.w_fast = 0.0
 
-    def reset_around(self, pose, sigma=(0.1, 0.1, 0.1)) -> None:
+    def reset_around(self, pose: Sequence[float] | np.ndarray,
+                     sigma: Sequence[float] | np.ndarray = (0.1, 0.1, 0.1)) -> None:
         """Normal particles around a known pose (x, y, θ) with standard deviations `sigma`.
 
         The pose is taken as known: its heading guides injection from now on (as after a confident sweep).
+
+        Parameters
+        ----------
+        pose : sequence of float or numpy.ndarray
+            (x [m], y [m], θ [rad]).
+        sigma : sequence of float or numpy.ndarray, default (0.1, 0.1, 0.1)
+            Standard deviations (x [m], y [m], θ [rad]), each finite and >= 0.
+
+        Raises
+        ------
+        ValueError
+            If the pose or a standard deviation is not finite or out of range.
         """
         pose = check_pose("pose", pose)
         sigma = self._check_sigma(sigma)
@@ -343,13 +415,30 @@ class ParticleFilter(ParticleSet, BeliefSummary):
         self._mirror_particles()
         self.relocalization.mirror()
 
-    def reset_candidates(self, poses, sigma=(0.1, 0.1, 0.1), region="field") -> None:
+    def reset_candidates(self, poses: Sequence[Sequence[float]] | np.ndarray,
+                         sigma: Sequence[float] | np.ndarray = (0.1, 0.1, 0.1),
+                         region: str | Sequence[float] = "field") -> None:
         """Spread the particles evenly over several candidate poses (K, 3), normal around each with `sigma`.
 
         For a placement whose pose the rules fix up to a choice the robot cannot know (which touchline, which
         kick-off position). Injection stays inside `region` with uniform headings until the filter is
         confident again (as after `reset_uniform`): the candidates' headings differ, so no single heading
         reference guides it yet.
+
+        Parameters
+        ----------
+        poses : array_like
+            (K, 3) candidate poses (x [m], y [m], θ [rad]), K >= 1; particle i goes to candidate i mod K.
+        sigma : sequence of float or numpy.ndarray, default (0.1, 0.1, 0.1)
+            Standard deviations (x [m], y [m], θ [rad]) around each candidate.
+        region : str or sequence of float, default "field"
+            Where injection stays until the filter is confident: a name of `mcl.relocalization.REGIONS` or
+            bounds (x_min, x_max, y_min, y_max) [m].
+
+        Raises
+        ------
+        ValueError
+            If there is no candidate, a pose or standard deviation is out of range, or the region is unknown.
         """
         candidates = check_poses("poses", poses)
         if candidates.shape[0] == 0:
@@ -370,7 +459,18 @@ class ParticleFilter(ParticleSet, BeliefSummary):
     # other models take that sequence.
 
     def predict(self, u: MotionInput) -> None:
-        """Move every particle by the motion model."""
+        """Move every particle by the motion model.
+
+        Parameters
+        ----------
+        u : MotionInput
+            The motion since the last prediction (command or odometry over `u.dt` seconds).
+
+        Raises
+        ------
+        ValueError
+            If the motion model refuses `u` (the filter is left unchanged).
+        """
         self._move(u)
 
     def _check_motion(self, u: MotionInput) -> None:
@@ -451,16 +551,29 @@ class ParticleFilter(ParticleSet, BeliefSummary):
             move_range(self._poses, self._poses, 0, self._n, motion[:3], motion[3:], gaussian, variates,
                        self._generator(), NO_WORK)
 
-    def correct(self, observations: Observations | Iterable | None, since=None) -> None:
+    def correct(self, observations: Observations | Iterable | None,
+                since: Sequence[float] | np.ndarray | None = None) -> None:
         """Weigh the particles by the detections, then resample (and inject) if needed.
-
-        since: for detections captured earlier (camera latency), the robot's motion (dx, dy, dθ) from their
-               capture to now, in the robot frame at capture (`mcl.latency.MotionHistory.since`). Each particle
-               is scored where it was at capture: moved back along `since`. None or (0, 0, 0): scored as it is.
 
         A frame that comes with its camera view (`Observations.view`) is also scored by the landmarks each
         particle puts in view that the frame did not report, when the sensor model does so (`scores_view`,
         negative information); such a frame is scored through the model's `log_likelihood`.
+
+        Parameters
+        ----------
+        observations : Observations, iterable of LandmarkObservation, or None
+            One camera frame's detections (coerced by `Observations.coerce`); None or empty changes nothing.
+        since : sequence of float, numpy.ndarray or None, default None
+            For detections captured earlier (camera latency), the robot's motion (dx [m], dy [m], dθ [rad])
+            from their capture to now, in the robot frame at capture (`mcl.latency.MotionHistory.since`). Each
+            particle is scored where it was at capture: moved back along `since`. None or (0, 0, 0): scored as
+            it is.
+
+        Raises
+        ------
+        ValueError
+            If the sensor model refuses the detections, `since` is out of range, or the sensor model returns
+            NaN or +inf log-likelihoods; the filter is left unchanged.
         """
         observations = Observations.coerce(observations)
         if len(observations) == 0 or self._sensor_kernel() is None or self._scores_view(observations):
@@ -526,10 +639,29 @@ class ParticleFilter(ParticleSet, BeliefSummary):
             self.injected = 0
         self._track_confidence()
 
-    def step(self, u: MotionInput, observations=None) -> Estimate:
+    def step(self, u: MotionInput, observations: Observations | Iterable | None = None) -> Estimate:
         """predict(u), then correct(observations) when there are any; returns the estimate.
 
         Both inputs are validated before anything changes.
+
+        Parameters
+        ----------
+        u : MotionInput
+            The motion since the last step.
+        observations : Observations, iterable of LandmarkObservation, or None, default None
+            The detections of a camera frame taken now; None or empty: predict only.
+
+        Returns
+        -------
+        Estimate
+            `estimate()` after the step.
+
+        Raises
+        ------
+        ValueError
+            If the motion model refuses `u` or the sensor model the detections (nothing changed), or the
+            sensor model returns NaN or +inf log-likelihoods (the particles have then moved, their weights
+            are unchanged: the message says so).
         """
         observations = Observations.coerce(observations)
         if len(observations) == 0 or self._sensor_kernel() is None or self._scores_view(observations):

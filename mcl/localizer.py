@@ -53,6 +53,7 @@ import enum
 import math
 from collections import Counter, deque
 from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any, Iterable, Sequence
 
 import numpy as np
 
@@ -66,6 +67,11 @@ from sensing.view import CameraView
 from .filter import ParticleFilter
 from .summary import Entropy, Estimate
 from .latency import MotionHistory, move_back
+
+if TYPE_CHECKING:
+    from motion_models.base import MotionModel
+
+    from .contracts import SensorModel
 
 
 class Quality(enum.Enum):
@@ -86,6 +92,52 @@ class QualityThresholds:
     detections captured in the last `fit_window` seconds. A belief can be tight and wrong (after a kidnap,
     until re-localization). Explaining what the camera sees is harder to fake, but the mirror pose explains it
     as well, and with few landmarks in view a wrong pose can too (see docs/relocalization.md, "Limits").
+
+    Every limit is a finite number >= 0; the comments beside the fields say more.
+
+    Attributes
+    ----------
+    superb_position, okay_position : float, default 0.15, 0.4
+        At most this sqrt(var x + var y) of the dominant cluster [m].
+    superb_heading, okay_heading : float, default 0.1, 0.3
+        At most this heading standard deviation [rad].
+    superb_weight, okay_weight : float, default 0.9, 0.6
+        At least this share of the weight in the dominant cluster.
+    superb_entropy, okay_entropy : float, default 7.0, 9.0
+        At most this position entropy [bits] (10 cm cells: 128 cells ~ 1.3 m²).
+    superb_fit, okay_fit : float, default 0.7, 0.4
+        At least this share of the recent detections explained by the estimate, in [0, 1].
+    superb_detections : int, default 3
+        SUPERB needs at least this many explained detections.
+    superb_age, okay_age : float, default 1.5, 10.0
+        The last explained detection captured at most this long ago [s].
+    superb_mirror_odds, okay_mirror_odds : float, default 10.0, 1.0
+        The last re-localization preferred its pose to the mirror pose by at least these odds
+        (`SoccerRelocalization.mirror_log_odds`); below 1 the mirror pose is the more probable one.
+    fit_window : float, default 1.5
+        Seconds of detections the fit is taken over (> 0).
+    gate : float, default 3.0
+        Standard deviations within which a detection is explained (> 0).
+    range_slack : float, default 0.1
+        Added to the sensor model's range σ [m].
+    bearing_slack : float, default 0.03
+        Added to its bearing σ [rad].
+    lost_after : float, default 1.0
+        Seconds of POOR in a row before `Localizer.is_lost`.
+    okay_walked : float, default 2.0
+        At most this distance dead-reckoned since the last explained detection [m].
+    superb_seen, okay_seen : float, default 0.4, 0.3
+        With views: at least this share of the landmarks the estimate expects in view detected
+        (`Localizer.seen_share`), in [0, 1] ...
+    view_expected : int, default 4
+        ... once the recent frames expected this many.
+    view_inset : float, default 0.8
+        A landmark is expected inside this share of the view (`CameraView.inset`), in (0, 1].
+
+    Raises
+    ------
+    ValueError
+        If a limit is negative, not finite or out of its range.
     """
 
     superb_position: float = 0.15      # m, sqrt(var x + var y) of the dominant cluster
@@ -134,19 +186,54 @@ def _log(odds: float) -> float:
     return math.log(odds) if odds > 0 else -math.inf
 
 
-def explained_detections(sensor_model, pose, observations: Observations, gate: float = 3.0,
-                         range_slack: float = 0.0, bearing_slack: float = 0.0) -> np.ndarray | None:
+def explained_detections(sensor_model: SensorModel, pose: Sequence[float] | np.ndarray,
+                         observations: Observations, gate: float = 3.0, range_slack: float = 0.0,
+                         bearing_slack: float = 0.0) -> np.ndarray | None:
     """Which detections (bool per detection) the pose (x, y, θ) explains, as the sensor model says
     (`explained(pose, observations, gate, range_slack, bearing_slack)`, a capability `LandmarkSensorModel`
-    offers); None when the model cannot say."""
+    offers); None when the model cannot say.
+
+    Parameters
+    ----------
+    sensor_model : SensorModel
+        The sensor model; asked through its optional `explained` method.
+    pose : sequence of float or numpy.ndarray
+        (x [m], y [m], θ [rad]).
+    observations : Observations
+        One frame's detections.
+    gate : float, default 3.0
+        Standard deviations within which a detection counts as explained.
+    range_slack : float, default 0.0
+        Added to the range σ [m].
+    bearing_slack : float, default 0.0
+        Added to the bearing σ [rad].
+
+    Returns
+    -------
+    numpy.ndarray or None
+        (n,) bool, one per detection; None when the model has no `explained`.
+    """
     explained = getattr(sensor_model, "explained", None)
     if not callable(explained):
         return None
     return explained(pose, observations, gate, range_slack, bearing_slack)
 
 
-def touchline_poses(field: Field, x_values) -> np.ndarray:
-    """Poses on both touchlines at each x, facing into the field: (x, +w/2, -π/2) and (x, -w/2, +π/2)."""
+def touchline_poses(field: Field, x_values: float | Sequence[float] | np.ndarray) -> np.ndarray:
+    """Poses on both touchlines at each x, facing into the field: (x, +w/2, -π/2) and (x, -w/2, +π/2).
+
+    Parameters
+    ----------
+    field : Field
+        The field (its half width).
+    x_values : float, sequence of float or numpy.ndarray
+        The x positions [m].
+
+    Returns
+    -------
+    numpy.ndarray
+        (2K, 3): the K poses on the +y touchline, then the K on the -y touchline.
+    """
     xs = np.atleast_1d(np.asarray(x_values, dtype=np.float64))
     hw = field.half_width
     left = np.column_stack([xs, np.full_like(xs, hw), np.full_like(xs, -math.pi / 2)])
@@ -160,6 +247,19 @@ def default_kickoff_positions(field: Field, kicking: bool) -> np.ndarray:
     Goalkeeper on the middle of the own goal line, two defenders at the own penalty area's front corners, one
     player at the own penalty mark's height in the middle, and one striker: just inside the centre circle
     when kicking off, outside it otherwise.
+
+    Parameters
+    ----------
+    field : Field
+        The field.
+    kicking : bool
+        Whether the team kicks off (the striker stands 0.2 m behind the centre mark, else 0.2 m outside the
+        centre circle).
+
+    Returns
+    -------
+    numpy.ndarray
+        (5, 3) poses (x [m], y [m], θ = 0 [rad]).
     """
     d = field.dims
     hl = field.half_length
@@ -174,22 +274,46 @@ def default_kickoff_positions(field: Field, kicking: bool) -> np.ndarray:
 class Localizer:
     """A particle filter wrapped for a robot's loop: latency-aware corrections, game events, quality.
 
-    field, motion_model, sensor_model, n_particles, seed, and any further keyword: as `ParticleFilter`
-    (motion model default: velocity-linear; sensor model default: `LandmarkSensorModel(field)`).
-    history:            seconds of motion kept for late detections
-    compensate_latency: score detections at their capture time (True) or as if they were current
-    quality:            `QualityThresholds`
-    getup_sigma:        (x [m], y [m], θ [rad]) noise added by `got_up`
-    placement_sigma:    (x, y, θ) spread around a placement pose (robots are placed by hand)
-
     `counts` says what was not used and why ("observation while fallen", "motion while fallen",
     "observation older than history").
+
+    Parameters
+    ----------
+    field : Field
+        The field, as `ParticleFilter`.
+    motion_model : MotionModel or None, default None
+        As `ParticleFilter`; None: `motion_models.VelocityLinear()`.
+    sensor_model : SensorModel or None, default None
+        As `ParticleFilter`; None: `LandmarkSensorModel(field)`.
+    n_particles : int, default 500
+        As `ParticleFilter`.
+    seed : int or None, default 0
+        As `ParticleFilter`.
+    history : float, default 1.0
+        Seconds of motion kept for late detections.
+    compensate_latency : bool, default True
+        Score detections at their capture time (True) or as if they were current.
+    quality : QualityThresholds, default QualityThresholds()
+        The limits of each quality level.
+    getup_sigma : sequence of float, default (0.15, 0.15, 0.5)
+        (x [m], y [m], θ [rad]) noise added by `got_up`.
+    placement_sigma : sequence of float, default (0.15, 0.08, 0.15)
+        (x [m], y [m], θ [rad]) spread around a placement pose (robots are placed by hand).
+    **filter_options
+        Any further keyword of `ParticleFilter` (resampling, augmented, threads, ...).
+
+    Raises
+    ------
+    ValueError
+        As `ParticleFilter`, or if a standard deviation is negative or not finite.
     """
 
-    def __init__(self, field: Field, motion_model=None, sensor_model=None, n_particles: int = 500, seed=0,
+    def __init__(self, field: Field, motion_model: MotionModel | None = None,
+                 sensor_model: SensorModel | None = None, n_particles: int = 500, seed: int | None = 0,
                  history: float = 1.0, compensate_latency: bool = True,
-                 quality: QualityThresholds = QualityThresholds(), getup_sigma=(0.15, 0.15, 0.5),
-                 placement_sigma=(0.15, 0.08, 0.15), **filter_options) -> None:
+                 quality: QualityThresholds = QualityThresholds(),
+                 getup_sigma: Sequence[float] | np.ndarray = (0.15, 0.15, 0.5),
+                 placement_sigma: Sequence[float] | np.ndarray = (0.15, 0.08, 0.15), **filter_options: Any) -> None:
         if motion_model is None:
             from motion_models import VelocityLinear
             motion_model = VelocityLinear()
@@ -214,7 +338,22 @@ class Localizer:
 
     # -- the loop ----------------------------------------------------------------------------------------
     def motion(self, t: float, u: MotionInput) -> None:
-        """The robot's motion during the step that ends at time `t` [s] (times never go back)."""
+        """The robot's motion during the step that ends at time `t` [s] (times never go back).
+
+        Ignored (and counted) while the robot is fallen.
+
+        Parameters
+        ----------
+        t : float
+            The time the step ends [s], not before the last time given.
+        u : MotionInput
+            The step's motion (command or odometry over `u.dt`).
+
+        Raises
+        ------
+        ValueError
+            If `t` goes back or is not finite, or the motion model refuses `u`.
+        """
         t = self._check_time(t)
         if not isinstance(u, MotionInput):
             raise ArgumentTypeError(f"u = {u!r} must be a motion_models.MotionInput, not {type(u).__name__}")
@@ -231,17 +370,33 @@ class Localizer:
         self._quality = None
         self._update_lost()
 
-    def observe(self, observations, capture_time: float | None = None, view: CameraView | None = None) -> bool:
+    def observe(self, observations: Observations | Iterable | None, capture_time: float | None = None,
+                view: CameraView | None = None) -> bool:
         """Correct with one camera frame's detections, captured at `capture_time` (None: now).
 
-        view: where the camera looked (`sensing.view.CameraView`: head pan, field of view, ranges), optional
-        (None: the observations' own `view`, if any). With it, the correction also weighs each particle by the
-        landmarks it puts in view that the frame did not report (negative information, `LandmarkSensorModel`'s
-        `detection_rate`), and the quality counts them for the estimate (`seen_share`, `QualityThresholds`).
+        Parameters
+        ----------
+        observations : Observations, iterable of LandmarkObservation, or None
+            The frame's detections (coerced by `Observations.coerce`).
+        capture_time : float or None, default None
+            When the frame was captured [s], on the clock of `motion`'s times; None: now.
+        view : CameraView or None, default None
+            Where the camera looked (`sensing.view.CameraView`: head pan, field of view, ranges), optional
+            (None: the observations' own `view`, if any). With it, the correction also weighs each particle
+            by the landmarks it puts in view that the frame did not report (negative information,
+            `LandmarkSensorModel`'s `detection_rate`), and the quality counts them for the estimate
+            (`seen_share`, `QualityThresholds`).
 
-        Returns False when the frame was not used (the robot is fallen); raises ValueError for a frame
-        captured before the kept motion history, or a view that is not a `CameraView`, leaving the filter
-        unchanged.
+        Returns
+        -------
+        bool
+            False when the frame was not used (the robot is fallen), else True.
+
+        Raises
+        ------
+        ValueError
+            For a frame captured before the kept motion history, detections the sensor model refuses, or a
+            view that is not a `CameraView`, leaving the filter unchanged.
         """
         observations = Observations.coerce(observations)
         if view is not None:
@@ -269,6 +424,7 @@ class Localizer:
         return self.filter.estimate()
 
     def entropy(self) -> Entropy:
+        """The belief's position and orientation entropy in bits (`ParticleFilter.entropy`)."""
         return self.filter.entropy()
 
     # -- quality -----------------------------------------------------------------------------------------
@@ -370,7 +526,13 @@ class Localizer:
 
     # -- game events -------------------------------------------------------------------------------------
     def initial_placement(self, spacing: float = 0.25) -> None:
-        """INITIAL: the robot stands on one of the own touchlines (which one it cannot know), facing in."""
+        """INITIAL: the robot stands on one of the own touchlines (which one it cannot know), facing in.
+
+        Parameters
+        ----------
+        spacing : float, default 0.25
+            Distance between the candidate poses along each touchline [m], in [0.05, half length].
+        """
         hl = self.field.half_length
         # Between 5 cm (at most a few hundred candidate poses) and the half's length (one).
         spacing = real("spacing", spacing, 0.05, hl)
@@ -382,17 +544,33 @@ class Localizer:
         x = -self.field.half_length + self.field.dims.penalty_mark_distance
         self._reset(touchline_poses(self.field, [x]), self.placement_sigma)
 
-    def kickoff_placement(self, poses=None, kicking: bool = True) -> None:
-        """Placed at kick-off positions: around `poses` (K, 3), or `default_kickoff_positions`."""
+    def kickoff_placement(self, poses: Sequence[Sequence[float]] | np.ndarray | None = None,
+                          kicking: bool = True) -> None:
+        """Placed at kick-off positions: around `poses` (K, 3), or `default_kickoff_positions`.
+
+        Parameters
+        ----------
+        poses : array_like or None, default None
+            (K, 3) candidate poses (x [m], y [m], θ [rad]); None: `default_kickoff_positions(field, kicking)`.
+        kicking : bool, default True
+            Whether the team kicks off (used for the default positions).
+        """
         if not isinstance(kicking, (bool, np.bool_)):
             raise ArgumentTypeError(f"kicking = {kicking!r} must be True or False, not {type(kicking).__name__}")
         if poses is None:
             poses = default_kickoff_positions(self.field, kicking)
         self._reset(poses, self.placement_sigma)
 
-    def manual_placement(self, poses=None) -> None:
+    def manual_placement(self, poses: Sequence[Sequence[float]] | np.ndarray | None = None) -> None:
         """The referee placed the robot: around `poses` (K, 3) when the team knows where, else anywhere in the
-        own half facing the opponent goal."""
+        own half facing the opponent goal.
+
+        Parameters
+        ----------
+        poses : array_like or None, default None
+            (K, 3) candidate poses (x [m], y [m], θ [rad]), spread by `placement_sigma`; None: uniform over the
+            own half, headings around 0 with σ = 0.3 rad.
+        """
         if poses is not None:
             self._reset(poses, self.placement_sigma)
             return
@@ -405,8 +583,16 @@ class Localizer:
         self.filter.reset_uniform("own_half")
         self._after_reset()
 
-    def place(self, pose, sigma=None) -> None:
-        """The pose is known: particles around it, its heading trusted for injection."""
+    def place(self, pose: Sequence[float] | np.ndarray, sigma: Sequence[float] | np.ndarray | None = None) -> None:
+        """The pose is known: particles around it, its heading trusted for injection.
+
+        Parameters
+        ----------
+        pose : sequence of float or numpy.ndarray
+            (x [m], y [m], θ [rad]).
+        sigma : sequence of float, numpy.ndarray or None, default None
+            Standard deviations (x [m], y [m], θ [rad]); None: `placement_sigma`.
+        """
         self.filter.reset_around(pose, self.placement_sigma if sigma is None else sigma)
         self._after_reset()
 

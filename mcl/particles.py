@@ -13,7 +13,7 @@ filter's generator `rng`. The particles' motion and scoring are the filter's loo
 from __future__ import annotations
 
 import math
-from typing import TYPE_CHECKING, Any, Callable
+from typing import TYPE_CHECKING, Any, Callable, Sequence
 
 import numpy as np
 
@@ -157,10 +157,20 @@ class ParticleSet:
         self._forget_anchor()
         self._changed()
 
-    def diffuse(self, sigma=(0.1, 0.1, 0.3)) -> None:
+    def diffuse(self, sigma: Sequence[float] | np.ndarray = (0.1, 0.1, 0.3)) -> None:
         """Widen the belief: add normal noise `sigma` (x [m], y [m], θ [rad]) to every particle, weights kept.
 
         For what moved the robot without odometry seeing it (a fall and getting up, a push while standing).
+
+        Parameters
+        ----------
+        sigma : sequence of float or numpy.ndarray, default (0.1, 0.1, 0.3)
+            Standard deviations of the noise (x [m], y [m], θ [rad]), each finite and >= 0.
+
+        Raises
+        ------
+        ValueError
+            If a standard deviation is negative, not finite or too large.
         """
         sigma = self._check_sigma(sigma)
         noisy = self._poses + sigma * self.rng.standard_normal((self._n, 3))
@@ -173,9 +183,27 @@ class ParticleSet:
     def _check_sigma(sigma, name: str = "sigma") -> np.ndarray:
         return reals(name, sigma, 3, 0.0, LARGEST_SIGMA)
 
-    def set_particles(self, poses, log_weights=None, motion_state=None) -> None:
+    def set_particles(self, poses: Sequence[Sequence[float]] | np.ndarray,
+                      log_weights: Sequence[float] | np.ndarray | None = None,
+                      motion_state: np.ndarray | None = None) -> None:
         """Replace the particle set (N, 3) and optionally its log-weights (N,) and, for a stateful motion model,
-        its per-particle state (fresh when not given); validated first."""
+        its per-particle state (fresh when not given); validated first.
+
+        Parameters
+        ----------
+        poses : array_like
+            (N, 3) poses (x [m], y [m], θ [rad]), N the filter's particle count.
+        log_weights : array_like or None, default None
+            (N,) log-weights, normalized here: no NaN or +inf, at least one finite. None: uniform weights.
+        motion_state : numpy.ndarray or None, default None
+            The motion model's per-particle state, of the shape the filter keeps (finite); None: fresh state.
+
+        Raises
+        ------
+        ValueError
+            If a shape is wrong, a value out of range, or `motion_state` is given for a motion model that
+            keeps none (the particles are left unchanged).
+        """
         poses = check_poses("poses", poses)
         if motion_state is not None:
             if self._motion_state is None:

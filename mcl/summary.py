@@ -241,6 +241,11 @@ class BeliefSummary:
 
         When no cluster holds half the weight, the one around the previous estimate is preferred if it is
         the heavier (hysteresis: see `mcl.estimate.cluster_estimate`).
+
+        Returns
+        -------
+        Estimate
+            The pose [x, y, θ], its (3, 3) covariance and the cluster's share of the weight.
         """
         if self._estimate is None:
             mean = np.empty(3)
@@ -274,7 +279,13 @@ class BeliefSummary:
 
     def entropy(self) -> Entropy:
         """Position and orientation entropy in bits on the grid (Hoffmann eq. 27), from the histograms the
-        estimate shares (kept until the particles change)."""
+        estimate shares (kept until the particles change).
+
+        Returns
+        -------
+        Entropy
+            `position` and `orientation`, in bits.
+        """
         self._entropy_wanted = True
         if self._entropy is None:
             if self._threads == 1 and not self._summary_valid:
