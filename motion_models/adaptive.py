@@ -78,13 +78,23 @@ def _rates(pairs: dict[tuple[str, str], float]) -> tuple[tuple[str, str, float],
 class MobilityTransitions:
     """Transition rates between mobility states [1/s], one set per percept condition.
 
-    quiet:     no collision detected within the detector's recent window (percept rate 0)
-    collision: collisions detected recently, but not at high frequency
-    frequent:  collisions at high frequency (percept rate >= `AdaptiveMotion.frequent_rate`)
-
     Each entry is (from, to, rate); a state's probability of staying is what its rates leave. As in the paper,
     only collision events lead away from free: add quiet ("free", ...) rates to stand for collisions the
     detector misses (each particle then leaves free that often, and the cloud grows outliers).
+
+    Parameters
+    ----------
+    quiet : tuple of (str, str, float)
+        No collision detected within the detector's recent window (percept rate 0).
+    collision : tuple of (str, str, float)
+        Collisions detected recently, but not at high frequency.
+    frequent : tuple of (str, str, float)
+        Collisions at high frequency (percept rate >= `AdaptiveMotion.frequent_rate`).
+
+    Raises
+    ------
+    ValueError
+        If an entry is not (from, to, rate) with two different names of `STATES` and a finite rate >= 0.
     """
 
     quiet: tuple[tuple[str, str, float], ...] = _rates({
@@ -112,7 +122,23 @@ class MobilityTransitions:
                     raise ValueError(f"{condition} entry {entry!r}: rate must be finite and >= 0")
 
     def generator(self, condition: str) -> np.ndarray:
-        """The rate matrix Q (5, 5) of a condition: off-diagonal rates, rows summing to zero."""
+        """The rate matrix Q (5, 5) of a condition: off-diagonal rates, rows summing to zero.
+
+        Parameters
+        ----------
+        condition : str
+            One of `CONDITIONS`: "quiet", "collision" or "frequent".
+
+        Returns
+        -------
+        numpy.ndarray
+            (5, 5) rates [1/s], rows and columns in the order of `STATES`.
+
+        Raises
+        ------
+        ValueError
+            If the condition is unknown.
+        """
         if condition not in CONDITIONS:
             raise ValueError(f"condition = {condition!r} must be one of {CONDITIONS}")
         q = np.zeros((5, 5))
@@ -122,7 +148,20 @@ class MobilityTransitions:
         return q
 
     def matrix(self, condition: str, dt: float) -> np.ndarray:
-        """Transition probabilities over dt seconds: P = expm(Q·dt), rows summing to one."""
+        """Transition probabilities over dt seconds: P = expm(Q·dt), rows summing to one.
+
+        Parameters
+        ----------
+        condition : str
+            One of `CONDITIONS`.
+        dt : float
+            The time step [s].
+
+        Returns
+        -------
+        numpy.ndarray
+            (5, 5) probabilities (a copy), rows and columns in the order of `STATES`.
+        """
         return _transition_matrix(self, condition, float(dt)).copy()
 
 
@@ -144,7 +183,42 @@ def _cumulative(transitions: MobilityTransitions, condition: str, dt: float) -> 
 
 @dataclass(frozen=True)
 class AdaptiveMotion:
-    """Hoffmann's adaptive motion model (see the module docstring). Needs `MotionInput.collision`."""
+    """Hoffmann's adaptive motion model (see the module docstring). Needs `MotionInput.collision`.
+
+    Parameters
+    ----------
+    beta1 : float, default 0.5
+        Slippage: the share of the speed kept at least, in [0, 1) (eq. 14).
+    beta2 : float, default 0.4
+        Slippage: heading rate error bound [rad/s] (eq. 15).
+    beta3 : float, default 0.1
+        Hindrance: the share of the speed kept at least, in [0, 1) (eq. 16).
+    beta4 : float, default 0.3
+        Hindrance: the share of the turn rate kept at least, in [0, 1) (eq. 17).
+    beta5 : float, default 0.4
+        Pushed: push speed bound [m/s] (eq. 19).
+    beta6 : float, default 0.6
+        Pushed: heading rate bound [rad/s] (eq. 22).
+    beta7 : float, default 0.4
+        Stopped without a known side: turn rate bound [rad/s] (eq. 24).
+    beta_turn : float, default 0.5
+        Stopped: turn toward the collision, share of |v|/w (eq. 25).
+    foot_separation : float, default 0.1
+        w of eq. 25, the lateral distance between the feet [m], finite and > 0.
+    odometry : tuple of float, default (1.0, 0.6, 0.6, 0.6)
+        β1..β4 of eq. 10 for free walking, each in [0, `MAX_NOISE_PARAMETER`].
+    frequent_rate : float, default 0.25
+        The share of the recent second with a collision that counts as "at high frequency", in (0, 1].
+    transitions : MobilityTransitions, default MobilityTransitions()
+        The transition rates between mobility states.
+    redraw : str, default "episode"
+        "episode" or "step": when the rand() of eq. 14-26 are drawn.
+
+    Raises
+    ------
+    ValueError
+        If a parameter is out of its range.
+    """
 
     beta1: float = 0.5            # slippage: speed kept at least this share (eq. 14)
     beta2: float = 0.4            # rad/s, slippage: heading rate error bound (eq. 15)
@@ -205,16 +279,53 @@ class AdaptiveMotion:
 
     # -- the particle state ------------------------------------------------------------------------------
     def particle_state(self, n: int) -> np.ndarray:
-        """Fresh per-particle state (n, 4): every particle free."""
+        """Fresh per-particle state (n, 4): every particle free.
+
+        Parameters
+        ----------
+        n : int
+            The number of particles.
+
+        Returns
+        -------
+        numpy.ndarray
+            (n, 4) zeros: the state `FREE` and the episode's three rand() values.
+        """
         return np.zeros((n, STATE_COLUMNS))
 
     @staticmethod
     def state_belief(state: np.ndarray, weights: np.ndarray) -> np.ndarray:
-        """The belief over the five mobility states: the weighted histogram of the particles' states (5,)."""
+        """The belief over the five mobility states: the weighted histogram of the particles' states (5,).
+
+        Parameters
+        ----------
+        state : numpy.ndarray
+            (N, 4) per-particle state, as `particle_state` makes it.
+        weights : numpy.ndarray
+            (N,) particle weights.
+
+        Returns
+        -------
+        numpy.ndarray
+            (5,) summed weights, in the order of `STATES`.
+        """
         return np.bincount(state[:, 0].astype(np.int64), weights=weights, minlength=5)[:5]
 
     # -- the interface -----------------------------------------------------------------------------------
     def check(self, u: MotionInput) -> None:
+        """Raise ValueError unless `predict` can take `u`.
+
+        Parameters
+        ----------
+        u : MotionInput
+            The step's motion: command or odometry over `u.dt` [s], and `u.collision`.
+
+        Raises
+        ------
+        ValueError
+            If `u.collision` is not a `CollisionPercept`, or the odometry over `u.dt` implies more than
+            `MAX_ODOMETRY_SPEED`.
+        """
         if not isinstance(u.collision, CollisionPercept):
             raise ValueError(f"AdaptiveMotion needs MotionInput.collision, a sensing.collision.CollisionPercept "
                              f"(sensing.collision.NO_COLLISION when nothing was detected); got {u.collision!r}")
@@ -234,13 +345,35 @@ class AdaptiveMotion:
                                  "timestamp glitch)")
 
     def condition(self, percept: CollisionPercept) -> str:
-        """Which transition set applies: "frequent", "collision" or "quiet"."""
+        """Which transition set applies: "frequent", "collision" or "quiet".
+
+        Parameters
+        ----------
+        percept : CollisionPercept
+            The collision detector's percept for this step.
+
+        Returns
+        -------
+        str
+            "frequent" when `percept.rate` >= `frequent_rate`, "collision" when it is > 0, else "quiet".
+        """
         if percept.rate >= self.frequent_rate:
             return "frequent"
         return "collision" if percept.rate > 0 else "quiet"
 
     def velocities(self, u: MotionInput) -> tuple[float, float, float]:
-        """The requested (vx, vy, ω): the command, or the odometry divided by dt."""
+        """The requested (vx, vy, ω): the command, or the odometry divided by dt.
+
+        Parameters
+        ----------
+        u : MotionInput
+            The step's motion: command or odometry over `u.dt` [s], and `u.collision`.
+
+        Returns
+        -------
+        tuple of float
+            (vx [m/s], vy [m/s], ω [rad/s]); zeros when `u.dt` <= 0 without a command.
+        """
         if u.command is not None:
             return u.command
         dx, dy, dtheta = u.displacement()
@@ -250,7 +383,20 @@ class AdaptiveMotion:
 
     def cumulative_transitions(self, condition: str, dt: float) -> np.ndarray:
         """Cumulative rows of expm(Q·dt) for a percept condition (read-only, (5, 5), last column exactly 1),
-        computed once per (condition, dt): a filter running at a fixed rate never recomputes the expm."""
+        computed once per (condition, dt): a filter running at a fixed rate never recomputes the expm.
+
+        Parameters
+        ----------
+        condition : str
+            One of `CONDITIONS`.
+        dt : float
+            The time step [s].
+
+        Returns
+        -------
+        numpy.ndarray
+            (5, 5) read-only cumulative transition probabilities.
+        """
         key = (condition, dt)
         rows = self._cumulative_rows.get(key)
         if rows is None:
@@ -261,7 +407,18 @@ class AdaptiveMotion:
         return rows
 
     def kernel_arguments(self, u: MotionInput) -> tuple:
-        """Everything `adaptive_move` takes besides poses, state and variates."""
+        """Everything `adaptive_move` takes besides poses, state and variates.
+
+        Parameters
+        ----------
+        u : MotionInput
+            The step's motion: command or odometry over `u.dt` [s], and `u.collision`.
+
+        Returns
+        -------
+        tuple
+            (cumulative transitions, vx, vy, ω, dt, collision side or NaN, parameters, redraw each step).
+        """
         percept: CollisionPercept = u.collision
         side = percept.side
         vx, vy, omega = self.velocities(u)
@@ -271,7 +428,24 @@ class AdaptiveMotion:
     def predict(self, poses: np.ndarray, u: MotionInput, rng: np.random.Generator,
                 state: np.ndarray | None = None) -> None:
         """Move `poses` in place; `state` (N, 4) is each particle's mobility state, updated in place (the
-        filter passes its own; None uses a throw-away all-free state, i.e. a single-step prediction)."""
+        filter passes its own; None uses a throw-away all-free state, i.e. a single-step prediction).
+
+        Parameters
+        ----------
+        poses : numpy.ndarray
+            (N, 3) float64 poses (x [m], y [m], θ [rad]), moved in place.
+        u : MotionInput
+            The step's motion: command or odometry over `u.dt` [s], and `u.collision`.
+        rng : numpy.random.Generator
+            The generator the noise and the transitions are drawn from.
+        state : numpy.ndarray or None, default None
+            (N, 4) per-particle mobility state (`particle_state`), updated in place.
+
+        Raises
+        ------
+        ValueError
+            If `check` refuses `u`, or the poses or the state have the wrong shape or type.
+        """
         check_poses(poses)
         percept = u.collision
         if not isinstance(percept, CollisionPercept) or (u.command is None and u.odometry is None):

@@ -57,6 +57,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 from dataclasses import field as dataclass_field
+from typing import Sequence
 
 import numba
 import numpy as np
@@ -792,18 +793,35 @@ class LandmarkSensorModel:
     range_noise_floor a [m] > 0, range_noise_linear b (dimensionless) >= 0 and range_noise_growth c [1/m] >= 0.
     The default (a = 0.05 m, b = 0, c = 0.02 /m) is a camera's pitch error, growing with r²; constant noise
     (b = c = 0), linear growth (c = 0) and any mix of the three terms can be expressed as well.
-    bearing_sigma [rad]: σ_b, the same at every range.
-    bearing_model: "von_mises" (no atan2, the default) or "exact".
-    outlier_weight: the likelihood floor of one detection relative to a perfect match (false positives).
-    mixture: "max" (the floor as a maximum, the default) or "sum" (added as a mixture component).
-    detection_rate: negative information, for a frame that comes with its camera view (`Observations.view`):
-        the probability that a landmark inside the view (shrunk to `view_inset`, `CameraView.inset`) is
-        reported. Each landmark a pose puts there that no detection of its type explains (within 3 σ, σ widened
-        by `VIEW_RANGE_SLACK` and `VIEW_BEARING_SLACK`) multiplies that pose's likelihood by 1 − detection_rate.
-        Low by default (0.2): robots, occlusion and the detector hide many landmarks, and a wrong pose that
-        explains a few detections (aliasing) usually expects several that were not reported. 0 turns it off; a
-        frame without a view, or without any detection (a blind camera says nothing), is scored without it.
-    view_inset: within (0, 1].
+
+    Parameters
+    ----------
+    field : Field
+        The field whose landmarks are scored.
+    range_noise_floor : float, default 0.05
+        a [m] > 0 of σ_r.
+    range_noise_growth : float, default 0.02
+        c [1/m] >= 0 of σ_r.
+    bearing_sigma : float, default 0.05
+        σ_b [rad], the same at every range.
+    bearing_model : str, default "von_mises"
+        "von_mises" (no atan2) or "exact".
+    outlier_weight : float, default 0.01
+        The likelihood floor of one detection relative to a perfect match (false positives).
+    mixture : str, default "max"
+        "max" (the floor as a maximum) or "sum" (added as a mixture component).
+    range_noise_linear : float, default 0.0
+        b (dimensionless) >= 0 of σ_r.
+    detection_rate : float, default 0.2
+        Negative information, for a frame that comes with its camera view (`Observations.view`): the
+        probability that a landmark inside the view (shrunk to `view_inset`, `CameraView.inset`) is reported.
+        Each landmark a pose puts there that no detection of its type explains (within 3 σ, σ widened by
+        `VIEW_RANGE_SLACK` and `VIEW_BEARING_SLACK`) multiplies that pose's likelihood by 1 − detection_rate.
+        Low by default: robots, occlusion and the detector hide many landmarks, and a wrong pose that explains
+        a few detections (aliasing) usually expects several that were not reported. 0 turns it off; a frame
+        without a view, or without any detection (a blind camera says nothing), is scored without it.
+    view_inset : float, default 0.8
+        Within (0, 1].
     """
 
     field: Field
@@ -858,7 +876,18 @@ class LandmarkSensorModel:
 
     # -- noise model --------------------------------------------------------------------------------------
     def range_sigma(self, ranges: np.ndarray) -> np.ndarray:
-        """σ_r [m] at the given ranges [m]: floor + linear·r + growth·r² (the kernels' `range_noise_sigma`)."""
+        """σ_r [m] at the given ranges [m]: floor + linear·r + growth·r² (the kernels' `range_noise_sigma`).
+
+        Parameters
+        ----------
+        ranges : numpy.ndarray
+            Ranges [m], any shape.
+
+        Returns
+        -------
+        numpy.ndarray
+            σ_r [m], the shape of `ranges`.
+        """
         ranges = np.asarray(ranges, dtype=np.float64)
         return range_noise_sigma(ranges, self.range_noise_floor, self._range_noise_growth())
 
@@ -881,14 +910,45 @@ class LandmarkSensorModel:
         return self._landmarks
 
     def candidates(self, kind: LandmarkType | int) -> np.ndarray:
+        """The landmarks of one type: (K, 2) [x, y] rows of `landmark_table` (read-only).
+
+        Parameters
+        ----------
+        kind : LandmarkType or int
+            The type, or its value.
+
+        Returns
+        -------
+        numpy.ndarray
+            (K, 2) positions [m]; K = 0 when the field has none of that type.
+        """
         k = int(kind)
         return self._table[self._offsets[k]:self._offsets[k + 1]]
 
-    def explained(self, pose, observations: Observations, gate: float = 3.0, range_slack: float = 0.0,
-                  bearing_slack: float = 0.0) -> np.ndarray:
+    def explained(self, pose: Sequence[float] | np.ndarray, observations: Observations, gate: float = 3.0,
+                  range_slack: float = 0.0, bearing_slack: float = 0.0) -> np.ndarray:
         """Which detections (bool per detection) the pose (x, y, θ) explains: a landmark of the detection's type
         lies within `gate` standard deviations, in range and bearing together (σ: the detection's own, else
-        the model's, plus the slacks). Compiled (`explained_detections`); numpy twin `explained_reference`."""
+        the model's, plus the slacks). Compiled (`explained_detections`); numpy twin `explained_reference`.
+
+        Parameters
+        ----------
+        pose : sequence of float or numpy.ndarray
+            (x [m], y [m], θ [rad]).
+        observations : Observations
+            One frame's detections (coerced by `Observations.coerce`).
+        gate : float, default 3.0
+            Standard deviations within which a detection matches a landmark.
+        range_slack : float, default 0.0
+            Added to the range σ [m].
+        bearing_slack : float, default 0.0
+            Added to the bearing σ [rad].
+
+        Returns
+        -------
+        numpy.ndarray
+            (n,) bool, one per detection.
+        """
         observations = Observations.coerce(observations)
         self.check(observations)
         return explained_detections(self._landmarks, (float(pose[0]), float(pose[1]), float(pose[2])),
@@ -896,9 +956,28 @@ class LandmarkSensorModel:
                                     gate_group(gate, range_slack, bearing_slack),
                                     np.empty(len(observations), dtype=np.bool_))
 
-    def explained_reference(self, pose, observations: Observations, gate: float = 3.0, range_slack: float = 0.0,
-                            bearing_slack: float = 0.0) -> np.ndarray:
-        """Plain numpy twin of `explained`."""
+    def explained_reference(self, pose: Sequence[float] | np.ndarray, observations: Observations,
+                            gate: float = 3.0, range_slack: float = 0.0, bearing_slack: float = 0.0) -> np.ndarray:
+        """Plain numpy twin of `explained`.
+
+        Parameters
+        ----------
+        pose : sequence of float or numpy.ndarray
+            (x [m], y [m], θ [rad]).
+        observations : Observations
+            One frame's detections (coerced by `Observations.coerce`).
+        gate : float, default 3.0
+            Standard deviations within which a detection matches a landmark.
+        range_slack : float, default 0.0
+            Added to the range σ [m].
+        bearing_slack : float, default 0.0
+            Added to the bearing σ [rad].
+
+        Returns
+        -------
+        numpy.ndarray
+            (n,) bool, one per detection.
+        """
         observations = Observations.coerce(observations)
         self.check(observations)
         m = len(observations)
@@ -918,13 +997,39 @@ class LandmarkSensorModel:
             explained[rows] = (range_error ** 2 + bearing_error ** 2 <= gate * gate).any(axis=1)
         return explained
 
-    def seen(self, pose, observations: Observations, view: CameraView, gate: float = 3.0,
-             range_slack: float = 0.0, bearing_slack: float = 0.0) -> tuple[int, int]:
+    def seen(self, pose: Sequence[float] | np.ndarray, observations: Observations, view: CameraView,
+             gate: float = 3.0, range_slack: float = 0.0, bearing_slack: float = 0.0) -> tuple[int, int]:
         """Negative information: (expected, seen), how many landmarks the pose (x, y, θ) puts inside the camera's
         `view` (`sensing.view.CameraView`), and how many of those a detection of their type lies within `gate`
         standard deviations of (σ as in `explained`). A right pose sees most of what it expects; a wrong pose
         that happens to explain a few detections (aliasing) usually expects landmarks the frame did not report.
-        Compiled (`landmarks_in_view`); numpy twin `seen_reference`."""
+        Compiled (`landmarks_in_view`); numpy twin `seen_reference`.
+
+        Parameters
+        ----------
+        pose : sequence of float or numpy.ndarray
+            (x [m], y [m], θ [rad]).
+        observations : Observations
+            One frame's detections (coerced by `Observations.coerce`).
+        view : CameraView
+            Where the camera looked.
+        gate : float, default 3.0
+            Standard deviations within which a detection matches a landmark.
+        range_slack : float, default 0.0
+            Added to the range σ [m].
+        bearing_slack : float, default 0.0
+            Added to the bearing σ [rad].
+
+        Returns
+        -------
+        tuple of int
+            (expected, seen).
+
+        Raises
+        ------
+        ArgumentTypeError
+            If `view` is not a `CameraView` (a ValueError too).
+        """
         observations = Observations.coerce(observations)
         self.check(observations)
         if not isinstance(view, CameraView):
@@ -935,9 +1040,30 @@ class LandmarkSensorModel:
                                 np.zeros(2, dtype=np.int64))
         return int(out[0]), int(out[1])
 
-    def seen_reference(self, pose, observations: Observations, view: CameraView, gate: float = 3.0,
-                       range_slack: float = 0.0, bearing_slack: float = 0.0) -> tuple[int, int]:
-        """Plain numpy twin of `seen`."""
+    def seen_reference(self, pose: Sequence[float] | np.ndarray, observations: Observations, view: CameraView,
+                       gate: float = 3.0, range_slack: float = 0.0, bearing_slack: float = 0.0) -> tuple[int, int]:
+        """Plain numpy twin of `seen`.
+
+        Parameters
+        ----------
+        pose : sequence of float or numpy.ndarray
+            (x [m], y [m], θ [rad]).
+        observations : Observations
+            One frame's detections (coerced by `Observations.coerce`).
+        view : CameraView
+            Where the camera looked.
+        gate : float, default 3.0
+            Standard deviations within which a detection matches a landmark.
+        range_slack : float, default 0.0
+            Added to the range σ [m].
+        bearing_slack : float, default 0.0
+            Added to the bearing σ [rad].
+
+        Returns
+        -------
+        tuple of int
+            (expected, seen).
+        """
         observations = Observations.coerce(observations)
         self.check(observations)
         x, y, theta = float(pose[0]), float(pose[1]), float(pose[2])
@@ -965,7 +1091,18 @@ class LandmarkSensorModel:
         return self._table, self._offsets
 
     def check(self, observations: Observations) -> None:
-        """Raise ValueError if a detection's type has no landmark on this field."""
+        """Raise ValueError if a detection's type has no landmark on this field.
+
+        Parameters
+        ----------
+        observations : Observations
+            One frame's detections.
+
+        Raises
+        ------
+        ValueError
+            Naming the first detection whose type the field lacks.
+        """
         kinds = observations.kinds
         if kinds.shape[0] == 0:                  # (a frame without detections: no compiled call)
             return
@@ -975,7 +1112,18 @@ class LandmarkSensorModel:
                              f"{LandmarkType(int(kinds[i])).name}")
 
     def terms(self, observations: Observations) -> int:
-        """How many independent terms the likelihood sums: one per landmark detection."""
+        """How many independent terms the likelihood sums: one per landmark detection.
+
+        Parameters
+        ----------
+        observations : Observations
+            One frame's detections.
+
+        Returns
+        -------
+        int
+            The number of detections.
+        """
         return len(observations)
 
     def _sigmas(self, observations: Observations) -> tuple[np.ndarray, np.ndarray]:
@@ -988,7 +1136,27 @@ class LandmarkSensorModel:
     # -- likelihood ---------------------------------------------------------------------------------------
     def log_likelihood(self, poses: np.ndarray, observations: Observations,
                        out: np.ndarray | None = None) -> np.ndarray:
-        """Log-likelihood of `observations` for each pose in `poses` (N, 3); shape (N,)."""
+        """Log-likelihood of `observations` for each pose in `poses` (N, 3); shape (N,).
+
+        Parameters
+        ----------
+        poses : numpy.ndarray
+            (N, 3) poses (x [m], y [m], θ [rad]).
+        observations : Observations
+            One frame's detections (coerced by `Observations.coerce`).
+        out : numpy.ndarray or None, default None
+            (N,) float64 array to write into; None allocates one.
+
+        Returns
+        -------
+        numpy.ndarray
+            (N,) log-likelihoods (`out` when given).
+
+        Raises
+        ------
+        ValueError
+            If a detection's type has no landmark on this field.
+        """
         observations = Observations.coerce(observations)
         n = poses.shape[0]
         if out is None:
@@ -1017,12 +1185,31 @@ class LandmarkSensorModel:
     def scores_view(self, observations: Observations) -> bool:
         """Whether the likelihood of `observations` includes negative information: the frame has a view, at
         least one detection, and `detection_rate` > 0. The filter's compiled step scores without it, so the
-        filter scores such a frame through `log_likelihood`."""
+        filter scores such a frame through `log_likelihood`.
+
+        Parameters
+        ----------
+        observations : Observations
+            One frame's detections.
+        """
         return observations.view is not None and self.detection_rate > 0 and observations.kinds.shape[0] > 0
 
     def missed_in_view_reference(self, poses: np.ndarray, observations: Observations) -> np.ndarray:
         """Plain numpy twin of the negative-information term `log_likelihood` adds (zeros when
-        `scores_view` is False)."""
+        `scores_view` is False).
+
+        Parameters
+        ----------
+        poses : numpy.ndarray
+            (N, 3) poses (x [m], y [m], θ [rad]).
+        observations : Observations
+            One frame's detections and view.
+
+        Returns
+        -------
+        numpy.ndarray
+            (N,) log-likelihood terms.
+        """
         poses = np.asarray(poses, dtype=np.float64)
         if observations.view is None or not self.scores_view(observations):
             return np.zeros(poses.shape[0])
@@ -1045,7 +1232,20 @@ class LandmarkSensorModel:
         return FusedLikelihoodKernels(fused_prepare, fused_workspace, fused_score, params, detection_batch)
 
     def log_likelihood_reference(self, poses: np.ndarray, observations: Observations) -> np.ndarray:
-        """The same, in plain numpy (slow; for tests and the benchmark)."""
+        """The same, in plain numpy (slow; for tests and the benchmark).
+
+        Parameters
+        ----------
+        poses : numpy.ndarray
+            (N, 3) poses (x [m], y [m], θ [rad]).
+        observations : Observations
+            One frame's detections.
+
+        Returns
+        -------
+        numpy.ndarray
+            (N,) log-likelihoods.
+        """
         observations = Observations.coerce(observations)
         self.check(observations)
         range_sigmas, bearing_sigmas = self._sigmas(observations)
@@ -1070,6 +1270,24 @@ class LandmarkSensorModel:
         a kernel from the generator's own bit generator (`reset_choices`, the numbers numpy would give), the
         normals by numpy, and the poses come from them in one compiled pass (`sensor_reset_poses`): bit for
         bit `sample_poses_reference`.
+
+        Parameters
+        ----------
+        observations : Observations
+            One frame's detections (coerced by `Observations.coerce`).
+        n : int
+            How many poses to draw; 0 or less draws none.
+        rng : numpy.random.Generator
+            The generator drawn from.
+        heading : float or None, default None
+            The robot's heading, if known [rad]: headings are drawn normal around it; None: uniform.
+        heading_sigma : float, default 0.3
+            Standard deviation of the headings around `heading` [rad].
+
+        Returns
+        -------
+        numpy.ndarray
+            (n, 3) poses (x [m], y [m], θ [rad]); (0, 3) when there are no detections.
         """
         observations = Observations.coerce(observations)
         self.check(observations)
@@ -1099,7 +1317,26 @@ class LandmarkSensorModel:
 
     def sample_poses_reference(self, observations: Observations, n: int, rng: np.random.Generator,
                                heading: float | None = None, heading_sigma: float = 0.3) -> np.ndarray:
-        """Plain numpy twin of `sample_poses`: the same draws give the same poses."""
+        """Plain numpy twin of `sample_poses`: the same draws give the same poses.
+
+        Parameters
+        ----------
+        observations : Observations
+            One frame's detections (coerced by `Observations.coerce`).
+        n : int
+            How many poses to draw; 0 or less draws none.
+        rng : numpy.random.Generator
+            The generator drawn from.
+        heading : float or None, default None
+            The robot's heading, if known [rad]: headings are drawn normal around it; None: uniform.
+        heading_sigma : float, default 0.3
+            Standard deviation of the headings around `heading` [rad].
+
+        Returns
+        -------
+        numpy.ndarray
+            (n, 3) poses (x [m], y [m], θ [rad]); (0, 3) when there are no detections.
+        """
         observations = Observations.coerce(observations)
         self.check(observations)
         m = len(observations)
