@@ -15,20 +15,47 @@ from __future__ import annotations
 import math
 import os
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from .robot_log import LogError, ReadReport, RobotLog, VisionFrame
 
+if TYPE_CHECKING:
+    from .mcap_io import Topics
+
 __all__ = ["RobotLog", "VisionFrame", "ReadReport", "LogError", "read_log", "write_log"]
 
 
-def read_log(path: str | os.PathLike, topics=None, gap: float = 1.0) -> tuple[RobotLog, ReadReport]:
+def read_log(path: str | os.PathLike, topics: Topics | None = None, gap: float = 1.0) -> tuple[RobotLog, ReadReport]:
     """Read a log by its name: `.mcap` (ROS 2, `topics` = `mcap_io.Topics`), `.npz`, or a folder of CSV files.
 
     Whatever the file holds, the answer is a `RobotLog` or a `LogError` (a ValueError) naming the file and
     what is wrong with it. An argument of the wrong type raises TypeError, a bad `gap` (seconds, > 0) ValueError;
     both are checked whatever the log's form (`topics` and `gap` apply to MCAP logs only).
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        A `.mcap` or `.npz` file, or a folder of CSV files.
+    topics : Topics or None, default None
+        The topic of each stream in an MCAP log (`mcl.logs.mcap_io.Topics`); None: the default topics.
+    gap : float, default 1.0
+        The longest silence on an MCAP topic [s] that is not listed in `report.gaps`; > 0.
+
+    Returns
+    -------
+    tuple of (RobotLog, ReadReport)
+        The log, and what was read, dropped (and why) and where a broken log stopped.
+
+    Raises
+    ------
+    LogError
+        If the log is missing, of no form this library reads, or unreadable (a ValueError).
+    TypeError
+        If an argument has the wrong type.
+    ValueError
+        If `gap` is not a positive number of seconds.
     """
     if not isinstance(path, (str, os.PathLike)) or not isinstance(os.fspath(path), str):
         raise TypeError(f"path = {path!r} must be a file or folder name (str or os.PathLike)")
@@ -55,8 +82,18 @@ def read_log(path: str | os.PathLike, topics=None, gap: float = 1.0) -> tuple[Ro
     raise LogError(f"{path}: not a log this library reads (.mcap, .npz, or a folder of CSV files)")
 
 
-def write_log(log: RobotLog, path: str | os.PathLike, topics=None) -> None:
-    """Write a log by its name: `.mcap`, `.npz`, or (any other name) a folder of CSV files."""
+def write_log(log: RobotLog, path: str | os.PathLike, topics: Topics | None = None) -> None:
+    """Write a log by its name: `.mcap`, `.npz`, or (any other name) a folder of CSV files.
+
+    Parameters
+    ----------
+    log : RobotLog
+        The log to write.
+    path : str or os.PathLike
+        Its name: a `.mcap` or `.npz` file, or any other name for a folder of CSV files.
+    topics : Topics or None, default None
+        The topic of each stream when writing MCAP (`mcl.logs.mcap_io.Topics`); None: the default topics.
+    """
     path = Path(path)
     if path.suffix == ".mcap":
         from .mcap_io import Topics, write_mcap

@@ -40,7 +40,17 @@ class LogError(ValueError):
 
 @dataclass(frozen=True, eq=False)
 class VisionFrame:
-    """One camera frame's detections: captured at `stamp`, reaching the log at `received` (both [s])."""
+    """One camera frame's detections: captured at `stamp`, reaching the log at `received` (both [s]).
+
+    Parameters
+    ----------
+    stamp : float
+        Capture time [s] from the log's origin.
+    received : float
+        Arrival time in the log [s] from the log's origin.
+    observations : Observations
+        The detections, in the robot frame.
+    """
 
     stamp: float
     received: float
@@ -71,7 +81,39 @@ def _empty(columns: int | None = None) -> np.ndarray:
 
 @dataclass(frozen=True, eq=False)
 class RobotLog:
-    """What a robot recorded (see the module docstring for the streams and their units)."""
+    """What a robot recorded (see the module docstring for the streams and their units).
+
+    Every stream defaults to empty (zero rows); times are float64 seconds from `origin_ns`.
+
+    Parameters
+    ----------
+    origin_ns : int, default 0
+        The first message's time in integer nanoseconds since the epoch.
+    odometry_times, odometry : numpy.ndarray
+        (K,) times and (K, 3) cumulative odometry poses [x, y, yaw] in the odom frame.
+    command_times, commands : numpy.ndarray
+        (C,) times and (C, 3) walk requests (vx, vy, ω) [m/s, m/s, rad/s].
+    imu_times, gyro, acceleration : numpy.ndarray
+        (I,) times, (I, 3) angular rates [rad/s] and (I, 3) accelerations [m/s²].
+    joint_names : tuple of str, default ()
+        The n joints' names.
+    joint_command_times, joint_commands : numpy.ndarray
+        (J,) times and (J, n) joint commands [rad].
+    joint_reading_times, joint_readings : numpy.ndarray
+        (R,) times and (R, n) joint readings [rad].
+    vision : tuple of VisionFrame, default ()
+        Camera frames, sorted by arrival time.
+    truth_times, truth : numpy.ndarray
+        (G,) times and (G, 3) field-frame poses [x, y, θ] (empty when not recorded).
+
+    Raises
+    ------
+    LogError
+        For values that are not finite, times out of order or more than `MAX_TIME` from the origin (naming
+        the stream).
+    TypeError
+        For arguments of the wrong type (text, complex numbers, an origin that is not an integer).
+    """
 
     origin_ns: int = 0
     odometry_times: np.ndarray = dataclass_field(default_factory=_empty)
@@ -173,10 +215,23 @@ class RobotLog:
 
     @property
     def has_truth(self) -> bool:
+        """Whether the log holds ground truth poses."""
         return self.truth_times.shape[0] > 0
 
     def truth_at(self, times: np.ndarray) -> np.ndarray:
-        """Ground truth interpolated at `times` (linear in x, y, along the shorter arc in θ); NaN outside."""
+        """Ground truth interpolated at `times` (linear in x, y, along the shorter arc in θ); NaN outside.
+
+        Parameters
+        ----------
+        times : numpy.ndarray
+            Times [s] from the log's origin, any shape.
+
+        Returns
+        -------
+        numpy.ndarray
+            Poses [x, y, θ], shape `times.shape + (3,)`; NaN outside the truth's time span (all NaN without
+            truth).
+        """
         times = np.asarray(times, dtype=np.float64)
         out = np.full(times.shape + (3,), np.nan)
         if not self.has_truth:
@@ -195,6 +250,27 @@ class ReadReport:
     """What a reader did with a log: messages per topic, what it dropped and why, gaps, and where it stopped.
 
     Nothing is skipped silently: every message not used is counted under (topic, reason) in `dropped`.
+
+    Attributes
+    ----------
+    path : str
+        The log's file or folder.
+    messages : dict of str to int
+        Messages read per topic.
+    types : dict of str to str
+        Each topic's message type.
+    dropped : dict of (str, str) to int
+        Messages not used, per (topic, reason).
+    gaps : list of (str, float, float)
+        Silences longer than the reader's `gap`: (topic, start [s], length [s]).
+    stopped_at : float or None
+        Log time [s] of the last message read from a broken log.
+    stop_reason : str or None
+        What broke the log; None when it was read whole.
+    missing : list of str
+        Default topics the log does not have.
+    topics : dict of str to (str, str)
+        Stream -> (topic, how it was chosen: "name", "default name" or "type"); MCAP logs only.
     """
 
     path: str
@@ -209,6 +285,17 @@ class ReadReport:
     topics: dict[str, tuple[str, str]] = dataclass_field(default_factory=dict)
 
     def drop(self, topic: str, reason: str, count: int = 1) -> None:
+        """Count `count` messages on `topic` as dropped for `reason`.
+
+        Parameters
+        ----------
+        topic : str
+            The topic (or stream) the messages came on.
+        reason : str
+            Why they were not used.
+        count : int, default 1
+            How many.
+        """
         self.dropped[(topic, reason)] = self.dropped.get((topic, reason), 0) + count
 
     @property
@@ -218,9 +305,11 @@ class ReadReport:
 
     @property
     def dropped_total(self) -> int:
+        """Messages dropped, over every topic and reason."""
         return sum(self.dropped.values())
 
     def summary(self) -> str:
+        """The report as text: one line per topic read, stream chosen, drop, gap, missing topic and stop."""
         lines = [f"{self.path}: {sum(self.messages.values())} messages on {len(self.messages)} topics"]
         for topic in sorted(self.messages):
             lines.append(f"  {topic} ({self.types.get(topic, '?')}): {self.messages[topic]}")
@@ -240,6 +329,7 @@ class ReadReport:
         return "\n".join(lines)
 
     def to_json(self) -> dict:
+        """The report as a dict of JSON types: the drops and gaps as lists of objects, `complete` added."""
         return {"path": self.path, "messages": dict(self.messages), "types": dict(self.types),
                 "dropped": [{"topic": t, "reason": r, "count": c} for (t, r), c in sorted(self.dropped.items())],
                 "gaps": [{"topic": t, "start_s": s, "length_s": g} for t, s, g in self.gaps],
