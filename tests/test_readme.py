@@ -64,3 +64,44 @@ def test_localizer_example_runs_and_starts_on_a_touchline():
     field, pose = namespace["loc"].field, namespace["estimate"].pose
     assert abs(abs(pose[1]) - field.half_width) < 0.3 and pose[0] < 0
     assert abs(abs(pose[2]) - math.pi / 2) < 0.3
+
+
+def _results(name: str) -> dict:
+    import json
+    return json.loads((ROOT / "results" / name).read_text())
+
+
+def _headline(what: str) -> str:
+    """The README's headline-figures row that starts with `what`."""
+    return next(line for line in README.read_text().splitlines() if line.startswith(f"| {what}"))
+
+
+def test_the_readme_headline_figures_are_those_of_the_results_files():
+    """Each headline figure is read from the results file its command wrote (to the digits printed): a new
+    measurement that changes a figure fails here until the README says it."""
+    walk = _results("walk.json")["summary"]
+    row = _headline("walk scenario")
+    assert f"median {walk['position_rmse_m']['median']:.3f} m" in row
+    assert f"worst {walk['position_rmse_m']['worst']:.3f} m (seed {walk['position_rmse_m']['worst_seed']}" in row
+    assert f"re-convergence median {walk['reconverged_s']['median']:.2f} s" in row
+
+    families = _results("eval_holdout.json")["splits"]["holdout"]["families"]
+    kidnap, tracking = families["kidnap"]["summary"], families["tracking"]["summary"]
+    row = _headline("evaluation battery")
+    assert f"tracking RMSE {tracking['rmse_position_m']['median']:.3f} m" in row
+    assert f"in {kidnap['reconverge_s']['median']:.2f} s (median), {kidnap['reconverge_s']['never']} of " \
+           f"{kidnap['reconverge_s']['runs']} runs never" in row
+
+    soak = _results("soak.json")
+    row = _headline("an hour in the loop")
+    assert soak["nonfinite"] == 0 and "no NaN" in row
+    assert f"+{soak['memory']['growth_mb']:.2f} MB" in row
+
+    fuzz = _results("fuzz_full.json")
+    row = _headline("fuzzing")
+    assert f"{fuzz['cases']:,} cases".replace(",", " ") in row and fuzz["crashes"] == 0 and "0 crashes" in row
+
+    single = _results("collision_report.json")["no_vision"]["single"]
+    row = _headline("Hoffmann")
+    assert f"{100 * single['adaptive']['summary']['contained_share']['median']:.0f} % of steps" in row
+    assert f"{100 * single['velocity-linear']['summary']['contained_share']['median']:.0f} % with" in row
