@@ -101,6 +101,10 @@ def test_the_readme_headline_figures_are_those_of_the_results_files():
     row = _headline("fuzzing")
     assert f"{fuzz['cases']:,} cases".replace(",", " ") in row and fuzz["crashes"] == 0 and "0 crashes" in row
 
+    loop = _results("bench.json")["models"]["robot_loop"]
+    row = _headline("robot loop")
+    assert f"without detections {loop['frame_us']:.1f} µs" in row and f"detections {loop['correct_list_us']:.1f} µs" in row
+
     single = _results("collision_report.json")["no_vision"]["single"]
     row = _headline("Hoffmann")
     assert f"{100 * single['adaptive']['summary']['contained_share']['median']:.0f} % of steps" in row
