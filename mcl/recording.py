@@ -42,10 +42,13 @@ import math
 import os
 import re
 import uuid
+from collections.abc import Sequence
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numba
 import numpy as np
+from numpy.typing import ArrayLike
 import rerun as rr
 import rerun.blueprint as rrb
 import rerun.chunk as rrc
@@ -53,6 +56,10 @@ import rerun.chunk as rrc
 from field import Field, LandmarkType
 from field.checks import ArgumentTypeError, integer, real, reals
 from sensing.observations import Observations
+
+if TYPE_CHECKING:
+    from .filter import ParticleFilter
+    from .summary import Entropy
 
 LANDMARK_COLORS = {
     LandmarkType.GOALPOST: (255, 255, 0),
@@ -94,7 +101,18 @@ def weight_colors(weights: np.ndarray) -> np.ndarray:
     """Map weights to RGB (N, 3) uint8 from dark blue (lightest) to yellow (heaviest), relative to the heaviest
     (all dark blue when the heaviest is not positive). One pass in compiled code (`weight_colors_reference`,
     bit for bit): numpy's half a dozen passes and (N, 3) temporaries cost more than the rest of a step's
-    recording at N >= 10 000, and their calls more than the particles at N = 100."""
+    recording at N >= 10 000, and their calls more than the particles at N = 100.
+
+    Parameters
+    ----------
+    weights : np.ndarray
+        (N,) particle weights (any scale: only their ratio to the heaviest counts).
+
+    Returns
+    -------
+    np.ndarray
+        (N, 3) uint8 RGB colours.
+    """
     weights = np.ascontiguousarray(weights, dtype=np.float64)
     out = np.empty((weights.shape[0], 3), dtype=np.uint8)
     _weight_colors(weights, _LOW, _HIGH, out)
@@ -129,7 +147,18 @@ def _weight_colors(weights, low, high, out):
 
 
 def weight_colors_reference(weights: np.ndarray) -> np.ndarray:
-    """Plain numpy twin of `weight_colors`."""
+    """Plain numpy twin of `weight_colors`.
+
+    Parameters
+    ----------
+    weights : np.ndarray
+        As `weight_colors`.
+
+    Returns
+    -------
+    np.ndarray
+        (N, 3) uint8 RGB colours, as `weight_colors` gives them.
+    """
     top = float(weights.max()) if weights.size else 1.0
     level = np.clip(weights / top, 0.0, 1.0) if top > 0 else np.zeros_like(weights)
     return (_LOW + level[:, None] * (_HIGH - _LOW)).astype(np.uint8)
@@ -138,7 +167,22 @@ def weight_colors_reference(weights: np.ndarray) -> np.ndarray:
 def weighted_position_covariance(poses: np.ndarray, weights: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The weighted mean (2,) and covariance (2, 2) of the particles' positions (weights normalised here; the
     covariance with weights as frequencies, Σ wᵢ (pᵢ − μ)(pᵢ − μ)ᵀ, numpy's `cov(..., aweights=w, bias=True)`).
-    Uniform weights when they do not sum to a positive number."""
+    Uniform weights when they do not sum to a positive number.
+
+    Parameters
+    ----------
+    poses : np.ndarray
+        (N, 3) particle poses (x [m], y [m], θ [rad]); only the positions are used.
+    weights : np.ndarray
+        (N,) particle weights, normalised here.
+
+    Returns
+    -------
+    mean : np.ndarray
+        (2,) float64 weighted mean position [m].
+    covariance : np.ndarray
+        (2, 2) float64 weighted covariance of the positions [m²].
+    """
     xy = np.asarray(poses, dtype=np.float64)[:, :2]
     w = np.asarray(weights, dtype=np.float64)
     total = float(w.sum())
@@ -148,10 +192,29 @@ def weighted_position_covariance(poses: np.ndarray, weights: np.ndarray) -> tupl
     return mean, (d * w[:, None]).T @ d
 
 
-def covariance_ellipse(mean, covariance, chi2: float = ELLIPSE_CHI2,
+def covariance_ellipse(mean: ArrayLike, covariance: ArrayLike, chi2: float = ELLIPSE_CHI2,
                        vertices: int = ELLIPSE_VERTICES) -> np.ndarray:
     """The closed outline (vertices, 2) of {p : (p − mean)ᵀ covariance⁻¹ (p − mean) = chi2} (by default the 95 %
-    ellipse of a 2-D normal); a degenerate covariance gives a segment or a point, a non-finite one NaNs."""
+    ellipse of a 2-D normal); a degenerate covariance gives a segment or a point, a non-finite one NaNs.
+
+    Parameters
+    ----------
+    mean : array_like
+        The centre (x, y) [m]; only its first two entries are used (a pose (x, y, θ) will do).
+    covariance : array_like
+        The position covariance [m²]; only its upper-left 2 × 2 block is used (a pose covariance will do).
+        Symmetrised; negative eigenvalues count as zero.
+    chi2 : float, optional
+        The squared Mahalanobis distance of the outline; default `ELLIPSE_CHI2` (5.991, the 95 % quantile of χ²
+        with 2 degrees of freedom).
+    vertices : int, optional
+        Number of vertices, the first repeated as the last; default `ELLIPSE_VERTICES` (33).
+
+    Returns
+    -------
+    np.ndarray
+        (vertices, 2) float64 outline [m]; all NaN when the mean or the covariance is not finite.
+    """
     mean = np.asarray(mean, dtype=np.float64)[:2]
     covariance = np.asarray(covariance, dtype=np.float64)[:2, :2]
     if not np.isfinite(covariance).all() or not np.isfinite(mean).all():
@@ -171,7 +234,25 @@ def default_blueprint(series: tuple[tuple[str, str], ...] = (("/entropy", "entro
     """The field view beside a column of time-series plots, one per (entity origin, title) in `series`, each
     with the event marks (`/events/marks/**`), above the event log (`/events`). field_bounds: what the field view
     shows, ((x_min, x_max), (y_min, y_max)) in the field frame (default: all of it); time_panel: e.g. the
-    timeline and play state the viewer opens on."""
+    timeline and play state the viewer opens on.
+
+    Parameters
+    ----------
+    series : tuple of (str, str), optional
+        (entity origin, title) of each time-series plot, top to bottom; default the entropy ("/entropy") and
+        the errors ("/error").
+    field_bounds : tuple of (float, float) or None, optional
+        ((x_min, x_max), (y_min, y_max)) [m] the field view shows, in the field frame; None (the default): all
+        of it.
+    time_panel : rrb.TimePanel or None, optional
+        The time panel's state (e.g. the timeline and play state the viewer opens on); None (the default):
+        Rerun's.
+
+    Returns
+    -------
+    rrb.Blueprint
+        The blueprint, its side panels collapsed.
+    """
     bounds = None
     if field_bounds is not None:
         (x0, x1), (y0, y1) = field_bounds
@@ -197,7 +278,17 @@ def compact_file(path: str | Path, blueprint: rrb.Blueprint | None = None,
     """Rewrite the .rrd file at `path` with its recording's chunks merged (`profile`, by default Rerun's
     object-store profile: chunks up to about 2 MiB, as `rerun rrd optimize` makes them), keeping its application
     and recording ids, with `blueprint` as the default blueprint (None: the file's blueprint is not kept). The new
-    file replaces the old one only once it is complete."""
+    file replaces the old one only once it is complete.
+
+    Parameters
+    ----------
+    path : str or Path
+        The .rrd file, rewritten in place (its first recording is kept).
+    blueprint : rrb.Blueprint or None, optional
+        The default blueprint of the new file; None (the default) writes none.
+    profile : rrc.OptimizationProfile, optional
+        How the chunks are merged; default `rrc.OptimizationProfile.OBJECT_STORE`.
+    """
     path = Path(path)
     reader = rrc.RrdReader(str(path))
     entry = reader.recordings()[0]
@@ -221,11 +312,44 @@ def _step_and_time(step, t) -> tuple[int, float]:
 class Recorder:
     """Writes one filter run to an .rrd file (or to any `rr.RecordingStream` you pass).
 
-    recording_id: the recording's id (default: a fresh one per recorder); a converted MCAP log given the same id
-    (`rerun mcap convert --recording-id`) opens as one recording with this one. origin_ns: what t = 0 is, in ns
-    since the Unix epoch (a replayed log's `origin_ns`); given, every row is also on the `LOG_TIMELINE` timestamp.
-    max_headings: at most this many particles get a heading arrow per logged step (every ⌈N / max_headings⌉-th).
-    compact: compact the file when closing (`compact_file`; only for a path, not a stream you pass)."""
+    Parameters
+    ----------
+    path : str or Path or None
+        The .rrd file to write (its folder is created); None to log only to `stream`.
+    field : Field
+        The field, drawn once as static entities (`field/...`).
+    particles_every : int, optional
+        Log the particles, their headings and the uncertainty ellipses every this many steps (the steps whose
+        number is a multiple of it), >= 1; default 5.
+    application_id : str, optional
+        Rerun's application id of the stream the recorder makes; default "robocup-mcl".
+    stream : rr.RecordingStream or None, optional
+        Log to this stream instead of a new one (with a `path`, the stream is saved there); None (the default)
+        makes one.
+    blueprint : rrb.Blueprint or None, optional
+        The file's default blueprint; None (the default) for `default_blueprint()`.
+    flush_every : int, optional
+        Send the buffered rows as columns every this many steps, >= 1; default 200.
+    max_points : int, optional
+        Send sooner when the buffered particles and heading arrows reach this many, >= 1; default 1 000 000.
+    max_headings : int, optional
+        At most this many particles get a heading arrow per logged step (every ⌈N / max_headings⌉-th), >= 1;
+        default 100.
+    recording_id : str or None, optional
+        The recording's id (default: a fresh one per recorder); a converted MCAP log given the same id
+        (`rerun mcap convert --recording-id`) opens as one recording with this one.
+    origin_ns : int or None, optional
+        What t = 0 is, in ns since the Unix epoch (a replayed log's `origin_ns`); given, every row is also on
+        the `LOG_TIMELINE` timestamp. None (the default): no such timeline.
+    compact : bool, optional
+        Compact the file when closing (`compact_file`; only for a path, not a stream you pass); default True.
+
+    Raises
+    ------
+    ValueError
+        If a count is not an integer >= 1, `origin_ns` is outside int64, or neither `path` nor `stream` is
+        given; TypeError (`field.checks.ArgumentTypeError`) if `origin_ns` is not an integer.
+    """
 
     def __init__(self, path: str | Path | None, field: Field, particles_every: int = 5,
                  application_id: str = "robocup-mcl", stream: rr.RecordingStream | None = None,
@@ -405,7 +529,21 @@ class Recorder:
 
     def set_time(self, step: int, t: float) -> None:
         """The step (an integer within [0, 2⁶²]) and time [s] what follows is logged at (and, with an origin,
-        the `LOG_TIMELINE` timestamp)."""
+        the `LOG_TIMELINE` timestamp).
+
+        Parameters
+        ----------
+        step : int
+            The step number, within [0, 2⁶²].
+        t : float
+            The time [s] since the run's start (or since `origin_ns`), finite.
+
+        Raises
+        ------
+        ValueError
+            If `step` is out of range or `t` is not finite; TypeError (`field.checks.ArgumentTypeError`) if
+            either is not a number of its kind.
+        """
         self._step, self._time = _step_and_time(step, t)
         self.stream.set_time("step", sequence=self._step)
         self.stream.set_time("time", duration=self._time)
@@ -416,7 +554,23 @@ class Recorder:
     def log_event(self, kind: str, text: str, level: str = "INFO") -> None:
         """Log an event at the current time (buffered): a `TextLog` line "kind: text" with `level` (TRACE, DEBUG,
         INFO, WARN, ERROR or CRITICAL) on `events`, and a mark at 0 on `events/marks/<kind>`, which the default
-        blueprint's plots show. `kind`: lower-case letters, digits and underscores (e.g. "kidnap", "quality")."""
+        blueprint's plots show. `kind`: lower-case letters, digits and underscores (e.g. "kidnap", "quality").
+
+        Parameters
+        ----------
+        kind : str
+            The event's kind: lower-case letters, digits and underscores.
+        text : str
+            The event's text.
+        level : str, optional
+            The text log's level: a key of `EVENT_LEVELS` (TRACE, DEBUG, INFO, WARN, ERROR, CRITICAL); default
+            "INFO". The first event of a kind sets its mark's colour.
+
+        Raises
+        ------
+        TypeError
+            (`field.checks.ArgumentTypeError`) If `kind`, `text` or `level` is not as above.
+        """
         if not isinstance(kind, str) or not EVENT_KIND.match(kind):
             raise ArgumentTypeError(f"kind = {kind!r} must be lower-case letters, digits and underscores")
         if not isinstance(text, str):
@@ -430,11 +584,35 @@ class Recorder:
                             static=True)
         self._events.append((self._step, self._time, kind, text, level))
 
-    def log_change(self, kind: str, value, text: str | None = None, level: str = "INFO",
+    def log_change(self, kind: str, value: object, text: str | None = None, level: str = "INFO",
                    initial: bool = True) -> bool:
         """Log an event (`log_event`) when `value` differs from the value last given for `kind` (the first value
         too, unless `initial` is False): e.g. log_change("quality", localizer.quality().value) each step marks
-        each change of quality. `text` defaults to str(value). Returns whether an event was logged."""
+        each change of quality. `text` defaults to str(value). Returns whether an event was logged.
+
+        Parameters
+        ----------
+        kind : str
+            The event's kind, as `log_event`.
+        value : object
+            The value to compare (with ==) with the last one given for `kind`.
+        text : str or None, optional
+            The event's text; None (the default) for str(value).
+        level : str, optional
+            As `log_event`; default "INFO".
+        initial : bool, optional
+            Whether the first value given for `kind` logs an event (default True).
+
+        Returns
+        -------
+        bool
+            True when an event was logged.
+
+        Raises
+        ------
+        TypeError
+            (`field.checks.ArgumentTypeError`) As `log_event`, when an event is logged.
+        """
         first = kind not in self._last
         if not first and self._last[kind] == value:
             return False
@@ -446,7 +624,19 @@ class Recorder:
 
     def log_scalars(self, values: dict[str, float]) -> None:
         """Log scalar series at the current time, e.g. {"proprioception/s_rel": 0.8} (buffered). Each value
-        must be a finite number, each key a string; checked before any is logged."""
+        must be a finite number, each key a string; checked before any is logged.
+
+        Parameters
+        ----------
+        values : dict of str to float
+            Entity path (non-empty) to value.
+
+        Raises
+        ------
+        ValueError
+            If a value is not finite; TypeError (`field.checks.ArgumentTypeError`) if `values` is not a dict, a
+            value not a number or a key not a non-empty string.
+        """
         if not isinstance(values, dict):
             raise ArgumentTypeError(f"values = {values!r} must be a dict of entity path to number")
         checked = [(path, real(f"values[{path!r}]", value)) for path, value in values.items()]
@@ -456,12 +646,36 @@ class Recorder:
         for path, value in checked:
             self._scalar(path, value)
 
-    def log_step(self, step: int, t: float, pf, truth=None, observations: Observations | None = None,
-                 entropy=None) -> None:
+    def log_step(self, step: int, t: float, pf: ParticleFilter, truth: Sequence[float] | np.ndarray | None = None,
+                 observations: Observations | None = None, entropy: Entropy | None = None) -> None:
         """Log one filter step: entropy and pose every step; the particles, their headings and the uncertainty
         ellipses every `particles_every` steps (buffered, see the module's docstring). When the filter's last
         correction injected particles (augmented MCL's sensor resetting, `pf.injected`) and the one before had
-        not, an event "reset" is logged."""
+        not, an event "reset" is logged.
+
+        Parameters
+        ----------
+        step : int
+            The step number, within [0, 2⁶²] (see `set_time`).
+        t : float
+            The time [s], finite (see `set_time`).
+        pf : ParticleFilter
+            The filter (or anything with its `poses`, `weights`, `estimate()` and `entropy()`, and optionally
+            `injected`).
+        truth : sequence of float or np.ndarray or None, optional
+            The true pose (x [m], y [m], θ [rad]): logged with the position and heading errors; None (the
+            default) when unknown.
+        observations : Observations or None, optional
+            The step's detections, drawn as arrows from the estimate; None (the default) for none.
+        entropy : Entropy or None, optional
+            The belief's entropy when already computed; None (the default) asks `pf.entropy()`.
+
+        Raises
+        ------
+        ValueError
+            If `step`, `t` or `truth` is out of range or not finite; TypeError (`field.checks.ArgumentTypeError`)
+            if one of them is not a number (or three) or `observations` is not an `Observations`.
+        """
         step, t = _step_and_time(step, t)
         if truth is not None:
             truth = reals("truth", truth, 3)

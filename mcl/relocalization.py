@@ -46,7 +46,9 @@ and the limits: docs/relocalization.md.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numba
 import numpy as np
@@ -66,8 +68,29 @@ REGIONS = ("field", "own_half", "opponent_half")
 """The named regions a belief can be spread over (the own half is x < 0: the team plays towards +x)."""
 
 
-def region_bounds(field: Field, region) -> tuple[float, float, float, float]:
-    """(x_min, x_max, y_min, y_max) of a named region of `field` (`REGIONS`) or of given bounds (checked)."""
+def region_bounds(field: Field, region: str | Sequence[float] | np.ndarray) -> tuple[float, float, float, float]:
+    """(x_min, x_max, y_min, y_max) of a named region of `field` (`REGIONS`) or of given bounds (checked).
+
+    Parameters
+    ----------
+    field : Field
+        The field whose halves the named regions are.
+    region : str or sequence of float or np.ndarray
+        A name of `REGIONS` ("field", "own_half", "opponent_half"), or bounds (x_min, x_max, y_min, y_max) [m]
+        in the field frame, each finite.
+
+    Returns
+    -------
+    tuple of float
+        (x_min, x_max, y_min, y_max) [m]: the named region within the field lines, or the bounds as floats.
+
+    Raises
+    ------
+    ValueError
+        If the name is not one of `REGIONS`, the bounds are not four finite numbers within the coordinate
+        limits, or x_min >= x_max or y_min >= y_max; TypeError (`field.checks.ArgumentTypeError`) if `region`
+        is neither a name nor a sequence of numbers.
+    """
     hl, hw = field.half_length, field.half_width
     if isinstance(region, str):
         if region not in REGIONS:
@@ -86,29 +109,59 @@ class RelocalizationPrior:
     """Where the robot can be, given the anchor (its last confident pose, dead-reckoned since): a mixture of
     three densities over (x, y, θ) (see the module docstring).
 
-    kidnap_share:     prior probability that something odometry did not see moved the robot (carried, pushed,
-                      spun): then its position is normal around the anchor with `kidnap_sigma`
-    kidnap_sigma:     m
-    heading_kept:     share of such displacements that keep the heading (normal of `track_heading_sigma` around
-                      the anchor's); the rest turn the robot by any angle. Evidence, not a gate: a carried
-                      robot's heading usually survives, a pushed or spun one's does not
-    tail_share:       prior probability of anywhere on the carpet, any heading: no pose is ruled out
-    track_sigma:      m, otherwise (1 − kidnap_share − tail_share) the robot is where the anchor says, normal
-                      with this spread in position ...
-    track_heading_sigma: rad, ... and this in heading
-    drift:            share of the distance dead-reckoned since the anchor that widens both position sigmas
-    region_tail:      prior factor outside the placement region, before the first confident estimate after it
-    pool:             candidates drawn per injected particle (each also with its mirror image)
-    pair_share:       share of the candidates taken from detection pairs (when a frame has two or more)
-    uniform_share:    share of the candidates uniform over the carpet
-    jitter:           (x [m], y [m], θ [rad]) normal noise added to each injected candidate
-    mirror_odds:      a candidate whose prior beats its mirror image's by more than this is injected without
-                      the mirror image (and the other way round); closer odds inject both
-    confident_weight: share of the belief the estimate's cluster must hold to be confident (with 0.3 m, 0.2 rad)
-    jump_corrections: corrections in a row a confident estimate away from the anchor must hold (within 0.5 m
-                      and 0.5 rad from one to the next) before it becomes the anchor
-    confident_corrections: corrections in a row the estimate must be confident before the placement region
-                      is lifted and injection is capped at the filter's tracking share
+    Parameters
+    ----------
+    kidnap_share : float, optional
+        Prior probability that something odometry did not see moved the robot (carried, pushed, spun): then its
+        position is normal around the anchor with `kidnap_sigma`. Within [0, 1]; default 0.1.
+    kidnap_sigma : float, optional
+        Spread of that position [m], > 0; default 2.5.
+    heading_kept : float, optional
+        Share of such displacements that keep the heading (normal of `track_heading_sigma` around the
+        anchor's); the rest turn the robot by any angle. Evidence, not a gate: a carried robot's heading
+        usually survives, a pushed or spun one's does not. Within [0, 1]; default 0.5.
+    tail_share : float, optional
+        Prior probability of anywhere on the carpet, any heading: no pose is ruled out. Within (0, 1], and
+        `kidnap_share` + `tail_share` < 1; default 0.01.
+    track_sigma : float, optional
+        Otherwise (1 − kidnap_share − tail_share) the robot is where the anchor says, normal with this spread
+        in position [m] (and `track_heading_sigma` in heading); > 0; default 0.3.
+    track_heading_sigma : float, optional
+        The spread in heading [rad] of that part (and of a kidnap that keeps the heading); > 0; default 0.3.
+    drift : float, optional
+        Share of the distance dead-reckoned since the anchor that widens both position sigmas; within [0, 1];
+        default 0.3.
+    region_tail : float, optional
+        Prior factor outside the placement region, before the first confident estimate after it; within
+        (0, 1]; default 0.05.
+    pool : int, optional
+        Candidates drawn per injected particle (each also with its mirror image), >= 1; default 4.
+    pair_share : float, optional
+        Share of the candidates taken from detection pairs (when a frame has two or more); within [0, 1];
+        default 0.6.
+    uniform_share : float, optional
+        Share of the candidates uniform over the carpet; within [0, 1], and `pair_share` + `uniform_share`
+        <= 1; default 0.1.
+    jitter : tuple of float, optional
+        (x [m], y [m], θ [rad]) standard deviations of the normal noise added to each injected candidate,
+        each finite and >= 0; default (0.03, 0.03, 0.03).
+    mirror_odds : float, optional
+        A candidate whose prior beats its mirror image's by more than this is injected without the mirror
+        image (and the other way round); closer odds inject both. Finite and >= 1; default 2.0.
+    jump_corrections : int, optional
+        Corrections in a row a confident estimate away from the anchor must hold (within 0.5 m and 0.5 rad
+        from one to the next) before it becomes the anchor; >= 1; default 10.
+    confident_weight : float, optional
+        Share of the belief the estimate's cluster must hold to be confident (with 0.3 m, 0.2 rad); within
+        [0, 1]; default 0.8.
+    confident_corrections : int, optional
+        Corrections in a row the estimate must be confident before the placement region is lifted and
+        injection is capped at the filter's tracking share; >= 1; default 120.
+
+    Raises
+    ------
+    ValueError
+        If a value is out of its range (naming it), or the shares add up as above they must not.
     """
 
     kidnap_share: float = 0.1
@@ -158,7 +211,33 @@ class RelocalizationPrior:
 
 
 class SoccerRelocalization:
-    """The soccer field's re-localization rules as evidence (see the module docstring); one per filter."""
+    """The soccer field's re-localization rules as evidence (see the module docstring); one per filter.
+
+    Parameters
+    ----------
+    prior : RelocalizationPrior, optional
+        The prior's parameters; default `RelocalizationPrior()`.
+
+    Attributes
+    ----------
+    prior : RelocalizationPrior
+        As given.
+    travelled : float
+        Distance [m] dead-reckoned since the anchor was confirmed.
+    region : tuple of float or None
+        The placement region (x_min, x_max, y_min, y_max) [m] until the filter is first confident after a reset
+        over it; None otherwise.
+    tracking : bool
+        Whether the filter has been confident since the last reset.
+    mirror_log_odds : float
+        The prior's log odds of the last re-localized pose against its mirror image (+inf: none since a known
+        pose): how sure the filter can be that it is not on the mirror (see `confirm`).
+
+    Raises
+    ------
+    ValueError
+        If `prior` is not a `RelocalizationPrior`.
+    """
 
     def __init__(self, prior: RelocalizationPrior = RelocalizationPrior()) -> None:
         if not isinstance(prior, RelocalizationPrior):
@@ -188,13 +267,26 @@ class SoccerRelocalization:
         return self._carpet
 
     def bind(self, carpet: tuple[float, float, float, float]) -> None:
-        """The carpet's bounds (x_min, x_max, y_min, y_max): where uniform candidates are drawn."""
+        """The carpet's bounds (x_min, x_max, y_min, y_max): where uniform candidates are drawn.
+
+        Parameters
+        ----------
+        carpet : tuple of float
+            (x_min, x_max, y_min, y_max) [m] of the carpet, in the field frame.
+        """
         x_min, x_max, y_min, y_max = (float(v) for v in carpet)
         self._carpet = (x_min, x_max, y_min, y_max)
 
     # -- what the filter tells it -------------------------------------------------------------------------
-    def reset_region(self, bounds) -> None:
-        """The robot is somewhere in `bounds` (x_min, x_max, y_min, y_max), nothing else known."""
+    def reset_region(self, bounds: Sequence[float]) -> None:
+        """The robot is somewhere in `bounds` (x_min, x_max, y_min, y_max), nothing else known.
+
+        Parameters
+        ----------
+        bounds : sequence of float
+            (x_min, x_max, y_min, y_max) [m] of the region the particles were spread over (the placement
+            region until the filter is confident).
+        """
         x_min, x_max, y_min, y_max = (float(v) for v in bounds)
         self.region = (x_min, x_max, y_min, y_max)
         self.mirror_log_odds = math.inf
@@ -204,8 +296,14 @@ class SoccerRelocalization:
         self._streak = 0
         self._pending = None
 
-    def reset_pose(self, pose) -> None:
-        """The robot is at `pose` (x, y, θ): the anchor, trusted at once."""
+    def reset_pose(self, pose: Sequence[float] | np.ndarray) -> None:
+        """The robot is at `pose` (x, y, θ): the anchor, trusted at once.
+
+        Parameters
+        ----------
+        pose : sequence of float or np.ndarray
+            (x [m], y [m], θ [rad]) the particles were set around; the heading is wrapped to [-π, π].
+        """
         self._anchor = [float(pose[0]), float(pose[1]), math.remainder(float(pose[2]), TWO_PI)]
         self.travelled = 0.0
         self.region = None
@@ -224,7 +322,13 @@ class SoccerRelocalization:
             self.region = (-x_max, -x_min, -y_max, -y_min)
 
     def carry(self, dx: float, dy: float, dtheta: float) -> None:
-        """Dead-reckon the anchor by a robot-frame displacement (the motion input of a step)."""
+        """Dead-reckon the anchor by a robot-frame displacement (the motion input of a step).
+
+        Parameters
+        ----------
+        dx, dy, dtheta : float
+            As `mcl.contracts.Relocalization.carry`: displacement [m] and rotation [rad] in the robot frame.
+        """
         anchor = self._anchor
         if anchor is None:
             return
@@ -234,7 +338,7 @@ class SoccerRelocalization:
         anchor[2] = math.remainder(anchor[2] + dtheta, TWO_PI)
         self.travelled += math.hypot(dx, dy)
 
-    def confirm(self, estimate, explains: bool) -> bool:
+    def confirm(self, estimate: Any, explains: bool) -> bool:
         """After a correction: the filter's estimate (`mcl.filter.Estimate`: pose, covariance, the dominant
         cluster's weight) and whether the belief explains the detections. Returns whether the filter should
         mirror its particles through the centre mark.
@@ -248,7 +352,20 @@ class SoccerRelocalization:
         detection exactly as well: when the mirror image is the more probable by more than `mirror_odds`, the
         belief belongs there (returns True, and the anchor is the mirror image). `mirror_log_odds` keeps the
         odds of the pose kept against its mirror image, the smaller of the prior's and those of position alone
-        (`log_prior(..., heading_kept=0)`): nothing seen afterwards can change them."""
+        (`log_prior(..., heading_kept=0)`): nothing seen afterwards can change them.
+
+        Parameters
+        ----------
+        estimate : mcl.Estimate
+            The filter's estimate after the correction (its `pose` and `is_confident` are used).
+        explains : bool
+            Whether the belief explains the frame's detections as usual.
+
+        Returns
+        -------
+        bool
+            True when the filter should mirror its particles through the centre mark.
+        """
         flip = False
         confident = estimate.is_confident(weight=self.prior.confident_weight)
         if confident and explains:
@@ -317,12 +434,37 @@ class SoccerRelocalization:
         """The prior's log-density at each pose (N, 3) (see `RelocalizationPrior`); without an anchor, uniform
         (times `region_tail` outside the placement region). heading_kept: instead of the prior's (0: a
         displacement odometry did not see says nothing of the heading). Compiled (`log_prior_kernel`); the numpy
-        twin is `log_prior_reference`."""
+        twin is `log_prior_reference`.
+
+        Parameters
+        ----------
+        poses : np.ndarray
+            (N, 3) poses (x [m], y [m], θ [rad]) in the field frame.
+        heading_kept : float or None, optional
+            Share of unseen displacements that keep the heading, instead of the prior's `heading_kept`; None
+            (the default) takes the prior's.
+
+        Returns
+        -------
+        np.ndarray
+            (N,) float64 log-densities.
+        """
         poses = np.ascontiguousarray(poses, dtype=np.float64)
         return log_prior_kernel(poses, *self._prior_arguments(heading_kept), np.empty(poses.shape[0]))
 
     def log_prior_reference(self, poses: np.ndarray, heading_kept: float | None = None) -> np.ndarray:
-        """Plain numpy twin of `log_prior`."""
+        """Plain numpy twin of `log_prior`.
+
+        Parameters
+        ----------
+        poses, heading_kept
+            As `log_prior`.
+
+        Returns
+        -------
+        np.ndarray
+            (N,) float64 log-densities, as `log_prior` gives them.
+        """
         anchor, mixture, region = self._prior_arguments(heading_kept)
         has_anchor, ax, ay, at = anchor
         track2, kidnap2, heading_sigma, kidnap_share, tail_share, heading_kept, uniform = mixture
@@ -345,12 +487,32 @@ class SoccerRelocalization:
             log_prior = log_prior + np.where(inside, 0.0, log_region_tail)
         return log_prior
 
-    def propose(self, count: int, observations: Observations, sensor_model, rng: np.random.Generator,
+    def propose(self, count: int, observations: Observations, sensor_model: Any, rng: np.random.Generator,
                 reference: bool = False) -> np.ndarray:
         """`count` poses (count, 3) to inject: candidates drawn from the detections, weighed by how well they
         explain the whole frame and by the prior, `count` of them drawn in proportion (systematic).
         reference: use the plain twins (`sample_poses_reference`, `poses_from_pairs(..., reference=True)`), for
-        tests."""
+        tests.
+
+        Parameters
+        ----------
+        count : int
+            How many poses to propose; none when <= 0.
+        observations : Observations
+            The frame that triggered the injection.
+        sensor_model : SensorModel
+            The filter's sensor model: scores the candidates (`log_likelihood`); its `sample_poses` (sensor
+            resetting) and `landmark_table` (pairs of detections), when it has them, draw candidates.
+        rng : np.random.Generator
+            The only source of randomness.
+        reference : bool, optional
+            Use the plain numpy twins (default False).
+
+        Returns
+        -------
+        np.ndarray
+            (count, 3) float64 poses (x [m], y [m], θ [rad]), headings wrapped; (0, 3) when `count` <= 0.
+        """
         p = self.prior
         if count <= 0:
             return np.empty((0, 3))

@@ -46,8 +46,10 @@ from __future__ import annotations
 import math
 import sys
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass, field as dataclass_field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -58,6 +60,12 @@ from motion_models import ConstantNoise, MotionInput, VelocityLinear
 from .latency import SAME_TIME
 from .localizer import Localizer, Quality
 from .logs import LogError, ReadReport, RobotLog
+
+if TYPE_CHECKING:
+    import argparse
+
+    from .logs.mcap_io import Topics
+    from .numba_cache import WarmUp
 
 MODELS = {"velocity-linear": VelocityLinear, "constant": ConstantNoise}
 STARTS = ("own_half", "field", "initial", "penalty")
@@ -72,7 +80,38 @@ class ReplayResult:
     """Per motion step: `times` (M,), `estimates` (M, 3), `covariances` (M, 3, 3), `weights` (M,) the dominant
     cluster's share of the weight, `quality` (M,) codes
     (2 superb, 1 okay, 0 poor), `lost` (M,), `entropy` (M, 2) position/orientation bits, `truth` (M, 3) (NaN
-    where the log has none); `dropped` {reason: count}; `frames_used`; `elapsed` seconds of replay."""
+    where the log has none); `dropped` {reason: count}; `frames_used`; `elapsed` seconds of replay.
+
+    Attributes
+    ----------
+    times : np.ndarray
+        (M,) float64 end of each motion step [s], in the log's time (seconds after its `origin_ns`).
+    estimates : np.ndarray
+        (M, 3) float64 estimate after each step (x [m], y [m], θ [rad]) in the field frame.
+    covariances : np.ndarray
+        (M, 3, 3) float64 covariance of each estimate over (x, y, θ) [m², m·rad, rad²].
+    weights : np.ndarray
+        (M,) float64 share of the weight the estimate's dominant cluster holds.
+    quality : np.ndarray
+        (M,) int8 quality codes (`QUALITY_CODES`: 2 superb, 1 okay, 0 poor).
+    lost : np.ndarray
+        (M,) bool: the localizer's "lost" flag after each step.
+    entropy : np.ndarray
+        (M, 2) float64 entropy of the belief [bits]: position, orientation.
+    truth : np.ndarray
+        (M, 3) float64 ground truth at each step's time (x [m], y [m], θ [rad]); NaN where the log has none.
+    dropped : dict of str to int
+        What the localizer could not use, counted by reason (and the camera frames after the last motion step).
+    notes : list of str
+        The first few events worth a look (at most `MAX_NOTES`, then a line saying more were left out), with
+        their times.
+    frames_used : int
+        Camera frames that corrected the filter.
+    elapsed : float
+        Wall-clock time of the replay [s].
+    log_duration : float
+        Length of the log [s].
+    """
 
     times: np.ndarray
     estimates: np.ndarray
@@ -95,10 +134,13 @@ class ReplayResult:
 
     @property
     def position_errors(self) -> np.ndarray:
+        """(M,) distance [m] of each estimate from the truth; NaN where the log has none."""
         return np.hypot(*(self.estimates[:, :2] - self.truth[:, :2]).T)
 
     @property
     def heading_errors(self) -> np.ndarray:
+        """(M,) absolute heading error [rad] of each estimate against the truth, within [0, π]; NaN where the log
+        has none."""
         return np.abs(wrap_angles(self.estimates[:, 2] - self.truth[:, 2]))
 
     def figures(self) -> dict:
@@ -125,6 +167,8 @@ class ReplayResult:
         return out
 
     def summary(self) -> str:
+        """The figures (`figures`) as a few lines of text: speed, quality shares, errors against the truth (when
+        the log has it), what was dropped, and the notes."""
         f = self.figures()
         lines = [f"{f['steps']} steps, {f['frames_used']} camera frames used, "
                  f"{f['log_seconds']:.1f} s of log in {f['replay_seconds']:.1f} s"
@@ -144,11 +188,31 @@ class ReplayResult:
         return "\n".join(lines)
 
 
-def check_inputs(log: RobotLog, report: ReadReport | None = None, topics=None, require_vision: bool = True) -> None:
+def check_inputs(log: RobotLog, report: ReadReport | None = None, topics: Topics | None = None,
+                 require_vision: bool = True) -> None:
     """Raise `LogError` when `log` cannot drive a replay: it has no motion input (neither two or more odometry
     poses nor a walk command), or (with `require_vision`) no camera frame with a detection. The message names
     what is missing; with the MCAP reader's `report` and the `topics` it was read with (default `Topics()`),
-    also which topic each of those streams was read from, or looked for, and the options that name a topic."""
+    also which topic each of those streams was read from, or looked for, and the options that name a topic.
+
+    Parameters
+    ----------
+    log : RobotLog
+        The log to replay.
+    report : ReadReport or None, optional
+        The reader's report on `log`; with an MCAP log's report the message also says where each missing stream
+        was looked for. None (the default): the message names what is missing only.
+    topics : mcl.logs.mcap_io.Topics or None, optional
+        The topics the MCAP log was read with; None (the default) for `Topics()`.
+    require_vision : bool, optional
+        Whether a camera frame with a detection is required (default True).
+
+    Raises
+    ------
+    LogError
+        If the log has no motion input or (with `require_vision`) no camera frame with a detection; the message
+        starts with the report's path when there is a report.
+    """
     problems = []
     if log.odometry_times.shape[0] < 2 and log.command_times.shape[0] == 0:
         problems.append(("no motion input: the log has neither odometry (two or more poses) nor walk commands, "
@@ -171,7 +235,7 @@ def check_inputs(log: RobotLog, report: ReadReport | None = None, topics=None, r
     raise LogError(where + "; and ".join(messages))
 
 
-def _stream_source(stream: str, report: ReadReport, topics) -> str:
+def _stream_source(stream: str, report: ReadReport, topics: Topics | None) -> str:
     """Where an MCAP log's `stream` came from, or was looked for, for `check_inputs`'s message."""
     from .logs.mcap_io import DISCOVERY_TYPES, Topics
 
@@ -192,6 +256,23 @@ def motion_events(log: RobotLog) -> tuple[np.ndarray, list[MotionInput]]:
     Odometry when the log has at least two odometry poses (the change between consecutive ones, in the robot
     frame of the earlier one, with the command in force); otherwise the walk commands held until the next
     command (the last one until the log's end). LogError when the log has neither.
+
+    Parameters
+    ----------
+    log : RobotLog
+        The log.
+
+    Returns
+    -------
+    times : np.ndarray
+        (M,) float64 end of each motion step [s], in the log's time.
+    inputs : list of MotionInput
+        The M motion inputs, one per step.
+
+    Raises
+    ------
+    LogError
+        If the log has neither two or more odometry poses nor a walk command.
     """
     if log.odometry_times.shape[0] >= 2:
         t, pose = log.odometry_times, log.odometry
@@ -226,7 +307,8 @@ def _commands_at(log: RobotLog, times: np.ndarray) -> np.ndarray | None:
 
 
 def replay(log: RobotLog, field: Field, model: str = "velocity-linear", particles: int = 500, seed: int = 0,
-           compensate_latency: bool = True, history: float = 1.0, start="own_half", rrd: str | None = None,
+           compensate_latency: bool = True, history: float = 1.0,
+           start: str | Sequence[float] | np.ndarray = "own_half", rrd: str | None = None,
            poses_out: str | None = None, record_every: int = 5, progress: bool = False,
            localizer: Localizer | None = None, require_vision: bool = True) -> ReplayResult:
     """Run the log through a `Localizer` and collect the estimates (see the module docstring).
@@ -234,10 +316,52 @@ def replay(log: RobotLog, field: Field, model: str = "velocity-linear", particle
     A log without motion input, or (unless `require_vision` is False: dead reckoning from `start`) without a
     camera frame with a detection, raises `LogError` (`check_inputs`).
 
-    start: where the belief starts: "own_half" (uniform, kick-off side), "field" (uniform), "initial"
-           (`initial_placement`: the touchlines), "penalty" (`penalty_return`), or a pose (x, y, θ).
-    rrd: write a Rerun recording; poses_out: write the estimates (.mcap PoseWithCovarianceStamped, .csv in the
-    SPL convention, .npz arrays). `localizer` replaces the one built from model/particles/seed.
+    Parameters
+    ----------
+    log : RobotLog
+        The log to replay.
+    field : Field
+        The field the robot plays on.
+    model : str, optional
+        The motion model, a key of `MODELS`: "velocity-linear" (the default) or "constant".
+    particles : int, optional
+        Number of particles (default 500).
+    seed : int, optional
+        Seed of the filter's random generator (default 0).
+    compensate_latency : bool, optional
+        Score each camera frame at its capture time (the default) rather than when it arrives.
+    history : float, optional
+        Seconds of motion kept for late camera frames (default 1.0).
+    start : str or sequence of float or np.ndarray, optional
+        Where the belief starts: "own_half" (the default; uniform, kick-off side), "field" (uniform),
+        "initial" (`initial_placement`: the touchlines), "penalty" (`penalty_return`), or a pose
+        (x [m], y [m], θ [rad]).
+    rrd : str or None, optional
+        Write a Rerun recording to this file; None (the default) writes none.
+    poses_out : str or None, optional
+        Write the estimates to this file: .mcap (PoseWithCovarianceStamped), .csv (the SPL convention: mm,
+        rad) or .npz (the arrays of the module docstring); None (the default) writes none.
+    record_every : int, optional
+        Record the particles every this many steps (`Recorder`'s `particles_every`; default 5).
+    progress : bool, optional
+        Show a progress bar on stderr (default False).
+    localizer : Localizer or None, optional
+        A localizer to use instead of the one built from `model`, `particles`, `seed`, `history` and
+        `compensate_latency`; None (the default) builds one.
+    require_vision : bool, optional
+        Refuse a log without a camera frame with a detection (default True); False replays dead reckoning
+        from `start`.
+
+    Returns
+    -------
+    ReplayResult
+        The estimates per motion step, what was dropped, and the timing.
+
+    Raises
+    ------
+    ValueError
+        If `model` or `start` is unknown, `poses_out` has another suffix than .mcap, .csv or .npz, or a value
+        is out of range; `LogError` (a ValueError) if the log cannot drive a replay (`check_inputs`).
     """
     if model not in MODELS:
         raise ValueError(f"model = {model!r} must be one of {tuple(MODELS)}")
@@ -323,7 +447,7 @@ def replay(log: RobotLog, field: Field, model: str = "velocity-linear", particle
                         elapsed, log.duration)
 
 
-def _start(localizer: Localizer, start) -> None:
+def _start(localizer: Localizer, start: str | Sequence[float] | np.ndarray) -> None:
     if isinstance(start, str):
         if start not in STARTS:
             raise ValueError(f"start = {start!r} must be one of {STARTS} or a pose (x, y, θ)")
@@ -422,8 +546,19 @@ WARM_UP_PARTICLES = 64
 WARM_UP_STEPS = 200          # motion steps of the log the warm-up localizer follows (about 2 s at 100 Hz)
 
 
-def build_parser(prog: str = PROG):
-    """The command's argument parser, named `prog` in its usage line."""
+def build_parser(prog: str = PROG) -> argparse.ArgumentParser:
+    """The command's argument parser, named `prog` in its usage line.
+
+    Parameters
+    ----------
+    prog : str, optional
+        The program name its usage line shows; default "robocup-mcl replay".
+
+    Returns
+    -------
+    argparse.ArgumentParser
+        The parser of `robocup-mcl replay`'s arguments.
+    """
     import argparse
     from dataclasses import fields
 
@@ -466,11 +601,37 @@ def build_parser(prog: str = PROG):
 
 
 def warm_up_replay(log: RobotLog, field: Field, model: str, compensate_latency: bool = True,
-                   history: float = 1.0, progress: bool = False):
+                   history: float = 1.0, progress: bool = False) -> WarmUp:
     """Compile (or load from numba's cache) the kernels a replay reaches, on a throw-away localizer of a few
     particles, before the replay is timed; returns the `mcl.numba_cache.WarmUp`. The filter's groups of kernels
     come one by one (`mcl.numba_cache.filter_stages`, with the log's first motion step and first frame with
-    detections), then the localizer follows the log's first motion steps and frames."""
+    detections), then the localizer follows the log's first motion steps and frames.
+
+    Parameters
+    ----------
+    log : RobotLog
+        The log the replay will run (its first `WARM_UP_STEPS` motion steps and their frames are followed).
+    field : Field
+        The replay's field.
+    model : str
+        The replay's motion model, a key of `MODELS`.
+    compensate_latency : bool, optional
+        As `replay` (default True).
+    history : float, optional
+        As `replay` [s] (default 1.0).
+    progress : bool, optional
+        Show the warm-up's progress on stderr (default False).
+
+    Returns
+    -------
+    mcl.numba_cache.WarmUp
+        How long the warm-up took and whether the kernels were cached or compiled.
+
+    Raises
+    ------
+    LogError
+        If the log has no motion input (`motion_events`).
+    """
     from .numba_cache import filter_kernels, filter_stages, warm_up
 
     times, inputs = motion_events(log)
@@ -504,7 +665,21 @@ def warm_up_replay(log: RobotLog, field: Field, model: str, compensate_latency: 
 
 
 def main(argv: list[str] | None = None, prog: str = PROG) -> int:
-    """`robocup-mcl replay LOG ...` (see `robocup-mcl replay --help`)."""
+    """`robocup-mcl replay LOG ...` (see `robocup-mcl replay --help`).
+
+    Parameters
+    ----------
+    argv : list of str or None, optional
+        The command's arguments; None (the default) reads them from `sys.argv`.
+    prog : str, optional
+        The program name usage and error lines show; default "robocup-mcl replay".
+
+    Returns
+    -------
+    int
+        The exit status: 0 on success, 1 when the log or an option cannot be used (one line on stderr). A
+        malformed command line exits with status 2 (argparse's `SystemExit`).
+    """
     import json
     from dataclasses import fields
 

@@ -50,9 +50,10 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Any, Callable, Iterable, Sequence
+from typing import TYPE_CHECKING, Any, Callable, Iterable, Sequence
 
 import numpy as np
+from numpy.typing import ArrayLike
 from hypothesis import HealthCheck, Phase, given, settings
 from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
@@ -63,6 +64,10 @@ from motion_models import FootstepEvent, MotionInput
 from sensing import Observations
 from sensing.collision import NO_COLLISION, CollisionPercept
 from sensing.view import CameraView
+
+if TYPE_CHECKING:
+    from mcl.contracts import MotionModel, SensorModel
+    from mcl.filter import ParticleFilter
 
 __all__ = [
     "REFUSALS",
@@ -240,7 +245,7 @@ def camera_views() -> st.SearchStrategy[CameraView]:
 
 def observations(field: Field, max_detections: int = 8, with_sigmas: bool = False, *, min_detections: int = 0,
                  max_range: float | None = None, max_line_points: int = 0, with_view: bool = False,
-                 seen_from=None) -> st.SearchStrategy[Observations]:
+                 seen_from: Sequence[float] | np.ndarray | None = None) -> st.SearchStrategy[Observations]:
     """Camera frames: `sensing.Observations` batches a sensor model for `field` accepts.
 
     Parameters
@@ -512,7 +517,7 @@ def hostile_motion_inputs() -> st.SearchStrategy[MotionInput]:
 
 
 # -- invariants --------------------------------------------------------------------------------------------------
-def assert_poses_finite_and_wrapped(poses) -> None:
+def assert_poses_finite_and_wrapped(poses: ArrayLike | ParticleFilter) -> None:
     """Assert that particles are an (N, 3) array of finite poses with headings wrapped into [-π, π].
 
     Parameters
@@ -542,7 +547,7 @@ def assert_poses_finite_and_wrapped(poses) -> None:
                              f"({int((~wrapped).sum())} of {array.shape[0]} rows)")
 
 
-def assert_weights_normalized(pf, tolerance: float = 1e-9) -> None:
+def assert_weights_normalized(pf: ParticleFilter, tolerance: float = 1e-9) -> None:
     """Assert that a filter's weights are a probability distribution matching its log-weights.
 
     Parameters
@@ -684,7 +689,24 @@ class FilterSnapshot:
         return dict(self.scalars)["w_fast"]
 
     def differences(self, other: "FilterSnapshot") -> list[str]:
-        """What differs from `other`, one line per field (an empty list: the same, bit for bit)."""
+        """What differs from `other`, one line per field (an empty list: the same, bit for bit).
+
+        Parameters
+        ----------
+        other : FilterSnapshot
+            The snapshot to compare with (usually a later one of the same filter).
+
+        Returns
+        -------
+        list of str
+            One line per field that differs, with its first differing entry (this snapshot's value, then
+            `other`'s).
+
+        Raises
+        ------
+        TypeError
+            If `other` is not a `FilterSnapshot`.
+        """
         if not isinstance(other, FilterSnapshot):
             raise TypeError(f"other = {other!r} must be a FilterSnapshot, not {type(other).__name__}")
         found = []
@@ -722,7 +744,7 @@ _SCALARS = ("w_slow", "w_fast", "ess", "frame_fit", "resampled", "injected", "re
             "augmented", "n")
 
 
-def snapshot(pf, estimate: bool = True) -> FilterSnapshot:
+def snapshot(pf: ParticleFilter, estimate: bool = True) -> FilterSnapshot:
     """Capture a filter's whole observable state.
 
     Parameters
@@ -784,7 +806,8 @@ def assert_unchanged(before: FilterSnapshot, after: FilterSnapshot, what: str = 
         raise AssertionError(f"{what} changed: " + "; ".join(differences))
 
 
-def assert_refused_leaves_state(pf, call: Callable, *args, exceptions: tuple = REFUSALS, **kwargs) -> BaseException:
+def assert_refused_leaves_state(pf: ParticleFilter, call: Callable[..., Any], *args: Any,
+                                exceptions: tuple = REFUSALS, **kwargs: Any) -> BaseException:
     """Assert that `call(*args, **kwargs)` is refused and leaves the filter exactly as it was.
 
     Parameters
@@ -926,7 +949,8 @@ def _predict(model, poses: np.ndarray, u: MotionInput, seed: int, state: np.ndar
     return rng
 
 
-def assert_motion_contract(model, poses, u: MotionInput, seed: int = 0, *, strict: bool = False) -> bool:
+def assert_motion_contract(model: MotionModel, poses: ArrayLike, u: MotionInput, seed: int = 0, *,
+                           strict: bool = False) -> bool:
     """Check one motion input against a motion model's contract.
 
     `model.check(u)` either refuses with ValueError/TypeError (any other exception fails), or accepts; then
@@ -1045,7 +1069,7 @@ def _run(test: Callable, max_examples: int, strategies: dict, shrink: bool | Non
     configured(given(**strategies)(test))()
 
 
-def check_motion_model(model, field: Field | None = None, *, n: int | tuple[int, int] = (1, 64),
+def check_motion_model(model: MotionModel, field: Field | None = None, *, n: int | tuple[int, int] = (1, 64),
                        inputs: st.SearchStrategy | None = None, hostile: st.SearchStrategy | None = None,
                        refused: Sequence[MotionInput] = (), strict: bool = False,
                        max_examples: int = 20, shrink: bool | None = None) -> ContractReport:
@@ -1138,7 +1162,8 @@ def _bound_of(bound, observations) -> float | None:
     return float(bound(observations)) if callable(bound) else float(bound)
 
 
-def assert_fused_likelihood(model, poses, observations: Observations, since=None) -> bool:
+def assert_fused_likelihood(model: SensorModel, poses: ArrayLike, observations: Observations,
+                            since: Sequence[float] | np.ndarray | None = None) -> bool:
     """The sensor model's fused-likelihood kernels (`sensing.fused`), run as the filter's fused step runs them,
     give `log_likelihood` bit for bit; with `since` (camera latency), `log_likelihood` of the poses moved back.
 
@@ -1191,7 +1216,7 @@ def assert_fused_likelihood(model, poses, observations: Observations, since=None
     return True
 
 
-def assert_sensor_contract(model, poses, observations: Observations, *,
+def assert_sensor_contract(model: SensorModel, poses: ArrayLike, observations: Observations, *,
                            bound: float | Callable[[Observations], float] | None = None,
                            allow_neg_inf: bool = False) -> bool:
     """Check one frame against a sensor model's contract.
@@ -1302,7 +1327,7 @@ def _far_rows(field: Field) -> st.SearchStrategy:
                               st.floats(-math.pi, math.pi, exclude_min=True)), max_size=3)
 
 
-def check_sensor_model(model, field: Field, *, n: int | tuple[int, int] = (1, 64),
+def check_sensor_model(model: SensorModel, field: Field, *, n: int | tuple[int, int] = (1, 64),
                        frames: st.SearchStrategy | None = None, hostile: st.SearchStrategy | None = None,
                        bound: float | Callable[[Observations], float] | None = None, allow_neg_inf: bool = False,
                        max_examples: int = 20, shrink: bool | None = None) -> ContractReport:
@@ -1411,8 +1436,19 @@ class RegisteredModel:
     refused: tuple = ()
     source: str = "registered"
 
-    def build(self, field: Field):
-        """The model, built for `field` (a sensor model) or without it (a motion model)."""
+    def build(self, field: Field) -> Any:
+        """The model, built for `field` (a sensor model) or without it (a motion model).
+
+        Parameters
+        ----------
+        field : field.Field
+            Passed to `make` for a sensor model; unused for a motion model.
+
+        Returns
+        -------
+        MotionModel or SensorModel
+            What `make` returns.
+        """
         return self.make(field) if self.kind == "sensor" else self.make()
 
 
@@ -1466,12 +1502,46 @@ def register_sensor_model(name: str, make: Callable[[Field], Any]) -> Registered
 
     Raises ValueError for an empty or taken name and TypeError when `make` is not callable, registering
     nothing.
+
+    Parameters
+    ----------
+    name : str
+        A name unique among registered sensor models.
+    make : callable
+        Called with the `field.Field`, returns the model (a class works).
+
+    Returns
+    -------
+    RegisteredModel
+
+    Raises
+    ------
+    ValueError
+        An empty name, or a name already registered (nothing is registered then).
+    TypeError
+        `make` is not callable.
     """
     return _register("sensor", name, make)
 
 
 def unregister(kind: str, name: str) -> None:
-    """Take a model registered in this process off the list (KeyError when there is none by that name)."""
+    """Take a model registered in this process off the list (KeyError when there is none by that name).
+
+    Parameters
+    ----------
+    kind : str
+        "motion" or "sensor".
+    name : str
+        The name it was registered under.
+
+    Raises
+    ------
+    ValueError
+        If `kind` is neither "motion" nor "sensor".
+    KeyError
+        If no model of that kind is registered in this process under `name` (entry points cannot be
+        unregistered).
+    """
     if kind not in MODEL_KINDS:
         raise ValueError(f"kind must be one of {MODEL_KINDS}, not {kind!r}")
     del _REGISTERED[(kind, name)]
@@ -1490,7 +1560,23 @@ def _entry_points(kind: str) -> list[RegisteredModel]:
 def registered_models(kind: str | None = None) -> list[RegisteredModel]:
     """The models registered in this process and declared as entry points by installed packages, in that
     order, motion models first; `kind` ("motion" or "sensor") keeps one kind. Entry points are loaded only when
-    a model is built."""
+    a model is built.
+
+    Parameters
+    ----------
+    kind : str or None, optional
+        "motion" or "sensor" to keep one kind; None (the default) for both.
+
+    Returns
+    -------
+    list of RegisteredModel
+        The models, motion models first; of each kind, those registered in this process, then the entry points.
+
+    Raises
+    ------
+    ValueError
+        If `kind` is neither None, "motion" nor "sensor".
+    """
     if kind is not None and kind not in MODEL_KINDS:
         raise ValueError(f"kind must be one of {MODEL_KINDS} or None, not {kind!r}")
     kinds = MODEL_KINDS if kind is None else (kind,)
