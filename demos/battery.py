@@ -33,7 +33,6 @@ import argparse
 import json
 import math
 import os
-import sys
 import time
 from dataclasses import fields
 from concurrent.futures import ProcessPoolExecutor, as_completed
@@ -489,9 +488,15 @@ def main(argv: list[str] | None = None, prog: str = PROG) -> int:
     sensor = _overrides(parser, "--sensor", args.sensor, LandmarkSensorModel,
                         lambda **values: LandmarkSensorModel(spl(), **values))
     splits = list(SPLITS) if args.split == "both" else [args.split]
+    progress = progress_wanted(args, force=args.progress)
+    # Compile (or load) the kernels here, once, before the workers start: the first run on a machine says so
+    # and shows its progress, and the workers load them from numba's cache instead of each compiling them.
+    from .walk import warm_up_walk
+    from .walk_sim import WalkScenario
+    warm = warm_up_walk(WalkScenario(), "velocity-linear", view=args.view, progress=progress)
     results = run_battery(families, splits, args.seeds, args.duration, args.particles, args.jobs,
-                          progress=progress_wanted(args, force=args.progress), prior=prior, quality=quality,
-                          view=args.view, sensor=sensor)
+                          progress=progress, prior=prior, quality=quality, view=args.view, sensor=sensor)
+    results.update(warm.as_dict())
     text = json.dumps(results, indent=2)
     if args.save:
         with open(args.save, "w", encoding="utf-8") as handle:

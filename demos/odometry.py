@@ -403,8 +403,10 @@ def main(argv: list[str] | None = None, prog: str = PROG) -> int:
         parser.error(f"--filter-runs {args.filter_runs} must be >= 1")
     surfaces = ["carpet", "grass"] if args.surface == "both" else [args.surface]
     from mcl.cli_checks import progress_bar, progress_wanted
+    from .lwpr_cross import warm_up_lwpr
+    warm = warm_up_lwpr(progress_wanted(args))          # a machine's first run says it compiles LWPR's kernels
     started = time.perf_counter()
-    result: dict = {"surfaces": {}}
+    result: dict = {"surfaces": {}, **warm.as_dict()}
     for surface in progress_bar(surfaces, enabled=progress_wanted(args), desc="odometry", unit="surface"):
         r = evaluate(surface, args.seed)
         entry = {"evaluation": r}
