@@ -432,7 +432,7 @@ PROG = "robocup-mcl demo collision"
 
 def build_parser(prog: str = PROG) -> argparse.ArgumentParser:
     """The command's argument parser, named `prog` in its usage line."""
-    from mcl.cli_checks import add_progress_option, description
+    from mcl.cli_checks import add_progress_option, add_save_option, description
 
     parser = argparse.ArgumentParser(prog=prog, description=description(__doc__))
     parser.add_argument("--case", choices=CASES + ("all",), default="all",
@@ -452,7 +452,7 @@ def build_parser(prog: str = PROG) -> argparse.ArgumentParser:
     parser.add_argument("--report", action="store_true", help="every figure of docs/papers/hoffmann.md (takes minutes)")
     parser.add_argument("--rrd", help="write a Rerun recording here (one case, one model, one seed)")
     parser.add_argument("--json", action="store_true", help="print JSON instead of text")
-    parser.add_argument("--save", metavar="PATH", help="also write the JSON results to PATH")
+    add_save_option(parser)
     add_progress_option(parser)
     return parser
 
@@ -474,7 +474,7 @@ def main(argv: list[str] | None = None, prog: str = PROG) -> int:
         parser.error(f"--particles {particles} must be > 0")
     if args.rrd and (len(seeds) > 1 or len(cases) > 1 or len(models) > 1):
         parser.error("--rrd records one run: give --case, --model (not both) and --seed")
-    from mcl.cli_checks import check_output_file
+    from mcl.cli_checks import check_output_file, save_json
     check_output_file(args.rrd, "--rrd")          # before the run, not after it
     check_output_file(args.save, "--save")
     reference = free_walk_reference()
@@ -510,10 +510,7 @@ def main(argv: list[str] | None = None, prog: str = PROG) -> int:
             result[key] = run_cases(cases, models, seeds, reference, particles, args.vision, args.injection,
                                     progress=progress)
     result.update(warm.as_dict())           # the warm-up's time, apart from every step time
-    if args.save:
-        with open(args.save, "w", encoding="utf-8") as handle:
-            json.dump(_strip(result), handle, indent=2)
-            handle.write("\n")
+    save_json(args.save, _strip(result))
     if args.json:
         json.dump(_strip(result), sys.stdout, indent=2)
         print()

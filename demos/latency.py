@@ -55,7 +55,7 @@ PROG = "robocup-mcl demo latency"
 
 def build_parser(prog: str = PROG) -> argparse.ArgumentParser:
     """The command's argument parser, named `prog` in its usage line."""
-    from mcl.cli_checks import add_progress_option, description
+    from mcl.cli_checks import add_progress_option, add_save_option, description
 
     parser = argparse.ArgumentParser(prog=prog, description=description(__doc__))
     parser.add_argument("--latency", type=float, default=0.08, help="camera latency [s] (default 0.08)")
@@ -63,6 +63,7 @@ def build_parser(prog: str = PROG) -> argparse.ArgumentParser:
     parser.add_argument("--particles", type=int, default=500, help="particles (default 500)")
     parser.add_argument("--duration", type=float, default=60.0, help="seconds of each walk (default 60)")
     parser.add_argument("--json", action="store_true", help="print JSON instead of a table")
+    add_save_option(parser)
     add_progress_option(parser)
     return parser
 
@@ -75,6 +76,8 @@ def main(argv: list[str] | None = None, prog: str = PROG) -> int:
 
     parser = build_parser(prog)
     args = parser.parse_args(argv)
+    from mcl.cli_checks import check_output_file, save_json
+    check_output_file(args.save, "--save")
     if not (math.isfinite(args.latency) and 0 <= args.latency <= 1.0):
         parser.error(f"--latency {args.latency} must be within [0, 1] s")
     if args.particles <= 0:
@@ -98,6 +101,7 @@ def main(argv: list[str] | None = None, prog: str = PROG) -> int:
             bar.update(1)
         result[pace] = {"runs": runs, "summary": summarize(runs)}
     bar.close()
+    save_json(args.save, result)
     if args.json:
         json.dump(result, sys.stdout, indent=2)
         print()

@@ -158,11 +158,12 @@ PROG = "robocup-mcl bench lwpr"
 
 def build_parser(prog: str = PROG) -> argparse.ArgumentParser:
     """The command's argument parser, named `prog` in its usage line."""
-    from mcl.cli_checks import add_progress_option, description
+    from mcl.cli_checks import add_progress_option, add_save_option, description
 
     parser = argparse.ArgumentParser(prog=prog, description=description(__doc__))
     parser.add_argument("--seeds", type=int, default=10, help="number of seeds (default 10)")
     parser.add_argument("--json", action="store_true", help="print one JSON object instead of a table")
+    add_save_option(parser)
     add_progress_option(parser)
     return parser
 
@@ -187,6 +188,8 @@ def main(argv: list[str] | None = None, prog: str = PROG) -> int:
 
     parser = build_parser(prog)
     args = parser.parse_args(argv)
+    from mcl.cli_checks import check_output_file, save_json
+    check_output_file(args.save, "--save")
     if args.seeds < 1:
         parser.error(f"--seeds must be at least 1, got {args.seeds}")
     progress = progress_wanted(args)
@@ -199,6 +202,7 @@ def main(argv: list[str] | None = None, prog: str = PROG) -> int:
     result = {"benchmark": "lwpr cross", "n_train": N_TRAIN, "epochs": N_EPOCHS, "grid": f"{GRID}x{GRID}",
               "seeds": runs, "summary": summary, "reference_python": reference,
               "reference_library": REFERENCE_LIBRARY, **warm.as_dict()}
+    save_json(args.save, result)
     if args.json:
         print(json.dumps(result, indent=2))
         return 0

@@ -86,7 +86,7 @@ PROG = "robocup-mcl demo penalty"
 
 def build_parser(prog: str = PROG) -> argparse.ArgumentParser:
     """The command's argument parser, named `prog` in its usage line."""
-    from mcl.cli_checks import add_progress_option, description
+    from mcl.cli_checks import add_progress_option, add_save_option, description
 
     parser = argparse.ArgumentParser(prog=prog, description=description(__doc__))
     parser.add_argument("--seeds", default="0-19", help='seeds: "0-19", "3" or "1,4,7" (default 0-19)')
@@ -94,6 +94,7 @@ def build_parser(prog: str = PROG) -> argparse.ArgumentParser:
     parser.add_argument("--duration", type=float, default=20.0,
                         help="seconds of walking after the return (default 20, at least 3)")
     parser.add_argument("--json", action="store_true", help="print JSON instead of the summary")
+    add_save_option(parser)
     add_progress_option(parser)
     return parser
 
@@ -106,6 +107,8 @@ def main(argv: list[str] | None = None, prog: str = PROG) -> int:
 
     parser = build_parser(prog)
     args = parser.parse_args(argv)
+    from mcl.cli_checks import check_output_file, save_json
+    check_output_file(args.save, "--save")
     if args.particles <= 0:
         parser.error(f"--particles {args.particles} must be > 0")
     if not (math.isfinite(args.duration) and args.duration >= 3.0):
@@ -120,9 +123,10 @@ def main(argv: list[str] | None = None, prog: str = PROG) -> int:
     runs = [run_seed(seed, args.particles, scenario)
             for seed in progress_bar(seeds, enabled=progress, desc="penalty", unit="seed")]
     summary = summarize(runs)
+    result = {"particles": args.particles, "duration_s": args.duration, "runs": runs, "summary": summary}
+    save_json(args.save, result)
     if args.json:
-        json.dump({"particles": args.particles, "duration_s": args.duration, "runs": runs, "summary": summary},
-                  sys.stdout, indent=2)
+        json.dump(result, sys.stdout, indent=2)
         print()
         return 0
     print(f"penalty return on a random touchline, {len(runs)} seeds, {args.duration:.0f} s each, "

@@ -56,12 +56,13 @@ PROG = "robocup-mcl bench replay"
 
 def build_parser(prog: str = PROG) -> argparse.ArgumentParser:
     """The command's argument parser, named `prog` in its usage line."""
-    from mcl.cli_checks import add_progress_option, description
+    from mcl.cli_checks import add_progress_option, add_save_option, description
 
     parser = argparse.ArgumentParser(prog=prog, description=description(__doc__))
     parser.add_argument("--minutes", type=float, default=10.0, help="minutes of simulated log (default 10)")
     parser.add_argument("--particles", type=int, default=500, help="particles (default 500)")
     parser.add_argument("--json", action="store_true", help="print JSON instead of the summary")
+    add_save_option(parser)
     add_progress_option(parser)
     return parser
 
@@ -72,9 +73,12 @@ def main(argv: list[str] | None = None, prog: str = PROG) -> int:
 
     parser = build_parser(prog)
     args = parser.parse_args(argv)
+    from mcl.cli_checks import check_output_file, save_json
+    check_output_file(args.save, "--save")
     if not (args.minutes > 0 and args.particles > 0):
         parser.error("--minutes and --particles must be > 0")
     result = measure(args.minutes, args.particles, progress=progress_wanted(args))
+    save_json(args.save, result)
     if args.json:
         json.dump(result, sys.stdout, indent=2)
         print()

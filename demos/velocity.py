@@ -784,10 +784,11 @@ PROG = "robocup-mcl demo velocity"
 
 def build_parser(prog: str = PROG) -> argparse.ArgumentParser:
     """The command's argument parser, named `prog` in its usage line."""
-    from mcl.cli_checks import add_progress_option, description
+    from mcl.cli_checks import add_progress_option, add_save_option, description
 
     parser = argparse.ArgumentParser(prog=prog, description=description(__doc__))
     parser.add_argument("--json", action="store_true", help="print the figures as JSON")
+    add_save_option(parser)
     parser.add_argument("--seed", type=int, default=0, help="seed of the first simulated walk (default 0)")
     parser.add_argument("--duration", type=float, default=28.0, help="seconds of each simulated walk")
     parser.add_argument("--twist", action=argparse.BooleanOptionalAction, default=True,
@@ -808,6 +809,8 @@ def main(argv: list[str] | None = None, prog: str = PROG) -> int:
     """`robocup-mcl demo velocity` (see --help); returns the exit status."""
     parser = build_parser(prog)
     args = parser.parse_args(argv)
+    from mcl.cli_checks import check_output_file, save_json
+    check_output_file(args.save, "--save")
     if args.seeds < 1:
         parser.error(f"--seeds must be at least 1, got {args.seeds}")
     if args.particles < 1:
@@ -825,6 +828,7 @@ def main(argv: list[str] | None = None, prog: str = PROG) -> int:
     report = build_report(args.seed, args.duration, args.twist, args.slip, args.seeds, args.particles, args.rrd,
                           progress=progress_wanted(args))
     report.update(warm.as_dict())
+    save_json(args.save, report)
     if args.json:
         json.dump(report, sys.stdout, indent=2)
         sys.stdout.write("\n")

@@ -132,6 +132,29 @@ def add_progress_option(parser) -> None:
     parser.add_argument("--no-progress", action="store_true", help=NO_PROGRESS_HELP)
 
 
+def add_save_option(parser) -> None:
+    """Add `--save PATH` (also write the command's JSON results to PATH) to the argparse `parser`."""
+    parser.add_argument("--save", metavar="PATH", help="also write the JSON results to PATH (the figures the "
+                        "docs read from results files)")
+
+
+def save_json(path, result) -> None:
+    """Write `result` as indented JSON to `path` (nothing when `path` is None): what `--save PATH` writes.
+
+    Parameters
+    ----------
+    path : str or os.PathLike or None
+        The file, checked before the run with `check_output_file`.
+    result : object
+        JSON-serializable results.
+    """
+    if path is None:
+        return
+    import json
+
+    Path(path).write_text(json.dumps(result, indent=2) + "\n", encoding="utf-8")
+
+
 def progress_wanted(args=None, *, json_output: bool | None = None, no_progress: bool | None = None,
                     force: bool = False, stream=None) -> bool:
     """Whether a command shows progress bars: not with --json or --no-progress (read from `args`, a parsed
