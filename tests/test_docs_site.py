@@ -30,3 +30,30 @@ def test_no_page_links_outside_the_repository_but_to_public_urls():
         for target in re.findall(r"\]\(([^)\s]+)\)", text):
             if re.match(r"[a-z]+://", target):
                 assert target.startswith("https://"), f"{page}: {target} is not a public https URL"
+
+
+def _hooks():
+    import importlib.util
+    spec = importlib.util.spec_from_file_location("docs_hooks", ROOT / "docs" / "hooks.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_results_tables_are_built_from_the_results_files():
+    import json
+    hooks = _hooks()
+    page = "before\n<!-- results-table: battery-families -->\nafter"
+    table = hooks.results_tables(page)
+    assert "results-table" not in table and table.startswith("before\n| family |") and table.endswith("\nafter")
+    kidnap = json.loads((ROOT / "results" / "eval_holdout.json").read_text())["splits"]["holdout"]["families"][
+        "kidnap"]["summary"]
+    row = next(line for line in table.splitlines() if line.startswith("| kidnap |"))
+    assert f"{kidnap['reconverge_s']['median']:.2f} / never, {kidnap['reconverge_s']['never']} never" in row
+    with pytest.raises(KeyError):
+        hooks.results_tables("<!-- results-table: no-such-table -->")
+
+
+def test_the_home_page_is_the_readme_with_links_into_docs():
+    home = _hooks().readme_as_home()
+    assert "](docs/" not in home and "](getting-started.md)" in home and "## Quick start" in home
