@@ -69,7 +69,23 @@ def battery_quality() -> str:
     return "\n".join(rows)
 
 
-TABLES = {"battery-families": battery_families, "battery-quality": battery_quality}
+def recording_size() -> str:
+    """The walk demo's recording before and after the recorder's changes (results/recording_stats*.json)."""
+    rows = ["| | size per minute | chunks (`rerun rrd stats`) | temporal chunks | optimization check |",
+            "|---|---|---|---|---|"]
+    for label, name in (("before", "recording_stats_before.json"), ("after", "recording_stats.json")):
+        d = _load(name)
+        stats = d["rrd_stats"]
+        check = (f"\"may be unoptimized\" ({stats['effective_chunks']} chunks against a lower bound of "
+                 f"{stats['lower_bound_chunks']})" if stats["unoptimized_warning"]
+                 else f"no warning ({stats['effective_chunks']} chunks, the lower bound {stats['lower_bound_chunks']})")
+        rows.append(f"| {label} (results/{name}, at {d['revision']}) | {d['mib_per_minute']:.2f} MiB | "
+                    f"{d['chunks']['total']} | {d['chunks']['temporal']} | {check} |")
+    return "\n".join(rows)
+
+
+TABLES = {"battery-families": battery_families, "battery-quality": battery_quality,
+          "recording-size": recording_size}
 MARKER = re.compile(r"^<!-- results-table: ([\w-]+) -->$", flags=re.M)
 
 
