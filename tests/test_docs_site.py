@@ -57,3 +57,15 @@ def test_results_tables_are_built_from_the_results_files():
 def test_the_home_page_is_the_readme_with_links_into_docs():
     home = _hooks().readme_as_home()
     assert "](docs/" not in home and "](getting-started.md)" in home and "## Quick start" in home
+
+
+def test_the_targets_table_says_what_the_results_say():
+    import json
+    table = _hooks().battery_targets()
+    split = json.loads((ROOT / "results" / "eval_holdout.json").read_text())["splits"]["holdout"]
+    on_mirror = sum(f["summary"]["on_mirror"] for f in split["families"].values())
+    first = next(line for line in table.splitlines() if line.startswith("| no run converges on the mirror"))
+    assert f"| {on_mirror} of {split['overall']['runs']} runs" in first and first.endswith(f"| {'no' if on_mirror else 'yes'} |")
+    superb = split["overall"]["pooled"]["SUPERB"]["share"]
+    row = next(line for line in table.splitlines() if line.startswith("| SUPERB steps"))
+    assert f"{100 * superb:.2f} %" in row and row.endswith("| yes |" if superb <= 0.01 else "| no |")
