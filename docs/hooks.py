@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import json
 import re
+import sys
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -129,6 +130,30 @@ def battery_targets() -> str:
     return "\n".join(rows)
 
 
+def fuzz_targets() -> str:
+    """The full fuzz run per target (results/fuzz_full.json), as `tests/fuzz_run.py` prints it."""
+    d = _load("fuzz_full.json")
+    lines = [f"fuzz profile {d['profile']}, seed {d['seed']}",
+             f"{'target':<22} {'cases':>7} {'accepted':>9} {'refused':>9} {'seconds':>8}  result"]
+    for t in d["targets"]:
+        result = "ok" if not (t["failure"] or t["crash"]) else ("crash" if t["crash"] else "FAILED")
+        lines.append(f"{t['target']:<22} {t['cases']:>7} {t['accepted']:>9} {t['refused']:>9} "
+                     f"{t['seconds']:>8.1f}  {result}")
+    lines.append(f"{'total':<22} {d['cases']:>7} {'':>29} {d['seconds']:.1f} s; {d['crashes']} crashes, "
+                 f"{d['failures']} failures")
+    return "```text\n" + "\n".join(lines) + "\n```"
+
+
+def soak_minutes() -> str:
+    """The soak's minute-by-minute table and its verdict (results/soak.json), in the command's own format."""
+    if str(ROOT) not in sys.path:      # the soak's own formatter, in the harness beside the docs (benchmarks/)
+        sys.path.insert(0, str(ROOT))
+    from benchmarks.soak import table_header, table_row
+    d = _load("soak.json")
+    lines = [table_header()] + [table_row(row) for row in d["minutes"]] + [d["verdict"]["text"]]
+    return "```text\n" + "\n".join(lines) + "\n```"
+
+
 def recording_size() -> str:
     """The walk demo's recording before and after the recorder's changes (results/recording_stats*.json)."""
     rows = ["| | size per minute | chunks (`rerun rrd stats`) | temporal chunks | optimization check |",
@@ -145,7 +170,8 @@ def recording_size() -> str:
 
 
 TABLES = {"battery-families": battery_families, "battery-quality": battery_quality,
-          "recording-size": recording_size, "battery-targets": battery_targets}
+          "recording-size": recording_size, "battery-targets": battery_targets,
+          "fuzz-targets": fuzz_targets, "soak-minutes": soak_minutes}
 MARKER = re.compile(r"^<!-- results-table: ([\w-]+) -->$", flags=re.M)
 
 

@@ -69,3 +69,15 @@ def test_the_targets_table_says_what_the_results_say():
     superb = split["overall"]["pooled"]["SUPERB"]["share"]
     row = next(line for line in table.splitlines() if line.startswith("| SUPERB steps"))
     assert f"{100 * superb:.2f} %" in row and row.endswith("| yes |" if superb <= 0.01 else "| no |")
+
+
+def test_the_reliability_tables_are_those_of_the_results_files():
+    import json
+    hooks = _hooks()
+    fuzz = json.loads((ROOT / "results" / "fuzz_full.json").read_text())
+    table = hooks.fuzz_targets()
+    assert f"{fuzz['cases']:>7}" in table and f"{fuzz['crashes']} crashes, {fuzz['failures']} failures" in table
+    assert len([line for line in table.splitlines() if line.endswith("  ok")]) == len(fuzz["targets"])
+    soak = json.loads((ROOT / "results" / "soak.json").read_text())
+    minutes = hooks.soak_minutes()
+    assert soak["verdict"]["text"] in minutes and len(minutes.splitlines()) == len(soak["minutes"]) + 4
