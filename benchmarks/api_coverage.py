@@ -30,6 +30,8 @@ import sys
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from mcl.cli_checks import save_json
+
 ALL_OF = ("mcl", "motion_models", "sensing", "field", "mcl.contracts", "mcl.logs", "mcl.testing")
 DEFINED_IN = ("mcl.localizer", "mcl.relocalization", "mcl.recording", "mcl.replay")
 HEAVY = ("rerun", "scipy", "mcap", "mcap_ros2", "hypothesis", "numba", "matplotlib", "tqdm")
@@ -214,8 +216,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.rounds < 1 or args.misses < 0:
         raise SystemExit("api_coverage: --rounds must be >= 1 and --misses >= 0")
     result = {"coverage": coverage(), "import": import_time(args.rounds)}
-    if args.save:
-        Path(args.save).write_text(json.dumps(result, indent=1) + "\n", encoding="utf-8")
+    save_json(args.save, result)
     print(json.dumps(result, indent=1) if args.json else report_text(result, args.misses))
     return 0
 

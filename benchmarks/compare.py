@@ -138,10 +138,16 @@ def bench_arguments(sizes, skip) -> list[str]:
     return arguments
 
 
+def side_environment(side: Side, **extra: str) -> dict:
+    """This process's environment with `side`'s root first on PYTHONPATH (a fresh process then imports that
+    tree's packages), and the variables `extra`."""
+    return dict(os.environ, PYTHONPATH=os.pathsep.join(
+        [str(side.root)] + ([os.environ["PYTHONPATH"]] if os.environ.get("PYTHONPATH") else [])), **extra)
+
+
 def run_bench(side: Side, arguments: list[str]) -> dict:
     """`robocup-mcl bench ARGUMENTS` in a fresh process that imports `side`'s packages; its JSON result."""
-    environment = dict(os.environ, PYTHONPATH=os.pathsep.join(
-        [str(side.root)] + ([os.environ["PYTHONPATH"]] if os.environ.get("PYTHONPATH") else [])))
+    environment = side_environment(side)
     done = subprocess.run([sys.executable, "-m", "mcl.cli", "bench", *arguments], cwd=side.root, env=environment,
                           capture_output=True, text=True, check=False)
     if done.returncode != 0:
@@ -281,7 +287,7 @@ PROG = "robocup-mcl bench compare"
 
 def build_parser(prog: str = PROG) -> argparse.ArgumentParser:
     """The command's argument parser, named `prog` in its usage line."""
-    from mcl.cli_checks import add_progress_option, description
+    from mcl.cli_checks import description
 
     parser = argparse.ArgumentParser(prog=prog, description=description(__doc__),
                                      formatter_class=argparse.RawDescriptionHelpFormatter,

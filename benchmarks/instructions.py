@@ -26,7 +26,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import re
 import shutil
 import subprocess
@@ -34,7 +33,9 @@ import sys
 import tempfile
 from pathlib import Path
 
-from benchmarks.compare import CompareError, Side, base_side, current_side
+from mcl.cli_checks import save_json
+
+from benchmarks.compare import CompareError, Side, base_side, current_side, side_environment
 
 WORKLOAD = """
 import sys
@@ -53,10 +54,8 @@ print(float(pf.estimate().pose[0]))
 """
 
 
-def _environment(side: Side) -> dict:
-    return dict(os.environ, PYTHONPATH=os.pathsep.join(
-        [str(side.root)] + ([os.environ["PYTHONPATH"]] if os.environ.get("PYTHONPATH") else [])),
-        PYTHONHASHSEED="0", NUMBA_CPU_NAME="generic", NUMBA_CPU_FEATURES="")
+# Every run: the same hash seed, and numba's code for a generic x86-64 CPU (see the module docstring).
+RUN_ENVIRONMENT = {"PYTHONHASHSEED": "0", "NUMBA_CPU_NAME": "generic", "NUMBA_CPU_FEATURES": ""}
 
 
 def _run(side: Side, n: int, steps: int, valgrind: bool) -> int | None:
@@ -66,7 +65,7 @@ def _run(side: Side, n: int, steps: int, valgrind: bool) -> int | None:
     if valgrind:
         out = Path(tempfile.mkdtemp(prefix="callgrind-")) / "callgrind.out"
         command = ["valgrind", "--tool=callgrind", f"--callgrind-out-file={out}", "--dump-instr=no"] + command
-    done = subprocess.run(command, cwd=side.root, env=_environment(side), capture_output=True, text=True)
+    done = subprocess.run(command, cwd=side.root, env=side_environment(side, **RUN_ENVIRONMENT), capture_output=True, text=True)
     if done.returncode != 0:
         raise CompareError(f"the workload in {side.label} failed (exit {done.returncode}):\n"
                            + "\n".join(done.stderr.strip().splitlines()[-15:]))
@@ -142,8 +141,7 @@ def main(argv: list[str] | None = None) -> int:
     current = base_side(args.current) if args.current else current_side()
     rows = measure(base, current, sizes, args.steps, progress=lambda text: print(text, file=sys.stderr))
     result = {"base": base.label, "current": current.label, "steps": args.steps, "rows": rows}
-    if args.save:
-        Path(args.save).write_text(json.dumps(result, indent=1) + "\n", encoding="utf-8")
+    save_json(args.save, result)
     print(json.dumps(result, indent=1) if args.json else report(base, current, args.steps, rows))
     return 0
 

@@ -481,7 +481,7 @@ def main(argv: list[str] | None = None, prog: str = PROG) -> int:
         parser.error(f"--seeds {args.seeds} must be at most {MAX_SEEDS} (training and held-out seeds stay apart)")
     if not (math.isfinite(args.duration) and args.duration >= 10.0):
         parser.error(f"--duration {args.duration} must be at least 10 s")
-    from mcl.cli_checks import check_output_file, progress_wanted
+    from mcl.cli_checks import check_output_file, progress_wanted, save_json
     check_output_file(args.save, "--save", make_parents=False)   # before the battery runs, not after it
     prior = _overrides(parser, "--prior", args.prior, RelocalizationPrior)
     quality = _overrides(parser, "--quality", args.quality, QualityThresholds)
@@ -498,9 +498,7 @@ def main(argv: list[str] | None = None, prog: str = PROG) -> int:
                           progress=progress, prior=prior, quality=quality, view=args.view, sensor=sensor)
     results.update(warm.as_dict())
     text = json.dumps(results, indent=2)
-    if args.save:
-        with open(args.save, "w", encoding="utf-8") as handle:
-            handle.write(text + "\n")
+    save_json(args.save, results)
     if args.json:
         print(text)
     else:

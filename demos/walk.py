@@ -24,7 +24,6 @@ import json
 import math
 import sys
 import time
-from pathlib import Path
 from dataclasses import replace
 
 import numpy as np
@@ -293,7 +292,7 @@ def main(argv: list[str] | None = None, prog: str = PROG) -> int:
         parser.error(f"--seeds {args.seeds!r}: give seeds as 3, 0-9 or 1,4,7")
     if args.rrd and len(seeds) > 1:
         parser.error("--rrd records one run: give --seed, not --seeds")
-    from mcl.cli_checks import check_output_file, progress_wanted
+    from mcl.cli_checks import check_output_file, progress_wanted, save_json
     check_output_file(args.rrd, "--rrd")          # before the run, not after it
     check_output_file(args.save, "--save")
     progress = progress_wanted(args)
@@ -309,8 +308,7 @@ def main(argv: list[str] | None = None, prog: str = PROG) -> int:
     runs = [{k: v for k, v in r.items() if not k.startswith("_")} for r in runs]
     result = {"runs": runs, "summary": summary} if len(runs) > 1 else runs[0]
     result.update(warm.as_dict(), first_step_s=first_step_s)
-    if args.save:
-        Path(args.save).write_text(json.dumps(result, indent=2) + "\n")
+    save_json(args.save, result)
     if args.json:
         json.dump(result, sys.stdout, indent=2)
         print()

@@ -1500,9 +1500,6 @@ def register_motion_model(name: str, make: Callable[[], Any], *,
 def register_sensor_model(name: str, make: Callable[[Field], Any]) -> RegisteredModel:
     """Register a sensor model for `check_registered`: `make(field)` returns the model (a class works).
 
-    Raises ValueError for an empty or taken name and TypeError when `make` is not callable, registering
-    nothing.
-
     Parameters
     ----------
     name : str
