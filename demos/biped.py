@@ -1,8 +1,10 @@
-"""A small humanoid (the NAO leg preset) walking straight or turning, with its sensors, for the velocity EKF.
+"""A small humanoid (a NAO-type leg) walking straight or turning, with its sensors, for the velocity EKF.
 
-    from demos.biped import simulate_walk, GaitParams, SensorParams, DisturbanceParams, turning_gait
+    from demos.biped import simulate_walk, GaitParams, SensorParams, DisturbanceParams, RobotVariation, turning_gait
 
-    run = simulate_walk(duration=28.0, seed=0)                          # straight walk, twist and slip on
+    run = simulate_walk(duration=28.0, seed=0)                          # the nominal robot, straight walk
+    run = simulate_walk(28.0, seed=0, variation=RobotVariation())      # a robot drawn for this run (links ±5 %)
+    run = simulate_walk(28.0, seed=0, variation=RobotVariation().with_chain_error(0.08))   # links ±8 %
     run = simulate_walk(28.0, seed=0, gait=turning_gait(28.0))          # straight, turn left, straight
     run = simulate_walk(28.0, seed=0, disturbances=DisturbanceParams(twist_probability=0.0))
     command = gait_command(run.gait, run.imu_time)                      # the walk request (vx, vy, ω)
@@ -11,28 +13,40 @@
 What is simulated. The trunk follows a smooth path (stand still, speed ramp, constant speed, optional turn),
 with the sway, bounce, surge, lean and rocking of a walk; the feet are placed under the hips at the moments the
 trunk passes over them, and swing between placements with a lift. Every kinematics sample, each leg's six joint
-angles come from the numerical inverse kinematics of `sensing.kinematics.nao_leg`, so encoders and truth agree
-exactly. Sensors: an IMU at the torso origin (accelerometer measuring specific force, gravity included, and
-gyroscope, each with white noise and a constant per-run bias) at `imu_rate`; joint encoders quantized to
-`encoder_resolution` (300°/1024, a Dynamixel-class servo) at `kinematics_rate`; four contact switches per foot
-at the sole corners, each reading wrong with probability `contact_error`. Disturbances, drawn per support phase:
-foot twist (the support foot yawing about a random point of its sole, permanently, or tilting about one edge of
-the sole and settling back) and limited slip (the support foot sliding a few millimetres to centimetres).
+angles come from the numerical inverse kinematics of this run's own legs (`run.true_chains`). Sensors: an IMU
+at the torso origin (accelerometer measuring specific force, gravity included, and gyroscope, each with white
+noise, a per-run bias, a per-axis scale error and, for the gyro, a bias drift) at `imu_rate`; joint encoders
+with play (backlash) quantized to `encoder_resolution` (300°/1024, a Dynamixel-class servo) at
+`kinematics_rate`; four contact switches per foot at the sole corners, each reading wrong with probability
+`contact_error`. Disturbances, drawn per support phase: foot twist (the support foot yawing about a random point
+of its sole, permanently, or tilting about one edge of the sole and settling back) and limited slip (the support
+foot sliding a few millimetres to centimetres).
+
+The robot of each run. `draw_robot` draws its physical parameters from a `RobotVariation`: each leg's five
+lengths within ±5 % of the published NAO dimensions (`sensing.kinematics.NaoLegDimensions`), each joint's zero
+within ±1°, each joint's play up to 0.6°, the IMU's noise σ 0.6-1.8 times the datasheet's (`SensorParams`), its
+bias 0.5-2.5 (accelerometer) and 0.5-3 (gyro) times the datasheet's spread, a scale error within ±3 % per axis,
+and a gyro bias random walk up to 3e-4 rad/s/√s. `RobotVariation.nominal()` (the default of `simulate_walk`) is
+the robot of the drawings with the datasheet's sensors: its legs are the estimator's, which is what the nominal
+column of the robustness table measures. Nothing here comes from the estimators' settings: this module does not
+import `sensing.velocity`, and the datasheet values and ranges are the simulator's own.
 
 The simulation is kinematic: the trunk's motion is the truth and the legs follow it, so a twist or a slip moves
 the foot, not the trunk. The NAO's coupling of the two hip yaw-pitch joints is not imposed. The random
-disturbances and the sensor noise come from separate streams spawned from the seed, so switching twist off
-leaves the noise identical. Same seed, same run, bit for bit.
+disturbances, the sensor noise, the robot's draw and the gyro drift come from separate streams spawned from
+the seed, so switching twist off leaves the noise identical, and two variations of one seed move the same robot
+in the same directions. Same seed, same run, bit for bit.
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from field.angles import wrap_angles
-from sensing.kinematics import LegChain, nao_leg, rotation_z
+from sensing.kinematics import LegChain, NaoLegDimensions, nao_leg, rotation_z
 
 FINE_RATE = 3000.0          # Hz: truth grid; IMU and kinematics rates must divide it
 GRAVITY = 9.81
@@ -85,14 +99,15 @@ def turning_gait(duration: float, turn_rate: float = 0.25, **kwargs) -> GaitPara
 
 @dataclass(frozen=True)
 class SensorParams:
-    """Sensor rates (Hz) and errors (standard deviations per sample; biases are constant per run)."""
+    """Sensor rates (Hz) and the sensors' datasheet errors (standard deviations per sample; biases are constant
+    per run, drawn N(0, bias²) per axis). A `RobotVariation` draws each run's errors around these."""
 
     imu_rate: float = 100.0
     kinematics_rate: float = 30.0
-    accel_noise: float = 0.05
-    accel_bias: float = 0.05
-    gyro_noise: float = 0.01
-    gyro_bias: float = 0.005
+    accel_noise: float = 0.04
+    accel_bias: float = 0.06
+    gyro_noise: float = 0.007
+    gyro_bias: float = 0.008
     encoder_resolution: float = math.radians(300.0 / 1024.0)
     contact_error: float = 0.02
 
@@ -124,6 +139,143 @@ class DisturbanceParams:
                 raise ValueError(f"{name} must be in [0, 1], got {getattr(self, name)!r}")
 
 
+@dataclass(frozen=True)
+class RobotVariation:
+    """How far one simulated robot is from its drawings and its sensors from their datasheet: the ranges from
+    which `draw_robot` draws the physical parameters of each run (uniformly unless said otherwise).
+
+    link_length_error: each of the leg's five lengths (`NaoLegDimensions`), each leg on its own, is the published
+    one times 1 + U(-e, e). joint_zero_error (rad): each joint's zero is off by U(-z, z). backlash (rad): each
+    joint's play, a width drawn in the range; the reading stays put until the joint has taken up the play.
+    accel_noise_factor, gyro_noise_factor: the run's white-noise σ is the datasheet's times a factor drawn in the
+    range. accel_bias_factor, gyro_bias_factor: the run's constant bias is N(0, 1) per axis times the datasheet
+    bias times a factor drawn in the range. accel_scale_error, gyro_scale_error: per axis, the sensor reads
+    (1 + U(-s, s)) times the true value. gyro_bias_drift (rad/s/√s): the gyro bias also walks randomly within
+    the run, with a σ drawn in the range.
+
+    `RobotVariation.nominal()` is the robot of the drawings and the datasheet (no draw moves anything); the
+    default is the standard variation of the figures; `with_chain_error(e)` the same with links ±e and joint
+    zeros ±`JOINT_ZERO_PER_LINK_ERROR`·e.
+    """
+
+    link_length_error: float = 0.05
+    joint_zero_error: float = math.radians(1.0)
+    backlash: tuple[float, float] = (0.0, math.radians(0.6))
+    accel_noise_factor: tuple[float, float] = (0.6, 1.8)
+    gyro_noise_factor: tuple[float, float] = (0.6, 1.8)
+    accel_bias_factor: tuple[float, float] = (0.5, 2.5)
+    gyro_bias_factor: tuple[float, float] = (0.5, 3.0)
+    accel_scale_error: float = 0.03
+    gyro_scale_error: float = 0.03
+    gyro_bias_drift: tuple[float, float] = (0.0, 3e-4)
+
+    def __post_init__(self):
+        for name in ("link_length_error", "joint_zero_error", "accel_scale_error", "gyro_scale_error"):
+            value = getattr(self, name)
+            if not (isinstance(value, (int, float)) and math.isfinite(value) and 0.0 <= value < 0.5):
+                raise ValueError(f"{name} must be in [0, 0.5), got {value!r}")
+        for name in ("backlash", "accel_noise_factor", "gyro_noise_factor", "accel_bias_factor", "gyro_bias_factor",
+                     "gyro_bias_drift"):
+            value = getattr(self, name)
+            if not (isinstance(value, tuple) and len(value) == 2 and all(math.isfinite(v) for v in value)
+                    and 0.0 <= value[0] <= value[1]):
+                raise ValueError(f"{name} must be a range (low, high) with 0 <= low <= high, got {value!r}")
+
+    @classmethod
+    def nominal(cls) -> "RobotVariation":
+        """The robot of the drawings with the datasheet's sensors: every range a single point."""
+        return cls(link_length_error=0.0, joint_zero_error=0.0, backlash=(0.0, 0.0), accel_noise_factor=(1.0, 1.0),
+                   gyro_noise_factor=(1.0, 1.0), accel_bias_factor=(1.0, 1.0), gyro_bias_factor=(1.0, 1.0),
+                   accel_scale_error=0.0, gyro_scale_error=0.0, gyro_bias_drift=(0.0, 0.0))
+
+    def with_chain_error(self, error: float) -> "RobotVariation":
+        """These ranges with the links ±`error` and the joint zeros ±`JOINT_ZERO_PER_LINK_ERROR`·`error`."""
+        return dataclasses.replace(self, link_length_error=float(error),
+                                   joint_zero_error=JOINT_ZERO_PER_LINK_ERROR * float(error))
+
+
+JOINT_ZERO_PER_LINK_ERROR = math.radians(20.0)   # rad per unit of link error: ±1° of joint zero at links ±5 %
+
+
+@dataclass(frozen=True)
+class RobotDraw:
+    """The physical parameters of one simulated run, drawn by `draw_robot`.
+
+    dimensions and joint_offsets per leg (0 = left); backlash (2, 6) rad; accel_noise, gyro_noise (σ per sample);
+    accel_bias_scale, gyro_bias_scale (the factors on the datasheet bias); accel_scale, gyro_scale (3,) (1 + error
+    per axis); gyro_bias_drift (rad/s/√s).
+    """
+
+    dimensions: tuple[NaoLegDimensions, NaoLegDimensions]
+    joint_offsets: np.ndarray
+    backlash: np.ndarray
+    accel_noise: float
+    gyro_noise: float
+    accel_bias_scale: float
+    gyro_bias_scale: float
+    accel_scale: np.ndarray
+    gyro_scale: np.ndarray
+    gyro_bias_drift: float
+
+    def as_dict(self) -> dict:
+        """The draw as plain numbers (for results files)."""
+        return {"dimensions_m": [list(d.as_tuple()) for d in self.dimensions],
+                "joint_offsets_rad": self.joint_offsets.tolist(), "backlash_rad": self.backlash.tolist(),
+                "accel_noise": self.accel_noise, "gyro_noise": self.gyro_noise,
+                "accel_bias_scale": self.accel_bias_scale, "gyro_bias_scale": self.gyro_bias_scale,
+                "accel_scale": self.accel_scale.tolist(), "gyro_scale": self.gyro_scale.tolist(),
+                "gyro_bias_drift": self.gyro_bias_drift}
+
+
+def _in_range(low_high: tuple[float, float], u: float) -> float:
+    low, high = low_high
+    return low + u * (high - low)
+
+
+def draw_robot(seed: int, sensors: SensorParams = SensorParams(),
+               variation: RobotVariation = RobotVariation()) -> RobotDraw:
+    """The physical parameters of run `seed`, drawn from `variation` around the drawings and `sensors`.
+
+    The draw uses its own stream of the seed and a fixed number of variates, all uniform in [0, 1) and mapped to
+    the ranges afterwards, so two variations of the same seed move the same robot in the same directions, by
+    amounts proportional to their ranges (the columns of a robustness table compare like with like), and the
+    walk and its sensor noise do not depend on the variation.
+    """
+    rng = np.random.default_rng(np.random.SeedSequence(seed).spawn(3)[2])
+    u_links = rng.random((2, 5))
+    u_zeros = rng.random((2, 6))
+    u_play = rng.random((2, 6))
+    u_imu = rng.random(7)
+    u_accel_scale = rng.random(3)
+    u_gyro_scale = rng.random(3)
+    published = NaoLegDimensions()
+    e = variation.link_length_error
+    dims = tuple(published.scaled(1.0 + e * (2.0 * u_links[leg] - 1.0)) for leg in range(2))
+    return RobotDraw(
+        dimensions=(dims[0], dims[1]),
+        joint_offsets=variation.joint_zero_error * (2.0 * u_zeros - 1.0),
+        backlash=variation.backlash[0] + u_play * (variation.backlash[1] - variation.backlash[0]),
+        accel_noise=sensors.accel_noise * _in_range(variation.accel_noise_factor, u_imu[0]),
+        gyro_noise=sensors.gyro_noise * _in_range(variation.gyro_noise_factor, u_imu[1]),
+        accel_bias_scale=_in_range(variation.accel_bias_factor, u_imu[2]),
+        gyro_bias_scale=_in_range(variation.gyro_bias_factor, u_imu[3]),
+        accel_scale=1.0 + variation.accel_scale_error * (2.0 * u_accel_scale - 1.0),
+        gyro_scale=1.0 + variation.gyro_scale_error * (2.0 * u_gyro_scale - 1.0),
+        gyro_bias_drift=_in_range(variation.gyro_bias_drift, u_imu[4]))
+
+
+def _backlash(angles: np.ndarray, play: np.ndarray) -> np.ndarray:
+    """The reading of joints with play (full width `play`, per joint) following `angles` (M, 2, 6): it moves
+    only once the joint has taken up half the play on either side (a play operator), starting centred."""
+    out = np.empty_like(angles)
+    reading = angles[0].copy()
+    half = play / 2.0
+    for k in range(angles.shape[0]):
+        reading = np.clip(reading, angles[k] - half, angles[k] + half)
+        out[k] = reading
+    return out
+
+
 @dataclass(frozen=True, eq=False)
 class BipedRun:
     """Sensor streams and truth of one simulated walk. Legs are indexed 0 = left, 1 = right.
@@ -151,10 +303,11 @@ class BipedRun:
     twist: np.ndarray
     slip: np.ndarray
     true_kin_velocity: np.ndarray
-    chains: tuple[LegChain, LegChain]
+    true_chains: tuple[LegChain, LegChain]
     gait: GaitParams
     sensors: SensorParams
     disturbances: DisturbanceParams
+    robot: RobotDraw
     episodes: list = field(default_factory=list)
 
 
@@ -323,11 +476,19 @@ def _foot_pose(supports: list[_Support], t: float, step_height: float):
 # ---------------------------------------------------------------------------------------------------------
 def simulate_walk(duration: float = 28.0, seed: int = 0, gait: GaitParams = GaitParams(),
                   sensors: SensorParams = SensorParams(),
-                  disturbances: DisturbanceParams = DisturbanceParams()) -> BipedRun:
-    """Simulate `duration` seconds of walking (standing first for `gait.stand_time`)."""
+                  disturbances: DisturbanceParams = DisturbanceParams(),
+                  variation: RobotVariation | None = None) -> BipedRun:
+    """Simulate `duration` seconds of walking (standing first for `gait.stand_time`).
+
+    `variation` draws the robot of this run (`draw_robot`); None is `RobotVariation.nominal()`, the robot of the
+    drawings with the datasheet's sensors.
+    """
     duration = float(duration)
     if not (math.isfinite(duration) and duration > gait.stand_time):
         raise ValueError(f"duration must be longer than gait.stand_time = {gait.stand_time}, got {duration!r}")
+    if variation is not None and not isinstance(variation, RobotVariation):
+        raise ValueError(f"variation must be a RobotVariation or None, got {type(variation).__name__}")
+    robot = draw_robot(seed, sensors, RobotVariation.nominal() if variation is None else variation)
     seeds = np.random.SeedSequence(seed).spawn(2)
     rng_world = np.random.default_rng(seeds[0])
     rng_sensor = np.random.default_rng(seeds[1])
@@ -394,13 +555,22 @@ def simulate_walk(duration: float = 28.0, seed: int = 0, gait: GaitParams = Gait
     imu_stride = int(round(FINE_RATE / sensors.imu_rate))
     n_imu = int(math.floor(duration * sensors.imu_rate + 1e-9)) + 1
     imu_index = np.arange(n_imu) * imu_stride
-    accel_bias = rng_sensor.normal(0.0, 1.0, 3) * sensors.accel_bias
-    gyro_bias = rng_sensor.normal(0.0, 1.0, 3) * sensors.gyro_bias
-    accel = body_specific_force[imu_index] + accel_bias + rng_sensor.normal(0.0, 1.0, (n_imu, 3)) * sensors.accel_noise
-    gyro = omega[imu_index] + gyro_bias + rng_sensor.normal(0.0, 1.0, (n_imu, 3)) * sensors.gyro_noise
+    accel_bias = rng_sensor.normal(0.0, 1.0, 3) * sensors.accel_bias * robot.accel_bias_scale
+    gyro_bias = rng_sensor.normal(0.0, 1.0, 3) * sensors.gyro_bias * robot.gyro_bias_scale
+    accel = (robot.accel_scale * body_specific_force[imu_index] + accel_bias
+             + rng_sensor.normal(0.0, 1.0, (n_imu, 3)) * robot.accel_noise)
+    gyro = (robot.gyro_scale * omega[imu_index] + gyro_bias
+            + rng_sensor.normal(0.0, 1.0, (n_imu, 3)) * robot.gyro_noise)
+    if robot.gyro_bias_drift > 0.0:
+        # From a stream of its own, so the walk and the other sensor noise are the same with and without it.
+        rng_drift = np.random.default_rng(np.random.SeedSequence(seed).spawn(4)[3])
+        steps = rng_drift.normal(0.0, robot.gyro_bias_drift / math.sqrt(sensors.imu_rate), (n_imu, 3))
+        steps[0] = 0.0
+        gyro = gyro + np.cumsum(steps, axis=0)
 
-    # Kinematics samples: inverse kinematics of both legs, encoders, contact switches.
-    chains = (nao_leg("left"), nao_leg("right"))
+    # Kinematics samples: inverse kinematics of both legs of this run's robot, encoders, contact switches.
+    chains = tuple(nao_leg(side, dimensions=robot.dimensions[leg], joint_offsets=robot.joint_offsets[leg])
+                   for leg, side in enumerate(("left", "right")))
     kin_stride = int(round(FINE_RATE / sensors.kinematics_rate))
     n_kin = int(math.floor(duration * sensors.kinematics_rate + 1e-9)) + 1
     kin_index = np.arange(n_kin) * kin_stride
@@ -429,7 +599,8 @@ def simulate_walk(duration: float = 28.0, seed: int = 0, gait: GaitParams = Gait
     flips = rng_sensor.random((n_kin, 2, 4)) < sensors.contact_error
     contacts = switch_state ^ flips
     res = sensors.encoder_resolution
-    joint_angles = np.round(true_angles / res) * res if res > 0.0 else true_angles.copy()
+    read = _backlash(true_angles, robot.backlash) if np.any(robot.backlash > 0.0) else true_angles
+    joint_angles = np.round(read / res) * res if res > 0.0 else read.copy()
 
     episodes = []
     for foot in range(2):
@@ -450,8 +621,8 @@ def simulate_walk(duration: float = 28.0, seed: int = 0, gait: GaitParams = Gait
         true_gravity=body_gravity[imu_index], true_omega=omega[imu_index], trunk_position=position[imu_index],
         trunk_yaw=yaw[imu_index], kin_time=t[kin_index], joint_angles=joint_angles, true_joint_angles=true_angles,
         contacts=contacts, true_contact=true_contact, twist=twist, slip=slip,
-        true_kin_velocity=body_velocity[kin_index], chains=chains, gait=gait, sensors=sensors,
-        disturbances=disturbances, episodes=episodes)
+        true_kin_velocity=body_velocity[kin_index], true_chains=(chains[0], chains[1]), gait=gait, sensors=sensors,
+        disturbances=disturbances, robot=robot, episodes=episodes)
 
 
 # ---------------------------------------------------------------------------------------------------------

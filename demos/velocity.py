@@ -58,73 +58,133 @@ import json
 import math
 import sys
 import time as _time
+from pathlib import Path
 
 import numpy as np
 
-from demos.biped import (BipedRun, DisturbanceParams, GaitParams, SensorParams, field_poses, gait_command,
+from demos.biped import (BipedRun, DisturbanceParams, GaitParams, RobotVariation, field_poses, gait_command,
                          simulate_walk, turning_gait)
 from demos.walk_sim import WalkScenario, _camera
 from field.angles import wrap_angles
 from mcl import ParticleFilter
 from motion_models import MotionInput, VelocityLinear
 from sensing import LandmarkSensorModel, Observations
+from sensing.kinematics import nao_leg
 from sensing.velocity import (ImuOnlyEstimator, LegOdometry, VelocityEKF, VelocityEKFParams, ekf_bias_predict_kernel,
                               ekf_bias_predict_reference, ekf_correct_kernel, ekf_correct_reference,
                               ekf_predict_kernel, ekf_predict_reference, tilt_error)
 from sensing.velocity_odometry import EKFOdometry, compose_increments
 
-EKF_VARIANTS = ("ekf", "ekf+bias")                 # the paper's [g, v] filter; with the gyro bias, [g, v, b]
-ESTIMATORS = ("imu", "kinematics", "kinematics+gyro") + EKF_VARIANTS
+EKF_VARIANTS = ("ekf", "ekf zeroed", "ekf+bias")
+"""The filters compared: the paper's exactly as written, and the project's two variants (see `VARIANT_SETTINGS`)."""
+BASELINES = ("imu", "kinematics", "kinematics+gyro")
+ESTIMATORS = BASELINES + EKF_VARIANTS
+LABELS = {"ekf": "ekf (paper)", "ekf zeroed": "ekf variant: gyro zeroed standing",
+          "ekf+bias": "ekf variant: + gyro bias state", "imu": "imu alone", "kinematics": "kinematics",
+          "kinematics+gyro": "kinematics+gyro"}
+VARIANT_SETTINGS = {
+    # The paper's filter as written: state [g, v], the raw gyro (eq. 16-18 take it as zero-mean), F of eq. 24.
+    "ekf": {"estimate_gyro_bias": False, "exact_jacobian": False, "zero_gyro": False},
+    # The same with the mean gyro of the standing robot subtracted from every sample.
+    "ekf zeroed": {"estimate_gyro_bias": False, "exact_jacobian": False, "zero_gyro": True},
+    # The project's filter: state [g, v, b], b started at the standing mean, F with its rotation blocks.
+    "ekf+bias": {"estimate_gyro_bias": True, "exact_jacobian": True, "zero_gyro": True},
+}
 STANDING_SAMPLES_TIME = 0.5     # s of standing data that initialize gravity (eq. 1)
-BIAS_DRIFT_TIME = 3600.0        # s over which the gyro bias may wander by its run-to-run spread
+TRAINING_SEEDS = tuple(range(100, 112))
+"""Walks the noise settings are fitted on (`robocup-mcl fit ekf`); no figure is computed on them."""
+HELD_OUT_FIRST_SEED = 1000      # the robustness table's walks: seeds 1000, 1001, ...
+FIT_PATH = Path(__file__).resolve().parents[1] / "results" / "ekf_fit.json"
+ESTIMATOR_CHAINS = (nao_leg("left"), nao_leg("right"))
+"""The legs the estimators use: the published NAO dimensions (the simulated robot's legs are drawn around them)."""
 
 
-def ekf_params_for(sensors: SensorParams, estimate_gyro_bias: bool = False, lever_arm: float = 0.3,
-                   n_joints: int = 6) -> VelocityEKFParams:
-    """EKF noise from the sensor specification (see the module docstring)."""
-    dt_kin = 1.0 / sensors.kinematics_rate
-    rate_noise = sensors.encoder_resolution / math.sqrt(6.0) / dt_kin
-    common = {"accel_noise": math.hypot(sensors.accel_noise, sensors.accel_bias),
-              "velocity_noise": math.sqrt(n_joints) * lever_arm * rate_noise}
-    if not estimate_gyro_bias:
-        return VelocityEKFParams(gyro_noise=math.hypot(sensors.gyro_noise, sensors.gyro_bias),
-                                 estimate_gyro_bias=False, **common)
-    return VelocityEKFParams(gyro_noise=sensors.gyro_noise, estimate_gyro_bias=True,
-                             initial_gyro_bias_std=sensors.gyro_bias,
-                             gyro_bias_random_walk=sensors.gyro_bias / math.sqrt(BIAS_DRIFT_TIME), **common)
+def load_fit(path=None) -> dict:
+    """The fit written by `robocup-mcl fit ekf --save PATH` (default `FIT_PATH`), as a dict."""
+    path = FIT_PATH if path is None else Path(path)
+    try:
+        with open(path, encoding="utf-8") as stream:
+            fit = json.load(stream)
+    except OSError as error:
+        raise ValueError(f"cannot read the EKF fit {path}: {error.strerror or error}; make it with "
+                         f"`robocup-mcl fit ekf --save {path}`") from None
+    except json.JSONDecodeError as error:
+        raise ValueError(f"the EKF fit {path} is not JSON: {error}") from None
+    if not isinstance(fit, dict) or not isinstance(fit.get("variants"), dict):
+        raise ValueError(f"the EKF fit {path} has no 'variants' table (written by `robocup-mcl fit ekf`)")
+    missing = [name for name in EKF_VARIANTS if name not in fit["variants"]]
+    if missing:
+        raise ValueError(f"the EKF fit {path} lacks the variants {missing}")
+    return fit
 
 
-def default_variants(sensors: SensorParams) -> dict:
-    """The two filters compared: the paper's (state [g, v]) and the one estimating the gyro bias ([g, v, b])."""
-    return {"ekf": ekf_params_for(sensors, estimate_gyro_bias=False),
-            "ekf+bias": ekf_params_for(sensors, estimate_gyro_bias=True)}
+def ekf_params_for(fit: dict | None = None, variant: str = "ekf+bias") -> VelocityEKFParams:
+    """The noise settings of EKF `variant` (one of `EKF_VARIANTS`) as fitted from training walks.
+
+    `fit` is what `load_fit` returns (None: `load_fit()`, the results file). Nothing here reads the simulator's
+    parameters: the settings are those `robocup-mcl fit ekf` chose on the training walks.
+    """
+    if variant not in EKF_VARIANTS:
+        raise ValueError(f"variant must be one of {EKF_VARIANTS}, got {variant!r}")
+    if fit is not None and not isinstance(fit, dict):
+        raise ValueError(f"fit must be the dict of load_fit() (the fitted noise settings), got "
+                         f"{type(fit).__name__}")
+    fit = load_fit() if fit is None else fit
+    fields = {f.name for f in dataclasses.fields(VelocityEKFParams)}
+    values = {key: value for key, value in fit["variants"][variant].items() if key in fields}
+    return VelocityEKFParams(**values)
+
+
+def variant_params(noise: dict, variant: str) -> VelocityEKFParams:
+    """VelocityEKFParams of `variant` with the noise settings `noise` (field name → value) and the variant's
+    structure (`VARIANT_SETTINGS`)."""
+    structure = {key: value for key, value in VARIANT_SETTINGS[variant].items() if key != "zero_gyro"}
+    return VelocityEKFParams(**{**noise, **structure})
+
+
+def default_variants(fit: dict | None = None) -> dict:
+    """The three filters compared (`EKF_VARIANTS`), with their fitted noise settings."""
+    fit = load_fit() if fit is None else fit
+    return {name: ekf_params_for(fit, name) for name in EKF_VARIANTS}
 
 
 def run_estimators(run: BipedRun, params: dict | None = None, backend: str = "numba",
-                   zero_gyro: bool = True) -> dict:
+                   zero_gyro: dict | None = None, kinematics_zero_gyro: bool = True) -> dict:
     """Run the estimators over one simulated walk; returns per-sample estimates, truth and the EKF inputs.
 
-    `params` maps a name to the VelocityEKFParams of one EKF (default: `default_variants`); each EKF has its own
-    `LegOdometry`, and the kinematic estimates are those of the first. All start from the first
-    `STANDING_SAMPLES_TIME` seconds, when the robot stands still (eq. 1); with `zero_gyro` the gyro samples of
-    that period are given to every estimator (the mean removed as the bias, or the bias state started there).
-    Per EKF `name`: `{name}_velocity`, `{name}_gravity`, `{name}_gyro_bias` (IMU rate), and under `kin`, `events`,
-    `params`, `initial_state`, `initial_covariance`.
+    `params` maps a name to the VelocityEKFParams of one EKF (default: `default_variants()`); each EKF has its
+    own `LegOdometry` on `ESTIMATOR_CHAINS` (the published legs, not the run's). All start from the first
+    `STANDING_SAMPLES_TIME` seconds, when the robot stands still (eq. 1). `zero_gyro` maps an EKF's name to
+    whether it is given the standing gyro samples (their mean removed as the bias, or the bias state started
+    there); default `VARIANT_SETTINGS[name]["zero_gyro"]`, True for other names. The IMU alone takes them too;
+    the kinematic estimates take them when `kinematics_zero_gyro` (their own leg odometry, the gyro less the
+    standing mean, or raw). Per EKF `name`: `{name}_velocity`, `{name}_gravity`, `{name}_gyro_bias` (IMU rate),
+    and under `kin`, `events`, `params`, `initial_state`, `initial_covariance`.
     """
-    params = default_variants(run.sensors) if params is None else dict(params)
+    params = default_variants() if params is None else dict(params)
     if not params:
         raise ValueError("params must name at least one EKF")
     names = tuple(params)
+    zeroed = {name: VARIANT_SETTINGS.get(name, {}).get("zero_gyro", True) for name in names}
+    zeroed.update(zero_gyro or {})
     n0 = int(np.searchsorted(run.imu_time, STANDING_SAMPLES_TIME, side="right")) - 1
     t0 = float(run.imu_time[n0])
     standing = run.accel[: n0 + 1]
-    standing_gyro = run.gyro[: n0 + 1] if zero_gyro else None
+    standing_gyro = run.gyro[: n0 + 1]
     imu_only = ImuOnlyEstimator.from_standing(standing, t0, gyro_samples=standing_gyro)
-    filters = {name: VelocityEKF.from_standing(standing, t0, params=p, backend=backend, gyro_samples=standing_gyro)
+    filters = {name: VelocityEKF.from_standing(standing, t0, params=p, backend=backend,
+                                               gyro_samples=standing_gyro if zeroed[name] else None)
                for name, p in params.items()}
-    odometries = {name: LegOdometry(run.chains, ekf) for name, ekf in filters.items()}
+    odometries = {name: LegOdometry(ESTIMATOR_CHAINS, ekf) for name, ekf in filters.items()}
+    # The kinematic baselines: a leg odometry of their own (its filter's output is not used; its constant gyro
+    # bias is the standing mean, or zero).
+    first = params[names[0]]
+    baseline = LegOdometry(ESTIMATOR_CHAINS, VelocityEKF.from_standing(
+        standing, t0, params=dataclasses.replace(first, estimate_gyro_bias=False), backend=backend,
+        gyro_samples=standing_gyro if kinematics_zero_gyro else None))
     n_imu = run.imu_time.shape[0]
-    result = {"t0": t0, "n0": n0, "ekf_names": names, "params": params, "events": {},
+    result = {"t0": t0, "n0": n0, "ekf_names": names, "params": params, "events": {}, "zero_gyro": zeroed,
+              "kinematics_zero_gyro": kinematics_zero_gyro,
               "initial_state": {name: ekf.state for name, ekf in filters.items()},
               "initial_covariance": {name: ekf.covariance for name, ekf in filters.items()}}
     for name in ("imu",) + names:
@@ -137,16 +197,18 @@ def run_estimators(run: BipedRun, params: dict | None = None, backend: str = "nu
         result["events"][name] = []              # EKF inputs in order, for the timing replay
     kin_first = int(np.searchsorted(run.kin_time, t0, side="left"))
     n_kin = run.kin_time.shape[0]
-    kin = {name: np.full((n_kin, 3), np.nan) for name in ("imu", "kinematics", "kinematics+gyro") + names}
+    kin = {name: np.full((n_kin, 3), np.nan) for name in BASELINES + names}
     foot = np.full(n_kin, -1)
     i, k = n0 + 1, kin_first
     while i < n_imu or k < n_kin:
         if k >= n_kin or (i < n_imu and run.imu_time[i] <= run.kin_time[k]):
             imu_only.update(run.imu_time[i], run.gyro[i], run.accel[i])
             result["imu_velocity"][i], result["imu_gravity"][i] = imu_only.velocity, imu_only.gravity
+            baseline.imu(run.imu_time[i], run.gyro[i], run.accel[i])
             dt = run.imu_time[i] - run.imu_time[i - 1]
             for name, ekf in filters.items():
-                # The bias filter takes the raw gyro (it subtracts its own b); the paper's, the zeroed one.
+                # The bias filter takes the raw gyro (it subtracts its own b); the others, the gyro less their
+                # constant bias (the standing mean, or zero for the paper's filter).
                 gyro = run.gyro[i] if ekf.params.estimate_gyro_bias else run.gyro[i] - ekf.gyro_bias
                 odometries[name].imu(run.imu_time[i], run.gyro[i], run.accel[i])
                 result["events"][name].append(("predict", dt, gyro, run.accel[i]))
@@ -154,15 +216,15 @@ def run_estimators(run: BipedRun, params: dict | None = None, backend: str = "nu
                 result[f"{name}_gyro_bias"][i] = ekf.gyro_bias
             i += 1
         else:
-            for e, (name, odometry) in enumerate(odometries.items()):
+            sample = baseline.kinematics(run.kin_time[k], run.joint_angles[k], run.contacts[k])
+            foot[k] = sample.foot
+            if sample.foot >= 0:
+                kin["kinematics"][k] = sample.velocity_kinematic
+                kin["kinematics+gyro"][k] = sample.velocity_kinematic_gyro
+            for name, odometry in odometries.items():
                 sample = odometry.kinematics(run.kin_time[k], run.joint_angles[k], run.contacts[k])
                 if sample.foot >= 0:
                     result["events"][name].append(("correct", sample.velocity_kinematic_gyro))
-                if e == 0:
-                    foot[k] = sample.foot
-                    if sample.foot >= 0:
-                        kin["kinematics"][k] = sample.velocity_kinematic
-                        kin["kinematics+gyro"][k] = sample.velocity_kinematic_gyro
                 kin[name][k] = filters[name].velocity
             kin["imu"][k] = imu_only.velocity
             k += 1
@@ -172,7 +234,7 @@ def run_estimators(run: BipedRun, params: dict | None = None, backend: str = "nu
 
 
 def _names(result: dict) -> tuple:
-    return ("imu", "kinematics", "kinematics+gyro") + tuple(result["ekf_names"])
+    return BASELINES + tuple(result["ekf_names"])
 
 
 def average_forward_velocity(run: BipedRun, result: dict) -> dict:
@@ -323,11 +385,11 @@ def ekf_odometry(run: BipedRun, steps: np.ndarray, params: VelocityEKFParams | N
     kinematics sample of the same time), started from the standing robot at steps[0] (eq. 1, gyro zeroed);
     `take()` right after the IMU sample of each filter step.
     """
-    params = ekf_params_for(run.sensors, estimate_gyro_bias=True) if params is None else params
+    params = ekf_params_for(None, ODOMETRY_EKF) if params is None else params
     n0 = int(steps[0])
     t0 = float(run.imu_time[n0])
     ekf = VelocityEKF.from_standing(run.accel[: n0 + 1], t0, params=params, gyro_samples=run.gyro[: n0 + 1])
-    odometry = EKFOdometry(LegOdometry(run.chains, ekf))
+    odometry = EKFOdometry(LegOdometry(ESTIMATOR_CHAINS, ekf))
     is_step = np.zeros(run.imu_time.shape[0], dtype=bool)
     is_step[steps[1:]] = True
     out = np.empty((steps.shape[0] - 1, 3))
@@ -401,7 +463,8 @@ def _pose_errors(estimates: np.ndarray, truth: np.ndarray) -> tuple[np.ndarray, 
             np.abs(wrap_angles(estimates[:, 2] - truth[:, 2])))
 
 
-def odometry_run(run: BipedRun, seed: int, walk: str, particles: int = 500, recorder=None) -> dict:
+def odometry_run(run: BipedRun, seed: int, walk: str, particles: int = 500, recorder=None,
+                 params: VelocityEKFParams | None = None) -> dict:
     """Figure 5 for one walk: the filter and dead reckoning with each odometry source (`ODOMETRY_SOURCES`).
 
     The walk is placed on an SPL field at `PLACEMENTS[walk]`; a camera frame (the walk scenario's landmark
@@ -411,7 +474,8 @@ def odometry_run(run: BipedRun, seed: int, walk: str, particles: int = 500, reco
     `SPARSE_CAMERA_EVERY` (the rest empty). Dead reckoning chains the source's pose changes from the true
     start pose (the motion model's mean, no camera). Errors are taken at every filter step, against the
     trunk's pose. With a `mcl.recording.Recorder`, the EKF odometry filter with the full camera is logged by
-    `log_step` and the command filters' estimates beside it.
+    `log_step` and the command filters' estimates beside it. `params`: the EKF's (default: the fitted
+    `ODOMETRY_EKF`).
     """
     if walk not in PLACEMENTS:
         raise ValueError(f"walk must be one of {tuple(PLACEMENTS)}, got {walk!r}")
@@ -426,7 +490,7 @@ def odometry_run(run: BipedRun, seed: int, walk: str, particles: int = 500, reco
     frames = camera_frames(truth[1:], times[1:], seed, scenario)
     empty = Observations.from_arrays([], [], [])
     sparse = [frame if (m + 1) % SPARSE_CAMERA_EVERY == 0 else empty for m, frame in enumerate(frames)]
-    odometry = ekf_odometry(run, steps)
+    odometry = ekf_odometry(run, steps, params)
     ideal = commanded_velocity(run, steps, seed, ideal=True, scenario=scenario)
     inputs = {"ekf odometry": [MotionInput(dt=dt, odometry=tuple(d)) for dt, d in zip(dts, odometry)],
               "command": [MotionInput(dt=dt, command=tuple(c))
@@ -485,7 +549,8 @@ def summarize_odometry(runs: list[dict]) -> dict:
 FORWARD_VELOCITY = "proprioception/forward_velocity"
 SERIES_STYLE = {"truth": ((240, 240, 240), "truth"), "imu": ((230, 80, 80), "IMU only"),
                 "kinematics": ((80, 160, 255), "kinematics"), "kinematics_gyro": ((80, 220, 120), "kinematics+gyro"),
-                "ekf": ((255, 200, 40), "EKF (paper)"), "ekf_bias": ((255, 120, 0), "EKF + gyro bias")}
+                "ekf": ((255, 200, 40), "EKF (paper)"), "ekf_zeroed": ((200, 160, 255), "EKF variant: gyro zeroed"),
+                "ekf_bias": ((255, 120, 0), "EKF variant: + gyro bias state")}
 OTHER_SOURCES = {"command": ("robot/estimate_command", (60, 140, 255)),
                  "ideal command": ("robot/estimate_ideal_command", (200, 200, 255))}
 
@@ -510,6 +575,7 @@ def record_velocities(recorder, run: BipedRun, result: dict) -> None:
               "kinematics": (run.kin_time[valid], result["kin"]["kinematics"][valid, 0]),
               "kinematics_gyro": (run.kin_time[valid], result["kin"]["kinematics+gyro"][valid, 0]),
               "ekf": (run.imu_time[n0:], result["ekf_velocity"][n0:, 0]),
+              "ekf_zeroed": (run.imu_time[n0:], result["ekf zeroed_velocity"][n0:, 0]),
               "ekf_bias": (run.imu_time[n0:], result["ekf+bias_velocity"][n0:, 0])}
     for name, (times, values) in series.items():
         color, label = SERIES_STYLE[name]
@@ -549,29 +615,41 @@ def _record_filter_step(recorder, step: int, t: float, filters: dict, truth: np.
     log("robot/dead_reckoning/command", _arrow(dead["command"][m], (160, 200, 255)))
 
 
-def write_recording(path: str, run: BipedRun, result: dict, seed: int, walk: str, particles: int) -> dict:
+def write_recording(path: str, run: BipedRun, result: dict, seed: int, walk: str, particles: int,
+                    params: VelocityEKFParams | None = None) -> dict:
     """The .rrd of `--rrd`: Fig. 3's velocities of `run` and the filters on the same walk; returns figure 5's
-    numbers for that walk (the same as without a recording)."""
+    numbers for that walk (the same as without a recording). `params`: the odometry EKF's (`odometry_run`)."""
     from mcl.recording import Recorder
 
     recorder = Recorder(path, WalkScenario().field, particles_every=5, blueprint=velocity_blueprint())
     try:
         record_velocities(recorder, run, result)
-        return odometry_run(run, seed, walk, particles, recorder=recorder)
+        return odometry_run(run, seed, walk, particles, recorder=recorder, params=params)
     finally:
         recorder.close()
 
 
-LABELS = {"ekf": "ekf (paper)", "ekf+bias": "ekf + gyro bias"}
+def _robot_line(report: dict) -> str:
+    """One line saying which robots were simulated and where the noise settings come from."""
+    v = report["variation"]
+    training = report.get("fit_training_seeds") or []
+    fitted = (f"noise settings fitted on training seeds {training[0]}-{training[-1]} (robocup-mcl fit ekf)"
+              if training else "noise settings from the fit file")
+    if v["link_length_error"] == 0.0 and v["backlash"][1] == 0.0 and v["accel_scale_error"] == 0.0:
+        return f"Simulated robot: the nominal one (published legs, datasheet sensors); {fitted}."
+    return (f"Simulated robots drawn per walk: links +-{100 * v['link_length_error']:.0f} %, joint zeros "
+            f"+-{math.degrees(v['joint_zero_error']):.1f} deg, backlash up to {math.degrees(v['backlash'][1]):.1f} deg, "
+            f"IMU noise, bias, scale and gyro drift per run (demos.biped.RobotVariation); {fitted}.")
 
 
 def _format(report: dict) -> str:
     lines = []
     f1 = report["average_forward_velocity"]
     variants = tuple(report["ekf_names"])
-    names = ("imu", "kinematics", "kinematics+gyro") + variants
+    names = BASELINES + variants
     label = {name: LABELS.get(name, name) for name in names}
-    width = max(19, max(len(label[name] + ', raw gyro') for name in variants) + 2)
+    width = max(19, max(len(label[name]) for name in names) + 2)
+    lines.append(_robot_line(report))
     lines.append(f"Figure 1. Average forward velocity, {report['duration']:.0f} s straight walk "
                  f"(seed {report['seed']}, twist {'on' if report['twist'] else 'off'}, "
                  f"slip {'on' if report['slip'] else 'off'})")
@@ -580,22 +658,16 @@ def _format(report: dict) -> str:
         r = f1[name]
         lines.append(f"  {label[name]:<{width}}{100 * r['estimate_m_s']:>14.2f}{100 * r['truth_m_s']:>12.2f}"
                      f"{r['error_percent']:>10.1f}")
-    for name in variants:
-        r = report["ekf_gyro_not_zeroed"][name]
-        lines.append(f"  {label[name] + ', raw gyro':<{width}}{100 * r['estimate_m_s']:>14.2f}"
-                     f"{100 * r['truth_m_s']:>12.2f}{r['error_percent']:>10.1f}   (no standing gyro samples)")
     spread = report["seed_spread"]
     seeds = spread["seeds"]
-    lines.append(f"  EKF error % over seeds {seeds[0]}-{seeds[-1]} (goal <= 5 %):")
-    for name in variants:
+    lines.append(f"  Error % over seeds {seeds[0]}-{seeds[-1]} (goal <= 5 %):")
+    for name in variants + ("kinematics+gyro",):
         errors = spread[f"{name}_error_percent"]
         missed = [s for s, e in zip(seeds, errors) if e > 5.0]
         lines.append(f"    {label[name]:<{width - 2}}" + ", ".join(f"{x:.1f}" for x in errors)
                      + f"  (median {np.median(errors):.1f}, max {max(errors):.1f}; goal "
                      + ("met on every seed)" if not missed else f"MISSED on seed{'s' if len(missed) > 1 else ''} "
                         + ", ".join(str(s) for s in missed) + ")"))
-    errors = spread["kinematics+gyro_error_percent"]
-    lines.append(f"    {'kinematics+gyro':<{width - 2}}median {np.median(errors):.1f}, max {max(errors):.1f}")
     lines.append("")
     lines.append("Figure 2. Velocity RMSE (cm/s) over quarters of the run, at kinematics samples with a support foot")
     for key, block in report["rmse"].items():
@@ -691,19 +763,23 @@ def _format_odometry(odometry: dict) -> list[str]:
 
 
 def build_report(seed: int, duration: float, twist: bool, slip: bool, n_seeds: int = 5, particles: int = 500,
-                 rrd: str | None = None, progress: bool = False) -> dict:
+                 rrd: str | None = None, progress: bool = False, fit: dict | None = None,
+                 variation: RobotVariation | None = None) -> dict:
     """Every figure, from fresh simulations; with `rrd`, the recording of figures 1 and 5's straight walk.
-    progress: a bar on stderr over the simulated walks and the figures."""
+    progress: a bar on stderr over the simulated walks and the figures. fit: the noise settings (default:
+    `load_fit()`); variation: the simulated robots' ranges (default: `RobotVariation()`, links ±5 %)."""
     from mcl.cli_checks import progress_bar
 
+    fit = load_fit() if fit is None else fit
+    variation = RobotVariation() if variation is None else variation
     bar = progress_bar(enabled=progress, total=n_seeds + 8, desc="velocity", unit="part")
     try:
-        return _build_report(seed, duration, twist, slip, n_seeds, particles, rrd, bar)
+        return _build_report(seed, duration, twist, slip, n_seeds, particles, rrd, bar, fit, variation)
     finally:
         bar.close()
 
 
-def _build_report(seed, duration, twist, slip, n_seeds, particles, rrd, bar) -> dict:
+def _build_report(seed, duration, twist, slip, n_seeds, particles, rrd, bar, fit, variation) -> dict:
     base_disturbances = DisturbanceParams()
     slip_probability = base_disturbances.slip_probability if slip else 0.0
 
@@ -711,14 +787,24 @@ def _build_report(seed, duration, twist, slip, n_seeds, particles, rrd, bar) -> 
         return DisturbanceParams(twist_probability=base_disturbances.twist_probability if twist_on else 0.0,
                                  slip_probability=slip_probability)
 
-    straight = simulate_walk(duration, seed, gait=GaitParams(), disturbances=disturbances(twist))
-    result = run_estimators(straight)
+    def simulate(walk_seed, gait, twist_on):
+        return simulate_walk(duration, walk_seed, gait=gait, disturbances=disturbances(twist_on),
+                             variation=variation)
+
+    params = default_variants(fit)
+    kinematics_zero_gyro = bool(fit.get("kinematics_zero_gyro", True))
+
+    def estimate(run):
+        return run_estimators(run, params, kinematics_zero_gyro=kinematics_zero_gyro)
+
+    straight = simulate(seed, GaitParams(), twist)
+    result = estimate(straight)
     variants = tuple(result["ekf_names"])
     report = {"seed": seed, "duration": duration, "twist": twist, "slip": slip, "ekf_names": list(variants),
+              "labels": {name: LABELS[name] for name in ESTIMATORS}, "variation": dataclasses.asdict(variation),
+              "robot": straight.robot.as_dict(), "fit_training_seeds": fit.get("training_seeds"),
               "average_forward_velocity": average_forward_velocity(straight, result),
               "tilt": tilt_figures(straight, result), "rmse": {}}
-    raw = average_forward_velocity(straight, run_estimators(straight, zero_gyro=False))
-    report["ekf_gyro_not_zeroed"] = {name: raw[name] for name in variants}
     bar.update(2)
     walks = {("straight", seed): straight}         # the twist setting of figure 1, reused by figure 5
     spread = {"seeds": list(range(seed, seed + n_seeds)), "kinematics+gyro_error_percent": []}
@@ -728,9 +814,9 @@ def _build_report(seed, duration, twist, slip, n_seeds, particles, rrd, bar) -> 
         if other == seed:
             figures = report["average_forward_velocity"]
         else:
-            other_run = simulate_walk(duration, other, gait=GaitParams(), disturbances=disturbances(twist))
+            other_run = simulate(other, GaitParams(), twist)
             walks["straight", other] = other_run
-            figures = average_forward_velocity(other_run, run_estimators(other_run))
+            figures = average_forward_velocity(other_run, estimate(other_run))
         for name in variants + ("kinematics+gyro",):
             spread[f"{name}_error_percent"].append(figures[name]["error_percent"])
         bar.update(1)
@@ -741,8 +827,8 @@ def _build_report(seed, duration, twist, slip, n_seeds, particles, rrd, bar) -> 
             if walk == "straight" and twist_on == twist:
                 run, res = straight, result
             else:
-                run = simulate_walk(duration, seed, gait=gait, disturbances=disturbances(twist_on))
-                res = run_estimators(run)
+                run = simulate(seed, gait, twist_on)
+                res = estimate(run)
                 if twist_on == twist:
                     walks[walk, seed] = run
             report["rmse"][f"{walk} walk, twist {'on' if twist_on else 'off'}"] = rmse_windows(run, res)
@@ -751,15 +837,17 @@ def _build_report(seed, duration, twist, slip, n_seeds, particles, rrd, bar) -> 
     bar.update(1)
     report["ekf_params"] = {name: dataclasses.asdict(result["params"][name]) for name in variants}
     report["odometry"] = odometry_report(walks, result, spread["seeds"], duration, disturbances(twist), particles,
-                                         rrd)
+                                         rrd, variation=variation, params=params[ODOMETRY_EKF])
     bar.update(1)
     return report
 
 
 def odometry_report(walks: dict, result: dict, seeds: list[int], duration: float,
-                    disturbances: DisturbanceParams, particles: int = 500, rrd: str | None = None) -> dict:
+                    disturbances: DisturbanceParams, particles: int = 500, rrd: str | None = None,
+                    variation: RobotVariation | None = None, params: VelocityEKFParams | None = None) -> dict:
     """Figure 5 over `seeds`, straight and turning walks; `walks` holds (walk, seed) runs already simulated
-    (`result` is the estimators' run on the straight walk of seeds[0], recorded with `rrd`)."""
+    (`result` is the estimators' run on the straight walk of seeds[0], recorded with `rrd`); other walks are
+    simulated with `variation`; `params` are the odometry EKF's (default: the fitted `ODOMETRY_EKF`)."""
     out = {"filter_rate_hz": None, "particles": particles, "ekf": ODOMETRY_EKF, "sources": list(ODOMETRY_SOURCES),
            "placements": {walk: list(pose) for walk, pose in PLACEMENTS.items()}, "reset_sigma": list(RESET_SIGMA),
            "sparse_camera_every": SPARSE_CAMERA_EVERY, "seeds": list(seeds), "walks": {}}
@@ -768,15 +856,115 @@ def odometry_report(walks: dict, result: dict, seeds: list[int], duration: float
         for s in seeds:
             run = walks.get((walk, s))
             if run is None:
-                run = simulate_walk(duration, s, gait=walk_gait(walk, duration), disturbances=disturbances)
+                run = simulate_walk(duration, s, gait=walk_gait(walk, duration), disturbances=disturbances,
+                                    variation=variation)
             if rrd and walk == "straight" and s == seeds[0]:
-                runs.append(write_recording(rrd, run, result, s, walk, particles))
+                runs.append(write_recording(rrd, run, result, s, walk, particles, params))
             else:
-                runs.append(odometry_run(run, s, walk, particles))
+                runs.append(odometry_run(run, s, walk, particles, params=params))
             out["filter_rate_hz"] = run.sensors.imu_rate / FILTER_EVERY
         out["walks"][walk] = {"runs": runs, "summary": summarize_odometry(runs)}
     out["rrd"] = rrd
     return out
+
+
+# ---------------------------------------------------------------------------------------------------------
+# The robustness table: every estimator against the simulated robot's distance from the estimator's model
+# ---------------------------------------------------------------------------------------------------------
+MISMATCH_LEVELS = (("nominal", None), ("links +-0 %", 0.0), ("links +-2 %", 0.02), ("links +-5 %", 0.05),
+                   ("links +-8 %", 0.08))
+"""Columns: the nominal robot (published legs, datasheet sensors), then `RobotVariation()` with the links (and the
+joint zeros with them) drawn within ±e."""
+TABLE_ESTIMATORS = EKF_VARIANTS + ("kinematics+gyro", "kinematics", "imu")
+GOAL_PERCENT = 5.0
+
+
+def level_variation(error: float | None) -> RobotVariation | None:
+    """The simulated robots of one column of the table: None (the nominal robot) or links within ±`error`."""
+    return None if error is None else RobotVariation().with_chain_error(error)
+
+
+def mismatch_table(seeds: list[int], duration: float = 28.0, fit: dict | None = None,
+                   levels=MISMATCH_LEVELS, progress: bool = False) -> dict:
+    """Average-forward-velocity error (%) of every estimator over straight walks of `seeds` (twist and slip on),
+    for each column of `levels` (name, link error or None), with the fitted noise settings `fit`."""
+    from mcl.cli_checks import progress_bar
+
+    fit = load_fit() if fit is None else fit
+    params = default_variants(fit)
+    kinematics_zero_gyro = bool(fit.get("kinematics_zero_gyro", True))
+    out: dict = {"seeds": list(seeds), "duration": duration, "goal_percent": GOAL_PERCENT,
+                 "fit_training_seeds": fit.get("training_seeds"), "estimators": list(TABLE_ESTIMATORS),
+                 "labels": {name: LABELS[name] for name in TABLE_ESTIMATORS}, "levels": {}}
+    bar = progress_bar(enabled=progress, total=len(levels) * len(seeds), desc="mismatch", unit="walk")
+    try:
+        for level, error in levels:
+            variation = level_variation(error)
+            errors: dict = {name: [] for name in TABLE_ESTIMATORS}
+            for seed in seeds:
+                run = simulate_walk(duration, seed, variation=variation)
+                figures = average_forward_velocity(
+                    run, run_estimators(run, params, kinematics_zero_gyro=kinematics_zero_gyro))
+                for name in TABLE_ESTIMATORS:
+                    errors[name].append(figures[name]["error_percent"])
+                bar.update(1)
+            summary = {name: {"median": float(np.median(v)), "max": float(np.max(v)),
+                              "within_goal": int(np.sum(np.asarray(v) <= GOAL_PERCENT))}
+                       for name, v in errors.items()}
+            beats = {name: int(np.sum(np.asarray(errors[name]) < np.asarray(errors["kinematics+gyro"])))
+                     for name in EKF_VARIANTS}
+            out["levels"][level] = {"link_length_error": error,
+                                    "variation": None if variation is None else dataclasses.asdict(variation),
+                                    "error_percent": errors, "summary": summary, "ekf_below_kinematics_gyro": beats}
+    finally:
+        bar.close()
+    return out
+
+
+def format_mismatch(table: dict) -> str:
+    """The robustness table as text."""
+    seeds = table["seeds"]
+    training = table.get("fit_training_seeds") or []
+    levels = list(table["levels"])
+    width = max(len(label) for label in table["labels"].values()) + 2
+    cell = 16
+    lines = [f"Average forward velocity error %, {table['duration']:.0f} s straight walks (twist and slip on), "
+             f"held-out seeds {seeds[0]}-{seeds[-1]} ({len(seeds)} walks),",
+             "noise settings fitted on training seeds "
+             + (f"{training[0]}-{training[-1]}" if training else "(see the fit file)")
+             + f"; median (worst) per column, then walks within the goal (<= {table['goal_percent']:g} %).",
+             "Columns: the nominal robot (published legs, datasheet sensors); then robots drawn per walk with links "
+             "within +-e, joint zeros",
+             "within +-(20 deg)*e, backlash, IMU noise, bias, scale and gyro drift per run (demos.biped.RobotVariation).",
+             f"  {'estimator':<{width}}" + "".join(f"{level:>{cell}}" for level in levels)]
+    for name in table["estimators"]:
+        cells = "".join(f"{table['levels'][lv]['summary'][name]['median']:>{cell - 8}.1f} "
+                        f"({table['levels'][lv]['summary'][name]['max']:>5.1f})" for lv in levels)
+        lines.append(f"  {table['labels'][name]:<{width}}{cells}")
+    lines.append(f"  within {table['goal_percent']:g} %")
+    n = len(seeds)
+    for name in table["estimators"]:
+        cells = "".join(f"{str(table['levels'][lv]['summary'][name]['within_goal']) + '/' + str(n):>{cell}}"
+                        for lv in levels)
+        lines.append(f"  {table['labels'][name]:<{width}}{cells}")
+    lines.append("  walks where the EKF's error is below kinematics+gyro's")
+    for name in EKF_VARIANTS:
+        cells = "".join(f"{str(table['levels'][lv]['ekf_below_kinematics_gyro'][name]) + '/' + str(n):>{cell}}"
+                        for lv in levels)
+        lines.append(f"  {table['labels'][name]:<{width}}{cells}")
+    return "\n".join(lines)
+
+
+def emit(args: argparse.Namespace, result: dict, text) -> None:
+    """Write `result` to `args.save` (if given), and print it as JSON with `args.json`, else as `text(result)`."""
+    from mcl.cli_checks import save_json
+
+    save_json(args.save, result)
+    if args.json:
+        json.dump(result, sys.stdout, indent=2)
+        sys.stdout.write("\n")
+    else:
+        print(text(result))
 
 
 PROG = "robocup-mcl demo velocity"
@@ -789,18 +977,30 @@ def build_parser(prog: str = PROG) -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog=prog, description=description(__doc__))
     parser.add_argument("--json", action="store_true", help="print the figures as JSON")
     add_save_option(parser)
-    parser.add_argument("--seed", type=int, default=0, help="seed of the first simulated walk (default 0)")
+    parser.add_argument("--seed", type=int, default=None,
+                        help=f"seed of the first simulated walk (default 0; with --mismatch {HELD_OUT_FIRST_SEED}); "
+                             f"the training seeds {TRAINING_SEEDS[0]}-{TRAINING_SEEDS[-1]} are refused")
     parser.add_argument("--duration", type=float, default=28.0, help="seconds of each simulated walk")
     parser.add_argument("--twist", action=argparse.BooleanOptionalAction, default=True,
                         help="foot twist episodes in the walk of figures 1, 3 and 4")
     parser.add_argument("--slip", action=argparse.BooleanOptionalAction, default=True,
                         help="limited slip episodes in every walk")
     parser.add_argument("--seeds", type=int, default=5,
-                        help="figures 1 and 5 are repeated for this many seeds from --seed, to show the spread")
+                        help="figures 1 and 5 (or the --mismatch table) are repeated for this many seeds from "
+                             "--seed, to show the spread")
     parser.add_argument("--particles", type=int, default=500, help="particles of each filter of figure 5")
     parser.add_argument("--rrd", metavar="PATH",
                         help="write a Rerun recording: the velocities of figure 1 (the paper's Fig. 3) and the "
                              "filters of figure 5 on the same straight walk")
+    parser.add_argument("--mismatch", action="store_true",
+                        help="instead of figures 1-5, the robustness table: every estimator's average-velocity "
+                             "error on the nominal robot and on robots whose links are off by up to 0, 2, 5 and 8 %%")
+    parser.add_argument("--nominal", action="store_true",
+                        help="figures 1-5 on the nominal robot (published legs, datasheet sensors) instead of "
+                             "robots drawn per walk with links within +-5 %%")
+    parser.add_argument("--fit", metavar="PATH", default=None,
+                        help="the EKF noise settings written by `robocup-mcl fit ekf --save PATH` "
+                             "(default: results/ekf_fit.json)")
     add_progress_option(parser)
     return parser
 
@@ -809,7 +1009,7 @@ def main(argv: list[str] | None = None, prog: str = PROG) -> int:
     """`robocup-mcl demo velocity` (see --help); returns the exit status."""
     parser = build_parser(prog)
     args = parser.parse_args(argv)
-    from mcl.cli_checks import check_output_file, save_json
+    from mcl.cli_checks import check_input_file, check_output_file, progress_wanted
     check_output_file(args.save, "--save")
     if args.seeds < 1:
         parser.error(f"--seeds must be at least 1, got {args.seeds}")
@@ -817,25 +1017,32 @@ def main(argv: list[str] | None = None, prog: str = PROG) -> int:
         parser.error(f"--particles must be at least 1, got {args.particles}")
     if not (math.isfinite(args.duration) and args.duration >= 4.0):
         parser.error(f"--duration must be at least 4 s, got {args.duration}")
-    from mcl.cli_checks import check_output_file
+    if args.mismatch and (args.rrd or args.nominal):
+        parser.error("--mismatch makes the robustness table only: --rrd and --nominal do not apply")
+    first = args.seed if args.seed is not None else (HELD_OUT_FIRST_SEED if args.mismatch else 0)
+    seeds = list(range(first, first + args.seeds))
+    training = sorted(set(seeds) & set(TRAINING_SEEDS))
+    if training:
+        parser.error(f"seeds {training} are training seeds (the noise settings were fitted on them); "
+                     "pick others with --seed")
     check_output_file(args.rrd, "--rrd")          # before the simulations, not after them
-    from mcl.cli_checks import progress_wanted
+    check_input_file(args.fit, "--fit")
+    fit = load_fit(args.fit)
+    if args.mismatch:
+        emit(args, mismatch_table(seeds, args.duration, fit, progress=progress_wanted(args)), format_mismatch)
+        return 0
 
     from .walk import warm_up_walk
     from .walk_sim import WalkScenario
     # The filter that takes the EKF's odometry: a machine's first run says it compiles its kernels.
     warm = warm_up_walk(WalkScenario(), "velocity-linear", progress=progress_wanted(args))
-    report = build_report(args.seed, args.duration, args.twist, args.slip, args.seeds, args.particles, args.rrd,
-                          progress=progress_wanted(args))
+    report = build_report(first, args.duration, args.twist, args.slip, args.seeds, args.particles, args.rrd,
+                          progress=progress_wanted(args), fit=fit,
+                          variation=RobotVariation.nominal() if args.nominal else RobotVariation())
     report.update(warm.as_dict())
-    save_json(args.save, report)
-    if args.json:
-        json.dump(report, sys.stdout, indent=2)
-        sys.stdout.write("\n")
-    else:
-        print(_format(report))
-        if args.rrd:
-            print(f"\nrecording written to {args.rrd} (open it with: rerun {args.rrd})")
+    emit(args, report, _format)
+    if args.rrd and not args.json:
+        print(f"\nrecording written to {args.rrd} (open it with: rerun {args.rrd})")
     return 0
 
 

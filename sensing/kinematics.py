@@ -42,6 +42,76 @@ NAO_TIBIA_LENGTH = 0.1029
 NAO_FOOT_HEIGHT = 0.04519
 
 
+@dataclass(frozen=True)
+class NaoLegDimensions:
+    """The five lengths (metres) of a NAO-type leg; the defaults are Aldebaran's published dimensions.
+
+    Parameters
+    ----------
+    hip_offset_y : float
+        Lateral distance of each hip from the torso's middle.
+    hip_offset_z : float
+        Height of the torso origin above the hips.
+    thigh : float
+        Hip to knee.
+    tibia : float
+        Knee to ankle.
+    foot_height : float
+        Ankle above the sole.
+
+    Raises
+    ------
+    ValueError
+        When a length is not finite and positive.
+    """
+
+    hip_offset_y: float = NAO_HIP_OFFSET_Y
+    hip_offset_z: float = NAO_HIP_OFFSET_Z
+    thigh: float = NAO_THIGH_LENGTH
+    tibia: float = NAO_TIBIA_LENGTH
+    foot_height: float = NAO_FOOT_HEIGHT
+
+    def __post_init__(self) -> None:
+        for name in ("hip_offset_y", "hip_offset_z", "thigh", "tibia", "foot_height"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, (int, float)) or not (
+                    math.isfinite(value) and value > 0.0):
+                raise ValueError(f"{name} must be a finite positive length in metres, got {value!r}")
+
+    def scaled(self, factors) -> "NaoLegDimensions":
+        """The dimensions multiplied one by one by `factors`.
+
+        Parameters
+        ----------
+        factors : sequence of 5 floats
+            Factors in the field order (hip_offset_y, hip_offset_z, thigh, tibia, foot_height).
+
+        Returns
+        -------
+        NaoLegDimensions
+            The scaled dimensions.
+
+        Raises
+        ------
+        ValueError
+            When `factors` is not five finite positive numbers.
+        """
+        f = np.asarray(factors, dtype=np.float64)
+        if f.shape != (5,) or not np.all(np.isfinite(f)) or np.any(f <= 0.0):
+            raise ValueError(f"factors must be five finite positive numbers, got {np.asarray(factors).tolist()}")
+        return NaoLegDimensions(*(float(v) * float(k) for v, k in zip(self.as_tuple(), f)))
+
+    def as_tuple(self) -> tuple[float, float, float, float, float]:
+        """The five lengths in the field order.
+
+        Returns
+        -------
+        tuple of 5 floats
+            (hip_offset_y, hip_offset_z, thigh, tibia, foot_height).
+        """
+        return (self.hip_offset_y, self.hip_offset_z, self.thigh, self.tibia, self.foot_height)
+
+
 # ---------------------------------------------------------------------------------------------------------
 # Small rotation helpers (numba and numpy)
 # ---------------------------------------------------------------------------------------------------------
@@ -340,7 +410,8 @@ class LegChain:
                          f"{max_iterations} iterations")
 
 
-def nao_leg(side: str = "left", imu_offset=(0.0, 0.0, 0.0)) -> LegChain:
+def nao_leg(side: str = "left", imu_offset=(0.0, 0.0, 0.0), dimensions: NaoLegDimensions = NaoLegDimensions(),
+            joint_offsets=None) -> LegChain:
     """The NAO leg from Aldebaran's published dimensions, joints foot → trunk (`NAO_JOINT_NAMES`).
 
     Angles are NAOqi joint angles: at zero the leg hangs straight with the sole level under the hip. Axes in
@@ -348,35 +419,66 @@ def nao_leg(side: str = "left", imu_offset=(0.0, 0.0, 0.0)) -> LegChain:
     about (0, 1, -1)/√2 for the left leg and (0, 1, 1)/√2 for the right. The sole frame is level at zero,
     origin under the ankle, x forward. The IMU frame is the torso frame shifted by `imu_offset` (metres,
     torso axes); the torso origin is 85 mm above the hips, midway between them.
+
+    Parameters
+    ----------
+    side : str
+        "left" or "right".
+    imu_offset : sequence of 3 floats
+        The IMU's position in the torso frame, metres.
+    dimensions : NaoLegDimensions
+        The leg's lengths (default: the published ones). Another leg of the same kind, e.g. one whose links
+        differ from the drawings, is `nao_leg(side, dimensions=NaoLegDimensions(...))`.
+    joint_offsets : sequence of 6 floats or None
+        Radians added to each joint's zero (foot → trunk), e.g. an encoder's zero that is off; None: none.
+
+    Returns
+    -------
+    LegChain
+        The leg as a DH chain with the IMU pose set.
+
+    Raises
+    ------
+    ValueError
+        On an unknown side, a `dimensions` that is not a NaoLegDimensions, or joint offsets that are not six
+        finite numbers.
     """
     if side not in ("left", "right"):
         raise ValueError(f"side must be 'left' or 'right', got {side!r}")
+    if not isinstance(dimensions, NaoLegDimensions):
+        raise ValueError(f"dimensions must be a NaoLegDimensions, got {type(dimensions).__name__}")
+    offsets = np.zeros(6) if joint_offsets is None else np.asarray(joint_offsets, dtype=np.float64)
+    if offsets.shape != (6,) or not np.all(np.isfinite(offsets)):
+        raise ValueError(f"joint_offsets must be six finite numbers (radians), got {np.asarray(joint_offsets).tolist()}")
+    dims = dimensions
     mirror = 1.0 if side == "left" else -1.0
     half_pi = math.pi / 2.0
     # Reversing the chain (trunk relative to foot) turns each joint the other way, so every DH z axis
     # points against the NAO joint axis and the DH angle equals the NAOqi angle.
     rows = [
         (0.0, 0.0, 0.0, half_pi),                         # ankle roll: z0 = -x, x1 = up
-        (0.0, NAO_TIBIA_LENGTH, 0.0, 0.0),                # ankle pitch: z1 = -y, up the tibia to the knee
-        (0.0, NAO_THIGH_LENGTH, 0.0, 0.0),                # knee pitch: z2 = -y, up the thigh to the hip
+        (0.0, dims.tibia, 0.0, 0.0),                      # ankle pitch: z1 = -y, up the tibia to the knee
+        (0.0, dims.thigh, 0.0, 0.0),                      # knee pitch: z2 = -y, up the thigh to the hip
         (0.0, 0.0, 0.0, -half_pi),                        # hip pitch: z3 = -y, to z4 = -x
         (mirror * math.pi / 4.0, 0.0, 0.0, half_pi),      # hip roll: z4 = -x, to z5 = -(yaw-pitch axis)
         (0.0, 0.0, 0.0, 0.0),                             # hip yaw-pitch: frame 6 is fixed to the torso
     ]
     base_rotation = np.array([[0.0, 0.0, -1.0], [0.0, 1.0, 0.0], [1.0, 0.0, 0.0]])   # columns x0 = up, y0 = y, z0 = -x
     prefix = "L" if side == "left" else "R"
-    provisional = LegChain.from_dh(rows, base_rotation=base_rotation, base_position=(0.0, 0.0, NAO_FOOT_HEIGHT))
+    provisional = LegChain.from_dh(rows, base_rotation=base_rotation, base_position=(0.0, 0.0, dims.foot_height))
     # IMU pose in the last DH frame, from the zero pose: torso straight above the sole.
     last = provisional.frames(np.zeros(6))[-2]
     torso = np.eye(4)
     torso[:3, 3] = np.asarray(imu_offset, dtype=np.float64) + (
-        0.0, -mirror * NAO_HIP_OFFSET_Y, NAO_FOOT_HEIGHT + NAO_TIBIA_LENGTH + NAO_THIGH_LENGTH + NAO_HIP_OFFSET_Z)
+        0.0, -mirror * dims.hip_offset_y, dims.foot_height + dims.tibia + dims.thigh + dims.hip_offset_z)
     imu_in_last = np.linalg.inv(last) @ torso
     rotation = imu_in_last[:3, :3]
     # Remove rounding so the rotation check is exact.
     u, _, vt = np.linalg.svd(rotation)
     rotation = u @ vt
-    return LegChain.from_dh(rows, base_rotation=base_rotation, base_position=(0.0, 0.0, NAO_FOOT_HEIGHT),
+    # Joint offsets go in after the IMU pose is fixed: the leg's zero pose moves, the torso stays on the chain.
+    rows = [(theta + float(offset), a, d, alpha) for (theta, a, d, alpha), offset in zip(rows, offsets)]
+    return LegChain.from_dh(rows, base_rotation=base_rotation, base_position=(0.0, 0.0, dims.foot_height),
                             imu_rotation=rotation, imu_position=imu_in_last[:3, 3],
                             joint_names=tuple(prefix + name for name in NAO_JOINT_NAMES), name=f"NAO {side} leg")
 

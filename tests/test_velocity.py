@@ -325,13 +325,15 @@ def test_noise_free_walk_all_estimators_track_truth():
     sensors = SensorParams(accel_noise=0, accel_bias=0, gyro_noise=0, gyro_bias=0, encoder_resolution=0,
                            contact_error=0)
     run = simulate_walk(4.0, 0, sensors=sensors, disturbances=DisturbanceParams(0.0, slip_probability=0.0))
-    from demos.velocity import default_variants, run_estimators
-    result = run_estimators(run, params=default_variants(SensorParams()))
+    from demos.velocity import EKF_VARIANTS, default_variants, run_estimators
+    result = run_estimators(run, params=default_variants())
     n0 = result["n0"]
     assert np.abs(result["imu_velocity"][n0:] - run.true_velocity[n0:]).max() < 0.01
-    for name in ("ekf", "ekf+bias"):
+    for name in EKF_VARIANTS:
         assert np.abs(result[f"{name}_velocity"][n0:] - run.true_velocity[n0:]).max() < 0.015
-        assert np.degrees(tilt_error(result[f"{name}_gravity"][n0:], run.true_gravity[n0:])).max() < 0.2
+        # The fitted settings trust the kinematic velocity closely (they were chosen for the average velocity),
+        # which leaves the tilt less well held than the velocity: under 1 degree on this walk.
+        assert np.degrees(tilt_error(result[f"{name}_gravity"][n0:], run.true_gravity[n0:])).max() < 1.0
     valid = result["foot"] >= 0
     assert valid[run.kin_time > result["t0"]].mean() > 0.95
     for name in ("kinematics", "kinematics+gyro"):
@@ -478,11 +480,15 @@ def test_demo_main_json(capsys):
     from demos.velocity import main
     assert main(["--json", "--duration", "5", "--seeds", "1", "--no-twist"]) == 0
     report = json.loads(capsys.readouterr().out)
-    assert set(report["average_forward_velocity"]) == {"imu", "kinematics", "kinematics+gyro", "ekf", "ekf+bias"}
-    for name in ("ekf", "ekf+bias"):
+    assert set(report["average_forward_velocity"]) == {"imu", "kinematics", "kinematics+gyro", "ekf", "ekf zeroed",
+                                                       "ekf+bias"}
+    assert report["labels"]["ekf"] == "ekf (paper)"
+    assert report["labels"]["ekf+bias"].startswith("ekf variant")
+    for name in ("ekf", "ekf zeroed", "ekf+bias"):
         assert report["timing"][name]["max_state_difference"] < 1e-9
         assert len(report["seed_spread"][f"{name}_error_percent"]) == 1
     assert report["ekf_params"]["ekf"]["estimate_gyro_bias"] is False
+    assert report["ekf_params"]["ekf"]["exact_jacobian"] is False          # eq. 24 as printed
     assert report["ekf_params"]["ekf+bias"]["estimate_gyro_bias"] is True
     assert len(report["rmse"]) == 4
     assert all(set(block) >= {"ekf", "ekf+bias"} for block in report["rmse"].values())
