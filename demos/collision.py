@@ -7,6 +7,8 @@
     robocup-mcl demo collision --particle-sweep 50,100,200,500     # claim (a): fewer particles
     robocup-mcl demo collision --cost                              # predict cost, adaptive / velocity-linear
     robocup-mcl demo collision --report [--json] [--save PATH]     # all of the figures of docs/papers/hoffmann.md
+    robocup-mcl demo collision --tune-baseline [--seeds 2000-2019]  # velocity-linear's widening, training robots
+    robocup-mcl demo collision --mismatch [--seeds 3000-3019]       # the robustness table, held-out robots
 
 The robot walks forward at 200 mm/s for 10 s; the filter's particles all start at the true pose (section 4.1).
 Cases: "none" (4.1), "single" (4.2: a collision of about 2 s on the left, during which the robot is held back,
@@ -33,6 +35,7 @@ score 0 bits.
 from __future__ import annotations
 
 import argparse
+import functools
 import json
 import math
 import sys
@@ -49,12 +52,32 @@ from motion_models.adaptive import STATES
 from sensing import LandmarkSensorModel
 from sensing.collision import CollisionDetector, CollisionReference, detect, learn_reference
 
-from .collision_sim import (BOTH, LEFT, RIGHT, SIDE_NAMES, SLIPPAGE, CollisionScenario, jitter_events, paper_case,
+from .collision_sim import (BOTH, LEFT, RIGHT, SIDE_NAMES, SLIPPAGE, STOPPED, CollisionScenario, jitter_events, paper_case,
                             random_collisions, simulate)
 from .walk import parse_seeds
 
+PIVOT_CREEP = 0.494     # the variant's stop_creep: results/adaptive_fit.json, "defaults", rounded as the β are
 MODELS = {"velocity-linear": VelocityLinear, "adaptive": AdaptiveMotion,
-          "adaptive-step": lambda: AdaptiveMotion(redraw="step")}
+          "adaptive-step": lambda: AdaptiveMotion(redraw="step"),
+          "adaptive-pivot": lambda: AdaptiveMotion(stop_creep=PIVOT_CREEP)}
+WIDENINGS = (1.0, 2.0, 3.0, 4.0, 6.0, 8.0)     # velocity-linear's β times these, tuned on training seeds
+TRAINING_SEEDS = "2000-2019"             # the robots the baseline is tuned on (the fit uses 2000-2039)
+HELD_OUT_SEEDS = "3000-3019"             # the robots of the robustness table, run once
+TURN_BINS = ((0.05, 0.4), (0.4, 0.7), (0.7, 1.05))   # the simulated stop turn, share of |v| / foot separation
+SWEEP_PARTICLES = (10, 25, 50, 100, 200, 500)
+# The widening of velocity-linear's β chosen on the training seeds (`--tune-baseline`,
+# results/collision_baseline_tuning.json): for the truth inside the 95 % region without vision, and for the
+# position error with vision and injection.
+BASELINE_WIDEN = {"containment": 6.0, "rmse": 1.0}
+
+
+def make_model(model: str, widen: float = 1.0):
+    """The motion model of a run: `MODELS[model]`, velocity-linear with its four β times `widen`."""
+    if model == "velocity-linear":
+        base = VelocityLinear()
+        return replace(base, beta1=base.beta1 * widen, beta2=base.beta2 * widen, beta3=base.beta3 * widen,
+                       beta4=base.beta4 * widen)
+    return MODELS[model]()
 CASES = ("none", "single", "double")
 GRID = Grid(position_cell=0.05, orientation_bins=72)
 RELOCALIZED = 0.2        # m
@@ -67,20 +90,40 @@ def free_walk_reference(seed: int = REFERENCE_SEED, duration: float = 180.0) -> 
     return learn_reference(log.servo_commands, log.servo_readings, log.phase, log.commands, log.joint_sides)
 
 
-def case_scenario(case: str, seed: int, vision: bool = False) -> CollisionScenario:
-    """The paper's case with this seed's collision times and severities."""
-    scenario = paper_case(case, vision=vision)
+ROBOT_WALK_OFFSET = 100_000   # a robot's own free walk runs on seed + this (its robot drawn from `seed`)
+
+
+@functools.lru_cache(maxsize=8)
+def robot_reference(physics: str, seed: int) -> CollisionReference:
+    """The detector's reference for the robot of a run: with nominal physics the one robot's free walk
+    (`free_walk_reference`); with mismatched physics the robot drawn for `seed` walks freely for three minutes
+    (its own servo noise, on seed + `ROBOT_WALK_OFFSET`) and the reference is learned from that, as a team
+    learns it on each robot."""
+    if physics == "nominal":
+        return free_walk_reference()
+    log = simulate(CollisionScenario(duration=180.0, command=None, physics=physics, robot_seed=seed),
+                   seed + ROBOT_WALK_OFFSET)
+    return learn_reference(log.servo_commands, log.servo_readings, log.phase, log.commands, log.joint_sides)
+
+
+def case_scenario(case: str, seed: int, vision: bool = False, physics: str = "nominal") -> CollisionScenario:
+    """The paper's case with this seed's collision times and severities (and, with `physics="mismatch"`, the
+    robot and world drawn for this seed)."""
+    scenario = paper_case(case, vision=vision, physics=physics)
     rng = np.random.default_rng(np.random.SeedSequence([seed, 3]))
     return replace(scenario, events=jitter_events(scenario.events, rng))
 
 
-def run_case(case: str, model: str, seed: int, reference: CollisionReference, particles: int = 100,
+def run_case(case: str, model: str, seed: int, reference: CollisionReference | None, particles: int = 100,
              vision: bool = False, rrd: str | None = None, containment: bool | None = None,
-             injection: bool = False) -> dict:
-    """One run of a case with one model; returns the figures (and per-step series under "series")."""
-    scenario = case_scenario(case, seed, vision)
+             injection: bool = False, physics: str = "nominal", widen: float = 1.0) -> dict:
+    """One run of a case with one model; returns the figures (and per-step series under "series"). With
+    `reference` None, the detector's reference is the run's robot's own (`robot_reference`)."""
+    scenario = case_scenario(case, seed, vision, physics)
     log = simulate(scenario, seed)
-    motion = MODELS[model]()
+    if reference is None:
+        reference = robot_reference(physics, seed)
+    motion = make_model(model, widen)
     pf = ParticleFilter(scenario.field, motion, LandmarkSensorModel(scenario.field), n_particles=particles,
                         seed=seed, grid=GRID, augmented=AugmentedMCL() if injection else None)
     pf.reset_around(log.start, sigma=(0.0, 0.0, 0.0))
@@ -128,8 +171,14 @@ def run_case(case: str, model: str, seed: int, reference: CollisionReference, pa
     elapsed = time.perf_counter() - started
     if recorder is not None:
         recorder.close()
-    return summarize(case, model, seed, particles, vision, log, estimates, entropy, contained if containment else None,
-                     belief, s_rel, elapsed, rrd)
+    result = summarize(case, model, seed, particles, vision, log, estimates, entropy,
+                       contained if containment else None, belief, s_rel, elapsed, rrd)
+    stops = [e for e in log.events if e.mode == STOPPED]
+    low, high = log.scenario.stop_turn
+    share = low + stops[0].severity * (high - low) if stops else None
+    result.update(physics=physics, widen=widen, stop_turn_share=share,
+                  foot_separation_m=float(log.scenario.foot_separation))
+    return result
 
 
 STATE_COLORS = ((80, 220, 120), (80, 200, 255), (255, 200, 40), (255, 80, 200), (230, 60, 60))
@@ -381,6 +430,155 @@ def particle_sweep(counts, seeds, reference, cases=("single", "double"), baselin
             "adaptive": rows, "adaptive_particles_needed": needed, "cases": list(cases), "seeds": list(seeds)}
 
 
+# -- mismatch: the baseline tuned, the robustness table -------------------------------------------------
+def _median_of(runs: list[dict], key: str):
+    return _median([r[key] for r in runs]) if runs else None
+
+
+def tune_baseline(seeds, cases=("single", "double"), widenings=WIDENINGS, particles: int = 100,
+                  progress: bool = False) -> dict:
+    """Velocity-linear's widening on training robots (mismatched physics): per factor, the median share of
+    steps with the truth inside the 95 % region (no vision) and the median position RMSE from the collision on
+    (vision, augmented MCL's injection on), both at `particles`; the best factor for each."""
+    from mcl.cli_checks import progress_bar
+
+    bar = progress_bar(enabled=progress, total=2 * len(widenings) * len(cases) * len(seeds), desc="tuning",
+                       unit="run")
+    rows = []
+    for widen in widenings:
+        contained, rmse = [], []
+        for case in cases:
+            for seed in seeds:
+                contained.append(run_case(case, "velocity-linear", seed, None, particles, physics="mismatch",
+                                          widen=widen))
+                rmse.append(run_case(case, "velocity-linear", seed, None, particles, vision=True, injection=True,
+                                     physics="mismatch", widen=widen))
+                bar.update(2)
+        rows.append({"widen": widen, "contained_share_median": _median_of(contained, "contained_share"),
+                     "rmse_after_collision_median_m": _median_of(rmse, "position_rmse_after_collision_m")})
+    bar.close()
+    best_contained = max(rows, key=lambda r: r["contained_share_median"])["widen"]
+    best_rmse = min(rows, key=lambda r: r["rmse_after_collision_median_m"])["widen"]
+    return {"seeds": list(seeds), "cases": list(cases), "particles": particles, "rows": rows,
+            "best": {"containment": best_contained, "rmse": best_rmse}}
+
+
+def _turn_bin(share: float | None) -> str | None:
+    for low, high in TURN_BINS:
+        if share is not None and low <= share < high + 1e-12:
+            return f"{low:g}-{high:g}"
+    return None
+
+
+def mismatch_table(seeds, cases=("single", "double"), particles: int = 100, counts=SWEEP_PARTICLES,
+                   progress: bool = False) -> dict:
+    """The robustness table on held-out robots: per case, the share of steps with the truth inside the 95 %
+    region (no vision, `particles`), median over seeds, at the nominal simulator and with mismatched physics
+    (all seeds, and per bin of the simulated stop turn), for the paper's model with fitted β, the variants and
+    velocity-linear at its best widening; then, with vision and injection on, the median position RMSE from the
+    collision on at each particle count for the adaptive model, the pivot variant and the best velocity-linear,
+    and the smallest count at which velocity-linear is as accurate as the adaptive model at each count."""
+    from mcl.cli_checks import progress_bar
+
+    models = (("adaptive", 1.0), ("adaptive-pivot", 1.0), ("adaptive-step", 1.0),
+              ("velocity-linear", BASELINE_WIDEN["containment"]))
+    sweep_models = (("adaptive", 1.0), ("adaptive-pivot", 1.0), ("velocity-linear", BASELINE_WIDEN["rmse"]))
+    total = len(cases) * len(seeds) * (2 * len(models) + len(counts) * len(sweep_models))
+    bar = progress_bar(enabled=progress, total=total, desc="mismatch", unit="run")
+    containment: dict = {}
+    sweep: dict = {}
+    runs_out: list[dict] = []
+    for case in cases:
+        containment[case] = {}
+        for model, widen in models:
+            label = model if model != "velocity-linear" else f"velocity-linear x{widen:g}"
+            row: dict = {}
+            for physics in ("nominal", "mismatch"):
+                runs = []
+                for seed in seeds:
+                    runs.append(run_case(case, model, seed, None, particles, physics=physics, widen=widen))
+                    bar.update(1)
+                runs_out += [_brief(r) for r in runs]
+                row[physics] = _share_summary(runs)
+                if physics == "mismatch":
+                    row["bins"] = {f"{low:g}-{high:g}": _share_summary(
+                        [r for r in runs if _turn_bin(r["stop_turn_share"]) == f"{low:g}-{high:g}"])
+                        for low, high in TURN_BINS}
+            containment[case][label] = row
+    for model, widen in sweep_models:
+        label = model if model != "velocity-linear" else f"velocity-linear x{widen:g}"
+        sweep[label] = {}
+        for n in counts:
+            runs = []
+            for case in cases:
+                for seed in seeds:
+                    runs.append(run_case(case, model, seed, None, n, vision=True, injection=True,
+                                         physics="mismatch", widen=widen))
+                    bar.update(1)
+            sweep[label][str(n)] = {"rmse_median_m": _median_of(runs, "position_rmse_after_collision_m"),
+                                    "relocalization_median_s": _median_of(runs, "relocalization_s")}
+    bar.close()
+    baseline = f"velocity-linear x{BASELINE_WIDEN['rmse']:g}"
+    meets = {}
+    for n in counts:
+        target = sweep["adaptive"][str(n)]["rmse_median_m"]
+        meets[str(n)] = next((m for m in counts if sweep[baseline][str(m)]["rmse_median_m"] <= target), None)
+    return {"seeds": list(seeds), "cases": list(cases), "particles": particles, "turn_bins": [list(b) for b in TURN_BINS],
+            "baseline_widen": dict(BASELINE_WIDEN), "containment": containment, "sweep": sweep,
+            "baseline_particles_to_meet_adaptive": meets, "goal_contained_share": 0.8, "runs": runs_out}
+
+
+def _share_summary(runs: list[dict]) -> dict:
+    shares = [r["contained_share"] for r in runs]
+    return {"seeds": len(shares), "median": float(np.median(shares)) if shares else None,
+            "min": float(min(shares)) if shares else None,
+            "final_error_median_m": _median_of(runs, "final_position_error_m"),
+            "entropy_end_median_bits": float(np.median([r["entropy_position_bits"][-1] for r in runs]))
+            if runs else None}
+
+
+def _brief(run: dict) -> dict:
+    keys = ("case", "model", "seed", "physics", "widen", "stop_turn_share", "foot_separation_m", "contained_share",
+            "final_position_error_m")
+    return {k: run.get(k) for k in keys}
+
+
+def print_tuning(t: dict) -> None:
+    print(f"velocity-linear widened, training robots {t['seeds'][0]}-{t['seeds'][-1]} (mismatched physics), "
+          f"cases {', '.join(t['cases'])}, {t['particles']} particles:")
+    print("  widen  truth in 95% region (no vision, median)  position RMSE after collision (vision+injection)")
+    for row in t["rows"]:
+        print(f"  x{row['widen']:<5g} {100 * row['contained_share_median']:>25.0f}%  "
+              f"{row['rmse_after_collision_median_m']:>37.3f} m")
+    print(f"  best: x{t['best']['containment']:g} for the region, x{t['best']['rmse']:g} for the error")
+
+
+def print_mismatch(m: dict) -> None:
+    bins = [f"{low:g}-{high:g}" for low, high in m["turn_bins"]]
+    print(f"truth inside the 95% region, share of the steps from the collision on, median over held-out robots "
+          f"{m['seeds'][0]}-{m['seeds'][-1]} ({m['particles']} particles, no vision; [n] seeds in a bin; goal "
+          f">= {100 * m['goal_contained_share']:.0f}%):")
+    for case, by_model in m["containment"].items():
+        print(f"case {case}:{'':<20}nominal  mismatch  " + "  ".join(f"turn {b:<9}" for b in bins)
+              + "  entropy at end (mismatch)")
+        for label, row in by_model.items():
+            cells = [f"{100 * row['nominal']['median']:>6.0f}%", f"{100 * row['mismatch']['median']:>7.0f}%"]
+            for b in bins:
+                cell = row["bins"][b]
+                text = "—" if cell["median"] is None else f"{100 * cell['median']:.0f}%"
+                cells.append(f"{text:>5} [{cell['seeds']:>2}]   ")
+            print(f"  {label:<24}" + "  ".join(cells) + f"  {row['mismatch']['entropy_end_median_bits']:.2f} bits")
+    print(f"with vision and injection, mismatched physics, median position RMSE from the collision on (cases "
+          f"{', '.join(m['cases'])}):")
+    counts = list(next(iter(m["sweep"].values())))
+    print(f"  {'particles':<24}" + "".join(f"{c:>8}" for c in counts))
+    for label, row in m["sweep"].items():
+        print(f"  {label:<24}" + "".join(f"{row[c]['rmse_median_m']:>8.3f}" for c in counts))
+    meets = m["baseline_particles_to_meet_adaptive"]
+    print(f"  velocity-linear x{m['baseline_widen']['rmse']:g} as accurate as the adaptive model at N: "
+          + ", ".join(f"N={n}: {'more than ' + counts[-1] if v is None else v}" for n, v in meets.items()))
+
+
 # -- command line ---------------------------------------------------------------------------------------
 def _strip(result):
     if isinstance(result, dict):
@@ -450,6 +648,12 @@ def build_parser(prog: str = PROG) -> argparse.ArgumentParser:
     parser.add_argument("--particle-sweep", help='adaptive particle counts to try, e.g. "50,100,200,500"')
     parser.add_argument("--cost", action="store_true", help="predict cost, adaptive / velocity-linear, N = 1000")
     parser.add_argument("--report", action="store_true", help="every figure of docs/papers/hoffmann.md (takes minutes)")
+    parser.add_argument("--tune-baseline", action="store_true",
+                        help="velocity-linear's widening x" + ", x".join(f"{w:g}" for w in WIDENINGS)
+                        + f" on training robots (mismatched physics; --seeds, default {TRAINING_SEEDS})")
+    parser.add_argument("--mismatch", action="store_true",
+                        help="the robustness table: nominal against mismatched physics, per simulated stop turn, "
+                        f"with the best velocity-linear and the particle sweep (--seeds, default {HELD_OUT_SEEDS})")
     parser.add_argument("--rrd", help="write a Rerun recording here (one case, one model, one seed)")
     parser.add_argument("--json", action="store_true", help="print JSON instead of text")
     add_save_option(parser)
@@ -481,7 +685,11 @@ def main(argv: list[str] | None = None, prog: str = PROG) -> int:
     progress = progress_wanted(args)
     warm = warm_up_collision(cases[0], models, reference, args.vision, args.injection, progress)
     result: dict = {}
-    if args.report:
+    if args.tune_baseline:
+        result["baseline_tuning"] = tune_baseline(parse_seeds(args.seeds or TRAINING_SEEDS), progress=progress)
+    elif args.mismatch:
+        result["mismatch"] = mismatch_table(parse_seeds(args.seeds or HELD_OUT_SEEDS), progress=progress)
+    elif args.report:
         report_seeds = parse_seeds(args.seeds) if args.seeds else list(range(20))
         result["detection"] = detection_figures(reference, minutes=args.minutes)
         result["no_vision"] = run_cases(CASES, ("velocity-linear", "adaptive", "adaptive-step"), report_seeds,
@@ -527,6 +735,10 @@ def main(argv: list[str] | None = None, prog: str = PROG) -> int:
                        ("vision_injection", "with vision and augmented MCL's injection")):
         if key in result:
             print_cases(result[key], label)
+    if "baseline_tuning" in result:
+        print_tuning(result["baseline_tuning"])
+    if "mismatch" in result:
+        print_mismatch(result["mismatch"])
     if "particle_sweep" in result:
         p = result["particle_sweep"]
         v = p["velocity_linear"]

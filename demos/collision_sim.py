@@ -10,19 +10,50 @@ What is simulated, at 100 Hz:
 - Gait: each leg's hip roll, hip pitch, knee pitch and ankle pitch follow a periodic pattern of the gait phase
   (one cycle of `cycle` seconds, legs half a cycle apart) whose amplitudes grow with the step lengths the walk
   request asks for, with a base lift for stepping in place.
-- Servos: each reading follows its command with a delay of `delay_frames` frames and a first-order lag, plus
-  reading noise and the encoder's quantization. Free walking therefore leaves a deviation between command and
-  reading that grows with the joint speeds, i.e. with walking speed and gait phase (what the detector's
-  reference learns). On a side in contact with an obstacle the hip and knee are held back (the servo reaches
-  only part of its way each frame, with jolts); a push deflects the hip roll and pitch of the pushed side.
-  Slipping feet unload the legs a little (small extra noise).
+- Servos: each reading follows its command `servo_delay` seconds late (whole frames) through a first-order lag
+  (`servo_gain` of the remaining error closed per frame), plus reading noise and the encoder's quantization.
+  Free walking therefore leaves a deviation between command and reading that grows with the joint speeds, i.e.
+  with walking speed and gait phase (what the detector's reference learns). On a side in contact with an
+  obstacle the joints of `held_joints` are held back (the servo reaches only part of its way each frame, with
+  jolts); a push deflects the hip roll and pitch of the pushed side. Slipping feet unload the legs a little.
 - Motion: when free, the walk request times a per-run scale error plus step-to-step noise and a small turn
-  bias: a calibrated walking engine (Hoffmann cites the gait calibration that makes free odometry precise).
-  The five mobility states move the robot as Hoffmann section 3.1 describes them: slippage (slower, heading
-  disturbed), hindrance (slower), pushed (displaced and turned by an external velocity), stopped (no
-  translation, turning toward the obstacle like a differential drive vehicle whose legs on the contact side
-  are held, at a share of v / w), free.
+  bias: a calibrated walking engine. Slippage: slower, heading disturbed; hindrance: slower; pushed: displaced
+  sideways (and a little forward) and turned by an external velocity. Stopped: the held foot is a pivot. The
+  free foot keeps stepping, at `stop_turn` (a share, interpolated by the event's severity) of the requested
+  speed while it is on the ground, so the body turns about the held foot toward the obstacle at
+  ω = share·|v| / foot_separation (averaged over a gait cycle; in pulses, one per step of the free leg), and its
+  centre, half a foot separation from the pivot, moves on at |ω|·foot_separation / 2 in the walking direction.
+  Held on both sides, there is no pivot and the robot stands.
 - Camera: the walk scenario's panning camera (`demos.walk_sim`), landmark detections only.
+
+Physics: `physics="nominal"` runs the scenario's fields as they are (one robot, one world). With
+`physics="mismatch"` every run draws its robot and world from `MISMATCH_RANGES` (uniform, independently per
+field; a pair's two ends each from its own range), from a generator of its own seeded by `robot_seed` (or the
+run's seed), so that a robot's free walk and its collision runs share the robot:
+
+    field                 nominal            per-run range (mismatch)
+    foot_separation       0.12 m             0.07 .. 0.18 m
+    cycle                 0.5 s              0.42 .. 0.68 s
+    servo_delay           0.03 s             0.015 .. 0.065 s (2 to 7 frames at 100 Hz)
+    servo_gain            0.55               0.35 .. 0.85
+    reading_noise         0.0025 rad         0.001 .. 0.005 rad
+    held_joints           hip pitch, knee,   any non-empty subset of the four joints
+                          ankle
+    scale_sigma           0.025              0.01 .. 0.05
+    turn_bias_sigma       0.006 rad/s        0.002 .. 0.015 rad/s
+    step_noise            0.045              0.02 .. 0.12
+    hindrance_speed       (0.75, 0.22)       (0.55 .. 0.95, 0.0 .. 0.45)
+    push_speed            (0.12, 0.45) m/s   (0.04 .. 0.28, 0.3 .. 0.8) m/s
+    push_turn             0.7 rad/s          0.15 .. 1.3 rad/s
+    stop_turn             (0.15, 0.55)       one share for both ends, 0.05 .. 1.05 (of |v| / foot_separation)
+    slip_speed            (0.85, 0.45)       (0.65 .. 1.0, 0.05 .. 0.55)
+    slip_turn             0.35 rad/s         0.08 .. 0.9 rad/s
+    contact_hold          (0.3, 0.75)        (0.05 .. 0.4, 0.5 .. 0.95)
+    ground_bumps          0.8 /s             0.3 .. 2.2 /s
+    bump_size             0.011 rad          0.005 .. 0.02 rad
+
+None of these values is taken from a motion model: the models' parameters are fitted from logs of this
+simulator (`robocup-mcl fit adaptive`), and a test checks that no model default equals one of these numbers.
 
 Ground truth for all of it: pose, mobility state and contact side per step, and the list of events.
 """
@@ -71,31 +102,84 @@ class CollisionScenario:
     events: tuple[CollisionEvent, ...] = ()
     start: tuple[float, float, float] | None = None   # None: random in the own half, facing up the field
     # gait
-    cycle: float = 0.6                   # s per gait cycle (each leg swings once)
-    foot_separation: float = 0.1         # m, lateral distance between the feet (w of Hoffmann eq. 25)
+    cycle: float = 0.5                   # s per gait cycle (each leg swings once)
+    foot_separation: float = 0.12        # m, lateral distance between the feet (the stopped robot's pivot arm)
     # servos
-    delay_frames: int = 3                # frames between a command and the servo starting to act on it
-    servo_gain: float = 0.6              # share of the remaining error a servo closes per frame
-    reading_noise: float = 0.002         # rad (1σ)
+    servo_delay: float = 0.03            # s between a command and the servo starting to act on it (whole frames)
+    servo_gain: float = 0.55             # share of the remaining error a servo closes per frame
+    reading_noise: float = 0.0025        # rad (1σ)
     quantization: float = math.radians(0.1)   # rad, encoder resolution
+    held_joints: tuple[int, ...] = (1, 2, 3)  # indices into JOINTS: the joints an obstacle holds back
     # free-walking odometry error of a calibrated walking engine
-    scale_sigma: float = 0.02            # per-run scale error of vx, vy, ω (1σ)
-    turn_bias_sigma: float = 0.005       # rad/s (1σ), per run
-    step_noise: float = 0.05             # relative step-to-step velocity noise
-    # effects of the mobility states (per event, scaled by its severity)
-    hindrance_speed: tuple[float, float] = (0.7, 0.2)   # speed factor at severity 0 and 1
-    push_speed: tuple[float, float] = (0.15, 0.4)       # m/s of the push at severity 0 and 1
-    push_turn: float = 0.6                               # rad/s at severity 1
-    stopped_turn: tuple[float, float] = (0.1, 0.45)     # turn rate as a share of v / w at severity 0 and 1
-    slip_speed: tuple[float, float] = (0.9, 0.5)
-    slip_turn: float = 0.4                               # rad/s at severity 1
-    contact_hold: tuple[float, float] = (0.2, 0.7)      # share of a held servo's motion lost, severity 0..1,
-                                                         # on the forward swing (a third of it otherwise)
-    ground_bumps: float = 1.0            # per second of walking: a foot landing hard jolts one joint
-    bump_size: float = 0.012             # rad (1σ) of such a jolt
+    scale_sigma: float = 0.025           # per-run scale error of vx, vy, ω (1σ)
+    turn_bias_sigma: float = 0.006       # rad/s (1σ), per run
+    step_noise: float = 0.045            # relative step-to-step velocity noise
+    # effects of the mobility states (per event, interpolated by its severity)
+    hindrance_speed: tuple[float, float] = (0.75, 0.22)  # speed factor at severity 0 and 1
+    push_speed: tuple[float, float] = (0.12, 0.45)       # m/s of the push at severity 0 and 1
+    push_turn: float = 0.7                                # rad/s at severity 1
+    stop_turn: tuple[float, float] = (0.15, 0.55)        # the free foot's speed while stopped, share of the
+                                                          # request, at severity 0 and 1 (see the module doc)
+    slip_speed: tuple[float, float] = (0.85, 0.45)
+    slip_turn: float = 0.35                               # rad/s at severity 1
+    contact_hold: tuple[float, float] = (0.3, 0.75)      # share of a held servo's motion lost, severity 0..1,
+                                                          # on the forward swing (a third of it otherwise)
+    ground_bumps: float = 0.8            # per second of walking: a foot landing hard jolts one joint
+    bump_size: float = 0.011             # rad (1σ) of such a jolt
+    physics: str = "nominal"             # "nominal": these fields; "mismatch": drawn per run (MISMATCH_RANGES)
+    robot_seed: int | None = None        # seeds the per-run draw (None: the run's seed)
     # camera (landmark detections only)
     camera: WalkScenario = dataclass_field(default_factory=lambda: WalkScenario(kidnap_time=None))
     vision: bool = False
+
+
+PHYSICS = ("nominal", "mismatch")
+MISMATCH_RANGES: dict[str, tuple[float, float] | tuple[tuple[float, float], tuple[float, float]]] = {
+    "foot_separation": (0.07, 0.18),
+    "cycle": (0.42, 0.68),
+    "servo_delay": (0.015, 0.065),
+    "servo_gain": (0.35, 0.85),
+    "reading_noise": (0.001, 0.005),
+    "scale_sigma": (0.01, 0.05),
+    "turn_bias_sigma": (0.002, 0.015),
+    "step_noise": (0.02, 0.12),
+    "hindrance_speed": ((0.55, 0.95), (0.0, 0.45)),
+    "push_speed": ((0.04, 0.28), (0.3, 0.8)),
+    "push_turn": (0.15, 1.3),
+    "stop_turn": (0.05, 1.05),          # one share for both ends of the pair
+    "slip_speed": ((0.65, 1.0), (0.05, 0.55)),
+    "slip_turn": (0.08, 0.9),
+    "contact_hold": ((0.05, 0.4), (0.5, 0.95)),
+    "ground_bumps": (0.3, 2.2),
+    "bump_size": (0.005, 0.02),
+}
+"""Per-run ranges of `physics="mismatch"` (uniform; for a pair, one range per end). `held_joints` is drawn as
+well: any non-empty subset of the four joints of `JOINTS`."""
+
+
+def draw_physics(scenario: CollisionScenario, seed: int) -> CollisionScenario:
+    """The scenario a run simulates: itself for `physics="nominal"`; for "mismatch", its robot and world fields
+    drawn from `MISMATCH_RANGES` by a generator seeded by `scenario.robot_seed` (or `seed`), so the same robot
+    seed gives the same robot whatever the scenario's events and commands."""
+    if scenario.physics not in PHYSICS:
+        raise ValueError(f"physics = {scenario.physics!r} must be one of {PHYSICS}")
+    if scenario.physics == "nominal":
+        return scenario
+    robot = seed if scenario.robot_seed is None else scenario.robot_seed
+    rng = np.random.default_rng(np.random.SeedSequence([robot, 11]))
+    drawn: dict = {}
+    for name, bounds in MISMATCH_RANGES.items():
+        if name == "stop_turn":
+            share = float(rng.uniform(*bounds))
+            drawn[name] = (share, share)
+        elif isinstance(bounds[0], tuple):
+            drawn[name] = tuple(float(rng.uniform(*end)) for end in bounds)
+        else:
+            drawn[name] = float(rng.uniform(*bounds))
+    subsets = [mask for mask in range(1, 16)]
+    mask = subsets[int(rng.integers(len(subsets)))]
+    drawn["held_joints"] = tuple(j for j in range(4) if mask >> j & 1)
+    return replace(scenario, **drawn)
 
 
 @dataclass(frozen=True)
@@ -215,7 +299,8 @@ def _varied_command(t: float, phases: np.ndarray) -> np.ndarray:
 
 def simulate(scenario: CollisionScenario, seed: int = 0) -> CollisionLog:
     """Run the scenario once; everything random comes from `seed` (same seed, same log, bit for bit)."""
-    s = scenario
+    s = draw_physics(scenario, seed)
+    delay_frames = int(round(s.servo_delay * s.rate))
     rng = np.random.default_rng(seed)
     motion_rng, servo_rng, camera_rng = (np.random.default_rng(child) for child in
                                          np.random.SeedSequence(seed).spawn(3))
@@ -246,7 +331,7 @@ def simulate(scenario: CollisionScenario, seed: int = 0) -> CollisionLog:
     current = np.empty(8)
     first_command = np.array(s.command if s.command is not None else _varied_command(0.0, command_phases))
     _joint_commands(phase0, first_command, s.cycle, current)
-    history = np.tile(current, (s.delay_frames + 1, 1))
+    history = np.tile(current, (delay_frames + 1, 1))
     frame_command = np.empty(8)
     for k in range(n):
         t = k * dt     # the step covers [t, t + dt)
@@ -275,9 +360,9 @@ def simulate(scenario: CollisionScenario, seed: int = 0) -> CollisionLog:
                         # Held hardest while the leg swings forward into the obstacle.
                         forward = max(0.0, math.sin(2.0 * math.pi * (phase[k] + 0.5 * leg)))
                         hold = _lerp(s.contact_hold, share) * (1.0 + 2.0 * forward) / 3.0
-                        # Hip and knee held back by the obstacle, with jolts as the leg bumps into it.
-                        gain[4 * leg + 1] *= 1.0 - hold
-                        gain[4 * leg + 2] *= 1.0 - hold
+                        # The held joints lag, with jolts as the leg bumps into the obstacle.
+                        for joint in s.held_joints:
+                            gain[4 * leg + joint] *= 1.0 - hold
                         if event.mode == PUSHED:
                             sign = 1.0 if leg == LEFT_LEG else -1.0
                             offset[4 * leg + 0] = -sign * (0.03 + 0.05 * share)
@@ -295,10 +380,18 @@ def simulate(scenario: CollisionScenario, seed: int = 0) -> CollisionLog:
                 velocity[0] += 0.3 * push
                 velocity[2] += -away * s.push_turn * share
             elif event.mode == STOPPED:
-                c = {LEFT: 1.0, RIGHT: -1.0}.get(event.side, 0.0)    # Hoffmann eq. 26
+                # Pivoting about the held foot: the free foot pushes while it is on the ground (its stance,
+                # the half cycle its swing term is 0), the body turns about the held foot and its centre
+                # moves on at half the foot separation times the turn rate.
+                sense = {LEFT: 1.0, RIGHT: -1.0}.get(event.side, 0.0)
+                free_leg = RIGHT_LEG if event.side == LEFT else LEFT_LEG
+                stance = max(0.0, -math.sin(2.0 * math.pi * (phase[k] + 0.5 * free_leg)))
                 speed = math.hypot(command[0], command[1])
-                velocity[:2] = 0.0
-                velocity[2] = c * _lerp(s.stopped_turn, share) * speed / s.foot_separation
+                foot = _lerp(s.stop_turn, share) * speed * math.pi * stance     # a cycle's mean: share·|v|
+                turn = sense * foot / s.foot_separation
+                heading = velocity[:2] / max(math.hypot(velocity[0], velocity[1]), 1e-12)
+                velocity[:2] = heading * abs(turn) * 0.5 * s.foot_separation
+                velocity[2] = turn
         # Servos: a first-order approach toward the delayed command, slowed where held, plus deflection.
         current += gain * (target - current)
         jolt = np.where(gain < s.servo_gain, 0.01 * servo_rng.standard_normal(8), 0.0)

@@ -40,8 +40,12 @@ Drawn afresh every step (`redraw="step"`), the perturbations average out over th
 collision and the cloud hardly spreads; `robocup-mcl demo collision` measures both.
 
 Units and defaults. SI throughout: β2, β6, β7 in rad/s and β5 in m/s are rates (the paper's per-step values at
-8 ms are ambiguous, see `VelocityLinear`), β1, β3, β4, β_turn are shares. The defaults are hand-tuned, as in
-the paper, on seeds of the collision simulator that the README's figures do not use.
+8 ms are ambiguous, see `VelocityLinear`), β1, β3, β4, β_turn are shares. β1..β7 and β_turn are fitted from
+training logs (`robocup-mcl fit adaptive`, results/adaptive_fit.json, rounded to three decimals): each uniform
+range covers 95 % of the per-episode rates that motion capture measured on 40 simulated robots whose physics
+is drawn beyond these ranges; β7 = 0 because the training robots held on both sides stood still. The
+transition rates, the free-walking odometry noise and `frequent_rate` are documented settings, not fitted.
+`stop_creep` > 0 is a variant (the robot walks on while it pivots about the held foot), 0 by default.
 """
 from __future__ import annotations
 
@@ -187,21 +191,21 @@ class AdaptiveMotion:
 
     Parameters
     ----------
-    beta1 : float, default 0.5
+    beta1 : float, default 0.189
         Slippage: the share of the speed kept at least, in [0, 1) (eq. 14).
-    beta2 : float, default 0.4
+    beta2 : float, default 0.651
         Slippage: heading rate error bound [rad/s] (eq. 15).
-    beta3 : float, default 0.1
+    beta3 : float, default 0.162
         Hindrance: the share of the speed kept at least, in [0, 1) (eq. 16).
-    beta4 : float, default 0.3
+    beta4 : float, default 0.886
         Hindrance: the share of the turn rate kept at least, in [0, 1) (eq. 17).
-    beta5 : float, default 0.4
+    beta5 : float, default 0.659
         Pushed: push speed bound [m/s] (eq. 19).
-    beta6 : float, default 0.6
+    beta6 : float, default 0.899
         Pushed: heading rate bound [rad/s] (eq. 22).
-    beta7 : float, default 0.4
+    beta7 : float, default 0.0
         Stopped without a known side: turn rate bound [rad/s] (eq. 24).
-    beta_turn : float, default 0.5
+    beta_turn : float, default 1.204
         Stopped: turn toward the collision, share of |v|/w (eq. 25).
     foot_separation : float, default 0.1
         w of eq. 25, the lateral distance between the feet [m], finite and > 0.
@@ -213,6 +217,10 @@ class AdaptiveMotion:
         The transition rates between mobility states.
     redraw : str, default "episode"
         "episode" or "step": when the rand() of eq. 14-26 are drawn.
+    stop_creep : float, default 0.0
+        Stopped with a known side: the robot pivots about its held foot, so its centre walks on along the
+        request at |v|·stop_creep·rand(0, 1), with the same rand() as the turn (the variant "adaptive-pivot" of
+        `robocup-mcl demo collision`); 0 is the paper's eq. 23 (v' = 0). Finite and >= 0.
 
     Raises
     ------
@@ -220,26 +228,27 @@ class AdaptiveMotion:
         If a parameter is out of its range.
     """
 
-    beta1: float = 0.5            # slippage: speed kept at least this share (eq. 14)
-    beta2: float = 0.4            # rad/s, slippage: heading rate error bound (eq. 15)
-    beta3: float = 0.1            # hindrance: speed kept at least this share (eq. 16)
-    beta4: float = 0.3            # hindrance: turn rate kept at least this share (eq. 17)
-    beta5: float = 0.4            # m/s, pushed: push speed bound (eq. 19)
-    beta6: float = 0.6            # rad/s, pushed: heading rate bound (eq. 22)
-    beta7: float = 0.4            # rad/s, stopped without a known side: turn rate bound (eq. 24)
-    beta_turn: float = 0.5        # stopped: turn toward the collision, share of |v|/w (eq. 25)
+    beta1: float = 0.189          # slippage: speed kept at least this share (eq. 14)
+    beta2: float = 0.651          # rad/s, slippage: heading rate error bound (eq. 15)
+    beta3: float = 0.162          # hindrance: speed kept at least this share (eq. 16)
+    beta4: float = 0.886          # hindrance: turn rate kept at least this share (eq. 17)
+    beta5: float = 0.659          # m/s, pushed: push speed bound (eq. 19)
+    beta6: float = 0.899          # rad/s, pushed: heading rate bound (eq. 22)
+    beta7: float = 0.0            # rad/s, stopped without a known side: turn rate bound (eq. 24)
+    beta_turn: float = 1.204      # stopped: turn toward the collision, share of |v|/w (eq. 25)
     foot_separation: float = 0.1  # m, w of eq. 25: lateral distance between the feet
     odometry: tuple[float, float, float, float] = (1.0, 0.6, 0.6, 0.6)   # β1..β4 of eq. 10 for free walking
     frequent_rate: float = 0.25   # share of the recent second with a collision that counts as "at high
                                   # frequency": a burst each step, or a quarter second of continuous contact
     transitions: MobilityTransitions = field(default_factory=MobilityTransitions)
     redraw: str = "episode"       # "episode" or "step": when the rand() of eq. 14-26 are drawn
+    stop_creep: float = 0.0       # stopped: walks on at |v|·stop_creep·rand(0, 1) (0: the paper's eq. 23)
     if TYPE_CHECKING:             # per-instance memos `_memoize` sets, not fields (ClassVar keeps them out of
         _kernel_params: ClassVar[np.ndarray]                      # the dataclass's fields for mypy)
         _cumulative_rows: ClassVar[dict[tuple[str, float], np.ndarray]]
 
     def __post_init__(self) -> None:
-        check_nonnegative(self, ("beta2", "beta5", "beta6", "beta7", "beta_turn"))
+        check_nonnegative(self, ("beta2", "beta5", "beta6", "beta7", "beta_turn", "stop_creep"))
         for name in ("beta1", "beta3", "beta4"):
             value = getattr(self, name)
             if isinstance(value, bool) or not (isinstance(value, (int, float)) and 0 <= value < 1):
@@ -264,7 +273,8 @@ class AdaptiveMotion:
     def _memoize(self) -> None:
         # Memos of the validated parameters, not fields: what every `predict` hands the kernel unchanged.
         params = np.array([self.beta1, self.beta2, self.beta3, self.beta4, self.beta5, self.beta6, self.beta7,
-                           self.beta_turn, self.foot_separation, *self.odometry], dtype=np.float64)
+                           self.beta_turn, self.foot_separation, *self.odometry, self.stop_creep],
+                          dtype=np.float64)
         params.flags.writeable = False
         object.__setattr__(self, "_kernel_params", params)
         object.__setattr__(self, "_cumulative_rows", {})
@@ -557,6 +567,7 @@ def _adaptive_block(poses, state, model, odometry, draws, start, count, rows):
     beta1, beta2, beta3, beta4 = params[0], params[1], params[2], params[3]
     beta5, beta6, beta7, beta_turn, separation = params[4], params[5], params[6], params[7], params[8]
     odo1, odo2, odo3, odo4 = params[9], params[10], params[11], params[12]
+    creep = params[13]
     speed = math.sqrt(vx * vx + vy * vy)
     free_half = 0.5 * omega * dt
     free_chord = sincos(free_half)[1] / free_half if abs(free_half) > 1e-9 else 1.0
@@ -568,6 +579,7 @@ def _adaptive_block(poses, state, model, odometry, draws, start, count, rows):
     free_turn = omega * dt
     side_known = side == side        # not NaN
     stopped_turn_rate = speed / separation * side * beta_turn
+    creep_share = creep * abs(side) if side_known else 0.0     # the pivot variant's walk on (0: the paper's)
     for p in range(count):
         i = start + p
         old = int(state[i, 0])
@@ -599,14 +611,15 @@ def _adaptive_block(poses, state, model, odometry, draws, start, count, rows):
                 w = stopped_turn_rate * e1
             else:
                 w = beta7 * (2.0 * e1 - 1.0)
-            if poses[i, 0] != 0.0 and poses[i, 1] != 0.0:
+            if creep_share == 0.0 and poses[i, 0] != 0.0 and poses[i, 1] != 0.0:
                 # With no walking speed the noise bound of eq. 10 is odo4·|ω'|·dt alone.
                 rows[0, p] = theta
                 rows[1, p] = 0.0
                 rows[2, p] = 0.0
                 rows[3, p] = (theta + w * dt + (2.0 * variates[p, 6] - 1.0) * (odo4 * abs(w) * dt))
                 continue
-            ex, ey = 0.0, 0.0             # at a zero coordinate the sign of the zero displacement shows
+            # At a zero coordinate the sign of the zero displacement shows.
+            ex, ey = (vx * creep_share * e1, vy * creep_share * e1) if creep_share != 0.0 else (0.0, 0.0)
         elif new == 1:    # slippage, eq. 14-15
             factor = beta1 + (1.0 - beta1) * e1
             ex, ey = vx * factor, vy * factor
@@ -636,7 +649,7 @@ def _adaptive_block(poses, state, model, odometry, draws, start, count, rows):
 
 def adaptive_move_reference(poses, state, cumulative, vx, vy, omega, dt, side, params, redraw_each_step, variates):
     """Plain numpy twin of `adaptive_move` (the same variates give the same poses and states)."""
-    beta1, beta2, beta3, beta4, beta5, beta6, beta7, beta_turn, separation, odo1, odo2, odo3, odo4 = params
+    beta1, beta2, beta3, beta4, beta5, beta6, beta7, beta_turn, separation, odo1, odo2, odo3, odo4, creep = params
     old = state[:, 0].astype(np.int64)
     new = (variates[:, 0][:, None] >= cumulative[old]).sum(axis=1)
     renew = ((old == 0) & (new != 0)) | bool(redraw_each_step)
@@ -656,7 +669,9 @@ def adaptive_move_reference(poses, state, cumulative, vx, vy, omega, dt, side, p
     px = np.where(pushed, beta5 * e2 * cos_alpha, 0.0)
     py = np.where(pushed, beta5 * e2 * sin_alpha, 0.0)
     w = np.where(pushed, omega + beta6 * (2 * e3 - 1), w)
-    ex, ey = np.where(stopped, 0.0, ex), np.where(stopped, 0.0, ey)
+    creep_share = 0.0 if math.isnan(side) else creep * abs(side)
+    walk_on = creep_share * e1 if creep_share != 0.0 else np.zeros(n)
+    ex, ey = np.where(stopped, vx * walk_on, ex), np.where(stopped, vy * walk_on, ey)
     speed = math.hypot(vx, vy)
     turn = speed / separation * side * beta_turn * e1 if not math.isnan(side) else beta7 * (2 * e1 - 1)
     w = np.where(stopped, turn, w)

@@ -57,6 +57,32 @@ def test_stopped_turns_toward_the_collision(vx, vy, seed, side):
     np.testing.assert_allclose(poses[:, 2], expected, atol=1e-12)
 
 
+@given(speeds, speeds, st.integers(0, 2 ** 32 - 1), st.sampled_from([1.0, -1.0, 0.0, math.nan]))
+def test_pivot_variant_walks_on_along_the_request_while_it_turns(vx, vy, seed, side):
+    # stop_creep > 0 (the variant "adaptive-pivot"): pivoting about the held foot, the centre walks on along the
+    # request at |v|·stop_creep·rand(0, 1), the same rand() as the turn; no side known (or both): no walk.
+    model = AdaptiveMotion(stop_creep=0.5)
+    poses, episode = _step(model, STOPPED, vx, vy, 0.0, side, seed)
+    e1 = episode[:, 0]
+    known = 0.0 if math.isnan(side) else abs(side)
+    turn = (math.hypot(vx, vy) / model.foot_separation * side * model.beta_turn * e1 if not math.isnan(side)
+            else model.beta7 * (2 * e1 - 1))
+    half = 0.5 * turn * DT
+    chord = np.where(np.abs(half) > 1e-9, np.sin(half) / np.where(half == 0, 1.0, half), 1.0)
+    dx, dy = vx * 0.5 * known * e1 * DT * chord, vy * 0.5 * known * e1 * DT * chord
+    np.testing.assert_allclose(poses[:, 0], np.cos(half) * dx - np.sin(half) * dy, atol=1e-12)
+    np.testing.assert_allclose(poses[:, 1], np.sin(half) * dx + np.cos(half) * dy, atol=1e-12)
+    np.testing.assert_allclose(poses[:, 2], turn * DT, atol=1e-12)
+
+
+@given(st.integers(0, 2 ** 32 - 1), speeds, speeds, turns, st.sampled_from([1.0, -1.0, 0.0, math.nan]),
+       st.booleans(), st.sampled_from(CONDITIONS))
+def test_pivot_variant_kernel_matches_reference(seed, vx, vy, omega, side, redraw, condition):
+    rng = np.random.default_rng(seed)
+    _kernel_and_reference(rng, rng.normal(size=(50, 3)), vx, vy, omega, side, redraw, condition,
+                          AdaptiveMotion(stop_creep=0.4))
+
+
 @given(turns, st.integers(0, 2 ** 32 - 1))
 def test_stopped_without_a_side_turns_either_way(omega, seed):
     # eq. 24: ω' = β7 rand(-1, 1) when the percept names no side.
@@ -150,7 +176,7 @@ def test_belief_converges_to_free_without_collisions():
     assert belief[FREE] > 0.95
 
 
-def _kernel_and_reference(rng, poses, vx, vy, omega, side, redraw, condition):
+def _kernel_and_reference(rng, poses, vx, vy, omega, side, redraw, condition, model=None):
     """One step of `adaptive_move` and of its numpy twin from the same particles and variates; asserts they
     agree (states exactly, poses to rounding) and returns the kernel's (poses, state)."""
     n = poses.shape[0]
@@ -158,7 +184,7 @@ def _kernel_and_reference(rng, poses, vx, vy, omega, side, redraw, condition):
     state[::3, 0] = STOPPED
     cumulative = np.cumsum(MobilityTransitions().matrix(condition, 0.5), axis=1)
     cumulative[:, -1] = 1.0
-    params = AdaptiveMotion().kernel_arguments(MotionInput(DT, (vx, vy, omega), collision=LEFT_HIT))[6]
+    params = (model or AdaptiveMotion()).kernel_arguments(MotionInput(DT, (vx, vy, omega), collision=LEFT_HIT))[6]
     variates = rng.random((n, VARIATES))
     a, sa, b, sb = poses.copy(), state.copy(), poses.copy(), state.copy()
     adaptive_move(a, sa, cumulative, vx, vy, omega, DT, side, params, redraw, variates)

