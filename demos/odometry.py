@@ -3,8 +3,9 @@
     robocup-mcl demo odometry [--surface carpet|grass|both] [--seed S] [--curve] [--filter] [--json]
     robocup-mcl demo odometry --train LOG.npz --save DIR [--seed S]     # train on a recorded log, save
     robocup-mcl demo odometry --record LOG.npz [--surface grass] [--seed S] [--duration 300]
+    robocup-mcl demo odometry --mismatch [--spreads 0 0.5 1 2 1:0 0:1] [--json] [--save results/odometry_mismatch.json]
 
-    from demos.odometry import evaluate, learning_curve, filter_comparison, main
+    from demos.odometry import evaluate, learning_curve, filter_comparison, mismatch, main
 
 The paper's protocol (sec. IV-B 2-3) on `demos.footstep_sim` logs, per surface: five 5-minute joystick walks;
 the three LWPR models of each input set learn on the first half of the first log (its second half tuned the
@@ -28,20 +29,37 @@ watching the ball.
 Particles move only at support swaps; the relocalization's dead-reckoned anchor follows the sensor yaw.
 
 Seeds: log i of surface s is `simulate(seed=1000·seed + 10·s + i)`; the particle filter runs use seeds
-derived from `seed` as well. Same seed, same figures, bit for bit (timings aside).
+derived from `seed` as well. Same seed, same figures, bit for bit (timings aside). These figures are on the
+nominal simulator: one robot, the same for learning and test logs, nominal run conditions.
+
+`--mismatch [--spreads R:C ...] [--save PATH]`: the robustness table, on robots unseen by any fit. Robots
+are drawn from `demos.footstep_sim.ROBOT_RANGES` at R times the documented ranges and each log's conditions
+from `CONDITION_RANGES` at C times (0:0 is the nominal simulator; by default 0:0, 0.5:0.5, 1:1, 2:2 and, to
+tell the two apart, 1:0 and 0:1). Six training robots (`TRAIN_ROBOTS`, log
+seeds `fleet_seed("train", ...)`, from 20000) are what `robocup-mcl fit odometry` fits LWPR's meta-parameters
+and the linear baseline's setting on; four held-out robots (`TEST_ROBOTS`, seeds from 60000) with five 300 s
+logs each are the test. Two regimes: "own", the paper's protocol on each test robot (learn on the first half of
+its first log, test on its four other logs, each with its own conditions); "fleet", learned on the first halves
+of the training robots' logs, none of the test robot's data. Methods: the raw odometry, the linear baseline
+(`LinearCorrection`: least squares, the setting of `BASELINE`), LWPR (the paper's model, `LWPRSettings()`) and
+the variant "lin+LWPR" (`LinearPlusLWPR`: LWPR learning what the linear map leaves). Figures: mean drift after
+10 s over the 20 s sequences, and the change against the raw odometry with a 95 % bootstrap interval over
+sequences (paired: the same resampled sequences for both methods).
 """
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import math
 import sys
 import time
+from dataclasses import dataclass
 
 import numpy as np
 
-from demos.footstep_sim import (SURFACES, Driver, FootstepLog, load_log, save_log, simulate,
-                                truth_displacements)
+from demos.footstep_sim import (SURFACES, Driver, FootstepLog, draw_conditions, draw_robot, load_log,
+                                save_log, simulate, truth_displacements)
 from field.angles import wrap_angles
 from motion_models.footsteps import LEFT, RIGHT, input_matrix, integrate
 from motion_models.learned_odometry import LearnedFootstepOdometry, LWPRSettings, RawFootstepOdometry
@@ -51,6 +69,8 @@ OTHER = ("apriori_learned_other", "online_learned_other")
 OTHER_LABELS = {"apriori_learned_other": "a priori learned as a correction of the commanded step",
                 "online_learned_other": "online learned on the true step itself, not its correction"}
 KINDS = ("apriori", "online")
+# The linear baseline's setting per input set, chosen by `robocup-mcl fit odometry` (results/odometry_fit.json).
+BASELINE = {"apriori": {"features": "inputs", "ridge": 0.0}, "online": {"features": "axis", "ridge": 0.001}}
 N_LOGS = 5
 LOG_SECONDS = 300.0
 SEQUENCE_SECONDS = 20.0
@@ -276,6 +296,205 @@ def filter_comparison(surface: str, models: dict, seed: int = 0, runs: int = 3) 
 
 
 # ---------------------------------------------------------------------------------------------------------
+# Model mismatch: robots unseen in training, runs that differ, the linear baseline
+# ---------------------------------------------------------------------------------------------------------
+# (robot, run) spreads: multiples of the documented ranges of demos.footstep_sim (0: nominal); the last two
+# rows vary only the robots or only the runs.
+SPREADS = ((0.0, 0.0), (0.5, 0.5), (1.0, 1.0), (2.0, 2.0), (1.0, 0.0), (0.0, 1.0))
+TRAIN_ROBOTS = tuple(range(6))      # robot ids whose logs fit the meta-parameters and the baseline
+TEST_ROBOTS = tuple(range(100, 104))   # held-out robot ids: never in any fit
+TEST_LOGS = 5                       # logs per test robot: the first's first half learns, the others test
+REGIMES = ("own", "fleet")
+REGIME_LABELS = {"own": "learned on the test robot's own first log (the paper's protocol)",
+                 "fleet": "learned on the training robots only, none of the test robot's data"}
+MISMATCH_METHODS = ("raw", "linear", "lwpr", "variant")
+METHOD_LABELS = {"raw": "raw", "linear": "linear", "lwpr": "LWPR", "variant": "lin+LWPR"}
+VARIANT_LINEAR = {"features": "inputs", "ridge": 0.0}   # the variant's linear stage: every input, no penalty
+BOOTSTRAP = 2000
+BOOTSTRAP_SEED = 29
+
+
+def fleet_seed(split: str, surface: str, robot: int, index: int) -> int:
+    """Seed of log `index` of `robot` on `surface`: training logs from 20000, held-out test logs from 60000."""
+    base = {"train": 20_000, "test": 60_000}[split]
+    return base + 1000 * list(SURFACES).index(surface) + 10 * (robot % 100) + index
+
+
+def fleet_log(split: str, surface: str, robot: int, index: int, spread: float | tuple[float, float],
+              duration: float = LOG_SECONDS) -> FootstepLog:
+    """One log of robot `robot` under the run's own conditions (drawn from its seed); `spread` is one number
+    for both or a pair (robot spread, run spread)."""
+    robot_spread, run_spread = spread if isinstance(spread, tuple) else (spread, spread)
+    seed = fleet_seed(split, surface, robot, index)
+    return simulate(duration, surface, seed, robot=draw_robot(robot, robot_spread),
+                    conditions=draw_conditions(seed, run_spread))
+
+
+def halves(log: FootstepLog) -> tuple[FootstepLog, FootstepLog]:
+    """The first half of a log (learning) and the rest (the paper's meta-parameter tuning set)."""
+    first = log.first(0.5 * (log.swap_times[-1] - log.swap_times[0]))
+    return first, log.steps(first.n_steps, log.n_steps)
+
+
+@dataclass(frozen=True)
+class LinearCorrection:
+    """The baseline a team would try first: the true step as a linear (affine) function of the inputs, fitted by
+    ridge-regularized least squares per axis. `features` "axis": each axis of the raw step alone (a scale and
+    an offset per axis); "inputs": all the inputs of the input set (the LWPR inputs)."""
+
+    kind: str
+    features: str
+    mean_in: np.ndarray
+    scale_in: np.ndarray
+    mean_out: np.ndarray
+    weights: np.ndarray         # (n_in, 3), zero where an axis does not use an input
+
+    @classmethod
+    def fit(cls, X: np.ndarray, Y: np.ndarray, kind: str, features: str = "inputs",
+            ridge: float = 0.0) -> "LinearCorrection":
+        """Least squares on standardized inputs with penalty `ridge`·n on the weights (not the offsets)."""
+        if features not in ("axis", "inputs"):
+            raise ValueError(f"features = {features!r} must be 'axis' or 'inputs'")
+        if not (math.isfinite(ridge) and ridge >= 0):
+            raise ValueError(f"ridge = {ridge!r} must be a finite number >= 0")
+        mean_in, scale_in = X.mean(axis=0), np.maximum(X.std(axis=0), 1e-9)
+        Z = (X - mean_in) / scale_in
+        mean_out = Y.mean(axis=0)
+        weights = np.zeros((X.shape[1], 3))
+        for j in range(3):
+            cols = [j] if features == "axis" else list(range(X.shape[1]))
+            A = Z[:, cols]
+            weights[cols, j] = np.linalg.solve(A.T @ A + ridge * X.shape[0] * np.eye(len(cols)),
+                                               A.T @ (Y[:, j] - mean_out[j]))
+        return cls(kind, features, mean_in, scale_in, mean_out, weights)
+
+    def predict_steps(self, X: np.ndarray) -> tuple[np.ndarray, None]:
+        """The corrected steps (m, 3) of inputs (m, n_in) (no noise model: None)."""
+        return self.mean_out + ((X - self.mean_in) / self.scale_in) @ self.weights, None
+
+
+@dataclass(frozen=True)
+class LinearPlusLWPR:
+    """Variant "linear+LWPR": the least-squares linear map of the inputs (`VARIANT_LINEAR`), then LWPR learning
+    what it leaves (truth minus the linear step), with the same LWPR settings. Where no receptive field covers
+    the inputs, the linear step alone. (The LWPR holder learns "residual + raw step" as the correction of the
+    raw step, so that its own fallback, the raw step, maps to the linear step.)"""
+
+    linear: LinearCorrection
+    lwpr: LearnedFootstepOdometry
+
+    @classmethod
+    def train(cls, X: np.ndarray, Y: np.ndarray, kind: str, settings: LWPRSettings,
+              seed: int = 0) -> "LinearPlusLWPR":
+        """Fit the linear stage on (X, Y), then LWPR on its residual."""
+        linear = LinearCorrection.fit(X, Y, kind, **VARIANT_LINEAR)
+        target = Y - linear.predict_steps(X)[0] + X[:, :3]
+        lwpr = LearnedFootstepOdometry.train(X, target, kind, seed=seed,
+                                             settings=dataclasses.replace(settings, residual=True))
+        return cls(linear, lwpr)
+
+    def predict_steps(self, X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The steps (m, 3) and LWPR's noise standard deviations (m, 3)."""
+        mean, sigma = self.lwpr.predict_steps(X)
+        return mean - X[:, :3] + self.linear.predict_steps(X)[0], sigma
+
+
+def train_methods(learn: list[FootstepLog], kind: str, settings: LWPRSettings, baseline: dict,
+                  seed: int = 0) -> dict:
+    """LWPR, the linear baseline and the variant for input set `kind`, learned on the pooled steps of `learn`."""
+    X = np.vstack([step_inputs(log, kind) for log in learn])
+    Y = np.vstack([truth_displacements(log) for log in learn])
+    return {"linear": LinearCorrection.fit(X, Y, kind, **baseline[kind]),
+            "lwpr": LearnedFootstepOdometry.train(X, Y, kind, seed=seed, settings=settings),
+            "variant": LinearPlusLWPR.train(X, Y, kind, settings, seed)}
+
+
+def sequence_errors(log: FootstepLog, kind: str, models: dict) -> dict:
+    """Per method ("raw" and each of `models`), the Cartesian drift [m] after 10 s of every sequence of `log`."""
+    X = step_inputs(log, kind)
+    steps = {"raw": X[:, :3], **{m: model.predict_steps(X)[0] for m, model in models.items()}}
+    return {m: per_h[10.0][0] for m, per_h in sequence_drifts(log, steps, horizons=(10.0,)).items()}
+
+
+def reduction_interval(drifts: dict, method: str, reference: str = "raw", rng_seed: int = BOOTSTRAP_SEED) -> dict:
+    """1 - mean(method) / mean(reference) over paired sequences, with a 95 % bootstrap interval (resampling
+    sequences, `BOOTSTRAP` times, from `rng_seed`)."""
+    a, b = np.asarray(drifts[method]), np.asarray(drifts[reference])
+    idx = np.random.default_rng(rng_seed).integers(0, a.size, (BOOTSTRAP, a.size))
+    boot = 1.0 - a[idx].mean(axis=1) / b[idx].mean(axis=1)
+    low, high = np.percentile(boot, [2.5, 97.5])
+    return {"mean": float(1.0 - a.mean() / b.mean()), "ci95": [float(low), float(high)]}
+
+
+def mismatch_cell(surface: str, spread: tuple[float, float], settings: LWPRSettings, baseline: dict, seed: int = 0) -> dict:
+    """Both regimes and both input sets at one spread on one surface (see `mismatch`)."""
+    fleet_learn = [halves(fleet_log("train", surface, r, 0, spread))[0] for r in TRAIN_ROBOTS]
+    fleet = {kind: train_methods(fleet_learn, kind, settings, baseline, seed) for kind in KINDS}
+    drifts = {regime: {kind: {m: [] for m in MISMATCH_METHODS} for kind in KINDS} for regime in REGIMES}
+    for robot in TEST_ROBOTS:
+        logs = [fleet_log("test", surface, robot, i, spread) for i in range(TEST_LOGS)]
+        own = {kind: train_methods([halves(logs[0])[0]], kind, settings, baseline, seed) for kind in KINDS}
+        for log in logs[1:]:
+            for regime, models in (("own", own), ("fleet", fleet)):
+                for kind in KINDS:
+                    for m, values in sequence_errors(log, kind, models[kind]).items():
+                        drifts[regime][kind][m].extend(values)
+    rows = []
+    for regime in REGIMES:
+        for kind in KINDS:
+            d = drifts[regime][kind]
+            rows.append({"surface": surface, "robot_spread": spread[0], "run_spread": spread[1],
+                         "regime": regime, "kind": kind,
+                         "sequences": len(d["raw"]),
+                         "drift10_cm": {m: 100 * float(np.mean(d[m])) for m in MISMATCH_METHODS},
+                         "reduction": {m: reduction_interval(d, m) for m in MISMATCH_METHODS[1:]},
+                         "lwpr_vs_linear": reduction_interval(d, "lwpr", "linear")})
+    return {"rows": rows}
+
+
+def mismatch(surfaces=("carpet", "grass"), spreads=SPREADS, settings: LWPRSettings = LWPRSettings(),
+             baseline: dict | None = None, seed: int = 0, progress: bool = False) -> dict:
+    """The robustness table: on held-out robots (`TEST_ROBOTS`), drift after 10 s of the raw odometry, the
+    linear baseline and LWPR, learned on the test robot's own first log ("own") or on the training robots
+    ("fleet"), at each robot and run parameter spread (0: the nominal simulator) and surface."""
+    from mcl.cli_checks import progress_bar
+    baseline = BASELINE if baseline is None else baseline
+    rows = []
+    cells = [(s, x) for s in surfaces for x in spreads]
+    for surface, spread in progress_bar(cells, enabled=progress, desc="mismatch", unit="cell"):
+        rows.extend(mismatch_cell(surface, spread, settings, baseline, seed)["rows"])
+    return {"protocol": {"train_robots": list(TRAIN_ROBOTS), "test_robots": list(TEST_ROBOTS),
+                         "test_logs_per_robot": TEST_LOGS, "log_seconds": LOG_SECONDS,
+                         "sequence_seconds": SEQUENCE_SECONDS, "bootstrap": BOOTSTRAP,
+                         "settings": dataclasses.asdict(settings), "baseline": baseline,
+                         "variant_linear": VARIANT_LINEAR},
+            "rows": rows}
+
+
+def _print_mismatch(result: dict) -> None:
+    print("drift after 10 s [cm] on held-out robots; change of the 10 s drift [%] against the raw odometry (and of "
+          "LWPR against the linear baseline), with its 95 % bootstrap interval over sequences")
+    names = MISMATCH_METHODS[1:]
+    for regime in REGIMES:
+        print(f"\n{regime}: {REGIME_LABELS[regime]}")
+        print(f"{'surface':<7} {'spread':>7} {'inputs':<7} {'seq':>4} "
+              + " ".join(f"{METHOD_LABELS[m]:>8}" for m in MISMATCH_METHODS) + "  "
+              + " ".join(f"{METHOD_LABELS[m] + ' vs raw':>17}" for m in names) + f" {'LWPR vs linear':>17}")
+        for row in result["rows"]:
+            if row["regime"] != regime:
+                continue
+            cells = [row["reduction"][m] for m in names] + [row["lwpr_vs_linear"]]
+            text = [f"{-100 * c['mean']:+4.0f} [{-100 * c['ci95'][1]:+4.0f},{-100 * c['ci95'][0]:+4.0f}]"
+                    for c in cells]
+            spread = f"{row['robot_spread']:g}/{row['run_spread']:g}"
+            print(f"{row['surface']:<7} {spread:>7} {row['kind']:<7} {row['sequences']:>4} "
+                  + " ".join(f"{row['drift10_cm'][m]:>8.1f}" for m in MISMATCH_METHODS) + "  "
+                  + " ".join(f"{t:>17}" for t in text))
+    print("\n(spread R/C: multiples of the documented robot (R) and run (C) parameter ranges of demos.footstep_sim;"
+          " 0/0 is the nominal simulator, every robot and run alike)")
+
+
+# ---------------------------------------------------------------------------------------------------------
 # Command line
 # ---------------------------------------------------------------------------------------------------------
 LABELS = {"apriori_raw": "a priori raw", "apriori_learned": "a priori learned", "online_raw": "online raw",
@@ -347,6 +566,28 @@ def train_command(log_path: str, directory: str, seed: int, kinds=KINDS, half: b
 PROG = "robocup-mcl demo odometry"
 
 
+def report(result: dict, save: str | None, as_json: bool, printer) -> None:
+    """Write `result` to `save` (if given) and print it: as JSON, or with `printer`."""
+    from mcl.cli_checks import save_json
+    save_json(save, result)
+    if as_json:
+        json.dump(result, sys.stdout, indent=2)
+        print()
+    else:
+        printer(result)
+
+
+def _spread(text: str) -> tuple[float, float]:
+    """A --spreads value: "R" or "R:C", finite numbers >= 0."""
+    try:
+        values = tuple(float(v) for v in text.split(":"))
+    except ValueError:
+        values = ()
+    if len(values) not in (1, 2) or not all(math.isfinite(v) and v >= 0 for v in values):
+        raise argparse.ArgumentTypeError(f"{text!r} must be R or R:C, finite numbers >= 0")
+    return (values[0], values[-1])
+
+
 def build_parser(prog: str = PROG) -> argparse.ArgumentParser:
     """The command's argument parser, named `prog` in its usage line."""
     from mcl.cli_checks import add_progress_option, description
@@ -364,7 +605,14 @@ def build_parser(prog: str = PROG) -> argparse.ArgumentParser:
     parser.add_argument("--duration", type=float, default=LOG_SECONDS, help="seconds of walk for --record")
     parser.add_argument("--train", metavar="LOG", help="train on this recorded .npz log (needs --save)")
     parser.add_argument("--half", action="store_true", help="with --train: learn on the first half of the log")
-    parser.add_argument("--save", metavar="DIR", help="with --train: save the models to DIR/apriori, DIR/online")
+    parser.add_argument("--mismatch", action="store_true", help="the robustness table: held-out robots, the "
+                        "robot and run parameter spreads of demos.footstep_sim, the linear baseline")
+    parser.add_argument("--spreads", type=_spread, nargs="+", default=list(SPREADS), metavar="R[:C]",
+                        help="with --mismatch: multiples of the documented robot (R) and run (C, default R) "
+                        "parameter ranges, each >= 0 (0:0 is the nominal simulator; default "
+                        f"{' '.join(f'{r:g}:{c:g}' for r, c in SPREADS)})")
+    parser.add_argument("--save", metavar="PATH", help="with --train: save the models to PATH/apriori, "
+                        "PATH/online; with --mismatch: also write the JSON results to PATH")
     add_progress_option(parser)
     return parser
 
@@ -374,6 +622,15 @@ def main(argv: list[str] | None = None, prog: str = PROG) -> int:
     parser = build_parser(prog)
     args = parser.parse_args(argv)
     from mcl.cli_checks import check_input_file, check_output_directory, check_output_file
+    if args.mismatch:
+        if args.train or args.record or args.curve or args.filter:
+            parser.error("--mismatch goes alone (with --surface, --spreads, --seed, --json, --save)")
+        from mcl.cli_checks import progress_wanted
+        check_output_file(args.save, "--save")
+        surfaces = ("carpet", "grass") if args.surface == "both" else (args.surface,)
+        result = mismatch(surfaces, tuple(args.spreads), seed=args.seed, progress=progress_wanted(args))
+        report(result, args.save, args.json, _print_mismatch)
+        return 0
     if args.train or args.save:
         if not (args.train and args.save):
             parser.error("--train LOG and --save DIR go together")
