@@ -14,6 +14,7 @@
     robocup-mcl bench compare REV [--rounds 3] [--json]  # this checkout against another revision, alternated
     robocup-mcl eval [--families ...] [--split train|holdout|both] [--json] [--save PATH]   # the scenario battery
     robocup-mcl soak [--minutes 60] [--particles 500] [--seed S] [--json] [--save PATH]  # an hour in the loop
+    robocup-mcl fit adaptive|ekf|odometry [...] [--json] [--save PATH]   # a model's parameters from training logs
     robocup-mcl --version                             # the installed version
     robocup-mcl COMMAND --help                        # every option of a command, each with its help
 
@@ -62,12 +63,18 @@ BENCHES = {
     "replay": ("demos.replay_speed", "a 10-minute MCAP log replayed, in multiples of real time"),
     "compare": ("benchmarks.compare", "this checkout's speed against another revision's, in alternated runs"),
 }
+FITS = {
+    "adaptive": ("demos.fit_adaptive", "the adaptive motion model's collision terms (beta) from training logs"),
+    "ekf": ("demos.fit_velocity", "the velocity EKF's noise settings from training walks"),
+    "odometry": ("demos.fit_odometry", "LWPR's meta-parameters for the learned odometry from training logs"),
+}
 
 
 def _usage() -> str:
     lines = [__doc__.strip(), "", "demos:"]
     lines += [f"  {name:<10} {text}" for name, (_, text) in DEMOS.items()]
     lines += ["benchmarks:"] + [f"  {name:<10} {text}" for name, (_, text) in BENCHES.items()]
+    lines += ["fits:"] + [f"  {name:<10} {text}" for name, (_, text) in FITS.items()]
     return "\n".join(lines)
 
 
@@ -113,6 +120,7 @@ def commands() -> dict[str, str]:
     and `main(argv, prog)` run it."""
     table = {f"{PROGRAM} demo {name}": module for name, (module, _) in DEMOS.items()}
     table.update({f"{PROGRAM} bench {name}": module for name, (module, _) in BENCHES.items()})
+    table.update({f"{PROGRAM} fit {name}": module for name, (module, _) in FITS.items()})
     table.update({f"{PROGRAM} bench": BENCHES["step"][0], f"{PROGRAM} eval": "demos.battery",
                   f"{PROGRAM} soak": "benchmarks.soak", f"{PROGRAM} replay": "mcl.replay"})
     return table
@@ -186,6 +194,11 @@ def _run(argv: list[str] | None) -> int:
         if rest and not rest[0].startswith("-"):
             return _dispatch(BENCHES, rest[0], rest[1:], "benchmark", f"{PROGRAM} bench {rest[0]}")
         return _dispatch(BENCHES, "step", rest, "benchmark", f"{PROGRAM} bench")
+    if command == "fit":
+        if not rest or rest[0] in ("-h", "--help"):
+            print(_usage())
+            return 0 if rest else EXIT_USAGE
+        return _dispatch(FITS, rest[0], rest[1:], "fit", f"{PROGRAM} fit {rest[0]}")
     print(f"robocup-mcl: unknown command {command!r}\n\n{_usage()}", file=sys.stderr)
     return EXIT_USAGE
 
