@@ -1,25 +1,38 @@
-"""The velocity-estimation experiment: the paper's four estimators on the simulated biped walk, with the EKF in
-two variants: the paper's (state [g, v], "ekf") and one that also estimates the gyro bias ([g, v, b],
-"ekf+bias").
+"""The velocity-estimation experiment: the paper's four estimators on simulated biped walks, with the EKF as the
+paper wrote it and in the project's two variants.
 
     python -m demos.velocity                       # 28 s straight walk, twist and slip on, seed 0
     python -m demos.velocity --no-twist --json --seed 3 --duration 40
     robocup-mcl demo velocity --seeds 5 --rrd velocity.rrd     # the same, with a Rerun recording
+    robocup-mcl demo velocity --mismatch --seeds 12            # the robustness table, seeds 1000-1011
 
     from demos.velocity import main, run_estimators
-    from demos.biped import simulate_walk
-    result = run_estimators(simulate_walk(28.0, seed=0))   # dict of per-sample estimates and truth
+    from demos.biped import simulate_walk, RobotVariation
+    result = run_estimators(simulate_walk(28.0, seed=0, variation=RobotVariation()))   # estimates and truth
 
-Figures printed (all measured in this run, nothing fixed in advance):
+The filters (`EKF_VARIANTS`, `VARIANT_SETTINGS`): "ekf (paper)", the paper's filter as written (state [g, v],
+the raw gyro taken as zero-mean noise, F of eq. 24); "ekf variant: gyro zeroed standing", the same with the mean
+gyro of the standing robot subtracted from every sample; "ekf variant: + gyro bias state", state [g, v, b], b
+started at that mean, F with its rotation blocks. The baselines: the IMU alone (gyro zeroed standing), the
+kinematics (eq. 10) and kinematics+gyro (eq. 14), on their own leg odometry, the gyro zeroed or raw as the fit
+chose. Every estimator uses the published NAO legs (`ESTIMATOR_CHAINS`); the simulated robot's legs are drawn
+per walk around them (`demos.biped.RobotVariation`), and so are its IMU's noise, bias, scale and drift.
+
+The filters' noise settings come from `results/ekf_fit.json` (or `--fit PATH`), written by `robocup-mcl fit ekf`
+from the training walks `TRAINING_SEEDS` (`demos.fit_velocity`); nothing here reads the simulator's
+parameters. The figures refuse the training seeds.
+
+Figures printed (all measured in this run, nothing fixed in advance), on robots drawn per walk with links within
+±5 % (`--nominal`: the nominal robot):
 1. Straight walk of `--duration` s (the paper's experiment, Section VI): the average forward velocity (IMU x
-   axis, eq. 38 taken as a mean) of each estimator against the truth, and its error in percent; both EKFs again
-   without the gyro samples of the standing period; the error of both EKFs over `--seeds` seeds.
+   axis, eq. 38 taken as a mean) of each estimator against the truth, and its error in percent; the error of
+   the EKFs and of kinematics+gyro over `--seeds` seeds.
 2. RMSE of the 3-D velocity over quarters of the run, straight and turning walks, foot twist on and off,
    evaluated at the kinematics samples where a support foot is known (every estimator on the same samples).
-3. Tilt (direction of gravity) error of both EKFs and of the IMU alone, in degrees, on the run of figure 1, and
+3. Tilt (direction of gravity) error of the EKFs and of the IMU alone, in degrees, on the run of figure 1, and
    the error of each EKF's gyro bias at the start and at the end of that run.
-4. Time per EKF prediction and correction of both EKFs, numba kernel against the numpy reference, replaying the
-   inputs of the run of figure 1, with the largest difference between the two state sequences.
+4. Time per EKF prediction and correction, numba kernel against the numpy reference, replaying the inputs of
+   the run of figure 1, with the largest difference between the two state sequences.
 5. The EKF as odometry for the particle filter (`sensing.velocity_odometry`): the "ekf+bias" filter's velocity,
    levelled with its gravity estimate, and its bias-corrected gyro, summed over each filter step, against the
    commanded velocity. The walk (straight and turning, `--seeds` seeds) is placed on an SPL field
@@ -35,20 +48,15 @@ Figures printed (all measured in this run, nothing fixed in advance):
    stream); "ideal command", the request the simulated trunk follows exactly (the simulator executes commands
    perfectly, so this is a bound, not a real robot's odometry).
 
+With `--mismatch`, instead: the robustness table (`mismatch_table`), the average-forward-velocity error of every
+estimator over straight walks from seed `HELD_OUT_FIRST_SEED`, on the nominal robot and on robots with links
+within ±0, 2, 5 and 8 % (`MISMATCH_LEVELS`), median, worst, and the walks within the 5 % goal.
+
 With `--rrd PATH`, a Rerun recording of the straight walk of `--seed`: the forward velocity of the truth and of
 each estimator over time (`proprioception/forward_velocity/...`, the paper's Fig. 3), and figure 5's filter
 with the EKF odometry (`particles`, `robot/estimate`, `robot/truth`, `observations`, `entropy/...`,
 `error/...`) with the command filters' estimates (`robot/estimate_command`, `robot/estimate_ideal_command`,
 `error/position_command`, `error/heading_command`) and the dead-reckoned poses (`robot/dead_reckoning/...`).
-
-EKF noise parameters come from the simulated sensor specification, not from the results: σ_q is the standard
-deviation of one accelerometer sample's error, noise and bias together; σ_v is the spread of a kinematic
-velocity from encoder quantization (two readings differenced over 1/30 s, six joints, 0.3 m lever arm). σ_ω is
-the gyro's noise and bias together for the paper's filter, which has no bias state, and the noise alone for the
-filter that estimates the bias. That filter starts b at the mean gyro of the standing period with the standard
-error of that mean; its random walk σ_b lets the bias move by its run-to-run spread (the sensor's `gyro_bias`,
-0.005 rad/s) in an hour, σ_b = 0.005 / √3600 ≈ 8.3e-5 rad/s/√s. The simulated bias is constant in a run, so the
-exact value would be 0; a positive one keeps b from freezing and stands for a real gyro's slow drift.
 """
 from __future__ import annotations
 
@@ -664,7 +672,7 @@ def _format(report: dict) -> str:
     for name in variants + ("kinematics+gyro",):
         errors = spread[f"{name}_error_percent"]
         missed = [s for s, e in zip(seeds, errors) if e > 5.0]
-        lines.append(f"    {label[name]:<{width - 2}}" + ", ".join(f"{x:.1f}" for x in errors)
+        lines.append(f"    {label[name]:<{width}}" + ", ".join(f"{x:.1f}" for x in errors)
                      + f"  (median {np.median(errors):.1f}, max {max(errors):.1f}; goal "
                      + ("met on every seed)" if not missed else f"MISSED on seed{'s' if len(missed) > 1 else ''} "
                         + ", ".join(str(s) for s in missed) + ")"))

@@ -7,7 +7,8 @@
     ekf.correct(v_kg)                                            # at the kinematics rate, eq. 32–37
     dx, dy, dtheta = planar_increment(ekf.gravity, ekf.velocity, gyro - ekf.gyro_bias, dt)   # robot-frame odometry
 
-    paper = VelocityEKFParams(estimate_gyro_bias=False)          # the paper's filter, state [g, v], exactly
+    paper = VelocityEKFParams(estimate_gyro_bias=False, exact_jacobian=False)   # the paper's filter as written,
+    ekf = VelocityEKF.from_standing(accel_samples, time=t0, params=paper)        # given the raw gyro
 
     odometry = LegOdometry((left_chain, right_chain), ekf)       # or let it pick the support foot
     odometry.imu(t, gyro, accel)
@@ -28,7 +29,8 @@ The gyro bias (not in the paper, on by default: `VelocityEKFParams(estimate_gyro
 Without it, a bias left after zeroing the gyro on a standing robot keeps turning g, and the velocity follows
 the corrections with a lag, which biases v. Its kernels are `ekf_bias_predict_kernel` and
 `ekf_bias_jacobians_kernel` (numpy: `ekf_bias_predict_reference`, `ekf_bias_jacobians_reference`); the
-correction is shared. With `estimate_gyro_bias=False` the filter is the paper's, unchanged.
+correction is shared. The paper's filter as written is `estimate_gyro_bias=False, exact_jacobian=False` with
+the raw gyro; giving `from_standing` the standing gyro samples (their mean subtracted) is a variant.
 
 Bad input raises ValueError naming the field, and leaves the filter as it was: non-finite samples, a time that
 does not advance, an IMU gap longer than `max_imu_gap`. With no foot on the ground the filter only predicts;
@@ -608,26 +610,48 @@ class VelocityEKFParams:
     `is_stale` is true after max_prediction_time (s) without a correction. exact_jacobian keeps the rotation
     blocks of F (False: eq. 24 as printed).
 
-    estimate_gyro_bias adds the gyro bias b to the state, [g, v, b] (not in the paper; False is the paper's
-    filter with state [g, v] exactly). gyro_noise is then the white noise alone, since the bias is no longer
-    noise. initial_gyro_bias_std (rad/s) is the bias's starting standard deviation when it is not measured
-    from a standing robot (`VelocityEKF.from_standing` with gyro samples uses the standard error of their
-    mean). gyro_bias_random_walk σ_b (rad/s/√s) is the bias's random walk: its variance grows by σ_b² δ per
-    prediction. The default is the spread of the bias between runs, 0.005 rad/s, reached over an hour
-    (0.005 / √3600 s): a bias that is constant in a run should move little, but b must not freeze.
+    estimate_gyro_bias adds the gyro bias b to the state, [g, v, b] (not in the paper). The paper's filter as
+    written is `estimate_gyro_bias=False, exact_jacobian=False`, given the raw gyro (no standing-sample bias
+    subtracted: `VelocityEKF.from_standing` without `gyro_samples`). gyro_noise is, with the bias state, the
+    white noise alone, since the bias is no longer noise. initial_gyro_bias_std (rad/s) is the bias's starting
+    standard deviation when it is not measured from a standing robot (`VelocityEKF.from_standing` with gyro
+    samples uses the standard error of their mean). gyro_bias_random_walk σ_b (rad/s/√s) is the bias's random
+    walk: its variance grows by σ_b² δ per prediction.
+
+    The noise defaults are the settings that `robocup-mcl fit ekf` fitted for the filter with the bias state
+    (results/ekf_fit.json, variant "ekf+bias", rounded to three digits): σ_ω and σ_q from standing samples,
+    σ_v and σ_b chosen on training walks of simulated NAO-type robots. Another robot needs its own fit.
+
+    Parameters
+    ----------
+    gyro_noise, accel_noise, velocity_noise : float
+        σ_ω (rad/s), σ_q (m/s²), σ_v (m/s).
+    initial_gravity_std, initial_velocity_std, initial_gyro_bias_std : float
+        Starting standard deviations of g (m/s²), v (m/s) and b (rad/s).
+    max_imu_gap, max_prediction_time : float
+        Seconds: the longest IMU gap accepted; the prediction time after which the filter is stale.
+    exact_jacobian, estimate_gyro_bias : bool
+        F with its rotation blocks; the [g, v, b] state.
+    gyro_bias_random_walk : float
+        σ_b, rad/s/√s.
+
+    Raises
+    ------
+    ValueError
+        When a standard deviation or a limit is not a finite positive number within the accepted range.
     """
 
-    gyro_noise: float = 0.01
-    accel_noise: float = 0.05
-    velocity_noise: float = 0.05
-    initial_gravity_std: float = 0.1
-    initial_velocity_std: float = 0.02
+    gyro_noise: float = 0.00998
+    accel_noise: float = 0.0497
+    velocity_noise: float = 0.00139
+    initial_gravity_std: float = 0.210
+    initial_velocity_std: float = 0.00139
     max_imu_gap: float = 0.1
     max_prediction_time: float = 1.0
     exact_jacobian: bool = True
     estimate_gyro_bias: bool = True
-    initial_gyro_bias_std: float = 0.005
-    gyro_bias_random_walk: float = 0.005 / 60.0
+    initial_gyro_bias_std: float = 0.0168
+    gyro_bias_random_walk: float = 0.000317
 
     def __post_init__(self):
         for name in ("gyro_noise", "accel_noise", "velocity_noise", "initial_gravity_std",
