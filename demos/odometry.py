@@ -8,8 +8,8 @@
     from demos.odometry import evaluate, learning_curve, filter_comparison, mismatch, main
 
 The paper's protocol (sec. IV-B 2-3) on `demos.footstep_sim` logs, per surface: five 5-minute joystick walks;
-the three LWPR models of each input set learn on the first half of the first log (its second half tuned the
-meta-parameters in `LWPRSettings`); the four other logs are cut into non-overlapping 20 s sequences, on each
+the three LWPR models of each input set learn on the first half of the first log (the meta-parameters in
+`LWPRSettings` come from `robocup-mcl fit odometry`, on other robots' logs); the four other logs are cut into non-overlapping 20 s sequences, on each
 of which the odometry restarts at the true pose and integrates its footstep displacements (the paper's
 "re-integration", `motion_models.footsteps.integrate`). Figures: the mean Cartesian and angular drift from
 the motion capture after 10 s and 20 s, with 95 % intervals (mean ± 1.96 standard errors), for the four

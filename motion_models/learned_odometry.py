@@ -22,9 +22,9 @@ LWPR meta-parameters (`LWPRSettings`) serves both input sets.
 Targets. The a-priori models learn the true step itself, as the paper states. The online models learn its
 correction, truth minus the sensor-based step (inputs 0-2), and add the sensor step back (the paper's
 "corrective function", same inputs, same output): the gyro's yaw is already within a fraction of a degree
-of the truth per step, and LWPR's broad local models, asked for the whole step, lose that precision. Both
-choices were made on the second half of the learning log (sec. IV-B 2); `robocup-mcl demo odometry` prints
-the test figures of the other choice next to each (`LWPRSettings.residual` overrides it).
+of the truth per step, and LWPR's local models, asked for the whole step, lose that precision. These targets
+are fixed, not searched by `robocup-mcl fit odometry`; `robocup-mcl demo odometry` prints the test figures of
+the other choice next to each (`LWPRSettings.residual` overrides it).
 
 In the filter (`predict`), particles move only when `u.footstep` holds a `FootstepEvent`: by the predicted
 displacement plus Gaussian robot-frame noise whose standard deviation per axis is LWPR's confidence bound
