@@ -187,7 +187,7 @@ def test_dead_reckoning_of_a_clean_walk_follows_the_truth(walk):
     run = simulate_walk(6.0, 2, gait=walk_gait(walk, 6.0), sensors=QUIET, disturbances=CALM)
     n0 = int(np.searchsorted(run.imu_time, STANDING_SAMPLES_TIME, side="right")) - 1
     steps = filter_steps(run, n0)
-    increments = ekf_odometry(run, steps, ekf_params_for(SensorParams(), estimate_gyro_bias=True))
+    increments = ekf_odometry(run, steps, ekf_params_for(variant="ekf+bias"))
     truth = field_poses(run, (1.0, -1.0, 2.5))[steps]
     dead = compose_increments(increments, truth[0])
     walked = np.sum(np.hypot(*np.diff(truth[:, :2], axis=0).T))
