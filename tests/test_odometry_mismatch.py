@@ -268,3 +268,25 @@ def test_mismatch_table_on_the_nominal_simulator(tmp_path, capsys, monkeypatch):
         assert r["reduction"]["lwpr"]["ci95"][0] <= r["reduction"]["lwpr"]["mean"] <= r["reduction"]["lwpr"]["ci95"][1]
     X = step_inputs(simulate(20.0, "carpet", 0), "apriori")
     assert X.shape[1] == 7
+
+
+def test_training_and_held_out_seeds_and_robots_never_meet():
+    from demos.odometry import TEST_LOGS, TEST_ROBOTS, TRAIN_ROBOTS, fleet_seed
+    train = {fleet_seed("train", s, r, i) for s in ("carpet", "grass") for r in TRAIN_ROBOTS for i in range(TEST_LOGS)}
+    test = {fleet_seed("test", s, r, i) for s in ("carpet", "grass") for r in TEST_ROBOTS for i in range(TEST_LOGS)}
+    assert not train & test and len(test) == 2 * len(TEST_ROBOTS) * TEST_LOGS
+    assert not set(TRAIN_ROBOTS) & set(TEST_ROBOTS)
+
+
+def test_the_variant_learns_what_the_linear_map_leaves():
+    from demos.odometry import LinearPlusLWPR
+    rng = np.random.default_rng(3)
+    X = rng.uniform(-1, 1, (600, 7))
+    Y = 0.5 * X[:, :3] + 0.05 * X[:, 3:4] ** 2 + 0.001 * rng.standard_normal((600, 3))   # a bend in one input
+    linear = LinearCorrection.fit(X, Y, "apriori")
+    variant = LinearPlusLWPR.train(X, Y, "apriori", LWPRSettings())
+    error = {name: np.mean(np.abs(m.predict_steps(X)[0] - Y)) for name, m in (("linear", linear), ("variant", variant))}
+    assert error["variant"] < 0.7 * error["linear"]
+    # Far outside the training data no receptive field is active: the variant falls back to the linear map.
+    far = np.full((1, 7), 1e6)
+    np.testing.assert_allclose(variant.predict_steps(far)[0], linear.predict_steps(far)[0], rtol=1e-9)
