@@ -576,16 +576,16 @@ class ParticleFilter(ParticleSet, BeliefSummary):
             NaN or +inf log-likelihoods; the filter is left unchanged.
         """
         observations = Observations.coerce(observations)
-        if len(observations) == 0 or self._sensor_kernel() is None or self._scores_view(observations):
-            self.sensor_model.check(observations)
-            self._correct(observations, self._check_since(since))
-            return
         try:
-            since = self._check_since(since)
+            motion_since = self._check_since(since)   # before any kernel is prepared: a refusal changes nothing
         except ValueError:
             self.sensor_model.check(observations)     # the detections are checked first
             raise
-        self._step_compiled(None, observations, False, since)
+        if len(observations) == 0 or self._sensor_kernel() is None or self._scores_view(observations):
+            self.sensor_model.check(observations)
+            self._correct(observations, motion_since)
+            return
+        self._step_compiled(None, observations, False, motion_since)
 
     @staticmethod
     def _check_since(since) -> np.ndarray | None:
