@@ -28,6 +28,15 @@ pose lies inside the smallest region holding 95 % of the belief (`mcl.estimate.c
 each step from the collision's start on; with vision, the position error of the estimate and the time from the
 collision's end until that error is below 0.2 m (0 when it never exceeded it).
 
+Model mismatch. `--tune-baseline` runs velocity-linear with its β widened by `WIDENINGS` on training robots
+(`TRAINING_SEEDS`, the simulator's mismatched physics: each robot drawn from `demos.collision_sim.MISMATCH_RANGES`)
+and names the best factor for the 95 % region without vision and for the error with vision and injection
+(`BASELINE_WIDEN` holds them). `--mismatch` runs the held-out robots (`HELD_OUT_SEEDS`): the paper's model with
+its fitted β ("adaptive"), the pivot variant ("adaptive-pivot", `PIVOT_CREEP`) and the best velocity-linear, at
+the nominal and the mismatched physics, per bin of the simulated stop turn (`TURN_BINS`), then the particle sweep
+with vision and injection (`SWEEP_PARTICLES`). Each robot's detector reference is learned from its own free walk
+(`robot_reference`).
+
 Entropy grid: 5 cm cells and 5° bins. The paper does not give its grid; the filter's default (10 cm, 10°) is
 coarser than the whole no-collision cloud of 100 particles for most of the run, which would make both models
 score 0 bits.
