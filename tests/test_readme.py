@@ -105,7 +105,36 @@ def test_the_readme_headline_figures_are_those_of_the_results_files():
     row = _headline("robot loop")
     assert f"without detections {loop['frame_us']:.1f} µs" in row and f"detections {loop['correct_list_us']:.1f} µs" in row
 
-    single = _results("collision_report.json")["no_vision"]["single"]
+    mismatch = _results("collision_mismatch.json")["mismatch"]
+    single = mismatch["containment"]["single"]
+    baseline = f"velocity-linear x{mismatch['baseline_widen']['containment']:g}"
     row = _headline("Hoffmann")
-    assert f"{100 * single['adaptive']['summary']['contained_share']['median']:.0f} % of steps" in row
-    assert f"{100 * single['velocity-linear']['summary']['contained_share']['median']:.0f} % with" in row
+    assert f"{100 * single['adaptive']['mismatch']['median']:.0f} % of steps" in row
+    assert f"{100 * single['adaptive-pivot']['mismatch']['median']:.0f} % with the pivot variant" in row
+    assert mismatch["goals"]["single/adaptive"]["at_least_80_percent_everywhere"] is False and "missed" in row
+    assert (f"widened ×{mismatch['baseline_widen']['containment']:g} holds it in "
+            f"{100 * single[baseline]['mismatch']['median']:.0f} % with a cloud "
+            f"{single[baseline]['mismatch']['final_spread_median_m']:.2f} m across against "
+            f"{single['adaptive']['mismatch']['final_spread_median_m']:.2f} m") in row
+
+    rows = [r for r in _results("odometry_mismatch.json")["rows"]
+            if (r["surface"], r["regime"], r["robot_spread"], r["run_spread"]) == ("carpet", "fleet", 1.0, 1.0)]
+    row = _headline("Rouxel")
+    for kind in ("apriori", "online"):
+        (r,) = [r for r in rows if r["kind"] == kind]
+        cut, (low, high) = r["reduction"]["lwpr"]["mean"], r["reduction"]["lwpr"]["ci95"]
+        figure = f"{r['drift10_cm']['raw']:.1f} → {r['drift10_cm']['lwpr']:.1f} cm (−{100 * cut:.0f} %, "
+        interval = f"−{100 * high:.0f} to −{100 * low:.0f} %)"
+        assert figure + interval in row or figure + "95 % interval " + interval in row
+
+    velocity = _results("velocity_mismatch.json")
+    five = velocity["levels"]["links +-5 %"]["summary"]
+    row = _headline("Wawrzyński")
+    seeds = velocity["seeds"]
+    assert f"walks {seeds[0]}–{seeds[-1]}" in row
+    for name, text in (("ekf", "for the paper's filter as written"), ("ekf+bias", "for the bias-state variant"),
+                       ("kinematics+gyro", "for kinematics+gyro")):
+        assert f"{five[name]['median']:.1f} %, worst {five[name]['max']:.1f} % {text}" in row \
+            or f"{five[name]['median']:.1f} %, {five[name]['max']:.1f} % {text}" in row
+    missed = len(seeds) - five["ekf"]["within_goal"]
+    assert f"missed on {missed} of {len(seeds)}" in row
