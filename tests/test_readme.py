@@ -138,3 +138,20 @@ def test_the_readme_headline_figures_are_those_of_the_results_files():
             or f"{five[name]['median']:.1f} %, {five[name]['max']:.1f} % {text}" in row
     missed = len(seeds) - five["ekf"]["within_goal"]
     assert f"missed on {missed} of {len(seeds)}" in row
+
+
+def _printed(path: Path, marker: str) -> str:
+    """What the first Python block of `path` containing `marker` prints."""
+    out = io.StringIO()
+    with contextlib.redirect_stdout(out):
+        run(path, marker, quiet=False)
+    return out.getvalue()
+
+
+def test_the_paper_pages_examples_print_what_their_text_says():
+    """The adaptive-model and velocity-odometry examples of the paper pages, run as written: what they print is
+    what the sentence after them quotes (a change of the fitted defaults that changes it fails here)."""
+    for page, marker in (("hoffmann.md", "AdaptiveMotion()"), ("wawrzynski.md", "EKFOdometry")):
+        path = DOCS / "papers" / page
+        quoted = re.search(r"This prints `([^`]*)`", path.read_text()).group(1)
+        assert quoted in _printed(path, marker), page
