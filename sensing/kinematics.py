@@ -31,6 +31,8 @@ from dataclasses import dataclass, field
 import numba
 import numpy as np
 
+from field.checks import real, reals
+
 NAO_JOINT_NAMES = ("AnkleRoll", "AnklePitch", "KneePitch", "HipPitch", "HipRoll", "HipYawPitch")
 """Joint order of the NAO preset, foot → trunk (the NAOqi order, reversed); prefix L or R for the side."""
 
@@ -73,10 +75,7 @@ class NaoLegDimensions:
 
     def __post_init__(self) -> None:
         for name in ("hip_offset_y", "hip_offset_z", "thigh", "tibia", "foot_height"):
-            value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, (int, float)) or not (
-                    math.isfinite(value) and value > 0.0):
-                raise ValueError(f"{name} must be a finite positive length in metres, got {value!r}")
+            real(name, getattr(self, name), 0.0, low_open=True)     # metres, finite and > 0
 
     def scaled(self, factors) -> "NaoLegDimensions":
         """The dimensions multiplied one by one by `factors`.
@@ -96,9 +95,9 @@ class NaoLegDimensions:
         ValueError
             When `factors` is not five finite positive numbers.
         """
-        f = np.asarray(factors, dtype=np.float64)
-        if f.shape != (5,) or not np.all(np.isfinite(f)) or np.any(f <= 0.0):
-            raise ValueError(f"factors must be five finite positive numbers, got {np.asarray(factors).tolist()}")
+        f = reals("factors", factors, 5, low=0.0)
+        if np.any(f == 0.0):
+            raise ValueError(f"factors = {np.asarray(factors).tolist()} must be five finite numbers > 0")
         return NaoLegDimensions(*(float(v) * float(k) for v, k in zip(self.as_tuple(), f)))
 
     def as_tuple(self) -> tuple[float, float, float, float, float]:
@@ -447,9 +446,7 @@ def nao_leg(side: str = "left", imu_offset=(0.0, 0.0, 0.0), dimensions: NaoLegDi
         raise ValueError(f"side must be 'left' or 'right', got {side!r}")
     if not isinstance(dimensions, NaoLegDimensions):
         raise ValueError(f"dimensions must be a NaoLegDimensions, got {type(dimensions).__name__}")
-    offsets = np.zeros(6) if joint_offsets is None else np.asarray(joint_offsets, dtype=np.float64)
-    if offsets.shape != (6,) or not np.all(np.isfinite(offsets)):
-        raise ValueError(f"joint_offsets must be six finite numbers (radians), got {np.asarray(joint_offsets).tolist()}")
+    offsets = np.zeros(6) if joint_offsets is None else reals("joint_offsets", joint_offsets, 6)   # radians
     dims = dimensions
     mirror = 1.0 if side == "left" else -1.0
     half_pi = math.pi / 2.0
