@@ -36,9 +36,7 @@ settings).
 from __future__ import annotations
 
 import argparse
-import json
 import math
-import sys
 from dataclasses import replace
 
 import numpy as np
@@ -192,7 +190,7 @@ def build_parser(prog: str = PROG) -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None, prog: str = PROG) -> int:
     """`robocup-mcl fit adaptive` (see --help); returns the exit status."""
-    from mcl.cli_checks import check_output_file, progress_wanted, save_json
+    from mcl.cli_checks import check_output_file, progress_wanted, save_and_print
 
     parser = build_parser(prog)
     args = parser.parse_args(argv)
@@ -205,18 +203,16 @@ def main(argv: list[str] | None = None, prog: str = PROG) -> int:
         result = fit(seeds, args.minutes, args.coverage, progress_wanted(args))
     except ValueError as error:
         parser.error(str(error))
-    save_json(args.save, result)
-    if args.json:
-        json.dump(result, sys.stdout, indent=2)
-        print()
-        return 0
-    print(f"adaptive motion model fitted on {len(seeds)} training robots × {args.minutes:g} min, ranges covering "
-          f"{100 * args.coverage:.0f}% of the episodes' rates:")
+    save_and_print(result, args.save, args.json, lambda fitted: _print(fitted, len(seeds), args.minutes, args.coverage))
+    return 0
+
+
+def _print(result: dict, robots: int, minutes: float, coverage: float) -> None:
+    print(f"adaptive motion model fitted on {robots} training robots × {minutes:g} min, ranges covering "
+          f"{100 * coverage:.0f}% of the episodes' rates:")
     for name in FITTED:
         print(f"  {name:<10} {result['fitted'][name]:.4f}  (default {result['defaults'][name]})")
     print("  episodes: " + ", ".join(f"{name} {count}" for name, count in result["episodes"].items()))
-    return 0
-
 
 if __name__ == "__main__":
     raise SystemExit(main())

@@ -30,7 +30,7 @@ import time
 import numpy as np
 
 from demos.footstep_sim import truth_displacements
-from demos.odometry import (KINDS, TRAIN_ROBOTS, LinearCorrection, fleet_log, halves, report, sequence_errors,
+from demos.odometry import (KINDS, TRAIN_ROBOTS, LinearCorrection, fleet_log, halves, sequence_errors,
                             step_inputs)
 from motion_models.learned_odometry import LearnedFootstepOdometry, LWPRSettings
 
@@ -187,13 +187,13 @@ def main(argv: list[str] | None = None, prog: str = PROG) -> int:
     int
         The exit status (0).
     """
-    from mcl.cli_checks import check_output_file, progress_wanted
+    from mcl.cli_checks import check_output_file, progress_wanted, save_and_print
     parser = build_parser(prog)
     args = parser.parse_args(argv)
     check_output_file(args.save, "--save")
     started = time.perf_counter()
     result = fit(seed=args.seed, progress=progress_wanted(args))
-    report(result, args.save, args.json, _print)
+    save_and_print(result, args.save, args.json, _print)
     if not args.json:
         print(f"\n({time.perf_counter() - started:.0f} s)")
     return 0

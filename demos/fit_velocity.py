@@ -34,7 +34,7 @@ import math
 import numpy as np
 
 from demos.biped import GRAVITY, BipedRun, RobotVariation, simulate_walk
-from demos.velocity import (EKF_VARIANTS, LABELS, TRAINING_SEEDS, VARIANT_SETTINGS, average_forward_velocity, emit,
+from demos.velocity import (EKF_VARIANTS, LABELS, TRAINING_SEEDS, VARIANT_SETTINGS, average_forward_velocity,
                             run_estimators, variant_params)
 
 VELOCITY_FACTORS = (1.0 / 64.0, 1.0 / 32.0, 1.0 / 16.0, 0.125, 0.25, 0.5, 1.0, 2.0)
@@ -209,7 +209,7 @@ def main(argv: list[str] | None = None, prog: str = PROG) -> int:
     """`robocup-mcl fit ekf` (see --help); returns the exit status."""
     parser = build_parser(prog)
     args = parser.parse_args(argv)
-    from mcl.cli_checks import check_output_file, progress_wanted
+    from mcl.cli_checks import check_output_file, progress_wanted, save_and_print
     check_output_file(args.save, "--save")
     if not 1 <= args.seeds <= len(TRAINING_SEEDS):
         parser.error(f"--seeds must be within 1-{len(TRAINING_SEEDS)}, got {args.seeds}")
@@ -219,7 +219,7 @@ def main(argv: list[str] | None = None, prog: str = PROG) -> int:
     runs = training_walks(seeds, args.duration, progress=progress_wanted(args))
     fit = {"training_seeds": seeds, "variation": dataclasses.asdict(RobotVariation()), **fit_noise(runs)}
     fit["fields"] = list(NOISE_FIELDS)
-    emit(args, fit, format_fit)
+    save_and_print(fit, args.save, args.json, lambda result: print(format_fit(result)))
     return 0
 
 

@@ -579,17 +579,6 @@ def train_command(log_path: str, directory: str, seed: int, kinds=KINDS, half: b
 PROG = "robocup-mcl demo odometry"
 
 
-def report(result: dict, save: str | None, as_json: bool, printer) -> None:
-    """Write `result` to `save` (if given) and print it: as JSON, or with `printer`."""
-    from mcl.cli_checks import save_json
-    save_json(save, result)
-    if as_json:
-        json.dump(result, sys.stdout, indent=2)
-        print()
-    else:
-        printer(result)
-
-
 def _spread(text: str) -> tuple[float, float]:
     """A --spreads value: "R" or "R:C", finite numbers >= 0."""
     try:
@@ -634,7 +623,7 @@ def main(argv: list[str] | None = None, prog: str = PROG) -> int:
     """`robocup-mcl demo odometry` (see --help); returns the exit status."""
     parser = build_parser(prog)
     args = parser.parse_args(argv)
-    from mcl.cli_checks import check_input_file, check_output_directory, check_output_file
+    from mcl.cli_checks import check_input_file, check_output_directory, check_output_file, save_and_print
     if args.mismatch:
         if args.train or args.record or args.curve or args.filter:
             parser.error("--mismatch goes alone (with --surface, --spreads, --seed, --json, --save)")
@@ -642,7 +631,7 @@ def main(argv: list[str] | None = None, prog: str = PROG) -> int:
         check_output_file(args.save, "--save")
         surfaces = ("carpet", "grass") if args.surface == "both" else (args.surface,)
         result = mismatch(surfaces, tuple(args.spreads), seed=args.seed, progress=progress_wanted(args))
-        report(result, args.save, args.json, _print_mismatch)
+        save_and_print(result, args.save, args.json, _print_mismatch)
         return 0
     if args.train or args.save:
         if not (args.train and args.save):

@@ -64,7 +64,6 @@ import argparse
 import dataclasses
 import json
 import math
-import sys
 import time as _time
 from pathlib import Path
 
@@ -963,18 +962,6 @@ def format_mismatch(table: dict) -> str:
     return "\n".join(lines)
 
 
-def emit(args: argparse.Namespace, result: dict, text) -> None:
-    """Write `result` to `args.save` (if given), and print it as JSON with `args.json`, else as `text(result)`."""
-    from mcl.cli_checks import save_json
-
-    save_json(args.save, result)
-    if args.json:
-        json.dump(result, sys.stdout, indent=2)
-        sys.stdout.write("\n")
-    else:
-        print(text(result))
-
-
 PROG = "robocup-mcl demo velocity"
 
 
@@ -1017,7 +1004,7 @@ def main(argv: list[str] | None = None, prog: str = PROG) -> int:
     """`robocup-mcl demo velocity` (see --help); returns the exit status."""
     parser = build_parser(prog)
     args = parser.parse_args(argv)
-    from mcl.cli_checks import check_input_file, check_output_file, progress_wanted
+    from mcl.cli_checks import check_input_file, check_output_file, progress_wanted, save_and_print
     check_output_file(args.save, "--save")
     if args.seeds < 1:
         parser.error(f"--seeds must be at least 1, got {args.seeds}")
@@ -1037,7 +1024,8 @@ def main(argv: list[str] | None = None, prog: str = PROG) -> int:
     check_input_file(args.fit, "--fit")
     fit = load_fit(args.fit)
     if args.mismatch:
-        emit(args, mismatch_table(seeds, args.duration, fit, progress=progress_wanted(args)), format_mismatch)
+        save_and_print(mismatch_table(seeds, args.duration, fit, progress=progress_wanted(args)), args.save, args.json,
+                       lambda table: print(format_mismatch(table)))
         return 0
 
     from .walk import warm_up_walk
@@ -1048,7 +1036,7 @@ def main(argv: list[str] | None = None, prog: str = PROG) -> int:
                           progress=progress_wanted(args), fit=fit,
                           variation=RobotVariation.nominal() if args.nominal else RobotVariation())
     report.update(warm.as_dict())
-    emit(args, report, _format)
+    save_and_print(report, args.save, args.json, lambda result: print(_format(result)))
     if args.rrd and not args.json:
         print(f"\nrecording written to {args.rrd} (open it with: rerun {args.rrd})")
     return 0

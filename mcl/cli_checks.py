@@ -18,7 +18,9 @@ creates it and removes it again.
 from __future__ import annotations
 
 import os
+from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 
 class CommandError(ValueError):
@@ -153,6 +155,31 @@ def save_json(path, result) -> None:
     import json
 
     Path(path).write_text(json.dumps(result, indent=2) + "\n", encoding="utf-8")
+
+
+def save_and_print(result: Any, save: str | os.PathLike | None, as_json: bool,
+                   printer: Callable[[Any], None]) -> None:
+    """What a measuring command does with its result: `save_json(save, result)`, then print it, as indented
+    JSON with `--json` (`as_json`), else with `printer(result)`.
+
+    Parameters
+    ----------
+    result : object
+        JSON-serializable results.
+    save : str or os.PathLike or None
+        The `--save` file, checked before the run with `check_output_file`; None: nothing written.
+    as_json : bool
+        Print `result` as JSON instead of calling `printer`.
+    printer : callable
+        Prints `result` for a reader.
+    """
+    import json
+
+    save_json(save, result)
+    if as_json:
+        print(json.dumps(result, indent=2))
+    else:
+        printer(result)
 
 
 def progress_wanted(args=None, *, json_output: bool | None = None, no_progress: bool | None = None,
