@@ -102,7 +102,7 @@ def free_walk_reference(seed: int = REFERENCE_SEED, duration: float = 180.0) -> 
 ROBOT_WALK_OFFSET = 100_000   # a robot's own free walk runs on seed + this (its robot drawn from `seed`)
 
 
-@functools.lru_cache(maxsize=8)
+@functools.lru_cache(maxsize=256)   # a reference per robot (1.4 KB); the tables cycle through 20 robots
 def robot_reference(physics: str, seed: int) -> CollisionReference:
     """The detector's reference for the robot of a run: with nominal physics the one robot's free walk
     (`free_walk_reference`); with mismatched physics the robot drawn for `seed` walks freely for three minutes
