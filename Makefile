@@ -12,7 +12,7 @@ $(PY):
 # Reinstall whenever the package metadata changes.
 $(STAMP): pyproject.toml | $(PY)
 	$(PY) -m pip install --quiet --upgrade pip
-	$(PY) -m pip install --quiet -e '.[test,docs]'
+	$(PY) -m pip install --quiet -e '.[test,docs,tune]'
 	touch $(STAMP)
 
 demo: $(STAMP)

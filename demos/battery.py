@@ -30,11 +30,12 @@ The overall section pools the quality and lost figures of every run. `--json` wr
 from __future__ import annotations
 
 import argparse
+import functools
 import json
 import math
 import os
 import time
-from dataclasses import fields
+from dataclasses import dataclass, fields
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from multiprocessing import get_context
 
@@ -43,6 +44,7 @@ import numpy as np
 from field import spl
 from mcl.evaluation import QUALITY_CODE, QUALITY_LEVELS, evaluate, median_worst, pool_counts
 from mcl.localizer import Localizer, QualityThresholds
+from mcl.profile import Profile
 from mcl.relocalization import RelocalizationPrior, SoccerRelocalization
 from motion_models import MotionInput
 from sensing import LandmarkSensorModel
@@ -67,17 +69,21 @@ def split_seeds(split: str, k: int) -> list[int]:
 
 
 def make_localizer(field, seed: int, particles: int = 500, prior: dict | None = None,
-                   quality: dict | None = None, sensor: dict | None = None) -> Localizer:
-    """The localizer under test: `Localizer` with its defaults, except the `RelocalizationPrior` and
-    `QualityThresholds` fields named in `prior` and `quality` (for measuring variants; the report says so)."""
-    options = {}
+                   quality: dict | None = None, sensor: dict | None = None, profile: Profile | None = None) -> Localizer:
+    """The localizer under test: `Localizer` with its defaults (or `profile`'s settings), except the
+    `RelocalizationPrior`, `QualityThresholds` and `LandmarkSensorModel` fields named in `prior`, `quality` and
+    `sensor` (for measuring variants; the report says so). `particles` wins over the profile's."""
+    options = profile.localizer_options(field) if profile is not None else {}
+    base = profile.sections if profile is not None else {}
     if prior:
-        options["relocalization"] = SoccerRelocalization(RelocalizationPrior(**prior))
+        options["relocalization"] = SoccerRelocalization(RelocalizationPrior(**{**base.get("relocalization", {}),
+                                                                                **prior}))
     if quality:
-        options["quality"] = QualityThresholds(**quality)
+        options["quality"] = QualityThresholds(**{**base.get("quality", {}), **quality})
     if sensor:
-        options["sensor_model"] = LandmarkSensorModel(field, **sensor)
-    return Localizer(field, n_particles=particles, seed=seed, **options)
+        options["sensor_model"] = LandmarkSensorModel(field, **{**base.get("sensor", {}), **sensor})
+    options.update(n_particles=particles, seed=seed)
+    return Localizer(field, **options)
 
 
 def camera_view(run: BatteryRun, frame) -> CameraView:
@@ -88,10 +94,13 @@ def camera_view(run: BatteryRun, frame) -> CameraView:
 
 
 def localize(run: BatteryRun, particles: int = 500, prior: dict | None = None,
-             quality: dict | None = None, view: bool = False, sensor: dict | None = None) -> dict:
+             quality: dict | None = None, view: bool = False, sensor: dict | None = None,
+             profile: Profile | None = None, filter_seed: int | None = None) -> dict:
     """Drive a `Localizer` through the run (see the module docstring); returns estimates (T, 3), quality
-    codes (T,), lost (T,), dropped frames and the seconds the loop took."""
-    loc = make_localizer(run.field, run.seed, particles, prior, quality, sensor)
+    codes (T,), lost (T,), dropped frames, the log evidence of the frames used (`Localizer.log_evidence`, and
+    how many) and the seconds the loop took. The filter's seed is `filter_seed`, by default the run's seed."""
+    loc = make_localizer(run.field, run.seed if filter_seed is None else filter_seed, particles, prior, quality,
+                         sensor, profile)
     loc.anywhere_in_own_half()
     n = run.times.shape[0]
     frames_at: dict[int, list] = {}
@@ -123,7 +132,40 @@ def localize(run: BatteryRun, particles: int = 500, prior: dict | None = None,
         quality[k] = codes[loc.quality()]
         lost[k] = loc.is_lost
     return {"estimates": estimates, "quality": quality, "lost": lost, "dropped_frames": dropped,
+            "log_evidence": loc.log_evidence, "evidence_frames": loc.evidence_frames,
             "loop_s": time.perf_counter() - started}
+
+
+@functools.lru_cache(maxsize=256)
+def _simulated(family: str, seed: int, duration: float) -> BatteryRun:
+    """A run, simulated once per process (a tuning study's workers localize each run many times)."""
+    return simulate(family, seed, duration)
+
+
+@dataclass(frozen=True)
+class BatteryCase:
+    """A battery run as a case of `robocup-mcl tune` (`mcl.tuning`): the run of `family` and `seed`, `duration`
+    seconds long, localized with a parameter set as the battery localizes it (game events included)."""
+
+    family: str
+    seed: int
+    duration: float = 60.0
+
+    @property
+    def label(self) -> str:
+        """"family/seed"."""
+        return f"{self.family}/{self.seed}"
+
+    def evaluate(self, values: dict, seed: int, particles: int = 500) -> dict:
+        """The figures of the parameter set `values` ({"section.setting": value}) with filter seed `seed`:
+        "log_evidence", "evidence_frames" and the truth's (`mcl.tuning.truth_figures`)."""
+        from mcl.tuning import truth_figures
+
+        run = _simulated(self.family, self.seed, float(self.duration))
+        out = localize(run, particles, profile=Profile.from_values(values), filter_seed=seed)
+        return {"log_evidence": float(out["log_evidence"]), "evidence_frames": int(out["evidence_frames"]),
+                "truth": truth_figures(run.times, run.truth, out["estimates"], out["quality"], out["lost"],
+                                       run.windows)}
 
 
 def _jsonable(value):
@@ -143,11 +185,12 @@ def _jsonable(value):
 
 
 def run_case(family: str, seed: int, duration: float = 60.0, particles: int = 500, prior: dict | None = None,
-             quality: dict | None = None, view: bool = False, sensor: dict | None = None) -> dict:
+             quality: dict | None = None, view: bool = False, sensor: dict | None = None,
+             profile: Profile | None = None, filter_seed: int | None = None) -> dict:
     """Simulate one run, localize it, and return its figures (JSON-ready; "never" is None). view: pass each
-    frame's camera view to `observe` (`camera_view`)."""
+    frame's camera view to `observe` (`camera_view`); profile, filter_seed: as `localize`."""
     run = simulate(family, seed, duration)
-    out = localize(run, particles, prior, quality, view, sensor)
+    out = localize(run, particles, prior, quality, view, sensor, profile, filter_seed)
     figures = evaluate(run.times, run.truth, out["estimates"], out["quality"], out["lost"], run.windows)
     heading = figures.pop("rmse_heading_rad")
     figures["rmse_heading_deg"] = None if heading is None else math.degrees(heading)
@@ -155,7 +198,9 @@ def run_case(family: str, seed: int, duration: float = 60.0, particles: int = 50
     figures["kidnap_log_odds"] = kidnap_mirror_log_odds(run.field, event)
     figures.update({"family": family, "seed": seed, "field": run.field.name, "event": event["type"],
                     "excess_m": event.get("excess"), "windows": run.windows, "frames": len(run.frames),
-                    "dropped_frames": out["dropped_frames"], "loop_s": out["loop_s"], "params": run.params})
+                    "dropped_frames": out["dropped_frames"], "loop_s": out["loop_s"],
+                    "log_evidence": out["log_evidence"], "evidence_frames": out["evidence_frames"],
+                    "params": run.params})
     return _jsonable(figures)
 
 
@@ -261,9 +306,9 @@ def _pooled_lines(p: dict) -> list[str]:
 
 def run_battery(families, splits, k: int, duration: float = 60.0, particles: int = 500, jobs: int = 2,
                 progress: bool = False, prior: dict | None = None, quality: dict | None = None,
-                view: bool = False, sensor: dict | None = None) -> dict:
+                view: bool = False, sensor: dict | None = None, profile: Profile | None = None) -> dict:
     """Run every family × split × seed; returns the results (JSON-ready): per split, per family, the runs
-    (sorted by seed) and their summary, and the overall pooled figures. view: as `run_case`."""
+    (sorted by seed) and their summary, and the overall pooled figures. view, profile: as `run_case`."""
     cases = [(split, family, seed) for split in splits for seed in split_seeds(split, k) for family in families]
     from mcl.cli_checks import progress_bar
 
@@ -279,16 +324,17 @@ def run_battery(families, splits, k: int, duration: float = 60.0, particles: int
 
     if jobs <= 1:
         for case in cases:
-            keep(case, run_case(case[1], case[2], duration, particles, prior, quality, view, sensor))
+            keep(case, run_case(case[1], case[2], duration, particles, prior, quality, view, sensor, profile))
     else:
         with ProcessPoolExecutor(max_workers=jobs, mp_context=get_context("spawn")) as pool:
-            futures = {pool.submit(run_case, family, seed, duration, particles, prior, quality, view, sensor):
+            futures = {pool.submit(run_case, family, seed, duration, particles, prior, quality, view, sensor, profile):
                        (split, family, seed) for split, family, seed in cases}
             for future in as_completed(futures):
                 keep(futures[future], future.result())
     bar.close()
     out: dict = {"particles": particles, "duration_s": duration, "seeds_per_family": k, "jobs": jobs,
                  "variant": {"prior": dict(prior or {}), "quality": dict(quality or {}), "sensor": dict(sensor or {})},
+                 "profile": None if profile is None else {"source": profile.source, "values": profile.values()},
                  "view": bool(view),
                  "splits": {}}
     for split in splits:
@@ -312,6 +358,9 @@ def format_report(results: dict) -> str:
         variant = results.get("variant") or {}
         changed = [f"{name}={value}" for group in ("prior", "quality", "sensor")
                    for name, value in variant.get(group, {}).items()]
+        profile = results.get("profile")
+        if profile:
+            changed = [f"profile {profile['source'] or '(unnamed)'}"] + changed
         setting = f"VARIANT ({', '.join(changed)})" if changed else "Localizer defaults"
         setting += ", frames with their camera view" if results.get("view") else ", detections only (no view)"
         lines.append(f"split {split}: seeds {seeds[0]}–{seeds[-1]} per family, {results['particles']} particles, "
@@ -327,15 +376,6 @@ def format_report(results: dict) -> str:
     lines.append(f"total time {results['elapsed_s']:.1f} s ({results['jobs']} jobs)")
     return "\n".join(lines)
 
-
-def _positive_int(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not an integer") from None
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"{value} must be at least 1")
-    return value
 
 
 def headline(results: dict, split: str) -> dict:
@@ -422,17 +462,17 @@ PROG = "robocup-mcl eval"
 
 def build_parser(prog: str = PROG) -> argparse.ArgumentParser:
     """The command's argument parser, named `prog` in its usage line."""
-    from mcl.cli_checks import add_progress_option, description
+    from mcl.cli_checks import add_progress_option, description, positive_int
 
     parser = argparse.ArgumentParser(prog=prog, description=description(__doc__))
     parser.add_argument("--families", default=",".join(FAMILIES),
                         help=f"comma-separated, from: {', '.join(FAMILIES)} (default: all)")
     parser.add_argument("--split", default="holdout", choices=("train", "holdout", "both"),
                         help="training seeds 0..K-1, held-out seeds 1000..1000+K-1, or both (default holdout)")
-    parser.add_argument("--seeds", type=_positive_int, default=10, help="seeds per family and split (default 10)")
+    parser.add_argument("--seeds", type=positive_int, default=10, help="seeds per family and split (default 10)")
     parser.add_argument("--duration", type=float, default=60.0, help="seconds per run (default 60, at least 10)")
-    parser.add_argument("--particles", type=_positive_int, default=500, help="particles (default 500)")
-    parser.add_argument("--jobs", type=_positive_int, default=2, help="worker processes (default 2)")
+    parser.add_argument("--particles", type=positive_int, default=500, help="particles (default 500)")
+    parser.add_argument("--jobs", type=positive_int, default=2, help="worker processes (default 2)")
     parser.add_argument("--progress", action="store_true", help="progress bar on stderr even when it is not a terminal (not with --json or --no-progress)")
     parser.add_argument("--prior", action="append", default=[], metavar="NAME=VALUE",
                         help="a variant: set a field of mcl.relocalization.RelocalizationPrior (repeatable)")
@@ -440,6 +480,8 @@ def build_parser(prog: str = PROG) -> argparse.ArgumentParser:
                         help="a variant: set a field of mcl.localizer.QualityThresholds (repeatable)")
     parser.add_argument("--sensor", action="append", default=[], metavar="NAME=VALUE",
                         help="a variant: set a number of sensing.LandmarkSensorModel (repeatable)")
+    parser.add_argument("--profile", metavar="TOML",
+                        help="the localizer's settings from a profile file (mcl.profile; `robocup-mcl tune` writes them)")
     parser.add_argument("--view", action="store_true",
                         help="pass each frame's camera view (head pan, field of view, ranges) to observe()")
     parser.add_argument("--compare", nargs=2, metavar=("BASE", "CURRENT"),
@@ -487,6 +529,14 @@ def main(argv: list[str] | None = None, prog: str = PROG) -> int:
     quality = _overrides(parser, "--quality", args.quality, QualityThresholds)
     sensor = _overrides(parser, "--sensor", args.sensor, LandmarkSensorModel,
                         lambda **values: LandmarkSensorModel(spl(), **values))
+    profile = None
+    if args.profile:
+        try:
+            profile = Profile.load(args.profile)
+        except OSError as error:
+            parser.error(f"--profile {args.profile}: {error.strerror or error}")
+        except ValueError as error:
+            parser.error(f"--profile {error}")
     splits = list(SPLITS) if args.split == "both" else [args.split]
     progress = progress_wanted(args, force=args.progress)
     # Compile (or load) the kernels here, once, before the workers start: the first run on a machine says so
@@ -495,7 +545,8 @@ def main(argv: list[str] | None = None, prog: str = PROG) -> int:
     from .walk_sim import WalkScenario
     warm = warm_up_walk(WalkScenario(), "velocity-linear", view=args.view, progress=progress)
     results = run_battery(families, splits, args.seeds, args.duration, args.particles, args.jobs,
-                          progress=progress, prior=prior, quality=quality, view=args.view, sensor=sensor)
+                          progress=progress, prior=prior, quality=quality, view=args.view, sensor=sensor,
+                          profile=profile)
     results.update(warm.as_dict())
     text = json.dumps(results, indent=2)
     save_json(args.save, results)

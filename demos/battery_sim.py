@@ -45,6 +45,7 @@ import numpy as np
 
 from field import Field, LandmarkType, preset
 from field.angles import wrap_angles
+from mcl.logs import RobotLog, VisionFrame
 from sensing.observations import Observations
 
 FAMILIES = ("tracking", "kidnap", "kidnap_special", "kidnap_announced", "collision", "fall", "false_bursts",
@@ -567,8 +568,10 @@ def _calls_and_windows(plan: dict) -> tuple[tuple[Call, ...], tuple[tuple[float,
     return (), ((t0, float(plan["end"])),)          # blackout
 
 
-def simulate(family: str, seed: int, duration: float = 60.0) -> BatteryRun:
-    """One run of `family` with `seed` (an int >= 0), `duration` seconds long (at least 5 s)."""
+def simulate(family: str, seed: int, duration: float = 60.0, overrides: dict | None = None) -> BatteryRun:
+    """One run of `family` with `seed` (an int >= 0), `duration` seconds long (at least 5 s). `overrides`
+    replaces drawn parameters (keys of `params`, e.g. {"odometry_scale": [1.2, 1.2, 1.2]}) after they are
+    drawn, so everything else the seed draws stays the same."""
     code = family_code(family)
     if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
         raise ValueError(f"seed = {seed!r} must be an integer >= 0")
@@ -579,6 +582,10 @@ def simulate(family: str, seed: int, duration: float = 60.0) -> BatteryRun:
     field = field_for(seed)
     n_steps = int(round(duration / DT))
     p = _draw_parameters(rng, field)
+    unknown = sorted(set(overrides or {}) - set(p))
+    if unknown:
+        raise ValueError(f"overrides: {', '.join(unknown)} are not drawn parameters; known: {', '.join(p)}")
+    p.update(overrides or {})
     start = _start_pose(rng, field, family, seed)
     plan = _plan_event(rng, family, seed, duration, n_steps)
     truth, body, walking, moving = _walk(rng, field, p, plan, start, n_steps)
@@ -595,3 +602,21 @@ def simulate(family: str, seed: int, duration: float = 60.0) -> BatteryRun:
               "start": [float(v) for v in start], **p, "event": plan}
     return BatteryRun(family, seed, field, DT, (np.arange(n_steps) + 1) * DT, start, truth[1:], body, odometry,
                       walking, moving, frames, calls, windows, params)
+
+
+def as_robot_log(run: BatteryRun) -> RobotLog:
+    """The run as a robot would log it (`mcl.logs.RobotLog`): the odometry as cumulative poses in the odom
+    frame (one message per step, starting at t = 0), each camera frame with its capture stamp and arrival time,
+    and the truth per step. Game events (`run.calls`) are not part of a log: a replay starts anywhere in the own
+    half, as the battery does, and knows nothing of them."""
+    n = run.odometry.shape[0]
+    poses = np.zeros((n + 1, 3))
+    x = y = theta = 0.0
+    for k, (dx, dy, dtheta) in enumerate(run.odometry.tolist()):
+        c, s = math.cos(theta), math.sin(theta)
+        x, y, theta = x + c * dx - s * dy, y + s * dx + c * dy, theta + dtheta
+        poses[k + 1] = (x, y, theta)
+    poses[:, 2] = wrap_angles(poses[:, 2])
+    times = np.concatenate([[0.0], run.times])
+    vision = tuple(VisionFrame(f.capture_time, f.arrival_time, f.observations) for f in run.frames)
+    return RobotLog(odometry_times=times, odometry=poses, vision=vision, truth_times=run.times, truth=run.truth)

@@ -15,6 +15,8 @@
     robocup-mcl eval [--families ...] [--split train|holdout|both] [--json] [--save PATH]   # the scenario battery
     robocup-mcl soak [--minutes 60] [--particles 500] [--seed S] [--json] [--save PATH]  # an hour in the loop
     robocup-mcl fit adaptive|ekf|odometry [...] [--json] [--save PATH]   # a model's parameters from training logs
+    robocup-mcl tune LOGS... --space SPACE.toml --trials N [--address A] [--out PROFILE.toml] [--json]
+                                                      # the localizer's settings from a team's logs (Ray, Optuna)
     robocup-mcl --version                             # the installed version
     robocup-mcl COMMAND --help                        # every option of a command, each with its help
 
@@ -56,12 +58,14 @@ DEMOS = {
     "odometry": ("demos.odometry", "learned footstep odometry (Rouxel et al.): drift of raw vs LWPR-corrected steps"),
     "latency": ("demos.latency", "a late camera (80 ms): tracking with and without latency compensation"),
     "penalty": ("demos.penalty", "returning from a penalty on an unknown touchline: convergence, mirror share"),
+    "venue": ("demos.venue", "logs of a new venue (odometry and detection noise 20 % off the defaults) to tune on"),
 }
 BENCHES = {
     "step": ("benchmarks.bench", "one full filter step per particle count, numba versus plain numpy"),
     "lwpr": ("demos.lwpr_cross", "LWPR on the cross benchmark: accuracy, receptive fields, speed"),
     "replay": ("demos.replay_speed", "a 10-minute MCAP log replayed, in multiples of real time"),
     "compare": ("benchmarks.compare", "this checkout's speed against another revision's, in alternated runs"),
+    "tune": ("benchmarks.tune_scaling", "robocup-mcl tune with 1 and 2 Ray workers, Ray's cost per task, cluster projection"),
 }
 FITS = {
     "adaptive": ("demos.fit_adaptive", "the adaptive motion model's collision terms (beta) from training logs"),
@@ -122,7 +126,8 @@ def commands() -> dict[str, str]:
     table.update({f"{PROGRAM} bench {name}": module for name, (module, _) in BENCHES.items()})
     table.update({f"{PROGRAM} fit {name}": module for name, (module, _) in FITS.items()})
     table.update({f"{PROGRAM} bench": BENCHES["step"][0], f"{PROGRAM} eval": "demos.battery",
-                  f"{PROGRAM} soak": "benchmarks.soak", f"{PROGRAM} replay": "mcl.replay"})
+                  f"{PROGRAM} soak": "benchmarks.soak", f"{PROGRAM} replay": "mcl.replay",
+                  f"{PROGRAM} tune": "demos.tune"})
     return table
 
 
@@ -188,6 +193,8 @@ def _run(argv: list[str] | None) -> int:
         return replay_main(rest, prog=f"{PROGRAM} replay")
     if command == "eval":
         return _call("demos.battery", rest, f"{PROGRAM} eval")
+    if command == "tune":
+        return _call("demos.tune", rest, f"{PROGRAM} tune")
     if command == "soak":
         return _call("benchmarks.soak", rest, f"{PROGRAM} soak")
     if command == "bench":

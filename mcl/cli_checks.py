@@ -134,6 +134,19 @@ def add_progress_option(parser) -> None:
     parser.add_argument("--no-progress", action="store_true", help=NO_PROGRESS_HELP)
 
 
+def positive_int(text: str) -> int:
+    """An argparse type: an integer >= 1 (argparse reports anything else as a usage error)."""
+    import argparse
+
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not an integer") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"{value} must be at least 1")
+    return value
+
+
 def add_save_option(parser) -> None:
     """Add `--save PATH` (also write the command's JSON results to PATH) to the argparse `parser`."""
     parser.add_argument("--save", metavar="PATH", help="also write the JSON results to PATH (the figures the "

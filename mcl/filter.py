@@ -155,6 +155,11 @@ class AugmentedMCL:
 class ParticleFilter(ParticleSet, BeliefSummary):
     """Monte Carlo localization: particles `poses` (N, 3) [x, y, θ] with `log_weights` (N,).
 
+    After each correction with detections, `frame_log_likelihood` is the log of the weighted average
+    likelihood of the particles that were not injected by the previous correction: the standard particle-filter
+    estimate of log p(z_t | z_1..t-1), the frame's evidence in the sensor model's units (NaN before the first
+    correction, -inf when no particle explains the frame); `frame_fit` is its per-detection geometric mean.
+
     Parameters
     ----------
     field : Field
@@ -243,6 +248,7 @@ class ParticleFilter(ParticleSet, BeliefSummary):
         self.w_slow = 0.0
         self.w_fast = 0.0
         self.frame_fit = math.nan     # the last correction's average likelihood per detection (augmented MCL)
+        self.frame_log_likelihood = math.nan   # the last correction's log weighted average particle likelihood
         self.ess = float(self._n)
         self.resampled = False        # whether the last correction resampled
         self.injected = 0             # particles injected by the last correction
@@ -616,6 +622,7 @@ class ParticleFilter(ParticleSet, BeliefSummary):
         if not valid:
             raise ValueError(_INVALID_LIKELIHOODS + "; filter left unchanged")
         terms = getattr(self.sensor_model, "terms", len)(observations)
+        self.frame_log_likelihood = native_log_average
         if terms > 0:
             self.frame_fit = math.exp(native_log_average / terms)
         self._changed()
@@ -738,6 +745,7 @@ class ParticleFilter(ParticleSet, BeliefSummary):
         if status == STEP_INVALID:
             raise ValueError(_INVALID_LIKELIHOODS + (_MOVED if move else "; filter left unchanged"))
         self._changed()
+        self.frame_log_likelihood = native_log_average
         if terms > 0:
             self.frame_fit = math.exp(native_log_average / terms)
         if status == STEP_UNEXPLAINED:

@@ -58,7 +58,7 @@ from typing import TYPE_CHECKING, Any, Iterable, Sequence
 import numpy as np
 
 from field import Field
-from field.checks import ArgumentTypeError, real
+from field.checks import ArgumentTypeError, real, reals
 from motion_models import MotionInput
 from sensing import LandmarkSensorModel
 from sensing.observations import Observations
@@ -72,6 +72,8 @@ if TYPE_CHECKING:
     from motion_models.base import MotionModel
 
     from .contracts import SensorModel
+
+MAX_ODOMETRY_SCALE = 10.0     # the largest odometry calibration factor a Localizer accepts
 
 
 class Quality(enum.Enum):
@@ -299,13 +301,26 @@ class Localizer:
         (x [m], y [m], θ [rad]) noise added by `got_up`.
     placement_sigma : sequence of float, default (0.15, 0.08, 0.15)
         (x [m], y [m], θ [rad]) spread around a placement pose (robots are placed by hand).
+    odometry_scale : sequence of float, default (1.0, 1.0, 1.0)
+        Factors (x, y, θ) applied to each motion input's odometry and walk command before the motion model: a
+        calibration of the robot's odometry on this carpet (each within (0, `MAX_ODOMETRY_SCALE`]).
     **filter_options
         Any further keyword of `ParticleFilter` (resampling, augmented, threads, ...).
 
     Raises
     ------
     ValueError
-        As `ParticleFilter`, or if a standard deviation is negative or not finite.
+        As `ParticleFilter`, or if a standard deviation is negative or not finite, or a scale out of range.
+
+    Attributes
+    ----------
+    log_evidence : float
+        The sum over the frames used so far of the frame's log evidence: the filter's
+        `frame_log_likelihood` plus the sensor model's `log_normalizer` (when it has one; else in the model's
+        own units). The standard particle-filter estimate of log p(detections | settings), which compares
+        settings on logs without ground truth (`mcl.tuning`); -inf once a frame explains nothing.
+    evidence_frames : int
+        How many frames it sums.
     """
 
     def __init__(self, field: Field, motion_model: MotionModel | None = None,
@@ -313,7 +328,12 @@ class Localizer:
                  history: float = 1.0, compensate_latency: bool = True,
                  quality: QualityThresholds = QualityThresholds(),
                  getup_sigma: Sequence[float] | np.ndarray = (0.15, 0.15, 0.5),
-                 placement_sigma: Sequence[float] | np.ndarray = (0.15, 0.08, 0.15), **filter_options: Any) -> None:
+                 placement_sigma: Sequence[float] | np.ndarray = (0.15, 0.08, 0.15),
+                 odometry_scale: Sequence[float] | np.ndarray = (1.0, 1.0, 1.0), **filter_options: Any) -> None:
+        scale = reals("odometry_scale", odometry_scale, 3)
+        if not all(0.0 < v <= MAX_ODOMETRY_SCALE for v in scale):
+            raise ValueError(f"odometry_scale = {tuple(scale.tolist())!r}: each factor must lie in "
+                             f"(0, {MAX_ODOMETRY_SCALE:g}]")
         if motion_model is None:
             from motion_models import VelocityLinear
             motion_model = VelocityLinear()
@@ -327,6 +347,10 @@ class Localizer:
         self.thresholds = quality
         self.getup_sigma = ParticleFilter._check_sigma(getup_sigma)
         self.placement_sigma = ParticleFilter._check_sigma(placement_sigma)
+        self.odometry_scale: tuple[float, float, float] = (float(scale[0]), float(scale[1]), float(scale[2]))
+        self._scaled = self.odometry_scale != (1.0, 1.0, 1.0)
+        self.log_evidence = 0.0
+        self.evidence_frames = 0
         self.time: float | None = None
         self.is_fallen = False
         self.counts: Counter = Counter()
@@ -335,6 +359,22 @@ class Localizer:
         self._frames: deque = deque()   # (capture time, detections, explained, expected in view, seen) per frame
         self._last_explained: float | None = None   # capture time of the last frame with an explained detection
         self._walked = 0.0         # m dead-reckoned since then (since the last reset, before the first one)
+
+    @classmethod
+    def from_profile(cls, field: Field, profile: Any, **overrides: Any) -> Localizer:
+        """A localizer with the settings of `profile` (an `mcl.profile.Profile`, or the path of its TOML file),
+        then `overrides` (seed=, n_particles=, any keyword of `Localizer`) on top.
+
+        Raises
+        ------
+        mcl.profile.ProfileError
+            For a profile that is wrong (a ValueError); OSError for a file that cannot be read.
+        """
+        from .profile import Profile
+
+        if not isinstance(profile, Profile):
+            profile = Profile.load(profile)
+        return profile.localizer(field, **overrides)
 
     # -- the loop ----------------------------------------------------------------------------------------
     def motion(self, t: float, u: MotionInput) -> None:
@@ -362,6 +402,8 @@ class Localizer:
             self.counts["motion while fallen"] += 1
             self.history.record(t, u.dt, (0.0, 0.0, 0.0))
         else:
+            if self._scaled:
+                u = self._scale(u)
             displacement = u.displacement() if (u.odometry is not None or u.command is not None) else (0, 0, 0)
             self.filter.predict(u)
             self.history.record(t, u.dt, displacement)
@@ -414,10 +456,21 @@ class Localizer:
             self.counts["observation while fallen"] += 1
             return False
         self.filter.correct(observations, since=since)
+        if len(observations):
+            normalizer = getattr(self.filter.sensor_model, "log_normalizer", None)
+            self.log_evidence += self.filter.frame_log_likelihood + (normalizer(observations) if normalizer else 0.0)
+            self.evidence_frames += 1
         self._record_fit(observations, since, self.time if capture_time is None else capture_time)
         self._quality = None
         self._update_lost()
         return True
+
+    def _scale(self, u: MotionInput) -> MotionInput:
+        """`u` with its odometry and command scaled by `odometry_scale` (a ValueError if that moves too far)."""
+        sx, sy, st = self.odometry_scale
+        odometry = None if u.odometry is None else (sx * u.odometry[0], sy * u.odometry[1], st * u.odometry[2])
+        command = None if u.command is None else (sx * u.command[0], sy * u.command[1], st * u.command[2])
+        return MotionInput(u.dt, command=command, odometry=odometry, collision=u.collision, footstep=u.footstep)
 
     def pose(self) -> Estimate:
         """The estimate: pose [x, y, θ] of the dominant cluster, its covariance and weight."""

@@ -111,6 +111,11 @@ class ReplayResult:
         Wall-clock time of the replay [s].
     log_duration : float
         Length of the log [s].
+    log_evidence : float
+        The localizer's `log_evidence` over the frames used (its estimate of how probable the detections are
+        under its settings; `mcl.tuning`), summed over `evidence_frames` frames.
+    evidence_frames : int
+        How many frames it sums.
     """
 
     times: np.ndarray
@@ -126,6 +131,8 @@ class ReplayResult:
     frames_used: int = 0
     elapsed: float = 0.0
     log_duration: float = 0.0
+    log_evidence: float = 0.0
+    evidence_frames: int = 0
 
     @property
     def has_truth(self) -> np.ndarray:
@@ -151,7 +158,9 @@ class ReplayResult:
                "real_time_factor": self.log_duration / self.elapsed if self.elapsed > 0 else None,
                "quality_share": {q.value: float(np.mean(self.quality == code)) if steps else 0.0
                                  for q, code in QUALITY_CODES.items()},
-               "lost_share": float(np.mean(self.lost)) if steps else 0.0}
+               "lost_share": float(np.mean(self.lost)) if steps else 0.0,
+               "log_evidence_per_frame": (self.log_evidence / self.evidence_frames
+                                          if self.evidence_frames and math.isfinite(self.log_evidence) else None)}
         has_truth = self.has_truth
         if has_truth.any():
             position, heading = self.position_errors[has_truth], self.heading_errors[has_truth]
@@ -394,6 +403,7 @@ def replay(log: RobotLog, field: Field, model: str = "velocity-linear", particle
             notes.append(text)
         elif len(notes) == MAX_NOTES:
             notes.append("(further notes left out)")
+    evidence_before, frames_before = localizer.log_evidence, localizer.evidence_frames
     started = time.perf_counter()
     try:
         for k in range(m):
@@ -443,8 +453,8 @@ def replay(log: RobotLog, field: Field, model: str = "velocity-linear", particle
     if next_frame < len(frames):
         dropped["camera frame after the last motion step"] = len(frames) - next_frame
     return ReplayResult(times, estimates, covariances, weights, quality, lost, entropy, truth, dropped, notes,
-                        frames_used,
-                        elapsed, log.duration)
+                        frames_used, elapsed, log.duration, localizer.log_evidence - evidence_before,
+                        localizer.evidence_frames - frames_before)
 
 
 def _start(localizer: Localizer, start: str | Sequence[float] | np.ndarray) -> None:
@@ -572,15 +582,19 @@ def build_parser(prog: str = PROG) -> argparse.ArgumentParser:
     parser.add_argument("--list", action="store_true", help="list the log's topics (MCAP) and stop")
     parser.add_argument("--field", default="spl",
                         help="spl, kidsize, adultsize, or a field file (.toml/.json) (default spl)")
-    parser.add_argument("--model", choices=sorted(MODELS), default="velocity-linear",
-                        help="the motion model (default velocity-linear)")
-    parser.add_argument("--particles", type=int, default=500, help="particles (default 500)")
+    parser.add_argument("--model", choices=sorted(MODELS), default=None,
+                        help="the motion model (default velocity-linear; not with --profile, which sets it)")
+    parser.add_argument("--particles", type=int, default=None,
+                        help="particles (default 500, or the profile's)")
+    parser.add_argument("--profile", metavar="TOML",
+                        help="the localizer's settings from a profile (mcl.profile; `robocup-mcl tune` writes "
+                             "them); --particles, --seed, --history and --no-latency given here win over it")
     parser.add_argument("--seed", type=int, default=0, help="seed of the filter (default 0)")
     parser.add_argument("--start", default="own_half",
                         help=f"initial belief: {', '.join(STARTS)}, or a pose x,y,theta (default own_half)")
     parser.add_argument("--no-latency", action="store_true",
                         help="score camera frames as if current (default: at their capture time)")
-    parser.add_argument("--history", type=float, default=1.0,
+    parser.add_argument("--history", type=float, default=None,
                         help="seconds of motion kept for late frames (default 1)")
     parser.add_argument("--gap", type=float, default=1.0, help="report gaps longer than this [s] (default 1)")
     parser.add_argument("--rrd", help="write a Rerun recording here")
@@ -689,7 +703,7 @@ def main(argv: list[str] | None = None, prog: str = PROG) -> int:
 
     parser = build_parser(prog)
     args = parser.parse_args(argv)
-    if args.particles <= 0:
+    if args.particles is not None and args.particles <= 0:
         parser.error(f"--particles {args.particles} must be > 0")
     try:
         if args.list:
@@ -715,10 +729,26 @@ def main(argv: list[str] | None = None, prog: str = PROG) -> int:
         check_inputs(log, report, topics)
         progress = (args.progress != "off" and
                     progress_wanted(args, force=args.progress == "on", no_progress=args.no_progress))
-        warm = warm_up_replay(log, field, args.model, not args.no_latency, args.history, progress)
-        result = replay(log, field, model=args.model, particles=args.particles, seed=args.seed,
-                        compensate_latency=not args.no_latency, history=args.history, start=start, rrd=args.rrd,
-                        poses_out=args.out, progress=progress)
+        history = 1.0 if args.history is None else args.history
+        model = args.model or "velocity-linear"
+        localizer = None
+        if args.profile:
+            from .profile import Profile
+
+            if args.model is not None:
+                raise CommandError("--model and --profile: the profile sets the motion model (its [motion])")
+            overrides: dict = {"seed": args.seed}
+            if args.particles is not None:
+                overrides["n_particles"] = args.particles
+            if args.history is not None:
+                overrides["history"] = args.history
+            if args.no_latency:
+                overrides["compensate_latency"] = False
+            localizer = Localizer.from_profile(field, Profile.load(args.profile), **overrides)
+        warm = warm_up_replay(log, field, model, not args.no_latency, history, progress)
+        result = replay(log, field, model=model, particles=args.particles or 500, seed=args.seed,
+                        compensate_latency=not args.no_latency, history=history, start=start, rrd=args.rrd,
+                        poses_out=args.out, progress=progress, localizer=localizer)
     except (ValueError, OSError) as error:
         print(f"robocup-mcl replay: {one_line(error)}", file=sys.stderr)
         return 1

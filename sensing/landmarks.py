@@ -1126,6 +1126,47 @@ class LandmarkSensorModel:
         """
         return len(observations)
 
+    def log_normalizer(self, observations: Observations) -> float:
+        """The log of the constant that turns this frame's likelihood (`log_likelihood`, relative: a perfect
+        match scores 1 per detection) into a density over the detections' ranges [m] and bearings [rad].
+
+        Per detection j, with σ_r and σ_b its noise at the observed range: the range term's Gaussian constant
+        −log(√(2π)·σ_r), the bearing term's −log(2π·I0(κ)·e^(−κ)) with κ = 1/σ_b² ("von_mises") or
+        −log(√(2π)·σ_b) ("exact"), and the outlier floor read as a uniform density over every bearing and the
+        ranges up to the carpet's diagonal (A = 2π·diagonal): the frame's density is the relative likelihood
+        times Π_j c_j / (1 + c_j·outlier_weight·A). Exact for one candidate landmark of the type and the "sum"
+        mixture; an upper bound of the mass otherwise. The frame's evidence under the filter (the log of the
+        weighted average particle likelihood) plus this constant is comparable between sensor settings, which
+        `mcl.localizer.Localizer.log_evidence` sums. Negative information (a frame's view) is not included.
+
+        Parameters
+        ----------
+        observations : Observations
+            One frame's detections (coerced by `Observations.coerce`).
+
+        Returns
+        -------
+        float
+            The constant's log (0.0 for a frame without detections).
+        """
+        from scipy.special import i0e
+
+        observations = Observations.coerce(observations)
+        self.check(observations)
+        if len(observations) == 0:
+            return 0.0
+        range_sigmas, bearing_sigmas = self._sigmas(observations)
+        if self.bearing_model == "von_mises":
+            kappa = 1.0 / bearing_sigmas ** 2
+            log_bearing = -np.log(TWO_PI * i0e(kappa))
+        else:
+            log_bearing = -np.log(math.sqrt(TWO_PI) * bearing_sigmas)
+        log_c = -np.log(math.sqrt(TWO_PI) * range_sigmas) + log_bearing
+        dims = self.field.dims
+        diagonal = math.hypot(dims.length + 2 * dims.border_strip_width, dims.width + 2 * dims.border_strip_width)
+        log_outlier_mass = math.log(self.outlier_weight * TWO_PI * diagonal)
+        return float(np.sum(log_c - np.logaddexp(0.0, log_c + log_outlier_mass)))
+
     def _sigmas(self, observations: Observations) -> tuple[np.ndarray, np.ndarray]:
         range_sigmas = np.where(np.isnan(observations.range_sigmas), self.range_sigma(observations.ranges),
                                 observations.range_sigmas)
