@@ -14,9 +14,10 @@ overhead share is (sum of round trips − sum of inside times) / sum of inside t
 
 The projection to a cluster: a trial is `tasks_per_trial` tasks (cases × filter seeds) of about `task_s`
 seconds each; on C cores with B trials in flight (`--parallel-trials`, B = max(1, C // tasks_per_trial)), a
-round of B trials takes ceil(B·tasks_per_trial / C) waves of task_s·(1 + overhead), so trials per hour ≈
-3600·B / (waves·task_s·(1 + overhead)). It leaves out the sampler's own time (milliseconds per trial for
-TPE at these sizes) and a cluster's network.
+round of B trials takes ceil(B·tasks_per_trial / C) waves of task_s·(1 + overhead), plus what a round costs beyond its tasks
+(`driver_s_per_trial`: measured on the 2-worker instance as its seconds per trial less its waves of tasks; the
+sampler, the journal, gathering the results, the last wave's stragglers), so trials per hour ≈
+3600·B / (waves·task_s·(1 + overhead) + driver_s). It leaves out a cluster's network.
 """
 from __future__ import annotations
 
@@ -88,13 +89,22 @@ def overhead(settings, tasks: int) -> dict:
             "overhead_s": (sum(trips) - sum(inside)) / tasks, "overhead_share": share}
 
 
-def projection(tasks_per_trial: int, task_s: float, overhead_share: float) -> dict:
-    """Trials per hour on clusters of `CORES` cores (the module docstring's formula)."""
+def driver_seconds(measured: dict, tasks_per_trial: int, overhead_share: float) -> float:
+    """What a trial costs beyond its tasks on the 2-worker instance: its measured seconds per trial less its
+    waves of tasks (the sampler, the journal, gathering the results, the last wave's stragglers)."""
+    waves = math.ceil(tasks_per_trial / measured["workers"])
+    per_trial = measured["seconds"] / measured["trials"]
+    return max(0.0, per_trial - waves * measured["task_s_median"] * (1.0 + overhead_share))
+
+
+def projection(tasks_per_trial: int, task_s: float, overhead_share: float, driver_s: float = 0.0) -> dict:
+    """Trials per hour on clusters of `CORES` cores (the module docstring's formula, plus `driver_s` per
+    round of trials)."""
     out = {}
     for cores in CORES:
         batch = max(1, cores // tasks_per_trial)
         waves = math.ceil(batch * tasks_per_trial / cores)
-        hours = waves * task_s * (1.0 + overhead_share) / 3600.0
+        hours = (waves * task_s * (1.0 + overhead_share) + driver_s) / 3600.0
         out[str(cores)] = {"parallel_trials": batch, "waves_per_round": waves, "trials_per_hour": batch / hours,
                            "hours_for_100_trials": 100 * hours / batch}
     return out
@@ -117,7 +127,9 @@ def run(trials: int = 6, battery: int = 2, duration: float = 30.0, particles: in
             "machine_cores": os.cpu_count(), "one_worker": one, "two_workers": two,
             "speedup": two["trials_per_hour"] / one["trials_per_hour"],
             "same_study": one["values"] == two["values"], "overhead": cost,
-            "projection": projection(tasks_per_trial, two["task_s_median"], cost["overhead_share"]),
+            "driver_s_per_trial": driver_seconds(two, tasks_per_trial, cost["overhead_share"]),
+            "projection": projection(tasks_per_trial, two["task_s_median"], cost["overhead_share"],
+                                     driver_seconds(two, tasks_per_trial, cost["overhead_share"])),
             **warm.as_dict()}
 
 
@@ -135,6 +147,8 @@ def format_report(r: dict) -> str:
     lines.append(f"Ray per task ({o['tasks']} tasks one at a time): round trip {o['round_trip_s'] * 1000:.1f} ms, "
                  f"inside {o['inside_s'] * 1000:.1f} ms, overhead {o['overhead_s'] * 1000:.1f} ms = "
                  f"{100 * o['overhead_share']:.1f} % of the task")
+    lines.append(f"beyond its tasks, a trial costs {r['driver_s_per_trial']:.2f} s (sampler, journal, gathering, "
+                 "stragglers)")
     for cores, p in r["projection"].items():
         lines.append(f"projected on {cores} cores: {p['parallel_trials']} trial(s) in flight, "
                      f"{p['trials_per_hour']:.0f} trials per hour, 100 trials in {p['hours_for_100_trials'] * 60:.1f} min")

@@ -12,7 +12,8 @@ rate, all drawn per run from the battery's ranges), with these drawn parameters 
   range σ = a + c·r² with its a and c, bearing σ its bearing_sigma), read from the library at run time.
 So with the defaults (1.2 and 1.2) the venue is 20 % off the defaults in both. The logs are written with
 `mcl.logs.write_log` (columnar .npz) and carry the truth, which `robocup-mcl tune --objective evidence` does
-not read; the report uses it to say how far off each profile is. Log i is the battery's run of seed first + i.
+not read; the report uses it to say how far off each profile is. Log i (venue-00i.npz) is the battery's run of
+seed first + 3·i: with `--first` a multiple of 3 every log is on the SPL field (a venue has one field).
 """
 from __future__ import annotations
 
@@ -21,6 +22,7 @@ import math
 import os
 
 PROG = "robocup-mcl demo venue"
+STRIDE = 3          # the battery's field cycles with the seed (FIELDS[seed % 3]): one field per venue
 
 
 def venue_overrides(scale: float, noise: float) -> dict:
@@ -47,15 +49,16 @@ def write_venue(out: str, logs: int = 12, first: int = 0, duration: float = 60.0
     files, fields = [], []
     bar = progress_bar(enabled=progress, total=logs, desc="venue", unit="log")
     for i in range(logs):
-        run = simulate("tracking", first + i, duration, overrides)
-        path = os.path.join(out, f"venue-{first + i:03d}.npz")
+        seed = first + STRIDE * i
+        run = simulate("tracking", seed, duration, overrides)
+        path = os.path.join(out, f"venue-{i:03d}.npz")
         write_log(as_robot_log(run), path)
         files.append(path)
         fields.append(run.field.name)
         bar.update(1)
     bar.close()
     return {"files": files, "fields": fields, "overrides": overrides, "scale": scale, "noise": noise,
-            "duration_s": duration, "seeds": list(range(first, first + logs))}
+            "duration_s": duration, "seeds": [first + STRIDE * i for i in range(logs)]}
 
 
 def build_parser(prog: str = PROG) -> argparse.ArgumentParser:
@@ -96,8 +99,9 @@ def main(argv: list[str] | None = None, prog: str = PROG) -> int:
                          progress_wanted(args))
 
     def printer(r: dict) -> None:
-        print(f"{len(r['files'])} logs of {r['duration_s']:g} s written to {args.out} (odometry ×{r['scale']:g}, "
-              f"detection noise ×{r['noise']:g} the defaults): {', '.join(os.path.basename(f) for f in r['files'])}")
+        print(f"{len(r['files'])} logs of {r['duration_s']:g} s on the {', '.join(sorted(set(r['fields'])))} field "
+              f"written to {args.out} (odometry ×{r['scale']:g}, detection noise ×{r['noise']:g} the defaults): "
+              f"{', '.join(os.path.basename(f) for f in r['files'])}")
 
     save_and_print(result, args.save, args.json, printer)
     return 0

@@ -169,9 +169,67 @@ def recording_size() -> str:
     return "\n".join(rows)
 
 
+def _figure(value, kind: str) -> str:
+    if value is None:
+        return "–"
+    return {"share": f"{100 * value:.1f} %", "m": f"{value:.3f}", "count": f"{value}", "loss": f"{value:.4f}",
+            "evidence": f"{value:.3f}"}[kind]
+
+
+TUNING_ROWS = (("fail share (mean over runs)", "fail_share", "share"), ("RMSE position [m]", "rmse_position_m", "m"),
+               ("SUPERB wrong", "superb_wrong", "share"), ("runs that never re-converged", "never", "count"),
+               ("truth loss (the objective)", "truth_loss", "loss"),
+               ("log evidence per frame", "evidence_per_frame", "evidence"))
+
+
+def _tuning_table(name: str) -> str:
+    """Defaults against the tuned profile, on the training and the held-out cases of a tune results file."""
+    comparison = _load(name)["comparison"]
+    rows = ["| | training, defaults | training, tuned | held-out, defaults | held-out, tuned |", "|---|---|---|---|---|"]
+    for label, key, kind in TUNING_ROWS:
+        cells = [_figure(comparison[split][which].get(key), kind) for split in ("training", "holdout")
+                 for which in ("default", "tuned")]
+        rows.append(f"| {label} | " + " | ".join(cells) + " |")
+    return "\n".join(rows)
+
+
+def tuning_battery() -> str:
+    """`robocup-mcl tune --battery` (results/tune_battery.json)."""
+    return _tuning_table("tune_battery.json")
+
+
+def tuning_battery_8() -> str:
+    """`robocup-mcl tune --battery 8` (results/tune_battery_8.json)."""
+    return _tuning_table("tune_battery_8.json")
+
+
+def tuning_venue() -> str:
+    """The venue's logs tuned by their evidence (results/tune_venue.json)."""
+    return _tuning_table("tune_venue.json")
+
+
+def tuning_scaling() -> str:
+    """`robocup-mcl bench tune` (results/tune_scaling.json)."""
+    r = _load("tune_scaling.json")
+    one, two, o = r["one_worker"], r["two_workers"], r["overhead"]
+    rows = ["| figure | measured |", "|---|---|",
+            f"| trials per hour, 1 worker | {one['trials_per_hour']:.0f} |",
+            f"| trials per hour, 2 workers | {two['trials_per_hour']:.0f} |",
+            f"| speed-up | {r['speedup']:.2f}× (the same trials and values: {r['same_study']}) |",
+            f"| tasks per trial (the task graph) | {r['tasks_per_trial']} |",
+            f"| a task, median | {two['task_s_median']:.2f} s |",
+            f"| Ray's overhead per task | {1000 * o['overhead_s']:.1f} ms = {100 * o['overhead_share']:.1f} % of the task |"]
+    for cores, p in r["projection"].items():
+        rows.append(f"| projected, {cores} cores ({p['parallel_trials']} trial(s) in flight) | "
+                    f"{p['trials_per_hour']:.0f} trials per hour; 100 trials in {60 * p['hours_for_100_trials']:.1f} min |")
+    return "\n".join(rows)
+
+
 TABLES = {"battery-families": battery_families, "battery-quality": battery_quality,
           "recording-size": recording_size, "battery-targets": battery_targets,
-          "fuzz-targets": fuzz_targets, "soak-minutes": soak_minutes}
+          "fuzz-targets": fuzz_targets, "soak-minutes": soak_minutes, "tuning-battery": tuning_battery,
+          "tuning-battery-8": tuning_battery_8,
+          "tuning-venue": tuning_venue, "tuning-scaling": tuning_scaling}
 MARKER = re.compile(r"^<!-- results-table: ([\w-]+) -->$", flags=re.M)
 
 

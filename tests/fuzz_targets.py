@@ -421,6 +421,12 @@ def _valid_files() -> dict:
         inputs = rng.uniform(-0.05, 0.05, (80, 9))
         odometry = LearnedFootstepOdometry.train(inputs, inputs[:, :3] * 1.1, "online")
         odometry.save(os.path.join(tmp, "odometry"))
+        from mcl.profile import Profile
+        Profile.from_values({"sensor.outlier_weight": 0.02, "odometry.scale_x": 1.1, "localizer.particles": 300,
+                             "motion.beta1": 2.0, "quality.superb_fit": 0.6}).save(os.path.join(tmp, "profile.toml"))
+        with open(os.path.join(tmp, "space.toml"), "w", encoding="utf-8") as handle:
+            handle.write('[sensor]\noutlier_weight = { low = 0.001, high = 0.1, log = true }\n'
+                         'mixture = { choices = ["max", "sum"] }\n[localizer]\nparticles = { low = 100, high = 900 }\n')
         from mcl.logs import write_log
         log = _small_log()
         write_log(log, os.path.join(tmp, "log.mcap"))
@@ -461,6 +467,14 @@ def _load(name: str, path: str):
 
     if name.startswith("field"):
         return load_field(path)
+    if name == "profile.toml":
+        from mcl.profile import Profile
+        profile = Profile.load(path)
+        profile.localizer_options(FIELDS["spl"])
+        return profile
+    if name == "space.toml":
+        from mcl.tuning.space import SearchSpace
+        return SearchSpace.load(path)
     if name.startswith("log") or name.startswith("csv/"):
         from mcl.logs import read_log
         from mcl.logs.mcap_io import list_topics
@@ -485,8 +499,9 @@ def _load(name: str, path: str):
 
 @given(data=st.data())
 def fuzz_loaders(data):
-    """Field files, LWPR models, collision references and learned odometry: valid files with bytes flipped,
-    cut, inserted or replaced, read by their loaders: a loaded object that works, or a ValueError/TypeError."""
+    """Field files, LWPR models, collision references, learned odometry, profiles and tuning spaces: valid files
+    with bytes flipped, cut, inserted or replaced, read by their loaders: a loaded object that works, or a
+    ValueError/TypeError."""
     _fuzz_files(data, "loaders", [name for name in _valid_files() if not _is_log(name)])
 
 

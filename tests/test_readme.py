@@ -105,6 +105,14 @@ def test_the_readme_headline_figures_are_those_of_the_results_files():
     row = _headline("robot loop")
     assert f"without detections {loop['frame_us']:.1f} µs" in row and f"detections {loop['correct_list_us']:.1f} µs" in row
 
+    row = _headline("tuned on the battery")
+    for name, words in (("tune_battery_8.json", "fail share {:.1f} → {:.1f} %"), ("tune_battery.json", "({:.1f} → {:.1f} %)")):
+        held = _results(name)["comparison"]["holdout"]
+        assert words.format(100 * held["default"]["fail_share"], 100 * held["tuned"]["fail_share"]) in row
+    held = _results("tune_battery_8.json")["comparison"]["holdout"]
+    assert f"RMSE {held['default']['rmse_position_m']:.3f} → {held['tuned']['rmse_position_m']:.3f} m" in row
+    assert f"never re-converge {held['default']['never']} → {held['tuned']['never']} of 90" in row
+
     mismatch = _results("collision_mismatch.json")["mismatch"]
     single = mismatch["containment"]["single"]
     baseline = f"velocity-linear x{mismatch['baseline_widen']['containment']:g}"
