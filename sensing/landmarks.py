@@ -54,6 +54,7 @@ The kernels that take a batch of detections take their arguments in groups (tupl
 """
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 from dataclasses import field as dataclass_field
@@ -785,6 +786,20 @@ def add_missed_in_view(poses, landmarks, batch, noise, gate, view, log_miss, out
     return out
 
 
+_LOG_SQRT_TWO_PI_INV = -0.5 * math.log(TWO_PI)
+
+
+@functools.lru_cache(maxsize=256)
+def _log_bearing_constant(bearing_model: str, sigma: float) -> float:
+    """log of the bearing term's normalizing constant at σ_b = `sigma` (`LandmarkSensorModel.log_normalizer`):
+    −log(2π·I0(κ)·e^(−κ)) with κ = 1/σ² for "von_mises", −log(√(2π)·σ) for "exact"."""
+    if bearing_model == "von_mises":
+        from scipy.special import i0e
+
+        return -math.log(TWO_PI * float(i0e(1.0 / (sigma * sigma))))
+    return _LOG_SQRT_TWO_PI_INV - math.log(sigma)
+
+
 @dataclass(frozen=True, eq=False)
 class LandmarkSensorModel:
     """Range-bearing landmark likelihood for a field. Frozen; parameters in SI units.
@@ -1149,23 +1164,25 @@ class LandmarkSensorModel:
         float
             The constant's log (0.0 for a frame without detections).
         """
-        from scipy.special import i0e
-
         observations = Observations.coerce(observations)
         self.check(observations)
         if len(observations) == 0:
             return 0.0
-        range_sigmas, bearing_sigmas = self._sigmas(observations)
-        if self.bearing_model == "von_mises":
-            kappa = 1.0 / bearing_sigmas ** 2
-            log_bearing = -np.log(TWO_PI * i0e(kappa))
-        else:
-            log_bearing = -np.log(math.sqrt(TWO_PI) * bearing_sigmas)
-        log_c = -np.log(math.sqrt(TWO_PI) * range_sigmas) + log_bearing
+        # Per detection in plain Python (a frame holds a few): this runs in the robot's loop, on every frame.
         dims = self.field.dims
         diagonal = math.hypot(dims.length + 2 * dims.border_strip_width, dims.width + 2 * dims.border_strip_width)
         log_outlier_mass = math.log(self.outlier_weight * TWO_PI * diagonal)
-        return float(np.sum(log_c - np.logaddexp(0.0, log_c + log_outlier_mass)))
+        growth = self._range_noise_growth()
+        total = 0.0
+        for r, given_r, given_b in zip(observations.ranges.tolist(), observations.range_sigmas.tolist(),
+                                       observations.bearing_sigmas.tolist()):
+            range_sigma = given_r if given_r == given_r else range_noise_sigma(r, self.range_noise_floor, growth)
+            bearing_sigma = given_b if given_b == given_b else self.bearing_sigma
+            log_c = (_LOG_SQRT_TWO_PI_INV - math.log(range_sigma)
+                     + _log_bearing_constant(self.bearing_model, bearing_sigma))
+            x = log_c + log_outlier_mass          # log(c·outlier_weight·A); log(1 + e^x) without overflow
+            total += log_c - (x + math.log1p(math.exp(-x)) if x > 0 else math.log1p(math.exp(x)))
+        return total
 
     def _sigmas(self, observations: Observations) -> tuple[np.ndarray, np.ndarray]:
         range_sigmas = np.where(np.isnan(observations.range_sigmas), self.range_sigma(observations.ranges),

@@ -189,3 +189,29 @@ def test_evidence_prefers_the_noise_the_detections_have():
                                                  np.angle(np.exp(1j * b[near]))))
         evidence[sigma] = loc.log_evidence
     assert evidence[0.2] > evidence[0.02] and evidence[0.2] > evidence[1.0]
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.lists(st.tuples(st.floats(0.1, 12.0), st.one_of(st.none(), st.floats(0.01, 2.0)),
+                          st.one_of(st.none(), st.floats(0.005, 3.0))), min_size=1, max_size=8),
+       st.sampled_from(["von_mises", "exact"]), st.floats(1e-6, 1.0), st.floats(0.0, 0.3))
+def test_log_normalizer_is_its_formula(rows, bearing_model, outlier_weight, linear):
+    """The per-detection loop against the formula in numpy (scipy's i0e), with and without the detections' own
+    noise figures."""
+    from scipy.special import i0e
+
+    model = LandmarkSensorModel(FIELD, bearing_model=bearing_model, outlier_weight=outlier_weight,
+                                range_noise_linear=linear)
+    ranges = np.array([r for r, _, _ in rows])
+    range_sigmas = np.array([np.nan if s is None else s for _, s, _ in rows])
+    bearing_sigmas = np.array([np.nan if s is None else s for _, _, s in rows])
+    obs = Observations.from_arrays(np.full(len(rows), int(LandmarkType.GOALPOST)), ranges, np.zeros(len(rows)),
+                                   range_sigmas=range_sigmas, bearing_sigmas=bearing_sigmas)
+    sr = np.where(np.isnan(range_sigmas), model.range_sigma(ranges), range_sigmas)
+    sb = np.where(np.isnan(bearing_sigmas), model.bearing_sigma, bearing_sigmas)
+    log_b = -np.log(2 * np.pi * i0e(1 / sb ** 2)) if bearing_model == "von_mises" else -np.log(np.sqrt(2 * np.pi) * sb)
+    log_c = -np.log(np.sqrt(2 * np.pi) * sr) + log_b
+    d = FIELD.dims
+    area = 2 * np.pi * np.hypot(d.length + 2 * d.border_strip_width, d.width + 2 * d.border_strip_width)
+    expected = float(np.sum(log_c - np.logaddexp(0.0, log_c + np.log(outlier_weight * area))))
+    assert model.log_normalizer(obs) == pytest.approx(expected, rel=1e-12, abs=1e-9)
