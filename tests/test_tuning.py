@@ -156,6 +156,12 @@ def test_the_same_seed_gives_the_same_study_and_it_starts_from_the_defaults(loca
     assert history(other)[1:] != history(first)[1:]
 
 
+def test_cma_es_searches_too_and_is_seeded(local_ray):
+    first = run_study(settings(trials=4, sampler="cmaes"))
+    again = run_study(settings(trials=4, sampler="cmaes"))
+    assert history(first) == history(again) and len({h[2] for h in history(first)}) == 4
+
+
 def test_an_interrupted_study_resumes_where_it_stopped(local_ray, tmp_path):
     import optuna
 
