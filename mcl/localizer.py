@@ -362,19 +362,23 @@ class Localizer:
 
     @classmethod
     def from_profile(cls, field: Field, profile: Any, **overrides: Any) -> Localizer:
-        """A localizer with the settings of `profile` (an `mcl.profile.Profile`, or the path of its TOML file),
-        then `overrides` (seed=, n_particles=, any keyword of `Localizer`) on top.
+        """A localizer with the settings of `profile` (an `mcl.profile.Profile`: `Profile.load("venue.toml")`),
+        then `overrides` (seed=, n_particles=, any keyword of `Localizer`) on top. The same as
+        `profile.localizer(field, **overrides)`.
 
         Raises
         ------
-        mcl.profile.ProfileError
-            For a profile that is wrong (a ValueError); OSError for a file that cannot be read.
+        ArgumentTypeError
+            If `profile` is not a profile (a path is read by `Profile.load` first).
         """
-        from .profile import Profile
-
-        if not isinstance(profile, Profile):
-            profile = Profile.load(profile)
-        return profile.localizer(field, **overrides)
+        build = getattr(profile, "localizer", None)
+        if not callable(build):
+            raise ArgumentTypeError(f"profile = {profile!r} must be an mcl.profile.Profile "
+                                    "(read a file with mcl.profile.Profile.load)")
+        localizer = build(field, **overrides)
+        if not isinstance(localizer, cls):
+            raise ArgumentTypeError(f"profile = {profile!r} did not build a {cls.__name__}")
+        return localizer
 
     # -- the loop ----------------------------------------------------------------------------------------
     def motion(self, t: float, u: MotionInput) -> None:

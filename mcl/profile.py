@@ -6,7 +6,7 @@ per venue, carpet or robot.
     from mcl.profile import Profile
 
     profile = Profile.load("venue.toml")
-    loc = Localizer.from_profile(spl(), profile, seed=0)      # or Localizer.from_profile(spl(), "venue.toml")
+    loc = Localizer.from_profile(spl(), profile, seed=0)      # the same as profile.localizer(spl(), seed=0)
     profile.with_values({"sensor.outlier_weight": 0.02}).save("venue-2.toml")
 
 or from the shell: `robocup-mcl replay game.mcap --profile venue.toml`, `robocup-mcl eval --profile venue.toml`.

@@ -744,7 +744,7 @@ def main(argv: list[str] | None = None, prog: str = PROG) -> int:
                 overrides["history"] = args.history
             if args.no_latency:
                 overrides["compensate_latency"] = False
-            localizer = Localizer.from_profile(field, Profile.load(args.profile), **overrides)
+            localizer = Profile.load(args.profile).localizer(field, **overrides)
         warm = warm_up_replay(log, field, model, not args.no_latency, history, progress)
         result = replay(log, field, model=model, particles=args.particles or 500, seed=args.seed,
                         compensate_latency=not args.no_latency, history=history, start=start, rrd=args.rrd,

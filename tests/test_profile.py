@@ -50,7 +50,7 @@ def test_profile_sets_what_it_names_and_keeps_the_rest(tmp_path):
     Profile.from_values({"sensor.outlier_weight": 0.02, "odometry.scale_x": 1.2, "motion.beta1": 2.5,
                          "localizer.particles": 123, "augmented.fit_threshold": 0.1,
                          "relocalization.kidnap_share": 0.2, "quality.superb_fit": 0.6}).save(path)
-    loc = Localizer.from_profile(FIELD, str(path), seed=4)
+    loc = Localizer.from_profile(FIELD, Profile.load(path), seed=4)
     assert loc.filter.sensor_model.outlier_weight == 0.02
     assert loc.filter.sensor_model.range_noise_floor == LandmarkSensorModel(FIELD).range_noise_floor
     assert loc.odometry_scale == (1.2, 1.0, 1.0)
@@ -59,7 +59,9 @@ def test_profile_sets_what_it_names_and_keeps_the_rest(tmp_path):
     assert loc.filter.augmented.fit_threshold == 0.1
     assert loc.thresholds.superb_fit == 0.6
     # an override wins over the profile
-    assert Localizer.from_profile(FIELD, str(path), n_particles=50).filter.poses.shape[0] == 50
+    assert Localizer.from_profile(FIELD, Profile.load(path), n_particles=50).filter.poses.shape[0] == 50
+    with pytest.raises(TypeError, match="Profile.load"):
+        Localizer.from_profile(FIELD, str(path))
 
 
 def test_an_empty_profile_is_the_defaults_bit_for_bit():
