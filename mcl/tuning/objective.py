@@ -135,10 +135,12 @@ def combine(objective: str, results: Sequence[dict]) -> float:
 
 
 def summary(results: Sequence[dict]) -> dict:
-    """Pooled figures of several results: the mean log evidence per frame and, where every result has truth,
+    """Pooled figures of several results: the mean log evidence per frame (None when a frame was explained by no
+    particle: -inf) and, where every result has truth,
     the mean fail share, RMSE, SUPERB-wrong share, runs that never re-converged and the truth loss."""
     frames = sum(r["evidence_frames"] for r in results)
-    out: dict = {"evidence_per_frame": sum(r["log_evidence"] for r in results) / frames if frames else None,
+    evidence = sum(r["log_evidence"] for r in results)
+    out: dict = {"evidence_per_frame": evidence / frames if frames and math.isfinite(evidence) else None,
                  "frames": frames}
     if results and all(r["truth"] is not None for r in results):
         t = [r["truth"] for r in results]

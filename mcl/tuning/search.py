@@ -38,6 +38,7 @@ from typing import Any, Callable, Sequence
 
 import numpy as np
 
+from ..cli_checks import CommandError
 from ..profile import Profile, ProfileError, default_values
 from .objective import OBJECTIVES, combine, evaluate_case, summary
 from .space import SearchSpace
@@ -49,9 +50,10 @@ MAX_RETRIES = 3
 _WORKER = {"tasks": 0}
 
 
-class TuneError(RuntimeError):
-    """A study that cannot run as asked (one line): an unreachable cluster, a study file made for other settings,
-    every trial refused."""
+class TuneError(CommandError):
+    """A study that cannot run as asked (one line; a `mcl.cli_checks.CommandError`, so the command prints it as
+    `robocup-mcl: <message>` and exits 1): an unreachable cluster, a study file made for other settings, every
+    trial refused."""
 
 
 @dataclass(frozen=True)
