@@ -162,6 +162,13 @@ def test_cma_es_searches_too_and_is_seeded(local_ray):
     assert history(first) == history(again) and len({h[2] for h in history(first)}) == 4
 
 
+def test_parallel_trials_complete_the_count_and_are_seeded(local_ray):
+    first = run_study(settings(trials=5, parallel_trials=2))
+    again = run_study(settings(trials=5, parallel_trials=2))
+    assert len(first.trials) == 5 and history(first) == history(again)
+    assert first.tasks.costs()["tasks"] == 5 * len(CASES)
+
+
 def test_an_interrupted_study_resumes_where_it_stopped(local_ray, tmp_path):
     import optuna
 
@@ -223,6 +230,20 @@ def test_the_command_tunes_logs_writes_a_profile_that_replay_and_eval_load(logs,
                                 "--json"], capture_output=True, text=True, timeout=600)
     assert evaluated.returncode == 0, evaluated.stderr
     assert json.loads(evaluated.stdout)["profile"]["values"] == result["best"]["values"]
+
+
+def test_the_command_tunes_on_the_battery_and_reports_held_out_seeds(tmp_path):
+    space = tmp_path / "space.toml"
+    space.write_text(SPACE)
+    done = run_command("--battery", "1", "--battery-holdout", "1", "--families", "tracking,fall", "--duration", "10",
+                       "--space", str(space), "--trials", "2", "--workers", "2", "--particles", "100", "--json")
+    assert done.returncode == 0, done.stderr
+    result = json.loads(done.stdout)
+    assert result["settings"]["objective"] == "truth"
+    assert result["settings"]["cases"] == ["tracking/0", "fall/0"]
+    assert result["settings"]["holdout"] == ["tracking/1000", "fall/1000"]
+    assert [row["case"] for row in result["comparison"]["holdout"]["per_case"]] == ["tracking/1000", "fall/1000"]
+    assert result["ray"]["cpus"] == 2 and result["ray"]["first_task_s"] is not None
 
 
 @pytest.mark.parametrize("case", ["missing log", "bad space", "missing space", "unreachable", "no logs",
