@@ -30,7 +30,6 @@ import argparse
 import math
 
 PROG = "robocup-mcl tune"
-FIELDS = ("spl", "kidsize", "adultsize")
 
 
 
@@ -64,7 +63,8 @@ def build_parser(prog: str = PROG) -> argparse.ArgumentParser:
                         help="CPUs of the local Ray instance (default: the machine's)")
     parser.add_argument("--parallel-trials", type=positive_int, default=1,
                         help="trials proposed and evaluated at once (default 1)")
-    parser.add_argument("--field", default="spl", choices=FIELDS, help="the logs' field (default spl)")
+    parser.add_argument("--field", default="spl",
+                        help="the logs' field: spl, kidsize, adultsize, or a field file (.toml/.json) (default spl)")
     parser.add_argument("--particles", type=positive_int, default=500, help="particles (default 500)")
     parser.add_argument("--json", action="store_true", help="the results as JSON on stdout instead of the report")
     add_save_option(parser)
@@ -99,6 +99,9 @@ def _cases(parser, args):
         return train, held, True
     if not args.logs:
         parser.error("give training LOGs, or --battery K")
+    from field.io import field_by_name_or_path
+
+    field_by_name_or_path(args.field)          # an unknown preset or a bad field file: one line, before Ray starts
     truth = True
     for group in (args.logs, args.holdout):
         for path in group:
@@ -125,11 +128,11 @@ def _warm_up(cases, field: str, progress: bool) -> None:
 
         warm_up_walk(WalkScenario(), "velocity-linear", progress=progress)
         return
-    from field import preset
+    from field.io import field_by_name_or_path
     from mcl.logs import read_log
     from mcl.replay import warm_up_replay
 
-    warm_up_replay(read_log(case.path)[0], preset(field), "velocity-linear", progress=progress)
+    warm_up_replay(read_log(case.path)[0], field_by_name_or_path(field), "velocity-linear", progress=progress)
 
 
 def run(args, parser) -> dict:

@@ -118,6 +118,16 @@ def test_a_log_case_gives_evidence_and_truth_figures_and_the_battery_case_agrees
     assert battery["truth"]["reconverge_s"] is None and battery["evidence_frames"] > 0
 
 
+def test_a_log_case_takes_a_field_file(logs, tmp_path):
+    from field import save_field, spl
+
+    path = tmp_path / "ours.toml"
+    save_field(spl(), str(path))
+    from_file = evaluate_case(LogCase(logs[0], str(path)), {}, seed=0, particles=100)
+    from_preset = evaluate_case(LogCase(logs[0], "spl"), {}, seed=0, particles=100)
+    assert from_file["log_evidence"] == from_preset["log_evidence"]
+
+
 def test_the_evidence_objective_never_reads_the_truth(logs):
     values = {"sensor.range_noise_floor": 0.08}
     with_truth = evaluate_case(LogCase(logs[1]), values, seed=1, particles=100)
@@ -247,7 +257,7 @@ def test_the_command_tunes_on_the_battery_and_reports_held_out_seeds(tmp_path):
 
 
 @pytest.mark.parametrize("case", ["missing log", "bad space", "missing space", "unreachable", "no logs",
-                                  "truth without truth", "bad profile out"])
+                                  "truth without truth", "bad profile out", "unknown field"])
 def test_the_command_fails_in_one_line(case, logs, tmp_path):
     space = tmp_path / "space.toml"
     space.write_text(SPACE)
@@ -260,6 +270,7 @@ def test_the_command_fails_in_one_line(case, logs, tmp_path):
             "no logs": ["--space", str(space)],
             "truth without truth": [logs[2], "--space", str(space), "--objective", "truth"],
             "bad profile out": [logs[0], "--space", str(space), "--out", str(space / "p.toml")],
+            "unknown field": [logs[0], "--space", str(space), "--field", "spll"],
             }[case]
     done = run_command(*args, "--trials", "1")
     assert done.returncode in (1, 2), done.stderr
@@ -268,5 +279,5 @@ def test_the_command_fails_in_one_line(case, logs, tmp_path):
     assert "Traceback" not in done.stderr and "internal error" not in done.stderr
     words = {"missing log": "nope.mcap", "bad space": "must be below", "missing space": "none.toml",
              "unreachable": "cannot reach the Ray cluster at 127.0.0.1:1", "no logs": "give training LOG",
-             "truth without truth": "needs ground truth", "bad profile out": "--out"}[case]
+             "truth without truth": "needs ground truth", "bad profile out": "--out", "unknown field": "spll"}[case]
     assert words in done.stderr

@@ -43,8 +43,8 @@ RECONVERGE_WEIGHT = 0.25       # the loss of a run that never re-converges, in f
 
 @dataclass(frozen=True)
 class LogCase:
-    """A log file to replay (`mcl.logs.read_log` reads it in each worker, once), on the field `field`
-    (a preset name), starting anywhere in the own half.
+    """A log file to replay (`mcl.logs.read_log` reads it in each worker, once), on the field `field` (a preset
+    name or a field file, `field.io.field_by_name_or_path`), starting anywhere in the own half.
 
     A case is anything with a `label` (for tables) and `evaluate(values, seed, particles) -> dict` that gives
     `evaluate_case`'s figures; it is pickled to the workers. The evaluation battery's scenarios are cases too
@@ -60,13 +60,13 @@ class LogCase:
 
     def evaluate(self, values: Mapping[str, Any], seed: int, particles: int = 500) -> dict:
         """The figures of the parameter set `values` on this log (see `evaluate_case`)."""
-        from field import preset
+        from field.io import field_by_name_or_path
 
         from ..profile import Profile
         from ..replay import replay
 
         log = _read(self.path)
-        field = preset(self.field)
+        field = field_by_name_or_path(self.field)
         localizer = Profile.from_values(values).localizer(field, seed=seed, n_particles=particles)
         result = replay(log, field, localizer=localizer)
         truth = None
