@@ -18,7 +18,7 @@ from field import LandmarkType, preset
 from fuzzing import (attempt, check_estimate, check_filter, junk, number_or_junk, numbers, record_case, sane,
                      triples)
 from mcl import AugmentedMCL, Grid, ParticleFilter
-from mcl.localizer import Localizer, QualityThresholds
+from mcl.localizer import Localizer
 from motion_models import AdaptiveMotion, ConstantNoise, MotionInput, VelocityLinear
 from sensing import CombinedSensorModel, LandmarkObservation, LandmarkSensorModel, LineSensorModel, Observations
 from sensing.view import CameraView
