@@ -3,7 +3,7 @@
     robocup-mcl tune LOGS... --space SPACE.toml --trials N [--holdout LOG...] [--objective auto|truth|evidence]
                      [--seeds 1] [--sampler tpe|cmaes] [--seed 0] [--study FILE] [--out PROFILE.toml]
                      [--plots DIR] [--address HOST:PORT] [--workers W] [--parallel-trials B]
-                     [--field spl] [--particles 500] [--json] [--save PATH]
+                     [--field spl|FILE] [--particles 500] [--topic-odometry T ...] [--json] [--save PATH]
     robocup-mcl tune --battery K --space SPACE.toml --trials N ...   # the evaluation battery's scenarios
 
 The command over the library `mcl.tuning`. Searches the settings a space file names (`mcl.tuning.space`) for the ones that localize the training logs
@@ -36,6 +36,7 @@ PROG = "robocup-mcl tune"
 def build_parser(prog: str = PROG) -> argparse.ArgumentParser:
     """The command's argument parser, named `prog` in its usage line."""
     from mcl.cli_checks import add_progress_option, add_save_option, description, positive_int
+    from mcl.replay import add_topic_options
 
     parser = argparse.ArgumentParser(prog=prog, description=description(__doc__))
     parser.add_argument("logs", nargs="*", metavar="LOG", help="training logs (MCAP, .npz or a CSV folder)")
@@ -69,6 +70,7 @@ def build_parser(prog: str = PROG) -> argparse.ArgumentParser:
     parser.add_argument("--json", action="store_true", help="the results as JSON on stdout instead of the report")
     add_save_option(parser)
     add_progress_option(parser)
+    add_topic_options(parser)
     return parser
 
 
@@ -76,7 +78,7 @@ def _cases(parser, args):
     """(training cases, held-out cases, whether every training case has truth); logs are read here, so a
     missing or unreadable log is refused before Ray starts."""
     from mcl.logs import read_log
-    from mcl.replay import check_inputs
+    from mcl.replay import check_inputs, topics_from_args
     from mcl.tuning import LogCase
 
     from .battery import FAMILIES, BatteryCase, split_seeds
@@ -103,17 +105,18 @@ def _cases(parser, args):
 
     field_by_name_or_path(args.field)          # an unknown preset or a bad field file: one line, before Ray starts
     truth = True
+    topics = topics_from_args(args)
     for group in (args.logs, args.holdout):
         for path in group:
             try:
-                log, _ = read_log(path)
+                log, _ = read_log(path, topics=topics)
             except OSError as error:
                 raise OSError(error.errno, f"log {path}: {error.strerror or error}") from None
             check_inputs(log)
             if group is args.logs:
                 truth = truth and log.has_truth
-    return (tuple(LogCase(p, args.field) for p in args.logs), tuple(LogCase(p, args.field) for p in args.holdout),
-            truth)
+    return (tuple(LogCase(p, args.field, topics) for p in args.logs),
+            tuple(LogCase(p, args.field, topics) for p in args.holdout), truth)
 
 
 def _warm_up(cases, field: str, progress: bool) -> None:
@@ -132,7 +135,8 @@ def _warm_up(cases, field: str, progress: bool) -> None:
     from mcl.logs import read_log
     from mcl.replay import warm_up_replay
 
-    warm_up_replay(read_log(case.path)[0], field_by_name_or_path(field), "velocity-linear", progress=progress)
+    warm_up_replay(read_log(case.path, topics=case.topics)[0], field_by_name_or_path(field), "velocity-linear",
+                   progress=progress)
 
 
 def run(args, parser) -> dict:

@@ -570,10 +570,8 @@ def build_parser(prog: str = PROG) -> argparse.ArgumentParser:
         The parser of `robocup-mcl replay`'s arguments.
     """
     import argparse
-    from dataclasses import fields
 
     from .cli_checks import NO_PROGRESS_HELP
-    from .logs.mcap_io import DISCOVERY_TYPES, Topics
 
     parser = argparse.ArgumentParser(
         prog=prog, description="Replay a robot's log (ROS 2 MCAP, .npz, or a CSV folder) through the filter: "
@@ -604,6 +602,17 @@ def build_parser(prog: str = PROG) -> argparse.ArgumentParser:
     parser.add_argument("--progress", choices=("auto", "on", "off"), default="auto",
                         help="progress bar on stderr (auto: when stderr is a terminal and without --json)")
     parser.add_argument("--no-progress", action="store_true", help=NO_PROGRESS_HELP + "; as --progress off")
+    add_topic_options(parser)
+    return parser
+
+
+def add_topic_options(parser: argparse.ArgumentParser) -> None:
+    """Add `--topic-<stream>` for each stream an MCAP log is read from (`mcl.logs.mcap_io.Topics`) to `parser`;
+    `topics_from_args` reads them back."""
+    from dataclasses import fields
+
+    from .logs.mcap_io import DISCOVERY_TYPES, Topics
+
     defaults = Topics()
     for f in fields(Topics):
         if f.name != "pose_out":
@@ -611,7 +620,17 @@ def build_parser(prog: str = PROG) -> argparse.ArgumentParser:
             parser.add_argument(f"--topic-{f.name.replace('_', '-')}", dest=f"topic_{f.name}",
                                 help=f"topic of the {f.name.replace('_', ' ')} (default {getattr(defaults, f.name)}"
                                      f"{found}; '' reads none)")
-    return parser
+
+
+def topics_from_args(args: argparse.Namespace) -> Topics | None:
+    """The `Topics` the `--topic-*` options of `add_topic_options` name; None when none was given."""
+    from dataclasses import fields
+
+    from .logs.mcap_io import Topics
+
+    given = {f.name: getattr(args, f"topic_{f.name}") for f in fields(Topics)
+             if f.name != "pose_out" and getattr(args, f"topic_{f.name}", None) is not None}
+    return Topics(**given) if given else None
 
 
 def warm_up_replay(log: RobotLog, field: Field, model: str, compensate_latency: bool = True,
@@ -695,11 +714,10 @@ def main(argv: list[str] | None = None, prog: str = PROG) -> int:
         malformed command line exits with status 2 (argparse's `SystemExit`).
     """
     import json
-    from dataclasses import fields
 
     from .cli_checks import CommandError, check_output_file, one_line, progress_wanted
     from .logs import read_log
-    from .logs.mcap_io import Topics, list_topics
+    from .logs.mcap_io import list_topics
 
     parser = build_parser(prog)
     args = parser.parse_args(argv)
@@ -715,9 +733,7 @@ def main(argv: list[str] | None = None, prog: str = PROG) -> int:
                 for row in rows:
                     print(f"{row['topic']:<32} {row['type']:<48} {row['count']:>8} messages")
             return 0
-        given = {f.name: getattr(args, f"topic_{f.name}") for f in fields(Topics)
-                 if f.name != "pose_out" and getattr(args, f"topic_{f.name}") is not None}
-        topics = Topics(**given) if given else None
+        topics = topics_from_args(args)
         field = _field(args.field)
         start = _parse_start(args.start)
         # Outputs checked before the log is read and replayed (a long log takes minutes): mcl.cli_checks.

@@ -256,6 +256,22 @@ def test_the_command_tunes_on_the_battery_and_reports_held_out_seeds(tmp_path):
     assert result["ray"]["cpus"] == 2 and result["ray"]["first_task_s"] is not None
 
 
+def test_the_command_reads_an_mcap_log_by_the_topics_given(logs, tmp_path):
+    from mcl.logs import read_log
+    from mcl.logs.mcap_io import Topics
+
+    log, _ = read_log(logs[0])
+    mcap = tmp_path / "game.mcap"
+    write_log(log, mcap, topics=Topics(odometry="/team/odom"))
+    space = tmp_path / "space.toml"
+    space.write_text(SPACE)
+    common = [str(mcap), "--space", str(space), "--trials", "1", "--workers", "1", "--particles", "50"]
+    done = run_command(*common, "--topic-odometry", "/team/odom", "--json")
+    assert done.returncode == 0, done.stderr
+    missing = run_command(*common, "--topic-odometry", "/not/there")
+    assert missing.returncode == 1 and "/not/there" in missing.stderr and len(missing.stderr.strip().splitlines()) == 1
+
+
 @pytest.mark.parametrize("case", ["missing log", "bad space", "missing space", "unreachable", "no logs",
                                   "truth without truth", "bad profile out", "unknown field"])
 def test_the_command_fails_in_one_line(case, logs, tmp_path):

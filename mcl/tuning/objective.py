@@ -44,7 +44,8 @@ RECONVERGE_WEIGHT = 0.25       # the loss of a run that never re-converges, in f
 @dataclass(frozen=True)
 class LogCase:
     """A log file to replay (`mcl.logs.read_log` reads it in each worker, once), on the field `field` (a preset
-    name or a field file, `field.io.field_by_name_or_path`), starting anywhere in the own half.
+    name or a field file, `field.io.field_by_name_or_path`), starting anywhere in the own half. `topics`: the
+    MCAP log's topics (`mcl.logs.mcap_io.Topics`; None: the defaults and discovery, as `read_log`).
 
     A case is anything with a `label` (for tables) and `evaluate(values, seed, particles) -> dict` that gives
     `evaluate_case`'s figures; it is pickled to the workers. The evaluation battery's scenarios are cases too
@@ -52,6 +53,7 @@ class LogCase:
 
     path: str
     field: str = "spl"
+    topics: Any = None
 
     @property
     def label(self) -> str:
@@ -65,7 +67,7 @@ class LogCase:
         from ..profile import Profile
         from ..replay import replay
 
-        log = _read(self.path)
+        log = _read(self.path, self.topics)
         field = field_by_name_or_path(self.field)
         localizer = Profile.from_values(values).localizer(field, seed=seed, n_particles=particles)
         result = replay(log, field, localizer=localizer)
@@ -80,11 +82,11 @@ class LogCase:
 
 
 @functools.lru_cache(maxsize=64)
-def _read(path: str):
+def _read(path: str, topics: Any = None):
     """A log, read once per process (the workers of a study read each log once)."""
     from ..logs import read_log
 
-    return read_log(path)[0]
+    return read_log(path, topics=topics)[0]
 
 
 def truth_figures(times, truth, estimates, quality_codes, lost, windows=()) -> dict:
