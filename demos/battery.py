@@ -460,6 +460,17 @@ def _overrides(parser, option: str, items: list[str], kind, build=None) -> dict:
 PROG = "robocup-mcl eval"
 
 
+def parse_families(parser: argparse.ArgumentParser, text: str) -> list[str]:
+    """The families of a comma-separated `--families` value, each once, in the order given; `parser.error`
+    (exit 2) for an unknown one or none."""
+    families = [f.strip() for f in text.split(",") if f.strip()]
+    unknown = [f for f in families if f not in FAMILIES]
+    if not families or unknown:
+        parser.error(f"--families: unknown {', '.join(map(repr, unknown)) or 'empty list'}; "
+                     f"choose from {', '.join(FAMILIES)}")
+    return list(dict.fromkeys(families))
+
+
 def build_parser(prog: str = PROG) -> argparse.ArgumentParser:
     """The command's argument parser, named `prog` in its usage line."""
     from mcl.cli_checks import add_progress_option, description, positive_int
@@ -513,17 +524,11 @@ def main(argv: list[str] | None = None, prog: str = PROG) -> int:
         else:
             print(format_comparison(files[0], files[1], split, tuple(os.path.basename(p) for p in args.compare)))
         return 0
-    families = [f.strip() for f in args.families.split(",") if f.strip()]
-    unknown = [f for f in families if f not in FAMILIES]
-    if not families or unknown:
-        parser.error(f"--families: unknown {', '.join(map(repr, unknown)) or 'empty list'}; "
-                     f"choose from {', '.join(FAMILIES)}")
-    families = list(dict.fromkeys(families))
+    families = parse_families(parser, args.families)
     if args.seeds > MAX_SEEDS:
         parser.error(f"--seeds {args.seeds} must be at most {MAX_SEEDS} (training and held-out seeds stay apart)")
-    if not (math.isfinite(args.duration) and args.duration >= 10.0):
-        parser.error(f"--duration {args.duration} must be at least 10 s")
-    from mcl.cli_checks import check_output_file, progress_wanted, save_json
+    from mcl.cli_checks import check_duration, check_output_file, progress_wanted, save_json
+    check_duration(parser, args.duration, 10.0)
     check_output_file(args.save, "--save", make_parents=False)   # before the battery runs, not after it
     prior = _overrides(parser, "--prior", args.prior, RelocalizationPrior)
     quality = _overrides(parser, "--quality", args.quality, QualityThresholds)

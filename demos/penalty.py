@@ -107,12 +107,11 @@ def main(argv: list[str] | None = None, prog: str = PROG) -> int:
 
     parser = build_parser(prog)
     args = parser.parse_args(argv)
-    from mcl.cli_checks import check_output_file, save_json
+    from mcl.cli_checks import check_duration, check_output_file, save_json
     check_output_file(args.save, "--save")
     if args.particles <= 0:
         parser.error(f"--particles {args.particles} must be > 0")
-    if not (math.isfinite(args.duration) and args.duration >= 3.0):
-        parser.error(f"--duration {args.duration} must be at least 3 s")
+    check_duration(parser, args.duration, 3.0)
     try:
         seeds = parse_seeds(args.seeds)
     except ValueError:

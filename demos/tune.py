@@ -27,7 +27,6 @@ over the trials. `--json` prints everything as JSON, `--save PATH` writes it to 
 from __future__ import annotations
 
 import argparse
-import math
 
 PROG = "robocup-mcl tune"
 
@@ -81,20 +80,15 @@ def _cases(parser, args):
     from mcl.replay import check_inputs, topics_from_args
     from mcl.tuning import LogCase
 
-    from .battery import FAMILIES, BatteryCase, split_seeds
+    from mcl.cli_checks import check_duration
+
+    from .battery import FAMILIES, BatteryCase, parse_families, split_seeds
 
     if args.battery:
         if args.logs or args.holdout:
             parser.error("--battery tunes on the battery's scenarios: give no LOG and no --holdout")
-        families = list(FAMILIES)
-        if args.families:
-            families = [f.strip() for f in args.families.split(",") if f.strip()]
-            unknown = [f for f in families if f not in FAMILIES]
-            if not families or unknown:
-                parser.error(f"--families: unknown {', '.join(map(repr, unknown)) or 'empty list'}; "
-                             f"choose from {', '.join(FAMILIES)}")
-        if not (math.isfinite(args.duration) and args.duration >= 10.0):
-            parser.error(f"--duration {args.duration} must be at least 10 s")
+        families = parse_families(parser, args.families) if args.families else list(FAMILIES)
+        check_duration(parser, args.duration, 10.0)
         train = tuple(BatteryCase(f, s, args.duration) for s in split_seeds("train", args.battery) for f in families)
         held = tuple(BatteryCase(f, s, args.duration) for s in split_seeds("holdout", args.battery_holdout)
                      for f in families)

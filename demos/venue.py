@@ -81,14 +81,14 @@ def build_parser(prog: str = PROG) -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None, prog: str = PROG) -> int:
     """The command line (see the module docstring)."""
-    from mcl.cli_checks import check_output_directory, check_output_file, progress_wanted, save_and_print
+    from mcl.cli_checks import (check_duration, check_output_directory, check_output_file, progress_wanted,
+                                save_and_print)
 
     parser = build_parser(prog)
     args = parser.parse_args(argv)
     if args.first < 0:
         parser.error(f"--first {args.first} must be >= 0")
-    if not (math.isfinite(args.duration) and args.duration >= 10.0):
-        parser.error(f"--duration {args.duration} must be at least 10 s")
+    check_duration(parser, args.duration, 10.0)
     for name in ("scale", "noise"):
         value = getattr(args, name)
         if not (math.isfinite(value) and 0.1 <= value <= 10.0):

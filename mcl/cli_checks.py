@@ -17,6 +17,7 @@ creates it and removes it again.
 """
 from __future__ import annotations
 
+import math
 import os
 from collections.abc import Callable
 from pathlib import Path
@@ -145,6 +146,12 @@ def positive_int(text: str) -> int:
     if value < 1:
         raise argparse.ArgumentTypeError(f"{value} must be at least 1")
     return value
+
+
+def check_duration(parser, seconds: float, least: float) -> None:
+    """`parser.error` (a usage error, exit 2) unless `--duration` `seconds` is finite and at least `least`."""
+    if not (math.isfinite(seconds) and seconds >= least):
+        parser.error(f"--duration {seconds} must be at least {least:g} s")
 
 
 def add_save_option(parser) -> None:

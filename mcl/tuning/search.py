@@ -261,7 +261,6 @@ def run_study(settings: TuneSettings, study_path: str | None = None,
 
     started = time.perf_counter()
     study = _open_study(settings, study_path)
-    resumed = 0
     for trial in study.get_trials(deepcopy=False, states=(TrialState.RUNNING,)):
         study.tell(trial.number, state=TrialState.FAIL)       # interrupted mid-trial: asked again below
     resumed = len(study.get_trials(deepcopy=False, states=(TrialState.COMPLETE,)))
