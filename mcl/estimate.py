@@ -1,6 +1,6 @@
 """The belief's summary: the pose estimate of the dominant cluster, and grid entropy (Hoffmann eq. 27).
 
-    from mcl.estimate import cluster_estimate, grid_entropy, credible_region_contains
+    from mcl.estimate import cluster_estimate, grid_entropy, credible_region_contains, belief_log_density
 
 The field is point-symmetric, so a lost filter may hold two mirror modes; their mean is the centre of the
 field, facing nowhere. The estimate is therefore the weighted circular mean of the dominant cluster: the
@@ -13,7 +13,8 @@ H = -Σ p(sᵢ) log₂ p(sᵢ), p(sᵢ) the weight in cell i. It lies in [0, log
 particle shares one cell.
 
 `credible_region_contains` tells whether a pose lies in the smallest region holding 95 % of the belief: the
-check that the truth stays inside the particle cloud.
+check that the truth stays inside the particle cloud. `belief_log_density` is the log of the same kernel
+density at a pose, normalised: at the true pose, a score that also rewards a tight cloud.
 
 The filter fills the estimate's and the entropy's histograms in one pass and keeps them until the particles
 change (`summary_fill`, `summary_estimate`, `summary_entropy`): the results of `cluster_estimate` and
@@ -782,6 +783,38 @@ def cluster_estimate_reference(poses, weights, x_min, y_min, cell_size, nx, ny, 
     return mean, cov, float(total)
 
 
+def _belief_kde(poses, weights, pose, mass: float | None, min_bandwidth) -> tuple:
+    """The checked inputs and the kernel density both evaluations share: poses (N, 3), normalised weights (N,),
+    pose (3,) and the bandwidths (3,). Raises ValueError on shapes, a mass outside (0, 1), or weights that do
+    not sum to a positive finite number."""
+    poses = np.asarray(poses, dtype=np.float64)
+    weights = np.asarray(weights, dtype=np.float64)
+    pose = np.asarray(pose, dtype=np.float64)
+    if poses.ndim != 2 or poses.shape[1] != 3 or weights.shape != (poses.shape[0],) or pose.shape != (3,):
+        raise ValueError(f"poses (N, 3), weights (N,) and pose (3,) expected, got {poses.shape}, {weights.shape}, "
+                         f"{pose.shape}")
+    if mass is not None and not (0 < mass < 1):
+        raise ValueError(f"mass = {mass!r} must be within (0, 1)")
+    total = float(weights.sum())
+    if not (math.isfinite(total) and total > 0) or (weights < 0).any():
+        raise ValueError("weights must be >= 0 with a positive finite sum")
+    weights = weights / total
+    n_effective = 1.0 / float(np.sum(weights ** 2))
+    centre = np.array([weights @ poses[:, 0], weights @ poses[:, 1],
+                       math.atan2(weights @ np.sin(poses[:, 2]), weights @ np.cos(poses[:, 2]))])
+    residual = poses - centre
+    residual[:, 2] = wrap_angles(residual[:, 2])
+    spread = np.sqrt(weights @ residual ** 2)
+    bandwidth = np.maximum(spread * n_effective ** (-1.0 / 7.0), np.asarray(min_bandwidth))   # Scott, d = 3
+    return poses, weights, pose, bandwidth
+
+
+def _kernel_exponents(points: np.ndarray, poses: np.ndarray, bandwidth: np.ndarray) -> np.ndarray:
+    difference = points[:, None, :] - poses[None, :, :]
+    difference[..., 2] = wrap_angles(difference[..., 2])
+    return -0.5 * np.sum((difference / bandwidth) ** 2, axis=-1)
+
+
 def credible_region_contains(poses: np.ndarray, weights: np.ndarray, pose, mass: float = 0.95,
                              min_bandwidth: tuple[float, float, float] = (0.005, 0.005, 0.005)) -> bool:
     """Whether `pose` (x, y, θ) lies inside the smallest region holding `mass` of the belief.
@@ -790,32 +823,49 @@ def credible_region_contains(poses: np.ndarray, weights: np.ndarray, pose, mass:
     bandwidths by Scott's rule from the weighted spread, never below `min_bandwidth`, heading differences
     wrapped). The smallest region holding `mass` is where the density exceeds the level at which the particles
     above it hold `mass` of the weight (the highest-density region, estimated from the sample); the pose is
-    inside when its density reaches that level. O(N²): meant for evaluation, not for the robot's loop.
+    inside when its density reaches that level. The density at each particle leaves that particle's own kernel
+    out (leave-one-out), as the density at a pose that is not a particle has no such term: with it left in, the
+    level is biased up and the region from 100 particles held a pose drawn from the particles' own distribution
+    78 % of the time instead of 95 % (`tests/test_estimate.py` checks the coverage at 30, 100 and 200
+    particles). O(N²): meant for evaluation, not for the robot's loop.
     """
-    poses = np.asarray(poses, dtype=np.float64)
-    weights = np.asarray(weights, dtype=np.float64)
-    pose = np.asarray(pose, dtype=np.float64)
-    if poses.ndim != 2 or poses.shape[1] != 3 or weights.shape != (poses.shape[0],) or pose.shape != (3,):
-        raise ValueError(f"poses (N, 3), weights (N,) and pose (3,) expected, got {poses.shape}, {weights.shape}, "
-                         f"{pose.shape}")
-    if not (0 < mass < 1):
-        raise ValueError(f"mass = {mass!r} must be within (0, 1)")
-    weights = weights / weights.sum()
-    n_effective = 1.0 / float(np.sum(weights ** 2))
-    centre = np.array([weights @ poses[:, 0], weights @ poses[:, 1],
-                       math.atan2(weights @ np.sin(poses[:, 2]), weights @ np.cos(poses[:, 2]))])
-    residual = poses - centre
-    residual[:, 2] = wrap_angles(residual[:, 2])
-    spread = np.sqrt(weights @ residual ** 2)
-    bandwidth = np.maximum(spread * n_effective ** (-1.0 / 7.0), np.asarray(min_bandwidth))   # Scott, d = 3
+    poses, weights, pose, bandwidth = _belief_kde(poses, weights, pose, mass, min_bandwidth)
 
     def density(points: np.ndarray) -> np.ndarray:
-        difference = points[:, None, :] - poses[None, :, :]
-        difference[..., 2] = wrap_angles(difference[..., 2])
-        return np.exp(-0.5 * np.sum((difference / bandwidth) ** 2, axis=-1)) @ weights
+        return np.exp(_kernel_exponents(points, poses, bandwidth)) @ weights
 
     at_particles = density(poses)
+    if poses.shape[0] > 1:
+        at_particles = (at_particles - weights) / np.maximum(1.0 - weights, 1e-300)    # leave one out
     order = np.argsort(-at_particles, kind="stable")
     held = np.cumsum(weights[order])
     level = at_particles[order[min(int(np.searchsorted(held, mass)), order.size - 1)]]
     return bool(density(pose[None, :])[0] >= level)
+
+
+def belief_log_density(poses: np.ndarray, weights: np.ndarray, pose,
+                       min_bandwidth: tuple[float, float, float] = (0.005, 0.005, 0.005)) -> float:
+    """The log of the belief's density at `pose` (x, y, θ), in log(1 / (m²·rad)): the logarithmic score.
+
+    The density is the kernel density estimate of `credible_region_contains` (same bandwidths), normalised: each
+    Gaussian kernel integrates to one over the plane and the real line of headings (a kernel wider than about a
+    radian loses the mass that falls past ±π, which lowers the score of a cloud that wide). Evaluated at the true
+    pose it is a proper score: it rewards a belief that is both tight and holds the truth, where
+    `credible_region_contains` alone rewards any belief wide enough. Computed in the log domain, so it is finite
+    however far the pose lies from the particles. O(N): meant for evaluation.
+
+    Raises
+    ------
+    ValueError
+        If the shapes are not (N, 3), (N,) and (3,), the weights are negative or do not sum to a positive finite
+        number, or the pose is not finite.
+    """
+    poses, weights, pose, bandwidth = _belief_kde(poses, weights, pose, None, min_bandwidth)
+    if not np.isfinite(pose).all():
+        raise ValueError(f"pose = {pose!r} must be finite")
+    exponents = _kernel_exponents(pose[None, :], poses, bandwidth)[0]
+    with np.errstate(divide="ignore"):
+        terms = exponents + np.log(weights)
+    top = float(terms.max())
+    log_sum = top + math.log(float(np.exp(terms - top).sum()))
+    return log_sum - float(np.log(bandwidth).sum()) - 1.5 * math.log(2.0 * math.pi)

@@ -10,8 +10,8 @@
     model.state_belief(pf.motion_state, pf.weights)            # (5,): free, slippage, hindrance, pushed, stopped
 
 The effective velocity is m_eff = m + ε_odo + ε_col (Hoffmann eq. 11–13). ε_odo is the odometry error of a
-freely walking robot, eq. 10 with smaller β than `VelocityLinear` (calibrated odometry is precise as long as
-the walk is unhindered); ε_col depends on the mobility state (section 3.1):
+freely walking robot, eq. 10 with β fitted to free walking (`robocup-mcl fit adaptive`; its heading term is
+larger than `VelocityLinear`'s: a calibrated robot's turn bias); ε_col depends on the mobility state (section 3.1):
 
     free        m unchanged                                                   (ε_col = 0)
     slippage    v' = v·rand(β1, 1),  ω' = ω + β2·rand(-1, 1)                   (eq. 14–15)
@@ -43,8 +43,12 @@ Units and defaults. SI throughout: β2, β6, β7 in rad/s and β5 in m/s are rat
 8 ms are ambiguous, see `VelocityLinear`), β1, β3, β4, β_turn are shares. β1..β7 and β_turn are fitted from
 training logs (`robocup-mcl fit adaptive`, results/adaptive_fit.json, rounded to three decimals): each uniform
 range covers 95 % of the per-episode rates that motion capture measured on 40 simulated robots whose physics
-is drawn beyond these ranges; β7 = 0 because the training robots held on both sides stood still. The
-transition rates, the free-walking odometry noise and `frequent_rate` are documented settings, not fitted.
+is drawn beyond these ranges; β7 = 0 because the training robots held on both sides stood still. The same
+command fits the free-walking noise (eq. 10's β, so that over 5 s of free walking the model's 95 % interval
+holds 95 % of the training robots' errors) and the rates at which an episode ends while the percept still says
+"frequent" (maximum likelihood: ends counted over the time spent in the state; the paper's chain has no exit
+there, and the detector's window outlasts the contact by up to half a second). The other transition rates and
+`frequent_rate` are documented settings, not fitted.
 `stop_creep` > 0 is a variant (the robot walks on while it pivots about the held foot), 0 by default.
 """
 from __future__ import annotations
@@ -109,7 +113,9 @@ class MobilityTransitions:
         ("stopped", "hindrance"): 1.0, ("stopped", "free"): 5.0})
     frequent: tuple[tuple[str, str, float], ...] = _rates({
         ("free", "hindrance"): 4.0, ("free", "pushed"): 1.0, ("free", "slippage"): 1.0, ("free", "stopped"): 2.0,
-        ("slippage", "stopped"): 3.0, ("hindrance", "stopped"): 3.0, ("pushed", "stopped"): 3.0})
+        ("slippage", "stopped"): 3.0, ("hindrance", "stopped"): 3.0, ("pushed", "stopped"): 3.0,
+        # Episode ends while the percept still says "frequent" (fitted: results/adaptive_fit.json).
+        ("hindrance", "free"): 0.911, ("pushed", "free"): 2.486, ("stopped", "free"): 0.641})
 
     def __post_init__(self) -> None:
         for condition in CONDITIONS:
@@ -209,8 +215,8 @@ class AdaptiveMotion:
         Stopped: turn toward the collision, share of |v|/w (eq. 25).
     foot_separation : float, default 0.1
         w of eq. 25, the lateral distance between the feet [m], finite and > 0.
-    odometry : tuple of float, default (1.0, 0.6, 0.6, 0.6)
-        β1..β4 of eq. 10 for free walking, each in [0, `MAX_NOISE_PARAMETER`].
+    odometry : tuple of float, default (1.24, 1.23, 1.701, 1.701)
+        β1..β4 of eq. 10 for free walking, each in [0, `MAX_NOISE_PARAMETER`] (fitted at the 100 Hz loop).
     frequent_rate : float, default 0.25
         The share of the recent second with a collision that counts as "at high frequency", in (0, 1].
     transitions : MobilityTransitions, default MobilityTransitions()
@@ -237,7 +243,7 @@ class AdaptiveMotion:
     beta7: float = 0.0            # rad/s, stopped without a known side: turn rate bound (eq. 24)
     beta_turn: float = 1.204      # stopped: turn toward the collision, share of |v|/w (eq. 25)
     foot_separation: float = 0.1  # m, w of eq. 25: lateral distance between the feet
-    odometry: tuple[float, float, float, float] = (1.0, 0.6, 0.6, 0.6)   # β1..β4 of eq. 10 for free walking
+    odometry: tuple[float, float, float, float] = (1.24, 1.23, 1.701, 1.701)   # β1..β4 of eq. 10, free walking
     frequent_rate: float = 0.25   # share of the recent second with a collision that counts as "at high
                                   # frequency": a burst each step, or a quarter second of continuous contact
     transitions: MobilityTransitions = field(default_factory=MobilityTransitions)

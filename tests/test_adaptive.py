@@ -152,10 +152,12 @@ def test_transitions_follow_the_percept():
     model, t = AdaptiveMotion(), MobilityTransitions()
     quiet, collision, frequent = (t.matrix(c, 1.0) for c in CONDITIONS)
     # No collision returns toward free; a collision leads out of free into hindrance, pushed or slippage;
-    # collisions at high frequency lead into stopped and keep the robot there.
+    # collisions at high frequency lead into stopped and mostly keep the robot there (an episode may end while
+    # the percept still says "frequent", at the fitted rates: less than one in three within a second).
     assert (np.diag(quiet)[1:] < 0.1).all() and quiet[0, 0] > 0.9
     assert collision[0, 0] < 0.1 and collision[0, [SLIPPAGE, HINDRANCE, PUSHED]].min() > 0.01
-    assert frequent[STOPPED, STOPPED] == pytest.approx(1.0) and frequent[:, STOPPED].min() > 0.5
+    assert 0.7 < frequent[STOPPED, STOPPED] < 1.0 and frequent[:, STOPPED].min() > 0.5
+    assert (frequent[:, 0] < 0.3).all()
     assert model.condition(NO_COLLISION) == "quiet"
     assert model.condition(LEFT_HIT) == "collision"
     assert model.condition(CollisionPercept(left=True, s_rel_left=3.0, rate=0.6, recent_left=True)) == "frequent"

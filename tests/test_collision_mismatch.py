@@ -10,9 +10,10 @@ import numpy as np
 import pytest
 
 from demos import collision_sim
-from demos.collision_sim import (LEFT, MISMATCH_RANGES, STOPPED, CollisionEvent, CollisionScenario, draw_physics,
-                                 simulate)
-from demos.fit_adaptive import DIGITS, FITTED, FOOT_SEPARATION, episode_rates, fit_betas
+from demos.collision_sim import (FREE, LEFT, MISMATCH_RANGES, STOPPED, CollisionEvent, CollisionScenario,
+                                 draw_physics, simulate)
+from demos.fit_adaptive import (CONDITIONS, DIGITS, FITTED, FOOT_SEPARATION, ODOMETRY_SHAPE, episode_ends, episode_rates,
+                                fit, fit_betas, fit_end_rates, fit_odometry, free_walk_errors)
 from motion_models import AdaptiveMotion
 from motion_models.adaptive import MobilityTransitions
 
@@ -144,6 +145,74 @@ def test_defaults_are_the_fitted_values():
         else:
             assert getattr(model, name) == expected, name
     assert model.foot_separation == fit["foot_separation"]
+    assert model.odometry == tuple(round(b, DIGITS) for b in fit["odometry"]) == tuple(fit["odometry_default"])
+    # The episode ends of the "frequent" condition are the fitted ones; the other rates stay settings.
+    assert fit["transitions"]["condition"] == "frequent"
+    frequent = {f"{a}->{b}": rate for a, b, rate in MobilityTransitions().frequent}
+    for name, rate in fit["transitions"]["rates"].items():
+        assert frequent[name] == rate == round(fit["end_rates"]["frequent"][name.split("->")[0]], DIGITS), name
+
+
+def test_episode_end_rates_are_the_maximum_likelihood_rates_of_the_chain():
+    rng = np.random.default_rng(4)
+    dt, rate = 0.01, 0.8                       # 1/s: how fast a stop ends
+    mode, total_stopped, ends = [], 0.0, 0
+    for _ in range(300):
+        free = int(rng.integers(50, 200))
+        stopped = max(1, int(round(rng.exponential(1 / rate) / dt)))
+        mode += [FREE] * free + [STOPPED] * stopped
+        total_stopped += stopped * dt
+        ends += 1
+    mode += [FREE]
+    log = dataclasses.replace(simulate(CollisionScenario(duration=0.05), 0), mode=np.array(mode, dtype=np.int8), dt=dt)
+    percept = np.full(len(mode), 0.5)          # "frequent" throughout
+    counted, exposure = episode_ends(log, percept)
+    assert counted[CONDITIONS.index("frequent"), STOPPED] == ends
+    # The time in the state is counted frame by frame before each change: every stopped frame once.
+    assert exposure[CONDITIONS.index("frequent"), STOPPED] == pytest.approx(total_stopped)
+    fitted = fit_end_rates(counted, exposure)
+    assert fitted["frequent"]["stopped"] == pytest.approx(rate, rel=0.15)
+    assert fitted["quiet"]["stopped"] is None                  # no time there: no rate
+    # Another condition sees none of it.
+    counted, exposure = episode_ends(log, np.zeros(len(mode)))
+    assert counted[CONDITIONS.index("frequent")].sum() == 0 and counted[CONDITIONS.index("quiet"), STOPPED] == ends
+
+
+def test_fit_odometry_recovers_the_noise_of_eq_10_from_its_own_errors():
+    rng = np.random.default_rng(6)
+    dt, horizon, beta = 0.01, 5.0, (0.9, 0.5, 0.4, 0.4)
+    n = 20000
+    speed = rng.uniform(0.05, 0.3, n)
+    mix = ODOMETRY_SHAPE[2] * speed
+    gain = math.sqrt(dt * horizon / 3.0)
+    factor_theta = beta[2] / ODOMETRY_SHAPE[2]
+    errors = np.column_stack([rng.normal(0, beta[0] * speed * gain), rng.normal(0, beta[1] * speed * gain),
+                              rng.normal(0, factor_theta * mix * gain), speed, mix])
+    fitted = fit_odometry(errors, dt, horizon, coverage=0.95)
+    assert fitted[0] == pytest.approx(beta[0], rel=0.05) and fitted[1] == pytest.approx(beta[1], rel=0.05)
+    assert fitted[2] == pytest.approx(beta[2], rel=0.05) and fitted[3] == pytest.approx(beta[2], rel=0.05)
+    with pytest.raises(ValueError, match="no stretch"):
+        fit_odometry(np.empty((0, 5)), dt, horizon)
+
+
+def test_free_walk_errors_are_zero_for_a_robot_that_walks_as_requested():
+    scenario = CollisionScenario(duration=12.0, command=(0.2, 0.05, 0.3), scale_sigma=0.0, turn_bias_sigma=0.0,
+                                 step_noise=0.0)
+    log = simulate(scenario, 2)
+    errors = free_walk_errors(log, np.zeros(log.times.shape[0]), horizon=5.0)
+    assert errors.shape == (2, 5)
+    np.testing.assert_allclose(errors[:, :3], 0.0, atol=1e-9)
+    assert errors[0, 3] == pytest.approx(math.hypot(0.2, 0.05))
+    # A collision percept anywhere in a stretch leaves it out.
+    rate = np.zeros(log.times.shape[0])
+    rate[700] = 0.1
+    assert free_walk_errors(log, rate, horizon=5.0).shape == (1, 5)
+
+
+def test_a_refused_fit_says_why():
+    for horizon in (0.0, -1.0, math.nan, 1e6):
+        with pytest.raises(ValueError, match="horizon"):
+            fit([2000], minutes=0.5, horizon=horizon)
 
 
 def test_the_baseline_widenings_are_the_tuned_ones():

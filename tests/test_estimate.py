@@ -159,3 +159,86 @@ def test_fast_and_chunked_estimates_match_to_rounding(rng):
             assert c_weight == weight and np.array_equal(mean, expected[0]) and np.array_equal(cov, expected[1])
         np.testing.assert_allclose(mean, expected[0], atol=1e-12)
         assert c_weight == pytest.approx(weight, abs=1e-12)
+
+
+# -- the belief's density at a pose: the 95 % region and the log score ---------------------------------------
+def _kde_log_density_reference(poses, weights, pose):
+    """The normalised kernel density at a pose written out as a sum of Gaussians (Scott's bandwidths)."""
+    weights = weights / weights.sum()
+    n_effective = 1.0 / np.sum(weights ** 2)
+    centre = np.array([weights @ poses[:, 0], weights @ poses[:, 1],
+                       math.atan2(weights @ np.sin(poses[:, 2]), weights @ np.cos(poses[:, 2]))])
+    residual = poses - centre
+    residual[:, 2] = (residual[:, 2] + math.pi) % (2 * math.pi) - math.pi
+    bandwidth = np.maximum(np.sqrt(weights @ residual ** 2) * n_effective ** (-1 / 7), 0.005)
+    total = 0.0
+    for p, w in zip(poses, weights):
+        d = pose - p
+        d[2] = (d[2] + math.pi) % (2 * math.pi) - math.pi
+        total += w * math.exp(-0.5 * float(np.sum((d / bandwidth) ** 2))) / (
+            (2 * math.pi) ** 1.5 * float(np.prod(bandwidth)))
+    return math.log(total)
+
+
+@given(clouds)
+@settings(max_examples=30, deadline=None)
+def test_belief_log_density_is_the_normalised_kernel_density(rng):
+    from mcl.estimate import belief_log_density
+
+    n = int(rng.integers(1, 60))
+    poses = np.column_stack([rng.normal(0, rng.uniform(0.01, 1), n), rng.normal(0, rng.uniform(0.01, 1), n),
+                             rng.uniform(-math.pi, math.pi, n)])
+    weights = rng.uniform(0.01, 1, n)
+    pose = np.array([rng.normal(0, 0.5), rng.normal(0, 0.5), rng.uniform(-math.pi, math.pi)])
+    expected = _kde_log_density_reference(poses, weights, pose)
+    assert belief_log_density(poses, weights, pose) == pytest.approx(expected, rel=1e-9, abs=1e-9)
+
+
+def test_belief_log_density_integrates_to_one_and_rewards_a_tight_cloud_that_holds_the_truth():
+    from mcl.estimate import belief_log_density
+
+    rng = np.random.default_rng(3)
+    poses = np.column_stack([rng.normal(0, 0.2, 200), rng.normal(0, 0.1, 200), rng.normal(0, 0.1, 200)])
+    weights = np.full(200, 1 / 200)
+    xs, ys, ts = np.linspace(-1.2, 1.2, 49), np.linspace(-0.7, 0.7, 29), np.linspace(-0.7, 0.7, 29)
+    cell = (xs[1] - xs[0]) * (ys[1] - ys[0]) * (ts[1] - ts[0])
+    mass = sum(math.exp(belief_log_density(poses, weights, np.array([x, y, t]))) for x in xs for y in ys for t in ts)
+    assert mass * cell == pytest.approx(1.0, abs=0.01)
+    truth = np.zeros(3)
+    tight, wide = belief_log_density(poses, weights, truth), belief_log_density(poses * 4, weights, truth)
+    assert tight > wide + 3 * math.log(4) - 0.5          # four times as wide in x, y and θ: log 4 each, less
+    missed = belief_log_density(poses + [1.0, 0.0, 0.0], weights, truth)   # tight, but a metre off
+    assert missed < wide
+    far = belief_log_density(poses, weights, np.array([1e3, -1e3, 3.0]))  # far: very low, never -inf or NaN
+    assert math.isfinite(far) and far < -1e6
+
+
+@pytest.mark.parametrize("n", [30, 100, 200])
+def test_credible_region_holds_the_truth_about_as_often_as_its_mass(n):
+    from mcl.estimate import credible_region_contains
+
+    rng = np.random.default_rng(5)
+    inside = []
+    for _ in range(300):
+        poses = np.column_stack([rng.normal(0, 0.3, n), rng.normal(0, 0.2, n), rng.normal(0, 0.2, n)])
+        truth = np.array([rng.normal(0, 0.3), rng.normal(0, 0.2), rng.normal(0, 0.2)])
+        inside.append(credible_region_contains(poses, np.ones(n), truth))
+    assert 0.91 <= np.mean(inside) <= 0.98        # 95 %, to the sampling error of 300 draws
+
+
+@pytest.mark.parametrize("poses, weights, pose, match", [
+    (np.zeros((3, 2)), np.ones(3), np.zeros(3), "expected"),
+    (np.zeros((3, 3)), np.ones(2), np.zeros(3), "expected"),
+    (np.zeros((3, 3)), np.ones(3), np.zeros(2), "expected"),
+    (np.zeros((3, 3)), np.array([1.0, -1.0, 1.0]), np.zeros(3), "weights"),
+    (np.zeros((3, 3)), np.zeros(3), np.zeros(3), "weights"),
+    (np.zeros((3, 3)), np.ones(3), np.array([0.0, math.nan, 0.0]), "finite"),
+])
+def test_belief_log_density_refuses_bad_input_and_leaves_it_unchanged(poses, weights, pose, match):
+    from mcl.estimate import belief_log_density
+
+    before = (poses.copy(), weights.copy(), pose.copy())
+    with pytest.raises(ValueError, match=match):
+        belief_log_density(poses, weights, pose)
+    for a, b in zip(before, (poses, weights, pose)):
+        np.testing.assert_array_equal(a, b)
