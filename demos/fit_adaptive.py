@@ -46,11 +46,11 @@ detector was quiet, the error of the motion capture's pose against the request d
 stretch's first pose, in the robot frame of the dead-reckoned pose (x, y, θ). Eq. 10 draws independent noise
 each step, so over a stretch its spread is β·sqrt(dt·H·mean(s²)/3) for the step rate 1/dt and the stretch's
 speed terms s (|v| for x and y, `ODOMETRY_SHAPE`'s θ mix of |v| and |ω| for θ). Each of x, y and θ is scaled
-so that the 95 % interval of that spread holds the share `--coverage` of the stretches' errors (β1 and β2
-each, β3 and β4 by one factor that keeps their ratio in `ODOMETRY_SHAPE`); a calibrated robot's per-run scale error and turn bias grow
-with the stretch while the model's noise grows with its square root, so the fit holds at `--horizon` and is
-wider than needed on shorter stretches. The values hold at the 100 Hz loop the logs are recorded at (scale by
-sqrt(0.01 s / dt) at another rate).
+so that ±z times that spread (z the two-sided normal quantile of `--coverage`) holds the share `--coverage`
+of the stretches' errors: β1 and β2 each, β3 and β4 by one factor that keeps their ratio in `ODOMETRY_SHAPE`.
+A calibrated robot's per-run scale error and turn bias grow with the stretch while the model's noise grows
+with its square root, so the fit holds at `--horizon` and is wider than needed on shorter stretches. The
+values hold at the 100 Hz loop the logs are recorded at (scale by sqrt(0.01 s / dt) at another rate).
 
 The defaults of `motion_models.AdaptiveMotion` are these values rounded to `DIGITS` decimals ("defaults" in
 the JSON; the transition rates' in "transitions"). The other transition rates and `frequent_rate` are not

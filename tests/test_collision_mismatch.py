@@ -12,8 +12,8 @@ import pytest
 from demos import collision_sim
 from demos.collision_sim import (FREE, LEFT, MISMATCH_RANGES, STOPPED, CollisionEvent, CollisionScenario,
                                  draw_physics, simulate)
-from demos.fit_adaptive import (CONDITIONS, DIGITS, FITTED, FOOT_SEPARATION, ODOMETRY_SHAPE, episode_ends, episode_rates,
-                                fit, fit_betas, fit_end_rates, fit_odometry, free_walk_errors)
+from demos.fit_adaptive import (CONDITIONS, DIGITS, FITTED, FOOT_SEPARATION, ODOMETRY_SHAPE, episode_ends,
+                                episode_rates, fit, fit_betas, fit_end_rates, fit_odometry, free_walk_errors)
 from motion_models import AdaptiveMotion
 from motion_models.adaptive import MobilityTransitions
 
@@ -255,3 +255,17 @@ def test_the_simulator_does_not_import_the_models():
     tree = ast.parse((ROOT / "demos" / "walk_sim.py").read_text())
     imported = {n.module for n in ast.walk(tree) if isinstance(n, ast.ImportFrom)}
     assert not any((m or "").startswith("motion_models") for m in imported)
+
+
+def test_detection_on_mismatched_robots_is_told_per_held_joint_subset():
+    from demos.collision import detection_figures, robot_reference
+
+    d = detection_figures(None, seeds=(4100, 4101), minutes=1.5, physics="mismatch")
+    assert d["physics"] == "mismatch" and d["episodes"] > 0
+    assert sum(row["episodes"] for row in d["by_held_joints"].values()) == d["episodes"]
+    shares = [row["detected_share"] * row["episodes"] for row in d["by_held_joints"].values() if row["episodes"]]
+    assert sum(shares) == pytest.approx(d["detected_share"] * d["episodes"])
+    robots = {"+".join(collision_sim.JOINTS[j] for j in draw_physics(MISMATCH, seed).held_joints)
+              for seed in (4100, 4101)}
+    assert set(d["by_held_joints"]) == robots
+    assert robot_reference.cache_info().currsize >= 2      # each robot's own reference
