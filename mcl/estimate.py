@@ -835,8 +835,9 @@ def credible_region_contains(poses: np.ndarray, weights: np.ndarray, pose, mass:
         return np.exp(_kernel_exponents(points, poses, bandwidth)) @ weights
 
     at_particles = density(poses)
-    if poses.shape[0] > 1:
-        at_particles = (at_particles - weights) / np.maximum(1.0 - weights, 1e-300)    # leave one out
+    others = 1.0 - weights                     # the weight of the other particles, for leaving one out
+    alone = others <= 1e-9                     # a particle holding (nearly) all of the weight keeps its own kernel
+    at_particles = np.where(alone, at_particles, (at_particles - weights) / np.where(alone, 1.0, others))
     order = np.argsort(-at_particles, kind="stable")
     held = np.cumsum(weights[order])
     level = at_particles[order[min(int(np.searchsorted(held, mass)), order.size - 1)]]

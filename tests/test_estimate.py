@@ -226,6 +226,16 @@ def test_credible_region_holds_the_truth_about_as_often_as_its_mass(n):
     assert 0.91 <= np.mean(inside) <= 0.98        # 95 %, to the sampling error of 300 draws
 
 
+def test_credible_region_of_a_single_heavy_particle_is_its_kernel():
+    from mcl.estimate import credible_region_contains
+
+    poses = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
+    weights = np.array([1.0, 0.0, 0.0])
+    assert credible_region_contains(poses, weights, np.zeros(3))
+    assert not credible_region_contains(poses, weights, np.array([0.5, 0.5, 0.0]))
+    assert credible_region_contains(poses[:1], np.ones(1), np.zeros(3))
+
+
 @pytest.mark.parametrize("poses, weights, pose, match", [
     (np.zeros((3, 2)), np.ones(3), np.zeros(3), "expected"),
     (np.zeros((3, 3)), np.ones(2), np.zeros(3), "expected"),
