@@ -42,9 +42,9 @@ logs each are the test. Two regimes: "own", the paper's protocol on each test ro
 its first log, test on its four other logs, each with its own conditions); "fleet", learned on the first halves
 of the training robots' logs, none of the test robot's data. Methods: the raw odometry, the linear baseline
 (`LinearCorrection`: least squares, the setting of `BASELINE`), LWPR (the paper's model, `LWPRSettings()`) and
-the variant "lin+LWPR" (`LinearPlusLWPR`: LWPR learning what the linear map leaves). Figures: mean drift after
-10 s over the 20 s sequences, and the change against the raw odometry with a 95 % bootstrap interval over
-sequences (paired: the same resampled sequences for both methods).
+the variant "lin+LWPR" (`LearnedFootstepOdometry.train(..., linear_stage=True)`: LWPR learning what the linear
+map leaves). Figures: mean drift after 10 s over the 20 s sequences, and the change against the raw odometry
+with a 95 % bootstrap interval over sequences (paired: the same resampled sequences for both methods).
 """
 from __future__ import annotations
 
@@ -309,7 +309,7 @@ REGIME_LABELS = {"own": "learned on the test robot's own first log (the paper's 
                  "fleet": "learned on the training robots only, none of the test robot's data"}
 MISMATCH_METHODS = ("raw", "linear", "lwpr", "variant")
 METHOD_LABELS = {"raw": "raw", "linear": "linear", "lwpr": "LWPR", "variant": "lin+LWPR"}
-VARIANT_LINEAR = {"features": "inputs", "ridge": 0.0}   # the variant's linear stage: every input, no penalty
+VARIANT_LINEAR = {"features": "inputs", "ridge": 0.0}   # the variant's `LinearStage`: every input, no penalty
 BOOTSTRAP = 2000
 PAPER_REDUCTION = {"apriori": 0.76, "online": 0.58}    # Rouxel sec. IV-B: 62.0 → 14.8 cm, 24.5 → 10.3 cm
 BOOTSTRAP_SEED = 29
@@ -374,32 +374,6 @@ class LinearCorrection:
         return self.mean_out + ((X - self.mean_in) / self.scale_in) @ self.weights, None
 
 
-@dataclass(frozen=True)
-class LinearPlusLWPR:
-    """Variant "linear+LWPR": the least-squares linear map of the inputs (`VARIANT_LINEAR`), then LWPR learning
-    what it leaves (truth minus the linear step), with the same LWPR settings. Where no receptive field covers
-    the inputs, the linear step alone. (The LWPR holder learns "residual + raw step" as the correction of the
-    raw step, so that its own fallback, the raw step, maps to the linear step.)"""
-
-    linear: LinearCorrection
-    lwpr: LearnedFootstepOdometry
-
-    @classmethod
-    def train(cls, X: np.ndarray, Y: np.ndarray, kind: str, settings: LWPRSettings,
-              seed: int = 0) -> "LinearPlusLWPR":
-        """Fit the linear stage on (X, Y), then LWPR on its residual."""
-        linear = LinearCorrection.fit(X, Y, kind, **VARIANT_LINEAR)
-        target = Y - linear.predict_steps(X)[0] + X[:, :3]
-        lwpr = LearnedFootstepOdometry.train(X, target, kind, seed=seed,
-                                             settings=dataclasses.replace(settings, residual=True))
-        return cls(linear, lwpr)
-
-    def predict_steps(self, X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """The steps (m, 3) and LWPR's noise standard deviations (m, 3)."""
-        mean, sigma = self.lwpr.predict_steps(X)
-        return mean - X[:, :3] + self.linear.predict_steps(X)[0], sigma
-
-
 def train_methods(learn: list[FootstepLog], kind: str, settings: LWPRSettings, baseline: dict,
                   seed: int = 0) -> dict:
     """LWPR, the linear baseline and the variant for input set `kind`, learned on the pooled steps of `learn`."""
@@ -407,7 +381,7 @@ def train_methods(learn: list[FootstepLog], kind: str, settings: LWPRSettings, b
     Y = np.vstack([truth_displacements(log) for log in learn])
     return {"linear": LinearCorrection.fit(X, Y, kind, **baseline[kind]),
             "lwpr": LearnedFootstepOdometry.train(X, Y, kind, seed=seed, settings=settings),
-            "variant": LinearPlusLWPR.train(X, Y, kind, settings, seed)}
+            "variant": LearnedFootstepOdometry.train(X, Y, kind, seed=seed, settings=settings, linear_stage=True)}
 
 
 def sequence_errors(log: FootstepLog, kind: str, models: dict) -> dict:

@@ -421,6 +421,8 @@ def _valid_files() -> dict:
         inputs = rng.uniform(-0.05, 0.05, (80, 9))
         odometry = LearnedFootstepOdometry.train(inputs, inputs[:, :3] * 1.1, "online")
         odometry.save(os.path.join(tmp, "odometry"))
+        LearnedFootstepOdometry.train(inputs, inputs[:, :3] * 1.1 + 0.01, "online", linear_stage=True).save(
+            os.path.join(tmp, "odometry_linear"))
         from mcl.profile import Profile
         Profile.from_values({"sensor.outlier_weight": 0.02, "odometry.scale_x": 1.1, "localizer.particles": 300,
                              "motion.beta1": 2.0, "quality.superb_fit": 0.6}).save(os.path.join(tmp, "profile.toml"))

@@ -239,3 +239,97 @@ def test_the_papers_protocol_learning_halves_the_drift(capsys):
     drift = result["drift"]
     # The raw odometries underestimate: a priori far more than online (Rouxel sec. IV-B 3).
     assert drift["apriori_raw"]["10s"]["cartesian_m"]["mean"] > drift["online_raw"]["10s"]["cartesian_m"]["mean"]
+
+
+# -- the linear stage (the variant lin+LWPR) ------------------------------------------------------------------
+def _linear_data(seed=3, n=500, kind="apriori"):
+    from motion_models.footsteps import N_INPUTS
+    rng = np.random.default_rng(seed)
+    X = rng.uniform(-0.05, 0.05, (n, N_INPUTS[kind]))
+    Y = 0.8 * X[:, :3] + 0.3 * X[:, 3:6] + 0.01 + 0.0005 * rng.standard_normal((n, 3))
+    return X, Y
+
+
+def test_a_linear_stage_holds_an_affine_step_and_is_saved_with_the_models(tmp_path):
+    from motion_models.learned_odometry import LearnedFootstepOdometry, LinearStage
+
+    X, Y = _linear_data()
+    model = LearnedFootstepOdometry.train(X, Y, "apriori", linear_stage=True)
+    assert isinstance(model.linear, LinearStage) and model.residual
+    stage = LinearStage.fit(X, Y)
+    np.testing.assert_array_equal(model.linear.weights, stage.weights)
+    assert np.abs(stage.predict(X) - Y).max() < 0.003                 # the affine part is the linear stage's
+    # Far outside every receptive field the prediction is the linear step, not the raw one.
+    far = np.full((1, 7), 5.0)
+    np.testing.assert_allclose(model.predict_steps(far)[0], stage.predict(far), rtol=1e-12, atol=1e-12)
+    model.save(tmp_path / "m")
+    loaded = LearnedFootstepOdometry.load(tmp_path / "m")
+    for a, b in zip(model.predict_steps(X), loaded.predict_steps(X)):
+        np.testing.assert_array_equal(a, b)
+    # The same data and seed give the same model, bit for bit; updated keeps the stage.
+    again = LearnedFootstepOdometry.train(X, Y, "apriori", linear_stage=True)
+    np.testing.assert_array_equal(again.predict_steps(X)[0], model.predict_steps(X)[0])
+    assert model.updated(X[:50], Y[:50]).linear is model.linear
+
+
+def test_a_holder_without_a_linear_stage_saves_no_linear_key(tmp_path):
+    import json
+    from motion_models.learned_odometry import META_FILE, LearnedFootstepOdometry
+
+    X, Y = _linear_data()
+    LearnedFootstepOdometry.train(X, Y, "apriori").save(tmp_path / "m")
+    assert "linear" not in json.loads((tmp_path / "m" / META_FILE).read_text())
+
+
+@pytest.mark.parametrize("change, match", [
+    (lambda linear: linear.pop("weights"), "linear"),
+    (lambda linear: linear.update(extra=1), "linear"),
+    (lambda linear: linear["scale_in"].__setitem__(0, 0.0), "linear"),
+    (lambda linear: linear["scale_in"].__setitem__(0, -1.0), "linear"),
+    (lambda linear: linear["mean_out"].append(0.0), "linear"),
+    (lambda linear: linear["weights"][0].__setitem__(1, "x"), "linear"),
+    (lambda linear: linear["weights"].pop(), "linear"),
+    (lambda linear: linear["mean_in"].__setitem__(2, True), "linear"),
+])
+def test_load_refuses_a_bad_linear_stage(tmp_path, change, match):
+    import json
+    from motion_models.learned_odometry import META_FILE, LearnedFootstepOdometry
+
+    X, Y = _linear_data()
+    LearnedFootstepOdometry.train(X, Y, "apriori", linear_stage=True).save(tmp_path / "m")
+    path = tmp_path / "m" / META_FILE
+    meta = json.loads(path.read_text())
+    change(meta["linear"])
+    path.write_text(json.dumps(meta))
+    with pytest.raises(ValueError, match=match):
+        LearnedFootstepOdometry.load(tmp_path / "m")
+
+
+def test_a_linear_stage_must_fit_the_holder():
+    import dataclasses
+    from motion_models.learned_odometry import LearnedFootstepOdometry, LinearStage
+
+    X, Y = _linear_data()
+    model = LearnedFootstepOdometry.train(X, Y, "apriori", linear_stage=True)
+    with pytest.raises(ValueError, match="residual"):
+        dataclasses.replace(model, residual=False)
+    online = LinearStage.fit(np.hstack([X, X[:, :2]]), Y)                      # nine inputs
+    with pytest.raises(ValueError, match="inputs"):
+        dataclasses.replace(model, linear=online)
+    with pytest.raises(ValueError, match="LinearStage"):
+        dataclasses.replace(model, linear="a stage")
+    with pytest.raises(ValueError, match="linear_stage"):
+        LearnedFootstepOdometry.train(X, Y, "apriori", linear_stage="yes")
+    for bad in (dict(scale_in=np.zeros(7)), dict(mean_out=np.zeros(2)), dict(weights=np.full((7, 3), np.nan))):
+        fields = dict(mean_in=np.zeros(7), scale_in=np.ones(7), mean_out=np.zeros(3), weights=np.zeros((7, 3)))
+        with pytest.raises(ValueError):
+            LinearStage(**{**fields, **bad})
+
+
+def test_a_constant_input_leaves_the_linear_stage_finite():
+    from motion_models.learned_odometry import LinearStage
+
+    X, Y = _linear_data()
+    X[:, 6] = 0.02                                    # an input that never changes: a singular normal matrix
+    stage = LinearStage.fit(X, Y)
+    assert np.isfinite(stage.weights).all() and np.abs(stage.predict(X) - Y).max() < 0.003

@@ -279,12 +279,15 @@ def test_training_and_held_out_seeds_and_robots_never_meet():
 
 
 def test_the_variant_learns_what_the_linear_map_leaves():
-    from demos.odometry import LinearPlusLWPR
+    from motion_models.learned_odometry import LearnedFootstepOdometry
     rng = np.random.default_rng(3)
     X = rng.uniform(-1, 1, (600, 7))
     Y = 0.5 * X[:, :3] + 0.05 * X[:, 3:4] ** 2 + 0.001 * rng.standard_normal((600, 3))   # a bend in one input
     linear = LinearCorrection.fit(X, Y, "apriori")
-    variant = LinearPlusLWPR.train(X, Y, "apriori", LWPRSettings())
+    variant = LearnedFootstepOdometry.train(X, Y, "apriori", settings=LWPRSettings(), linear_stage=True)
+    # The variant's linear stage is the linear baseline with every input and no penalty, bit for bit.
+    np.testing.assert_array_equal(variant.linear.weights, linear.weights)
+    np.testing.assert_array_equal(variant.linear.predict(X), linear.predict_steps(X)[0])
     error = {name: np.mean(np.abs(m.predict_steps(X)[0] - Y)) for name, m in (("linear", linear), ("variant", variant))}
     assert error["variant"] < 0.7 * error["linear"]
     # Far outside the training data no receptive field is active: the variant falls back to the linear map.
