@@ -825,9 +825,9 @@ def credible_region_contains(poses: np.ndarray, weights: np.ndarray, pose, mass:
     above it hold `mass` of the weight (the highest-density region, estimated from the sample); the pose is
     inside when its density reaches that level. The density at each particle leaves that particle's own kernel
     out (leave-one-out), as the density at a pose that is not a particle has no such term: with it left in, the
-    level is biased up and the region from 100 particles held a pose drawn from the particles' own distribution
-    78 % of the time instead of 95 % (`tests/test_estimate.py` checks the coverage at 30, 100 and 200
-    particles). O(N²): meant for evaluation, not for the robot's loop.
+    level is biased up and the region holds a pose drawn from the particles' own distribution less often than
+    `mass`, the more so the fewer the particles (`tests/test_estimate.py` checks the coverage at 30, 100 and
+    200 particles). O(N²): meant for evaluation, not for the robot's loop.
     """
     poses, weights, pose, bandwidth = _belief_kde(poses, weights, pose, mass, min_bandwidth)
 
