@@ -816,7 +816,8 @@ def _kernel_exponents(points: np.ndarray, poses: np.ndarray, bandwidth: np.ndarr
 
 
 def credible_region_contains(poses: np.ndarray, weights: np.ndarray, pose, mass: float = 0.95,
-                             min_bandwidth: tuple[float, float, float] = (0.005, 0.005, 0.005)) -> bool:
+                             min_bandwidth: tuple[float, float, float] = (0.005, 0.005, 0.005),
+                             leave_one_out: bool = True) -> bool:
     """Whether `pose` (x, y, θ) lies inside the smallest region holding `mass` of the belief.
 
     The belief's density is a weighted kernel density estimate over the particles (Gaussian kernels, diagonal
@@ -827,7 +828,8 @@ def credible_region_contains(poses: np.ndarray, weights: np.ndarray, pose, mass:
     out (leave-one-out), as the density at a pose that is not a particle has no such term: with it left in, the
     level is biased up and the region holds a pose drawn from the particles' own distribution less often than
     `mass`, the more so the fewer the particles (`tests/test_estimate.py` checks the coverage at 30, 100 and
-    200 particles). O(N²): meant for evaluation, not for the robot's loop.
+    200 particles; `leave_one_out=False` is the biased estimate, kept for comparison). O(N²): meant for
+    evaluation, not for the robot's loop.
     """
     poses, weights, pose, bandwidth = _belief_kde(poses, weights, pose, mass, min_bandwidth)
 
@@ -836,7 +838,7 @@ def credible_region_contains(poses: np.ndarray, weights: np.ndarray, pose, mass:
 
     at_particles = density(poses)
     others = 1.0 - weights                     # the weight of the other particles, for leaving one out
-    alone = others <= 1e-9                     # a particle holding (nearly) all of the weight keeps its own kernel
+    alone = (others <= 1e-9) | (not leave_one_out)   # a particle holding (nearly) all of the weight keeps its kernel
     at_particles = np.where(alone, at_particles, (at_particles - weights) / np.where(alone, 1.0, others))
     order = np.argsort(-at_particles, kind="stable")
     held = np.cumsum(weights[order])

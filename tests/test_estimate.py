@@ -252,3 +252,16 @@ def test_belief_log_density_refuses_bad_input_and_leaves_it_unchanged(poses, wei
         belief_log_density(poses, weights, pose)
     for a, b in zip(before, (poses, weights, pose)):
         np.testing.assert_array_equal(a, b)
+
+
+def test_the_region_with_its_own_kernel_left_in_holds_less_than_its_mass():
+    from mcl.estimate import credible_region_contains
+
+    rng = np.random.default_rng(7)
+    inside = {True: 0, False: 0}
+    for _ in range(200):
+        poses = rng.standard_normal((50, 3)) * [0.3, 0.2, 0.2]
+        truth = rng.standard_normal(3) * [0.3, 0.2, 0.2]
+        for loo in inside:
+            inside[loo] += credible_region_contains(poses, np.ones(50), truth, leave_one_out=loo)
+    assert inside[False] < 0.85 * 200 < inside[True]
