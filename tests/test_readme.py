@@ -116,11 +116,17 @@ def test_the_readme_headline_figures_are_those_of_the_results_files():
     mismatch = _results("collision_mismatch.json")["mismatch"]
     single = mismatch["containment"]["single"]
     baseline = f"velocity-linear x{mismatch['baseline_widen']['containment']:g}"
+    scored = f"velocity-linear x{mismatch['baseline_widen']['log_score']:g}"
     row = _headline("Hoffmann")
     assert f"{100 * single['adaptive']['mismatch']['median']:.0f} % of steps" in row
-    assert f"{100 * single['adaptive-pivot']['mismatch']['median']:.0f} % with the pivot variant" in row
-    assert mismatch["goals"]["single/adaptive"]["at_least_80_percent_everywhere"] is False and "missed" in row
-    assert (f"widened ×{mismatch['baseline_widen']['containment']:g} holds it in "
+    assert f"{100 * single['adaptive']['bins']['0.7-1.05']['median']:.0f} % in the fastest stop turns" in row
+    assert mismatch["goals"]["single/adaptive"]["at_least_80_percent_everywhere"] is True and "met" in row
+    assert mismatch["goals"]["single/adaptive"]["log_score_above_velocity_linear_everywhere"] is True
+    def signed(value: float) -> str:
+        return f"{value:.2f}".replace("-", "−")
+    assert (f"log score {signed(single['adaptive']['mismatch']['log_score_median'])} against "
+            f"{signed(single[scored]['mismatch']['log_score_median'])} for velocity-linear at its best") in row
+    assert (f"widened ×{mismatch['baseline_widen']['containment']:g} holds the truth in "
             f"{100 * single[baseline]['mismatch']['median']:.0f} % with a cloud "
             f"{single[baseline]['mismatch']['final_spread_median_m']:.2f} m across against "
             f"{single['adaptive']['mismatch']['final_spread_median_m']:.2f} m") in row
