@@ -31,7 +31,8 @@ step a particle's state moves along a Markov chain whose transition probabilitie
 percept: P = expm(Q·dt) for a generator Q (rates per second, `MobilityTransitions`), which keeps the chain the
 same at any step rate and makes every row a probability distribution. No collision returns toward free; a
 collision leads into hindrance, pushed or slippage; collisions at high frequency (the percept's `rate` at or
-above `frequent_rate`) lead into stopped and keep the robot there (section 3.1, Fig. 1).
+above `frequent_rate`) lead into stopped and mostly keep the robot there (section 3.1, Fig. 1; an episode
+ends there at fitted rates, since the detector's window outlasts the contact).
 
 The rand() of eq. 14–26 are drawn when a particle leaves free (a collision episode starts) and held until it is
 free again (`redraw="episode"`, the default): a collision moves a robot consistently for its duration (one push
