@@ -4,7 +4,7 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import given
 from hypothesis import strategies as st
 
 from demos.walk_log import to_robot_log
@@ -308,7 +308,7 @@ def test_a_walk_written_to_mcap_replays_to_the_estimates_of_feeding_it_directly(
 
 
 def test_a_truncated_mcap_replays_up_to_where_it_breaks(tmp_path):
-    from mcl.logs import read_log, write_log
+    from mcl.logs import read_log
     from mcl.logs.mcap_io import write_mcap
     _, sim = walk(seed=7, duration=6.0)
     path = tmp_path / "walk.mcap"

@@ -1,6 +1,5 @@
 """The camera's view and negative information: `sensing.view.CameraView`, `LandmarkSensorModel.seen` and the
 localizer's quality when frames come with their view."""
-import copy
 import math
 
 import numpy as np
