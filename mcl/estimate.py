@@ -785,16 +785,22 @@ def cluster_estimate_reference(poses, weights, x_min, y_min, cell_size, nx, ny, 
 
 def _belief_kde(poses, weights, pose, mass: float | None, min_bandwidth) -> tuple:
     """The checked inputs and the kernel density both evaluations share: poses (N, 3), normalised weights (N,),
-    pose (3,) and the bandwidths (3,). Raises ValueError on shapes, a mass outside (0, 1), or weights that do
-    not sum to a positive finite number."""
+    pose (3,) and the bandwidths (3,). Raises ValueError on shapes, a pose or particle that is not finite, a mass
+    outside (0, 1), bandwidth floors that are not finite and > 0, or weights that are negative or do not sum to a
+    positive finite number."""
     poses = np.asarray(poses, dtype=np.float64)
     weights = np.asarray(weights, dtype=np.float64)
     pose = np.asarray(pose, dtype=np.float64)
     if poses.ndim != 2 or poses.shape[1] != 3 or weights.shape != (poses.shape[0],) or pose.shape != (3,):
         raise ValueError(f"poses (N, 3), weights (N,) and pose (3,) expected, got {poses.shape}, {weights.shape}, "
                          f"{pose.shape}")
+    if not (np.isfinite(poses).all() and np.isfinite(pose).all()):
+        raise ValueError("poses and pose must be finite")
     if mass is not None and not (0 < mass < 1):
         raise ValueError(f"mass = {mass!r} must be within (0, 1)")
+    floor = np.asarray(min_bandwidth, dtype=np.float64)
+    if floor.shape != (3,) or not (np.isfinite(floor).all() and (floor > 0).all()):
+        raise ValueError(f"min_bandwidth = {min_bandwidth!r} must be three finite numbers > 0")
     total = float(weights.sum())
     if not (math.isfinite(total) and total > 0) or (weights < 0).any():
         raise ValueError("weights must be >= 0 with a positive finite sum")
@@ -805,7 +811,7 @@ def _belief_kde(poses, weights, pose, mass: float | None, min_bandwidth) -> tupl
     residual = poses - centre
     residual[:, 2] = wrap_angles(residual[:, 2])
     spread = np.sqrt(weights @ residual ** 2)
-    bandwidth = np.maximum(spread * n_effective ** (-1.0 / 7.0), np.asarray(min_bandwidth))   # Scott, d = 3
+    bandwidth = np.maximum(spread * n_effective ** (-1.0 / 7.0), floor)   # Scott, d = 3
     return poses, weights, pose, bandwidth
 
 
@@ -860,12 +866,10 @@ def belief_log_density(poses: np.ndarray, weights: np.ndarray, pose,
     Raises
     ------
     ValueError
-        If the shapes are not (N, 3), (N,) and (3,), the weights are negative or do not sum to a positive finite
-        number, or the pose is not finite.
+        If the shapes are not (N, 3), (N,) and (3,), a pose or particle is not finite, the weights are negative
+        or do not sum to a positive finite number, or `min_bandwidth` is not three finite numbers > 0.
     """
     poses, weights, pose, bandwidth = _belief_kde(poses, weights, pose, None, min_bandwidth)
-    if not np.isfinite(pose).all():
-        raise ValueError(f"pose = {pose!r} must be finite")
     exponents = _kernel_exponents(pose[None, :], poses, bandwidth)[0]
     with np.errstate(divide="ignore"):
         terms = exponents + np.log(weights)

@@ -243,13 +243,19 @@ def test_credible_region_of_a_single_heavy_particle_is_its_kernel():
     (np.zeros((3, 3)), np.array([1.0, -1.0, 1.0]), np.zeros(3), "weights"),
     (np.zeros((3, 3)), np.zeros(3), np.zeros(3), "weights"),
     (np.zeros((3, 3)), np.ones(3), np.array([0.0, math.nan, 0.0]), "finite"),
+    (np.array([[0.0, 0.0, 0.0], [math.inf, 0.0, 0.0], [0.0, 0.0, 0.0]]), np.ones(3), np.zeros(3), "finite"),
+    (np.zeros((3, 3)), np.array([1.0, math.nan, 1.0]), np.zeros(3), "weights"),
 ])
 def test_belief_log_density_refuses_bad_input_and_leaves_it_unchanged(poses, weights, pose, match):
-    from mcl.estimate import belief_log_density
+    from mcl.estimate import belief_log_density, credible_region_contains
 
     before = (poses.copy(), weights.copy(), pose.copy())
     with pytest.raises(ValueError, match=match):
         belief_log_density(poses, weights, pose)
+    with pytest.raises(ValueError, match=match):
+        credible_region_contains(poses, weights, pose)
+    with pytest.raises(ValueError, match="min_bandwidth"):
+        belief_log_density(np.zeros((3, 3)), np.ones(3), np.zeros(3), min_bandwidth=(0.01, 0.0, 0.01))
     for a, b in zip(before, (poses, weights, pose)):
         np.testing.assert_array_equal(a, b)
 
