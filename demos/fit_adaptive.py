@@ -177,6 +177,8 @@ def fit_odometry(errors: np.ndarray, dt: float, horizon: float, coverage: float 
     def scale(column: int, term: int) -> float:
         # The β that puts `coverage` of |error| / (term · gain) inside ±z of a normal spread.
         moving = errors[:, term] > 0
+        if not moving.any():
+            raise ValueError(f"no stretch of {horizon:g} s in the training logs walks at all; record walking")
         return float(np.quantile(np.abs(errors[moving, column]) / (errors[moving, term] * gain), coverage)) / z
 
     along, across, heading = scale(0, 3), scale(1, 3), scale(2, 4)   # heading: a factor on the shape's θ mix

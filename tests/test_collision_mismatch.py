@@ -193,6 +193,10 @@ def test_fit_odometry_recovers_the_noise_of_eq_10_from_its_own_errors():
     assert fitted[2] == pytest.approx(beta[2], rel=0.05) and fitted[3] == pytest.approx(beta[2], rel=0.05)
     with pytest.raises(ValueError, match="no stretch"):
         fit_odometry(np.empty((0, 5)), dt, horizon)
+    standing = errors.copy()
+    standing[:, 3:] = 0.0
+    with pytest.raises(ValueError, match="walks at all"):
+        fit_odometry(standing, dt, horizon)
 
 
 def test_free_walk_errors_are_zero_for_a_robot_that_walks_as_requested():
