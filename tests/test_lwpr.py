@@ -134,8 +134,10 @@ def test_numba_matches_reference_three_inputs_two_outputs():
     for _ in range(300):
         x = rng.uniform(-1.0, 1.0, 3)
         y = np.array([x[0] + 2.0 * x[1] - 3.0 * x[2], np.cos(x[0] + x[1])]) + rng.normal(0, 0.05, 2)
-        np.testing.assert_allclose(model.update(x, y), ref.update(x, y), rtol=1e-9, atol=1e-12)
-    assert_same_rfs(model, ref)
+        # Meta-learning feeds each update's rounding into the next step sizes: the relative difference grows
+        # from 5e-16 after 10 updates to 1e-9 after 300 (numpy 2.4, numba 0.68), so the bounds leave room.
+        np.testing.assert_allclose(model.update(x, y), ref.update(x, y), rtol=1e-7, atol=1e-12)
+    assert_same_rfs(model, ref, rtol=1e-7, atol=1e-8)     # the meta trace h holds small differences: 5e-9
     assert max(model.receptive_field(0, k)["n_reg"] for k in range(model.num_rfs[0])) == 3
 
 
