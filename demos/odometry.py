@@ -62,7 +62,7 @@ from demos.footstep_sim import (SURFACES, Driver, FootstepLog, draw_conditions, 
                                 save_log, simulate, truth_displacements)
 from field.angles import wrap_angles
 from motion_models.footsteps import LEFT, RIGHT, input_matrix, integrate
-from motion_models.learned_odometry import LearnedFootstepOdometry, LWPRSettings, RawFootstepOdometry
+from motion_models.learned_odometry import LearnedFootstepOdometry, LinearStage, LWPRSettings, RawFootstepOdometry
 
 METHODS = ("apriori_raw", "apriori_learned", "online_raw", "online_learned")
 OTHER = ("apriori_learned_other", "online_learned_other")
@@ -340,15 +340,13 @@ def halves(log: FootstepLog) -> tuple[FootstepLog, FootstepLog]:
 @dataclass(frozen=True)
 class LinearCorrection:
     """The baseline a team would try first: the true step as a linear (affine) function of the inputs, fitted by
-    ridge-regularized least squares per axis. `features` "axis": each axis of the raw step alone (a scale and
-    an offset per axis); "inputs": all the inputs of the input set (the LWPR inputs)."""
+    ridge-regularized least squares per axis (`motion_models.learned_odometry.LinearStage`). `features` "axis":
+    each axis of the raw step alone (a scale and an offset per axis); "inputs": all the inputs of the input set
+    (the LWPR inputs)."""
 
     kind: str
     features: str
-    mean_in: np.ndarray
-    scale_in: np.ndarray
-    mean_out: np.ndarray
-    weights: np.ndarray         # (n_in, 3), zero where an axis does not use an input
+    stage: LinearStage
 
     @classmethod
     def fit(cls, X: np.ndarray, Y: np.ndarray, kind: str, features: str = "inputs",
@@ -356,22 +354,16 @@ class LinearCorrection:
         """Least squares on standardized inputs with penalty `ridge`·n on the weights (not the offsets)."""
         if features not in ("axis", "inputs"):
             raise ValueError(f"features = {features!r} must be 'axis' or 'inputs'")
-        if not (math.isfinite(ridge) and ridge >= 0):
-            raise ValueError(f"ridge = {ridge!r} must be a finite number >= 0")
-        mean_in, scale_in = X.mean(axis=0), np.maximum(X.std(axis=0), 1e-9)
-        Z = (X - mean_in) / scale_in
-        mean_out = Y.mean(axis=0)
-        weights = np.zeros((X.shape[1], 3))
-        for j in range(3):
-            cols = [j] if features == "axis" else list(range(X.shape[1]))
-            A = Z[:, cols]
-            weights[cols, j] = np.linalg.solve(A.T @ A + ridge * X.shape[0] * np.eye(len(cols)),
-                                               A.T @ (Y[:, j] - mean_out[j]))
-        return cls(kind, features, mean_in, scale_in, mean_out, weights)
+        return cls(kind, features, LinearStage.fit(X, Y, ridge, per_axis=features == "axis"))
+
+    @property
+    def weights(self) -> np.ndarray:
+        """(n_in, 3) the weights of the standardized inputs, zero where an axis does not use an input."""
+        return self.stage.weights
 
     def predict_steps(self, X: np.ndarray) -> tuple[np.ndarray, None]:
         """The corrected steps (m, 3) of inputs (m, n_in) (no noise model: None)."""
-        return self.mean_out + ((X - self.mean_in) / self.scale_in) @ self.weights, None
+        return self.stage.predict(X), None
 
 
 def train_methods(learn: list[FootstepLog], kind: str, settings: LWPRSettings, baseline: dict,

@@ -233,23 +233,29 @@ class LinearStage:
         return int(self.mean_in.shape[0])
 
     @classmethod
-    def fit(cls, inputs: np.ndarray, targets: np.ndarray) -> "LinearStage":
-        """Least squares of targets (m, 3) on standardized inputs (m, n), with an offset per output (the
-        minimum-norm solution where an input is constant)."""
+    def fit(cls, inputs: np.ndarray, targets: np.ndarray, ridge: float = 0.0,
+            per_axis: bool = False) -> "LinearStage":
+        """Least squares of targets (m, 3) on standardized inputs (m, n), with an offset per output and the
+        penalty `ridge`·m on the weights (not the offsets); the minimum-norm solution where an input is constant.
+        `per_axis`: each output from its own raw-step input alone (inputs 0-2: a scale and an offset per axis)
+        instead of from every input. Raises ValueError for a ridge that is not finite and >= 0."""
+        if not (math.isfinite(ridge) and ridge >= 0):
+            raise ValueError(f"ridge = {ridge!r} must be a finite number >= 0")
         X = np.asarray(inputs, dtype=np.float64)
         Y = np.asarray(targets, dtype=np.float64)
         mean_in, scale_in = X.mean(axis=0), np.maximum(X.std(axis=0), 1e-9)
         Z = (X - mean_in) / scale_in
         mean_out = Y.mean(axis=0)
         weights = np.zeros((X.shape[1], 3))
-        A = Z[:, list(range(X.shape[1]))]
-        gram = A.T @ A + 0.0 * np.eye(X.shape[1])
         for j in range(3):
+            cols = [j] if per_axis else list(range(X.shape[1]))
+            A = Z[:, cols]
+            gram = A.T @ A + ridge * X.shape[0] * np.eye(len(cols))
             right = A.T @ (Y[:, j] - mean_out[j])
             try:
-                weights[:, j] = np.linalg.solve(gram, right)
+                weights[cols, j] = np.linalg.solve(gram, right)
             except np.linalg.LinAlgError:
-                weights[:, j] = np.linalg.lstsq(gram, right, rcond=None)[0]
+                weights[cols, j] = np.linalg.lstsq(gram, right, rcond=None)[0]
         return cls(mean_in, scale_in, mean_out, weights)
 
     def predict(self, inputs: np.ndarray) -> np.ndarray:
