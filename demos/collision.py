@@ -70,16 +70,15 @@ from .walk import parse_seeds
 
 PIVOT_CREEP = 0.494     # the variant's stop_creep: results/adaptive_fit.json, "defaults", rounded as the β are
 # The settings the fit replaced (hand-set before `robocup-mcl fit adaptive` fitted them): eq. 10's free-walking
-# noise, and no way out of a collision state while the percept says "frequent". The variant "adaptive-hand-set".
+# noise, and no way out of a collision state while the percept says "frequent" (the default "frequent" rates
+# without their fitted episode ends). The variant "adaptive-hand-set".
 HAND_SET_ODOMETRY = (1.0, 0.6, 0.6, 0.6)
-HAND_SET_FREQUENT = (("free", "hindrance", 4.0), ("free", "pushed", 1.0), ("free", "slippage", 1.0),
-                     ("free", "stopped", 2.0), ("slippage", "stopped", 3.0), ("hindrance", "stopped", 3.0),
-                     ("pushed", "stopped", 3.0))
 
 
 def _hand_set() -> AdaptiveMotion:
-    return AdaptiveMotion(odometry=HAND_SET_ODOMETRY,
-                          transitions=replace(MobilityTransitions(), frequent=HAND_SET_FREQUENT))
+    transitions = MobilityTransitions()
+    frequent = tuple(entry for entry in transitions.frequent if entry[1] != "free")
+    return AdaptiveMotion(odometry=HAND_SET_ODOMETRY, transitions=replace(transitions, frequent=frequent))
 
 
 MODELS = {"velocity-linear": VelocityLinear, "adaptive": AdaptiveMotion,
