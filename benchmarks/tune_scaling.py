@@ -122,14 +122,14 @@ def run(trials: int = 6, battery: int = 2, duration: float = 30.0, particles: in
     two = time_study(2, settings)
     cost = overhead(settings, overhead_tasks)
     tasks_per_trial = len(settings.cases) * len(settings.seeds)
+    driver_s = driver_seconds(two, tasks_per_trial, cost["overhead_share"])
     return {"trials": trials, "battery_seeds": battery, "families": len(settings.cases) // battery,
             "duration_s": duration, "particles": particles, "tasks_per_trial": tasks_per_trial,
             "machine_cores": os.cpu_count(), "one_worker": one, "two_workers": two,
             "speedup": two["trials_per_hour"] / one["trials_per_hour"],
             "same_study": one["values"] == two["values"], "overhead": cost,
-            "driver_s_per_trial": driver_seconds(two, tasks_per_trial, cost["overhead_share"]),
-            "projection": projection(tasks_per_trial, two["task_s_median"], cost["overhead_share"],
-                                     driver_seconds(two, tasks_per_trial, cost["overhead_share"])),
+            "driver_s_per_trial": driver_s,
+            "projection": projection(tasks_per_trial, two["task_s_median"], cost["overhead_share"], driver_s),
             **warm.as_dict()}
 
 
