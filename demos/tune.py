@@ -31,7 +31,6 @@ import argparse
 PROG = "robocup-mcl tune"
 
 
-
 def build_parser(prog: str = PROG) -> argparse.ArgumentParser:
     """The command's argument parser, named `prog` in its usage line."""
     from mcl.cli_checks import add_progress_option, add_save_option, description, positive_int
