@@ -4,6 +4,7 @@ game's mishaps, simulated independently of the filter under test.
     from demos.battery_sim import FAMILIES, simulate
     run = simulate("kidnap", seed=1003, duration=60.0)
     run.truth (T, 3), run.odometry (T, 3), run.frames, run.calls, run.windows, run.params
+    run.ball (T, 2), run.ball_detections (one per frame), run.messages ((arrival_step, TeamMessage), ...)
 
 Nothing here comes from the filter, its motion models or its sensor models: the simulator has its own walk,
 its own odometry errors and its own camera, each drawn per run from ranges wider than a filter assumes
@@ -25,7 +26,15 @@ A run, at 100 Hz (`DT`):
   per frame of a random type inside the view. No noise figures are passed with the detections;
 - calls: the game events a team's code would report (`Localizer` methods without arguments, after a step);
 - windows: (start, end) times of the event, from whose end the reconvergence is counted;
-- params: every drawn number (JSON-ready).
+- params: every drawn number (JSON-ready);
+- the team world (`demos.team_sim`, its manual there): a ball that rolls and is kicked (`ball`, per step), the
+  robot's own ball detection in each camera frame (`ball_detections`, aligned with `frames`: a
+  `sensing.team.BallDetection` or None), and 1–4 teammates that walk, see the ball and broadcast
+  `sensing.team.TeamMessage`s, delivered late, lossy and out of order (`messages`: (arrival_step, message)
+  sorted by arrival; feed each after that motion step); `team` holds the rest (teammates' truth, every message
+  sent), `params["team"]` its drawn numbers. It is drawn last, from a generator of its own seeded by (seed,
+  family, `TEAM_STREAM`), so the rest of a run does not depend on it. The ball and the teammates are simulated
+  in every family; messages are delivered only in `kidnap_even_team` and `kidnap_even_wrong`.
 
 Families (`FAMILIES`): the event happens at a random 35–55 % of the run; every run starts in the own half.
 tracking (none), kidnap (unsignaled, 1–4 m, any heading change), kidnap_special (1–4 m, heading change 0°,
@@ -33,7 +42,13 @@ tracking (none), kidnap (unsignaled, 1–4 m, any heading change), kidnap_specia
 collision (stuck while the odometry walks on 0.3–1 m, or spun by 30–120° in 0.5 s, alternating by seed),
 fall (moved up to 0.3 m and ±90°, 2–5 s lying), false_bursts (2–4 bursts of 1–3 s with 3–8 false detections
 per frame and 70 % of the real ones suppressed), blackout (10–20 s without detections), start_unknown (no
-event; starts anywhere in the own half, also right at the centre line, with any heading).
+event; starts anywhere in the own half, also right at the centre line, with any heading);
+and, appended so that the families above keep their seeds, the even kidnappings: an unsignalled kidnapping
+(event type `kidnap` with `even` set) by `kidnap`'s law but kept only where the mirror image is about as
+probable (|`kidnap_mirror_log_odds`| < log 2, by rejection; the robot starts and walks in the middle of the
+field, `EVEN_BOX`, until then, since only there is such a landing point; the kidnapping waits for one):
+kidnap_even_team (teammates' messages on), kidnap_even_wrong (2–4 teammates, one of them wrongly on its mirror
+pose, and sure of it, for 10–40 s around the kidnapping), kidnap_even_silent (the same, no message delivered).
 """
 from __future__ import annotations
 
@@ -48,8 +63,13 @@ from field.angles import wrap_angles
 from mcl.logs import RobotLog, VisionFrame
 from sensing.observations import Observations
 
+from .team_sim import TeamWorld, simulate_team
+
 FAMILIES = ("tracking", "kidnap", "kidnap_special", "kidnap_announced", "collision", "fall", "false_bursts",
-            "blackout", "start_unknown")
+            "blackout", "start_unknown",
+            # appended, so that the families above keep their codes and seeds
+            "kidnap_even_team", "kidnap_even_wrong", "kidnap_even_silent")
+EVEN_FAMILIES = ("kidnap_even_team", "kidnap_even_wrong", "kidnap_even_silent")
 FIELDS = ("spl", "kidsize", "adultsize")
 DT = 0.01             # s, the motion and truth rate (100 Hz)
 INSIDE = 0.3          # m, waypoints, kidnapping targets and placements stay this far inside the field lines
@@ -100,6 +120,12 @@ BURST_GAP = (3.0, 8.0)                  # s between bursts
 BURST_RATE = (3.0, 8.0)                 # false detections per frame inside a burst
 BURST_KEEP = 0.3                        # share of the real detections a burst lets through
 BLACKOUT = (10.0, 20.0)                 # s
+EVEN_ODDS = math.log(2.0)               # an even kidnapping: |kidnap_mirror_log_odds| below this
+EVEN_BOX = (2.2, 1.8)                   # m, half extents of the middle of the field the even families walk in
+                                        # until the kidnapping (only there does an even landing point exist)
+EVEN_TRIES = 200                        # landing points tried per attempt (the law's own draws, then rejected)
+EVEN_RETRY_STEPS = 20                   # when none is even, the kidnapping waits this many steps and tries again
+TEAM_STREAM = 7                         # the team world's generator: SeedSequence([seed, family code, 7])
 
 _KINDS = tuple(LandmarkType)
 
@@ -130,7 +156,11 @@ class Call:
 class BatteryRun:
     """One simulated run (see the module docstring). Arrays are per motion step k, covering the step that ends
     at times[k] = (k + 1)·dt: truth (T, 3), body (T, 3) and odometry (T, 3) robot-frame increments, walking (T,)
-    whether the legs step (the odometry reports), moving (T,) whether the truth follows the body."""
+    whether the legs step (the odometry reports), moving (T,) whether the truth follows the body. The team
+    world (`demos.team_sim`): ball (T, 2) the ball's truth; ball_detections, one per frame (aligned with
+    `frames`), a `sensing.team.BallDetection` or None; messages, (arrival_step, `sensing.team.TeamMessage`)
+    sorted by arrival, each to be given after that motion step (empty unless the family's messages are on);
+    team, the rest of it (`demos.team_sim.TeamWorld`). They default to empty for runs made without it."""
 
     family: str
     seed: int
@@ -147,6 +177,10 @@ class BatteryRun:
     calls: tuple[Call, ...]
     windows: tuple[tuple[float, float], ...]
     params: dict
+    ball: np.ndarray | None = None
+    ball_detections: tuple = ()
+    messages: tuple = ()
+    team: TeamWorld | None = None
 
 
 def family_code(family: str) -> int:
@@ -197,8 +231,17 @@ def _is_inside(field: Field, xy) -> bool:
     return abs(xy[0]) <= field.half_length - INSIDE and abs(xy[1]) <= field.half_width - INSIDE
 
 
+def _box_point(rng: np.random.Generator, field: Field, x_range=None) -> np.ndarray:
+    """A point in the middle of the field (`EVEN_BOX`, inside the field lines by `INSIDE`)."""
+    bx, by = min(EVEN_BOX[0], field.half_length - INSIDE), min(EVEN_BOX[1], field.half_width - INSIDE)
+    lo, hi = x_range if x_range is not None else (-bx, bx)
+    return np.array([rng.uniform(max(lo, -bx), min(hi, bx)), rng.uniform(-by, by)])
+
+
 def _start_pose(rng: np.random.Generator, field: Field, family: str, seed: int) -> np.ndarray:
     hl = field.half_length
+    if family in EVEN_FAMILIES:
+        return np.append(_box_point(rng, field, (-hl, -0.5)), rng.uniform(-math.pi / 2, math.pi / 2))
     if family == "start_unknown":
         # Half the seeds right at the centre line (where the own-half prior's edge is), any heading.
         x_range = (-0.8, -0.05) if seed % 2 == 0 else (-hl + INSIDE, -0.05)
@@ -215,7 +258,14 @@ def _plan_event(rng: np.random.Generator, family: str, seed: int, duration: floa
     if family in ("tracking", "start_unknown"):
         return plan
     plan = {"type": family, "step": step, "time": (step + 1) * DT}
-    if family in ("kidnap", "kidnap_special"):
+    if family in EVEN_FAMILIES:
+        # An unsignalled kidnapping like `kidnap`'s, its landing point drawn by the same law but kept only when
+        # the mirror image is about as probable (`_even_target`); the distance is drawn there.
+        plan["type"] = "kidnap"
+        plan["even"] = True
+        plan["planned_step"] = step
+        plan["turn_deg"] = float(rng.uniform(-180.0, 180.0))
+    elif family in ("kidnap", "kidnap_special"):
         plan["distance"] = float(rng.uniform(*KIDNAP_DISTANCE))
         if family == "kidnap":
             plan["turn_deg"] = float(rng.uniform(-180.0, 180.0))
@@ -270,10 +320,33 @@ def _kidnap_target(rng: np.random.Generator, field: Field, xy: np.ndarray, dista
     raise RuntimeError("no kidnapping target inside the field")
 
 
+def _even_target(rng: np.random.Generator, field: Field, pose: np.ndarray) -> np.ndarray | None:
+    """A landing point drawn by the kidnapping law (a distance uniform in `KIDNAP_DISTANCE`, a direction uniform
+    among those landing inside the field) conditioned on being even: |`kidnap_mirror_log_odds`| < `EVEN_ODDS`
+    (rejection: up to `EVEN_TRIES` draws); None when none of them is."""
+    start = [float(v) for v in pose]
+    for _ in range(EVEN_TRIES):
+        d = float(rng.uniform(*KIDNAP_DISTANCE))
+        angles = rng.uniform(-math.pi, math.pi, 64)
+        targets = pose[:2] + d * np.column_stack([np.cos(angles), np.sin(angles)])
+        ok = ((np.abs(targets[:, 0]) <= field.half_length - INSIDE)
+              & (np.abs(targets[:, 1]) <= field.half_width - INSIDE))
+        if not ok.any():
+            continue
+        target = targets[int(np.argmax(ok))]
+        odds = kidnap_mirror_log_odds(field, {"type": "kidnap", "from": start,
+                                              "to": [float(target[0]), float(target[1]), 0.0]})
+        if odds is not None and abs(odds) < EVEN_ODDS:
+            return target
+    return None
+
+
 def kidnap_mirror_log_odds(field: Field, event: dict) -> float | None:
     """For a kidnapping (`kidnap`, `kidnap_special`): the log odds of the true landing pose against its mirror
     image (−x, −y, θ + π) under this simulator's own kidnapping law, knowing the exact pose it started from;
-    None for other events. The filter never sees this: the battery reports with it which runs on the mirror
+    None for other events. The even families' kidnappings are of type `kidnap` (with `even` set): the same law
+    restricted to landing points whose odds are within ±`EVEN_ODDS`, a set closed under the mirror, so the same
+    odds. The filter never sees this: the battery reports with it which runs on the mirror
     the robot could have told apart at all.
 
     The law: a distance uniform in `KIDNAP_DISTANCE`, a direction uniform among those that land inside the
@@ -317,6 +390,7 @@ class _Walker:
         self.turn_to = 0.0
         self.turn_rate = 0.0
         self.side = 0.0
+        self.box = False            # waypoints in the middle of the field (`EVEN_BOX`) instead of anywhere
 
     def stand(self, t: float, seconds: float) -> None:
         self.mode, self.until = "stop", t + seconds
@@ -326,7 +400,7 @@ class _Walker:
         u = rng.random()
         if u < 0.55:
             self.mode, self.until = "walk", t + 30.0
-            self.waypoint = _inside_point(rng, self.field)
+            self.waypoint = _box_point(rng, self.field) if self.box else _inside_point(rng, self.field)
             self.speed = float(rng.uniform(0.1, max(p["max_speed"], 0.1)))
         elif u < 0.7:
             self.stand(t, float(rng.uniform(0.5, 2.5)))
@@ -378,7 +452,8 @@ def _walk(rng: np.random.Generator, field: Field, p: dict, plan: dict, start: np
     forced: dict[int, tuple[float, float, float]] = {}
     kind = plan["type"]
     k0 = plan.get("step", -1)
-    if kind in ("kidnap", "kidnap_special", "penalty", "manual_placement"):
+    even = bool(plan.get("even"))
+    if kind in ("kidnap", "kidnap_special", "penalty", "manual_placement") and not even:
         teleports[k0] = kind
     elif kind == "stuck":
         scale_x = p["odometry_scale"][0]
@@ -404,7 +479,9 @@ def _walk(rng: np.random.Generator, field: Field, p: dict, plan: dict, start: np
         lying[k0:plan["end_step"] + 1] = True
         moving[k0:plan["end_step"] + 1] = False
     walker = _Walker(rng, field, p)
+    walker.box = even
     walker.stand(0.0, float(rng.uniform(0.0, 1.0)))
+    pending = even           # an even kidnapping not done yet: tried from its step on, every EVEN_RETRY_STEPS
     pose = start.copy()
     velocity = np.zeros(3)
     limits = np.array([0.6, 0.6, 3.0]) * DT       # m/s², m/s², rad/s² (times dt): the engine's acceleration
@@ -441,6 +518,18 @@ def _walk(rng: np.random.Generator, field: Field, p: dict, plan: dict, start: np
             pose[1] += s * increment[0] + c * increment[1]
             pose[2] += increment[2]
         pose += external[k]
+        if pending and k >= k0 and (k - k0) % EVEN_RETRY_STEPS == 0:
+            target = _even_target(rng, field, pose)
+            if target is not None or k + EVEN_RETRY_STEPS >= n_steps - int(round(1.0 / DT)):
+                if target is None:        # never even before the run's end (not seen): a plain kidnapping
+                    plan["even"] = False
+                    target = _kidnap_target(rng, field, pose[:2], float(rng.uniform(*KIDNAP_DISTANCE)))
+                plan["step"], plan["time"] = k, (k + 1) * DT
+                plan["from"] = [float(v) for v in pose]
+                plan["distance"] = float(math.hypot(*(target - pose[:2])))
+                pose = np.array([target[0], target[1], pose[2] + math.radians(plan["turn_deg"])])
+                plan["to"] = [float(v) for v in pose]
+                walker.box, pending = False, False
         if k in teleports:
             pose = _teleport(rng, field, plan, pose)
             if teleports[k] in ("penalty", "manual_placement"):
@@ -571,7 +660,8 @@ def _calls_and_windows(plan: dict) -> tuple[tuple[Call, ...], tuple[tuple[float,
 def simulate(family: str, seed: int, duration: float = 60.0, overrides: dict | None = None) -> BatteryRun:
     """One run of `family` with `seed` (an int >= 0), `duration` seconds long (at least 5 s). `overrides`
     replaces drawn parameters (keys of `params`, e.g. {"odometry_scale": [1.2, 1.2, 1.2]}) after they are
-    drawn, so everything else the seed draws stays the same."""
+    drawn, so everything else the seed draws stays the same (the team world has its own generator and is not
+    overridden)."""
     code = family_code(family)
     if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
         raise ValueError(f"seed = {seed!r} must be an integer >= 0")
@@ -598,10 +688,18 @@ def simulate(family: str, seed: int, duration: float = 60.0, overrides: dict | N
         plan["excess"] = float(math.hypot(odometry[steps, 0].sum(), odometry[steps, 1].sum()))
     frames = _camera(rng, field, p, plan, truth, n_steps)
     calls, windows = _calls_and_windows(plan)
+    # The team world last, from a generator of its own: the run above is the same with or without it.
+    team_rng = np.random.default_rng(np.random.SeedSequence([seed, code, TEAM_STREAM]))
+    team = simulate_team(team_rng, field, DT, truth, frames, p["fov_deg"],
+                         teammates=(2, 4) if family == "kidnap_even_wrong" else (1, 4),
+                         messages_on=family in ("kidnap_even_team", "kidnap_even_wrong"),
+                         wrong=family == "kidnap_even_wrong", kidnap_time=plan.get("time"),
+                         blind=(plan["time"], plan["end"]) if plan["type"] == "blackout" else None)
     params = {"family": family, "seed": seed, "field": field.name, "duration": n_steps * DT,
-              "start": [float(v) for v in start], **p, "event": plan}
+              "start": [float(v) for v in start], **p, "event": plan, "team": team.params}
     return BatteryRun(family, seed, field, DT, (np.arange(n_steps) + 1) * DT, start, truth[1:], body, odometry,
-                      walking, moving, frames, calls, windows, params)
+                      walking, moving, frames, calls, windows, params, team.ball, team.ball_detections,
+                      team.messages, team)
 
 
 def as_robot_log(run: BatteryRun) -> RobotLog:
