@@ -237,10 +237,14 @@ def camera_views() -> st.SearchStrategy[CameraView]:
     -------
     hypothesis.strategies.SearchStrategy of sensing.view.CameraView
         Pan within ±2 rad, half field of view within [0.2, 1.2] rad, nearest range within [0, 0.5] m and
-        farthest within [2, 10] m.
+        farthest within [2, 10] m: one range for every landmark type, or a range per type (a mapping naming
+        some types by name, with or without "others").
     """
+    farthest = st.floats(2.0, 10.0)
+    per_type = st.fixed_dictionaries({}, optional={**{kind.name.lower(): farthest for kind in LandmarkType},
+                                                   "others": farthest}).filter(bool)
     return st.builds(CameraView, yaw=st.floats(-2.0, 2.0), half_fov=st.floats(0.2, 1.2),
-                     max_range=st.floats(2.0, 10.0), min_range=st.floats(0.0, 0.5))
+                     max_range=st.one_of(farthest, per_type), min_range=st.floats(0.0, 0.5))
 
 
 def observations(field: Field, max_detections: int = 8, with_sigmas: bool = False, *, min_detections: int = 0,

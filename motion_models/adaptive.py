@@ -51,6 +51,14 @@ holds 95 % of the training robots' errors) and the rates at which an episode end
 there, and the detector's window outlasts the contact by up to half a second). The other transition rates and
 `frequent_rate` are documented settings, not fitted.
 `stop_creep` > 0 is a variant (the robot walks on while it pivots about the held foot), 0 by default.
+
+Update rate. The chain (P = expm(Q·dt)) and the episode's perturbations (rates held for the episode) do not
+depend on the update rate. Eq. 10's odometry noise, drawn afresh every step, would: by default
+(`noise_rate="per_second"`) its half-widths are scaled by sqrt(REFERENCE_DT / dt), REFERENCE_DT = 0.01 s (the
+loop `odometry` was fitted at; `motion_models.base.noise_rate_factor`), so they spread a free walk the same per
+second at any rate, and are eq. 10's exactly at 100 Hz; `noise_rate="per_step"` is eq. 10 as written. With
+`redraw="step"` the perturbations are drawn afresh every step and average out faster at a higher rate: that
+variant is not rate-independent.
 """
 from __future__ import annotations
 
@@ -66,7 +74,7 @@ from field.angles import wrap_angles
 from numerics.random import PCG64_STEPS, bit_generator_handle, deferred_uniform, draw_rows_deferring
 from numerics.trig import sincos, sincos_reference, wrap
 
-from .base import MAX_NOISE_PARAMETER, MotionInput, check_nonnegative, check_poses
+from .base import MAX_NOISE_PARAMETER, MotionInput, check_noise_rate, check_nonnegative, check_poses, noise_rate_factor
 from .kernels import DRAWS
 from .percepts import CollisionPercept
 
@@ -228,6 +236,10 @@ class AdaptiveMotion:
         Stopped with a known side: the robot pivots about its held foot, so its centre walks on along the
         request at |v|·stop_creep·rand(0, 1), with the same rand() as the turn (the variant "adaptive-pivot" of
         `robocup-mcl demo collision`); 0 is the paper's eq. 23 (v' = 0). Finite and >= 0.
+    noise_rate : str, default "per_second"
+        How eq. 10's odometry noise depends on the update rate: "per_second", the `odometry` β hold at any rate
+        (half-widths times sqrt(0.01 s / dt), exactly eq. 10 at 100 Hz); "per_step", eq. 10 as written
+        (`motion_models.base.NOISE_RATES`).
 
     Raises
     ------
@@ -250,9 +262,11 @@ class AdaptiveMotion:
     transitions: MobilityTransitions = field(default_factory=MobilityTransitions)
     redraw: str = "episode"       # "episode" or "step": when the rand() of eq. 14-26 are drawn
     stop_creep: float = 0.0       # stopped: walks on at |v|·stop_creep·rand(0, 1) (0: the paper's eq. 23)
+    noise_rate: str = "per_second"  # eq. 10's noise: "per_second" holds at any update rate, "per_step" as written
     if TYPE_CHECKING:             # per-instance memos `_memoize` sets, not fields (ClassVar keeps them out of
         _kernel_params: ClassVar[np.ndarray]                      # the dataclass's fields for mypy)
         _cumulative_rows: ClassVar[dict[tuple[str, float], np.ndarray]]
+        _scaled_params: ClassVar[dict[float, np.ndarray]]
 
     def __post_init__(self) -> None:
         check_nonnegative(self, ("beta2", "beta5", "beta6", "beta7", "beta_turn", "stop_creep"))
@@ -275,6 +289,7 @@ class AdaptiveMotion:
             raise ValueError(f"transitions = {self.transitions!r} must be a MobilityTransitions")
         if self.redraw not in ("episode", "step"):
             raise ValueError(f"redraw = {self.redraw!r} must be 'episode' or 'step'")
+        check_noise_rate(self.noise_rate)
         self._memoize()
 
     def _memoize(self) -> None:
@@ -285,6 +300,7 @@ class AdaptiveMotion:
         params.flags.writeable = False
         object.__setattr__(self, "_kernel_params", params)
         object.__setattr__(self, "_cumulative_rows", {})
+        object.__setattr__(self, "_scaled_params", {})
 
     def __getstate__(self) -> dict:
         return {f.name: getattr(self, f.name) for f in fields(self)}
@@ -440,7 +456,35 @@ class AdaptiveMotion:
         side = percept.side
         vx, vy, omega = self.velocities(u)
         return (self.cumulative_transitions(self.condition(percept), u.dt), vx, vy, omega, u.dt,
-                np.nan if side is None else float(side), self._kernel_params, self.redraw == "step")
+                np.nan if side is None else float(side), self.kernel_parameters(u.dt), self.redraw == "step")
+
+    def kernel_parameters(self, dt: float) -> np.ndarray:
+        """The parameters `adaptive_move` takes for a step of `dt` seconds (read-only (14,)): β1..β7, β_turn, the
+        foot separation, eq. 10's `odometry` β times `noise_rate_factor(dt, noise_rate)`, and `stop_creep`. At
+        a factor of exactly 1 (dt = 0.01 s, or "per_step") the unscaled memo itself; the others kept per factor.
+
+        Parameters
+        ----------
+        dt : float
+            The time step [s].
+
+        Returns
+        -------
+        numpy.ndarray
+            (14,) float64, read-only.
+        """
+        factor = noise_rate_factor(dt, self.noise_rate)
+        if factor == 1.0:
+            return self._kernel_params
+        params = self._scaled_params.get(factor)
+        if params is None:
+            if len(self._scaled_params) >= _CUMULATIVE_MEMO:     # a varying dt must not grow it without end
+                self._scaled_params.clear()
+            params = self._kernel_params.copy()
+            params[9:13] *= factor
+            params.flags.writeable = False
+            self._scaled_params[factor] = params
+        return params
 
     def predict(self, poses: np.ndarray, u: MotionInput, rng: np.random.Generator,
                 state: np.ndarray | None = None) -> None:

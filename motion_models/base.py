@@ -16,7 +16,7 @@ from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
 
-from field.checks import LARGEST_ANGLE, real, reals
+from field.checks import LARGEST_ANGLE, ArgumentTypeError, real, reals
 from numerics.random import draw_variates
 
 from .kernels import move_with_noise
@@ -158,6 +158,72 @@ times any default. With a step's bounds it keeps one step's noise within 4·10�
 stays finite and every heading wraps exactly."""
 
 
+# -- the noise's dependence on the update rate ------------------------------------------------------------------
+REFERENCE_DT = 0.01
+"""The update period [s] the default noise parameters were chosen at (a 100 Hz loop): with
+`noise_rate="per_second"` a model's noise at this period is exactly its per-step form."""
+REFERENCE_DT_TOLERANCE = 1e-9
+"""A period within this many seconds of `REFERENCE_DT` counts as it: timestamps differenced in floating point
+give 0.010000000000000009 s for a 100 Hz loop, and a factor of 1 - 4·10⁻¹⁶ would change every bit downstream."""
+SHORTEST_NOISE_DT = 1e-4
+"""The shortest period [s] the per-second scaling assumes (a 10 kHz loop): a shorter one (a zero dt from a clock
+glitch, with odometry) is scaled as this one, so the factor stays at most sqrt(REFERENCE_DT / SHORTEST_NOISE_DT)
+= 10 and every bound finite."""
+NOISE_RATES = ("per_second", "per_step")
+"""The values of a model's `noise_rate`: how its noise parameters depend on the update rate.
+
+"per_second" (the default): the parameters set the spread accumulated per second of motion, whatever the
+update rate. Each step's noise is the per-step form scaled by `noise_rate_factor(dt)` = sqrt(REFERENCE_DT / dt):
+independent per-step draws add their variances, so over T seconds the spread is that of T / REFERENCE_DT steps
+at the reference period. A 10 s walk spreads the same at 30, 100 and 200 Hz.
+
+"per_step": the paper's form as written (Hoffmann eq. 10): each step's half-width is Δt·β·|v|, so the spread
+accumulated over T seconds scales with sqrt(Δt·T) and the parameters hold for one update rate only (scale β by
+sqrt(REFERENCE_DT / Δt) to keep a spread at another)."""
+
+
+def check_noise_rate(value: Any) -> str:
+    """`value` if it is one of `NOISE_RATES`; ValueError naming `noise_rate` otherwise (TypeError,
+    `field.checks.ArgumentTypeError`, unless it is a string)."""
+    if not isinstance(value, str):
+        raise ArgumentTypeError(f"noise_rate = {value!r} must be a string, one of {NOISE_RATES}, "
+                                f"not {type(value).__name__}")
+    if value not in NOISE_RATES:
+        raise ValueError(f"noise_rate = {value!r} must be one of {NOISE_RATES}")
+    return value
+
+
+def noise_rate_factor(dt: float, noise_rate: str = "per_second") -> float:
+    """The factor on a step's per-step noise (half-widths, or standard deviations) for a step of `dt` seconds.
+
+    "per_step": 1.0. "per_second": sqrt(REFERENCE_DT / dt), exactly 1.0 at `REFERENCE_DT` (within
+    `REFERENCE_DT_TOLERANCE`), so a filter at 100 Hz moves its particles bit for bit as with "per_step"; a dt
+    below `SHORTEST_NOISE_DT` is scaled as that (the factor is at most 10).
+
+    Parameters
+    ----------
+    dt : float
+        The step's period [s], >= 0.
+    noise_rate : str, optional
+        One of `NOISE_RATES`; default "per_second".
+
+    Returns
+    -------
+    float
+        The factor, > 0.
+    """
+    if noise_rate == "per_step" or abs(dt - REFERENCE_DT) <= REFERENCE_DT_TOLERANCE:
+        return 1.0
+    return math.sqrt(REFERENCE_DT / max(dt, SHORTEST_NOISE_DT))
+
+
+def scaled(bounds: tuple[float, float, float], factor: float) -> tuple[float, float, float]:
+    """`bounds` times `factor`, returned unchanged (the same floats) when `factor` is 1.0."""
+    if factor == 1.0:
+        return bounds
+    return (bounds[0] * factor, bounds[1] * factor, bounds[2] * factor)
+
+
 def check_nonnegative(obj, names: tuple[str, ...]) -> None:
     """Validate that each named parameter of a frozen model is a number within [0, `MAX_NOISE_PARAMETER`]."""
     for name in names:
@@ -167,8 +233,9 @@ def check_nonnegative(obj, names: tuple[str, ...]) -> None:
 class BoundedNoiseModel:
     """Shared behaviour of the models that move by the input's displacement plus robot-frame noise.
 
-    A subclass (a frozen dataclass with a `gaussian` field) defines `noise_bounds(u)`: the half-widths of
-    the uniform noise per axis (or, with `gaussian`, sqrt(3) times its standard deviation).
+    A subclass (a frozen dataclass with a `gaussian` field and a `noise_rate` field, one of `NOISE_RATES`)
+    defines `noise_bounds(u)`: the half-widths of the uniform noise per axis (or, with `gaussian`, sqrt(3)
+    times its standard deviation), its per-step form scaled by `noise_rate_factor(u.dt, noise_rate)`.
     """
 
     gaussian: bool

@@ -34,6 +34,10 @@ nothing: the model then falls back to the raw displacement (inputs 0-2) with the
 the training data as noise (`fallback_sigma`). `RawFootstepOdometry` is the same motion model without
 learning: the raw displacement with a constant noise calibrated on training data, for comparisons.
 
+Update rate. Both models draw their noise once per step of the gait (a support swap), never per filter step:
+the spread of a walk depends on the steps taken, not on how often the filter runs, so they have no
+`noise_rate` (unlike `VelocityLinear`, whose noise is drawn every filter step).
+
 A linear stage (`train(..., linear_stage=True)`, a variant, not the paper's model): a least-squares affine map
 of all the inputs to the true step (`LinearStage`), then LWPR learning what it leaves (truth minus the linear
 step); where no receptive field covers the inputs, the linear step alone. On the a priori inputs this gave the
@@ -722,7 +726,8 @@ def _move_gaussian(poses: np.ndarray, mean, sigma, rng: np.random.Generator) -> 
 @dataclass(frozen=True)
 class RawFootstepOdometry:
     """The footstep displacement without learning: the event's commanded ("apriori") or sensor ("online")
-    displacement plus constant Gaussian robot-frame noise `sigma` (m, m, rad) per step.
+    displacement plus constant Gaussian robot-frame noise `sigma` (m, m, rad) per step of the gait (drawn at a
+    support swap, not per filter step: the same at any update rate).
 
     Parameters
     ----------

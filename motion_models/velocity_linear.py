@@ -17,15 +17,22 @@ literally they give β1 = 0.0125, an along-track spread of 0.07 % of the distanc
 tight for a walking robot; read with "ms" as a misprint for seconds they give β1 = 12.5, a spread of 65 %.
 So the defaults below are chosen, not copied: at 100 Hz the along-track spread after one second of walking
 is 10 % of the distance walked (β1 = 1.7; measured by `tests/test_motion_models.py`), lateral and
-rotational terms keep the paper's ordering (β2 < β1, β4 dominant when turning). The noise is a random walk,
-so its accumulated spread scales with sqrt(Δt·T): at a lower update rate, scale β by sqrt(0.01 s / Δt).
+rotational terms keep the paper's ordering (β2 < β1, β4 dominant when turning).
+
+Update rate (`noise_rate`). Eq. 10 as written draws a new noise every step, so over T seconds its spread
+scales with sqrt(Δt·T): β chosen at 100 Hz would spread a walk by sqrt(3.3) times more at 30 Hz. By default
+(`noise_rate="per_second"`) each step's half-widths are eq. 10's times sqrt(REFERENCE_DT / Δt), REFERENCE_DT =
+0.01 s (`motion_models.base.noise_rate_factor`), so the β above hold at any update rate: a 10 s walk spreads
+the same at 30, 100 and 200 Hz. At Δt = 0.01 s the factor is exactly 1 and the noise is eq. 10's, bit for bit.
+`noise_rate="per_step"` is eq. 10 as written (the spread then depends on the rate; scale β by
+sqrt(0.01 s / Δt) by hand).
 """
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
 
-from .base import BoundedNoiseModel, MotionInput, check_nonnegative
+from .base import BoundedNoiseModel, MotionInput, check_noise_rate, check_nonnegative, noise_rate_factor, scaled
 
 
 @dataclass(frozen=True)
@@ -44,11 +51,15 @@ class VelocityLinear(BoundedNoiseModel):
         Heading noise per unit angular speed; default 1.0.
     gaussian : bool, optional
         Gaussian noise of the same variance instead of uniform; default False.
+    noise_rate : str, optional
+        "per_second" (the default): the β set the spread per second of walking at any update rate (eq. 10's
+        half-widths times sqrt(0.01 s / Δt), exactly eq. 10 at 100 Hz); "per_step": eq. 10 as written, the
+        β holding at one update rate (`motion_models.base.NOISE_RATES`).
 
     Raises
     ------
     ValueError
-        If a β is not within [0, `MAX_NOISE_PARAMETER`].
+        If a β is not within [0, `MAX_NOISE_PARAMETER`] or `noise_rate` is not one of `NOISE_RATES`.
     """
 
     beta1: float = 1.7   # along-track noise per unit speed
@@ -56,12 +67,15 @@ class VelocityLinear(BoundedNoiseModel):
     beta3: float = 1.0   # rad/m: heading noise per unit translational speed (drift while walking straight)
     beta4: float = 1.0   # heading noise per unit angular speed
     gaussian: bool = False
+    noise_rate: str = "per_second"   # "per_second": the β hold at any update rate; "per_step": eq. 10 as written
 
     def __post_init__(self) -> None:
         check_nonnegative(self, ("beta1", "beta2", "beta3", "beta4"))
+        check_noise_rate(self.noise_rate)
 
     def noise_bounds(self, u: MotionInput) -> tuple[float, float, float]:
-        """The half-widths Δt·β|v|... of eq. 10 for this input.
+        """The half-widths Δt·β|v|... of eq. 10 for this input, times `noise_rate_factor(u.dt, noise_rate)`
+        (1 with "per_step" and at Δt = 0.01 s).
 
         Parameters
         ----------
@@ -82,8 +96,10 @@ class VelocityLinear(BoundedNoiseModel):
         if u.command is not None:
             speed, omega = math.hypot(u.command[0], u.command[1]), abs(u.command[2])
             dt = u.dt
-            return (dt * self.beta1 * speed, dt * self.beta2 * speed, dt * (self.beta3 * speed + self.beta4 * omega))
-        dx, dy, dtheta = u.displacement()
-        # Δt·β·|v| with |v| = |Δ|/Δt: the odometry's own displacement sets the bound.
-        distance = math.hypot(dx, dy)
-        return (self.beta1 * distance, self.beta2 * distance, self.beta3 * distance + self.beta4 * abs(dtheta))
+            bounds = (dt * self.beta1 * speed, dt * self.beta2 * speed, dt * (self.beta3 * speed + self.beta4 * omega))
+        else:
+            dx, dy, dtheta = u.displacement()
+            # Δt·β·|v| with |v| = |Δ|/Δt: the odometry's own displacement sets the bound.
+            distance = math.hypot(dx, dy)
+            bounds = (self.beta1 * distance, self.beta2 * distance, self.beta3 * distance + self.beta4 * abs(dtheta))
+        return scaled(bounds, noise_rate_factor(u.dt, self.noise_rate))

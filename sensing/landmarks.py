@@ -50,7 +50,8 @@ The kernels that take a batch of detections take their arguments in groups (tupl
     pose       (x, y, θ): one pose
     gate       (gate, range_slack, bearing_slack): how many σ a detection may lie from a landmark, σ widened by
                the slacks (`gate_group`)
-    view       (yaw, half_fov, min_range, max_range): the camera's view (`view_group`)
+    view       (yaw, half_fov, min_range, max_ranges): the camera's view, `max_ranges[v]` the farthest range of
+               landmark type value v (`view_group`)
 """
 from __future__ import annotations
 
@@ -719,9 +720,11 @@ def gate_group(gate: float, range_slack: float, bearing_slack: float) -> tuple[f
     return float(gate), float(range_slack), float(bearing_slack)
 
 
-def view_group(view: CameraView) -> tuple[float, float, float, float]:
-    """The group `view` of the kernels: (yaw, half_fov, min_range, max_range) of a `CameraView`."""
-    return view.yaw, view.half_fov, view.min_range, view.max_range
+def view_group(view: CameraView) -> tuple[float, float, float, np.ndarray]:
+    """The group `view` of the kernels: (yaw, half_fov, min_range, max_ranges) of a `CameraView`, max_ranges
+    (`CameraView.max_ranges`) the farthest range of each landmark type, indexed by the type's value (`max_range`
+    for every type when the view gives one number: the same comparisons, bit for bit)."""
+    return view.yaw, view.half_fov, view.min_range, view.max_ranges
 
 
 @numba.njit(inline="always")
@@ -731,7 +734,7 @@ def _view_counts(landmarks, pose, batch, noise, gate, view):
     x, y, theta = pose
     kinds, ranges, bearings, _, _ = batch
     gate_sigmas, range_slack, bearing_slack = gate
-    yaw, half_fov, min_range, max_range = view
+    yaw, half_fov, min_range, max_ranges = view
     limit = gate_sigmas * gate_sigmas
     expected = 0
     seen = 0
@@ -744,7 +747,7 @@ def _view_counts(landmarks, pose, batch, noise, gate, view):
         dx = table[k, 0] - x
         dy = table[k, 1] - y
         r = math.hypot(dx, dy)
-        if r < min_range or r > max_range or dx * axis_x + dy * axis_y < r * cos_half:
+        if r < min_range or r > max_ranges[table_kinds[k]] or dx * axis_x + dy * axis_y < r * cos_half:
             continue
         bearing = math.atan2(dy, dx) - theta
         expected += 1
@@ -763,11 +766,11 @@ def _view_counts(landmarks, pose, batch, noise, gate, view):
 @numba.njit(cache=True)
 def landmarks_in_view(landmarks, pose, batch, noise, gate, view, out):
     """out[0] ← how many landmarks the pose (x, y, θ) puts inside the view (bearing within `half_fov` of `yaw`,
-    range within [min_range, max_range]); out[1] ← how many of those a detection of their type lies within
-    `gate` standard deviations of (range and bearing errors together; σ: the detection's own, else the model's
-    at the detected range, plus the slacks, as `explained_detections`). landmarks, pose, batch, noise, gate,
-    view: the module docstring's groups (`table_kinds[k]` is landmark k's type value). (`LandmarkSensorModel.seen`;
-    numpy twin `LandmarkSensorModel.seen_reference`.) Returns out."""
+    range within [min_range, max_ranges[its type value]]); out[1] ← how many of those a detection of their type
+    lies within `gate` standard deviations of (range and bearing errors together; σ: the detection's own, else
+    the model's at the detected range, plus the slacks, as `explained_detections`). landmarks, pose, batch, noise,
+    gate, view: the module docstring's groups (`table_kinds[k]` is landmark k's type value).
+    (`LandmarkSensorModel.seen`; numpy twin `LandmarkSensorModel.seen_reference`.) Returns out."""
     expected, seen = _view_counts(landmarks, pose, batch, noise, gate, view)
     out[0] = expected
     out[1] = seen
@@ -1086,7 +1089,7 @@ class LandmarkSensorModel:
         dy = self._table[:, 1] - y
         r = np.hypot(dx, dy)
         bearing = np.arctan2(dy, dx) - theta
-        inside = ((r >= view.min_range) & (r <= view.max_range)
+        inside = ((r >= view.min_range) & (r <= view.max_ranges[self._table_kinds])
                   & (np.abs(wrap_angles(bearing - view.yaw)) <= view.half_fov))
         range_sigmas, bearing_sigmas = self._sigmas(observations)
         range_sigmas = range_sigmas + range_slack

@@ -28,7 +28,7 @@ def detections(pose, view: CameraView, keep=1.0, noise=None, rng=None):
             d = target - pose[:2]
             r = math.hypot(*d)
             b = math.remainder(math.atan2(d[1], d[0]) - pose[2], 2 * math.pi)
-            if (view.min_range <= r <= view.max_range and abs(math.remainder(b - view.yaw, 2 * math.pi))
+            if (view.min_range <= r <= view.range_of(kind) and abs(math.remainder(b - view.yaw, 2 * math.pi))
                     <= view.half_fov and rng.random() < keep):
                 if noise is not None:
                     r += noise[0] * rng.standard_normal()
@@ -65,8 +65,109 @@ def test_a_view_of_the_wrong_type_is_refused_as_a_type_error():
         CameraView(0.0, 0.5, 5.0).inset(0.0)
 
 
+# -- a farthest range per landmark type -------------------------------------------------------------------------
+def test_a_range_per_type_parses_its_keys_and_fills_the_others():
+    view = CameraView(0.0, 0.5, {LandmarkType.GOALPOST: 8.0, "penalty mark": 3, 3: 4.5, "T": 5.0}, 0.2)
+    assert view.per_type and view.max_range == (8.0, 8.0, 5.0, 4.5, 3.0, 8.0)    # unnamed: the largest given
+    assert view.range_of("post") == 8.0 and view.range_of(LandmarkType.X_CROSSING) == 4.5
+    assert view.max_ranges.tolist() == list(view.max_range) and not view.max_ranges.flags.writeable
+    others = CameraView(0.0, 0.5, {"goalpost": 8.0, "others": 4.0})
+    assert others.max_range == (8.0, 4.0, 4.0, 4.0, 4.0, 4.0)
+    assert CameraView(0.0, 0.5, others.max_range) == others                 # the tuple it keeps is taken back
+    assert hash(others) == hash(CameraView(0.0, 0.5, {"others": 4.0, LandmarkType.GOALPOST: 8}))
+    plain = CameraView(0.0, 0.5, 6.0)
+    assert not plain.per_type and plain.max_range == 6.0 and plain.range_of("X") == 6.0
+    assert plain.max_ranges.tolist() == 6 * [6.0]
+
+
+def test_a_view_with_ranges_per_type_insets_each_within_itself():
+    view = CameraView(0.3, 0.6, {"goalpost": 8.0, "others": 4.0}, 0.4)
+    inner = view.inset(0.8)
+    assert inner.half_fov == pytest.approx(0.48) and inner.yaw == view.yaw
+    assert inner.max_range == pytest.approx((8.0 - 0.76, *(5 * [4.0 - 0.36])))   # 10 % of each span
+    assert inner.min_range == pytest.approx(0.4 + 0.36)                          # 10 % of the shortest span
+    assert view.inset(1.0) == view
+    # with every type at one range, the per-type inset is the plain one
+    same = CameraView(0.3, 0.6, {"others": 6.0}, 0.4).inset(0.7)
+    plain = CameraView(0.3, 0.6, 6.0, 0.4).inset(0.7)
+    assert same.max_range == 6 * (plain.max_range,) and same.min_range == plain.min_range
+
+
+@pytest.mark.parametrize("max_range,match", [
+    ({}, "at least one"), ({"goalpost": 0.0}, r"max_range\['goalpost'\] = 0.0"),
+    ({"post": 5.0, "goalpost": 6.0}, "goalpost twice"), ({"corner": 5.0}, "max_range key 'corner'"),
+    ({9: 5.0}, "max_range key 9"), ({"goalpost": math.inf}, "goalpost"), ({"others": -1.0}, "others"),
+    ((5.0, 4.0), "6 ranges"), ((5.0, 4.0, 4.0, 4.0, 4.0, 2e3), r"max_range\[center_mark\]")])
+def test_bad_ranges_per_type_are_refused_naming_the_key_and_value(max_range, match):
+    with pytest.raises(ValueError, match=match):
+        CameraView(0.0, 0.5, max_range)
+
+
+def test_ranges_per_type_of_the_wrong_type_are_type_errors_and_the_nearest_is_below_every_farthest():
+    for bad in ({"goalpost": "far"}, {2.5: 4.0}, {None: 4.0}, [5.0, 4.0], "far", None):
+        with pytest.raises(ArgumentTypeError, match="max_range"):
+            CameraView(0.0, 0.5, bad)
+    with pytest.raises(ValueError, match="min_range = 3.0"):
+        CameraView(0.0, 0.5, {"goalpost": 8.0, "others": 2.5}, 3.0)
+
+
+def test_a_range_per_type_decides_which_landmarks_are_expected():
+    """A goalpost 6 m ahead is expected in view with {goalpost: 8, others: 4} (9 m ahead it is not); a penalty
+    mark 6 m ahead is not, but is with a range of 6.5 m for penalty marks or one range of 8 m; the kernel and its
+    numpy twin agree."""
+    model = LandmarkSensorModel(FIELD)
+    table, offsets = model.landmark_table
+    post = table[offsets[LandmarkType.GOALPOST]]
+    # a pose 6 m from the goalpost, looking at it, 6 m from nothing else of the field within a narrow view
+    for distance, expect_post in ((6.0, True), (9.0, False)):
+        pose = np.array([post[0] - distance, post[1], 0.0])
+        view = CameraView(0.0, 0.05, {"goalpost": 8.0, "others": 4.0})
+        assert model.seen(pose, Observations.empty(), view) == (int(expect_post), 0)
+        assert model.seen_reference(pose, Observations.empty(), view) == (int(expect_post), 0)
+    mark = table[offsets[LandmarkType.PENALTY_MARK]]
+    pose = np.array([mark[0], mark[1] + 6.0, -math.pi / 2])      # beside the field, looking at the mark alone
+    for view, expected in ((CameraView(0.0, 0.05, {"goalpost": 8.0, "others": 4.0}), 0),
+                           (CameraView(0.0, 0.05, {"goalpost": 8.0, "penalty_mark": 6.5}), 1),
+                           (CameraView(0.0, 0.05, 8.0), 1)):
+        assert model.seen(pose, Observations.empty(), view)[0] == expected
+        assert model.seen_reference(pose, Observations.empty(), view)[0] == expected
+
+
+ranges_per_type = st.fixed_dictionaries({}, optional={kind.name.lower(): st.floats(1.0, 9.0) for kind in KINDS}) \
+    .filter(bool)
+
+
 # -- seen: the kernel, its twin, and what it says -----------------------------------------------------------
 poses_on_field = st.tuples(st.floats(-4.5, 4.5), st.floats(-3.0, 3.0), st.floats(-math.pi, math.pi))
+
+
+@settings(max_examples=60, deadline=None)
+@given(pose=poses_on_field, yaw=st.floats(-1.2, 1.2), half_fov=st.floats(0.2, 1.6), seed=st.integers(0, 2**32 - 1),
+       ranges=ranges_per_type, others=st.one_of(st.none(), st.floats(1.0, 9.0)), keep=st.floats(0.0, 1.0),
+       rate=st.sampled_from([0.0, 0.3]))
+def test_with_ranges_per_type_the_kernels_equal_their_numpy_twins(pose, yaw, half_fov, seed, ranges, others, keep,
+                                                                  rate):
+    rng = np.random.default_rng(seed)
+    model = LandmarkSensorModel(FIELD, detection_rate=rate)
+    view = CameraView(yaw, half_fov, ranges if others is None else {**ranges, "others": others}, 0.3)
+    observations = detections(np.array(pose), view, keep, noise=(0.1, 0.05), rng=rng).with_view(view)
+    for at in (np.array(pose), np.array(pose) + rng.normal(0, 0.4, 3)):
+        assert model.seen(at, observations, view, 2.5, 0.1, 0.03) == model.seen_reference(at, observations, view,
+                                                                                          2.5, 0.1, 0.03)
+    poses = np.array(pose) + rng.normal(0, 0.5, (30, 3))
+    np.testing.assert_allclose(model.log_likelihood(poses, observations),
+                               model.log_likelihood_reference(poses, observations), rtol=1e-9, atol=1e-9)
+
+
+def test_one_range_and_the_same_range_for_every_type_score_the_same_bits():
+    pose = np.array([-1.5, 0.5, 0.2])
+    plain = CameraView(0.2, 0.6, 6.5, 0.3)
+    every = CameraView(0.2, 0.6, {"others": 6.5}, 0.3)
+    observations = detections(pose, plain, keep=0.6, rng=np.random.default_rng(2))
+    poses = pose + np.random.default_rng(3).normal(0, 0.6, (200, 3))
+    model = LandmarkSensorModel(FIELD, detection_rate=0.3)
+    assert model.log_likelihood(poses, observations.with_view(plain)).tobytes() == \
+        model.log_likelihood(poses, observations.with_view(every)).tobytes()
 
 
 @settings(max_examples=80, deadline=None)
