@@ -42,8 +42,9 @@ from multiprocessing import get_context
 import numpy as np
 
 from field import spl
-from mcl.evaluation import QUALITY_CODE, QUALITY_LEVELS, evaluate, median_worst, pool_counts
-from mcl.localizer import Localizer, QualityThresholds
+from mcl.evaluation import (CONVERGED_HEADING, CONVERGED_POSITION, FAIL_POSITION, QUALITY_CODE, QUALITY_LEVELS,
+                            evaluate, first_stretch, median_worst, mirrored, pool_counts, pose_errors)
+from mcl.localizer import Localizer, Quality, QualityThresholds
 from mcl.profile import Profile
 from mcl.relocalization import RelocalizationPrior, SoccerRelocalization
 from motion_models import MotionInput
@@ -58,6 +59,8 @@ SPLITS = ("train", "holdout")
 MAX_SEEDS = HOLDOUT_FIRST - TRAIN_FIRST     # keeps the two splits disjoint
 STRONG_EXCESS = 0.5                          # m: collisions whose odometry ran this far ahead, reported apart
 MIRROR_CLEAR = 2.0                           # odds of truth against mirror that count as telling them apart
+CORRECT_HOLD = 2.0                           # s of correct tracking that end an even kidnapping's recovery
+UNSURE_AFTER = 2.0                           # s after a kidnapping from which the quality must doubt the half
 
 
 def split_seeds(split: str, k: int) -> list[int]:
@@ -95,17 +98,27 @@ def camera_view(run: BatteryRun, frame) -> CameraView:
 
 def localize(run: BatteryRun, particles: int = 500, prior: dict | None = None,
              quality: dict | None = None, view: bool = False, sensor: dict | None = None,
-             profile: Profile | None = None, filter_seed: int | None = None) -> dict:
+             profile: Profile | None = None, filter_seed: int | None = None, team: bool | None = None) -> dict:
     """Drive a `Localizer` through the run (see the module docstring); returns estimates (T, 3), quality
     codes (T,), lost (T,), dropped frames, the log evidence of the frames used (`Localizer.log_evidence`, and
-    how many) and the seconds the loop took. The filter's seed is `filter_seed`, by default the run's seed."""
+    how many), the steps at which the team's evidence changed the robot's side, and the seconds the loop took.
+    The filter's seed is `filter_seed`, by default the run's seed. team: feed the teammates' messages and the
+    robot's ball sightings (`Localizer.team_message`, `observe(..., ball=)`); None: when the run's messages are
+    on (the team families)."""
     loc = make_localizer(run.field, run.seed if filter_seed is None else filter_seed, particles, prior, quality,
                          sensor, profile)
+    if team is None:
+        team = bool(run.params.get("team", {}).get("messages_on", False))
     loc.anywhere_in_own_half()
     n = run.times.shape[0]
     frames_at: dict[int, list] = {}
-    for frame in run.frames:
-        frames_at.setdefault(frame.arrival_step, []).append(frame)
+    balls = run.ball_detections if team and run.ball_detections else (None,) * len(run.frames)
+    for frame, ball in zip(run.frames, balls):
+        frames_at.setdefault(frame.arrival_step, []).append((frame, ball))
+    messages_at: dict[int, list] = {}
+    for step, message in (run.messages if team else ()):
+        messages_at.setdefault(step, []).append(message)
+    flips: list[int] = []
     calls_at: dict[int, list] = {}
     for call in run.calls:
         calls_at.setdefault(call.step, []).append(getattr(loc, call.name))
@@ -122,18 +135,27 @@ def localize(run: BatteryRun, particles: int = 500, prior: dict | None = None,
         loc.motion(times[k], MotionInput(dt, odometry=odometry[k]))
         for call in calls_at.get(k, ()):
             call()
-        for frame in frames_at.get(k, ()):
+        changed = loc.counts["side changed by the team"]
+        for frame, ball in frames_at.get(k, ()):
             try:
                 loc.observe(frame.observations, capture_time=frame.capture_time,
-                            view=camera_view(run, frame) if view else None)
+                            view=camera_view(run, frame) if view else None, ball=ball)
             except ValueError:
                 dropped += 1          # captured before the last reset (the localizer refuses it)
+        if team:
+            for message in messages_at.get(k, ()):
+                try:
+                    loc.team_message(message)
+                except ValueError:
+                    dropped += 1      # sent before the localizer's past window (a very late message)
+        if loc.counts["side changed by the team"] != changed:
+            flips.append(k)
         estimates[k] = loc.pose().pose
         quality[k] = codes[loc.quality()]
         lost[k] = loc.is_lost
     return {"estimates": estimates, "quality": quality, "lost": lost, "dropped_frames": dropped,
-            "log_evidence": loc.log_evidence, "evidence_frames": loc.evidence_frames,
-            "loop_s": time.perf_counter() - started}
+            "log_evidence": loc.log_evidence, "evidence_frames": loc.evidence_frames, "team_flips": flips,
+            "team": team, "loop_s": time.perf_counter() - started}
 
 
 @functools.lru_cache(maxsize=256)
@@ -184,18 +206,52 @@ def _jsonable(value):
     return value
 
 
+def kidnap_class(log_odds: float | None) -> str:
+    """A kidnapping by what the robot could know (the simulator's own law, `kidnap_mirror_log_odds`): "clear"
+    when the truth is at least MIRROR_CLEAR times as probable as its mirror image, "mirror" when the mirror
+    image is that much more probable, "even" in between."""
+    odds = math.inf if log_odds is None else log_odds      # (JSON has no infinity: certain, the mirror undrawable)
+    return ("clear" if odds >= math.log(MIRROR_CLEAR) else "mirror" if odds <= -math.log(MIRROR_CLEAR)
+            else "even")
+
+
+def side_figures(run: BatteryRun, out: dict) -> dict:
+    """The figures of the field's symmetry for one run: for a kidnapping, the seconds from its end until
+    `CORRECT_HOLD` seconds of correct tracking (within 0.3 m and 20°) are complete, and, of the steps from
+    `UNSURE_AFTER` seconds after it that are on the mirror, how many the quality flagged (UNSURE_HALF or lost);
+    for every run, the side changes made by the team's evidence and how many of them went from the right pose
+    to the mirror image."""
+    position, heading = pose_errors(run.truth, out["estimates"])
+    mirror = mirrored(run.truth, out["estimates"])
+    flips = out["team_flips"]
+    figures = {"team": out["team"], "team_flips": len(flips),
+               "flips_to_mirror": sum(1 for k in flips if k > 0 and position[k - 1] <= FAIL_POSITION and mirror[k])}
+    if run.params["event"]["type"] in ("kidnap", "kidnap_special") and run.windows:
+        end = run.windows[0][1]
+        good = (position < CONVERGED_POSITION) & (heading < CONVERGED_HEADING)
+        figures["correct_2s_s"] = first_stretch(run.times, good, end, CORRECT_HOLD) + CORRECT_HOLD
+        due = mirror & (run.times >= end + UNSURE_AFTER)
+        doubted = (out["quality"] == QUALITY_CODE[Quality.UNSURE_HALF]) | out["lost"]
+        figures["mirror_steps"] = int(due.sum())
+        figures["mirror_steps_doubted"] = int((due & doubted).sum())
+    return figures
+
+
 def run_case(family: str, seed: int, duration: float = 60.0, particles: int = 500, prior: dict | None = None,
              quality: dict | None = None, view: bool = False, sensor: dict | None = None,
-             profile: Profile | None = None, filter_seed: int | None = None) -> dict:
+             profile: Profile | None = None, filter_seed: int | None = None, team: bool | None = None) -> dict:
     """Simulate one run, localize it, and return its figures (JSON-ready; "never" is None). view: pass each
-    frame's camera view to `observe` (`camera_view`); profile, filter_seed: as `localize`."""
+    frame's camera view to `observe` (`camera_view`); profile, filter_seed, team: as `localize`."""
     run = simulate(family, seed, duration)
-    out = localize(run, particles, prior, quality, view, sensor, profile, filter_seed)
+    out = localize(run, particles, prior, quality, view, sensor, profile, filter_seed, team)
     figures = evaluate(run.times, run.truth, out["estimates"], out["quality"], out["lost"], run.windows)
+    figures.update(side_figures(run, out))
     heading = figures.pop("rmse_heading_rad")
     figures["rmse_heading_deg"] = None if heading is None else math.degrees(heading)
     event = run.params["event"]
     figures["kidnap_log_odds"] = kidnap_mirror_log_odds(run.field, event)
+    if figures["kidnap_log_odds"] is not None:
+        figures["kidnap_class"] = kidnap_class(figures["kidnap_log_odds"])
     figures.update({"family": family, "seed": seed, "field": run.field.name, "event": event["type"],
                     "excess_m": event.get("excess"), "windows": run.windows, "frames": len(run.frames),
                     "dropped_frames": out["dropped_frames"], "loop_s": out["loop_s"],
@@ -230,17 +286,30 @@ def summarize_family(runs: list[dict]) -> dict:
     out["on_mirror"] = sum(bool(r["on_mirror"]) for r in runs)
     kidnaps = [r for r in runs if r.get("event") in ("kidnap", "kidnap_special")]
     if kidnaps:
-        # The kidnappings by what the robot could know (the simulator's own law, `kidnap_mirror_log_odds`): the
-        # truth at least MIRROR_CLEAR times as probable as its mirror image, the mirror image that much more
-        # probable, or in between; and of each, how many runs ended on the mirror.
-        classes = {"clear": [], "even": [], "mirror": []}
-        for r in kidnaps:
-            odds = r.get("kidnap_log_odds")
-            odds = math.inf if odds is None else odds      # (JSON has no infinity: certain, the mirror undrawable)
-            key = ("clear" if odds >= math.log(MIRROR_CLEAR) else
-                   "mirror" if odds <= -math.log(MIRROR_CLEAR) else "even")
-            classes[key].append(bool(r["on_mirror"]))
-        out["kidnap_odds"] = {key: {"runs": len(v), "on_mirror": sum(v)} for key, v in classes.items()}
+        # The kidnappings by what the robot could know (`kidnap_class`); of each class, how many runs ended on
+        # the mirror, its own pooled quality and lost figures, and how long until 2 s of correct tracking.
+        out["kidnap_odds"] = {}
+        for key in ("clear", "even", "mirror"):
+            members = [r for r in kidnaps if kidnap_class(r.get("kidnap_log_odds")) == key]
+            median, worst, count = median_worst([_never(r.get("correct_2s_s")) for r in members])
+            out["kidnap_odds"][key] = {
+                "runs": len(members), "on_mirror": sum(bool(r["on_mirror"]) for r in members),
+                "pooled": pool_counts(members),
+                "correct_2s_s": {"median": median, "worst": worst, "runs": count,
+                                 "never": sum(_never(r.get("correct_2s_s")) == math.inf for r in members)},
+                "mirror_steps": sum(r.get("mirror_steps", 0) for r in members),
+                "mirror_steps_doubted": sum(r.get("mirror_steps_doubted", 0) for r in members)}
+    out["team_runs"] = sum(bool(r.get("team")) for r in runs)
+    out["team_flips"] = sum(r.get("team_flips", 0) for r in runs)
+    out["flips_to_mirror"] = sum(r.get("flips_to_mirror", 0) for r in runs)
+    # the quality's promise holds in every run, not only over all of them: the worst run's wrong share per level
+    out["wrong_by_run"] = {}
+    for level in ("SUPERB", "OKAY"):
+        shares = [r["quality"][level]["wrong"] / r["quality"][level]["steps"] for r in runs
+                  if r["quality"][level]["steps"]]
+        out["wrong_by_run"][level] = {"worst": max(shares) if shares else None, "runs": len(shares),
+                                      "over_1": sum(v > 0.01 for v in shares),
+                                      "over_5": sum(v > 0.05 for v in shares)}
     out["pooled"] = pool_counts(runs)
     out["dropped_frames"] = sum(r["dropped_frames"] for r in runs)
     return out
@@ -248,6 +317,10 @@ def summarize_family(runs: list[dict]) -> dict:
 
 def _percent(value) -> str:
     return "–" if value is None else f"{100 * value:.1f} %"
+
+
+def share_text(hits: int, of: int) -> str:
+    return "–" if not of else f"{100 * hits / of:.1f} %"
 
 
 def format_family(name: str, s: dict) -> list[str]:
@@ -280,6 +353,24 @@ def format_family(name: str, s: dict) -> list[str]:
         lines.append(f"    {'split by the kidnap law odds:':<32}truth ≥ {MIRROR_CLEAR:g}:1 {k['clear']['on_mirror']}/"
                      f"{k['clear']['runs']}, even {k['even']['on_mirror']}/{k['even']['runs']}, mirror ≥ "
                      f"{MIRROR_CLEAR:g}:1 {k['mirror']['on_mirror']}/{k['mirror']['runs']}")
+        clear, even = k["clear"], k["even"]
+        if clear["runs"]:
+            lines.append(f"    {'clear kidnaps: lost recall':<32}{_percent(clear['pooled']['recall']['share']):>10}"
+                         f"   false alarms {_percent(clear['pooled']['false_alarm']['share'])}")
+        if even["runs"]:
+            c = even["correct_2s_s"]
+            doubted = share_text(even["mirror_steps_doubted"], even["mirror_steps"])
+            lines.append(f"    {'even kidnaps: to 2 s correct [s]':<32}{_fmt_time(c['median']):>10}"
+                         f"{_fmt_time(c['worst']):>10}   {c['never']}/{c['runs']}")
+            lines.append(f"    {'even: on the mirror, doubted':<32}{doubted:>10}   of {even['mirror_steps']} steps "
+                         f"(UNSURE_HALF or lost, from {UNSURE_AFTER:g} s after)")
+    if s.get("team_runs"):
+        lines.append(f"  {'side changes by the team':<34}{s['team_flips']:>10}   to the mirror: "
+                     f"{s['flips_to_mirror']} ({s['team_runs']} runs with messages)")
+    for level, limit in (("SUPERB", "over_1"), ("OKAY", "over_5")):
+        w = s["wrong_by_run"][level]
+        lines.append(f"  {level + ' wrong, worst run':<34}{_percent(w['worst']):>10}   runs over "
+                     f"{'1' if limit == 'over_1' else '5'} %: {w[limit]}/{w['runs']}")
     row_values("tracking RMSE position [m]", s["rmse_position_m"], lambda v: f"{v:.3f}")
     row_values("tracking RMSE heading [°]", s["rmse_heading_deg"], lambda v: f"{v:.1f}")
     lines += _pooled_lines(s["pooled"])

@@ -5,7 +5,8 @@
 
 Inputs, one row per truth sample (100 Hz): `times` (M,) [s], `truth` and `estimates` (M, 3) poses (x, y, θ);
 estimates taken at other times are put on the truth's grid with `hold_last`. `quality` (M,) codes
-(`QUALITY_CODE`: SUPERB 0, OKAY 1, POOR 2, as `quality_codes` makes them from `Quality` members), `lost` (M,)
+(`QUALITY_CODE`: SUPERB 0, OKAY 1, POOR 2, UNSURE_HALF 3, as `quality_codes` makes them from `Quality`
+members), `lost` (M,)
 bools (`Localizer.is_lost`), `windows` the events' (start, end) times.
 
 What each figure means (the thresholds are the module's constants):
@@ -34,7 +35,7 @@ from field.angles import wrap_angles
 
 from .localizer import Quality
 
-QUALITY_LEVELS = (Quality.SUPERB, Quality.OKAY, Quality.POOR)
+QUALITY_LEVELS = (Quality.SUPERB, Quality.OKAY, Quality.POOR, Quality.UNSURE_HALF)
 QUALITY_CODE = {level: code for code, level in enumerate(QUALITY_LEVELS)}
 FAIL_POSITION = 0.5                 # m
 MIRROR_POSITION = 0.5               # m
@@ -51,7 +52,7 @@ _EPS = 1e-9
 
 
 def quality_codes(levels) -> np.ndarray:
-    """(M,) int8 codes of a sequence of `Quality` members (SUPERB 0, OKAY 1, POOR 2)."""
+    """(M,) int8 codes of a sequence of `Quality` members (SUPERB 0, OKAY 1, POOR 2, UNSURE_HALF 3)."""
     return np.fromiter((QUALITY_CODE[level] for level in levels), dtype=np.int8)
 
 

@@ -58,13 +58,15 @@ from typing import TYPE_CHECKING, Any, Iterable, Sequence
 import numpy as np
 
 from field import Field
-from field.checks import ArgumentTypeError, real, reals
+from field.checks import ArgumentTypeError, integer, real, reals
 from motion_models import MotionInput
 from sensing import LandmarkSensorModel
 from sensing.observations import Observations
+from sensing.team import MAX_PLAYER_NUMBER, BallDetection, TeamMessage
 from sensing.view import CameraView
 
 from .filter import ParticleFilter
+from .side import SideBelief, SideSettings
 from .summary import Entropy, Estimate
 from .latency import MotionHistory, move_back
 
@@ -77,11 +79,37 @@ MAX_ODOMETRY_SCALE = 10.0     # the largest odometry calibration factor a Locali
 
 
 class Quality(enum.Enum):
-    """How far behaviour can trust the pose (as B-Human's superb / okay / poor)."""
+    """How far behaviour can trust the pose (as B-Human's superb / okay / poor), and one state between: sure
+    where, not sure which half (UNSURE_HALF: the pose would be SUPERB or OKAY, but its mirror image is about as
+    probable; not lost: looking at the ball or asking the team decides it)."""
 
     SUPERB = "superb"
     OKAY = "okay"
     POOR = "poor"
+    UNSURE_HALF = "unsure_half"
+
+
+@dataclass(frozen=True)
+class Hypothesis:
+    """One mode of the belief (`Localizer.hypotheses`).
+
+    Attributes
+    ----------
+    pose : numpy.ndarray
+        (x [m], y [m], θ [rad]).
+    covariance : numpy.ndarray
+        (3, 3).
+    weight : float
+        Its probability, in [0, 1]; the hypotheses' weights sum to at most 1.
+    kind : str
+        "main" (the estimate), "mirror" (its point image: the same landmarks, the other half) or "other" (the
+        particles outside the main cluster, pooled).
+    """
+
+    pose: np.ndarray
+    covariance: np.ndarray
+    weight: float
+    kind: str
 
 
 @dataclass(frozen=True)
@@ -114,8 +142,9 @@ class QualityThresholds:
     superb_age, okay_age : float, default 1.5, 10.0
         The last explained detection captured at most this long ago [s].
     superb_mirror_odds, okay_mirror_odds : float, default 10.0, 1.0
-        The last re-localization preferred its pose to the mirror pose by at least these odds
-        (`SoccerRelocalization.mirror_log_odds`); below 1 the mirror pose is the more probable one.
+        The side odds (`Localizer.side_log_odds`: the last re-localization's preference of its pose to the mirror
+        pose, `SoccerRelocalization.mirror_log_odds`, plus the teammates' evidence) are at least these. A pose
+        that meets the other limits of SUPERB or OKAY but not these odds is UNSURE_HALF.
     fit_window : float, default 1.5
         Seconds of detections the fit is taken over (> 0).
     gate : float, default 3.0
@@ -182,6 +211,16 @@ class QualityThresholds:
             raise ValueError(f"fit_window = {self.fit_window!r}, gate = {self.gate!r} must be > 0")
         if not 0 < self.view_inset <= 1:
             raise ValueError(f"view_inset = {self.view_inset!r} must be within (0, 1]")
+
+
+TWIN_RADIUS = 1.0                # m: particles this close to the estimate's mirror image form its twin ...
+TWIN_HEADING = 0.8               # rad: ... and this close in heading
+
+
+def _same_place(a: np.ndarray, b: np.ndarray) -> bool:
+    """Whether two poses are the same place for the side evidence (TWIN_RADIUS, TWIN_HEADING)."""
+    return (math.hypot(a[0] - b[0], a[1] - b[1]) <= TWIN_RADIUS
+            and abs(math.remainder(a[2] - b[2], 2 * math.pi)) <= TWIN_HEADING)
 
 
 def _log(odds: float) -> float:
@@ -304,6 +343,12 @@ class Localizer:
     odometry_scale : sequence of float, default (1.0, 1.0, 1.0)
         Factors (x, y, θ) applied to each motion input's odometry and walk command before the motion model: a
         calibration of the robot's odometry on this carpet (each within (0, `MAX_ODOMETRY_SCALE`]).
+    side : SideSettings, default SideSettings()
+        How the teammates' view of the ball weighs against the robot's own prior (`mcl.side`).
+    player_number : int or None, default None
+        The robot's own number (1..20): a team message from it is refused. None: not checked.
+    teammates : iterable of int or None, default None
+        The numbers of the teammates whose messages are accepted; None: any number but the robot's own.
     **filter_options
         Any further keyword of `ParticleFilter` (resampling, augmented, threads, ...).
 
@@ -329,8 +374,19 @@ class Localizer:
                  quality: QualityThresholds = QualityThresholds(),
                  getup_sigma: Sequence[float] | np.ndarray = (0.15, 0.15, 0.5),
                  placement_sigma: Sequence[float] | np.ndarray = (0.15, 0.08, 0.15),
-                 odometry_scale: Sequence[float] | np.ndarray = (1.0, 1.0, 1.0), **filter_options: Any) -> None:
+                 odometry_scale: Sequence[float] | np.ndarray = (1.0, 1.0, 1.0),
+                 side: SideSettings = SideSettings(), player_number: int | None = None,
+                 teammates: Iterable[int] | None = None, **filter_options: Any) -> None:
         scale = reals("odometry_scale", odometry_scale, 3)
+        if not isinstance(side, SideSettings):
+            raise ArgumentTypeError(f"side = {side!r} must be an mcl.side.SideSettings")
+        if player_number is not None:
+            player_number = integer("player_number", player_number, 1, MAX_PLAYER_NUMBER)
+        team = None
+        if teammates is not None:
+            team = frozenset(integer("teammates", n, 1, MAX_PLAYER_NUMBER) for n in teammates)
+            if player_number in team:
+                raise ValueError(f"teammates = {sorted(team)!r} must not hold the robot's own number {player_number}")
         if not all(0.0 < v <= MAX_ODOMETRY_SCALE for v in scale):
             raise ValueError(f"odometry_scale = {tuple(scale.tolist())!r}: each factor must lie in "
                              f"(0, {MAX_ODOMETRY_SCALE:g}]")
@@ -359,6 +415,16 @@ class Localizer:
         self._frames: deque = deque()   # (capture time, detections, explained, expected in view, seen) per frame
         self._last_explained: float | None = None   # capture time of the last frame with an explained detection
         self._walked = 0.0         # m dead-reckoned since then (since the last reset, before the first one)
+        self.is_penalized = False
+        # (start, end) of the stretches the robot was fallen or penalized (end None while it lasts): a frame
+        # captured inside one is not used, whenever it arrives
+        self._blind: deque = deque()
+        self.player_number = player_number
+        self.teammates = team
+        self.side = SideBelief(field, side)
+        self._side_sign = 1.0      # +1 while the main pose is the one the re-localization's odds were taken for
+        self._side_pose: np.ndarray | None = None      # where the side evidence was last weighed
+        self._relocalizations = self._relocalization_count()
 
     @classmethod
     def from_profile(cls, field: Field, profile: Any, **overrides: Any) -> Localizer:
@@ -384,7 +450,7 @@ class Localizer:
     def motion(self, t: float, u: MotionInput) -> None:
         """The robot's motion during the step that ends at time `t` [s] (times never go back).
 
-        Ignored (and counted) while the robot is fallen.
+        Ignored (and counted) while the robot is fallen or penalized.
 
         Parameters
         ----------
@@ -401,9 +467,10 @@ class Localizer:
         t = self._check_time(t)
         if not isinstance(u, MotionInput):
             raise ArgumentTypeError(f"u = {u!r} must be a motion_models.MotionInput, not {type(u).__name__}")
-        if self.is_fallen:
-            # A fallen robot's odometry says nothing about where it lies; got_up widens the belief instead.
-            self.counts["motion while fallen"] += 1
+        if self.is_fallen or self.is_penalized:
+            # A fallen robot's odometry says nothing about where it lies (got_up widens the belief instead), and
+            # a penalized one is carried off the field (penalty_return places it again).
+            self.counts["motion while fallen" if self.is_fallen else "motion while penalized"] += 1
             self.history.record(t, u.dt, (0.0, 0.0, 0.0))
         else:
             if self._scaled:
@@ -417,8 +484,11 @@ class Localizer:
         self._update_lost()
 
     def observe(self, observations: Observations | Iterable | None, capture_time: float | None = None,
-                view: CameraView | None = None) -> bool:
+                view: CameraView | None = None, ball: BallDetection | None = None) -> bool:
         """Correct with one camera frame's detections, captured at `capture_time` (None: now).
+
+        A frame captured while the robot was fallen or penalized is not used (and counted), whenever it
+        arrives: the capture time decides, not the arrival.
 
         Parameters
         ----------
@@ -432,11 +502,13 @@ class Localizer:
             by the landmarks it puts in view that the frame did not report (negative information,
             `LandmarkSensorModel`'s `detection_rate`), and the quality counts them for the estimate
             (`seen_share`, `QualityThresholds`).
+        ball : BallDetection or None, default None
+            The ball, when the frame saw it: after the correction, as `observe_ball` with the same capture time.
 
         Returns
         -------
         bool
-            False when the frame was not used (the robot is fallen), else True.
+            False when the frame was not used (captured while fallen or penalized), else True.
 
         Raises
         ------
@@ -447,6 +519,9 @@ class Localizer:
         observations = Observations.coerce(observations)
         if view is not None:
             observations = observations.with_view(view)      # TypeError unless a CameraView
+        if ball is not None and not isinstance(ball, BallDetection):
+            raise ArgumentTypeError(f"ball = {ball!r} must be a sensing.team.BallDetection or None, "
+                                    f"not {type(ball).__name__}")
         since = None
         if capture_time is not None:
             capture_time = real("capture_time", capture_time)
@@ -456,18 +531,216 @@ class Localizer:
                 except ValueError:
                     self.counts["observation older than history"] += 1
                     raise
-        if self.is_fallen:
-            self.counts["observation while fallen"] += 1
+        blind = self._blind_at(capture_time)
+        if blind is not None:
+            self.counts[f"observation while {blind}"] += 1
             return False
         self.filter.correct(observations, since=since)
+        self._follow_relocalization()
         if len(observations):
             normalizer = getattr(self.filter.sensor_model, "log_normalizer", None)
             self.log_evidence += self.filter.frame_log_likelihood + (normalizer(observations) if normalizer else 0.0)
             self.evidence_frames += 1
         self._record_fit(observations, since, self.time if capture_time is None else capture_time)
+        if ball is not None:
+            self._ball(ball, since, self.time if capture_time is None else capture_time)
         self._quality = None
         self._update_lost()
         return True
+
+    # -- the team and the ball -----------------------------------------------------------------------------
+    def observe_ball(self, ball: BallDetection, capture_time: float | None = None) -> bool:
+        """The robot saw the ball (range and bearing in the robot frame) in a frame captured at `capture_time`
+        (None: now). Placed on the field through the estimate where it was at capture, and compared with the
+        teammates' reports of the ball (`mcl.side`): evidence for which half the robot is in. It never moves
+        the particles by itself; when the evidence turns against the estimate the robot changes sides.
+
+        Parameters
+        ----------
+        ball : BallDetection
+            The detection (its sigmas optional).
+        capture_time : float or None, default None
+            When the frame was captured [s], on the clock of `motion`'s times; None: now.
+
+        Returns
+        -------
+        bool
+            False when the sighting was not used (captured while fallen or penalized), else True.
+
+        Raises
+        ------
+        ValueError
+            For a detection that is not a `BallDetection` (TypeError, also a ValueError) or a capture time
+            before the kept motion history; the localizer is left unchanged.
+        """
+        if not isinstance(ball, BallDetection):
+            raise ArgumentTypeError(f"ball = {ball!r} must be a sensing.team.BallDetection, "
+                                    f"not {type(ball).__name__}")
+        since = None
+        if capture_time is not None:
+            capture_time = real("capture_time", capture_time)
+            since = self.history.since(capture_time) if self.compensate_latency else None
+        blind = self._blind_at(capture_time)
+        if blind is not None:
+            self.counts[f"ball while {blind}"] += 1
+            return False
+        self._ball(ball, since, self.time if capture_time is None else capture_time)
+        self._quality = None
+        self._update_lost()
+        return True
+
+    def team_message(self, message: TeamMessage) -> None:
+        """A teammate's message, as it arrives (late, lost, in any order): its ball report is compared with the
+        robot's own sightings of the ball (`mcl.side`). The robot changes sides when the teammates' evidence,
+        weighed against its own prior, holds the mirror image for `SideSettings.flip_hold` seconds.
+
+        Parameters
+        ----------
+        message : TeamMessage
+            The message (`sensing.team.TeamMessage`: sender, send time, pose, ball, ...).
+
+        Raises
+        ------
+        ValueError
+            For a message that is not a `TeamMessage` (TypeError, also a ValueError), from the robot's own number
+            or a sender not among `teammates`, or sent more than `SideSettings.future` seconds after the
+            robot's clock or more than `SideSettings.past` before it; the localizer is left unchanged.
+        """
+        if not isinstance(message, TeamMessage):
+            raise ArgumentTypeError(f"message = {message!r} must be a sensing.team.TeamMessage, "
+                                    f"not {type(message).__name__}")
+        if message.sender == self.player_number or (self.teammates is not None
+                                                    and message.sender not in self.teammates):
+            known = "any but the robot's own" if self.teammates is None else sorted(self.teammates)
+            raise ValueError(f"message sender = {message.sender} is not a teammate (teammates: {known})")
+        if self.time is not None:
+            s = self.side.settings
+            sent = message.received_time
+            if not self.time - s.past <= sent <= self.time + s.future:
+                raise ValueError(f"message time = {sent:.3f} s (on this robot's clock) must lie within "
+                                 f"[{self.time - s.past:.3f}, {self.time + s.future:.3f}] s (the robot's clock "
+                                 f"{self.time:.3f} s, SideSettings.past and future)")
+        self.counts["team message"] += 1
+        if self.is_fallen or self.is_penalized:
+            return
+        self.side.message(message, self._now())
+        self._settle_side()
+        self._quality = None
+        self._update_lost()
+
+    @property
+    def side_log_odds(self) -> float:
+        """The log odds of the estimate against its mirror image (−x, −y, θ+π): the last re-localization's
+        prior (`SoccerRelocalization.mirror_log_odds`, capped by `SideSettings.prior_cap`) plus the teammates'
+        view of the ball (`mcl.side`)."""
+        prior = getattr(self.filter.relocalization, "mirror_log_odds", math.inf)
+        return self.side.log_odds(self._side_sign * prior, self._now())
+
+    def hypotheses(self) -> list[Hypothesis]:
+        """The main modes of the belief, most probable first: the estimate, its mirror image (the same
+        landmarks, the other half; weighed by `side_log_odds`), and the particles outside the estimate's
+        cluster pooled as one, when they hold at least 5 % of the weight. A behaviour that sees two
+        hypotheses of similar weight can act on it: look at the ball, ask the team.
+
+        Returns
+        -------
+        list of Hypothesis
+            Weights within [0, 1], summing to at most 1.
+        """
+        estimate = self.filter.estimate()
+        odds = self.side_log_odds
+        main_share = 1.0 / (1.0 + math.exp(-odds)) if odds > -700 else 0.0
+        mirror_pose = self.field.mirror_poses(estimate.pose[None])[0]
+        out = [Hypothesis(estimate.pose.copy(), estimate.covariance.copy(), estimate.weight * main_share, "main"),
+               Hypothesis(mirror_pose, estimate.covariance.copy(), estimate.weight * (1.0 - main_share), "mirror")]
+        rest = 1.0 - estimate.weight
+        if rest >= 0.05:
+            poses, weights = self.filter.poses, self.filter.weights
+            d2 = (poses[:, 0] - estimate.pose[0]) ** 2 + (poses[:, 1] - estimate.pose[1]) ** 2
+            outside = d2 > 1.0
+            if outside.any() and weights[outside].sum() > 0:
+                w = weights[outside] / weights[outside].sum()
+                p = poses[outside]
+                mean_heading = math.atan2(float(w @ np.sin(p[:, 2])), float(w @ np.cos(p[:, 2])))
+                centred = np.column_stack([p[:, 0] - w @ p[:, 0], p[:, 1] - w @ p[:, 1],
+                                           np.remainder(p[:, 2] - mean_heading + math.pi, 2 * math.pi) - math.pi])
+                mean = np.array([w @ p[:, 0], w @ p[:, 1], mean_heading])
+                out.append(Hypothesis(mean, (centred * w[:, None]).T @ centred, float(rest), "other"))
+        return sorted(out, key=lambda h: -h.weight)
+
+    def _now(self) -> float:
+        return self.time if self.time is not None else 0.0
+
+    def _relocalization_count(self) -> int:
+        return int(getattr(self.filter.relocalization, "relocalizations", 0))
+
+    def _follow_relocalization(self) -> None:
+        """After a correction: when the filter re-localized, the new pose's odds are the re-localization's own,
+        and the side evidence follows the pose: kept when it is where the evidence was weighed, changing sign
+        when it is that pose's mirror image (the two swapped), dropped when it is somewhere new."""
+        count = self._relocalization_count()
+        if count == self._relocalizations:
+            return
+        self._relocalizations = count
+        self._side_sign = 1.0
+        pose = self.filter.estimate().pose
+        old = self._side_pose
+        if old is not None and _same_place(pose, self.field.mirror_poses(old[None])[0]):
+            self.side.mirrored()
+        elif old is None or not _same_place(pose, old):
+            self.side.moved()
+        self._side_pose = pose.copy()
+
+    def _ball(self, ball: BallDetection, since, capture_time: float) -> None:
+        """Compare a sighting with the teammates' reports, through the estimate where it was at capture."""
+        estimate = self.filter.estimate()
+        if not estimate.is_confident():
+            self.counts["ball while not confident"] += 1
+            return
+        pose = estimate.pose
+        if since is not None:
+            at_capture = np.empty((1, 3))
+            move_back(pose[None], np.asarray(since, dtype=np.float64), at_capture)
+            pose = at_capture[0]
+        self.side.sighting(ball, pose, estimate.covariance, capture_time, self._now())
+        self._side_pose = estimate.pose.copy()
+        self._settle_side()
+
+    def _settle_side(self) -> None:
+        """Act on the side evidence (only the teammates' evidence can: without messages nothing here touches
+        the filter). When it has held the mirror image for `flip_hold` seconds, change sides (mirror the
+        particles: exact, the landmarks cannot tell). When it holds the main pose by at least `flip`, the
+        particles on the main pose's mirror image (a twin cluster a re-localization left) keep no more weight
+        than the odds give them, so that the estimate does not move there by itself."""
+        if not self.side.reports:
+            return
+        estimate = self.filter.estimate()
+        if not estimate.is_confident():
+            return
+        odds = self.side_log_odds
+        if self.side.should_flip(odds, self._now()):
+            self.filter.reset_mirrored()
+            self.side.mirrored()
+            self._side_sign = -self._side_sign
+            self._side_pose = self.field.mirror_poses(estimate.pose[None])[0]
+            self.counts["side changed by the team"] += 1
+        elif odds >= self.side.settings.flip:
+            self._weigh_twin(estimate, odds)
+
+    def _weigh_twin(self, estimate: Estimate, odds: float) -> None:
+        """Scale the weight of the particles near the estimate's mirror image down to exp(−odds) times the
+        estimate's cluster weight, when they hold more."""
+        poses, weights = self.filter.poses, self.filter.weights
+        twin = self.field.mirror_poses(estimate.pose[None])[0]
+        near = (((poses[:, 0] - twin[0]) ** 2 + (poses[:, 1] - twin[1]) ** 2 <= TWIN_RADIUS ** 2)
+                & (np.abs(np.remainder(poses[:, 2] - twin[2] + math.pi, 2 * math.pi) - math.pi) <= TWIN_HEADING))
+        held = float(weights[near].sum())
+        allowed = estimate.weight * math.exp(-odds)
+        if held > allowed > 0.0:
+            factors = np.zeros(poses.shape[0])
+            factors[near] = math.log(allowed / held)
+            self.filter.reweigh(factors)
+            self.counts["mirror twin weighed down"] += 1
 
     def _scale(self, u: MotionInput) -> MotionInput:
         """`u` with its odometry and command scaled by `odometry_scale` (a ValueError if that moves too far)."""
@@ -540,7 +813,7 @@ class Localizer:
 
     def _assess(self) -> Quality:
         q = self.thresholds
-        if self.is_fallen:
+        if self.is_fallen or self.is_penalized:
             return Quality.POOR
         estimate = self.filter.estimate()
         cov = estimate.covariance
@@ -551,31 +824,34 @@ class Localizer:
         age = math.inf if self._last_explained is None else now - self._last_explained
         fit = self.fit
         explained = sum(frame[2] for frame in self._frames)
-        mirror_log_odds = getattr(self.filter.relocalization, "mirror_log_odds", math.inf)
+        side_log_odds = self.side_log_odds
         # negative information, when frames came with their view: judged once enough landmarks were expected
         expected = sum(frame[3] for frame in self._frames)
         seen = self.seen_share if expected >= q.view_expected else 1.0
-        if (position_sigma <= q.superb_position and heading_sigma <= q.superb_heading
-                and estimate.weight >= q.superb_weight and entropy <= q.superb_entropy and fit >= q.superb_fit
-                and explained >= q.superb_detections and age <= q.superb_age
-                and mirror_log_odds >= _log(q.superb_mirror_odds) and seen >= q.superb_seen):
+        superb = (position_sigma <= q.superb_position and heading_sigma <= q.superb_heading
+                  and estimate.weight >= q.superb_weight and entropy <= q.superb_entropy and fit >= q.superb_fit
+                  and explained >= q.superb_detections and age <= q.superb_age and seen >= q.superb_seen)
+        if superb and side_log_odds >= _log(q.superb_mirror_odds):
             return Quality.SUPERB
-        if (position_sigma <= q.okay_position and heading_sigma <= q.okay_heading
+        okay = (position_sigma <= q.okay_position and heading_sigma <= q.okay_heading
                 and estimate.weight >= q.okay_weight and entropy <= q.okay_entropy and age <= q.okay_age
-                and self._walked <= q.okay_walked
-                and not fit < q.okay_fit and mirror_log_odds >= _log(q.okay_mirror_odds) and seen >= q.okay_seen):
+                and self._walked <= q.okay_walked and not fit < q.okay_fit and seen >= q.okay_seen)
+        if okay and side_log_odds >= _log(q.okay_mirror_odds):
             return Quality.OKAY
+        if superb or okay:
+            return Quality.UNSURE_HALF      # sure where, not which half: its mirror image is about as probable
         return Quality.POOR
 
     @property
     def is_lost(self) -> bool:
-        """POOR quality for at least `lost_after` seconds in a row while standing (a fallen robot's pose is
-        POOR, but it is not lost: `got_up` widens the belief, and the clock starts then)."""
+        """POOR quality for at least `lost_after` seconds in a row while standing (a fallen or penalized robot's
+        pose is POOR, but it is not lost: `got_up` widens the belief and `penalty_return` places it, and the clock
+        starts then). UNSURE_HALF is not lost: the pose is known up to the field's symmetry."""
         return (self._poor_since is not None and self.time is not None
                 and self.time - self._poor_since >= self.thresholds.lost_after)
 
     def _update_lost(self) -> None:
-        if self.quality() is Quality.POOR and not self.is_fallen:
+        if self.quality() is Quality.POOR and not (self.is_fallen or self.is_penalized):
             if self._poor_since is None:
                 self._poor_since = self.time if self.time is not None else 0.0
         else:
@@ -596,8 +872,20 @@ class Localizer:
         xs = np.arange(-hl + 0.5 * spacing, 0.0, spacing)
         self._reset(touchline_poses(self.field, xs), (0.5 * spacing, 0.08, 0.15))
 
+    def penalized(self) -> None:
+        """The robot was penalized (taken off the field): motion, frames captured from now and ball sightings
+        are ignored (and counted) until `penalty_return`."""
+        if not self.is_penalized:
+            self.is_penalized = True
+            self._blind.append([self._now(), None, "penalized"])
+        self._quality = None
+        self._poor_since = None
+
     def penalty_return(self) -> None:
-        """Back from a penalty: on either own touchline at the penalty mark's x, facing into the field."""
+        """Back from a penalty: on either own touchline at the penalty mark's x, facing into the field. Ends a
+        `penalized` stretch."""
+        self._end_blind("penalized")
+        self.is_penalized = False
         x = -self.field.half_length + self.field.dims.penalty_mark_distance
         self._reset(touchline_poses(self.field, [x]), self.placement_sigma)
 
@@ -654,23 +942,49 @@ class Localizer:
         self._after_reset()
 
     def fallen(self) -> None:
-        """The robot fell: motion and detections are ignored (and counted) until `got_up`."""
+        """The robot fell: motion and the frames captured from now are ignored (and counted) until `got_up`."""
+        if not self.is_fallen:
+            self._blind.append([self._now(), None, "fallen"])
         self.is_fallen = True
         self._quality = None
         self._poor_since = None
 
     def got_up(self) -> None:
-        """Standing again: the belief is widened by `getup_sigma` (falling and rising move and turn the robot)."""
+        """Standing again: the belief is widened by `getup_sigma` (falling and rising move and turn the robot).
+        Frames captured before now, while it lay, stay unused when they arrive later."""
         if self.is_fallen:
             self.filter.diffuse(self.getup_sigma)
+            self._end_blind("fallen")
         self.is_fallen = False
         self._quality = None
+
+    def _end_blind(self, reason: str) -> None:
+        for stretch in self._blind:
+            if stretch[1] is None and stretch[2] == reason:
+                stretch[1] = self._now()
+        # stretches older than the motion history cannot hold a frame the localizer would still take
+        while self._blind and self._blind[0][1] is not None and self._blind[0][1] < self._now() - self.history.keep:
+            self._blind.popleft()
+
+    def _blind_at(self, capture_time: float | None) -> str | None:
+        """"fallen" or "penalized" when a frame captured at `capture_time` (None: now) was taken while the robot
+        was so, else None."""
+        if capture_time is None:
+            return "fallen" if self.is_fallen else "penalized" if self.is_penalized else None
+        for start, end, reason in self._blind:
+            if start <= capture_time and (end is None or capture_time < end):
+                return reason
+        return None
 
     def _reset(self, poses, sigma) -> None:
         self.filter.reset_candidates(poses, sigma, region="own_half")
         self._after_reset()
 
     def _after_reset(self) -> None:
+        self.side.moved()
+        self._side_sign = 1.0
+        self._side_pose = None
+        self._relocalizations = self._relocalization_count()
         self._frames.clear()
         self._last_explained = None
         self._walked = 0.0

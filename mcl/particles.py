@@ -179,6 +179,36 @@ class ParticleSet:
         self._forget_anchor()
         self._changed()
 
+    def reweigh(self, log_factors: Sequence[float] | np.ndarray) -> None:
+        """Multiply each particle's weight by exp(log_factors[i]) and normalize; poses and motion state kept.
+
+        For evidence that does not come through the sensor model (the teammates' view of the ball weighing the
+        field's two halves, `mcl.localizer`). Nothing is resampled.
+
+        Parameters
+        ----------
+        log_factors : array_like
+            (N,) log factors: finite or -inf, not NaN or +inf, and at least one particle kept (finite).
+
+        Raises
+        ------
+        ValueError
+            If the shape is wrong, a factor is NaN or +inf, or every factor is -inf (the filter is left as it
+            was).
+        """
+        try:
+            factors = np.asarray(log_factors, dtype=np.float64)
+        except (TypeError, ValueError):
+            raise ArgumentTypeError(f"log_factors = {log_factors!r} must be an array of numbers") from None
+        if factors.shape != (self._n,) or np.isnan(factors).any() or np.isposinf(factors).any():
+            raise ValueError(f"log_factors must have shape ({self._n},) with no NaN or +inf")
+        combined = self._log_weights + factors
+        if not np.isfinite(combined).any():
+            raise ValueError("log_factors would leave no particle with a finite weight")
+        total, self.ess = normalize(combined, self._weights)
+        self._log_weights[:] = combined - total
+        self._changed()
+
     @staticmethod
     def _check_sigma(sigma, name: str = "sigma") -> np.ndarray:
         return reals(name, sigma, 3, 0.0, LARGEST_SIGMA)

@@ -232,6 +232,9 @@ class SoccerRelocalization:
     mirror_log_odds : float
         The prior's log odds of the last re-localized pose against its mirror image (+inf: none since a known
         pose): how sure the filter can be that it is not on the mirror (see `confirm`).
+    relocalizations : int
+        How many re-localized poses `confirm` has accepted (a pose away from the anchor that held): a change
+        tells that the estimate moved somewhere new.
 
     Raises
     ------
@@ -254,6 +257,7 @@ class SoccerRelocalization:
         self.mirror_log_odds = math.inf
         self._streak = 0
         self._carpet = (-1.0, 1.0, -1.0, 1.0)
+        self.relocalizations = 0                 # re-localized poses accepted so far (`confirm`)
 
     @property
     def anchor(self) -> np.ndarray | None:
@@ -399,6 +403,7 @@ class SoccerRelocalization:
                 # How sure the filter may be: the odds must hold whether or not the heading reference survived
                 # the event (a carried, pushed or spun robot may have been turned any way).
                 self.mirror_log_odds = min(odds, position_odds)
+                self.relocalizations += 1
             self._anchor = pose
             self.travelled = 0.0
             self._pending = None

@@ -34,7 +34,7 @@ The estimates written with `--out poses.npz` (`poses_out`; numpy's `np.load`), o
   command's time), in seconds after `origin_ns`;
 - `poses` (M, 3) float64 [m, m, rad]: the estimate x, y, θ in the field frame, θ in (-π, π];
 - `covariances` (M, 3, 3) float64 [m², m·rad, rad²]: the estimate's covariance over (x, y, θ);
-- `quality` (M,) int8: 2 superb, 1 okay, 0 poor (`QUALITY_CODES`);
+- `quality` (M,) int8: 2 superb, 1 okay, 0 poor, 3 unsure of the half (`QUALITY_CODES`);
 - `lost` (M,) bool: the "lost" flag (`Localizer.is_lost`);
 - `origin_ns` () int64 [ns since the Unix epoch]: what t = 0 is, the log's origin. For an MCAP log that is
   the log time of its first message (any topic), or the origin a file written by `write_mcap` records; for
@@ -69,7 +69,7 @@ if TYPE_CHECKING:
 
 MODELS = {"velocity-linear": VelocityLinear, "constant": ConstantNoise}
 STARTS = ("own_half", "field", "initial", "penalty")
-QUALITY_CODES = {Quality.SUPERB: 2, Quality.OKAY: 1, Quality.POOR: 0}
+QUALITY_CODES = {Quality.SUPERB: 2, Quality.OKAY: 1, Quality.POOR: 0, Quality.UNSURE_HALF: 3}
 MAX_NOTES = 10
 LONG_STEP = 0.5   # s: a motion step this long is a gap in the log, worth a note
 WRONG = 0.5     # m: an estimate this far from the truth is wrong (for the quality flag's figures)
@@ -93,7 +93,7 @@ class ReplayResult:
     weights : np.ndarray
         (M,) float64 share of the weight the estimate's dominant cluster holds.
     quality : np.ndarray
-        (M,) int8 quality codes (`QUALITY_CODES`: 2 superb, 1 okay, 0 poor).
+        (M,) int8 quality codes (`QUALITY_CODES`: 2 superb, 1 okay, 0 poor, 3 unsure of the half).
     lost : np.ndarray
         (M,) bool: the localizer's "lost" flag after each step.
     entropy : np.ndarray

@@ -21,6 +21,7 @@ from mcl import AugmentedMCL, Grid, ParticleFilter
 from mcl.localizer import Localizer
 from motion_models import AdaptiveMotion, ConstantNoise, MotionInput, VelocityLinear
 from sensing import CombinedSensorModel, LandmarkObservation, LandmarkSensorModel, LineSensorModel, Observations
+from sensing.team import BallDetection, TeamMessage
 from sensing.view import CameraView
 from sensing.collision import NO_COLLISION, CollisionPercept
 
@@ -332,7 +333,55 @@ def localizer_operations():
         st.tuples(st.just("fallen")),
         st.tuples(st.just("got_up")),
         st.tuples(st.just("quality")),
+        st.tuples(st.just("penalized")),
+        st.tuples(st.just("team_message"), team_message_args()),
+        st.tuples(st.just("observe_ball"), ball_args(), st.one_of(st.none(), sane(-0.2, 0.0), number_or_junk())),
+        st.tuples(st.just("hypotheses")),
     ), min_size=1, max_size=10)
+
+
+def team_message_args():
+    """A teammate's message as `TeamMessage` takes it: sane, with bad numbers (NaN, inf, huge), a covariance
+    that is not positive definite, a time far away, an unknown sender; or junk."""
+    covariances = st.one_of(st.none(), st.just(np.diag([0.01, 0.01, 0.01])), st.just(np.ones((3, 3))),
+                            st.just(-np.eye(3)), st.just(np.full((3, 3), np.nan)), st.just(np.eye(2)), junk())
+    return st.one_of(
+        st.fixed_dictionaries({"sender": st.one_of(st.integers(-1, 22), junk()),
+                               "time": st.one_of(sane(-2.0, 0.5), st.just(1e12), number_or_junk()),
+                               "pose": POSES},
+                              optional={"pose_covariance": covariances,
+                                        "confidence": st.one_of(sane(-0.5, 1.5), number_or_junk()),
+                                        "is_goalkeeper": st.one_of(st.booleans(), junk()),
+                                        "ball": st.one_of(st.none(), st.tuples(sane(-5, 5), sane(-4, 4)),
+                                                          st.tuples(number_or_junk(), number_or_junk())),
+                                        "ball_velocity": st.one_of(st.none(), st.tuples(sane(-3, 3), sane(-3, 3)),
+                                                                   st.tuples(number_or_junk(), number_or_junk())),
+                                        "ball_age": st.one_of(sane(0, 3), number_or_junk()),
+                                        "clock_offset": st.one_of(sane(-1, 1), number_or_junk())}),
+        junk())
+
+
+def ball_args():
+    """A ball detection as `BallDetection` takes it (range, bearing, sigmas), sane or not; or junk."""
+    return st.one_of(st.tuples(sane(0, 6), sane(-3.2, 3.2), st.one_of(st.none(), sane(0.01, 0.5)),
+                               st.one_of(st.none(), sane(0.01, 0.5))),
+                     st.tuples(number_or_junk(), number_or_junk(), st.one_of(st.none(), number_or_junk()),
+                               st.one_of(st.none(), number_or_junk())),
+                     junk())
+
+
+def build_team_message(args, clock: float):
+    """The message of `team_message_args` (its time relative to the localizer's clock), or the junk itself."""
+    if not isinstance(args, dict):
+        return args
+    args = dict(args)
+    if isinstance(args.get("time"), float) and math.isfinite(args["time"]):
+        args["time"] = clock + args["time"]
+    return TeamMessage(**args)
+
+
+def build_ball(args):
+    return BallDetection(*args) if isinstance(args, tuple) else args
 
 
 def view_args():
@@ -347,6 +396,14 @@ def build_view(args):
 
 def check_localizer(loc) -> None:
     check_filter(loc.filter)
+    assert not math.isnan(loc.side_log_odds), "side log odds NaN"
+
+
+def check_hypotheses(hypotheses) -> None:
+    total = sum(h.weight for h in hypotheses)
+    assert total <= 1.0 + 1e-9, f"hypotheses' weights sum to {total}"
+    for h in hypotheses:
+        assert np.isfinite(h.pose).all() and np.isfinite(h.covariance).all() and 0.0 <= h.weight <= 1.0, h
 
 
 @given(field_name=st.sampled_from(sorted(FIELDS)), n=st.sampled_from([1, 16, 64]),
@@ -390,6 +447,14 @@ def fuzz_localizer(field_name, n, operations, options):
             attempt("localizer", loc, lambda: loc.place(op[1], op[2]), check_localizer)
         elif name == "quality":
             attempt("localizer", loc, lambda: (loc.quality(), loc.is_lost, loc.fit, loc.seen_share))
+        elif name == "team_message":
+            attempt("localizer", loc, lambda: loc.team_message(build_team_message(op[1], clock[0])), check_localizer)
+        elif name == "observe_ball":
+            offset = op[2]
+            attempt("localizer", loc, lambda: loc.observe_ball(build_ball(op[1]), None if offset is None else
+                                                               clock[0] + offset), check_localizer)
+        elif name == "hypotheses":
+            attempt("localizer", loc, lambda: check_hypotheses(loc.hypotheses()))
         else:
             attempt("localizer", loc, getattr(loc, name), check_localizer)
     check_estimate(loc.filter)
