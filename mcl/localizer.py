@@ -481,6 +481,7 @@ class Localizer:
             self._walked += math.hypot(displacement[0], displacement[1])
         self.time = t
         self._quality = None
+        self._track_side()
         self._update_lost()
 
     def observe(self, observations: Observations | Iterable | None, capture_time: float | None = None,
@@ -623,7 +624,10 @@ class Localizer:
         self.counts["team message"] += 1
         if self.is_fallen or self.is_penalized:
             return
+        self._track_side()
         self.side.message(message, self._now())
+        if self.side.holds_evidence and self._side_pose is None:
+            self._side_pose = self.filter.estimate().pose.copy()
         self._settle_side()
         self._quality = None
         self._update_lost()
@@ -675,20 +679,28 @@ class Localizer:
         return int(getattr(self.filter.relocalization, "relocalizations", 0))
 
     def _follow_relocalization(self) -> None:
-        """After a correction: when the filter re-localized, the new pose's odds are the re-localization's own,
-        and the side evidence follows the pose: kept when it is where the evidence was weighed, changing sign
-        when it is that pose's mirror image (the two swapped), dropped when it is somewhere new."""
+        """After a correction: when the filter re-localized, the new pose's odds are the re-localization's own."""
         count = self._relocalization_count()
-        if count == self._relocalizations:
+        if count != self._relocalizations:
+            self._relocalizations = count
+            self._side_sign = 1.0
+        self._track_side()
+
+    def _track_side(self) -> None:
+        """The side evidence belongs to the pose it was weighed for: it follows the estimate while it moves on,
+        changes sign when the estimate jumps to its mirror image (the two swapped), and is dropped when the
+        estimate jumps anywhere else (a re-localization: it says nothing about the new pose). Nothing to do
+        (and nothing computed) without evidence."""
+        if not self.side.holds_evidence:
+            self._side_pose = None
             return
-        self._relocalizations = count
-        self._side_sign = 1.0
         pose = self.filter.estimate().pose
         old = self._side_pose
-        if old is not None and _same_place(pose, self.field.mirror_poses(old[None])[0]):
-            self.side.mirrored()
-        elif old is None or not _same_place(pose, old):
-            self.side.moved()
+        if old is not None and not _same_place(pose, old):
+            if _same_place(pose, self.field.mirror_poses(old[None])[0]):
+                self.side.mirrored()
+            else:
+                self.side.moved()
         self._side_pose = pose.copy()
 
     def _ball(self, ball: BallDetection, since, capture_time: float) -> None:
@@ -702,6 +714,7 @@ class Localizer:
             at_capture = np.empty((1, 3))
             move_back(pose[None], np.asarray(since, dtype=np.float64), at_capture)
             pose = at_capture[0]
+        self._track_side()
         self.side.sighting(ball, pose, estimate.covariance, capture_time, self._now())
         self._side_pose = estimate.pose.copy()
         self._settle_side()

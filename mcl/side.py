@@ -183,6 +183,12 @@ class SideBelief:
         return prior + self.team_log_odds(now)
 
     @property
+    def holds_evidence(self) -> bool:
+        """Whether anything here belongs to the current main pose (teammates' evidence, the robot's own
+        sightings placed through it)."""
+        return bool(self._evidence or self._recent or self._sighting is not None)
+
+    @property
     def teammates(self) -> tuple[int, ...]:
         """The senders heard from so far (sorted)."""
         return tuple(sorted(self._latest))

@@ -41,10 +41,14 @@ def standing(pose=(-2.0, 0.0, 0.0), seconds=1.0, seed=0, **options):
     return loc
 
 
-def sees_ball_at(loc, ball_xy, t, pose=(-2.0, 0.0, 0.0)):
-    """The robot at `pose` sees the ball at `ball_xy` (field frame) at time t."""
+def sees_ball_at(loc, ball_xy, t, pose=(-2.0, 0.0, 0.0), twice=True):
+    """The robot at `pose` sees the ball at `ball_xy` (field frame) at time t (and, `twice`, 0.02 s before:
+    a sighting counts once it is confirmed)."""
     dx, dy = ball_xy[0] - pose[0], ball_xy[1] - pose[1]
-    return loc.observe_ball(BallDetection(math.hypot(dx, dy), math.atan2(dy, dx) - pose[2]), capture_time=t)
+    detection = BallDetection(math.hypot(dx, dy), math.atan2(dy, dx) - pose[2])
+    if twice:
+        loc.observe_ball(detection, capture_time=t - 0.02)
+    return loc.observe_ball(detection, capture_time=t)
 
 
 def report(sender, t, ball, confidence=0.95, **fields):
@@ -184,12 +188,29 @@ def test_a_goalkeeper_that_believes_it_is_in_the_opponent_half_is_taken_mirrored
     assert loc.side_log_odds > standing().side_log_odds
 
 
+def test_a_sighting_seen_once_is_not_compared():
+    loc = standing()
+    loc.team_message(report(2, 0.95, (-1.0, 0.8)))
+    sees_ball_at(loc, (-1.0, 0.8), 0.98, twice=False)      # a single, unconfirmed sighting (a false ball?)
+    assert loc.side.reports == 0 and loc.side.unconfirmed == 1
+    sees_ball_at(loc, (1.5, -2.0), 0.99, twice=False)      # not at the same place: still unconfirmed
+    assert loc.side.reports == 0 and loc.side.unconfirmed == 2
+
+
+def test_a_report_far_from_both_sides_says_nothing():
+    loc = standing()
+    loc.team_message(report(2, 0.95, (-1.0, -2.9), confidence=1.0))
+    sees_ball_at(loc, (-1.5, 2.5), 0.99)                   # neither at the report nor at its point image
+    assert loc.side.reports == 0 and loc.side.ignored == 1
+    assert loc.side_log_odds == standing().side_log_odds
+
+
 def test_each_report_is_evidence_once():
     loc = standing()
     loc.team_message(report(2, 0.95, (-1.0, 0.8)))
     sees_ball_at(loc, (-1.0, 0.8), 0.98)
     odds = loc.side_log_odds
-    sees_ball_at(loc, (-1.0, 0.8), 0.99)                  # the same report, a second sighting
+    sees_ball_at(loc, (-1.0, 0.8), 0.99, twice=False)     # the same report, a further sighting
     assert loc.side.reports == 1 and loc.side_log_odds == odds
     loc.team_message(report(2, 0.90, (-1.0, 0.8)))        # older than the one kept: ignored
     assert loc.side.reports == 1
