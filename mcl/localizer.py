@@ -141,7 +141,7 @@ class QualityThresholds:
         SUPERB needs at least this many explained detections.
     superb_age, okay_age : float, default 1.5, 10.0
         The last explained detection captured at most this long ago [s].
-    superb_mirror_odds, okay_mirror_odds : float, default 10.0, 1.0
+    superb_mirror_odds, okay_mirror_odds : float, default 10.0, 3.0
         The side odds (`Localizer.side_log_odds`: the last re-localization's preference of its pose to the mirror
         pose, `SoccerRelocalization.mirror_log_odds`, plus the teammates' evidence) are at least these. A pose
         that meets the other limits of SUPERB or OKAY but not these odds is UNSURE_HALF.
@@ -185,7 +185,7 @@ class QualityThresholds:
     superb_mirror_odds: float = 10.0   # the last re-localization preferred its pose to the mirror pose by this
                                        # much at least (`SoccerRelocalization.mirror_log_odds`; the mirror
                                        # explains every detection as well, so nothing seen afterwards can)
-    okay_mirror_odds: float = 1.0      # below these odds the mirror pose is the more probable one
+    okay_mirror_odds: float = 3.0      # below these odds the pose is UNSURE_HALF (its mirror image too probable)
     okay_fit: float = 0.4
     okay_age: float = 10.0             # s since the last explained detection, at most
     fit_window: float = 1.5            # s of detections the fit is taken over
@@ -424,6 +424,7 @@ class Localizer:
         self.side = SideBelief(field, side)
         self._side_sign = 1.0      # +1 while the main pose is the one the re-localization's odds were taken for
         self._side_pose: np.ndarray | None = None      # where the side evidence was last weighed
+        self._kidnapped = False    # a re-localization since the last reset rested on a kidnapping law
         self._relocalizations = self._relocalization_count()
 
     @classmethod
@@ -635,10 +636,15 @@ class Localizer:
     @property
     def side_log_odds(self) -> float:
         """The log odds of the estimate against its mirror image (−x, −y, θ+π): the last re-localization's
-        prior (`SoccerRelocalization.mirror_log_odds`, capped by `SideSettings.prior_cap`) plus the teammates'
-        view of the ball (`mcl.side`)."""
-        prior = getattr(self.filter.relocalization, "mirror_log_odds", math.inf)
-        return self.side.log_odds(self._side_sign * prior, self._now())
+        prior (`SoccerRelocalization.mirror_log_odds`, capped by `SideSettings.prior_cap`, or by `kidnap_cap` once
+        a re-localization since the last placement rested on a kidnapping law: continuity with a pose whose side
+        was a guess is no surer than the guess) plus what the
+        teammates' view of the ball says (`mcl.side`: weighed jointly with whether each teammate is itself on the
+        mirror)."""
+        relocalization = self.filter.relocalization
+        prior = getattr(relocalization, "mirror_log_odds", math.inf)
+        kidnapped = self._kidnapped or bool(getattr(relocalization, "kidnapped", False))
+        return self.side.log_odds(self._side_sign * prior, kidnapped)
 
     def hypotheses(self) -> list[Hypothesis]:
         """The main modes of the belief, most probable first: the estimate, its mirror image (the same
@@ -684,6 +690,8 @@ class Localizer:
         if count != self._relocalizations:
             self._relocalizations = count
             self._side_sign = 1.0
+            # continuity with an anchor whose side rested on a kidnapping law is no surer than that law
+            self._kidnapped = self._kidnapped or bool(getattr(self.filter.relocalization, "kidnapped", False))
         self._track_side()
 
     def _track_side(self) -> None:
@@ -997,6 +1005,7 @@ class Localizer:
         self.side.moved()
         self._side_sign = 1.0
         self._side_pose = None
+        self._kidnapped = False
         self._relocalizations = self._relocalization_count()
         self._frames.clear()
         self._last_explained = None

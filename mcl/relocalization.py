@@ -62,6 +62,7 @@ from sensing.resetting import poses_from_pairs
 from .resampling import systematic
 
 TWO_PI = 2.0 * math.pi
+KIDNAP_AMBIGUITY = 3.0    # a pose and its mirror image within this ratio of distances from the anchor: ambiguous
 
 
 REGIONS = ("field", "own_half", "opponent_half")
@@ -235,6 +236,10 @@ class SoccerRelocalization:
     relocalizations : int
         How many re-localized poses `confirm` has accepted (a pose away from the anchor that held): a change
         tells that the estimate moved somewhere new.
+    kidnapped : bool
+        Whether the last re-localized pose lies beyond the anchor's drift (`tracking_share` < 1/2) with its mirror
+        image about as far from the anchor (within a factor `KIDNAP_AMBIGUITY`): its `mirror_log_odds` then rest
+        on the prior's kidnap law, not on continuity. False after a reset.
 
     Raises
     ------
@@ -258,6 +263,7 @@ class SoccerRelocalization:
         self._streak = 0
         self._carpet = (-1.0, 1.0, -1.0, 1.0)
         self.relocalizations = 0                 # re-localized poses accepted so far (`confirm`)
+        self.kidnapped = False                   # the last re-localized pose lies beyond the anchor's drift
 
     @property
     def anchor(self) -> np.ndarray | None:
@@ -294,6 +300,7 @@ class SoccerRelocalization:
         x_min, x_max, y_min, y_max = (float(v) for v in bounds)
         self.region = (x_min, x_max, y_min, y_max)
         self.mirror_log_odds = math.inf
+        self.kidnapped = False
         self._anchor = None
         self.travelled = 0.0
         self.tracking = False
@@ -312,6 +319,7 @@ class SoccerRelocalization:
         self.travelled = 0.0
         self.region = None
         self.mirror_log_odds = math.inf
+        self.kidnapped = False
         self.tracking = True
         self._streak = 0
         self._pending = None
@@ -395,6 +403,9 @@ class SoccerRelocalization:
                 pair = np.array([pose, mirror])
                 log_prior = self.log_prior(pair)
                 odds = float(log_prior[0] - log_prior[1])
+                # odds that rest on the kidnap law (the pose is no drift of the anchor, and its mirror image
+                # about as far from the anchor) are only as good as that law: the side belief trusts them less
+                self.kidnapped = self._kidnap_odds(pose, mirror)
                 # the same odds without the heading reference: how far position alone tells the pair apart
                 log_prior = self.log_prior(pair, heading_kept=0.0)
                 position_odds = float(log_prior[0] - log_prior[1])
@@ -410,6 +421,44 @@ class SoccerRelocalization:
         else:
             self._pending = None
         return self._count_streak(confident, flip)
+
+    def tracking_share(self, pose: Sequence[float] | np.ndarray) -> float:
+        """The share of the prior's density at `pose` (x, y, θ) that its tracking part holds (the robot where the
+        anchor says, up to drift), against the kidnap and anywhere parts; 0 without an anchor.
+
+        Parameters
+        ----------
+        pose : sequence of float or np.ndarray
+            (x [m], y [m], θ [rad]).
+
+        Returns
+        -------
+        float
+            Within [0, 1].
+        """
+        if self._anchor is None:
+            return 0.0
+        anchor, mixture, _ = self._prior_arguments()
+        _, ax, ay, at = anchor
+        track2, kidnap2, heading_sigma, kidnap_share, tail_share, heading_kept, uniform = mixture
+        d2 = (float(pose[0]) - ax) ** 2 + (float(pose[1]) - ay) ** 2
+        turn = math.remainder(float(pose[2]) - at, TWO_PI)
+        heading = math.exp(-0.5 * (turn / heading_sigma) ** 2) / (math.sqrt(TWO_PI) * heading_sigma)
+        tracking = (1.0 - kidnap_share - tail_share) * math.exp(-0.5 * d2 / track2) / (TWO_PI * track2) * heading
+        kidnap = (kidnap_share * math.exp(-0.5 * d2 / kidnap2) / (TWO_PI * kidnap2)
+                  * ((1.0 - heading_kept) / TWO_PI + heading_kept * heading))
+        total = tracking + kidnap + tail_share * uniform
+        return tracking / total if total > 0 else 0.0
+
+    def _kidnap_odds(self, pose: list[float], mirror: list[float]) -> bool:
+        """Whether the odds of `pose` against `mirror` rest on the kidnap law: the pose is no drift of the anchor
+        (`tracking_share` < 1/2) and the two lie about as far from it (within `KIDNAP_AMBIGUITY`)."""
+        anchor = self._anchor
+        if anchor is None or self.tracking_share(pose) >= 0.5:
+            return False
+        near = math.hypot(pose[0] - anchor[0], pose[1] - anchor[1])
+        far = math.hypot(mirror[0] - anchor[0], mirror[1] - anchor[1])
+        return max(near, far) <= KIDNAP_AMBIGUITY * max(min(near, far), 1e-9)
 
     def _count_streak(self, confident: bool, flip: bool) -> bool:
         if self.tracking:

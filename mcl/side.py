@@ -4,31 +4,41 @@ prior and its teammates' view of the ball.
     from mcl.side import SideBelief, SideSettings
 
     side = SideBelief(field, SideSettings())
-    side.log_odds(prior_log_odds, now)          # main pose against its mirror image
+    side.log_odds(prior_log_odds)              # the main pose against its mirror image
 
 The field is point-symmetric, so the landmarks never tell a pose from its mirror image (−x, −y, θ+π); the mirror
 hypothesis is always exactly as well supported by them as the main one. So it is kept as an explicit second
-hypothesis, at the point image of the main estimate, with log odds that sum two kinds of evidence:
+hypothesis, at the point image of the main estimate, with log odds from two kinds of evidence:
 
 1. **The robot's own prior** (the re-localization's `mirror_log_odds`: continuity with the last confident
    pose, the placement region), capped at `prior_cap`: continuity holds a robot on its side, but no prior is
    certain (the kidnapping it assumes may not be the one that happened).
 2. **The ball, seen by the robot and by its teammates** (`sensing.team.side_evidence`): each teammate's report
-   compared once with the robot's own sighting of the ball (placed on the field through the main pose, and
-   through its mirror image). Robust at every level: one report moves the odds by a bounded amount
-   (`outlier_share`), one teammate's evidence is capped at `per_teammate` (a teammate can itself be mirrored
-   with high stated confidence, and its errors are correlated over time), the evidence fades with `memory`
-   seconds (the ball and the teammates move on), and a ball near the centre mark weighs almost nothing. A
-   goalkeeper that believes it stands in the opponent half is itself on the mirror (a goalkeeper keeps to its
-   own goal): its reports are taken mirrored.
+   compared once with the robot's own sighting, placed on the field through the main pose and through its
+   mirror image. A sighting counts once it is confirmed (seen twice at the same place: false balls rarely
+   are), and a report far from both places says nothing (one of the two sightings is wrong).
 
-The caps are chosen so that one teammate alone can decide a robot whose own prior is even, but never flip a
-robot that its continuity holds (`per_teammate` < `prior_cap` + `flip`), while two agreeing teammates can
-(2 · `per_teammate` > `prior_cap` + `flip`). `SideSettings` checks both.
+**A teammate can be on the mirror itself**, with high stated confidence: then its reports of the ball are
+point images, and they speak against the right side. So the belief is a joint one, over the robot's side S and
+a flag m_j per teammate (on the mirror or not), with the prior `teammate_mirrored` on each flag: a report of
+teammate j supports S when m_j = 0 and the other side when m_j = 1. The posterior over these 2^(k+1) states
+(k teammates, at most `max_teammates`) is kept exactly. What follows from it:
+
+- one teammate alone moves the odds by at most log((1 − q) / q), q = `teammate_mirrored`, however often it
+  reports: past that, "it is on the mirror" explains its reports as well as "I am";
+- several teammates that agree multiply their weight, and a teammate that disagrees with the others is
+  taken for mirrored;
+- what the robot learns about a teammate outlives the robot's own re-localization (`moved` forgets the
+  evidence about the robot's side, not about its teammates'), so a teammate that contradicted the team before
+  a kidnapping is discounted after it;
+- a teammate's flag may change (it is kidnapped, or recovers): `teammate_hazard` per second.
+
+`SideSettings` checks that one teammate alone cannot flip a robot whose prior holds it (prior at its cap) and
+that two agreeing teammates can.
 
 The robot changes sides (mirrors its particles: exact, since the likelihood is symmetric) when the log odds
-stay below −`flip` for `flip_hold` seconds, so that a teammate's evidence is weighed against the others'
-before it acts. This module holds the numbers; `mcl.localizer.Localizer` feeds it and flips the filter.
+stay below −`flip` for `flip_hold` seconds. This module holds the numbers; `mcl.localizer.Localizer` feeds
+it and acts on it.
 """
 from __future__ import annotations
 
@@ -48,23 +58,30 @@ class SideSettings:
     Parameters
     ----------
     outlier_share : float, default 0.2
-        Probability that a teammate's ball report has nothing to do with the ball the robot sees (a wrong
-        teammate, another ball, a kick in between), within (0, 1): bounds what one report can say.
+        Probability that a teammate's ball report has nothing to do with the ball the robot sees (another
+        ball, a kick in between), within (0, 1): bounds what one report can say.
     rolling_sigma : float, default 1.0
         How fast the ball may have moved unseen [m/s], > 0: widens a report by this times its age.
     horizon : float, default 2.0
         A report is compared with the robot's sighting only when the two sightings are at most this far apart
         in time [s], > 0.
-    per_teammate : float, default 4.5
-        The most one teammate's evidence can move the log odds, > 0.
-    prior_cap : float, default 4.6
-        The most the robot's own prior can hold the log odds (log 100), > 0.
+    teammate_mirrored : float, default 0.05
+        Prior probability that a teammate is itself on the mirror, within (0, 0.5).
+    teammate_hazard : float, default 0.01
+        Rate [1/s] at which a teammate's flag is drawn afresh from its prior (so a teammate falls onto the
+        mirror at rate hazard · q and recovers at rate hazard · (1 − q)), >= 0.
+    max_teammates : int, default 7
+        Teammates modelled at once (2^(k+1) states); messages from further senders are ignored, within [1, 10].
+    prior_cap : float, default 3.0
+        The most the robot's own prior can hold the log odds (log 20), > 0 ...
+    kidnap_cap : float, default 1.0
+        ... and the most when the prior rests on a kidnapping law (the re-localized pose lies beyond the
+        anchor's drift, `SoccerRelocalization.kidnapped`: the law of an unseen kidnapping is a guess), within
+        (0, prior_cap].
     flip : float, default 2.3
         The robot changes sides when the log odds stay below −flip (log 10) ...
     flip_hold : float, default 1.0
         ... for this many seconds, >= 0.
-    memory : float, default 20.0
-        Time constant [s] with which a teammate's evidence fades, > 0.
     confirm_window : float, default 0.5
         A sighting of the robot's own is used once another one within this many seconds before it lies at the
         same place [s], > 0: a false detection is rarely seen twice in the same place ...
@@ -72,8 +89,7 @@ class SideSettings:
         ... within this distance [m] plus `rolling_sigma` times the time between them (>= 0).
     gate : float, default 9.21
         A report is compared only when it lies within this squared Mahalanobis distance of the robot's
-        sighting or of its mirror image (9.21: 99 % of a two-dimensional normal), > 0: far from both, one of
-        the two sightings is wrong, and which of the two sides is nearer says nothing.
+        sighting or of its mirror image (9.21: 99 % of a two-dimensional normal), > 0.
     future : float, default 1.0
         A message sent more than this far in the future of the robot's clock is refused [s], >= 0.
     past : float, default 10.0
@@ -82,19 +98,21 @@ class SideSettings:
     Raises
     ------
     ValueError
-        For a value out of its range, or caps that let one teammate flip a robot its prior holds
-        (per_teammate >= prior_cap + flip) or that two agreeing teammates cannot flip it
-        (2 · per_teammate <= prior_cap + flip).
+        For a value out of its range, or settings that let one teammate flip a robot its prior holds
+        (log((1 − q) / q) >= prior_cap + flip) or that two agreeing teammates cannot flip it
+        (2 log((1 − q) / q) <= prior_cap + flip).
     """
 
     outlier_share: float = 0.2
     rolling_sigma: float = 1.0
     horizon: float = 2.0
-    per_teammate: float = 4.5
-    prior_cap: float = 4.6
+    teammate_mirrored: float = 0.05
+    teammate_hazard: float = 0.01
+    max_teammates: int = 7
+    prior_cap: float = 3.0
+    kidnap_cap: float = 1.0
     flip: float = 2.3
     flip_hold: float = 1.0
-    memory: float = 20.0
     confirm_window: float = 0.5
     confirm_distance: float = 0.5
     gate: float = 9.21
@@ -107,19 +125,31 @@ class SideSettings:
             if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) \
                     or value < 0:
                 raise ValueError(f"{f.name} = {value!r} must be a finite number >= 0")
-        for name in ("rolling_sigma", "horizon", "per_teammate", "prior_cap", "flip", "memory", "past",
-                     "confirm_window", "gate"):
+        for name in ("rolling_sigma", "horizon", "prior_cap", "flip", "past", "confirm_window", "gate"):
             if getattr(self, name) <= 0:
                 raise ValueError(f"{name} = {getattr(self, name)!r} must be > 0")
+        if not 0 < self.kidnap_cap <= self.prior_cap:
+            raise ValueError(f"kidnap_cap = {self.kidnap_cap!r} must be within (0, prior_cap = {self.prior_cap!r}]")
         if not 0 < self.outlier_share < 1:
             raise ValueError(f"outlier_share = {self.outlier_share!r} must be within (0, 1)")
-        if self.per_teammate >= self.prior_cap + self.flip:
-            raise ValueError(f"per_teammate = {self.per_teammate!r} must be < prior_cap + flip = "
-                             f"{self.prior_cap + self.flip!r}: one teammate alone must never flip a robot its own "
-                             "prior holds")
-        if 2 * self.per_teammate <= self.prior_cap + self.flip:
-            raise ValueError(f"per_teammate = {self.per_teammate!r} must be > (prior_cap + flip) / 2 = "
-                             f"{0.5 * (self.prior_cap + self.flip)!r}: two agreeing teammates must be able to flip")
+        if not 0 < self.teammate_mirrored < 0.5:
+            raise ValueError(f"teammate_mirrored = {self.teammate_mirrored!r} must be within (0, 0.5)")
+        if not isinstance(self.max_teammates, int) or not 1 <= self.max_teammates <= 10:
+            raise ValueError(f"max_teammates = {self.max_teammates!r} must be an integer within [1, 10]")
+        trust = self.teammate_trust
+        if trust >= self.prior_cap + self.flip:
+            raise ValueError(f"teammate_mirrored = {self.teammate_mirrored!r}: one teammate could move the odds by "
+                             f"{trust:.2f} >= prior_cap + flip = {self.prior_cap + self.flip:.2f}: one teammate "
+                             "alone must never flip a robot its own prior holds")
+        if 2 * trust <= self.prior_cap + self.flip:
+            raise ValueError(f"teammate_mirrored = {self.teammate_mirrored!r}: two agreeing teammates move the odds "
+                             f"by {2 * trust:.2f} <= prior_cap + flip = {self.prior_cap + self.flip:.2f}: two "
+                             "agreeing teammates must be able to flip")
+
+    @property
+    def teammate_trust(self) -> float:
+        """log((1 − q) / q): the most one teammate can move the odds, q = `teammate_mirrored`."""
+        return math.log((1.0 - self.teammate_mirrored) / self.teammate_mirrored)
 
 
 def _mahalanobis2(d: np.ndarray, covariance: np.ndarray) -> float:
@@ -129,7 +159,7 @@ def _mahalanobis2(d: np.ndarray, covariance: np.ndarray) -> float:
 
 @dataclass
 class _Sighting:
-    """The robot's own latest ball sighting, on the field through the main pose at its capture time."""
+    """One of the robot's own ball sightings, on the field through the main pose at its capture time."""
 
     time: float
     point: np.ndarray
@@ -137,7 +167,11 @@ class _Sighting:
 
 
 class SideBelief:
-    """The log odds of the main pose against its mirror image (see the module docstring); one per localizer.
+    """The joint belief over the robot's side and its teammates' (see the module docstring); one per localizer.
+
+    State index bits: bit 0 the robot's side (0: the main pose, 1: its mirror image), bit j + 1 teammate j's
+    flag (1: on the mirror). `_log_joint` holds log p(reports | state) + log p(teammates' flags); the
+    robot's own prior on its side is added when the odds are read (`log_odds`).
 
     Attributes
     ----------
@@ -145,7 +179,8 @@ class SideBelief:
     reports : int
         Teammate reports compared with a sighting of the robot's own so far.
     ignored : int
-        Reports that could not be compared (no ball, too old, far from both sides' sightings).
+        Reports that could not be compared (no ball, too old, far from both sides' sightings, too many
+        teammates).
     unconfirmed : int
         Sightings of the robot's own not used: nothing seen at the same place just before.
     """
@@ -155,50 +190,66 @@ class SideBelief:
             raise ValueError(f"settings = {settings!r} must be an mcl.side.SideSettings")
         self.settings = settings
         self._area = 4.0 * field.half_length * field.half_width
-        self._evidence: dict[int, tuple[float, float]] = {}    # sender: (log odds, time it was last updated)
+        self._senders: list[int] = []                         # teammate j is bit j + 1
+        self._log_joint = np.zeros(2)                         # over the robot's side alone, at first
+        self._joint_time: float | None = None                 # when the teammates' flags were last aged
+        self._side_evidence = False                           # whether the joint says anything of the side
         self._latest: dict[int, TeamMessage] = {}             # sender: its newest message
-        self._used: dict[int, float] = {}                     # sender: send time of its last message compared
+        self._used: dict[int, float] = {}                     # sender: time of its last message compared
         self._sighting: _Sighting | None = None
-        self._recent: list[_Sighting] = []       # the robot's own sightings of the last `confirm_window` seconds
+        self._recent: list[_Sighting] = []                    # own sightings of the last `confirm_window` s
         self._below_since: float | None = None
+        self._prior = 0.0                                     # the robot's own prior, as last read
         self.reports = 0
         self.ignored = 0
         self.unconfirmed = 0
 
-    # -- the evidence --------------------------------------------------------------------------------------
-    def team_log_odds(self, now: float) -> float:
-        """The teammates' evidence at time `now`: each teammate's, faded and capped, summed."""
-        s = self.settings
-        total = 0.0
-        for value, since in self._evidence.values():
-            faded = value * math.exp(-max(now - since, 0.0) / s.memory)
-            total += min(max(faded, -s.per_teammate), s.per_teammate)
-        return total
+    # -- reading it --------------------------------------------------------------------------------------------
+    def _side_marginal(self) -> float:
+        """log p(reports | main) − log p(reports | mirror), the teammates' flags summed out."""
+        joint = self._log_joint
+        return float(np.logaddexp.reduce(joint[0::2]) - np.logaddexp.reduce(joint[1::2]))
 
-    def log_odds(self, prior_log_odds: float, now: float) -> float:
-        """The log odds of the main pose against its mirror image: the prior, capped at `prior_cap` (NaN counts
-        as even), plus the teammates' evidence."""
-        cap = self.settings.prior_cap
+    def team_log_odds(self) -> float:
+        """What the teammates' reports say of the robot's side (log odds of the main pose; 0: nothing)."""
+        return self._side_marginal() if self._side_evidence else 0.0
+
+    def log_odds(self, prior_log_odds: float, kidnapped: bool = False) -> float:
+        """The log odds of the main pose against its mirror image: the prior, capped at `prior_cap` (at
+        `kidnap_cap` when it rests on a kidnapping law, `kidnapped`; NaN counts as even), plus the teammates'
+        evidence."""
+        cap = self.settings.kidnap_cap if kidnapped else self.settings.prior_cap
         prior = 0.0 if math.isnan(prior_log_odds) else min(max(prior_log_odds, -cap), cap)
-        return prior + self.team_log_odds(now)
+        self._prior = prior
+        return prior + self.team_log_odds()
 
-    @property
-    def holds_evidence(self) -> bool:
-        """Whether anything here belongs to the current main pose (teammates' evidence, the robot's own
-        sightings placed through it)."""
-        return bool(self._evidence or self._recent or self._sighting is not None)
+    def teammate_mirrored(self, sender: int) -> float | None:
+        """The probability that teammate `sender` is on the mirror (None: not heard from, or not modelled)."""
+        if sender not in self._senders:
+            return None
+        bit = 1 << (self._senders.index(sender) + 1)
+        index = np.arange(self._log_joint.shape[0])
+        joint = self._log_joint - np.logaddexp.reduce(self._log_joint)
+        return float(np.exp(joint[(index & bit) != 0]).sum())
 
     @property
     def teammates(self) -> tuple[int, ...]:
-        """The senders heard from so far (sorted)."""
-        return tuple(sorted(self._latest))
+        """The senders modelled so far, in the order they were first heard from."""
+        return tuple(self._senders)
 
+    @property
+    def holds_evidence(self) -> bool:
+        """Whether anything here belongs to the current main pose (evidence of its side, the robot's own
+        sightings placed through it)."""
+        return bool(self._side_evidence or self._recent or self._sighting is not None)
+
+    # -- the evidence ----------------------------------------------------------------------------------------
     def message(self, message: TeamMessage, now: float) -> None:
         """A teammate's message arrived (`now`: the robot's clock); kept if it is its newest, and compared with
         the robot's latest sighting when the two are close enough in time."""
         latest = self._latest.get(message.sender)
         if latest is not None and latest.received_time > message.received_time:
-            self.ignored += 1            # an older message arriving late: its newer one was already used
+            self.ignored += 1            # an older message arriving late: its newer one is kept
             return
         self._latest[message.sender] = message
         if self._sighting is not None:
@@ -207,13 +258,13 @@ class SideBelief:
     def sighting(self, detection: BallDetection, pose: np.ndarray, pose_covariance: np.ndarray,
                  capture_time: float, now: float) -> None:
         """The robot saw the ball at `capture_time`, where the main estimate was `pose` (x, y, θ) with
-        `pose_covariance`: compared with each teammate's newest report not yet compared."""
+        `pose_covariance`: once confirmed, compared with each teammate's newest report not yet compared."""
         s = self.settings
         point, covariance = ball_on_field(pose, pose_covariance, detection)
         new = _Sighting(capture_time, point, covariance)
         self._recent = [old for old in self._recent if 0.0 <= capture_time - old.time <= s.confirm_window]
-        confirmed = any(np.hypot(*(old.point - point)) <= s.confirm_distance + s.rolling_sigma * (capture_time - old.time)
-                        for old in self._recent)
+        confirmed = any(float(np.hypot(*(old.point - point))) <= s.confirm_distance
+                        + s.rolling_sigma * (capture_time - old.time) for old in self._recent)
         self._recent.append(new)
         if not confirmed:
             self.unconfirmed += 1
@@ -227,12 +278,12 @@ class SideBelief:
         sighting = self._sighting
         assert sighting is not None
         if self._used.get(sender) == message.received_time:
-            return                      # each report is evidence once: a teammate's errors persist
+            return                      # each report is evidence once
+        self._used[sender] = message.received_time
         s = self.settings
         report = teammate_ball(message, sighting.time, s.rolling_sigma, s.horizon)
         if report is None:
             self.ignored += 1
-            self._used[sender] = message.received_time
             return
         point, covariance = report
         if message.is_goalkeeper and message.pose[0] > 0.0:
@@ -240,15 +291,46 @@ class SideBelief:
         total = sighting.covariance + covariance
         if min(_mahalanobis2(sighting.point - point, total), _mahalanobis2(-sighting.point - point, total)) > s.gate:
             self.ignored += 1
-            self._used[sender] = message.received_time
             return
+        if sender not in self._senders:
+            if len(self._senders) >= s.max_teammates:
+                self.ignored += 1
+                return
+            self._add_teammate(sender)
+        self._age(now)
         value = side_evidence(sighting.point, sighting.covariance, point, covariance, s.outlier_share, self._area)
-        old, since = self._evidence.get(sender, (0.0, now))
-        faded = old * math.exp(-max(now - since, 0.0) / s.memory)
-        # the running sum is kept within the cap: evidence beyond it would take as long to undo
-        self._evidence[sender] = (min(max(faded + value, -s.per_teammate), s.per_teammate), now)
-        self._used[sender] = message.received_time
+        # the report supports the main pose when the robot's side and the teammate's flag agree (both 0 or 1)
+        index = np.arange(self._log_joint.shape[0])
+        bit = 1 << (self._senders.index(sender) + 1)
+        against = ((index & 1) != 0) != ((index & bit) != 0)
+        self._log_joint = self._log_joint + np.where(against, -0.5 * value, 0.5 * value)
+        self._log_joint -= self._log_joint.max()
+        self._side_evidence = True
         self.reports += 1
+
+    def _add_teammate(self, sender: int) -> None:
+        q = self.settings.teammate_mirrored
+        self._senders.append(sender)
+        self._log_joint = np.concatenate([self._log_joint + math.log1p(-q), self._log_joint + math.log(q)])
+
+    def _age(self, now: float) -> None:
+        """The teammates' flags may have changed since the last report: each flag is a two-state Markov chain
+        that changes at rate `teammate_hazard` towards its prior (on the mirror with probability q), so a
+        teammate falls onto the mirror at rate hazard · q and recovers at rate hazard · (1 − q)."""
+        if self._joint_time is not None and now > self._joint_time and self._senders:
+            s = self.settings
+            share = -math.expm1(-s.teammate_hazard * (now - self._joint_time))
+            if share > 0.0:
+                q = s.teammate_mirrored
+                fall, recover = share * q, share * (1.0 - q)
+                index = np.arange(self._log_joint.shape[0])
+                for j in range(len(self._senders)):
+                    bit = 1 << (j + 1)
+                    on_mirror = (index & bit) != 0
+                    stay = np.where(on_mirror, math.log1p(-recover), math.log1p(-fall))
+                    arrive = np.where(on_mirror, math.log(fall), math.log(recover))
+                    self._log_joint = np.logaddexp(self._log_joint + stay, self._log_joint[index ^ bit] + arrive)
+        self._joint_time = now if self._joint_time is None else max(self._joint_time, now)
 
     # -- what the localizer tells it -------------------------------------------------------------------------
     def should_flip(self, log_odds: float, now: float) -> bool:
@@ -261,18 +343,26 @@ class SideBelief:
         return now - self._below_since >= self.settings.flip_hold
 
     def mirrored(self) -> None:
-        """The main pose became its mirror image: the evidence changes sign."""
-        self._evidence = {sender: (-value, since) for sender, (value, since) in self._evidence.items()}
+        """The main pose became its mirror image: the robot's side swaps in the joint belief."""
+        index = np.arange(self._log_joint.shape[0])
+        self._log_joint = self._log_joint[index ^ 1]
         for sighting in self._recent:
-            sighting.point = -sighting.point       # (the latest sighting is among them)
+            sighting.point = -sighting.point
         if self._sighting is not None and all(self._sighting is not r for r in self._recent):
             self._sighting.point = -self._sighting.point
         self._below_since = None
 
     def moved(self) -> None:
-        """The main pose moved somewhere new (a re-localization or a placement): evidence about where it was
-        says nothing about it; the teammates' newest messages stay, to be compared with the next sighting."""
-        self._evidence.clear()
+        """The main pose moved somewhere new (a re-localization or a placement): what the reports said of the
+        robot's side is dropped, what they said of the teammates is kept (the side summed out with the prior it
+        had when last read). The teammates' newest messages stay, to be compared with the next sighting."""
+        if self._side_evidence:
+            prior = self._prior
+            main, mirror = -math.log1p(math.exp(-prior)), -math.log1p(math.exp(prior))
+            teammates = np.logaddexp(self._log_joint[0::2] + main, self._log_joint[1::2] + mirror)
+            teammates -= teammates.max()
+            self._log_joint = np.repeat(teammates, 2)
+        self._side_evidence = False
         self._used.clear()
         self._sighting = None
         self._recent = []

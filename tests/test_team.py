@@ -25,7 +25,7 @@ def state(loc):
     """What a refused call must leave as it was."""
     pf = loc.filter
     return (pf.poses.copy(), pf.log_weights.copy(), pf.rng.bit_generator.state, dict(loc.counts),
-            dict(loc.side._evidence), dict(loc.side._latest), loc.side.reports, loc.side.ignored, loc.time)
+            loc.side._log_joint.copy(), dict(loc.side._latest), loc.side.reports, loc.side.ignored, loc.time)
 
 
 def same(a, b):
@@ -121,9 +121,9 @@ def test_a_teammate_ball_is_moved_on_by_its_velocity_and_widened_by_its_age():
 
 def test_settings_keep_one_teammate_from_flipping_a_held_robot():
     with pytest.raises(ValueError, match="one teammate"):
-        SideSettings(per_teammate=8.0)
+        SideSettings(teammate_mirrored=0.001)
     with pytest.raises(ValueError, match="two agreeing"):
-        SideSettings(per_teammate=3.0)
+        SideSettings(teammate_mirrored=0.3)
     with pytest.raises(ValueError, match="outlier_share"):
         SideSettings(outlier_share=1.0)
 
