@@ -12,6 +12,7 @@
     robocup-mcl bench lwpr [--seeds N] [--json]       # LWPR on the cross benchmark
     robocup-mcl bench replay [--minutes 10] [--json]  # log replay speed in multiples of real time
     robocup-mcl bench compare REV [--rounds 3] [--json]  # this checkout against another revision, alternated
+    robocup-mcl bench team [--rounds 5] [--json] [--save PATH]  # team messages and the ball in the loop
     robocup-mcl eval [--families ...] [--split train|holdout|both] [--json] [--save PATH]   # the scenario battery
     robocup-mcl soak [--minutes 60] [--particles 500] [--seed S] [--json] [--save PATH]  # an hour in the loop
     robocup-mcl fit adaptive|ekf|odometry [...] [--json] [--save PATH]   # a model's parameters from training logs
@@ -66,6 +67,7 @@ BENCHES = {
     "replay": ("demos.replay_speed", "a 10-minute MCAP log replayed, in multiples of real time"),
     "compare": ("benchmarks.compare", "this checkout's speed against another revision's, in alternated runs"),
     "tune": ("benchmarks.tune_scaling", "robocup-mcl tune with 1 and 2 Ray workers, Ray's cost per task, cluster projection"),
+    "team": ("benchmarks.team", "the robot's loop with and without team messages; one team message, one ball sighting"),
 }
 FITS = {
     "adaptive": ("demos.fit_adaptive", "the adaptive motion model's collision terms (beta) from training logs"),
