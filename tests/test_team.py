@@ -315,3 +315,42 @@ def test_a_frame_captured_while_fallen_is_not_used_when_it_arrives_after_getting
     np.testing.assert_array_equal(loc.filter.poses, poses)
     assert loc.counts["observation while fallen"] == 1
     assert loc.observe([Seen("penalty_mark", 1.2, 0.0)], capture_time=1.505)        # captured standing
+
+
+def test_a_teammate_that_contradicts_the_team_is_taken_for_mirrored_and_stays_so_after_a_move():
+    loc = standing()
+    t = 1.0
+    for k in range(30):
+        t = 1.0 + 0.1 * (k + 1)
+        for j in range(10):
+            loc.motion(t - 0.1 + 0.01 * (j + 1), MotionInput(0.01, odometry=(0.0, 0.0, 0.0)))
+        loc.team_message(report(2, t - 0.05, (-1.0, 0.8)))       # two teammates agree with the robot ...
+        loc.team_message(report(4, t - 0.05, (-0.95, 0.85)))
+        loc.team_message(report(5, t - 0.04, (1.0, -0.8)))       # ... one reports the point image
+        sees_ball_at(loc, (-1.0, 0.8), t)
+    assert loc.side.teammate_mirrored(5) > 0.9
+    assert loc.side.teammate_mirrored(2) < 0.1 and loc.side.teammate_mirrored(4) < 0.1
+    assert loc.counts["side changed by the team"] == 0
+    loc.side.moved()                                             # the robot re-localized somewhere new
+    assert loc.side.team_log_odds() == 0.0                       # nothing is known of its new side ...
+    assert loc.side.teammate_mirrored(5) > 0.9                   # ... but teammate 5 is still doubted
+
+
+@given(st.lists(st.tuples(st.integers(1, 4), st.floats(-6.0, 6.0)), max_size=40), st.floats(-10.0, 10.0))
+def test_one_teammate_never_moves_the_odds_by_more_than_its_trust(reports, prior):
+    """Whatever one teammate reports, its evidence stays within ±log((1 − q) / q); with several, the odds stay
+    finite and a refused teammate changes nothing."""
+    side = SideBelief(FIELD)
+    for sender, value in reports:
+        if sender not in side._senders:
+            side._add_teammate(sender)
+        index = np.arange(side._log_joint.shape[0])
+        bit = 1 << (side._senders.index(sender) + 1)
+        against = ((index & 1) != 0) != ((index & bit) != 0)
+        side._log_joint = side._log_joint + np.where(against, -0.5 * value, 0.5 * value)
+        side._side_evidence = True
+    trust = side.settings.teammate_trust
+    assert abs(side.team_log_odds()) <= len(side._senders) * trust + 1e-9
+    assert math.isfinite(side.log_odds(prior))
+    if len(side._senders) == 1:
+        assert abs(side.team_log_odds()) <= trust + 1e-9
