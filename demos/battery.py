@@ -61,6 +61,7 @@ STRONG_EXCESS = 0.5                          # m: collisions whose odometry ran 
 MIRROR_CLEAR = 2.0                           # odds of truth against mirror that count as telling them apart
 CORRECT_HOLD = 2.0                           # s of correct tracking that end an even kidnapping's recovery
 UNSURE_AFTER = 2.0                           # s after a kidnapping from which the quality must doubt the half
+END_HOLD = 1.0                               # s: a run ends on the mirror when its last second is mirrored
 
 
 def split_seeds(split: str, k: int) -> list[int]:
@@ -224,8 +225,11 @@ def side_figures(run: BatteryRun, out: dict) -> dict:
     position, heading = pose_errors(run.truth, out["estimates"])
     mirror = mirrored(run.truth, out["estimates"])
     flips = out["team_flips"]
-    figures = {"team": out["team"], "team_flips": len(flips),
-               "flips_to_mirror": sum(1 for k in flips if k > 0 and position[k - 1] <= FAIL_POSITION and mirror[k])}
+    last = run.times >= run.times[-1] - END_HOLD + 1e-9
+    figures = {"team": out["team"], "team_flips": len(flips), "ends_on_mirror": bool(mirror[last].all()),
+               # a flip from the right pose onto the mirror image (near the centre mark the two overlap: not one)
+               "flips_to_mirror": sum(1 for k in flips if k > 0 and position[k - 1] <= FAIL_POSITION
+                                      and not mirror[k - 1] and mirror[k] and position[k] > FAIL_POSITION)}
     if run.params["event"]["type"] in ("kidnap", "kidnap_special") and run.windows:
         end = run.windows[0][1]
         good = (position < CONVERGED_POSITION) & (heading < CONVERGED_HEADING)
@@ -294,6 +298,7 @@ def summarize_family(runs: list[dict]) -> dict:
             median, worst, count = median_worst([_never(r.get("correct_2s_s")) for r in members])
             out["kidnap_odds"][key] = {
                 "runs": len(members), "on_mirror": sum(bool(r["on_mirror"]) for r in members),
+                "ends_on_mirror": sum(bool(r.get("ends_on_mirror")) for r in members),
                 "pooled": pool_counts(members),
                 "correct_2s_s": {"median": median, "worst": worst, "runs": count,
                                  "never": sum(_never(r.get("correct_2s_s")) == math.inf for r in members)},
@@ -358,6 +363,8 @@ def format_family(name: str, s: dict) -> list[str]:
             lines.append(f"    {'clear kidnaps: lost recall':<32}{_percent(clear['pooled']['recall']['share']):>10}"
                          f"   false alarms {_percent(clear['pooled']['false_alarm']['share'])}")
         if even["runs"]:
+            lines.append(f"    {'even kidnaps: end on the mirror':<32}{even['ends_on_mirror']:>10}   of {even['runs']} "
+                         f"(the last {END_HOLD:g} s mirrored)")
             c = even["correct_2s_s"]
             doubted = share_text(even["mirror_steps_doubted"], even["mirror_steps"])
             lines.append(f"    {'even kidnaps: to 2 s correct [s]':<32}{_fmt_time(c['median']):>10}"

@@ -18,6 +18,10 @@
     robocup-mcl fit adaptive|ekf|odometry [...] [--json] [--save PATH]   # a model's parameters from training logs
     robocup-mcl tune LOGS... --space SPACE.toml --trials N [--address A] [--out PROFILE.toml] [--json]
                                                       # the localizer's settings from a team's logs (Ray, Optuna)
+    robocup-mcl node [--field F] [--particles N] [--ros-args ...]   # the live ROS 2 node (`make ros` installs ROS)
+    robocup-mcl node bench LOG [--seconds S] [--json] [--save PATH]  # a log played to the node over DDS: latency
+    robocup-mcl node play LOG [--rate R]              # a robot's MCAP log played to its topics
+    robocup-mcl node messages [--check]               # generate the ROS messages that have no wheel
     robocup-mcl --version                             # the installed version
     robocup-mcl COMMAND --help                        # every option of a command, each with its help
 
@@ -75,12 +79,19 @@ FITS = {
     "odometry": ("demos.fit_odometry", "LWPR's meta-parameters for the learned odometry from training logs"),
 }
 
+NODE_TOOLS = {
+    "bench": ("mcl.ros.bench", "a log played to the node over DDS in a loopback-only namespace: latency, CPU, drops"),
+    "play": ("mcl.ros.player", "a robot's MCAP log played to its topics, in real time or faster"),
+    "messages": ("mcl.ros.messages", "generate the ROS 2 message packages that have no wheel (cmake)"),
+}
+
 
 def _usage() -> str:
     lines = [__doc__.strip(), "", "demos:"]
     lines += [f"  {name:<10} {text}" for name, (_, text) in DEMOS.items()]
     lines += ["benchmarks:"] + [f"  {name:<10} {text}" for name, (_, text) in BENCHES.items()]
     lines += ["fits:"] + [f"  {name:<10} {text}" for name, (_, text) in FITS.items()]
+    lines += ["node tools:"] + [f"  {name:<10} {text}" for name, (_, text) in NODE_TOOLS.items()]
     return "\n".join(lines)
 
 
@@ -127,9 +138,10 @@ def commands() -> dict[str, str]:
     table = {f"{PROGRAM} demo {name}": module for name, (module, _) in DEMOS.items()}
     table.update({f"{PROGRAM} bench {name}": module for name, (module, _) in BENCHES.items()})
     table.update({f"{PROGRAM} fit {name}": module for name, (module, _) in FITS.items()})
+    table.update({f"{PROGRAM} node {name}": module for name, (module, _) in NODE_TOOLS.items()})
     table.update({f"{PROGRAM} bench": BENCHES["step"][0], f"{PROGRAM} eval": "demos.battery",
                   f"{PROGRAM} soak": "benchmarks.soak", f"{PROGRAM} replay": "mcl.replay",
-                  f"{PROGRAM} tune": "demos.tune"})
+                  f"{PROGRAM} tune": "demos.tune", f"{PROGRAM} node": "mcl.ros.node"})
     return table
 
 
@@ -203,6 +215,10 @@ def _run(argv: list[str] | None) -> int:
         if rest and not rest[0].startswith("-"):
             return _dispatch(BENCHES, rest[0], rest[1:], "benchmark", f"{PROGRAM} bench {rest[0]}")
         return _dispatch(BENCHES, "step", rest, "benchmark", f"{PROGRAM} bench")
+    if command == "node":
+        if rest and rest[0] in NODE_TOOLS:
+            return _dispatch(NODE_TOOLS, rest[0], rest[1:], "node tool", f"{PROGRAM} node {rest[0]}")
+        return _call("mcl.ros.node", rest, f"{PROGRAM} node")
     if command == "fit":
         if not rest or rest[0] in ("-h", "--help"):
             print(_usage())

@@ -644,6 +644,11 @@ class Localizer:
         relocalization = self.filter.relocalization
         prior = getattr(relocalization, "mirror_log_odds", math.inf)
         kidnapped = self._kidnapped or bool(getattr(relocalization, "kidnapped", False))
+        share = getattr(relocalization, "tracking_share", None)
+        if not kidnapped and callable(share) and getattr(relocalization, "anchor", None) is not None:
+            # the prior's odds are those of the anchor's pose: an estimate that has left it (a re-localization
+            # not yet accepted) is no surer of its side than a kidnapping law
+            kidnapped = share(self.filter.estimate().pose) < 0.5
         return self.side.log_odds(self._side_sign * prior, kidnapped)
 
     def hypotheses(self) -> list[Hypothesis]:

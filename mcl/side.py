@@ -195,7 +195,7 @@ class SideBelief:
         self._joint_time: float | None = None                 # when the teammates' flags were last aged
         self._side_evidence = False                           # whether the joint says anything of the side
         self._latest: dict[int, TeamMessage] = {}             # sender: its newest message
-        self._used: dict[int, float] = {}                     # sender: time of its last message compared
+        self._used: dict[int, float] = {}                     # sender: its sighting last compared
         self._sighting: _Sighting | None = None
         self._recent: list[_Sighting] = []                    # own sightings of the last `confirm_window` s
         self._below_since: float | None = None
@@ -277,9 +277,12 @@ class SideBelief:
         message = self._latest[sender]
         sighting = self._sighting
         assert sighting is not None
-        if self._used.get(sender) == message.received_time:
-            return                      # each report is evidence once
-        self._used[sender] = message.received_time
+        # each sighting of a teammate's is evidence once (against the first sighting of the robot's own it meets):
+        # its error is one error, however often it is repeated (a growing age) or compared
+        seen = round(message.sighting_time, 3)
+        if self._used.get(sender) == seen:
+            return
+        self._used[sender] = seen
         s = self.settings
         report = teammate_ball(message, sighting.time, s.rolling_sigma, s.horizon)
         if report is None:

@@ -205,12 +205,16 @@ def test_a_report_far_from_both_sides_says_nothing():
     assert loc.side_log_odds == standing().side_log_odds
 
 
-def test_each_report_is_evidence_once():
+def test_each_teammate_sighting_is_evidence_once():
     loc = standing()
     loc.team_message(report(2, 0.95, (-1.0, 0.8)))
     sees_ball_at(loc, (-1.0, 0.8), 0.98)
+    assert loc.side.reports == 1
     odds = loc.side_log_odds
-    sees_ball_at(loc, (-1.0, 0.8), 0.99, twice=False)     # the same report, a further sighting
+    sees_ball_at(loc, (-1.0, 0.8), 0.99, twice=False)     # a further sighting of the robot's own: not again
+    assert loc.side.reports == 1 and loc.side_log_odds == odds
+    # the teammate repeats its last sighting (sent later, its age grown by as much): the same pair, no evidence
+    loc.team_message(report(2, 0.97, (-1.0, 0.8), ball_age=0.02))
     assert loc.side.reports == 1 and loc.side_log_odds == odds
     loc.team_message(report(2, 0.90, (-1.0, 0.8)))        # older than the one kept: ignored
     assert loc.side.reports == 1

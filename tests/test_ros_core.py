@@ -1,0 +1,117 @@
+"""The ROS node's logic without ROS (`mcl.ros.core`, `mcl.ros.parameters`): messages decoded from an MCAP log,
+fed in the order the log has them, give `robocup-mcl replay`'s estimates bit for bit; the game events; the
+parameters' checks; and `robocup-mcl node` without the ROS wheels says what to install in one line."""
+from __future__ import annotations
+
+import dataclasses
+import math
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from demos.battery_sim import as_robot_log, simulate
+from mcl.logs.mcap_io import write_mcap
+from mcl.replay import replay
+from mcl.ros.core import NodeCore, map_to_odom
+from mcl.ros.parameters import NodeSettings
+
+ORIGIN_NS = 1_750_000_000_000_000_000       # a stamp of our time: the log's t = 0
+
+
+@pytest.fixture(scope="module")
+def battery_log(tmp_path_factory):
+    """A held-out-like battery run (family kidnap, seed 1007) as a robot's MCAP log, and its RobotLog."""
+    run = simulate("kidnap", 1007, 12.0)
+    log = dataclasses.replace(as_robot_log(run), origin_ns=ORIGIN_NS)
+    path = tmp_path_factory.mktemp("ros") / "kidnap_1007.mcap"
+    write_mcap(log, path)
+    return path, log, run.field.name
+
+
+def decoded_messages(path):
+    """(log time, topic, decoded message) in log-time order, camera messages before odometry at equal times."""
+    from mcap.reader import make_reader
+    from mcap_ros2.decoder import DecoderFactory
+
+    with open(path, "rb") as stream:
+        reader = make_reader(stream, decoder_factories=[DecoderFactory()])
+        rows = [(message.log_time, channel.topic, decoded)
+                for _, channel, message, decoded in reader.iter_decoded_messages()]
+    return sorted(rows, key=lambda row: (row[0], row[1] == "/motion_odometry"))
+
+
+def test_the_core_gives_the_replay_s_estimates_bit_for_bit(battery_log):
+    path, log, field_name = battery_log
+    settings = NodeSettings(field=field_name, particles=200, seed=3)
+    core = NodeCore(settings, origin_ns=log.origin_ns)
+    outputs = []
+    for _, topic, message in decoded_messages(path):
+        if topic == "/motion_odometry":
+            out = core.odometry(message)
+            if out is not None:
+                outputs.append(out)
+        elif topic == "/goal_posts_relative":
+            core.goalposts(message)
+        elif topic == "/markings_relative":
+            core.markings(message)
+    from mcl.logs import read_log
+    read, _ = read_log(str(path))
+    result = replay(read, settings.localizer().field, particles=200, seed=3)
+    assert len(outputs) == result.times.shape[0] > 1000
+    poses = np.array([out.pose for out in outputs])
+    assert np.array_equal(poses, result.estimates)
+    assert np.array_equal(np.array([out.covariance for out in outputs]), result.covariances)
+    assert core.frames_used == result.frames_used > 100
+    assert [out.stamp_ns for out in outputs] == [read.origin_ns + round(t * 1e9) for t in result.times]
+
+
+def test_map_to_odom_composes_with_the_odometry_pose_to_the_estimate():
+    estimate, odometry = np.array([1.0, -2.0, 2.5]), np.array([0.3, 0.7, -1.2])
+    x, y, theta = map_to_odom(estimate, odometry)
+    c, s = math.cos(theta), math.sin(theta)
+    back = (x + c * odometry[0] - s * odometry[1], y + s * odometry[0] + c * odometry[1], theta + odometry[2])
+    assert np.allclose(back[:2], estimate[:2]) and math.isclose(math.remainder(back[2] - estimate[2], math.tau), 0,
+                                                                abs_tol=1e-12)
+
+
+def _state(game_state, penalized=False):
+    return SimpleNamespace(game_state=game_state, penalized=penalized)
+
+
+def test_game_state_events():
+    core = NodeCore(NodeSettings(particles=50))
+    assert core.game_state(_state(0)) == ["initial_placement"]
+    assert core.game_state(_state(0)) == []
+    assert core.game_state(_state(3)) == []
+    assert core.game_state(_state(3, True)) == ["penalized"] and core.localizer.is_penalized
+    assert core.game_state(_state(3, False)) == ["penalty_return"] and not core.localizer.is_penalized
+    off = NodeCore(NodeSettings(particles=50, game_events=False))
+    assert off.game_state(_state(0)) == []
+
+
+def test_events_and_a_known_pose():
+    core = NodeCore(NodeSettings(particles=100))
+    core.event("fallen")
+    assert core.localizer.is_fallen
+    core.event("got_up")
+    with pytest.raises(ValueError, match="event = 'jump'"):
+        core.event("jump")
+    pose = SimpleNamespace(header=SimpleNamespace(stamp=SimpleNamespace(sec=1, nanosec=0), frame_id="map"),
+                           pose=SimpleNamespace(pose=SimpleNamespace(
+                               position=SimpleNamespace(x=1.0, y=-0.5, z=0.0),
+                               orientation=SimpleNamespace(x=0.0, y=0.0, z=0.0, w=1.0)),
+                               covariance=[0.0] * 36))
+    core.initial_pose(pose)
+    assert np.allclose(core.localizer.pose().pose[:2], (1.0, -0.5), atol=0.1)
+    assert core.all_counts()["event place"] == 1
+
+
+@pytest.mark.parametrize("values, match", [({"particles": 0}, "particles = 0"), ({"model": "x"}, "model = 'x'"),
+                                           ({"history": -1.0}, "history = -1.0"), ({"start": "z"}, "start = 'z'"),
+                                           ({"particles": "5"}, "particles = '5' must be a int"),
+                                           ({"nope": 1}, "unknown parameters"),
+                                           ({"pose_topic": "a b"}, "pose_topic")])
+def test_bad_parameters_are_refused_by_name(values, match):
+    with pytest.raises(ValueError, match=match):
+        NodeSettings.from_dict(values)
