@@ -539,6 +539,7 @@ class Localizer:
             return False
         self.filter.correct(observations, since=since)
         self._follow_relocalization()
+        self._hold_side()
         if len(observations):
             normalizer = getattr(self.filter.sensor_model, "log_normalizer", None)
             self.log_evidence += self.filter.frame_log_likelihood + (normalizer(observations) if normalizer else 0.0)
@@ -625,9 +626,12 @@ class Localizer:
         self.counts["team message"] += 1
         if self.is_fallen or self.is_penalized:
             return
+        reports = self.side.reports
         self._track_side()
         self.side.message(message, self._now())
-        if self.side.holds_evidence and self._side_pose is None:
+        if self.side.reports == reports:
+            return                     # nothing new was weighed: the belief is as it was
+        if self._side_pose is None:
             self._side_pose = self.filter.estimate().pose.copy()
         self._settle_side()
         self._quality = None
@@ -728,38 +732,50 @@ class Localizer:
             move_back(pose[None], np.asarray(since, dtype=np.float64), at_capture)
             pose = at_capture[0]
         self._track_side()
+        reports = self.side.reports
         self.side.sighting(ball, pose, estimate.covariance, capture_time, self._now())
         self._side_pose = estimate.pose.copy()
-        self._settle_side()
+        if self.side.reports != reports:
+            self._settle_side()
 
     def _settle_side(self) -> None:
         """Act on the side evidence (only the teammates' evidence can: without messages nothing here touches
         the filter). When it has held the mirror image for `flip_hold` seconds, change sides (mirror the
-        particles: exact, the landmarks cannot tell). When it holds the main pose by at least `flip`, the
-        particles on the main pose's mirror image (a twin cluster a re-localization left) keep no more weight
-        than the odds give them, so that the estimate does not move there by itself."""
+        particles: exact, the landmarks cannot tell)."""
+        if not self.side.reports:
+            return
+        estimate = self.filter.estimate()
+        if not estimate.is_confident():
+            return
+        if self.side.should_flip(self.side_log_odds, self._now()):
+            self.filter.reset_mirrored()
+            self.side.mirrored()
+            self._side_sign = -self._side_sign
+            self._side_pose = self.field.mirror_poses(estimate.pose[None])[0]
+            self.counts["side changed by the team"] += 1
+
+    def _hold_side(self) -> None:
+        """After a correction, while the side evidence holds the main pose by at least `flip`: the particles on
+        its mirror image (a twin cluster a re-localization left) keep no more weight than the odds give them,
+        so that the estimate does not move there by itself. Only with the teammates' evidence."""
         if not self.side.reports:
             return
         estimate = self.filter.estimate()
         if not estimate.is_confident():
             return
         odds = self.side_log_odds
-        if self.side.should_flip(odds, self._now()):
-            self.filter.reset_mirrored()
-            self.side.mirrored()
-            self._side_sign = -self._side_sign
-            self._side_pose = self.field.mirror_poses(estimate.pose[None])[0]
-            self.counts["side changed by the team"] += 1
-        elif odds >= self.side.settings.flip:
+        if odds >= self.side.settings.flip:
             self._weigh_twin(estimate, odds)
 
     def _weigh_twin(self, estimate: Estimate, odds: float) -> None:
         """Scale the weight of the particles near the estimate's mirror image down to exp(−odds) times the
         estimate's cluster weight, when they hold more."""
         poses, weights = self.filter.poses, self.filter.weights
-        twin = self.field.mirror_poses(estimate.pose[None])[0]
-        near = (((poses[:, 0] - twin[0]) ** 2 + (poses[:, 1] - twin[1]) ** 2 <= TWIN_RADIUS ** 2)
-                & (np.abs(np.remainder(poses[:, 2] - twin[2] + math.pi, 2 * math.pi) - math.pi) <= TWIN_HEADING))
+        x, y, theta = (float(v) for v in estimate.pose)
+        # the mirror image (-x, -y, θ + π); within TWIN_HEADING of its heading: cos(Δ) >= cos(TWIN_HEADING)
+        near = (((poses[:, 0] + x) ** 2 + (poses[:, 1] + y) ** 2 <= TWIN_RADIUS ** 2)
+                & (-(np.cos(poses[:, 2]) * math.cos(theta) + np.sin(poses[:, 2]) * math.sin(theta))
+                   >= math.cos(TWIN_HEADING)))
         held = float(weights[near].sum())
         allowed = estimate.weight * math.exp(-odds)
         if held > allowed > 0.0:

@@ -42,6 +42,7 @@ it and acts on it.
 """
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass, fields
 
@@ -152,9 +153,26 @@ class SideSettings:
         return math.log((1.0 - self.teammate_mirrored) / self.teammate_mirrored)
 
 
+AGE_STEP = 1.0    # s: the teammates' flags are aged at most this often (the hazard is slow)
+
+
 def _mahalanobis2(d: np.ndarray, covariance: np.ndarray) -> float:
     a, b, c = covariance[0, 0], covariance[0, 1], covariance[1, 1]
     return float((c * d[0] * d[0] - 2.0 * b * d[0] * d[1] + a * d[1] * d[1]) / (a * c - b * b))
+
+
+@functools.lru_cache(maxsize=None)
+def _masks(teammates: int, j: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """For a joint over the robot's side and `teammates` flags, teammate j's masks: the states in which its
+    report speaks against the main pose (side bit XOR its flag), those in which it is on the mirror, and the
+    index of each state with its flag swapped."""
+    index = np.arange(1 << (teammates + 1))
+    bit = 1 << (j + 1)
+    on_mirror = (index & bit) != 0
+    against = ((index & 1) != 0) != on_mirror
+    for array in (index, on_mirror, against):
+        array.setflags(write=False)
+    return against, on_mirror, index ^ bit
 
 
 @dataclass
@@ -303,9 +321,7 @@ class SideBelief:
         self._age(now)
         value = side_evidence(sighting.point, sighting.covariance, point, covariance, s.outlier_share, self._area)
         # the report supports the main pose when the robot's side and the teammate's flag agree (both 0 or 1)
-        index = np.arange(self._log_joint.shape[0])
-        bit = 1 << (self._senders.index(sender) + 1)
-        against = ((index & 1) != 0) != ((index & bit) != 0)
+        against = _masks(len(self._senders), self._senders.index(sender))[0]
         self._log_joint = self._log_joint + np.where(against, -0.5 * value, 0.5 * value)
         self._log_joint -= self._log_joint.max()
         self._side_evidence = True
@@ -320,19 +336,21 @@ class SideBelief:
         """The teammates' flags may have changed since the last report: each flag is a two-state Markov chain
         that changes at rate `teammate_hazard` towards its prior (on the mirror with probability q), so a
         teammate falls onto the mirror at rate hazard · q and recovers at rate hazard · (1 − q)."""
+        if self._joint_time is not None and now - self._joint_time < AGE_STEP:
+            return                      # evaluated in steps of AGE_STEP: the hazard is far slower than that
         if self._joint_time is not None and now > self._joint_time and self._senders:
             s = self.settings
             share = -math.expm1(-s.teammate_hazard * (now - self._joint_time))
             if share > 0.0:
                 q = s.teammate_mirrored
                 fall, recover = share * q, share * (1.0 - q)
-                index = np.arange(self._log_joint.shape[0])
+                stay_0, stay_1 = math.log1p(-fall), math.log1p(-recover)
+                arrive_0, arrive_1 = math.log(recover), math.log(fall)
                 for j in range(len(self._senders)):
-                    bit = 1 << (j + 1)
-                    on_mirror = (index & bit) != 0
-                    stay = np.where(on_mirror, math.log1p(-recover), math.log1p(-fall))
-                    arrive = np.where(on_mirror, math.log(fall), math.log(recover))
-                    self._log_joint = np.logaddexp(self._log_joint + stay, self._log_joint[index ^ bit] + arrive)
+                    _, on_mirror, swapped = _masks(len(self._senders), j)
+                    stay = np.where(on_mirror, stay_1, stay_0)
+                    arrive = np.where(on_mirror, arrive_1, arrive_0)
+                    self._log_joint = np.logaddexp(self._log_joint + stay, self._log_joint[swapped] + arrive)
         self._joint_time = now if self._joint_time is None else max(self._joint_time, now)
 
     # -- what the localizer tells it -------------------------------------------------------------------------

@@ -39,6 +39,8 @@ LARGEST_SPEED = 100.0
 """The largest ball speed [m/s] a message may report (far beyond a kick)."""
 LARGEST_AGE = 3600.0
 """The oldest ball sighting [s] a message may report."""
+_EYE2 = np.eye(2)
+_EYE2.setflags(write=False)
 
 
 def _covariance(name: str, value: Any, size: int) -> np.ndarray:
@@ -257,8 +259,8 @@ def teammate_ball(message: TeamMessage, at_time: float, rolling_sigma: float = 1
         position_sigma, heading_sigma = message.pose_sigmas()
         distance = math.hypot(point[0] - message.pose[0], point[1] - message.pose[1])
         variance = position_sigma ** 2 + (heading_sigma * distance) ** 2 + (0.05 + 0.1 * distance) ** 2
-        covariance = np.eye(2) * variance
-    covariance = covariance + np.eye(2) * (rolling_sigma * abs(elapsed)) ** 2
+        covariance = _EYE2 * variance
+    covariance = covariance + _EYE2 * (rolling_sigma * abs(elapsed)) ** 2
     return point, covariance
 
 
@@ -285,4 +287,9 @@ def side_evidence(own_point: np.ndarray, own_covariance: np.ndarray, team_point:
     far = _log_normal2(-own_point - team_point, covariance)
     floor = math.log(outlier_share / area)
     keep = math.log1p(-outlier_share)
-    return float(np.logaddexp(keep + near, floor) - np.logaddexp(keep + far, floor))
+    return _logaddexp(keep + near, floor) - _logaddexp(keep + far, floor)
+
+
+def _logaddexp(a: float, b: float) -> float:
+    high, low = (a, b) if a >= b else (b, a)
+    return high + math.log1p(math.exp(low - high))

@@ -21,6 +21,7 @@ the node's subscriptions are matched, and records the poses with `PoseListener`.
 from __future__ import annotations
 
 import json
+import math
 import os
 import shutil
 import signal
@@ -90,14 +91,20 @@ def compare_with_replay(log_path: str, settings: Any, poses: dict[int, tuple[flo
                     seed=settings.seed, history=settings.history, compensate_latency=settings.compensate_latency,
                     start=settings.start, localizer=settings.localizer() if settings.profile else None)
     stamps = [log.origin_ns + round(t * 1e9) for t in result.times]
-    same, distances = 0, []
-    for stamp, estimate in zip(stamps, result.estimates):
+    same, distances, first = 0, [], None
+    for t, stamp, estimate in zip(result.times, stamps, result.estimates):
         pose = poses.get(stamp)
         if pose is None:
             continue
-        same += int(tuple(float(v) for v in estimate) == pose)
+        # x and y travel as they are; the heading through a quaternion (its last bits may change)
+        equal = (float(estimate[0]), float(estimate[1])) == pose[:2] and abs(
+            math.remainder(float(estimate[2]) - pose[2], math.tau)) < 1e-9
+        same += int(equal)
+        if not equal and first is None:
+            first = float(t)
         distances.append(float(np.hypot(estimate[0] - pose[0], estimate[1] - pose[1])))
     return {"compared": len(distances), "equal_share": same / len(distances) if distances else None,
+            "first_difference_s": first,
             "max_distance_m": max(distances) if distances else None,
             "median_distance_m": float(np.median(distances)) if distances else None}
 
@@ -129,7 +136,7 @@ def run(args: argparse.Namespace, node_argv: list[str]) -> dict:
             if player.wait_for_subscribers(topics, 0.2) and listener.pose_sub.get_publisher_count() > 0:
                 break
         if node.poll() is not None:
-            raise RuntimeError(f"the node stopped before the log was played: {node.stderr.read()[-2000:]}")
+            raise RuntimeError(f"the node stopped before the log was played: {node.stderr.read()[-2000:] if node.stderr else ''}")
         time.sleep(0.5)              # the node's subscriptions matched: let the discovery settle
         started = time.perf_counter()
         sent = player.play(args.rate, args.repeat)

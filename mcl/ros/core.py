@@ -18,7 +18,9 @@ gives the replay's estimates:
   `mcl.logs.mcap_io` reads them). A frame is complete once each vision topic delivered its stamp or a later one
   (a topic never heard from: once another topic delivered a later stamp). A complete frame corrects the filter right after the
   next odometry message's motion step, scored at its capture time: the replay's order ("motion first, then the
-  frames that arrived by then"). The pose published for that odometry message includes it;
+  frames that arrived by then"). The pose published for that odometry message includes it. With the messages'
+  send times (DDS's source timestamps, which the node passes), "next" is by send time, so a frame the executor
+  takes before an odometry message published earlier still waits for the step after it;
 - the ball (BallArray, the most confident ball) is side evidence (`Localizer.observe_ball`) at its capture;
 - game events: the GameState's INITIAL (entered) is `initial_placement`, its `penalized` flag turning on and off
   is `penalized` and `penalty_return`; an event message names a `Localizer` call (`mcl.ros.parameters.EVENTS`);
@@ -125,7 +127,8 @@ class NodeCore:
                                      if getattr(settings, f"{stream}_topic"))
         self._latest: dict[str, int] = {}             # stream -> the latest stamp it delivered
         self._pending: dict[int, dict[str, Any]] = {}     # stamp -> {stream: value}
-        self._ready: list[tuple[int, Observations]] = []  # complete frames waiting for the next motion step
+        # complete frames waiting for a motion step: (the last part's send time or None, capture stamp, detections)
+        self._ready: list[tuple[int | None, int, Observations]] = []
         self._game: Any = None
 
     # -- time ----------------------------------------------------------------------------------------------
@@ -161,9 +164,11 @@ class NodeCore:
             current = value
         return current
 
-    def odometry(self, msg: Any) -> Output | None:
+    def odometry(self, msg: Any, sent_ns: int | None = None) -> Output | None:
         """A nav_msgs/Odometry message: one motion step (none for the first), then the complete frames that
-        arrived since the previous one; the estimate afterwards, or None when the message was not used."""
+        arrived since the previous one (with `sent_ns`, the time the message was published [ns], only the frames
+        published before it: a frame taken out of order waits for the next step, as in the replay); the estimate
+        afterwards, or None when the message was not used."""
         try:
             pose = np.array(mcap_io._odometry_value(msg), dtype=np.float64)
             stamp = stamp_ns(msg.header)
@@ -194,28 +199,35 @@ class NodeCore:
             self.counts[f"odometry: refused ({error})"] += 1
             return None
         used = 0
-        for capture_ns, observations in self._ready:
+        later = []
+        for frame in self._ready:
+            frame_sent, capture_ns, observations = frame
+            if sent_ns is not None and frame_sent is not None and frame_sent > sent_ns:
+                later.append(frame)
+                continue
             try:
                 if self.localizer.observe(observations, capture_time=self.seconds(capture_ns)):
                     used += 1
             except ValueError:        # counted by the localizer ("observation older than history", ...)
                 pass
-        self._ready.clear()
+        self._ready = later
         self.frames_used += used
         estimate = self.localizer.pose()
         return Output(stamp, estimate.pose, estimate.covariance, self.localizer.quality(), self.localizer.is_lost,
                       map_to_odom(estimate.pose, pose), used)
 
     # -- vision --------------------------------------------------------------------------------------------
-    def goalposts(self, msg: Any) -> None:
-        """A soccer_vision_3d_msgs/GoalpostArray (one camera frame's goalposts)."""
-        self._vision("goalposts", msg)
+    def goalposts(self, msg: Any, sent_ns: int | None = None) -> None:
+        """A soccer_vision_3d_msgs/GoalpostArray (one camera frame's goalposts), published at `sent_ns` [ns]
+        when known."""
+        self._vision("goalposts", msg, sent_ns)
 
-    def markings(self, msg: Any) -> None:
-        """A soccer_vision_3d_msgs/MarkingArray (one camera frame's markings)."""
-        self._vision("markings", msg)
+    def markings(self, msg: Any, sent_ns: int | None = None) -> None:
+        """A soccer_vision_3d_msgs/MarkingArray (one camera frame's markings), published at `sent_ns` [ns]
+        when known."""
+        self._vision("markings", msg, sent_ns)
 
-    def _vision(self, stream: str, msg: Any) -> None:
+    def _vision(self, stream: str, msg: Any, sent_ns: int | None) -> None:
         try:
             stamp = stamp_ns(msg.header)
             value = mcap_io._VALUE_OF[stream](msg)
@@ -225,7 +237,10 @@ class NodeCore:
         for reason in value[2]:
             self.counts[f"{stream}: {reason}"] += 1
         self._latest[stream] = max(stamp, self._latest.get(stream, stamp))
-        self._pending.setdefault(stamp, {})[stream] = value
+        parts = self._pending.setdefault(stamp, {})
+        parts[stream] = value
+        if sent_ns is not None:
+            parts["sent"] = max(sent_ns, parts.get("sent", sent_ns))
         newest = max(self._latest.values())
         for pending_stamp in sorted(self._pending):
             parts = self._pending[pending_stamp]
@@ -256,7 +271,7 @@ class NodeCore:
         except ValueError as error:
             self.counts[f"camera frame: detections refused: {error}"] += 1
             return
-        self._ready.append((stamp, observations))
+        self._ready.append((parts.get("sent"), stamp, observations))
 
     def balls(self, msg: Any) -> bool:
         """A soccer_vision_3d_msgs/BallArray: its most confident ball as side evidence; False when not used."""

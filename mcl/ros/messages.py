@@ -25,6 +25,7 @@ already imports is left as it is (`--force` builds it again). Builds go to `buil
 from __future__ import annotations
 
 import importlib
+import importlib.util
 import os
 import shutil
 import subprocess

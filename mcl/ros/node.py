@@ -71,14 +71,15 @@ class Statistics:
         self.started_cpu = time.process_time()
 
     def timed(self, name: str, callback):
-        """`callback` wrapped to count its calls and time them."""
+        """`callback(message, sent_ns)` wrapped as rclpy's `(message, MessageInfo)` callback (the message's source
+        timestamp as `sent_ns`), its calls counted and timed."""
         durations = self.durations.setdefault(name, [])
 
-        def wrapped(message):
+        def wrapped(message, info):
             self.received[name] = self.received.get(name, 0) + 1
             start = time.perf_counter()
             try:
-                callback(message)
+                callback(message, info.get("source_timestamp"))
             finally:
                 durations.append(time.perf_counter() - start)
         return wrapped
@@ -173,12 +174,12 @@ class LocalizationNode:
         # The executor takes waiting messages in the order the subscriptions were made: odometry last, so that a
         # camera frame and the odometry message after it, both waiting, are taken in the replay's order.
         inputs: list[tuple[str, Any, Any]] = [
-            (s.game_state_topic, None, self.core.game_state),
+            (s.game_state_topic, None, lambda msg, sent_ns: self.core.game_state(msg)),
             (s.event_topic, String, self._event),
-            (s.initial_pose_topic, PoseWithCovarianceStamped, self.core.initial_pose),
+            (s.initial_pose_topic, PoseWithCovarianceStamped, lambda msg, sent_ns: self.core.initial_pose(msg)),
             (s.goalposts_topic, None, self.core.goalposts),
             (s.markings_topic, None, self.core.markings),
-            (s.balls_topic, None, self.core.balls),
+            (s.balls_topic, None, lambda msg, sent_ns: self.core.balls(msg)),
             (s.commands_topic, Twist, self._command),
             (s.odometry_topic, Odometry, self._odometry)]
         from game_controller_hl_interfaces.msg import GameState
@@ -195,18 +196,18 @@ class LocalizationNode:
             self._timer = self.node.create_timer(1.0 / s.hypotheses_rate, self._hypotheses)
 
     # -- callbacks -------------------------------------------------------------------------------------------
-    def _command(self, msg: Any) -> None:
+    def _command(self, msg: Any, sent_ns: int | None) -> None:
         self.core.command(msg, self.node.get_clock().now().nanoseconds)
 
-    def _event(self, msg: Any) -> None:
+    def _event(self, msg: Any, sent_ns: int | None) -> None:
         try:
             self.core.event(msg.data)
         except ValueError as error:
             self.core.counts["event: unknown name"] += 1
             self.node.get_logger().warning(str(error))
 
-    def _odometry(self, msg: Any) -> None:
-        out = self.core.odometry(msg)
+    def _odometry(self, msg: Any, sent_ns: int | None) -> None:
+        out = self.core.odometry(msg, sent_ns)
         if out is None:
             return
         self._last_stamp_ns = out.stamp_ns

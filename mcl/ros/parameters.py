@@ -100,14 +100,14 @@ class NodeSettings:
         from ..replay import MODELS
 
         for f in fields(self):
-            value = getattr(self, f.name)
+            value: Any = getattr(self, f.name)
             kind = {"int": int, "float": float, "bool": bool, "str": str}[str(f.type)]
             if kind is float and isinstance(value, int) and not isinstance(value, bool):
                 object.__setattr__(self, f.name, float(value))
                 value = float(value)
             if not isinstance(value, kind) or (kind is int and isinstance(value, bool)):
                 raise ValueError(f"{f.name} = {value!r} must be a {kind.__name__}")
-            if f.name.endswith("_topic") and value and (value != value.strip() or " " in value):
+            if f.name.endswith("_topic") and value and (str(value) != str(value).strip() or " " in str(value)):
                 raise ValueError(f"{f.name} = {value!r} must be a topic name (or '' for none)")
         if self.model not in MODELS:
             raise ValueError(f"model = {self.model!r} must be one of {tuple(MODELS)}")

@@ -69,10 +69,11 @@ class LogPlayer:
                 if topic in self.skipped:
                     continue
                 if topic not in classes:
+                    type_name = schema.name if schema is not None else "(no schema)"
                     try:
-                        classes[topic] = message_class(schema.name)
+                        classes[topic] = message_class(type_name)
                     except (ImportError, AttributeError):
-                        self.skipped[topic] = schema.name
+                        self.skipped[topic] = type_name
                         continue
                 rows.append((message.log_time, topic != odometry_topic, topic,
                              deserialize_message(message.data, classes[topic])))

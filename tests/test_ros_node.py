@@ -1,0 +1,65 @@
+"""The live node over DDS (`robocup-mcl node bench`): a held-out-like log played to the node in its own process,
+inside a network namespace with only the loopback; and, without ROS, the commands say what to install.
+
+The DDS test runs only where the `ros` extra and the generated messages are installed (`make ros`, which runs
+these tests with its own environment) and a loopback-only namespace can be made (root, unshare); it skips
+otherwise, saying why. It asserts what the node did, never how fast: the figures come from
+`robocup-mcl node bench --json --save results/ros_*.json`."""
+from __future__ import annotations
+
+import dataclasses
+import json
+import subprocess
+import sys
+
+import pytest
+
+from mcl.ros.bench import namespace_command
+from mcl.ros.node import ros_available
+
+ORIGIN_NS = 1_750_000_000_000_000_000
+
+
+def _dds_or_skip():
+    missing = ros_available()
+    if missing:
+        pytest.skip(f"ROS 2 is not installed here ({missing})")
+    if namespace_command(["true"]) is None:
+        pytest.skip("cannot make a loopback-only network namespace here (needs root, unshare and ip)")
+
+
+@pytest.fixture(scope="module")
+def log_path(tmp_path_factory):
+    from demos.battery_sim import as_robot_log, simulate
+    from mcl.logs.mcap_io import write_mcap
+
+    run = simulate("tracking", 1011, 6.0)         # a held-out-like seed (the battery's held-out range)
+    path = tmp_path_factory.mktemp("ros") / "tracking_1011.mcap"
+    write_mcap(dataclasses.replace(as_robot_log(run), origin_ns=ORIGIN_NS), path)
+    return path, run.field.name
+
+
+def test_the_node_answers_a_played_log_over_dds(log_path):
+    _dds_or_skip()
+    path, field = log_path
+    done = subprocess.run([sys.executable, "-m", "mcl.cli", "node", "bench", str(path), "--field", field,
+                           "--particles", "100", "--seed", "2", "--json"],
+                          capture_output=True, text=True, timeout=600)
+    assert done.returncode == 0, done.stderr[-3000:]
+    result = json.loads(done.stdout)
+    assert result["odometry_sent"] == 601 and result["poses_expected"] == 600
+    assert result["poses_received"] > 0 and result["poses_received"] + result["poses_dropped"] >= 600
+    assert result["tf_frames"] == ["map->odom"] and result["tf_messages"] > 0
+    assert result["quality_changes"] and set(result["quality_changes"]) <= {"superb", "okay", "poor", "unsure_half"}
+    node = result["node"]
+    assert node["received"]["/motion_odometry"] == result["poses_received"] + 1 or result["poses_dropped"]
+    assert node["frames_used"] > 0 and node["cpu_seconds"] > 0
+    assert result["replay"]["compared"] == result["poses_received"]
+
+
+def test_without_ros_the_commands_say_what_to_install(tmp_path):
+    if ros_available() is None:
+        pytest.skip("ROS 2 is installed here: the commands run")
+    for argv in (["node"], ["node", "play", str(tmp_path / "x.mcap")]):
+        done = subprocess.run([sys.executable, "-m", "mcl.cli", *argv], capture_output=True, text=True, timeout=120)
+        assert done.returncode == 1 and "make ros" in done.stderr and done.stderr.count("\n") == 1, done.stderr
