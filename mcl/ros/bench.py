@@ -216,7 +216,7 @@ def build_parser(prog: str = PROG) -> argparse.ArgumentParser:
     parser.add_argument("--seconds", type=float, default=None, help="play at most this many seconds of the log")
     parser.add_argument("--repeat", type=int, default=1,
                         help="play the log this many times in a row, stamps moved on (a soak; default 1)")
-    parser.add_argument("--domain", type=int, default=None, help="ROS_DOMAIN_ID (default: 100 + pid % 100)")
+    parser.add_argument("--domain", type=int, default=None, help="ROS_DOMAIN_ID (default: 100 + pid %% 100)")
     parser.add_argument("--json", action="store_true", help="print the figures as JSON")
     add_save_option(parser)
     parser.add_argument("--no-progress", action="store_true", help=NO_PROGRESS_HELP + "; this command shows none")
