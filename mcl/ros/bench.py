@@ -190,6 +190,10 @@ def summary(result: dict) -> None:
     if node.get("cpu_share") is not None:
         print(f"node CPU: {100 * node['cpu_share']:.1f} % of one core ({node['cpu_seconds']:.1f} s over "
               f"{node['wall_seconds']:.1f} s)")
+    odometry = node.get("callbacks", {}).get("/motion_odometry")
+    if odometry:
+        print(f"the node's odometry callback (motion, frames, publishing): median {odometry['median_ms']:.2f} ms, "
+              f"p99 {odometry['p99_ms']:.2f} ms, max {odometry['max_ms']:.2f} ms")
     replay = result["replay"]
     if replay["compared"]:
         print(f"against the replay: {replay['compared']} poses, {100 * replay['equal_share']:.1f} % equal bit for bit, "
