@@ -225,11 +225,116 @@ def tuning_scaling() -> str:
     return "\n".join(rows)
 
 
+TEAM_FAMILIES = ("kidnap_even_team", "kidnap_even_wrong", "kidnap_even_silent")
+
+
+def _team_figures(split: dict) -> dict:
+    """The team issue's figures of one split of results/eval_team.json."""
+    families = {name: entry["summary"] for name, entry in split["families"].items()}
+    runs = {name: entry["runs"] for name, entry in split["families"].items()}
+    clear = [(name, f["kidnap_odds"]["clear"]) for name, f in families.items()
+             if f.get("kidnap_odds") and f["kidnap_odds"]["clear"]["runs"]]
+    recall = [sum(c["pooled"]["recall"][k] for _, c in clear) for k in ("lost", "steps")]
+    alarms = [sum(c["pooled"]["false_alarm"][k] for _, c in clear) for k in ("lost", "steps")]
+    team = families["kidnap_even_team"]["kidnap_odds"]["even"]
+    silent = families["kidnap_even_silent"]["kidnap_odds"]["even"]
+    superb = [(name, f["wrong_by_run"]["SUPERB"]) for name, f in families.items()]
+    okay = [(name, f["wrong_by_run"]["OKAY"]) for name, f in families.items()]
+    every = [r for rs in runs.values() for r in rs]
+    return {
+        "clear_on_mirror": (sum(c["on_mirror"] for _, c in clear), sum(c["runs"] for _, c in clear),
+                            ", ".join(f"{name} {c['on_mirror']}/{c['runs']}" for name, c in clear)),
+        "recall": recall, "alarms": alarms,
+        "team_ends": (team["ends_on_mirror"], team["runs"]), "team_correct": team["correct_2s_s"],
+        "wrong_flips": families["kidnap_even_wrong"]["flips_to_mirror"],
+        "silent_doubted": (silent["mirror_steps_doubted"], silent["mirror_steps"]),
+        "superb_runs": (sum(w["over_1"] for _, w in superb), sum(w["runs"] for _, w in superb)),
+        "okay_runs": (sum(w["over_5"] for _, w in okay), sum(w["runs"] for _, w in okay)),
+        "fail_median": max(f["fail_share"]["median"] for f in families.values()),
+        "fail_worst": max(f["fail_share"]["worst"] for f in families.values()),
+        "rmse": max(f["rmse_position_m"]["median"] for f in families.values()),
+        "runs": len(every),
+    }
+
+
+def team_targets() -> str:
+    """The team issue's targets, training and held-out seeds (results/eval_team.json)."""
+    splits = _load("eval_team.json")["splits"]
+    figures = {name: _team_figures(splits[name]) for name in ("train", "holdout")}
+
+    def share(pair) -> str:
+        return "–" if not pair[1] else f"{100 * pair[0] / pair[1]:.1f} % ({pair[0]} of {pair[1]})"
+
+    def seconds(value) -> str:
+        return "never" if value is None else f"{value:.2f} s"
+
+    def cell(f: dict, key: str) -> str:
+        if key == "clear":
+            return f"{f['clear_on_mirror'][0]} of {f['clear_on_mirror'][1]} ({f['clear_on_mirror'][2]})"
+        if key == "recall":
+            return f"{share(f['recall'])}; false alarms {share(f['alarms'])}"
+        if key == "team":
+            c = f["team_correct"]
+            return (f"ends on the mirror {f['team_ends'][0]} of {f['team_ends'][1]}; to 2 s correct median "
+                    f"{seconds(c['median'])}, worst {seconds(c['worst'])} ({c['never']} never)")
+        if key == "wrong":
+            return f"{f['wrong_flips']} flips onto the mirror"
+        if key == "silent":
+            return share(f["silent_doubted"])
+        if key == "quality":
+            return (f"runs with SUPERB > 1 % off: {f['superb_runs'][0]} of {f['superb_runs'][1]}; OKAY > 5 % off: "
+                    f"{f['okay_runs'][0]} of {f['okay_runs'][1]}")
+        if key == "fail":
+            return (f"largest family median {100 * f['fail_median']:.1f} %, worst run {100 * f['fail_worst']:.0f} %; "
+                    f"RMSE up to {f['rmse']:.3f} m")
+        raise KeyError(key)
+
+    rows = ["| target | training seeds 0–19 | held-out seeds 1000–1019 |", "|---|---|---|"]
+    for label, key in (("clear kidnappings: 0 runs on the mirror", "clear"),
+                       ("clear kidnappings: `is_lost` recall ≥ 90 %, false alarms ≤ 2 %", "recall"),
+                       ("even kidnappings with the team: ≤ 5 % end on the mirror; to 2 s correct median ≤ 5 s, "
+                        "worst ≤ 20 s", "team"),
+                       ("a wrong teammate flips no run onto the mirror", "wrong"),
+                       ("even, no messages: on the mirror from 2 s after, UNSURE_HALF or lost ≥ 90 %", "silent"),
+                       ("every run: SUPERB > 0.5 m off ≤ 1 %, OKAY ≤ 5 %", "quality"),
+                       ("fail share median ≤ 2 %, worst ≤ 10 %, every family; RMSE ≤ 0.06 m", "fail")):
+        rows.append(f"| {label} | {cell(figures['train'], key)} | {cell(figures['holdout'], key)} |")
+    return "\n".join(rows)
+
+
+def team_families() -> str:
+    """Per family, held-out seeds (results/eval_team.json): fail share, runs on the mirror, side changes."""
+    families = _load("eval_team.json")["splits"]["holdout"]["families"]
+    rows = ["| family | fail share median / worst | runs on the mirror (≥ 2 s) | end on the mirror | side changes by "
+            "the team (onto the mirror) | RMSE m |", "|---|---|---|---|---|---|"]
+    for name, entry in families.items():
+        f = entry["summary"]
+        ends = sum(bool(r.get("ends_on_mirror")) for r in entry["runs"])
+        rmse = "–" if f["rmse_position_m"]["median"] is None else f"{f['rmse_position_m']['median']:.3f}"
+        rows.append(f"| {name} | {100 * f['fail_share']['median']:.1f} / {100 * f['fail_share']['worst']:.0f} % | "
+                    f"{f['on_mirror']} | {ends} | {f['team_flips']} ({f['flips_to_mirror']}) | {rmse} |")
+    return "\n".join(rows)
+
+
+def team_cost() -> str:
+    """What the team costs in the loop (results/bench_team.json, `robocup-mcl bench team`)."""
+    bench = _load("bench_team.json")
+    loop = bench["loop_step_us"]
+    return "\n".join([
+        "| | median | 99th percentile |", "|---|---|---|",
+        f"| the battery's loop per step, {bench['particles']} particles, without messages | "
+        f"{loop['without_messages']:.1f} µs | |",
+        f"| the same with the team's messages and the ball ({loop['ratio']:.2f}x) | {loop['with_team']:.1f} µs | |",
+        f"| one `team_message` | {bench['team_message']['median_us']:.1f} µs | {bench['team_message']['p99_us']:.1f} µs |",
+        f"| one `observe_ball` | {bench['observe_ball']['median_us']:.1f} µs | {bench['observe_ball']['p99_us']:.1f} µs |"])
+
+
 TABLES = {"battery-families": battery_families, "battery-quality": battery_quality,
           "recording-size": recording_size, "battery-targets": battery_targets,
           "fuzz-targets": fuzz_targets, "soak-minutes": soak_minutes, "tuning-battery": tuning_battery,
           "tuning-battery-8": tuning_battery_8,
-          "tuning-venue": tuning_venue, "tuning-scaling": tuning_scaling}
+          "tuning-venue": tuning_venue, "tuning-scaling": tuning_scaling, "team-targets": team_targets,
+          "team-families": team_families, "team-cost": team_cost}
 MARKER = re.compile(r"^<!-- results-table: ([\w-]+) -->$", flags=re.M)
 
 

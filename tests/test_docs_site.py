@@ -81,3 +81,20 @@ def test_the_reliability_tables_are_those_of_the_results_files():
     soak = json.loads((ROOT / "results" / "soak.json").read_text())
     minutes = hooks.soak_minutes()
     assert soak["verdict"]["text"] in minutes and len(minutes.splitlines()) == len(soak["minutes"]) + 4
+
+
+def test_the_team_tables_say_what_the_results_say():
+    import json
+    hooks = _hooks()
+    split = json.loads((ROOT / "results" / "eval_team.json").read_text())["splits"]["holdout"]
+    table = hooks.team_targets()
+    wrong = split["families"]["kidnap_even_wrong"]["summary"]["flips_to_mirror"]
+    row = next(line for line in table.splitlines() if line.startswith("| a wrong teammate"))
+    assert row.endswith(f"| {wrong} flips onto the mirror |")
+    even = split["families"]["kidnap_even_team"]["summary"]["kidnap_odds"]["even"]
+    row = next(line for line in table.splitlines() if line.startswith("| even kidnappings with the team"))
+    assert f"ends on the mirror {even['ends_on_mirror']} of {even['runs']}" in row.split("|")[3]
+    families = hooks.team_families()
+    assert len(families.splitlines()) == 2 + len(split["families"])
+    bench = json.loads((ROOT / "results" / "bench_team.json").read_text())
+    assert f"{bench['team_message']['median_us']:.1f} µs" in hooks.team_cost()
