@@ -63,18 +63,24 @@ def _summary_us(values: list[float]) -> dict:
     return {"median_us": float(np.median(array)), "p99_us": float(np.percentile(array, 99)), "calls": len(values)}
 
 
-def run(rounds: int = 5, particles: int = 500, duration: float = 20.0, calls: int = 2000) -> dict:
-    """The figures (see the module docstring), JSON-ready."""
+def run(rounds: int = 5, particles: int = 500, duration: float = 20.0, calls: int = 2000,
+        progress: bool = False) -> dict:
+    """The figures (see the module docstring), JSON-ready; `progress`: a bar on stderr over the rounds."""
     from demos.battery_sim import simulate
+    from mcl.cli_checks import progress_bar
 
     sim = simulate("kidnap_even_team", 0, duration)
     _loop_seconds_per_step(sim, particles, False)          # warm up (compile or load the kernels)
     _loop_seconds_per_step(sim, particles, True)
     plain, team = [], []
+    bar = progress_bar(enabled=progress, total=rounds + 1, desc="bench team", unit="round")
     for _ in range(rounds):
         plain.append(_loop_seconds_per_step(sim, particles, False))
         team.append(_loop_seconds_per_step(sim, particles, True))
+        bar.update(1)
     per_call = _calls(particles, calls)
+    bar.update(1)
+    bar.close()
     plain_us, team_us = statistics.median(plain) * 1e6, statistics.median(team) * 1e6
     return {"benchmark": "team", "particles": particles, "rounds": rounds, "duration_s": duration,
             "run": {"family": "kidnap_even_team", "seed": 0, "messages": len(sim.messages),
@@ -101,23 +107,24 @@ def format_report(result: dict) -> str:
 
 
 def build_parser(prog: str = PROG) -> argparse.ArgumentParser:
-    from mcl.cli_checks import description, positive_int
+    from mcl.cli_checks import add_progress_option, description, positive_int
 
     parser = argparse.ArgumentParser(prog=prog, description=description(__doc__))
     parser.add_argument("--rounds", type=positive_int, default=5, help="alternated rounds (default 5)")
     parser.add_argument("--particles", type=positive_int, default=500, help="particles (default 500)")
     parser.add_argument("--json", action="store_true", help="the results as JSON on stdout instead of text")
     parser.add_argument("--save", metavar="PATH", help="also write the JSON results to PATH")
+    add_progress_option(parser)
     return parser
 
 
 def main(argv: list[str] | None = None, prog: str = PROG) -> int:
     """The command line (see the module docstring)."""
-    from mcl.cli_checks import check_output_file, save_json
+    from mcl.cli_checks import check_output_file, progress_wanted, save_json
 
     args = build_parser(prog).parse_args(argv)
     check_output_file(args.save, "--save", make_parents=False)
-    result = run(args.rounds, args.particles)
+    result = run(args.rounds, args.particles, progress=progress_wanted(args))
     save_json(args.save, result)
     print(json.dumps(result, indent=2) if args.json else format_report(result))
     return 0

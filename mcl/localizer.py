@@ -58,15 +58,15 @@ from typing import TYPE_CHECKING, Any, Iterable, Sequence
 import numpy as np
 
 from field import Field
-from field.checks import ArgumentTypeError, integer, real, reals
+from field.checks import ArgumentTypeError, real, reals
 from motion_models import MotionInput
 from sensing import LandmarkSensorModel
 from sensing.observations import Observations
-from sensing.team import MAX_PLAYER_NUMBER, BallDetection, TeamMessage
+from sensing.team import BallDetection, TeamMessage
 from sensing.view import CameraView
 
 from .filter import ParticleFilter
-from .side import SideBelief, SideSettings
+from .side import SideBelief, SideSettings, Team
 from .summary import Entropy, Estimate
 from .latency import MotionHistory, move_back
 
@@ -345,10 +345,8 @@ class Localizer:
         calibration of the robot's odometry on this carpet (each within (0, `MAX_ODOMETRY_SCALE`]).
     side : SideSettings, default SideSettings()
         How the teammates' view of the ball weighs against the robot's own prior (`mcl.side`).
-    player_number : int or None, default None
-        The robot's own number (1..20): a team message from it is refused. None: not checked.
-    teammates : iterable of int or None, default None
-        The numbers of the teammates whose messages are accepted; None: any number but the robot's own.
+    team : Team, default Team()
+        The robot's own number and its teammates' (`mcl.side.Team`): messages from others are refused.
     **filter_options
         Any further keyword of `ParticleFilter` (resampling, augmented, threads, ...).
 
@@ -375,18 +373,12 @@ class Localizer:
                  getup_sigma: Sequence[float] | np.ndarray = (0.15, 0.15, 0.5),
                  placement_sigma: Sequence[float] | np.ndarray = (0.15, 0.08, 0.15),
                  odometry_scale: Sequence[float] | np.ndarray = (1.0, 1.0, 1.0),
-                 side: SideSettings = SideSettings(), player_number: int | None = None,
-                 teammates: Iterable[int] | None = None, **filter_options: Any) -> None:
+                 side: SideSettings = SideSettings(), team: Team = Team(), **filter_options: Any) -> None:
         scale = reals("odometry_scale", odometry_scale, 3)
         if not isinstance(side, SideSettings):
             raise ArgumentTypeError(f"side = {side!r} must be an mcl.side.SideSettings")
-        if player_number is not None:
-            player_number = integer("player_number", player_number, 1, MAX_PLAYER_NUMBER)
-        team = None
-        if teammates is not None:
-            team = frozenset(integer("teammates", n, 1, MAX_PLAYER_NUMBER) for n in teammates)
-            if player_number in team:
-                raise ValueError(f"teammates = {sorted(team)!r} must not hold the robot's own number {player_number}")
+        if not isinstance(team, Team):
+            raise ArgumentTypeError(f"team = {team!r} must be an mcl.side.Team")
         if not all(0.0 < v <= MAX_ODOMETRY_SCALE for v in scale):
             raise ValueError(f"odometry_scale = {tuple(scale.tolist())!r}: each factor must lie in "
                              f"(0, {MAX_ODOMETRY_SCALE:g}]")
@@ -419,8 +411,7 @@ class Localizer:
         # (start, end) of the stretches the robot was fallen or penalized (end None while it lasts): a frame
         # captured inside one is not used, whenever it arrives
         self._blind: deque = deque()
-        self.player_number = player_number
-        self.teammates = team
+        self.team = team
         self.side = SideBelief(field, side)
         self._side_sign = 1.0      # +1 while the main pose is the one the re-localization's odds were taken for
         self._side_pose: np.ndarray | None = None      # where the side evidence was last weighed
@@ -546,7 +537,7 @@ class Localizer:
             self.evidence_frames += 1
         self._record_fit(observations, since, self.time if capture_time is None else capture_time)
         if ball is not None:
-            self._ball(ball, since, self.time if capture_time is None else capture_time)
+            self._ball(ball, since, self._now() if capture_time is None else capture_time)
         self._quality = None
         self._update_lost()
         return True
@@ -587,7 +578,7 @@ class Localizer:
         if blind is not None:
             self.counts[f"ball while {blind}"] += 1
             return False
-        self._ball(ball, since, self.time if capture_time is None else capture_time)
+        self._ball(ball, since, self._now() if capture_time is None else capture_time)
         self._quality = None
         self._update_lost()
         return True
@@ -606,15 +597,14 @@ class Localizer:
         ------
         ValueError
             For a message that is not a `TeamMessage` (TypeError, also a ValueError), from the robot's own number
-            or a sender not among `teammates`, or sent more than `SideSettings.future` seconds after the
+            or a sender not among its teammates (`team`), or sent more than `SideSettings.future` seconds after the
             robot's clock or more than `SideSettings.past` before it; the localizer is left unchanged.
         """
         if not isinstance(message, TeamMessage):
             raise ArgumentTypeError(f"message = {message!r} must be a sensing.team.TeamMessage, "
                                     f"not {type(message).__name__}")
-        if message.sender == self.player_number or (self.teammates is not None
-                                                    and message.sender not in self.teammates):
-            known = "any but the robot's own" if self.teammates is None else sorted(self.teammates)
+        if not self.team.accepts(message.sender):
+            known = "any but the robot's own" if self.team.teammates is None else list(self.team.teammates)
             raise ValueError(f"message sender = {message.sender} is not a teammate (teammates: {known})")
         if self.time is not None:
             s = self.side.settings
@@ -648,11 +638,11 @@ class Localizer:
         relocalization = self.filter.relocalization
         prior = getattr(relocalization, "mirror_log_odds", math.inf)
         kidnapped = self._kidnapped or bool(getattr(relocalization, "kidnapped", False))
-        share = getattr(relocalization, "tracking_share", None)
-        if not kidnapped and callable(share) and getattr(relocalization, "anchor", None) is not None:
+        holds = getattr(relocalization, "holds", None)
+        if not kidnapped and callable(holds):
             # the prior's odds are those of the anchor's pose: an estimate that has left it (a re-localization
             # not yet accepted) is no surer of its side than a kidnapping law
-            kidnapped = share(self.filter.estimate().pose) < 0.5
+            kidnapped = not holds(self.filter.estimate().pose)
         return self.side.log_odds(self._side_sign * prior, kidnapped)
 
     def hypotheses(self) -> list[Hypothesis]:

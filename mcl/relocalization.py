@@ -422,6 +422,22 @@ class SoccerRelocalization:
             self._pending = None
         return self._count_streak(confident, flip)
 
+    def holds(self, pose: Sequence[float] | np.ndarray) -> bool:
+        """Whether `pose` (x, y, θ) lies where the anchor says, up to its drift: within 3 σ of it, σ the tracking
+        spread widened by the distance dead-reckoned since (as `confirm` decides that a pose jumped). True
+        without an anchor (there is no pose to have left).
+
+        Parameters
+        ----------
+        pose : sequence of float or np.ndarray
+            (x [m], y [m], θ [rad]).
+        """
+        anchor = self._anchor
+        if anchor is None:
+            return True
+        sigma = math.hypot(self.prior.track_sigma, self.prior.drift * self.travelled)
+        return math.hypot(float(pose[0]) - anchor[0], float(pose[1]) - anchor[1]) <= 3.0 * sigma
+
     def tracking_share(self, pose: Sequence[float] | np.ndarray) -> float:
         """The share of the prior's density at `pose` (x, y, θ) that its tracking part holds (the robot where the
         anchor says, up to drift), against the kidnap and anywhere parts; 0 without an anchor.

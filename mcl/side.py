@@ -49,7 +49,9 @@ from dataclasses import dataclass, fields
 import numpy as np
 
 from field import Field
-from sensing.team import BallDetection, TeamMessage, ball_on_field, side_evidence, teammate_ball
+from field.checks import ArgumentTypeError, integer
+from sensing.team import (MAX_PLAYER_NUMBER, BallDetection, TeamMessage, ball_on_field, side_evidence,
+                          teammate_ball)
 
 
 @dataclass(frozen=True)
@@ -154,6 +156,46 @@ class SideSettings:
 
 
 AGE_STEP = 1.0    # s: the teammates' flags are aged at most this often (the hazard is slow)
+
+
+@dataclass(frozen=True)
+class Team:
+    """Who the robot is and whom it listens to.
+
+    Parameters
+    ----------
+    player_number : int or None, default None
+        The robot's own number (1..20): a team message from it is refused. None: not checked.
+    teammates : iterable of int or None, default None
+        The numbers of the teammates whose messages are accepted (kept as a sorted tuple); None: any number but
+        the robot's own.
+
+    Raises
+    ------
+    ValueError
+        For a number outside 1..20, or the robot's own number among its teammates (TypeError, also a
+        ValueError, for a wrong type).
+    """
+
+    player_number: int | None = None
+    teammates: tuple[int, ...] | None = None
+
+    def __post_init__(self) -> None:
+        if self.player_number is not None:
+            object.__setattr__(self, "player_number",
+                               integer("player_number", self.player_number, 1, MAX_PLAYER_NUMBER))
+        if self.teammates is not None:
+            try:
+                numbers = tuple(sorted({integer("teammates", n, 1, MAX_PLAYER_NUMBER) for n in self.teammates}))
+            except TypeError:
+                raise ArgumentTypeError(f"teammates = {self.teammates!r} must be player numbers") from None
+            if self.player_number in numbers:
+                raise ValueError(f"teammates = {numbers!r} must not hold the robot's own number {self.player_number}")
+            object.__setattr__(self, "teammates", numbers)
+
+    def accepts(self, sender: int) -> bool:
+        """Whether a message from `sender` is a teammate's."""
+        return sender != self.player_number and (self.teammates is None or sender in self.teammates)
 
 
 def _mahalanobis2(d: np.ndarray, covariance: np.ndarray) -> float:

@@ -9,7 +9,7 @@ from hypothesis import strategies as st
 
 from field import spl
 from mcl.localizer import Localizer, Quality
-from mcl.side import SideBelief, SideSettings
+from mcl.side import SideBelief, SideSettings, Team
 from motion_models import MotionInput
 from sensing import LandmarkObservation as Seen
 from sensing.team import BallDetection, TeamMessage, ball_on_field, side_evidence, teammate_ball
@@ -228,7 +228,7 @@ def test_each_teammate_sighting_is_evidence_once():
     ((2, 0.9), "TeamMessage"),
 ])
 def test_a_refused_message_leaves_the_localizer_untouched(message, word):
-    loc = standing(player_number=5, teammates=[1, 2, 3, 4])
+    loc = standing(team=Team(player_number=5, teammates=[1, 2, 3, 4]))
     loc.team_message(report(2, 0.8, (-1.0, 0.8)))
     before = state(loc)
     with pytest.raises(ValueError, match=word):

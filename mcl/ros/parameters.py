@@ -144,6 +144,7 @@ class NodeSettings:
 
         from ..localizer import Localizer
         from ..replay import MODELS
+        from ..side import Team
 
         field = field_by_name_or_path(self.field)
         player = self.player_number or None
@@ -151,6 +152,6 @@ class NodeSettings:
             from ..profile import Profile
             return Profile.load(self.profile).localizer(
                 field, seed=self.seed, n_particles=self.particles, history=self.history,
-                compensate_latency=self.compensate_latency, player_number=player)
+                compensate_latency=self.compensate_latency, team=Team(player))
         return Localizer(field, MODELS[self.model](), n_particles=self.particles, seed=self.seed,
-                         history=self.history, compensate_latency=self.compensate_latency, player_number=player)
+                         history=self.history, compensate_latency=self.compensate_latency, team=Team(player))
