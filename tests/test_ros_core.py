@@ -115,3 +115,46 @@ def test_events_and_a_known_pose():
 def test_bad_parameters_are_refused_by_name(values, match):
     with pytest.raises(ValueError, match=match):
         NodeSettings.from_dict(values)
+
+
+def test_the_field_markers_are_the_field_s_own_geometry():
+    from field import LandmarkType, preset
+    from mcl.ros.core import CIRCLE_SEGMENTS, field_markers
+
+    field = preset("kidsize")
+    markers = field_markers(field)
+    by_namespace = {}
+    for marker in markers:
+        by_namespace.setdefault(marker.namespace, []).append(marker)
+    assert sorted(by_namespace) == ["centre_circle", "goalposts", "lines", "marks"]
+    for group in by_namespace.values():
+        assert [m.marker_id for m in group] == list(range(len(group)))
+    (lines,) = by_namespace["lines"]
+    assert lines.shape == "line_list" and lines.width == field.dims.line_width
+    assert np.array_equal(lines.points.reshape(-1, 2, 2), field.segments)
+    (circle,) = by_namespace["centre_circle"]
+    assert circle.shape == "line_strip" and circle.points.shape == (CIRCLE_SEGMENTS + 1, 2)
+    assert np.array_equal(circle.points[0], circle.points[-1])
+    assert np.allclose(np.hypot(*circle.points.T), field.center_circle[2])
+    posts = by_namespace["goalposts"]
+    assert np.array_equal(np.array([m.points[0] for m in posts]), field.landmarks_of(LandmarkType.GOALPOST))
+    assert all(m.shape == "cylinder" and m.width == field.dims.goalpost_diameter and m.height > 0 for m in posts)
+    marks = np.array([m.points[0] for m in by_namespace["marks"]])
+    assert np.array_equal(marks, np.concatenate([field.landmarks_of(LandmarkType.PENALTY_MARK),
+                                                 field.landmarks_of(LandmarkType.CENTER_MARK)]))
+
+
+def test_the_particles_are_the_filter_s_a_copy():
+    core = NodeCore(NodeSettings(particles=120, seed=1))
+    particles = core.particles()
+    assert particles.shape == (120, 3) and np.array_equal(particles, core.localizer.filter.poses)
+    particles[:] = 0.0
+    assert not np.array_equal(particles, core.localizer.filter.poses)
+
+
+def test_the_output_rates_and_topics_are_parameters():
+    settings = NodeSettings()
+    assert (settings.particles_rate, settings.particles_topic, settings.field_topic) == (
+        2.0, "/robocup_mcl/particles", "/robocup_mcl/field")
+    with pytest.raises(ValueError, match="particles_rate = -1.0"):
+        NodeSettings(particles_rate=-1.0)

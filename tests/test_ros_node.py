@@ -55,6 +55,10 @@ def test_the_node_answers_a_played_log_over_dds(log_path):
     assert node["received"]["/motion_odometry"] == result["poses_received"] + 1 or result["poses_dropped"]
     assert node["frames_used"] > 0 and node["cpu_seconds"] > 0
     assert result["replay"]["compared"] == result["poses_received"]
+    # the particles at 2 Hz (the default), all of them in each message; the field once, latched
+    assert result["particle_messages"] >= 5 and result["particles_per_message"] == [100]
+    assert result["field_markers"] == {"centre_circle": 1, "goalposts": 4, "lines": 1, "marks": 3}
+    assert node["published"]["/robocup_mcl/field"] == 1
 
 
 def test_without_ros_the_commands_say_what_to_install(tmp_path):

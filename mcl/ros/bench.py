@@ -173,6 +173,10 @@ def run(args: argparse.Namespace, node_argv: list[str]) -> dict:
             "latency_ms": _percentiles(latencies), "tf_messages": len(listener.transforms),
             "tf_frames": sorted({f"{parent}->{child}" for _, parent, child in listener.transforms}),
             "quality_changes": listener.qualities, "skipped_topics": player.skipped,
+            "particle_messages": len(listener.particle_counts),
+            "particles_per_message": sorted(set(listener.particle_counts)),
+            "field_markers": {ns: sum(1 for n, _, _ in listener.field_markers if n == ns)
+                              for ns in sorted({n for n, _, _ in listener.field_markers})},
             "node": stats,
             "replay": compare_with_replay(args.log, settings, {s: p for s, (_, p) in answered.items()}, args.seconds)}
 
@@ -194,6 +198,9 @@ def summary(result: dict) -> None:
     if odometry:
         print(f"the node's odometry callback (motion, frames, publishing): median {odometry['median_ms']:.2f} ms, "
               f"p99 {odometry['p99_ms']:.2f} ms, max {odometry['max_ms']:.2f} ms")
+    if result.get("particle_messages") is not None:
+        print(f"particles: {result['particle_messages']} messages of {result['particles_per_message']} poses; "
+              f"field markers: {result['field_markers']}")
     replay = result["replay"]
     if replay["compared"]:
         print(f"against the replay: {replay['compared']} poses, {100 * replay['equal_share']:.1f} % equal bit for bit, "

@@ -26,6 +26,10 @@ gives the replay's estimates:
   is `penalized` and `penalty_return`; an event message names a `Localizer` call (`mcl.ros.parameters.EVENTS`);
   an initial pose is `place` (its σ from the message's covariance when given).
 
+What the node draws (no DDS here): `NodeCore.particles()` is the filter's particles, the node's PoseArray;
+`field_markers(field)` is the field as `FieldMarker`s, each one visualization_msgs/Marker of the node's
+MarkerArray.
+
 Times are seconds from `origin_ns` (the first stamp seen, unless given), as the replay's are from the log's
 origin. Nothing is dropped silently: `counts` holds what was not used, by reason (with the localizer's own).
 """
@@ -41,6 +45,7 @@ import numpy as np
 from field.angles import wrap_angles
 from motion_models import MotionInput
 from sensing.observations import Observations
+from field import Field, LandmarkType
 from sensing.team import BallDetection
 
 from ..latency import SAME_TIME
@@ -82,6 +87,68 @@ class Output:
     lost: bool
     map_to_odom: tuple[float, float, float]
     frames_used: int
+
+
+GOALPOST_DRAWN_HEIGHT = 0.8      # m: the field's dimensions have no goal height; the posts are drawn this tall
+CIRCLE_SEGMENTS = 64
+LINE_COLOR = (1.0, 1.0, 1.0, 1.0)
+GOALPOST_COLOR = (1.0, 1.0, 0.0, 1.0)
+
+
+@dataclass(frozen=True)
+class FieldMarker:
+    """One visualization_msgs/Marker of the field, in the field frame.
+
+    Attributes
+    ----------
+    namespace : str
+        "lines", "centre_circle", "goalposts" or "marks" (the penalty marks and the centre mark).
+    marker_id : int
+        Its id within the namespace (0, 1, ...).
+    shape : str
+        "line_list" (`points` in pairs: the segments), "line_strip" (`points` joined in order) or "cylinder"
+        (centred on the one point of `points`).
+    points : numpy.ndarray
+        (K, 2) x, y [m].
+    width : float
+        A line's width, or a cylinder's diameter [m].
+    height : float
+        A cylinder's height [m] (it stands on the ground); 0 for lines.
+    color : tuple of float
+        r, g, b, a in [0, 1].
+    """
+
+    namespace: str
+    marker_id: int
+    shape: str
+    points: np.ndarray
+    width: float
+    height: float
+    color: tuple[float, float, float, float]
+
+
+def field_markers(field: Field) -> list[FieldMarker]:
+    """The field as markers: its straight lines (one line list of `field.segments`), the centre circle (a closed
+    strip of `CIRCLE_SEGMENTS` segments), each goalpost (a cylinder of the post's diameter, drawn
+    `GOALPOST_DRAWN_HEIGHT` tall) and each penalty mark and the centre mark (a flat disc twice a line's width
+    across). Positions are the field's own (`Field.segments`, `center_circle`, `landmarks`)."""
+    width = float(field.dims.line_width)
+    markers = [FieldMarker("lines", 0, "line_list", np.asarray(field.segments, dtype=np.float64).reshape(-1, 2),
+                           width, 0.0, LINE_COLOR)]
+    cx, cy, radius = field.center_circle
+    angles = np.linspace(0.0, 2.0 * math.pi, CIRCLE_SEGMENTS + 1)
+    circle = np.column_stack([cx + radius * np.cos(angles), cy + radius * np.sin(angles)])
+    circle[-1] = circle[0]                # closed exactly
+    markers.append(FieldMarker("centre_circle", 0, "line_strip", circle, width, 0.0, LINE_COLOR))
+    for k, post in enumerate(field.landmarks_of(LandmarkType.GOALPOST)):
+        markers.append(FieldMarker("goalposts", k, "cylinder", np.array([post], dtype=np.float64),
+                                   float(field.dims.goalpost_diameter), GOALPOST_DRAWN_HEIGHT, GOALPOST_COLOR))
+    marks = np.concatenate([field.landmarks_of(LandmarkType.PENALTY_MARK),
+                            field.landmarks_of(LandmarkType.CENTER_MARK)])
+    for k, mark in enumerate(marks):
+        markers.append(FieldMarker("marks", k, "cylinder", np.array([mark], dtype=np.float64), 2.0 * width,
+                                   0.005, LINE_COLOR))
+    return markers
 
 
 def stamp_ns(header: Any) -> int:
@@ -328,6 +395,10 @@ class NodeCore:
         self.localizer.place(pose, sigma)
         self._ready.clear()
         self.counts["event place"] += 1
+
+    def particles(self) -> np.ndarray:
+        """The filter's particles now: a copy of its (N, 3) poses x [m], y [m], θ [rad] in the field frame."""
+        return np.array(self.localizer.filter.poses, dtype=np.float64, copy=True)
 
     def all_counts(self) -> dict[str, int]:
         """What was not used, by reason: the node's counts and the localizer's."""

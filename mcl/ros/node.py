@@ -5,8 +5,8 @@
 
 Subscribes to the robot's odometry, walk command, vision (goalposts, markings, balls), the game controller's
 GameState, game events and an initial pose; publishes the estimate (PoseWithCovarianceStamped) per odometry
-message, map -> odom on /tf, the quality and the "lost" flag when they change, and the hypotheses a few times a
-second. What it does with each message is `mcl.ros.core.NodeCore`'s (the replay's order and conventions); the
+message, map -> odom on /tf, the quality and the "lost" flag when they change, the hypotheses and the particles a
+few times a second, and the field's markings once at start (latched). What it does with each message is `mcl.ros.core.NodeCore`'s (the replay's order and conventions); the
 parameters and topics are `mcl.ros.parameters.NodeSettings`.
 
 rclpy is imported only when the node starts, so this module (and `robocup-mcl node --help`) loads without ROS;
@@ -41,6 +41,9 @@ def ros_available() -> str | None:
 
     if importlib.util.find_spec("rclpy") is None:
         return NOT_INSTALLED
+    if importlib.util.find_spec("visualization_msgs") is None:
+        return ("visualization_msgs is not installed in this environment: `pip install -e '.[ros]'` (or `make ros`) "
+                "installs it")
     from .messages import missing_packages
     missing = missing_packages()
     if missing:
@@ -58,6 +61,36 @@ def _quaternion(yaw: float, message: Any) -> Any:
 def _stamp(ns: int, message: Any) -> Any:
     message.sec, message.nanosec = divmod(int(ns), 1_000_000_000)
     return message
+
+
+def marker_array(markers: list, frame_id: str) -> Any:
+    """The visualization_msgs/MarkerArray of `mcl.ros.core.FieldMarker`s, in `frame_id` (stamp zero: the latest
+    transform; each marker ADDed for ever)."""
+    from geometry_msgs.msg import Point
+
+    from .player import message_class
+
+    Marker, MarkerArray = message_class("visualization_msgs/Marker"), message_class("visualization_msgs/MarkerArray")
+
+    shapes = {"line_list": Marker.LINE_LIST, "line_strip": Marker.LINE_STRIP, "cylinder": Marker.CYLINDER}
+    out = MarkerArray()
+    for item in markers:
+        marker = Marker()
+        marker.header.frame_id = frame_id
+        marker.ns, marker.id, marker.type, marker.action = item.namespace, item.marker_id, shapes[item.shape], \
+            Marker.ADD
+        marker.pose.orientation.w = 1.0
+        marker.color.r, marker.color.g, marker.color.b, marker.color.a = (float(c) for c in item.color)
+        if item.shape == "cylinder":
+            marker.pose.position.x, marker.pose.position.y = float(item.points[0, 0]), float(item.points[0, 1])
+            marker.pose.position.z = 0.5 * item.height
+            marker.scale.x = marker.scale.y = float(item.width)
+            marker.scale.z = float(item.height)
+        else:
+            marker.scale.x = float(item.width)
+            marker.points = [Point(x=float(x), y=float(y), z=0.0) for x, y in item.points]
+        out.markers.append(marker)
+    return out
 
 
 class Statistics:
@@ -168,6 +201,16 @@ class LocalizationNode:
         self._lost_pub = self.node.create_publisher(Bool, s.lost_topic, latched) if s.lost_topic else None
         self._hypotheses_pub = (self.node.create_publisher(PoseArray, s.hypotheses_topic, 10)
                                 if s.hypotheses_topic and s.hypotheses_rate > 0 else None)
+        self._particles_pub = (self.node.create_publisher(PoseArray, s.particles_topic, 2)
+                               if s.particles_topic and s.particles_rate > 0 else None)
+        if s.field_topic:
+            from .core import field_markers
+            from .player import message_class
+
+            self._field_pub = self.node.create_publisher(message_class("visualization_msgs/MarkerArray"),
+                                                         s.field_topic, latched)
+            self._field_pub.publish(marker_array(field_markers(self.core.localizer.field), s.map_frame))
+            self.stats.sent(s.field_topic)
         self._last_quality: str | None = None
         self._last_lost: bool | None = None
         self._last_stamp_ns: int | None = None
@@ -194,6 +237,8 @@ class LocalizationNode:
                     kind, topic, self.stats.timed(topic, callback), reliable))
         if self._hypotheses_pub is not None:
             self._timer = self.node.create_timer(1.0 / s.hypotheses_rate, self._hypotheses)
+        if self._particles_pub is not None:
+            self._particles_timer = self.node.create_timer(1.0 / s.particles_rate, self._particles)
 
     # -- callbacks -------------------------------------------------------------------------------------------
     def _command(self, msg: Any, sent_ns: int | None) -> None:
@@ -255,6 +300,22 @@ class LocalizationNode:
             message.poses.append(pose)
         self._hypotheses_pub.publish(message)
         self.stats.sent(self.settings.hypotheses_topic)
+
+    def _particles(self) -> None:
+        if self._last_stamp_ns is None or self._particles_pub is None:
+            return
+        from geometry_msgs.msg import Pose
+
+        message = self._messages["PoseArray"]()
+        message.header.frame_id = self.settings.map_frame
+        _stamp(self._last_stamp_ns, message.header.stamp)
+        for x, y, theta in self.core.particles().tolist():
+            pose = Pose()
+            pose.position.x, pose.position.y = x, y
+            _quaternion(theta, pose.orientation)
+            message.poses.append(pose)
+        self._particles_pub.publish(message)
+        self.stats.sent(self.settings.particles_topic)
 
     def statistics(self) -> dict:
         """`Statistics.as_dict` with the node's and the localizer's counts of what was not used."""

@@ -64,6 +64,13 @@ class NodeSettings:
         lost when they change (latched); geometry_msgs/PoseArray of the hypotheses, most probable first.
     hypotheses_rate : float
         How often the hypotheses are published [Hz]; 0: never.
+    particles_topic : str
+        Output: geometry_msgs/PoseArray of the filter's particles (in `map_frame`), `particles_rate` times a second.
+    particles_rate : float
+        How often the particles are published [Hz]; 0: never.
+    field_topic : str
+        Output: visualization_msgs/MarkerArray of the field (lines, centre circle, goalposts, penalty and centre
+        marks, in `map_frame`), published once at start, latched (transient local).
     game_events : bool
         Follow the GameState: INITIAL places the robot on the touchlines, a penalty and its end are
         `penalized` and `penalty_return`.
@@ -94,6 +101,9 @@ class NodeSettings:
     lost_topic: str = "/robocup_mcl/lost"
     hypotheses_topic: str = "/robocup_mcl/hypotheses"
     hypotheses_rate: float = 2.0
+    particles_topic: str = "/robocup_mcl/particles"
+    particles_rate: float = 2.0
+    field_topic: str = "/robocup_mcl/field"
     game_events: bool = True
 
     def __post_init__(self) -> None:
@@ -119,8 +129,10 @@ class NodeSettings:
             raise ValueError(f"start = {self.start!r} must be one of {STARTS}")
         if not 0 <= self.player_number <= 20:
             raise ValueError(f"player_number = {self.player_number} must be 1..20, or 0 for not known")
-        if not (math.isfinite(self.hypotheses_rate) and self.hypotheses_rate >= 0):
-            raise ValueError(f"hypotheses_rate = {self.hypotheses_rate} must be >= 0 Hz")
+        for rate in ("hypotheses_rate", "particles_rate"):
+            value = getattr(self, rate)
+            if not (math.isfinite(value) and value >= 0):
+                raise ValueError(f"{rate} = {value} must be >= 0 Hz")
         if not self.map_frame or not self.odom_frame:
             raise ValueError("map_frame and odom_frame must not be empty")
 

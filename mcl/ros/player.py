@@ -126,13 +126,15 @@ class LogPlayer:
 
 
 class PoseListener:
-    """Records the node's poses (with the `time.perf_counter()` each arrived), its /tf messages and its quality
-    changes. Spin `node` with an executor (`spin_in_thread`)."""
+    """Records the node's poses (with the `time.perf_counter()` each arrived), its /tf messages, its quality
+    changes, the sizes of its particle messages and its field markers (latched: received however late the
+    listener starts). Spin `node` with an executor (`spin_in_thread`)."""
 
     def __init__(self, context: Any = None, pose_topic: str = "/robocup_mcl/pose",
-                 quality_topic: str = "/robocup_mcl/quality") -> None:
+                 quality_topic: str = "/robocup_mcl/quality", particles_topic: str = "/robocup_mcl/particles",
+                 field_topic: str = "/robocup_mcl/field") -> None:
         import rclpy
-        from geometry_msgs.msg import PoseWithCovarianceStamped
+        from geometry_msgs.msg import PoseArray, PoseWithCovarianceStamped
         from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
         from std_msgs.msg import String
         from tf2_msgs.msg import TFMessage
@@ -141,12 +143,25 @@ class PoseListener:
         self.poses: list[tuple[int, float, tuple[float, float, float]]] = []   # (stamp ns, arrival, pose)
         self.transforms: list[tuple[int, str, str]] = []
         self.qualities: list[str] = []
+        self.particle_counts: list[int] = []            # poses in each particles message
+        self.field_markers: list[tuple[str, int, int]] = []     # (namespace, id, type) of the last MarkerArray
         self._lock = threading.Lock()
         self.pose_sub = self.node.create_subscription(PoseWithCovarianceStamped, pose_topic, self._pose, 100)
         self.node.create_subscription(TFMessage, "/tf", self._tf, QoSProfile(depth=100))
         self.node.create_subscription(String, quality_topic, lambda m: self.qualities.append(m.data),
                                       QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
                                                  durability=DurabilityPolicy.TRANSIENT_LOCAL))
+        self.node.create_subscription(PoseArray, particles_topic,
+                                      lambda m: self.particle_counts.append(len(m.poses)), 10)
+        try:
+            marker_array = message_class("visualization_msgs/MarkerArray")
+        except ImportError:         # the field is not listened to where the message is not installed
+            pass
+        else:
+            self.node.create_subscription(
+                marker_array, field_topic, self._field,
+                QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
+                           durability=DurabilityPolicy.TRANSIENT_LOCAL))
         self._executor: Any = None
         self._thread: threading.Thread | None = None
 
@@ -157,6 +172,9 @@ class PoseListener:
         stamp, pose, _ = ros_to_pose(msg)
         with self._lock:
             self.poses.append((stamp, arrived, (float(pose[0]), float(pose[1]), float(pose[2]))))
+
+    def _field(self, msg: Any) -> None:
+        self.field_markers = [(marker.ns, int(marker.id), int(marker.type)) for marker in msg.markers]
 
     def _tf(self, msg: Any) -> None:
         for transform in msg.transforms:
