@@ -1,7 +1,8 @@
 """`robocup-mcl eval`: the localizer on a battery of scenarios it was not tuned on.
 
     robocup-mcl eval [--families tracking,kidnap,...] [--split train|holdout|both] [--seeds 10]
-                     [--duration 60] [--particles 500] [--jobs 2] [--progress] [--json] [--save PATH]
+                     [--duration 60] [--particles 500] [--jobs 2] [--team auto|on|off] [--progress] [--json]
+                     [--save PATH]
 
 Each family (see `demos.battery_sim`) is run on K seeds per split: training seeds 0..K-1 (tune on these),
 held-out seeds 1000..1000+K-1 (report on these; the default). Every run is simulated independently of the
@@ -105,7 +106,8 @@ def localize(run: BatteryRun, particles: int = 500, prior: dict | None = None,
     how many), the steps at which the team's evidence changed the robot's side, and the seconds the loop took.
     The filter's seed is `filter_seed`, by default the run's seed. team: feed the teammates' messages and the
     robot's ball sightings (`Localizer.team_message`, `observe(..., ball=)`); None: when the run's messages are
-    on (the team families)."""
+    on (the team families). With True in a family whose messages are off, the messages its team world sent and
+    did not lose are delivered (`team_deliveries`)."""
     loc = make_localizer(run.field, run.seed if filter_seed is None else filter_seed, particles, prior, quality,
                          sensor, profile)
     if team is None:
@@ -117,7 +119,7 @@ def localize(run: BatteryRun, particles: int = 500, prior: dict | None = None,
     for frame, ball in zip(run.frames, balls):
         frames_at.setdefault(frame.arrival_step, []).append((frame, ball))
     messages_at: dict[int, list] = {}
-    for step, message in (run.messages if team else ()):
+    for step, message in (team_deliveries(run) if team else ()):
         messages_at.setdefault(step, []).append(message)
     flips: list[int] = []
     calls_at: dict[int, list] = {}
@@ -157,6 +159,16 @@ def localize(run: BatteryRun, particles: int = 500, prior: dict | None = None,
     return {"estimates": estimates, "quality": quality, "lost": lost, "dropped_frames": dropped,
             "log_evidence": loc.log_evidence, "evidence_frames": loc.evidence_frames, "team_flips": flips,
             "team": team, "loop_s": time.perf_counter() - started}
+
+
+def team_deliveries(run: BatteryRun) -> tuple:
+    """The run's (arrival step, TeamMessage) deliveries: its own when its messages are on, else those its team
+    world sent and did not lose (for feeding the team to a family that runs without it: a variant)."""
+    if run.messages or run.team is None:
+        return run.messages
+    kept = sorted((s for s in run.team.sent if not s.lost and s.arrival_step < run.times.shape[0]),
+                  key=lambda s: (s.arrival_step, s.arrival_time, s.message.sender))
+    return tuple((s.arrival_step, s.message) for s in kept)
 
 
 @functools.lru_cache(maxsize=256)
@@ -404,7 +416,8 @@ def _pooled_lines(p: dict) -> list[str]:
 
 def run_battery(families, splits, k: int, duration: float = 60.0, particles: int = 500, jobs: int = 2,
                 progress: bool = False, prior: dict | None = None, quality: dict | None = None,
-                view: bool = False, sensor: dict | None = None, profile: Profile | None = None) -> dict:
+                view: bool = False, sensor: dict | None = None, profile: Profile | None = None,
+                team: bool | None = None) -> dict:
     """Run every family × split × seed; returns the results (JSON-ready): per split, per family, the runs
     (sorted by seed) and their summary, and the overall pooled figures. view, profile: as `run_case`."""
     cases = [(split, family, seed) for split in splits for seed in split_seeds(split, k) for family in families]
@@ -422,10 +435,12 @@ def run_battery(families, splits, k: int, duration: float = 60.0, particles: int
 
     if jobs <= 1:
         for case in cases:
-            keep(case, run_case(case[1], case[2], duration, particles, prior, quality, view, sensor, profile))
+            keep(case, run_case(case[1], case[2], duration, particles, prior, quality, view, sensor, profile,
+                                None, team))
     else:
         with ProcessPoolExecutor(max_workers=jobs, mp_context=get_context("spawn")) as pool:
-            futures = {pool.submit(run_case, family, seed, duration, particles, prior, quality, view, sensor, profile):
+            futures = {pool.submit(run_case, family, seed, duration, particles, prior, quality, view, sensor, profile,
+                                   None, team):
                        (split, family, seed) for split, family, seed in cases}
             for future in as_completed(futures):
                 keep(futures[future], future.result())
@@ -433,7 +448,7 @@ def run_battery(families, splits, k: int, duration: float = 60.0, particles: int
     out: dict = {"particles": particles, "duration_s": duration, "seeds_per_family": k, "jobs": jobs,
                  "variant": {"prior": dict(prior or {}), "quality": dict(quality or {}), "sensor": dict(sensor or {})},
                  "profile": None if profile is None else {"source": profile.source, "values": profile.values()},
-                 "view": bool(view),
+                 "view": bool(view), "team": team,
                  "splits": {}}
     for split in splits:
         per_family = {}
@@ -461,6 +476,10 @@ def format_report(results: dict) -> str:
             changed = [f"profile {profile['source'] or '(unnamed)'}"] + changed
         setting = f"VARIANT ({', '.join(changed)})" if changed else "Localizer defaults"
         setting += ", frames with their camera view" if results.get("view") else ", detections only (no view)"
+        if results.get("team"):
+            setting += "; VARIANT: the team's messages and the ball fed in every family (--team on)"
+        elif results.get("team") is False:
+            setting += "; VARIANT: no team messages in any family (--team off)"
         lines.append(f"split {split}: seeds {seeds[0]}–{seeds[-1]} per family, {results['particles']} particles, "
                      f"{results['duration_s']:g} s runs, {setting}, start anywhere_in_own_half()")
         lines.append("")
@@ -593,6 +612,9 @@ def build_parser(prog: str = PROG) -> argparse.ArgumentParser:
                         help="the localizer's settings from a profile file (mcl.profile; `robocup-mcl tune` writes them)")
     parser.add_argument("--view", action="store_true",
                         help="pass each frame's camera view (head pan, field of view, ranges) to observe()")
+    parser.add_argument("--team", choices=("auto", "on", "off"), default="auto",
+                        help="feed the team's messages and the robot's ball sightings: in the team families only "
+                             "(auto, the default), in every family (on, a variant), in none (off, a variant)")
     parser.add_argument("--compare", nargs=2, metavar=("BASE", "CURRENT"),
                         help="print two saved results files side by side (for the split given) and run nothing")
     parser.add_argument("--json", action="store_true", help="the results as JSON on stdout instead of tables")
@@ -649,7 +671,7 @@ def main(argv: list[str] | None = None, prog: str = PROG) -> int:
     warm = warm_up_walk(WalkScenario(), "velocity-linear", view=args.view, progress=progress)
     results = run_battery(families, splits, args.seeds, args.duration, args.particles, args.jobs,
                           progress=progress, prior=prior, quality=quality, view=args.view, sensor=sensor,
-                          profile=profile)
+                          profile=profile, team={"auto": None, "on": True, "off": False}[args.team])
     results.update(warm.as_dict())
     text = json.dumps(results, indent=2)
     save_json(args.save, results)

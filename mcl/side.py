@@ -65,9 +65,10 @@ class SideSettings:
         ball, a kick in between), within (0, 1): bounds what one report can say.
     rolling_sigma : float, default 1.0
         How fast the ball may have moved unseen [m/s], > 0: widens a report by this times its age.
-    horizon : float, default 2.0
+    horizon : float, default 0.5
         A report is compared with the robot's sighting only when the two sightings are at most this far apart
-        in time [s], > 0.
+        in time [s], > 0: a kicked ball moves metres in a second, so older pairs say more about the kick than
+        about the side.
     teammate_mirrored : float, default 0.05
         Prior probability that a teammate is itself on the mirror, within (0, 0.5).
     teammate_hazard : float, default 0.01
@@ -108,7 +109,7 @@ class SideSettings:
 
     outlier_share: float = 0.2
     rolling_sigma: float = 1.0
-    horizon: float = 2.0
+    horizon: float = 0.5
     teammate_mirrored: float = 0.05
     teammate_hazard: float = 0.01
     max_teammates: int = 7

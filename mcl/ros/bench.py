@@ -191,6 +191,8 @@ def summary(result: dict) -> None:
     if latency["median"] is not None:
         print(f"latency odometry -> pose: median {latency['median']:.2f} ms, p90 {latency['p90']:.2f} ms, "
               f"p99 {latency['p99']:.2f} ms, max {latency['max']:.2f} ms")
+    if node.get("ordering"):
+        print(f"the node ordered camera frames against odometry by {node['ordering']}")
     if node.get("cpu_share") is not None:
         print(f"node CPU: {100 * node['cpu_share']:.1f} % of one core ({node['cpu_seconds']:.1f} s over "
               f"{node['wall_seconds']:.1f} s)")
@@ -227,6 +229,9 @@ def build_parser(prog: str = PROG) -> argparse.ArgumentParser:
     parser.add_argument("--seconds", type=float, default=None, help="play at most this many seconds of the log")
     parser.add_argument("--repeat", type=int, default=1,
                         help="play the log this many times in a row, stamps moved on (a soak; default 1)")
+    parser.add_argument("--no-source-timestamps", action="store_true",
+                        help="run the node with use_source_timestamps false: frames ordered as on Humble (receive "
+                        "order and header stamps)")
     parser.add_argument("--domain", type=int, default=None, help="ROS_DOMAIN_ID (default: 100 + pid %% 100)")
     parser.add_argument("--json", action="store_true", help="print the figures as JSON")
     add_save_option(parser)
@@ -267,6 +272,8 @@ def main(argv: list[str] | None = None, prog: str = PROG) -> int:
     from ..numba_cache import guard_source_checkout
     guard_source_checkout()
     node_argv = ["--field", args.field, "--particles", str(args.particles), "--seed", str(args.seed)]
+    if args.no_source_timestamps:
+        node_argv.append("--no-use-source-timestamps")
     try:
         result = run(args, node_argv)
     except (RuntimeError, ValueError, OSError) as error:

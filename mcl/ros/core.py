@@ -19,8 +19,10 @@ gives the replay's estimates:
   (a topic never heard from: once another topic delivered a later stamp). A complete frame corrects the filter right after the
   next odometry message's motion step, scored at its capture time: the replay's order ("motion first, then the
   frames that arrived by then"). The pose published for that odometry message includes it. With the messages'
-  send times (DDS's source timestamps, which the node passes), "next" is by send time, so a frame the executor
-  takes before an odometry message published earlier still waits for the step after it;
+  send times (DDS's source timestamps, which the node passes where rclpy gives them), "next" is by send time, so
+  a frame the executor takes before an odometry message published earlier still waits for the step after it.
+  Without them (rclpy of Humble has no `MessageInfo`), "next" is by the order the messages are taken, and a frame
+  captured after the odometry message's stamp waits for a later step (it cannot have been sent before it);
 - the ball (BallArray, the most confident ball) is side evidence (`Localizer.observe_ball`) at its capture;
 - game events: the GameState's INITIAL (entered) is `initial_placement`, its `penalized` flag turning on and off
   is `penalized` and `penalty_return`; an event message names a `Localizer` call (`mcl.ros.parameters.EVENTS`);
@@ -234,8 +236,9 @@ class NodeCore:
     def odometry(self, msg: Any, sent_ns: int | None = None) -> Output | None:
         """A nav_msgs/Odometry message: one motion step (none for the first), then the complete frames that
         arrived since the previous one (with `sent_ns`, the time the message was published [ns], only the frames
-        published before it: a frame taken out of order waits for the next step, as in the replay); the estimate
-        afterwards, or None when the message was not used."""
+        published before it: a frame taken out of order waits for the next step, as in the replay; without it,
+        only the frames captured at or before its stamp); the estimate afterwards, or None when the message was
+        not used."""
         try:
             pose = np.array(mcap_io._odometry_value(msg), dtype=np.float64)
             stamp = stamp_ns(msg.header)
@@ -269,7 +272,11 @@ class NodeCore:
         later = []
         for frame in self._ready:
             frame_sent, capture_ns, observations = frame
-            if sent_ns is not None and frame_sent is not None and frame_sent > sent_ns:
+            if sent_ns is not None and frame_sent is not None:
+                if frame_sent > sent_ns:         # published after this odometry message
+                    later.append(frame)
+                    continue
+            elif capture_ns > stamp:             # no send times: captured after this odometry message's stamp
                 later.append(frame)
                 continue
             try:

@@ -103,19 +103,24 @@ class Statistics:
         self.started_wall = time.perf_counter()
         self.started_cpu = time.process_time()
 
-    def timed(self, name: str, callback):
-        """`callback(message, sent_ns)` wrapped as rclpy's `(message, MessageInfo)` callback (the message's source
-        timestamp as `sent_ns`), its calls counted and timed."""
+    def timed(self, name: str, callback, with_info: bool = True):
+        """`callback(message, sent_ns)` wrapped as an rclpy subscription callback, its calls counted and timed:
+        with `with_info`, a `(message, MessageInfo)` callback (the message's source timestamp as `sent_ns`; rclpy
+        passes MessageInfo to a callback of two arguments from Iron on); without, a `(message)` callback
+        (`sent_ns` None), which every rclpy calls, Humble's included."""
         durations = self.durations.setdefault(name, [])
 
-        def wrapped(message, info):
+        def counted(message, sent_ns):
             self.received[name] = self.received.get(name, 0) + 1
             start = time.perf_counter()
             try:
-                callback(message, info.get("source_timestamp"))
+                callback(message, sent_ns)
             finally:
                 durations.append(time.perf_counter() - start)
-        return wrapped
+
+        if with_info:
+            return lambda message, info: counted(message, info.get("source_timestamp"))
+        return lambda message: counted(message, None)
 
     def sent(self, name: str) -> None:
         """Count one message published on `name`."""
@@ -133,6 +138,17 @@ class Statistics:
         return {"wall_seconds": wall, "cpu_seconds": cpu, "cpu_share": cpu / wall if wall > 0 else None,
                 "received": self.received, "published": self.published, "callbacks": callbacks,
                 "not_used": counts}
+
+
+def message_info_supported() -> bool:
+    """Whether this rclpy passes a `MessageInfo` (with the DDS source timestamp) to a subscription callback of two
+    arguments: rclpy of Iron and later (`rclpy.subscription.MessageInfo`, `Subscription.CallbackType`); Humble's
+    has neither and calls every callback with the message alone."""
+    try:
+        from rclpy import subscription
+    except ImportError:
+        return False
+    return hasattr(subscription, "MessageInfo") and hasattr(subscription.Subscription, "CallbackType")
 
 
 def warm_up(settings: NodeSettings) -> float:
@@ -229,12 +245,15 @@ class LocalizationNode:
         from soccer_vision_3d_msgs.msg import BallArray, GoalpostArray, MarkingArray
         generated = {s.goalposts_topic: GoalpostArray, s.markings_topic: MarkingArray, s.balls_topic: BallArray,
                      s.game_state_topic: GameState}
+        # DDS's source timestamps order a camera frame against the odometry (NodeCore.odometry) where rclpy gives
+        # them; elsewhere (Humble) the order the executor takes the messages in, and their header stamps
+        self.source_timestamps = s.use_source_timestamps and message_info_supported()
         self._subscriptions = []
         for topic, kind, callback in inputs:
             if topic:
                 kind = kind or generated[topic]
                 self._subscriptions.append(self.node.create_subscription(
-                    kind, topic, self.stats.timed(topic, callback), reliable))
+                    kind, topic, self.stats.timed(topic, callback, self.source_timestamps), reliable))
         if self._hypotheses_pub is not None:
             self._timer = self.node.create_timer(1.0 / s.hypotheses_rate, self._hypotheses)
         if self._particles_pub is not None:
@@ -321,6 +340,7 @@ class LocalizationNode:
         """`Statistics.as_dict` with the node's and the localizer's counts of what was not used."""
         out = self.stats.as_dict(self.core.all_counts())
         out["frames_used"] = self.core.frames_used
+        out["ordering"] = "source timestamps" if self.source_timestamps else "receive order and header stamps"
         return out
 
 

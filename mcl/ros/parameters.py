@@ -71,6 +71,10 @@ class NodeSettings:
     field_topic : str
         Output: visualization_msgs/MarkerArray of the field (lines, centre circle, goalposts, penalty and centre
         marks, in `map_frame`), published once at start, latched (transient local).
+    use_source_timestamps : bool
+        Order a camera frame against the odometry by the messages' DDS source timestamps, where rclpy passes them
+        (`MessageInfo`, from Iron on); False, or on Humble: by the order the messages are taken and their header
+        stamps (`mcl.ros.core`).
     game_events : bool
         Follow the GameState: INITIAL places the robot on the touchlines, a penalty and its end are
         `penalized` and `penalty_return`.
@@ -104,6 +108,7 @@ class NodeSettings:
     particles_topic: str = "/robocup_mcl/particles"
     particles_rate: float = 2.0
     field_topic: str = "/robocup_mcl/field"
+    use_source_timestamps: bool = True
     game_events: bool = True
 
     def __post_init__(self) -> None:
