@@ -54,11 +54,28 @@ def test_the_node_answers_a_played_log_over_dds(log_path):
     node = result["node"]
     assert node["received"]["/motion_odometry"] == result["poses_received"] + 1 or result["poses_dropped"]
     assert node["frames_used"] > 0 and node["cpu_seconds"] > 0
+    assert node["ordering"] == "source timestamps"
     assert result["replay"]["compared"] == result["poses_received"]
     # the particles at 2 Hz (the default), all of them in each message; the field once, latched
     assert result["particle_messages"] >= 5 and result["particles_per_message"] == [100]
     assert result["field_markers"] == {"centre_circle": 1, "goalposts": 4, "lines": 1, "marks": 3}
     assert node["published"]["/robocup_mcl/field"] == 1
+
+
+def test_the_node_answers_without_source_timestamps_as_on_humble(log_path):
+    """use_source_timestamps false: callbacks of the message alone, as Humble's rclpy calls them; frames ordered
+    by the order taken and their header stamps."""
+    _dds_or_skip()
+    path, field = log_path
+    done = subprocess.run([sys.executable, "-m", "mcl.cli", "node", "bench", str(path), "--field", field,
+                           "--particles", "100", "--seed", "2", "--no-source-timestamps", "--json"],
+                          capture_output=True, text=True, timeout=600)
+    assert done.returncode == 0, done.stderr[-3000:]
+    result = json.loads(done.stdout)
+    node = result["node"]
+    assert node["ordering"] == "receive order and header stamps"
+    assert result["poses_received"] > 0 and result["poses_received"] + result["poses_dropped"] >= 600
+    assert node["frames_used"] > 0 and result["replay"]["compared"] == result["poses_received"]
 
 
 def test_without_ros_the_commands_say_what_to_install(tmp_path):

@@ -205,8 +205,11 @@ def summary(result: dict) -> None:
               f"field markers: {result['field_markers']}")
     replay = result["replay"]
     if replay["compared"]:
-        print(f"against the replay: {replay['compared']} poses, {100 * replay['equal_share']:.1f} % equal bit for bit, "
-              f"largest distance {replay['max_distance_m']:.4f} m")
+        first = replay.get("first_difference_s")
+        print(f"against the replay: {replay['compared']} poses, {100 * replay['equal_share']:.1f} % equal bit for bit"
+              + (f" (first difference at {first:.2f} s), median distance {replay['median_distance_m']:.4f} m,"
+                 if first is not None else ",")
+              + f" largest distance {replay['max_distance_m']:.4f} m")
     if node.get("not_used"):
         print(f"not used by the node: {node['not_used']}")
 
