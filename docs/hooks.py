@@ -329,12 +329,29 @@ def team_cost() -> str:
         f"| one `observe_ball` | {bench['observe_ball']['median_us']:.1f} µs | {bench['observe_ball']['p99_us']:.1f} µs |"])
 
 
+def team_variant() -> str:
+    """The old kidnapping families with the team fed (results/eval_team_on.json, a variant) beside the same runs
+    without it (results/eval_team.json)."""
+    fed, plain = _load("eval_team_on.json")["splits"], _load("eval_team.json")["splits"]
+    rows = ["| seeds | family | runs on the mirror (≥ 2 s): without / with the team | end on the mirror | "
+            "side changes by the team (onto the mirror) |", "|---|---|---|---|---|"]
+    for split, label in (("train", "training 0–19"), ("holdout", "held-out 1000–1019")):
+        for name, entry in fed[split]["families"].items():
+            with_team, without = entry, plain[split]["families"][name]
+            ends = [sum(bool(r.get("ends_on_mirror")) for r in e["runs"]) for e in (without, with_team)]
+            f = with_team["summary"]
+            rows.append(f"| {label} | {name} | {without['summary']['on_mirror']} / {f['on_mirror']} | "
+                        f"{ends[0]} / {ends[1]} | {f['team_flips']} ({f['flips_to_mirror']}) |")
+    return "\n".join(rows)
+
+
 TABLES = {"battery-families": battery_families, "battery-quality": battery_quality,
           "recording-size": recording_size, "battery-targets": battery_targets,
           "fuzz-targets": fuzz_targets, "soak-minutes": soak_minutes, "tuning-battery": tuning_battery,
           "tuning-battery-8": tuning_battery_8,
           "tuning-venue": tuning_venue, "tuning-scaling": tuning_scaling, "team-targets": team_targets,
-          "team-families": team_families, "team-cost": team_cost}
+          "team-families": team_families, "team-cost": team_cost,
+          "team-variant": team_variant}
 MARKER = re.compile(r"^<!-- results-table: ([\w-]+) -->$", flags=re.M)
 
 

@@ -98,3 +98,5 @@ def test_the_team_tables_say_what_the_results_say():
     assert len(families.splitlines()) == 2 + len(split["families"])
     bench = json.loads((ROOT / "results" / "bench_team.json").read_text())
     assert f"{bench['team_message']['median_us']:.1f} µs" in hooks.team_cost()
+    variant = hooks.team_variant()
+    assert variant.count("\n") == 1 + 4 and "| held-out 1000–1019 | kidnap |" in variant
