@@ -53,6 +53,7 @@ from sensing import LandmarkSensorModel
 from sensing.view import CameraView
 
 from .battery_sim import FAMILIES, BatteryRun, kidnap_mirror_log_odds, simulate
+from .team_sim import deliveries
 
 TRAIN_FIRST = 0
 HOLDOUT_FIRST = 1000
@@ -166,9 +167,7 @@ def team_deliveries(run: BatteryRun) -> tuple:
     world sent and did not lose (for feeding the team to a family that runs without it: a variant)."""
     if run.messages or run.team is None:
         return run.messages
-    kept = sorted((s for s in run.team.sent if not s.lost and s.arrival_step < run.times.shape[0]),
-                  key=lambda s: (s.arrival_step, s.arrival_time, s.message.sender))
-    return tuple((s.arrival_step, s.message) for s in kept)
+    return deliveries(run.team.sent, run.times.shape[0])
 
 
 @functools.lru_cache(maxsize=256)

@@ -129,6 +129,14 @@ class SentMessage:
     true_ball: tuple[float, float] | None
 
 
+def deliveries(sent, n_steps: int) -> tuple:
+    """The (arrival step, TeamMessage) deliveries of the messages `sent` that are not lost and arrive within the
+    run's `n_steps` steps, in the order they arrive (step, then time, then sender)."""
+    kept = sorted((s for s in sent if not s.lost and s.arrival_step < n_steps),
+                  key=lambda s: (s.arrival_step, s.arrival_time, s.message.sender))
+    return tuple((s.arrival_step, s.message) for s in kept)
+
+
 @dataclass(frozen=True)
 class TeamWorld:
     """The simulated team world of one run (see the module docstring). Arrays per motion step k (the end of step
@@ -517,8 +525,7 @@ def simulate_team(rng: np.random.Generator, field: Field, dt: float, robot: np.n
     balls, velocities, poses, goals, counts = _play(rng, field, dt, robot, mates, ball_params)
     detections, ball_false, camera = _robot_ball(rng, dt, robot, balls, frames, fov_deg, blind)
     sent = _messages(rng, dt, duration, n_steps, balls, velocities, poses, mates, comm, wrong_interval)
-    delivered = [s for s in sent if not s.lost and s.arrival_step < n_steps] if messages_on else []
-    delivered.sort(key=lambda s: (s.arrival_step, s.arrival_time, s.message.sender))
+    delivered = deliveries(sent, n_steps) if messages_on else ()
     keeper = next((m["number"] for m in mates if m["goalkeeper"]), None)
     params = {
         "messages_on": bool(messages_on), "own_number": own, "ball": ball_params, "ball_camera": camera,
@@ -530,5 +537,5 @@ def simulate_team(rng: np.random.Generator, field: Field, dt: float, robot: np.n
         "sent": len(sent), "delivered": len(delivered),
     }
     return TeamWorld(balls[1:], velocities[1:], detections, ball_false, tuple(m["number"] for m in mates), keeper,
-                     poses[:, 1:], tuple(sent), tuple((s.arrival_step, s.message) for s in delivered),
+                     poses[:, 1:], tuple(sent), delivered,
                      tuple(goals), params)

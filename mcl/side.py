@@ -49,9 +49,9 @@ from dataclasses import dataclass, fields
 import numpy as np
 
 from field import Field
-from field.checks import ArgumentTypeError, integer
-from sensing.team import (MAX_PLAYER_NUMBER, BallDetection, TeamMessage, ball_on_field, side_evidence,
-                          teammate_ball)
+from field.checks import ArgumentTypeError, integer, real
+from sensing.team import (MAX_PLAYER_NUMBER, BallDetection, TeamMessage, ball_on_field, mahalanobis2,
+                          side_evidence, teammate_ball)
 
 
 @dataclass(frozen=True)
@@ -124,22 +124,14 @@ class SideSettings:
     past: float = 10.0
 
     def __post_init__(self) -> None:
+        positive = ("rolling_sigma", "horizon", "prior_cap", "flip", "past", "confirm_window", "gate")
         for f in fields(self):
-            value = getattr(self, f.name)
-            if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) \
-                    or value < 0:
-                raise ValueError(f"{f.name} = {value!r} must be a finite number >= 0")
-        for name in ("rolling_sigma", "horizon", "prior_cap", "flip", "past", "confirm_window", "gate"):
-            if getattr(self, name) <= 0:
-                raise ValueError(f"{name} = {getattr(self, name)!r} must be > 0")
-        if not 0 < self.kidnap_cap <= self.prior_cap:
-            raise ValueError(f"kidnap_cap = {self.kidnap_cap!r} must be within (0, prior_cap = {self.prior_cap!r}]")
-        if not 0 < self.outlier_share < 1:
-            raise ValueError(f"outlier_share = {self.outlier_share!r} must be within (0, 1)")
-        if not 0 < self.teammate_mirrored < 0.5:
-            raise ValueError(f"teammate_mirrored = {self.teammate_mirrored!r} must be within (0, 0.5)")
-        if not isinstance(self.max_teammates, int) or not 1 <= self.max_teammates <= 10:
-            raise ValueError(f"max_teammates = {self.max_teammates!r} must be an integer within [1, 10]")
+            if f.name != "max_teammates":
+                real(f.name, getattr(self, f.name), 0.0, low_open=f.name in positive)
+        integer("max_teammates", self.max_teammates, 1, 10)
+        real("kidnap_cap", self.kidnap_cap, 0.0, self.prior_cap, low_open=True)
+        real("outlier_share", self.outlier_share, 0.0, 1.0, low_open=True, high_open=True)
+        real("teammate_mirrored", self.teammate_mirrored, 0.0, 0.5, low_open=True, high_open=True)
         trust = self.teammate_trust
         if trust >= self.prior_cap + self.flip:
             raise ValueError(f"teammate_mirrored = {self.teammate_mirrored!r}: one teammate could move the odds by "
@@ -197,11 +189,6 @@ class Team:
     def accepts(self, sender: int) -> bool:
         """Whether a message from `sender` is a teammate's."""
         return sender != self.player_number and (self.teammates is None or sender in self.teammates)
-
-
-def _mahalanobis2(d: np.ndarray, covariance: np.ndarray) -> float:
-    a, b, c = covariance[0, 0], covariance[0, 1], covariance[1, 1]
-    return float((c * d[0] * d[0] - 2.0 * b * d[0] * d[1] + a * d[1] * d[1]) / (a * c - b * b))
 
 
 @functools.lru_cache(maxsize=None)
@@ -353,7 +340,7 @@ class SideBelief:
         if message.is_goalkeeper and message.pose[0] > 0.0:
             point = -point              # a goalkeeper in the opponent half is on the mirror: so is its ball
         total = sighting.covariance + covariance
-        if min(_mahalanobis2(sighting.point - point, total), _mahalanobis2(-sighting.point - point, total)) > s.gate:
+        if min(mahalanobis2(sighting.point - point, total), mahalanobis2(-sighting.point - point, total)) > s.gate:
             self.ignored += 1
             return
         if sender not in self._senders:

@@ -264,11 +264,15 @@ def teammate_ball(message: TeamMessage, at_time: float, rolling_sigma: float = 1
     return point, covariance
 
 
-def _log_normal2(d: np.ndarray, covariance: np.ndarray) -> float:
+def mahalanobis2(d: np.ndarray, covariance: np.ndarray) -> float:
+    """The squared Mahalanobis length of a 2-vector `d` under a (2, 2) covariance."""
     a, b, c = covariance[0, 0], covariance[0, 1], covariance[1, 1]
-    det = a * c - b * b
-    quad = (c * d[0] * d[0] - 2.0 * b * d[0] * d[1] + a * d[1] * d[1]) / det
-    return -0.5 * quad - math.log(2.0 * math.pi) - 0.5 * math.log(det)
+    return float((c * d[0] * d[0] - 2.0 * b * d[0] * d[1] + a * d[1] * d[1]) / (a * c - b * b))
+
+
+def _log_normal2(d: np.ndarray, covariance: np.ndarray) -> float:
+    det = covariance[0, 0] * covariance[1, 1] - covariance[0, 1] * covariance[0, 1]
+    return -0.5 * mahalanobis2(d, covariance) - math.log(2.0 * math.pi) - 0.5 * math.log(det)
 
 
 def side_evidence(own_point: np.ndarray, own_covariance: np.ndarray, team_point: np.ndarray,

@@ -305,36 +305,30 @@ class LocalizationNode:
         self._last_quality, self._last_lost = quality, out.lost
 
     def _hypotheses(self) -> None:
-        if self._last_stamp_ns is None or self._hypotheses_pub is None:
-            return
-        from geometry_msgs.msg import Pose
-
-        message = self._messages["PoseArray"]()
-        message.header.frame_id = self.settings.map_frame
-        _stamp(self._last_stamp_ns, message.header.stamp)
-        for hypothesis in self.core.localizer.hypotheses():
-            pose = Pose()
-            pose.position.x, pose.position.y = float(hypothesis.pose[0]), float(hypothesis.pose[1])
-            _quaternion(float(hypothesis.pose[2]), pose.orientation)
-            message.poses.append(pose)
-        self._hypotheses_pub.publish(message)
-        self.stats.sent(self.settings.hypotheses_topic)
+        if self._last_stamp_ns is not None and self._hypotheses_pub is not None:
+            poses = [(float(h.pose[0]), float(h.pose[1]), float(h.pose[2]))
+                     for h in self.core.localizer.hypotheses()]
+            self._publish_poses(self._hypotheses_pub, poses, self.settings.hypotheses_topic, self._last_stamp_ns)
 
     def _particles(self) -> None:
-        if self._last_stamp_ns is None or self._particles_pub is None:
-            return
+        if self._last_stamp_ns is not None and self._particles_pub is not None:
+            self._publish_poses(self._particles_pub, self.core.particles().tolist(), self.settings.particles_topic,
+                                self._last_stamp_ns)
+
+    def _publish_poses(self, publisher, poses, topic: str, stamp_ns: int) -> None:
+        """Poses (x, y, θ) as one PoseArray in the map frame, stamped `stamp_ns` (the latest odometry's)."""
         from geometry_msgs.msg import Pose
 
         message = self._messages["PoseArray"]()
         message.header.frame_id = self.settings.map_frame
-        _stamp(self._last_stamp_ns, message.header.stamp)
-        for x, y, theta in self.core.particles().tolist():
+        _stamp(stamp_ns, message.header.stamp)
+        for x, y, theta in poses:
             pose = Pose()
             pose.position.x, pose.position.y = x, y
             _quaternion(theta, pose.orientation)
             message.poses.append(pose)
-        self._particles_pub.publish(message)
-        self.stats.sent(self.settings.particles_topic)
+        publisher.publish(message)
+        self.stats.sent(topic)
 
     def statistics(self) -> dict:
         """`Statistics.as_dict` with the node's and the localizer's counts of what was not used."""
