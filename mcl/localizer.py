@@ -415,7 +415,6 @@ class Localizer:
         self.side = SideBelief(field, side)
         self._side_sign = 1.0      # +1 while the main pose is the one the re-localization's odds were taken for
         self._side_pose: np.ndarray | None = None      # where the side evidence was last weighed
-        self._kidnapped = False    # a re-localization since the last reset rested on a kidnapping law
         self._relocalizations = self._relocalization_count()
 
     @classmethod
@@ -637,7 +636,7 @@ class Localizer:
         mirror)."""
         relocalization = self.filter.relocalization
         prior = getattr(relocalization, "mirror_log_odds", math.inf)
-        kidnapped = self._kidnapped or bool(getattr(relocalization, "kidnapped", False))
+        kidnapped = bool(getattr(relocalization, "kidnapped", False))
         holds = getattr(relocalization, "holds", None)
         if not kidnapped and callable(holds):
             # the prior's odds are those of the anchor's pose: an estimate that has left it (a re-localization
@@ -689,8 +688,6 @@ class Localizer:
         if count != self._relocalizations:
             self._relocalizations = count
             self._side_sign = 1.0
-            # continuity with an anchor whose side rested on a kidnapping law is no surer than that law
-            self._kidnapped = self._kidnapped or bool(getattr(self.filter.relocalization, "kidnapped", False))
         self._track_side()
 
     def _track_side(self) -> None:
@@ -1016,7 +1013,6 @@ class Localizer:
         self.side.moved()
         self._side_sign = 1.0
         self._side_pose = None
-        self._kidnapped = False
         self._relocalizations = self._relocalization_count()
         self._frames.clear()
         self._last_explained = None

@@ -237,9 +237,10 @@ class SoccerRelocalization:
         How many re-localized poses `confirm` has accepted (a pose away from the anchor that held): a change
         tells that the estimate moved somewhere new.
     kidnapped : bool
-        Whether the last re-localized pose lies beyond the anchor's drift (`tracking_share` < 1/2) with its mirror
-        image about as far from the anchor (within a factor `KIDNAP_AMBIGUITY`): its `mirror_log_odds` then rest
-        on the prior's kidnap law, not on continuity. False after a reset.
+        Whether a re-localized pose since the last reset lay beyond the anchor's drift (`tracking_share` < 1/2)
+        with its mirror image about as far from the anchor (within a factor `KIDNAP_AMBIGUITY`): its
+        `mirror_log_odds` then rest on the prior's kidnap law, not on continuity, and so does continuity with it
+        afterwards. False after a reset.
 
     Raises
     ------
@@ -263,7 +264,7 @@ class SoccerRelocalization:
         self._streak = 0
         self._carpet = (-1.0, 1.0, -1.0, 1.0)
         self.relocalizations = 0                 # re-localized poses accepted so far (`confirm`)
-        self.kidnapped = False                   # the last re-localized pose lies beyond the anchor's drift
+        self.kidnapped = False                   # a re-localized pose since the reset rested on the kidnap law
 
     @property
     def anchor(self) -> np.ndarray | None:
@@ -405,7 +406,8 @@ class SoccerRelocalization:
                 odds = float(log_prior[0] - log_prior[1])
                 # odds that rest on the kidnap law (the pose is no drift of the anchor, and its mirror image
                 # about as far from the anchor) are only as good as that law: the side belief trusts them less
-                self.kidnapped = self._kidnap_odds(pose, mirror)
+                # (and continuity with such a pose is no surer: it holds until the next reset)
+                self.kidnapped = self.kidnapped or self._kidnap_odds(pose, mirror)
                 # the same odds without the heading reference: how far position alone tells the pair apart
                 log_prior = self.log_prior(pair, heading_kept=0.0)
                 position_odds = float(log_prior[0] - log_prior[1])
