@@ -50,7 +50,7 @@ $(ROS_STAMP): pyproject.toml
 	$(PYTHON) -m venv $(ROS_VENV)
 	$(ROS_PY) -m pip install --quiet --upgrade pip
 	$(ROS_PY) -m pip install --quiet -e '.[ros,test]'
-	$(ROS_PY) -m mcl.ros.messages --build-dir build/ros-msgs
+	$(ROS_PY) -m mcl.tools.ros.messages --build-dir build/ros-msgs
 	touch $(ROS_STAMP)
 
 ros: $(ROS_STAMP)

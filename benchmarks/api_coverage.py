@@ -3,8 +3,8 @@
     python -m benchmarks.api_coverage [--json] [--save PATH] [--misses N]
 
 The public API is what a team imports: the names in `__all__` of `mcl`, `motion_models`, `sensing`, `field`,
-`mcl.contracts`, `mcl.logs` and `mcl.testing`, and the public names defined in `mcl.localizer`,
-`mcl.relocalization`, `mcl.recording` and `mcl.replay` (no leading underscore). For a class, its public methods
+`mcl.contracts`, `mcl.tools.logs` and `mcl.tools.testing`, and the public names defined in `mcl.localizer`,
+`mcl.relocalization`, `mcl.tools.recording` and `mcl.tools.replay` (no leading underscore). For a class, its public methods
 and properties defined in the class count too (not what it inherits from outside the project).
 
 - **numpydoc**: the object has a docstring; a function or method that takes arguments (other than self/cls)
@@ -30,10 +30,10 @@ import sys
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from mcl.cli_checks import save_json
+from mcl.tools.cli_checks import save_json
 
-ALL_OF = ("mcl", "motion_models", "sensing", "field", "mcl.contracts", "mcl.logs", "mcl.testing")
-DEFINED_IN = ("mcl.localizer", "mcl.relocalization", "mcl.recording", "mcl.replay")
+ALL_OF = ("mcl", "motion_models", "sensing", "field", "mcl.contracts", "mcl.tools.logs", "mcl.tools.testing")
+DEFINED_IN = ("mcl.localizer", "mcl.relocalization", "mcl.tools.recording", "mcl.tools.replay")
 HEAVY = ("rerun", "scipy", "mcap", "mcap_ros2", "hypothesis", "numba", "matplotlib", "tqdm")
 PARAMETER_SECTIONS = ("Parameters\n", "Attributes\n")
 

@@ -108,7 +108,7 @@ def run(sizes=SIZES, quick: bool = False, startup: bool = True, exact: bool = Tr
     """The whole suite; returns the result (see the module docstring for its sections). progress: a bar on
     stderr counting the sections, with the current one's name and the time spent (instead of a line each)."""
     global _BAR
-    from mcl.cli_checks import progress_bar
+    from mcl.tools.cli_checks import progress_bar
 
     _BAR = progress_bar(enabled=True, desc="bench", unit="section",
                         bar_format="{desc}: {n} sections done [{elapsed}] {postfix}") if progress else None
@@ -191,7 +191,7 @@ PROG = "robocup-mcl bench"
 
 def build_parser(prog: str = PROG) -> argparse.ArgumentParser:
     """The command's argument parser, named `prog` in its usage line."""
-    from mcl.cli_checks import add_progress_option, description
+    from mcl.tools.cli_checks import add_progress_option, description
 
     parser = argparse.ArgumentParser(prog=prog, description=description(__doc__),
                                      formatter_class=argparse.RawDescriptionHelpFormatter,
@@ -228,7 +228,7 @@ def main(argv: list[str] | None = None, prog: str = PROG) -> int:
         from .report import matplotlib_missing
         if matplotlib_missing():
             parser.error("--plot needs matplotlib: pip install -e '.[bench]'")
-    from mcl.cli_checks import progress_wanted
+    from mcl.tools.cli_checks import progress_wanted
     result = run(sizes, quick=args.quick, startup=not args.no_startup, exact=not args.no_exact, skip=skip,
                  budget_s=args.budget, progress=progress_wanted(args))
     for path in (args.save, args.plot):

@@ -145,11 +145,17 @@ def side_environment(side: Side, **extra: str) -> dict:
         [str(side.root)] + ([os.environ["PYTHONPATH"]] if os.environ.get("PYTHONPATH") else [])), **extra)
 
 
+def cli_module(root: Path) -> str:
+    """The module of `robocup-mcl` in the tree at `root`: `mcl.tools.cli`, or `mcl.cli` in a revision from
+    before the tools moved to `mcl.tools`."""
+    return "mcl.tools.cli" if (root / "mcl" / "tools" / "cli.py").exists() else "mcl.cli"
+
+
 def run_bench(side: Side, arguments: list[str]) -> dict:
     """`robocup-mcl bench ARGUMENTS` in a fresh process that imports `side`'s packages; its JSON result."""
     environment = side_environment(side)
-    done = subprocess.run([sys.executable, "-m", "mcl.cli", "bench", *arguments], cwd=side.root, env=environment,
-                          capture_output=True, text=True, check=False)
+    done = subprocess.run([sys.executable, "-m", cli_module(side.root), "bench", *arguments], cwd=side.root,
+                          env=environment, capture_output=True, text=True, check=False)
     if done.returncode != 0:
         raise CompareError(f"the bench of {side.label} failed (exit {done.returncode}):\n"
                            + "\n".join(done.stderr.strip().splitlines()[-15:]))
@@ -287,7 +293,7 @@ PROG = "robocup-mcl bench compare"
 
 def build_parser(prog: str = PROG) -> argparse.ArgumentParser:
     """The command's argument parser, named `prog` in its usage line."""
-    from mcl.cli_checks import description
+    from mcl.tools.cli_checks import description
 
     parser = argparse.ArgumentParser(prog=prog, description=description(__doc__),
                                      formatter_class=argparse.RawDescriptionHelpFormatter,

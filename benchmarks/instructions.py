@@ -33,7 +33,7 @@ import sys
 import tempfile
 from pathlib import Path
 
-from mcl.cli_checks import save_json
+from mcl.tools.cli_checks import save_json
 
 from benchmarks.compare import CompareError, Side, base_side, current_side, side_environment
 

@@ -6,7 +6,7 @@ the README's robot loop.
 LWPR (`motion_models.lwpr`), 2 inputs and 1 output: the model of the cross benchmark (`demos.lwpr_cross`) after
 its 20 training epochs; µs per `update` in steady state and per `predict` of one point, as that benchmark
 times them (best of a few repetitions, validation and numba dispatch included). The velocity EKF
-(`sensing.velocity.VelocityEKF`): µs per `predict` (one IMU sample) and per `correct` (one leg-kinematics
+(`proprioception.velocity.VelocityEKF`): µs per `predict` (one IMU sample) and per `correct` (one leg-kinematics
 velocity), public calls with their validation, for the default filter (gyro bias in the state, 9 states)
 and the paper's as written (6 states, eq. 24's first-order Jacobian). The robot loop (`time_robot_loop`): the
 public calls of the README's "Using it in a robot's loop", 500 particles, in µs per call: a frame without
@@ -48,7 +48,7 @@ def time_lwpr(seed: int = 0) -> dict:
 
 
 def time_ekf(budget_s: float = 0.3) -> dict:
-    from sensing.velocity import VelocityEKF, VelocityEKFParams
+    from proprioception.velocity import VelocityEKF, VelocityEKFParams
 
     gravity = np.array([0.0, 0.0, 9.81])
     gyro, accel = np.array([0.01, -0.02, 0.3]), np.array([0.1, 0.05, 9.8])

@@ -98,7 +98,7 @@ def make(out: Path, size: str, use_xvfb: bool) -> list[Path]:
 
     from demos.walk import run_walk
     from demos.walk_sim import WalkScenario
-    from mcl.recording import default_blueprint
+    from mcl.tools.recording import default_blueprint
 
     out.mkdir(parents=True, exist_ok=True)
     width, height = (int(v) for v in size.split("x"))

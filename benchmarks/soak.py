@@ -329,7 +329,7 @@ PROG = "robocup-mcl soak"
 
 def build_parser(prog: str = PROG) -> argparse.ArgumentParser:
     """The command's argument parser, named `prog` in its usage line."""
-    from mcl.cli_checks import add_progress_option, description
+    from mcl.tools.cli_checks import add_progress_option, description
 
     parser = argparse.ArgumentParser(prog=prog, description=description(__doc__))
     parser.add_argument("--minutes", type=float, default=60.0, help="simulated minutes (default 60; fractions "
@@ -344,7 +344,7 @@ def build_parser(prog: str = PROG) -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None, prog: str = PROG) -> int:
     """`robocup-mcl soak` (see the module docstring); exit 0 when the verdict holds, 1 otherwise."""
-    from mcl.cli_checks import check_output_file
+    from mcl.tools.cli_checks import check_output_file
 
     parser = build_parser(prog)
     args = parser.parse_args(argv)
@@ -365,7 +365,7 @@ def main(argv: list[str] | None = None, prog: str = PROG) -> int:
               f"camera at {scenario.camera_rate:g} Hz ({1e3 * scenario.latency:.0f} ms late), {args.particles} "
               f"particles, seed {args.seed}")
         print(table_header(), flush=True)
-    from mcl.cli_checks import progress_bar, progress_wanted
+    from mcl.tools.cli_checks import progress_bar, progress_wanted
     bar = progress_bar(enabled=progress_wanted(args), total=math.ceil(args.minutes), desc="soak",
                        unit="simulated min")
 

@@ -38,7 +38,7 @@ from motion_models.kernels import move_with_noise_reference
 from numerics.random import draw_variates
 from numerics.trig import SQRT3
 from sensing import LandmarkSensorModel, Observations
-from sensing.collision import NO_COLLISION, CollisionPercept
+from proprioception.collision import NO_COLLISION, CollisionPercept
 from sensing.lines import LineSensorModel
 
 from .reference import issue_shaped_step, numpy_step, sample_injection_reference
@@ -146,7 +146,7 @@ PHASES = (
           "histograms with the estimate, both phases include filling them",
           "ParticleFilter.entropy (what it keeps dropped first)", "mcl.estimate.grid_entropy_reference"),
     Phase("recording", "recording one step to Rerun (a temporary .rrd), particles logged every step",
-          "mcl.recording.Recorder.log_step", None),
+          "mcl.tools.recording.Recorder.log_step", None),
 )
 PHASE_NAMES = tuple(p.name for p in PHASES)
 
@@ -448,7 +448,7 @@ class PhaseScene:
 
     def record(self):
         if self._recorder is None:
-            from mcl.recording import Recorder
+            from mcl.tools.recording import Recorder
             path = Path(self.recording_dir) / f"bench-{self.n}.rrd"
             self._recorder = Recorder(path, self.pf.field, particles_every=1)
         self._step += 1

@@ -166,7 +166,7 @@ def time_startup(cold: bool = True, warm_runs: int = 2) -> dict:
 
 def _cli() -> list[str]:
     script = Path(sys.executable).with_name("robocup-mcl")
-    return [str(script)] if script.exists() else [sys.executable, "-m", "mcl.cli"]
+    return [str(script)] if script.exists() else [sys.executable, "-m", "mcl.tools.cli"]
 
 
 def time_demo_walk(runs: int = 2) -> dict:

@@ -67,7 +67,7 @@ def run(rounds: int = 5, particles: int = 500, duration: float = 20.0, calls: in
         progress: bool = False) -> dict:
     """The figures (see the module docstring), JSON-ready; `progress`: a bar on stderr over the rounds."""
     from demos.battery_sim import simulate
-    from mcl.cli_checks import progress_bar
+    from mcl.tools.cli_checks import progress_bar
 
     sim = simulate("kidnap_even_team", 0, duration)
     _loop_seconds_per_step(sim, particles, False)          # warm up (compile or load the kernels)
@@ -107,7 +107,7 @@ def format_report(result: dict) -> str:
 
 
 def build_parser(prog: str = PROG) -> argparse.ArgumentParser:
-    from mcl.cli_checks import add_progress_option, description, positive_int
+    from mcl.tools.cli_checks import add_progress_option, description, positive_int
 
     parser = argparse.ArgumentParser(prog=prog, description=description(__doc__))
     parser.add_argument("--rounds", type=positive_int, default=5, help="alternated rounds (default 5)")
@@ -120,7 +120,7 @@ def build_parser(prog: str = PROG) -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None, prog: str = PROG) -> int:
     """The command line (see the module docstring)."""
-    from mcl.cli_checks import check_output_file, progress_wanted, save_json
+    from mcl.tools.cli_checks import check_output_file, progress_wanted, save_json
 
     args = build_parser(prog).parse_args(argv)
     check_output_file(args.save, "--save", make_parents=False)

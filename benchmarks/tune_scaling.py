@@ -34,7 +34,7 @@ CORES = (10, 100)
 
 def _settings(trials: int, battery: int, duration: float, particles: int):
     from demos.battery import FAMILIES, BatteryCase, split_seeds
-    from mcl.tuning import SearchSpace, TuneSettings
+    from mcl.tools.tuning import SearchSpace, TuneSettings
 
     cases = tuple(BatteryCase(f, s, duration) for s in split_seeds("train", battery) for f in FAMILIES)
     return TuneSettings(cases, SearchSpace.load(SPACE), "truth", trials, (0,), particles=particles)
@@ -46,7 +46,7 @@ def time_study(workers: int, settings) -> dict:
 
     import ray
 
-    from mcl.tuning import run_study, start_ray
+    from mcl.tools.tuning import run_study, start_ray
 
     start_ray(None, workers)
     try:
@@ -67,8 +67,8 @@ def overhead(settings, tasks: int) -> dict:
     """Ray's cost per task: round trips of tasks run one at a time on a 1-worker instance."""
     import ray
 
-    from mcl.tuning import start_ray
-    from mcl.tuning.search import remote_task
+    from mcl.tools.tuning import start_ray
+    from mcl.tools.tuning.search import remote_task
 
     start_ray(None, 1)
     try:
@@ -157,7 +157,7 @@ def format_report(r: dict) -> str:
 
 def build_parser(prog: str = PROG) -> argparse.ArgumentParser:
     """The command's argument parser, named `prog` in its usage line."""
-    from mcl.cli_checks import add_progress_option, add_save_option, description, positive_int
+    from mcl.tools.cli_checks import add_progress_option, add_save_option, description, positive_int
 
     parser = argparse.ArgumentParser(prog=prog, description=description(__doc__))
     parser.add_argument("--trials", type=positive_int, default=6, help="trials of the timed study (default 6)")
@@ -174,7 +174,7 @@ def build_parser(prog: str = PROG) -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None, prog: str = PROG) -> int:
     """The command line (see the module docstring)."""
-    from mcl.cli_checks import check_duration, check_output_file, progress_wanted, save_and_print
+    from mcl.tools.cli_checks import check_duration, check_output_file, progress_wanted, save_and_print
 
     parser = build_parser(prog)
     args = parser.parse_args(argv)

@@ -12,7 +12,7 @@ the step's game events (`penalty_return()`, `manual_placement()`, `fallen()`, `g
 frame that arrived during the step, `observe(detections, capture_time=)` (a frame captured before the last
 reset is refused by the localizer and counted as dropped); then the pose, quality and `is_lost` are sampled.
 
-The table per family (figures defined in `mcl.evaluation`), median and worst over the runs:
+The table per family (figures defined in `mcl.tools.evaluation`), median and worst over the runs:
 - converge [s]: from t = 0 to the first second-long stretch within 0.3 m and 20°; "never" counts the runs
   without one (start_unknown's figure of interest);
 - reconverge [s]: the same, from the end of the event (kidnapping, placement, collision, getting up, the last
@@ -43,7 +43,7 @@ from multiprocessing import get_context
 import numpy as np
 
 from field import spl
-from mcl.evaluation import (CONVERGED_HEADING, CONVERGED_POSITION, FAIL_POSITION, QUALITY_CODE, QUALITY_LEVELS,
+from mcl.tools.evaluation import (CONVERGED_HEADING, CONVERGED_POSITION, FAIL_POSITION, QUALITY_CODE, QUALITY_LEVELS,
                             evaluate, first_stretch, median_worst, mirrored, pool_counts, pose_errors)
 from mcl.localizer import Localizer, Quality, QualityThresholds
 from mcl.profile import Profile
@@ -178,7 +178,7 @@ def _simulated(family: str, seed: int, duration: float) -> BatteryRun:
 
 @dataclass(frozen=True)
 class BatteryCase:
-    """A battery run as a case of `robocup-mcl tune` (`mcl.tuning`): the run of `family` and `seed`, `duration`
+    """A battery run as a case of `robocup-mcl tune` (`mcl.tools.tuning`): the run of `family` and `seed`, `duration`
     seconds long, localized with a parameter set as the battery localizes it (game events included)."""
 
     family: str
@@ -192,8 +192,8 @@ class BatteryCase:
 
     def evaluate(self, values: dict, seed: int, particles: int = 500) -> dict:
         """The figures of the parameter set `values` ({"section.setting": value}) with filter seed `seed`:
-        "log_evidence", "evidence_frames" and the truth's (`mcl.tuning.truth_figures`)."""
-        from mcl.tuning import truth_figures
+        "log_evidence", "evidence_frames" and the truth's (`mcl.tools.tuning.truth_figures`)."""
+        from mcl.tools.tuning import truth_figures
 
         run = _simulated(self.family, self.seed, float(self.duration))
         out = localize(run, particles, profile=Profile.from_values(values), filter_seed=seed)
@@ -420,7 +420,7 @@ def run_battery(families, splits, k: int, duration: float = 60.0, particles: int
     """Run every family × split × seed; returns the results (JSON-ready): per split, per family, the runs
     (sorted by seed) and their summary, and the overall pooled figures. view, profile: as `run_case`."""
     cases = [(split, family, seed) for split in splits for seed in split_seeds(split, k) for family in families]
-    from mcl.cli_checks import progress_bar
+    from mcl.tools.cli_checks import progress_bar
 
     bar = progress_bar(enabled=progress, total=len(cases), desc="eval", unit="run")
     results: dict = {}
@@ -589,7 +589,7 @@ def parse_families(parser: argparse.ArgumentParser, text: str) -> list[str]:
 
 def build_parser(prog: str = PROG) -> argparse.ArgumentParser:
     """The command's argument parser, named `prog` in its usage line."""
-    from mcl.cli_checks import add_progress_option, description, positive_int
+    from mcl.tools.cli_checks import add_progress_option, description, positive_int
 
     parser = argparse.ArgumentParser(prog=prog, description=description(__doc__))
     parser.add_argument("--families", default=",".join(FAMILIES),
@@ -646,7 +646,7 @@ def main(argv: list[str] | None = None, prog: str = PROG) -> int:
     families = parse_families(parser, args.families)
     if args.seeds > MAX_SEEDS:
         parser.error(f"--seeds {args.seeds} must be at most {MAX_SEEDS} (training and held-out seeds stay apart)")
-    from mcl.cli_checks import check_duration, check_output_file, progress_wanted, save_json
+    from mcl.tools.cli_checks import check_duration, check_output_file, progress_wanted, save_json
     check_duration(parser, args.duration, 10.0)
     check_output_file(args.save, "--save", make_parents=False)   # before the battery runs, not after it
     prior = _overrides(parser, "--prior", args.prior, RelocalizationPrior)

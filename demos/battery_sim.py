@@ -60,7 +60,7 @@ import numpy as np
 
 from field import Field, LandmarkType, preset
 from field.angles import wrap_angles
-from mcl.logs import RobotLog, VisionFrame
+from mcl.tools.logs import RobotLog, VisionFrame
 from sensing.observations import Observations
 
 from .team_sim import TeamWorld, simulate_team
@@ -703,7 +703,7 @@ def simulate(family: str, seed: int, duration: float = 60.0, overrides: dict | N
 
 
 def as_robot_log(run: BatteryRun) -> RobotLog:
-    """The run as a robot would log it (`mcl.logs.RobotLog`): the odometry as cumulative poses in the odom
+    """The run as a robot would log it (`mcl.tools.logs.RobotLog`): the odometry as cumulative poses in the odom
     frame (one message per step, starting at t = 0), each camera frame with its capture stamp and arrival time,
     and the truth per step. Game events (`run.calls`) are not part of a log: a replay starts anywhere in the own
     half, as the battery does, and knows nothing of them."""

@@ -23,13 +23,13 @@ of its sole, permanently, or tilting about one edge of the sole and settling bac
 foot sliding a few millimetres to centimetres).
 
 The robot of each run. `draw_robot` draws its physical parameters from a `RobotVariation`: each leg's five
-lengths within ±5 % of the published NAO dimensions (`sensing.kinematics.NaoLegDimensions`), each joint's zero
+lengths within ±5 % of the published NAO dimensions (`proprioception.kinematics.NaoLegDimensions`), each joint's zero
 within ±1°, each joint's play up to 0.6°, the IMU's noise σ 0.6-1.8 times the datasheet's (`SensorParams`), its
 bias 0.5-2.5 (accelerometer) and 0.5-3 (gyro) times the datasheet's spread, a scale error within ±3 % per axis,
 and a gyro bias random walk up to 3e-4 rad/s/√s. `RobotVariation.nominal()` (the default of `simulate_walk`) is
 the robot of the drawings with the datasheet's sensors: its legs are the estimator's, which is what the nominal
 column of the robustness table measures. Nothing here comes from the estimators' settings: this module does not
-import `sensing.velocity`, and the datasheet values and ranges are the simulator's own.
+import `proprioception.velocity`, and the datasheet values and ranges are the simulator's own.
 
 The simulation is kinematic: the trunk's motion is the truth and the legs follow it, so a twist or a slip moves
 the foot, not the trunk. The NAO's coupling of the two hip yaw-pitch joints is not imposed. The random
@@ -46,7 +46,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from field.angles import wrap_angles
-from sensing.kinematics import LegChain, NaoLegDimensions, nao_leg, rotation_z
+from proprioception.kinematics import LegChain, NaoLegDimensions, nao_leg, rotation_z
 
 FINE_RATE = 3000.0          # Hz: truth grid; IMU and kinematics rates must divide it
 GRAVITY = 9.81

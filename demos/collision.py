@@ -14,7 +14,7 @@ The robot walks forward at 200 mm/s for 10 s; the filter's particles all start a
 Cases: "none" (4.1), "single" (4.2: a collision of about 2 s on the left, during which the robot is held back,
 then stopped and turning toward the obstacle), "double" (4.3: left, then right, in brief succession). Each
 seed shifts the collision times (±0.5 s) and draws the severities. The collision percept comes from the
-detector (`sensing.collision`) fed with the simulated servo data, its reference learned from three minutes of
+detector (`proprioception.collision`) fed with the simulated servo data, its reference learned from three minutes of
 simulated free walking (seed 1000, never a test seed).
 
 With vision, augmented MCL's injection is off unless `--injection` is given: the figures then show what the
@@ -62,7 +62,7 @@ from mcl.estimate import belief_log_density, credible_region_contains
 from motion_models import AdaptiveMotion, MotionInput, VelocityLinear
 from motion_models.adaptive import STATES, MobilityTransitions
 from sensing import LandmarkSensorModel
-from sensing.collision import CollisionDetector, CollisionReference, detect, learn_reference
+from proprioception.collision import CollisionDetector, CollisionReference, detect, learn_reference
 
 from .collision_sim import (BOTH, JOINTS, LEFT, RIGHT, SIDE_NAMES, SLIPPAGE, STOPPED, CollisionScenario, jitter_events, paper_case,
                             random_collisions, simulate)
@@ -156,7 +156,7 @@ def run_case(case: str, model: str, seed: int, reference: CollisionReference | N
     containment = (not vision) if containment is None else containment
     recorder = None
     if rrd:
-        from mcl.recording import Recorder
+        from mcl.tools.recording import Recorder
         recorder = Recorder(rrd, scenario.field, particles_every=2, blueprint=collision_blueprint())
         _style_series(recorder)
     n = log.times.shape[0]
@@ -227,7 +227,7 @@ def _style_series(recorder) -> None:
 
 
 def collision_blueprint():
-    from mcl.recording import default_blueprint
+    from mcl.tools.recording import default_blueprint
     return default_blueprint((("/entropy", "entropy [bits]"), ("/proprioception", "S_rel (collision when > 1)"),
                               ("/motion/state_belief", "mobility state belief"), ("/error", "error [m, rad]")))
 
@@ -409,7 +409,7 @@ def case_summary(runs: list[dict]) -> dict:
 
 def predict_cost(particles: int = 1000, steps: int = 2000, repeats: int = 5) -> dict:
     """Time per predict step at N particles, adaptive versus velocity-linear, interleaved in the same run."""
-    from sensing.collision import CollisionPercept
+    from proprioception.collision import CollisionPercept
     percept = CollisionPercept(left=True, s_rel_left=2.0, rate=0.3, recent_left=True)
     u = MotionInput(dt=0.01, command=(0.2, 0.0, 0.0), collision=percept)
     models = {"velocity-linear": VelocityLinear(), "adaptive": AdaptiveMotion()}
@@ -436,7 +436,7 @@ def predict_cost(particles: int = 1000, steps: int = 2000, repeats: int = 5) -> 
 def run_cases(cases, models, seeds, reference, particles, vision, injection: bool = False,
               progress: bool = False) -> dict:
     """Every case with every model over `seeds` (progress: a bar over the runs on stderr)."""
-    from mcl.cli_checks import progress_bar
+    from mcl.tools.cli_checks import progress_bar
 
     out = {}
     bar = progress_bar(enabled=progress, total=len(cases) * len(models) * len(seeds), desc="collision", unit="run")
@@ -505,7 +505,7 @@ def tune_baseline(seeds, cases=("single", "double"), widenings=WIDENINGS, partic
     """Velocity-linear's widening on training robots (mismatched physics): per factor, the median share of
     steps with the truth inside the 95 % region (no vision) and the median position RMSE from the collision on
     (vision, augmented MCL's injection on), both at `particles`; the best factor for each."""
-    from mcl.cli_checks import progress_bar
+    from mcl.tools.cli_checks import progress_bar
 
     bar = progress_bar(enabled=progress, total=2 * len(widenings) * len(cases) * len(seeds), desc="tuning",
                        unit="run")
@@ -545,7 +545,7 @@ def mismatch_table(seeds, cases=("single", "double"), particles: int = 100, coun
     velocity-linear at its best widening; then, with vision and injection on, the median position RMSE from the
     collision on at each particle count for the adaptive model, the pivot variant and the best velocity-linear,
     and the smallest count at which velocity-linear is as accurate as the adaptive model at each count."""
-    from mcl.cli_checks import progress_bar
+    from mcl.tools.cli_checks import progress_bar
 
     counts = SWEEP_PARTICLES if counts is None else counts
     baselines = dict.fromkeys((BASELINE_WIDEN["containment"], BASELINE_WIDEN["log_score"]))   # once each
@@ -738,7 +738,7 @@ PROG = "robocup-mcl demo collision"
 
 def build_parser(prog: str = PROG) -> argparse.ArgumentParser:
     """The command's argument parser, named `prog` in its usage line."""
-    from mcl.cli_checks import add_progress_option, add_save_option, description
+    from mcl.tools.cli_checks import add_progress_option, add_save_option, description
 
     parser = argparse.ArgumentParser(prog=prog, description=description(__doc__))
     parser.add_argument("--case", choices=CASES + ("all",), default="all",
@@ -777,7 +777,7 @@ def build_parser(prog: str = PROG) -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None, prog: str = PROG) -> int:
     """`robocup-mcl demo collision` (see --help); returns the exit status."""
-    from mcl.cli_checks import progress_wanted
+    from mcl.tools.cli_checks import progress_wanted
 
     parser = build_parser(prog)
     args = parser.parse_args(argv)
@@ -792,7 +792,7 @@ def main(argv: list[str] | None = None, prog: str = PROG) -> int:
         parser.error(f"--particles {particles} must be > 0")
     if args.rrd and (len(seeds) > 1 or len(cases) > 1 or len(models) > 1):
         parser.error("--rrd records one run: give --case, --model (not both) and --seed")
-    from mcl.cli_checks import check_output_file, save_json
+    from mcl.tools.cli_checks import check_output_file, save_json
     check_output_file(args.rrd, "--rrd")          # before the run, not after it
     check_output_file(args.save, "--save")
     reference = free_walk_reference()

@@ -65,7 +65,7 @@ from dataclasses import replace
 import numpy as np
 
 from field.angles import wrap_angles
-from sensing.collision import detect
+from proprioception.collision import detect
 
 from .collision_sim import (FREE, HINDRANCE, MODE_NAMES, PUSHED, SLIPPAGE, STOPPED, CollisionLog, CollisionScenario,
                             random_collisions, simulate)
@@ -261,7 +261,7 @@ def fit_betas(rates: dict, coverage: float = 0.95) -> dict[str, float]:
 def fit(seeds, minutes: float = 3.0, coverage: float = 0.95, progress: bool = False,
         horizon: float = HORIZON) -> dict:
     """Record the training logs of `seeds`, pool their episodes, fit; the JSON of the command."""
-    from mcl.cli_checks import progress_bar
+    from mcl.tools.cli_checks import progress_bar
 
     if not (math.isfinite(minutes) and minutes > 0):
         raise ValueError(f"minutes = {minutes!r} must be > 0")
@@ -310,7 +310,7 @@ PROG = "robocup-mcl fit adaptive"
 
 def build_parser(prog: str = PROG) -> argparse.ArgumentParser:
     """The command's argument parser, named `prog` in its usage line."""
-    from mcl.cli_checks import add_progress_option, add_save_option, description
+    from mcl.tools.cli_checks import add_progress_option, add_save_option, description
 
     parser = argparse.ArgumentParser(prog=prog, description=description(__doc__))
     parser.add_argument("--seeds", default=TRAINING_SEEDS,
@@ -329,7 +329,7 @@ def build_parser(prog: str = PROG) -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None, prog: str = PROG) -> int:
     """`robocup-mcl fit adaptive` (see --help); returns the exit status."""
-    from mcl.cli_checks import check_output_file, progress_wanted, save_and_print
+    from mcl.tools.cli_checks import check_output_file, progress_wanted, save_and_print
 
     parser = build_parser(prog)
     args = parser.parse_args(argv)

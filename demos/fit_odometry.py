@@ -88,7 +88,7 @@ def fit(surfaces=SURFACE_NAMES, robots=TRAIN_ROBOTS, seed: int = 0, progress: bo
         duration: float = 300.0) -> dict:
     """The search of the module docstring; returns the fitted settings, the fixed ones, every candidate's score
     and the baseline's choice per input set."""
-    from mcl.cli_checks import progress_bar
+    from mcl.tools.cli_checks import progress_bar
     logs = training_logs(surfaces, robots, duration=duration)
     base = LWPRSettings()
     candidates = []
@@ -162,7 +162,7 @@ def build_parser(prog: str = PROG) -> argparse.ArgumentParser:
     argparse.ArgumentParser
         The parser.
     """
-    from mcl.cli_checks import add_progress_option, add_save_option, description
+    from mcl.tools.cli_checks import add_progress_option, add_save_option, description
 
     parser = argparse.ArgumentParser(prog=prog, description=description(__doc__))
     parser.add_argument("--seed", type=int, default=0, help="seed of the LWPR training passes (default 0)")
@@ -187,7 +187,7 @@ def main(argv: list[str] | None = None, prog: str = PROG) -> int:
     int
         The exit status (0).
     """
-    from mcl.cli_checks import check_output_file, progress_wanted, save_and_print
+    from mcl.tools.cli_checks import check_output_file, progress_wanted, save_and_print
     parser = build_parser(prog)
     args = parser.parse_args(argv)
     check_output_file(args.save, "--save")

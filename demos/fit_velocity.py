@@ -148,7 +148,7 @@ def fit_noise(runs: list[BipedRun]) -> dict:
 
 def training_walks(seeds, duration: float, progress: bool = False) -> list[BipedRun]:
     """The training walks: straight, twist and slip on, robots drawn with `RobotVariation()`."""
-    from mcl.cli_checks import progress_bar
+    from mcl.tools.cli_checks import progress_bar
 
     runs = []
     for seed in progress_bar(list(seeds), enabled=progress, desc="training walks", unit="walk"):
@@ -192,7 +192,7 @@ PROG = "robocup-mcl fit ekf"
 
 def build_parser(prog: str = PROG) -> argparse.ArgumentParser:
     """The command's argument parser, named `prog` in its usage line."""
-    from mcl.cli_checks import add_progress_option, add_save_option, description
+    from mcl.tools.cli_checks import add_progress_option, add_save_option, description
 
     parser = argparse.ArgumentParser(prog=prog, description=description(__doc__))
     parser.add_argument("--json", action="store_true", help="print the fit as JSON")
@@ -209,7 +209,7 @@ def main(argv: list[str] | None = None, prog: str = PROG) -> int:
     """`robocup-mcl fit ekf` (see --help); returns the exit status."""
     parser = build_parser(prog)
     args = parser.parse_args(argv)
-    from mcl.cli_checks import check_output_file, progress_wanted, save_and_print
+    from mcl.tools.cli_checks import check_output_file, progress_wanted, save_and_print
     check_output_file(args.save, "--save")
     if not 1 <= args.seeds <= len(TRAINING_SEEDS):
         parser.error(f"--seeds must be within 1-{len(TRAINING_SEEDS)}, got {args.seeds}")

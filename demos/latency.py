@@ -20,7 +20,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from mcl.replay import replay
+from mcl.tools.replay import replay
 
 from .walk import parse_seeds
 from .walk_log import to_robot_log
@@ -55,7 +55,7 @@ PROG = "robocup-mcl demo latency"
 
 def build_parser(prog: str = PROG) -> argparse.ArgumentParser:
     """The command's argument parser, named `prog` in its usage line."""
-    from mcl.cli_checks import add_progress_option, add_save_option, description
+    from mcl.tools.cli_checks import add_progress_option, add_save_option, description
 
     parser = argparse.ArgumentParser(prog=prog, description=description(__doc__))
     parser.add_argument("--latency", type=float, default=0.08, help="camera latency [s] (default 0.08)")
@@ -70,13 +70,13 @@ def build_parser(prog: str = PROG) -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None, prog: str = PROG) -> int:
     """`robocup-mcl demo latency` (see --help); returns the exit status."""
-    from mcl.cli_checks import progress_bar, progress_wanted
+    from mcl.tools.cli_checks import progress_bar, progress_wanted
 
     from .walk import warm_up_walk
 
     parser = build_parser(prog)
     args = parser.parse_args(argv)
-    from mcl.cli_checks import check_output_file, save_json
+    from mcl.tools.cli_checks import check_output_file, save_json
     check_output_file(args.save, "--save")
     if not (math.isfinite(args.latency) and 0 <= args.latency <= 1.0):
         parser.error(f"--latency {args.latency} must be within [0, 1] s")

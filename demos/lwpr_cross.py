@@ -158,7 +158,7 @@ PROG = "robocup-mcl bench lwpr"
 
 def build_parser(prog: str = PROG) -> argparse.ArgumentParser:
     """The command's argument parser, named `prog` in its usage line."""
-    from mcl.cli_checks import add_progress_option, add_save_option, description
+    from mcl.tools.cli_checks import add_progress_option, add_save_option, description
 
     parser = argparse.ArgumentParser(prog=prog, description=description(__doc__))
     parser.add_argument("--seeds", type=int, default=10, help="number of seeds (default 10)")
@@ -184,11 +184,11 @@ def warm_up_lwpr(progress: bool = False):
 
 def main(argv: list[str] | None = None, prog: str = PROG) -> int:
     """`robocup-mcl bench lwpr` (see --help); returns the exit status."""
-    from mcl.cli_checks import progress_bar, progress_wanted
+    from mcl.tools.cli_checks import progress_bar, progress_wanted
 
     parser = build_parser(prog)
     args = parser.parse_args(argv)
-    from mcl.cli_checks import check_output_file, save_json
+    from mcl.tools.cli_checks import check_output_file, save_json
     check_output_file(args.save, "--save")
     if args.seeds < 1:
         parser.error(f"--seeds must be at least 1, got {args.seeds}")

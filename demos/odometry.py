@@ -424,7 +424,7 @@ def mismatch(surfaces=("carpet", "grass"), spreads=SPREADS, settings: LWPRSettin
     """The robustness table: on held-out robots (`TEST_ROBOTS`), drift after 10 s of the raw odometry, the
     linear baseline and LWPR, learned on the test robot's own first log ("own") or on the training robots
     ("fleet"), at each robot and run parameter spread (0: the nominal simulator) and surface."""
-    from mcl.cli_checks import progress_bar
+    from mcl.tools.cli_checks import progress_bar
     baseline = BASELINE if baseline is None else baseline
     rows = []
     cells = [(s, x) for s in surfaces for x in spreads]
@@ -558,7 +558,7 @@ def _spread(text: str) -> tuple[float, float]:
 
 def build_parser(prog: str = PROG) -> argparse.ArgumentParser:
     """The command's argument parser, named `prog` in its usage line."""
-    from mcl.cli_checks import add_progress_option, description
+    from mcl.tools.cli_checks import add_progress_option, description
 
     parser = argparse.ArgumentParser(prog=prog, description=description(__doc__))
     parser.add_argument("--surface", choices=("carpet", "grass", "both"), default="both",
@@ -589,11 +589,11 @@ def main(argv: list[str] | None = None, prog: str = PROG) -> int:
     """`robocup-mcl demo odometry` (see --help); returns the exit status."""
     parser = build_parser(prog)
     args = parser.parse_args(argv)
-    from mcl.cli_checks import check_input_file, check_output_directory, check_output_file, save_and_print
+    from mcl.tools.cli_checks import check_input_file, check_output_directory, check_output_file, save_and_print
     if args.mismatch:
         if args.train or args.record or args.curve or args.filter:
             parser.error("--mismatch goes alone (with --surface, --spreads, --seed, --json, --save)")
-        from mcl.cli_checks import progress_wanted
+        from mcl.tools.cli_checks import progress_wanted
         check_output_file(args.save, "--save")
         surfaces = ("carpet", "grass") if args.surface == "both" else (args.surface,)
         result = mismatch(surfaces, tuple(args.spreads), seed=args.seed, progress=progress_wanted(args))
@@ -627,7 +627,7 @@ def main(argv: list[str] | None = None, prog: str = PROG) -> int:
     if args.filter_runs < 1:
         parser.error(f"--filter-runs {args.filter_runs} must be >= 1")
     surfaces = ["carpet", "grass"] if args.surface == "both" else [args.surface]
-    from mcl.cli_checks import progress_bar, progress_wanted
+    from mcl.tools.cli_checks import progress_bar, progress_wanted
     from .lwpr_cross import warm_up_lwpr
     warm = warm_up_lwpr(progress_wanted(args))          # a machine's first run says it compiles LWPR's kernels
     started = time.perf_counter()

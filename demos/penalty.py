@@ -23,7 +23,7 @@ from dataclasses import replace
 import numpy as np
 
 from field.angles import wrap_angles
-from mcl.replay import replay
+from mcl.tools.replay import replay
 
 from .walk import parse_seeds, settle_time
 from .walk_log import to_robot_log
@@ -86,7 +86,7 @@ PROG = "robocup-mcl demo penalty"
 
 def build_parser(prog: str = PROG) -> argparse.ArgumentParser:
     """The command's argument parser, named `prog` in its usage line."""
-    from mcl.cli_checks import add_progress_option, add_save_option, description
+    from mcl.tools.cli_checks import add_progress_option, add_save_option, description
 
     parser = argparse.ArgumentParser(prog=prog, description=description(__doc__))
     parser.add_argument("--seeds", default="0-19", help='seeds: "0-19", "3" or "1,4,7" (default 0-19)')
@@ -101,13 +101,13 @@ def build_parser(prog: str = PROG) -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None, prog: str = PROG) -> int:
     """`robocup-mcl demo penalty` (see --help); returns the exit status."""
-    from mcl.cli_checks import progress_bar, progress_wanted
+    from mcl.tools.cli_checks import progress_bar, progress_wanted
 
     from .walk import warm_up_walk
 
     parser = build_parser(prog)
     args = parser.parse_args(argv)
-    from mcl.cli_checks import check_duration, check_output_file, save_json
+    from mcl.tools.cli_checks import check_duration, check_output_file, save_json
     check_output_file(args.save, "--save")
     if args.particles <= 0:
         parser.error(f"--particles {args.particles} must be > 0")

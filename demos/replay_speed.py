@@ -6,7 +6,7 @@ Simulates the walk scenario for `--minutes` at 100 Hz (motion) and 30 Hz (camera
 a ROS 2 MCAP file, and times `robocup-mcl replay`'s work on it: reading the file, and replaying it through the
 filter, once without and once with a Rerun recording (particles logged every 5th step). Real-time factor =
 log seconds / wall seconds of reading plus replaying. The filter's kernels are warmed up first
-(`mcl.replay.warm_up_replay`), so no timing counts their compilation; the warm-up's time is reported apart.
+(`mcl.tools.replay.warm_up_replay`), so no timing counts their compilation; the warm-up's time is reported apart.
 """
 from __future__ import annotations
 
@@ -18,8 +18,8 @@ import time
 from dataclasses import replace
 from pathlib import Path
 
-from mcl.logs import read_log, write_log
-from mcl.replay import replay
+from mcl.tools.logs import read_log, write_log
+from mcl.tools.replay import replay
 
 from .walk_log import to_robot_log
 from .walk_sim import WalkScenario, simulate
@@ -28,7 +28,7 @@ from .walk_sim import WalkScenario, simulate
 def measure(minutes: float, particles: int, seed: int = 0, progress: bool = False) -> dict:
     """Write the log, warm the kernels up, and time reading and replaying it without and with a recording
     (progress: the replay's bar on stderr)."""
-    from mcl.replay import warm_up_replay
+    from mcl.tools.replay import warm_up_replay
 
     scenario = replace(WalkScenario(), duration=60.0 * minutes, kidnap_time=None)
     with tempfile.TemporaryDirectory() as folder:
@@ -56,7 +56,7 @@ PROG = "robocup-mcl bench replay"
 
 def build_parser(prog: str = PROG) -> argparse.ArgumentParser:
     """The command's argument parser, named `prog` in its usage line."""
-    from mcl.cli_checks import add_progress_option, add_save_option, description
+    from mcl.tools.cli_checks import add_progress_option, add_save_option, description
 
     parser = argparse.ArgumentParser(prog=prog, description=description(__doc__))
     parser.add_argument("--minutes", type=float, default=10.0, help="minutes of simulated log (default 10)")
@@ -69,11 +69,11 @@ def build_parser(prog: str = PROG) -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None, prog: str = PROG) -> int:
     """`robocup-mcl bench replay` (see --help); returns the exit status."""
-    from mcl.cli_checks import progress_wanted
+    from mcl.tools.cli_checks import progress_wanted
 
     parser = build_parser(prog)
     args = parser.parse_args(argv)
-    from mcl.cli_checks import check_output_file, save_json
+    from mcl.tools.cli_checks import check_output_file, save_json
     check_output_file(args.save, "--save")
     if not (args.minutes > 0 and args.particles > 0):
         parser.error("--minutes and --particles must be > 0")

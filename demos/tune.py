@@ -6,15 +6,15 @@
                      [--field spl|FILE] [--particles 500] [--topic-odometry T ...] [--json] [--save PATH]
     robocup-mcl tune --battery K --space SPACE.toml --trials N ...   # the evaluation battery's scenarios
 
-The command over the library `mcl.tuning`. Searches the settings a space file names (`mcl.tuning.space`) for the ones that localize the training logs
+The command over the library `mcl.tools.tuning`. Searches the settings a space file names (`mcl.tools.tuning.space`) for the ones that localize the training logs
 best, and writes them as a profile (`--out`, `mcl.profile`) that `Localizer.from_profile`, `robocup-mcl replay
---profile` and `robocup-mcl eval --profile` load. Objectives (`mcl.tuning.objective`): "truth" (the battery's
+--profile` and `robocup-mcl eval --profile` load. Objectives (`mcl.tools.tuning.objective`): "truth" (the battery's
 figures; needs ground truth in every log) or "evidence" (the log evidence of the detections; needs none);
 "auto" (the default) takes truth when every training log has it. `--battery K` tunes on the battery's
 training seeds 0..K-1 of every family (`--families`, `demos.battery.BatteryCase`) and reports on its held-out seeds 1000..1000+H-1
 (`--battery-holdout H`, default 10).
 
-The study (`mcl.tuning.search`): Optuna, TPE by default, kept in `--study FILE` (a journal) so that an
+The study (`mcl.tools.tuning.search`): Optuna, TPE by default, kept in `--study FILE` (a journal) so that an
 interrupted run resumes where it stopped; the same `--seed` gives the same study. Each trial runs every
 training log × filter seed (`--seeds`) as a Ray task: on an embedded local Ray with `--workers` CPUs (default:
 the machine's), or with `--address` on an existing cluster (`ray start --head` prints its address).
@@ -33,8 +33,8 @@ PROG = "robocup-mcl tune"
 
 def build_parser(prog: str = PROG) -> argparse.ArgumentParser:
     """The command's argument parser, named `prog` in its usage line."""
-    from mcl.cli_checks import add_progress_option, add_save_option, description, positive_int
-    from mcl.replay import add_topic_options
+    from mcl.tools.cli_checks import add_progress_option, add_save_option, description, positive_int
+    from mcl.tools.replay import add_topic_options
 
     parser = argparse.ArgumentParser(prog=prog, description=description(__doc__))
     parser.add_argument("logs", nargs="*", metavar="LOG", help="training logs (MCAP, .npz or a CSV folder)")
@@ -75,11 +75,11 @@ def build_parser(prog: str = PROG) -> argparse.ArgumentParser:
 def _cases(parser, args):
     """(training cases, held-out cases, whether every training case has truth); logs are read here, so a
     missing or unreadable log is refused before Ray starts."""
-    from mcl.logs import read_log
-    from mcl.replay import check_inputs, topics_from_args
-    from mcl.tuning import LogCase
+    from mcl.tools.logs import read_log
+    from mcl.tools.replay import check_inputs, topics_from_args
+    from mcl.tools.tuning import LogCase
 
-    from mcl.cli_checks import check_duration
+    from mcl.tools.cli_checks import check_duration
 
     from .battery import FAMILIES, BatteryCase, parse_families, split_seeds
 
@@ -115,7 +115,7 @@ def _cases(parser, args):
 def _warm_up(cases, field: str, progress: bool) -> None:
     """Compile (or load) the kernels once in this process, so that the workers load them from numba's cache
     instead of each compiling them."""
-    from mcl.tuning import LogCase
+    from mcl.tools.tuning import LogCase
 
     case = cases[0]
     if not isinstance(case, LogCase):
@@ -125,8 +125,8 @@ def _warm_up(cases, field: str, progress: bool) -> None:
         warm_up_walk(WalkScenario(), "velocity-linear", progress=progress)
         return
     from field.io import field_by_name_or_path
-    from mcl.logs import read_log
-    from mcl.replay import warm_up_replay
+    from mcl.tools.logs import read_log
+    from mcl.tools.replay import warm_up_replay
 
     warm_up_replay(read_log(case.path, topics=case.topics)[0], field_by_name_or_path(field), "velocity-linear",
                    progress=progress)
@@ -136,9 +136,9 @@ def run(args, parser) -> dict:
     """Run the command as parsed (see the module docstring); returns the JSON-ready result."""
     import ray
 
-    from mcl.cli_checks import progress_bar, progress_wanted
-    from mcl.tuning import SearchSpace, TuneSettings, start_ray, tune
-    from mcl.tuning.search import check_address
+    from mcl.tools.cli_checks import progress_bar, progress_wanted
+    from mcl.tools.tuning import SearchSpace, TuneSettings, start_ray, tune
+    from mcl.tools.tuning.search import check_address
 
     try:
         space = SearchSpace.load(args.space)
@@ -184,7 +184,7 @@ def run(args, parser) -> dict:
 
 def main(argv: list[str] | None = None, prog: str = PROG) -> int:
     """The command line (see the module docstring); exit 2 on bad arguments, 1 on errors (one line)."""
-    from mcl.cli_checks import check_output_file, save_and_print
+    from mcl.tools.cli_checks import check_output_file, save_and_print
     from mcl.profile import Profile
 
     parser = build_parser(prog)
@@ -192,7 +192,7 @@ def main(argv: list[str] | None = None, prog: str = PROG) -> int:
     import importlib.util
 
     if importlib.util.find_spec("ray") is None or importlib.util.find_spec("optuna") is None:
-        from mcl.cli_checks import CommandError
+        from mcl.tools.cli_checks import CommandError
         raise CommandError("tune needs Ray and Optuna: pip install 'robocup-mcl[tune]'")
     check_output_file(args.save, "--save")
     check_output_file(args.out, "--out")
@@ -205,9 +205,9 @@ def main(argv: list[str] | None = None, prog: str = PROG) -> int:
             f"search space: {args.space}"])
         result["profile"] = args.out
     if args.plots:
-        from mcl.tuning.report import plot
+        from mcl.tools.tuning.report import plot
         result["plots"] = plot(result, args.plots)
-    from mcl.tuning.report import format_report
+    from mcl.tools.tuning.report import format_report
 
     def printer(r: dict) -> None:
         print(format_report(r))

@@ -33,7 +33,7 @@ Figures printed (all measured in this run, nothing fixed in advance), on robots 
    the error of each EKF's gyro bias at the start and at the end of that run.
 4. Time per EKF prediction and correction, numba kernel against the numpy reference, replaying the inputs of
    the run of figure 1, with the largest difference between the two state sequences.
-5. The EKF as odometry for the particle filter (`sensing.velocity_odometry`): the "ekf+bias" filter's velocity,
+5. The EKF as odometry for the particle filter (`proprioception.velocity_odometry`): the "ekf+bias" filter's velocity,
    levelled with its gravity estimate, and its bias-corrected gyro, summed over each filter step, against the
    commanded velocity. The walk (straight and turning, `--seeds` seeds) is placed on an SPL field
    (`PLACEMENTS`), the walk scenario's landmark camera (`demos.walk_sim`, its noise settings) gives a frame at
@@ -76,11 +76,11 @@ from field.angles import wrap_angles
 from mcl import ParticleFilter
 from motion_models import MotionInput, VelocityLinear
 from sensing import LandmarkSensorModel, Observations
-from sensing.kinematics import nao_leg
-from sensing.velocity import (ImuOnlyEstimator, LegOdometry, VelocityEKF, VelocityEKFParams, ekf_bias_predict_kernel,
+from proprioception.kinematics import nao_leg
+from proprioception.velocity import (ImuOnlyEstimator, LegOdometry, VelocityEKF, VelocityEKFParams, ekf_bias_predict_kernel,
                               ekf_bias_predict_reference, ekf_correct_kernel, ekf_correct_reference,
                               ekf_predict_kernel, ekf_predict_reference, tilt_error)
-from sensing.velocity_odometry import EKFOdometry, compose_increments
+from proprioception.velocity_odometry import EKFOdometry, compose_increments
 
 EKF_VARIANTS = ("ekf", "ekf zeroed", "ekf+bias")
 """The filters compared: the paper's exactly as written, and the project's two variants (see `VARIANT_SETTINGS`)."""
@@ -480,7 +480,7 @@ def odometry_run(run: BipedRun, seed: int, walk: str, particles: int = 500, reco
     start pose with `RESET_SIGMA`) on the same frames; and again with a sparse camera, which keeps one frame in
     `SPARSE_CAMERA_EVERY` (the rest empty). Dead reckoning chains the source's pose changes from the true
     start pose (the motion model's mean, no camera). Errors are taken at every filter step, against the
-    trunk's pose. With a `mcl.recording.Recorder`, the EKF odometry filter with the full camera is logged by
+    trunk's pose. With a `mcl.tools.recording.Recorder`, the EKF odometry filter with the full camera is logged by
     `log_step` and the command filters' estimates beside it. `params`: the EKF's (default: the fitted
     `ODOMETRY_EKF`).
     """
@@ -563,7 +563,7 @@ OTHER_SOURCES = {"command": ("robot/estimate_command", (60, 140, 255)),
 
 
 def velocity_blueprint():
-    from mcl.recording import default_blueprint
+    from mcl.tools.recording import default_blueprint
 
     return default_blueprint(((f"/{FORWARD_VELOCITY}", "forward velocity [m/s] (paper, Fig. 3)"),
                               ("/error", "error [m, rad]"), ("/entropy", "entropy [bits]")))
@@ -626,7 +626,7 @@ def write_recording(path: str, run: BipedRun, result: dict, seed: int, walk: str
                     params: VelocityEKFParams | None = None) -> dict:
     """The .rrd of `--rrd`: Fig. 3's velocities of `run` and the filters on the same walk; returns figure 5's
     numbers for that walk (the same as without a recording). `params`: the odometry EKF's (`odometry_run`)."""
-    from mcl.recording import Recorder
+    from mcl.tools.recording import Recorder
 
     recorder = Recorder(path, WalkScenario().field, particles_every=5, blueprint=velocity_blueprint())
     try:
@@ -775,7 +775,7 @@ def build_report(seed: int, duration: float, twist: bool, slip: bool, n_seeds: i
     """Every figure, from fresh simulations; with `rrd`, the recording of figures 1 and 5's straight walk.
     progress: a bar on stderr over the simulated walks and the figures. fit: the noise settings (default:
     `load_fit()`); variation: the simulated robots' ranges (default: `RobotVariation()`, links ±5 %)."""
-    from mcl.cli_checks import progress_bar
+    from mcl.tools.cli_checks import progress_bar
 
     fit = load_fit() if fit is None else fit
     variation = RobotVariation() if variation is None else variation
@@ -895,7 +895,7 @@ def mismatch_table(seeds: list[int], duration: float = 28.0, fit: dict | None = 
                    levels=MISMATCH_LEVELS, progress: bool = False) -> dict:
     """Average-forward-velocity error (%) of every estimator over straight walks of `seeds` (twist and slip on),
     for each column of `levels` (name, link error or None), with the fitted noise settings `fit`."""
-    from mcl.cli_checks import progress_bar
+    from mcl.tools.cli_checks import progress_bar
 
     fit = load_fit() if fit is None else fit
     params = default_variants(fit)
@@ -967,7 +967,7 @@ PROG = "robocup-mcl demo velocity"
 
 def build_parser(prog: str = PROG) -> argparse.ArgumentParser:
     """The command's argument parser, named `prog` in its usage line."""
-    from mcl.cli_checks import add_progress_option, add_save_option, description
+    from mcl.tools.cli_checks import add_progress_option, add_save_option, description
 
     parser = argparse.ArgumentParser(prog=prog, description=description(__doc__))
     parser.add_argument("--json", action="store_true", help="print the figures as JSON")
@@ -1004,7 +1004,7 @@ def main(argv: list[str] | None = None, prog: str = PROG) -> int:
     """`robocup-mcl demo velocity` (see --help); returns the exit status."""
     parser = build_parser(prog)
     args = parser.parse_args(argv)
-    from mcl.cli_checks import check_input_file, check_output_file, progress_wanted, save_and_print
+    from mcl.tools.cli_checks import check_input_file, check_output_file, progress_wanted, save_and_print
     check_output_file(args.save, "--save")
     if args.seeds < 1:
         parser.error(f"--seeds must be at least 1, got {args.seeds}")

@@ -11,7 +11,7 @@ rate, all drawn per run from the battery's ranges), with these drawn parameters 
 - the detections' noise is `noise` times the library's default landmark model (`sensing.LandmarkSensorModel`:
   range σ = a + c·r² with its a and c, bearing σ its bearing_sigma), read from the library at run time.
 So with the defaults (1.2 and 1.2) the venue is 20 % off the defaults in both. The logs are written with
-`mcl.logs.write_log` (columnar .npz) and carry the truth, which `robocup-mcl tune --objective evidence` does
+`mcl.tools.logs.write_log` (columnar .npz) and carry the truth, which `robocup-mcl tune --objective evidence` does
 not read; the report uses it to say how far off each profile is. Log i (venue-00i.npz) is the battery's run of
 seed first + 3·i: with `--first` a multiple of 3 every log is on the SPL field (a venue has one field).
 """
@@ -39,8 +39,8 @@ def venue_overrides(scale: float, noise: float) -> dict:
 def write_venue(out: str, logs: int = 12, first: int = 0, duration: float = 60.0, scale: float = 1.2,
                 noise: float = 1.2, progress: bool = False) -> dict:
     """Write the venue's logs to the folder `out`; returns {"files", "overrides", "fields"}."""
-    from mcl.cli_checks import progress_bar
-    from mcl.logs import write_log
+    from mcl.tools.cli_checks import progress_bar
+    from mcl.tools.logs import write_log
 
     from .battery_sim import as_robot_log, simulate
 
@@ -63,7 +63,7 @@ def write_venue(out: str, logs: int = 12, first: int = 0, duration: float = 60.0
 
 def build_parser(prog: str = PROG) -> argparse.ArgumentParser:
     """The command's argument parser, named `prog` in its usage line."""
-    from mcl.cli_checks import add_progress_option, add_save_option, description, positive_int
+    from mcl.tools.cli_checks import add_progress_option, add_save_option, description, positive_int
 
     parser = argparse.ArgumentParser(prog=prog, description=description(__doc__))
     parser.add_argument("--out", required=True, metavar="DIR", help="the folder to write the logs to")
@@ -81,7 +81,7 @@ def build_parser(prog: str = PROG) -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None, prog: str = PROG) -> int:
     """The command line (see the module docstring)."""
-    from mcl.cli_checks import (check_duration, check_output_directory, check_output_file, progress_wanted,
+    from mcl.tools.cli_checks import (check_duration, check_output_directory, check_output_file, progress_wanted,
                                 save_and_print)
 
     parser = build_parser(prog)

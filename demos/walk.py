@@ -104,16 +104,16 @@ def run_walk(model: str = "velocity-linear", particles: int = 500, seed: int = 0
     scenario's field of view and ranges), so the landmark model also scores what should have been seen.
 
     With `series`, the result also holds "series": times, truth, estimates and entropy per step (arrays).
-    With `progress`, a bar over the steps on stderr (`mcl.cli_checks.progress_bar`). The result's
+    With `progress`, a bar over the steps on stderr (`mcl.tools.cli_checks.progress_bar`). The result's
     "first_step_at" is the `time.perf_counter()` reading when the first step was done.
     """
-    from mcl.cli_checks import progress_bar
+    from mcl.tools.cli_checks import progress_bar
 
     log = simulate(scenario, seed)
     pf = walk_filter(scenario, model, particles, seed, sensor)
     recorder = None
     if rrd:
-        from mcl.recording import Recorder
+        from mcl.tools.recording import Recorder
         recorder = Recorder(rrd, scenario.field, particles_every=record_every)
     n = log.times.shape[0]
     estimates = np.empty((n, 3))
@@ -257,7 +257,7 @@ PROG = "robocup-mcl demo walk"
 
 def build_parser(prog: str = PROG) -> argparse.ArgumentParser:
     """The command's argument parser, named `prog` in its usage line."""
-    from mcl.cli_checks import add_progress_option, description
+    from mcl.tools.cli_checks import add_progress_option, description
 
     parser = argparse.ArgumentParser(prog=prog, description=description(__doc__))
     parser.add_argument("--model", choices=sorted(MODELS), default="velocity-linear",
@@ -292,7 +292,7 @@ def main(argv: list[str] | None = None, prog: str = PROG) -> int:
         parser.error(f"--seeds {args.seeds!r}: give seeds as 3, 0-9 or 1,4,7")
     if args.rrd and len(seeds) > 1:
         parser.error("--rrd records one run: give --seed, not --seeds")
-    from mcl.cli_checks import check_output_file, progress_wanted, save_json
+    from mcl.tools.cli_checks import check_output_file, progress_wanted, save_json
     check_output_file(args.rrd, "--rrd")          # before the run, not after it
     check_output_file(args.save, "--save")
     progress = progress_wanted(args)

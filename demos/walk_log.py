@@ -7,14 +7,14 @@
     # log.commands at the start of each 10 ms step, log.vision with stamp = capture and received = capture
     # + latency, log.truth at the end of each step (and the start pose at t = 0)
 
-`mcl.logs.mcap_io.write_mcap(log, "walk.mcap")` turns it into a ROS 2 MCAP file that `robocup-mcl replay`
+`mcl.tools.logs.mcap_io.write_mcap(log, "walk.mcap")` turns it into a ROS 2 MCAP file that `robocup-mcl replay`
 reads like any robot's log.
 """
 from __future__ import annotations
 
 import numpy as np
 
-from mcl.logs import RobotLog, VisionFrame
+from mcl.tools.logs import RobotLog, VisionFrame
 
 from .walk_sim import WalkLog
 

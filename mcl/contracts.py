@@ -29,7 +29,7 @@ The bounded-noise fast path also needs the model's `predict` to be exactly that 
 subclassing `motion_models.base.BoundedNoiseModel` without overriding `predict` or `check` (its `predict` is
 the kernels' motion, so the two paths agree bit for bit). `capabilities(model)` says what a model offers and
 `fast_path(motion_model, sensor_model)` whether a filter with them takes the fused step;
-`mcl.testing.check_motion_model` and `check_sensor_model` check a model against its contract.
+`mcl.tools.testing.check_motion_model` and `check_sensor_model` check a model against its contract.
 """
 from __future__ import annotations
 

@@ -361,7 +361,7 @@ class Localizer:
         The sum over the frames used so far of the frame's log evidence: the filter's
         `frame_log_likelihood` plus the sensor model's `log_normalizer` (when it has one; else in the model's
         own units). The standard particle-filter estimate of log p(detections | settings), which compares
-        settings on logs without ground truth (`mcl.tuning`); -inf once a frame explains nothing.
+        settings on logs without ground truth (`mcl.tools.tuning`); -inf once a frame explains nothing.
     evidence_frames : int
         How many frames it sums.
     """

@@ -6,7 +6,7 @@
     VelocityLinear().predict(poses, u, rng)             # poses (N, 3), updated in place
 
 `AdaptiveMotion` (Hoffmann's five mobility states) also needs `MotionInput.collision`, a
-`motion_models.percepts.CollisionPercept` (which `sensing.collision.CollisionDetector` makes), and keeps a state
+`motion_models.percepts.CollisionPercept` (which `proprioception.collision.CollisionDetector` makes), and keeps a state
 per particle (the filter carries it). `LearnedFootstepOdometry`
 (Rouxel et al.) moves particles at support-foot swaps, from `MotionInput.footstep` (a `FootstepEvent`).
 

@@ -1,7 +1,7 @@
 """`AdaptiveMotion`: Hoffmann's adaptive motion model, five mobility states driven by collision percepts.
 
     from motion_models import AdaptiveMotion, MotionInput
-    from sensing.collision import CollisionDetector, NO_COLLISION
+    from proprioception.collision import CollisionDetector, NO_COLLISION
 
     model = AdaptiveMotion()                                   # documented defaults, see below
     pf = ParticleFilter(field, model, sensor, n_particles=100)  # the filter keeps each particle's state
@@ -360,8 +360,8 @@ class AdaptiveMotion:
             `MAX_ODOMETRY_SPEED`.
         """
         if not isinstance(u.collision, CollisionPercept):
-            raise ValueError(f"AdaptiveMotion needs MotionInput.collision, a sensing.collision.CollisionPercept "
-                             f"(sensing.collision.NO_COLLISION when nothing was detected); got {u.collision!r}")
+            raise ValueError(f"AdaptiveMotion needs MotionInput.collision, a proprioception.collision.CollisionPercept "
+                             f"(proprioception.collision.NO_COLLISION when nothing was detected); got {u.collision!r}")
         u.displacement()
         self._check_speed(u)
 

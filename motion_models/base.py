@@ -59,7 +59,7 @@ class MotionInput:
         Measured pose change (dx [m], dy [m], dtheta [rad]) in the robot frame; None (the default) when not
         measured.
     collision : object, optional
-        A collision percept (`sensing.collision`) for collision-aware models; default None.
+        A collision percept (`proprioception.collision`) for collision-aware models; default None.
     footstep : object, optional
         A support-foot swap event (`motion_models.footsteps.FootstepEvent`) for footstep models; default None.
 

@@ -42,7 +42,7 @@ was; an accepted update runs to completion in one compiled call. The same data i
 
 Implementation: each output's RFs live in preallocated numpy arrays (capacity doubles when full) and the
 update and prediction loops are ``numba.njit(cache=True)`` kernels. The whole model is four flat buffers, so a
-kernel call passes few arguments (numba's dispatch costs about 70 ns per array argument, per call); a model
+kernel call passes few arguments (numba's dispatch costs time per array argument, per call); a model
 pickles and copies as those buffers. ``motion_models.lwpr_reference`` holds a plain-Python
 implementation of the same equations that the tests compare against.
 """

@@ -2,8 +2,8 @@
 
     from motion_models.percepts import CollisionPercept, NO_COLLISION
 
-`sensing.collision.CollisionDetector` produces one per frame from the servos' commands and readings (and
-`sensing.collision` re-exports both names); `MotionInput.collision` carries it to `AdaptiveMotion`. The type
+`proprioception.collision.CollisionDetector` produces one per frame from the servos' commands and readings (and
+`proprioception.collision` re-exports both names); `MotionInput.collision` carries it to `AdaptiveMotion`. The type
 lives with the models that take it, so that the sensing layer depends on the motion models and not the reverse.
 """
 from __future__ import annotations

@@ -28,7 +28,7 @@ The calling convention (every argument is positional; `params` and the frame are
         # model may score to rounding instead of bit for bit when True).
 
 The results must equal `log_likelihood` bit for bit when `fast` is False, since the filter picks either path
-by what the frame needs (`mcl.testing.assert_fused_likelihood` checks it).
+by what the frame needs (`mcl.tools.testing.assert_fused_likelihood` checks it).
 """
 from __future__ import annotations
 

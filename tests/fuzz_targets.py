@@ -23,7 +23,7 @@ from motion_models import AdaptiveMotion, ConstantNoise, MotionInput, VelocityLi
 from sensing import CombinedSensorModel, LandmarkObservation, LandmarkSensorModel, LineSensorModel, Observations
 from sensing.team import BallDetection, TeamMessage
 from sensing.view import CameraView
-from sensing.collision import NO_COLLISION, CollisionPercept
+from proprioception.collision import NO_COLLISION, CollisionPercept
 
 FIELDS = {name: preset(name) for name in ("spl", "kidsize", "adultsize")}
 KIND_NAMES = [kind.name for kind in LandmarkType] + ["L", "T", "X", "goalpost", "penalty_mark", "center_mark",
@@ -471,7 +471,7 @@ def _valid_files() -> dict:
     from field import save_field
     from motion_models.learned_odometry import LearnedFootstepOdometry
     from motion_models.lwpr import LWPR
-    from sensing.collision import CollisionReference
+    from proprioception.collision import CollisionReference
 
     rng = np.random.default_rng(0)
     with tempfile.TemporaryDirectory() as tmp:
@@ -494,7 +494,7 @@ def _valid_files() -> dict:
         with open(os.path.join(tmp, "space.toml"), "w", encoding="utf-8") as handle:
             handle.write('[sensor]\noutlier_weight = { low = 0.001, high = 0.1, log = true }\n'
                          'mixture = { choices = ["max", "sum"] }\n[localizer]\nparticles = { low = 100, high = 900 }\n')
-        from mcl.logs import write_log
+        from mcl.tools.logs import write_log
         log = _small_log()
         write_log(log, os.path.join(tmp, "log.mcap"))
         write_log(log, os.path.join(tmp, "log.npz"))
@@ -511,7 +511,7 @@ def _valid_files() -> dict:
 
 def _small_log():
     """A log with every stream, a few rows each, and two camera frames."""
-    from mcl.logs import RobotLog, VisionFrame
+    from mcl.tools.logs import RobotLog, VisionFrame
 
     t = np.arange(5) * 0.1
     rng = np.random.default_rng(5)
@@ -530,7 +530,7 @@ def _load(name: str, path: str):
     from field import load_field
     from motion_models.learned_odometry import LearnedFootstepOdometry
     from motion_models.lwpr import LWPR
-    from sensing.collision import CollisionDetector, CollisionReference
+    from proprioception.collision import CollisionDetector, CollisionReference
 
     if name.startswith("field"):
         return load_field(path)
@@ -540,11 +540,11 @@ def _load(name: str, path: str):
         profile.localizer_options(FIELDS["spl"])
         return profile
     if name == "space.toml":
-        from mcl.tuning.space import SearchSpace
+        from mcl.tools.tuning.space import SearchSpace
         return SearchSpace.load(path)
     if name.startswith("log") or name.startswith("csv/"):
-        from mcl.logs import read_log
-        from mcl.logs.mcap_io import list_topics
+        from mcl.tools.logs import read_log
+        from mcl.tools.logs.mcap_io import list_topics
         log, report = read_log(path if name.startswith("log") else os.path.dirname(path))
         assert math.isfinite(log.duration) and np.isfinite(log.odometry).all()
         if name == "log.mcap":
@@ -579,7 +579,7 @@ def _is_log(name: str) -> bool:
 @given(data=st.data())
 def fuzz_logs(data):
     """Robot logs (ROS 2 MCAP, .npz, a folder of CSV files) with bytes flipped, cut, inserted or replaced, read
-    by `mcl.logs.read_log` (and `list_topics`): a usable log, or a ValueError naming the file."""
+    by `mcl.tools.logs.read_log` (and `list_topics`): a usable log, or a ValueError naming the file."""
     _fuzz_files(data, "logs", [name for name in _valid_files() if _is_log(name)])
 
 
@@ -654,8 +654,8 @@ def fuzz_estimators(operations):
     from mcl.latency import MotionHistory
     from motion_models import FootstepEvent, RawFootstepOdometry
     from motion_models.lwpr import LWPR
-    from sensing.collision import CollisionDetector, CollisionReference
-    from sensing.velocity import VelocityEKF
+    from proprioception.collision import CollisionDetector, CollisionReference
+    from proprioception.velocity import VelocityEKF
 
     ekf = VelocityEKF.from_standing(np.tile([0.0, 0.0, 9.81], (10, 1)), 0.0)
     history = MotionHistory(1.0)
@@ -664,9 +664,9 @@ def fuzz_estimators(operations):
                                                     np.full((2, 2, 4), 0.05), 0.05))
     field = FIELDS["kidsize"]
     pf = ParticleFilter(field, RawFootstepOdometry(), LandmarkSensorModel(field), n_particles=16, seed=2)
-    from sensing.kinematics import nao_leg
-    from sensing.velocity import LegOdometry
-    from sensing.velocity_odometry import EKFOdometry
+    from proprioception.kinematics import nao_leg
+    from proprioception.velocity import LegOdometry
+    from proprioception.velocity_odometry import EKFOdometry
     legs = EKFOdometry(LegOdometry((nao_leg("left"), nao_leg("right")),
                                    VelocityEKF.from_standing(np.tile([0.0, 0.0, 9.81], (10, 1)), 0.0)))
     clock = {"ekf": 0.0, "history": 0.0, "legs": 0.0}
@@ -740,10 +740,10 @@ def recorder_operations():
 
 @given(operations=recorder_operations(), particles_every=st.one_of(st.sampled_from([1, 2, 5]), number_or_junk()))
 def fuzz_recorder(operations, particles_every):
-    """mcl.recording.Recorder: its constructor and sequences of log_step, log_scalars, set_time, flush into an
+    """mcl.tools.recording.Recorder: its constructor and sequences of log_step, log_scalars, set_time, flush into an
     .rrd file, then close."""
     record_case("recorder", (operations, particles_every))
-    from mcl.recording import Recorder
+    from mcl.tools.recording import Recorder
 
     field = FIELDS["spl"]
     pf = _RECORDED.get("pf")

@@ -21,10 +21,10 @@ from demos.walk_log import to_robot_log
 from demos.walk_sim import WalkScenario, simulate
 from field import spl
 from mcl import ParticleFilter
-from mcl.replay import replay
+from mcl.tools.replay import replay
 from motion_models import AdaptiveMotion, MotionInput, VelocityLinear
 from sensing import LandmarkSensorModel
-from sensing.collision import NO_COLLISION, CollisionPercept
+from proprioception.collision import NO_COLLISION, CollisionPercept
 
 PATH = Path(__file__).parent / "data" / "same_results.npz"
 SHORT = replace(WalkScenario(), duration=12.0, kidnap_time=6.0)

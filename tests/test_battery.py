@@ -10,7 +10,7 @@ from demos.battery_sim import (BLACKOUT, BURST_SECONDS, EVENT_AT, FAMILIES, FIEL
                                MAX_RANGE, RANGES, SPECIAL_TURNS, SPIN_DEG, STUCK_EXCESS, STUCK_SECONDS,
                                field_for, kidnap_mirror_log_odds, simulate)
 from field.angles import wrap_angles
-from mcl.evaluation import (QUALITY_CODE, convergence_time, evaluate, failed, has_stretch, hold_last,
+from mcl.tools.evaluation import (QUALITY_CODE, convergence_time, evaluate, failed, has_stretch, hold_last,
                             lost_counts, mirrored, pool_counts, pose_errors, quality_codes, quality_counts,
                             tracking_rmse)
 from mcl.localizer import Quality

@@ -15,7 +15,7 @@ import pytest
 from benchmarks import bench
 from benchmarks import step as bench_step
 from benchmarks.report import evaluate_targets, format_report
-from mcl.cli import main as cli_main
+from mcl.tools.cli import main as cli_main
 
 TINY = ["--quick", "--sizes", "40,120", "--budget", "0.002"]
 

@@ -182,12 +182,15 @@ def test_the_current_side_must_be_a_checkout(tmp_path):
     assert bc.current_side().label == "working tree"
 
 
-def test_a_run_imports_its_own_tree(tmp_path):
-    """The fresh process imports the side's packages, not the installed ones (an editable install included)."""
+@pytest.mark.parametrize("cli", ["mcl/tools/cli.py", "mcl/cli.py"], ids=["today", "before the tools moved"])
+def test_a_run_imports_its_own_tree(tmp_path, cli):
+    """The fresh process imports the side's packages, not the installed ones (an editable install included),
+    and runs the side's own command line wherever that tree keeps it."""
     root = tmp_path / "tree"
-    (root / "mcl").mkdir(parents=True)
-    (root / "mcl" / "__init__.py").write_text("")
-    (root / "mcl" / "cli.py").write_text(
+    (root / cli).parent.mkdir(parents=True)
+    for package in {root / "mcl", (root / cli).parent}:
+        (package / "__init__.py").write_text("")
+    (root / cli).write_text(
         "import json, sys\n"
         "if sys.argv[1:3] == ['bench', 'fail']:\n"
         "    print('the reason it failed', file=sys.stderr)\n"
@@ -195,7 +198,7 @@ def test_a_run_imports_its_own_tree(tmp_path):
         "print(json.dumps({'argv': sys.argv[1:], 'file': __file__}))\n")
     result = bc.run_bench(Side("fake", root), ["--json", "--sizes", "100"])
     assert result["argv"] == ["bench", "--json", "--sizes", "100"]
-    assert Path(result["file"]).resolve() == (root / "mcl" / "cli.py").resolve()
+    assert Path(result["file"]).resolve() == (root / cli).resolve()
     with pytest.raises(CompareError, match="(?s)fake failed \\(exit 3\\).*the reason it failed"):
         bc.run_bench(Side("fake", root), ["fail"])
 
@@ -210,7 +213,7 @@ def test_bad_options_are_refused(argv):
 
 
 def test_the_command_line_reaches_it():
-    done = subprocess.run([sys.executable, "-m", "mcl.cli", "bench", "compare", "--help"], capture_output=True,
+    done = subprocess.run([sys.executable, "-m", "mcl.tools.cli", "bench", "compare", "--help"], capture_output=True,
                           text=True, check=False, cwd=Path(bc.__file__).parent.parent)
     assert done.returncode == 0 and "alternated" in done.stdout
 

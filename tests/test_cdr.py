@@ -1,4 +1,4 @@
-"""mcl.logs.cdr: the compiled CDR decoders give mcap_ros2's messages, field for field, on every schema the log
+"""mcl.tools.logs.cdr: the compiled CDR decoders give mcap_ros2's messages, field for field, on every schema the log
 reader accepts and on a schema of every primitive and array kind; what they leave to mcap_ros2 goes there."""
 import math
 import struct
@@ -9,9 +9,9 @@ from mcap.records import Schema
 from mcap_ros2._dynamic import _for_each_msgdef, serialize_dynamic
 from mcap_ros2.decoder import DecoderFactory as Ros2DecoderFactory
 
-from mcl.logs import schemas
-from mcl.logs.cdr import DecoderFactory, compile_decoders
-from mcl.logs.mcap_io import _DECODE_ERRORS
+from mcl.tools.logs import schemas
+from mcl.tools.logs.cdr import DecoderFactory, compile_decoders
+from mcl.tools.logs.mcap_io import _DECODE_ERRORS
 
 # Every primitive, as a scalar and as fixed, bounded and unbounded arrays; strings around the alignment;
 # nested messages and arrays of them; an empty message.

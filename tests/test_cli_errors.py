@@ -10,7 +10,7 @@ from pathlib import Path
 
 import pytest
 
-from mcl.cli_checks import CommandError, check_input_file, check_output_directory, check_output_file, one_line
+from mcl.tools.cli_checks import CommandError, check_input_file, check_output_directory, check_output_file, one_line
 
 ROOT = Path(__file__).resolve().parent.parent
 UNWRITABLE = "/proc/robocup-mcl-test.rrd"      # /proc takes no new files, not even from root
@@ -19,7 +19,7 @@ UNWRITABLE = "/proc/robocup-mcl-test.rrd"      # /proc takes no new files, not e
 def cli(*argv, env=None, timeout=180):
     environment = {k: v for k, v in os.environ.items() if k != "ROBOCUP_MCL_DEBUG"}
     environment.update(env or {})
-    return subprocess.run([sys.executable, "-m", "mcl.cli", *map(str, argv)], cwd=ROOT, capture_output=True,
+    return subprocess.run([sys.executable, "-m", "mcl.tools.cli", *map(str, argv)], cwd=ROOT, capture_output=True,
                           text=True, timeout=timeout, env=environment)
 
 
@@ -141,7 +141,7 @@ def test_usage_errors_exit_2_without_a_traceback():
 
 
 # -- the last line of defence: bugs, interrupts, the debug variable ------------------------------------------
-RAISE = "import sys, mcl.cli as cli\ndef run(argv):\n    raise {error}\ncli._run = run\nsys.exit(cli.main([]))\n"
+RAISE = "import sys, mcl.tools.cli as cli\ndef run(argv):\n    raise {error}\ncli._run = run\nsys.exit(cli.main([]))\n"
 
 
 @pytest.mark.parametrize("error, message", [

@@ -14,8 +14,8 @@ import textwrap
 import pytest
 
 from mcl import numba_cache
-from mcl.cli import _harness, commands, main as cli_main, version
-from mcl.cli_checks import description, progress_bar, progress_wanted
+from mcl.tools.cli import _harness, commands, main as cli_main, version
+from mcl.tools.cli_checks import description, progress_bar, progress_wanted
 
 COMMANDS = commands()
 
@@ -181,7 +181,7 @@ def test_kernel_cached_reads_numba_s_cache(tmp_path, monkeypatch):
 def test_a_command_without_rerun_says_so_in_one_line(monkeypatch, capsys, tmp_path):
     """On a Python without rerun-sdk (3.10), a command asked for a recording fails at once with one line naming
     the package; the same command without --rrd runs."""
-    import mcl.cli as cli
+    import mcl.tools.cli as cli
     monkeypatch.setattr(cli, "rerun_available", lambda: False)
     assert cli_main(["demo", "walk", "--duration", "1", "--rrd", str(tmp_path / "walk.rrd")]) == 1
     err = capsys.readouterr().err.strip().splitlines()
@@ -190,7 +190,7 @@ def test_a_command_without_rerun_says_so_in_one_line(monkeypatch, capsys, tmp_pa
 
 
 def test_an_import_of_rerun_that_fails_inside_a_command_is_one_line_too(monkeypatch, capsys):
-    import mcl.cli as cli
+    import mcl.tools.cli as cli
 
     def fails(argv):
         raise ModuleNotFoundError("No module named 'rerun'", name="rerun")

@@ -1,4 +1,4 @@
-"""Collision detection by sensor-actuator comparison (sensing.collision) on synthetic and simulated servo data."""
+"""Collision detection by sensor-actuator comparison (proprioception.collision) on synthetic and simulated servo data."""
 import math
 
 import numpy as np
@@ -7,7 +7,7 @@ from hypothesis import given, strategies as st
 
 from demos.collision_sim import (BOTH, HINDRANCE, LEFT, RIGHT, STOPPED, CollisionEvent, CollisionScenario,
                                  simulate)
-from sensing.collision import (NO_COLLISION, CollisionDetector, CollisionPercept, CollisionReference, detect,
+from proprioception.collision import (NO_COLLISION, CollisionDetector, CollisionPercept, CollisionReference, detect,
                                estimate_delays, learn_reference)
 
 
@@ -199,7 +199,7 @@ def test_recording_holds_the_state_belief_and_s_rel(tmp_path):
 
 
 def test_collision_command_json(capsys):
-    from mcl.cli import main as cli_main
+    from mcl.tools.cli import main as cli_main
     import json
 
     assert cli_main(["demo", "collision", "--case", "single", "--seeds", "0-1", "--json"]) == 0

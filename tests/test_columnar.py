@@ -10,8 +10,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from field import LandmarkType
-from mcl.logs import LogError, RobotLog, VisionFrame
-from mcl.logs.columnar import FORMAT_VERSION, read_csv, read_npz, write_csv, write_npz
+from mcl.tools.logs import LogError, RobotLog, VisionFrame
+from mcl.tools.logs.columnar import FORMAT_VERSION, read_csv, read_npz, write_csv, write_npz
 from sensing.observations import Observations
 
 values = st.floats(-1e6, 1e6, allow_nan=False)

@@ -1,4 +1,4 @@
-"""Every motion and sensor model the library ships, and a filter with each, against `mcl.testing`'s contracts.
+"""Every motion and sensor model the library ships, and a filter with each, against `mcl.tools.testing`'s contracts.
 
 The models run through `check_motion_model` / `check_sensor_model` (strict: `predict` refuses what `check`
 refuses, changing nothing), and a `ParticleFilter` with each through the filter invariants: weights normalized
@@ -15,11 +15,11 @@ from hypothesis import strategies as st
 
 from field import spl
 from mcl import AugmentedMCL, ParticleFilter
-from mcl import testing as mt
+from mcl.tools import testing as mt
 from motion_models import (AdaptiveMotion, ConstantNoise, FootstepEvent, LearnedFootstepOdometry, MotionInput,
                            RawFootstepOdometry, VelocityLinear)
 from sensing import CombinedSensorModel, LandmarkSensorModel, LineSensorModel
-from sensing.collision import NO_COLLISION
+from proprioception.collision import NO_COLLISION
 
 FIELD = spl()
 EXAMPLES = 15

@@ -95,7 +95,7 @@ def test_the_parametrized_example_runs(load):
 
 
 def test_the_registration_example_runs_and_leaves_nothing_registered(load, capsys):
-    from mcl import testing as mt
+    from mcl.tools import testing as mt
     team = load(team_file(), "docs_testing_team_registered")
     block = next(block for block in python_blocks() if "register_motion_model" in block)
     module = load(block, "docs_testing_registration", {k: v for k, v in vars(team).items() if not k.startswith("__")})

@@ -9,7 +9,7 @@ import rerun.chunk as rrc
 
 from demos.walk import aggregate, main as walk_main, parse_seeds, run_walk
 from demos.walk_sim import WalkScenario, simulate
-from mcl.cli import main as cli_main
+from mcl.tools.cli import main as cli_main
 
 SHORT = replace(WalkScenario(), duration=14.0, kidnap_time=7.0)
 

@@ -49,7 +49,7 @@ def test_the_examples_get_the_fast_path(namespace):
     motion, sensor = namespace["ProportionalNoise"](), namespace["RangeOnlyModel"](spl())
     assert fast_path(motion, sensor)["step"]
     assert not fast_path(_Plain(motion), _Plain(sensor))["step"]
-    from mcl.testing import assert_fused_likelihood
+    from mcl.tools.testing import assert_fused_likelihood
     poses = np.random.default_rng(2).uniform([-5, -3, -4], [5, 3, 4], (300, 3))
     frame = Observations.from_arrays(["goalpost", "T", "X"], [3.2, 2.0, 1.1], [0.0, 0.0, 0.0])
     assert assert_fused_likelihood(sensor, poses, frame) and assert_fused_likelihood(sensor, poses, frame,
@@ -109,7 +109,7 @@ def test_a_refused_step_changes_nothing(namespace):
 
 def test_the_examples_pass_the_registered_contract_checks(namespace):
     """Registered, the two models go through the checks the shipped ones pass, and reach the fast path."""
-    from mcl import testing as mt
+    from mcl.tools import testing as mt
     mt.register_motion_model("extending-proportional-noise", namespace["ProportionalNoise"])
     mt.register_sensor_model("extending-range-only", namespace["RangeOnlyModel"])
     try:

@@ -27,7 +27,7 @@ from motion_models import AdaptiveMotion, ConstantNoise, MotionInput, VelocityLi
 from numerics.chunks import CHUNK, balanced_chunk
 from numerics.random import draw_variates
 from sensing import LandmarkSensorModel, Observations
-from sensing.collision import NO_COLLISION
+from proprioception.collision import NO_COLLISION
 
 FIELD = spl()
 TRUE_POSE = np.array([1.0, 0.5, 0.3])

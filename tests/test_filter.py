@@ -14,7 +14,7 @@ from mcl import AugmentedMCL, Grid, ParticleFilter
 from mcl.relocalization import RelocalizationPrior
 from motion_models import AdaptiveMotion, ConstantNoise, MotionInput, VelocityLinear
 from sensing import LandmarkObservation, LandmarkSensorModel, Observations
-from sensing.collision import CollisionPercept
+from proprioception.collision import CollisionPercept
 
 FIELD = spl()
 SENSOR = LandmarkSensorModel(FIELD)

@@ -26,7 +26,7 @@ from field.geometry import MAX_NAME_LENGTH
 from field.io import MAX_FIELD_FILE_BYTES
 from motion_models.learned_odometry import META_FILE, MAX_META_FILE_BYTES, LearnedFootstepOdometry
 from motion_models.lwpr import LWPR, MAX_INITIAL_BYTES, MAX_INPUTS, MAX_OUTPUTS, load_npz
-from sensing.collision import (MAX_DELAY, MAX_JOINTS, MAX_WINDOW, MIN_REFERENCE, CollisionDetector,
+from proprioception.collision import (MAX_DELAY, MAX_JOINTS, MAX_WINDOW, MIN_REFERENCE, CollisionDetector,
                                CollisionReference, detect)
 
 DEEP = 100_000          # nesting levels of the deeply nested files

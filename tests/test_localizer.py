@@ -14,7 +14,7 @@ from field.angles import wrap_angles
 from mcl import AugmentedMCL
 from mcl.latency import SAME_TIME, MotionHistory, compose, move_back, move_back_reference, move_forward
 from mcl.localizer import Localizer, Quality, default_kickoff_positions, touchline_poses
-from mcl.replay import motion_events, replay
+from mcl.tools.replay import motion_events, replay
 from motion_models import MotionInput
 
 FIELD = spl()
@@ -275,7 +275,7 @@ def test_replaying_a_walk_log_gives_the_estimates_of_feeding_the_filter_directly
 
 
 def test_odometry_logs_move_the_filter_by_the_odometry_change_in_the_robot_frame():
-    from mcl.logs import RobotLog
+    from mcl.tools.logs import RobotLog
     pose = np.array([[1.0, 2.0, math.pi / 2], [1.0, 2.1, math.pi / 2 + 0.1]])
     log = RobotLog(odometry_times=[0.0, 0.02], odometry=pose)
     times, inputs = motion_events(log)
@@ -285,7 +285,7 @@ def test_odometry_logs_move_the_filter_by_the_odometry_change_in_the_robot_frame
 
 
 def test_a_log_that_nothing_moves_is_refused():
-    from mcl.logs import LogError, RobotLog
+    from mcl.tools.logs import LogError, RobotLog
     with pytest.raises(LogError, match="neither odometry"):
         replay(RobotLog(), FIELD)
     with pytest.raises(ValueError, match="poses_out"):
@@ -295,7 +295,7 @@ def test_a_log_that_nothing_moves_is_refused():
 
 def test_a_walk_written_to_mcap_replays_to_the_estimates_of_feeding_it_directly(tmp_path):
     from demos.walk import run_walk
-    from mcl.logs import read_log, write_log
+    from mcl.tools.logs import read_log, write_log
     scenario, sim = walk(seed=6, duration=4.0)
     direct = run_walk(particles=200, seed=6, scenario=scenario, series=True)["series"]["estimates"]
     for name in ("walk.mcap", "walk.npz", "walk_csv"):
@@ -308,8 +308,8 @@ def test_a_walk_written_to_mcap_replays_to_the_estimates_of_feeding_it_directly(
 
 
 def test_a_truncated_mcap_replays_up_to_where_it_breaks(tmp_path):
-    from mcl.logs import read_log
-    from mcl.logs.mcap_io import write_mcap
+    from mcl.tools.logs import read_log
+    from mcl.tools.logs.mcap_io import write_mcap
     _, sim = walk(seed=7, duration=6.0)
     path = tmp_path / "walk.mcap"
     write_mcap(to_robot_log(sim, latency=0.05), path, chunk_size=1 << 14)
@@ -324,7 +324,7 @@ def test_a_truncated_mcap_replays_up_to_where_it_breaks(tmp_path):
 
 
 def test_replay_counts_and_names_a_frame_older_than_the_history():
-    from mcl.logs import RobotLog, VisionFrame
+    from mcl.tools.logs import RobotLog, VisionFrame
     _, sim = walk(seed=8, duration=4.0)
     log = to_robot_log(sim)
     late = VisionFrame(stamp=0.5, received=2.5, observations=log.vision[0].observations)

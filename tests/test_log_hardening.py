@@ -26,11 +26,11 @@ from mcap.records import Chunk, Schema
 from mcap.writer import CompressionType, Writer as McapWriter
 from mcap_ros2.writer import Writer as Ros2Writer
 
-from mcl.logs import LogError, RobotLog, VisionFrame, mcap_io, read_log, schemas
-from mcl.logs.cdr import MAX_NESTING, DecoderFactory, compile_decoders
-from mcl.logs.columnar import write_csv, write_npz
-from mcl.logs.mcap_io import _DECODE_ERRORS, Topics, list_topics, read_mcap, write_mcap
-from mcl.logs.robot_log import MAX_TIME
+from mcl.tools.logs import LogError, RobotLog, VisionFrame, mcap_io, read_log, schemas
+from mcl.tools.logs.cdr import MAX_NESTING, DecoderFactory, compile_decoders
+from mcl.tools.logs.columnar import write_csv, write_npz
+from mcl.tools.logs.mcap_io import _DECODE_ERRORS, Topics, list_topics, read_mcap, write_mcap
+from mcl.tools.logs.robot_log import MAX_TIME
 from sensing.observations import Observations
 
 ORIGIN_NS = 1_700_000_000_000_000_000

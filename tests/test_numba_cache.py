@@ -81,7 +81,7 @@ if part in ("filter", "all"):
             threaded.estimate(), threaded.entropy()
         threaded.predict(MotionInput(dt=0.01, command=(0.2, 0.0, 0.1)))     # moved on threads alone
 
-    from sensing.collision import CollisionPercept
+    from proprioception.collision import CollisionPercept
     adaptive = ParticleFilter(field, AdaptiveMotion(), LandmarkSensorModel(field), n_particles=64, seed=2)
     percept = CollisionPercept(left=True, s_rel_left=1.5, rate=0.3, recent_left=True)
     adaptive.step(MotionInput(dt=0.01, command=(0.2, 0.0, 0.0), collision=percept), observations)
@@ -110,7 +110,7 @@ if part in ("filter", "all"):
     log_weights = np.log(weights)
     normalize(log_weights, np.empty(len(poses)))
     log_mean_likelihood(log_weights, log_weights, len(poses))
-    from mcl.recording import weight_colors                    # the recorded particles' colours
+    from mcl.tools.recording import weight_colors                    # the recorded particles' colours
     weight_colors(weights)
     grid_entropy(poses, weights, -5.0, -3.5, 0.1, 100, 70, 36, np.empty(7000), np.empty(36))
     cluster_estimate(poses, weights, (-5.0, -3.5, 0.5, 20, 14, 8), (0.75, 0.8, 3), np.empty(20 * 14 * 8),
@@ -128,8 +128,8 @@ if part in ("filter", "all"):
 
 if part in ("models", "all"):
     from motion_models.lwpr import LWPR
-    from sensing.kinematics import nao_leg
-    from sensing.velocity import (VelocityEKF, VelocityEKFParams, left_jacobian, rotation_derivative_at,
+    from proprioception.kinematics import nao_leg
+    from proprioception.velocity import (VelocityEKF, VelocityEKFParams, left_jacobian, rotation_derivative_at,
                                   rotation_matrix)
 
     model = LWPR(2, 1)
@@ -272,9 +272,9 @@ def test_only_a_source_checkout_is_guarded(tmp_path):
 def test_the_command_line_guards_the_caches_before_running_anything(monkeypatch):
     """`robocup-mcl` calls the guard first, so that a demo or a benchmark run from a checkout after an edit runs
     the edited kernels."""
-    import mcl.cli
+    import mcl.tools.cli
 
     calls = []
-    monkeypatch.setattr(mcl.cli, "guard_source_checkout", lambda: calls.append("guard"))
-    assert mcl.cli.main(["--help"]) == 0
+    monkeypatch.setattr(mcl.tools.cli, "guard_source_checkout", lambda: calls.append("guard"))
+    assert mcl.tools.cli.main(["--help"]) == 0
     assert calls == ["guard"]

@@ -14,7 +14,7 @@ from benchmarks.recording_stats import rerun_command
 from field import LandmarkType, spl
 from field.checks import ArgumentTypeError
 from mcl import Entropy, Estimate
-from mcl.recording import (ELLIPSE_CHI2, ELLIPSE_VERTICES, HEADING_LENGTH, LANDMARK_COLORS, LOG_TIMELINE,
+from mcl.tools.recording import (ELLIPSE_CHI2, ELLIPSE_VERTICES, HEADING_LENGTH, LANDMARK_COLORS, LOG_TIMELINE,
                            PARTICLE_RADIUS, Recorder, covariance_ellipse, default_blueprint, weight_colors,
                            weight_colors_reference, weighted_position_covariance)
 

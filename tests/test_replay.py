@@ -12,9 +12,9 @@ import pytest
 from demos.walk_log import to_robot_log
 from demos.walk_sim import WalkScenario, simulate
 from field import spl
-from mcl.logs import LogError, RobotLog, read_log
-from mcl.logs.mcap_io import Topics, write_mcap
-from mcl.replay import check_inputs, main, replay
+from mcl.tools.logs import LogError, RobotLog, read_log
+from mcl.tools.logs.mcap_io import Topics, write_mcap
+from mcl.tools.replay import check_inputs, main, replay
 
 FIELD = spl()
 RENAMED = Topics(odometry="/robot/odom", commands="/walk/cmd_vel", goalposts="/vision/goalposts",

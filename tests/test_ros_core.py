@@ -1,4 +1,4 @@
-"""The ROS node's logic without ROS (`mcl.ros.core`, `mcl.ros.parameters`): messages decoded from an MCAP log,
+"""The ROS node's logic without ROS (`mcl.tools.ros.core`, `mcl.tools.ros.parameters`): messages decoded from an MCAP log,
 fed in the order the log has them, give `robocup-mcl replay`'s estimates bit for bit; the game events; the
 parameters' checks; and `robocup-mcl node` without the ROS wheels says what to install in one line."""
 from __future__ import annotations
@@ -11,10 +11,10 @@ import numpy as np
 import pytest
 
 from demos.battery_sim import as_robot_log, simulate
-from mcl.logs.mcap_io import write_mcap
-from mcl.replay import replay
-from mcl.ros.core import NodeCore, map_to_odom
-from mcl.ros.parameters import NodeSettings
+from mcl.tools.logs.mcap_io import write_mcap
+from mcl.tools.replay import replay
+from mcl.tools.ros.core import NodeCore, map_to_odom
+from mcl.tools.ros.parameters import NodeSettings
 
 ORIGIN_NS = 1_750_000_000_000_000_000       # a stamp of our time: the log's t = 0
 
@@ -55,7 +55,7 @@ def test_the_core_gives_the_replay_s_estimates_bit_for_bit(battery_log):
             core.goalposts(message)
         elif topic == "/markings_relative":
             core.markings(message)
-    from mcl.logs import read_log
+    from mcl.tools.logs import read_log
     read, _ = read_log(str(path))
     result = replay(read, settings.localizer().field, particles=200, seed=3)
     assert len(outputs) == result.times.shape[0] > 1000
@@ -119,7 +119,7 @@ def test_bad_parameters_are_refused_by_name(values, match):
 
 def test_the_field_markers_are_the_field_s_own_geometry():
     from field import LandmarkType, preset
-    from mcl.ros.core import CIRCLE_SEGMENTS, field_markers
+    from mcl.tools.ros.core import CIRCLE_SEGMENTS, field_markers
 
     field = preset("kidsize")
     markers = field_markers(field)
@@ -195,7 +195,7 @@ def stamp_of(message):
 def test_callbacks_take_message_info_only_where_rclpy_gives_it():
     import importlib.util
 
-    from mcl.ros.node import Statistics, message_info_supported
+    from mcl.tools.ros.node import Statistics, message_info_supported
 
     assert message_info_supported() == (importlib.util.find_spec("rclpy") is not None)   # Kilted here, or none
     seen = []

@@ -14,8 +14,8 @@ import sys
 
 import pytest
 
-from mcl.ros.bench import namespace_command
-from mcl.ros.node import ros_available
+from mcl.tools.ros.bench import namespace_command
+from mcl.tools.ros.node import ros_available
 
 ORIGIN_NS = 1_750_000_000_000_000_000
 
@@ -31,7 +31,7 @@ def _dds_or_skip():
 @pytest.fixture(scope="module")
 def log_path(tmp_path_factory):
     from demos.battery_sim import as_robot_log, simulate
-    from mcl.logs.mcap_io import write_mcap
+    from mcl.tools.logs.mcap_io import write_mcap
 
     run = simulate("tracking", 1011, 6.0)         # a held-out-like seed (the battery's held-out range)
     path = tmp_path_factory.mktemp("ros") / "tracking_1011.mcap"
@@ -42,7 +42,7 @@ def log_path(tmp_path_factory):
 def test_the_node_answers_a_played_log_over_dds(log_path):
     _dds_or_skip()
     path, field = log_path
-    done = subprocess.run([sys.executable, "-m", "mcl.cli", "node", "bench", str(path), "--field", field,
+    done = subprocess.run([sys.executable, "-m", "mcl.tools.cli", "node", "bench", str(path), "--field", field,
                            "--particles", "100", "--seed", "2", "--json"],
                           capture_output=True, text=True, timeout=600)
     assert done.returncode == 0, done.stderr[-3000:]
@@ -67,7 +67,7 @@ def test_the_node_answers_without_source_timestamps_as_on_humble(log_path):
     by the order taken and their header stamps."""
     _dds_or_skip()
     path, field = log_path
-    done = subprocess.run([sys.executable, "-m", "mcl.cli", "node", "bench", str(path), "--field", field,
+    done = subprocess.run([sys.executable, "-m", "mcl.tools.cli", "node", "bench", str(path), "--field", field,
                            "--particles", "100", "--seed", "2", "--no-source-timestamps", "--json"],
                           capture_output=True, text=True, timeout=600)
     assert done.returncode == 0, done.stderr[-3000:]
@@ -82,5 +82,5 @@ def test_without_ros_the_commands_say_what_to_install(tmp_path):
     if ros_available() is None:
         pytest.skip("ROS 2 is installed here: the commands run")
     for argv in (["node"], ["node", "play", str(tmp_path / "x.mcap")]):
-        done = subprocess.run([sys.executable, "-m", "mcl.cli", *argv], capture_output=True, text=True, timeout=120)
+        done = subprocess.run([sys.executable, "-m", "mcl.tools.cli", *argv], capture_output=True, text=True, timeout=120)
         assert done.returncode == 1 and "make ros" in done.stderr and done.stderr.count("\n") == 1, done.stderr

@@ -21,7 +21,7 @@ MINUTE_FIELDS = {"minute", "steps", "frames", "detections", "median_ms", "p99_ms
 
 
 def soak(*argv, timeout=600):
-    return subprocess.run([sys.executable, "-m", "mcl.cli", "soak", *map(str, argv)], cwd=ROOT,
+    return subprocess.run([sys.executable, "-m", "mcl.tools.cli", "soak", *map(str, argv)], cwd=ROOT,
                           capture_output=True, text=True, timeout=timeout)
 
 

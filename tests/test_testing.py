@@ -1,4 +1,4 @@
-"""`mcl.testing`: its strategies draw what they promise, and each of its checks passes on good models and
+"""`mcl.tools.testing`: its strategies draw what they promise, and each of its checks passes on good models and
 filters and fails (AssertionError, naming the fault) on deliberately broken ones."""
 import math
 import types
@@ -12,10 +12,10 @@ from hypothesis import strategies as st
 from field import PRESET_NAMES, Field, LandmarkType, spl
 from field.angles import wrap_angles
 from mcl import ParticleFilter
-from mcl import testing as mt
+from mcl.tools import testing as mt
 from motion_models import AdaptiveMotion, FootstepEvent, MotionInput, RawFootstepOdometry, VelocityLinear
 from sensing import LandmarkObservation, LandmarkSensorModel, Observations
-from sensing.collision import CollisionPercept
+from proprioception.collision import CollisionPercept
 
 FIELD = spl()
 SENSOR = LandmarkSensorModel(FIELD)

@@ -1,4 +1,4 @@
-"""`robocup-mcl tune` (mcl.tuning): the space file, the objectives, the study on a local Ray instance with two
+"""`robocup-mcl tune` (mcl.tools.tuning): the space file, the objectives, the study on a local Ray instance with two
 workers (seeded, resumable), and the command's one-line errors. The two-node cluster and a worker that dies
 mid-task are in tests/test_tuning_cluster.py."""
 from __future__ import annotations
@@ -16,10 +16,10 @@ pytest.importorskip("ray")
 pytest.importorskip("optuna")
 
 from demos.battery_sim import as_robot_log, simulate  # noqa: E402
-from mcl.logs import RobotLog, write_log  # noqa: E402
+from mcl.tools.logs import RobotLog, write_log  # noqa: E402
 from mcl.profile import Profile  # noqa: E402
 from demos.battery import BatteryCase  # noqa: E402
-from mcl.tuning import LogCase, SearchSpace, SpaceError, TuneSettings, combine, evaluate_case, run_study  # noqa: E402
+from mcl.tools.tuning import LogCase, SearchSpace, SpaceError, TuneSettings, combine, evaluate_case, run_study  # noqa: E402
 
 SPACE = """
 [sensor]
@@ -43,7 +43,7 @@ def settings(trials=3, seed=0, **overrides):
 def local_ray():
     import ray
 
-    from mcl.tuning.search import start_ray
+    from mcl.tools.tuning.search import start_ray
 
     info = start_ray(None, workers=2)
     yield info
@@ -139,7 +139,7 @@ def test_the_evidence_objective_never_reads_the_truth(logs):
 
 
 def test_the_truth_loss_is_zero_for_a_perfect_run_and_counts_a_never():
-    from mcl.tuning import truth_figures
+    from mcl.tools.tuning import truth_figures
 
     times = np.arange(1, 501) * 0.01
     truth = np.zeros((500, 3))
@@ -195,7 +195,7 @@ def test_an_interrupted_study_resumes_where_it_stopped(local_ray, tmp_path):
 
 
 def test_a_study_file_made_for_other_settings_is_refused(local_ray, tmp_path):
-    from mcl.tuning import TuneError
+    from mcl.tools.tuning import TuneError
 
     path = str(tmp_path / "x.journal")
     run_study(settings(trials=1), path)
@@ -213,7 +213,7 @@ def test_refused_combinations_are_failed_trials_that_do_not_count(local_ray):
 
 # -- the command -------------------------------------------------------------------------------------------------
 def run_command(*args, env=None):
-    return subprocess.run([sys.executable, "-m", "mcl.cli", "tune", *args], capture_output=True, text=True,
+    return subprocess.run([sys.executable, "-m", "mcl.tools.cli", "tune", *args], capture_output=True, text=True,
                           env={**os.environ, **(env or {})}, timeout=600)
 
 
@@ -232,10 +232,10 @@ def test_the_command_tunes_logs_writes_a_profile_that_replay_and_eval_load(logs,
     assert "profile written to" in done.stdout and "held-out" in done.stdout
     loaded = Profile.load(profile)
     assert loaded.values() == result["best"]["values"]
-    replayed = subprocess.run([sys.executable, "-m", "mcl.cli", "replay", logs[1], "--profile", str(profile),
+    replayed = subprocess.run([sys.executable, "-m", "mcl.tools.cli", "replay", logs[1], "--profile", str(profile),
                                "--particles", "100", "--json"], capture_output=True, text=True, timeout=600)
     assert replayed.returncode == 0, replayed.stderr
-    evaluated = subprocess.run([sys.executable, "-m", "mcl.cli", "eval", "--families", "tracking", "--seeds", "1",
+    evaluated = subprocess.run([sys.executable, "-m", "mcl.tools.cli", "eval", "--families", "tracking", "--seeds", "1",
                                 "--duration", "10", "--particles", "100", "--jobs", "1", "--profile", str(profile),
                                 "--json"], capture_output=True, text=True, timeout=600)
     assert evaluated.returncode == 0, evaluated.stderr
@@ -257,8 +257,8 @@ def test_the_command_tunes_on_the_battery_and_reports_held_out_seeds(tmp_path):
 
 
 def test_the_command_reads_an_mcap_log_by_the_topics_given(logs, tmp_path):
-    from mcl.logs import read_log
-    from mcl.logs.mcap_io import Topics
+    from mcl.tools.logs import read_log
+    from mcl.tools.logs.mcap_io import Topics
 
     log, _ = read_log(logs[0])
     mcap = tmp_path / "game.mcap"

@@ -10,8 +10,8 @@ pytest.importorskip("ray")
 pytest.importorskip("optuna")
 
 from demos.battery import BatteryCase  # noqa: E402
-from mcl.tuning import SearchSpace, TuneSettings, run_study  # noqa: E402
-from mcl.tuning.search import CRASH_VARIABLE, start_ray  # noqa: E402
+from mcl.tools.tuning import SearchSpace, TuneSettings, run_study  # noqa: E402
+from mcl.tools.tuning.search import CRASH_VARIABLE, start_ray  # noqa: E402
 
 SETTINGS = TuneSettings(cases=(BatteryCase("tracking", 1, 12.0), BatteryCase("fall", 1, 12.0)),
                         space=SearchSpace.from_toml("[sensor]\noutlier_weight = { low = 0.002, high = 0.1, log = true }\n"

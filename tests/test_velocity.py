@@ -1,4 +1,4 @@
-"""Tests for sensing.velocity (the four estimators, the EKF, planar odometry) and the biped demo."""
+"""Tests for proprioception.velocity (the four estimators, the EKF, planar odometry) and the biped demo."""
 
 from __future__ import annotations
 
@@ -12,8 +12,8 @@ from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
 
 from demos.biped import DisturbanceParams, SensorParams, simulate_walk
-from sensing.kinematics import nao_leg, rotation_y
-from sensing.velocity import (ImuOnlyEstimator, LegOdometry, VelocityEKF, VelocityEKFParams, bias_imu_step_reference,
+from proprioception.kinematics import nao_leg, rotation_y
+from proprioception.velocity import (ImuOnlyEstimator, LegOdometry, VelocityEKF, VelocityEKFParams, bias_imu_step_reference,
                               ekf_bias_jacobians_kernel, ekf_bias_jacobians_reference, ekf_bias_predict_kernel,
                               ekf_bias_predict_reference, ekf_correct_kernel, ekf_correct_reference,
                               ekf_jacobians_reference, ekf_predict_kernel, ekf_predict_reference, imu_step_reference,

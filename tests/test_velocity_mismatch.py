@@ -16,8 +16,8 @@ import pytest
 import demos.biped as biped
 from demos.biped import (DisturbanceParams, GaitParams, RobotVariation, SensorParams, _backlash, draw_robot,
                          simulate_walk)
-from sensing.kinematics import NaoLegDimensions, nao_leg
-from sensing.velocity import VelocityEKFParams
+from proprioception.kinematics import NaoLegDimensions, nao_leg
+from proprioception.velocity import VelocityEKFParams
 
 ROOT = Path(__file__).resolve().parents[1]
 CALM = DisturbanceParams(twist_probability=0.0, slip_probability=0.0)
@@ -190,7 +190,7 @@ def _imports(path: Path) -> set[str]:
 def test_the_simulator_does_not_import_the_estimators_settings():
     path = ROOT / "demos" / "biped.py"
     imported = _imports(path)
-    for forbidden in ("sensing.velocity", "demos.velocity", "demos.fit_velocity"):
+    for forbidden in ("proprioception.velocity", "demos.velocity", "demos.fit_velocity"):
         assert not any(name == forbidden or name.startswith(forbidden + ".") for name in imported), forbidden
     assert not any(name.endswith(("VelocityEKFParams", "ekf_params_for", "load_fit")) for name in imported)
     assert "ekf_fit" not in path.read_text(encoding="utf-8")

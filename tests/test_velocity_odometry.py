@@ -1,4 +1,4 @@
-"""Tests for sensing.velocity_odometry (EKF velocity → pose changes for the motion models) and figure 5 of the
+"""Tests for proprioception.velocity_odometry (EKF velocity → pose changes for the motion models) and figure 5 of the
 velocity demo (the particle filter with that odometry)."""
 
 from __future__ import annotations
@@ -13,9 +13,9 @@ from hypothesis import strategies as st
 
 from demos.biped import DisturbanceParams, SensorParams, field_poses, gait_command, simulate_walk, turning_gait
 from motion_models import MotionInput
-from sensing.kinematics import nao_leg, rotation_x, rotation_y
-from sensing.velocity import LegOdometry, VelocityEKF, VelocityEKFParams
-from sensing.velocity_odometry import EKFOdometry, OdometryIncrement, PlanarOdometry, compose_increments
+from proprioception.kinematics import nao_leg, rotation_x, rotation_y
+from proprioception.velocity import LegOdometry, VelocityEKF, VelocityEKFParams
+from proprioception.velocity_odometry import EKFOdometry, OdometryIncrement, PlanarOdometry, compose_increments
 
 G = 9.81
 DT = 0.01

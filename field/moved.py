@@ -1,0 +1,67 @@
+"""Modules that moved, still importable by their old names with a DeprecationWarning.
+
+    from field.moved import keep_old_names
+    keep_old_names({"mcl.replay": "mcl.tools.replay"})     # in the package that held the old name
+
+An import of an old name (or of anything below it: `mcl.logs.mcap_io`) gives the module at its new name, the
+same module object, so classes and exceptions compare equal whichever name a caller used; `python -m` with an
+old name runs the new module. Every package that moved modules out calls this once from its `__init__`.
+"""
+from __future__ import annotations
+
+import importlib
+import importlib.abc
+import importlib.machinery
+import importlib.util
+import sys
+import warnings
+from types import CodeType, ModuleType
+
+
+class _OldNames(importlib.abc.MetaPathFinder, importlib.abc.Loader):
+    """A finder and loader for the old names of moved modules (first in `sys.meta_path`, so a submodule of
+    an old name is never loaded a second time under that name)."""
+
+    def __init__(self, moved: dict[str, str]) -> None:
+        self.moved = dict(moved)
+
+    def new_name(self, fullname: str) -> str | None:
+        for old, new in self.moved.items():
+            if fullname == old or fullname.startswith(old + "."):
+                return new + fullname[len(old):]
+        return None
+
+    def find_spec(self, fullname, path=None, target=None):
+        new = self.new_name(fullname)
+        if new is None:
+            return None
+        target = importlib.util.find_spec(new)
+        if target is None:
+            return None
+        return importlib.machinery.ModuleSpec(fullname, self,
+                                              is_package=target.submodule_search_locations is not None)
+
+    def create_module(self, spec) -> ModuleType:
+        new = self.new_name(spec.name)
+        warnings.warn(f"{spec.name} moved to {new}: import it from there (the old name will be removed)",
+                      DeprecationWarning, stacklevel=2)
+        return importlib.import_module(new)   # type: ignore[arg-type]
+
+    def exec_module(self, module: ModuleType) -> None:
+        """Nothing to run: the module at the new name has run already."""
+
+    def get_code(self, fullname: str) -> CodeType | None:
+        """The new module's code, for `python -m OLD.NAME`."""
+        new = self.new_name(fullname)
+        spec = importlib.util.find_spec(new) if new else None
+        loader = getattr(spec, "loader", None)
+        return loader.get_code(new) if loader is not None and hasattr(loader, "get_code") else None
+
+
+def keep_old_names(moved: dict[str, str]) -> None:
+    """Keep the old dotted names in `moved` (old -> new) importable, each with a DeprecationWarning."""
+    for finder in sys.meta_path:
+        if isinstance(finder, _OldNames):
+            finder.moved.update(moved)
+            return
+    sys.meta_path.insert(0, _OldNames(moved))

@@ -1,0 +1,290 @@
+"""`robocup-mcl node bench LOG`: the node in its own process, a log played to it over DDS, its answers timed.
+
+    robocup-mcl node bench game.mcap --field kidsize --json --save results/ros_bench.json
+    robocup-mcl node bench game.mcap --repeat 60 --save results/ros_soak.json      # an hour from a minute
+
+DDS stays on this machine: the bench runs only in a network namespace whose one interface is the loopback
+(started as root, it re-runs itself under `unshare --net` with `lo` up; elsewhere it refuses), with
+ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST, ROS_LOCALHOST_ONLY=1 and a private ROS_DOMAIN_ID as well.
+
+It starts `robocup-mcl node` (its kernels warmed up first), plays the log with `mcl.tools.ros.player.LogPlayer` once
+the node's subscriptions are matched, and records the poses with `PoseListener`. Figures:
+- latency: from the player publishing an odometry message to the listener receiving the pose with its stamp
+  (one process, one clock: `time.perf_counter`), median, p90, p99 and max [ms];
+- drops: odometry messages sent that no pose answered (the first odometry message of a run only starts it);
+- CPU: the node's CPU seconds over its wall seconds (`--stats`), and its callbacks' durations;
+- the replay: the node's poses against `robocup-mcl replay`'s for the same log, settings and seed, by stamp
+  (first lap): the share that are equal bit for bit and the largest distance. The node applies a camera frame
+  with the odometry message after its arrival, as the replay does; a frame that DDS delivers after the
+  odometry message published just after it is applied one step later than in the replay.
+"""
+from __future__ import annotations
+
+import json
+import math
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    import argparse
+
+PROG = "robocup-mcl node bench"
+ISOLATED_VARIABLE = "ROBOCUP_MCL_NETNS"
+READY_TIMEOUT = 300.0          # s: the node's start, kernels compiled on a first run included
+
+
+def loopback_only() -> bool:
+    """Whether this process's network namespace has no interface but the loopback."""
+    try:          # /proc/net/dev lists the reading process's namespace (sysfs may show the host's)
+        lines = Path("/proc/net/dev").read_text().splitlines()[2:]
+    except OSError:
+        return False
+    return {line.split(":")[0].strip() for line in lines} <= {"lo"}
+
+
+def namespace_command(argv: list[str]) -> list[str] | None:
+    """`argv` wrapped to run in a new network namespace with only `lo` up, or None when this machine cannot make
+    one (not root, no unshare or ip, or unshare refused)."""
+    unshare, ip = shutil.which("unshare"), shutil.which("ip")
+    if unshare is None or ip is None or os.geteuid() != 0:
+        return None
+    probe = subprocess.run([unshare, "--net", ip, "link", "set", "lo", "up"], capture_output=True, timeout=20)
+    if probe.returncode != 0:
+        return None
+    return [unshare, "--net", "sh", "-c", f'{ip} link set lo up && exec "$@"', "sh", *argv]
+
+
+def dds_environment(domain: int) -> dict[str, str]:
+    """The environment for DDS on the loopback only: discovery range, localhost-only and a private domain."""
+    return {**os.environ, "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST", "ROS_LOCALHOST_ONLY": "1",
+            "ROS_DOMAIN_ID": str(domain), "RMW_IMPLEMENTATION": "rmw_fastrtps_cpp"}
+
+
+def _percentiles(values: list[float]) -> dict[str, float | None]:
+    import numpy as np
+
+    if not values:
+        return {"median": None, "p90": None, "p99": None, "max": None}
+    array = np.asarray(values) * 1e3
+    return {"median": float(np.median(array)), "p90": float(np.percentile(array, 90)),
+            "p99": float(np.percentile(array, 99)), "max": float(array.max())}
+
+
+def compare_with_replay(log_path: str, settings: Any, poses: dict[int, tuple[float, float, float]],
+                        seconds: float | None) -> dict:
+    """The node's poses (by stamp) against `mcl.tools.replay.replay` of the same log and settings: how many stamps both
+    have, the share equal bit for bit, the largest distance [m]."""
+    import numpy as np
+
+    from mcl.tools.logs import read_log
+    from mcl.tools.replay import replay
+
+    log, _ = read_log(log_path)
+    result = replay(log, settings.localizer().field, model=settings.model, particles=settings.particles,
+                    seed=settings.seed, history=settings.history, compensate_latency=settings.compensate_latency,
+                    start=settings.start, localizer=settings.localizer() if settings.profile else None)
+    stamps = [log.origin_ns + round(t * 1e9) for t in result.times]
+    same, distances, first = 0, [], None
+    for t, stamp, estimate in zip(result.times, stamps, result.estimates):
+        pose = poses.get(stamp)
+        if pose is None:
+            continue
+        # x and y travel as they are; the heading through a quaternion (its last bits may change)
+        equal = (float(estimate[0]), float(estimate[1])) == pose[:2] and abs(
+            math.remainder(float(estimate[2]) - pose[2], math.tau)) < 1e-9
+        same += int(equal)
+        if not equal and first is None:
+            first = float(t)
+        distances.append(float(np.hypot(estimate[0] - pose[0], estimate[1] - pose[1])))
+    return {"compared": len(distances), "equal_share": same / len(distances) if distances else None,
+            "first_difference_s": first,
+            "max_distance_m": max(distances) if distances else None,
+            "median_distance_m": float(np.median(distances)) if distances else None}
+
+
+def run(args: argparse.Namespace, node_argv: list[str]) -> dict:
+    """Start the node, play the log, collect the figures (see the module docstring)."""
+    import rclpy
+    from rclpy.context import Context
+
+    from mcl.tools.ros.player import LogPlayer, PoseListener
+
+    env = dds_environment(args.domain)
+    os.environ.update({k: env[k] for k in ("ROS_AUTOMATIC_DISCOVERY_RANGE", "ROS_LOCALHOST_ONLY", "ROS_DOMAIN_ID",
+                                           "RMW_IMPLEMENTATION")})
+    stats_path = Path(tempfile.mkdtemp(prefix="robocup-mcl-node-")) / "stats.json"
+    node = subprocess.Popen([sys.executable, "-m", "mcl.tools.ros.node", *node_argv, "--stats", str(stats_path)],
+                            env=env, stderr=subprocess.PIPE, text=True)
+    context = Context()
+    rclpy.init(context=context)
+    player = listener = None
+    try:
+        player = LogPlayer(args.log, context=context, seconds=args.seconds)
+        listener = PoseListener(context=context)
+        listener.spin_in_thread(context)
+        deadline = time.monotonic() + READY_TIMEOUT
+        topics = [t for t in player.publishers if t in ("/motion_odometry", "/goal_posts_relative",
+                                                        "/markings_relative")]
+        while time.monotonic() < deadline and node.poll() is None:
+            if player.wait_for_subscribers(topics, 0.2) and listener.pose_sub.get_publisher_count() > 0:
+                break
+        if node.poll() is not None:
+            raise RuntimeError(f"the node stopped before the log was played: {node.stderr.read()[-2000:] if node.stderr else ''}")
+        time.sleep(0.5)              # the node's subscriptions matched: let the discovery settle
+        started = time.perf_counter()
+        sent = player.play(args.rate, args.repeat)
+        played = time.perf_counter() - started
+        time.sleep(1.0)              # the last answers
+    finally:
+        node.send_signal(signal.SIGINT)
+        try:
+            node.wait(timeout=15)
+        except subprocess.TimeoutExpired:
+            node.terminate()
+            try:
+                node.wait(timeout=5)
+            except subprocess.TimeoutExpired:
+                node.kill()
+                node.wait()
+        if listener is not None:
+            listener.close()
+        if player is not None:
+            player.close()
+        if rclpy.ok(context=context):
+            rclpy.shutdown(context=context)
+    stats = json.loads(stats_path.read_text()) if stats_path.exists() else {}
+    answered = {stamp: (arrived, pose) for stamp, arrived, pose in listener.poses}
+    latencies = [answered[stamp][0] - at for stamp, at in sent.items() if stamp in answered]
+    expected = len(sent) - 1
+    from mcl.tools.ros.parameters import NodeSettings
+    settings = NodeSettings.from_dict({k: v for k, v in vars(args).items() if k in NodeSettings.__dataclass_fields__
+                                       and v is not None})
+    return {"log": args.log, "rate": args.rate, "repeat": args.repeat, "log_seconds_played": played * args.rate,
+            "wall_seconds_played": played, "particles": settings.particles, "field": settings.field,
+            "odometry_sent": len(sent), "poses_received": len(answered), "poses_expected": expected,
+            "poses_dropped": max(expected - len([s for s in sent if s in answered]), 0),
+            "latency_ms": _percentiles(latencies), "tf_messages": len(listener.transforms),
+            "tf_frames": sorted({f"{parent}->{child}" for _, parent, child in listener.transforms}),
+            "quality_changes": listener.qualities, "skipped_topics": player.skipped,
+            "particle_messages": len(listener.particle_counts),
+            "particles_per_message": sorted(set(listener.particle_counts)),
+            "field_markers": {ns: sum(1 for n, _, _ in listener.field_markers if n == ns)
+                              for ns in sorted({n for n, _, _ in listener.field_markers})},
+            "node": stats,
+            "replay": compare_with_replay(args.log, settings, {s: p for s, (_, p) in answered.items()}, args.seconds)}
+
+
+def summary(result: dict) -> None:
+    """Print the figures for a reader."""
+    latency, node = result["latency_ms"], result["node"]
+    print(f"{result['log']}: {result['log_seconds_played']:.1f} s of log at {result['rate']:g}x, "
+          f"{result['particles']} particles")
+    print(f"poses: {result['poses_received']} of {result['poses_expected']} expected, "
+          f"{result['poses_dropped']} dropped")
+    if latency["median"] is not None:
+        print(f"latency odometry -> pose: median {latency['median']:.2f} ms, p90 {latency['p90']:.2f} ms, "
+              f"p99 {latency['p99']:.2f} ms, max {latency['max']:.2f} ms")
+    if node.get("ordering"):
+        print(f"the node ordered camera frames against odometry by {node['ordering']}")
+    if node.get("cpu_share") is not None:
+        print(f"node CPU: {100 * node['cpu_share']:.1f} % of one core ({node['cpu_seconds']:.1f} s over "
+              f"{node['wall_seconds']:.1f} s)")
+    odometry = node.get("callbacks", {}).get("/motion_odometry")
+    if odometry:
+        print(f"the node's odometry callback (motion, frames, publishing): median {odometry['median_ms']:.2f} ms, "
+              f"p99 {odometry['p99_ms']:.2f} ms, max {odometry['max_ms']:.2f} ms")
+    if result.get("particle_messages") is not None:
+        print(f"particles: {result['particle_messages']} messages of {result['particles_per_message']} poses; "
+              f"field markers: {result['field_markers']}")
+    replay = result["replay"]
+    if replay["compared"]:
+        first = replay.get("first_difference_s")
+        print(f"against the replay: {replay['compared']} poses, {100 * replay['equal_share']:.1f} % equal bit for bit"
+              + (f" (first difference at {first:.2f} s), median distance {replay['median_distance_m']:.4f} m,"
+                 if first is not None else ",")
+              + f" largest distance {replay['max_distance_m']:.4f} m")
+    if node.get("not_used"):
+        print(f"not used by the node: {node['not_used']}")
+
+
+def build_parser(prog: str = PROG) -> argparse.ArgumentParser:
+    """The command's argument parser, named `prog` in its usage line."""
+    import argparse
+
+    from mcl.tools.cli_checks import NO_PROGRESS_HELP, add_save_option
+
+    parser = argparse.ArgumentParser(
+        prog=prog, description="Play a robot's MCAP log to the live node over DDS, in a network namespace with "
+        "only the loopback: latency from odometry to pose, drops, the node's CPU share, and its poses against the "
+        "replay's.")
+    parser.add_argument("log", help="the MCAP log (robocup-mcl replay's topics)")
+    parser.add_argument("--field", default="spl", help="the node's field: spl, kidsize, adultsize or a file (default spl)")
+    parser.add_argument("--particles", type=int, default=500, help="the node's particles (default 500)")
+    parser.add_argument("--seed", type=int, default=0, help="the node's seed (default 0)")
+    parser.add_argument("--rate", type=float, default=1.0, help="play at this multiple of real time (default 1)")
+    parser.add_argument("--seconds", type=float, default=None, help="play at most this many seconds of the log")
+    parser.add_argument("--repeat", type=int, default=1,
+                        help="play the log this many times in a row, stamps moved on (a soak; default 1)")
+    parser.add_argument("--no-source-timestamps", action="store_true",
+                        help="run the node with use_source_timestamps false: frames ordered as on Humble (receive "
+                        "order and header stamps)")
+    parser.add_argument("--domain", type=int, default=None, help="ROS_DOMAIN_ID (default: 100 + pid %% 100)")
+    parser.add_argument("--json", action="store_true", help="print the figures as JSON")
+    add_save_option(parser)
+    parser.add_argument("--no-progress", action="store_true", help=NO_PROGRESS_HELP + "; this command shows none")
+    return parser
+
+
+def main(argv: list[str] | None = None, prog: str = PROG) -> int:
+    """`robocup-mcl node bench LOG` (see `--help`); returns the exit status."""
+    from mcl.tools.cli_checks import check_output_file, save_and_print
+    from mcl.tools.ros.node import ros_available
+
+    argv = list(sys.argv[1:] if argv is None else argv)
+    args = build_parser(prog).parse_args(argv)
+    if not (args.rate > 0 and args.repeat >= 1 and args.particles > 0):
+        print(f"{prog}: --rate must be > 0, --repeat >= 1 and --particles > 0", file=sys.stderr)
+        return 1
+    if not os.path.isfile(args.log):
+        print(f"{prog}: {args.log}: no such file", file=sys.stderr)
+        return 1
+    missing = ros_available()
+    if missing:
+        print(f"{prog}: {missing}", file=sys.stderr)
+        return 1
+    check_output_file(args.save, "--save")
+    if not loopback_only():
+        if os.environ.get(ISOLATED_VARIABLE):
+            print(f"{prog}: the namespace has interfaces besides the loopback; refusing to start DDS", file=sys.stderr)
+            return 1
+        wrapped = namespace_command([sys.executable, "-m", "mcl.tools.ros.bench", *argv])
+        if wrapped is None:
+            print(f"{prog}: cannot make a loopback-only network namespace here (needs root, unshare and ip); "
+                  "DDS is not started on the host's network", file=sys.stderr)
+            return 1
+        return subprocess.run(wrapped, env={**os.environ, ISOLATED_VARIABLE: "1"}).returncode
+    if args.domain is None:
+        args.domain = 100 + os.getpid() % 100
+    from mcl.numba_cache import guard_source_checkout
+    guard_source_checkout()
+    node_argv = ["--field", args.field, "--particles", str(args.particles), "--seed", str(args.seed)]
+    if args.no_source_timestamps:
+        node_argv.append("--no-use-source-timestamps")
+    try:
+        result = run(args, node_argv)
+    except (RuntimeError, ValueError, OSError) as error:
+        print(f"{prog}: {error}", file=sys.stderr)
+        return 1
+    save_and_print(result, args.save, args.json, summary)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main(prog="python -m mcl.tools.ros.bench"))
