@@ -209,3 +209,23 @@ def test_one_line_messages():
     assert one_line(OSError(28, "No space left on device")) == "No space left on device"
     assert one_line(ValueError("a\n\n  b  \n")) == "a; b"
     assert one_line(RuntimeError()) == "RuntimeError"
+
+
+def test_a_module_run_with_python_dash_m_refuses_in_one_line(tmp_path):
+    """`python -m mcl.tools.ros.bench` (as `make ros` and the node's docs run the ROS tools) refuses a bad value
+    the way `robocup-mcl` does: one line naming the program, exit 1, no traceback."""
+    done = subprocess.run([sys.executable, "-m", "mcl.tools.ros.bench", str(tmp_path / "missing.mcap"), "--rate", "0"],
+                          capture_output=True, text=True, check=False)
+    assert done.returncode == 1 and done.stderr.splitlines() == [
+        "python -m mcl.tools.ros.bench: --rate must be > 0, --repeat >= 1 and --particles > 0"], done.stderr
+
+
+def test_run_main_turns_a_refusal_into_one_line(capsys):
+    from mcl.tools.cli_checks import CommandError, run_main
+
+    def refuses(prog):
+        raise CommandError("--save: /nowhere/x.json: No such file or directory")
+
+    assert run_main(refuses, "prog") == 1
+    assert capsys.readouterr().err == "prog: --save: /nowhere/x.json: No such file or directory\n"
+    assert run_main(lambda prog: 0, "prog") == 0

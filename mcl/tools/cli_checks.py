@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import math
 import os
+import sys
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -27,6 +28,16 @@ from typing import Any
 class CommandError(ValueError):
     """A command cannot run as asked (an output it cannot write, an input it cannot read); the message is one
     line naming the option and the path."""
+
+
+def run_main(main, prog: str) -> int:
+    """Run a command's `main(prog=prog)` as `python -m` does: a refusal (CommandError, ValueError, TypeError,
+    OSError) is one line on stderr, `PROG: message`, and exit status 1, as under `robocup-mcl`."""
+    try:
+        return main(prog=prog)
+    except (CommandError, ValueError, TypeError, OSError) as error:
+        print(f"{prog}: {one_line(error)}", file=sys.stderr)
+        return 1
 
 
 def _reason(error: OSError) -> str:

@@ -244,31 +244,24 @@ def build_parser(prog: str = PROG) -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None, prog: str = PROG) -> int:
     """`robocup-mcl node bench LOG` (see `--help`); returns the exit status."""
-    from mcl.tools.cli_checks import check_output_file, save_and_print
-    from mcl.tools.ros.node import ros_available
+    from mcl.tools.cli_checks import CommandError, check_output_file, save_and_print
+    from mcl.tools.ros.node import require_ros
 
     argv = list(sys.argv[1:] if argv is None else argv)
     args = build_parser(prog).parse_args(argv)
     if not (args.rate > 0 and args.repeat >= 1 and args.particles > 0):
-        print(f"{prog}: --rate must be > 0, --repeat >= 1 and --particles > 0", file=sys.stderr)
-        return 1
+        raise CommandError("--rate must be > 0, --repeat >= 1 and --particles > 0")
     if not os.path.isfile(args.log):
-        print(f"{prog}: {args.log}: no such file", file=sys.stderr)
-        return 1
-    missing = ros_available()
-    if missing:
-        print(f"{prog}: {missing}", file=sys.stderr)
-        return 1
+        raise CommandError(f"{args.log}: no such file")
+    require_ros()
     check_output_file(args.save, "--save")
     if not loopback_only():
         if os.environ.get(ISOLATED_VARIABLE):
-            print(f"{prog}: the namespace has interfaces besides the loopback; refusing to start DDS", file=sys.stderr)
-            return 1
+            raise CommandError("the namespace has interfaces besides the loopback; refusing to start DDS")
         wrapped = namespace_command([sys.executable, "-m", "mcl.tools.ros.bench", *argv])
         if wrapped is None:
-            print(f"{prog}: cannot make a loopback-only network namespace here (needs root, unshare and ip); "
-                  "DDS is not started on the host's network", file=sys.stderr)
-            return 1
+            raise CommandError("cannot make a loopback-only network namespace here (needs root, unshare and ip); "
+                               "DDS is not started on the host's network")
         return subprocess.run(wrapped, env={**os.environ, ISOLATED_VARIABLE: "1"}).returncode
     if args.domain is None:
         args.domain = 100 + os.getpid() % 100
@@ -279,12 +272,12 @@ def main(argv: list[str] | None = None, prog: str = PROG) -> int:
         node_argv.append("--no-use-source-timestamps")
     try:
         result = run(args, node_argv)
-    except (RuntimeError, ValueError, OSError) as error:
-        print(f"{prog}: {error}", file=sys.stderr)
-        return 1
+    except RuntimeError as error:        # the node or the player failed: their own messages say why
+        raise CommandError(str(error)) from None
     save_and_print(result, args.save, args.json, summary)
     return 0
 
 
 if __name__ == "__main__":
-    raise SystemExit(main(prog="python -m mcl.tools.ros.bench"))
+    from mcl.tools.cli_checks import run_main
+    raise SystemExit(run_main(main, "python -m mcl.tools.ros.bench"))

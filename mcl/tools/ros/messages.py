@@ -199,14 +199,16 @@ def main(argv: list[str] | None = None, prog: str = PROG) -> int:
         missing = missing_packages()
         print("missing: " + ", ".join(missing) if missing else "all message packages import")
         return 1 if missing else 0
+    from mcl.tools.cli_checks import CommandError
+
     try:
         built = install(Path(args.build_dir), force=args.force, jobs=args.jobs)
-    except RuntimeError as error:
-        print(f"{prog}: {error}", file=sys.stderr)
-        return 1
+    except RuntimeError as error:        # cmake or the compiler failed: their own messages say why
+        raise CommandError(str(error)) from None
     print(f"built {', '.join(built)}" if built else "all message packages import: nothing to build")
     return 0
 
 
 if __name__ == "__main__":
-    raise SystemExit(main(prog="python -m mcl.tools.ros.messages"))
+    from mcl.tools.cli_checks import run_main
+    raise SystemExit(run_main(main, "python -m mcl.tools.ros.messages"))

@@ -35,6 +35,15 @@ NOT_INSTALLED = ("rclpy is not installed in this environment: `make ros` install
                  "generates the messages (docs/ros.md)")
 
 
+def require_ros() -> None:
+    """Raise CommandError, saying what is missing and how to install it, unless ROS and its messages import."""
+    from mcl.tools.cli_checks import CommandError
+
+    missing = ros_available()
+    if missing:
+        raise CommandError(missing)
+
+
 def ros_available() -> str | None:
     """None when rclpy and every generated message package import here, else what is missing, as a sentence."""
     import importlib.util
@@ -374,15 +383,8 @@ def main(argv: list[str] | None = None, prog: str = PROG) -> int:
         argv, ros_args = argv[:at], argv[at:]
     args = build_parser(prog).parse_args(argv)
     given = {f.name: getattr(args, f.name) for f in fields(NodeSettings) if getattr(args, f.name) is not None}
-    try:
-        settings = NodeSettings.from_dict(given)
-    except ValueError as error:
-        print(f"{prog}: {error}", file=sys.stderr)
-        return 1
-    missing = ros_available()
-    if missing:
-        print(f"{prog}: {missing}", file=sys.stderr)
-        return 1
+    settings = NodeSettings.from_dict(given)
+    require_ros()
     from mcl.tools.cli_checks import check_output_file
     from mcl.numba_cache import guard_source_checkout
 
@@ -403,10 +405,7 @@ def main(argv: list[str] | None = None, prog: str = PROG) -> int:
             executor.spin()
         except (KeyboardInterrupt, ExternalShutdownException):
             pass
-    except ValueError as error:          # a parameter given with --ros-args that NodeSettings refuses
-        print(f"{prog}: {error}", file=sys.stderr)
-        return 1
-    finally:
+    finally:                             # also after a parameter given with --ros-args that NodeSettings refuses
         if node is not None:
             if args.stats:
                 with open(args.stats, "w", encoding="utf-8") as out:
@@ -418,4 +417,5 @@ def main(argv: list[str] | None = None, prog: str = PROG) -> int:
 
 
 if __name__ == "__main__":
-    raise SystemExit(main(prog="python -m mcl.tools.ros.node"))
+    from mcl.tools.cli_checks import run_main
+    raise SystemExit(run_main(main, "python -m mcl.tools.ros.node"))

@@ -17,7 +17,6 @@ goes back: an hour from a minute-long log. Messages of a type that does not impo
 from __future__ import annotations
 
 import importlib
-import sys
 import threading
 import time
 from typing import TYPE_CHECKING, Any
@@ -225,16 +224,13 @@ def build_parser(prog: str = PROG) -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None, prog: str = PROG) -> int:
     """`robocup-mcl node play LOG` (see `--help`); returns the exit status."""
-    from mcl.tools.ros.node import ros_available
+    from mcl.tools.cli_checks import CommandError
+    from mcl.tools.ros.node import require_ros
 
     args = build_parser(prog).parse_args(argv)
     if not (args.rate > 0 and args.repeat >= 1):
-        print(f"{prog}: --rate must be > 0 and --repeat >= 1", file=sys.stderr)
-        return 1
-    missing = ros_available()
-    if missing:
-        print(f"{prog}: {missing}", file=sys.stderr)
-        return 1
+        raise CommandError("--rate must be > 0 and --repeat >= 1")
+    require_ros()
     import rclpy
 
     rclpy.init()
@@ -245,9 +241,6 @@ def main(argv: list[str] | None = None, prog: str = PROG) -> int:
         print(f"played {len(player.messages) * args.repeat} messages ({len(sent)} odometry) of {args.log}"
               + (f"; left out (type not installed): {player.skipped}" if player.skipped else ""))
         player.close()
-    except (OSError, ValueError) as error:
-        print(f"{prog}: {error}", file=sys.stderr)
-        return 1
     finally:
         if rclpy.ok():
             rclpy.shutdown()
