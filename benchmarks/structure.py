@@ -16,7 +16,9 @@ revision (extracted with `git archive` into a temporary directory), and reports:
   longest_function   outside kernels and among kernels (a kernel: decorated with numba's njit/jit/vectorize,
                      or intrinsic/overload, called or not; imports resolved, typing.overload excluded).
   widest_parameters  the most parameters (*args and **kwargs one each, a leading self/cls not counted).
-  largest_class      by lines and by methods.
+  largest_class      by lines and by methods (and the five largest by lines).
+  paired_variants    functions named as another's variant (`*_reference`, `*_chunked`, `*_fast`, `*_compiled`):
+                     how many, and which.
   import_contract    `lint-imports` on the tree when importlinter is installed and pyproject.toml has a
                      [tool.importlinter] section; otherwise null, with the reason.
 
@@ -461,6 +463,15 @@ def parse_lint_imports(output: str) -> dict | None:
 # -------------------------------------------------------------------------------------------------- analysis
 
 
+VARIANT_SUFFIXES = ("_reference", "_chunked", "_fast", "_compiled")
+
+
+def paired_variants(functions: list[Function]) -> dict:
+    """The functions whose names mark them as another's variant (VARIANT_SUFFIXES): count and list."""
+    named = sorted((f for f in functions if f.name.endswith(VARIANT_SUFFIXES)), key=lambda f: (f.file, f.line))
+    return {"count": len(named), "list": [f"{f.file}:{f.line} {f.name}" for f in named]}
+
+
 def analyse(root: Path, core: list[str] | None = None, soccer: list[str] | None = None,
             run_contract: bool = True) -> dict:
     """Every figure of the tree at `root` (see the module's docstring), as a JSON-ready dict."""
@@ -496,7 +507,9 @@ def analyse(root: Path, core: list[str] | None = None, soccer: list[str] | None 
         "longest_function": longest,
         "widest_parameters": widest,
         "largest_class": {"by_lines": _first(classes, lambda c: c.lines),
-                          "by_methods": _first(classes, lambda c: c.methods), "classes": len(classes)},
+                          "by_methods": _first(classes, lambda c: c.methods), "classes": len(classes),
+                          "top": [c.as_dict() for c in sorted(classes, key=lambda c: -c.lines)[:5]]},
+        "paired_variants": paired_variants(functions),
         "import_contract": contract,
         "import_contract_reason": reason,
         "parse_errors": errors + consumer_errors,
@@ -613,6 +626,8 @@ def render(report: dict) -> str:
         ("widest kernel", _where(widest["kernels"]["widest"], "parameters")),
         ("largest class", _where(largest["by_lines"], "lines")),
         ("most methods", _where(largest["by_methods"], "methods")),
+        ("paired variants", f"{report['paired_variants']['count']} functions named *_reference, *_chunked, *_fast, "
+                            "*_compiled"),
     ]
     contract = report["import_contract"]
     rows.append(("import contract", f"{contract['kept']} kept, {contract['broken']} broken, "
