@@ -101,10 +101,12 @@ class PageRun:
     """The blocks of one page run so far, in their module, in the page's working directory."""
 
     def __init__(self, page: Path, directory: Path) -> None:
-        slug = re.sub(r"\W", "_", page.relative_to(ROOT).with_suffix("").as_posix())
-        self.module = types.ModuleType(f"docs_example_{slug}")
+        # A module importable by name: numba's cache of a kernel defined on a page names the module, and loads it
+        # by that name in later runs. docs/extending.md's is `extending_example`, as tests/test_extending.py has
+        # it, so that the two share the cached kernels.
+        name = re.sub(r"\W", "_", page.stem) + "_example"
+        self.module = sys.modules.setdefault(name, types.ModuleType(name))
         self.module.__file__ = str(page)
-        sys.modules[self.module.__name__] = self.module      # numba finds a cached kernel's module by its name
         self.directory = directory
         (directory / "results").symlink_to(ROOT / "results", target_is_directory=True)
         for name, content in PARSED[page][1].items():
@@ -133,9 +135,7 @@ def runs(tmp_path_factory):
             made[page] = PageRun(page, tmp_path_factory.mktemp(page.stem))
         return made[page]
 
-    yield get
-    for run in made.values():
-        sys.modules.pop(run.module.__name__, None)
+    return get
 
 
 def _compared(text: str) -> list[str]:
