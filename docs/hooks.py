@@ -389,10 +389,16 @@ def _count(n: int) -> str:
 def acting_levels() -> str:
     """Each quality level, `is_lost` and the hypotheses with their measured error rates on the held-out seeds of
     the battery (results/eval_team.json, every family) and what a behaviour should do."""
-    split = _load("eval_team.json")["splits"]["holdout"]
+    results = _load("eval_team.json")
+    split = results["splits"]["holdout"]
     pooled = split["overall"]["pooled"]
     total = sum(pooled[level]["steps"] for level in ("SUPERB", "OKAY", "UNSURE_HALF", "POOR"))
-    rows = ["| signal | share of the steps | measured on the held-out battery | what the behaviour should do |",
+    seeds = split["seeds"]
+    rows = [f"Pooled over the {split['overall']['runs']} held-out runs of `results/eval_team.json` "
+            f"({len(split['families'])} families, seeds {min(seeds)}–{max(seeds)}, {results['duration_s']:g} s each, "
+            f"{results['particles']} particles, detections {'with' if results['view'] else 'without'} the camera's "
+            f"view; `{TEAM_COMMAND}`), each step sampled after the 100 Hz motion step:", "",
+            "| signal | share of the steps | measured on the held-out battery | what the behaviour should do |",
             "|---|---|---|---|"]
     for level in ("SUPERB", "OKAY", "UNSURE_HALF", "POOR"):
         p = pooled[level]
@@ -400,8 +406,9 @@ def acting_levels() -> str:
                     f"steps more than 0.5 m off ({_count(p['wrong'])} of {_count(p['steps'])}) | {ACTIONS[level]} |")
     recall, alarm = pooled["recall"], pooled["false_alarm"]
     rows.append(f"| `is_lost` | | "
-                f"set on {100 * recall['share']:.1f} % of the steps of episodes more than 1 m off for over 2 s "
-                f"(recall); on {100 * alarm['share']:.2f} % of the steps within 0.3 m (false alarms) | "
+                f"set on {100 * recall['share']:.1f} % of the steps more than 1 m off, from 2 s into such an "
+                f"episode (recall: {_count(recall['lost'])} of {_count(recall['steps'])}); on "
+                f"{100 * alarm['share']:.2f} % of the steps within 0.3 m (false alarms) | "
                 f"{ACTIONS['is_lost']} |")
     silent = split["families"]["kidnap_even_silent"]["summary"]["kidnap_odds"]["even"]
     rows.append(f"| `hypotheses()` | | after kidnappings that nothing sensed tells apart, without teammates "
