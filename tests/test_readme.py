@@ -36,9 +36,25 @@ def test_integration_example_runs_and_localizes():
     assert (namespace["est"].covariance.diagonal() < 0.002).all()      # what the text says of the printed figures
 
 
-def test_the_readme_and_the_integration_page_hold_the_same_robot_loop():
+def test_the_readme_integration_and_getting_started_hold_the_same_robot_loop():
     loop = next(block for block in python_blocks() if "ParticleFilter" in block)
-    assert loop in python_blocks(DOCS / "integration.md")
+    assert loop in python_blocks(DOCS / "integration.md") and loop in python_blocks(DOCS / "getting-started.md")
+
+
+def test_getting_started_goes_from_the_clone_to_the_loop_in_order():
+    """Clone, `make demo`, the recording, the loop, the printed figures: in that order, with the repository's
+    address (mkdocs.yml's repo_url) in the clone command."""
+    text = (DOCS / "getting-started.md").read_text()
+    repo_url = re.search(r"^repo_url: (\S+)$", (ROOT / "mkdocs.yml").read_text(), flags=re.M).group(1)
+    assert f"git clone {repo_url}.git" in text
+    steps = ["## 1. Clone", "## 2. `make demo`", "## 3. Open the recording", "## 4. The robot's loop",
+             "## 5. What each printed figure means"]
+    assert [text.index(step) for step in steps] == sorted(text.index(step) for step in steps)
+    demo = (ROOT / "results" / "demo_walk.txt").read_text()
+    header = demo.splitlines()[1].split()
+    meanings = text.split("## 5.", 1)[1]
+    for column in ("seed", "pos", "head", "converge", "reconv.", "mirror", "ms/step"):
+        assert column in header and f"`{column}" in meanings, column
 
 
 def test_readme_quick_start_has_exactly_the_two_commands():
