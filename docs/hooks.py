@@ -559,7 +559,10 @@ def tex_to_mathml(page_html: str) -> str:
     return ARITHMATEX.sub(one, page_html)
 
 
-PLAIN_CODE = re.compile(r"<pre><code>(.*?)</code></pre>", flags=re.S)
+# A code block without a language: mkdocstrings leaves it plain (`<pre><code>`), or highlighted as text (no
+# token spans inside).
+PLAIN_CODE = re.compile(r'(?:<div class="highlight"><pre><span></span><code>((?:(?!<span|</code>).)*)</code></pre></div>'
+                        r"|<pre><code>((?:(?!<span|</code>).)*)</code></pre>)", flags=re.S)
 
 
 def highlight_docstring_code(page_html: str) -> str:
@@ -571,7 +574,8 @@ def highlight_docstring_code(page_html: str) -> str:
     from pygments.lexers import PythonLexer
 
     def one(match: re.Match) -> str:
-        code = highlight(html.unescape(match.group(1)), PythonLexer(), HtmlFormatter(nowrap=True))
+        plain = match.group(1) if match.group(1) is not None else match.group(2)
+        code = highlight(html.unescape(plain), PythonLexer(), HtmlFormatter(nowrap=True))
         return f'<div class="highlight"><pre><span></span><code>{code}</code></pre></div>'
     return PLAIN_CODE.sub(one, page_html).replace("::</p>", ":</p>")
 

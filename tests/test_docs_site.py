@@ -51,7 +51,10 @@ def test_the_api_reference_has_a_page_per_module_in_the_navigation(site):
         assert f'href="{target}"' in nav, f"{uri} is not in the navigation"
         assert (site / target / "index.html").exists()
     lwpr = (site / "api" / "motion_models" / "lwpr" / "index.html").read_text()
-    assert '<div class="highlight"><pre><span></span><code>' in lwpr and "<pre><code>" not in lwpr
+    assert '<span class="kn">import</span>' in lwpr             # its docstring's example, highlighted as Python
+    for page in (site / "api").rglob("index.html"):             # no docstring code left plain
+        for code in re.findall(r"<pre><span></span><code>(.*?)</code>|<pre><code>(.*?)</code>", page.read_text(), re.S):
+            assert "<span" in "".join(code), f"{page.relative_to(site)}: {''.join(code)[:200]}"
 
 
 def test_the_math_is_mathml_made_at_build_time(site):
