@@ -360,7 +360,7 @@ def team_variant() -> str:
 def _on_path() -> None:
     """The repository's own packages first on sys.path (a build from another directory, or an environment whose
     editable install points at another checkout, still documents and measures this tree)."""
-    if str(ROOT) not in sys.path or sys.path[0] != str(ROOT):
+    if sys.path[:1] != [str(ROOT)]:
         sys.path.insert(0, str(ROOT))
 
 
