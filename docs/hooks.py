@@ -6,9 +6,21 @@ links made relative to the docs folder, so the two never differ.
 Tables from results files: a line `<!-- results-table: NAME -->` in a page is replaced by the table `NAME`
 built from the JSON files the commands wrote (`TABLES`), so a new measurement changes the page when the site is
 built. A missing file or key fails the build.
+
+The API reference is one page per module, generated here from the packages' source files (`API_PACKAGES`):
+`api/<package>.md` lists a package's modules, `api/<package>/<module>.md` documents one, and the navigation's
+"API reference" section lists them all. A new module gets its page without an edit here.
+
+Offline: the TeX of the pages (`$...$`, `$$...$$`, through pymdownx.arithmatex) is turned into MathML when
+the site is built (latex2mathml), which browsers render without a script; the theme loads no web fonts
+(`theme.font: false`). The docstrings' code blocks are highlighted as Python.
+
+The build does not depend on the current directory: the snippets' base path is set to the repository root.
 """
 from __future__ import annotations
 
+import ast
+import html
 import json
 import re
 import sys
@@ -345,13 +357,244 @@ def team_variant() -> str:
     return "\n".join(rows)
 
 
+def _on_path() -> None:
+    """The repository's own packages first on sys.path (a build from another directory, or an environment whose
+    editable install points at another checkout, still documents and measures this tree)."""
+    if sys.path[:1] != [str(ROOT)]:
+        sys.path.insert(0, str(ROOT))
+
+
+# What a team's behaviour should do at each signal of the localizer (docs/acting.md). The measured figures
+# beside them are read from results/eval_team.json.
+ACTIONS = {
+    "SUPERB": "play: kick, shoot at goal, pass to a position",
+    "OKAY": "walk to the ball and position; look at landmarks when the head is free; avoid shots that need an "
+            "exact angle",
+    "UNSURE_HALF": "do not shoot or dribble toward a goal; look at the ball (it decides the half); read "
+                   "`hypotheses()` and ask the team",
+    "POOR": "do not plan on the pose: stop walking to field positions, scan with the head for landmarks",
+    "is_lost": "stop, turn the head and then the body to look around; tell the team; wait for a game event or "
+               "for the quality to come back",
+    "hypotheses": "when `mirror` weighs about as much as `main`, pick by the ball: the half where the own ball "
+                  "sighting agrees with the teammates'; show both to the team",
+}
+TEAM_COMMAND = "robocup-mcl eval --split both --seeds 20 --save results/eval_team.json"
+
+
+def _count(n: int) -> str:
+    """12345 -> '12 345'."""
+    return f"{n:,}".replace(",", " ")
+
+
+def acting_levels() -> str:
+    """Each quality level, `is_lost` and the hypotheses with their measured error rates on the held-out seeds of
+    the battery (results/eval_team.json, every family) and what a behaviour should do."""
+    results = _load("eval_team.json")
+    split = results["splits"]["holdout"]
+    pooled = split["overall"]["pooled"]
+    total = sum(pooled[level]["steps"] for level in ("SUPERB", "OKAY", "UNSURE_HALF", "POOR"))
+    seeds = split["seeds"]
+    rows = [f"Pooled over the {split['overall']['runs']} held-out runs of `results/eval_team.json` "
+            f"({len(split['families'])} families, seeds {min(seeds)}–{max(seeds)}, {results['duration_s']:g} s each, "
+            f"{results['particles']} particles, detections {'with' if results['view'] else 'without'} the camera's "
+            f"view; `{TEAM_COMMAND}`), each step sampled after the 100 Hz motion step:", "",
+            "| signal | share of the steps | measured on the held-out battery | what the behaviour should do |",
+            "|---|---|---|---|"]
+    for level in ("SUPERB", "OKAY", "UNSURE_HALF", "POOR"):
+        p = pooled[level]
+        rows.append(f"| `Quality.{level}` | {100 * p['steps'] / total:.1f} % | {100 * p['share']:.2f} % of its "
+                    f"steps more than 0.5 m off ({_count(p['wrong'])} of {_count(p['steps'])}) | {ACTIONS[level]} |")
+    recall, alarm = pooled["recall"], pooled["false_alarm"]
+    rows.append(f"| `is_lost` | | "
+                f"set on {100 * recall['share']:.1f} % of the steps more than 1 m off, from 2 s into such an "
+                f"episode (recall: {_count(recall['lost'])} of {_count(recall['steps'])}); on "
+                f"{100 * alarm['share']:.2f} % of the steps within 0.3 m (false alarms) | "
+                f"{ACTIONS['is_lost']} |")
+    silent = split["families"]["kidnap_even_silent"]["summary"]["kidnap_odds"]["even"]
+    rows.append(f"| `hypotheses()` | | after kidnappings that nothing sensed tells apart, without teammates "
+                f"(`kidnap_even_silent`): {silent['ends_on_mirror']} of {silent['runs']} runs end on the mirror; "
+                f"on {100 * silent['mirror_steps_doubted'] / silent['mirror_steps']:.1f} % of the steps on the "
+                f"mirror the quality said UNSURE_HALF or POOR | {ACTIONS['hypotheses']} |")
+    return "\n".join(rows)
+
+
+def _threshold_help() -> dict[str, str]:
+    """The description of each `QualityThresholds` field, from its docstring's Attributes section."""
+    _on_path()
+    from mcl.localizer import QualityThresholds
+    doc = QualityThresholds.__doc__ or ""
+    attributes = doc.split("Attributes\n    ----------\n", 1)[1].split("\n\n", 1)[0]
+    out: dict[str, str] = {}
+    names: list[str] = []
+    for line in attributes.splitlines():
+        if line.startswith("    ") and not line.startswith("        "):
+            names = [n.strip() for n in line.split(" : ", 1)[0].split(",")]
+        elif line.strip():
+            for name in names:
+                out[name] = (out.get(name, "") + " " + line.strip()).strip()
+    return out
+
+
+def acting_thresholds() -> str:
+    """The limits that decide the quality, `QualityThresholds`' own defaults (read from the class), in one table:
+    a SUPERB and an OKAY column where the field comes in pairs."""
+    _on_path()
+    import dataclasses
+    from mcl.localizer import QualityThresholds
+    defaults = {f.name: f.default for f in dataclasses.fields(QualityThresholds)}
+    described = _threshold_help()
+    rows = ["| limit | SUPERB | OKAY | meaning |", "|---|---|---|---|"]
+    done = set()
+    for name in defaults:
+        if name in done:
+            continue
+        if name.startswith(("superb_", "okay_")):
+            stem = name.split("_", 1)[1]
+            superb, okay = f"superb_{stem}", f"okay_{stem}"
+            cells = [f"`{n}` = {defaults[n]:g}" if n in defaults else "–" for n in (superb, okay)]
+            done.update((superb, okay))
+            text = described.get(superb) or described.get(okay, "")
+            rows.append(f"| {stem} | {cells[0]} | {cells[1]} | {text} |")
+        else:
+            done.add(name)
+            rows.append(f"| {name} | `{name}` = {defaults[name]:g} (every level) | | {described.get(name, '')} |")
+    return "\n".join(rows)
+
+
+# The API reference: one page per module of these packages.
+API_PACKAGES = ("mcl", "motion_models", "sensing", "proprioception", "field", "numerics")
+
+
+def _summary(path: Path) -> str:
+    """The first sentence-line of a module's docstring (for the package pages' tables)."""
+    doc = ast.get_docstring(ast.parse(path.read_text(encoding="utf-8"))) or ""
+    first = doc.strip().split("\n\n", 1)[0].replace("\n", " ")
+    return first.replace("|", "\\|")
+
+
+def api_tree(package: str = "", path: Path | None = None) -> list[tuple[str, Path, list]]:
+    """(dotted name, source path, children) for each package of `API_PACKAGES` (or below `package`): packages
+    with their public modules and subpackages, sorted by name."""
+    if not package:
+        return [(name, ROOT / name / "__init__.py", api_tree(name, ROOT / name)) for name in API_PACKAGES]
+    out = []
+    for entry in sorted(path.iterdir()):
+        if entry.name.startswith(("_", ".")):
+            continue
+        if entry.is_dir() and (entry / "__init__.py").exists():
+            out.append((f"{package}.{entry.name}", entry / "__init__.py", api_tree(f"{package}.{entry.name}", entry)))
+        elif entry.suffix == ".py":
+            out.append((f"{package}.{entry.stem}", entry, []))
+    return out
+
+
+def api_uri(name: str) -> str:
+    """`mcl.tools.cli` -> `api/mcl/tools/cli.md`."""
+    return "api/" + name.replace(".", "/") + ".md"
+
+
+def api_pages() -> dict[str, str]:
+    """The markdown of every API page, by its path in the docs."""
+    pages: dict[str, str] = {}
+
+    def walk(name: str, path: Path, children: list) -> None:
+        if children or path.name == "__init__.py":
+            here = api_uri(name)
+            rows = ["| module | |", "|---|---|"]
+            for child, child_path, _ in children:
+                link = Path(api_uri(child)).relative_to(Path(here).parent).as_posix()
+                rows.append(f"| [`{child}`]({link}) | {_summary(child_path)} |")
+            pages[here] = (f"# `{name}`\n\n::: {name}\n    options:\n      show_root_heading: false\n"
+                           f"      members: false\n\n## Modules\n\n" + "\n".join(rows) + "\n")
+            for child in children:
+                walk(*child)
+        else:
+            pages[api_uri(name)] = f"# `{name}`\n\n::: {name}\n    options:\n      show_root_heading: false\n"
+
+    for package in api_tree():
+        walk(*package)
+    return pages
+
+
+def api_nav() -> list:
+    """The navigation's API section: each package's page, then its modules (subpackages as sections)."""
+    def entry(name: str, children: list):
+        if not children:
+            return {name: api_uri(name)}
+        return {name: [api_uri(name)] + [entry(child, grand) for child, _, grand in children]}
+    return [entry(name, children) for name, _, children in api_tree()]
+
+
+def on_config(config):
+    """The snippets' base path is the repository root whatever the current directory; the API section of the
+    navigation is the generated pages."""
+    snippets = config.mdx_configs.setdefault("pymdownx.snippets", {})
+    snippets["base_path"] = [str(ROOT)]
+    for item in config.nav or []:
+        if isinstance(item, dict) and "API reference" in item:
+            item["API reference"] = api_nav()
+    return config
+
+
+def on_files(files, config):
+    """Adds the generated API pages."""
+    from mkdocs.structure.files import File
+    for uri, text in api_pages().items():
+        files.append(File.generated(config, uri, content=text))
+    return files
+
+
+ARITHMATEX = re.compile(r'<(span|div) class="arithmatex">(.*?)</\1>', flags=re.S)
+
+
+def tex_to_mathml(page_html: str) -> str:
+    """pymdownx.arithmatex's `\\(...\\)` and `\\[...\\]` as MathML (rendered by the browser, no script)."""
+    from latex2mathml.converter import convert
+
+    def one(match: re.Match) -> str:
+        tex = html.unescape(match.group(2)).strip()
+        block = match.group(1) == "div"
+        tex = tex[2:-2] if tex[:2] in ("\\(", "\\[") else tex
+        return convert(tex.strip(), display="block" if block else "inline")
+    return ARITHMATEX.sub(one, page_html)
+
+
+# A code block without a language: mkdocstrings leaves it plain (`<pre><code>`), or highlighted as text (no
+# token spans inside).
+PLAIN_CODE = re.compile(r'(?:<div class="highlight"><pre><span></span><code>((?:(?!<span|</code>).)*)</code></pre></div>'
+                        r"|<pre><code>((?:(?!<span|</code>).)*)</code></pre>)", flags=re.S)
+
+
+def highlight_docstring_code(page_html: str) -> str:
+    """The docstrings' code blocks (reST literal blocks after `::`, markdown's indented blocks), which
+    mkdocstrings leaves plain, highlighted as Python like the pages' fenced blocks; `Example::` reads
+    `Example:`."""
+    from pygments import highlight
+    from pygments.formatters import HtmlFormatter
+    from pygments.lexers import PythonLexer
+
+    def one(match: re.Match) -> str:
+        plain = match.group(1) if match.group(1) is not None else match.group(2)
+        code = highlight(html.unescape(plain), PythonLexer(), HtmlFormatter(nowrap=True))
+        return f'<div class="highlight"><pre><span></span><code>{code}</code></pre></div>'
+    return PLAIN_CODE.sub(one, page_html).replace("::</p>", ":</p>")
+
+
+def on_page_content(page_html: str, page, config, files) -> str:   # noqa: ARG001 (mkdocs' hook signature)
+    """TeX to MathML on every page; the API pages' docstring code highlighted."""
+    page_html = tex_to_mathml(page_html)
+    if page.file.src_uri.startswith("api/"):
+        page_html = highlight_docstring_code(page_html)
+    return page_html
+
+
 TABLES = {"battery-families": battery_families, "battery-quality": battery_quality,
           "recording-size": recording_size, "battery-targets": battery_targets,
           "fuzz-targets": fuzz_targets, "soak-minutes": soak_minutes, "tuning-battery": tuning_battery,
           "tuning-battery-8": tuning_battery_8,
           "tuning-venue": tuning_venue, "tuning-scaling": tuning_scaling, "team-targets": team_targets,
           "team-families": team_families, "team-cost": team_cost,
-          "team-variant": team_variant}
+          "team-variant": team_variant, "acting-levels": acting_levels, "acting-thresholds": acting_thresholds}
 MARKER = re.compile(r"^<!-- results-table: ([\w-]+) -->$", flags=re.M)
 
 

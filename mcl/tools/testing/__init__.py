@@ -1,8 +1,9 @@
 """Property-based testing for teams: hypothesis strategies, filter invariants and model contract checks.
 
-This module imports hypothesis, which the library itself does not need: install the `test` extra first::
+This module imports hypothesis, which the library itself does not need: install the `test` extra first, from
+the clone::
 
-    pip install robocup-mcl[test]
+    pip install -e '.[test]'
 
 What it offers, all public:
 

@@ -6,8 +6,8 @@
 - `mcl.tools.tuning.search`: the Optuna study (resumable journal file, seeded) with each trial's cases as Ray tasks;
 - `mcl.tools.tuning.report`: the report's table and plots.
 
-Needs the `tune` extra (Ray, Optuna, matplotlib): `pip install 'robocup-mcl[tune]'`. The profiles it writes
-(`mcl.profile`) need nothing more than the library.
+Needs the `tune` extra (Ray, Optuna, matplotlib), installed from the clone: `pip install -e '.[tune]'`. The
+profiles it writes (`mcl.profile`) need nothing more than the library.
 """
 from mcl.tools.tuning.objective import OBJECTIVES, LogCase, combine, evaluate_case, summary, truth_figures
 from mcl.tools.tuning.search import StudyOutcome, TuneError, TuneSettings, run_study, start_ray, tune
