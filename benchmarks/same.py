@@ -10,7 +10,7 @@ when only its structure changes, and reduces every result to a SHA-256 fingerpri
   each seed: its figures without the wall-clock ones (`loop_s`);
 - walk: the walk demo's estimates and entropy per step, each model, three seeds;
 - papers: the paper demos' figures (`demo velocity`, `demo collision`, `demo odometry` with --json), without
-  their timings (the `timing` section, compile and learning seconds);
+  their timings (the `timing` section, compile and learning seconds) and whether the kernels were cached;
 - replay: a simulated robot log replayed (`robocup-mcl replay`): estimates, entropy, quality, is_lost.
 
 REV is a git revision of this repository or the path of another checkout (as for `bench compare`: exported
@@ -35,9 +35,9 @@ SECTIONS = ("battery", "walk", "papers", "replay")
 WALK_MODELS = ("constant", "velocity-linear")
 WALK_SEEDS = (0, 1, 2)
 PAPER_DEMOS = ("velocity", "collision", "odometry")
-# Wall-clock figures: they differ between any two runs of the same code.
+# Wall-clock figures, and whether numba's cache was warm: they differ between any two runs of the same code.
 CLOCK_KEYS = {"loop_s", "timing", "compile_seconds", "learning_seconds", "elapsed_s", "first_step_s",
-              "ms_per_step", "seconds_total"}
+              "ms_per_step", "seconds_total", "kernels_cached"}
 
 
 # -- the fingerprints (run inside a side's tree) ---------------------------------------------------------------------
