@@ -166,6 +166,19 @@ def _kind_values(kinds) -> np.ndarray:
     return np.array([landmark_type(k).value for k in items], dtype=np.int64)
 
 
+def _check_kind_dtype(raw) -> None:
+    """Refuse kinds that are not integers (a float or boolean array, or a sequence holding a float), which a
+    cast to int64 would silently truncate to another landmark type; an empty sequence of any numeric type is
+    no landmark and passes. Entries that are not numbers at all are left to the cast's own error."""
+    try:
+        values = np.asarray(raw)
+    except (TypeError, ValueError, OverflowError):
+        return
+    if values.size and values.dtype.kind in "fcb":
+        raise ArgumentTypeError(f"kinds has dtype {values.dtype}: it must hold integer landmark type values "
+                                f"(LandmarkType members or their values; Observations.from_arrays also takes names)")
+
+
 _NO_VALUES = np.zeros(0)
 _LANDMARK_FIELDS = ("kinds", "ranges", "bearings", "range_sigmas", "bearing_sigmas")
 _NO_LINE_POINTS = np.zeros((0, 2))
@@ -249,6 +262,8 @@ class Observations:
             raw = getattr(self, name)
             if isinstance(raw, (str, bytes, dict)):
                 raise ArgumentTypeError(f"{name} = {raw!r} must be an array of numbers, not {type(raw).__name__}")
+            if name == "kinds":
+                _check_kind_dtype(raw)
             try:
                 arr = np.array(raw, dtype=dtype)                              # owning its data
             except (TypeError, ValueError, OverflowError):
