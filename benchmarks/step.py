@@ -20,9 +20,9 @@ import math
 import statistics
 import tempfile
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable
 
 import numpy as np
 
@@ -657,7 +657,8 @@ def time_resamplers(sizes, budget_s: float) -> dict:
         if FUSED is not None:
             fused = FUSED[1](weights, n, pf.poses, pf.roughening * SQRT3, np.empty((n, 3)), np.random.default_rng(5))
             candidates[fused_label] = lambda weights, rng, fused=fused: fused()
-        candidates[KEPT_OUT] = lambda weights, rng, kept=np.empty(n, dtype=np.int64): systematic(
+        # the buffer is made once per size and kept across the calls, as a filter keeps its own
+        candidates[KEPT_OUT] = lambda weights, rng, kept=np.empty(n, dtype=np.int64): systematic(  # noqa: B008
             weights, n, rng, out=kept)
         rng = np.random.default_rng(3)
         np.random.seed(3)

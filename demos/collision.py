@@ -64,8 +64,20 @@ from motion_models.adaptive import STATES, MobilityTransitions
 from sensing import LandmarkSensorModel
 from sensing.collision import CollisionDetector, CollisionReference, detect, learn_reference
 
-from .collision_sim import (BOTH, JOINTS, LEFT, RIGHT, SIDE_NAMES, SLIPPAGE, STOPPED, CollisionScenario, jitter_events, paper_case,
-                            random_collisions, simulate)
+from .collision_sim import (
+    BOTH,
+    JOINTS,
+    LEFT,
+    RIGHT,
+    SIDE_NAMES,
+    SLIPPAGE,
+    STOPPED,
+    CollisionScenario,
+    jitter_events,
+    paper_case,
+    random_collisions,
+    simulate,
+)
 from .walk import parse_seeds
 
 PIVOT_CREEP = 0.494     # the variant's stop_creep: results/adaptive_fit.json, "defaults", rounded as the β are

@@ -75,11 +75,10 @@ def build_parser(prog: str = PROG) -> argparse.ArgumentParser:
 def _cases(parser, args):
     """(training cases, held-out cases, whether every training case has truth); logs are read here, so a
     missing or unreadable log is refused before Ray starts."""
+    from mcl.cli_checks import check_duration
     from mcl.logs import read_log
     from mcl.replay import check_inputs, topics_from_args
     from mcl.tuning import LogCase
-
-    from mcl.cli_checks import check_duration
 
     from .battery import FAMILIES, BatteryCase, parse_families, split_seeds
 

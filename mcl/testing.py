@@ -49,14 +49,15 @@ noises of 1e-6 and 1e3), and `hostile_values` what it refuses.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any, Callable, Iterable, Sequence
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
-from numpy.typing import ArrayLike
 from hypothesis import HealthCheck, Phase, given, settings
 from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
+from numpy.typing import ArrayLike
 
 from field import Field, LandmarkType, adultsize, kidsize, spl
 from field.checks import LARGEST_ANGLE, LARGEST_COORDINATE, LARGEST_SIGMA, SMALLEST_SIGMA
@@ -692,7 +693,7 @@ class FilterSnapshot:
         """Augmented MCL's short-term average likelihood."""
         return dict(self.scalars)["w_fast"]
 
-    def differences(self, other: "FilterSnapshot") -> list[str]:
+    def differences(self, other: FilterSnapshot) -> list[str]:
         """What differs from `other`, one line per field (an empty list: the same, bit for bit).
 
         Parameters
@@ -1001,7 +1002,7 @@ def assert_motion_contract(model: MotionModel, poses: ArrayLike, u: MotionInput,
         raise AssertionError(f"{name}.check({u!r}) raised {type(error).__name__}: {error}; a refused input must "
                              "raise ValueError or TypeError") from error
     results = []
-    for attempt in range(2):
+    for _ in range(2):
         moved = start.copy()
         state = _fresh_state(model, n)
         state_shape = None if state is None else state.shape

@@ -25,14 +25,15 @@ its noise model.
 from __future__ import annotations
 
 import math
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
-from typing import Any, Iterable, Sequence
+from typing import Any
 
 import numba
 import numpy as np
 
 from field import LandmarkType
-from field.checks import ArgumentTypeError, LARGEST_ANGLE, LARGEST_COORDINATE, LARGEST_SIGMA, SMALLEST_SIGMA, real
+from field.checks import LARGEST_ANGLE, LARGEST_COORDINATE, LARGEST_SIGMA, SMALLEST_SIGMA, ArgumentTypeError, real
 
 from .view import CameraView
 
@@ -183,7 +184,7 @@ _NO_VALUES = np.zeros(0)
 _LANDMARK_FIELDS = ("kinds", "ranges", "bearings", "range_sigmas", "bearing_sigmas")
 _NO_LINE_POINTS = np.zeros((0, 2))
 _NO_LINE_POINTS.flags.writeable = False       # shared by every batch without field-line points
-_EMPTY: dict[type, "Observations"] = {}        # `Observations.empty()` of each class
+_EMPTY: dict[type, Observations] = {}        # `Observations.empty()` of each class
 
 
 def _line_points(raw) -> np.ndarray:
@@ -281,7 +282,7 @@ class Observations:
         self._check_landmarks()
 
     @classmethod
-    def _adopt(cls, kinds: np.ndarray, rows: np.ndarray, line_points=None) -> "Observations":
+    def _adopt(cls, kinds: np.ndarray, rows: np.ndarray, line_points=None) -> Observations:
         """A batch of arrays made for it, taken as they are instead of copied: kinds (n,) int64 and rows (4, n)
         float64 (ranges, bearings, range_sigmas, bearing_sigmas), both C-contiguous; checked as the constructor
         checks. Both become read-only."""
@@ -317,7 +318,7 @@ class Observations:
     def from_arrays(cls, kinds: Sequence | np.ndarray, ranges: Sequence[float] | np.ndarray,
                     bearings: Sequence[float] | np.ndarray, range_sigmas: Sequence[float] | np.ndarray | None = None,
                     bearing_sigmas: Sequence[float] | np.ndarray | None = None,
-                    line_points: Any = None) -> "Observations":
+                    line_points: Any = None) -> Observations:
         """A batch from equal-length sequences; kinds as LandmarkType members, their values, their names or
         aliases ("T", "post", ...; see the module docstring).
 
@@ -353,7 +354,7 @@ class Observations:
         return cls(*arguments)
 
     @classmethod
-    def from_list(cls, observations: Iterable[LandmarkObservation], line_points: Any = None) -> "Observations":
+    def from_list(cls, observations: Iterable[LandmarkObservation], line_points: Any = None) -> Observations:
         """A batch from `LandmarkObservation` objects.
 
         Parameters
@@ -389,7 +390,7 @@ class Observations:
         return cls._adopt(np.array([o.kind.value for o in items], dtype=np.int64), rows, line_points)
 
     @classmethod
-    def empty(cls) -> "Observations":
+    def empty(cls) -> Observations:
         """A batch without detections: one instance per class, made once (a batch cannot be changed), so that
         a frame without detections (`step(u)`, `correct(None)`) does not build one."""
         batch = _EMPTY.get(cls)
@@ -398,7 +399,7 @@ class Observations:
         return batch
 
     @classmethod
-    def coerce(cls, observations: "Observations | Iterable[LandmarkObservation] | None") -> "Observations":
+    def coerce(cls, observations: Observations | Iterable[LandmarkObservation] | None) -> Observations:
         """Accept a batch, a list of LandmarkObservation, or None (no observations).
 
         Parameters
@@ -422,7 +423,7 @@ class Observations:
             return observations
         return cls.from_list(observations)
 
-    def with_view(self, view: CameraView | None) -> "Observations":
+    def with_view(self, view: CameraView | None) -> Observations:
         """The same detections (the read-only arrays shared, not copied) with the camera's `view` (None: without
         one). TypeError (`field.checks.ArgumentTypeError`) unless `view` is a `CameraView` or None.
 

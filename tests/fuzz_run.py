@@ -31,7 +31,8 @@ PROFILES = {"ci": 2400, "full": 12000}       # examples over all targets
 
 def _child(target: str, examples: int, derandomize: bool, seed: int | None, out: str) -> int:
     sys.path.insert(0, str(HERE))
-    from hypothesis import HealthCheck, Phase, seed as hypothesis_seed, settings
+    from hypothesis import HealthCheck, Phase, settings
+    from hypothesis import seed as hypothesis_seed
 
     from mcl.numba_cache import guard_source_checkout
     guard_source_checkout()                       # no stale compiled kernel (as tests/conftest.py)

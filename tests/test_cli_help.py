@@ -14,7 +14,8 @@ import textwrap
 import pytest
 
 from mcl import numba_cache
-from mcl.cli import _harness, commands, main as cli_main, version
+from mcl.cli import _harness, commands, version
+from mcl.cli import main as cli_main
 from mcl.cli_checks import description, progress_bar, progress_wanted
 
 COMMANDS = commands()

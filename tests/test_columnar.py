@@ -229,8 +229,8 @@ def test_bad_npz_is_named(npz_path, changes, match):
 
 def test_a_step_longer_than_any_motion_step_is_refused_at_load(tmp_path):
     # a 1e9 s step in a stream: refused by the reader, naming the file, not first by the replay's motion step
-    from motion_models.base import MAX_STEP_DT
     from mcl.logs import read_log
+    from motion_models.base import MAX_STEP_DT
 
     log = sample_log()
     times = log.odometry_times.copy()

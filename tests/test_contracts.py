@@ -16,8 +16,15 @@ from hypothesis import strategies as st
 from field import spl
 from mcl import AugmentedMCL, ParticleFilter
 from mcl import testing as mt
-from motion_models import (AdaptiveMotion, ConstantNoise, FootstepEvent, LearnedFootstepOdometry, MotionInput,
-                           RawFootstepOdometry, VelocityLinear)
+from motion_models import (
+    AdaptiveMotion,
+    ConstantNoise,
+    FootstepEvent,
+    LearnedFootstepOdometry,
+    MotionInput,
+    RawFootstepOdometry,
+    VelocityLinear,
+)
 from sensing import CombinedSensorModel, LandmarkSensorModel, LineSensorModel
 from sensing.collision import NO_COLLISION
 

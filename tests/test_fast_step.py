@@ -341,7 +341,7 @@ def test_the_entropy_from_the_step_is_the_entropy_computed_afresh(options):
     u = MotionInput(dt=0.033, command=(0.1, 0.05, 0.2))
     first = asking.entropy()
     assert asking.entropy() is first                    # kept until the particles change
-    for k in range(12):
+    for _ in range(12):
         asking.step(u, detections(TRUE_POSE, rng_a))
         silent.step(u, detections(TRUE_POSE, rng_b))
         assert asking._entropy is not None              # computed by the step itself

@@ -44,10 +44,10 @@ from typing import Any
 
 import numpy as np
 
+from field import Field, LandmarkType
 from field.angles import wrap_angles
 from motion_models import MotionInput
 from sensing.observations import Observations
-from field import Field, LandmarkType
 from sensing.team import BallDetection
 
 from ..latency import SAME_TIME
