@@ -34,8 +34,9 @@ def _child(target: str, examples: int, derandomize: bool, seed: int | None, out:
     from hypothesis import HealthCheck, Phase, settings
     from hypothesis import seed as hypothesis_seed
 
-    from mcl.numba_cache import guard_source_checkout
+    from mcl.numba_cache import guard_source_checkout, serialize_cache_access
     guard_source_checkout()                       # no stale compiled kernel (as tests/conftest.py)
+    serialize_cache_access()                      # the test session's workers may share the cache
     import fuzz_targets
     from fuzzing import COUNTS
 

@@ -160,3 +160,64 @@ def test_the_command_line_guards_the_caches_before_running_anything(monkeypatch)
     monkeypatch.setattr(mcl.cli, "guard_source_checkout", lambda: calls.append("guard"))
     assert mcl.cli.main(["--help"]) == 0
     assert calls == ["guard"]
+
+
+SAVES = 200
+SAVER = r'''
+import sys
+from pathlib import Path
+
+from numba.core.caching import IndexDataCacheFile
+
+from mcl.numba_cache import serialize_cache_access
+
+folder, name, lock = Path(sys.argv[1]), sys.argv[2], sys.argv[3] == "lock"
+if lock:
+    assert serialize_cache_access()
+cache = IndexDataCacheFile(cache_path=str(folder), filename_base="kernel-1.py311", source_stamp=("stamp", 1))
+(folder / f"ready-{name}").touch()
+while not (folder / "go").exists():           # both start saving together
+    pass
+for i in range(SAVES):
+    cache.save((name, i), {"key": (name, i)})
+'''.replace("SAVES", str(SAVES))
+
+
+def test_processes_saving_one_kernel_side_by_side_keep_its_index_whole(tmp_path):
+    """numba saves a cache entry as: read the kernel's index, pick the first free data file, write the index, write
+    the data. Two processes doing that at once (parallel test workers compiling one kernel) can lose each other's
+    entries or pair a key with the other's data; under `serialize_cache_access` every entry saved is in the index
+    and holds its own data."""
+    from numba.core.caching import IndexDataCacheFile
+
+    savers = [subprocess.Popen([sys.executable, "-c", SAVER, str(tmp_path), name, "lock"], cwd=ROOT,
+                               env=dict(os.environ, PYTHONPATH=str(ROOT)), stderr=subprocess.PIPE, text=True)
+              for name in ("a", "b")]
+    while not all((tmp_path / f"ready-{name}").exists() for name in ("a", "b")):
+        assert all(saver.poll() is None for saver in savers), [saver.stderr.read() for saver in savers]
+    (tmp_path / "go").touch()
+    for saver in savers:
+        assert saver.wait(timeout=300) == 0, saver.stderr.read()
+    cache = IndexDataCacheFile(cache_path=str(tmp_path), filename_base="kernel-1.py311", source_stamp=("stamp", 1))
+    keys = [(name, i) for name in ("a", "b") for i in range(SAVES)]
+    assert sorted(cache._load_index()) == sorted(keys)
+    assert all(cache.load(key) == {"key": key} for key in keys)
+
+
+def test_the_cache_lock_is_taken_on_the_cache_directory(tmp_path, monkeypatch):
+    import fcntl
+
+    from numba.core.caching import IndexDataCacheFile
+
+    from mcl.numba_cache import serialize_cache_access
+
+    assert serialize_cache_access() and serialize_cache_access()               # in place, and only once
+    assert not hasattr(IndexDataCacheFile.save.__wrapped__, "__wrapped__")
+    taken = []
+    real_flock = fcntl.flock
+    monkeypatch.setattr(fcntl, "flock", lambda fd, mode: (taken.append((os.readlink(f"/proc/self/fd/{fd}"), mode)),
+                                                          real_flock(fd, mode))[1])
+    cache = IndexDataCacheFile(cache_path=str(tmp_path), filename_base="kernel-1.py311", source_stamp=("stamp", 1))
+    cache.save(("sig",), {"data": 1})
+    assert cache.load(("sig",)) == {"data": 1}
+    assert taken == [(str(tmp_path), fcntl.LOCK_EX), (str(tmp_path), fcntl.LOCK_SH)]
