@@ -4,22 +4,48 @@ VENV   := .venv
 PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed
 
-.PHONY: demo test docs fuzz bench ros clean
+.PHONY: demo test docs fuzz bench ros clean lock format
 
 $(PY):
 	$(PYTHON) -m venv $(VENV)
 
-# Reinstall whenever the package metadata changes.
-$(STAMP): pyproject.toml | $(PY)
+# The library declares version ranges (pyproject.toml); the development environment installs the versions that
+# last passed, pinned in constraints.txt (`make lock` refreshes it; CONSTRAINTS= installs without it). Reinstall
+# whenever the package metadata or the pins change. --no-compile: modules are byte-compiled when first imported
+# instead of all at install time.
+CONSTRAINTS ?= constraints.txt
+PIP_INSTALL := $(PY) -m pip install --quiet --no-compile $(if $(CONSTRAINTS),-c $(CONSTRAINTS))
+$(STAMP): pyproject.toml $(CONSTRAINTS) | $(PY)
 	$(PY) -m pip install --quiet --upgrade pip
-	$(PY) -m pip install --quiet -e '.[test,docs,tune]'
+	$(PIP_INSTALL) -e '.[test,docs,tune]'
 	touch $(STAMP)
+
+# The newest versions the ranges allow, in an environment of their own, pinned into constraints.txt (the
+# editable project itself left out); the next `make test` installs and tests them.
+LOCK_VENV := $(VENV)-lock
+lock:
+	rm -rf $(LOCK_VENV)
+	$(PYTHON) -m venv $(LOCK_VENV)
+	$(LOCK_VENV)/bin/python -m pip install --quiet --upgrade pip
+	$(LOCK_VENV)/bin/python -m pip install --quiet -e '.[test,docs,tune]'
+	{ echo "# The versions \`make test\` installs (pip install -c constraints.txt): refreshed by \`make lock\`,"; \
+	  echo "# made with $$($(LOCK_VENV)/bin/python -V) on $$(uname -sm). The library's own ranges are in pyproject.toml."; \
+	  $(LOCK_VENV)/bin/python -m pip freeze --exclude-editable; } > constraints.txt
+	rm -rf $(LOCK_VENV)
 
 demo: $(STAMP)
 	$(VENV)/bin/robocup-mcl demo walk --rrd recordings/walk.rrd
 
+# Parallel workers, one per core (TEST_WORKERS=0: one process); tests/conftest.py compiles the kernels once
+# before the workers start.
+TEST_WORKERS ?= auto
 test: $(STAMP)
-	$(PY) -m pytest
+	$(PY) -m pytest -n $(TEST_WORKERS)
+
+# Formats the code with ruff ([tool.ruff.format] in pyproject.toml); `make test` lints it (tests/test_lint.py).
+format: $(STAMP)
+	$(VENV)/bin/ruff format .
+	$(VENV)/bin/ruff check --fix .
 
 # The documentation site (MkDocs + Material + mkdocstrings) into site/; `make test` builds it with --strict.
 docs: $(STAMP)

@@ -37,9 +37,9 @@ import subprocess
 import sys
 import tarfile
 import tempfile
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable
 
 from mcl.numba_cache import ROOT, is_source_checkout
 

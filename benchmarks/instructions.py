@@ -33,9 +33,8 @@ import sys
 import tempfile
 from pathlib import Path
 
-from mcl.tools.cli_checks import save_json
-
 from benchmarks.compare import CompareError, Side, base_side, current_side, side_environment
+from mcl.tools.cli_checks import save_json
 
 WORKLOAD = """
 import sys

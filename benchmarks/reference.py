@@ -24,15 +24,28 @@ from __future__ import annotations
 
 import math
 import time
-from typing import Callable
+from collections.abc import Callable
 
 import numba
 import numpy as np
 
-from mcl.estimate import (cluster_estimate_reference, grid_entropy_reference, summary_entropy, summary_estimate,
-                          summary_estimate_chunked, summary_estimate_fast, summary_fill, summary_fill_chunked)
-from mcl.resampling import (gather_with_jitter_reference, resample_with_jitter, resample_with_jitter_chunked,
-                            systematic_counted, systematic_reference)
+from mcl.estimate import (
+    cluster_estimate_reference,
+    grid_entropy_reference,
+    summary_entropy,
+    summary_estimate,
+    summary_estimate_chunked,
+    summary_estimate_fast,
+    summary_fill,
+    summary_fill_chunked,
+)
+from mcl.resampling import (
+    gather_with_jitter_reference,
+    resample_with_jitter,
+    resample_with_jitter_chunked,
+    systematic_counted,
+    systematic_reference,
+)
 from mcl.step import NO_SINCE, STEP_BLOCK, fused_step
 from mcl.weights import normalize_reference, weigh, weigh_chunked, weigh_fast
 from motion_models.base import MotionInput

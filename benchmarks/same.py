@@ -185,6 +185,8 @@ def build_parser(prog: str = PROG) -> argparse.ArgumentParser:
     parser.add_argument("--jobs", type=int, default=2, help="battery worker processes per side (default 2)")
     parser.add_argument("--json", action="store_true", help="print the rows as JSON")
     parser.add_argument("--save", metavar="PATH", help="also write the JSON result to PATH")
+    parser.add_argument("--no-progress", action="store_true",
+                        help="no progress bars (there are none: each side says on stderr when it starts)")
     parser.add_argument("--inside", action="store_true", help=argparse.SUPPRESS)
     return parser
 

@@ -64,11 +64,10 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
+from demos.walk_sim import StreamScenario, WalkStream
 from field.angles import wrap_angles
 from motion_models import MotionInput
 from sensing.observations import Observations
-
-from demos.walk_sim import StreamScenario, WalkStream
 
 MAX_GROWTH_MB = 1.0          # MB (2^20 bytes) of RSS growth after the first minute the verdict allows
 MAX_DRIFT_PER_HOUR = 0.10    # relative upward drift of the median step time per hour the verdict allows

@@ -20,9 +20,9 @@ import math
 import statistics
 import tempfile
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable
 
 import numpy as np
 
@@ -37,8 +37,8 @@ from motion_models.adaptive import VARIATES, adaptive_move_reference
 from motion_models.kernels import move_with_noise_reference
 from numerics.random import draw_variates
 from numerics.trig import SQRT3
-from sensing import LandmarkSensorModel, Observations
 from proprioception.collision import NO_COLLISION, CollisionPercept
+from sensing import LandmarkSensorModel, Observations
 from sensing.lines import LineSensorModel
 
 from .reference import issue_shaped_step, numpy_step, sample_injection_reference
@@ -657,7 +657,8 @@ def time_resamplers(sizes, budget_s: float) -> dict:
         if FUSED is not None:
             fused = FUSED[1](weights, n, pf.poses, pf.roughening * SQRT3, np.empty((n, 3)), np.random.default_rng(5))
             candidates[fused_label] = lambda weights, rng, fused=fused: fused()
-        candidates[KEPT_OUT] = lambda weights, rng, kept=np.empty(n, dtype=np.int64): systematic(
+        # the buffer is made once per size and kept across the calls, as a filter keeps its own
+        candidates[KEPT_OUT] = lambda weights, rng, kept=np.empty(n, dtype=np.int64): systematic(  # noqa: B008
             weights, n, rng, out=kept)
         rng = np.random.default_rng(3)
         np.random.seed(3)

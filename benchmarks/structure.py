@@ -234,7 +234,7 @@ def _listed(entries: list[dict]) -> dict:
             "list": [f"{e['file']}:{e['line']}: {e['statement']}" for e in entries]}
 
 
-MODULE_STRING = re.compile(r"^(%s)(\.[A-Za-z_][A-Za-z0-9_]*)+$" % "|".join(CONSUMERS))
+MODULE_STRING = re.compile(r"^({})(\.[A-Za-z_][A-Za-z0-9_]*)+$".format("|".join(CONSUMERS)))
 
 
 def cross_layer(modules: list[Module]) -> dict:

@@ -36,18 +36,29 @@ import json
 import math
 import os
 import time
-from dataclasses import dataclass, fields
 from concurrent.futures import ProcessPoolExecutor, as_completed
+from dataclasses import dataclass, fields
 from multiprocessing import get_context
 
 import numpy as np
 
 from field import spl
-from mcl.tools.evaluation import (CONVERGED_HEADING, CONVERGED_POSITION, FAIL_POSITION, QUALITY_CODE, QUALITY_LEVELS,
-                            evaluate, first_stretch, median_worst, mirrored, pool_counts, pose_errors)
 from mcl.localizer import Localizer, Quality, QualityThresholds
 from mcl.profile import Profile
 from mcl.relocalization import RelocalizationPrior, SoccerRelocalization
+from mcl.tools.evaluation import (
+    CONVERGED_HEADING,
+    CONVERGED_POSITION,
+    FAIL_POSITION,
+    QUALITY_CODE,
+    QUALITY_LEVELS,
+    evaluate,
+    first_stretch,
+    median_worst,
+    mirrored,
+    pool_counts,
+    pose_errors,
+)
 from motion_models import MotionInput
 from sensing import LandmarkSensorModel
 from sensing.view import CameraView

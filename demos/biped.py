@@ -182,13 +182,13 @@ class RobotVariation:
                 raise ValueError(f"{name} must be a range (low, high) with 0 <= low <= high, got {value!r}")
 
     @classmethod
-    def nominal(cls) -> "RobotVariation":
+    def nominal(cls) -> RobotVariation:
         """The robot of the drawings with the datasheet's sensors: every range a single point."""
         return cls(link_length_error=0.0, joint_zero_error=0.0, backlash=(0.0, 0.0), accel_noise_factor=(1.0, 1.0),
                    gyro_noise_factor=(1.0, 1.0), accel_bias_factor=(1.0, 1.0), gyro_bias_factor=(1.0, 1.0),
                    accel_scale_error=0.0, gyro_scale_error=0.0, gyro_bias_drift=(0.0, 0.0))
 
-    def with_chain_error(self, error: float) -> "RobotVariation":
+    def with_chain_error(self, error: float) -> RobotVariation:
         """These ranges with the links ±`error` and the joint zeros ±`JOINT_ZERO_PER_LINK_ERROR`·`error`."""
         return dataclasses.replace(self, link_length_error=float(error),
                                    joint_zero_error=JOINT_ZERO_PER_LINK_ERROR * float(error))

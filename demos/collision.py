@@ -61,11 +61,23 @@ from mcl import AugmentedMCL, Grid, ParticleFilter
 from mcl.estimate import belief_log_density, credible_region_contains
 from motion_models import AdaptiveMotion, MotionInput, VelocityLinear
 from motion_models.adaptive import STATES, MobilityTransitions
-from sensing import LandmarkSensorModel
 from proprioception.collision import CollisionDetector, CollisionReference, detect, learn_reference
+from sensing import LandmarkSensorModel
 
-from .collision_sim import (BOTH, JOINTS, LEFT, RIGHT, SIDE_NAMES, SLIPPAGE, STOPPED, CollisionScenario, jitter_events, paper_case,
-                            random_collisions, simulate)
+from .collision_sim import (
+    BOTH,
+    JOINTS,
+    LEFT,
+    RIGHT,
+    SIDE_NAMES,
+    SLIPPAGE,
+    STOPPED,
+    CollisionScenario,
+    jitter_events,
+    paper_case,
+    random_collisions,
+    simulate,
+)
 from .walk import parse_seeds
 
 PIVOT_CREEP = 0.494     # the variant's stop_creep: results/adaptive_fit.json, "defaults", rounded as the β are

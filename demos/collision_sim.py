@@ -60,7 +60,8 @@ Ground truth for all of it: pose, mobility state and contact side per step, and 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field as dataclass_field, replace
+from dataclasses import dataclass, replace
+from dataclasses import field as dataclass_field
 
 import numpy as np
 

@@ -67,8 +67,18 @@ import numpy as np
 from field.angles import wrap_angles
 from proprioception.collision import detect
 
-from .collision_sim import (FREE, HINDRANCE, MODE_NAMES, PUSHED, SLIPPAGE, STOPPED, CollisionLog, CollisionScenario,
-                            random_collisions, simulate)
+from .collision_sim import (
+    FREE,
+    HINDRANCE,
+    MODE_NAMES,
+    PUSHED,
+    SLIPPAGE,
+    STOPPED,
+    CollisionLog,
+    CollisionScenario,
+    random_collisions,
+    simulate,
+)
 from .walk import parse_seeds
 
 TRAINING_SEEDS = "2000-2039"

@@ -30,8 +30,7 @@ import time
 import numpy as np
 
 from demos.footstep_sim import truth_displacements
-from demos.odometry import (KINDS, TRAIN_ROBOTS, LinearCorrection, fleet_log, halves, sequence_errors,
-                            step_inputs)
+from demos.odometry import KINDS, TRAIN_ROBOTS, LinearCorrection, fleet_log, halves, sequence_errors, step_inputs
 from motion_models.learned_odometry import LearnedFootstepOdometry, LWPRSettings
 
 SURFACE_NAMES = ("carpet", "grass")

@@ -34,8 +34,15 @@ import math
 import numpy as np
 
 from demos.biped import GRAVITY, BipedRun, RobotVariation, simulate_walk
-from demos.velocity import (EKF_VARIANTS, LABELS, TRAINING_SEEDS, VARIANT_SETTINGS, average_forward_velocity,
-                            run_estimators, variant_params)
+from demos.velocity import (
+    EKF_VARIANTS,
+    LABELS,
+    TRAINING_SEEDS,
+    VARIANT_SETTINGS,
+    average_forward_velocity,
+    run_estimators,
+    variant_params,
+)
 
 VELOCITY_FACTORS = (1.0 / 64.0, 1.0 / 32.0, 1.0 / 16.0, 0.125, 0.25, 0.5, 1.0, 2.0)
 GYRO_FACTORS = (1.0, 3.0, 10.0)

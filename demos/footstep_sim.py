@@ -282,12 +282,12 @@ class FootstepLog:
     def n_steps(self) -> int:
         return int(self.support.shape[0])
 
-    def first(self, seconds: float) -> "FootstepLog":
+    def first(self, seconds: float) -> FootstepLog:
         """The steps that end within the first `seconds` (the learning sequence of sec. IV-B 2)."""
         k = int(np.searchsorted(self.swap_times, seconds, side="right")) - 1
         return self.steps(0, max(k, 0))
 
-    def steps(self, start: int, stop: int) -> "FootstepLog":
+    def steps(self, start: int, stop: int) -> FootstepLog:
         """Steps start..stop-1 (the motion capture is kept whole)."""
         return replace(self, swap_times=self.swap_times[start:stop + 1], swap_poses=self.swap_poses[start:stop + 1],
                        support=self.support[start:stop], commanded=self.commanded[start:stop],

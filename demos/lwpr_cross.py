@@ -22,8 +22,8 @@ import time
 
 import numpy as np
 
-from motion_models.lwpr_reference import ReferenceLWPR
 from motion_models.lwpr import LWPR
+from motion_models.lwpr_reference import ReferenceLWPR
 
 N_TRAIN = 500
 N_EPOCHS = 20

@@ -58,8 +58,17 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from demos.footstep_sim import (SURFACES, Driver, FootstepLog, draw_conditions, draw_robot, load_log,
-                                save_log, simulate, truth_displacements)
+from demos.footstep_sim import (
+    SURFACES,
+    Driver,
+    FootstepLog,
+    draw_conditions,
+    draw_robot,
+    load_log,
+    save_log,
+    simulate,
+    truth_displacements,
+)
 from field.angles import wrap_angles
 from motion_models.footsteps import LEFT, RIGHT, input_matrix, integrate
 from motion_models.learned_odometry import LearnedFootstepOdometry, LinearStage, LWPRSettings, RawFootstepOdometry
@@ -350,7 +359,7 @@ class LinearCorrection:
 
     @classmethod
     def fit(cls, X: np.ndarray, Y: np.ndarray, kind: str, features: str = "inputs",
-            ridge: float = 0.0) -> "LinearCorrection":
+            ridge: float = 0.0) -> LinearCorrection:
         """Least squares on standardized inputs with penalty `ridge`·n on the weights (not the offsets)."""
         if features not in ("axis", "inputs"):
             raise ValueError(f"features = {features!r} must be 'axis' or 'inputs'")
@@ -628,6 +637,7 @@ def main(argv: list[str] | None = None, prog: str = PROG) -> int:
         parser.error(f"--filter-runs {args.filter_runs} must be >= 1")
     surfaces = ["carpet", "grass"] if args.surface == "both" else [args.surface]
     from mcl.tools.cli_checks import progress_bar, progress_wanted
+
     from .lwpr_cross import warm_up_lwpr
     warm = warm_up_lwpr(progress_wanted(args))          # a machine's first run says it compiles LWPR's kernels
     started = time.perf_counter()

@@ -75,11 +75,10 @@ def build_parser(prog: str = PROG) -> argparse.ArgumentParser:
 def _cases(parser, args):
     """(training cases, held-out cases, whether every training case has truth); logs are read here, so a
     missing or unreadable log is refused before Ray starts."""
+    from mcl.tools.cli_checks import check_duration
     from mcl.tools.logs import read_log
     from mcl.tools.replay import check_inputs, topics_from_args
     from mcl.tools.tuning import LogCase
-
-    from mcl.tools.cli_checks import check_duration
 
     from .battery import FAMILIES, BatteryCase, parse_families, split_seeds
 
@@ -184,8 +183,8 @@ def run(args, parser) -> dict:
 
 def main(argv: list[str] | None = None, prog: str = PROG) -> int:
     """The command line (see the module docstring); exit 2 on bad arguments, 1 on errors (one line)."""
-    from mcl.tools.cli_checks import check_output_file, save_and_print
     from mcl.profile import Profile
+    from mcl.tools.cli_checks import check_output_file, save_and_print
 
     parser = build_parser(prog)
     args = parser.parse_args(argv)

@@ -69,18 +69,36 @@ from pathlib import Path
 
 import numpy as np
 
-from demos.biped import (BipedRun, DisturbanceParams, GaitParams, RobotVariation, field_poses, gait_command,
-                         simulate_walk, turning_gait)
+from demos.biped import (
+    BipedRun,
+    DisturbanceParams,
+    GaitParams,
+    RobotVariation,
+    field_poses,
+    gait_command,
+    simulate_walk,
+    turning_gait,
+)
 from demos.walk_sim import WalkScenario, _camera
 from field.angles import wrap_angles
 from mcl import ParticleFilter
 from motion_models import MotionInput, VelocityLinear
-from sensing import LandmarkSensorModel, Observations
 from proprioception.kinematics import nao_leg
-from proprioception.velocity import (ImuOnlyEstimator, LegOdometry, VelocityEKF, VelocityEKFParams, ekf_bias_predict_kernel,
-                              ekf_bias_predict_reference, ekf_correct_kernel, ekf_correct_reference,
-                              ekf_predict_kernel, ekf_predict_reference, tilt_error)
+from proprioception.velocity import (
+    ImuOnlyEstimator,
+    LegOdometry,
+    VelocityEKF,
+    VelocityEKFParams,
+    ekf_bias_predict_kernel,
+    ekf_bias_predict_reference,
+    ekf_correct_kernel,
+    ekf_correct_reference,
+    ekf_predict_kernel,
+    ekf_predict_reference,
+    tilt_error,
+)
 from proprioception.velocity_odometry import EKFOdometry, compose_increments
+from sensing import LandmarkSensorModel, Observations
 
 EKF_VARIANTS = ("ekf", "ekf zeroed", "ekf+bias")
 """The filters compared: the paper's exactly as written, and the project's two variants (see `VARIANT_SETTINGS`)."""

@@ -81,8 +81,13 @@ def build_parser(prog: str = PROG) -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None, prog: str = PROG) -> int:
     """The command line (see the module docstring)."""
-    from mcl.tools.cli_checks import (check_duration, check_output_directory, check_output_file, progress_wanted,
-                                save_and_print)
+    from mcl.tools.cli_checks import (
+        check_duration,
+        check_output_directory,
+        check_output_file,
+        progress_wanted,
+        save_and_print,
+    )
 
     parser = build_parser(prog)
     args = parser.parse_args(argv)

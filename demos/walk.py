@@ -32,7 +32,6 @@ from field.angles import wrap_angles
 from mcl import ParticleFilter
 from motion_models import ConstantNoise, MotionInput, VelocityLinear
 from sensing import CombinedSensorModel, LandmarkSensorModel, LineSensorModel
-
 from sensing.view import CameraView
 
 from .walk_sim import WalkLog, WalkScenario, simulate

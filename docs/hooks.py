@@ -440,6 +440,7 @@ def acting_thresholds() -> str:
     a SUPERB and an OKAY column where the field comes in pairs."""
     _on_path()
     import dataclasses
+
     from mcl.localizer import QualityThresholds
     defaults = {f.name: f.default for f in dataclasses.fields(QualityThresholds)}
     described = _threshold_help()

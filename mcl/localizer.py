@@ -52,8 +52,9 @@ from __future__ import annotations
 import enum
 import math
 from collections import Counter, deque
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any, Iterable, Sequence
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -66,9 +67,9 @@ from sensing.team import BallDetection, TeamMessage
 from sensing.view import CameraView
 
 from .filter import ParticleFilter
+from .latency import MotionHistory, move_back
 from .side import SideBelief, SideSettings, Team
 from .summary import Entropy, Estimate
-from .latency import MotionHistory, move_back
 
 if TYPE_CHECKING:
     from motion_models.base import MotionModel

@@ -16,6 +16,12 @@ for a filter), and says so on stderr when numba's cache does not hold them for t
 asked of a few kernels such as `filter_kernels(pf)`), with a progress bar over the groups and the time apart
 ("compiled in 41 s"). numba keeps its cache beside the sources (`__pycache__`), or under NUMBA_CACHE_DIR when
 that is set; the staleness check above looks beside the sources only.
+
+Processes side by side. numba's cache is not safe for two processes that save the same kernel at once: each
+reads the kernel's index, picks the first free data file number, writes the index and then the data, so two
+signatures saved together can end up with one process's index pointing at the other's machine code (a wrong
+kernel loaded later, or a crash). `serialize_cache_access` puts a file lock around numba's index-and-data
+save and load, so that processes sharing a cache (the test suite's parallel workers) see it whole.
 """
 from __future__ import annotations
 
@@ -62,6 +68,47 @@ def guard_source_checkout(root: Path = ROOT) -> bool:
         return forget_stale_numba_caches(root)
     except OSError:
         return False
+
+
+def serialize_cache_access() -> bool:
+    """Make this process take a lock on a kernel's cache directory while it saves (exclusive) or loads (shared)
+    an entry of numba's cache, so that processes compiling the same kernels side by side never interleave an
+    index and its data (see the module docstring). Idempotent; returns whether the lock is in place (False
+    where there is no `fcntl`, or numba's cache is laid out differently: then nothing changes).
+
+    The lock is `flock` on the cache directory itself, held for the few milliseconds of a save or a load;
+    a directory that does not exist yet (nothing to load) is not locked."""
+    try:
+        import fcntl
+        import functools
+        import os
+
+        from numba.core.caching import IndexDataCacheFile
+    except ImportError:
+        return False
+    if getattr(IndexDataCacheFile, "_serialized_by_robocup_mcl", False):
+        return True
+    if not all(hasattr(IndexDataCacheFile, name) for name in ("save", "load", "_load_index")):
+        return False
+
+    def locked(method, mode):
+        @functools.wraps(method)
+        def call(self, *args, **kwargs):
+            try:
+                directory = os.open(self._cache_path, os.O_RDONLY)
+            except (AttributeError, OSError):
+                return method(self, *args, **kwargs)
+            try:
+                fcntl.flock(directory, mode)
+                return method(self, *args, **kwargs)
+            finally:
+                os.close(directory)                                  # closing it releases the lock
+        return call
+
+    IndexDataCacheFile.save = locked(IndexDataCacheFile.save, fcntl.LOCK_EX)
+    IndexDataCacheFile.load = locked(IndexDataCacheFile.load, fcntl.LOCK_SH)
+    IndexDataCacheFile._serialized_by_robocup_mcl = True
+    return True
 
 
 # The first run. numba compiles a kernel the first time it is called with given argument types and saves the

@@ -45,8 +45,9 @@ import dataclasses
 import math
 import os
 import sys
+from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any, Mapping
+from typing import TYPE_CHECKING, Any
 
 from field import Field, spl
 from motion_models import ConstantNoise, VelocityLinear

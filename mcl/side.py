@@ -50,8 +50,15 @@ import numpy as np
 
 from field import Field
 from field.checks import ArgumentTypeError, integer, real
-from sensing.team import (MAX_PLAYER_NUMBER, BallDetection, TeamMessage, ball_on_field, mahalanobis2,
-                          side_evidence, teammate_ball)
+from sensing.team import (
+    MAX_PLAYER_NUMBER,
+    BallDetection,
+    TeamMessage,
+    ball_on_field,
+    mahalanobis2,
+    side_evidence,
+    teammate_ball,
+)
 
 
 @dataclass(frozen=True)
@@ -191,7 +198,7 @@ class Team:
         return sender != self.player_number and (self.teammates is None or sender in self.teammates)
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def _masks(teammates: int, j: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """For a joint over the robot's side and `teammates` flags, teammate j's masks: the states in which its
     report speaks against the main pose (side bit XOR its flag), those in which it is on the mirror, and the

@@ -186,7 +186,7 @@ class MobilityTransitions:
 
 @functools.lru_cache(maxsize=64)
 def _transition_matrix(transitions: MobilityTransitions, condition: str, dt: float) -> np.ndarray:
-    import scipy.linalg                  # here, not at module level: `import mcl` does not load scipy.linalg
+    import scipy.linalg  # here, not at module level: `import mcl` does not load scipy.linalg
     p = scipy.linalg.expm(transitions.generator(condition) * dt)
     p = np.clip(p, 0.0, None)
     return p / p.sum(axis=1, keepdims=True)

@@ -238,7 +238,7 @@ class LinearStage:
 
     @classmethod
     def fit(cls, inputs: np.ndarray, targets: np.ndarray, ridge: float = 0.0,
-            per_axis: bool = False) -> "LinearStage":
+            per_axis: bool = False) -> LinearStage:
         """Least squares of targets (m, 3) on standardized inputs (m, n), with an offset per output and the
         penalty `ridge`·m on the weights (not the offsets); the minimum-norm solution where an input is constant.
         `per_axis`: each output from its own raw-step input alone (inputs 0-2: a scale and an offset per axis)
@@ -341,7 +341,7 @@ class LearnedFootstepOdometry:
     @classmethod
     def train(cls, inputs: ArrayLike, targets: ArrayLike, kind: str = "online", *, seed: int = 0,
               settings: LWPRSettings = LWPRSettings(), noise_scale: float = 1.0,
-              linear_stage: bool = False) -> "LearnedFootstepOdometry":
+              linear_stage: bool = False) -> LearnedFootstepOdometry:
         """Train three new LWPR models on inputs (n, 7|9) and true displacements targets (n, 3).
 
         Everything is validated first; nothing is returned until all three models are trained.
@@ -403,7 +403,7 @@ class LearnedFootstepOdometry:
         return cls(tuple(models), kind, _raw_rms(X, Y), noise_scale, residual=residual, linear=linear)
 
     def updated(self, inputs: ArrayLike, targets: ArrayLike, *, seed: int = 0,
-                epochs: int = 1) -> "LearnedFootstepOdometry":
+                epochs: int = 1) -> LearnedFootstepOdometry:
         """A new holder whose models are copies of these trained further on (inputs, targets); this one is
         untouched (online learning without ever exposing a half-updated model).
 
@@ -570,7 +570,7 @@ class LearnedFootstepOdometry:
                 os.remove(tmp)
 
     @classmethod
-    def load(cls, directory: str | os.PathLike) -> "LearnedFootstepOdometry":
+    def load(cls, directory: str | os.PathLike) -> LearnedFootstepOdometry:
         """Read a directory written by `save`. Missing, truncated or foreign files, another format version,
         and a metadata key that is unknown, missing or of the wrong type or value raise ValueError naming the
         file and the key (the metadata is checked before any model file is read); a directory that is not a
@@ -750,7 +750,7 @@ class RawFootstepOdometry:
         object.__setattr__(self, "sigma", _sigma_triple("sigma", self.sigma))
 
     @classmethod
-    def calibrate(cls, inputs: ArrayLike, targets: ArrayLike, kind: str = "online") -> "RawFootstepOdometry":
+    def calibrate(cls, inputs: ArrayLike, targets: ArrayLike, kind: str = "online") -> RawFootstepOdometry:
         """Noise = the raw displacement's RMS error against the truth on training data (bias included).
 
         Parameters

@@ -58,11 +58,11 @@ from typing import Any
 
 import numba
 import numpy as np
-
-from field.checks import show as _short_repr
 from numba.core.imputils import impl_ret_borrowed
 from numba.extending import intrinsic
 from numpy.lib.stride_tricks import as_strided
+
+from field.checks import show as _short_repr
 
 __all__ = ["LWPR", "FORMAT_VERSION", "MAX_INPUTS", "MAX_OUTPUTS", "MAX_INITIAL_BYTES"]
 

@@ -217,7 +217,7 @@ class CollisionReference:
                  table=self.table, half_stance=np.array(self.half_stance))
 
     @classmethod
-    def load(cls, path: str | Path) -> "CollisionReference":
+    def load(cls, path: str | Path) -> CollisionReference:
         """Read a reference written by `save`. A truncated, damaged or foreign file, another format version,
         or a field of the wrong type, shape or value raise ValueError naming the file and the field (every
         field is checked before anything is built); a missing file raises FileNotFoundError, a path that is not

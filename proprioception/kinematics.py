@@ -77,7 +77,7 @@ class NaoLegDimensions:
         for name in ("hip_offset_y", "hip_offset_z", "thigh", "tibia", "foot_height"):
             real(name, getattr(self, name), 0.0, low_open=True)     # metres, finite and > 0
 
-    def scaled(self, factors) -> "NaoLegDimensions":
+    def scaled(self, factors) -> NaoLegDimensions:
         """The dimensions multiplied one by one by `factors`.
 
         Parameters
@@ -286,7 +286,7 @@ class LegChain:
         set_(self, "joint_names", names)
 
     @classmethod
-    def from_dh(cls, rows, **kwargs) -> "LegChain":
+    def from_dh(cls, rows, **kwargs) -> LegChain:
         """Chain from DH rows (θ offset, a, d, α), one per joint, foot → trunk; other fields by keyword."""
         table = np.asarray(rows, dtype=np.float64)
         if table.ndim != 2 or table.shape[1] != 4:

@@ -39,14 +39,14 @@ its velocity covariance grows and `is_stale` turns true after `max_prediction_ti
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import NamedTuple, Sequence
+from typing import NamedTuple
 
 import numba
 import numpy as np
 
 from field.checks import LARGEST_SIGMA, SMALLEST_SIGMA, real
-
 from proprioception.kinematics import LegChain
 
 
@@ -554,7 +554,7 @@ class ImuOnlyEstimator(_GravityVelocityState):
         self.gyro_bias = _vector3(gyro_bias, "gyro_bias").copy()
 
     @classmethod
-    def from_standing(cls, accel_samples, time: float, gyro_samples=None, **kwargs) -> "ImuOnlyEstimator":
+    def from_standing(cls, accel_samples, time: float, gyro_samples=None, **kwargs) -> ImuOnlyEstimator:
         """Eq. 1: gravity from the accelerometer of a robot standing still (mean of the samples), v = 0.
 
         With `gyro_samples` of the same still period, their mean is taken as the gyro bias and subtracted
@@ -714,7 +714,7 @@ class VelocityEKF(_GravityVelocityState):
 
     @classmethod
     def from_standing(cls, accel_samples, time: float, params: VelocityEKFParams = VelocityEKFParams(),
-                      backend: str = "numba", gyro_samples=None) -> "VelocityEKF":
+                      backend: str = "numba", gyro_samples=None) -> VelocityEKF:
         """Eq. 1: start from a robot standing still; gravity is the mean accelerometer sample, v = 0.
 
         With `gyro_samples` of the same still period, their mean is taken as the gyro bias. The paper's filter

@@ -32,7 +32,8 @@ by what the frame needs (`mcl.tools.testing.assert_fused_likelihood` checks it).
 """
 from __future__ import annotations
 
-from typing import Any, Callable, NamedTuple
+from collections.abc import Callable
+from typing import Any, NamedTuple
 
 import numpy as np
 

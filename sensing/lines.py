@@ -143,7 +143,7 @@ class LineSensorModel:
         cols = np.clip(((points[:, 0] - x0) / self.resolution).astype(np.int64), 0, nx - 1)
         rows = np.clip(((points[:, 1] - y0) / self.resolution).astype(np.int64), 0, ny - 1)
         on_line[rows, cols] = False
-        from scipy import ndimage                  # here, not at module level: `import sensing` stays light
+        from scipy import ndimage  # here, not at module level: `import sensing` stays light
         distance = ndimage.distance_transform_edt(on_line) * self.resolution
         distance = np.ascontiguousarray(distance, dtype=np.float64)
         distance.flags.writeable = False

@@ -25,14 +25,15 @@ its noise model.
 from __future__ import annotations
 
 import math
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
-from typing import Any, Iterable, Sequence
+from typing import Any
 
 import numba
 import numpy as np
 
 from field import LandmarkType
-from field.checks import ArgumentTypeError, LARGEST_ANGLE, LARGEST_COORDINATE, LARGEST_SIGMA, SMALLEST_SIGMA, real
+from field.checks import LARGEST_ANGLE, LARGEST_COORDINATE, LARGEST_SIGMA, SMALLEST_SIGMA, ArgumentTypeError, real
 
 from .view import CameraView
 
@@ -166,11 +167,24 @@ def _kind_values(kinds) -> np.ndarray:
     return np.array([landmark_type(k).value for k in items], dtype=np.int64)
 
 
+def _check_kind_dtype(raw) -> None:
+    """Refuse kinds that are not integers (a float or boolean array, or a sequence holding a float), which a
+    cast to int64 would silently truncate to another landmark type; an empty sequence of any numeric type is
+    no landmark and passes. Entries that are not numbers at all are left to the cast's own error."""
+    try:
+        values = np.asarray(raw)
+    except (TypeError, ValueError, OverflowError):
+        return
+    if values.size and values.dtype.kind in "fcb":
+        raise ArgumentTypeError(f"kinds has dtype {values.dtype}: it must hold integer landmark type values "
+                                f"(LandmarkType members or their values; Observations.from_arrays also takes names)")
+
+
 _NO_VALUES = np.zeros(0)
 _LANDMARK_FIELDS = ("kinds", "ranges", "bearings", "range_sigmas", "bearing_sigmas")
 _NO_LINE_POINTS = np.zeros((0, 2))
 _NO_LINE_POINTS.flags.writeable = False       # shared by every batch without field-line points
-_EMPTY: dict[type, "Observations"] = {}        # `Observations.empty()` of each class
+_EMPTY: dict[type, Observations] = {}        # `Observations.empty()` of each class
 
 
 def _line_points(raw) -> np.ndarray:
@@ -249,6 +263,8 @@ class Observations:
             raw = getattr(self, name)
             if isinstance(raw, (str, bytes, dict)):
                 raise ArgumentTypeError(f"{name} = {raw!r} must be an array of numbers, not {type(raw).__name__}")
+            if name == "kinds":
+                _check_kind_dtype(raw)
             try:
                 arr = np.array(raw, dtype=dtype)                              # owning its data
             except (TypeError, ValueError, OverflowError):
@@ -266,7 +282,7 @@ class Observations:
         self._check_landmarks()
 
     @classmethod
-    def _adopt(cls, kinds: np.ndarray, rows: np.ndarray, line_points=None) -> "Observations":
+    def _adopt(cls, kinds: np.ndarray, rows: np.ndarray, line_points=None) -> Observations:
         """A batch of arrays made for it, taken as they are instead of copied: kinds (n,) int64 and rows (4, n)
         float64 (ranges, bearings, range_sigmas, bearing_sigmas), both C-contiguous; checked as the constructor
         checks. Both become read-only."""
@@ -302,7 +318,7 @@ class Observations:
     def from_arrays(cls, kinds: Sequence | np.ndarray, ranges: Sequence[float] | np.ndarray,
                     bearings: Sequence[float] | np.ndarray, range_sigmas: Sequence[float] | np.ndarray | None = None,
                     bearing_sigmas: Sequence[float] | np.ndarray | None = None,
-                    line_points: Any = None) -> "Observations":
+                    line_points: Any = None) -> Observations:
         """A batch from equal-length sequences; kinds as LandmarkType members, their values, their names or
         aliases ("T", "post", ...; see the module docstring).
 
@@ -338,7 +354,7 @@ class Observations:
         return cls(*arguments)
 
     @classmethod
-    def from_list(cls, observations: Iterable[LandmarkObservation], line_points: Any = None) -> "Observations":
+    def from_list(cls, observations: Iterable[LandmarkObservation], line_points: Any = None) -> Observations:
         """A batch from `LandmarkObservation` objects.
 
         Parameters
@@ -374,7 +390,7 @@ class Observations:
         return cls._adopt(np.array([o.kind.value for o in items], dtype=np.int64), rows, line_points)
 
     @classmethod
-    def empty(cls) -> "Observations":
+    def empty(cls) -> Observations:
         """A batch without detections: one instance per class, made once (a batch cannot be changed), so that
         a frame without detections (`step(u)`, `correct(None)`) does not build one."""
         batch = _EMPTY.get(cls)
@@ -383,7 +399,7 @@ class Observations:
         return batch
 
     @classmethod
-    def coerce(cls, observations: "Observations | Iterable[LandmarkObservation] | None") -> "Observations":
+    def coerce(cls, observations: Observations | Iterable[LandmarkObservation] | None) -> Observations:
         """Accept a batch, a list of LandmarkObservation, or None (no observations).
 
         Parameters
@@ -407,7 +423,7 @@ class Observations:
             return observations
         return cls.from_list(observations)
 
-    def with_view(self, view: CameraView | None) -> "Observations":
+    def with_view(self, view: CameraView | None) -> Observations:
         """The same detections (the read-only arrays shared, not copied) with the camera's `view` (None: without
         one). TypeError (`field.checks.ArgumentTypeError`) unless `view` is a `CameraView` or None.
 

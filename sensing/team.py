@@ -28,8 +28,16 @@ from typing import Any
 
 import numpy as np
 
-from field.checks import (LARGEST_ANGLE, LARGEST_COORDINATE, LARGEST_SIGMA, SMALLEST_SIGMA, ArgumentTypeError,
-                          integer, real, reals)
+from field.checks import (
+    LARGEST_ANGLE,
+    LARGEST_COORDINATE,
+    LARGEST_SIGMA,
+    SMALLEST_SIGMA,
+    ArgumentTypeError,
+    integer,
+    real,
+    reals,
+)
 
 MAX_PLAYER_NUMBER = 20
 """The largest player number a message may carry (the leagues number players from 1)."""

@@ -29,7 +29,7 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Any, Union, cast
+from typing import Any, cast
 
 import numpy as np
 
@@ -41,7 +41,7 @@ OTHERS = "others"
 """The key of a `max_range` mapping that gives the range of every landmark type the mapping does not name."""
 N_TYPES = len(LandmarkType)
 
-MaxRange = Union[float, Mapping[Any, float], tuple[float, ...]]
+MaxRange = float | Mapping[Any, float] | tuple[float, ...]
 
 
 def _range(name: str, value: Any) -> float:
@@ -158,7 +158,7 @@ class CameraView:
         LandmarkType.parse(kind)
         return cast(float, self.max_range)
 
-    def inset(self, share: float) -> "CameraView":
+    def inset(self, share: float) -> CameraView:
         """The view shrunk to `share` (0, 1] of its half field of view and of its range span (the nearest range
         moved out and the farthest in by the same share): the part of the view where a landmark is expected
         even with a small error in the pose or in the view.

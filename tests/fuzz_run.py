@@ -31,10 +31,12 @@ PROFILES = {"ci": 2400, "full": 12000}       # examples over all targets
 
 def _child(target: str, examples: int, derandomize: bool, seed: int | None, out: str) -> int:
     sys.path.insert(0, str(HERE))
-    from hypothesis import HealthCheck, Phase, seed as hypothesis_seed, settings
+    from hypothesis import HealthCheck, Phase, settings
+    from hypothesis import seed as hypothesis_seed
 
-    from mcl.numba_cache import guard_source_checkout
+    from mcl.numba_cache import guard_source_checkout, serialize_cache_access
     guard_source_checkout()                       # no stale compiled kernel (as tests/conftest.py)
+    serialize_cache_access()                      # the test session's workers may share the cache
     import fuzz_targets
     from fuzzing import COUNTS
 

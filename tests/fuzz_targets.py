@@ -15,15 +15,14 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from field import LandmarkType, preset
-from fuzzing import (attempt, check_estimate, check_filter, junk, number_or_junk, numbers, record_case, sane,
-                     triples)
+from fuzzing import attempt, check_estimate, check_filter, junk, number_or_junk, numbers, record_case, sane, triples
 from mcl import AugmentedMCL, Grid, ParticleFilter
 from mcl.localizer import Localizer
 from motion_models import AdaptiveMotion, ConstantNoise, MotionInput, VelocityLinear
+from proprioception.collision import NO_COLLISION, CollisionPercept
 from sensing import CombinedSensorModel, LandmarkObservation, LandmarkSensorModel, LineSensorModel, Observations
 from sensing.team import BallDetection, TeamMessage
 from sensing.view import CameraView
-from proprioception.collision import NO_COLLISION, CollisionPercept
 
 FIELDS = {name: preset(name) for name in ("spl", "kidsize", "adultsize")}
 KIND_NAMES = [kind.name for kind in LandmarkType] + ["L", "T", "X", "goalpost", "penalty_mark", "center_mark",

@@ -17,9 +17,9 @@ import types
 from collections import Counter, deque
 
 import numpy as np
-from numba.core.dispatcher import Dispatcher
 from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
+from numba.core.dispatcher import Dispatcher
 
 ERRORS = (ValueError, TypeError)
 
@@ -183,7 +183,7 @@ def attempt(target: str, owner, call, check=None) -> bool:
             after = snapshot(owner)
             if after != before:
                 raise AssertionError(f"refused ({type(error).__name__}: {error}) but changed "
-                                     f"{first_difference(before, after)}")
+                                     f"{first_difference(before, after)}") from error
         return False
     COUNTS[(target, "accepted")] += 1
     if check is not None and owner is not None:

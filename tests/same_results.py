@@ -23,8 +23,8 @@ from field import spl
 from mcl import ParticleFilter
 from mcl.tools.replay import replay
 from motion_models import AdaptiveMotion, MotionInput, VelocityLinear
-from sensing import LandmarkSensorModel
 from proprioception.collision import NO_COLLISION, CollisionPercept
+from sensing import LandmarkSensorModel
 
 PATH = Path(__file__).parent / "data" / "same_results.npz"
 SHORT = replace(WalkScenario(), duration=12.0, kidnap_time=6.0)

@@ -12,10 +12,20 @@ from hypothesis import strategies as st
 from field import spl
 from mcl import ParticleFilter
 from motion_models import AdaptiveMotion, MotionInput, VelocityLinear
-from motion_models.adaptive import (CONDITIONS, FREE, HINDRANCE, PUSHED, SLIPPAGE, STOPPED, VARIATES,
-                                    MobilityTransitions, adaptive_move, adaptive_move_reference)
-from sensing import LandmarkSensorModel
+from motion_models.adaptive import (
+    CONDITIONS,
+    FREE,
+    HINDRANCE,
+    PUSHED,
+    SLIPPAGE,
+    STOPPED,
+    VARIATES,
+    MobilityTransitions,
+    adaptive_move,
+    adaptive_move_reference,
+)
 from proprioception.collision import NO_COLLISION, CollisionPercept
+from sensing import LandmarkSensorModel
 
 DT = 0.01
 LEFT_HIT = CollisionPercept(left=True, s_rel_left=2.0, rate=0.1, recent_left=True)

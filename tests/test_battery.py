@@ -5,15 +5,43 @@ import math
 import numpy as np
 import pytest
 
-from demos.battery import localize, main as battery_main, run_case, split_seeds, summarize_family
-from demos.battery_sim import (BLACKOUT, BURST_SECONDS, EVENT_AT, FAMILIES, FIELDS, KIDNAP_DISTANCE, LYING,
-                               MAX_RANGE, RANGES, SPECIAL_TURNS, SPIN_DEG, STUCK_EXCESS, STUCK_SECONDS,
-                               field_for, kidnap_mirror_log_odds, simulate)
+from demos.battery import localize, run_case, split_seeds, summarize_family
+from demos.battery import main as battery_main
+from demos.battery_sim import (
+    BLACKOUT,
+    BURST_SECONDS,
+    EVENT_AT,
+    FAMILIES,
+    FIELDS,
+    KIDNAP_DISTANCE,
+    LYING,
+    MAX_RANGE,
+    RANGES,
+    SPECIAL_TURNS,
+    SPIN_DEG,
+    STUCK_EXCESS,
+    STUCK_SECONDS,
+    field_for,
+    kidnap_mirror_log_odds,
+    simulate,
+)
 from field.angles import wrap_angles
-from mcl.tools.evaluation import (QUALITY_CODE, convergence_time, evaluate, failed, has_stretch, hold_last,
-                            lost_counts, mirrored, pool_counts, pose_errors, quality_codes, quality_counts,
-                            tracking_rmse)
 from mcl.localizer import Quality
+from mcl.tools.evaluation import (
+    QUALITY_CODE,
+    convergence_time,
+    evaluate,
+    failed,
+    has_stretch,
+    hold_last,
+    lost_counts,
+    mirrored,
+    pool_counts,
+    pose_errors,
+    quality_codes,
+    quality_counts,
+    tracking_rmse,
+)
 
 DT = 0.01
 

@@ -4,7 +4,8 @@ import math
 import struct
 
 import pytest
-from hypothesis import given, strategies as st
+from hypothesis import given
+from hypothesis import strategies as st
 from mcap.records import Schema
 from mcap_ros2._dynamic import _for_each_msgdef, serialize_dynamic
 from mcap_ros2.decoder import DecoderFactory as Ros2DecoderFactory

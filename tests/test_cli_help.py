@@ -14,7 +14,8 @@ import textwrap
 import pytest
 
 from mcl import numba_cache
-from mcl.tools.cli import _harness, commands, main as cli_main, version
+from mcl.tools.cli import _harness, commands, version
+from mcl.tools.cli import main as cli_main
 from mcl.tools.cli_checks import description, progress_bar, progress_wanted
 
 COMMANDS = commands()

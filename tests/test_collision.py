@@ -3,12 +3,19 @@ import math
 
 import numpy as np
 import pytest
-from hypothesis import given, strategies as st
+from hypothesis import given
+from hypothesis import strategies as st
 
-from demos.collision_sim import (BOTH, HINDRANCE, LEFT, RIGHT, STOPPED, CollisionEvent, CollisionScenario,
-                                 simulate)
-from proprioception.collision import (NO_COLLISION, CollisionDetector, CollisionPercept, CollisionReference, detect,
-                               estimate_delays, learn_reference)
+from demos.collision_sim import BOTH, HINDRANCE, LEFT, RIGHT, STOPPED, CollisionEvent, CollisionScenario, simulate
+from proprioception.collision import (
+    NO_COLLISION,
+    CollisionDetector,
+    CollisionPercept,
+    CollisionReference,
+    detect,
+    estimate_delays,
+    learn_reference,
+)
 
 
 @pytest.fixture(scope="module")
@@ -199,8 +206,9 @@ def test_recording_holds_the_state_belief_and_s_rel(tmp_path):
 
 
 def test_collision_command_json(capsys):
-    from mcl.tools.cli import main as cli_main
     import json
+
+    from mcl.tools.cli import main as cli_main
 
     assert cli_main(["demo", "collision", "--case", "single", "--seeds", "0-1", "--json"]) == 0
     out = json.loads(capsys.readouterr().out)

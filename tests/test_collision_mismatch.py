@@ -10,10 +10,30 @@ import numpy as np
 import pytest
 
 from demos import collision_sim
-from demos.collision_sim import (FREE, LEFT, MISMATCH_RANGES, STOPPED, CollisionEvent, CollisionScenario,
-                                 draw_physics, simulate)
-from demos.fit_adaptive import (CONDITIONS, DIGITS, FITTED, FOOT_SEPARATION, ODOMETRY_SHAPE, episode_ends,
-                                episode_rates, fit, fit_betas, fit_end_rates, fit_odometry, free_walk_errors)
+from demos.collision_sim import (
+    FREE,
+    LEFT,
+    MISMATCH_RANGES,
+    STOPPED,
+    CollisionEvent,
+    CollisionScenario,
+    draw_physics,
+    simulate,
+)
+from demos.fit_adaptive import (
+    CONDITIONS,
+    DIGITS,
+    FITTED,
+    FOOT_SEPARATION,
+    ODOMETRY_SHAPE,
+    episode_ends,
+    episode_rates,
+    fit,
+    fit_betas,
+    fit_end_rates,
+    fit_odometry,
+    free_walk_errors,
+)
 from motion_models import AdaptiveMotion
 from motion_models.adaptive import MobilityTransitions
 

@@ -203,6 +203,10 @@ def test_hand_written_npz_may_leave_streams_out(tmp_path):
     (dict(odometry_times=np.array([0.0, 0.2, 0.1])), r"odometry_times\[2\] = 0.1 s does not follow 0.2 s: "
                                                      r"the times of odometry must increase"),
     (dict(imu_times=np.array([0.0, np.nan])), r"imu_times\[1\] = nan must be finite"),
+    (dict(odometry_times=np.array([0.0, 0.1, 1e9])), r"odometry_times\[2\] = 1000000000.0 s lies 1e\+09 s after "
+                                                    r"0.1 s: consecutive times of odometry must be at most "
+                                                    r"MAX_STEP_DT = 3600 s apart"),
+    (dict(imu_times=np.array([0.0, 3600.5])), r"imu_times\[1\] = 3600.5 s lies 3600.5 s after 0.0 s"),
     (dict(joint_readings=np.zeros((1, 3))), r"joint_readings has shape \(1, 3\), expected \(1, 2\) "
                                             r"\(one row per joint_reading_times, one column per joint_names"),
     (dict(joint_names=np.array([1, 2])), "joint_names has dtype int64"),
@@ -221,6 +225,30 @@ def test_bad_npz_is_named(npz_path, changes, match):
         read_npz(npz_path)
     assert str(npz_path) in str(error.value)
 
+
+
+def test_a_step_longer_than_any_motion_step_is_refused_at_load(tmp_path):
+    # a 1e9 s step in a stream: refused by the reader, naming the file, not first by the replay's motion step
+    from mcl.tools.logs import read_log
+    from motion_models.base import MAX_STEP_DT
+
+    log = sample_log()
+    times = log.odometry_times.copy()
+    times[1:] += 1e9
+    path = tmp_path / "gap.npz"
+    write_npz(log, path)
+    rewrite_npz(path, odometry_times=times)
+    before = path.read_bytes()
+    with pytest.raises(LogError) as error:
+        read_log(path)
+    message = str(error.value)
+    assert message.startswith(f"{path}: odometry_times[1] = ") and "\n" not in message
+    assert f"at most MAX_STEP_DT = {MAX_STEP_DT:g} s apart" in message
+    assert path.read_bytes() == before                                   # the refused read changed nothing
+    # a step of exactly MAX_STEP_DT is a log's longest gap, and is read
+    rewrite_npz(path, odometry_times=np.array([0.0, MAX_STEP_DT, MAX_STEP_DT + 0.1]))
+    read, _ = read_log(path)
+    assert read.odometry_times.tolist() == [0.0, MAX_STEP_DT, MAX_STEP_DT + 0.1]
 
 def test_pickled_array_is_refused(npz_path):
     rewrite_npz(npz_path, joint_names=np.array(["HeadYaw", None], dtype=object))
@@ -255,6 +283,8 @@ def test_what_is_not_an_npz_is_named(tmp_path):
     ("odometry.csv", "0.2,", "0.05,", r"odometry.csv, line 4, column t_s = 0.05 s does not follow 0.1 s: "
                                       r"the times of odometry must increase"),
     ("imu.csv", "0.01,", "0.0,", r"imu.csv, line 3, column t_s = 0.0 s does not follow 0.0 s"),
+    ("odometry.csv", "0.2,", "1000000000.0,", r"odometry.csv, line 4, column t_s = 1000000000.0 s lies 1e\+09 s "
+                                              r"after 0.1 s: consecutive times of odometry must be at most"),
     ("joint_readings.csv", "HeadPitch_rad", "HeadPitch", r"column HeadPitch must be a joint name followed by _rad"),
     ("joint_readings.csv", "HeadPitch_rad", "HeadRoll_rad",
      r"joint_commands.csv names the joints HeadYaw, HeadPitch but joint_readings.csv names HeadYaw, HeadRoll"),

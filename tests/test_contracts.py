@@ -16,10 +16,17 @@ from hypothesis import strategies as st
 from field import spl
 from mcl import AugmentedMCL, ParticleFilter
 from mcl.tools import testing as mt
-from motion_models import (AdaptiveMotion, ConstantNoise, FootstepEvent, LearnedFootstepOdometry, MotionInput,
-                           RawFootstepOdometry, VelocityLinear)
-from sensing import CombinedSensorModel, LandmarkSensorModel, LineSensorModel
+from motion_models import (
+    AdaptiveMotion,
+    ConstantNoise,
+    FootstepEvent,
+    LearnedFootstepOdometry,
+    MotionInput,
+    RawFootstepOdometry,
+    VelocityLinear,
+)
 from proprioception.collision import NO_COLLISION
+from sensing import CombinedSensorModel, LandmarkSensorModel, LineSensorModel
 
 FIELD = spl()
 EXAMPLES = 15

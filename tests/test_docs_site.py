@@ -141,6 +141,7 @@ def test_the_acting_page_says_what_the_results_and_the_code_say():
     `QualityThresholds`' defaults."""
     import dataclasses
     import json
+
     from mcl.localizer import QualityThresholds
     hooks = _hooks()
     page = (ROOT / "docs" / "acting.md").read_text()

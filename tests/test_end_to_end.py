@@ -7,7 +7,8 @@ import numpy as np
 import pytest
 import rerun.chunk as rrc
 
-from demos.walk import aggregate, main as walk_main, parse_seeds, run_walk
+from demos.walk import aggregate, parse_seeds, run_walk
+from demos.walk import main as walk_main
 from demos.walk_sim import WalkScenario, simulate
 from mcl.tools.cli import main as cli_main
 

@@ -133,8 +133,15 @@ def test_summary_equals_cluster_estimate_and_grid_entropy_bit_for_bit(rng, with_
 @settings(max_examples=12)
 @given(clouds)
 def test_fast_and_chunked_estimates_match_to_rounding(rng):
-    from mcl.estimate import (summary_buffers, summary_estimate, summary_estimate_chunked, summary_estimate_fast,
-                              summary_fill, summary_fill_chunked, summary_grid)
+    from mcl.estimate import (
+        summary_buffers,
+        summary_estimate,
+        summary_estimate_chunked,
+        summary_estimate_fast,
+        summary_fill,
+        summary_fill_chunked,
+        summary_grid,
+    )
 
     grid = summary_grid(**SUMMARY)
     poses, weights = random_cloud(rng, n=700)

@@ -26,8 +26,8 @@ from mcl.weights import log_mean_likelihood, normalize
 from motion_models import AdaptiveMotion, ConstantNoise, MotionInput, VelocityLinear
 from numerics.chunks import CHUNK, balanced_chunk
 from numerics.random import draw_variates
-from sensing import LandmarkSensorModel, Observations
 from proprioception.collision import NO_COLLISION
+from sensing import LandmarkSensorModel, Observations
 
 FIELD = spl()
 TRUE_POSE = np.array([1.0, 0.5, 0.3])
@@ -341,7 +341,7 @@ def test_the_entropy_from_the_step_is_the_entropy_computed_afresh(options):
     u = MotionInput(dt=0.033, command=(0.1, 0.05, 0.2))
     first = asking.entropy()
     assert asking.entropy() is first                    # kept until the particles change
-    for k in range(12):
+    for _ in range(12):
         asking.step(u, detections(TRUE_POSE, rng_a))
         silent.step(u, detections(TRUE_POSE, rng_b))
         assert asking._entropy is not None              # computed by the step itself

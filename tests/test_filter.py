@@ -13,8 +13,8 @@ from field.angles import wrap_angles
 from mcl import AugmentedMCL, Grid, ParticleFilter
 from mcl.relocalization import RelocalizationPrior
 from motion_models import AdaptiveMotion, ConstantNoise, MotionInput, VelocityLinear
-from sensing import LandmarkObservation, LandmarkSensorModel, Observations
 from proprioception.collision import CollisionPercept
+from sensing import LandmarkObservation, LandmarkSensorModel, Observations
 
 FIELD = spl()
 SENSOR = LandmarkSensorModel(FIELD)
@@ -216,7 +216,7 @@ def run_sequence(seed, initial=None):
         pf.rng.bit_generator.state = rng_state
     start = (pf.poses.copy(), copy.deepcopy(pf.rng.bit_generator.state))
     estimates, particles = [], []
-    for k in range(30):
+    for _ in range(30):
         pf.step(MotionInput(dt=0.033, command=(0.1, 0.05, 0.2)), detections(TRUE_POSE))
         estimates.append(pf.estimate().pose.copy())
         particles.append(pf.poses.copy())

@@ -6,7 +6,7 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from demos.footstep_sim import (CARPET, GRASS, Robot, load_log, save_log, simulate, truth_displacements)
+from demos.footstep_sim import CARPET, GRASS, Robot, load_log, save_log, simulate, truth_displacements
 from field.angles import wrap_angles
 from motion_models.footsteps import LEFT, RIGHT, FootstepEvent, displacements, input_matrix, integrate
 

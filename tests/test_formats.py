@@ -8,9 +8,21 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from field.angles import wrap_angles
-from mcl.tools.formats import (UNESTIMATED_VARIANCE, covariance3_to_ros6, pose_to_ros, pose_to_ros_pose, pose_to_spl,
-                         quaternion_to_yaw, ros6_to_covariance3, ros_pose_to_pose, ros_to_pose, spl_to_pose,
-                         team_to_venue_frame, venue_to_team_frame, yaw_to_quaternion)
+from mcl.tools.formats import (
+    UNESTIMATED_VARIANCE,
+    covariance3_to_ros6,
+    pose_to_ros,
+    pose_to_ros_pose,
+    pose_to_spl,
+    quaternion_to_yaw,
+    ros6_to_covariance3,
+    ros_pose_to_pose,
+    ros_to_pose,
+    spl_to_pose,
+    team_to_venue_frame,
+    venue_to_team_frame,
+    yaw_to_quaternion,
+)
 
 coordinates = st.floats(-20.0, 20.0, allow_nan=False)
 angles = st.floats(-50.0, 50.0, allow_nan=False)

@@ -9,12 +9,12 @@ import pytest
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from field import spl                                                    # noqa: E402
+from field import spl  # noqa: E402
 from field.checks import LARGEST_SIGMA, SMALLEST_SIGMA, ArgumentTypeError, integer, real, reals  # noqa: E402
-from fuzzing import check_filter, snapshot                              # noqa: E402
-from mcl import Grid, ParticleFilter                                    # noqa: E402
-from mcl.localizer import Localizer                                     # noqa: E402
-from motion_models import MotionInput, VelocityLinear                   # noqa: E402
+from fuzzing import check_filter, snapshot  # noqa: E402
+from mcl import Grid, ParticleFilter  # noqa: E402
+from mcl.localizer import Localizer  # noqa: E402
+from motion_models import MotionInput, VelocityLinear  # noqa: E402
 from sensing import LandmarkObservation, LandmarkSensorModel, Observations  # noqa: E402
 
 FIELD = spl()

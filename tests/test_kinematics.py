@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from proprioception.kinematics import (LegChain, axis_angle, nao_leg, nao_leg_reference_pose, rotation_x, rotation_z)
+from proprioception.kinematics import LegChain, axis_angle, nao_leg, nao_leg_reference_pose, rotation_x, rotation_z
 
 
 def planar_arm(l1=1.0, l2=0.5) -> LegChain:

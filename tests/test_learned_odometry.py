@@ -6,12 +6,17 @@ import numpy as np
 import pytest
 
 from demos.footstep_sim import GRASS, simulate, truth_displacements
-from demos.odometry import main as odometry_main, step_inputs
+from demos.odometry import main as odometry_main
+from demos.odometry import step_inputs
 from field.angles import wrap_angles
 from motion_models import MotionInput
 from motion_models.footsteps import LEFT, FootstepEvent, integrate
-from motion_models.learned_odometry import (LearnedFootstepOdometry, LWPRSettings, RawFootstepOdometry,
-                                            MODEL_FORMAT_VERSION)
+from motion_models.learned_odometry import (
+    MODEL_FORMAT_VERSION,
+    LearnedFootstepOdometry,
+    LWPRSettings,
+    RawFootstepOdometry,
+)
 from motion_models.lwpr import LWPR
 
 
@@ -274,6 +279,7 @@ def test_a_linear_stage_holds_an_affine_step_and_is_saved_with_the_models(tmp_pa
 
 def test_a_holder_without_a_linear_stage_saves_no_linear_key(tmp_path):
     import json
+
     from motion_models.learned_odometry import META_FILE, LearnedFootstepOdometry
 
     X, Y = _linear_data()
@@ -293,6 +299,7 @@ def test_a_holder_without_a_linear_stage_saves_no_linear_key(tmp_path):
 ])
 def test_load_refuses_a_bad_linear_stage(tmp_path, change, match):
     import json
+
     from motion_models.learned_odometry import META_FILE, LearnedFootstepOdometry
 
     X, Y = _linear_data()
@@ -307,6 +314,7 @@ def test_load_refuses_a_bad_linear_stage(tmp_path, change, match):
 
 def test_a_linear_stage_must_fit_the_holder():
     import dataclasses
+
     from motion_models.learned_odometry import LearnedFootstepOdometry, LinearStage
 
     X, Y = _linear_data()

@@ -17,17 +17,25 @@ import zipfile
 
 import numpy as np
 import pytest
-from hypothesis import given, strategies as st
+from hypothesis import given
+from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
 
 from field import Field, FieldDimensions, load_field, save_field, spl
 from field.dimensions import MAX_FIELD_EXTENT
 from field.geometry import MAX_NAME_LENGTH
 from field.io import MAX_FIELD_FILE_BYTES
-from motion_models.learned_odometry import META_FILE, MAX_META_FILE_BYTES, LearnedFootstepOdometry
+from motion_models.learned_odometry import MAX_META_FILE_BYTES, META_FILE, LearnedFootstepOdometry
 from motion_models.lwpr import LWPR, MAX_INITIAL_BYTES, MAX_INPUTS, MAX_OUTPUTS, load_npz
-from proprioception.collision import (MAX_DELAY, MAX_JOINTS, MAX_WINDOW, MIN_REFERENCE, CollisionDetector,
-                               CollisionReference, detect)
+from proprioception.collision import (
+    MAX_DELAY,
+    MAX_JOINTS,
+    MAX_WINDOW,
+    MIN_REFERENCE,
+    CollisionDetector,
+    CollisionReference,
+    detect,
+)
 
 DEEP = 100_000          # nesting levels of the deeply nested files
 
@@ -539,7 +547,7 @@ def test_a_reference_member_claiming_a_terabyte_is_refused(tmp_path):
 
 def test_byte_flipped_reference_files_load_or_raise_value_error(tmp_path, reference_file):
     path = tmp_path / "flipped.npz"
-    for offset, data in flipped_copies(reference_file.read_bytes()):
+    for _, data in flipped_copies(reference_file.read_bytes()):
         path.write_bytes(data)
         try:
             reference = CollisionReference.load(path)

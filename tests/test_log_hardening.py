@@ -23,7 +23,8 @@ import zstandard
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from mcap.records import Chunk, Schema
-from mcap.writer import CompressionType, Writer as McapWriter
+from mcap.writer import CompressionType
+from mcap.writer import Writer as McapWriter
 from mcap_ros2.writer import Writer as Ros2Writer
 
 from mcl.tools.logs import LogError, RobotLog, VisionFrame, mcap_io, read_log, schemas

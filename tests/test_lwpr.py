@@ -11,8 +11,8 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from motion_models.lwpr_reference import ReferenceLWPR
 from motion_models.lwpr import FORMAT_VERSION, LWPR
+from motion_models.lwpr_reference import ReferenceLWPR
 
 
 def cross(x: np.ndarray) -> np.ndarray:

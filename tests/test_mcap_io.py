@@ -12,9 +12,8 @@ from hypothesis import strategies as st
 from mcap_ros2.writer import Writer as Ros2Writer
 
 from field import LandmarkType
-from mcl.tools.logs import LogError, RobotLog, VisionFrame
-from mcl.tools.logs import schemas
-from mcl.tools.logs.mcap_io import (PoseWriter, Topics, list_topics, read_mcap, read_poses, write_mcap)
+from mcl.tools.logs import LogError, RobotLog, VisionFrame, schemas
+from mcl.tools.logs.mcap_io import PoseWriter, Topics, list_topics, read_mcap, read_poses, write_mcap
 from sensing.observations import Observations
 
 ORIGIN_NS = 1_700_000_000_000_000_000

@@ -233,8 +233,14 @@ def test_deferred_columns_are_the_generators_own(bit_generator, seed, width, def
     """draw_rows_deferring gives rng.random((count, width)) in the columns it computes, deferred_uniform the
     deferred ones, and the generator ends where rng.random leaves it; with a shape it cannot defer (or another
     bit generator), every column is drawn."""
-    from numerics.random import (PCG64_INLINE, PCG64_LANES, PCG64_STEPS, bit_generator_handle, deferred_uniform,
-                                 draw_rows_deferring)
+    from numerics.random import (
+        PCG64_INLINE,
+        PCG64_LANES,
+        PCG64_STEPS,
+        bit_generator_handle,
+        deferred_uniform,
+        draw_rows_deferring,
+    )
 
     plain = np.random.Generator(bit_generator(seed))
     drawn = np.random.Generator(bit_generator(seed))

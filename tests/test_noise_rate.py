@@ -10,7 +10,7 @@ from hypothesis import strategies as st
 
 from field.checks import ArgumentTypeError
 from motion_models import AdaptiveMotion, ConstantNoise, MotionInput, VelocityLinear
-from motion_models.base import REFERENCE_DT, NOISE_RATES, noise_rate_factor
+from motion_models.base import NOISE_RATES, REFERENCE_DT, noise_rate_factor
 from proprioception.collision import NO_COLLISION
 
 PARTICLES = 3000

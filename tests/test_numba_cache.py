@@ -7,10 +7,12 @@ NUMBA_CACHE_DIR import every project module and call every kernel family once th
 points, with that warning turned into an error; then the test checks that every public
 `@numba.njit(cache=True)` kernel (and every private one those calls reach) was compiled and saved its cache
 index. A further process with the same cache repeats all the calls and checks that nothing was compiled.
-A new public kernel that the calls below do not reach fails the test with its name: add a call that reaches
-it to EXERCISE. Compiling everything takes a while, so the calls come in two parts that compile side by side
-(the filter with its motion and sensor models; LWPR, the velocity EKF and the leg kinematics), one process
-each.
+A new public kernel that the calls do not reach fails the test with its name: add a call that reaches it to
+tests/kernel_exercise.py. Compiling everything takes a while, so the calls come in two parts that compile side
+by side (the filter with its motion and sensor models; LWPR, the velocity EKF and the leg kinematics), one
+process each. In a parallel session (`make test`) that starts from an empty cache (a fresh clone) the controller
+has already run both parts against the cache its workers share (tests/conftest.py); the test checks their
+reports, and runs the second process against that cache, instead of compiling everything once more.
 """
 import json
 import os
@@ -20,171 +22,42 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 
-EXERCISE = r'''
-import contextlib, importlib, inspect, io, json, os, pkgutil, sys, warnings
-
-from numba.core.errors import NumbaWarning
-
-# "Cannot cache compiled function ..." (numba.core.caching) and any other caching complaint fail the run.
-warnings.filterwarnings("error", message=".*cach", category=NumbaWarning)
-
-import numpy as np
-
-PACKAGES = ("field", "numerics", "sensing", "motion_models", "mcl", "demos", "benchmarks")
-modules = []
-for package_name in PACKAGES:
-    package = importlib.import_module(package_name)
-    modules.append(package)
-    for info in pkgutil.walk_packages(package.__path__, package_name + "."):
-        modules.append(importlib.import_module(info.name))
-
-from field import spl
-from mcl import ParticleFilter
-from sensing import LandmarkSensorModel, Observations
-from motion_models import AdaptiveMotion, MotionInput, VelocityLinear
-
-part = sys.argv[1]
-field = spl()
-rng = np.random.default_rng(0)
-observations = Observations.from_arrays(["goalpost", "goalpost"], [3.0, 4.0], [0.2, -0.3])
-
-if part in ("filter", "all"):
-    from mcl.estimate import cluster_estimate, grid_entropy
-    from mcl.filter import AugmentedMCL
-    from mcl.latency import move_back, move_forward
-    from mcl.resampling import SCHEMES, systematic_counted, systematic_with_jitter
-    from mcl.weights import log_mean_likelihood, normalize
-    from motion_models.kernels import move_drawing_noise, move_with_noise
-    from numerics.random import bit_generator_handle, skip_doubles
-
-    # The walk demo with field lines: velocity-linear, landmark and line likelihoods, normalize, augmented
-    # MCL, systematic resampling with roughening, estimate, entropy.
-    from demos.walk import main as walk_main
-    with contextlib.redirect_stdout(io.StringIO()):
-        walk_main(["--duration", "0.5", "--particles", "60", "--lines", "--json"])
-
-    for bearing_model, mixture in (("von_mises", "max"), ("exact", "max"), ("exact", "sum")):
-        for scheme in SCHEMES:
-            pf = ParticleFilter(field, VelocityLinear(gaussian=scheme == "residual"),
-                                LandmarkSensorModel(field, bearing_model=bearing_model, mixture=mixture),
-                                n_particles=64, seed=1,
-                                resampling=scheme, resample_threshold=1.0,
-                                augmented=AugmentedMCL(fit_threshold=10.0))
-            pf.step(MotionInput(dt=0.01, command=(0.2, 0.0, 0.1)), observations)
-            pf.correct(observations, since=(0.05, 0.0, 0.02))      # camera latency: moved back (and forward)
-            pf.estimate(), pf.entropy()
-    if "threads" in inspect.signature(ParticleFilter).parameters:      # the chunked, multi-threaded variants
-        for bearing_model in ("von_mises", "exact"):
-            threaded = ParticleFilter(field, VelocityLinear(), LandmarkSensorModel(field, bearing_model=bearing_model),
-                                      n_particles=20_000, seed=3, resample_threshold=1.0, threads=2)
-            threaded.step(MotionInput(dt=0.01, command=(0.2, 0.0, 0.1)), observations)
-            threaded.estimate(), threaded.entropy()
-        threaded.predict(MotionInput(dt=0.01, command=(0.2, 0.0, 0.1)))     # moved on threads alone
-
-    from proprioception.collision import CollisionPercept
-    adaptive = ParticleFilter(field, AdaptiveMotion(), LandmarkSensorModel(field), n_particles=64, seed=2)
-    percept = CollisionPercept(left=True, s_rel_left=1.5, rate=0.3, recent_left=True)
-    adaptive.step(MotionInput(dt=0.01, command=(0.2, 0.0, 0.0), collision=percept), observations)
-    from motion_models.adaptive import VARIATES, adaptive_move      # (predict draws in the kernel instead)
-    model = AdaptiveMotion()
-    arguments = model.kernel_arguments(MotionInput(dt=0.01, command=(0.2, 0.0, 0.0), collision=percept))
-    adaptive_move(adaptive.poses.copy(), model.particle_state(64), *arguments, rng.random((64, VARIATES)))
-
-    # Injection around a known pose (the relocalization's proposal: the single-detection sampler).
-    injecting = ParticleFilter(field, VelocityLinear(), LandmarkSensorModel(field), n_particles=64, seed=4,
-                               augmented=AugmentedMCL())
-    injecting.reset_around((0.5, 0.5, 0.0))
-    injecting._sample_injection(8, observations)
-    injecting.sensor_model.explained((0.5, 0.5, 0.0), observations)      # the localizer's quality
-    from sensing.view import CameraView                                  # ... and its negative information
-    injecting.sensor_model.seen((0.5, 0.5, 0.0), observations, CameraView(0.0, 0.5, 5.0))
-    injecting.sensor_model.log_likelihood(injecting.poses, observations.with_view(CameraView(0.0, 0.5, 5.0)))
-
-    # Kernels that are public on their own (the tests compare them with their numpy twins) beside the fused
-    # code the filter runs.
-    poses = pf.poses.copy()
-    out = np.empty_like(poses)
-    move_back(poses, np.array([0.1, 0.0, 0.05]), out)
-    move_forward(poses, np.array([0.1, 0.0, 0.05]), out)
-    weights = np.full(len(poses), 1.0 / len(poses))
-    log_weights = np.log(weights)
-    normalize(log_weights, np.empty(len(poses)))
-    log_mean_likelihood(log_weights, log_weights, len(poses))
-    from mcl.tools.recording import weight_colors                    # the recorded particles' colours
-    weight_colors(weights)
-    grid_entropy(poses, weights, -5.0, -3.5, 0.1, 100, 70, 36, np.empty(7000), np.empty(36))
-    cluster_estimate(poses, weights, (-5.0, -3.5, 0.5, 20, 14, 8), (0.75, 0.8, 3), np.empty(20 * 14 * 8),
-                     np.zeros(3), False, np.empty(3), np.empty((3, 3)))
-    for scheme in SCHEMES.values():
-        scheme(weights, len(weights), rng)
-    systematic_with_jitter(weights, len(poses), poses, np.full(3, 0.02), out, np.empty((0, 2)),
-                           *bit_generator_handle(rng))
-    systematic_counted(weights, len(weights), 0.5, np.empty(len(weights), dtype=np.int64),
-                       np.zeros(len(weights) + 1, dtype=np.int64))
-    LandmarkSensorModel(field, bearing_model="exact").log_likelihood(poses, observations)
-    move_with_noise(poses, 0.01, 0.0, 0.01, 0.001, 0.001, 0.001, False, rng.random((len(poses), 3)))
-    move_drawing_noise(poses, 0.01, 0.0, 0.01, 0.001, 0.001, 0.001, *bit_generator_handle(rng))
-    skip_doubles(3, *bit_generator_handle(rng))
-
-if part in ("models", "all"):
-    from motion_models.lwpr import LWPR
-    from proprioception.kinematics import nao_leg
-    from proprioception.velocity import (VelocityEKF, VelocityEKFParams, left_jacobian, rotation_derivative_at,
-                                  rotation_matrix)
-
-    model = LWPR(2, 1)
-    for x in rng.uniform(-1, 1, (50, 2)):
-        model.update(x, np.array([x[0] * x[1]]))
-    model.predict(np.zeros(2)), model.predict(rng.uniform(-1, 1, (5, 2))), model.predict_conf(np.zeros(2))
-
-    for bias in (True, False):
-        ekf = VelocityEKF([0.0, 0.0, 9.81], 0.0, params=VelocityEKFParams(estimate_gyro_bias=bias))
-        ekf.predict(0.01, [0.01, 0.0, 0.1], [0.0, 0.0, 9.81])
-        ekf.correct([0.1, 0.0, 0.0])
-    rotation_matrix([0.1, 0.2, 0.3]), left_jacobian([0.1, 0.2, 0.3])
-    rotation_derivative_at([0.1, 0.2, 0.3], [1.0, 0, 0])
-
-    leg = nao_leg("left")
-    angles = np.zeros(leg.n_joints) + 0.1
-    leg.velocities(angles, angles, (0.0, 0.0, 0.1))
-    leg.velocities_batch(np.tile(angles, (3, 1)), np.tile(angles, (3, 1)), np.zeros((3, 3)))
-
-# Every cached kernel defined in the project: compiled here or not, its cache index, cache misses.
-from numba.core.registry import CPUDispatcher
-report = {"kernels": [], "inlined": [], "compiled": [], "no_index": [], "cache_misses": {}}
-for module in modules:
-    for name, kernel in vars(module).items():
-        if not (isinstance(kernel, CPUDispatcher) and kernel.py_func.__module__ == module.__name__
-                and type(kernel._cache).__name__ != "NullCache"):
-            continue
-        label = f"{module.__name__}.{name}"
-        report["kernels"].append(label)
-        if kernel.targetoptions.get("inline") == "always":     # compiled inside its callers
-            report["inlined"].append(label)
-        if not kernel.signatures:
-            continue
-        report["compiled"].append(label)
-        index = getattr(getattr(kernel._cache, "_cache_file", None), "_index_path", None)
-        if index is not None and not os.path.exists(index):
-            report["no_index"].append(label)
-        misses = sum(kernel.stats.cache_misses.values())
-        if misses:
-            report["cache_misses"][label] = misses
-print(json.dumps(report))
-'''
+EXERCISE = Path(__file__).resolve().parent / "kernel_exercise.py"
 
 
-def _start(part: str, cache_dir: Path) -> subprocess.Popen:
-    env = dict(os.environ, NUMBA_CACHE_DIR=str(cache_dir), PYTHONPATH=str(ROOT))
-    return subprocess.Popen([sys.executable, "-c", EXERCISE, part], cwd=ROOT, env=env, stdout=subprocess.PIPE,
+def _start(part: str, cache_dir: Path | None) -> subprocess.Popen:
+    """The exercise's `part` in a fresh process, with `cache_dir` as NUMBA_CACHE_DIR (None: the cache as the
+    session has it, the project's own unless NUMBA_CACHE_DIR is set)."""
+    env = dict(os.environ, PYTHONPATH=str(ROOT))
+    if cache_dir is not None:
+        env["NUMBA_CACHE_DIR"] = str(cache_dir)
+    return subprocess.Popen([sys.executable, str(EXERCISE), part], cwd=ROOT, env=env, stdout=subprocess.PIPE,
                             stderr=subprocess.PIPE, text=True)
 
 
 def _report(process: subprocess.Popen) -> dict:
     stdout, stderr = process.communicate(timeout=600)
+    return _checked(process.returncode, stdout, stderr)
+
+
+def _checked(returncode: int, stdout: str, stderr: str) -> dict:
     assert "Cannot cache" not in stderr, stderr[-3000:]
-    assert process.returncode == 0, stderr[-3000:]
+    assert returncode == 0, stderr[-3000:]
     return json.loads(stdout.strip().splitlines()[-1])
+
+
+def _session_warmup() -> tuple[list[dict], float] | None:
+    """The reports of the parts the session's controller ran before its parallel workers started, against an
+    empty cache, the one the workers share (tests/conftest.py), and when it started them; None when it did not
+    run them, or the cache held kernels already (a kernel loaded with its callees leaves them uncompiled)."""
+    folder = os.environ.get("MCL_KERNEL_WARMUP")
+    if not folder or folder == "0" or not (Path(folder) / "session.json").exists():
+        return None
+    session = json.loads((Path(folder) / "session.json").read_text())
+    if not session["empty"]:
+        return None
+    parts = [json.loads((Path(folder) / f"{part}.json").read_text()) for part in ("filter", "models")]
+    return [_checked(part["returncode"], part["stdout"], part["stderr"]) for part in parts], session["started"]
 
 
 def _sources() -> dict[str, float]:
@@ -198,9 +71,18 @@ def _sources() -> dict[str, float]:
 
 
 def test_every_kernel_is_cached_and_found_again(tmp_path):
-    before = _sources()
-    parts = [_start(part, tmp_path) for part in ("filter", "models")]   # side by side: two cores
-    reports = [_report(process) for process in parts]
+    # In a parallel session whose cache was empty, the controller has run both parts already, against the cache
+    # the workers share: their reports are checked here, and the second process runs against that cache.
+    # Otherwise both parts run here against an empty cache of the test's own.
+    warmup = _session_warmup()
+    if warmup is None:
+        before, cache = _sources(), tmp_path
+        parts = [_start(part, cache) for part in ("filter", "models")]   # side by side: two cores
+        reports = [_report(process) for process in parts]
+    else:
+        reports, started = warmup
+        before = {module: stamp for module, stamp in _sources().items() if stamp < started}
+        cache = None
     kernels = set(reports[0]["kernels"])
     assert len(kernels) > 20
     compiled = set().union(*(set(r["compiled"]) for r in reports))
@@ -211,7 +93,7 @@ def test_every_kernel_is_cached_and_found_again(tmp_path):
     assert missing == [], f"cached kernels no call in EXERCISE reaches (add one): {missing}"
     no_index = sorted(set().union(*(set(r["no_index"]) for r in reports)))
     assert no_index == [], f"compiled but no cache index written: {no_index}"
-    again = _report(_start("all", tmp_path))
+    again = _report(_start("all", cache))
     # A module edited while the test ran has a stale cache by right (numba keys the cache on the source file).
     after = _sources()
     edited = {module for module, stamp in after.items() if before.get(module) != stamp}
@@ -278,3 +160,64 @@ def test_the_command_line_guards_the_caches_before_running_anything(monkeypatch)
     monkeypatch.setattr(mcl.tools.cli, "guard_source_checkout", lambda: calls.append("guard"))
     assert mcl.tools.cli.main(["--help"]) == 0
     assert calls == ["guard"]
+
+
+SAVES = 200
+SAVER = r'''
+import sys
+from pathlib import Path
+
+from numba.core.caching import IndexDataCacheFile
+
+from mcl.numba_cache import serialize_cache_access
+
+folder, name, lock = Path(sys.argv[1]), sys.argv[2], sys.argv[3] == "lock"
+if lock:
+    assert serialize_cache_access()
+cache = IndexDataCacheFile(cache_path=str(folder), filename_base="kernel-1.py311", source_stamp=("stamp", 1))
+(folder / f"ready-{name}").touch()
+while not (folder / "go").exists():           # both start saving together
+    pass
+for i in range(SAVES):
+    cache.save((name, i), {"key": (name, i)})
+'''.replace("SAVES", str(SAVES))
+
+
+def test_processes_saving_one_kernel_side_by_side_keep_its_index_whole(tmp_path):
+    """numba saves a cache entry as: read the kernel's index, pick the first free data file, write the index, write
+    the data. Two processes doing that at once (parallel test workers compiling one kernel) can lose each other's
+    entries or pair a key with the other's data; under `serialize_cache_access` every entry saved is in the index
+    and holds its own data."""
+    from numba.core.caching import IndexDataCacheFile
+
+    savers = [subprocess.Popen([sys.executable, "-c", SAVER, str(tmp_path), name, "lock"], cwd=ROOT,
+                               env=dict(os.environ, PYTHONPATH=str(ROOT)), stderr=subprocess.PIPE, text=True)
+              for name in ("a", "b")]
+    while not all((tmp_path / f"ready-{name}").exists() for name in ("a", "b")):
+        assert all(saver.poll() is None for saver in savers), [saver.stderr.read() for saver in savers]
+    (tmp_path / "go").touch()
+    for saver in savers:
+        assert saver.wait(timeout=300) == 0, saver.stderr.read()
+    cache = IndexDataCacheFile(cache_path=str(tmp_path), filename_base="kernel-1.py311", source_stamp=("stamp", 1))
+    keys = [(name, i) for name in ("a", "b") for i in range(SAVES)]
+    assert sorted(cache._load_index()) == sorted(keys)
+    assert all(cache.load(key) == {"key": key} for key in keys)
+
+
+def test_the_cache_lock_is_taken_on_the_cache_directory(tmp_path, monkeypatch):
+    import fcntl
+
+    from numba.core.caching import IndexDataCacheFile
+
+    from mcl.numba_cache import serialize_cache_access
+
+    assert serialize_cache_access() and serialize_cache_access()               # in place, and only once
+    assert not hasattr(IndexDataCacheFile.save.__wrapped__, "__wrapped__")
+    taken = []
+    real_flock = fcntl.flock
+    monkeypatch.setattr(fcntl, "flock", lambda fd, mode: (taken.append((os.readlink(f"/proc/self/fd/{fd}"), mode)),
+                                                          real_flock(fd, mode))[1])
+    cache = IndexDataCacheFile(cache_path=str(tmp_path), filename_base="kernel-1.py311", source_stamp=("stamp", 1))
+    cache.save(("sig",), {"data": 1})
+    assert cache.load(("sig",)) == {"data": 1}
+    assert taken == [(str(tmp_path), fcntl.LOCK_EX), (str(tmp_path), fcntl.LOCK_SH)]

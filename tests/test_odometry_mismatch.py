@@ -13,9 +13,19 @@ import pytest
 
 import demos.fit_odometry as fit_odometry
 from demos import footstep_sim
-from demos.footstep_sim import (CONDITION_RANGES, MAX_MOMENTUM, ROBOT_RANGES, Conditions, Robot, draw_conditions,
-                                draw_robot, simulate, truth_displacements)
-from demos.odometry import BASELINE, LinearCorrection, main as odometry_main, reduction_interval, step_inputs
+from demos.footstep_sim import (
+    CONDITION_RANGES,
+    MAX_MOMENTUM,
+    ROBOT_RANGES,
+    Conditions,
+    Robot,
+    draw_conditions,
+    draw_robot,
+    simulate,
+    truth_displacements,
+)
+from demos.odometry import BASELINE, LinearCorrection, reduction_interval, step_inputs
+from demos.odometry import main as odometry_main
 from motion_models.learned_odometry import LearnedFootstepOdometry, LWPRSettings, RawFootstepOdometry
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -9,14 +9,25 @@ import rerun.chunk as rrc
 from hypothesis import given
 from hypothesis import strategies as st
 
-from benchmarks.step import TRUE_POSE, bench_setup
 from benchmarks.recording_stats import rerun_command
+from benchmarks.step import TRUE_POSE, bench_setup
 from field import LandmarkType, spl
 from field.checks import ArgumentTypeError
 from mcl import Entropy, Estimate
-from mcl.tools.recording import (ELLIPSE_CHI2, ELLIPSE_VERTICES, HEADING_LENGTH, LANDMARK_COLORS, LOG_TIMELINE,
-                           PARTICLE_RADIUS, Recorder, covariance_ellipse, default_blueprint, weight_colors,
-                           weight_colors_reference, weighted_position_covariance)
+from mcl.tools.recording import (
+    ELLIPSE_CHI2,
+    ELLIPSE_VERTICES,
+    HEADING_LENGTH,
+    LANDMARK_COLORS,
+    LOG_TIMELINE,
+    PARTICLE_RADIUS,
+    Recorder,
+    covariance_ellipse,
+    default_blueprint,
+    weight_colors,
+    weight_colors_reference,
+    weighted_position_covariance,
+)
 
 
 def rows(path, entity, component):

@@ -3,8 +3,15 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from mcl.resampling import (SCHEMES, multinomial, multinomial_reference, stratified, stratified_reference, systematic,
-                            systematic_reference)
+from mcl.resampling import (
+    SCHEMES,
+    multinomial,
+    multinomial_reference,
+    stratified,
+    stratified_reference,
+    systematic,
+    systematic_reference,
+)
 from numerics.trig import sincos_reference
 
 weight_lists = st.lists(st.floats(0.0, 1.0), min_size=1, max_size=40).filter(lambda w: sum(w) > 1e-6).map(
@@ -79,7 +86,7 @@ def test_counting_equals_the_merge_bit_for_bit(weights, u0, m, equal):
     """The ancestors by counting (`systematic_counted`, what the filter's resampler runs, and
     `_systematic_in_place`, what `systematic` runs) against the merge loop (`_systematic`), including equal
     weights at u0 = 0, where points fall exactly on running totals."""
-    from mcl.resampling import _systematic, systematic_counted, _systematic_in_place
+    from mcl.resampling import _systematic, _systematic_in_place, systematic_counted
 
     if equal:
         weights = np.full(weights.shape[0], 1.0 / weights.shape[0])

@@ -47,6 +47,32 @@ def test_bad_batches_are_rejected():
         Observations.from_list([("goalpost", 1.0, 0.0)])
 
 
+
+@pytest.mark.parametrize("kinds", [np.array([0.0, 2.0]), np.array([0.0, 1.7]), [0, 1.5], np.array([True, False])],
+                         ids=["integral floats", "float array", "list with a float", "booleans"])
+def test_kinds_that_are_not_integers_are_refused(kinds):
+    # a cast to int64 would truncate 1.7 to 1 (another landmark type): the constructor refuses instead
+    given = np.array(kinds, copy=True) if isinstance(kinds, np.ndarray) else list(kinds)
+    with pytest.raises(TypeError, match=r"^kinds has dtype (float64|bool): it must hold integer landmark type") \
+            as error:
+        Observations(kinds, [1.0, 2.0], [0.0, 0.1], [np.nan, np.nan], [np.nan, np.nan])
+    assert "\n" not in str(error.value)
+    # the refused call changed nothing it was given
+    if isinstance(kinds, np.ndarray):
+        assert kinds.dtype == given.dtype and kinds.flags.writeable
+        np.testing.assert_array_equal(kinds, given)
+    else:
+        assert kinds == given
+
+
+def test_kinds_as_integers_members_or_an_empty_array_are_taken():
+    members = Observations([LandmarkType.GOALPOST, LandmarkType.T_CROSSING], [1.0, 2.0], [0.0, 0.1],
+                           [np.nan, np.nan], [np.nan, np.nan])
+    values = Observations(np.array([0, 2], dtype=np.int32), [1.0, 2.0], [0.0, 0.1], [np.nan, np.nan],
+                          [np.nan, np.nan])
+    assert members.kinds.tolist() == values.kinds.tolist() == [0, 2] and values.kinds.dtype == np.int64
+    assert len(Observations(np.zeros(0), np.zeros(0), np.zeros(0), np.zeros(0), np.zeros(0))) == 0
+
 ENTRIES = st.sampled_from([0.0, 1.5, -0.0, -2.0, 1e-300, float("nan"), float("inf"), -float("inf")])
 
 

@@ -11,8 +11,18 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from benchmarks.soak import (JUDGED_DRIFT_MINUTES, MAX_DRIFT_PER_HOUR, TABLE_COLUMNS, Drift, SoakScenario, SoakStream,
-                             judge, run_soak, step_time_drift, theil_sen_slope)
+from benchmarks.soak import (
+    JUDGED_DRIFT_MINUTES,
+    MAX_DRIFT_PER_HOUR,
+    TABLE_COLUMNS,
+    Drift,
+    SoakScenario,
+    SoakStream,
+    judge,
+    run_soak,
+    step_time_drift,
+    theil_sen_slope,
+)
 
 ROOT = Path(__file__).resolve().parent.parent
 MINUTE_FIELDS = {"minute", "steps", "frames", "detections", "median_ms", "p99_ms", "max_ms", "rss_mb", "growth_mb",

@@ -14,8 +14,8 @@ from field.angles import wrap_angles
 from mcl import ParticleFilter
 from mcl.tools import testing as mt
 from motion_models import AdaptiveMotion, FootstepEvent, MotionInput, RawFootstepOdometry, VelocityLinear
-from sensing import LandmarkObservation, LandmarkSensorModel, Observations
 from proprioception.collision import CollisionPercept
+from sensing import LandmarkObservation, LandmarkSensorModel, Observations
 
 FIELD = spl()
 SENSOR = LandmarkSensorModel(FIELD)

@@ -15,10 +15,10 @@ import pytest
 pytest.importorskip("ray")
 pytest.importorskip("optuna")
 
-from demos.battery_sim import as_robot_log, simulate  # noqa: E402
-from mcl.tools.logs import RobotLog, write_log  # noqa: E402
-from mcl.profile import Profile  # noqa: E402
 from demos.battery import BatteryCase  # noqa: E402
+from demos.battery_sim import as_robot_log, simulate  # noqa: E402
+from mcl.profile import Profile  # noqa: E402
+from mcl.tools.logs import RobotLog, write_log  # noqa: E402
 from mcl.tools.tuning import LogCase, SearchSpace, SpaceError, TuneSettings, combine, evaluate_case, run_study  # noqa: E402
 
 SPACE = """

@@ -13,12 +13,31 @@ from scipy.spatial.transform import Rotation
 
 from demos.biped import DisturbanceParams, SensorParams, simulate_walk
 from proprioception.kinematics import nao_leg, rotation_y
-from proprioception.velocity import (ImuOnlyEstimator, LegOdometry, VelocityEKF, VelocityEKFParams, bias_imu_step_reference,
-                              ekf_bias_jacobians_kernel, ekf_bias_jacobians_reference, ekf_bias_predict_kernel,
-                              ekf_bias_predict_reference, ekf_correct_kernel, ekf_correct_reference,
-                              ekf_jacobians_reference, ekf_predict_kernel, ekf_predict_reference, imu_step_reference,
-                              left_jacobian, planar_increment, rotate, rotation_derivative, rotation_derivative_at,
-                              rotation_matrix, support_foot, tilt_error)
+from proprioception.velocity import (
+    ImuOnlyEstimator,
+    LegOdometry,
+    VelocityEKF,
+    VelocityEKFParams,
+    bias_imu_step_reference,
+    ekf_bias_jacobians_kernel,
+    ekf_bias_jacobians_reference,
+    ekf_bias_predict_kernel,
+    ekf_bias_predict_reference,
+    ekf_correct_kernel,
+    ekf_correct_reference,
+    ekf_jacobians_reference,
+    ekf_predict_kernel,
+    ekf_predict_reference,
+    imu_step_reference,
+    left_jacobian,
+    planar_increment,
+    rotate,
+    rotation_derivative,
+    rotation_derivative_at,
+    rotation_matrix,
+    support_foot,
+    tilt_error,
+)
 
 G_UP = np.array([0.0, 0.0, 9.81])
 PAPER = VelocityEKFParams(estimate_gyro_bias=False)

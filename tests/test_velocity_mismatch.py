@@ -14,8 +14,15 @@ import numpy as np
 import pytest
 
 import demos.biped as biped
-from demos.biped import (DisturbanceParams, GaitParams, RobotVariation, SensorParams, _backlash, draw_robot,
-                         simulate_walk)
+from demos.biped import (
+    DisturbanceParams,
+    GaitParams,
+    RobotVariation,
+    SensorParams,
+    _backlash,
+    draw_robot,
+    simulate_walk,
+)
 from proprioception.kinematics import NaoLegDimensions, nao_leg
 from proprioception.velocity import VelocityEKFParams
 
@@ -155,7 +162,7 @@ def simulator_constants() -> list[float]:
 
 def model_settings() -> dict[str, float]:
     """The numeric settings of the EKF: the library's defaults and every fitted filter of the results file."""
-    from demos.velocity import EKF_VARIANTS, load_fit, ekf_params_for
+    from demos.velocity import EKF_VARIANTS, ekf_params_for, load_fit
 
     settings = {}
     fit = load_fit()

@@ -231,7 +231,7 @@ def test_a_pose_that_explains_the_detections_but_misses_what_it_should_see_is_po
     view = CameraView(0.0, math.radians(35), 7.0, 0.3)
     full = detections(pose, view)
     assert len(full) >= 3
-    for k in range(60):          # 2.4 s of frames that report one landmark of the view's several
+    for _ in range(60):          # 2.4 s of frames that report one landmark of the view's several
         t += 0.04
         loc.motion(t, MotionInput(0.04, odometry=(0.0, 0.0, 0.0)))
         one = Observations.from_arrays(full.kinds[:1], full.ranges[:1], full.bearings[:1])
@@ -359,7 +359,7 @@ def test_dead_reckoning_far_without_an_explained_detection_is_no_longer_okay():
     for walk, expected in ((0.0, Quality.OKAY), (0.05, Quality.POOR)):
         loc = tracking_localizer(np.array([-2.0, 1.0, 0.0]))
         t = loc.time
-        for k in range(100):                         # 4 s; 5 m when walking
+        for _ in range(100):                         # 4 s; 5 m when walking
             t += 0.04
             loc.motion(t, MotionInput(0.04, odometry=(walk, 0.0, 0.0)))
             loc.observe(Observations.empty(), capture_time=t)

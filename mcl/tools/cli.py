@@ -49,8 +49,8 @@ import importlib.util
 import os
 import sys
 
+from mcl.numba_cache import ROOT, guard_source_checkout, is_source_checkout, serialize_cache_access
 from mcl.tools.cli_checks import CommandError, one_line
-from mcl.numba_cache import ROOT, guard_source_checkout, is_source_checkout
 
 DEBUG_VARIABLE = "ROBOCUP_MCL_DEBUG"
 EXIT_ERROR, EXIT_USAGE, EXIT_INTERRUPTED = 1, 2, 130
@@ -192,6 +192,7 @@ def _check_outputs(argv: list[str], options: tuple[str, ...]) -> None:
 def _run(argv: list[str] | None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     guard_source_checkout()           # before any kernel runs (see mcl.numba_cache)
+    serialize_cache_access()          # other processes may share numba's cache (a test session, a tuning study)
     if not argv or argv[0] in ("-h", "--help"):
         print(_usage())
         return 0 if argv else EXIT_USAGE

@@ -32,7 +32,6 @@ import math
 import numpy as np
 
 from field.angles import wrap_angles
-
 from mcl.localizer import Quality
 
 QUALITY_LEVELS = (Quality.SUPERB, Quality.OKAY, Quality.POOR, Quality.UNSURE_HALF)

@@ -47,10 +47,10 @@ from typing import TYPE_CHECKING
 
 import numba
 import numpy as np
-from numpy.typing import ArrayLike
 import rerun as rr
 import rerun.blueprint as rrb
 import rerun.chunk as rrc
+from numpy.typing import ArrayLike
 
 from field import Field, LandmarkType
 from field.checks import ArgumentTypeError, integer, real, reals
@@ -391,7 +391,7 @@ class Recorder:
             self.stream.save(str(self.path), default_blueprint=self.blueprint)
         self._log_field()
 
-    def __enter__(self) -> "Recorder":
+    def __enter__(self) -> Recorder:
         return self
 
     def __exit__(self, *exc) -> None:

@@ -47,7 +47,8 @@ import math
 import sys
 import time
 from collections.abc import Sequence
-from dataclasses import dataclass, field as dataclass_field
+from dataclasses import dataclass
+from dataclasses import field as dataclass_field
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -55,17 +56,16 @@ import numpy as np
 
 from field import Field
 from field.angles import wrap_angles
-from motion_models import ConstantNoise, MotionInput, VelocityLinear
-
 from mcl.latency import SAME_TIME
 from mcl.localizer import Localizer, Quality
 from mcl.tools.logs import LogError, ReadReport, RobotLog
+from motion_models import ConstantNoise, MotionInput, VelocityLinear
 
 if TYPE_CHECKING:
     import argparse
 
-    from mcl.tools.logs.mcap_io import Topics
     from mcl.numba_cache import WarmUp
+    from mcl.tools.logs.mcap_io import Topics
 
 MODELS = {"velocity-linear": VelocityLinear, "constant": ConstantNoise}
 STARTS = ("own_half", "field", "initial", "penalty")

@@ -24,7 +24,8 @@ from __future__ import annotations
 
 import keyword
 import struct
-from typing import Any, Callable
+from collections.abc import Callable
+from typing import Any
 
 from mcap.records import Schema
 from mcap_ros2.decoder import DecoderFactory as Ros2DecoderFactory

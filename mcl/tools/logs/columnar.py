@@ -9,8 +9,9 @@
 
 Both forms hold the streams of `mcl.tools.logs.robot_log.RobotLog` in SI units. Every time is float64 seconds
 after `origin_ns`, the log's origin in integer nanoseconds since the epoch (it fits int64), and lies within
-`MAX_TIME` (1e11 s) of it. The times of a stream increase strictly; vision frames are listed in the order they
-arrived (`received` never decreases). A stream the robot did not record is left out or has no rows; the
+`MAX_TIME` (1e11 s) of it. The times of a stream increase strictly, by at most `MAX_STEP_DT` (an hour, the
+longest motion step) from one to the next; vision frames are listed in the order they arrived (`received` never
+decreases). A stream the robot did not record is left out or has no rows; the
 writers write every stream. This is format version 1; a reader refuses another version. A file that breaks
 these rules raises `LogError` (a `ValueError`) naming the file and the key, or the line and column, and for
 times out of order the stream and the time; so does one whose sizes do not fit its bytes. A missing
@@ -87,16 +88,18 @@ from __future__ import annotations
 import csv
 import math
 import os
-from contextlib import contextmanager
 import zipfile
 import zlib
+from collections.abc import Callable, Iterator, Sequence
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Callable, Iterator, Sequence
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from field import LandmarkType
+from motion_models.base import MAX_STEP_DT
 from sensing.observations import Observations
 
 if TYPE_CHECKING:
@@ -186,7 +189,9 @@ def _check_values(values: np.ndarray, rule: str, where: Callable[[tuple[int, ...
 
 def _check_order(times: np.ndarray, stream: str, where: Callable[[tuple[int, ...]], str],
                  strictly: bool = True) -> None:
-    """Raise a LogError at the first time that does not follow its predecessor."""
+    """Raise a LogError at the first time that does not follow its predecessor, or (`strictly`: the times of a
+    timed stream) lies more than `MAX_STEP_DT` after it: a gap no motion step can span, which a replay would
+    otherwise meet only when it builds that step."""
     steps = np.diff(times)
     bad = steps <= 0 if strictly else steps < 0
     if bad.any():
@@ -194,6 +199,11 @@ def _check_order(times: np.ndarray, stream: str, where: Callable[[tuple[int, ...
         order = "increase" if strictly else "never decrease"
         raise LogError(f"{where((i,))} = {float(times[i])!r} s does not follow {float(times[i - 1])!r} s: "
                        f"the times of {stream} must {order}")
+    if strictly and (steps > MAX_STEP_DT).any():
+        i = int(np.argmax(steps > MAX_STEP_DT)) + 1
+        raise LogError(f"{where((i,))} = {float(times[i])!r} s lies {float(steps[i - 1]):g} s after "
+                       f"{float(times[i - 1])!r} s: consecutive times of {stream} must be at most "
+                       f"MAX_STEP_DT = {MAX_STEP_DT:g} s apart (the longest motion step)")
 
 
 def _vision_frames(stamps: np.ndarray, received: np.ndarray, landmark_frames: np.ndarray,

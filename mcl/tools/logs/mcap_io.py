@@ -90,8 +90,10 @@ import hashlib
 import math
 import os
 import struct
-from dataclasses import dataclass, field as dataclass_field, fields, replace
-from typing import IO, Any, Callable, ClassVar, Iterable, cast
+from collections.abc import Callable, Iterable
+from dataclasses import dataclass, fields, replace
+from dataclasses import field as dataclass_field
+from typing import IO, Any, ClassVar, cast
 
 import numpy as np
 from mcap.exceptions import EndOfFile, McapError, UnsupportedCompressionError
@@ -100,13 +102,18 @@ from mcap.stream_reader import CRCValidationError, StreamReader, breakup_chunk
 from mcap_ros2.writer import Writer as Ros2Writer
 
 from field import LandmarkType
-from mcl.tools.formats import (UNESTIMATED_VARIANCE, covariance3_to_ros6, pose_to_ros, pose_to_ros_pose, ros_pose_to_pose,
-                         ros_to_pose)
-from sensing.observations import Observations
-
+from mcl.tools.formats import (
+    UNESTIMATED_VARIANCE,
+    covariance3_to_ros6,
+    pose_to_ros,
+    pose_to_ros_pose,
+    ros_pose_to_pose,
+    ros_to_pose,
+)
 from mcl.tools.logs import schemas
 from mcl.tools.logs.cdr import DecoderFactory
 from mcl.tools.logs.robot_log import LogError, ReadReport, RobotLog, VisionFrame
+from sensing.observations import Observations
 
 try:
     import zstandard
@@ -180,7 +187,7 @@ class Topics:
         defaults = {f.name: f.default for f in fields(self)}
         return frozenset(name for name in self.STREAMS if getattr(self, name) not in ("", defaults[name]))
 
-    def override(self, **topics: str | None) -> "Topics":
+    def override(self, **topics: str | None) -> Topics:
         """A copy with these topics set; a None value leaves its topic as it is (handy with argparse)."""
         known = {f.name for f in fields(self)}
         for name in topics:
@@ -1018,7 +1025,7 @@ class PoseWriter:
             self._writer.finish()
             self._file.close()
 
-    def __enter__(self) -> "PoseWriter":
+    def __enter__(self) -> PoseWriter:
         return self
 
     def __exit__(self, *exc_info) -> None:

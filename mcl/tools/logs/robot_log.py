@@ -25,7 +25,8 @@ Arguments of the wrong type (text, complex numbers, an origin that is not an int
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field as dataclass_field
+from dataclasses import dataclass
+from dataclasses import field as dataclass_field
 
 import numpy as np
 

@@ -44,17 +44,16 @@ from typing import Any
 
 import numpy as np
 
-from field.angles import wrap_angles
-from motion_models import MotionInput
-from sensing.observations import Observations
 from field import Field, LandmarkType
-from sensing.team import BallDetection
-
+from field.angles import wrap_angles
 from mcl.latency import SAME_TIME
 from mcl.localizer import Localizer, Quality
 from mcl.tools.logs import mcap_io
 from mcl.tools.replay import _start
 from mcl.tools.ros.parameters import EVENTS, NodeSettings
+from motion_models import MotionInput
+from sensing.observations import Observations
+from sensing.team import BallDetection
 
 GAMESTATE_INITIAL = 0
 

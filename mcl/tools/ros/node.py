@@ -164,10 +164,9 @@ def warm_up(settings: NodeSettings) -> float:
     """Run the filter's kernels once on a throw-away localizer of a few particles (numba compiles them, or
     loads them from its cache), so the node's first messages do not wait for the compiler; returns seconds."""
     from field import LandmarkType
+    from mcl.tools.replay import _start
     from motion_models import MotionInput
     from sensing.observations import Observations
-
-    from mcl.tools.replay import _start
 
     started = time.perf_counter()
     localizer = NodeSettings(**{**settings.as_dict(), "particles": 64}).localizer()
@@ -385,8 +384,8 @@ def main(argv: list[str] | None = None, prog: str = PROG) -> int:
     given = {f.name: getattr(args, f.name) for f in fields(NodeSettings) if getattr(args, f.name) is not None}
     settings = NodeSettings.from_dict(given)
     require_ros()
-    from mcl.tools.cli_checks import check_output_file
     from mcl.numba_cache import guard_source_checkout
+    from mcl.tools.cli_checks import check_output_file
 
     check_output_file(args.stats, "--stats")
     guard_source_checkout()

@@ -158,10 +158,9 @@ class NodeSettings:
         """The `mcl.localizer.Localizer` these settings build (its field, model or profile, particles, seed,
         history, latency compensation and player number), its belief not yet started (`NodeCore` starts it)."""
         from field.io import field_by_name_or_path
-
         from mcl.localizer import Localizer
-        from mcl.tools.replay import MODELS
         from mcl.side import Team
+        from mcl.tools.replay import MODELS
 
         field = field_by_name_or_path(self.field)
         player = self.player_number or None

@@ -49,21 +49,47 @@ noises of 1e-6 and 1e3), and `hostile_values` what it refuses.
 """
 from __future__ import annotations
 
-from mcl.tools.testing.strategies import (
-    REFUSALS, fields, poses, pose_arrays, particle_sets, observations, edge_observations, camera_views, motion_inputs,
-    hostile_motion_inputs, collision_percepts, footstep_events, hostile_values,
+from mcl.tools.testing.contracts import (
+    ContractReport,
+    assert_fused_likelihood,
+    assert_motion_contract,
+    assert_sensor_contract,
+    check_motion_model,
+    check_sensor_model,
 )
 from mcl.tools.testing.invariants import (
-    assert_weights_normalized, assert_poses_finite_and_wrapped, FilterSnapshot, snapshot, assert_unchanged,
-    assert_refused_leaves_state, assert_same_seed_same_run,
-)
-from mcl.tools.testing.contracts import (
-    ContractReport, assert_motion_contract, assert_sensor_contract, check_motion_model, check_sensor_model,
-    assert_fused_likelihood,
+    FilterSnapshot,
+    assert_poses_finite_and_wrapped,
+    assert_refused_leaves_state,
+    assert_same_seed_same_run,
+    assert_unchanged,
+    assert_weights_normalized,
+    snapshot,
 )
 from mcl.tools.testing.registry import (
-    ENTRY_POINT_GROUPS, RegisteredModel, RegisteredReport, register_motion_model, register_sensor_model, unregister,
-    registered_models, check_registered,
+    ENTRY_POINT_GROUPS,
+    RegisteredModel,
+    RegisteredReport,
+    check_registered,
+    register_motion_model,
+    register_sensor_model,
+    registered_models,
+    unregister,
+)
+from mcl.tools.testing.strategies import (
+    REFUSALS,
+    camera_views,
+    collision_percepts,
+    edge_observations,
+    fields,
+    footstep_events,
+    hostile_motion_inputs,
+    hostile_values,
+    motion_inputs,
+    observations,
+    particle_sets,
+    pose_arrays,
+    poses,
 )
 
 __all__ = [

@@ -4,22 +4,30 @@
 from __future__ import annotations
 
 import math
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Callable, Sequence
+from typing import TYPE_CHECKING
 
 import numpy as np
-from numpy.typing import ArrayLike
 from hypothesis import HealthCheck, Phase, given, settings
 from hypothesis import strategies as st
+from numpy.typing import ArrayLike
 
 from field import Field, spl
 from field.checks import LARGEST_COORDINATE
+from mcl.tools.testing.invariants import _array_difference, _copy, _frozen, assert_poses_finite_and_wrapped
+from mcl.tools.testing.strategies import (
+    REFUSALS,
+    _preset,
+    edge_observations,
+    hostile_motion_inputs,
+    motion_inputs,
+    observations,
+    pose_arrays,
+)
 from motion_models import MotionInput
 from sensing import Observations
 
-from mcl.tools.testing.invariants import _array_difference, _copy, _frozen, assert_poses_finite_and_wrapped
-from mcl.tools.testing.strategies import (REFUSALS, _preset, edge_observations, hostile_motion_inputs, motion_inputs,
-                                          observations, pose_arrays)
 if TYPE_CHECKING:
     from mcl.contracts import MotionModel, SensorModel
 
@@ -126,7 +134,7 @@ def assert_motion_contract(model: MotionModel, poses: ArrayLike, u: MotionInput,
         raise AssertionError(f"{name}.check({u!r}) raised {type(error).__name__}: {error}; a refused input must "
                              "raise ValueError or TypeError") from error
     results = []
-    for attempt in range(2):
+    for _ in range(2):
         moved = start.copy()
         state = _fresh_state(model, n)
         state_shape = None if state is None else state.shape

@@ -3,15 +3,15 @@ normalized, poses finite and wrapped, a refused call leaves the state unchanged,
 from __future__ import annotations
 
 import math
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any, Callable, Iterable
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import ArrayLike
 
-from motion_models import MotionInput
-
 from mcl.tools.testing.strategies import REFUSALS
+from motion_models import MotionInput
 
 if TYPE_CHECKING:
     from mcl.filter import ParticleFilter
@@ -188,7 +188,7 @@ class FilterSnapshot:
         """Augmented MCL's short-term average likelihood."""
         return dict(self.scalars)["w_fast"]
 
-    def differences(self, other: "FilterSnapshot") -> list[str]:
+    def differences(self, other: FilterSnapshot) -> list[str]:
         """What differs from `other`, one line per field (an empty list: the same, bit for bit).
 
         Parameters

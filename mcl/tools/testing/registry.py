@@ -1,20 +1,17 @@
 """Models registered by name (in code or through entry points) and checked together (`check_registered`)."""
 from __future__ import annotations
 
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import Any, Callable, Sequence
-
+from typing import Any
 
 from field import Field, spl
-from motion_models import FootstepEvent, MotionInput
-from sensing import Observations
-from proprioception.collision import NO_COLLISION
-
 from mcl.tools.testing.contracts import ContractReport, check_motion_model, check_sensor_model
 from mcl.tools.testing.invariants import assert_same_seed_same_run
 from mcl.tools.testing.strategies import REFUSALS, _preset
-
-
+from motion_models import FootstepEvent, MotionInput
+from proprioception.collision import NO_COLLISION
+from sensing import Observations
 
 # A team's models join the contract checks the library's own models go through: registered in the process
 # (`register_motion_model`, `register_sensor_model`, e.g. in a conftest.py) or declared by an installed package

@@ -3,7 +3,8 @@ motion inputs and percepts, and the hostile values a refused call must reject.""
 from __future__ import annotations
 
 import math
-from typing import Any, Callable, Sequence
+from collections.abc import Callable, Sequence
+from typing import Any
 
 import numpy as np
 from hypothesis import strategies as st
@@ -12,11 +13,9 @@ from hypothesis.extra import numpy as hnp
 from field import Field, LandmarkType, adultsize, kidsize, spl
 from field.checks import LARGEST_ANGLE, LARGEST_COORDINATE, LARGEST_SIGMA, SMALLEST_SIGMA
 from motion_models import FootstepEvent, MotionInput
-from sensing import Observations
 from proprioception.collision import NO_COLLISION, CollisionPercept
+from sensing import Observations
 from sensing.view import CameraView
-
-
 
 REFUSALS = (ValueError, TypeError)
 """The exceptions a refused call raises: the library's one error family (`field.checks.ArgumentTypeError` is

@@ -31,8 +31,9 @@ import functools
 import math
 import os
 import time
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from typing import Any, Mapping, Sequence
+from typing import Any
 
 import numpy as np
 
@@ -63,7 +64,6 @@ class LogCase:
     def evaluate(self, values: Mapping[str, Any], seed: int, particles: int = 500) -> dict:
         """The figures of the parameter set `values` on this log (see `evaluate_case`)."""
         from field.io import field_by_name_or_path
-
         from mcl.profile import Profile
         from mcl.tools.replay import replay
 

@@ -33,13 +33,16 @@ from __future__ import annotations
 import math
 import os
 import time
-from dataclasses import dataclass, field as dataclass_field
-from typing import Any, Callable, Sequence
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from dataclasses import field as dataclass_field
+from typing import Any
 
 import numpy as np
 
-from mcl.tools.cli_checks import CommandError
+from mcl.numba_cache import serialize_cache_access
 from mcl.profile import Profile, ProfileError, default_values
+from mcl.tools.cli_checks import CommandError
 from mcl.tools.tuning.objective import OBJECTIVES, combine, evaluate_case, summary
 from mcl.tools.tuning.space import SearchSpace
 
@@ -128,6 +131,8 @@ def _task(case: Any, values: dict, seed: int, particles: int) -> dict:
             os._exit(1)                    # the worker dies mid-task; Ray retries the task elsewhere
     first = _WORKER["tasks"] == 0
     _WORKER["tasks"] += 1
+    if first:                              # the workers compile the same kernels into one cache side by side
+        serialize_cache_access()
     result = evaluate_case(case, values, seed, particles)
     import ray
 

@@ -21,8 +21,9 @@ missing `low`/`high`. Each error is one line naming the file and the setting (`S
 from __future__ import annotations
 
 import os
+from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Any, Mapping
+from typing import Any
 
 from mcl.profile import SECTIONS, Profile, ProfileError, parse_toml, read_text
 
