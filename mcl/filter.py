@@ -58,12 +58,13 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Iterable, Sequence
+from operator import attrgetter
+from typing import Any, Callable, Generic, Iterable, Sequence, TypeVar, overload
 
 import numpy as np
 
 from field import Field
-from field.checks import LARGEST_ANGLE, LARGEST_COORDINATE, LARGEST_SIGMA, ArgumentTypeError, integer, real, reals
+from field.checks import LARGEST_ANGLE, LARGEST_COORDINATE, ArgumentTypeError, integer, real, reals
 from motion_models.base import MotionInput, MotionModel
 from sensing.observations import Observations
 
@@ -131,6 +132,24 @@ class AugmentedMCL:
                                          # frames); the injected poses are chosen among many candidates for how
                                          # well they explain the frame, so few are needed
 
+    def update(self, w_slow: float, w_fast: float, log_average: float) -> tuple[float, float, float]:
+        """w_slow and w_fast moved towards exp(log_average), the frame's average likelihood per detection (set
+        to it at the first frame, w_slow = 0), and the share of the particles to inject that they ask for."""
+        average = math.exp(log_average)
+        if w_slow == 0.0:
+            w_slow = w_fast = average
+        else:
+            w_slow += self.alpha_slow * (average - w_slow)
+            w_fast += self.alpha_fast * (average - w_fast)
+        relative = 1.0 - w_fast / (self.ratio_threshold * w_slow) if w_slow > 0 else 1.0
+        absolute = 1.0 - w_fast / self.fit_threshold if self.fit_threshold > 0 else 0.0
+        return w_slow, w_fast, max(0.0, relative, absolute)
+
+    def cap(self, tracking: bool) -> float:
+        """The largest share of the particles one correction may replace: `max_fraction_tracking` once the
+        filter has been confident (`tracking`), else `max_fraction`."""
+        return self.max_fraction_tracking if tracking else self.max_fraction
+
     def __post_init__(self) -> None:
         real("alpha_slow", self.alpha_slow)
         real("alpha_fast", self.alpha_fast)
@@ -140,6 +159,97 @@ class AugmentedMCL:
         for name in ("max_fraction", "max_fraction_tracking", "ratio_threshold"):
             real(name, getattr(self, name), 0.0, 1.0)
         real("fit_threshold", self.fit_threshold, 0.0)
+
+
+T = TypeVar("T")
+
+
+class _Fixed(Generic[T]):
+    """A read-only attribute of the filter, found along `path` ("_particles.n"): fixed when the filter is built.
+    Setting it raises AttributeError with `refusal` (which says what to do instead)."""
+
+    def __init__(self, path: str, refusal: str = "") -> None:
+        self.get = attrgetter(path)
+        self.refusal = refusal
+
+    def __set_name__(self, owner: type, name: str) -> None:
+        self.refusal = self.refusal or f"ParticleFilter.{name} is fixed when the filter is built"
+
+    @overload
+    def __get__(self, obj: None, kind: type | None = None) -> _Fixed[T]: ...
+    @overload
+    def __get__(self, obj: object, kind: type | None = None) -> T: ...
+    def __get__(self, obj, kind=None):
+        return self if obj is None else self.get(obj)
+
+    def __set__(self, obj: object, value: object) -> None:
+        raise AttributeError(self.refusal)
+
+
+class _Setting(Generic[T]):
+    """A setting of the filter that may change between steps: `check` validates (and converts) a new value,
+    kept as the attribute's name with a leading underscore."""
+
+    def __init__(self, check: Callable[[Any], T]) -> None:
+        self.check = check
+        self.slot = ""
+
+    def __set_name__(self, owner: type, name: str) -> None:
+        self.slot = "_" + name
+
+    @overload
+    def __get__(self, obj: None, kind: type | None = None) -> _Setting[T]: ...
+    @overload
+    def __get__(self, obj: object, kind: type | None = None) -> T: ...
+    def __get__(self, obj, kind=None):
+        return self if obj is None else getattr(obj, self.slot)
+
+    def __set__(self, obj: object, value: Any) -> None:
+        setattr(obj, self.slot, self.check(value))
+
+
+def _check_field_and_seed(field: object, n_particles: object, seed: object) -> None:
+    if not isinstance(field, Field):
+        raise ArgumentTypeError(f"field = {field!r} must be a field.Field, not {type(field).__name__}")
+    integer("n_particles", n_particles, 1, MAX_PARTICLES)
+    if seed is not None and not isinstance(seed, np.random.SeedSequence):
+        integer("seed", seed, 0)
+
+
+def _check_engine_options(threads: object, fast: object) -> None:
+    integer("threads", threads, 1, MAX_THREADS)
+    if not isinstance(fast, (bool, np.bool_)):
+        raise ArgumentTypeError(f"fast = {fast!r} must be True or False, not {type(fast).__name__}")
+
+
+def _check_contract(name: str, obj: object, contract: type) -> None:
+    missing = lacks(obj, contract)
+    if missing:
+        raise ValueError(f"{name} = {obj!r} lacks {', '.join(missing)}")
+
+
+def _scheme(value: Any) -> str:
+    if not isinstance(value, str):
+        raise ArgumentTypeError(f"resampling = {value!r} must be a string, one of {tuple(SCHEMES)}")
+    if value not in SCHEMES:
+        raise ValueError(f"resampling = {value!r} must be one of {tuple(SCHEMES)}")
+    return value
+
+
+def _threshold(value: Any) -> float:
+    return real("resample_threshold", value, 0.0, 1.0)
+
+
+def _augmented(value: Any) -> AugmentedMCL | None:
+    if value is not None and not isinstance(value, AugmentedMCL):
+        raise ArgumentTypeError(f"augmented = {value!r} must be an AugmentedMCL or None, not {type(value).__name__}")
+    return value
+
+
+def _roughening(value: Any) -> np.ndarray:
+    array = check_sigma(value, "roughening").copy()
+    array.flags.writeable = False
+    return array
 
 
 class ParticleFilter:
@@ -207,22 +317,13 @@ class ParticleFilter:
                  augmented: AugmentedMCL | None = AugmentedMCL(), grid: Grid = Grid(),
                  roughening: tuple[float, float, float] = (0.02, 0.02, 0.02), threads: int = 1,
                  fast: bool = False, relocalization: Relocalization | None = None) -> None:
-        if not isinstance(field, Field):
-            raise ArgumentTypeError(f"field = {field!r} must be a field.Field, not {type(field).__name__}")
-        integer("n_particles", n_particles, 1, MAX_PARTICLES)
-        if seed is not None and not isinstance(seed, np.random.SeedSequence):
-            integer("seed", seed, 0)
+        _check_field_and_seed(field, n_particles, seed)
         self.resampling = resampling                  # (the setters check them)
         self.resample_threshold = resample_threshold
-        for name, obj, contract in (("motion_model", motion_model, MotionModel),
-                                    ("sensor_model", sensor_model, SensorModel)):
-            missing = lacks(obj, contract)
-            if missing:
-                raise ValueError(f"{name} = {obj!r} lacks {', '.join(missing)}")
+        _check_contract("motion_model", motion_model, MotionModel)
+        _check_contract("sensor_model", sensor_model, SensorModel)
         self.roughening = roughening
-        integer("threads", threads, 1, MAX_THREADS)
-        if not isinstance(fast, (bool, np.bool_)):
-            raise ArgumentTypeError(f"fast = {fast!r} must be True or False, not {type(fast).__name__}")
+        _check_engine_options(threads, fast)
         self._field = field
         self._n = int(n_particles)
         self.motion_model = motion_model
@@ -230,52 +331,63 @@ class ParticleFilter:
         self.augmented = augmented
         self.rng = np.random.default_rng(seed)
         self._summary = Summary(field, grid, int(n_particles), int(threads))
-        self.w_slow = 0.0
-        self.w_fast = 0.0
-        self.frame_fit = math.nan     # the last correction's average likelihood per detection (augmented MCL)
-        self.frame_log_likelihood = math.nan   # the last correction's log weighted average particle likelihood
+        self.w_slow = self.w_fast = 0.0           # augmented MCL's long- and short-term average likelihoods
+        self.frame_fit = self.frame_log_likelihood = math.nan   # the last correction's evidence (see above)
         self.ess = float(n_particles)
-        self.resampled = False        # whether the last correction resampled
-        self.injected = 0             # particles injected by the last correction
-        relocalization = SoccerRelocalization() if relocalization is None else relocalization
-        missing = lacks(relocalization, Relocalization)
-        if missing:
-            raise ValueError(f"relocalization = {relocalization!r} lacks {', '.join(missing)}")
-        self.relocalization = relocalization      # which poses to inject, and what tells them apart
-        s = self._summary
-        relocalization.bind((s.x_min, s.x_max, s.y_min, s.y_max))
+        self.resampled = False                    # whether the last correction resampled
+        self.injected = 0                         # particles injected by the last correction
+        self.relocalization = SoccerRelocalization() if relocalization is None else relocalization
+        _check_contract("relocalization", self.relocalization, Relocalization)   # which poses to inject
+        self.relocalization.bind(self._summary.carpet)
         self._particles = Particles(int(n_particles), motion_model)
         self._engine = Engine(self._particles, self._summary, int(threads), bool(fast))
         self.reset_uniform("field")
 
-    # -- the particles and the summary ---------------------------------------------------------------------------
+    # -- the particles, the summary, the engine and the settings -----------------------------------------------
 
-    @property
-    def n(self) -> int:
-        """The number of particles N (fixed: the filter's arrays are made for it)."""
-        return self._particles.n
-
-    @property
-    def poses(self) -> np.ndarray:
-        """The particles, (N, 3) [x, y, θ]: the filter's own array, which its kernels work in. Replace them
-        with `set_particles` (validated; the kernels trust the array's shape)."""
-        return self._particles.poses
-
-    @poses.setter
-    def poses(self, value) -> None:
-        raise AttributeError("ParticleFilter.poses cannot be rebound: use set_particles(poses, log_weights), "
-                             "which checks them")
-
-    @property
-    def log_weights(self) -> np.ndarray:
-        """The particles' log-weights, (N,): the filter's own array (normalized with `weights`). Replace them
-        with `set_particles`."""
-        return self._particles.log_weights
-
-    @log_weights.setter
-    def log_weights(self, value) -> None:
-        raise AttributeError("ParticleFilter.log_weights cannot be rebound: use set_particles(poses, log_weights), "
-                             "which checks them and normalizes the weights")
+    n: _Fixed[int] = _Fixed("_particles.n")
+    """The number of particles N (fixed: the filter's arrays are made for it)."""
+    poses: _Fixed[np.ndarray] = _Fixed("_particles.poses", "ParticleFilter.poses cannot be rebound: use "
+                                       "set_particles(poses, log_weights), which checks them")
+    """The particles, (N, 3) [x, y, θ]: the filter's own array, which its kernels work in. Replace them with
+    `set_particles` (validated; the kernels trust the array's shape)."""
+    log_weights: _Fixed[np.ndarray] = _Fixed("_particles.log_weights", "ParticleFilter.log_weights cannot be "
+                                             "rebound: use set_particles(poses, log_weights), which checks them "
+                                             "and normalizes the weights")
+    """The particles' log-weights, (N,): the filter's own array (normalized with `weights`). Replace them with
+    `set_particles`."""
+    particles: _Fixed[Particles] = _Fixed("_particles")
+    """The particle set (`mcl.particles.Particles`: named arrays, which the engine works in); change it through
+    the filter's calls, which keep the summary and the relocalization in step."""
+    summary: _Fixed[Summary] = _Fixed("_summary")
+    """The summary (`mcl.summary.Summary`): the grid's cells, the histograms, the cached estimate and entropy
+    and the estimate's hysteresis anchor."""
+    engine: _Fixed[Engine] = _Fixed("_engine")
+    """The engine that runs the filter's stages on its particles (`mcl.engine`): its stage calls let a benchmark
+    time them one by one."""
+    grid: _Fixed[Grid] = _Fixed("_summary.grid")
+    """The entropy and estimate grid (fixed: the filter's histograms are made for it)."""
+    entropy_bounds: _Fixed[tuple[float, float]] = _Fixed("_summary.entropy_bounds")
+    """The largest possible position and orientation entropies: log2 of the cell counts."""
+    field: _Fixed[Field] = _Fixed("_field")
+    """The field (fixed: the carpet's bounds, the grid and the injection region are made for it)."""
+    threads: _Fixed[int] = _Fixed("_engine.threads")
+    """The number of threads the compiled step runs on (a constructor option)."""
+    fast: _Fixed[bool] = _Fixed("_engine.fast")
+    """Whether the compiled step computes sin, cos, exp and its sums the fast way (a constructor option)."""
+    resampling: _Setting[str] = _Setting(_scheme)
+    """The resampling scheme, one of `mcl.resampling.SCHEMES` (may be changed between steps)."""
+    resample_threshold: _Setting[float] = _Setting(_threshold)
+    """Resample when the ESS falls below this share of N, in [0, 1] (may be changed between steps)."""
+    augmented: _Setting[AugmentedMCL | None] = _Setting(_augmented)
+    """Augmented MCL's parameters, or None: no injection (may be changed between steps)."""
+    roughening: _Setting[np.ndarray] = _Setting(_roughening)
+    """The roughening's standard deviations (x [m], y [m], θ [rad]), read-only (may be replaced between steps by
+    three finite numbers >= 0)."""
+    _resampling: str                  # the settings' checked values
+    _resample_threshold: float
+    _augmented: AugmentedMCL | None
+    _roughening: np.ndarray
 
     @property
     def weights(self) -> np.ndarray:
@@ -288,94 +400,7 @@ class ParticleFilter:
         state = self._particles.motion_state
         return None if state is None else _read_only(state)
 
-    @property
-    def particles(self) -> Particles:
-        """The particle set the filter owns (`mcl.particles.Particles`: its named arrays, which the engine works
-        in); change it through the filter's calls, which keep the summary and the relocalization in step."""
-        return self._particles
-
-    @property
-    def summary(self) -> Summary:
-        """The filter's summary (`mcl.summary.Summary`): the grid's cells, the histograms, the cached estimate
-        and entropy and the estimate's hysteresis anchor."""
-        return self._summary
-
-    @property
-    def engine(self) -> Engine:
-        """The engine that runs the filter's stages on its particles (`mcl.engine`): its stage calls let a
-        benchmark time them one by one."""
-        return self._engine
-
-    @property
-    def grid(self) -> Grid:
-        """The entropy and estimate grid (fixed: the filter's histograms are made for it)."""
-        return self._summary.grid
-
-    @property
-    def entropy_bounds(self) -> tuple[float, float]:
-        """The largest possible position and orientation entropies: log2 of the cell counts."""
-        return self._summary.entropy_bounds
-
-    @property
-    def resampling(self) -> str:
-        """The resampling scheme, one of `mcl.resampling.SCHEMES` (may be changed between steps)."""
-        return self._resampling
-
-    @resampling.setter
-    def resampling(self, value: str) -> None:
-        if not isinstance(value, str):
-            raise ArgumentTypeError(f"resampling = {value!r} must be a string, one of {tuple(SCHEMES)}")
-        if value not in SCHEMES:
-            raise ValueError(f"resampling = {value!r} must be one of {tuple(SCHEMES)}")
-        self._resampling = value
-
-    @property
-    def resample_threshold(self) -> float:
-        """Resample when the ESS falls below this share of N, in [0, 1] (may be changed between steps)."""
-        return self._resample_threshold
-
-    @resample_threshold.setter
-    def resample_threshold(self, value: float) -> None:
-        self._resample_threshold = real("resample_threshold", value, 0.0, 1.0)
-
-    @property
-    def augmented(self) -> AugmentedMCL | None:
-        """Augmented MCL's parameters, or None: no injection (may be changed between steps)."""
-        return self._augmented
-
-    @augmented.setter
-    def augmented(self, value: AugmentedMCL | None) -> None:
-        if value is not None and not isinstance(value, AugmentedMCL):
-            raise ArgumentTypeError(f"augmented = {value!r} must be an AugmentedMCL or None, "
-                                    f"not {type(value).__name__}")
-        self._augmented = value
-
-    @property
-    def field(self) -> Field:
-        """The field (fixed: the carpet's bounds, the grid and the injection region are made for it)."""
-        return self._field
-
-    @property
-    def threads(self) -> int:
-        """The number of threads the compiled step runs on (a constructor option)."""
-        return self._engine.threads
-
-    @property
-    def fast(self) -> bool:
-        """Whether the compiled step computes sin, cos, exp and its sums the fast way (a constructor option)."""
-        return self._engine.fast
-
-    @property
-    def roughening(self) -> np.ndarray:
-        """The roughening's standard deviations (x [m], y [m], θ [rad]), read-only (may be replaced between
-        steps by three finite numbers >= 0)."""
-        return self._roughening
-
-    @roughening.setter
-    def roughening(self, value) -> None:
-        array = check_sigma(value, "roughening").copy()
-        array.flags.writeable = False
-        self._roughening = array
+    # -- resets -------------------------------------------------------------------------------------------------
 
     def reset_uniform(self, region: str | Sequence[float] = "field", heading: float | None = None,
                       heading_sigma: float = 0.0) -> None:
@@ -398,20 +423,8 @@ class ParticleFilter:
             If the region is unknown or its bounds are out of order, or a number is out of range.
         """
         bounds = region_bounds(self._field, region)
-        if heading is not None:
-            heading = real("heading", heading, -LARGEST_ANGLE, LARGEST_ANGLE)
-            heading_sigma = real("heading_sigma", heading_sigma, 0.0, LARGEST_SIGMA)
-        x_min, x_max, y_min, y_max = bounds
-        poses = np.empty((self._n, 3))
-        poses[:, 0] = self.rng.uniform(x_min, x_max, self._n)
-        poses[:, 1] = self.rng.uniform(y_min, y_max, self._n)
-        if heading is None:
-            poses[:, 2] = self.rng.uniform(-math.pi, math.pi, self._n)
-        else:
-            poses[:, 2] = heading + heading_sigma * self.rng.standard_normal(self._n)
-        self._assign(poses)
+        self._reset(self._particles.uniform_poses(bounds, self.rng, heading, heading_sigma))
         self.relocalization.reset_region(bounds)
-        self.w_slow = self.w_fast = 0.0
 
     def reset_around(self, pose: Sequence[float] | np.ndarray,
                      sigma: Sequence[float] | np.ndarray = (0.1, 0.1, 0.1)) -> None:
@@ -432,10 +445,8 @@ class ParticleFilter:
             If the pose or a standard deviation is not finite or out of range.
         """
         pose = check_pose("pose", pose)
-        sigma = check_sigma(sigma)
-        self._assign(pose + sigma * self.rng.standard_normal((self._n, 3)))
+        self._reset(self._particles.normal_poses(pose.reshape(1, 3), check_sigma(sigma), self.rng))
         self.relocalization.reset_pose(pose)
-        self.w_slow = self.w_fast = 0.0
 
     def reset_mirrored(self) -> None:
         """Mirror every particle through the centre mark: (x, y, θ) → (−x, −y, θ+π), weights kept."""
@@ -447,10 +458,9 @@ class ParticleFilter:
                          region: str | Sequence[float] = "field") -> None:
         """Spread the particles evenly over several candidate poses (K, 3), normal around each with `sigma`.
 
-        For a placement whose pose the rules fix up to a choice the robot cannot know (which touchline, which
-        kick-off position). Injection stays inside `region` with uniform headings until the filter is
-        confident again (as after `reset_uniform`): the candidates' headings differ, so no single heading
-        reference guides it yet.
+        For a placement the rules fix up to a choice the robot cannot know (which touchline, which kick-off
+        position). Injection stays inside `region` with uniform headings until the filter is confident again
+        (as after `reset_uniform`): the candidates' headings differ, so no one heading guides it yet.
 
         Parameters
         ----------
@@ -470,12 +480,9 @@ class ParticleFilter:
         candidates = check_poses("poses", poses)
         if candidates.shape[0] == 0:
             raise ValueError(f"poses = {poses!r} must be one or more (x, y, θ) poses")
-        sigma = check_sigma(sigma)
-        bounds = region_bounds(self._field, region)
-        choice = np.arange(self._n) % candidates.shape[0]
-        self._assign(candidates[choice] + sigma * self.rng.standard_normal((self._n, 3)))
+        sigma, bounds = check_sigma(sigma), region_bounds(self._field, region)
+        self._reset(self._particles.normal_poses(candidates, sigma, self.rng))
         self.relocalization.reset_region(bounds)
-        self.w_slow = self.w_fast = 0.0
 
     def diffuse(self, sigma: Sequence[float] | np.ndarray = (0.1, 0.1, 0.3)) -> None:
         """Widen the belief: add normal noise `sigma` (x [m], y [m], θ [rad]) to every particle, weights kept.
@@ -543,6 +550,11 @@ class ParticleFilter:
         self._summary.changed()
         self.ess = ess
 
+    def _reset(self, poses: np.ndarray) -> None:
+        """`_assign` for a reset: augmented MCL's averages start afresh too."""
+        self._assign(poses)
+        self.w_slow = self.w_fast = 0.0
+
     def _assign(self, poses: np.ndarray) -> None:
         """New poses with equal weights and fresh motion state; the estimate's hysteresis starts afresh."""
         self._particles.assign(poses)
@@ -587,9 +599,8 @@ class ParticleFilter:
                 since: Sequence[float] | np.ndarray | None = None) -> None:
         """Weigh the particles by the detections, then resample (and inject) if needed.
 
-        A frame that comes with its camera view (`Observations.view`) is also scored by the landmarks each
-        particle puts in view that the frame did not report, when the sensor model does so (`scores_view`,
-        negative information); such a frame is scored through the model's `log_likelihood`.
+        A frame with its camera view (`Observations.view`) is also scored by the landmarks each particle puts in
+        view that the frame did not report, when the sensor model does so (`scores_view`, negative information).
 
         Parameters
         ----------
@@ -597,9 +608,8 @@ class ParticleFilter:
             One camera frame's detections (coerced by `Observations.coerce`); None or empty changes nothing.
         since : sequence of float, numpy.ndarray or None, default None
             For detections captured earlier (camera latency), the robot's motion (dx [m], dy [m], dθ [rad])
-            from their capture to now, in the robot frame at capture (`mcl.latency.MotionHistory.since`). Each
-            particle is scored where it was at capture: moved back along `since`. None or (0, 0, 0): scored as
-            it is.
+            from their capture to now, in the robot frame at capture (`mcl.latency.MotionHistory.since`): each
+            particle is scored where it was at capture, moved back along it. None or (0, 0, 0): as it is.
 
         Raises
         ------
@@ -608,11 +618,7 @@ class ParticleFilter:
             NaN or +inf log-likelihoods; the filter is left unchanged.
         """
         observations = Observations.coerce(observations)
-        try:
-            motion_since = self._check_since(since)   # before any kernel is prepared: a refusal changes nothing
-        except ValueError:
-            self.sensor_model.check(observations)     # the detections are checked first
-            raise
+        motion_since = self._since(since, observations)
         if self._engine.fuses(self.sensor_model, observations):
             self._correct_fused(None, observations, False, motion_since)
         else:
@@ -621,8 +627,6 @@ class ParticleFilter:
 
     def step(self, u: MotionInput, observations: Observations | Iterable | None = None) -> Estimate:
         """predict(u), then correct(observations) when there are any; returns the estimate.
-
-        Both inputs are validated before anything changes.
 
         Parameters
         ----------
@@ -639,30 +643,49 @@ class ParticleFilter:
         Raises
         ------
         ValueError
-            If the motion model refuses `u` or the sensor model the detections (nothing changed), or the
-            sensor model returns NaN or +inf log-likelihoods (the particles have then moved, their weights
-            are unchanged: the message says so).
+            If the motion model refuses `u` or the sensor model the detections (both are checked before anything
+            changes), or the sensor model returns NaN or +inf log-likelihoods (the particles have then moved,
+            their weights are unchanged: the message says so).
         """
         observations = Observations.coerce(observations)
         fused = self._engine.fuses(self.sensor_model, observations)
+        motion = self._predict_checked(u, observations, fused)
+        if fused:
+            self._correct_fused(motion, observations, True)
+        else:
+            self._correct_moved(observations)
+        return self.estimate()
+
+    def _predict_checked(self, u: MotionInput, observations: Observations, fused: bool) -> tuple | None:
+        """Check `u` and the detections (a refused call names the detection first), then predict unless the
+        fused step will; returns the engine's motion for `u` (`Engine.motion`)."""
         try:
             motion = self._engine.motion(self.motion_model, u)
         except ValueError:
-            self.sensor_model.check(observations)     # the detections are checked first
+            self.sensor_model.check(observations)
             raise
         if not fused or motion is None:
             self.sensor_model.check(observations)     # before the particles move
             self._predict(u, motion)
-        if fused:
-            self._correct_fused(motion, observations, True)
-            return self.estimate()
+        return motion
+
+    def _correct_moved(self, observations: Observations) -> None:
+        """`_correct` in a step, after the particles moved: a defect of the sensor model says that they did."""
         try:
             self._correct(observations)
         except ValueError as error:
             if str(error).startswith(_INVALID_LIKELIHOODS):
                 raise ValueError(_INVALID_LIKELIHOODS + _MOVED) from None
             raise
-        return self.estimate()
+
+    def _since(self, since, observations: Observations) -> np.ndarray | None:
+        """`since` checked before any kernel is prepared (a refusal changes nothing; the detections are checked
+        first): None when the detections were captured now."""
+        try:
+            return self._check_since(since)
+        except ValueError:
+            self.sensor_model.check(observations)
+            raise
 
     def estimate(self) -> Estimate:
         """Weighted circular mean and covariance of the dominant cluster (cached until the particles change).
@@ -753,7 +776,7 @@ class ParticleFilter:
             augmented = (False, 0.0, 0.0, 1.0, 0.0, self.w_slow, self.w_fast, 0.0)
         else:
             augmented = (True, a.alpha_slow, a.alpha_fast, a.ratio_threshold, a.fit_threshold, self.w_slow,
-                         self.w_fast, a.max_fraction_tracking if self.relocalization.tracking else a.max_fraction)
+                         self.w_fast, a.cap(self.relocalization.tracking))
         # Only an estimate the stages one by one compute (after a correction with augmentation, or at the end of
         # `step`) may be computed here: computing one moves the hysteresis anchor.
         want_estimate = in_step or a is not None
@@ -814,24 +837,14 @@ class ParticleFilter:
 
     def _update_augmented(self, log_average: float) -> float:
         """Update w_slow, w_fast with the per-detection average likelihood; return the injection share."""
-        a = self._augmented
-        assert a is not None                          # called with augmented MCL on only
-        average = math.exp(log_average)
-        if self.w_slow == 0.0:
-            self.w_slow = self.w_fast = average
-        else:
-            self.w_slow += a.alpha_slow * (average - self.w_slow)
-            self.w_fast += a.alpha_fast * (average - self.w_fast)
-        relative = 1.0 - self.w_fast / (a.ratio_threshold * self.w_slow) if self.w_slow > 0 else 1.0
-        absolute = 1.0 - self.w_fast / a.fit_threshold if a.fit_threshold > 0 else 0.0
-        return max(0.0, relative, absolute)
+        assert self._augmented is not None           # called with augmented MCL on only
+        self.w_slow, self.w_fast, fraction = self._augmented.update(self.w_slow, self.w_fast, log_average)
+        return fraction
 
     def _injection_count(self, fraction: float) -> int:
-        if self._augmented is None:
-            return 0
+        """How many particles to inject for the share `fraction`, within the cap (none without augmented MCL)."""
         a = self._augmented
-        cap = a.max_fraction_tracking if self.relocalization.tracking else a.max_fraction
-        return int(round(min(fraction, cap) * self._n))
+        return 0 if a is None else int(round(min(fraction, a.cap(self.relocalization.tracking)) * self._n))
 
     def _sample_injection(self, count: int, observations: Observations) -> np.ndarray:
         """`count` poses for augmented MCL to inject, as the relocalization proposes them (`propose`)."""

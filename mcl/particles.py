@@ -16,7 +16,7 @@ from typing import Any
 import numpy as np
 
 from field.angles import wrap_angles
-from field.checks import LARGEST_ANGLE, LARGEST_COORDINATE, LARGEST_SIGMA, ArgumentTypeError, reals
+from field.checks import LARGEST_ANGLE, LARGEST_COORDINATE, LARGEST_SIGMA, ArgumentTypeError, real, reals
 
 from .weights import normalize
 
@@ -119,6 +119,28 @@ class Particles:
         self.poses[:] = poses
         self.poses[:, 2] = wrap_angles(self.poses[:, 2])
         self.uniform_weights()
+
+    def uniform_poses(self, bounds: tuple[float, float, float, float], rng: np.random.Generator,
+                      heading: float | None = None, heading_sigma: float = 0.0) -> np.ndarray:
+        """N poses uniform over `bounds` (x_min, x_max, y_min, y_max) [m], drawn from `rng`: uniform headings, or
+        normal ones around `heading` with `heading_sigma` [rad] (both checked first)."""
+        if heading is not None:
+            heading = real("heading", heading, -LARGEST_ANGLE, LARGEST_ANGLE)
+            heading_sigma = real("heading_sigma", heading_sigma, 0.0, LARGEST_SIGMA)
+        x_min, x_max, y_min, y_max = bounds
+        poses = np.empty((self.n, 3))
+        poses[:, 0] = rng.uniform(x_min, x_max, self.n)
+        poses[:, 1] = rng.uniform(y_min, y_max, self.n)
+        if heading is None:
+            poses[:, 2] = rng.uniform(-math.pi, math.pi, self.n)
+        else:
+            poses[:, 2] = heading + heading_sigma * rng.standard_normal(self.n)
+        return poses
+
+    def normal_poses(self, centres: np.ndarray, sigma: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+        """N poses normal around `centres` (K, 3) with standard deviations `sigma` (3,), drawn from `rng`:
+        particle i around centre i mod K."""
+        return centres[np.arange(self.n) % centres.shape[0]] + sigma * rng.standard_normal((self.n, 3))
 
     def mirror(self, field) -> None:
         """Every particle through the centre mark of `field`, weights kept."""

@@ -194,6 +194,11 @@ class Summary:
         self.has_previous = False
 
     @property
+    def carpet(self) -> tuple[float, float, float, float]:
+        """The carpet's bounds (x_min, x_max, y_min, y_max) [m]: the field and its border strip."""
+        return self.x_min, self.x_max, self.y_min, self.y_max
+
+    @property
     def entropy_bounds(self) -> tuple[float, float]:
         """The largest possible position and orientation entropies: log2 of the cell counts."""
         return math.log2(self.entropy_nx * self.entropy_ny), math.log2(self.grid.orientation_bins)
