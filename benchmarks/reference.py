@@ -30,14 +30,17 @@ import numba
 import numpy as np
 
 from mcl.contracts import fused_kernels
-from mcl.estimate import (cluster_estimate_reference, grid_entropy_reference, summary_entropy, summary_estimate,
-                          summary_estimate_chunked, summary_estimate_fast, summary_fill, summary_fill_chunked)
-from mcl.resampling import (gather_with_jitter_reference, resample_with_jitter, resample_with_jitter_chunked,
-                            systematic_counted, systematic_reference)
+from mcl.estimate import (summary_entropy, summary_estimate, summary_estimate_chunked, summary_estimate_fast, summary_fill,
+                          summary_fill_chunked)
+from mcl.reference import (cluster_estimate as cluster_estimate_reference, grid_entropy as grid_entropy_reference,
+                           gather_with_jitter as gather_with_jitter_reference, systematic as systematic_reference,
+                           normalize as normalize_reference)
+from mcl.resampling import resample_with_jitter, resample_with_jitter_chunked, systematic_counted
 from mcl.step import NO_SINCE, STEP_BLOCK, fused_step
-from mcl.weights import normalize_reference, weigh, weigh_chunked, weigh_fast
+from mcl.weights import weigh, weigh_chunked, weigh_fast
 from motion_models.base import MotionInput
-from motion_models.kernels import NO_WORK, move_chunked, move_range, move_range_fast, move_with_noise_reference
+from motion_models.kernels import NO_WORK, move_chunked, move_range, move_range_fast
+from motion_models.reference import move_with_noise as move_with_noise_reference
 from numerics.compile import variant
 from numerics.random import draw_variates, next_double, parallel_uniforms
 from numerics.trig import SQRT3

@@ -28,13 +28,16 @@ import numpy as np
 
 from field import spl
 from mcl import resampling
-from mcl.estimate import cluster_estimate_reference, grid_entropy_reference
+from mcl.reference import (cluster_estimate as cluster_estimate_reference, grid_entropy as grid_entropy_reference,
+                           gather_with_jitter as gather_with_jitter_reference, systematic as systematic_reference,
+                           normalize as normalize_reference)
 from mcl.filter import AugmentedMCL, ParticleFilter
-from mcl.resampling import gather_with_jitter, gather_with_jitter_reference, systematic, systematic_reference
-from mcl.weights import normalize, normalize_reference
+from mcl.resampling import gather_with_jitter, systematic
+from mcl.weights import normalize
 from motion_models import AdaptiveMotion, MotionInput, VelocityLinear
-from motion_models.adaptive import VARIATES, adaptive_move_reference
-from motion_models.kernels import move_with_noise_reference
+from motion_models.adaptive import VARIATES
+from motion_models.reference import (adaptive_move as adaptive_move_reference,
+                                     move_with_noise as move_with_noise_reference)
 from numerics.random import draw_variates
 from numerics.trig import SQRT3
 from sensing import LandmarkSensorModel, Observations

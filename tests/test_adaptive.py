@@ -12,8 +12,9 @@ from hypothesis import strategies as st
 from field import spl
 from mcl import ParticleFilter
 from motion_models import AdaptiveMotion, MotionInput, VelocityLinear
-from motion_models.adaptive import (CONDITIONS, FREE, HINDRANCE, PUSHED, SLIPPAGE, STOPPED, VARIATES,
-                                    MobilityTransitions, adaptive_move, adaptive_move_reference)
+from motion_models.adaptive import (CONDITIONS, FREE, HINDRANCE, PUSHED, SLIPPAGE, STOPPED, VARIATES, MobilityTransitions,
+                                    adaptive_move)
+from motion_models.reference import adaptive_move as adaptive_move_reference
 from sensing import LandmarkSensorModel
 from sensing.collision import NO_COLLISION, CollisionPercept
 

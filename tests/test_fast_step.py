@@ -659,10 +659,10 @@ def test_issue_shaped_step_equals_its_numpy_twin(fast):
     # without roughening, grid entropy) against the numpy references fed the same draws.
     from benchmarks.reference import issue_shaped_step
     from benchmarks.step import bench_setup
-    from mcl.estimate import grid_entropy_reference
-    from mcl.resampling import systematic_reference
-    from mcl.weights import normalize_reference
-    from motion_models.kernels import move_with_noise_reference
+    from mcl.reference import grid_entropy as grid_entropy_reference
+    from mcl.reference import systematic as systematic_reference
+    from mcl.reference import normalize as normalize_reference
+    from motion_models.reference import move_with_noise as move_with_noise_reference
 
     pf, u, observations = bench_setup(700, fast=fast)
     pf.step(u, observations)
