@@ -29,9 +29,8 @@ from collections.abc import Callable
 import numba
 import numpy as np
 
+from mcl.contracts import fused_kernels
 from mcl.estimate import (
-    cluster_estimate_reference,
-    grid_entropy_reference,
     summary_entropy,
     summary_estimate,
     summary_estimate_chunked,
@@ -39,17 +38,17 @@ from mcl.estimate import (
     summary_fill,
     summary_fill_chunked,
 )
-from mcl.resampling import (
-    gather_with_jitter_reference,
-    resample_with_jitter,
-    resample_with_jitter_chunked,
-    systematic_counted,
-    systematic_reference,
-)
+from mcl.reference import cluster_estimate as cluster_estimate_reference
+from mcl.reference import gather_with_jitter as gather_with_jitter_reference
+from mcl.reference import grid_entropy as grid_entropy_reference
+from mcl.reference import normalize as normalize_reference
+from mcl.reference import systematic as systematic_reference
+from mcl.resampling import resample_with_jitter, resample_with_jitter_chunked, systematic_counted
 from mcl.step import NO_SINCE, STEP_BLOCK, fused_step
-from mcl.weights import normalize_reference, weigh, weigh_chunked, weigh_fast
+from mcl.weights import weigh, weigh_chunked, weigh_fast
 from motion_models.base import MotionInput
-from motion_models.kernels import NO_WORK, move_chunked, move_range, move_range_fast, move_with_noise_reference
+from motion_models.kernels import NO_WORK, move_chunked, move_range, move_range_fast
+from motion_models.reference import move_with_noise as move_with_noise_reference
 from numerics.compile import variant
 from numerics.random import draw_variates, next_double, parallel_uniforms
 from numerics.trig import SQRT3
@@ -78,14 +77,14 @@ def numpy_step(pf, u: MotionInput, observations: Observations, timings: dict | N
                                          draw_variates(pf.rng, pf.n, False))
     weights = np.full(pf.n, 1.0 / pf.n)
     marks.append(clock())
-    g = pf.grid
+    g, s = pf.grid, pf.summary
     mean, cov, cluster_weight = cluster_estimate_reference(
-        poses, weights, pf._x_min, pf._y_min, g.cluster_cell, pf._cluster_nx, pf._cluster_ny,
+        poses, weights, s.x_min, s.y_min, g.cluster_cell, s.cluster_nx, s.cluster_ny,
         g.cluster_orientation_bins, g.cluster_radius, g.cluster_angle_radius, 3,
-        pf._previous_estimate if pf._has_previous_estimate else None)
+        s.previous if s.has_previous else None)
     marks.append(clock())
-    entropy = grid_entropy_reference(poses, weights, pf._x_min, pf._y_min, g.position_cell, pf._entropy_nx,
-                                     pf._entropy_ny, g.orientation_bins)
+    entropy = grid_entropy_reference(poses, weights, s.x_min, s.y_min, g.position_cell, s.entropy_nx,
+                                     s.entropy_ny, g.orientation_bins)
     marks.append(clock())
     if timings is not None:
         for name, a, b in zip(PHASES, marks[:-1], marks[1:]):
@@ -153,8 +152,8 @@ def issue_shaped_step(pf, u: MotionInput, observations: Observations) -> Callabl
     numbers once; the detections' constants are prepared from the batch's arrays in every call, as the
     filter's step prepares them. Returns a callable giving (ESS before resampling, position entropy,
     orientation entropy). Needs what `compiled_phases` needs, with uniform motion noise, one thread."""
-    motion = pf._kernel_motion(u)
-    sensor = pf._sensor_kernel()
+    motion = pf.engine.motion(pf.motion_model, u)
+    sensor = fused_kernels(pf.sensor_model)
     if motion is None or sensor is None or pf.motion_model.gaussian or pf.threads > 1:
         raise ValueError("issue_shaped_step needs a bounded uniform-noise motion model, a sensor model with "
                          "fused_likelihood() and one thread")
@@ -164,14 +163,15 @@ def issue_shaped_step(pf, u: MotionInput, observations: Observations) -> Callabl
     kernel = variant(_issue_shaped_kernel, fused.key, {"prepare": sensor.prepare, "workspace": sensor.workspace,
                                                        "predict_and_score": fused.predict_and_score})
     inputs = sensor.inputs(observations)
-    coordinates, histograms, bitmaps = pf._summary
+    summary, p = pf.summary, pf.particles
+    coordinates, histograms, bitmaps = summary.coordinates, summary.histograms, summary.bitmaps
     ancestors, counts = np.empty(pf.n, dtype=np.int64), np.zeros(pf.n + 1, dtype=np.int64)
     moving = (True, *motion, False, np.empty((0, 3)))
 
     def step():
-        pf._changed()
-        return kernel(pf.poses, pf._previous, pf._trig, pf._log_likelihood, pf.log_weights, pf._weights, ancestors,
-                      counts, moving, pf._generator(), sensor.params, inputs, pf._grid_parameters, coordinates,
+        summary.changed()
+        return kernel(pf.poses, p.previous, p.trig, p.log_likelihood, pf.log_weights, p.weights, ancestors, counts,
+                      moving, pf.engine.generator(pf.rng), sensor.params, inputs, summary.parameters, coordinates,
                       histograms, bitmaps, pf.fast)
     return step
 
@@ -188,8 +188,8 @@ def compiled_phases(pf, u: MotionInput, observations: Observations) -> dict[str,
     order of PHASES. Needs what the fused step needs: a bounded-noise motion model (velocity-linear,
     constant) and a sensor model with `fused_likelihood` (the landmark model with the max-mixture); it
     resamples every time (the benchmark's setting, `resample_threshold=1`)."""
-    motion = pf._kernel_motion(u)
-    sensor = pf._sensor_kernel()
+    motion = pf.engine.motion(pf.motion_model, u)
+    sensor = fused_kernels(pf.sensor_model)
     if motion is None or sensor is None:
         raise ValueError("compiled_phases needs a bounded-noise motion model and a sensor model with "
                          "fused_likelihood()")
@@ -198,24 +198,26 @@ def compiled_phases(pf, u: MotionInput, observations: Observations) -> dict[str,
     fused = fused_step(sensor)
     n = pf.n
     gaussian = bool(pf.motion_model.gaussian)
-    chunk = pf._chunk if pf.threads > 1 else 0
-    scope = pf._thread_scope
-    scratch = pf._previous
-    coordinates, histograms, bitmaps = pf._summary
-    grid = pf._grid_parameters
+    chunk = pf.engine.chunk
+    scope = pf.engine.scope
+    p = pf.particles
+    scratch = p.previous
+    summary = pf.summary
+    coordinates, histograms, bitmaps = summary.coordinates, summary.histograms, summary.bitmaps
+    grid = pf.summary.parameters
     mean = np.empty(3)
     covariance = np.empty((3, 3))
     no_variates = np.empty((0, 3))
 
     def predict():
-        function, generator = pf._generator()
+        function, generator = pf.engine.generator(pf.rng)
         variates = no_variates
         if gaussian:
-            variates = draw_variates(pf.rng, n, True, out=pf._variates)
+            variates = draw_variates(pf.rng, n, True, out=p.variates)
         if chunk:
             with scope:
                 if not gaussian:
-                    variates = pf._variates
+                    variates = p.variates
                     parallel_uniforms(function, generator, variates.reshape(-1), 3 * n)
                 scratch[:] = pf.poses
                 move_chunked(scratch, *motion, gaussian, variates, chunk)
@@ -226,68 +228,68 @@ def compiled_phases(pf, u: MotionInput, observations: Observations) -> dict[str,
             move_range(pf.poses, scratch, 0, n, motion[:3], motion[3:], gaussian, variates, (function, generator),
                        NO_WORK)
         pf.relocalization.carry(motion[0], motion[1], motion[2])
-        pf._changed()
+        pf.summary.changed()
 
     def likelihood():
         frame, _ = sensor.prepare(sensor.inputs(observations), sensor.params)
         copying = (False, *motion, False, no_variates)
         if chunk:
             with scope:
-                fused.predict_and_score_chunked(scratch, scratch, pf._trig, pf._log_likelihood, copying, frame, chunk,
+                fused.predict_and_score_chunked(scratch, scratch, p.trig, p.log_likelihood, copying, frame, chunk,
                                                 pf.fast, NO_SINCE)
         else:
             work = sensor.workspace(frame, min(n, STEP_BLOCK))
-            fused.predict_and_score(scratch, scratch, pf._trig, pf._log_likelihood, copying, (0, 0), frame, work, 0,
+            fused.predict_and_score(scratch, scratch, p.trig, p.log_likelihood, copying, (0, 0), frame, work, 0,
                                     n, pf.fast, NO_SINCE)
 
     def normalize():
         count = n - pf.injected
         if chunk:
             with scope:
-                valid, native, log_total, ess = weigh_chunked(pf.log_weights, pf._log_likelihood, count, pf._weights,
+                valid, native, log_total, ess = weigh_chunked(pf.log_weights, p.log_likelihood, count, p.weights,
                                                               chunk)
         elif pf.fast:
-            valid, native, log_total, ess = weigh_fast(pf.log_weights, pf._log_likelihood, count, pf._weights)
+            valid, native, log_total, ess = weigh_fast(pf.log_weights, p.log_likelihood, count, p.weights)
         else:
-            valid, native, log_total, ess = weigh(pf.log_weights, pf._log_likelihood, count, pf._weights)
+            valid, native, log_total, ess = weigh(pf.log_weights, p.log_likelihood, count, p.weights)
         if len(observations) > 0:
             pf.frame_fit = math.exp(native / len(observations))
         return ess
 
     def resample():
         bounds = pf.roughening * SQRT3
-        function, generator = pf._generator()
+        function, generator = pf.engine.generator(pf.rng)
         if chunk:
             with scope:
-                resample_with_jitter_chunked(pf._weights, n, scratch, bounds, pf.poses, pf._trig, function,
-                                             generator, pf._counts, coordinates, pf._variates.reshape(-1), chunk)
+                resample_with_jitter_chunked(p.weights, n, scratch, bounds, pf.poses, p.trig, function,
+                                             generator, p.counts, coordinates, p.variates.reshape(-1), chunk)
         else:
-            resample_with_jitter(pf._weights, n, scratch, bounds, pf.poses, pf._trig, function, generator,
-                                 pf._counts, coordinates)
+            resample_with_jitter(p.weights, n, scratch, bounds, pf.poses, p.trig, function, generator,
+                                 p.counts, coordinates)
         pf.log_weights[:] = -math.log(n)
-        pf._weights[:] = 1.0 / n
+        p.weights[:] = 1.0 / n
         pf.ess = float(n)
         pf.resampled = True
         pf.injected = 0
-        pf._changed()
+        pf.summary.changed()
 
     def estimate():
-        previous = pf._previous_estimate
-        use_previous = pf._has_previous_estimate
+        previous = pf.summary.previous
+        use_previous = pf.summary.has_previous
         if chunk:
             with scope:
-                summary_fill_chunked(grid, no_variates, pf._weights, coordinates, histograms, bitmaps,
-                                     pf._local_histograms, chunk)
-                weight = summary_estimate_chunked(grid, coordinates, pf._weights, histograms, bitmaps, previous,
+                summary_fill_chunked(grid, no_variates, p.weights, coordinates, histograms, bitmaps,
+                                     pf.summary.local, chunk)
+                weight = summary_estimate_chunked(grid, coordinates, p.weights, histograms, bitmaps, previous,
                                                   use_previous, mean, covariance, chunk)
         else:
-            summary_fill(grid, no_variates, pf._weights, coordinates, histograms, bitmaps)
+            summary_fill(grid, no_variates, p.weights, coordinates, histograms, bitmaps)
             kernel = summary_estimate_fast if pf.fast else summary_estimate
-            weight = kernel(grid, coordinates, pf._weights, histograms, bitmaps, previous, use_previous, mean,
+            weight = kernel(grid, coordinates, p.weights, histograms, bitmaps, previous, use_previous, mean,
                             covariance)
         previous[:] = mean
-        pf._has_previous_estimate = True
-        pf._summary_valid = True
+        pf.summary.has_previous = True
+        pf.summary.valid = True
         return weight
 
     def entropy():

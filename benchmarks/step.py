@@ -28,13 +28,18 @@ import numpy as np
 
 from field import spl
 from mcl import resampling
-from mcl.estimate import cluster_estimate_reference, grid_entropy_reference
 from mcl.filter import AugmentedMCL, ParticleFilter
-from mcl.resampling import gather_with_jitter, gather_with_jitter_reference, systematic, systematic_reference
-from mcl.weights import normalize, normalize_reference
+from mcl.reference import cluster_estimate as cluster_estimate_reference
+from mcl.reference import gather_with_jitter as gather_with_jitter_reference
+from mcl.reference import grid_entropy as grid_entropy_reference
+from mcl.reference import normalize as normalize_reference
+from mcl.reference import systematic as systematic_reference
+from mcl.resampling import gather_with_jitter, systematic
+from mcl.weights import normalize
 from motion_models import AdaptiveMotion, MotionInput, VelocityLinear
-from motion_models.adaptive import VARIATES, adaptive_move_reference
-from motion_models.kernels import move_with_noise_reference
+from motion_models.adaptive import VARIATES
+from motion_models.reference import adaptive_move as adaptive_move_reference
+from motion_models.reference import move_with_noise as move_with_noise_reference
 from numerics.random import draw_variates
 from numerics.trig import SQRT3
 from proprioception.collision import NO_COLLISION, CollisionPercept
@@ -304,11 +309,7 @@ def numpy_step_work(n: int) -> Callable[[], object]:
 def _forget_summary(pf: ParticleFilter) -> None:
     """Drop what the filter keeps until its particles change (the estimate, the histograms it shares with the
     entropy), so that the next call computes it."""
-    changed = getattr(pf, "_changed", None)
-    if callable(changed):
-        changed()
-    else:
-        pf._estimate = None
+    pf.summary.changed()
 
 
 def fresh_estimate(pf: ParticleFilter):
@@ -331,7 +332,7 @@ class PhaseScene:
         pf, u, observations = bench_setup(n)
         pf.step(u, observations)
         if fresh_estimate(pf) is fresh_estimate(pf):
-            raise RuntimeError("ParticleFilter.estimate() does not recompute after _changed() / _estimate = None: "
+            raise RuntimeError("ParticleFilter.estimate() does not recompute after summary.changed(): "
                                "benchmarks.step._forget_summary needs the filter's new way to drop its estimate")
         self.pf, self.u, self.observations = pf, u, observations
         self.rng = np.random.default_rng(7)
@@ -414,14 +415,16 @@ class PhaseScene:
             gather_with_jitter_reference(poses, ancestors, self.jitter, draw_variates(self.rng, n, False))
 
         # The estimate and the entropy of the filter's own particles, as the numba side computes them.
+        s = pf.summary
+
         def estimate():
-            cluster_estimate_reference(pf.poses, pf.weights, pf._x_min, pf._y_min, g.cluster_cell,
-                                       pf._cluster_nx, pf._cluster_ny, g.cluster_orientation_bins, g.cluster_radius,
+            cluster_estimate_reference(pf.poses, pf.weights, s.x_min, s.y_min, g.cluster_cell, s.cluster_nx,
+                                       s.cluster_ny, g.cluster_orientation_bins, g.cluster_radius,
                                        g.cluster_angle_radius, 3, None)
 
         def entropy():
-            grid_entropy_reference(pf.poses, pf.weights, pf._x_min, pf._y_min, g.position_cell,
-                                   pf._entropy_nx, pf._entropy_ny, g.orientation_bins)
+            grid_entropy_reference(pf.poses, pf.weights, s.x_min, s.y_min, g.position_cell, s.entropy_nx,
+                                   s.entropy_ny, g.orientation_bins)
 
         return {
             "predict_velocity_linear": predict_velocity_linear,

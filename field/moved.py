@@ -1,7 +1,8 @@
-"""Modules that moved, still importable by their old names with a DeprecationWarning.
+"""Modules and names that moved, still found by their old names with a DeprecationWarning.
 
-    from field.moved import keep_old_names
-    keep_old_names({"mcl.replay": "mcl.tools.replay"})     # in the package that held the old name
+    from field.moved import keep_old_names, moved_names
+    keep_old_names({"mcl.replay": "mcl.tools.replay"})     # a module: in the package that held the old name
+    __getattr__ = moved_names(__name__, {"normalize_reference": "mcl.reference.normalize"})   # a name
 
 An import of an old name (or of anything below it: `mcl.logs.mcap_io`) gives the module at its new name, the
 same module object, so classes and exceptions compare equal whichever name a caller used; `python -m` with an
@@ -15,7 +16,14 @@ import importlib.machinery
 import importlib.util
 import sys
 import warnings
+from collections.abc import Callable
 from types import CodeType, ModuleType
+from typing import Any
+
+
+def _warn(old: str, new: str) -> None:
+    warnings.warn(f"{old} moved to {new}: import it from there (the old name will be removed)", DeprecationWarning,
+                  stacklevel=3)
 
 
 class _OldNames(importlib.abc.MetaPathFinder, importlib.abc.Loader):
@@ -43,8 +51,7 @@ class _OldNames(importlib.abc.MetaPathFinder, importlib.abc.Loader):
 
     def create_module(self, spec) -> ModuleType:
         new = self.new_name(spec.name)
-        warnings.warn(f"{spec.name} moved to {new}: import it from there (the old name will be removed)",
-                      DeprecationWarning, stacklevel=2)
+        _warn(spec.name, new)
         return importlib.import_module(new)   # type: ignore[arg-type]
 
     def exec_module(self, module: ModuleType) -> None:
@@ -65,3 +72,28 @@ def keep_old_names(moved: dict[str, str]) -> None:
             finder.moved.update(moved)
             return
     sys.meta_path.insert(0, _OldNames(moved))
+
+
+def moved_names(module: str, moves: dict[str, str]) -> Callable[[str], Any]:
+    """A module `__getattr__` (PEP 562) that finds each old name of `moves` at its new place.
+
+    Parameters
+    ----------
+    module : str
+        The module's name (`__name__`), for the messages.
+    moves : dict of str to str
+        Old name -> the qualified name it moved to ("package.module.name").
+
+    Returns
+    -------
+    callable
+        `__getattr__(name)`: the moved object, with a DeprecationWarning; AttributeError for any other name.
+    """
+    def __getattr__(name: str) -> Any:
+        target = moves.get(name)
+        if target is None:
+            raise AttributeError(f"module {module!r} has no attribute {name!r}")
+        _warn(f"{module}.{name}", target)
+        where, _, attribute = target.rpartition(".")
+        return getattr(importlib.import_module(where), attribute)
+    return __getattr__

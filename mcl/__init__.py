@@ -2,7 +2,8 @@
 
     from mcl import ParticleFilter
 
-See `mcl.filter` for a complete example. The core (`mcl.filter`, its fused compiled step `mcl.step`, and its
+See `mcl.filter` for a complete example. The core (`mcl.filter`; its particles `mcl.particles` and summary
+`mcl.summary`; the engine that runs its stages `mcl.engine`, with its fused compiled step `mcl.step`; and its
 kernels `mcl.weights`, `mcl.resampling`, `mcl.estimate`, `mcl.latency`) knows motion and sensor models only by
 their contracts (`mcl.contracts`); the soccer rules are `mcl.relocalization` and `mcl.side`, and a robot's loop
 is `mcl.localizer`. The tools around it (logs, replay, Rerun recording, the ROS 2 node, the command line,

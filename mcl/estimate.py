@@ -32,7 +32,15 @@ from numba import types
 from numba.extending import intrinsic
 
 from field.angles import wrap_angles
+from field.moved import moved_names
+from numerics.compile import variant
 from numerics.trig import wrap
+
+# The numpy twins moved to the package's `reference` module; their old names still work, with a warning.
+__getattr__ = moved_names(__name__, {
+    "grid_entropy_reference": "mcl.reference.grid_entropy",
+    "cluster_estimate_reference": "mcl.reference.cluster_estimate"
+})
 
 
 @numba.njit(cache=True, inline="always")
@@ -83,12 +91,13 @@ def _kernel_terms(xs, ys, ts, weights, count, cx, cy, ct, r2, angle_radius, rows
 
 
 @numba.njit(cache=True)
-def _kernel_mean(xs, ys, ts, weights, cx, cy, ct, radius, angle_radius, rows):
+def _kernel_mean(xs, ys, ts, weights, cx, cy, ct, radius, angle_radius, rows, chunk):
     """Weighted mean of the particles within the flat kernel around (cx, cy, ct).
 
     The heading is the intrinsic circular mean: the centre plus the weighted mean of the wrapped residuals
     (one step of the Fréchet-mean iteration on the circle; repeated calls converge). Within the kernel's
-    ±angle_radius this needs no trigonometry.
+    ±angle_radius this needs no trigonometry. rows: (≥ 4, BLOCK) scratch; chunk: unused (the signature of
+    `_kernel_mean_chunked`, which the same `_dominant_cluster` calls).
     """
     sx = 0.0
     sy = 0.0
@@ -128,7 +137,7 @@ def _covariance_terms(xs, ys, ts, weights, count, mx, my, mt, r2, angle_radius, 
 
 
 @numba.njit(cache=True)
-def _kernel_covariance(xs, ys, ts, weights, mx, my, mt, radius, angle_radius, total, rows, out_cov):
+def _kernel_covariance(xs, ys, ts, weights, mx, my, mt, radius, angle_radius, total, rows, out_cov, chunk):
     """Covariance of the particles within the kernel around the mean (mx, my, mt), θ residual wrapped."""
     c00 = c01 = c02 = c11 = c12 = c22 = 0.0
     r2 = radius * radius
@@ -164,11 +173,12 @@ def _cell_centre(best, x_min, y_min, cell_size, ny, n_theta):
             -math.pi + (bt + 0.5) * (2.0 * math.pi / n_theta))
 
 
-@numba.njit(cache=True)
-def _dominant_cluster(xs, ys, ts, weights, best, cells, shift, previous, use_previous, out_mean, out_cov):
+def _dominant_cluster_body(xs, ys, ts, weights, best, cells, shift, previous, use_previous, out_mean, out_cov,
+                          chunk=0):
     """Mean shift from the centre of histogram cell `best` (and from `previous`), then the covariance; returns
     the cluster's weight. xs, ys, ts: the particles' coordinates as separate arrays; cells, shift: the groups of
-    `cluster_estimate`."""
+    `cluster_estimate`. (A template: `_dominant_cluster` and its fast and chunked variants, below, compile it
+    with their `kernel_mean` and `kernel_covariance`; chunk: the chunked kernels' chunk size.)"""
     x_min, y_min, cell_size, _, ny, n_theta = cells
     radius, angle_radius, iterations = shift
     rows = np.empty((6, BLOCK))
@@ -177,18 +187,24 @@ def _dominant_cluster(xs, ys, ts, weights, best, cells, shift, previous, use_pre
     mx, my, mt = _cell_centre(best, x_min, y_min, cell_size, ny, n_theta)
     total = 0.0
     for _ in range(iterations):
-        mx, my, mt, total = _kernel_mean(xs, ys, ts, weights, mx, my, mt, radius, angle_radius, rows)
+        mx, my, mt, total = kernel_mean(xs, ys, ts, weights, mx, my, mt, radius, angle_radius, rows, chunk)
     if use_previous and total < 0.5:
         px, py, pt, ptotal = previous[0], previous[1], previous[2], 0.0
         for _ in range(iterations):
-            px, py, pt, ptotal = _kernel_mean(xs, ys, ts, weights, px, py, pt, radius, angle_radius, rows)
+            px, py, pt, ptotal = kernel_mean(xs, ys, ts, weights, px, py, pt, radius, angle_radius, rows, chunk)
         if ptotal > total:
             mx, my, mt, total = px, py, pt, ptotal
-    _kernel_covariance(xs, ys, ts, weights, mx, my, mt, radius, angle_radius, total, rows, out_cov)
+    kernel_covariance(xs, ys, ts, weights, mx, my, mt, radius, angle_radius, total, rows, out_cov, chunk)
     out_mean[0] = mx
     out_mean[1] = my
     out_mean[2] = wrap(mt)
     return total
+
+
+# The kernels the template above calls by these names, bound by each variant (`numerics.compile.variant`).
+kernel_mean = kernel_covariance = dominant_cluster = None
+_dominant_cluster = variant(_dominant_cluster_body, "serial", {"kernel_mean": _kernel_mean,
+                                                               "kernel_covariance": _kernel_covariance})
 
 
 @numba.njit(cache=True)
@@ -452,14 +468,20 @@ def _cluster_groups(grid):
     return cells, (grid[G_RADIUS], grid[G_ANGLE_RADIUS], int(grid[G_ITERATIONS]))
 
 
-@numba.njit(cache=True)
-def summary_estimate(grid, coordinates, weights, histograms, bitmaps, previous, use_previous, out_mean, out_cov):
-    """`cluster_estimate` from the filled summary: the same mean, covariance and weight."""
+def _summary_estimate_body(grid, coordinates, weights, histograms, bitmaps, previous, use_previous, out_mean,
+                           out_cov, chunk=0):
+    """`cluster_estimate` from the filled summary: the same mean, covariance and weight. (A template:
+    `summary_estimate`, `summary_estimate_fast` and `summary_estimate_chunked` bind its `dominant_cluster`.)"""
     cluster, _, _, cluster_bits, _, _ = _parts(grid, histograms, bitmaps)
     cells, shift = _cluster_groups(grid)
-    return _dominant_cluster(coordinates[0], coordinates[1], coordinates[2], weights,
-                             _marked_argmax(cluster, cluster_bits), cells, shift, previous, use_previous, out_mean,
-                             out_cov)
+    return dominant_cluster(coordinates[0], coordinates[1], coordinates[2], weights,
+                            _marked_argmax(cluster, cluster_bits), cells, shift, previous, use_previous, out_mean,
+                            out_cov, chunk)
+
+
+summary_estimate = variant(_summary_estimate_body, "serial", {"dominant_cluster": _dominant_cluster})
+"""`cluster_estimate` from the filled summary (grid, coordinates, weights, histograms, bitmaps, previous,
+use_previous, out_mean, out_cov): the same mean, covariance and weight."""
 
 
 @numba.njit(cache=True)
@@ -475,7 +497,7 @@ def summary_entropy(grid, histograms, bitmaps):
 # serial one's bit for bit when a chunk holds every particle, otherwise equal to rounding.
 
 @numba.njit(cache=True, parallel=True)
-def _kernel_mean_chunked(xs, ys, ts, weights, cx, cy, ct, radius, angle_radius, chunk):
+def _kernel_mean_chunked(xs, ys, ts, weights, cx, cy, ct, radius, angle_radius, scratch, chunk):
     n = xs.shape[0]
     chunks = max(1, (n + chunk - 1) // chunk)
     partial = np.zeros((chunks, 4))
@@ -515,7 +537,8 @@ def _kernel_mean_chunked(xs, ys, ts, weights, cx, cy, ct, radius, angle_radius, 
 
 
 @numba.njit(cache=True, parallel=True)
-def _kernel_covariance_chunked(xs, ys, ts, weights, mx, my, mt, radius, angle_radius, total, out_cov, chunk):
+def _kernel_covariance_chunked(xs, ys, ts, weights, mx, my, mt, radius, angle_radius, total, scratch, out_cov,
+                               chunk):
     n = xs.shape[0]
     chunks = max(1, (n + chunk - 1) // chunk)
     partial = np.zeros((chunks, 6))
@@ -545,38 +568,11 @@ def _kernel_covariance_chunked(xs, ys, ts, weights, mx, my, mt, radius, angle_ra
     out_cov[2, 2] = c[5]
 
 
-@numba.njit(cache=True)
-def _dominant_cluster_chunked(xs, ys, ts, weights, best, cells, shift, previous, use_previous, out_mean, out_cov,
-                              chunk):
-    """`_dominant_cluster` with `_kernel_mean_chunked` and `_kernel_covariance_chunked`."""
-    x_min, y_min, cell_size, _, ny, n_theta = cells
-    radius, angle_radius, iterations = shift
-    mx, my, mt = _cell_centre(best, x_min, y_min, cell_size, ny, n_theta)
-    total = 0.0
-    for _ in range(iterations):
-        mx, my, mt, total = _kernel_mean_chunked(xs, ys, ts, weights, mx, my, mt, radius, angle_radius, chunk)
-    if use_previous and total < 0.5:
-        px, py, pt, ptotal = previous[0], previous[1], previous[2], 0.0
-        for _ in range(iterations):
-            px, py, pt, ptotal = _kernel_mean_chunked(xs, ys, ts, weights, px, py, pt, radius, angle_radius, chunk)
-        if ptotal > total:
-            mx, my, mt, total = px, py, pt, ptotal
-    _kernel_covariance_chunked(xs, ys, ts, weights, mx, my, mt, radius, angle_radius, total, out_cov, chunk)
-    out_mean[0] = mx
-    out_mean[1] = my
-    out_mean[2] = wrap(mt)
-    return total
-
-
-@numba.njit(cache=True)
-def summary_estimate_chunked(grid, coordinates, weights, histograms, bitmaps, previous, use_previous, out_mean,
-                             out_cov, chunk):
-    """`summary_estimate` with its sums in chunks on several threads (see above)."""
-    cluster, _, _, cluster_bits, _, _ = _parts(grid, histograms, bitmaps)
-    cells, shift = _cluster_groups(grid)
-    return _dominant_cluster_chunked(coordinates[0], coordinates[1], coordinates[2], weights,
-                                     _marked_argmax(cluster, cluster_bits), cells, shift, previous, use_previous,
-                                     out_mean, out_cov, chunk)
+summary_estimate_chunked = variant(_summary_estimate_body, "chunked", {"dominant_cluster": variant(
+    _dominant_cluster_body, "chunked", {"kernel_mean": _kernel_mean_chunked,
+                                        "kernel_covariance": _kernel_covariance_chunked})})
+"""`summary_estimate` with its sums in chunks of `chunk` on several threads (see above): its arguments, then
+chunk."""
 
 
 # Several threads fill the histograms in fixed point (weights in units of 2⁻⁶⁰, one row of `local` per thread),
@@ -647,7 +643,7 @@ FAST = {"nsz", "arcp", "contract", "afn", "reassoc"}     # fast-math without ass
 
 
 @numba.njit(cache=True, fastmath=FAST, error_model="numpy")
-def _kernel_mean_fast(xs, ys, ts, weights, cx, cy, ct, radius, angle_radius):
+def _kernel_mean_fast(xs, ys, ts, weights, cx, cy, ct, radius, angle_radius, rows, chunk):
     sx = 0.0
     sy = 0.0
     st = 0.0
@@ -669,7 +665,7 @@ def _kernel_mean_fast(xs, ys, ts, weights, cx, cy, ct, radius, angle_radius):
 
 
 @numba.njit(cache=True, fastmath=FAST, error_model="numpy")
-def _kernel_covariance_fast(xs, ys, ts, weights, mx, my, mt, radius, angle_radius, total, out_cov):
+def _kernel_covariance_fast(xs, ys, ts, weights, mx, my, mt, radius, angle_radius, total, rows, out_cov, chunk):
     c00 = c01 = c02 = c11 = c12 = c22 = 0.0
     r2 = radius * radius
     if total > 0.0:
@@ -694,95 +690,12 @@ def _kernel_covariance_fast(xs, ys, ts, weights, mx, my, mt, radius, angle_radiu
     out_cov[2, 2] = c22
 
 
-@numba.njit(cache=True)
-def summary_estimate_fast(grid, coordinates, weights, histograms, bitmaps, previous, use_previous, out_mean, out_cov):
-    """`summary_estimate` with reassociated sums (equal to rounding)."""
-    cluster, _, _, cluster_bits, _, _ = _parts(grid, histograms, bitmaps)
-    best = _marked_argmax(cluster, cluster_bits)
-    xs, ys, ts = coordinates[0], coordinates[1], coordinates[2]
-    cell_size = grid[G_CLUSTER_CELL]
-    ny = int(grid[G_CLUSTER_NY])
-    n_theta = int(grid[G_CLUSTER_NT])
-    radius = grid[G_RADIUS]
-    angle_radius = grid[G_ANGLE_RADIUS]
-    iterations = int(grid[G_ITERATIONS])
-    theta_size = 2.0 * math.pi / n_theta
-    mx = grid[G_X_MIN] + (best // (n_theta * ny) + 0.5) * cell_size
-    my = grid[G_Y_MIN] + ((best // n_theta) % ny + 0.5) * cell_size
-    mt = -math.pi + (best % n_theta + 0.5) * theta_size
-    total = 0.0
-    for _ in range(iterations):
-        mx, my, mt, total = _kernel_mean_fast(xs, ys, ts, weights, mx, my, mt, radius, angle_radius)
-    if use_previous and total < 0.5:
-        px, py, pt, ptotal = previous[0], previous[1], previous[2], 0.0
-        for _ in range(iterations):
-            px, py, pt, ptotal = _kernel_mean_fast(xs, ys, ts, weights, px, py, pt, radius, angle_radius)
-        if ptotal > total:
-            mx, my, mt, total = px, py, pt, ptotal
-    _kernel_covariance_fast(xs, ys, ts, weights, mx, my, mt, radius, angle_radius, total, out_cov)
-    out_mean[0] = mx
-    out_mean[1] = my
-    out_mean[2] = wrap(mt)
-    return total
+summary_estimate_fast = variant(_summary_estimate_body, "fast", {"dominant_cluster": variant(
+    _dominant_cluster_body, "fast", {"kernel_mean": _kernel_mean_fast, "kernel_covariance": _kernel_covariance_fast})})
+"""`summary_estimate` with reassociated sums (equal to rounding)."""
 
 
 # -- plain numpy references -----------------------------------------------------------------------------------
-def _cells(values, origin, size, count):
-    return np.clip(np.floor((values - origin) / size).astype(np.int64), 0, count - 1)
-
-
-def grid_entropy_reference(poses, weights, x_min, y_min, cell_size, nx, ny, n_theta):
-    cx = _cells(poses[:, 0], x_min, cell_size, nx)
-    cy = _cells(poses[:, 1], y_min, cell_size, ny)
-    ct = _cells(poses[:, 2], -np.pi, 2 * np.pi / n_theta, n_theta)
-
-    def bits(index, size):
-        p = np.bincount(index, weights=weights, minlength=size)
-        p = p[p > 0]
-        return max(float(-(p * np.log2(p)).sum()), 0.0)
-
-    return bits(cx * ny + cy, nx * ny), bits(ct, n_theta)
-
-
-def cluster_estimate_reference(poses, weights, x_min, y_min, cell_size, nx, ny, n_theta, radius, angle_radius,
-                               iterations, previous=None):
-    """Numpy version of `cluster_estimate`: returns (mean (3,), cov (3, 3), weight)."""
-    theta_size = 2 * np.pi / n_theta
-    cx = _cells(poses[:, 0], x_min, cell_size, nx)
-    cy = _cells(poses[:, 1], y_min, cell_size, ny)
-    ct = _cells(poses[:, 2], -np.pi, theta_size, n_theta)
-    histogram = np.bincount((cx * ny + cy) * n_theta + ct, weights=weights, minlength=nx * ny * n_theta)
-    best = int(np.argmax(histogram))
-    bt, by, bx = best % n_theta, (best // n_theta) % ny, best // (n_theta * ny)
-    mean = np.array([x_min + (bx + 0.5) * cell_size, y_min + (by + 0.5) * cell_size, -np.pi + (bt + 0.5) * theta_size])
-    def shift(mean):
-        total = 0.0
-        for _ in range(iterations):
-            d = np.column_stack([poses[:, 0] - mean[0], poses[:, 1] - mean[1], wrap_angles(poses[:, 2] - mean[2])])
-            mask = ((d[:, :2] ** 2).sum(axis=1) <= radius ** 2) & (np.abs(d[:, 2]) <= angle_radius)
-            w = weights[mask]
-            total = w.sum()
-            if total <= 0:
-                return mean, 0.0
-            step = (w[:, None] * d[mask]).sum(axis=0) / total
-            mean = np.array([mean[0] + step[0], mean[1] + step[1], float(wrap_angles(mean[2] + step[2]))])
-        return mean, total
-
-    mean, total = shift(mean)
-    if previous is not None and total < 0.5:
-        other, other_total = shift(np.asarray(previous, dtype=np.float64))
-        if other_total > total:
-            mean, total = other, other_total
-    d = np.column_stack([poses[:, 0] - mean[0], poses[:, 1] - mean[1], wrap_angles(poses[:, 2] - mean[2])])
-    mask = ((d[:, :2] ** 2).sum(axis=1) <= radius ** 2) & (np.abs(d[:, 2]) <= angle_radius)
-    cov = np.zeros((3, 3))
-    if total > 0:
-        w = weights[mask] / total
-        cov = (d[mask] * w[:, None]).T @ d[mask]
-    mean[2] = float(wrap_angles(mean[2]))
-    return mean, cov, float(total)
-
-
 def _belief_kde(poses, weights, pose, mass: float | None, min_bandwidth) -> tuple:
     """The checked inputs and the kernel density both evaluations share: poses (N, 3), normalised weights (N,),
     pose (3,) and the bandwidths (3,). Raises ValueError on shapes, a pose or particle that is not finite, a mass

@@ -17,8 +17,9 @@ The filter knows the motion and sensor models only through their contracts (`mcl
 validates its input before it changes anything: a rejected call raises ValueError and leaves the filter exactly
 as it was.
 
-The filter is a particle set (`mcl.particles.ParticleSet`: the particles, their weights and the step's buffers)
-and a belief summary (`mcl.summary.BeliefSummary`: the estimate and the entropy, cached); this module is the loop
+The filter owns its particles (`mcl.particles.Particles`: named arrays), its summary (`mcl.summary.Summary`:
+the estimate and the entropy, cached) and an engine (`mcl.engine.Engine`, chosen when the filter is built:
+serial or on threads, with or without fast-math) that runs each stage on them; this module is the algorithm
 that moves, weighs and resamples them, and augmented MCL's injection. The soccer rules (regions, heading
 reference, mirror guard, which poses to inject) are `mcl.relocalization`.
 
@@ -42,49 +43,40 @@ a jump-Markov particle filter) gets a per-particle state array that the filter k
 passed to `predict(poses, u, rng, state=...)`, follows each particle through resampling, and starts fresh for
 reset and injected particles. `pf.motion_state` shows it (read-only).
 
-Speed. With a bounded-noise motion model (velocity-linear, constant, or any `BoundedNoiseModel`) and a sensor
-model that offers its likelihood as compiled kernels (`fused_likelihood`: the landmark model with the
-max-mixture, or any model in the calling convention of `sensing.fused`), `step` and `correct` are one call into
-compiled code (`mcl.step`, compiled once for each kind of sensor model): predict, likelihood, weights,
-resampling, the histograms the estimate and the entropy share, and the estimate, with the random numbers drawn
-in the kernels from the filter's generator. `mcl.contracts.fast_path(motion_model, sensor_model)` says whether
-a pair of models gets it. The results
-are those of the plain sequence of calls bit for bit (tests/test_fast_step.py runs both side by side). A step
-that injects draws the injected poses (`_sample_injection`: numpy's draws, compiled placement) and finishes in
-a second call (`mcl.step.resample_and_summarize`); the rare branches (other resampling schemes, stateful motion
-models, threads with injection, particles that explain nothing) fall back to that sequence. Buffers are kept
-across steps. `fast=True` (vectorized polynomials for sin, cos and exp, reassociated sums) and `threads=n` (chunks of
-particles on n threads) trade the last bits for speed; `benchmarks.reference.compiled_phases` cuts the compiled
-step into its stages for the benchmark.
+The fused step. With a bounded-noise motion model (velocity-linear, constant, or any `BoundedNoiseModel`) and
+a sensor model that offers its likelihood as compiled kernels (`fused_likelihood`, in the calling convention
+of `sensing.fused`), the engine runs a correction (after a prediction, in `step`) as one call into compiled
+code (`mcl.step`): predict, likelihood, weights, resampling, the histograms the estimate and the entropy
+share, and the estimate, with the random numbers drawn in the kernels from the filter's generator.
+`mcl.contracts.fast_path(motion_model, sensor_model)` says whether a pair of models gets it. The results are
+those of the stages one by one, bit for bit (tests/test_fast_step.py runs both side by side). A step that
+injects draws the injected poses and finishes in a second call; the rare branches (other resampling schemes,
+stateful motion models, threads with injection, particles that explain nothing) take the stages one by one.
+`fast=True` and `threads=n` trade the last bits for speed.
 """
 from __future__ import annotations
 
 import math
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
-from typing import Iterable, Sequence
+from operator import attrgetter
+from typing import Any, Generic, TypeVar, overload
 
-import numba
 import numpy as np
 
 from field import Field
-from field.checks import LARGEST_ANGLE, LARGEST_COORDINATE, LARGEST_SIGMA, ArgumentTypeError, integer, real, reals
+from field.checks import LARGEST_ANGLE, LARGEST_COORDINATE, ArgumentTypeError, integer, real, reals
 from motion_models.base import MotionInput, MotionModel
-from motion_models.kernels import NO_WORK, move_chunked, move_range, move_range_fast
-from numerics.chunks import balanced_chunk
-from numerics.random import bit_generator_handle, draw_variates, parallel_uniforms
-from numerics.trig import SQRT3
-from sensing.fused import FusedLikelihoodKernels
 from sensing.observations import Observations
 
-from .contracts import Relocalization, SensorModel, fused_kernels, lacks, moves_by_bounded_noise
-from .latency import move_back, move_forward
+from .contracts import Relocalization, SensorModel, lacks
+from .engine import Engine
+from .latency import move_forward
+from .particles import Particles, check_pose, check_poses, check_sigma
 from .relocalization import SoccerRelocalization, region_bounds
-from .resampling import SCHEMES, gather_offspring_rows, gather_with_jitter, resample_with_jitter
-from .particles import ParticleSet, check_pose, check_poses
-from .step import (NO_SINCE, NO_VARIATES, STEP_INVALID, STEP_MISSING, STEP_RESAMPLE, STEP_UNEXPLAINED, StepKernels,
-                   fused_step, resample_and_summarize)
-from .summary import BeliefSummary, Entropy, Estimate, Grid
-from .weights import log_mean_likelihood, reweigh, weigh
+from .resampling import SCHEMES
+from .step import NO_VARIATES, STEP_INVALID, STEP_MISSING, STEP_RESAMPLE, STEP_UNEXPLAINED
+from .summary import Entropy, Estimate, Grid, Summary
 
 # A sensor model's defect, not a refused input (the library's models give finite or -inf log-likelihoods for
 # every input they accept): `correct` then changes nothing, `step` has moved the particles already.
@@ -141,6 +133,24 @@ class AugmentedMCL:
                                          # frames); the injected poses are chosen among many candidates for how
                                          # well they explain the frame, so few are needed
 
+    def update(self, w_slow: float, w_fast: float, log_average: float) -> tuple[float, float, float]:
+        """w_slow and w_fast moved towards exp(log_average), the frame's average likelihood per detection (set
+        to it at the first frame, w_slow = 0), and the share of the particles to inject that they ask for."""
+        average = math.exp(log_average)
+        if w_slow == 0.0:
+            w_slow = w_fast = average
+        else:
+            w_slow += self.alpha_slow * (average - w_slow)
+            w_fast += self.alpha_fast * (average - w_fast)
+        relative = 1.0 - w_fast / (self.ratio_threshold * w_slow) if w_slow > 0 else 1.0
+        absolute = 1.0 - w_fast / self.fit_threshold if self.fit_threshold > 0 else 0.0
+        return w_slow, w_fast, max(0.0, relative, absolute)
+
+    def cap(self, tracking: bool) -> float:
+        """The largest share of the particles one correction may replace: `max_fraction_tracking` once the
+        filter has been confident (`tracking`), else `max_fraction`."""
+        return self.max_fraction_tracking if tracking else self.max_fraction
+
     def __post_init__(self) -> None:
         real("alpha_slow", self.alpha_slow)
         real("alpha_fast", self.alpha_fast)
@@ -152,7 +162,98 @@ class AugmentedMCL:
         real("fit_threshold", self.fit_threshold, 0.0)
 
 
-class ParticleFilter(ParticleSet, BeliefSummary):
+T = TypeVar("T")
+
+
+class _Fixed(Generic[T]):
+    """A read-only attribute of the filter, found along `path` ("_particles.n"): fixed when the filter is built.
+    Setting it raises AttributeError with `refusal` (which says what to do instead)."""
+
+    def __init__(self, path: str, refusal: str = "") -> None:
+        self.get = attrgetter(path)
+        self.refusal = refusal
+
+    def __set_name__(self, owner: type, name: str) -> None:
+        self.refusal = self.refusal or f"ParticleFilter.{name} is fixed when the filter is built"
+
+    @overload
+    def __get__(self, obj: None, kind: type | None = None) -> _Fixed[T]: ...
+    @overload
+    def __get__(self, obj: object, kind: type | None = None) -> T: ...
+    def __get__(self, obj, kind=None):
+        return self if obj is None else self.get(obj)
+
+    def __set__(self, obj: object, value: object) -> None:
+        raise AttributeError(self.refusal)
+
+
+class _Setting(Generic[T]):
+    """A setting of the filter that may change between steps: `check` validates (and converts) a new value,
+    kept as the attribute's name with a leading underscore."""
+
+    def __init__(self, check: Callable[[Any], T]) -> None:
+        self.check = check
+        self.slot = ""
+
+    def __set_name__(self, owner: type, name: str) -> None:
+        self.slot = "_" + name
+
+    @overload
+    def __get__(self, obj: None, kind: type | None = None) -> _Setting[T]: ...
+    @overload
+    def __get__(self, obj: object, kind: type | None = None) -> T: ...
+    def __get__(self, obj, kind=None):
+        return self if obj is None else getattr(obj, self.slot)
+
+    def __set__(self, obj: object, value: Any) -> None:
+        setattr(obj, self.slot, self.check(value))
+
+
+def _check_field_and_seed(field: object, n_particles: object, seed: object) -> None:
+    if not isinstance(field, Field):
+        raise ArgumentTypeError(f"field = {field!r} must be a field.Field, not {type(field).__name__}")
+    integer("n_particles", n_particles, 1, MAX_PARTICLES)
+    if seed is not None and not isinstance(seed, np.random.SeedSequence):
+        integer("seed", seed, 0)
+
+
+def _check_engine_options(threads: object, fast: object) -> None:
+    integer("threads", threads, 1, MAX_THREADS)
+    if not isinstance(fast, (bool, np.bool_)):
+        raise ArgumentTypeError(f"fast = {fast!r} must be True or False, not {type(fast).__name__}")
+
+
+def _check_contract(name: str, obj: object, contract: type) -> None:
+    missing = lacks(obj, contract)
+    if missing:
+        raise ValueError(f"{name} = {obj!r} lacks {', '.join(missing)}")
+
+
+def _scheme(value: Any) -> str:
+    if not isinstance(value, str):
+        raise ArgumentTypeError(f"resampling = {value!r} must be a string, one of {tuple(SCHEMES)}")
+    if value not in SCHEMES:
+        raise ValueError(f"resampling = {value!r} must be one of {tuple(SCHEMES)}")
+    return value
+
+
+def _threshold(value: Any) -> float:
+    return real("resample_threshold", value, 0.0, 1.0)
+
+
+def _augmented(value: Any) -> AugmentedMCL | None:
+    if value is not None and not isinstance(value, AugmentedMCL):
+        raise ArgumentTypeError(f"augmented = {value!r} must be an AugmentedMCL or None, not {type(value).__name__}")
+    return value
+
+
+def _roughening(value: Any) -> np.ndarray:
+    array = check_sigma(value, "roughening").copy()
+    array.flags.writeable = False
+    return array
+
+
+class ParticleFilter:
     """Monte Carlo localization: particles `poses` (N, 3) [x, y, θ] with `log_weights` (N,).
 
     After each correction with detections, `frame_log_likelihood` is the log of the weighted average
@@ -217,144 +318,90 @@ class ParticleFilter(ParticleSet, BeliefSummary):
                  augmented: AugmentedMCL | None = AugmentedMCL(), grid: Grid = Grid(),
                  roughening: tuple[float, float, float] = (0.02, 0.02, 0.02), threads: int = 1,
                  fast: bool = False, relocalization: Relocalization | None = None) -> None:
-        if not isinstance(field, Field):
-            raise ArgumentTypeError(f"field = {field!r} must be a field.Field, not {type(field).__name__}")
-        integer("n_particles", n_particles, 1, MAX_PARTICLES)
-        if seed is not None and not isinstance(seed, np.random.SeedSequence):
-            integer("seed", seed, 0)
+        _check_field_and_seed(field, n_particles, seed)
         self.resampling = resampling                  # (the setters check them)
         self.resample_threshold = resample_threshold
-        for name, obj, contract in (("motion_model", motion_model, MotionModel),
-                                    ("sensor_model", sensor_model, SensorModel)):
-            missing = lacks(obj, contract)
-            if missing:
-                raise ValueError(f"{name} = {obj!r} lacks {', '.join(missing)}")
+        _check_contract("motion_model", motion_model, MotionModel)
+        _check_contract("sensor_model", sensor_model, SensorModel)
         self.roughening = roughening
-        integer("threads", threads, 1, MAX_THREADS)
-        if not isinstance(fast, (bool, np.bool_)):
-            raise ArgumentTypeError(f"fast = {fast!r} must be True or False, not {type(fast).__name__}")
-        self._threads = int(threads)
-        self._chunk = int(balanced_chunk(int(n_particles), _CHUNK))   # particles per chunk with threads > 1
-        self._fast = bool(fast)
-        self._thread_scope = _Threads(self._threads)
+        _check_engine_options(threads, fast)
         self._field = field
+        self._n = int(n_particles)
         self.motion_model = motion_model
         self.sensor_model = sensor_model
-        self._n = int(n_particles)
         self.augmented = augmented
         self.rng = np.random.default_rng(seed)
-        self._set_up_grid(grid)
-        self._allocate_buffers()
-        self.w_slow = 0.0
-        self.w_fast = 0.0
-        self.frame_fit = math.nan     # the last correction's average likelihood per detection (augmented MCL)
-        self.frame_log_likelihood = math.nan   # the last correction's log weighted average particle likelihood
-        self.ess = float(self._n)
-        self.resampled = False        # whether the last correction resampled
-        self.injected = 0             # particles injected by the last correction
-        self._bind_relocalization(SoccerRelocalization() if relocalization is None else relocalization)
-        self._bind_motion_state()
+        self._summary = Summary(field, grid, int(n_particles), int(threads))
+        self.w_slow = self.w_fast = 0.0           # augmented MCL's long- and short-term average likelihoods
+        self.frame_fit = self.frame_log_likelihood = math.nan   # the last correction's evidence (see above)
+        self.ess = float(n_particles)
+        self.resampled = False                    # whether the last correction resampled
+        self.injected = 0                         # particles injected by the last correction
+        self.relocalization = SoccerRelocalization() if relocalization is None else relocalization
+        _check_contract("relocalization", self.relocalization, Relocalization)   # which poses to inject
+        self.relocalization.bind(self._summary.carpet)
+        self._particles = Particles(int(n_particles), motion_model)
+        self._engine = Engine(self._particles, self._summary, int(threads), bool(fast))
         self.reset_uniform("field")
 
-    def _allocate_buffers(self) -> None:
-        """The particle set's buffers, the summary's, and the step's caches: a steady-state step allocates
-        nothing that grows with N."""
-        self._allocate_particles()
-        self._allocate_summary()
-        # the compiled step's particle arguments (`mcl.step`), the same arrays for the filter's life
-        self._particle_group = (self._poses, self._log_weights, self._weights, self._log_likelihood, self._previous,
-                                self._trig, self._counts, self._local_histograms)
-        self._rng_handle: tuple | None = None           # (bit generator, its kernel handle)
-        self._compiled_sensor_of: SensorModel | None = None   # the sensor model `_compiled_sensor` was asked of
-        self._bounded_of: MotionModel | None = None                         # the motion model `_bounded` was asked of
-        self._bounded = False                           # whether it moves as BoundedNoiseModel does
-        self._compiled_sensor: FusedLikelihoodKernels | None = None
-        self._fused_step: StepKernels | None = None     # `mcl.step.fused_step` of the sensor model's kernels
+    # -- the particles, the summary, the engine and the settings -----------------------------------------------
 
-    def _bind_relocalization(self, relocalization) -> None:
-        """Check and bind the relocalization (`mcl.contracts.Relocalization`) to the carpet."""
-        missing = lacks(relocalization, Relocalization)
-        if missing:
-            raise ValueError(f"relocalization = {relocalization!r} lacks {', '.join(missing)}")
-        self.relocalization = relocalization      # which poses to inject, and what tells them apart
-        relocalization.bind((self._x_min, self._x_max, self._y_min, self._y_max))
-
-    def __getstate__(self) -> dict:
-        # Pickles and deep copies leave out the generator's kernel handle: it holds the addresses of this
-        # filter's bit generator, and a copy that kept them would draw from (and advance) the original's.
-        # The sensor model's compiled kernels are asked for again (a copy's sensor model is a copy too).
-        state = self.__dict__.copy()
-        state["_rng_handle"] = None
-        state["_compiled_sensor_of"] = state["_compiled_sensor"] = state["_fused_step"] = None
-        del state["_state_rows"]
-        return state
-
-    def __setstate__(self, state: dict) -> None:
-        self.__dict__.update(state)
-        self._bind_state_rows()
-
-    @property
-    def resampling(self) -> str:
-        """The resampling scheme, one of `mcl.resampling.SCHEMES` (may be changed between steps)."""
-        return self._resampling
-
-    @resampling.setter
-    def resampling(self, value: str) -> None:
-        if not isinstance(value, str):
-            raise ArgumentTypeError(f"resampling = {value!r} must be a string, one of {tuple(SCHEMES)}")
-        if value not in SCHEMES:
-            raise ValueError(f"resampling = {value!r} must be one of {tuple(SCHEMES)}")
-        self._resampling = value
+    n: _Fixed[int] = _Fixed("_particles.n")
+    """The number of particles N (fixed: the filter's arrays are made for it)."""
+    poses: _Fixed[np.ndarray] = _Fixed("_particles.poses", "ParticleFilter.poses cannot be rebound: use "
+                                       "set_particles(poses, log_weights), which checks them")
+    """The particles, (N, 3) [x, y, θ]: the filter's own array, which its kernels work in. Replace them with
+    `set_particles` (validated; the kernels trust the array's shape)."""
+    log_weights: _Fixed[np.ndarray] = _Fixed("_particles.log_weights", "ParticleFilter.log_weights cannot be "
+                                             "rebound: use set_particles(poses, log_weights), which checks them "
+                                             "and normalizes the weights")
+    """The particles' log-weights, (N,): the filter's own array (normalized with `weights`). Replace them with
+    `set_particles`."""
+    particles: _Fixed[Particles] = _Fixed("_particles")
+    """The particle set (`mcl.particles.Particles`: named arrays, which the engine works in); change it through
+    the filter's calls, which keep the summary and the relocalization in step."""
+    summary: _Fixed[Summary] = _Fixed("_summary")
+    """The summary (`mcl.summary.Summary`): the grid's cells, the histograms, the cached estimate and entropy
+    and the estimate's hysteresis anchor."""
+    engine: _Fixed[Engine] = _Fixed("_engine")
+    """The engine that runs the filter's stages on its particles (`mcl.engine`): its stage calls let a benchmark
+    time them one by one."""
+    grid: _Fixed[Grid] = _Fixed("_summary.grid")
+    """The entropy and estimate grid (fixed: the filter's histograms are made for it)."""
+    entropy_bounds: _Fixed[tuple[float, float]] = _Fixed("_summary.entropy_bounds")
+    """The largest possible position and orientation entropies: log2 of the cell counts."""
+    field: _Fixed[Field] = _Fixed("_field")
+    """The field (fixed: the carpet's bounds, the grid and the injection region are made for it)."""
+    threads: _Fixed[int] = _Fixed("_engine.threads")
+    """The number of threads the compiled step runs on (a constructor option)."""
+    fast: _Fixed[bool] = _Fixed("_engine.fast")
+    """Whether the compiled step computes sin, cos, exp and its sums the fast way (a constructor option)."""
+    resampling: _Setting[str] = _Setting(_scheme)
+    """The resampling scheme, one of `mcl.resampling.SCHEMES` (may be changed between steps)."""
+    resample_threshold: _Setting[float] = _Setting(_threshold)
+    """Resample when the ESS falls below this share of N, in [0, 1] (may be changed between steps)."""
+    augmented: _Setting[AugmentedMCL | None] = _Setting(_augmented)
+    """Augmented MCL's parameters, or None: no injection (may be changed between steps)."""
+    roughening: _Setting[np.ndarray] = _Setting(_roughening)
+    """The roughening's standard deviations (x [m], y [m], θ [rad]), read-only (may be replaced between steps by
+    three finite numbers >= 0)."""
+    _resampling: str                  # the settings' checked values
+    _resample_threshold: float
+    _augmented: AugmentedMCL | None
+    _roughening: np.ndarray
 
     @property
-    def resample_threshold(self) -> float:
-        """Resample when the ESS falls below this share of N, in [0, 1] (may be changed between steps)."""
-        return self._resample_threshold
-
-    @resample_threshold.setter
-    def resample_threshold(self, value: float) -> None:
-        self._resample_threshold = real("resample_threshold", value, 0.0, 1.0)
+    def weights(self) -> np.ndarray:
+        """Normalized weights (a read-only view)."""
+        return _read_only(self._particles.weights)
 
     @property
-    def augmented(self) -> AugmentedMCL | None:
-        """Augmented MCL's parameters, or None: no injection (may be changed between steps)."""
-        return self._augmented
+    def motion_state(self) -> np.ndarray | None:
+        """The stateful motion model's per-particle state (a read-only view), or None for a stateless model."""
+        state = self._particles.motion_state
+        return None if state is None else _read_only(state)
 
-    @augmented.setter
-    def augmented(self, value: AugmentedMCL | None) -> None:
-        if value is not None and not isinstance(value, AugmentedMCL):
-            raise ArgumentTypeError(f"augmented = {value!r} must be an AugmentedMCL or None, "
-                                    f"not {type(value).__name__}")
-        self._augmented = value
-
-    @property
-    def field(self) -> Field:
-        """The field (fixed: the carpet's bounds, the grid and the injection region are made for it)."""
-        return self._field
-
-    @property
-    def threads(self) -> int:
-        """The number of threads the compiled step runs on (a constructor option)."""
-        return self._threads
-
-    @property
-    def fast(self) -> bool:
-        """Whether the compiled step computes sin, cos, exp and its sums the fast way (a constructor option)."""
-        return self._fast
-
-    @property
-    def roughening(self) -> np.ndarray:
-        """The roughening's standard deviations (x [m], y [m], θ [rad]), read-only (may be replaced between
-        steps by three finite numbers >= 0)."""
-        return self._roughening
-
-    @roughening.setter
-    def roughening(self, value) -> None:
-        array = self._check_sigma(value, "roughening").copy()
-        array.flags.writeable = False
-        self._roughening = array
-
-    # -- resets ------------------------------------------------------------------------------------------
+    # -- resets -------------------------------------------------------------------------------------------------
 
     def reset_uniform(self, region: str | Sequence[float] = "field", heading: float | None = None,
                       heading_sigma: float = 0.0) -> None:
@@ -377,20 +424,8 @@ class ParticleFilter(ParticleSet, BeliefSummary):
             If the region is unknown or its bounds are out of order, or a number is out of range.
         """
         bounds = region_bounds(self._field, region)
-        if heading is not None:
-            heading = real("heading", heading, -LARGEST_ANGLE, LARGEST_ANGLE)
-            heading_sigma = real("heading_sigma", heading_sigma, 0.0, LARGEST_SIGMA)
-        x_min, x_max, y_min, y_max = bounds
-        poses = np.empty((self._n, 3))
-        poses[:, 0] = self.rng.uniform(x_min, x_max, self._n)
-        poses[:, 1] = self.rng.uniform(y_min, y_max, self._n)
-        if heading is None:
-            poses[:, 2] = self.rng.uniform(-math.pi, math.pi, self._n)
-        else:
-            poses[:, 2] = heading + heading_sigma * self.rng.standard_normal(self._n)
-        self._set_particles(poses)
+        self._reset(self._particles.uniform_poses(bounds, self.rng, heading, heading_sigma))
         self.relocalization.reset_region(bounds)
-        self.w_slow = self.w_fast = 0.0
 
     def reset_around(self, pose: Sequence[float] | np.ndarray,
                      sigma: Sequence[float] | np.ndarray = (0.1, 0.1, 0.1)) -> None:
@@ -411,14 +446,12 @@ class ParticleFilter(ParticleSet, BeliefSummary):
             If the pose or a standard deviation is not finite or out of range.
         """
         pose = check_pose("pose", pose)
-        sigma = self._check_sigma(sigma)
-        self._set_particles(pose + sigma * self.rng.standard_normal((self._n, 3)))
+        self._reset(self._particles.normal_poses(pose.reshape(1, 3), check_sigma(sigma), self.rng))
         self.relocalization.reset_pose(pose)
-        self.w_slow = self.w_fast = 0.0
 
     def reset_mirrored(self) -> None:
         """Mirror every particle through the centre mark: (x, y, θ) → (−x, −y, θ+π), weights kept."""
-        self._mirror_particles()
+        self._mirror()
         self.relocalization.mirror()
 
     def reset_candidates(self, poses: Sequence[Sequence[float]] | np.ndarray,
@@ -426,10 +459,9 @@ class ParticleFilter(ParticleSet, BeliefSummary):
                          region: str | Sequence[float] = "field") -> None:
         """Spread the particles evenly over several candidate poses (K, 3), normal around each with `sigma`.
 
-        For a placement whose pose the rules fix up to a choice the robot cannot know (which touchline, which
-        kick-off position). Injection stays inside `region` with uniform headings until the filter is
-        confident again (as after `reset_uniform`): the candidates' headings differ, so no single heading
-        reference guides it yet.
+        For a placement the rules fix up to a choice the robot cannot know (which touchline, which kick-off
+        position). Injection stays inside `region` with uniform headings until the filter is confident again
+        (as after `reset_uniform`): the candidates' headings differ, so no one heading guides it yet.
 
         Parameters
         ----------
@@ -449,20 +481,95 @@ class ParticleFilter(ParticleSet, BeliefSummary):
         candidates = check_poses("poses", poses)
         if candidates.shape[0] == 0:
             raise ValueError(f"poses = {poses!r} must be one or more (x, y, θ) poses")
-        sigma = self._check_sigma(sigma)
-        bounds = region_bounds(self._field, region)
-        choice = np.arange(self._n) % candidates.shape[0]
-        self._set_particles(candidates[choice] + sigma * self.rng.standard_normal((self._n, 3)))
+        sigma, bounds = check_sigma(sigma), region_bounds(self._field, region)
+        self._reset(self._particles.normal_poses(candidates, sigma, self.rng))
         self.relocalization.reset_region(bounds)
+
+    def diffuse(self, sigma: Sequence[float] | np.ndarray = (0.1, 0.1, 0.3)) -> None:
+        """Widen the belief: add normal noise `sigma` (x [m], y [m], θ [rad]) to every particle, weights kept.
+
+        For what moved the robot without odometry seeing it (a fall and getting up, a push while standing).
+
+        Parameters
+        ----------
+        sigma : sequence of float or numpy.ndarray, default (0.1, 0.1, 0.3)
+            Standard deviations of the noise (x [m], y [m], θ [rad]), each finite and >= 0.
+
+        Raises
+        ------
+        ValueError
+            If a standard deviation is negative, not finite or too large.
+        """
+        sigma = check_sigma(sigma)
+        self._particles.diffuse(sigma, self.rng)
+        self._summary.forget_anchor()
+        self._summary.changed()
+
+    def reweigh(self, log_factors: Sequence[float] | np.ndarray) -> None:
+        """Multiply each particle's weight by exp(log_factors[i]) and normalize; poses and motion state kept.
+
+        For evidence that does not come through the sensor model (the teammates' view of the ball weighing the
+        field's two halves, `mcl.localizer`). Nothing is resampled.
+
+        Parameters
+        ----------
+        log_factors : array_like
+            (N,) log factors: finite or -inf, not NaN or +inf, and at least one particle kept (finite).
+
+        Raises
+        ------
+        ValueError
+            If the shape is wrong, a factor is NaN or +inf, or every factor is -inf (the filter is left as it
+            was).
+        """
+        self.ess = self._particles.reweigh(log_factors)
+        self._summary.changed()
+
+    def set_particles(self, poses: Sequence[Sequence[float]] | np.ndarray,
+                      log_weights: Sequence[float] | np.ndarray | None = None,
+                      motion_state: np.ndarray | None = None) -> None:
+        """Replace the particle set (N, 3) and optionally its log-weights (N,) and, for a stateful motion model,
+        its per-particle state (fresh when not given); validated first.
+
+        Parameters
+        ----------
+        poses : array_like
+            (N, 3) poses (x [m], y [m], θ [rad]), N the filter's particle count.
+        log_weights : array_like or None, default None
+            (N,) log-weights, normalized here: no NaN or +inf, at least one finite. None: uniform weights.
+        motion_state : numpy.ndarray or None, default None
+            The motion model's per-particle state, of the shape the filter keeps (finite); None: fresh state.
+
+        Raises
+        ------
+        ValueError
+            If a shape is wrong, a value out of range, or `motion_state` is given for a motion model that
+            keeps none (the particles are left unchanged).
+        """
+        ess = self._particles.replace(poses, log_weights, motion_state)
+        self._summary.forget_anchor()
+        self._summary.changed()
+        self.ess = ess
+
+    def _reset(self, poses: np.ndarray) -> None:
+        """`_assign` for a reset: augmented MCL's averages start afresh too."""
+        self._assign(poses)
         self.w_slow = self.w_fast = 0.0
 
-    # -- the step ----------------------------------------------------------------------------------------
-    # A bounded-noise motion model (velocity-linear, constant) and a sensor model that offers
-    # `fused_likelihood` (the landmark model with the max-mixture) run inside the filter's own kernels:
-    # `predict` draws its noise in the kernel, and `correct` and `step` are one call into compiled code
-    # (`mcl.step.compiled_step`: predict, likelihood, weights, resampling, the summary histograms and the estimate).
-    # Every path gives the particles, weights, draws and estimates of the plain sequence of calls bit for bit;
-    # other models take that sequence.
+    def _assign(self, poses: np.ndarray) -> None:
+        """New poses with equal weights and fresh motion state; the estimate's hysteresis starts afresh."""
+        self._particles.assign(poses)
+        self._summary.forget_anchor()
+        self.ess = float(self._n)
+        self._summary.changed()
+
+    def _mirror(self) -> None:
+        """Every particle through the centre mark, weights kept; the estimate's hysteresis starts afresh."""
+        self._particles.mirror(self._field)
+        self._summary.forget_anchor()
+        self._summary.changed()
+
+    # -- the algorithm ------------------------------------------------------------------------------------------
 
     def predict(self, u: MotionInput) -> None:
         """Move every particle by the motion model.
@@ -477,93 +584,24 @@ class ParticleFilter(ParticleSet, BeliefSummary):
         ValueError
             If the motion model refuses `u` (the filter is left unchanged).
         """
-        self._move(u)
+        self._predict(u, self._engine.motion(self.motion_model, u))
 
-    def _check_motion(self, u: MotionInput) -> None:
-        if not isinstance(u, MotionInput):
-            raise ArgumentTypeError(f"u = {u!r} must be a motion_models.MotionInput, not {type(u).__name__}")
-        self.motion_model.check(u)
-
-    def _kernel_motion(self, u: MotionInput) -> tuple[float, ...] | None:
-        """Check `u` (as `_check_motion`); return (dx, dy, dθ, bound_x, bound_y, bound_θ) when the motion model
-        moves as `BoundedNoiseModel` does (displacement plus bounded robot-frame noise), so the filter's
-        kernels can move the particles themselves, else None."""
-        if not isinstance(u, MotionInput):
-            raise ArgumentTypeError(f"u = {u!r} must be a motion_models.MotionInput, not {type(u).__name__}")
-        model = self.motion_model
-        if model is not self._bounded_of:             # (asked once per motion model: this runs every step)
-            self._bounded = moves_by_bounded_noise(model)
-            self._bounded_of = model
-        if self._motion_state is not None or not self._bounded:
-            model.check(u)
-            return None
-        dx, dy, dtheta = u.displacement()           # BoundedNoiseModel.check
-        bound_x, bound_y, bound_theta = model.noise_bounds(u)
-        return float(dx), float(dy), float(dtheta), float(bound_x), float(bound_y), float(bound_theta)
-
-    def _generator(self) -> tuple[int, int]:
-        """The filter generator's handle for drawing in kernels (`numerics.random.bit_generator_handle`)."""
-        bit_generator = self.rng.bit_generator
-        handle = self._rng_handle
-        if handle is None or handle[0] is not bit_generator:
-            handle = self._rng_handle = (bit_generator, *bit_generator_handle(self.rng))
-        return handle[1], handle[2]
-
-    def _scores_view(self, observations: Observations) -> bool:
-        """Whether the sensor model scores this frame's view (negative information), which the compiled step
-        does not: such a frame is scored through `log_likelihood`."""
-        if observations.view is None:
-            return False
-        scores_view = getattr(self.sensor_model, "scores_view", None)
-        return bool(scores_view(observations)) if callable(scores_view) else False
-
-    def _sensor_kernel(self) -> tuple | None:
-        """The sensor model's fused-likelihood kernels (`mcl.contracts.fused_kernels`; None: score through
-        `log_likelihood`)."""
-        sensor_model = self.sensor_model
-        if sensor_model is not self._compiled_sensor_of:
-            self._compiled_sensor = fused_kernels(sensor_model)
-            self._fused_step = None if self._compiled_sensor is None else fused_step(self._compiled_sensor)
-            self._compiled_sensor_of = sensor_model
-        return self._compiled_sensor
-
-    def _move(self, u: MotionInput) -> None:
-        motion = self._kernel_motion(u)             # checks u first
+    def _predict(self, u: MotionInput, motion: tuple[float, ...] | None) -> None:
+        """Move the particles by `u` (checked: `motion` is the engine's answer for it) and carry the
+        relocalization's anchors along."""
+        self._engine.predict(self.motion_model, u, self.rng, motion)
         if motion is None:
-            if self._motion_state is None:
-                self.motion_model.predict(self._poses, u, self.rng)
-            else:
-                self.motion_model.predict(self._poses, u, self.rng, state=self._motion_state)
             self.relocalization.carry(*u.displacement())
         else:
-            self._move_compiled(motion)
             self.relocalization.carry(motion[0], motion[1], motion[2])
-        self._changed()
-
-    def _move_compiled(self, motion: tuple[float, ...]) -> None:
-        """Move by (dx, dy, dθ, bounds) in the filter's kernels, with the noise the motion model would draw."""
-        gaussian = bool(self.motion_model.gaussian)
-        variates = draw_variates(self.rng, self._n, True, out=self._variates) if gaussian else NO_VARIATES
-        if self._threads > 1:
-            with self._thread_scope:
-                if not gaussian:
-                    variates = self._variates
-                    parallel_uniforms(*self._generator(), variates.reshape(-1), 3 * self._n)
-                move_chunked(self._poses, *motion, gaussian, variates, self._chunk)
-        elif self._fast:
-            move_range_fast(self._poses, self._poses, 0, self._n, motion[:3], motion[3:], gaussian, variates,
-                            self._generator(), NO_WORK)
-        else:
-            move_range(self._poses, self._poses, 0, self._n, motion[:3], motion[3:], gaussian, variates,
-                       self._generator(), NO_WORK)
+        self._summary.changed()
 
     def correct(self, observations: Observations | Iterable | None,
                 since: Sequence[float] | np.ndarray | None = None) -> None:
         """Weigh the particles by the detections, then resample (and inject) if needed.
 
-        A frame that comes with its camera view (`Observations.view`) is also scored by the landmarks each
-        particle puts in view that the frame did not report, when the sensor model does so (`scores_view`,
-        negative information); such a frame is scored through the model's `log_likelihood`.
+        A frame with its camera view (`Observations.view`) is also scored by the landmarks each particle puts in
+        view that the frame did not report, when the sensor model does so (`scores_view`, negative information).
 
         Parameters
         ----------
@@ -571,9 +609,8 @@ class ParticleFilter(ParticleSet, BeliefSummary):
             One camera frame's detections (coerced by `Observations.coerce`); None or empty changes nothing.
         since : sequence of float, numpy.ndarray or None, default None
             For detections captured earlier (camera latency), the robot's motion (dx [m], dy [m], dθ [rad])
-            from their capture to now, in the robot frame at capture (`mcl.latency.MotionHistory.since`). Each
-            particle is scored where it was at capture: moved back along `since`. None or (0, 0, 0): scored as
-            it is.
+            from their capture to now, in the robot frame at capture (`mcl.latency.MotionHistory.since`): each
+            particle is scored where it was at capture, moved back along it. None or (0, 0, 0): as it is.
 
         Raises
         ------
@@ -582,16 +619,98 @@ class ParticleFilter(ParticleSet, BeliefSummary):
             NaN or +inf log-likelihoods; the filter is left unchanged.
         """
         observations = Observations.coerce(observations)
-        try:
-            motion_since = self._check_since(since)   # before any kernel is prepared: a refusal changes nothing
-        except ValueError:
-            self.sensor_model.check(observations)     # the detections are checked first
-            raise
-        if len(observations) == 0 or self._sensor_kernel() is None or self._scores_view(observations):
+        motion_since = self._since(since, observations)
+        if self._engine.fuses(self.sensor_model, observations):
+            self._correct_fused(None, observations, False, motion_since)
+        else:
             self.sensor_model.check(observations)
             self._correct(observations, motion_since)
-            return
-        self._step_compiled(None, observations, False, motion_since)
+
+    def step(self, u: MotionInput, observations: Observations | Iterable | None = None) -> Estimate:
+        """predict(u), then correct(observations) when there are any; returns the estimate.
+
+        Parameters
+        ----------
+        u : MotionInput
+            The motion since the last step.
+        observations : Observations, iterable of LandmarkObservation, or None, default None
+            The detections of a camera frame taken now; None or empty: predict only.
+
+        Returns
+        -------
+        Estimate
+            `estimate()` after the step.
+
+        Raises
+        ------
+        ValueError
+            If the motion model refuses `u` or the sensor model the detections (both are checked before anything
+            changes), or the sensor model returns NaN or +inf log-likelihoods (the particles have then moved,
+            their weights are unchanged: the message says so).
+        """
+        observations = Observations.coerce(observations)
+        fused = self._engine.fuses(self.sensor_model, observations)
+        motion = self._predict_checked(u, observations, fused)
+        if fused:
+            self._correct_fused(motion, observations, True)
+        else:
+            self._correct_moved(observations)
+        return self.estimate()
+
+    def _predict_checked(self, u: MotionInput, observations: Observations, fused: bool) -> tuple | None:
+        """Check `u` and the detections (a refused call names the detection first), then predict unless the
+        fused step will; returns the engine's motion for `u` (`Engine.motion`)."""
+        try:
+            motion = self._engine.motion(self.motion_model, u)
+        except ValueError:
+            self.sensor_model.check(observations)
+            raise
+        if not fused or motion is None:
+            self.sensor_model.check(observations)     # before the particles move
+            self._predict(u, motion)
+        return motion
+
+    def _correct_moved(self, observations: Observations) -> None:
+        """`_correct` in a step, after the particles moved: a defect of the sensor model says that they did."""
+        try:
+            self._correct(observations)
+        except ValueError as error:
+            if str(error).startswith(_INVALID_LIKELIHOODS):
+                raise ValueError(_INVALID_LIKELIHOODS + _MOVED) from None
+            raise
+
+    def _since(self, since, observations: Observations) -> np.ndarray | None:
+        """`since` checked before any kernel is prepared (a refusal changes nothing; the detections are checked
+        first): None when the detections were captured now."""
+        try:
+            return self._check_since(since)
+        except ValueError:
+            self.sensor_model.check(observations)
+            raise
+
+    def estimate(self) -> Estimate:
+        """Weighted circular mean and covariance of the dominant cluster (cached until the particles change).
+
+        When no cluster holds half the weight, the one around the previous estimate is preferred if it is
+        the heavier (hysteresis: see `mcl.estimate.cluster_estimate`).
+
+        Returns
+        -------
+        Estimate
+            The pose [x, y, θ], its (3, 3) covariance and the cluster's share of the weight.
+        """
+        return self._engine.estimate()
+
+    def entropy(self) -> Entropy:
+        """Position and orientation entropy in bits on the grid (Hoffmann eq. 27), from the histograms the
+        estimate shares (kept until the particles change).
+
+        Returns
+        -------
+        Entropy
+            `position` and `orientation`, in bits.
+        """
+        return self._engine.entropy()
 
     @staticmethod
     def _check_since(since) -> np.ndarray | None:
@@ -609,31 +728,21 @@ class ParticleFilter(ParticleSet, BeliefSummary):
         return None if not array.any() else array
 
     def _correct(self, observations: Observations, since: np.ndarray | None = None) -> None:
+        """Weigh by the frame stage by stage: likelihood, weights, then resampling and injection if needed."""
         if observations.is_empty:
             return
-        scored = self._poses
-        if since is not None:
-            move_back(self._poses, since, self._capture_poses)
-            scored = self._capture_poses
-        log_likelihood = np.asarray(self.sensor_model.log_likelihood(scored, observations, out=self._log_likelihood),
-                                    dtype=np.float64)
-        valid, native_log_average, log_evidence, ess = weigh(self._log_weights, log_likelihood,
-                                                             self._n - self.injected, self._weights)
+        engine = self._engine
+        log_likelihood = engine.likelihood(self.sensor_model, observations, since)
+        valid, native_log_average, log_evidence, ess = engine.weigh(log_likelihood, self._n - self.injected)
         if not valid:
             raise ValueError(_INVALID_LIKELIHOODS + "; filter left unchanged")
         terms = getattr(self.sensor_model, "terms", len)(observations)
-        self.frame_log_likelihood = native_log_average
-        if terms > 0:
-            self.frame_fit = math.exp(native_log_average / terms)
-        self._changed()
+        self._weighed(native_log_average, terms)
+        self._summary.changed()
         if log_evidence == -np.inf:
-            # Every particle has zero likelihood: the belief cannot explain the detections. Recover by
-            # keeping the particles with uniform weights and replacing the largest allowed share by
-            # injected ones; nothing else (no NaN) can come out of this.
-            self._weights[:] = 1.0 / self._n
-            self._resample(self._injection_count(1.0), observations, since)
+            self._unexplained(observations, since)
             return
-        reweigh(self._log_weights, log_likelihood, log_evidence)
+        engine.reweigh(log_likelihood, log_evidence)
         self.ess = ess
         fraction = 0.0
         if self._augmented is not None:
@@ -646,157 +755,73 @@ class ParticleFilter(ParticleSet, BeliefSummary):
             self.injected = 0
         self._track_confidence()
 
-    def step(self, u: MotionInput, observations: Observations | Iterable | None = None) -> Estimate:
-        """predict(u), then correct(observations) when there are any; returns the estimate.
-
-        Both inputs are validated before anything changes.
-
-        Parameters
-        ----------
-        u : MotionInput
-            The motion since the last step.
-        observations : Observations, iterable of LandmarkObservation, or None, default None
-            The detections of a camera frame taken now; None or empty: predict only.
-
-        Returns
-        -------
-        Estimate
-            `estimate()` after the step.
-
-        Raises
-        ------
-        ValueError
-            If the motion model refuses `u` or the sensor model the detections (nothing changed), or the
-            sensor model returns NaN or +inf log-likelihoods (the particles have then moved, their weights
-            are unchanged: the message says so).
-        """
-        observations = Observations.coerce(observations)
-        if len(observations) == 0 or self._sensor_kernel() is None or self._scores_view(observations):
-            self.sensor_model.check(observations)
-            self._check_motion(u)
-            self._move(u)
-            try:
-                self._correct(observations)
-            except ValueError as error:
-                if str(error).startswith(_INVALID_LIKELIHOODS):
-                    raise ValueError(_INVALID_LIKELIHOODS + _MOVED) from None
-                raise
-            return self.estimate()
-        try:
-            motion = self._kernel_motion(u)
-        except ValueError:
-            self.sensor_model.check(observations)     # the detections are checked first
-            raise
-        if motion is None:
-            self.sensor_model.check(observations)     # before moving in Python
-            self._move(u)
-        self._step_compiled(motion, observations, True)
-        return self.estimate()
-
-    def _step_compiled(self, motion: tuple | None, observations: Observations, in_step: bool,
-                       since: np.ndarray | None = None) -> None:
-        """[predict by `motion`,] correct(observations) [captured `since` ago]: one call into
-        `mcl.step.compiled_step` (with the entropy, once `entropy()` has been asked for)."""
-        n = self._n
-        sensor = self._compiled_sensor
-        move = motion is not None
-        chunk = self._chunk if self._threads > 1 else 0
-        gaussian = move and bool(self.motion_model.gaussian)
-        variates = self._variates if chunk else NO_VARIATES
-        if motion is None:                            # (not move)
-            motion = _NO_MOTION
-        elif gaussian:
-            self.sensor_model.check(observations)     # before the noise is drawn
-            variates = draw_variates(self.rng, n, True, out=self._variates)
-        a = self._augmented
-        if a is None:
-            augmented, alpha_slow, alpha_fast, ratio_threshold, fit_threshold, cap = False, 0.0, 0.0, 1.0, 0.0, 0.0
-        else:
-            augmented, alpha_slow, alpha_fast = True, a.alpha_slow, a.alpha_fast
-            ratio_threshold, fit_threshold = a.ratio_threshold, a.fit_threshold
-            cap = a.max_fraction_tracking if self.relocalization.tracking else a.max_fraction
-        terms = getattr(self.sensor_model, "terms", len)(observations)
-        # Only an estimate the plain sequence of calls computes (after a correction with augmentation, or at the
-        # end of `step`) may be computed here: computing one moves the hysteresis anchor `_previous_estimate`.
-        want_estimate = in_step or a is not None
-        mean = np.empty(3)
-        covariance = np.empty((3, 3))
-        weighting = (n - self.injected, terms, augmented, alpha_slow, alpha_fast, ratio_threshold, fit_threshold,
-                     self.w_slow, self.w_fast, cap)
-        resampling = (self._resample_threshold, self._resampling == "systematic" and (self._motion_state is None
-                                                                                     or not chunk),
-                      self._roughening, self._state_rows, self._state_scratch)
-        fused = self._fused_step
-        assert fused is not None and sensor is not None       # the fused path is taken only with both bound
-        with self._thread_scope:
-            (status, native_log_average, ess, w_slow, w_fast, fraction, resampled, weight, position,
-             orientation) = fused.compiled_step(
-                self._particle_group, (move, *motion, gaussian, variates), self._generator(),
-                (sensor.params, sensor.inputs(observations)),
-                weighting, resampling, self._summary_group(want_estimate, mean, covariance), chunk, self._fast,
-                NO_SINCE if since is None else since)
-        if status == STEP_MISSING:
-            self.sensor_model.check(observations)     # raises, naming the detection; nothing has changed
-            raise ValueError("the sensor model's fused kernels refuse a detection that its check() accepts; "
-                             "filter left unchanged")
-        if move:                                      # the particles have moved, whatever follows
-            self.relocalization.carry(motion[0], motion[1], motion[2])
-            self._changed()
-        if status == STEP_INVALID:
-            raise ValueError(_INVALID_LIKELIHOODS + (_MOVED if move else "; filter left unchanged"))
-        self._changed()
+    def _weighed(self, native_log_average: float, terms: int) -> None:
+        """Keep the frame's evidence (`frame_log_likelihood`, and `frame_fit` per term scored)."""
         self.frame_log_likelihood = native_log_average
         if terms > 0:
             self.frame_fit = math.exp(native_log_average / terms)
-        if status == STEP_UNEXPLAINED:
-            self._weights[:] = 1.0 / n
-            self._resample(self._injection_count(1.0), observations, since)
+
+    def _unexplained(self, observations: Observations, since: np.ndarray | None) -> None:
+        """Every particle has zero likelihood: the belief cannot explain the detections. Recover by keeping the
+        particles with uniform weights and replacing the largest allowed share by injected ones; nothing else
+        (no NaN) can come out of this."""
+        self._particles.weights[:] = 1.0 / self._n
+        self._resample(self._injection_count(1.0), observations, since)
+
+    def _correct_fused(self, motion: tuple | None, observations: Observations, in_step: bool,
+                       since: np.ndarray | None = None) -> None:
+        """[predict by `motion`,] correct(observations) [captured `since` ago] in the engine's fused step."""
+        a = self._augmented
+        terms = getattr(self.sensor_model, "terms", len)(observations)
+        if a is None:
+            augmented = (False, 0.0, 0.0, 1.0, 0.0, self.w_slow, self.w_fast, 0.0)
+        else:
+            augmented = (True, a.alpha_slow, a.alpha_fast, a.ratio_threshold, a.fit_threshold, self.w_slow,
+                         self.w_fast, a.cap(self.relocalization.tracking))
+        # Only an estimate the stages one by one compute (after a correction with augmentation, or at the end of
+        # `step`) may be computed here: computing one moves the hysteresis anchor.
+        want_estimate = in_step or a is not None
+        outcome = self._engine.fused_step(self.motion_model, motion, self.sensor_model, observations,
+                                          (self._n - self.injected, terms, *augmented),
+                                          (self._resampling, self._resample_threshold, self._roughening),
+                                          want_estimate, since, self.rng)
+        if outcome.status == STEP_MISSING:
+            self.sensor_model.check(observations)     # raises, naming the detection; nothing has changed
+            raise ValueError("the sensor model's fused kernels refuse a detection that its check() accepts; "
+                             "filter left unchanged")
+        if motion is not None:                        # the particles have moved, whatever follows
+            self.relocalization.carry(motion[0], motion[1], motion[2])
+        if outcome.status == STEP_INVALID:
+            raise ValueError(_INVALID_LIKELIHOODS + (_MOVED if motion is not None else "; filter left unchanged"))
+        self._weighed(outcome.native_log_average, terms)
+        if outcome.status == STEP_UNEXPLAINED:
+            self._unexplained(observations, since)
             return
-        self.ess = ess
-        if augmented and terms > 0:
-            self.w_slow = w_slow
-            self.w_fast = w_fast
-        if status == STEP_RESAMPLE:
-            count = self._injection_count(fraction)
-            if count > 0 and self._threads == 1 and self._resampling == "systematic" and self._motion_state is None:
-                self._finish_with_injection(count, observations, want_estimate, mean, covariance, since)
+        self.ess = outcome.ess
+        if a is not None and terms > 0:
+            self.w_slow = outcome.w_slow
+            self.w_fast = outcome.w_fast
+        if outcome.status == STEP_RESAMPLE:
+            count = self._injection_count(outcome.fraction)
+            if count > 0 and self._engine.resamples_fused(self._resampling):
+                self._inject_fused(count, observations, want_estimate, since)
             else:
                 self._resample(count, observations, since)
         else:
-            self.resampled = resampled
+            self.resampled = outcome.resampled
             self.injected = 0
-            self._summary_valid = True
-            if want_estimate:                         # `_previous_estimate` was updated in the kernel
-                self._estimate = Estimate(mean, covariance, weight)
-                self._has_previous_estimate = True
-            if self._entropy_wanted:
-                self._entropy = Entropy(position, orientation)
         self._track_confidence()
 
-    def _finish_with_injection(self, count: int, observations: Observations, want_estimate: bool,
-                               mean: np.ndarray, covariance: np.ndarray, since: np.ndarray | None = None) -> None:
-        """The end of a compiled step that injects (one thread, systematic resampling): `_resample` and the
-        estimate and entropy that follow it, in one call into compiled code (`_resample_and_summarize`) after
-        the injected poses are drawn. The same draws and results as `_resample` then `estimate()`/`entropy()`."""
-        n = self._n
+    def _inject_fused(self, count: int, observations: Observations, want_estimate: bool,
+                      since: np.ndarray | None) -> None:
+        """The end of a fused step that injects: `_resample` and the summary that follows it, in one call."""
         injected = self._sample_injection(count, observations)
         if since is not None:                     # placed where the detections were captured: carried to now
             move_forward(injected, since, injected)
-        keep = n - count
-        weight, position, orientation = resample_and_summarize(
-            self._weights, keep, self._previous, self._roughening, self._poses, self._trig, self._generator(),
-            self._counts, injected, self._log_weights, self._summary_group(want_estimate, mean, covariance),
-            self._fast)
-        self.ess = float(n)
+        self._engine.resample_and_summarize(injected, self._roughening, want_estimate, self.rng)
+        self.ess = float(self._n)
         self.resampled = True
         self.injected = count
-        self._changed()
-        self._summary_valid = True
-        if want_estimate:
-            self._estimate = Estimate(mean, covariance, weight)
-            self._has_previous_estimate = True
-        if self._entropy_wanted:
-            self._entropy = Entropy(position, orientation)
 
     def _track_confidence(self) -> None:
         """Tell the relocalization what the correction left: the estimate, and whether the belief explains the
@@ -809,37 +834,18 @@ class ParticleFilter(ParticleSet, BeliefSummary):
         if self.relocalization.confirm(estimate, self.w_fast >= self._augmented.ratio_threshold * self.w_slow):
             # The relocalization's prior puts the belief on the mirror side of the field, which the detections
             # cannot tell from this one (the field is point-symmetric): the particles go there, weights kept.
-            self._mirror_particles()
-
-    def _native_log_average(self, log_likelihood: np.ndarray) -> float:
-        """log(Σ wᵢ pᵢ / Σ wᵢ) over the particles not injected by the previous resampling (prior weights).
-
-        Freshly injected particles mostly explain the detections badly; counting them would lower the
-        average, which asks for more injection: a feedback loop that tears a good cluster apart. They sit
-        at the tail of the arrays until the next resampling.
-        """
-        return log_mean_likelihood(self._log_weights, log_likelihood, self._n - self.injected)
+            self._mirror()
 
     def _update_augmented(self, log_average: float) -> float:
         """Update w_slow, w_fast with the per-detection average likelihood; return the injection share."""
-        a = self._augmented
-        assert a is not None                          # called with augmented MCL on only
-        average = math.exp(log_average)
-        if self.w_slow == 0.0:
-            self.w_slow = self.w_fast = average
-        else:
-            self.w_slow += a.alpha_slow * (average - self.w_slow)
-            self.w_fast += a.alpha_fast * (average - self.w_fast)
-        relative = 1.0 - self.w_fast / (a.ratio_threshold * self.w_slow) if self.w_slow > 0 else 1.0
-        absolute = 1.0 - self.w_fast / a.fit_threshold if a.fit_threshold > 0 else 0.0
-        return max(0.0, relative, absolute)
+        assert self._augmented is not None           # called with augmented MCL on only
+        self.w_slow, self.w_fast, fraction = self._augmented.update(self.w_slow, self.w_fast, log_average)
+        return fraction
 
     def _injection_count(self, fraction: float) -> int:
-        if self._augmented is None:
-            return 0
+        """How many particles to inject for the share `fraction`, within the cap (none without augmented MCL)."""
         a = self._augmented
-        cap = a.max_fraction_tracking if self.relocalization.tracking else a.max_fraction
-        return int(round(min(fraction, cap) * self._n))
+        return 0 if a is None else int(round(min(fraction, a.cap(self.relocalization.tracking)) * self._n))
 
     def _sample_injection(self, count: int, observations: Observations) -> np.ndarray:
         """`count` poses for augmented MCL to inject, as the relocalization proposes them (`propose`)."""
@@ -847,62 +853,19 @@ class ParticleFilter(ParticleSet, BeliefSummary):
                                     dtype=np.float64)
 
     def _resample(self, count: int, observations: Observations, since: np.ndarray | None = None) -> None:
+        """Resample N - count particles by the scheme and inject `count` the relocalization proposes."""
         injected = self._sample_injection(count, observations) if count > 0 else NO_VARIATES
         if since is not None and injected.shape[0]:
             # Sensor resetting placed them where the detections were captured: carry them to now.
             move_forward(injected, since, injected)
-        keep = self._n - injected.shape[0]
-        self._previous[:] = self._poses
-        # Roughening: uniform jitter of standard deviation `roughening`, in each particle's own frame so that
-        # it commutes with rotating the world, fused with the copy from the ancestors.
-        bounds = self._roughening * SQRT3
-        if self._resampling == "systematic":
-            u0 = resample_with_jitter(self._weights, keep, self._previous, bounds, self._poses, _NO_TRIG,
-                                      *self._generator(), self._counts, _NO_COORDINATES)
-            if self._motion_state is not None:
-                gather_offspring_rows(self._weights, keep, u0, self._counts, self._state_rows, self._state_scratch)
-                self._motion_state[keep:] = self.motion_model.particle_state(self._n - keep)
-        else:
-            ancestors = SCHEMES[self._resampling](self._weights, keep, self.rng)
-            gather_with_jitter(self._previous, ancestors, bounds,
-                               draw_variates(self.rng, keep, False, out=self._variates), self._poses)
-            if self._motion_state is not None:
-                self._motion_state[:keep] = self._motion_state[ancestors]
-                self._motion_state[keep:] = self.motion_model.particle_state(self._n - keep)
-        self._poses[keep:] = injected
-        self._log_weights[:] = -math.log(self._n)
-        self._weights[:] = 1.0 / self._n
+        self._engine.resample(self._resampling, injected, self._roughening, self.rng)
         self.ess = float(self._n)
         self.resampled = True
         self.injected = int(injected.shape[0])
-        self._changed()
+        self._summary.changed()
 
 
-# -- the compiled step ---------------------------------------------------------------------------------------------
-_CHUNK = 4096        # particles per chunk with threads > 1, about (`balanced_chunk`: a function of N alone, so the
-                     # results do not depend on the threads)
-
-
-class _Threads:
-    """Run numba's parallel kernels on `threads` threads inside the block (at most NUMBA_NUM_THREADS); a filter
-    on one thread runs no parallel kernel, and its block sets nothing."""
-
-    def __init__(self, threads: int) -> None:
-        self.active = threads > 1
-        self.threads = min(threads, numba.config.NUMBA_NUM_THREADS)
-        self.previous = self.threads
-
-    def __enter__(self) -> None:
-        if self.active:
-            self.previous = numba.get_num_threads()
-            if self.previous != self.threads:
-                numba.set_num_threads(self.threads)
-
-    def __exit__(self, *exc) -> None:
-        if self.active and self.previous != self.threads:
-            numba.set_num_threads(self.previous)
-
-
-_NO_TRIG = np.empty((0, 2))
-_NO_COORDINATES = np.empty((3, 0))
-_NO_MOTION = (0.0,) * 6
+def _read_only(array: np.ndarray) -> np.ndarray:
+    view = array.view()
+    view.flags.writeable = False
+    return view

@@ -25,9 +25,15 @@ from itertools import islice
 import numba
 import numpy as np
 
-from field.angles import wrap_angle, wrap_angles
+from field.angles import wrap_angle
 from field.checks import LARGEST_ANGLE, LARGEST_COORDINATE, real, reals
-from numerics.trig import moved_back, sincos, sincos_reference
+from field.moved import moved_names
+from numerics.trig import moved_back, sincos
+
+# The numpy twins moved to the package's `reference` module; their old names still work, with a warning.
+__getattr__ = moved_names(__name__, {
+    "move_back_reference": "mcl.reference.move_back"
+})
 
 IDENTITY = (0.0, 0.0, 0.0)
 SAME_TIME = 1e-6     # s: times closer than this are one instant (log stamps are integer nanoseconds)
@@ -58,14 +64,6 @@ def move_forward(poses: np.ndarray, displacement: np.ndarray, out: np.ndarray) -
         out[i, 0] = poses[i, 0] + (c * dx - s * dy)
         out[i, 1] = poses[i, 1] + (s * dx + c * dy)
         out[i, 2] = wrap_angle(theta + dtheta)
-
-
-def move_back_reference(poses: np.ndarray, displacement) -> np.ndarray:
-    """Plain numpy twin of `move_back`."""
-    dx, dy, dtheta = displacement
-    theta = poses[:, 2] - dtheta
-    c, s = sincos_reference(theta)
-    return np.column_stack([poses[:, 0] - (c * dx - s * dy), poses[:, 1] - (s * dx + c * dy), wrap_angles(theta)])
 
 
 class MotionHistory:

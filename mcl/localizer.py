@@ -68,6 +68,7 @@ from sensing.view import CameraView
 
 from .filter import ParticleFilter
 from .latency import MotionHistory, move_back
+from .particles import check_sigma
 from .side import SideBelief, SideSettings, Team
 from .summary import Entropy, Estimate
 
@@ -394,8 +395,8 @@ class Localizer:
         self.history = MotionHistory(history)
         self.compensate_latency = bool(compensate_latency)
         self.thresholds = quality
-        self.getup_sigma = ParticleFilter._check_sigma(getup_sigma)
-        self.placement_sigma = ParticleFilter._check_sigma(placement_sigma)
+        self.getup_sigma = check_sigma(getup_sigma)
+        self.placement_sigma = check_sigma(placement_sigma)
         self.odometry_scale: tuple[float, float, float] = (float(scale[0]), float(scale[1]), float(scale[2]))
         self._scaled = self.odometry_scale != (1.0, 1.0, 1.0)
         self.log_evidence = 0.0

@@ -7,7 +7,7 @@
 is unbiased: particle i has M·wᵢ offspring on average. Systematic (the default) has the lowest variance and
 keeps every particle with M·wᵢ >= 1; stratified draws one uniform per stratum; residual keeps ⌊M·wᵢ⌋ copies
 and draws the rest multinomially; multinomial draws M independent ancestors. Each is one pass in numba over
-variates drawn beforehand; the `*_reference` functions are plain numpy twins that the tests compare with.
+variates drawn beforehand; their plain numpy twins, which the tests compare with, are in `mcl.reference`.
 
 The filter resamples with `resample_with_jitter` (`systematic_with_jitter` allocates its scratch):
 systematic resampling, the copy from the ancestors and the roughening jitter in one pass, drawing its
@@ -22,9 +22,17 @@ import math
 import numba
 import numpy as np
 
-from field.angles import wrap_angles
+from field.moved import moved_names
 from numerics.random import draw_uniforms, next_double, parallel_uniforms
-from numerics.trig import sincos, sincos_reference, wrap
+from numerics.trig import sincos, wrap
+
+# The numpy twins moved to the package's `reference` module; their old names still work, with a warning.
+__getattr__ = moved_names(__name__, {
+    "gather_with_jitter_reference": "mcl.reference.gather_with_jitter",
+    "systematic_reference": "mcl.reference.systematic",
+    "stratified_reference": "mcl.reference.stratified",
+    "multinomial_reference": "mcl.reference.multinomial"
+})
 
 
 @numba.njit(cache=True, inline="always")
@@ -411,35 +419,7 @@ def resample_with_jitter_chunked(weights, m, source, bounds, out, trig, function
     return u0
 
 
-def gather_with_jitter_reference(source, ancestors, bounds, uniforms):
-    """Numpy twin of `gather_with_jitter`."""
-    picked = source[ancestors].copy()
-    noise = (2.0 * uniforms - 1.0) * bounds
-    c, s = sincos_reference(picked[:, 2])
-    picked[:, 0] += c * noise[:, 0] - s * noise[:, 1]
-    picked[:, 1] += s * noise[:, 0] + c * noise[:, 1]
-    picked[:, 2] = wrap_angles(picked[:, 2] + noise[:, 2])
-    return picked
-
-
 SCHEMES = {"systematic": systematic, "stratified": stratified, "residual": residual, "multinomial": multinomial}
 
 
 # -- plain numpy references (the same variates, the same order) -------------------------------------------------
-def _searchsorted(weights: np.ndarray, points: np.ndarray) -> np.ndarray:
-    cumulative = np.cumsum(weights)
-    return np.minimum(np.searchsorted(cumulative, points, side="right"), weights.shape[0] - 1)
-
-
-def systematic_reference(weights, m, rng):
-    return _searchsorted(np.asarray(weights, float), (rng.random() + np.arange(m)) / m)
-
-
-def stratified_reference(weights, m, rng):
-    return _searchsorted(np.asarray(weights, float), (np.arange(m) + rng.random(m)) / m)
-
-
-def multinomial_reference(weights, m, rng):
-    spacings = rng.standard_exponential(m + 1)
-    running = np.cumsum(spacings)  # running[-1] is the sequential total, as the kernel sums it
-    return _searchsorted(np.asarray(weights, float), running[:-1] / running[-1])

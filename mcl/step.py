@@ -38,7 +38,8 @@ from __future__ import annotations
 
 import hashlib
 import math
-from typing import Any, Callable, NamedTuple
+from collections.abc import Callable
+from typing import Any, NamedTuple
 
 import numba
 import numpy as np
@@ -48,8 +49,14 @@ from numerics.compile import variant
 from numerics.random import parallel_uniforms
 from numerics.trig import SQRT3, sincos_rows_as
 
-from .estimate import (summary_entropy, summary_estimate, summary_estimate_chunked, summary_estimate_fast, summary_fill,
-                       summary_fill_chunked)
+from .estimate import (
+    summary_entropy,
+    summary_estimate,
+    summary_estimate_chunked,
+    summary_estimate_fast,
+    summary_fill,
+    summary_fill_chunked,
+)
 from .resampling import gather_offspring_rows, resample_with_jitter, resample_with_jitter_chunked
 from .weights import reweigh, reweigh_chunked, weigh, weigh_chunked, weigh_fast
 

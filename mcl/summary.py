@@ -1,35 +1,32 @@
 """The belief's summary: the estimate (the dominant cluster's pose and covariance) and the grid entropy, computed
 from histograms they share and cached until the particles change.
 
-    from mcl.summary import BeliefSummary, Estimate, Entropy, Grid
+    from mcl.summary import Summary, Estimate, Entropy, Grid
 
-`BeliefSummary` is the part of `mcl.ParticleFilter` that summarizes the particle set (`mcl.particles`): the
-carpet and its grids (`Grid`), the histograms `mcl.estimate` fills in one pass, the cached `Estimate` and
-`Entropy`, and the estimate's hysteresis anchor (the previous estimate, preferred when no cluster holds half the
-weight). The fused compiled step (`mcl.step`) fills the same histograms and computes the same estimate in its
-call; `_summary_group` gives it these buffers.
+`Summary` is what `mcl.ParticleFilter` owns of its summary: the carpet and its grids (`Grid`), the histograms
+`mcl.estimate` fills in one pass, the cached `Estimate` and `Entropy`, and the estimate's hysteresis anchor (the
+previous estimate, preferred when no cluster holds half the weight). The filter's engine (`mcl.engine`) fills
+the histograms and computes the estimate and the entropy into it; `group` gives the compiled step these
+buffers.
 """
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, ContextManager
+from typing import TYPE_CHECKING
 
 import numba
 import numpy as np
 
 from field.checks import ArgumentTypeError, integer, real
 
-from .estimate import (summary_buffers, summary_entropy, summary_estimate, summary_estimate_chunked,
-                       summary_estimate_fast, summary_fill, summary_fill_chunked, summary_grid)
-from .step import summarize
+from .estimate import summary_buffers, summary_grid
 
 if TYPE_CHECKING:
     from field import Field
 
 MAX_GRID_CELLS = 5 * 10**7
 """The most cells the entropy or the estimate's histograms may have (the grid's cells times its bins)."""
-_NO_MEAN, _NO_COVARIANCE = np.empty(3), np.empty((3, 3))     # out_mean, out_cov of a summary without estimate
 
 
 @dataclass(frozen=True)
@@ -142,159 +139,95 @@ class Grid:
         integer("cluster_orientation_bins", self.cluster_orientation_bins, 1, 360)
 
 
-class BeliefSummary:
-    """The estimate and the entropy of the particle set, cached until it changes (see the module docstring)."""
+class Summary:
+    """The estimate and the entropy of a particle set on a field's carpet, cached until the particles change.
 
-    # Set by the filter that is also a `ParticleSet` (`mcl.filter.ParticleFilter`), declared for type checkers.
-    _n: int
-    _field: Field
-    _poses: np.ndarray
-    _weights: np.ndarray
-    _threads: int
-    _chunk: int
-    _fast: bool
-    _thread_scope: ContextManager[object]
+    Parameters
+    ----------
+    field : Field
+        The field: the carpet is the field and its border strip.
+    grid : Grid
+        The entropy's and the estimate's cells.
+    n : int
+        The number of particles.
+    threads : int
+        The engine's threads: with more than one, each thread gets its own histograms.
 
-    def _allocate_summary(self) -> None:
-        """The histograms the estimate and the entropy share, and the summary's cached state."""
-        # The estimate's and the entropy's histograms, filled in one pass and kept until the particles change.
-        grid = self._grid
-        self._grid_parameters = summary_grid(self._x_min, self._y_min, grid.cluster_cell, self._cluster_nx,
-                                             self._cluster_ny, grid.cluster_orientation_bins, grid.cluster_radius,
-                                             grid.cluster_angle_radius, 3, grid.position_cell, self._entropy_nx,
-                                             self._entropy_ny, grid.orientation_bins)
-        self._summary = summary_buffers(self._grid_parameters, self._n)
-        # threads > 1: each thread's histograms, in fixed point (see mcl.estimate.summary_fill_chunked)
-        self._local_histograms = np.zeros((numba.config.NUMBA_NUM_THREADS if self._threads > 1 else 0,
-                                           self._summary[1].shape[0]), dtype=np.int64)
-        self._summary_valid = False
-        self._estimate: Estimate | None = None
-        self._entropy: Entropy | None = None
-        # Once `entropy()` has been asked for, the compiled step (and `estimate()`) computes the entropy from the
-        # histograms it fills anyway, sparing the call its own dispatch into compiled code.
-        self._entropy_wanted = False
-        self._previous_estimate = np.zeros(3)
-        self._has_previous_estimate = False
+    Raises
+    ------
+    ValueError
+        If the grid makes more than `MAX_GRID_CELLS` cells on this field.
+    ArgumentTypeError
+        If `grid` is not a `Grid`.
+    """
 
-    def _forget_anchor(self) -> None:
-        """The particles moved in a way the estimate's continuity cannot follow (set, mirrored, diffused): the
-        next estimate starts without its hysteresis anchor."""
-        self._has_previous_estimate = False
-
-    def _set_up_grid(self, grid: Grid) -> None:
-        """The carpet (the field and its border strip) and the entropy's and the estimate's grids on it."""
+    def __init__(self, field: Field, grid: Grid, n: int, threads: int) -> None:
         if not isinstance(grid, Grid):
             raise ArgumentTypeError(f"grid = {grid!r} must be an mcl.Grid, not {type(grid).__name__}")
-        self._grid = grid
-        # Carpet bounds: the field plus its border strip.
-        field = self._field
+        self.grid = grid
         border = field.dims.border_strip_width
-        self._x_min, self._x_max = -field.half_length - border, field.half_length + border
-        self._y_min, self._y_max = -field.half_width - border, field.half_width + border
-        self._entropy_nx = max(1, math.ceil((self._x_max - self._x_min) / grid.position_cell))
-        self._entropy_ny = max(1, math.ceil((self._y_max - self._y_min) / grid.position_cell))
-        self._cluster_nx = max(1, math.ceil((self._x_max - self._x_min) / grid.cluster_cell))
-        self._cluster_ny = max(1, math.ceil((self._y_max - self._y_min) / grid.cluster_cell))
-        for what, cells in (("position", self._entropy_nx * self._entropy_ny * grid.orientation_bins),
-                            ("cluster", self._cluster_nx * self._cluster_ny * grid.cluster_orientation_bins)):
+        self.x_min, self.x_max = -field.half_length - border, field.half_length + border
+        self.y_min, self.y_max = -field.half_width - border, field.half_width + border
+        self.entropy_nx = max(1, math.ceil((self.x_max - self.x_min) / grid.position_cell))
+        self.entropy_ny = max(1, math.ceil((self.y_max - self.y_min) / grid.position_cell))
+        self.cluster_nx = max(1, math.ceil((self.x_max - self.x_min) / grid.cluster_cell))
+        self.cluster_ny = max(1, math.ceil((self.y_max - self.y_min) / grid.cluster_cell))
+        for what, cells in (("position", self.entropy_nx * self.entropy_ny * grid.orientation_bins),
+                            ("cluster", self.cluster_nx * self.cluster_ny * grid.cluster_orientation_bins)):
             if cells > MAX_GRID_CELLS:
                 raise ValueError(f"grid = {grid!r} makes {cells} {what} cells on this field; at most "
                                  f"{MAX_GRID_CELLS} are accepted (larger cells, fewer bins)")
+        self.parameters = summary_grid(self.x_min, self.y_min, grid.cluster_cell, self.cluster_nx, self.cluster_ny,
+                                       grid.cluster_orientation_bins, grid.cluster_radius, grid.cluster_angle_radius,
+                                       3, grid.position_cell, self.entropy_nx, self.entropy_ny, grid.orientation_bins)
+        self.coordinates, self.histograms, self.bitmaps = summary_buffers(self.parameters, n)
+        # threads > 1: each thread's histograms, in fixed point (see mcl.estimate.summary_fill_chunked)
+        self.local = np.zeros((numba.config.NUMBA_NUM_THREADS if threads > 1 else 0, self.histograms.shape[0]),
+                              dtype=np.int64)
+        self.valid = False                     # whether the histograms are those of the particles as they are
+        self.estimate: Estimate | None = None  # the cached estimate and entropy (None: stale)
+        self.entropy: Entropy | None = None
+        # Once the entropy has been asked for, the compiled step (and the estimate) computes it from the
+        # histograms it fills anyway, sparing the call its own dispatch into compiled code.
+        self.entropy_wanted = False
+        self.previous = np.zeros(3)            # the hysteresis anchor: the last estimate's mean
+        self.has_previous = False
 
     @property
-    def grid(self) -> Grid:
-        """The entropy and estimate grid (fixed: the filter's histograms are made for it)."""
-        return self._grid
+    def carpet(self) -> tuple[float, float, float, float]:
+        """The carpet's bounds (x_min, x_max, y_min, y_max) [m]: the field and its border strip."""
+        return self.x_min, self.x_max, self.y_min, self.y_max
 
     @property
     def entropy_bounds(self) -> tuple[float, float]:
         """The largest possible position and orientation entropies: log2 of the cell counts."""
-        return math.log2(self._entropy_nx * self._entropy_ny), math.log2(self._grid.orientation_bins)
+        return math.log2(self.entropy_nx * self.entropy_ny), math.log2(self.grid.orientation_bins)
 
-    def _changed(self) -> None:
-        """The particles or their weights changed: the cached estimate and summary histograms are stale."""
-        self._estimate = None
-        self._entropy = None
-        self._summary_valid = False
+    def changed(self) -> None:
+        """The particles or their weights changed: the cached estimate, entropy and histograms are stale."""
+        self.estimate = None
+        self.entropy = None
+        self.valid = False
 
-    def _summary_group(self, want_estimate: bool, mean: np.ndarray, covariance: np.ndarray,
-                       use_previous: bool | None = None, want_entropy: bool | None = None) -> tuple:
+    def forget_anchor(self) -> None:
+        """The particles moved in a way the estimate's continuity cannot follow (set, mirrored, diffused): the
+        next estimate starts without its hysteresis anchor."""
+        self.has_previous = False
+
+    def group(self, want_estimate: bool, mean: np.ndarray, covariance: np.ndarray, use_previous: bool | None = None,
+              want_entropy: bool | None = None) -> tuple:
         """The summary's arguments of the compiled step (`mcl.step`): the grid and its histograms, whether to
         compute the estimate (into `mean`, `covariance`; its hysteresis anchor) and the entropy."""
-        coordinates, histograms, bitmaps = self._summary
-        return (self._grid_parameters, coordinates, histograms, bitmaps, want_estimate, self._previous_estimate,
-                self._has_previous_estimate if use_previous is None else use_previous, mean, covariance,
-                self._entropy_wanted if want_entropy is None else want_entropy)
+        return (self.parameters, self.coordinates, self.histograms, self.bitmaps, want_estimate, self.previous,
+                self.has_previous if use_previous is None else use_previous, mean, covariance,
+                self.entropy_wanted if want_entropy is None else want_entropy)
 
-    def _fill_summary(self) -> None:
-        if not self._summary_valid:
-            if self._threads > 1:
-                with self._thread_scope:
-                    summary_fill_chunked(self._grid_parameters, self._poses, self._weights, *self._summary,
-                                         self._local_histograms, self._chunk)
-            else:
-                summary_fill(self._grid_parameters, self._poses, self._weights, *self._summary)
-            self._summary_valid = True
-
-    def estimate(self) -> Estimate:
-        """Weighted circular mean and covariance of the dominant cluster (cached until the particles change).
-
-        When no cluster holds half the weight, the one around the previous estimate is preferred if it is
-        the heavier (hysteresis: see `mcl.estimate.cluster_estimate`).
-
-        Returns
-        -------
-        Estimate
-            The pose [x, y, θ], its (3, 3) covariance and the cluster's share of the weight.
-        """
-        if self._estimate is None:
-            mean = np.empty(3)
-            cov = np.empty((3, 3))
-            previous = self._previous_estimate
-            coordinates, histograms, bitmaps = self._summary
-            if self._threads == 1 and not self._summary_valid:
-                # One dispatch: the histograms, the estimate and (once asked for) the entropy.
-                weight, position, orientation = summarize(self._poses, self._weights,
-                                                          self._summary_group(True, mean, cov), self._fast)
-                self._summary_valid = True
-                if self._entropy_wanted:
-                    self._entropy = Entropy(float(position), float(orientation))
-            else:
-                self._fill_summary()
-                if self._threads > 1:
-                    with self._thread_scope:
-                        weight = summary_estimate_chunked(self._grid_parameters, coordinates, self._weights,
-                                                          histograms, bitmaps, previous, self._has_previous_estimate,
-                                                          mean, cov, self._chunk)
-                elif self._fast:
-                    weight = summary_estimate_fast(self._grid_parameters, coordinates, self._weights, histograms,
-                                                   bitmaps, previous, self._has_previous_estimate, mean, cov)
-                else:
-                    weight = summary_estimate(self._grid_parameters, coordinates, self._weights, histograms,
-                                              bitmaps, previous, self._has_previous_estimate, mean, cov)
-                previous[:] = mean
-            self._estimate = Estimate(mean, cov, float(weight))
-            self._has_previous_estimate = True
-        return self._estimate
-
-    def entropy(self) -> Entropy:
-        """Position and orientation entropy in bits on the grid (Hoffmann eq. 27), from the histograms the
-        estimate shares (kept until the particles change).
-
-        Returns
-        -------
-        Entropy
-            `position` and `orientation`, in bits.
-        """
-        self._entropy_wanted = True
-        if self._entropy is None:
-            if self._threads == 1 and not self._summary_valid:
-                # One dispatch: the histograms and the entropy (no estimate: it would move the hysteresis anchor).
-                _, position, orientation = summarize(self._poses, self._weights, self._summary_group(
-                    False, _NO_MEAN, _NO_COVARIANCE, use_previous=False, want_entropy=True), self._fast)
-                self._summary_valid = True
-            else:
-                self._fill_summary()
-                position, orientation = summary_entropy(self._grid_parameters, *self._summary[1:])
-            self._entropy = Entropy(float(position), float(orientation))
-        return self._entropy
+    def keep(self, estimate: Estimate | None, position: float, orientation: float) -> None:
+        """What a step computed with the histograms it filled: the estimate when it computed one (its anchor
+        moved to it), and the entropy when it has been asked for."""
+        self.valid = True
+        if estimate is not None:
+            self.estimate = estimate
+            self.has_previous = True
+        if self.entropy_wanted:
+            self.entropy = Entropy(float(position), float(orientation))

@@ -19,6 +19,13 @@ from llvmlite import ir
 from numba import types
 from numba.extending import intrinsic
 
+from field.moved import moved_names
+
+# The numpy twins moved to the package's `reference` module; their old names still work, with a warning.
+__getattr__ = moved_names(__name__, {
+    "normalize_reference": "mcl.reference.normalize"
+})
+
 
 @numba.njit(cache=True)
 def normalize(log_weights, weights_out):
@@ -45,15 +52,6 @@ def normalize(log_weights, weights_out):
         weights_out[i] = w
         squares += w * w
     return peak + math.log(total), 1.0 / squares
-
-
-def normalize_reference(log_weights):
-    """Numpy twin: returns (weights, logsumexp, ESS)."""
-    peak = np.max(log_weights)
-    e = np.exp(log_weights - peak)
-    total = e.sum()
-    w = e / total
-    return w, peak + math.log(total), 1.0 / np.sum(w * w)
 
 
 @numba.njit(cache=True)

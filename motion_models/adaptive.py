@@ -70,13 +70,18 @@ from typing import TYPE_CHECKING, ClassVar
 import numba
 import numpy as np
 
-from field.angles import wrap_angles
+from field.moved import moved_names
 from numerics.random import PCG64_STEPS, bit_generator_handle, deferred_uniform, draw_rows_deferring
-from numerics.trig import sincos, sincos_reference, wrap
+from numerics.trig import sincos, wrap
 
 from .base import MAX_NOISE_PARAMETER, MotionInput, check_noise_rate, check_nonnegative, check_poses, noise_rate_factor
 from .kernels import DRAWS
 from .percepts import CollisionPercept
+
+# The numpy twins moved to the package's `reference` module; their old names still work, with a warning.
+__getattr__ = moved_names(__name__, {
+    "adaptive_move_reference": "motion_models.reference.adaptive_move"
+})
 
 FREE, SLIPPAGE, HINDRANCE, PUSHED, STOPPED = range(5)
 STATES = ("free", "slippage", "hindrance", "pushed", "stopped")
@@ -697,45 +702,3 @@ def _adaptive_block(poses, state, model, odometry, draws, start, count, rows):
         rows[2, p] = (ey + py) * dt * chord + (2.0 * variates[p, 5] - 1.0) * bound_y
         rows[3, p] = (theta + w * dt + (2.0 * variates[p, 6] - 1.0) * bound_theta)
 
-
-def adaptive_move_reference(poses, state, cumulative, vx, vy, omega, dt, side, params, redraw_each_step, variates):
-    """Plain numpy twin of `adaptive_move` (the same variates give the same poses and states)."""
-    beta1, beta2, beta3, beta4, beta5, beta6, beta7, beta_turn, separation, odo1, odo2, odo3, odo4, creep = params
-    old = state[:, 0].astype(np.int64)
-    new = (variates[:, 0][:, None] >= cumulative[old]).sum(axis=1)
-    renew = ((old == 0) & (new != 0)) | bool(redraw_each_step)
-    state[renew, 1:4] = variates[renew, 1:4]
-    state[:, 0] = new
-    e1, e2, e3 = state[:, 1], state[:, 2], state[:, 3]
-    n = poses.shape[0]
-    ex, ey, w = np.full(n, vx), np.full(n, vy), np.full(n, omega)
-    px, py = np.zeros(n), np.zeros(n)
-    slip, hinder, pushed, stopped = new == 1, new == 2, new == 3, new == 4
-    factor = np.where(slip, beta1 + (1 - beta1) * e1, np.where(hinder, beta3 + (1 - beta3) * e1, 1.0))
-    ex, ey = ex * factor, ey * factor
-    w = np.where(slip, omega + beta2 * (2 * e2 - 1), w)
-    w = np.where(hinder, omega * (beta4 + (1 - beta4) * e2), w)
-    alpha = np.pi * (2 * e1 - 1)
-    cos_alpha, sin_alpha = sincos_reference(alpha)
-    px = np.where(pushed, beta5 * e2 * cos_alpha, 0.0)
-    py = np.where(pushed, beta5 * e2 * sin_alpha, 0.0)
-    w = np.where(pushed, omega + beta6 * (2 * e3 - 1), w)
-    creep_share = 0.0 if math.isnan(side) else creep * abs(side)
-    walk_on = creep_share * e1 if creep_share != 0.0 else np.zeros(n)
-    ex, ey = np.where(stopped, vx * walk_on, ex), np.where(stopped, vy * walk_on, ey)
-    speed = math.hypot(vx, vy)
-    turn = speed / separation * side * beta_turn * e1 if not math.isnan(side) else beta7 * (2 * e1 - 1)
-    w = np.where(stopped, turn, w)
-    walked = np.hypot(ex, ey)
-    bounds = np.column_stack([odo1 * walked * dt, odo2 * walked * dt, (odo3 * walked + odo4 * np.abs(w)) * dt])
-    noise = (2 * variates[:, 4:7] - 1) * bounds
-    half = 0.5 * w * dt
-    safe = np.where(np.abs(half) > 1e-9, half, 1.0)
-    chord = np.where(np.abs(half) > 1e-9, sincos_reference(safe)[1] / safe, 1.0)
-    dx = (ex + px) * dt * chord + noise[:, 0]
-    dy = (ey + py) * dt * chord + noise[:, 1]
-    theta = poses[:, 2].copy()
-    c, s = sincos_reference(theta + half)
-    poses[:, 0] += c * dx - s * dy
-    poses[:, 1] += s * dx + c * dy
-    poses[:, 2] = wrap_angles(theta + w * dt + noise[:, 2])

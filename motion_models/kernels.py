@@ -1,7 +1,7 @@
 """The compiled kernels of motion by a displacement plus bounded robot-frame noise (`BoundedNoiseModel`), and
 their plain numpy reference.
 
-    from motion_models.kernels import move_with_noise, move_drawing_noise, move_range, move_with_noise_reference
+    from motion_models.kernels import move_with_noise, move_drawing_noise, move_range
 
 `move_with_noise` moves every pose by (dx, dy, dθ) plus noise from pre-drawn variates
 (`numerics.random.draw_variates`); `move_drawing_noise` draws the uniforms itself from the filter's generator
@@ -17,9 +17,14 @@ handle (`numerics.random.bit_generator_handle`; (0, 0) when the variates are giv
 import numba
 import numpy as np
 
-from field.angles import wrap_angles
+from field.moved import moved_names
 from numerics.random import draw_uniforms
-from numerics.trig import FAST, SQRT3, fast_wrap, sincos, sincos_reference, wrap
+from numerics.trig import FAST, SQRT3, fast_wrap, sincos, wrap
+
+# The numpy twins moved to the package's `reference` module; their old names still work, with a warning.
+__getattr__ = moved_names(__name__, {
+    "move_with_noise_reference": "motion_models.reference.move_with_noise"
+})
 
 DRAWS = 256       # particles per block of uniforms drawn at once
 MOVE_WORK = 6 * DRAWS     # the scratch of `move_range` and `move_range_fast`
@@ -172,17 +177,3 @@ def move_range_fast(source, out, start, stop, displacement, bounds, gaussian, va
     """`move_range` with fast-math: the same draws, the poses to rounding."""
     _move_blocks(source, out, start, stop, displacement, bounds, gaussian, variates, draws, work, True)
 
-
-def move_with_noise_reference(poses, dx, dy, dtheta, bound_x, bound_y, bound_theta, gaussian, variates):
-    """Plain numpy twin of `move_with_noise` (the same variates give the same poses)."""
-    if gaussian:
-        noise = variates * (np.array([bound_x, bound_y, bound_theta]) / SQRT3)
-    else:
-        noise = (2.0 * variates - 1.0) * np.array([bound_x, bound_y, bound_theta])
-    theta = poses[:, 2].copy()
-    c, s = sincos_reference(theta)
-    mx = dx + noise[:, 0]
-    my = dy + noise[:, 1]
-    poses[:, 0] += c * mx - s * my
-    poses[:, 1] += s * mx + c * my
-    poses[:, 2] = wrap_angles(theta + dtheta + noise[:, 2])

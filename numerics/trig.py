@@ -1,7 +1,7 @@
 """Angles without libm: wrapping, and sin, cos and atan2 by polynomials that vectorize and give the same bits on
 every machine, with their plain numpy twins.
 
-    from numerics.trig import wrap, sincos, sincos_reference, atan2_poly, atan2_poly_reference, FAST
+    from numerics.trig import wrap, sincos, atan2_poly, FAST
 
 `sincos` and `atan2_poly` are inlined into their callers and compiled with the caller's flags: plain IEEE
 arithmetic in the default kernels (where they equal their numpy twins bit for bit) and fast-math (`FAST`) in
@@ -12,7 +12,15 @@ import math
 import numba
 import numpy as np
 
+from field.moved import moved_names
+
 from .compile import variant
+
+# The numpy twins moved to the package's `reference` module; their old names still work, with a warning.
+__getattr__ = moved_names(__name__, {
+    "sincos_reference": "numerics.reference.sincos",
+    "atan2_poly_reference": "numerics.reference.atan2_poly"
+})
 
 SQRT3 = math.sqrt(3.0)
 TWO_PI = 2.0 * math.pi
@@ -44,7 +52,7 @@ def fast_wrap(a):
 # vectorizes: for |x| <= 100 it is within 2.3·10⁻¹⁶ of the exact values (within one unit in the last place of
 # libm's, which it equals in about three cases of four). It is inlined, so it is compiled with its caller's flags:
 # plain IEEE arithmetic in the default kernels, where it gives the same bits on every machine as its numpy twin
-# `sincos_reference`, and fast-math in the `fast=True` kernels.
+# `numerics.reference.sincos`, and fast-math in the `fast=True` kernels.
 _PIO2_HIGH = 1.57079632673412561417e+00     # the first 33 bits of π/2
 _PIO2_LOW = 6.07710050650619224932e-11      # π/2 - _PIO2_HIGH
 _TWO_OVER_PI = 6.36619772367581382433e-01
@@ -56,7 +64,7 @@ _C4, _C5, _C6 = -2.75573143513906633035e-07, 2.08757232129817482790e-09, -1.1359
 
 @numba.njit(cache=True, inline="always")
 def sincos(x):
-    """(cos x, sin x) within 2.3·10⁻¹⁶ for |x| <= 100, branch-free (vectorizes); `sincos_reference` bit for bit
+    """(cos x, sin x) within 2.3·10⁻¹⁶ for |x| <= 100, branch-free (vectorizes); `numerics.reference.sincos` bit for bit
     in kernels compiled without fast-math."""
     k = np.floor(x * _TWO_OVER_PI + 0.5)              # the nearest multiple of π/2 (either one at a tie)
     r = (x - k * _PIO2_HIGH) - k * _PIO2_LOW
@@ -102,23 +110,6 @@ def sincos_rows_as(angles, cos_out, sin_out, count, fast):
         sincos_rows(angles, cos_out, sin_out, count)
 
 
-def sincos_reference(x) -> tuple[np.ndarray, np.ndarray]:
-    """Numpy twin of `sincos`: the same operations, elementwise, so the same bits."""
-    x = np.asarray(x, dtype=np.float64)
-    k = np.floor(x * _TWO_OVER_PI + 0.5)
-    r = (x - k * _PIO2_HIGH) - k * _PIO2_LOW
-    z = r * r
-    s = r + r * z * (_S1 + z * (_S2 + z * (_S3 + z * (_S4 + z * (_S5 + z * _S6)))))
-    c = 1.0 - 0.5 * z + z * z * (_C1 + z * (_C2 + z * (_C3 + z * (_C4 + z * (_C5 + z * _C6)))))
-    quadrant = k - 4.0 * np.floor(k * 0.25)
-    odd = (quadrant == 1.0) | (quadrant == 3.0)
-    sine = np.where(odd, c, s)
-    cosine = np.where(odd, s, c)
-    return (np.where((quadrant == 1.0) | (quadrant == 2.0), -cosine, cosine),
-            np.where(quadrant >= 2.0, -sine, sine))
-
-
-
 # -- atan2 without libm ----------------------------------------------------------------------------------------------
 # The exact bearing term needs the direction of each candidate landmark as an angle: one atan2 per particle and
 # candidate. libm's is a call (about 24 ns in a loop over 2·10⁶ points) that no loop can vectorize. `atan2_poly`
@@ -126,7 +117,7 @@ def sincos_reference(x) -> tuple[np.ndarray, np.ndarray]:
 # |y|/|x| and |x|/|y|, then the quadrant, all written with selects, so that a loop over particles vectorizes
 # (about 4 ns a point). Within two units in the last place of libm's atan2, equal to it in about three cases of
 # four; the signs of zeros as atan2's. Inlined: compiled with its caller's flags; in plain IEEE arithmetic it
-# gives the bits of its numpy twin `atan2_poly_reference` on every machine.
+# gives the bits of its numpy twin `numerics.reference.atan2_poly` on every machine.
 _AT0, _AT1, _AT2 = 3.33333333333329318027e-01, -1.99999999998764832476e-01, 1.42857142725034663711e-01
 _AT3, _AT4, _AT5 = -1.11111104054623557880e-01, 9.09088713343650656196e-02, -7.69187620504482999495e-02
 _AT6, _AT7, _AT8 = 6.66107313738753120669e-02, -5.83357013379057348645e-02, 4.97687799461593236017e-02
@@ -139,7 +130,7 @@ _PI_HIGH, _PI_LOW = 3.14159265358979311600e+00, 1.22464679914735317720e-16
 
 @numba.njit(cache=True, inline="always")
 def atan2_poly(y, x):
-    """atan2(y, x) in [-π, π] for finite x and y, branch-free (vectorizes); `atan2_poly_reference` bit for bit in
+    """atan2(y, x) in [-π, π] for finite x and y, branch-free (vectorizes); `numerics.reference.atan2_poly` bit for bit in
     kernels compiled without fast-math. Zeros give ±0 or ±π as atan2 does; NaN in, NaN out."""
     ax = abs(x)
     ay = abs(y)
@@ -163,30 +154,3 @@ def atan2_poly(y, x):
     r = (_PI_HIGH - r) + _PI_LOW if math.copysign(1.0, x) < 0.0 else r
     return math.copysign(r, y)
 
-
-def atan2_poly_reference(y, x) -> np.ndarray:
-    """Numpy twin of `atan2_poly`: the same operations, elementwise, so the same bits."""
-    y = np.asarray(y, dtype=np.float64)
-    x = np.asarray(x, dtype=np.float64)
-    ax = np.abs(x)
-    ay = np.abs(y)
-    steep = ay > ax
-    numerator = np.where(steep, ax, ay)
-    denominator = np.where(steep, ay, ax)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        a = numerator / denominator
-    a = np.where(numerator > 0.0, a, numerator + 0.0 * denominator)
-    upper = a >= 0.6875
-    middle = (a >= 0.4375) & (a < 0.6875)
-    t = (np.where(upper, a - 1.0, np.where(middle, 2.0 * a - 1.0, a))
-         / np.where(upper, a + 1.0, np.where(middle, 2.0 + a, 1.0)))
-    high = np.where(upper, _ATAN_ONE_HIGH, np.where(middle, _ATAN_HALF_HIGH, 0.0))
-    low = np.where(upper, _ATAN_ONE_LOW, np.where(middle, _ATAN_HALF_LOW, 0.0))
-    z = t * t
-    w = z * z
-    s1 = z * (_AT0 + w * (_AT2 + w * (_AT4 + w * (_AT6 + w * (_AT8 + w * _AT10)))))
-    s2 = w * (_AT1 + w * (_AT3 + w * (_AT5 + w * (_AT7 + w * _AT9))))
-    r = high - ((t * (s1 + s2) - low) - t)
-    r = np.where(steep, (_HALF_PI_HIGH - r) + _HALF_PI_LOW, r)
-    r = np.where(np.copysign(1.0, x) < 0.0, (_PI_HIGH - r) + _PI_LOW, r)
-    return np.copysign(r, y)

@@ -32,10 +32,15 @@ by what the frame needs (`mcl.tools.testing.assert_fused_likelihood` checks it).
 """
 from __future__ import annotations
 
+import hashlib
 from collections.abc import Callable
 from typing import Any, NamedTuple
 
+import numba
 import numpy as np
+
+from numerics.compile import variant
+from numerics.trig import moved_back, sincos
 
 NO_SINCE = np.empty(0)
 """`since` for detections captured now: nothing to move back."""
@@ -49,3 +54,123 @@ class FusedLikelihoodKernels(NamedTuple):
     score: Any                     # numba dispatcher: (poses, trig, start, count, work, since, fast, frame, out)
     params: tuple                  # the model's constants, as the kernels take them
     inputs: Callable[[Any], tuple]  # observations -> the frame's arrays
+
+
+# -- one compiled per-particle log-likelihood ----------------------------------------------------------------------
+# The simplest way for a sensor model to reach the fused step: one compiled function that scores one particle,
+#
+#     particle_log_likelihood(x, y, cos_theta, sin_theta, frame) -> float      (numba.njit; finite or -inf)
+#
+# given the particle's position [m] and the cos and sin of its heading, and the frame `prepare` made. It knows
+# nothing of the filter's blocks, heading cache, camera latency or `fast` option: `per_particle_kernels` wraps it
+# in the calling convention above, with a `score` (compiled once per function, `numerics.compile.variant`) that
+# moves each particle back to the frame's capture when the detections are late, as `mcl.latency.move_back`
+# does, and hands it the headings' cos and sin the filter computed (to rounding with `fast`, else bit for bit
+# those of `numerics.trig.sincos`). A model's `log_likelihood` that loops over the particles with the same
+# function and `numerics.trig.sincos` then gives what the fused step gives, bit for bit
+# (`per_particle_log_likelihood` is that loop).
+
+particle_log_likelihood = None     # bound by `per_particle_kernels` in the template below
+
+
+def _score_particles(poses, trig, start, count, work, since, fast, frame, out):
+    """(A template: `per_particle_kernels` binds `particle_log_likelihood`.)"""
+    if since.shape[0] == 0:
+        for p in range(count):
+            i = start + p
+            out[i] = particle_log_likelihood(poses[i, 0], poses[i, 1], trig[0, p], trig[1, p], frame)
+    else:
+        for p in range(count):
+            i = start + p
+            x, y, theta = moved_back(poses[i, 0], poses[i, 1], poses[i, 2], since[0], since[1], since[2])
+            c, s = sincos(theta)
+            out[i] = particle_log_likelihood(x, y, c, s, frame)
+
+
+@numba.njit(cache=True)
+def _no_workspace(frame, columns):
+    return np.empty(0)
+
+
+def _function_key(function) -> str:
+    """A compiled function's qualified name and a hash of its bytecode (its compiled variants' cache name)."""
+    source = getattr(function, "py_func", None)
+    if source is None:
+        raise TypeError(f"{function!r} must be a numba.njit function (the fused step calls it from compiled code)")
+    digest = hashlib.sha256(source.__code__.co_code + repr(source.__code__.co_consts).encode()).hexdigest()[:12]
+    return f"{source.__module__}.{source.__qualname__}.{digest}"
+
+
+_COMPILED: dict[str, tuple[Any, Any]] = {}     # key -> (score, loop) for each per-particle function
+
+
+def _compiled(log_likelihood: Any) -> tuple[Any, Any]:
+    key = _function_key(log_likelihood)
+    kernels = _COMPILED.get(key)
+    if kernels is None:
+        names = {"particle_log_likelihood": log_likelihood}
+        kernels = _COMPILED[key] = (variant(_score_particles, key, names), variant(_loop, key, names))
+    return kernels
+
+
+def per_particle_kernels(prepare: Any, log_likelihood: Any, params: tuple,
+                         inputs: Callable[[Any], tuple]) -> FusedLikelihoodKernels:
+    """A sensor model's fused kernels from one compiled per-particle log-likelihood (see above).
+
+    Parameters
+    ----------
+    prepare : numba dispatcher
+        (inputs, params) -> (frame, missing), as in the calling convention of the module docstring: compiled,
+        once per frame; `frame` a flat tuple of arrays and numbers.
+    log_likelihood : numba dispatcher
+        (x, y, cos_theta, sin_theta, frame) -> float: one particle's log-likelihood of the frame.
+    params : tuple
+        The model's constants, as `prepare` takes them.
+    inputs : callable
+        observations -> the frame's arrays, as `prepare` takes them.
+
+    Returns
+    -------
+    FusedLikelihoodKernels
+        What the model's `fused_likelihood()` returns.
+
+    Raises
+    ------
+    TypeError
+        If `log_likelihood` is not a numba.njit function.
+    """
+    return FusedLikelihoodKernels(prepare, _no_workspace, _compiled(log_likelihood)[0], params, inputs)
+
+
+def _loop(poses, frame, out):
+    """(A template: `per_particle_log_likelihood` binds `particle_log_likelihood`.)"""
+    for i in range(poses.shape[0]):
+        c, s = sincos(poses[i, 2])
+        out[i] = particle_log_likelihood(poses[i, 0], poses[i, 1], c, s, frame)
+
+
+def per_particle_log_likelihood(log_likelihood: Any, poses: np.ndarray, frame: tuple,
+                                out: np.ndarray | None = None) -> np.ndarray:
+    """Every particle's log-likelihood by a per-particle function (see above), with the cos and sin of each
+    heading from `numerics.trig.sincos`: what the fused step's `score` gives them, bit for bit.
+
+    Parameters
+    ----------
+    log_likelihood : numba dispatcher
+        (x, y, cos_theta, sin_theta, frame) -> float.
+    poses : numpy.ndarray
+        (N, 3) poses (x [m], y [m], θ [rad]).
+    frame : tuple
+        What the model's `prepare` made of the frame.
+    out : numpy.ndarray or None, default None
+        (N,) where to write; None: a new array.
+
+    Returns
+    -------
+    numpy.ndarray
+        (N,) log-likelihoods (`out`).
+    """
+    poses = np.ascontiguousarray(poses, dtype=np.float64)
+    out = np.empty(poses.shape[0]) if out is None else out
+    _compiled(log_likelihood)[1](poses, frame, out)
+    return out

@@ -69,13 +69,20 @@ from numba.extending import overload
 from field import Field, LandmarkType
 from field.angles import TWO_PI, wrap_angle, wrap_angles
 from field.checks import LARGEST_SIGMA, SMALLEST_SIGMA, ArgumentTypeError, real
+from field.moved import moved_names
 from numerics.compile import variant
 from numerics.random import bounded_integers, draw_handles, draw_uniforms
 from numerics.trig import FAST, atan2_poly, moved_back, sincos, sincos_rows_as
 
+from . import reference
 from .fused import FusedLikelihoodKernels
 from .observations import Observations
 from .view import CameraView
+
+# The numpy twins moved to the package's `reference` module; their old names still work, with a warning.
+__getattr__ = moved_names(__name__, {
+    "landmark_log_likelihood_reference": "sensing.reference.landmark_log_likelihood"
+})
 
 BEARING_MODELS = ("von_mises", "exact")
 
@@ -659,27 +666,6 @@ def sensor_reset_poses(landmarks, batch, noise, draws, heading_noise, out):
     return out
 
 
-def landmark_log_likelihood_reference(poses, candidates_by_kind, kinds, ranges, bearings, range_sigmas,
-                                      bearing_sigmas, exact, outlier_weight, sum_mixture=False):
-    """Plain numpy version of the same likelihood, one detection at a time (for tests and the benchmark)."""
-    total = np.zeros(poses.shape[0])
-    for kind, r, b, sr, sb in zip(kinds, ranges, bearings, range_sigmas, bearing_sigmas):
-        cand = candidates_by_kind[int(kind)]
-        d = cand[None, :, :] - poses[:, None, :2]                       # (N, K, 2) in the field frame
-        dist = np.hypot(d[..., 0], d[..., 1])
-        expected = np.arctan2(d[..., 1], d[..., 0]) - poses[:, 2:3]
-        error = wrap_angles(b - expected)
-        score = -0.5 * ((r - dist) / sr) ** 2
-        if exact:
-            score = score - 0.5 * (error / sb) ** 2
-        else:
-            score = score + (np.cos(error) - 1.0) / sb ** 2
-        best = score.max(axis=1)
-        floor = math.log(outlier_weight)
-        total += np.logaddexp(best, floor) if sum_mixture else np.maximum(best, floor)
-    return total
-
-
 @numba.njit(cache=True)
 def explained_detections(landmarks, pose, batch, noise, gate, out):
     """out[j] ← whether a landmark of detection j's type lies within `gate` standard deviations of where the
@@ -976,26 +962,7 @@ class LandmarkSensorModel:
 
     def explained_reference(self, pose: Sequence[float] | np.ndarray, observations: Observations,
                             gate: float = 3.0, range_slack: float = 0.0, bearing_slack: float = 0.0) -> np.ndarray:
-        """Plain numpy twin of `explained`.
-
-        Parameters
-        ----------
-        pose : sequence of float or numpy.ndarray
-            (x [m], y [m], θ [rad]).
-        observations : Observations
-            One frame's detections (coerced by `Observations.coerce`).
-        gate : float, default 3.0
-            Standard deviations within which a detection matches a landmark.
-        range_slack : float, default 0.0
-            Added to the range σ [m].
-        bearing_slack : float, default 0.0
-            Added to the bearing σ [rad].
-
-        Returns
-        -------
-        numpy.ndarray
-            (n,) bool, one per detection.
-        """
+        """Plain numpy twin of `explained`: the same parameters and result."""
         observations = Observations.coerce(observations)
         self.check(observations)
         m = len(observations)
@@ -1060,28 +1027,7 @@ class LandmarkSensorModel:
 
     def seen_reference(self, pose: Sequence[float] | np.ndarray, observations: Observations, view: CameraView,
                        gate: float = 3.0, range_slack: float = 0.0, bearing_slack: float = 0.0) -> tuple[int, int]:
-        """Plain numpy twin of `seen`.
-
-        Parameters
-        ----------
-        pose : sequence of float or numpy.ndarray
-            (x [m], y [m], θ [rad]).
-        observations : Observations
-            One frame's detections (coerced by `Observations.coerce`).
-        view : CameraView
-            Where the camera looked.
-        gate : float, default 3.0
-            Standard deviations within which a detection matches a landmark.
-        range_slack : float, default 0.0
-            Added to the range σ [m].
-        bearing_slack : float, default 0.0
-            Added to the bearing σ [rad].
-
-        Returns
-        -------
-        tuple of int
-            (expected, seen).
-        """
+        """Plain numpy twin of `seen`: the same parameters and result."""
         observations = Observations.coerce(observations)
         self.check(observations)
         x, y, theta = float(pose[0]), float(pose[1]), float(pose[2])
@@ -1256,21 +1202,8 @@ class LandmarkSensorModel:
         return observations.view is not None and self.detection_rate > 0 and observations.kinds.shape[0] > 0
 
     def missed_in_view_reference(self, poses: np.ndarray, observations: Observations) -> np.ndarray:
-        """Plain numpy twin of the negative-information term `log_likelihood` adds (zeros when
-        `scores_view` is False).
-
-        Parameters
-        ----------
-        poses : numpy.ndarray
-            (N, 3) poses (x [m], y [m], θ [rad]).
-        observations : Observations
-            One frame's detections and view.
-
-        Returns
-        -------
-        numpy.ndarray
-            (N,) log-likelihood terms.
-        """
+        """Plain numpy twin of the negative-information term `log_likelihood` adds (zeros when `scores_view` is
+        False), for (N, 3) poses: (N,) log-likelihood terms."""
         poses = np.asarray(poses, dtype=np.float64)
         if observations.view is None or not self.scores_view(observations):
             return np.zeros(poses.shape[0])
@@ -1293,25 +1226,12 @@ class LandmarkSensorModel:
         return FusedLikelihoodKernels(fused_prepare, fused_workspace, fused_score, params, detection_batch)
 
     def log_likelihood_reference(self, poses: np.ndarray, observations: Observations) -> np.ndarray:
-        """The same, in plain numpy (slow; for tests and the benchmark).
-
-        Parameters
-        ----------
-        poses : numpy.ndarray
-            (N, 3) poses (x [m], y [m], θ [rad]).
-        observations : Observations
-            One frame's detections.
-
-        Returns
-        -------
-        numpy.ndarray
-            (N,) log-likelihoods.
-        """
+        """`log_likelihood` in plain numpy (slow; for tests and the benchmark): the same parameters and result."""
         observations = Observations.coerce(observations)
         self.check(observations)
         range_sigmas, bearing_sigmas = self._sigmas(observations)
         by_kind = {t.value: self.candidates(t) for t in LandmarkType}
-        return landmark_log_likelihood_reference(
+        return reference.landmark_log_likelihood(
             poses, by_kind, observations.kinds, observations.ranges, observations.bearings, range_sigmas,
             bearing_sigmas, self.bearing_model == "exact", self.outlier_weight, self.mixture == "sum") \
             + self.missed_in_view_reference(poses, observations)
@@ -1378,26 +1298,8 @@ class LandmarkSensorModel:
 
     def sample_poses_reference(self, observations: Observations, n: int, rng: np.random.Generator,
                                heading: float | None = None, heading_sigma: float = 0.3) -> np.ndarray:
-        """Plain numpy twin of `sample_poses`: the same draws give the same poses.
-
-        Parameters
-        ----------
-        observations : Observations
-            One frame's detections (coerced by `Observations.coerce`).
-        n : int
-            How many poses to draw; 0 or less draws none.
-        rng : numpy.random.Generator
-            The generator drawn from.
-        heading : float or None, default None
-            The robot's heading, if known [rad]: headings are drawn normal around it; None: uniform.
-        heading_sigma : float, default 0.3
-            Standard deviation of the headings around `heading` [rad].
-
-        Returns
-        -------
-        numpy.ndarray
-            (n, 3) poses (x [m], y [m], θ [rad]); (0, 3) when there are no detections.
-        """
+        """Plain numpy twin of `sample_poses` (the same parameters and result): the same draws give the same
+        poses."""
         observations = Observations.coerce(observations)
         self.check(observations)
         m = len(observations)

@@ -23,9 +23,16 @@ import numpy as np
 
 from field import Field
 from field.checks import LARGEST_SIGMA, SMALLEST_SIGMA, ArgumentTypeError, integer, real
-from numerics.trig import sincos, sincos_reference
+from field.moved import moved_names
+from numerics.trig import sincos
 
+from . import reference
 from .observations import Observations
+
+# The numpy twins moved to the package's `reference` module; their old names still work, with a warning.
+__getattr__ = moved_names(__name__, {
+    "line_log_likelihood_reference": "sensing.reference.line_log_likelihood"
+})
 
 
 @numba.njit(cache=True)
@@ -66,19 +73,6 @@ def line_log_likelihood(poses, points, factors, x0, y0, inverse_cell, outlier, o
                 product = 1.0
         out[i] = total + math.log(product)
     return out
-
-
-def line_log_likelihood_reference(poses, points, distance, x0, y0, cell, sigma, outlier_weight):
-    """Plain numpy version of `line_log_likelihood`."""
-    c, s = sincos_reference(poses[:, 2:3])
-    gx = poses[:, 0:1] + c * points[None, :, 0] - s * points[None, :, 1]
-    gy = poses[:, 1:2] + s * points[None, :, 0] + c * points[None, :, 1]
-    col = np.floor((gx - x0) / cell).astype(np.int64)
-    row = np.floor((gy - y0) / cell).astype(np.int64)
-    inside = (col >= 0) & (col < distance.shape[1]) & (row >= 0) & (row < distance.shape[0])
-    d = distance[np.clip(row, 0, distance.shape[0] - 1), np.clip(col, 0, distance.shape[1] - 1)]
-    match = np.where(inside, np.exp(-0.5 * (d / sigma) ** 2), 0.0)
-    return np.log(match + outlier_weight).sum(axis=1)
 
 
 MIN_RESOLUTION = 0.005
@@ -230,5 +224,5 @@ class LineSensorModel:
         points = self.used_points(Observations.coerce(observations))
         if points.shape[0] == 0:
             return np.zeros(poses.shape[0])
-        return line_log_likelihood_reference(poses, points, self._distance, *self._origin, self.resolution,
+        return reference.line_log_likelihood(poses, points, self._distance, *self._origin, self.resolution,
                                              self.sigma, self.outlier_weight)

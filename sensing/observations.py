@@ -34,8 +34,14 @@ import numpy as np
 
 from field import LandmarkType
 from field.checks import LARGEST_ANGLE, LARGEST_COORDINATE, LARGEST_SIGMA, SMALLEST_SIGMA, ArgumentTypeError, real
+from field.moved import moved_names
 
 from .view import CameraView
+
+# The numpy twins moved to the package's `reference` module; their old names still work, with a warning.
+__getattr__ = moved_names(__name__, {
+    "first_invalid_reference": "sensing.reference.first_invalid"
+})
 
 MAX_RANGE = LARGEST_COORDINATE
 """The largest range a detection may have (m); a farther one is refused with the frame."""
@@ -118,7 +124,7 @@ def first_invalid(kinds, ranges, bearings, range_sigmas, bearing_sigmas, is_kind
     range outside [0, MAX_RANGE] or a bearing outside ±MAX_BEARING), BAD_RANGE_SIGMA, BAD_BEARING_SIGMA that a
     detection fails, and the first detection failing it; (-1, -1) when all pass. A noise fails when it is given
     (not NaN) and outside [SMALLEST_SIGMA, LARGEST_SIGMA]. One pass per check, no allocation;
-    `first_invalid_reference` is the same in numpy."""
+    `sensing.reference.first_invalid` is the same in numpy."""
     for i in range(kinds.shape[0]):
         if kinds[i] < 0 or kinds[i] >= is_kind.shape[0] or not is_kind[kinds[i]]:
             return BAD_KIND, i
@@ -135,21 +141,6 @@ def first_invalid(kinds, ranges, bearings, range_sigmas, bearing_sigmas, is_kind
         for i in range(sigmas.shape[0]):
             if not math.isnan(sigmas[i]) and not (SMALLEST_SIGMA <= sigmas[i] <= LARGEST_SIGMA):
                 return check, i
-    return -1, -1
-
-
-def first_invalid_reference(kinds, ranges, bearings, range_sigmas, bearing_sigmas, is_kind) -> tuple[int, int]:
-    """`first_invalid` in numpy."""
-    inside = (kinds >= 0) & (kinds < is_kind.shape[0])
-    known = np.zeros(kinds.shape[0], dtype=bool)
-    known[inside] = is_kind[kinds[inside]]
-    failing = [~known, ~np.isfinite(ranges), ~np.isfinite(bearings),
-               ~((ranges >= 0) & (ranges <= MAX_RANGE) & (np.abs(bearings) <= MAX_BEARING))]
-    for sigmas in (range_sigmas, bearing_sigmas):
-        failing.append(~np.isnan(sigmas) & ~((sigmas >= SMALLEST_SIGMA) & (sigmas <= LARGEST_SIGMA)))
-    for check, bad in enumerate(failing):
-        if bad.any():
-            return check, int(np.argmax(bad))
     return -1, -1
 
 

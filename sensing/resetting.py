@@ -16,7 +16,7 @@ association, and on the point-symmetric field its mirror (−x, −y, θ + π) t
 
 This is the proposal that lets a lost filter consider every pose that explains what the camera sees, whatever
 the heading: `mcl.relocalization` scores these poses and decides which to inject. `pair_poses` is the compiled
-kernel, `pair_poses_reference` its plain Python twin (the same poses in the same order, bit for bit); no random
+kernel, `sensing.reference.pair_poses` its plain Python twin (the same poses in the same order, bit for bit); no random
 draws.
 """
 from __future__ import annotations
@@ -27,8 +27,15 @@ import numba
 import numpy as np
 
 from field.angles import wrap_angle
+from field.moved import moved_names
 
+from . import reference as twins
 from .observations import Observations
+
+# The numpy twins moved to the package's `reference` module; their old names still work, with a warning.
+__getattr__ = moved_names(__name__, {
+    "pair_poses_reference": "sensing.reference.pair_poses"
+})
 
 MAX_DETECTIONS = 8      # detections used per frame (the closest ones): 28 pairs at most
 
@@ -50,20 +57,20 @@ def poses_from_pairs(model, observations: Observations, gate: float = 3.0, slack
     """Every pose (P, 3) that sees two of the frame's detections where they were seen, one per consistent
     association of the pair with landmarks of their types (see the module docstring). Needs a landmark
     model with `landmark_table` and `range_sigma(ranges)`; empty (0, 3) with fewer than two detections.
-    reference: compute them with `pair_poses_reference` (plain Python, the same bits) instead of the kernel."""
+    reference: compute them with `sensing.reference.pair_poses` (plain Python, the same bits) instead of the kernel."""
     observations = Observations.coerce(observations)
     if len(observations) < 2:
         return np.empty((0, 3))
     table, offsets = model.landmark_table
     kinds, points, range_sigmas = _nearest(model, observations, max_detections)
-    compute = pair_poses_reference if reference else pair_poses
+    compute = twins.pair_poses if reference else pair_poses
     return compute(table, offsets, kinds, points, range_sigmas, float(gate), float(slack))
 
 
 @numba.njit(cache=True)
 def pair_poses(table, offsets, kinds, points, range_sigmas, gate, slack):
     """The poses of every consistent association of every pair (i < j) of detections, pairs in order and, in
-    each pair, landmark i's candidates outer and landmark j's inner (as `pair_poses_reference`). `table` and
+    each pair, landmark i's candidates outer and landmark j's inner (as `sensing.reference.pair_poses`). `table` and
     `offsets` as `LandmarkSensorModel.landmark_table`; `points` (D, 2) the detections in the robot frame."""
     count = kinds.shape[0]
     total = 0
@@ -101,31 +108,3 @@ def pair_poses(table, offsets, kinds, points, range_sigmas, gate, slack):
                     n += 1
     return out[:n].copy()
 
-
-def pair_poses_reference(table, offsets, kinds, points, range_sigmas, gate, slack):
-    """Plain Python twin of `pair_poses`: the same poses in the same order, bit for bit (the same operations
-    on the same floats, with Python's `math`, as the kernel's)."""
-    out = []
-    count = kinds.shape[0]
-    for i in range(count - 1):
-        for j in range(i + 1, count):
-            seen_x = float(points[j, 0]) - float(points[i, 0])
-            seen_y = float(points[j, 1]) - float(points[i, 1])
-            seen_length = math.hypot(seen_x, seen_y)
-            if seen_length < 1e-6:
-                continue
-            seen_angle = math.atan2(seen_y, seen_x)
-            middle_seen_x = 0.5 * (float(points[i, 0]) + float(points[j, 0]))
-            middle_seen_y = 0.5 * (float(points[i, 1]) + float(points[j, 1]))
-            tolerance = gate * math.hypot(float(range_sigmas[i]), float(range_sigmas[j])) + slack
-            for a in range(int(offsets[kinds[i]]), int(offsets[kinds[i] + 1])):
-                for b in range(int(offsets[kinds[j]]), int(offsets[kinds[j] + 1])):
-                    ax, ay, bx, by = (float(v) for v in (table[a, 0], table[a, 1], table[b, 0], table[b, 1]))
-                    length = math.hypot(bx - ax, by - ay)
-                    if not (abs(length - seen_length) <= tolerance and length > 1e-6):
-                        continue
-                    theta = math.atan2(by - ay, bx - ax) - seen_angle
-                    c, s = math.cos(theta), math.sin(theta)
-                    out.append((0.5 * (ax + bx) - (c * middle_seen_x - s * middle_seen_y),
-                                0.5 * (ay + by) - (s * middle_seen_x + c * middle_seen_y), wrap_angle(theta)))
-    return np.array(out, dtype=np.float64).reshape(-1, 3)

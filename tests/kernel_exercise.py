@@ -87,6 +87,15 @@ if part in ("filter", "all"):
     arguments = model.kernel_arguments(MotionInput(dt=0.01, command=(0.2, 0.0, 0.0), collision=percept))
     adaptive_move(adaptive.poses.copy(), model.particle_state(64), *arguments, rng.random((64, VARIATES)))
 
+    # A sensor model on the per-particle contract (`sensing.fused.per_particle_kernels`): its fused step,
+    # with camera latency, and its `log_likelihood`.
+    from sensing.goal_direction import GoalDirectionSensorModel
+    goals = Observations.from_arrays(["goalpost", "goalpost"], [4.0, 4.0], [0.3, -2.6])
+    goal_filter = ParticleFilter(field, VelocityLinear(), GoalDirectionSensorModel(field), n_particles=64, seed=5)
+    goal_filter.step(MotionInput(dt=0.01, command=(0.2, 0.0, 0.1)), goals)
+    goal_filter.correct(goals, since=(0.05, 0.0, 0.02))
+    goal_filter.sensor_model.log_likelihood(goal_filter.poses, goals)
+
     # Injection around a known pose (the relocalization's proposal: the single-detection sampler).
     injecting = ParticleFilter(field, VelocityLinear(), LandmarkSensorModel(field), n_particles=64, seed=4,
                                augmented=AugmentedMCL())

@@ -22,8 +22,8 @@ from motion_models.adaptive import (
     VARIATES,
     MobilityTransitions,
     adaptive_move,
-    adaptive_move_reference,
 )
+from motion_models.reference import adaptive_move as adaptive_move_reference
 from proprioception.collision import NO_COLLISION, CollisionPercept
 from sensing import LandmarkSensorModel
 

@@ -6,7 +6,9 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from mcl.estimate import cluster_estimate, cluster_estimate_reference, grid_entropy, grid_entropy_reference
+from mcl.estimate import cluster_estimate, grid_entropy
+from mcl.reference import cluster_estimate as cluster_estimate_reference
+from mcl.reference import grid_entropy as grid_entropy_reference
 
 GRID = dict(x_min=-5.2, y_min=-3.7, cell_size=0.1, nx=104, ny=74, n_theta=36)
 

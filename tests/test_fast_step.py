@@ -18,6 +18,8 @@ from benchmarks.reference import PHASES, compiled_phases, full_step, sample_inje
 from benchmarks.step import COLLISION
 from field import spl
 from mcl import AugmentedMCL, Entropy, Estimate, ParticleFilter
+from mcl.contracts import fused_kernels
+from mcl.engine import Engine
 from mcl.estimate import cluster_estimate, grid_entropy
 from mcl.relocalization import RelocalizationPrior, SoccerRelocalization
 from mcl.resampling import SCHEMES, gather_with_jitter
@@ -41,87 +43,74 @@ class StagedLandmarks(LandmarkSensorModel):
         return None
 
 
+class PlainEngine(Engine):
+    """The stages as plain calls, as the filter made them before it had compiled paths: the motion model's own
+    predict, `log_mean_likelihood` and `normalize`, a resampling scheme then `gather_with_jitter` on
+    `draw_variates`, `cluster_estimate` and `grid_entropy` on fresh histograms; never the fused step."""
+
+    def motion(self, motion_model, u):
+        super().motion(motion_model, u)
+        return None
+
+    def fuses(self, sensor_model, observations):
+        return False
+
+    def weigh(self, log_likelihood, count):
+        p = self.particles
+        native = log_mean_likelihood(p.log_weights, log_likelihood, count)
+        log_evidence, ess = normalize(p.log_weights + log_likelihood, p.weights)
+        return True, native, log_evidence, ess
+
+    def reweigh(self, log_likelihood, log_evidence):
+        p = self.particles
+        p.log_weights[:] = p.log_weights + log_likelihood - log_evidence
+
+    def resample(self, scheme, injected, roughening, rng):
+        p = self.particles
+        keep = p.n - injected.shape[0]
+        ancestors = SCHEMES[scheme](p.weights, keep, rng)
+        previous = p.poses.copy()
+        gather_with_jitter(previous, ancestors, roughening * math.sqrt(3.0), draw_variates(rng, keep, False), p.poses)
+        if p.motion_state is not None:
+            p.motion_state[:keep] = p.motion_state[ancestors]
+            p.motion_state[keep:] = p.motion_model.particle_state(p.n - keep)
+        p.poses[keep:] = injected
+        p.log_weights[:] = -math.log(p.n)
+        p.weights[:] = 1.0 / p.n
+
+    def estimate(self):
+        s, p = self.summary, self.particles
+        if s.estimate is None:
+            g = s.grid
+            mean, cov = np.empty(3), np.empty((3, 3))
+            cells = (s.x_min, s.y_min, g.cluster_cell, s.cluster_nx, s.cluster_ny, g.cluster_orientation_bins)
+            weight = cluster_estimate(p.poses, p.weights, cells, (g.cluster_radius, g.cluster_angle_radius, 3),
+                                      np.empty(s.cluster_nx * s.cluster_ny * g.cluster_orientation_bins),
+                                      s.previous, s.has_previous, mean, cov)
+            s.estimate = Estimate(mean, cov, float(weight))
+            s.previous[:] = mean
+            s.has_previous = True
+        return s.estimate
+
+    def entropy(self):
+        s, p = self.summary, self.particles
+        g = s.grid
+        cells = s.entropy_nx * s.entropy_ny
+        position, orientation = grid_entropy(p.poses, p.weights, s.x_min, s.y_min, g.position_cell, s.entropy_nx,
+                                             s.entropy_ny, g.orientation_bins, np.empty(cells),
+                                             np.empty(g.orientation_bins))
+        return Entropy(float(position), float(orientation))
+
+
 class PlainFilter(ParticleFilter):
-    """The step as a sequence of plain calls, as the filter made them before it had compiled paths: the motion
-    model's own predict, `log_mean_likelihood` and `normalize`, injection drawn in numpy, a resampling scheme
-    then `gather_with_jitter` on `draw_variates`, `cluster_estimate` and `grid_entropy` on fresh histograms."""
+    """The filter on `PlainEngine`, with injection drawn in numpy (`sample_injection_reference`)."""
 
-    def _move(self, u):
-        if self._motion_state is None:
-            self.motion_model.predict(self.poses, u, self.rng)
-        else:
-            self.motion_model.predict(self.poses, u, self.rng, state=self._motion_state)
-        self.relocalization.carry(*u.displacement())
-        self._changed()
-
-    def _correct(self, observations, since=None):
-        if observations.is_empty:
-            return
-        log_likelihood = self.sensor_model.log_likelihood(self.poses, observations, out=self._log_likelihood)
-        native = log_mean_likelihood(self.log_weights, log_likelihood, self.n - self.injected)
-        terms = self.sensor_model.terms(observations)
-        if terms > 0:
-            self.frame_fit = math.exp(native / terms)
-        candidate = self.log_weights + log_likelihood
-        log_evidence, ess = normalize(candidate, self._weights)
-        self._changed()
-        if log_evidence == -np.inf:
-            self._weights[:] = 1.0 / self.n
-            self._resample(self._injection_count(1.0), observations)
-            return
-        self.log_weights[:] = candidate - log_evidence
-        self.ess = ess
-        fraction = self._update_augmented(native / terms) if self.augmented is not None and terms > 0 else 0.0
-        count = self._injection_count(fraction)
-        if count > 0 or ess < self.resample_threshold * self.n:
-            self._resample(count, observations)
-        else:
-            self.resampled = False
-            self.injected = 0
-        self._track_confidence()
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs)
+        self._engine = PlainEngine(self.particles, self.summary)
 
     def _sample_injection(self, count, observations):
         return sample_injection_reference(self, count, observations)
-
-    def _resample(self, count, observations, since=None):
-        injected = self._sample_injection(count, observations) if count > 0 else np.empty((0, 3))
-        keep = self.n - injected.shape[0]
-        ancestors = SCHEMES[self.resampling](self._weights, keep, self.rng)
-        previous = self.poses.copy()
-        gather_with_jitter(previous, ancestors, self.roughening * math.sqrt(3.0), draw_variates(self.rng, keep, False),
-                           self.poses)
-        if self._motion_state is not None:
-            self._motion_state[:keep] = self._motion_state[ancestors]
-            self._motion_state[keep:] = self.motion_model.particle_state(self.n - keep)
-        self.poses[keep:] = injected
-        self.log_weights[:] = -math.log(self.n)
-        self._weights[:] = 1.0 / self.n
-        self.ess = float(self.n)
-        self.resampled = True
-        self.injected = int(injected.shape[0])
-        self._changed()
-
-    def estimate(self):
-        if self._estimate is None:
-            g = self.grid
-            mean, cov = np.empty(3), np.empty((3, 3))
-            cells = (self._x_min, self._y_min, g.cluster_cell, self._cluster_nx, self._cluster_ny,
-                     g.cluster_orientation_bins)
-            weight = cluster_estimate(self.poses, self._weights, cells, (g.cluster_radius, g.cluster_angle_radius, 3),
-                                      np.empty(self._cluster_nx * self._cluster_ny * g.cluster_orientation_bins),
-                                      self._previous_estimate, self._has_previous_estimate, mean, cov)
-            self._estimate = Estimate(mean, cov, float(weight))
-            self._previous_estimate[:] = mean
-            self._has_previous_estimate = True
-        return self._estimate
-
-    def entropy(self):
-        g = self.grid
-        cells = self._entropy_nx * self._entropy_ny
-        position, orientation = grid_entropy(self.poses, self._weights, self._x_min, self._y_min, g.position_cell,
-                                             self._entropy_nx, self._entropy_ny, g.orientation_bins, np.empty(cells),
-                                             np.empty(g.orientation_bins))
-        return Entropy(float(position), float(orientation))
 
 
 def detections(pose, rng, count=10, kinds=("goalpost",), false_positives=0):
@@ -220,7 +209,7 @@ def test_compiled_path_with_a_linear_range_noise_law_equals_the_plain_sequence_b
     (linear, growth)): the one-dispatch step, sensor resetting included, gives what the plain calls give."""
     compiled = make(sensor=LandmarkSensorModel(FIELD, **law))
     plain = PlainFilter(FIELD, VelocityLinear(), StagedLandmarks(FIELD, **law), n_particles=300, seed=0)
-    assert compiled._sensor_kernel().params[3] == (law["range_noise_linear"], law.get("range_noise_growth", 0.02))
+    assert fused_kernels(compiled.sensor_model).params[3] == (law["range_noise_linear"], law.get("range_noise_growth", 0.02))
     for pf in (compiled, plain):
         pf.reset_uniform("own_half")
     for _ in zip(scenario(compiled, use_step=use_step), scenario(plain, use_step=use_step)):
@@ -312,8 +301,8 @@ def test_a_step_without_detections_is_predict_then_estimate(options, entropy_wan
         assert stepped.rng.bit_generator.state == plain.rng.bit_generator.state
         assert relocalization_state(stepped.relocalization) == relocalization_state(plain.relocalization)
         # the hysteresis anchor the next estimate starts from
-        assert stepped._has_previous_estimate and plain._has_previous_estimate
-        assert np.array_equal(stepped._previous_estimate, plain._previous_estimate)
+        assert stepped.summary.has_previous and plain.summary.has_previous
+        assert np.array_equal(stepped.summary.previous, plain.summary.previous)
         if entropy_wanted:
             assert stepped.entropy() == plain.entropy()
     assert same(state(stepped), state(plain))
@@ -344,18 +333,18 @@ def test_the_entropy_from_the_step_is_the_entropy_computed_afresh(options):
     for _ in range(12):
         asking.step(u, detections(TRUE_POSE, rng_a))
         silent.step(u, detections(TRUE_POSE, rng_b))
-        assert asking._entropy is not None              # computed by the step itself
-        assert silent._entropy is None
+        assert asking.summary.entropy is not None              # computed by the step itself
+        assert silent.summary.entropy is None
         from_step = asking.entropy()
-        asking._entropy = None                          # the same histograms, entropy computed by its own call
+        asking.summary.entropy = None                          # the same histograms, entropy computed by its own call
         assert asking.entropy() == from_step
         assert np.array_equal(asking.poses, silent.poses) and np.array_equal(asking.log_weights, silent.log_weights)
     assert silent.entropy() == asking.entropy()
     asking.predict(u)
-    assert asking._entropy is None                      # the particles moved
-    fresh = grid_entropy(asking.poses, np.array(asking.weights), asking._x_min, asking._y_min,
-                         asking.grid.position_cell, asking._entropy_nx, asking._entropy_ny,
-                         asking.grid.orientation_bins, np.empty(asking._entropy_nx * asking._entropy_ny),
+    assert asking.summary.entropy is None                      # the particles moved
+    fresh = grid_entropy(asking.poses, np.array(asking.weights), asking.summary.x_min, asking.summary.y_min,
+                         asking.grid.position_cell, asking.summary.entropy_nx, asking.summary.entropy_ny,
+                         asking.grid.orientation_bins, np.empty(asking.summary.entropy_nx * asking.summary.entropy_ny),
                          np.empty(asking.grid.orientation_bins))
     entropy = asking.entropy()
     if options:                                         # threads: histograms summed in fixed point
@@ -436,16 +425,16 @@ def test_a_zero_since_scores_the_particles_as_they_are(zero):
 
 class Unfused(ParticleFilter):
     """The filter as it was before `estimate()` and `entropy()` filled the histograms in the same dispatch: the
-    histograms first (`_fill_summary`), then the estimate or the entropy, each a dispatch of its own."""
+    histograms first (`Engine.fill`), then the estimate or the entropy, each a dispatch of its own."""
 
     def estimate(self):
-        if self._estimate is None:
-            self._fill_summary()
+        if self.summary.estimate is None:
+            self.engine.fill()
         return super().estimate()
 
     def entropy(self):
-        if self._entropy is None:
-            self._fill_summary()
+        if self.summary.entropy is None:
+            self.engine.fill()
         return super().entropy()
 
 
@@ -488,7 +477,7 @@ def test_the_robot_loop_in_any_order_gives_what_separate_calls_give(options, cal
                 items = [h.position, h.orientation]
             elif call == "correct":
                 pf.correct(detections(TRUE_POSE, rng, count=4))
-            seen.append(items + [pf.poses.copy(), pf._previous_estimate.copy(), pf._has_previous_estimate,
+            seen.append(items + [pf.poses.copy(), pf.summary.previous.copy(), pf.summary.has_previous,
                                  pf.rng.bit_generator.state])
         assert all(same(seen[0], other) for other in seen[1:]), call
     assert all(same(state(fused), state(pf)) for pf in filters[1:])
@@ -579,7 +568,7 @@ def run_threads(threads, n, numba_threads=None, steps=5, bearing_model="von_mise
               sensor=LandmarkSensorModel(FIELD, bearing_model=bearing_model))
     pf.reset_around(TRUE_POSE, (0.3, 0.3, 0.2))
     if numba_threads is not None:
-        pf._thread_scope.threads = numba_threads
+        pf.engine.scope.threads = numba_threads
     rng = np.random.default_rng(2)
     states = []
     for k in range(steps):
@@ -670,10 +659,10 @@ def test_issue_shaped_step_equals_its_numpy_twin(fast):
     # without roughening, grid entropy) against the numpy references fed the same draws.
     from benchmarks.reference import issue_shaped_step
     from benchmarks.step import bench_setup
-    from mcl.estimate import grid_entropy_reference
-    from mcl.resampling import systematic_reference
-    from mcl.weights import normalize_reference
-    from motion_models.kernels import move_with_noise_reference
+    from mcl.reference import grid_entropy as grid_entropy_reference
+    from mcl.reference import normalize as normalize_reference
+    from mcl.reference import systematic as systematic_reference
+    from motion_models.reference import move_with_noise as move_with_noise_reference
 
     pf, u, observations = bench_setup(700, fast=fast)
     pf.step(u, observations)
@@ -689,7 +678,7 @@ def test_issue_shaped_step_equals_its_numpy_twin(fast):
     np.testing.assert_allclose(pf.poses, expected, rtol=0, atol=1e-12)
     assert ess == pytest.approx(expected_ess, rel=1e-12)
     g = pf.grid
-    bits = grid_entropy_reference(expected, np.full(700, 1 / 700), pf._x_min, pf._y_min, g.position_cell,
-                                  pf._entropy_nx, pf._entropy_ny, g.orientation_bins)
+    bits = grid_entropy_reference(expected, np.full(700, 1 / 700), pf.summary.x_min, pf.summary.y_min, g.position_cell,
+                                  pf.summary.entropy_nx, pf.summary.entropy_ny, g.orientation_bins)
     assert (position, orientation) == pytest.approx(bits, rel=1e-12)
     assert (pf.weights == 1 / 700).all() and rng.random() == pf.rng.random()

@@ -12,8 +12,9 @@ from demos.walk_sim import WalkScenario, simulate
 from field import spl
 from field.angles import wrap_angles
 from mcl import AugmentedMCL
-from mcl.latency import SAME_TIME, MotionHistory, compose, move_back, move_back_reference, move_forward
+from mcl.latency import SAME_TIME, MotionHistory, compose, move_back, move_forward
 from mcl.localizer import Localizer, Quality, default_kickoff_positions, touchline_poses
+from mcl.reference import move_back as move_back_reference
 from mcl.tools.replay import motion_events, replay
 from motion_models import MotionInput
 

@@ -8,9 +8,12 @@ from hypothesis import strategies as st
 
 from field.angles import wrap_angle, wrap_angles
 from motion_models import ConstantNoise, MotionInput, VelocityLinear
-from motion_models.kernels import move_with_noise, move_with_noise_reference
+from motion_models.kernels import move_with_noise
+from motion_models.reference import move_with_noise as move_with_noise_reference
 from numerics.random import draw_variates
-from numerics.trig import atan2_poly, atan2_poly_reference, sincos, sincos_reference, wrap
+from numerics.reference import atan2_poly as atan2_poly_reference
+from numerics.reference import sincos as sincos_reference
+from numerics.trig import atan2_poly, sincos, wrap
 
 finite = st.floats(-5, 5, allow_nan=False)
 speeds = st.tuples(st.floats(-0.4, 0.4), st.floats(-0.2, 0.2), st.floats(-1.5, 1.5))

@@ -3,16 +3,11 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from mcl.resampling import (
-    SCHEMES,
-    multinomial,
-    multinomial_reference,
-    stratified,
-    stratified_reference,
-    systematic,
-    systematic_reference,
-)
-from numerics.trig import sincos_reference
+from mcl.reference import multinomial as multinomial_reference
+from mcl.reference import stratified as stratified_reference
+from mcl.reference import systematic as systematic_reference
+from mcl.resampling import SCHEMES, multinomial, stratified, systematic
+from numerics.reference import sincos as sincos_reference
 
 weight_lists = st.lists(st.floats(0.0, 1.0), min_size=1, max_size=40).filter(lambda w: sum(w) > 1e-6).map(
     lambda w: np.array(w) / np.sum(w))

@@ -81,7 +81,8 @@ ENTRIES = st.sampled_from([0.0, 1.5, -0.0, -2.0, 1e-300, float("nan"), float("in
 def test_batch_checks_match_their_numpy_twin(columns):
     """`first_invalid` (compiled, one pass per check) names the check and the detection its numpy twin
     names, and `Observations` raises for that detection, or accepts the batch when both find nothing."""
-    from sensing.observations import IS_KIND, first_invalid, first_invalid_reference
+    from sensing.observations import IS_KIND, first_invalid
+    from sensing.reference import first_invalid as first_invalid_reference
 
     kinds, ranges, bearings, range_sigmas, bearing_sigmas = (
         np.array(columns[0], dtype=np.int64), *(np.array(c, dtype=np.float64) for c in columns[1:]))
@@ -476,7 +477,7 @@ def test_general_kernel_scores_each_particle_alone(bearing_model, mixture):
 
 
 def test_block_kernel_keeps_cos_and_sin_of_the_headings():
-    from numerics.trig import sincos_reference
+    from numerics.reference import sincos as sincos_reference
     from sensing.landmarks import prepare_detections, von_mises_log_likelihood
 
     rng = np.random.default_rng(1)

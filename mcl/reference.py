@@ -1,0 +1,121 @@
+"""The filter kernels' plain numpy twins, which the tests and the benchmark compare the compiled kernels with.
+
+    from mcl import reference
+    weights, log_total, ess = reference.normalize(log_weights)        # mcl.weights.normalize
+    ancestors = reference.systematic(weights, m, rng)                  # mcl.resampling.systematic
+
+Each function computes what the kernel of the same name in `mcl.weights`, `mcl.resampling`, `mcl.estimate` or
+`mcl.latency` computes, with numpy's arrays: the same random draws in the same order, and the same results to
+rounding (bit for bit where its docstring says so). The filter never calls them.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from field.angles import wrap_angles
+from numerics.reference import sincos
+
+
+def normalize(log_weights):
+    """Numpy twin of `mcl.weights.normalize`: returns (weights, logsumexp, ESS)."""
+    peak = np.max(log_weights)
+    e = np.exp(log_weights - peak)
+    total = e.sum()
+    w = e / total
+    return w, peak + math.log(total), 1.0 / np.sum(w * w)
+
+
+def gather_with_jitter(source, ancestors, bounds, uniforms):
+    """Numpy twin of `mcl.resampling.gather_with_jitter`."""
+    picked = source[ancestors].copy()
+    noise = (2.0 * uniforms - 1.0) * bounds
+    c, s = sincos(picked[:, 2])
+    picked[:, 0] += c * noise[:, 0] - s * noise[:, 1]
+    picked[:, 1] += s * noise[:, 0] + c * noise[:, 1]
+    picked[:, 2] = wrap_angles(picked[:, 2] + noise[:, 2])
+    return picked
+
+
+def _searchsorted(weights: np.ndarray, points: np.ndarray) -> np.ndarray:
+    cumulative = np.cumsum(weights)
+    return np.minimum(np.searchsorted(cumulative, points, side="right"), weights.shape[0] - 1)
+
+
+def systematic(weights, m, rng):
+    return _searchsorted(np.asarray(weights, float), (rng.random() + np.arange(m)) / m)
+
+
+def stratified(weights, m, rng):
+    return _searchsorted(np.asarray(weights, float), (np.arange(m) + rng.random(m)) / m)
+
+
+def multinomial(weights, m, rng):
+    spacings = rng.standard_exponential(m + 1)
+    running = np.cumsum(spacings)  # running[-1] is the sequential total, as the kernel sums it
+    return _searchsorted(np.asarray(weights, float), running[:-1] / running[-1])
+
+
+def _cells(values, origin, size, count):
+    return np.clip(np.floor((values - origin) / size).astype(np.int64), 0, count - 1)
+
+
+def grid_entropy(poses, weights, x_min, y_min, cell_size, nx, ny, n_theta):
+    cx = _cells(poses[:, 0], x_min, cell_size, nx)
+    cy = _cells(poses[:, 1], y_min, cell_size, ny)
+    ct = _cells(poses[:, 2], -np.pi, 2 * np.pi / n_theta, n_theta)
+
+    def bits(index, size):
+        p = np.bincount(index, weights=weights, minlength=size)
+        p = p[p > 0]
+        return max(float(-(p * np.log2(p)).sum()), 0.0)
+
+    return bits(cx * ny + cy, nx * ny), bits(ct, n_theta)
+
+
+def cluster_estimate(poses, weights, x_min, y_min, cell_size, nx, ny, n_theta, radius, angle_radius,
+                               iterations, previous=None):
+    """Numpy version of `mcl.estimate.cluster_estimate`: returns (mean (3,), cov (3, 3), weight)."""
+    theta_size = 2 * np.pi / n_theta
+    cx = _cells(poses[:, 0], x_min, cell_size, nx)
+    cy = _cells(poses[:, 1], y_min, cell_size, ny)
+    ct = _cells(poses[:, 2], -np.pi, theta_size, n_theta)
+    histogram = np.bincount((cx * ny + cy) * n_theta + ct, weights=weights, minlength=nx * ny * n_theta)
+    best = int(np.argmax(histogram))
+    bt, by, bx = best % n_theta, (best // n_theta) % ny, best // (n_theta * ny)
+    mean = np.array([x_min + (bx + 0.5) * cell_size, y_min + (by + 0.5) * cell_size, -np.pi + (bt + 0.5) * theta_size])
+    def shift(mean):
+        total = 0.0
+        for _ in range(iterations):
+            d = np.column_stack([poses[:, 0] - mean[0], poses[:, 1] - mean[1], wrap_angles(poses[:, 2] - mean[2])])
+            mask = ((d[:, :2] ** 2).sum(axis=1) <= radius ** 2) & (np.abs(d[:, 2]) <= angle_radius)
+            w = weights[mask]
+            total = w.sum()
+            if total <= 0:
+                return mean, 0.0
+            step = (w[:, None] * d[mask]).sum(axis=0) / total
+            mean = np.array([mean[0] + step[0], mean[1] + step[1], float(wrap_angles(mean[2] + step[2]))])
+        return mean, total
+
+    mean, total = shift(mean)
+    if previous is not None and total < 0.5:
+        other, other_total = shift(np.asarray(previous, dtype=np.float64))
+        if other_total > total:
+            mean, total = other, other_total
+    d = np.column_stack([poses[:, 0] - mean[0], poses[:, 1] - mean[1], wrap_angles(poses[:, 2] - mean[2])])
+    mask = ((d[:, :2] ** 2).sum(axis=1) <= radius ** 2) & (np.abs(d[:, 2]) <= angle_radius)
+    cov = np.zeros((3, 3))
+    if total > 0:
+        w = weights[mask] / total
+        cov = (d[mask] * w[:, None]).T @ d[mask]
+    mean[2] = float(wrap_angles(mean[2]))
+    return mean, cov, float(total)
+
+
+def move_back(poses: np.ndarray, displacement) -> np.ndarray:
+    """Plain numpy twin of `mcl.latency.move_back`."""
+    dx, dy, dtheta = displacement
+    theta = poses[:, 2] - dtheta
+    c, s = sincos(theta)
+    return np.column_stack([poses[:, 0] - (c * dx - s * dy), poses[:, 1] - (s * dx + c * dy), wrap_angles(theta)])
