@@ -18,6 +18,7 @@ hypothesis, numba, matplotlib, tqdm). scipy counts when one of its public subpac
 scipy.ndimage, ...) is loaded: `import numba` itself imports the top package and its private helpers (a version
 check), which the library cannot avoid.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -58,12 +59,17 @@ def public_names() -> list[tuple[str, object]]:
         if module_name in ALL_OF:
             names = list(getattr(module, "__all__", []))
         else:
-            names = [n for n, v in vars(module).items() if not n.startswith("_")
-                     and getattr(v, "__module__", None) == module_name and (inspect.isclass(v) or inspect.isfunction(v))]
+            names = [
+                n
+                for n, v in vars(module).items()
+                if not n.startswith("_")
+                and getattr(v, "__module__", None) == module_name
+                and (inspect.isclass(v) or inspect.isfunction(v))
+            ]
         for name in names:
             value = getattr(module, name)
             if not (inspect.isclass(value) or inspect.isfunction(value) or callable(value)):
-                continue                     # constants: documented where they are defined
+                continue  # constants: documented where they are defined
             if id(value) in seen:
                 continue
             seen[id(value)] = f"{module_name}.{name}"
@@ -86,13 +92,16 @@ def _documents_parameters(doc: str | None) -> bool:
 def _typed(function, returns: bool = True) -> tuple[bool, list[str]]:
     """Whether every argument and the return are annotated; the names that are not."""
     function = inspect.unwrap(function)
-    py_function = getattr(function, "py_func", function)          # a numba dispatcher's Python function
+    py_function = getattr(function, "py_func", function)  # a numba dispatcher's Python function
     try:
         signature = inspect.signature(py_function)
     except (TypeError, ValueError):
         return True, []
-    missing = [p.name for p in signature.parameters.values()
-               if p.name not in ("self", "cls") and p.annotation is inspect.Parameter.empty]
+    missing = [
+        p.name
+        for p in signature.parameters.values()
+        if p.name not in ("self", "cls") and p.annotation is inspect.Parameter.empty
+    ]
     if returns and signature.return_annotation is inspect.Signature.empty:
         missing.append("return")
     return not missing, missing
@@ -136,8 +145,15 @@ def check_class(name: str, cls) -> list[Entry]:
         if isinstance(value, property):
             doc_ok = bool(value.fget and value.fget.__doc__)
             typed_ok, untyped = _typed(value.fget) if value.fget else (True, [])
-            entries.append(Entry(f"{name}.{member}", "property", doc_ok, typed_ok,
-                                 ([] if doc_ok else ["docstring"]) + [f"hint: {n}" for n in untyped]))
+            entries.append(
+                Entry(
+                    f"{name}.{member}",
+                    "property",
+                    doc_ok,
+                    typed_ok,
+                    ([] if doc_ok else ["docstring"]) + [f"hint: {n}" for n in untyped],
+                )
+            )
         elif isinstance(value, (staticmethod, classmethod)):
             entries.append(check_function(f"{name}.{member}", value.__func__, "method", cls))
         elif inspect.isfunction(value):
@@ -158,8 +174,10 @@ def coverage() -> dict:
     typed = sum(e.typed for e in entries)
     return {
         "objects": n,
-        "numpydoc": numpydoc, "numpydoc_share": numpydoc / n if n else 1.0,
-        "typed": typed, "typed_share": typed / n if n else 1.0,
+        "numpydoc": numpydoc,
+        "numpydoc_share": numpydoc / n if n else 1.0,
+        "typed": typed,
+        "typed_share": typed / n if n else 1.0,
         "both": sum(e.numpydoc and e.typed for e in entries),
         "misses": [dataclasses.asdict(e) for e in entries if not (e.numpydoc and e.typed)],
     }
@@ -167,15 +185,22 @@ def coverage() -> dict:
 
 def import_time(rounds: int = 5) -> dict:
     """`import mcl` in fresh interpreters: the median wall time, and the heavy packages loaded."""
-    code = ("import sys, time\nt = time.perf_counter()\nimport mcl\nt = time.perf_counter() - t\n"
-            "scipy = any(n.startswith('scipy.') and n.split('.')[1] not in ('version', '__config__')\n"
-            "            and not n.split('.')[1].startswith('_') for n in sys.modules)\n"
-            f"print(t, ','.join(m for m in {HEAVY!r} if m in sys.modules and (m != 'scipy' or scipy)), "
-            "len(sys.modules))")
+    code = (
+        "import sys, time\nt = time.perf_counter()\nimport mcl\nt = time.perf_counter() - t\n"
+        "scipy = any(n.startswith('scipy.') and n.split('.')[1] not in ('version', '__config__')\n"
+        "            and not n.split('.')[1].startswith('_') for n in sys.modules)\n"
+        f"print(t, ','.join(m for m in {HEAVY!r} if m in sys.modules and (m != 'scipy' or scipy)), "
+        "len(sys.modules))"
+    )
     times, loaded, modules = [], "", 0
     for _ in range(rounds):
-        done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True,
-                              cwd=Path(__file__).resolve().parent.parent)
+        done = subprocess.run(
+            [sys.executable, "-c", code],
+            capture_output=True,
+            text=True,
+            check=True,
+            cwd=Path(__file__).resolve().parent.parent,
+        )
         seconds, loaded, count = done.stdout.split()[0], (done.stdout.split() + [""])[1], done.stdout.split()[-1]
         times.append(float(seconds))
         modules = int(count)
@@ -186,12 +211,14 @@ def import_time(rounds: int = 5) -> dict:
 
 def report_text(result: dict, misses: int) -> str:
     c, i = result["coverage"], result["import"]
-    lines = [f"public API: {c['objects']} objects (functions, classes, methods, properties)",
-             f"  numpydoc docstrings: {c['numpydoc']} ({100 * c['numpydoc_share']:.1f} %)",
-             f"  complete type hints: {c['typed']} ({100 * c['typed_share']:.1f} %)",
-             f"  both:                {c['both']} ({100 * c['both'] / max(c['objects'], 1):.1f} %)",
-             f"import mcl: {1e3 * i['median_s']:.0f} ms (median of {i['rounds']} fresh interpreters), "
-             f"{i['modules_loaded']} modules; heavy packages loaded: {', '.join(i['heavy_loaded']) or 'none'}"]
+    lines = [
+        f"public API: {c['objects']} objects (functions, classes, methods, properties)",
+        f"  numpydoc docstrings: {c['numpydoc']} ({100 * c['numpydoc_share']:.1f} %)",
+        f"  complete type hints: {c['typed']} ({100 * c['typed_share']:.1f} %)",
+        f"  both:                {c['both']} ({100 * c['both'] / max(c['objects'], 1):.1f} %)",
+        f"import mcl: {1e3 * i['median_s']:.0f} ms (median of {i['rounds']} fresh interpreters), "
+        f"{i['modules_loaded']} modules; heavy packages loaded: {', '.join(i['heavy_loaded']) or 'none'}",
+    ]
     if misses and c["misses"]:
         lines.append(f"first {min(misses, len(c['misses']))} of {len(c['misses'])} objects missing something:")
         lines += [f"  {m['name']}: {', '.join(m['missing'])}" for m in c["misses"][:misses]]
@@ -200,14 +227,22 @@ def report_text(result: dict, misses: int) -> str:
 
 def build_parser(prog: str = "python -m benchmarks.api_coverage") -> argparse.ArgumentParser:
     """The command's argument parser."""
-    parser = argparse.ArgumentParser(prog=prog, description="Numpydoc docstrings and type hints on the public "
-                                     "API, and the time and weight of `import mcl`.")
+    parser = argparse.ArgumentParser(
+        prog=prog,
+        description="Numpydoc docstrings and type hints on the public API, and the time and weight of `import mcl`.",
+    )
     parser.add_argument("--json", action="store_true", help="print the result as JSON")
     parser.add_argument("--save", metavar="PATH", help="also write the JSON result to PATH")
-    parser.add_argument("--misses", type=int, default=20, metavar="N",
-                        help="list the first N objects that miss something (default 20; 0 for none)")
-    parser.add_argument("--rounds", type=int, default=5, metavar="N",
-                        help="fresh interpreters to time `import mcl` in (default 5)")
+    parser.add_argument(
+        "--misses",
+        type=int,
+        default=20,
+        metavar="N",
+        help="list the first N objects that miss something (default 20; 0 for none)",
+    )
+    parser.add_argument(
+        "--rounds", type=int, default=5, metavar="N", help="fresh interpreters to time `import mcl` in (default 5)"
+    )
     return parser
 
 

@@ -39,6 +39,7 @@ NUMBA_CPU_FEATURES name (with a NUMBA_CACHE_DIR of its own), and the header says
 for one: NUMBA_CPU_NAME=silvermont NUMBA_CPU_FEATURES=+sse4.2,+popcnt,-avx,-avx2,-fma (the README's Speed
 section has the whole command).
 """
+
 from __future__ import annotations
 
 import argparse
@@ -56,12 +57,12 @@ SIZES = (100, 1_000, 10_000, 100_000, 1_000_000)
 QUICK_SIZES = (100, 1_000, 10_000)
 MEMORY_SIZES = (10_000, 100_000)
 SECTIONS = ("peers", "threads", "memory", "avx512", "startup", "models", "frames", "recording", "accuracy")
-BUDGET_S = 0.4          # seconds of samples per timed item
+BUDGET_S = 0.4  # seconds of samples per timed item
 QUICK_BUDGET_S = 0.05
 SCHEMA = 2
 
 
-_BAR = None        # the run's progress bar (`run` with progress=True), else None: one line per section
+_BAR = None  # the run's progress bar (`run` with progress=True), else None: one line per section
 
 
 def _progress(text: str, done: bool = False) -> None:
@@ -81,8 +82,7 @@ def _guarded(name: str, fn, *args, **kwargs) -> dict:
     try:
         section = fn(*args, **kwargs)
     except Exception as error:  # the suite reports every section it can
-        section = {"error": f"{type(error).__name__}: {error}",
-                   "traceback": traceback.format_exc(limit=4)}
+        section = {"error": f"{type(error).__name__}: {error}", "traceback": traceback.format_exc(limit=4)}
     if isinstance(section, dict):
         section["seconds"] = time.perf_counter() - start
     _progress(f"{name} done in {time.perf_counter() - start:.1f} s", done=True)
@@ -93,8 +93,11 @@ def _models(budget_s: float) -> dict:
     from .models import time_ekf, time_lwpr, time_robot_loop
 
     result = {}
-    for key, fn, args in (("lwpr", time_lwpr, ()), ("ekf", time_ekf, (budget_s,)),
-                          ("robot_loop", time_robot_loop, (budget_s,))):
+    for key, fn, args in (
+        ("lwpr", time_lwpr, ()),
+        ("ekf", time_ekf, (budget_s,)),
+        ("robot_loop", time_robot_loop, (budget_s,)),
+    ):
         try:
             result[key] = fn(*args)
         except Exception as error:
@@ -103,15 +106,27 @@ def _models(budget_s: float) -> dict:
     return result
 
 
-def run(sizes=SIZES, quick: bool = False, startup: bool = True, exact: bool = True, skip=(),
-        budget_s: float | None = None, progress: bool = False) -> dict:
+def run(
+    sizes=SIZES,
+    quick: bool = False,
+    startup: bool = True,
+    exact: bool = True,
+    skip=(),
+    budget_s: float | None = None,
+    progress: bool = False,
+) -> dict:
     """The whole suite; returns the result (see the module docstring for its sections). progress: a bar on
     stderr counting the sections, with the current one's name and the time spent (instead of a line each)."""
     global _BAR
     from mcl.tools.cli_checks import progress_bar
 
-    _BAR = progress_bar(enabled=True, desc="bench", unit="section",
-                        bar_format="{desc}: {n} sections done [{elapsed}] {postfix}") if progress else None
+    _BAR = (
+        progress_bar(
+            enabled=True, desc="bench", unit="section", bar_format="{desc}: {n} sections done [{elapsed}] {postfix}"
+        )
+        if progress
+        else None
+    )
     try:
         return _run(sizes, quick, startup, exact, skip, budget_s)
     finally:
@@ -131,13 +146,23 @@ def _run(sizes, quick: bool, startup: bool, exact: bool, skip, budget_s: float |
     budget = budget_s if budget_s is not None else (QUICK_BUDGET_S if quick else BUDGET_S)
     started = time.perf_counter()
     result: dict = {
-        "benchmark": "robocup-mcl bench", "schema": SCHEMA, "machine": machine(),
-        "settings": {"sizes": list(sizes), "quick": quick, "budget_s": budget, "exact": exact,
-                     "skipped": sorted(skip), "threads": 1,
-                     "step": "predict (velocity-linear), 10 goalpost detections (von Mises bearing), "
-                             "normalize + ESS, systematic resampling every step, estimate, entropy"},
-        "phases": [{"name": p.name, "description": p.description, "numba": p.numba_entry, "numpy": p.numpy_entry}
-                   for p in PHASES],
+        "benchmark": "robocup-mcl bench",
+        "schema": SCHEMA,
+        "machine": machine(),
+        "settings": {
+            "sizes": list(sizes),
+            "quick": quick,
+            "budget_s": budget,
+            "exact": exact,
+            "skipped": sorted(skip),
+            "threads": 1,
+            "step": "predict (velocity-linear), 10 goalpost detections (von Mises bearing), "
+            "normalize + ESS, systematic resampling every step, estimate, entropy",
+        },
+        "phases": [
+            {"name": p.name, "description": p.description, "numba": p.numba_entry, "numpy": p.numpy_entry}
+            for p in PHASES
+        ],
     }
     rows = []
     for n in sizes:
@@ -154,8 +179,9 @@ def _run(sizes, quick: bool, startup: bool, exact: bool, skip, budget_s: float |
         result["memory"] = _guarded("memory", memory, MEMORY_SIZES)
     if "avx512" not in skip:
         _progress("numpy step with AVX-512 off")
-        result["numpy_without_avx512"] = _guarded("numpy without AVX-512", numpy_without_avx512, sizes, budget,
-                                                  rounds=1 if quick else 2)
+        result["numpy_without_avx512"] = _guarded(
+            "numpy without AVX-512", numpy_without_avx512, sizes, budget, rounds=1 if quick else 2
+        )
     if "startup" not in skip:
         _progress("start-up" + ("" if quick else " (empty numba cache: compiles every kernel of the step)"))
         result["startup"] = _guarded("start-up", time_startup, cold=not quick, warm_runs=1 if quick else 2)
@@ -193,22 +219,30 @@ def build_parser(prog: str = PROG) -> argparse.ArgumentParser:
     """The command's argument parser, named `prog` in its usage line."""
     from mcl.tools.cli_checks import add_progress_option, description
 
-    parser = argparse.ArgumentParser(prog=prog, description=description(__doc__),
-                                     formatter_class=argparse.RawDescriptionHelpFormatter,
-                                     epilog=__doc__.split("\n\n", 2)[2])
-    parser.add_argument("--sizes", help="particle counts, comma-separated (default 100,1000,10000,100000,1000000; "
-                                        "with --quick 100,1000,10000)")
-    parser.add_argument("--quick", action="store_true",
-                        help="a CI-sized run: small sizes, fewer samples, no empty-cache compile")
+    parser = argparse.ArgumentParser(
+        prog=prog,
+        description=description(__doc__),
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        epilog=__doc__.split("\n\n", 2)[2],
+    )
+    parser.add_argument(
+        "--sizes",
+        help="particle counts, comma-separated (default 100,1000,10000,100000,1000000; with --quick 100,1000,10000)",
+    )
+    parser.add_argument(
+        "--quick", action="store_true", help="a CI-sized run: small sizes, fewer samples, no empty-cache compile"
+    )
     parser.add_argument("--json", action="store_true", help="print the result as JSON instead of the table")
     parser.add_argument("--save", metavar="PATH", help="write the result as JSON to PATH")
     parser.add_argument("--plot", metavar="PATH", help="draw the scaling curves to a PNG (needs matplotlib)")
-    parser.add_argument("--no-startup", action="store_true", help="skip the fresh-process timings "
-                                                                  "(start-up, compile, demo walk)")
+    parser.add_argument(
+        "--no-startup", action="store_true", help="skip the fresh-process timings (start-up, compile, demo walk)"
+    )
     parser.add_argument("--no-exact", action="store_true", help="skip timing the exact (atan2) bearing term")
     parser.add_argument("--skip", default="", help=f"sections to leave out, comma-separated: {', '.join(SECTIONS)}")
-    parser.add_argument("--budget", type=float, help=f"seconds of samples per timed item (default {BUDGET_S}, "
-                                                     f"--quick {QUICK_BUDGET_S})")
+    parser.add_argument(
+        "--budget", type=float, help=f"seconds of samples per timed item (default {BUDGET_S}, --quick {QUICK_BUDGET_S})"
+    )
     add_progress_option(parser)
     return parser
 
@@ -226,11 +260,20 @@ def main(argv: list[str] | None = None, prog: str = PROG) -> int:
         parser.error(f"--budget {args.budget!r} must be > 0")
     if args.plot:
         from .report import matplotlib_missing
+
         if matplotlib_missing():
             parser.error("--plot needs matplotlib: pip install -e '.[bench]'")
     from mcl.tools.cli_checks import progress_wanted
-    result = run(sizes, quick=args.quick, startup=not args.no_startup, exact=not args.no_exact, skip=skip,
-                 budget_s=args.budget, progress=progress_wanted(args))
+
+    result = run(
+        sizes,
+        quick=args.quick,
+        startup=not args.no_startup,
+        exact=not args.no_exact,
+        skip=skip,
+        budget_s=args.budget,
+        progress=progress_wanted(args),
+    )
     for path in (args.save, args.plot):
         if path:
             Path(path).parent.mkdir(parents=True, exist_ok=True)
@@ -240,11 +283,13 @@ def main(argv: list[str] | None = None, prog: str = PROG) -> int:
             file.write("\n")
     if args.plot:
         from .report import plot
+
         plot(result, args.plot)
     if args.json:
         json.dump(result, sys.stdout, indent=2)
         print()
     else:
         from .report import format_report
+
         print(format_report(result))
     return 0

@@ -25,6 +25,7 @@ the default sizes takes one to two minutes.
 
 --json prints the items, the two trees and every run's whole result (`robocup-mcl bench --json`'s).
 """
+
 from __future__ import annotations
 
 import argparse
@@ -45,14 +46,20 @@ from mcl.numba_cache import ROOT, is_source_checkout
 
 DEFAULT_SIZES = (100, 1_000, 10_000, 100_000)
 DEFAULT_SKIP = ("startup", "exact", "peers", "threads", "memory", "avx512", "accuracy")
-THRESHOLD = 0.1         # the smallest change a verdict names: processes that run the same code differ by a few
-                        # percent (code and memory layout), more than the rounds' spread shows
+THRESHOLD = 0.1  # the smallest change a verdict names: processes that run the same code differ by a few
+# percent (code and memory layout), more than the rounds' spread shows
 SKIPPABLE = ("startup", "exact", "peers", "threads", "memory", "avx512", "models", "recording", "accuracy")
 # Step variants of a row (its key, the label printed); every phase of the row follows them.
-STEP_VARIANTS = (("full_step", "full step"), ("full_step_back_to_back", "full step, back to back"),
-                 ("full_step_fast", "full step, fast=True"), ("issue_step", "issue's step shape"),
-                 ("issue_step_fast", "issue's step shape, fast=True"), ("injecting_step", "injecting step"),
-                 ("adaptive_step", "adaptive step"), ("full_step_exact_bearing", "full step, exact bearing"))
+STEP_VARIANTS = (
+    ("full_step", "full step"),
+    ("full_step_back_to_back", "full step, back to back"),
+    ("full_step_fast", "full step, fast=True"),
+    ("issue_step", "issue's step shape"),
+    ("issue_step_fast", "issue's step shape, fast=True"),
+    ("injecting_step", "injecting step"),
+    ("adaptive_step", "adaptive step"),
+    ("full_step_exact_bearing", "full step, exact bearing"),
+)
 
 
 class CompareError(RuntimeError):
@@ -91,8 +98,9 @@ def base_side(revision: str, repository: Path = ROOT, cache: Path | None = None)
     as_path = Path(revision).expanduser()
     if as_path.is_dir():
         if not is_source_checkout(as_path.resolve()):
-            raise CompareError(f"{revision!r} is a directory but not a robocup-mcl checkout (no pyproject.toml "
-                               "naming it)")
+            raise CompareError(
+                f"{revision!r} is a directory but not a robocup-mcl checkout (no pyproject.toml naming it)"
+            )
         return Side(str(as_path), as_path.resolve())
     commit = _git(repository, "rev-parse", "--verify", "--quiet", f"{revision}^{{commit}}").decode().strip()
     tree = (cache or cache_root()) / commit
@@ -109,7 +117,7 @@ def base_side(revision: str, repository: Path = ROOT, cache: Path | None = None)
                 raise CompareError(f"revision {revision} ({commit[:12]}) is not a robocup-mcl tree")
             try:
                 staging.rename(tree)
-            except OSError:               # another comparison exported it meanwhile
+            except OSError:  # another comparison exported it meanwhile
                 if not (tree / "pyproject.toml").exists():
                     raise
         finally:
@@ -141,8 +149,13 @@ def bench_arguments(sizes, skip) -> list[str]:
 def side_environment(side: Side, **extra: str) -> dict:
     """This process's environment with `side`'s root first on PYTHONPATH (a fresh process then imports that
     tree's packages), and the variables `extra`."""
-    return dict(os.environ, PYTHONPATH=os.pathsep.join(
-        [str(side.root)] + ([os.environ["PYTHONPATH"]] if os.environ.get("PYTHONPATH") else [])), **extra)
+    return dict(
+        os.environ,
+        PYTHONPATH=os.pathsep.join(
+            [str(side.root)] + ([os.environ["PYTHONPATH"]] if os.environ.get("PYTHONPATH") else [])
+        ),
+        **extra,
+    )
 
 
 def cli_module(root: Path) -> str:
@@ -154,19 +167,32 @@ def cli_module(root: Path) -> str:
 def run_bench(side: Side, arguments: list[str]) -> dict:
     """`robocup-mcl bench ARGUMENTS` in a fresh process that imports `side`'s packages; its JSON result."""
     environment = side_environment(side)
-    done = subprocess.run([sys.executable, "-m", cli_module(side.root), "bench", *arguments], cwd=side.root,
-                          env=environment, capture_output=True, text=True, check=False)
+    done = subprocess.run(
+        [sys.executable, "-m", cli_module(side.root), "bench", *arguments],
+        cwd=side.root,
+        env=environment,
+        capture_output=True,
+        text=True,
+        check=False,
+    )
     if done.returncode != 0:
-        raise CompareError(f"the bench of {side.label} failed (exit {done.returncode}):\n"
-                           + "\n".join(done.stderr.strip().splitlines()[-15:]))
+        raise CompareError(
+            f"the bench of {side.label} failed (exit {done.returncode}):\n"
+            + "\n".join(done.stderr.strip().splitlines()[-15:])
+        )
     try:
         return json.loads(done.stdout)
     except json.JSONDecodeError:
         raise CompareError(f"the bench of {side.label} printed no JSON result:\n{done.stdout[-2000:]}") from None
 
 
-def alternate(base: Side, current: Side, rounds: int, run: Callable[[Side], dict],
-              progress: Callable[[str], None] = lambda text: None) -> tuple[list[dict], list[dict]]:
+def alternate(
+    base: Side,
+    current: Side,
+    rounds: int,
+    run: Callable[[Side], dict],
+    progress: Callable[[str], None] = lambda text: None,
+) -> tuple[list[dict], list[dict]]:
     """`rounds` runs of each side, the order swapped every round (base first in the first); the results of
     the base's runs and of the current's, each in round order."""
     results: dict[str, list[dict]] = {"base": [], "current": []}
@@ -220,7 +246,7 @@ def figures(result: dict) -> dict[str, tuple[str, float]]:
 
 
 def verdict(base: list[float], current: list[float], threshold: float = THRESHOLD) -> str:
-    """"faster" / "slower" when the two ranges do not overlap and the medians differ by more than `threshold`
+    """ "faster" / "slower" when the two ranges do not overlap and the medians differ by more than `threshold`
     (a share), else "~"; "-" with one value a side (no spread to judge by)."""
     if len(base) < 2 or len(current) < 2:
         return "-"
@@ -243,10 +269,17 @@ def compare(base_runs: list[dict], current_runs: list[dict], threshold: float = 
             continue
         b = [f[label][1] for f in base]
         c = [f[label][1] for f in current]
-        items.append({"item": label, "unit": unit, "base": b, "current": c,
-                      "ratio": statistics.median(c) / statistics.median(b) if statistics.median(b) > 0 else None,
-                      "best_ratio": min(c) / min(b) if min(b) > 0 else None,
-                      "verdict": verdict(b, c, threshold)})
+        items.append(
+            {
+                "item": label,
+                "unit": unit,
+                "base": b,
+                "current": c,
+                "ratio": statistics.median(c) / statistics.median(b) if statistics.median(b) > 0 else None,
+                "best_ratio": min(c) / min(b) if min(b) > 0 else None,
+                "verdict": verdict(b, c, threshold),
+            }
+        )
     return items
 
 
@@ -256,31 +289,42 @@ def _span(values: list[float]) -> str:
     return f"{low:.{digits}f}" if low == high else f"{low:.{digits}f}–{high:.{digits}f}"
 
 
-def report(base: Side, current: Side, rounds: int, items: list[dict], machine: dict | None = None,
-           threshold: float = THRESHOLD) -> str:
+def report(
+    base: Side, current: Side, rounds: int, items: list[dict], machine: dict | None = None, threshold: float = THRESHOLD
+) -> str:
     """The comparison as a table."""
-    lines = [f"robocup-mcl bench compare: base {base.label}, current {current.label}; {rounds} round"
-             f"{'s' if rounds != 1 else ''}, alternated" + (f"; {machine.get('cpu_model')}, python "
-                                                             f"{machine.get('python')}, numba {machine.get('numba')}"
-                                                             if machine else ""),
-             "values over the rounds; ratio: medians, current / base (< 1: faster); best: the sides' fastest rounds, "
-             "current / base (the least disturbed runs); verdict: faster or slower when "
-             f"the ranges do not overlap and the ratio is beyond 1 ± {threshold:g}, else ~",
-             f"{'item':<52} {'unit':<12} {'base':>15} {'current':>15} {'ratio':>7} {'best':>6}  verdict"]
+    lines = [
+        f"robocup-mcl bench compare: base {base.label}, current {current.label}; {rounds} round"
+        f"{'s' if rounds != 1 else ''}, alternated"
+        + (
+            f"; {machine.get('cpu_model')}, python {machine.get('python')}, numba {machine.get('numba')}"
+            if machine
+            else ""
+        ),
+        "values over the rounds; ratio: medians, current / base (< 1: faster); best: the sides' fastest rounds, "
+        "current / base (the least disturbed runs); verdict: faster or slower when "
+        f"the ranges do not overlap and the ratio is beyond 1 ± {threshold:g}, else ~",
+        f"{'item':<52} {'unit':<12} {'base':>15} {'current':>15} {'ratio':>7} {'best':>6}  verdict",
+    ]
     for item in items:
         ratio = "-" if item["ratio"] is None else f"{item['ratio']:.2f}"
         best = "-" if item.get("best_ratio") is None else f"{item['best_ratio']:.2f}"
-        lines.append(f"{item['item']:<52} {item['unit']:<12} {_span(item['base']):>15} "
-                     f"{_span(item['current']):>15} {ratio:>7} {best:>6}  {item['verdict']}")
+        lines.append(
+            f"{item['item']:<52} {item['unit']:<12} {_span(item['base']):>15} "
+            f"{_span(item['current']):>15} {ratio:>7} {best:>6}  {item['verdict']}"
+        )
     counts = {v: sum(1 for i in items if i["verdict"] == v) for v in ("faster", "slower", "~")}
     if rounds > 1:
-        lines.append(f"{counts['faster']} faster, {counts['slower']} slower, {counts['~']} within the spread "
-                     f"(of {len(items)})")
+        lines.append(
+            f"{counts['faster']} faster, {counts['slower']} slower, {counts['~']} within the spread (of {len(items)})"
+        )
         best = [i for i in items if i.get("best_ratio") is not None]
         worst = max(best, key=lambda i: i["best_ratio"], default=None)
         if worst is not None:
-            lines.append(f"best rounds: {sum(1 for i in best if i['best_ratio'] > 1.05)} of {len(best)} items more "
-                         f"than 5 % slower; the largest ratio {worst['best_ratio']:.2f} ({worst['item']})")
+            lines.append(
+                f"best rounds: {sum(1 for i in best if i['best_ratio'] > 1.05)} of {len(best)} items more "
+                f"than 5 % slower; the largest ratio {worst['best_ratio']:.2f} ({worst['item']})"
+            )
     return "\n".join(lines)
 
 
@@ -295,24 +339,44 @@ def build_parser(prog: str = PROG) -> argparse.ArgumentParser:
     """The command's argument parser, named `prog` in its usage line."""
     from mcl.tools.cli_checks import description
 
-    parser = argparse.ArgumentParser(prog=prog, description=description(__doc__),
-                                     formatter_class=argparse.RawDescriptionHelpFormatter,
-                                     epilog=__doc__.split("\n\n", 2)[2])
-    parser.add_argument("revision", nargs="?",
-                        help="a git revision of this repository, or another checkout's directory")
-    parser.add_argument("--report", metavar="PATH", help="print the table of a comparison saved with --save "
-                        "(recomputing its ratios) instead of running one")
+    parser = argparse.ArgumentParser(
+        prog=prog,
+        description=description(__doc__),
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        epilog=__doc__.split("\n\n", 2)[2],
+    )
+    parser.add_argument(
+        "revision", nargs="?", help="a git revision of this repository, or another checkout's directory"
+    )
+    parser.add_argument(
+        "--report",
+        metavar="PATH",
+        help="print the table of a comparison saved with --save (recomputing its ratios) instead of running one",
+    )
     parser.add_argument("--rounds", type=int, default=3, help="runs of each side, alternated (default 3)")
-    parser.add_argument("--sizes", default=",".join(str(n) for n in DEFAULT_SIZES),
-                        help="particle counts, comma-separated (default %(default)s)")
-    parser.add_argument("--skip", default=",".join(DEFAULT_SKIP),
-                        help=f"what the runs leave out, comma-separated, from {', '.join(SKIPPABLE)} "
-                             "(default %(default)s; an empty string skips nothing)")
-    parser.add_argument("--threshold", type=float, default=THRESHOLD,
-                        help="the smallest change of the medians a verdict names, a share (default %(default)s)")
+    parser.add_argument(
+        "--sizes",
+        default=",".join(str(n) for n in DEFAULT_SIZES),
+        help="particle counts, comma-separated (default %(default)s)",
+    )
+    parser.add_argument(
+        "--skip",
+        default=",".join(DEFAULT_SKIP),
+        help=f"what the runs leave out, comma-separated, from {', '.join(SKIPPABLE)} "
+        "(default %(default)s; an empty string skips nothing)",
+    )
+    parser.add_argument(
+        "--threshold",
+        type=float,
+        default=THRESHOLD,
+        help="the smallest change of the medians a verdict names, a share (default %(default)s)",
+    )
     parser.add_argument("--json", action="store_true", help="print the comparison as JSON")
-    parser.add_argument("--save", metavar="PATH", help="also write the comparison as JSON to PATH (and the table "
-                        "beside it, PATH with .txt)")
+    parser.add_argument(
+        "--save",
+        metavar="PATH",
+        help="also write the comparison as JSON to PATH (and the table beside it, PATH with .txt)",
+    )
     return parser
 
 
@@ -328,8 +392,11 @@ def main(argv: list[str] | None = None, prog: str = PROG) -> int:
         except (OSError, ValueError, KeyError, TypeError) as error:
             print(f"robocup-mcl bench compare: {args.report} is not a saved comparison ({error})", file=sys.stderr)
             return 1
-        print(report(base, current, saved["rounds"], items, saved["runs"]["current"][-1].get("machine"),
-                     saved["threshold"]))
+        print(
+            report(
+                base, current, saved["rounds"], items, saved["runs"]["current"][-1].get("machine"), saved["threshold"]
+            )
+        )
         return 0
     if args.revision is None:
         parser.error("give a revision to compare with (or --report PATH)")
@@ -338,6 +405,7 @@ def main(argv: list[str] | None = None, prog: str = PROG) -> int:
     if not 0 <= args.threshold < 1:
         parser.error(f"--threshold {args.threshold} must be within [0, 1)")
     from .bench import parse_sizes  # (imports the filter's modules: not for --help)
+
     sizes = parse_sizes(parser, args.sizes)
     skip = [s.strip() for s in args.skip.split(",") if s.strip()]
     unknown = sorted(set(skip) - set(SKIPPABLE))
@@ -348,16 +416,22 @@ def main(argv: list[str] | None = None, prog: str = PROG) -> int:
         _progress(f"the base tree: {args.revision}")
         base = base_side(args.revision)
         arguments = bench_arguments(sizes, skip)
-        base_runs, current_runs = alternate(base, current, args.rounds, lambda side: run_bench(side, arguments),
-                                            _progress)
+        base_runs, current_runs = alternate(
+            base, current, args.rounds, lambda side: run_bench(side, arguments), _progress
+        )
     except CompareError as error:
         print(f"robocup-mcl bench compare: {error}", file=sys.stderr)
         return 1
     items = compare(base_runs, current_runs, args.threshold)
-    result = {"base": {"label": base.label, "root": str(base.root)},
-              "current": {"label": current.label, "root": str(current.root)},
-              "rounds": args.rounds, "threshold": args.threshold, "arguments": arguments, "items": items,
-              "runs": {"base": base_runs, "current": current_runs}}
+    result = {
+        "base": {"label": base.label, "root": str(base.root)},
+        "current": {"label": current.label, "root": str(current.root)},
+        "rounds": args.rounds,
+        "threshold": args.threshold,
+        "arguments": arguments,
+        "items": items,
+        "runs": {"base": base_runs, "current": current_runs},
+    }
     table = report(base, current, args.rounds, items, current_runs[-1].get("machine"), args.threshold)
     if args.save:
         path = Path(args.save)

@@ -10,6 +10,7 @@ whole step (`ParticleFilter.step`: resampling every step, threshold 1, no inject
 one thread). The whole step also depends on the belief each model leaves: the two goal bearings pin the
 robot down less than the four posts' ranges and bearings, and a wider belief costs the summary more.
 """
+
 from __future__ import annotations
 
 import math
@@ -33,14 +34,19 @@ def _frames(field, rng, count: int) -> tuple[list, list]:
     goals, posts = [], []
     landmarks = field.landmarks_of("goalpost")
     for _ in range(count):
-        bearings = [math.atan2(-TRUE_POSE[1], gx - TRUE_POSE[0]) - TRUE_POSE[2] + 0.05 * rng.standard_normal()
-                    for gx in (field.half_length, -field.half_length)]
+        bearings = [
+            math.atan2(-TRUE_POSE[1], gx - TRUE_POSE[0]) - TRUE_POSE[2] + 0.05 * rng.standard_normal()
+            for gx in (field.half_length, -field.half_length)
+        ]
         goals.append(Observations.from_arrays(["goalpost"] * 2, [4.0] * 2, bearings))
         d = landmarks - TRUE_POSE[:2]
-        posts.append(Observations.from_arrays(["goalpost"] * len(landmarks),
-                                              np.hypot(d[:, 0], d[:, 1]) + 0.05 * rng.standard_normal(len(d)),
-                                              np.arctan2(d[:, 1], d[:, 0]) - TRUE_POSE[2]
-                                              + 0.03 * rng.standard_normal(len(d))))
+        posts.append(
+            Observations.from_arrays(
+                ["goalpost"] * len(landmarks),
+                np.hypot(d[:, 0], d[:, 1]) + 0.05 * rng.standard_normal(len(d)),
+                np.arctan2(d[:, 1], d[:, 0]) - TRUE_POSE[2] + 0.03 * rng.standard_normal(len(d)),
+            )
+        )
     return goals, posts
 
 
@@ -57,7 +63,7 @@ def _ns_per_particle(pf: ParticleFilter, frames: list, rounds: int) -> float:
 
 def _likelihood_ns_per_particle(model, poses: np.ndarray, frames: list, rounds: int) -> float:
     kernels = fused_kernels(model)
-    assert kernels is not None                    # both models offer the fused likelihood
+    assert kernels is not None  # both models offer the fused likelihood
     score = fused_step(kernels).predict_and_score
     n = poses.shape[0]
     scratch, trig, out = np.empty_like(poses), np.empty((n, 2)), np.empty(n)
@@ -67,8 +73,20 @@ def _likelihood_ns_per_particle(model, poses: np.ndarray, frames: list, rounds: 
     for _ in range(rounds):
         start = time.perf_counter()
         for frame in prepared:
-            score(poses, scratch, trig, out, copying, (0, 0), frame, kernels.workspace(frame, STEP_BLOCK), 0, n,
-                  False, NO_SINCE)
+            score(
+                poses,
+                scratch,
+                trig,
+                out,
+                copying,
+                (0, 0),
+                frame,
+                kernels.workspace(frame, STEP_BLOCK),
+                0,
+                n,
+                False,
+                NO_SINCE,
+            )
         best = min(best, (time.perf_counter() - start) / len(prepared))
     return best / n * 1e9
 
@@ -80,13 +98,16 @@ def time_goal_direction(n: int = 10_000, frames: int = 50, rounds: int = 5) -> d
     field = spl()
     goals, posts = _frames(field, np.random.default_rng(1), frames)
     timings: dict = {"likelihood": {}, "step": {}}
-    for name, model, batch in (("goal_direction", GoalDirectionSensorModel(field), goals),
-                               ("landmarks", LandmarkSensorModel(field), posts)):
-        pf = ParticleFilter(field, VelocityLinear(), model, n_particles=n, seed=0, resample_threshold=1.0,
-                            augmented=None)
+    for name, model, batch in (
+        ("goal_direction", GoalDirectionSensorModel(field), goals),
+        ("landmarks", LandmarkSensorModel(field), posts),
+    ):
+        pf = ParticleFilter(
+            field, VelocityLinear(), model, n_particles=n, seed=0, resample_threshold=1.0, augmented=None
+        )
         pf.reset_around(TRUE_POSE, (0.3, 0.3, 0.2))
         poses = pf.poses.copy()
-        _likelihood_ns_per_particle(model, poses, batch[:1], 1)                # compiled before the clock runs
+        _likelihood_ns_per_particle(model, poses, batch[:1], 1)  # compiled before the clock runs
         timings["likelihood"][name] = _likelihood_ns_per_particle(model, poses, batch, rounds)
         pf.step(MotionInput(dt=0.01, command=(0.2, 0.0, 0.1)), batch[0])
         timings["step"][name] = _ns_per_particle(pf, batch, rounds)
@@ -99,9 +120,11 @@ def main() -> None:
     """Print the benchmark's line."""
     t = time_goal_direction()
     like, step = t["likelihood"], t["step"]
-    print(f"10 000 particles, ns/particle, goal direction (2 bearings) / landmarks (4 goalposts): likelihood "
-          f"{like['goal_direction']:.1f} / {like['landmarks']:.1f} (ratio {like['ratio']:.2f}), fused step "
-          f"{step['goal_direction']:.1f} / {step['landmarks']:.1f} (ratio {step['ratio']:.2f})")
+    print(
+        f"10 000 particles, ns/particle, goal direction (2 bearings) / landmarks (4 goalposts): likelihood "
+        f"{like['goal_direction']:.1f} / {like['landmarks']:.1f} (ratio {like['ratio']:.2f}), fused step "
+        f"{step['goal_direction']:.1f} / {step['landmarks']:.1f} (ratio {step['ratio']:.2f})"
+    )
 
 
 if __name__ == "__main__":

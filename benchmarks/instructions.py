@@ -22,6 +22,7 @@ same in both trees.
 
 The result: instructions per step for each tree and N, and their ratio (current / base).
 """
+
 from __future__ import annotations
 
 import argparse
@@ -64,10 +65,14 @@ def _run(side: Side, n: int, steps: int, valgrind: bool) -> int | None:
     if valgrind:
         out = Path(tempfile.mkdtemp(prefix="callgrind-")) / "callgrind.out"
         command = ["valgrind", "--tool=callgrind", f"--callgrind-out-file={out}", "--dump-instr=no"] + command
-    done = subprocess.run(command, cwd=side.root, env=side_environment(side, **RUN_ENVIRONMENT), capture_output=True, text=True)
+    done = subprocess.run(
+        command, cwd=side.root, env=side_environment(side, **RUN_ENVIRONMENT), capture_output=True, text=True
+    )
     if done.returncode != 0:
-        raise CompareError(f"the workload in {side.label} failed (exit {done.returncode}):\n"
-                           + "\n".join(done.stderr.strip().splitlines()[-15:]))
+        raise CompareError(
+            f"the workload in {side.label} failed (exit {done.returncode}):\n"
+            + "\n".join(done.stderr.strip().splitlines()[-15:])
+        )
     if out is None:
         return None
     try:
@@ -87,7 +92,7 @@ def per_step(side: Side, n: int, steps: int) -> dict:
 
 def measure(base: Side, current: Side, sizes: list[int], steps: int, progress=print) -> list[dict]:
     """Each N: both trees' instructions per step and the ratio current / base."""
-    for side in (base, current):                       # fill the numba caches: nothing compiles under valgrind
+    for side in (base, current):  # fill the numba caches: nothing compiles under valgrind
         progress(f"warming the compiled kernels of {side.label}")
         _run(side, sizes[0], 3, False)
     rows = []
@@ -101,26 +106,44 @@ def measure(base: Side, current: Side, sizes: list[int], steps: int, progress=pr
 
 
 def report(base: Side, current: Side, steps: int, rows: list[dict]) -> str:
-    lines = [f"instructions per filter step (callgrind; {steps} and {2 * steps} steps, the difference): "
-             f"base {base.label}, current {current.label}",
-             f"{'N':>8} {'base':>14} {'current':>14} {'ratio':>7}"]
-    lines += [f"{r['particles']:>8} {r['base']['per_step']:>14,.0f} {r['current']['per_step']:>14,.0f} "
-              f"{r['ratio']:>7.3f}" for r in rows]
+    lines = [
+        f"instructions per filter step (callgrind; {steps} and {2 * steps} steps, the difference): "
+        f"base {base.label}, current {current.label}",
+        f"{'N':>8} {'base':>14} {'current':>14} {'ratio':>7}",
+    ]
+    lines += [
+        f"{r['particles']:>8} {r['base']['per_step']:>14,.0f} {r['current']['per_step']:>14,.0f} {r['ratio']:>7.3f}"
+        for r in rows
+    ]
     return "\n".join(lines)
 
 
 def build_parser(prog: str = "python -m benchmarks.instructions") -> argparse.ArgumentParser:
     """The command's argument parser."""
-    parser = argparse.ArgumentParser(prog=prog, description="Instructions per filter step under valgrind's "
-                                     "callgrind, in this checkout and in another revision.")
-    parser.add_argument("revision", metavar="REV", help="a git revision of this repository, or another checkout's "
-                        "directory")
-    parser.add_argument("--current", metavar="REV", help="measure this revision instead of the working tree "
-                        "(exported the same way; a tree nobody edits while valgrind runs)")
-    parser.add_argument("--particles", default="500,5000", metavar="N,...",
-                        help="particle counts, comma-separated (default 500,5000)")
-    parser.add_argument("--steps", type=int, default=1000, metavar="K",
-                        help="steps of the shorter run; the longer runs 2K (default 1000: the steps must outweigh the start-up's variation)")
+    parser = argparse.ArgumentParser(
+        prog=prog,
+        description="Instructions per filter step under valgrind's "
+        "callgrind, in this checkout and in another revision.",
+    )
+    parser.add_argument(
+        "revision", metavar="REV", help="a git revision of this repository, or another checkout's directory"
+    )
+    parser.add_argument(
+        "--current",
+        metavar="REV",
+        help="measure this revision instead of the working tree "
+        "(exported the same way; a tree nobody edits while valgrind runs)",
+    )
+    parser.add_argument(
+        "--particles", default="500,5000", metavar="N,...", help="particle counts, comma-separated (default 500,5000)"
+    )
+    parser.add_argument(
+        "--steps",
+        type=int,
+        default=1000,
+        metavar="K",
+        help="steps of the shorter run; the longer runs 2K (default 1000: the steps must outweigh the start-up's variation)",
+    )
     parser.add_argument("--json", action="store_true", help="print the result as JSON")
     parser.add_argument("--save", metavar="PATH", help="also write the JSON result to PATH")
     return parser

@@ -21,6 +21,7 @@ call made after the thread has slept 10 ms, as a 100 Hz loop makes it. The other
 to back or interleaved with other work; this one says what a robot's loop pays once the step's code and data
 have had a frame's time to leave the caches (on a shared machine, other tenants evict them meanwhile).
 """
+
 from __future__ import annotations
 
 import statistics
@@ -31,20 +32,26 @@ import numpy as np
 
 from .step import full_step_work, issue_step_work, measure
 
-FRAME_S = 0.01          # the sleep before each call of `time_between_frames`: a 100 Hz loop
+FRAME_S = 0.01  # the sleep before each call of `time_between_frames`: a 100 Hz loop
 
 
 def time_lwpr(seed: int = 0) -> dict:
     from demos.lwpr_cross import make_model, run_seed
 
-    warm = make_model()           # load (or compile) the kernels outside the timings
+    warm = make_model()  # load (or compile) the kernels outside the timings
     warm.update(np.zeros(2), np.zeros(1))
     warm.predict(np.zeros(2))
     run = run_seed(seed)
-    return {"inputs": 2, "outputs": 1, "receptive_fields": run["num_rfs"], "nmse": run["nmse"],
-            "update_us": run["us_per_update"], "predict_us": run["us_per_predict"],
-            "predict_batched_us_per_point": run["us_per_predict_batched"],
-            "method": "demos.lwpr_cross.run_seed: the cross benchmark's model after 20 epochs, best of repetitions"}
+    return {
+        "inputs": 2,
+        "outputs": 1,
+        "receptive_fields": run["num_rfs"],
+        "nmse": run["nmse"],
+        "update_us": run["us_per_update"],
+        "predict_us": run["us_per_predict"],
+        "predict_batched_us_per_point": run["us_per_predict_batched"],
+        "method": "demos.lwpr_cross.run_seed: the cross benchmark's model after 20 epochs, best of repetitions",
+    }
 
 
 def time_ekf(budget_s: float = 0.3) -> dict:
@@ -54,8 +61,10 @@ def time_ekf(budget_s: float = 0.3) -> dict:
     gyro, accel = np.array([0.01, -0.02, 0.3]), np.array([0.1, 0.05, 9.8])
     measured = np.array([0.2, 0.01, 0.0])
     result = {}
-    for label, params in (("default", VelocityEKFParams()),
-                          ("paper", VelocityEKFParams(estimate_gyro_bias=False, exact_jacobian=False))):
+    for label, params in (
+        ("default", VelocityEKFParams()),
+        ("paper", VelocityEKFParams(estimate_gyro_bias=False, exact_jacobian=False)),
+    ):
         ekf = VelocityEKF(gravity, 0.0, params=params)
         clock = {"t": 0.0}
 
@@ -63,10 +72,14 @@ def time_ekf(budget_s: float = 0.3) -> dict:
             clock["t"] += 0.01
             ekf.predict(clock["t"], gyro, accel)
 
-        timed = measure({"predict": predict, "correct": lambda ekf=ekf: ekf.correct(measured)}, budget_s,
-                        min_samples=20)
-        result[label] = {"state_size": params.state_size, "predict_us": 1e6 * timed["predict"]["s"],
-                         "correct_us": 1e6 * timed["correct"]["s"]}
+        timed = measure(
+            {"predict": predict, "correct": lambda ekf=ekf: ekf.correct(measured)}, budget_s, min_samples=20
+        )
+        result[label] = {
+            "state_size": params.state_size,
+            "predict_us": 1e6 * timed["predict"]["s"],
+            "correct_us": 1e6 * timed["correct"]["s"],
+        }
     return result
 
 
@@ -83,10 +96,13 @@ def time_robot_loop(budget_s: float = 0.3, n: int = 500) -> dict:
         pf.reset_around(np.array([-2.0, 0.0, np.pi]), (0.2, 0.2, 0.1))
         return pf
 
-    looping, predicting = make(), make()      # predict alone on a filter of its own
+    looping, predicting = make(), make()  # predict alone on a filter of its own
     u = MotionInput(dt=0.01, command=(0.2, 0.0, 0.1))
-    seen = [LandmarkObservation("penalty_mark", 1.2, 0.0), LandmarkObservation("goalpost", 2.65, 0.31),
-            LandmarkObservation("goalpost", 2.65, -0.31)]
+    seen = [
+        LandmarkObservation("penalty_mark", 1.2, 0.0),
+        LandmarkObservation("goalpost", 2.65, 0.31),
+        LandmarkObservation("goalpost", 2.65, -0.31),
+    ]
     kinds = np.zeros(10, dtype=np.int64)
     ranges, bearings = np.linspace(1.0, 5.0, 10), np.linspace(-0.5, 0.5, 10)
 
@@ -109,20 +125,33 @@ def time_robot_loop(budget_s: float = 0.3, n: int = 500) -> dict:
         localizer.pose()
         localizer.quality()
 
-    for _ in range(10):                       # a motion history to reach back into
+    for _ in range(10):  # a motion history to reach back into
         localizer_frame()
-    timed = measure({"frame": frame, "predict": lambda: predicting.predict(u),
-                     "correct": lambda: looping.correct(seen),
-                     "from_list": lambda: Observations.from_list(seen),
-                     "from_arrays": lambda: Observations.from_arrays(kinds, ranges, bearings),
-                     "localizer_frame": localizer_frame,
-                     "observe": lambda: localizer.observe(batch, capture_time=clock["t"] - 0.03)},
-                    budget_s, min_samples=20)
+    timed = measure(
+        {
+            "frame": frame,
+            "predict": lambda: predicting.predict(u),
+            "correct": lambda: looping.correct(seen),
+            "from_list": lambda: Observations.from_list(seen),
+            "from_arrays": lambda: Observations.from_arrays(kinds, ranges, bearings),
+            "localizer_frame": localizer_frame,
+            "observe": lambda: localizer.observe(batch, capture_time=clock["t"] - 0.03),
+        },
+        budget_s,
+        min_samples=20,
+    )
     us = {key: 1e6 * value["s"] for key, value in timed.items()}
-    return {"particles": n, "frame_us": us["frame"], "predict_us": us["predict"], "correct_list_us": us["correct"],
-            "from_list_us": us["from_list"], "from_arrays_us": us["from_arrays"],
-            "localizer_frame_us": us["localizer_frame"], "localizer_observe_us": us["observe"],
-            "method": "benchmarks.models.time_robot_loop: the README loop's calls, interleaved medians"}
+    return {
+        "particles": n,
+        "frame_us": us["frame"],
+        "predict_us": us["predict"],
+        "correct_list_us": us["correct"],
+        "from_list_us": us["from_list"],
+        "from_arrays_us": us["from_arrays"],
+        "localizer_frame_us": us["localizer_frame"],
+        "localizer_observe_us": us["observe"],
+        "method": "benchmarks.models.time_robot_loop: the README loop's calls, interleaved medians",
+    }
 
 
 @numba.njit(cache=True)
@@ -148,7 +177,7 @@ def time_between_frames(sizes, samples: int = 40, idle_s: float = FRAME_S) -> di
     for n in small:
         work[f"full_step/{n}"] = full_step_work(n)
         work[f"issue_step/{n}"] = issue_step_work(n)
-    for fn in work.values():            # load the kernels, warm the buffers
+    for fn in work.values():  # load the kernels, warm the buffers
         fn()
         fn()
     times: dict[str, list[float]] = {name: [] for name in work}
@@ -160,9 +189,12 @@ def time_between_frames(sizes, samples: int = 40, idle_s: float = FRAME_S) -> di
             times[name].append(clock() - start)
     us = {name: 1e6 * statistics.median(seconds) for name, seconds in times.items()}
     warm = measure(baseline, budget_s=0.01, min_samples=20)
-    return {"idle_s": idle_s, "samples": samples,
-            "rows": [{"n": n, "full_step_us": us[f"full_step/{n}"], "issue_step_us": us[f"issue_step/{n}"]}
-                     for n in small],
-            "python_call_us": us["python_call"], "numba_call_us": us["numba_call"],
-            "back_to_back_us": {name: 1e6 * entry["s"] for name, entry in warm.items()},
-            "method": "benchmarks.models.time_between_frames: one call after each sleep, medians"}
+    return {
+        "idle_s": idle_s,
+        "samples": samples,
+        "rows": [{"n": n, "full_step_us": us[f"full_step/{n}"], "issue_step_us": us[f"issue_step/{n}"]} for n in small],
+        "python_call_us": us["python_call"],
+        "numba_call_us": us["numba_call"],
+        "back_to_back_us": {name: 1e6 * entry["s"] for name, entry in warm.items()},
+        "method": "benchmarks.models.time_between_frames: one call after each sleep, medians",
+    }

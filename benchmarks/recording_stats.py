@@ -17,6 +17,7 @@ every K-th step) to PATH (a temporary file unless `--rrd` is given), or with `--
                     demo's step loop alone, the recorder's calls included (both not with `--file`; after a 2 s
                     walk without recording, which compiles the kernels or loads them from numba's cache)
 """
+
 from __future__ import annotations
 
 import argparse
@@ -61,9 +62,15 @@ def chunk_counts(path: Path) -> dict:
                 low = int(values.min()) if low is None else min(low, int(values.min()))
                 high = int(values.max()) if high is None else max(high, int(values.max()))
     blueprint = sum(1 for entry in reader.blueprints() for _ in reader.stream(store=entry))
-    return {"recording": temporal + static, "temporal": temporal, "static": static, "blueprint": blueprint,
-            "total": temporal + static + blueprint, "per_entity": dict(sorted(per_entity.items())),
-            "_span_s": None if low is None else (high - low) * NS}
+    return {
+        "recording": temporal + static,
+        "temporal": temporal,
+        "static": static,
+        "blueprint": blueprint,
+        "total": temporal + static + blueprint,
+        "per_entity": dict(sorted(per_entity.items())),
+        "_span_s": None if low is None else (high - low) * NS,
+    }
 
 
 def rrd_stats(path: Path) -> dict | None:
@@ -78,10 +85,12 @@ def rrd_stats(path: Path) -> dict | None:
         found = re.search(pattern, text)
         return None if found is None else int(found.group(1).replace(" ", "").replace("\u202f", ""))
 
-    return {"num_chunks": number(r"num_chunks = ([\d \u202f]+)"),
-            "lower_bound_chunks": number(r"theoretical lower bound:\s*([\d \u202f]+) chunks"),
-            "effective_chunks": number(r"effective:\s*([\d \u202f]+) chunks"),
-            "unoptimized_warning": "may be unoptimized" in text}
+    return {
+        "num_chunks": number(r"num_chunks = ([\d \u202f]+)"),
+        "lower_bound_chunks": number(r"theoretical lower bound:\s*([\d \u202f]+) chunks"),
+        "effective_chunks": number(r"effective:\s*([\d \u202f]+) chunks"),
+        "unoptimized_warning": "may be unoptimized" in text,
+    }
 
 
 def measure(path: Path, record_seconds: float | None = None, run: dict | None = None) -> dict:
@@ -90,17 +99,26 @@ def measure(path: Path, record_seconds: float | None = None, run: dict | None = 
     span = chunks.pop("_span_s")
     size = path.stat().st_size
     per_minute = None if not span else size * 60.0 / span
-    return {"file": str(path), "revision": revision(), "run": run, "size_bytes": size, "duration_s": span,
-            "bytes_per_minute": per_minute,
-            "mib_per_minute": None if per_minute is None else per_minute / 2**20,
-            "chunks": chunks, "rrd_stats": rrd_stats(path), "record_seconds": record_seconds}
+    return {
+        "file": str(path),
+        "revision": revision(),
+        "run": run,
+        "size_bytes": size,
+        "duration_s": span,
+        "bytes_per_minute": per_minute,
+        "mib_per_minute": None if per_minute is None else per_minute / 2**20,
+        "chunks": chunks,
+        "rrd_stats": rrd_stats(path),
+        "record_seconds": record_seconds,
+    }
 
 
 def revision() -> str | None:
     """The working tree's commit (short), None outside git."""
     try:
-        return subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True,
-                              check=True).stdout.strip()
+        return subprocess.run(
+            ["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True, check=True
+        ).stdout.strip()
     except (OSError, subprocess.CalledProcessError):
         return None
 
@@ -116,30 +134,42 @@ def record_walk(path: Path, particles: int, seed: int, every: int) -> tuple[floa
     started = time.perf_counter()
     result = run_walk(particles=particles, seed=seed, rrd=str(path), record_every=every)
     elapsed = time.perf_counter() - started
-    return elapsed, {"demo": "walk", "particles": particles, "seed": seed, "particles_every": every,
-                     "steps": result["steps"], "filter_seconds": result["filter_seconds"]}
+    return elapsed, {
+        "demo": "walk",
+        "particles": particles,
+        "seed": seed,
+        "particles_every": every,
+        "steps": result["steps"],
+        "filter_seconds": result["filter_seconds"],
+    }
 
 
 def table(report: dict) -> str:
     """The report as a few lines of text."""
     chunks, stats = report["chunks"], report["rrd_stats"]
-    lines = [f"file              {report['file'] or '(a temporary file)'}",
-             f"size              {report['size_bytes'] / 2**20:.2f} MiB over {report['duration_s']:.1f} s"
-             f" = {report['mib_per_minute']:.2f} MiB per minute",
-             f"chunks (SDK)      {chunks['total']} ({chunks['temporal']} temporal, {chunks['static']} static,"
-             f" {chunks['blueprint']} blueprint)"]
+    lines = [
+        f"file              {report['file'] or '(a temporary file)'}",
+        f"size              {report['size_bytes'] / 2**20:.2f} MiB over {report['duration_s']:.1f} s"
+        f" = {report['mib_per_minute']:.2f} MiB per minute",
+        f"chunks (SDK)      {chunks['total']} ({chunks['temporal']} temporal, {chunks['static']} static,"
+        f" {chunks['blueprint']} blueprint)",
+    ]
     if stats is not None:
-        lines.append(f"rerun rrd stats   {stats['num_chunks']} chunks; lower bound {stats['lower_bound_chunks']},"
-                     f" effective {stats['effective_chunks']}"
-                     + ("; warns: may be unoptimized" if stats["unoptimized_warning"] else ""))
+        lines.append(
+            f"rerun rrd stats   {stats['num_chunks']} chunks; lower bound {stats['lower_bound_chunks']},"
+            f" effective {stats['effective_chunks']}"
+            + ("; warns: may be unoptimized" if stats["unoptimized_warning"] else "")
+        )
     if report["record_seconds"] is not None:
         lines.append(f"recorded in       {report['record_seconds']:.2f} s")
     return "\n".join(lines)
 
 
 def parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="python -m benchmarks.recording_stats",
-                                description="Size per minute and chunk count of the walk demo's recording.")
+    p = argparse.ArgumentParser(
+        prog="python -m benchmarks.recording_stats",
+        description="Size per minute and chunk count of the walk demo's recording.",
+    )
     p.add_argument("--particles", type=int, default=500, help="particles (default 500, the demo's)")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--every", type=int, default=5, help="log the particles every K-th step (default 5)")

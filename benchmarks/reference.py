@@ -20,6 +20,7 @@ normalize (+ ESS and augmented MCL's average), resample (systematic, the copy an
 estimate (the shared histograms and the dominant cluster), entropy. Their sum is the fused step plus six
 dispatches (about 1 µs each).
 """
+
 from __future__ import annotations
 
 import math
@@ -73,24 +74,44 @@ def numpy_step(pf, u: MotionInput, observations: Observations, timings: dict | N
     weights, log_total, ess = normalize_reference(pf.log_weights + log_likelihood)
     marks.append(clock())
     ancestors = systematic_reference(weights, pf.n, pf.rng)
-    poses = gather_with_jitter_reference(poses, ancestors, pf.roughening * np.sqrt(3.0),
-                                         draw_variates(pf.rng, pf.n, False))
+    poses = gather_with_jitter_reference(
+        poses, ancestors, pf.roughening * np.sqrt(3.0), draw_variates(pf.rng, pf.n, False)
+    )
     weights = np.full(pf.n, 1.0 / pf.n)
     marks.append(clock())
     g, s = pf.grid, pf.summary
     mean, cov, cluster_weight = cluster_estimate_reference(
-        poses, weights, s.x_min, s.y_min, g.cluster_cell, s.cluster_nx, s.cluster_ny,
-        g.cluster_orientation_bins, g.cluster_radius, g.cluster_angle_radius, 3,
-        s.previous if s.has_previous else None)
+        poses,
+        weights,
+        s.x_min,
+        s.y_min,
+        g.cluster_cell,
+        s.cluster_nx,
+        s.cluster_ny,
+        g.cluster_orientation_bins,
+        g.cluster_radius,
+        g.cluster_angle_radius,
+        3,
+        s.previous if s.has_previous else None,
+    )
     marks.append(clock())
-    entropy = grid_entropy_reference(poses, weights, s.x_min, s.y_min, g.position_cell, s.entropy_nx,
-                                     s.entropy_ny, g.orientation_bins)
+    entropy = grid_entropy_reference(
+        poses, weights, s.x_min, s.y_min, g.position_cell, s.entropy_nx, s.entropy_ny, g.orientation_bins
+    )
     marks.append(clock())
     if timings is not None:
         for name, a, b in zip(PHASES, marks[:-1], marks[1:]):
             timings[name] = timings.get(name, 0.0) + (b - a)
-    return {"poses": poses, "log_likelihood": log_likelihood, "ess": ess, "log_total": log_total,
-            "mean": mean, "covariance": cov, "cluster_weight": cluster_weight, "entropy": entropy}
+    return {
+        "poses": poses,
+        "log_likelihood": log_likelihood,
+        "ess": ess,
+        "log_total": log_total,
+        "mean": mean,
+        "covariance": cov,
+        "cluster_weight": cluster_weight,
+        "entropy": entropy,
+    }
 
 
 # -- the issue's step shape ----------------------------------------------------------------------------------------
@@ -100,6 +121,7 @@ def numpy_step(pf, u: MotionInput, observations: Observations, timings: dict | N
 # jitter each) and it computes the estimate (the dominant cluster by mean shift). `issue_shaped_step` runs the
 # reference's shape with the filter's own kernels, so that the two can be compared like with like; the
 # benchmark reports it beside the full step, never instead of it.
+
 
 @numba.njit(cache=True)
 def _resample_copy(weights, source, out, coordinates, ancestors, counts, u0):
@@ -119,8 +141,25 @@ def _resample_copy(weights, source, out, coordinates, ancestors, counts, u0):
 prepare = workspace = predict_and_score = None
 
 
-def _issue_shaped_kernel(poses, scratch, trig, log_likelihood, log_weights, weights, ancestors, counts, motion, draws,
-                         params, inputs, grid, coordinates, histograms, bitmaps, fast):
+def _issue_shaped_kernel(
+    poses,
+    scratch,
+    trig,
+    log_likelihood,
+    log_weights,
+    weights,
+    ancestors,
+    counts,
+    motion,
+    draws,
+    params,
+    inputs,
+    grid,
+    coordinates,
+    histograms,
+    bitmaps,
+    fast,
+):
     """(A template: `issue_shaped_step` compiles it with the sensor model's kernels bound,
     `numerics.compile.variant`.)"""
     n = poses.shape[0]
@@ -155,13 +194,18 @@ def issue_shaped_step(pf, u: MotionInput, observations: Observations) -> Callabl
     motion = pf.engine.motion(pf.motion_model, u)
     sensor = fused_kernels(pf.sensor_model)
     if motion is None or sensor is None or pf.motion_model.gaussian or pf.threads > 1:
-        raise ValueError("issue_shaped_step needs a bounded uniform-noise motion model, a sensor model with "
-                         "fused_likelihood() and one thread")
+        raise ValueError(
+            "issue_shaped_step needs a bounded uniform-noise motion model, a sensor model with "
+            "fused_likelihood() and one thread"
+        )
     observations = Observations.coerce(observations)
     pf.sensor_model.check(observations)
     fused = fused_step(sensor)
-    kernel = variant(_issue_shaped_kernel, fused.key, {"prepare": sensor.prepare, "workspace": sensor.workspace,
-                                                       "predict_and_score": fused.predict_and_score})
+    kernel = variant(
+        _issue_shaped_kernel,
+        fused.key,
+        {"prepare": sensor.prepare, "workspace": sensor.workspace, "predict_and_score": fused.predict_and_score},
+    )
     inputs = sensor.inputs(observations)
     summary, p = pf.summary, pf.particles
     coordinates, histograms, bitmaps = summary.coordinates, summary.histograms, summary.bitmaps
@@ -170,9 +214,26 @@ def issue_shaped_step(pf, u: MotionInput, observations: Observations) -> Callabl
 
     def step():
         summary.changed()
-        return kernel(pf.poses, p.previous, p.trig, p.log_likelihood, pf.log_weights, p.weights, ancestors, counts,
-                      moving, pf.engine.generator(pf.rng), sensor.params, inputs, summary.parameters, coordinates,
-                      histograms, bitmaps, pf.fast)
+        return kernel(
+            pf.poses,
+            p.previous,
+            p.trig,
+            p.log_likelihood,
+            pf.log_weights,
+            p.weights,
+            ancestors,
+            counts,
+            moving,
+            pf.engine.generator(pf.rng),
+            sensor.params,
+            inputs,
+            summary.parameters,
+            coordinates,
+            histograms,
+            bitmaps,
+            pf.fast,
+        )
+
     return step
 
 
@@ -191,8 +252,9 @@ def compiled_phases(pf, u: MotionInput, observations: Observations) -> dict[str,
     motion = pf.engine.motion(pf.motion_model, u)
     sensor = fused_kernels(pf.sensor_model)
     if motion is None or sensor is None:
-        raise ValueError("compiled_phases needs a bounded-noise motion model and a sensor model with "
-                         "fused_likelihood()")
+        raise ValueError(
+            "compiled_phases needs a bounded-noise motion model and a sensor model with fused_likelihood()"
+        )
     observations = Observations.coerce(observations)
     pf.sensor_model.check(observations)
     fused = fused_step(sensor)
@@ -222,11 +284,13 @@ def compiled_phases(pf, u: MotionInput, observations: Observations) -> dict[str,
                 scratch[:] = pf.poses
                 move_chunked(scratch, *motion, gaussian, variates, chunk)
         elif pf.fast:
-            move_range_fast(pf.poses, scratch, 0, n, motion[:3], motion[3:], gaussian, variates,
-                            (function, generator), NO_WORK)
+            move_range_fast(
+                pf.poses, scratch, 0, n, motion[:3], motion[3:], gaussian, variates, (function, generator), NO_WORK
+            )
         else:
-            move_range(pf.poses, scratch, 0, n, motion[:3], motion[3:], gaussian, variates, (function, generator),
-                       NO_WORK)
+            move_range(
+                pf.poses, scratch, 0, n, motion[:3], motion[3:], gaussian, variates, (function, generator), NO_WORK
+            )
         pf.relocalization.carry(motion[0], motion[1], motion[2])
         pf.summary.changed()
 
@@ -235,19 +299,20 @@ def compiled_phases(pf, u: MotionInput, observations: Observations) -> dict[str,
         copying = (False, *motion, False, no_variates)
         if chunk:
             with scope:
-                fused.predict_and_score_chunked(scratch, scratch, p.trig, p.log_likelihood, copying, frame, chunk,
-                                                pf.fast, NO_SINCE)
+                fused.predict_and_score_chunked(
+                    scratch, scratch, p.trig, p.log_likelihood, copying, frame, chunk, pf.fast, NO_SINCE
+                )
         else:
             work = sensor.workspace(frame, min(n, STEP_BLOCK))
-            fused.predict_and_score(scratch, scratch, p.trig, p.log_likelihood, copying, (0, 0), frame, work, 0,
-                                    n, pf.fast, NO_SINCE)
+            fused.predict_and_score(
+                scratch, scratch, p.trig, p.log_likelihood, copying, (0, 0), frame, work, 0, n, pf.fast, NO_SINCE
+            )
 
     def normalize():
         count = n - pf.injected
         if chunk:
             with scope:
-                valid, native, log_total, ess = weigh_chunked(pf.log_weights, p.log_likelihood, count, p.weights,
-                                                              chunk)
+                valid, native, log_total, ess = weigh_chunked(pf.log_weights, p.log_likelihood, count, p.weights, chunk)
         elif pf.fast:
             valid, native, log_total, ess = weigh_fast(pf.log_weights, p.log_likelihood, count, p.weights)
         else:
@@ -261,11 +326,24 @@ def compiled_phases(pf, u: MotionInput, observations: Observations) -> dict[str,
         function, generator = pf.engine.generator(pf.rng)
         if chunk:
             with scope:
-                resample_with_jitter_chunked(p.weights, n, scratch, bounds, pf.poses, p.trig, function,
-                                             generator, p.counts, coordinates, p.variates.reshape(-1), chunk)
+                resample_with_jitter_chunked(
+                    p.weights,
+                    n,
+                    scratch,
+                    bounds,
+                    pf.poses,
+                    p.trig,
+                    function,
+                    generator,
+                    p.counts,
+                    coordinates,
+                    p.variates.reshape(-1),
+                    chunk,
+                )
         else:
-            resample_with_jitter(p.weights, n, scratch, bounds, pf.poses, p.trig, function, generator,
-                                 p.counts, coordinates)
+            resample_with_jitter(
+                p.weights, n, scratch, bounds, pf.poses, p.trig, function, generator, p.counts, coordinates
+            )
         pf.log_weights[:] = -math.log(n)
         p.weights[:] = 1.0 / n
         pf.ess = float(n)
@@ -278,15 +356,16 @@ def compiled_phases(pf, u: MotionInput, observations: Observations) -> dict[str,
         use_previous = pf.summary.has_previous
         if chunk:
             with scope:
-                summary_fill_chunked(grid, no_variates, p.weights, coordinates, histograms, bitmaps,
-                                     pf.summary.local, chunk)
-                weight = summary_estimate_chunked(grid, coordinates, p.weights, histograms, bitmaps, previous,
-                                                  use_previous, mean, covariance, chunk)
+                summary_fill_chunked(
+                    grid, no_variates, p.weights, coordinates, histograms, bitmaps, pf.summary.local, chunk
+                )
+                weight = summary_estimate_chunked(
+                    grid, coordinates, p.weights, histograms, bitmaps, previous, use_previous, mean, covariance, chunk
+                )
         else:
             summary_fill(grid, no_variates, p.weights, coordinates, histograms, bitmaps)
             kernel = summary_estimate_fast if pf.fast else summary_estimate
-            weight = kernel(grid, coordinates, p.weights, histograms, bitmaps, previous, use_previous, mean,
-                            covariance)
+            weight = kernel(grid, coordinates, p.weights, histograms, bitmaps, previous, use_previous, mean, covariance)
         previous[:] = mean
         pf.summary.has_previous = True
         pf.summary.valid = True
@@ -295,5 +374,11 @@ def compiled_phases(pf, u: MotionInput, observations: Observations) -> dict[str,
     def entropy():
         return summary_entropy(grid, histograms, bitmaps)
 
-    return {"predict": predict, "likelihood": likelihood, "normalize": normalize, "resample": resample,
-            "estimate": estimate, "entropy": entropy}
+    return {
+        "predict": predict,
+        "likelihood": likelihood,
+        "normalize": normalize,
+        "resample": resample,
+        "estimate": estimate,
+        "entropy": entropy,
+    }

@@ -19,6 +19,7 @@ the new layout have, so a revision from before a move compares too. Every finger
 "same" or "DIFFERENT"; the exit status is 1 when any differs, 0 when all are the same. The bits depend on
 the processor and the numeric libraries, so both sides run here, with this interpreter.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -36,8 +37,17 @@ WALK_MODELS = ("constant", "velocity-linear")
 WALK_SEEDS = (0, 1, 2)
 PAPER_DEMOS = ("velocity", "collision", "odometry")
 # Wall-clock figures, and whether numba's cache was warm: they differ between any two runs of the same code.
-CLOCK_KEYS = {"loop_s", "timing", "compile_seconds", "learning_seconds", "elapsed_s", "first_step_s",
-              "ms_per_step", "seconds_total", "kernels_cached"}
+CLOCK_KEYS = {
+    "loop_s",
+    "timing",
+    "compile_seconds",
+    "learning_seconds",
+    "elapsed_s",
+    "first_step_s",
+    "ms_per_step",
+    "seconds_total",
+    "kernels_cached",
+}
 
 
 # -- the fingerprints (run inside a side's tree) ---------------------------------------------------------------------
@@ -59,8 +69,9 @@ def without_clock(value, top: bool = True):
     """`value` without its wall-clock figures (CLOCK_KEYS at any depth; "seconds" at the top only, where it is
     the run's duration rather than a figure's time axis)."""
     if isinstance(value, dict):
-        return {k: without_clock(v, False) for k, v in value.items()
-                if k not in CLOCK_KEYS and not (top and k == "seconds")}
+        return {
+            k: without_clock(v, False) for k, v in value.items() if k not in CLOCK_KEYS and not (top and k == "seconds")
+        }
     if isinstance(value, list):
         return [without_clock(v, False) for v in value]
     return value
@@ -109,17 +120,24 @@ def replay_prints() -> dict[str, str]:
     from demos.walk_log import to_robot_log
     from demos.walk_sim import WalkScenario, simulate
     from field import spl
+
     try:
         from mcl.tools.replay import replay
-    except ImportError:             # a revision from before the tools moved
+    except ImportError:  # a revision from before the tools moved
         from mcl.replay import replay  # type: ignore[no-redef]
 
     scenario = replace(WalkScenario(), duration=30.0, kidnap_time=15.0)
     prints = {}
     for seed in (0, 1):
         result = replay(to_robot_log(simulate(scenario, seed), latency=0.05), spl(), particles=500, seed=seed)
-        prints[f"replay/{seed}"] = digest([digest(result.estimates), digest(result.entropy),
-                                           digest(result.quality.astype("int64")), digest(result.lost.astype("int64"))])
+        prints[f"replay/{seed}"] = digest(
+            [
+                digest(result.estimates),
+                digest(result.entropy),
+                digest(result.quality.astype("int64")),
+                digest(result.lost.astype("int64")),
+            ]
+        )
     return prints
 
 
@@ -142,21 +160,43 @@ def run_side(root: Path, sections, seeds: int, jobs: int, label: str) -> dict[st
     """The fingerprints of the tree at `root`, from this file run in a fresh process that imports that tree."""
     from benchmarks.compare import CompareError, Side, side_environment
 
-    done = subprocess.run([sys.executable, str(Path(__file__).resolve()), "--inside", "--sections",
-                           ",".join(sections), "--seeds", str(seeds), "--jobs", str(jobs)],
-                          cwd=root, env=side_environment(Side(label, root)), capture_output=True, text=True,
-                          check=False)
+    done = subprocess.run(
+        [
+            sys.executable,
+            str(Path(__file__).resolve()),
+            "--inside",
+            "--sections",
+            ",".join(sections),
+            "--seeds",
+            str(seeds),
+            "--jobs",
+            str(jobs),
+        ],
+        cwd=root,
+        env=side_environment(Side(label, root)),
+        capture_output=True,
+        text=True,
+        check=False,
+    )
     if done.returncode != 0:
-        raise CompareError(f"the cases of {label} failed (exit {done.returncode}):\n"
-                           + "\n".join(done.stderr.strip().splitlines()[-15:]))
+        raise CompareError(
+            f"the cases of {label} failed (exit {done.returncode}):\n"
+            + "\n".join(done.stderr.strip().splitlines()[-15:])
+        )
     return json.loads(done.stdout)
 
 
 def compare(base: dict[str, str], current: dict[str, str]) -> list[dict]:
     """One row per case either side ran: its two fingerprints and whether they are the same."""
-    return [{"case": case, "base": base.get(case), "current": current.get(case),
-             "same": base.get(case) is not None and base.get(case) == current.get(case)}
-            for case in sorted(set(base) | set(current))]
+    return [
+        {
+            "case": case,
+            "base": base.get(case),
+            "current": current.get(case),
+            "same": base.get(case) is not None and base.get(case) == current.get(case),
+        }
+        for case in sorted(set(base) | set(current))
+    ]
 
 
 def summary_lines(rows: list[dict]) -> list[str]:
@@ -168,25 +208,38 @@ def summary_lines(rows: list[dict]) -> list[str]:
             groups.setdefault("/".join(parts[:3]), []).append(row)
         else:
             lines.append(f"  {row['case']:<38} {'same' if row['same'] else 'DIFFERENT'}")
-    battery = [f"  {group:<38} {sum(r['same'] for r in runs)}/{len(runs)} runs same"
-               + ("" if all(r["same"] for r in runs) else "  DIFFERENT: seeds "
-                  + ", ".join(r["case"].rsplit("/", 1)[1] for r in runs if not r["same"]))
-               for group, runs in sorted(groups.items())]
+    battery = [
+        f"  {group:<38} {sum(r['same'] for r in runs)}/{len(runs)} runs same"
+        + (
+            ""
+            if all(r["same"] for r in runs)
+            else "  DIFFERENT: seeds " + ", ".join(r["case"].rsplit("/", 1)[1] for r in runs if not r["same"])
+        )
+        for group, runs in sorted(groups.items())
+    ]
     return battery + lines
 
 
 def build_parser(prog: str = PROG) -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog=prog, description=__doc__.split("\n\n")[0])
-    parser.add_argument("revision", nargs="?", help="a git revision or another checkout's directory to compare "
-                                                    "with (default: only print this tree's fingerprints)")
+    parser.add_argument(
+        "revision",
+        nargs="?",
+        help="a git revision or another checkout's directory to compare "
+        "with (default: only print this tree's fingerprints)",
+    )
     parser.add_argument("--seeds", type=int, default=20, help="battery seeds per family and split (default 20)")
-    parser.add_argument("--sections", default=",".join(SECTIONS),
-                        help=f"comma-separated, from {', '.join(SECTIONS)} (default: all)")
+    parser.add_argument(
+        "--sections", default=",".join(SECTIONS), help=f"comma-separated, from {', '.join(SECTIONS)} (default: all)"
+    )
     parser.add_argument("--jobs", type=int, default=2, help="battery worker processes per side (default 2)")
     parser.add_argument("--json", action="store_true", help="print the rows as JSON")
     parser.add_argument("--save", metavar="PATH", help="also write the JSON result to PATH")
-    parser.add_argument("--no-progress", action="store_true",
-                        help="no progress bars (there are none: each side says on stderr when it starts)")
+    parser.add_argument(
+        "--no-progress",
+        action="store_true",
+        help="no progress bars (there are none: each side says on stderr when it starts)",
+    )
     parser.add_argument("--inside", action="store_true", help=argparse.SUPPRESS)
     return parser
 
@@ -199,7 +252,7 @@ def main(argv: list[str] | None = None, prog: str = PROG) -> int:
         parser.error(f"--sections: choose from {', '.join(SECTIONS)}")
     if args.seeds < 1 or args.jobs < 1:
         parser.error("--seeds and --jobs must be at least 1")
-    if args.inside:                   # the fresh process of one side: its fingerprints as JSON on stdout
+    if args.inside:  # the fresh process of one side: its fingerprints as JSON on stdout
         print(json.dumps(fingerprints(sections, args.seeds, args.jobs)))
         return 0
     from benchmarks.compare import base_side, current_side
@@ -212,23 +265,45 @@ def main(argv: list[str] | None = None, prog: str = PROG) -> int:
     current_prints = run_side(current.root, sections, args.seeds, args.jobs, current.label)
     if args.revision is None:
         result: dict = {"sections": sections, "seeds": args.seeds, "current": current_prints}
-        save_and_print(result, args.save, args.json, lambda r: print("\n".join(
-            f"{case} {value}" for case, value in sorted(r["current"].items()))))
+        save_and_print(
+            result,
+            args.save,
+            args.json,
+            lambda r: print("\n".join(f"{case} {value}" for case, value in sorted(r["current"].items()))),
+        )
         return 0
     base = base_side(args.revision)
     print(f"{PROG}: running the cases on {base.label}", file=sys.stderr)
     base_prints = run_side(base.root, sections, args.seeds, args.jobs, base.label)
     rows = compare(base_prints, current_prints)
     differ = [row["case"] for row in rows if not row["same"]]
-    result = {"base": base.label, "current": current.label, "sections": sections, "seeds": args.seeds,
-              "cases": len(rows), "different": differ, "rows": rows}
-    save_and_print(result, args.save, args.json, lambda r: print("\n".join(
-        [f"{r['base']} against the {r['current']}: {r['cases'] - len(r['different'])}/{r['cases']} cases bit for "
-         "bit the same"] + summary_lines(r["rows"]))))
+    result = {
+        "base": base.label,
+        "current": current.label,
+        "sections": sections,
+        "seeds": args.seeds,
+        "cases": len(rows),
+        "different": differ,
+        "rows": rows,
+    }
+    save_and_print(
+        result,
+        args.save,
+        args.json,
+        lambda r: print(
+            "\n".join(
+                [
+                    f"{r['base']} against the {r['current']}: {r['cases'] - len(r['different'])}/{r['cases']} cases bit for "
+                    "bit the same"
+                ]
+                + summary_lines(r["rows"])
+            )
+        ),
+    )
     return 1 if differ else 0
 
 
 if __name__ == "__main__":
-    if "--inside" in sys.argv:        # run as a file inside a side's tree: that tree's packages, not this folder's
+    if "--inside" in sys.argv:  # run as a file inside a side's tree: that tree's packages, not this folder's
         sys.path[:] = [p for p in sys.path if Path(p or ".").resolve() != Path(__file__).resolve().parent]
     raise SystemExit(main())

@@ -16,6 +16,7 @@ Without a display (or with `--xvfb`) it starts Xvfb on a free display for the vi
 with Mesa's software Vulkan driver (lavapipe: Debian's mesa-vulkan-drivers) the viewer renders on the CPU,
 about half a minute per picture. Needs the `rerun` command installed with the SDK and, for `--xvfb`, Xvfb.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -30,7 +31,7 @@ from pathlib import Path
 LAVAPIPE = Path("/usr/share/vulkan/icd.d/lvp_icd.x86_64.json")
 APPLICATION_ID = "robocup-mcl"
 MAX_BYTES = 1_000_000
-KIDNAP_CLIP = 0.1       # s the kidnapping picture's run goes on after the kidnapping
+KIDNAP_CLIP = 0.1  # s the kidnapping picture's run goes on after the kidnapping
 
 
 def free_display() -> int:
@@ -47,8 +48,11 @@ class Xvfb:
 
     def __init__(self, width: int, height: int) -> None:
         self.display = f":{free_display()}"
-        self.process = subprocess.Popen(["Xvfb", self.display, "-screen", "0", f"{2 * width}x{2 * height}x24",
-                                         "-nolisten", "tcp"], stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        self.process = subprocess.Popen(
+            ["Xvfb", self.display, "-screen", "0", f"{2 * width}x{2 * height}x24", "-nolisten", "tcp"],
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.DEVNULL,
+        )
         for _ in range(50):
             if Path(f"/tmp/.X11-unix/X{self.display[1:]}").exists():
                 return
@@ -82,10 +86,26 @@ def screenshot(rrd: Path, blueprint, png: Path, size: str, display: str | None) 
     view = png.with_suffix(".rbl")
     try:
         blueprint.save(APPLICATION_ID, str(view))
-        done = subprocess.run([rerun_command(), str(rrd), str(view), "--screenshot-to", str(png),
-                               "--window-size", size, "--renderer", "vulkan", "--port", "auto",
-                               "--hide-welcome-screen"],
-                              env=env, capture_output=True, text=True, timeout=600)
+        done = subprocess.run(
+            [
+                rerun_command(),
+                str(rrd),
+                str(view),
+                "--screenshot-to",
+                str(png),
+                "--window-size",
+                size,
+                "--renderer",
+                "vulkan",
+                "--port",
+                "auto",
+                "--hide-welcome-screen",
+            ],
+            env=env,
+            capture_output=True,
+            text=True,
+            timeout=600,
+        )
     finally:
         view.unlink(missing_ok=True)
     if done.returncode != 0 or not png.exists():
@@ -114,10 +134,14 @@ def make(out: Path, size: str, use_xvfb: bool) -> list[Path]:
             x, y = result["series"]["truth"][-1, :2]
             display = server.display if server is not None else None
             for name, rrd, blueprint in (
-                    ("recording_walk.png", whole, default_blueprint(time_panel=at_end)),
-                    ("recording_walk_kidnap.png", kidnap, default_blueprint(time_panel=at_end)),
-                    ("recording_walk_closeup.png", whole,
-                     default_blueprint(field_bounds=((x - 1.5, x + 1.5), (y - 1.0, y + 1.0)), time_panel=at_end))):
+                ("recording_walk.png", whole, default_blueprint(time_panel=at_end)),
+                ("recording_walk_kidnap.png", kidnap, default_blueprint(time_panel=at_end)),
+                (
+                    "recording_walk_closeup.png",
+                    whole,
+                    default_blueprint(field_bounds=((x - 1.5, x + 1.5), (y - 1.0, y + 1.0)), time_panel=at_end),
+                ),
+            ):
                 png = out / name
                 screenshot(rrd, blueprint, png, size, display)
                 if png.stat().st_size > MAX_BYTES:
@@ -130,13 +154,20 @@ def make(out: Path, size: str, use_xvfb: bool) -> list[Path]:
 
 
 def main(argv: list[str] | None = None) -> int:
-    p = argparse.ArgumentParser(prog="python -m benchmarks.screenshots",
-                                description="The docs' screenshots of the walk demo's recording, by the viewer.")
+    p = argparse.ArgumentParser(
+        prog="python -m benchmarks.screenshots",
+        description="The docs' screenshots of the walk demo's recording, by the viewer.",
+    )
     p.add_argument("--out", default="docs/images", help="directory for the PNGs (default docs/images)")
     p.add_argument("--size", default="1600x900", help="the viewer's window in logical points (default 1600x900)")
     xvfb = p.add_mutually_exclusive_group()
-    xvfb.add_argument("--xvfb", dest="xvfb", action="store_true", default=None,
-                      help="run the viewer on a virtual X server (default: when DISPLAY is not set)")
+    xvfb.add_argument(
+        "--xvfb",
+        dest="xvfb",
+        action="store_true",
+        default=None,
+        help="run the viewer on a virtual X server (default: when DISPLAY is not set)",
+    )
     xvfb.add_argument("--no-xvfb", dest="xvfb", action="store_false", help="use the current DISPLAY")
     args = p.parse_args(argv)
     use_xvfb = not os.environ.get("DISPLAY") if args.xvfb is None else args.xvfb

@@ -49,6 +49,7 @@ The verdict (exit status 0 when it holds, 1 otherwise):
 Determinism: the same seed gives the same truth, the same detections and the same estimates bit for bit (the
 run's `poses_sha256` digests every step's estimate and the final particles); only the timings differ.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -69,12 +70,12 @@ from field.angles import wrap_angles
 from motion_models import MotionInput
 from sensing.observations import Observations
 
-MAX_GROWTH_MB = 1.0          # MB (2^20 bytes) of RSS growth after the first minute the verdict allows
-MAX_DRIFT_PER_HOUR = 0.10    # relative upward drift of the median step time per hour the verdict allows
-MIN_DRIFT_MINUTES = 3        # minutes after the first needed to estimate the drift ...
-JUDGED_DRIFT_MINUTES = 10    # ... and to judge it (fewer minutes extrapolate noise to an hour)
-MB = float(2 ** 20)
-BLOCK_STEPS = 500            # motion steps generated at a time (5 s: the generator's arrays stay small)
+MAX_GROWTH_MB = 1.0  # MB (2^20 bytes) of RSS growth after the first minute the verdict allows
+MAX_DRIFT_PER_HOUR = 0.10  # relative upward drift of the median step time per hour the verdict allows
+MIN_DRIFT_MINUTES = 3  # minutes after the first needed to estimate the drift ...
+JUDGED_DRIFT_MINUTES = 10  # ... and to judge it (fewer minutes extrapolate noise to an hour)
+MB = float(2**20)
+BLOCK_STEPS = 500  # motion steps generated at a time (5 s: the generator's arrays stay small)
 TABLE_COLUMNS = ("minute", "steps", "frames", "median ms", "p99 ms", "RSS MB", "growth MB", "NaN", "error m")
 
 
@@ -102,12 +103,12 @@ class Drift:
 
     first: int
     last: int
-    slope_ms_per_minute: float       # Theil–Sen
-    baseline_ms: float               # the median of the per-minute medians used
-    relative_per_hour: float         # slope × 60 / baseline
-    first_third_ms: float            # the median of the first third of those minutes' medians ...
-    last_third_ms: float             # ... and of the last third
-    thirds_change: float             # last_third / first_third - 1
+    slope_ms_per_minute: float  # Theil–Sen
+    baseline_ms: float  # the median of the per-minute medians used
+    relative_per_hour: float  # slope × 60 / baseline
+    first_third_ms: float  # the median of the first third of those minutes' medians ...
+    last_third_ms: float  # ... and of the last third
+    thirds_change: float  # last_third / first_third - 1
 
 
 def step_time_drift(minute_medians_ms, skip: int = 1) -> Drift | None:
@@ -122,9 +123,16 @@ def step_time_drift(minute_medians_ms, skip: int = 1) -> Drift | None:
     baseline = float(np.median(y))
     third = max(1, y.shape[0] // 3)
     first_third, last_third = float(np.median(y[:third])), float(np.median(y[-third:]))
-    return Drift(skip + 1, int(medians.shape[0]), slope, baseline,
-                 60.0 * slope / baseline if baseline > 0 else math.inf,
-                 first_third, last_third, last_third / first_third - 1.0 if first_third > 0 else math.inf)
+    return Drift(
+        skip + 1,
+        int(medians.shape[0]),
+        slope,
+        baseline,
+        60.0 * slope / baseline if baseline > 0 else math.inf,
+        first_third,
+        last_third,
+        last_third / first_third - 1.0 if first_third > 0 else math.inf,
+    )
 
 
 @dataclass(frozen=True)
@@ -132,12 +140,18 @@ class Verdict:
     ok: bool
     finite: bool
     memory: bool
-    drift: bool | None               # None: not judged (too short a run)
+    drift: bool | None  # None: not judged (too short a run)
     text: str
 
 
-def judge(nonfinite: int, growth_mb: float, drift: Drift | None, max_growth_mb: float = MAX_GROWTH_MB,
-          max_drift: float = MAX_DRIFT_PER_HOUR, judged_minutes: int = JUDGED_DRIFT_MINUTES) -> Verdict:
+def judge(
+    nonfinite: int,
+    growth_mb: float,
+    drift: Drift | None,
+    max_growth_mb: float = MAX_GROWTH_MB,
+    max_drift: float = MAX_DRIFT_PER_HOUR,
+    judged_minutes: int = JUDGED_DRIFT_MINUTES,
+) -> Verdict:
     """The soak verdict from the NaN count, the RSS growth after the first minute and the step-time drift (judged
     when it spans at least `judged_minutes` minutes; see the module docstring)."""
     finite = nonfinite == 0
@@ -148,11 +162,16 @@ def judge(nonfinite: int, growth_mb: float, drift: Drift | None, max_growth_mb: 
     if drift is None:
         drift_text = f"step time drift not measured (needs {MIN_DRIFT_MINUTES + 1} minutes or more)"
     else:
-        drift_text = (f"step time drift {100 * drift.relative_per_hour:+.1f} %/h over minutes "
-                      f"{drift.first}-{drift.last} (limit {100 * max_drift:g} %/h"
-                      + (")" if judged else f", judged from {judged_minutes + 1} minutes on)"))
-    parts = [f"NaN {nonfinite}" + ("" if finite else " (must be 0)"),
-             f"memory growth {growth_mb:+.2f} MB after the first minute (limit {max_growth_mb:g} MB)", drift_text]
+        drift_text = (
+            f"step time drift {100 * drift.relative_per_hour:+.1f} %/h over minutes "
+            f"{drift.first}-{drift.last} (limit {100 * max_drift:g} %/h"
+            + (")" if judged else f", judged from {judged_minutes + 1} minutes on)")
+        )
+    parts = [
+        f"NaN {nonfinite}" + ("" if finite else " (must be 0)"),
+        f"memory growth {growth_mb:+.2f} MB after the first minute (limit {max_growth_mb:g} MB)",
+        drift_text,
+    ]
     return Verdict(ok, finite, memory, drifting, ("PASS: " if ok else "FAIL: ") + "; ".join(parts))
 
 
@@ -164,12 +183,14 @@ def rss_bytes() -> int:
             return int(statm.read().split()[1]) * os.sysconf("SC_PAGE_SIZE")
     except (OSError, ValueError, IndexError):
         import resource
+
         peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
         return int(peak) * (1 if sys.platform == "darwin" else 1024)
 
 
-def run_soak(minutes: float = 60.0, particles: int = 500, seed: int = 0, scenario: SoakScenario | None = None,
-             on_minute=None) -> dict:
+def run_soak(
+    minutes: float = 60.0, particles: int = 500, seed: int = 0, scenario: SoakScenario | None = None, on_minute=None
+) -> dict:
     """Run the soak (see the module docstring); returns the results as JSON-ready data. `on_minute(row)` is
     called with each minute's row as it ends."""
     from mcl.localizer import Localizer
@@ -192,9 +213,27 @@ def run_soak(minutes: float = 60.0, particles: int = 500, seed: int = 0, scenari
     step_ns = np.empty(per_minute, dtype=np.int64)
     estimates = np.empty((per_minute, 3))
     truth = np.empty((per_minute, 3))
-    rows = {name: np.zeros(n_minutes) for name in (
-        "steps", "frames", "detections", "median_ms", "p99_ms", "max_ms", "rss_mb", "growth_mb", "nonfinite",
-        "error_median_m", "error_p95_m", "heading_error_median_deg", "superb", "okay", "poor", "lost")}
+    rows = {
+        name: np.zeros(n_minutes)
+        for name in (
+            "steps",
+            "frames",
+            "detections",
+            "median_ms",
+            "p99_ms",
+            "max_ms",
+            "rss_mb",
+            "growth_mb",
+            "nonfinite",
+            "error_median_m",
+            "error_p95_m",
+            "heading_error_median_deg",
+            "superb",
+            "okay",
+            "poor",
+            "lost",
+        )
+    }
     digest = hashlib.sha256()
     pending: deque = deque()
     quality_index = {"superb": 0, "okay": 1, "poor": 2}
@@ -209,12 +248,13 @@ def run_soak(minutes: float = 60.0, particles: int = 500, seed: int = 0, scenari
         quality_counts[:] = (0, 0, 0)
         for block_start in range(0, n, BLOCK_STEPS):
             chunk = stream.next_chunk(min(BLOCK_STEPS, n - block_start))
-            truth[block_start:block_start + chunk.truth.shape[0]] = chunk.truth
+            truth[block_start : block_start + chunk.truth.shape[0]] = chunk.truth
             for f in range(chunk.capture_steps.shape[0]):
                 a, b = chunk.offsets[f], chunk.offsets[f + 1]
                 capture = int(chunk.capture_steps[f])
-                pending.append((capture + latency, (capture + 1) * dt, chunk.kinds[a:b], chunk.ranges[a:b],
-                                chunk.bearings[a:b]))
+                pending.append(
+                    (capture + latency, (capture + 1) * dt, chunk.kinds[a:b], chunk.ranges[a:b], chunk.bearings[a:b])
+                )
             odometry = chunk.odometry.tolist()
             for j in range(chunk.truth.shape[0]):
                 g = chunk.first_step + j
@@ -236,15 +276,19 @@ def run_soak(minutes: float = 60.0, particles: int = 500, seed: int = 0, scenari
                 step_ns[k] = time.perf_counter_ns() - t0
                 pose = estimate.pose
                 estimates[k] = pose
-                if not (math.isfinite(pose[0]) and math.isfinite(pose[1]) and math.isfinite(pose[2])
-                        and np.isfinite(estimate.covariance).all()):
+                if not (
+                    math.isfinite(pose[0])
+                    and math.isfinite(pose[1])
+                    and math.isfinite(pose[2])
+                    and np.isfinite(estimate.covariance).all()
+                ):
                     nonfinite += 1
                 quality_counts[quality_index[quality.value]] += 1
                 lost += is_lost
         nonfinite += int(np.count_nonzero(~np.isfinite(loc.filter.poses)))
         nonfinite += int(np.count_nonzero(~np.isfinite(loc.filter.weights)))
         nonfinite_total += nonfinite
-        digest.update(estimates[:n])                     # (the buffer itself: no copy)
+        digest.update(estimates[:n])  # (the buffer itself: no copy)
         times_ms = step_ns[:n] * 1e-6
         error = np.hypot(estimates[:n, 0] - truth[:n, 0], estimates[:n, 1] - truth[:n, 1])
         heading = np.abs(wrap_angles(estimates[:n, 2] - truth[:n, 2]))
@@ -252,14 +296,24 @@ def run_soak(minutes: float = 60.0, particles: int = 500, seed: int = 0, scenari
         rss = rss_bytes()
         if minute == 0:
             rss_first = rss
-        values = {"steps": n, "frames": frames, "detections": detections,
-                  "median_ms": float(np.median(times_ms)), "p99_ms": float(np.percentile(times_ms, 99)),
-                  "max_ms": float(times_ms.max()), "rss_mb": rss / MB, "growth_mb": (rss - rss_first) / MB,
-                  "nonfinite": nonfinite, "error_median_m": float(np.median(error)),
-                  "error_p95_m": float(np.percentile(error, 95)),
-                  "heading_error_median_deg": math.degrees(float(np.median(heading))),
-                  "superb": quality_counts[0], "okay": quality_counts[1], "poor": quality_counts[2],
-                  "lost": lost}
+        values = {
+            "steps": n,
+            "frames": frames,
+            "detections": detections,
+            "median_ms": float(np.median(times_ms)),
+            "p99_ms": float(np.percentile(times_ms, 99)),
+            "max_ms": float(times_ms.max()),
+            "rss_mb": rss / MB,
+            "growth_mb": (rss - rss_first) / MB,
+            "nonfinite": nonfinite,
+            "error_median_m": float(np.median(error)),
+            "error_p95_m": float(np.percentile(error, 95)),
+            "heading_error_median_deg": math.degrees(float(np.median(heading))),
+            "superb": quality_counts[0],
+            "okay": quality_counts[1],
+            "poor": quality_counts[2],
+            "lost": lost,
+        }
         for name, value in values.items():
             rows[name][minute] = value
         if on_minute is not None:
@@ -272,18 +326,35 @@ def run_soak(minutes: float = 60.0, particles: int = 500, seed: int = 0, scenari
     verdict = judge(nonfinite_total, growth, drift)
     final = loc.pose()
     return {
-        "settings": {"minutes": minutes, "particles": particles, "seed": seed, "field": s.field.name,
-                     "motion_rate_hz": s.motion_rate, "camera_rate_hz": s.camera_rate, "latency_s": s.latency,
-                     "steps": total},
+        "settings": {
+            "minutes": minutes,
+            "particles": particles,
+            "seed": seed,
+            "field": s.field.name,
+            "motion_rate_hz": s.motion_rate,
+            "camera_rate_hz": s.camera_rate,
+            "latency_s": s.latency,
+            "steps": total,
+        },
         "minutes": [_row(rows, m) for m in range(n_minutes)],
         "nonfinite": nonfinite_total,
-        "memory": {"rss_first_minute_mb": rss_first / MB, "rss_end_mb": float(rows["rss_mb"][-1]),
-                   "growth_mb": growth, "max_growth_mb": float(rows["growth_mb"].max()),
-                   "limit_mb": MAX_GROWTH_MB},
-        "drift": None if drift is None else {**asdict(drift), "limit_per_hour": MAX_DRIFT_PER_HOUR,
-                                             "judged_from_minutes": JUDGED_DRIFT_MINUTES + 1},
-        "verdict": {"ok": verdict.ok, "finite": verdict.finite, "memory": verdict.memory, "drift": verdict.drift,
-                    "text": verdict.text},
+        "memory": {
+            "rss_first_minute_mb": rss_first / MB,
+            "rss_end_mb": float(rows["rss_mb"][-1]),
+            "growth_mb": growth,
+            "max_growth_mb": float(rows["growth_mb"].max()),
+            "limit_mb": MAX_GROWTH_MB,
+        },
+        "drift": None
+        if drift is None
+        else {**asdict(drift), "limit_per_hour": MAX_DRIFT_PER_HOUR, "judged_from_minutes": JUDGED_DRIFT_MINUTES + 1},
+        "verdict": {
+            "ok": verdict.ok,
+            "finite": verdict.finite,
+            "memory": verdict.memory,
+            "drift": verdict.drift,
+            "text": verdict.text,
+        },
         "counts": dict(loc.counts),
         "start": stream.start.tolist(),
         "final_estimate": final.pose.tolist(),
@@ -298,8 +369,14 @@ def _machine() -> dict:
     import platform
 
     import numba
-    return {"python": platform.python_version(), "numpy": np.__version__, "numba": numba.__version__,
-            "cpus": os.cpu_count(), "platform": platform.platform()}
+
+    return {
+        "python": platform.python_version(),
+        "numpy": np.__version__,
+        "numba": numba.__version__,
+        "cpus": os.cpu_count(),
+        "platform": platform.platform(),
+    }
 
 
 def _row(rows: dict, minute: int) -> dict:
@@ -318,9 +395,11 @@ def table_header() -> str:
 
 
 def table_row(row: dict) -> str:
-    return (f"{row['minute']:>6} {row['steps']:>6} {row['frames']:>6} {row['median_ms']:>9.3f} "
-            f"{row['p99_ms']:>7.3f} {row['rss_mb']:>7.1f} {row['growth_mb']:>+9.2f} {row['nonfinite']:>4} "
-            f"{row['error_median_m']:>7.3f}")
+    return (
+        f"{row['minute']:>6} {row['steps']:>6} {row['frames']:>6} {row['median_ms']:>9.3f} "
+        f"{row['p99_ms']:>7.3f} {row['rss_mb']:>7.1f} {row['growth_mb']:>+9.2f} {row['nonfinite']:>4} "
+        f"{row['error_median_m']:>7.3f}"
+    )
 
 
 PROG = "robocup-mcl soak"
@@ -331,8 +410,9 @@ def build_parser(prog: str = PROG) -> argparse.ArgumentParser:
     from mcl.tools.cli_checks import add_progress_option, description
 
     parser = argparse.ArgumentParser(prog=prog, description=description(__doc__))
-    parser.add_argument("--minutes", type=float, default=60.0, help="simulated minutes (default 60; fractions "
-                                                                    "allowed, e.g. 0.5)")
+    parser.add_argument(
+        "--minutes", type=float, default=60.0, help="simulated minutes (default 60; fractions allowed, e.g. 0.5)"
+    )
     parser.add_argument("--particles", type=int, default=500, help="particles (default 500)")
     parser.add_argument("--seed", type=int, default=0, help="seed of the scenario and the filter (default 0)")
     parser.add_argument("--json", action="store_true", help="print the results as JSON instead of the table")
@@ -353,20 +433,22 @@ def main(argv: list[str] | None = None, prog: str = PROG) -> int:
         parser.error(f"--particles {args.particles} must be > 0")
     if args.seed < 0:
         parser.error(f"--seed {args.seed} must be >= 0")
-    check_output_file(args.save, "--save", make_parents=False)     # before the run, not after it
+    check_output_file(args.save, "--save", make_parents=False)  # before the run, not after it
 
     def show(row: dict) -> None:
         print(table_row(row), flush=True)
 
     scenario = SoakScenario()
     if not args.json:
-        print(f"soak: {args.minutes:g} simulated min on {scenario.field.name}, motion at {scenario.motion_rate:g} Hz, "
-              f"camera at {scenario.camera_rate:g} Hz ({1e3 * scenario.latency:.0f} ms late), {args.particles} "
-              f"particles, seed {args.seed}")
+        print(
+            f"soak: {args.minutes:g} simulated min on {scenario.field.name}, motion at {scenario.motion_rate:g} Hz, "
+            f"camera at {scenario.camera_rate:g} Hz ({1e3 * scenario.latency:.0f} ms late), {args.particles} "
+            f"particles, seed {args.seed}"
+        )
         print(table_header(), flush=True)
     from mcl.tools.cli_checks import progress_bar, progress_wanted
-    bar = progress_bar(enabled=progress_wanted(args), total=math.ceil(args.minutes), desc="soak",
-                       unit="simulated min")
+
+    bar = progress_bar(enabled=progress_wanted(args), total=math.ceil(args.minutes), desc="soak", unit="simulated min")
 
     def on_minute(row: dict) -> None:
         if not args.json:
@@ -384,14 +466,16 @@ def main(argv: list[str] | None = None, prog: str = PROG) -> int:
             handle.write(text + "\n")
     if args.json:
         print(text)
-        print(result["verdict"]["text"], file=sys.stderr)      # stdout stays pure JSON
+        print(result["verdict"]["text"], file=sys.stderr)  # stdout stays pure JSON
     else:
         drift = result["drift"]
         if drift is not None:
-            print(f"step time: median {drift['baseline_ms']:.3f} ms over minutes {drift['first']}-{drift['last']}, "
-                  f"Theil-Sen slope {1e3 * drift['slope_ms_per_minute']:+.4f} µs/min "
-                  f"({100 * drift['relative_per_hour']:+.1f} %/h); last third vs first third "
-                  f"{100 * drift['thirds_change']:+.1f} %")
+            print(
+                f"step time: median {drift['baseline_ms']:.3f} ms over minutes {drift['first']}-{drift['last']}, "
+                f"Theil-Sen slope {1e3 * drift['slope_ms_per_minute']:+.4f} µs/min "
+                f"({100 * drift['relative_per_hour']:+.1f} %/h); last third vs first third "
+                f"{100 * drift['thirds_change']:+.1f} %"
+            )
         print(f"{result['settings']['steps']} steps in {result['elapsed_s']:.0f} s of wall time")
         if args.save:
             print(f"results written to {args.save}")

@@ -13,6 +13,7 @@ the filter makes with its numpy twin (`*_reference`); phases that have no twin (
 Timings: the candidates are called in turn (A, B, A, B, ...) and the median is taken, so a machine shared with
 other work biases both alike; ratios compare figures of one run.
 """
+
 from __future__ import annotations
 
 import inspect
@@ -54,8 +55,10 @@ TRUE_POSE = np.array([1.0, 0.5, 0.3])
 # the scratch the benchmark knows how to fill for the ones after (what the filter passes when it wants none).
 FUSED_KERNELS = ("resample_with_jitter", "systematic_with_jitter")
 FUSED_LEADING = ["weights", "m", "source", "bounds", "out", "trig", "function", "state"]
-FUSED_SCRATCH = {"counts": lambda m: np.zeros(m + 1, dtype=np.int64),     # zero between calls
-                 "coordinates": lambda m: np.empty((3, 0))}              # no split coordinates wanted
+FUSED_SCRATCH = {
+    "counts": lambda m: np.zeros(m + 1, dtype=np.int64),  # zero between calls
+    "coordinates": lambda m: np.empty((3, 0)),
+}  # no split coordinates wanted
 
 
 def fused_resampler():
@@ -78,8 +81,8 @@ def fused_resampler():
             parameters = list(inspect.signature(getattr(kernel, "py_func", kernel)).parameters)
         except (TypeError, ValueError):
             continue
-        extra = parameters[len(FUSED_LEADING):]
-        if parameters[:len(FUSED_LEADING)] != FUSED_LEADING or not set(extra) <= set(FUSED_SCRATCH):
+        extra = parameters[len(FUSED_LEADING) :]
+        if parameters[: len(FUSED_LEADING)] != FUSED_LEADING or not set(extra) <= set(FUSED_SCRATCH):
             continue
 
         def prepare(weights, m, source, bounds, out, rng, kernel=kernel, extra=tuple(extra)):
@@ -87,6 +90,7 @@ def fused_resampler():
             scratch = tuple(FUSED_SCRATCH[name](m) for name in extra)
             trig = np.ascontiguousarray(np.stack([np.cos(source[:, 2]), np.sin(source[:, 2])], axis=1))
             return lambda: kernel(weights, m, source, bounds, out, trig, function, state, *scratch)
+
         return name, prepare
     return None
 
@@ -120,45 +124,96 @@ class Phase:
 
 
 PHASES = (
-    Phase("predict_velocity_linear", "motion model: velocity-linear (Hoffmann eq. 10), variates drawn included",
-          "VelocityLinear.predict", "motion_models.kernels.move_with_noise_reference"),
-    Phase("predict_adaptive", "motion model: adaptive, five mobility states, during frequent collisions (Hoffmann "
-          "eq. 11-26), the states in that condition's stationary mix",
-          "AdaptiveMotion.predict(state=...)", "motion_models.adaptive.adaptive_move_reference"),
-    Phase("predict_adaptive_quiet", "motion model: adaptive, walking without collisions (every particle free)",
-          "AdaptiveMotion.predict(state=...)", "motion_models.adaptive.adaptive_move_reference"),
-    Phase("likelihood_von_mises", "landmark likelihood, 10 goalposts, fast von Mises bearing term",
-          "LandmarkSensorModel.log_likelihood", "LandmarkSensorModel.log_likelihood_reference"),
-    Phase("likelihood_exact", "landmark likelihood, 10 goalposts, exact atan2 bearing term",
-          "LandmarkSensorModel(bearing_model='exact').log_likelihood",
-          "LandmarkSensorModel(bearing_model='exact').log_likelihood_reference"),
-    Phase("likelihood_lines", "line likelihood field, 12 line points (sensing/lines.py)",
-          "LineSensorModel.log_likelihood", "LineSensorModel.log_likelihood_reference"),
-    Phase("normalize", "normalization (log-sum-exp) and ESS, prior log-weights + log-likelihood included",
-          "mcl.weights.normalize", "mcl.weights.normalize_reference"),
-    Phase("resample", "systematic resampling and the roughening copy (gather with jitter), the headings' cos "
-          "and sin known (the step's scoring leaves them)",
-          f"mcl.resampling.{FUSED[0]} (fused, uniforms drawn in the kernel)" if FUSED else
-          "mcl.resampling.systematic + gather_with_jitter",
-          "mcl.resampling.systematic_reference + gather_with_jitter_reference"),
-    Phase("injection", "augmented-MCL injection of max_fraction (25 %) of N: half drawn from the detections "
-          "(sensor resetting), half uniform over the field, headings around a trusted reference",
-          "ParticleFilter._sample_injection (numpy's integers and normals, the rest compiled)",
-          "benchmarks.reference.sample_injection_reference"),
-    Phase("estimate", "estimate: dominant cluster (histogram seed, mean shift), weighted circular mean",
-          "ParticleFilter.estimate (what it keeps dropped first)", "mcl.estimate.cluster_estimate_reference"),
-    Phase("entropy", "grid entropy, position and orientation (Hoffmann eq. 27); where the filter shares its "
-          "histograms with the estimate, both phases include filling them",
-          "ParticleFilter.entropy (what it keeps dropped first)", "mcl.estimate.grid_entropy_reference"),
-    Phase("recording", "recording one step to Rerun (a temporary .rrd), particles logged every step",
-          "mcl.tools.recording.Recorder.log_step", None),
+    Phase(
+        "predict_velocity_linear",
+        "motion model: velocity-linear (Hoffmann eq. 10), variates drawn included",
+        "VelocityLinear.predict",
+        "motion_models.kernels.move_with_noise_reference",
+    ),
+    Phase(
+        "predict_adaptive",
+        "motion model: adaptive, five mobility states, during frequent collisions (Hoffmann "
+        "eq. 11-26), the states in that condition's stationary mix",
+        "AdaptiveMotion.predict(state=...)",
+        "motion_models.adaptive.adaptive_move_reference",
+    ),
+    Phase(
+        "predict_adaptive_quiet",
+        "motion model: adaptive, walking without collisions (every particle free)",
+        "AdaptiveMotion.predict(state=...)",
+        "motion_models.adaptive.adaptive_move_reference",
+    ),
+    Phase(
+        "likelihood_von_mises",
+        "landmark likelihood, 10 goalposts, fast von Mises bearing term",
+        "LandmarkSensorModel.log_likelihood",
+        "LandmarkSensorModel.log_likelihood_reference",
+    ),
+    Phase(
+        "likelihood_exact",
+        "landmark likelihood, 10 goalposts, exact atan2 bearing term",
+        "LandmarkSensorModel(bearing_model='exact').log_likelihood",
+        "LandmarkSensorModel(bearing_model='exact').log_likelihood_reference",
+    ),
+    Phase(
+        "likelihood_lines",
+        "line likelihood field, 12 line points (sensing/lines.py)",
+        "LineSensorModel.log_likelihood",
+        "LineSensorModel.log_likelihood_reference",
+    ),
+    Phase(
+        "normalize",
+        "normalization (log-sum-exp) and ESS, prior log-weights + log-likelihood included",
+        "mcl.weights.normalize",
+        "mcl.weights.normalize_reference",
+    ),
+    Phase(
+        "resample",
+        "systematic resampling and the roughening copy (gather with jitter), the headings' cos "
+        "and sin known (the step's scoring leaves them)",
+        f"mcl.resampling.{FUSED[0]} (fused, uniforms drawn in the kernel)"
+        if FUSED
+        else "mcl.resampling.systematic + gather_with_jitter",
+        "mcl.resampling.systematic_reference + gather_with_jitter_reference",
+    ),
+    Phase(
+        "injection",
+        "augmented-MCL injection of max_fraction (25 %) of N: half drawn from the detections "
+        "(sensor resetting), half uniform over the field, headings around a trusted reference",
+        "ParticleFilter._sample_injection (numpy's integers and normals, the rest compiled)",
+        "benchmarks.reference.sample_injection_reference",
+    ),
+    Phase(
+        "estimate",
+        "estimate: dominant cluster (histogram seed, mean shift), weighted circular mean",
+        "ParticleFilter.estimate (what it keeps dropped first)",
+        "mcl.estimate.cluster_estimate_reference",
+    ),
+    Phase(
+        "entropy",
+        "grid entropy, position and orientation (Hoffmann eq. 27); where the filter shares its "
+        "histograms with the estimate, both phases include filling them",
+        "ParticleFilter.entropy (what it keeps dropped first)",
+        "mcl.estimate.grid_entropy_reference",
+    ),
+    Phase(
+        "recording",
+        "recording one step to Rerun (a temporary .rrd), particles logged every step",
+        "mcl.tools.recording.Recorder.log_step",
+        None,
+    ),
 )
 PHASE_NAMES = tuple(p.name for p in PHASES)
 
 
 # -- timing ----------------------------------------------------------------------------------------------------
-def measure(work: dict[str, Callable[[], object]], budget_s: float, min_samples: int = 3,
-            max_samples: int = 300, sample_s: float = 2e-4) -> dict[str, dict]:
+def measure(
+    work: dict[str, Callable[[], object]],
+    budget_s: float,
+    min_samples: int = 3,
+    max_samples: int = 300,
+    sample_s: float = 2e-4,
+) -> dict[str, dict]:
     """Median seconds per call of each zero-argument callable, called in turn (A, B, A, B, ...).
 
     Each callable is called once to warm up (numba compiles or loads its cache there), once more to estimate
@@ -175,11 +230,11 @@ def measure(work: dict[str, Callable[[], object]], budget_s: float, min_samples:
         fn()
         cost[name] = max(clock() - start, 1e-9)
     calls = {name: max(1, int(sample_s / c)) for name, c in cost.items()}
-    samples = {name: int(min(max_samples, max(min_samples, budget_s / (cost[name] * calls[name]))))
-               for name in work}
+    samples = {name: int(min(max_samples, max(min_samples, budget_s / (cost[name] * calls[name])))) for name in work}
     # A slow call's cost estimate is a sample already (it is what repetitions would measure).
-    times: dict[str, list[float]] = {name: [cost[name]] if calls[name] == 1 and cost[name] > 0.05 else []
-                                     for name in work}
+    times: dict[str, list[float]] = {
+        name: [cost[name]] if calls[name] == 1 and cost[name] > 0.05 else [] for name in work
+    }
     rounds = max(samples.values(), default=0)
     for r in range(rounds):
         for name, fn in work.items():
@@ -194,8 +249,12 @@ def measure(work: dict[str, Callable[[], object]], budget_s: float, min_samples:
     for name, values in times.items():
         median = statistics.median(values)
         quartiles = statistics.quantiles(values, n=4) if len(values) >= 2 else [median, median, median]
-        result[name] = {"s": median, "samples": len(values), "calls_per_sample": calls[name],
-                        "spread": (quartiles[2] - quartiles[0]) / median if median > 0 else 0.0}
+        result[name] = {
+            "s": median,
+            "samples": len(values),
+            "calls_per_sample": calls[name],
+            "spread": (quartiles[2] - quartiles[0]) / median if median > 0 else 0.0,
+        }
     return result
 
 
@@ -213,8 +272,15 @@ def bench_setup(n: int, bearing_model: str = "von_mises", seed: int = 0, motion_
     filter_options.setdefault("augmented", None)
     field = spl()
     sensor = LandmarkSensorModel(field, bearing_model=bearing_model)
-    pf = ParticleFilter(field, motion_model or VelocityLinear(), sensor, n_particles=n, seed=seed,
-                        resample_threshold=1.0, **filter_options)
+    pf = ParticleFilter(
+        field,
+        motion_model or VelocityLinear(),
+        sensor,
+        n_particles=n,
+        seed=seed,
+        resample_threshold=1.0,
+        **filter_options,
+    )
     pf.reset_around(TRUE_POSE, (0.3, 0.3, 0.2))
     rng = np.random.default_rng(seed + 1)
     posts = field.landmarks_of("goalpost")
@@ -222,8 +288,7 @@ def bench_setup(n: int, bearing_model: str = "von_mises", seed: int = 0, motion_
     d = picks - TRUE_POSE[:2]
     ranges = np.hypot(d[:, 0], d[:, 1]) + 0.05 * rng.standard_normal(10)
     bearings = np.arctan2(d[:, 1], d[:, 0]) - TRUE_POSE[2] + 0.03 * rng.standard_normal(10)
-    observations = Observations.from_arrays(["goalpost"] * 10, ranges, bearings,
-                                            line_points=line_points(field, rng))
+    observations = Observations.from_arrays(["goalpost"] * 10, ranges, bearings, line_points=line_points(field, rng))
     return pf, MotionInput(dt=0.01, command=(0.2, 0.0, 0.1), collision=NO_COLLISION), observations
 
 
@@ -251,9 +316,11 @@ def threads_option() -> str | None:
 def stepping(pf: ParticleFilter, u: MotionInput, observations: Observations) -> Callable[[], None]:
     """One full step of `pf` through the filter's public calls: `step` (predict, correct, resample, estimate)
     and `entropy`."""
+
     def step():
         pf.step(u, observations)
         pf.entropy()
+
     return step
 
 
@@ -332,8 +399,10 @@ class PhaseScene:
         pf, u, observations = bench_setup(n)
         pf.step(u, observations)
         if fresh_estimate(pf) is fresh_estimate(pf):
-            raise RuntimeError("ParticleFilter.estimate() does not recompute after summary.changed(): "
-                               "benchmarks.step._forget_summary needs the filter's new way to drop its estimate")
+            raise RuntimeError(
+                "ParticleFilter.estimate() does not recompute after summary.changed(): "
+                "benchmarks.step._forget_summary needs the filter's new way to drop its estimate"
+            )
         self.pf, self.u, self.observations = pf, u, observations
         self.rng = np.random.default_rng(7)
         field = pf.field
@@ -369,6 +438,7 @@ class PhaseScene:
         if FUSED is not None:
             resample = FUSED[1](self.weights, n, poses, self.jitter, self.resampled, self.rng)
         else:
+
             def resample():
                 ancestors = systematic(self.weights, n, self.rng)
                 gather_with_jitter(poses, ancestors, self.jitter, draw_variates(self.rng, n, False), self.resampled)
@@ -399,16 +469,23 @@ class PhaseScene:
         g = pf.grid
 
         def predict_velocity_linear():
-            move_with_noise_reference(poses, *self.u.displacement(), *model.noise_bounds(self.u), model.gaussian,
-                                      draw_variates(self.rng, n, model.gaussian))
+            move_with_noise_reference(
+                poses,
+                *self.u.displacement(),
+                *model.noise_bounds(self.u),
+                model.gaussian,
+                draw_variates(self.rng, n, model.gaussian),
+            )
 
         def predict_adaptive():
-            adaptive_move_reference(poses, state, *self.adaptive.kernel_arguments(self.u_collision),
-                                    self.rng.random((n, VARIATES)))
+            adaptive_move_reference(
+                poses, state, *self.adaptive.kernel_arguments(self.u_collision), self.rng.random((n, VARIATES))
+            )
 
         def predict_adaptive_quiet():
-            adaptive_move_reference(poses, quiet, *self.adaptive.kernel_arguments(self.u_quiet),
-                                    self.rng.random((n, VARIATES)))
+            adaptive_move_reference(
+                poses, quiet, *self.adaptive.kernel_arguments(self.u_quiet), self.rng.random((n, VARIATES))
+            )
 
         def resample():
             ancestors = systematic_reference(self.weights, n, self.rng)
@@ -418,13 +495,25 @@ class PhaseScene:
         s = pf.summary
 
         def estimate():
-            cluster_estimate_reference(pf.poses, pf.weights, s.x_min, s.y_min, g.cluster_cell, s.cluster_nx,
-                                       s.cluster_ny, g.cluster_orientation_bins, g.cluster_radius,
-                                       g.cluster_angle_radius, 3, None)
+            cluster_estimate_reference(
+                pf.poses,
+                pf.weights,
+                s.x_min,
+                s.y_min,
+                g.cluster_cell,
+                s.cluster_nx,
+                s.cluster_ny,
+                g.cluster_orientation_bins,
+                g.cluster_radius,
+                g.cluster_angle_radius,
+                3,
+                None,
+            )
 
         def entropy():
-            grid_entropy_reference(pf.poses, pf.weights, s.x_min, s.y_min, g.position_cell, s.entropy_nx,
-                                   s.entropy_ny, g.orientation_bins)
+            grid_entropy_reference(
+                pf.poses, pf.weights, s.x_min, s.y_min, g.position_cell, s.entropy_nx, s.entropy_ny, g.orientation_bins
+            )
 
         return {
             "predict_velocity_linear": predict_velocity_linear,
@@ -443,8 +532,9 @@ class PhaseScene:
     def injecting_filter(self) -> ParticleFilter:
         """A filter of N particles with augmented MCL whose pose is known (`reset_around` TRUE_POSE: the
         relocalization's anchor), on the scene's sensor model and generator, for the injection phase."""
-        pf = ParticleFilter(self.pf.field, self.velocity_linear, self.von_mises, n_particles=self.n, seed=7,
-                            augmented=AugmentedMCL())
+        pf = ParticleFilter(
+            self.pf.field, self.velocity_linear, self.von_mises, n_particles=self.n, seed=7, augmented=AugmentedMCL()
+        )
         pf.reset_around(TRUE_POSE, (0.3, 0.3, 0.2))
         pf.rng = self.rng
         return pf
@@ -452,11 +542,11 @@ class PhaseScene:
     def record(self):
         if self._recorder is None:
             from mcl.tools.recording import Recorder
+
             path = Path(self.recording_dir) / f"bench-{self.n}.rrd"
             self._recorder = Recorder(path, self.pf.field, particles_every=1)
         self._step += 1
-        self._recorder.log_step(self._step, 0.01 * self._step, self.pf, truth=TRUE_POSE,
-                                observations=self.observations)
+        self._recorder.log_step(self._step, 0.01 * self._step, self.pf, truth=TRUE_POSE, observations=self.observations)
 
     def close(self):
         if self._recorder is not None:
@@ -466,9 +556,13 @@ class PhaseScene:
 
 def time_size(n: int, budget_s: float, exact: bool = True, recording: bool = True, min_samples: int = 3) -> dict:
     """The full step (numba, numpy, and numba with the exact bearing term) and every phase at one N."""
-    work = {"full_step/numba": full_step_work(n), "full_step/numpy": numpy_step_work(n),
-            "issue_step/numba": issue_step_work(n), "injecting_step/numba": injecting_step_work(n),
-            "adaptive_step/numba": adaptive_step_work(n)}
+    work = {
+        "full_step/numba": full_step_work(n),
+        "full_step/numpy": numpy_step_work(n),
+        "issue_step/numba": issue_step_work(n),
+        "injecting_step/numba": injecting_step_work(n),
+        "adaptive_step/numba": adaptive_step_work(n),
+    }
     if fast_option():
         work["full_step_fast/numba"] = full_step_work(n, fast=True)
         work["issue_step_fast/numba"] = issue_step_work(n, fast=True)
@@ -482,7 +576,7 @@ def time_size(n: int, budget_s: float, exact: bool = True, recording: bool = Tru
                 for name, fn in table.items():
                     if name == "likelihood_exact" and not exact:
                         continue
-                    try:          # a phase whose call fails is reported, the others are still timed
+                    try:  # a phase whose call fails is reported, the others are still timed
                         fn()
                     except Exception as error:
                         errors.setdefault(name, f"{side}: {type(error).__name__}: {error}")
@@ -496,8 +590,9 @@ def time_size(n: int, budget_s: float, exact: bool = True, recording: bool = Tru
             scene.close()
     # The same step called back to back (samples of about 20 ms of consecutive calls): caches and branch
     # predictors warm, as a loop that runs nothing but the step measures it.
-    timed["full_step_back_to_back/numba"] = measure({"step": work["full_step/numba"]}, budget_s, min_samples,
-                                                    sample_s=0.02)["step"]
+    timed["full_step_back_to_back/numba"] = measure(
+        {"step": work["full_step/numba"]}, budget_s, min_samples, sample_s=0.02
+    )["step"]
     fast, slow = timed["full_step/numba"], timed["full_step/numpy"]
     row = {
         "n": n,
@@ -506,10 +601,14 @@ def time_size(n: int, budget_s: float, exact: bool = True, recording: bool = Tru
         "full_step": _pair(n, fast, slow),
         "phases": {},
     }
-    for key, name in (("full_step_back_to_back", "full_step_back_to_back/numba"), ("issue_step", "issue_step/numba"),
-                      ("injecting_step", "injecting_step/numba"), ("adaptive_step", "adaptive_step/numba"),
-                      ("full_step_fast", "full_step_fast/numba"),
-                      ("issue_step_fast", "issue_step_fast/numba")):
+    for key, name in (
+        ("full_step_back_to_back", "full_step_back_to_back/numba"),
+        ("issue_step", "issue_step/numba"),
+        ("injecting_step", "injecting_step/numba"),
+        ("adaptive_step", "adaptive_step/numba"),
+        ("full_step_fast", "full_step_fast/numba"),
+        ("issue_step_fast", "issue_step_fast/numba"),
+    ):
         if name in timed:
             row[key] = _pair(n, timed[name], None)
     if exact:
@@ -527,14 +626,25 @@ def time_size(n: int, budget_s: float, exact: bool = True, recording: bool = Tru
 
 def _pair(n: int, numba_side: dict, numpy_side: dict | None) -> dict:
     """Seconds, ns per particle and the numpy/numba ratio of one timed item (numpy None: no twin)."""
-    entry = {"numba_s": numba_side["s"], "numba_ns_per_particle": 1e9 * numba_side["s"] / n,
-             "numba_samples": numba_side["samples"], "numba_spread": numba_side["spread"],
-             "numba_calls_per_sample": numba_side["calls_per_sample"],
-             "numpy_s": None, "numpy_ns_per_particle": None, "numpy_samples": 0, "speedup": None}
+    entry = {
+        "numba_s": numba_side["s"],
+        "numba_ns_per_particle": 1e9 * numba_side["s"] / n,
+        "numba_samples": numba_side["samples"],
+        "numba_spread": numba_side["spread"],
+        "numba_calls_per_sample": numba_side["calls_per_sample"],
+        "numpy_s": None,
+        "numpy_ns_per_particle": None,
+        "numpy_samples": 0,
+        "speedup": None,
+    }
     if numpy_side is not None:
-        entry.update(numpy_s=numpy_side["s"], numpy_ns_per_particle=1e9 * numpy_side["s"] / n,
-                     numpy_samples=numpy_side["samples"], numpy_calls_per_sample=numpy_side["calls_per_sample"],
-                     speedup=numpy_side["s"] / numba_side["s"])
+        entry.update(
+            numpy_s=numpy_side["s"],
+            numpy_ns_per_particle=1e9 * numpy_side["s"] / n,
+            numpy_samples=numpy_side["samples"],
+            numpy_calls_per_sample=numpy_side["calls_per_sample"],
+            speedup=numpy_side["s"] / numba_side["s"],
+        )
     return entry
 
 
@@ -548,8 +658,10 @@ def numpy_full_step(sizes, budget_s: float) -> list[dict]:
 
 
 # -- resampling against other libraries -----------------------------------------------------------------------
-PEERS = (("filterpy", "filterpy.monte_carlo", "systematic_resample"),
-         ("particles", "particles.resampling", "systematic"))
+PEERS = (
+    ("filterpy", "filterpy.monte_carlo", "systematic_resample"),
+    ("particles", "particles.resampling", "systematic"),
+)
 
 
 def our_resamplers() -> dict[str, Callable]:
@@ -558,8 +670,12 @@ def our_resamplers() -> dict[str, Callable]:
     entries = {"mcl.resampling.systematic": lambda weights, rng: systematic(weights, weights.shape[0], rng)}
     for name in sorted(dir(resampling)):
         fn = getattr(resampling, name)
-        if (name.startswith("_") or "systematic" not in name or name in ("systematic", "systematic_reference")
-                or not callable(fn)):
+        if (
+            name.startswith("_")
+            or "systematic" not in name
+            or name in ("systematic", "systematic_reference")
+            or not callable(fn)
+        ):
             continue
         caller = _fill_signature(fn)
         if caller is not None:
@@ -614,7 +730,7 @@ def peer_resamplers() -> tuple[dict[str, Callable], dict[str, dict]]:
             version = None
         status[label] = {"package": package, "available": True, "note": "", "version": version}
         if package == "filterpy":
-            callers[label] = lambda weights, rng, fn=fn: fn(weights)          # draws from numpy.random
+            callers[label] = lambda weights, rng, fn=fn: fn(weights)  # draws from numpy.random
         else:
             callers[label] = lambda weights, rng, fn=fn: fn(weights, weights.shape[0])
     return callers, status
@@ -636,20 +752,33 @@ def time_resamplers(sizes, budget_s: float) -> dict:
     ours = our_resamplers()
     peers, peer_status = peer_resamplers()
     status = {label: {"package": "robocup-mcl", "available": True, "note": "", "version": None} for label in ours}
-    status["mcl.resampling.systematic_reference"] = {"package": "robocup-mcl", "available": True,
-                                                     "note": "plain numpy twin", "version": None}
+    status["mcl.resampling.systematic_reference"] = {
+        "package": "robocup-mcl",
+        "available": True,
+        "note": "plain numpy twin",
+        "version": None,
+    }
     status.update(peer_status)
     candidates = dict(ours)
-    status[KEPT_OUT] = {"package": "robocup-mcl", "available": True, "version": None,
-                        "note": "into an array kept across calls, as a filter resamples"}
+    status[KEPT_OUT] = {
+        "package": "robocup-mcl",
+        "available": True,
+        "version": None,
+        "note": "into an array kept across calls, as a filter resamples",
+    }
     ours = [*ours, KEPT_OUT]
     fused_label = None if FUSED is None else f"mcl.resampling.{FUSED[0]}"
     if FUSED is not None:
-        status[fused_label] = {"package": "robocup-mcl", "available": True, "version": None,
-                               "note": "what the filter calls: resampling, copy and roughening in one pass"}
+        status[fused_label] = {
+            "package": "robocup-mcl",
+            "available": True,
+            "version": None,
+            "note": "what the filter calls: resampling, copy and roughening in one pass",
+        }
         ours = [*ours, fused_label]
     candidates["mcl.resampling.systematic_reference"] = lambda weights, rng: systematic_reference(
-        weights, weights.shape[0], rng)
+        weights, weights.shape[0], rng
+    )
     candidates.update(peers)
     rows = []
     for n in sizes:
@@ -662,7 +791,8 @@ def time_resamplers(sizes, budget_s: float) -> dict:
             candidates[fused_label] = lambda weights, rng, fused=fused: fused()
         # the buffer is made once per size and kept across the calls, as a filter keeps its own
         candidates[KEPT_OUT] = lambda weights, rng, kept=np.empty(n, dtype=np.int64): systematic(  # noqa: B008
-            weights, n, rng, out=kept)
+            weights, n, rng, out=kept
+        )
         rng = np.random.default_rng(3)
         np.random.seed(3)
         usable, failures = {}, {}
@@ -671,7 +801,7 @@ def time_resamplers(sizes, budget_s: float) -> dict:
                 ancestors = np.asarray(fn(weights, rng))
                 if label != fused_label and not _is_systematic(ancestors, weights):
                     failures[label] = "offspring counts are not systematic"
-                usable[label] = (lambda fn=fn: fn(weights, rng))
+                usable[label] = lambda fn=fn: fn(weights, rng)
             except Exception as error:
                 failures[label] = f"{type(error).__name__}: {error}"
         # Each sample is about 20 ms of consecutive calls of one resampler (all alike): back to back, as a
@@ -680,9 +810,15 @@ def time_resamplers(sizes, budget_s: float) -> dict:
         timed = measure(usable, budget_s, sample_s=0.02)
         ns = {label: 1e9 * timed[label]["s"] / n if label in timed else None for label in status}
         best_ours = min(ns[label] for label in ours if ns.get(label) is not None)
-        rows.append({"n": n, "ns_per_particle": ns, "best_ours_ns_per_particle": best_ours,
-                     "ratio_to_ours": {label: (None if v is None else v / best_ours) for label, v in ns.items()},
-                     "problems": failures})
+        rows.append(
+            {
+                "n": n,
+                "ns_per_particle": ns,
+                "best_ours_ns_per_particle": best_ours,
+                "ratio_to_ours": {label: (None if v is None else v / best_ours) for label, v in ns.items()},
+                "problems": failures,
+            }
+        )
     return {"entries": status, "ours": list(ours), "rows": rows}
 
 
@@ -702,22 +838,29 @@ def time_threads(sizes, budget_s: float) -> dict:
     import numba
 
     for n in big:
-        timed = measure({"one": full_step_work(n, **{option: 1}), "two": full_step_work(n, **{option: 2})},
-                        budget_s)
-        result["rows"].append({"n": n, "one_thread_s": timed["one"]["s"], "two_threads_s": timed["two"]["s"],
-                               "speedup": timed["one"]["s"] / timed["two"]["s"],
-                               "load_average": list(os.getloadavg()) if hasattr(os, "getloadavg") else None})
+        timed = measure({"one": full_step_work(n, **{option: 1}), "two": full_step_work(n, **{option: 2})}, budget_s)
+        result["rows"].append(
+            {
+                "n": n,
+                "one_thread_s": timed["one"]["s"],
+                "two_threads_s": timed["two"]["s"],
+                "speedup": timed["one"]["s"] / timed["two"]["s"],
+                "load_average": list(os.getloadavg()) if hasattr(os, "getloadavg") else None,
+            }
+        )
     try:
         result["threading_layer"] = numba.threading_layer()
-    except ValueError:            # no parallel kernel ran
+    except ValueError:  # no parallel kernel ran
         result["threading_layer"] = None
     result["cpus_usable"] = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
     busiest = max((row["load_average"][0] for row in result["rows"] if row["load_average"]), default=0.0)
     if busiest > result["cpus_usable"]:
         # Two threads need two free cores: with other work on the machine one of them waits at every barrier.
         # This benchmark itself accounts for 1 to 2 of the load.
-        result["note"] = (f"machine busy while timed (load {busiest:.1f} on {result['cpus_usable']} cores, this "
-                          "benchmark included): the two-thread figures are not reliable")
+        result["note"] = (
+            f"machine busy while timed (load {busiest:.1f} on {result['cpus_usable']} cores, this "
+            "benchmark included): the two-thread figures are not reliable"
+        )
     return result
 
 

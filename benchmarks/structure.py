@@ -24,6 +24,7 @@ revision (extracted with `git archive` into a temporary directory), and reports:
 
 Only the standard library: ast, not an import of the analysed code, so any revision can be measured.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -42,13 +43,13 @@ from pathlib import Path
 
 if sys.version_info >= (3, 11):
     import tomllib
-else:                                   # Python 3.10: the same parser, as the tomli package
+else:  # Python 3.10: the same parser, as the tomli package
     import tomli as tomllib
 
-EXCLUDED = ("tests", "demos", "benchmarks")        # top-level packages that are not the library
-CONSUMERS = ("demos", "benchmarks")                 # the layers the library must not import
-KERNEL_NAMES = ("njit", "intrinsic", "overload")    # a decorator whose dotted name ends in one of these...
-NUMBA_KERNEL_NAMES = ("jit", "vectorize")           # ...or is numba's jit / vectorize
+EXCLUDED = ("tests", "demos", "benchmarks")  # top-level packages that are not the library
+CONSUMERS = ("demos", "benchmarks")  # the layers the library must not import
+KERNEL_NAMES = ("njit", "intrinsic", "overload")  # a decorator whose dotted name ends in one of these...
+NUMBA_KERNEL_NAMES = ("jit", "vectorize")  # ...or is numba's jit / vectorize
 NOT_KERNEL_ROOTS = ("typing", "typing_extensions")  # typing.overload is a stub, not a kernel
 DEFAULT_CORE = ("mcl/filter.py",)
 OPTIONAL_CORE = ("mcl/particles.py", "mcl/summary.py", "mcl/step.py", "mcl/contracts.py")
@@ -66,13 +67,13 @@ class StructureError(Exception):
 
 @dataclass
 class Module:
-    path: str                  # relative to the tree's root, posix
-    parts: tuple[str, ...]     # the module's dotted name, split (a package's __init__ is the package)
-    package: str               # its top-level package
+    path: str  # relative to the tree's root, posix
+    parts: tuple[str, ...]  # the module's dotted name, split (a package's __init__ is the package)
+    package: str  # its top-level package
     is_init: bool
     lines: int
     tree: ast.Module | None
-    aliases: dict[str, str] = field(default_factory=dict)   # local name -> dotted origin, from its imports
+    aliases: dict[str, str] = field(default_factory=dict)  # local name -> dotted origin, from its imports
 
     @property
     def package_parts(self) -> tuple[str, ...]:
@@ -86,8 +87,9 @@ def physical_lines(data: bytes) -> int:
 
 def top_level_packages(root: Path) -> list[str]:
     """Every top-level directory of `root` with an `__init__.py`, sorted."""
-    return sorted(p.name for p in root.iterdir()
-                  if p.is_dir() and not p.name.startswith(".") and (p / "__init__.py").is_file())
+    return sorted(
+        p.name for p in root.iterdir() if p.is_dir() and not p.name.startswith(".") and (p / "__init__.py").is_file()
+    )
 
 
 def project_names(root: Path) -> set[str]:
@@ -114,8 +116,9 @@ def read_modules(root: Path, packages: list[str]) -> tuple[list[Module], list[st
                 errors.append(f"{rel.as_posix()}: {type(error).__name__}: {error}")
             parts = rel.with_suffix("").parts
             is_init = parts[-1] == "__init__"
-            module = Module(rel.as_posix(), parts[:-1] if is_init else parts, package, is_init,
-                            physical_lines(data), tree)
+            module = Module(
+                rel.as_posix(), parts[:-1] if is_init else parts, package, is_init, physical_lines(data), tree
+            )
             if tree is not None:
                 module.aliases = import_aliases(module)
             modules.append(module)
@@ -130,9 +133,9 @@ def resolve(module: Module, level: int, name: str | None) -> str | None:
     if level == 0:
         return name
     base = module.package_parts
-    if level - 1 >= len(base):        # above the top-level package
+    if level - 1 >= len(base):  # above the top-level package
         return None
-    base = base[:len(base) - (level - 1)]
+    base = base[: len(base) - (level - 1)]
     return ".".join(base + ((name,) if name else ())) or None
 
 
@@ -214,9 +217,16 @@ def private_imports(modules: list[Module], project: set[str]) -> dict:
                 top = target.split(".")[0]
                 if not private or top == module.package:
                     continue
-                entry = by_origin.setdefault(origin_of(top, project), {
-                    "file": module.path, "line": node.lineno, "statement": statement(node),
-                    "targets": [], "private": []})
+                entry = by_origin.setdefault(
+                    origin_of(top, project),
+                    {
+                        "file": module.path,
+                        "line": node.lineno,
+                        "statement": statement(node),
+                        "targets": [],
+                        "private": [],
+                    },
+                )
                 entry["targets"].append(target)
                 entry["private"] += private
             for origin, entry in by_origin.items():
@@ -230,8 +240,11 @@ def private_imports(modules: list[Module], project: set[str]) -> dict:
 
 def _listed(entries: list[dict]) -> dict:
     entries = sorted(entries, key=lambda e: (e["file"], e["line"]))
-    return {"count": len(entries), "items": entries,
-            "list": [f"{e['file']}:{e['line']}: {e['statement']}" for e in entries]}
+    return {
+        "count": len(entries),
+        "items": entries,
+        "list": [f"{e['file']}:{e['line']}: {e['statement']}" for e in entries],
+    }
 
 
 MODULE_STRING = re.compile(r"^({})(\.[A-Za-z_][A-Za-z0-9_]*)+$".format("|".join(CONSUMERS)))
@@ -248,16 +261,19 @@ def cross_layer(modules: list[Module]) -> dict:
                 targets = imported_targets(module, node) or []
                 reached = [t for t, _ in targets if t.split(".")[0] in CONSUMERS]
                 if reached:
-                    imports.append({"file": module.path, "line": node.lineno, "statement": statement(node),
-                                    "targets": reached})
+                    imports.append(
+                        {"file": module.path, "line": node.lineno, "statement": statement(node), "targets": reached}
+                    )
             elif isinstance(node, ast.Call) and _is_import_call(node):
                 target = node.args[0].value
                 if target.split(".")[0] in CONSUMERS:
-                    dynamic.append({"file": module.path, "line": node.lineno, "statement": statement(node),
-                                    "targets": [target]})
+                    dynamic.append(
+                        {"file": module.path, "line": node.lineno, "statement": statement(node), "targets": [target]}
+                    )
             elif isinstance(node, ast.Constant) and isinstance(node.value, str) and MODULE_STRING.match(node.value):
-                strings.append({"file": module.path, "line": node.lineno, "statement": repr(node.value),
-                                "targets": [node.value]})
+                strings.append(
+                    {"file": module.path, "line": node.lineno, "statement": repr(node.value), "targets": [node.value]}
+                )
     dynamic_lines = {(e["file"], e["line"]) for e in dynamic}
     strings = [e for e in strings if (e["file"], e["line"]) not in dynamic_lines]
     result = _listed(imports)
@@ -268,8 +284,12 @@ def cross_layer(modules: list[Module]) -> dict:
 
 def _is_import_call(node: ast.Call) -> bool:
     name = dotted(node.func)
-    return (name in ("importlib.import_module", "import_module", "__import__") and bool(node.args)
-            and isinstance(node.args[0], ast.Constant) and isinstance(node.args[0].value, str))
+    return (
+        name in ("importlib.import_module", "import_module", "__import__")
+        and bool(node.args)
+        and isinstance(node.args[0], ast.Constant)
+        and isinstance(node.args[0].value, str)
+    )
 
 
 # ----------------------------------------------------------------------------------------------- definitions
@@ -317,8 +337,13 @@ class Function:
     kernel: bool
 
     def as_dict(self) -> dict:
-        return {"name": self.name, "file": self.file, "line": self.line, "lines": self.lines,
-                "parameters": self.parameters}
+        return {
+            "name": self.name,
+            "file": self.file,
+            "line": self.line,
+            "lines": self.lines,
+            "parameters": self.parameters,
+        }
 
 
 @dataclass
@@ -330,8 +355,7 @@ class Class:
     methods: int
 
     def as_dict(self) -> dict:
-        return {"name": self.name, "file": self.file, "line": self.line, "lines": self.lines,
-                "methods": self.methods}
+        return {"name": self.name, "file": self.file, "line": self.line, "lines": self.lines, "methods": self.methods}
 
 
 def parameter_count(arguments: ast.arguments) -> int:
@@ -351,13 +375,22 @@ def definitions(module: Module) -> tuple[list[Function], list[Class]]:
         for child in ast.iter_child_nodes(node):
             if isinstance(child, (ast.FunctionDef, ast.AsyncFunctionDef)):
                 kernel = in_kernel or any(is_kernel_decorator(d, module.aliases) for d in child.decorator_list)
-                functions.append(Function(prefix + child.name, module.path, child.lineno,
-                                          child.end_lineno - child.lineno + 1, parameter_count(child.args), kernel))
+                functions.append(
+                    Function(
+                        prefix + child.name,
+                        module.path,
+                        child.lineno,
+                        child.end_lineno - child.lineno + 1,
+                        parameter_count(child.args),
+                        kernel,
+                    )
+                )
                 visit(child, f"{prefix}{child.name}.<locals>.", kernel)
             elif isinstance(child, ast.ClassDef):
                 methods = sum(isinstance(c, (ast.FunctionDef, ast.AsyncFunctionDef)) for c in child.body)
-                classes.append(Class(prefix + child.name, module.path, child.lineno,
-                                     child.end_lineno - child.lineno + 1, methods))
+                classes.append(
+                    Class(prefix + child.name, module.path, child.lineno, child.end_lineno - child.lineno + 1, methods)
+                )
                 visit(child, f"{prefix}{child.name}.", in_kernel)
             else:
                 visit(child, prefix, in_kernel)
@@ -375,12 +408,17 @@ def _first(items: list, key) -> dict | None:
 
 def function_figures(functions: list[Function]) -> tuple[dict, dict]:
     longest, widest = {}, {}
-    for group, members in (("outside_kernels", [f for f in functions if not f.kernel]),
-                           ("kernels", [f for f in functions if f.kernel])):
+    for group, members in (
+        ("outside_kernels", [f for f in functions if not f.kernel]),
+        ("kernels", [f for f in functions if f.kernel]),
+    ):
         longest[group] = _first(members, lambda f: f.lines)
         ranked = sorted(members, key=lambda f: (-f.parameters, f.file, f.line))
-        widest[group] = {"widest": ranked[0].as_dict() if ranked else None,
-                         "top": [f.as_dict() for f in ranked[:TOP]], "functions": len(members)}
+        widest[group] = {
+            "widest": ranked[0].as_dict() if ranked else None,
+            "top": [f.as_dict() for f in ranked[:TOP]],
+            "functions": len(members),
+        }
     return longest, widest
 
 
@@ -427,8 +465,9 @@ def import_contract(root: Path) -> tuple[dict | None, str | None]:
         return None, f"{script} not found"
     env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(root)] + [p for p in [os.environ.get("PYTHONPATH")] if p]))
     try:
-        run = subprocess.run([str(script), "--no-cache"], cwd=root, env=env, capture_output=True, text=True,
-                             timeout=900)
+        run = subprocess.run(
+            [str(script), "--no-cache"], cwd=root, env=env, capture_output=True, text=True, timeout=900
+        )
     except (OSError, subprocess.TimeoutExpired) as error:
         return None, f"lint-imports did not run: {error}"
     parsed = parse_lint_imports(run.stdout)
@@ -445,8 +484,10 @@ def parse_lint_imports(output: str) -> dict | None:
     if summary is None:
         return None
     head, _, tail = output.partition(summary.group(0))
-    contracts = {m.group(1): {"status": m.group(2).lower(), "violations": 0}
-                 for m in re.finditer(r"^(\S.*?)\s+(KEPT|BROKEN)\s*$", head, re.MULTILINE)}
+    contracts = {
+        m.group(1): {"status": m.group(2).lower(), "violations": 0}
+        for m in re.finditer(r"^(\S.*?)\s+(KEPT|BROKEN)\s*$", head, re.MULTILINE)
+    }
     current, violations = None, 0
     lines = tail.splitlines()
     for i, line in enumerate(lines):
@@ -456,8 +497,12 @@ def parse_lint_imports(output: str) -> dict | None:
             violations += 1
             if current in contracts:
                 contracts[current]["violations"] += 1
-    return {"kept": int(summary.group(1)), "broken": int(summary.group(2)), "violations": violations,
-            "contracts": [{"name": name, **value} for name, value in contracts.items()]}
+    return {
+        "kept": int(summary.group(1)),
+        "broken": int(summary.group(2)),
+        "violations": violations,
+        "contracts": [{"name": name, **value} for name, value in contracts.items()],
+    }
 
 
 # -------------------------------------------------------------------------------------------------- analysis
@@ -472,8 +517,9 @@ def paired_variants(functions: list[Function]) -> dict:
     return {"count": len(named), "list": [f"{f.file}:{f.line} {f.name}" for f in named]}
 
 
-def analyse(root: Path, core: list[str] | None = None, soccer: list[str] | None = None,
-            run_contract: bool = True) -> dict:
+def analyse(
+    root: Path, core: list[str] | None = None, soccer: list[str] | None = None, run_contract: bool = True
+) -> dict:
     """Every figure of the tree at `root` (see the module's docstring), as a JSON-ready dict."""
     root = Path(root)
     packages = top_level_packages(root)
@@ -501,14 +547,20 @@ def analyse(root: Path, core: list[str] | None = None, soccer: list[str] | None 
         "modules": len(library_modules),
         "private_imports": private_imports(library_modules + consumer_modules, project),
         "cross_layer": cross_layer(library_modules),
-        "lines": {"total": sum(per_package.values()), "packages": per_package,
-                  "modules": {m.path: m.lines for m in library_modules},
-                  "groups": {"core": group_lines(root, core), "soccer": group_lines(root, soccer)}},
+        "lines": {
+            "total": sum(per_package.values()),
+            "packages": per_package,
+            "modules": {m.path: m.lines for m in library_modules},
+            "groups": {"core": group_lines(root, core), "soccer": group_lines(root, soccer)},
+        },
         "longest_function": longest,
         "widest_parameters": widest,
-        "largest_class": {"by_lines": _first(classes, lambda c: c.lines),
-                          "by_methods": _first(classes, lambda c: c.methods), "classes": len(classes),
-                          "top": [c.as_dict() for c in sorted(classes, key=lambda c: -c.lines)[:5]]},
+        "largest_class": {
+            "by_lines": _first(classes, lambda c: c.lines),
+            "by_methods": _first(classes, lambda c: c.methods),
+            "classes": len(classes),
+            "top": [c.as_dict() for c in sorted(classes, key=lambda c: -c.lines)[:5]],
+        },
         "paired_variants": paired_variants(functions),
         "import_contract": contract,
         "import_contract_reason": reason,
@@ -554,7 +606,7 @@ def extract(root: Path, revision: dict, into: Path) -> None:
     with tarfile.open(fileobj=io.BytesIO(run.stdout)) as archive:
         if hasattr(tarfile, "data_filter"):
             archive.extractall(into, filter="data")
-        else:   # pragma: no cover - Python before 3.11.4
+        else:  # pragma: no cover - Python before 3.11.4
             archive.extractall(into)
 
 
@@ -564,12 +616,17 @@ def working_tree(root: Path) -> dict:
     if head.returncode != 0:
         return {"name": "working tree", "commit": None, "short": None, "modified": None}
     status = git(root, "status", "--porcelain", "--untracked-files=no", "--", ".")
-    return {"name": "working tree", "commit": git(root, "rev-parse", "HEAD").stdout.strip(),
-            "short": head.stdout.strip(), "modified": bool(status.stdout.strip())}
+    return {
+        "name": "working tree",
+        "commit": git(root, "rev-parse", "HEAD").stdout.strip(),
+        "short": head.stdout.strip(),
+        "modified": bool(status.stdout.strip()),
+    }
 
 
-def measure(root: Path, rev: str | None, core: list[str] | None, soccer: list[str] | None,
-            run_contract: bool = True) -> dict:
+def measure(
+    root: Path, rev: str | None, core: list[str] | None, soccer: list[str] | None, run_contract: bool = True
+) -> dict:
     root = Path(root).resolve()
     if not root.is_dir():
         raise StructureError(f"{root} is not a directory")
@@ -595,14 +652,15 @@ def _where(item: dict | None, figure: str) -> str:
 
 
 def _cut(text: str, width: int = 110) -> str:
-    return text if len(text) <= width else text[:width - 3] + "..."
+    return text if len(text) <= width else text[: width - 3] + "..."
 
 
 def render(report: dict) -> str:
     rev = report["revision"]
     if rev["name"] == "working tree":
-        what = "working tree" + (f" (HEAD {rev['short']}{', modified' if rev['modified'] else ''})"
-                                 if rev["short"] else "")
+        what = "working tree" + (
+            f" (HEAD {rev['short']}{', modified' if rev['modified'] else ''})" if rev["short"] else ""
+        )
     else:
         what = f"revision {rev['name']} ({rev['short']})"
     lines_ = report["lines"]
@@ -610,10 +668,16 @@ def render(report: dict) -> str:
     longest, widest, largest = report["longest_function"], report["widest_parameters"], report["largest_class"]
     rows = [
         ("library packages", ", ".join(report["packages"]) + f"  ({report['modules']} modules)"),
-        ("private imports", f"{private['count']} across the project's packages; third-party {private['third_party']['count']}, "
-                            f"stdlib {private['stdlib']['count']}"),
-        ("cross-layer imports", f"{cross['count']} library -> demos/benchmarks; dynamic {cross['dynamic']['count']}, "
-                                f"module-name strings {cross['module_name_strings']['count']}"),
+        (
+            "private imports",
+            f"{private['count']} across the project's packages; third-party {private['third_party']['count']}, "
+            f"stdlib {private['stdlib']['count']}",
+        ),
+        (
+            "cross-layer imports",
+            f"{cross['count']} library -> demos/benchmarks; dynamic {cross['dynamic']['count']}, "
+            f"module-name strings {cross['module_name_strings']['count']}",
+        ),
         ("lines", f"{lines_['total']} in the library: " + ", ".join(f"{p} {n}" for p, n in lines_["packages"].items())),
     ]
     for name, group in lines_["groups"].items():
@@ -626,13 +690,20 @@ def render(report: dict) -> str:
         ("widest kernel", _where(widest["kernels"]["widest"], "parameters")),
         ("largest class", _where(largest["by_lines"], "lines")),
         ("most methods", _where(largest["by_methods"], "methods")),
-        ("paired variants", f"{report['paired_variants']['count']} functions named *_reference, *_chunked, *_fast, "
-                            "*_compiled"),
+        (
+            "paired variants",
+            f"{report['paired_variants']['count']} functions named *_reference, *_chunked, *_fast, *_compiled",
+        ),
     ]
     contract = report["import_contract"]
-    rows.append(("import contract", f"{contract['kept']} kept, {contract['broken']} broken, "
-                                    f"{contract['violations']} violations" if contract
-                 else f"not run: {report['import_contract_reason']}"))
+    rows.append(
+        (
+            "import contract",
+            f"{contract['kept']} kept, {contract['broken']} broken, {contract['violations']} violations"
+            if contract
+            else f"not run: {report['import_contract_reason']}",
+        )
+    )
     width = max(len(r[0]) for r in rows)
     out = [f"Structure of the {what}"] + [f"  {k:<{width}}  {v}" for k, v in rows]
     for title, listed in (("private imports", private), ("cross-layer imports", cross)):
@@ -644,17 +715,26 @@ def render(report: dict) -> str:
 
 
 def parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="python -m benchmarks.structure",
-                                description="Measure the code's structure (imports, lines, functions, classes).")
+    p = argparse.ArgumentParser(
+        prog="python -m benchmarks.structure",
+        description="Measure the code's structure (imports, lines, functions, classes).",
+    )
     p.add_argument("--rev", help="measure this git revision instead of the working tree")
     p.add_argument("--json", action="store_true", help="print JSON instead of the table")
     p.add_argument("--save", metavar="PATH", help="write the JSON report to PATH (parent directories created)")
-    p.add_argument("--core", nargs="+", metavar="FILE",
-                   help="the core group's files or directories (default: mcl/filter.py, and mcl/particles.py, "
-                        "mcl/step.py, mcl/contracts.py where they exist)")
-    p.add_argument("--soccer", nargs="+", metavar="FILE",
-                   help="the soccer group's files or directories (default: mcl/relocalization.py, mcl/soccer.py "
-                        "where they exist)")
+    p.add_argument(
+        "--core",
+        nargs="+",
+        metavar="FILE",
+        help="the core group's files or directories (default: mcl/filter.py, and mcl/particles.py, "
+        "mcl/step.py, mcl/contracts.py where they exist)",
+    )
+    p.add_argument(
+        "--soccer",
+        nargs="+",
+        metavar="FILE",
+        help="the soccer group's files or directories (default: mcl/relocalization.py, mcl/soccer.py where they exist)",
+    )
     p.add_argument("--root", default=".", help="the repository root (default: the current directory)")
     p.add_argument("--no-contract", action="store_true", help="do not run lint-imports")
     return p

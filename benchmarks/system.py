@@ -11,6 +11,7 @@
 - `memory()`: tracemalloc's view of one step at N = 10⁴ and 10⁵, in a process with numba's allocation
   counters on (NUMBA_NRT_STATS): scratch memory per step, memory kept per step, numba allocations per step.
 """
+
 from __future__ import annotations
 
 import json
@@ -43,8 +44,10 @@ def _cpuinfo() -> dict:
             model = value.strip()
         elif key in ("flags", "Features") and not flags:
             flags = set(value.split())
-    return {"model": model or platform.processor() or platform.machine(),
-            "flags": {flag: flag in flags for flag in SIMD_FLAGS} if flags else None}
+    return {
+        "model": model or platform.processor() or platform.machine(),
+        "flags": {flag: flag in flags for flag in SIMD_FLAGS} if flags else None,
+    }
 
 
 def numpy_cpu_dispatch() -> tuple[list[str], dict[str, bool]]:
@@ -73,20 +76,31 @@ def machine() -> dict:
     except AttributeError:
         usable = os.cpu_count()
     return {
-        "cpu_model": cpu["model"], "cpus": os.cpu_count(), "cpus_usable": usable, "simd_flags": cpu["flags"],
-        "machine": platform.machine(), "system": f"{platform.system()} {platform.release()}",
-        "python": platform.python_version(), "numpy": np.__version__, "numba": numba.__version__,
-        "llvmlite": _version("llvmlite"), "rerun_sdk": _version("rerun-sdk"),
-        "numba_threads": numba.config.NUMBA_NUM_THREADS, "numba_threading_layer": numba.config.THREADING_LAYER,
-        "numpy_cpu_dispatch": dispatch, "numpy_cpu_features_on": sorted(k for k, v in features.items() if v),
+        "cpu_model": cpu["model"],
+        "cpus": os.cpu_count(),
+        "cpus_usable": usable,
+        "simd_flags": cpu["flags"],
+        "machine": platform.machine(),
+        "system": f"{platform.system()} {platform.release()}",
+        "python": platform.python_version(),
+        "numpy": np.__version__,
+        "numba": numba.__version__,
+        "llvmlite": _version("llvmlite"),
+        "rerun_sdk": _version("rerun-sdk"),
+        "numba_threads": numba.config.NUMBA_NUM_THREADS,
+        "numba_threading_layer": numba.config.THREADING_LAYER,
+        "numpy_cpu_dispatch": dispatch,
+        "numpy_cpu_features_on": sorted(k for k, v in features.items() if v),
         "load_average": list(os.getloadavg()) if hasattr(os, "getloadavg") else None,
         # numba's code-generation target when set (NUMBA_CPU_NAME, NUMBA_CPU_FEATURES), e.g. to time the
         # kernels as compiled for a robot's instruction set on this machine; None: this machine's own
-        "numba_cpu_name": numba.config.CPU_NAME, "numba_cpu_features": numba.config.CPU_FEATURES,
+        "numba_cpu_name": numba.config.CPU_NAME,
+        "numba_cpu_features": numba.config.CPU_FEATURES,
         # Intel's SVML, which numba uses for vectorized exp, sin, atan2... in fast-math loops: only when the
         # library is installed (intel-cmplr-lib-rt) and llvmlite's LLVM was built with numba's SVML patch
         # (conda's is; PyPI's wheels are not, so a pip install never uses it)
-        "numba_svml": bool(numba.config.USING_SVML), "llvmlite_svml": _llvmlite_svml(),
+        "numba_svml": bool(numba.config.USING_SVML),
+        "llvmlite_svml": _llvmlite_svml(),
     }
 
 
@@ -94,6 +108,7 @@ def _llvmlite_svml() -> bool | None:
     """Whether llvmlite's LLVM can use SVML (None: this llvmlite cannot say)."""
     try:
         from llvmlite.binding import targets
+
         return bool(targets.has_svml())
     except (ImportError, AttributeError):
         return None
@@ -104,9 +119,11 @@ def load_average() -> list[float] | None:
 
 
 # -- fresh processes -------------------------------------------------------------------------------------------
-_PROBE = ("import time; t = time.perf_counter(); from benchmarks.step import bench_setup; "
-          "pf, u, obs = bench_setup(1000); pf.step(u, obs); pf.entropy(); "
-          "print(time.perf_counter() - t)")
+_PROBE = (
+    "import time; t = time.perf_counter(); from benchmarks.step import bench_setup; "
+    "pf, u, obs = bench_setup(1000); pf.step(u, obs); pf.entropy(); "
+    "print(time.perf_counter() - t)"
+)
 
 
 def _run(args: list[str], env: dict, timeout: float = 600.0) -> tuple[float, subprocess.CompletedProcess]:
@@ -133,8 +150,10 @@ def _cache_found(runs: list[tuple[float, int, str]]) -> tuple[list[tuple[float, 
     clean = [run for run in runs if run[1] == 0]
     if clean:
         return clean, ""
-    return runs, (f"every run compiled kernels ({', '.join(str(run[1]) for run in runs)}): the cache did not hold "
-                  "them (sources changed during the run?); these figures include compiling")
+    return runs, (
+        f"every run compiled kernels ({', '.join(str(run[1]) for run in runs)}): the cache did not hold "
+        "them (sources changed during the run?); these figures include compiling"
+    )
 
 
 def time_startup(cold: bool = True, warm_runs: int = 2) -> dict:
@@ -144,8 +163,12 @@ def time_startup(cold: bool = True, warm_runs: int = 2) -> dict:
     with that cache found; compile_s = cold - warm. Without `cold`, only processes that find the cache this
     process uses (its kernels are loaded or compiled already). A run that compiled a kernel does not count as
     one that found the cache (numba's cache log says which did)."""
-    result: dict = {"cold_cache_s": None, "cold_cache_in_python_s": None, "compile_s": None,
-                    "kernels_compiled_cold": None}
+    result: dict = {
+        "cold_cache_s": None,
+        "cold_cache_in_python_s": None,
+        "compile_s": None,
+        "kernels_compiled_cold": None,
+    }
     with tempfile.TemporaryDirectory(prefix="robocup-mcl-numba-") as cache:
         env = dict(os.environ, NUMBA_CACHE_DIR=cache) if cold else dict(os.environ)
         command = [sys.executable, "-c", _PROBE]
@@ -178,8 +201,13 @@ def time_demo_walk(runs: int = 2) -> dict:
     _run(command, env)
     timed = [_cached_run(command, env) for _ in range(runs)]
     found, note = _cache_found(timed)
-    return {"command": "robocup-mcl demo walk --duration 0.1", "wall_s": statistics.median(run[0] for run in found),
-            "runs_s": [run[0] for run in timed], "runs_compiled": [run[1] for run in timed], "note": note}
+    return {
+        "command": "robocup-mcl demo walk --duration 0.1",
+        "wall_s": statistics.median(run[0] for run in found),
+        "runs_s": [run[0] for run in timed],
+        "runs_compiled": [run[1] for run in timed],
+        "note": note,
+    }
 
 
 def avx512_features() -> list[str]:
@@ -200,7 +228,7 @@ print(json.dumps({"features_on": sorted(k for k, v in features.items() if v),
 """
 
 
-AVX512_MAX_N = 100_000      # the numpy step takes seconds beyond: four processes of it would dominate the run
+AVX512_MAX_N = 100_000  # the numpy step takes seconds beyond: four processes of it would dominate the run
 
 
 def numpy_without_avx512(sizes, budget_s: float, rounds: int = 1) -> dict:
@@ -211,21 +239,29 @@ def numpy_without_avx512(sizes, budget_s: float, rounds: int = 1) -> dict:
     names = avx512_features()
     _, features = numpy_cpu_dispatch()
     has_avx512 = bool(features.get("AVX512F") or features.get("X86_V4"))
-    result = {"NPY_DISABLE_CPU_FEATURES": " ".join(names), "cpu_has_avx512": has_avx512, "rows": [],
-              "note": "" if has_avx512 else "this CPU has no AVX-512: numpy cannot use it either way"}
+    result = {
+        "NPY_DISABLE_CPU_FEATURES": " ".join(names),
+        "cpu_has_avx512": has_avx512,
+        "rows": [],
+        "note": "" if has_avx512 else "this CPU has no AVX-512: numpy cannot use it either way",
+    }
     if not names:
         result["note"] = "numpy dispatches no AVX-512 code on this build: nothing to switch off"
         return result
     if not sizes:
         result["note"] = f"not measured: no N <= {AVX512_MAX_N}"
         return result
-    settings = {"off": dict(os.environ, NPY_DISABLE_CPU_FEATURES=" ".join(names)),
-                "on": {k: v for k, v in os.environ.items() if k != "NPY_DISABLE_CPU_FEATURES"}}
+    settings = {
+        "off": dict(os.environ, NPY_DISABLE_CPU_FEATURES=" ".join(names)),
+        "on": {k: v for k, v in os.environ.items() if k != "NPY_DISABLE_CPU_FEATURES"},
+    }
     seconds: dict = {"off": {}, "on": {}}
     for _ in range(rounds):
         for label, env in settings.items():
-            _, done = _run([sys.executable, "-W", "error::ImportWarning", "-c", _NUMPY_PROBE,
-                            json.dumps([list(sizes), budget_s])], env)
+            _, done = _run(
+                [sys.executable, "-W", "error::ImportWarning", "-c", _NUMPY_PROBE, json.dumps([list(sizes), budget_s])],
+                env,
+            )
             probe = json.loads(done.stdout.strip().splitlines()[-1])
             if label == "off":
                 result["features_still_on"] = sorted(set(probe["features_on"]) & set(names))
@@ -270,7 +306,7 @@ def memory_in_process(sizes, steps: int) -> list[dict]:
     rows = []
     for n in sizes:
         pf, u, observations = bench_setup(n)
-        for _ in range(3):               # warm up: kernels loaded, buffers grown, caches filled
+        for _ in range(3):  # warm up: kernels loaded, buffers grown, caches filled
             pf.step(u, observations)
             pf.entropy()
         tracemalloc.start()
@@ -293,15 +329,26 @@ def memory_in_process(sizes, steps: int) -> list[dict]:
         allocations = None if allocations is None else (numba_allocations() - allocations) / steps
         second = tracemalloc.take_snapshot()
         tracemalloc.stop()
-        own = [tracemalloc.Filter(False, tracemalloc.__file__)]      # tracemalloc's own bookkeeping
+        own = [tracemalloc.Filter(False, tracemalloc.__file__)]  # tracemalloc's own bookkeeping
         first, second = first.filter_traces(own), second.filter_traces(own)
         differences = second.compare_to(first, "lineno")
         retained = sum(d.size_diff for d in differences)
-        rows.append({"n": n, "filter_bytes": filter_bytes, "step_peak_bytes": max(peaks),
-                     "step_peak_bytes_per_particle": max(peaks) / n, "retained_bytes_per_step": retained / steps,
-                     "steps": steps, "numba_allocations_per_step": allocations,
-                     "largest_retained": [f"{d.traceback[0].filename.rsplit('/', 1)[-1]}:{d.traceback[0].lineno} "
-                                          f"{d.size_diff:+d} B" for d in differences[:3] if d.size_diff]})
+        rows.append(
+            {
+                "n": n,
+                "filter_bytes": filter_bytes,
+                "step_peak_bytes": max(peaks),
+                "step_peak_bytes_per_particle": max(peaks) / n,
+                "retained_bytes_per_step": retained / steps,
+                "steps": steps,
+                "numba_allocations_per_step": allocations,
+                "largest_retained": [
+                    f"{d.traceback[0].filename.rsplit('/', 1)[-1]}:{d.traceback[0].lineno} {d.size_diff:+d} B"
+                    for d in differences[:3]
+                    if d.size_diff
+                ],
+            }
+        )
     return rows
 
 
@@ -316,10 +363,14 @@ def memory(sizes=(10_000, 100_000), steps: int = 40) -> dict:
     ratio = large["step_peak_bytes"] / max(small["step_peak_bytes"], 1)
     leak = max(row["retained_bytes_per_step"] for row in rows)
     counts = (small["numba_allocations_per_step"], large["numba_allocations_per_step"])
-    return {"rows": rows, "sizes": list(sizes), "step_peak_ratio": ratio,
-            "grows_with_n": bool(len(rows) > 1 and ratio > 2.0),
-            "kernel_allocations_grow_with_n": bool(None not in counts and counts[1] > 2 * counts[0] + 10),
-            "retains_memory": bool(leak > 1024),
-            "note": "scratch memory per step from tracemalloc (numpy arrays and Python objects); numba's "
-                    "allocations (arrays made in kernels, wrappers of the arrays handed to them) are counted "
-                    "(numba_allocations_per_step) but not sized"}
+    return {
+        "rows": rows,
+        "sizes": list(sizes),
+        "step_peak_ratio": ratio,
+        "grows_with_n": bool(len(rows) > 1 and ratio > 2.0),
+        "kernel_allocations_grow_with_n": bool(None not in counts and counts[1] > 2 * counts[0] + 10),
+        "retains_memory": bool(leak > 1024),
+        "note": "scratch memory per step from tracemalloc (numpy arrays and Python objects); numba's "
+        "allocations (arrays made in kernels, wrappers of the arrays handed to them) are counted "
+        "(numba_allocations_per_step) but not sized",
+    }

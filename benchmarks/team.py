@@ -10,6 +10,7 @@ Measured in one process, alternating, so that the ratios hold on a shared machin
   dearest case: a report weighed against the joint belief), median and 99th percentile over many calls;
 - one `Localizer.observe_ball` call, the same way.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -43,7 +44,7 @@ def _calls(particles: int, count: int) -> dict:
     for _ in range(10):
         t += 0.01
         loc.motion(t, MotionInput(0.01, odometry=(0.0, 0.0, 0.0)))
-    ball = BallDetection(math.hypot(1.0, 0.8), math.atan2(0.8, 1.0))      # the ball at (-1, 0.8)
+    ball = BallDetection(math.hypot(1.0, 0.8), math.atan2(0.8, 1.0))  # the ball at (-1, 0.8)
     message_times, ball_times = [], []
     for k in range(count):
         t += 0.01
@@ -63,14 +64,15 @@ def _summary_us(values: list[float]) -> dict:
     return {"median_us": float(np.median(array)), "p99_us": float(np.percentile(array, 99)), "calls": len(values)}
 
 
-def run(rounds: int = 5, particles: int = 500, duration: float = 20.0, calls: int = 2000,
-        progress: bool = False) -> dict:
+def run(
+    rounds: int = 5, particles: int = 500, duration: float = 20.0, calls: int = 2000, progress: bool = False
+) -> dict:
     """The figures (see the module docstring), JSON-ready; `progress`: a bar on stderr over the rounds."""
     from demos.battery_sim import simulate
     from mcl.tools.cli_checks import progress_bar
 
     sim = simulate("kidnap_even_team", 0, duration)
-    _loop_seconds_per_step(sim, particles, False)          # warm up (compile or load the kernels)
+    _loop_seconds_per_step(sim, particles, False)  # warm up (compile or load the kernels)
     _loop_seconds_per_step(sim, particles, True)
     plain, team = [], []
     bar = progress_bar(enabled=progress, total=rounds + 1, desc="bench team", unit="round")
@@ -82,28 +84,44 @@ def run(rounds: int = 5, particles: int = 500, duration: float = 20.0, calls: in
     bar.update(1)
     bar.close()
     plain_us, team_us = statistics.median(plain) * 1e6, statistics.median(team) * 1e6
-    return {"benchmark": "team", "particles": particles, "rounds": rounds, "duration_s": duration,
-            "run": {"family": "kidnap_even_team", "seed": 0, "messages": len(sim.messages),
-                    "ball_detections": sum(d is not None for d in sim.ball_detections)},
-            "loop_step_us": {"without_messages": plain_us, "with_team": team_us, "ratio": team_us / plain_us,
-                             "rounds_without": [v * 1e6 for v in plain], "rounds_with": [v * 1e6 for v in team]},
-            "team_message": _summary_us(per_call["team_message"]),
-            "observe_ball": _summary_us(per_call["observe_ball"])}
+    return {
+        "benchmark": "team",
+        "particles": particles,
+        "rounds": rounds,
+        "duration_s": duration,
+        "run": {
+            "family": "kidnap_even_team",
+            "seed": 0,
+            "messages": len(sim.messages),
+            "ball_detections": sum(d is not None for d in sim.ball_detections),
+        },
+        "loop_step_us": {
+            "without_messages": plain_us,
+            "with_team": team_us,
+            "ratio": team_us / plain_us,
+            "rounds_without": [v * 1e6 for v in plain],
+            "rounds_with": [v * 1e6 for v in team],
+        },
+        "team_message": _summary_us(per_call["team_message"]),
+        "observe_ball": _summary_us(per_call["observe_ball"]),
+    }
 
 
 def format_report(result: dict) -> str:
     loop = result["loop_step_us"]
-    return "\n".join([
-        f"the battery's loop, {result['particles']} particles, {result['duration_s']:g} s of kidnap_even_team seed 0 "
-        f"({result['run']['messages']} messages, {result['run']['ball_detections']} ball sightings), median of "
-        f"{result['rounds']} alternated rounds:",
-        f"  per step without messages   {loop['without_messages']:8.1f} µs",
-        f"  per step with the team       {loop['with_team']:8.1f} µs   ({loop['ratio']:.2f}x)",
-        f"team_message   median {result['team_message']['median_us']:6.1f} µs, p99 "
-        f"{result['team_message']['p99_us']:6.1f} µs ({result['team_message']['calls']} calls)",
-        f"observe_ball   median {result['observe_ball']['median_us']:6.1f} µs, p99 "
-        f"{result['observe_ball']['p99_us']:6.1f} µs ({result['observe_ball']['calls']} calls)",
-    ])
+    return "\n".join(
+        [
+            f"the battery's loop, {result['particles']} particles, {result['duration_s']:g} s of kidnap_even_team seed 0 "
+            f"({result['run']['messages']} messages, {result['run']['ball_detections']} ball sightings), median of "
+            f"{result['rounds']} alternated rounds:",
+            f"  per step without messages   {loop['without_messages']:8.1f} µs",
+            f"  per step with the team       {loop['with_team']:8.1f} µs   ({loop['ratio']:.2f}x)",
+            f"team_message   median {result['team_message']['median_us']:6.1f} µs, p99 "
+            f"{result['team_message']['p99_us']:6.1f} µs ({result['team_message']['calls']} calls)",
+            f"observe_ball   median {result['observe_ball']['median_us']:6.1f} µs, p99 "
+            f"{result['observe_ball']['p99_us']:6.1f} µs ({result['observe_ball']['calls']} calls)",
+        ]
+    )
 
 
 def build_parser(prog: str = PROG) -> argparse.ArgumentParser:

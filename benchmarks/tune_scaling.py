@@ -19,6 +19,7 @@ round of B trials takes ceil(B·tasks_per_trial / C) waves of task_s·(1 + overh
 sampler, the journal, gathering the results, the last wave's stragglers), so trials per hour ≈
 3600·B / (waves·task_s·(1 + overhead) + driver_s). It leaves out a cluster's network.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -50,17 +51,21 @@ def time_study(workers: int, settings) -> dict:
 
     start_ray(None, workers)
     try:
-        run_study(replace(settings, trials=1, seed=settings.seed + 1))       # workers started, kernels loaded
+        run_study(replace(settings, trials=1, seed=settings.seed + 1))  # workers started, kernels loaded
         started = time.perf_counter()
         outcome = run_study(settings)
         seconds = time.perf_counter() - started
     finally:
         ray.shutdown()
     tasks = outcome.tasks.rows
-    return {"workers": workers, "trials": len(outcome.trials), "seconds": seconds,
-            "trials_per_hour": 3600.0 * len(outcome.trials) / seconds,
-            "task_s_median": float(sorted(r["seconds"] for r in tasks)[len(tasks) // 2]),
-            "values": [t["value"] for t in outcome.trials]}
+    return {
+        "workers": workers,
+        "trials": len(outcome.trials),
+        "seconds": seconds,
+        "trials_per_hour": 3600.0 * len(outcome.trials) / seconds,
+        "task_s_median": float(sorted(r["seconds"] for r in tasks)[len(tasks) // 2]),
+        "values": [t["value"] for t in outcome.trials],
+    }
 
 
 def overhead(settings, tasks: int) -> dict:
@@ -74,7 +79,7 @@ def overhead(settings, tasks: int) -> dict:
     try:
         task = remote_task()
         case = settings.cases[0]
-        ray.get(task.remote(case, {}, 0, settings.particles))           # the worker's first task, not counted
+        ray.get(task.remote(case, {}, 0, settings.particles))  # the worker's first task, not counted
         trips, inside = [], []
         for i in range(tasks):
             case = settings.cases[i % len(settings.cases)]
@@ -85,8 +90,13 @@ def overhead(settings, tasks: int) -> dict:
     finally:
         ray.shutdown()
     share = (sum(trips) - sum(inside)) / sum(inside)
-    return {"tasks": tasks, "round_trip_s": sum(trips) / tasks, "inside_s": sum(inside) / tasks,
-            "overhead_s": (sum(trips) - sum(inside)) / tasks, "overhead_share": share}
+    return {
+        "tasks": tasks,
+        "round_trip_s": sum(trips) / tasks,
+        "inside_s": sum(inside) / tasks,
+        "overhead_s": (sum(trips) - sum(inside)) / tasks,
+        "overhead_share": share,
+    }
 
 
 def driver_seconds(measured: dict, tasks_per_trial: int, overhead_share: float) -> float:
@@ -105,13 +115,23 @@ def projection(tasks_per_trial: int, task_s: float, overhead_share: float, drive
         batch = max(1, cores // tasks_per_trial)
         waves = math.ceil(batch * tasks_per_trial / cores)
         hours = (waves * task_s * (1.0 + overhead_share) + driver_s) / 3600.0
-        out[str(cores)] = {"parallel_trials": batch, "waves_per_round": waves, "trials_per_hour": batch / hours,
-                           "hours_for_100_trials": 100 * hours / batch}
+        out[str(cores)] = {
+            "parallel_trials": batch,
+            "waves_per_round": waves,
+            "trials_per_hour": batch / hours,
+            "hours_for_100_trials": 100 * hours / batch,
+        }
     return out
 
 
-def run(trials: int = 6, battery: int = 2, duration: float = 30.0, particles: int = 300,
-        overhead_tasks: int = 20, progress: bool = False) -> dict:
+def run(
+    trials: int = 6,
+    battery: int = 2,
+    duration: float = 30.0,
+    particles: int = 300,
+    overhead_tasks: int = 20,
+    progress: bool = False,
+) -> dict:
     """Every figure of the module docstring, JSON-ready."""
     from demos.walk import warm_up_walk
     from demos.walk_sim import WalkScenario
@@ -123,35 +143,53 @@ def run(trials: int = 6, battery: int = 2, duration: float = 30.0, particles: in
     cost = overhead(settings, overhead_tasks)
     tasks_per_trial = len(settings.cases) * len(settings.seeds)
     driver_s = driver_seconds(two, tasks_per_trial, cost["overhead_share"])
-    return {"trials": trials, "battery_seeds": battery, "families": len(settings.cases) // battery,
-            "duration_s": duration, "particles": particles, "tasks_per_trial": tasks_per_trial,
-            "machine_cores": os.cpu_count(), "one_worker": one, "two_workers": two,
-            "speedup": two["trials_per_hour"] / one["trials_per_hour"],
-            "same_study": one["values"] == two["values"], "overhead": cost,
-            "driver_s_per_trial": driver_s,
-            "projection": projection(tasks_per_trial, two["task_s_median"], cost["overhead_share"], driver_s),
-            **warm.as_dict()}
+    return {
+        "trials": trials,
+        "battery_seeds": battery,
+        "families": len(settings.cases) // battery,
+        "duration_s": duration,
+        "particles": particles,
+        "tasks_per_trial": tasks_per_trial,
+        "machine_cores": os.cpu_count(),
+        "one_worker": one,
+        "two_workers": two,
+        "speedup": two["trials_per_hour"] / one["trials_per_hour"],
+        "same_study": one["values"] == two["values"],
+        "overhead": cost,
+        "driver_s_per_trial": driver_s,
+        "projection": projection(tasks_per_trial, two["task_s_median"], cost["overhead_share"], driver_s),
+        **warm.as_dict(),
+    }
 
 
 def format_report(r: dict) -> str:
     """The printed table."""
-    lines = [f"tuning study: {r['trials']} trials, {r['tasks_per_trial']} tasks per trial (battery seeds 0.."
-             f"{r['battery_seeds'] - 1} × {r['families']} families, {r['duration_s']:g} s runs, {r['particles']} "
-             f"particles), on a {r['machine_cores']}-core machine"]
+    lines = [
+        f"tuning study: {r['trials']} trials, {r['tasks_per_trial']} tasks per trial (battery seeds 0.."
+        f"{r['battery_seeds'] - 1} × {r['families']} families, {r['duration_s']:g} s runs, {r['particles']} "
+        f"particles), on a {r['machine_cores']}-core machine"
+    ]
     for key in ("one_worker", "two_workers"):
         x = r[key]
-        lines.append(f"  {x['workers']} worker(s): {x['seconds']:6.1f} s, {x['trials_per_hour']:6.0f} trials per hour "
-                     f"(task median {x['task_s_median']:.2f} s)")
+        lines.append(
+            f"  {x['workers']} worker(s): {x['seconds']:6.1f} s, {x['trials_per_hour']:6.0f} trials per hour "
+            f"(task median {x['task_s_median']:.2f} s)"
+        )
     lines.append(f"  speed-up with 2 workers: {r['speedup']:.2f}x; same trials and values: {r['same_study']}")
     o = r["overhead"]
-    lines.append(f"Ray per task ({o['tasks']} tasks one at a time): round trip {o['round_trip_s'] * 1000:.1f} ms, "
-                 f"inside {o['inside_s'] * 1000:.1f} ms, overhead {o['overhead_s'] * 1000:.1f} ms = "
-                 f"{100 * o['overhead_share']:.1f} % of the task")
-    lines.append(f"beyond its tasks, a trial costs {r['driver_s_per_trial']:.2f} s (sampler, journal, gathering, "
-                 "stragglers)")
+    lines.append(
+        f"Ray per task ({o['tasks']} tasks one at a time): round trip {o['round_trip_s'] * 1000:.1f} ms, "
+        f"inside {o['inside_s'] * 1000:.1f} ms, overhead {o['overhead_s'] * 1000:.1f} ms = "
+        f"{100 * o['overhead_share']:.1f} % of the task"
+    )
+    lines.append(
+        f"beyond its tasks, a trial costs {r['driver_s_per_trial']:.2f} s (sampler, journal, gathering, stragglers)"
+    )
     for cores, p in r["projection"].items():
-        lines.append(f"projected on {cores} cores: {p['parallel_trials']} trial(s) in flight, "
-                     f"{p['trials_per_hour']:.0f} trials per hour, 100 trials in {p['hours_for_100_trials'] * 60:.1f} min")
+        lines.append(
+            f"projected on {cores} cores: {p['parallel_trials']} trial(s) in flight, "
+            f"{p['trials_per_hour']:.0f} trials per hour, 100 trials in {p['hours_for_100_trials'] * 60:.1f} min"
+        )
     return "\n".join(lines)
 
 
@@ -164,8 +202,12 @@ def build_parser(prog: str = PROG) -> argparse.ArgumentParser:
     parser.add_argument("--battery", type=positive_int, default=2, help="battery seeds per family (default 2)")
     parser.add_argument("--duration", type=float, default=30.0, help="seconds per run (default 30)")
     parser.add_argument("--particles", type=positive_int, default=300, help="particles (default 300)")
-    parser.add_argument("--overhead-tasks", type=positive_int, default=20,
-                        help="tasks run one at a time to measure Ray's overhead (default 20)")
+    parser.add_argument(
+        "--overhead-tasks",
+        type=positive_int,
+        default=20,
+        help="tasks run one at a time to measure Ray's overhead (default 20)",
+    )
     parser.add_argument("--json", action="store_true", help="the results as JSON on stdout")
     add_save_option(parser)
     add_progress_option(parser)
@@ -180,8 +222,7 @@ def main(argv: list[str] | None = None, prog: str = PROG) -> int:
     args = parser.parse_args(argv)
     check_duration(parser, args.duration, 10.0)
     check_output_file(args.save, "--save")
-    result = run(args.trials, args.battery, args.duration, args.particles, args.overhead_tasks,
-                 progress_wanted(args))
+    result = run(args.trials, args.battery, args.duration, args.particles, args.overhead_tasks, progress_wanted(args))
     save_and_print(result, args.save, args.json, lambda r: print(format_report(r)))
     return 0
 

@@ -28,6 +28,7 @@ The table per family (figures defined in `mcl.tools.evaluation`), median and wor
 The overall section pools the quality and lost figures of every run. `--json` writes everything to stdout
 (each run's figures and drawn parameters, the family aggregates); `--save PATH` writes the same to a file.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -69,12 +70,12 @@ from .team_sim import deliveries
 TRAIN_FIRST = 0
 HOLDOUT_FIRST = 1000
 SPLITS = ("train", "holdout")
-MAX_SEEDS = HOLDOUT_FIRST - TRAIN_FIRST     # keeps the two splits disjoint
-STRONG_EXCESS = 0.5                          # m: collisions whose odometry ran this far ahead, reported apart
-MIRROR_CLEAR = 2.0                           # odds of truth against mirror that count as telling them apart
-CORRECT_HOLD = 2.0                           # s of correct tracking that end an even kidnapping's recovery
-UNSURE_AFTER = 2.0                           # s after a kidnapping from which the quality must doubt the half
-END_HOLD = 1.0                               # s: a run ends on the mirror when its last second is mirrored
+MAX_SEEDS = HOLDOUT_FIRST - TRAIN_FIRST  # keeps the two splits disjoint
+STRONG_EXCESS = 0.5  # m: collisions whose odometry ran this far ahead, reported apart
+MIRROR_CLEAR = 2.0  # odds of truth against mirror that count as telling them apart
+CORRECT_HOLD = 2.0  # s of correct tracking that end an even kidnapping's recovery
+UNSURE_AFTER = 2.0  # s after a kidnapping from which the quality must doubt the half
+END_HOLD = 1.0  # s: a run ends on the mirror when its last second is mirrored
 
 
 def split_seeds(split: str, k: int) -> list[int]:
@@ -85,16 +86,24 @@ def split_seeds(split: str, k: int) -> list[int]:
     return list(range(first, first + k))
 
 
-def make_localizer(field, seed: int, particles: int = 500, prior: dict | None = None,
-                   quality: dict | None = None, sensor: dict | None = None, profile: Profile | None = None) -> Localizer:
+def make_localizer(
+    field,
+    seed: int,
+    particles: int = 500,
+    prior: dict | None = None,
+    quality: dict | None = None,
+    sensor: dict | None = None,
+    profile: Profile | None = None,
+) -> Localizer:
     """The localizer under test: `Localizer` with its defaults (or `profile`'s settings), except the
     `RelocalizationPrior`, `QualityThresholds` and `LandmarkSensorModel` fields named in `prior`, `quality` and
     `sensor` (for measuring variants; the report says so). `particles` wins over the profile's."""
     options = profile.localizer_options(field) if profile is not None else {}
     base = profile.sections if profile is not None else {}
     if prior:
-        options["relocalization"] = SoccerRelocalization(RelocalizationPrior(**{**base.get("relocalization", {}),
-                                                                                **prior}))
+        options["relocalization"] = SoccerRelocalization(
+            RelocalizationPrior(**{**base.get("relocalization", {}), **prior})
+        )
     if quality:
         options["quality"] = QualityThresholds(**{**base.get("quality", {}), **quality})
     if sensor:
@@ -110,9 +119,17 @@ def camera_view(run: BatteryRun, frame) -> CameraView:
     return CameraView(frame.head, 0.5 * math.radians(p["fov_deg"]), p["max_range"], p["min_range"])
 
 
-def localize(run: BatteryRun, particles: int = 500, prior: dict | None = None,
-             quality: dict | None = None, view: bool = False, sensor: dict | None = None,
-             profile: Profile | None = None, filter_seed: int | None = None, team: bool | None = None) -> dict:
+def localize(
+    run: BatteryRun,
+    particles: int = 500,
+    prior: dict | None = None,
+    quality: dict | None = None,
+    view: bool = False,
+    sensor: dict | None = None,
+    profile: Profile | None = None,
+    filter_seed: int | None = None,
+    team: bool | None = None,
+) -> dict:
     """Drive a `Localizer` through the run (see the module docstring); returns estimates (T, 3), quality
     codes (T,), lost (T,), dropped frames, the log evidence of the frames used (`Localizer.log_evidence`, and
     how many), the steps at which the team's evidence changed the robot's side, and the seconds the loop took.
@@ -120,8 +137,9 @@ def localize(run: BatteryRun, particles: int = 500, prior: dict | None = None,
     robot's ball sightings (`Localizer.team_message`, `observe(..., ball=)`); None: when the run's messages are
     on (the team families). With True in a family whose messages are off, the messages its team world sent and
     did not lose are delivered (`team_deliveries`)."""
-    loc = make_localizer(run.field, run.seed if filter_seed is None else filter_seed, particles, prior, quality,
-                         sensor, profile)
+    loc = make_localizer(
+        run.field, run.seed if filter_seed is None else filter_seed, particles, prior, quality, sensor, profile
+    )
     if team is None:
         team = bool(run.params.get("team", {}).get("messages_on", False))
     loc.anywhere_in_own_half()
@@ -131,7 +149,7 @@ def localize(run: BatteryRun, particles: int = 500, prior: dict | None = None,
     for frame, ball in zip(run.frames, balls):
         frames_at.setdefault(frame.arrival_step, []).append((frame, ball))
     messages_at: dict[int, list] = {}
-    for step, message in (team_deliveries(run) if team else ()):
+    for step, message in team_deliveries(run) if team else ():
         messages_at.setdefault(step, []).append(message)
     flips: list[int] = []
     calls_at: dict[int, list] = {}
@@ -153,24 +171,36 @@ def localize(run: BatteryRun, particles: int = 500, prior: dict | None = None,
         changed = loc.counts["side changed by the team"]
         for frame, ball in frames_at.get(k, ()):
             try:
-                loc.observe(frame.observations, capture_time=frame.capture_time,
-                            view=camera_view(run, frame) if view else None, ball=ball)
+                loc.observe(
+                    frame.observations,
+                    capture_time=frame.capture_time,
+                    view=camera_view(run, frame) if view else None,
+                    ball=ball,
+                )
             except ValueError:
-                dropped += 1          # captured before the last reset (the localizer refuses it)
+                dropped += 1  # captured before the last reset (the localizer refuses it)
         if team:
             for message in messages_at.get(k, ()):
                 try:
                     loc.team_message(message)
                 except ValueError:
-                    dropped += 1      # sent before the localizer's past window (a very late message)
+                    dropped += 1  # sent before the localizer's past window (a very late message)
         if loc.counts["side changed by the team"] != changed:
             flips.append(k)
         estimates[k] = loc.pose().pose
         quality[k] = codes[loc.quality()]
         lost[k] = loc.is_lost
-    return {"estimates": estimates, "quality": quality, "lost": lost, "dropped_frames": dropped,
-            "log_evidence": loc.log_evidence, "evidence_frames": loc.evidence_frames, "team_flips": flips,
-            "team": team, "loop_s": time.perf_counter() - started}
+    return {
+        "estimates": estimates,
+        "quality": quality,
+        "lost": lost,
+        "dropped_frames": dropped,
+        "log_evidence": loc.log_evidence,
+        "evidence_frames": loc.evidence_frames,
+        "team_flips": flips,
+        "team": team,
+        "loop_s": time.perf_counter() - started,
+    }
 
 
 def team_deliveries(run: BatteryRun) -> tuple:
@@ -198,7 +228,7 @@ class BatteryCase:
 
     @property
     def label(self) -> str:
-        """"family/seed"."""
+        """ "family/seed"."""
         return f"{self.family}/{self.seed}"
 
     def evaluate(self, values: dict, seed: int, particles: int = 500) -> dict:
@@ -208,9 +238,11 @@ class BatteryCase:
 
         run = _simulated(self.family, self.seed, float(self.duration))
         out = localize(run, particles, profile=Profile.from_values(values), filter_seed=seed)
-        return {"log_evidence": float(out["log_evidence"]), "evidence_frames": int(out["evidence_frames"]),
-                "truth": truth_figures(run.times, run.truth, out["estimates"], out["quality"], out["lost"],
-                                       run.windows)}
+        return {
+            "log_evidence": float(out["log_evidence"]),
+            "evidence_frames": int(out["evidence_frames"]),
+            "truth": truth_figures(run.times, run.truth, out["estimates"], out["quality"], out["lost"], run.windows),
+        }
 
 
 def _jsonable(value):
@@ -233,9 +265,8 @@ def kidnap_class(log_odds: float | None) -> str:
     """A kidnapping by what the robot could know (the simulator's own law, `kidnap_mirror_log_odds`): "clear"
     when the truth is at least MIRROR_CLEAR times as probable as its mirror image, "mirror" when the mirror
     image is that much more probable, "even" in between."""
-    odds = math.inf if log_odds is None else log_odds      # (JSON has no infinity: certain, the mirror undrawable)
-    return ("clear" if odds >= math.log(MIRROR_CLEAR) else "mirror" if odds <= -math.log(MIRROR_CLEAR)
-            else "even")
+    odds = math.inf if log_odds is None else log_odds  # (JSON has no infinity: certain, the mirror undrawable)
+    return "clear" if odds >= math.log(MIRROR_CLEAR) else "mirror" if odds <= -math.log(MIRROR_CLEAR) else "even"
 
 
 def side_figures(run: BatteryRun, out: dict) -> dict:
@@ -248,10 +279,21 @@ def side_figures(run: BatteryRun, out: dict) -> dict:
     mirror = mirrored(run.truth, out["estimates"])
     flips = out["team_flips"]
     last = run.times >= run.times[-1] - END_HOLD + 1e-9
-    figures = {"team": out["team"], "team_flips": len(flips), "ends_on_mirror": bool(mirror[last].all()),
-               # a flip from the right pose onto the mirror image (near the centre mark the two overlap: not one)
-               "flips_to_mirror": sum(1 for k in flips if k > 0 and position[k - 1] <= FAIL_POSITION
-                                      and not mirror[k - 1] and mirror[k] and position[k] > FAIL_POSITION)}
+    figures = {
+        "team": out["team"],
+        "team_flips": len(flips),
+        "ends_on_mirror": bool(mirror[last].all()),
+        # a flip from the right pose onto the mirror image (near the centre mark the two overlap: not one)
+        "flips_to_mirror": sum(
+            1
+            for k in flips
+            if k > 0
+            and position[k - 1] <= FAIL_POSITION
+            and not mirror[k - 1]
+            and mirror[k]
+            and position[k] > FAIL_POSITION
+        ),
+    }
     if run.params["event"]["type"] in ("kidnap", "kidnap_special") and run.windows:
         end = run.windows[0][1]
         good = (position < CONVERGED_POSITION) & (heading < CONVERGED_HEADING)
@@ -263,9 +305,19 @@ def side_figures(run: BatteryRun, out: dict) -> dict:
     return figures
 
 
-def run_case(family: str, seed: int, duration: float = 60.0, particles: int = 500, prior: dict | None = None,
-             quality: dict | None = None, view: bool = False, sensor: dict | None = None,
-             profile: Profile | None = None, filter_seed: int | None = None, team: bool | None = None) -> dict:
+def run_case(
+    family: str,
+    seed: int,
+    duration: float = 60.0,
+    particles: int = 500,
+    prior: dict | None = None,
+    quality: dict | None = None,
+    view: bool = False,
+    sensor: dict | None = None,
+    profile: Profile | None = None,
+    filter_seed: int | None = None,
+    team: bool | None = None,
+) -> dict:
     """Simulate one run, localize it, and return its figures (JSON-ready; "never" is None). view: pass each
     frame's camera view to `observe` (`camera_view`); profile, filter_seed, team: as `localize`."""
     run = simulate(family, seed, duration)
@@ -278,11 +330,22 @@ def run_case(family: str, seed: int, duration: float = 60.0, particles: int = 50
     figures["kidnap_log_odds"] = kidnap_mirror_log_odds(run.field, event)
     if figures["kidnap_log_odds"] is not None:
         figures["kidnap_class"] = kidnap_class(figures["kidnap_log_odds"])
-    figures.update({"family": family, "seed": seed, "field": run.field.name, "event": event["type"],
-                    "excess_m": event.get("excess"), "windows": run.windows, "frames": len(run.frames),
-                    "dropped_frames": out["dropped_frames"], "loop_s": out["loop_s"],
-                    "log_evidence": out["log_evidence"], "evidence_frames": out["evidence_frames"],
-                    "params": run.params})
+    figures.update(
+        {
+            "family": family,
+            "seed": seed,
+            "field": run.field.name,
+            "event": event["type"],
+            "excess_m": event.get("excess"),
+            "windows": run.windows,
+            "frames": len(run.frames),
+            "dropped_frames": out["dropped_frames"],
+            "loop_s": out["loop_s"],
+            "log_evidence": out["log_evidence"],
+            "evidence_frames": out["evidence_frames"],
+            "params": run.params,
+        }
+    )
     return _jsonable(figures)
 
 
@@ -319,24 +382,34 @@ def summarize_family(runs: list[dict]) -> dict:
             members = [r for r in kidnaps if kidnap_class(r.get("kidnap_log_odds")) == key]
             median, worst, count = median_worst([_never(r.get("correct_2s_s")) for r in members])
             out["kidnap_odds"][key] = {
-                "runs": len(members), "on_mirror": sum(bool(r["on_mirror"]) for r in members),
+                "runs": len(members),
+                "on_mirror": sum(bool(r["on_mirror"]) for r in members),
                 "ends_on_mirror": sum(bool(r.get("ends_on_mirror")) for r in members),
                 "pooled": pool_counts(members),
-                "correct_2s_s": {"median": median, "worst": worst, "runs": count,
-                                 "never": sum(_never(r.get("correct_2s_s")) == math.inf for r in members)},
+                "correct_2s_s": {
+                    "median": median,
+                    "worst": worst,
+                    "runs": count,
+                    "never": sum(_never(r.get("correct_2s_s")) == math.inf for r in members),
+                },
                 "mirror_steps": sum(r.get("mirror_steps", 0) for r in members),
-                "mirror_steps_doubted": sum(r.get("mirror_steps_doubted", 0) for r in members)}
+                "mirror_steps_doubted": sum(r.get("mirror_steps_doubted", 0) for r in members),
+            }
     out["team_runs"] = sum(bool(r.get("team")) for r in runs)
     out["team_flips"] = sum(r.get("team_flips", 0) for r in runs)
     out["flips_to_mirror"] = sum(r.get("flips_to_mirror", 0) for r in runs)
     # the quality's promise holds in every run, not only over all of them: the worst run's wrong share per level
     out["wrong_by_run"] = {}
     for level in ("SUPERB", "OKAY"):
-        shares = [r["quality"][level]["wrong"] / r["quality"][level]["steps"] for r in runs
-                  if r["quality"][level]["steps"]]
-        out["wrong_by_run"][level] = {"worst": max(shares) if shares else None, "runs": len(shares),
-                                      "over_1": sum(v > 0.01 for v in shares),
-                                      "over_5": sum(v > 0.05 for v in shares)}
+        shares = [
+            r["quality"][level]["wrong"] / r["quality"][level]["steps"] for r in runs if r["quality"][level]["steps"]
+        ]
+        out["wrong_by_run"][level] = {
+            "worst": max(shares) if shares else None,
+            "runs": len(shares),
+            "over_1": sum(v > 0.01 for v in shares),
+            "over_5": sum(v > 0.05 for v in shares),
+        }
     out["pooled"] = pool_counts(runs)
     out["dropped_frames"] = sum(r["dropped_frames"] for r in runs)
     return out
@@ -359,8 +432,7 @@ def format_family(name: str, s: dict) -> list[str]:
         if not t["runs"]:
             lines.append(f"  {label:<34}{'–':>10}{'–':>10}")
             return
-        lines.append(f"  {label:<34}{_fmt_time(t['median']):>10}{_fmt_time(t['worst']):>10}   "
-                     f"{t['never']}/{t['runs']}")
+        lines.append(f"  {label:<34}{_fmt_time(t['median']):>10}{_fmt_time(t['worst']):>10}   {t['never']}/{t['runs']}")
 
     def row_values(label, v, fmt):
         if not v["runs"]:
@@ -377,29 +449,43 @@ def format_family(name: str, s: dict) -> list[str]:
     lines.append(f"  {'runs on the mirror (≥ 2 s)':<34}{s['on_mirror']:>10}")
     if "kidnap_odds" in s:
         k = s["kidnap_odds"]
-        lines.append(f"    {'split by the kidnap law odds:':<32}truth ≥ {MIRROR_CLEAR:g}:1 {k['clear']['on_mirror']}/"
-                     f"{k['clear']['runs']}, even {k['even']['on_mirror']}/{k['even']['runs']}, mirror ≥ "
-                     f"{MIRROR_CLEAR:g}:1 {k['mirror']['on_mirror']}/{k['mirror']['runs']}")
+        lines.append(
+            f"    {'split by the kidnap law odds:':<32}truth ≥ {MIRROR_CLEAR:g}:1 {k['clear']['on_mirror']}/"
+            f"{k['clear']['runs']}, even {k['even']['on_mirror']}/{k['even']['runs']}, mirror ≥ "
+            f"{MIRROR_CLEAR:g}:1 {k['mirror']['on_mirror']}/{k['mirror']['runs']}"
+        )
         clear, even = k["clear"], k["even"]
         if clear["runs"]:
-            lines.append(f"    {'clear kidnaps: lost recall':<32}{_percent(clear['pooled']['recall']['share']):>10}"
-                         f"   false alarms {_percent(clear['pooled']['false_alarm']['share'])}")
+            lines.append(
+                f"    {'clear kidnaps: lost recall':<32}{_percent(clear['pooled']['recall']['share']):>10}"
+                f"   false alarms {_percent(clear['pooled']['false_alarm']['share'])}"
+            )
         if even["runs"]:
-            lines.append(f"    {'even kidnaps: end on the mirror':<32}{even['ends_on_mirror']:>10}   of {even['runs']} "
-                         f"(the last {END_HOLD:g} s mirrored)")
+            lines.append(
+                f"    {'even kidnaps: end on the mirror':<32}{even['ends_on_mirror']:>10}   of {even['runs']} "
+                f"(the last {END_HOLD:g} s mirrored)"
+            )
             c = even["correct_2s_s"]
             doubted = share_text(even["mirror_steps_doubted"], even["mirror_steps"])
-            lines.append(f"    {'even kidnaps: to 2 s correct [s]':<32}{_fmt_time(c['median']):>10}"
-                         f"{_fmt_time(c['worst']):>10}   {c['never']}/{c['runs']}")
-            lines.append(f"    {'even: on the mirror, doubted':<32}{doubted:>10}   of {even['mirror_steps']} steps "
-                         f"(UNSURE_HALF or lost, from {UNSURE_AFTER:g} s after)")
+            lines.append(
+                f"    {'even kidnaps: to 2 s correct [s]':<32}{_fmt_time(c['median']):>10}"
+                f"{_fmt_time(c['worst']):>10}   {c['never']}/{c['runs']}"
+            )
+            lines.append(
+                f"    {'even: on the mirror, doubted':<32}{doubted:>10}   of {even['mirror_steps']} steps "
+                f"(UNSURE_HALF or lost, from {UNSURE_AFTER:g} s after)"
+            )
     if s.get("team_runs"):
-        lines.append(f"  {'side changes by the team':<34}{s['team_flips']:>10}   to the mirror: "
-                     f"{s['flips_to_mirror']} ({s['team_runs']} runs with messages)")
+        lines.append(
+            f"  {'side changes by the team':<34}{s['team_flips']:>10}   to the mirror: "
+            f"{s['flips_to_mirror']} ({s['team_runs']} runs with messages)"
+        )
     for level, limit in (("SUPERB", "over_1"), ("OKAY", "over_5")):
         w = s["wrong_by_run"][level]
-        lines.append(f"  {level + ' wrong, worst run':<34}{_percent(w['worst']):>10}   runs over "
-                     f"{'1' if limit == 'over_1' else '5'} %: {w[limit]}/{w['runs']}")
+        lines.append(
+            f"  {level + ' wrong, worst run':<34}{_percent(w['worst']):>10}   runs over "
+            f"{'1' if limit == 'over_1' else '5'} %: {w[limit]}/{w['runs']}"
+        )
     row_values("tracking RMSE position [m]", s["rmse_position_m"], lambda v: f"{v:.3f}")
     row_values("tracking RMSE heading [°]", s["rmse_heading_deg"], lambda v: f"{v:.1f}")
     lines += _pooled_lines(s["pooled"])
@@ -424,10 +510,21 @@ def _pooled_lines(p: dict) -> list[str]:
     return lines
 
 
-def run_battery(families, splits, k: int, duration: float = 60.0, particles: int = 500, jobs: int = 2,
-                progress: bool = False, prior: dict | None = None, quality: dict | None = None,
-                view: bool = False, sensor: dict | None = None, profile: Profile | None = None,
-                team: bool | None = None) -> dict:
+def run_battery(
+    families,
+    splits,
+    k: int,
+    duration: float = 60.0,
+    particles: int = 500,
+    jobs: int = 2,
+    progress: bool = False,
+    prior: dict | None = None,
+    quality: dict | None = None,
+    view: bool = False,
+    sensor: dict | None = None,
+    profile: Profile | None = None,
+    team: bool | None = None,
+) -> dict:
     """Run every family × split × seed; returns the results (JSON-ready): per split, per family, the runs
     (sorted by seed) and their summary, and the overall pooled figures. view, profile: as `run_case`."""
     cases = [(split, family, seed) for split in splits for seed in split_seeds(split, k) for family in families]
@@ -445,21 +542,31 @@ def run_battery(families, splits, k: int, duration: float = 60.0, particles: int
 
     if jobs <= 1:
         for case in cases:
-            keep(case, run_case(case[1], case[2], duration, particles, prior, quality, view, sensor, profile,
-                                None, team))
+            keep(
+                case, run_case(case[1], case[2], duration, particles, prior, quality, view, sensor, profile, None, team)
+            )
     else:
         with ProcessPoolExecutor(max_workers=jobs, mp_context=get_context("spawn")) as pool:
-            futures = {pool.submit(run_case, family, seed, duration, particles, prior, quality, view, sensor, profile,
-                                   None, team):
-                       (split, family, seed) for split, family, seed in cases}
+            futures = {
+                pool.submit(
+                    run_case, family, seed, duration, particles, prior, quality, view, sensor, profile, None, team
+                ): (split, family, seed)
+                for split, family, seed in cases
+            }
             for future in as_completed(futures):
                 keep(futures[future], future.result())
     bar.close()
-    out: dict = {"particles": particles, "duration_s": duration, "seeds_per_family": k, "jobs": jobs,
-                 "variant": {"prior": dict(prior or {}), "quality": dict(quality or {}), "sensor": dict(sensor or {})},
-                 "profile": None if profile is None else {"source": profile.source, "values": profile.values()},
-                 "view": bool(view), "team": team,
-                 "splits": {}}
+    out: dict = {
+        "particles": particles,
+        "duration_s": duration,
+        "seeds_per_family": k,
+        "jobs": jobs,
+        "variant": {"prior": dict(prior or {}), "quality": dict(quality or {}), "sensor": dict(sensor or {})},
+        "profile": None if profile is None else {"source": profile.source, "values": profile.values()},
+        "view": bool(view),
+        "team": team,
+        "splits": {},
+    }
     for split in splits:
         per_family = {}
         everything = []
@@ -467,8 +574,11 @@ def run_battery(families, splits, k: int, duration: float = 60.0, particles: int
             runs = sorted(results[split][family], key=lambda r: r["seed"])
             everything += runs
             per_family[family] = {"summary": summarize_family(runs), "runs": runs}
-        out["splits"][split] = {"seeds": split_seeds(split, k), "families": per_family,
-                                "overall": {"runs": len(everything), "pooled": pool_counts(everything)}}
+        out["splits"][split] = {
+            "seeds": split_seeds(split, k),
+            "families": per_family,
+            "overall": {"runs": len(everything), "pooled": pool_counts(everything)},
+        }
     out["elapsed_s"] = time.perf_counter() - started
     return _jsonable(out)
 
@@ -479,8 +589,11 @@ def format_report(results: dict) -> str:
     for split, data in results["splits"].items():
         seeds = data["seeds"]
         variant = results.get("variant") or {}
-        changed = [f"{name}={value}" for group in ("prior", "quality", "sensor")
-                   for name, value in variant.get(group, {}).items()]
+        changed = [
+            f"{name}={value}"
+            for group in ("prior", "quality", "sensor")
+            for name, value in variant.get(group, {}).items()
+        ]
         profile = results.get("profile")
         if profile:
             changed = [f"profile {profile['source'] or '(unnamed)'}"] + changed
@@ -490,8 +603,10 @@ def format_report(results: dict) -> str:
             setting += "; VARIANT: the team's messages and the ball fed in every family (--team on)"
         elif results.get("team") is False:
             setting += "; VARIANT: no team messages in any family (--team off)"
-        lines.append(f"split {split}: seeds {seeds[0]}–{seeds[-1]} per family, {results['particles']} particles, "
-                     f"{results['duration_s']:g} s runs, {setting}, start anywhere_in_own_half()")
+        lines.append(
+            f"split {split}: seeds {seeds[0]}–{seeds[-1]} per family, {results['particles']} particles, "
+            f"{results['duration_s']:g} s runs, {setting}, start anywhere_in_own_half()"
+        )
         lines.append("")
         for family, f in data["families"].items():
             lines += format_family(family, f["summary"])
@@ -502,7 +617,6 @@ def format_report(results: dict) -> str:
         lines.append("")
     lines.append(f"total time {results['elapsed_s']:.1f} s ({results['jobs']} jobs)")
     return "\n".join(lines)
-
 
 
 def headline(results: dict, split: str) -> dict:
@@ -521,14 +635,23 @@ def headline(results: dict, split: str) -> dict:
             "reconverge_median_s": float(np.median(events)) if events else None,
             "reconverge_worst_s": max(events) if events else None,
             "never": sum(math.isinf(v) for v in events),
-            "fail_median": float(np.median(fails)), "fail_worst": max(fails),
+            "fail_median": float(np.median(fails)),
+            "fail_worst": max(fails),
             "on_mirror": sum(bool(r["on_mirror"]) for r in runs),
             "rmse_position_m": float(np.median(positions)) if positions else None,
-            "rmse_heading_deg": float(np.median(headings)) if headings else None}
+            "rmse_heading_deg": float(np.median(headings)) if headings else None,
+        }
     pooled = data["overall"]["pooled"]
-    out["overall"] = {name: pooled[key]["share"] for name, key in
-                      (("superb_wrong", "SUPERB"), ("okay_wrong", "OKAY"), ("superb_coverage", "superb_coverage"),
-                       ("lost_recall", "recall"), ("lost_false_alarms", "false_alarm"))}
+    out["overall"] = {
+        name: pooled[key]["share"]
+        for name, key in (
+            ("superb_wrong", "SUPERB"),
+            ("okay_wrong", "OKAY"),
+            ("superb_coverage", "superb_coverage"),
+            ("lost_recall", "recall"),
+            ("lost_false_alarms", "false_alarm"),
+        )
+    }
     return out
 
 
@@ -542,23 +665,35 @@ def format_comparison(base: dict, current: dict, split: str, names=("base", "cur
     def number(v, scale=1.0, digits=1):
         return "–" if v is None else f"{scale * v:.{digits}f}"
 
-    lines = [f"split {split}: {names[0]} | {names[1]}",
-             f"{'family':<17} {'reconverge median / worst [s], never':>40} {'fail median / worst':>27} "
-             f"{'on mirror':>11} {'RMSE m / °':>23}"]
+    lines = [
+        f"split {split}: {names[0]} | {names[1]}",
+        f"{'family':<17} {'reconverge median / worst [s], never':>40} {'fail median / worst':>27} "
+        f"{'on mirror':>11} {'RMSE m / °':>23}",
+    ]
     for family in a:
         if family == "overall":
             continue
         x, y = a[family], b[family]
-        reconverge = (f"{seconds(x['reconverge_median_s'])} / {seconds(x['reconverge_worst_s'])}, {x['never']} | "
-                      f"{seconds(y['reconverge_median_s'])} / {seconds(y['reconverge_worst_s'])}, {y['never']}")
-        fail = (f"{100 * x['fail_median']:.1f} / {100 * x['fail_worst']:.0f} | "
-                f"{100 * y['fail_median']:.1f} / {100 * y['fail_worst']:.0f} %")
-        rmse = (f"{number(x['rmse_position_m'], digits=3)}/{number(x['rmse_heading_deg'])} | "
-                f"{number(y['rmse_position_m'], digits=3)}/{number(y['rmse_heading_deg'])}")
+        reconverge = (
+            f"{seconds(x['reconverge_median_s'])} / {seconds(x['reconverge_worst_s'])}, {x['never']} | "
+            f"{seconds(y['reconverge_median_s'])} / {seconds(y['reconverge_worst_s'])}, {y['never']}"
+        )
+        fail = (
+            f"{100 * x['fail_median']:.1f} / {100 * x['fail_worst']:.0f} | "
+            f"{100 * y['fail_median']:.1f} / {100 * y['fail_worst']:.0f} %"
+        )
+        rmse = (
+            f"{number(x['rmse_position_m'], digits=3)}/{number(x['rmse_heading_deg'])} | "
+            f"{number(y['rmse_position_m'], digits=3)}/{number(y['rmse_heading_deg'])}"
+        )
         lines.append(f"{family:<17} {reconverge:>40} {fail:>27} {x['on_mirror']:>4} | {y['on_mirror']:<4} {rmse:>23}")
-    lines.append("quality, pooled: " + "; ".join(
-        f"{name.replace('_', ' ')} {number(a['overall'][name], 100)} | {number(b['overall'][name], 100)} %"
-        for name in a["overall"]))
+    lines.append(
+        "quality, pooled: "
+        + "; ".join(
+            f"{name.replace('_', ' ')} {number(a['overall'][name], 100)} | {number(b['overall'][name], 100)} %"
+            for name in a["overall"]
+        )
+    )
     return "\n".join(lines)
 
 
@@ -593,8 +728,9 @@ def parse_families(parser: argparse.ArgumentParser, text: str) -> list[str]:
     families = [f.strip() for f in text.split(",") if f.strip()]
     unknown = [f for f in families if f not in FAMILIES]
     if not families or unknown:
-        parser.error(f"--families: unknown {', '.join(map(repr, unknown)) or 'empty list'}; "
-                     f"choose from {', '.join(FAMILIES)}")
+        parser.error(
+            f"--families: unknown {', '.join(map(repr, unknown)) or 'empty list'}; choose from {', '.join(FAMILIES)}"
+        )
     return list(dict.fromkeys(families))
 
 
@@ -603,30 +739,68 @@ def build_parser(prog: str = PROG) -> argparse.ArgumentParser:
     from mcl.tools.cli_checks import add_progress_option, description, positive_int
 
     parser = argparse.ArgumentParser(prog=prog, description=description(__doc__))
-    parser.add_argument("--families", default=",".join(FAMILIES),
-                        help=f"comma-separated, from: {', '.join(FAMILIES)} (default: all)")
-    parser.add_argument("--split", default="holdout", choices=("train", "holdout", "both"),
-                        help="training seeds 0..K-1, held-out seeds 1000..1000+K-1, or both (default holdout)")
+    parser.add_argument(
+        "--families", default=",".join(FAMILIES), help=f"comma-separated, from: {', '.join(FAMILIES)} (default: all)"
+    )
+    parser.add_argument(
+        "--split",
+        default="holdout",
+        choices=("train", "holdout", "both"),
+        help="training seeds 0..K-1, held-out seeds 1000..1000+K-1, or both (default holdout)",
+    )
     parser.add_argument("--seeds", type=positive_int, default=10, help="seeds per family and split (default 10)")
     parser.add_argument("--duration", type=float, default=60.0, help="seconds per run (default 60, at least 10)")
     parser.add_argument("--particles", type=positive_int, default=500, help="particles (default 500)")
     parser.add_argument("--jobs", type=positive_int, default=2, help="worker processes (default 2)")
-    parser.add_argument("--progress", action="store_true", help="progress bar on stderr even when it is not a terminal (not with --json or --no-progress)")
-    parser.add_argument("--prior", action="append", default=[], metavar="NAME=VALUE",
-                        help="a variant: set a field of mcl.relocalization.RelocalizationPrior (repeatable)")
-    parser.add_argument("--quality", action="append", default=[], metavar="NAME=VALUE",
-                        help="a variant: set a field of mcl.localizer.QualityThresholds (repeatable)")
-    parser.add_argument("--sensor", action="append", default=[], metavar="NAME=VALUE",
-                        help="a variant: set a number of sensing.LandmarkSensorModel (repeatable)")
-    parser.add_argument("--profile", metavar="TOML",
-                        help="the localizer's settings from a profile file (mcl.profile; `robocup-mcl tune` writes them)")
-    parser.add_argument("--view", action="store_true",
-                        help="pass each frame's camera view (head pan, field of view, ranges) to observe()")
-    parser.add_argument("--team", choices=("auto", "on", "off"), default="auto",
-                        help="feed the team's messages and the robot's ball sightings: in the team families only "
-                             "(auto, the default), in every family (on, a variant), in none (off, a variant)")
-    parser.add_argument("--compare", nargs=2, metavar=("BASE", "CURRENT"),
-                        help="print two saved results files side by side (for the split given) and run nothing")
+    parser.add_argument(
+        "--progress",
+        action="store_true",
+        help="progress bar on stderr even when it is not a terminal (not with --json or --no-progress)",
+    )
+    parser.add_argument(
+        "--prior",
+        action="append",
+        default=[],
+        metavar="NAME=VALUE",
+        help="a variant: set a field of mcl.relocalization.RelocalizationPrior (repeatable)",
+    )
+    parser.add_argument(
+        "--quality",
+        action="append",
+        default=[],
+        metavar="NAME=VALUE",
+        help="a variant: set a field of mcl.localizer.QualityThresholds (repeatable)",
+    )
+    parser.add_argument(
+        "--sensor",
+        action="append",
+        default=[],
+        metavar="NAME=VALUE",
+        help="a variant: set a number of sensing.LandmarkSensorModel (repeatable)",
+    )
+    parser.add_argument(
+        "--profile",
+        metavar="TOML",
+        help="the localizer's settings from a profile file (mcl.profile; `robocup-mcl tune` writes them)",
+    )
+    parser.add_argument(
+        "--view",
+        action="store_true",
+        help="pass each frame's camera view (head pan, field of view, ranges) to observe()",
+    )
+    parser.add_argument(
+        "--team",
+        choices=("auto", "on", "off"),
+        default="auto",
+        help="feed the team's messages and the robot's ball sightings: in the team families only "
+        "(auto, the default), in every family (on, a variant), in none (off, a variant)",
+    )
+    parser.add_argument(
+        "--compare",
+        nargs=2,
+        metavar=("BASE", "CURRENT"),
+        help="print two saved results files side by side (for the split given) and run nothing",
+    )
     parser.add_argument("--json", action="store_true", help="the results as JSON on stdout instead of tables")
     parser.add_argument("--save", metavar="PATH", help="also write the JSON results to PATH")
     add_progress_option(parser)
@@ -649,8 +823,11 @@ def main(argv: list[str] | None = None, prog: str = PROG) -> int:
         if not all(split in f.get("splits", {}) for f in files):
             parser.error(f"--compare: both files need the {split} split (--split)")
         if args.json:
-            print(json.dumps({"split": split, "base": headline(files[0], split),
-                              "current": headline(files[1], split)}, indent=2))
+            print(
+                json.dumps(
+                    {"split": split, "base": headline(files[0], split), "current": headline(files[1], split)}, indent=2
+                )
+            )
         else:
             print(format_comparison(files[0], files[1], split, tuple(os.path.basename(p) for p in args.compare)))
         return 0
@@ -658,12 +835,14 @@ def main(argv: list[str] | None = None, prog: str = PROG) -> int:
     if args.seeds > MAX_SEEDS:
         parser.error(f"--seeds {args.seeds} must be at most {MAX_SEEDS} (training and held-out seeds stay apart)")
     from mcl.tools.cli_checks import check_duration, check_output_file, progress_wanted, save_json
+
     check_duration(parser, args.duration, 10.0)
-    check_output_file(args.save, "--save", make_parents=False)   # before the battery runs, not after it
+    check_output_file(args.save, "--save", make_parents=False)  # before the battery runs, not after it
     prior = _overrides(parser, "--prior", args.prior, RelocalizationPrior)
     quality = _overrides(parser, "--quality", args.quality, QualityThresholds)
-    sensor = _overrides(parser, "--sensor", args.sensor, LandmarkSensorModel,
-                        lambda **values: LandmarkSensorModel(spl(), **values))
+    sensor = _overrides(
+        parser, "--sensor", args.sensor, LandmarkSensorModel, lambda **values: LandmarkSensorModel(spl(), **values)
+    )
     profile = None
     if args.profile:
         try:
@@ -678,10 +857,23 @@ def main(argv: list[str] | None = None, prog: str = PROG) -> int:
     # and shows its progress, and the workers load them from numba's cache instead of each compiling them.
     from .walk import warm_up_walk
     from .walk_sim import WalkScenario
+
     warm = warm_up_walk(WalkScenario(), "velocity-linear", view=args.view, progress=progress)
-    results = run_battery(families, splits, args.seeds, args.duration, args.particles, args.jobs,
-                          progress=progress, prior=prior, quality=quality, view=args.view, sensor=sensor,
-                          profile=profile, team={"auto": None, "on": True, "off": False}[args.team])
+    results = run_battery(
+        families,
+        splits,
+        args.seeds,
+        args.duration,
+        args.particles,
+        args.jobs,
+        progress=progress,
+        prior=prior,
+        quality=quality,
+        view=args.view,
+        sensor=sensor,
+        profile=profile,
+        team={"auto": None, "on": True, "off": False}[args.team],
+    )
     results.update(warm.as_dict())
     text = json.dumps(results, indent=2)
     save_json(args.save, results)

@@ -50,6 +50,7 @@ field, `EVEN_BOX`, until then, since only there is such a landing point; the kid
 kidnap_even_team (teammates' messages on), kidnap_even_wrong (2–4 teammates, one of them wrongly on its mirror
 pose, and sure of it, for 10–40 s around the kidnapping), kidnap_even_silent (the same, no message delivered).
 """
+
 from __future__ import annotations
 
 import math
@@ -65,67 +66,78 @@ from sensing.observations import Observations
 
 from .team_sim import TeamWorld, simulate_team
 
-FAMILIES = ("tracking", "kidnap", "kidnap_special", "kidnap_announced", "collision", "fall", "false_bursts",
-            "blackout", "start_unknown",
-            # appended, so that the families above keep their codes and seeds
-            "kidnap_even_team", "kidnap_even_wrong", "kidnap_even_silent")
+FAMILIES = (
+    "tracking",
+    "kidnap",
+    "kidnap_special",
+    "kidnap_announced",
+    "collision",
+    "fall",
+    "false_bursts",
+    "blackout",
+    "start_unknown",
+    # appended, so that the families above keep their codes and seeds
+    "kidnap_even_team",
+    "kidnap_even_wrong",
+    "kidnap_even_silent",
+)
 EVEN_FAMILIES = ("kidnap_even_team", "kidnap_even_wrong", "kidnap_even_silent")
 FIELDS = ("spl", "kidsize", "adultsize")
-DT = 0.01             # s, the motion and truth rate (100 Hz)
-INSIDE = 0.3          # m, waypoints, kidnapping targets and placements stay this far inside the field lines
-SPECIAL_TURNS = (0.0, 90.0, -90.0, 180.0)     # degrees, kidnap_special's heading changes, cycled by seed
+DT = 0.01  # s, the motion and truth rate (100 Hz)
+INSIDE = 0.3  # m, waypoints, kidnapping targets and placements stay this far inside the field lines
+SPECIAL_TURNS = (0.0, 90.0, -90.0, 180.0)  # degrees, kidnap_special's heading changes, cycled by seed
 
 # The ranges every run draws from (uniform); see the module docstring.
 RANGES = {
-    "max_speed": (0.15, 0.35),          # m/s, the fastest leg of the run; each leg walks at 0.1..max_speed
-    "max_turn": (0.4, 1.0),             # rad/s
-    "step_frequency": (1.4, 2.6),       # Hz, the gait's sway
-    "sway_lateral": (0.0, 0.05),        # m/s, amplitude of the lateral sway velocity
-    "sway_yaw": (0.0, 0.04),            # rad, amplitude of the heading sway
-    "odometry_scale": (0.85, 1.15),     # per axis: measured = scale · true
-    "turn_bias": (-0.1, 0.1),           # rad/s, added to the measured turn while the legs step
-    "drift_sigma": (0.0, 0.02),         # m/s (x, y) and rad/s (θ): stationary σ of the velocity error's walk
-    "drift_time": (2.0, 10.0),          # s, its correlation time
-    "step_noise": (0.0, 0.15),          # relative white noise of each step's measurement
-    "camera_rate": (15.0, 30.0),        # Hz
-    "latency": (0.0, 0.1),              # s, capture to arrival
-    "latency_jitter": (0.0, 0.015),     # s, ± per frame (the latency stays within 0–0.1 s)
-    "fov_deg": (50.0, 90.0),            # horizontal field of view
+    "max_speed": (0.15, 0.35),  # m/s, the fastest leg of the run; each leg walks at 0.1..max_speed
+    "max_turn": (0.4, 1.0),  # rad/s
+    "step_frequency": (1.4, 2.6),  # Hz, the gait's sway
+    "sway_lateral": (0.0, 0.05),  # m/s, amplitude of the lateral sway velocity
+    "sway_yaw": (0.0, 0.04),  # rad, amplitude of the heading sway
+    "odometry_scale": (0.85, 1.15),  # per axis: measured = scale · true
+    "turn_bias": (-0.1, 0.1),  # rad/s, added to the measured turn while the legs step
+    "drift_sigma": (0.0, 0.02),  # m/s (x, y) and rad/s (θ): stationary σ of the velocity error's walk
+    "drift_time": (2.0, 10.0),  # s, its correlation time
+    "step_noise": (0.0, 0.15),  # relative white noise of each step's measurement
+    "camera_rate": (15.0, 30.0),  # Hz
+    "latency": (0.0, 0.1),  # s, capture to arrival
+    "latency_jitter": (0.0, 0.015),  # s, ± per frame (the latency stays within 0–0.1 s)
+    "fov_deg": (50.0, 90.0),  # horizontal field of view
     "pan_amplitude_deg": (0.0, 60.0),
-    "pan_period": (2.0, 6.0),           # s
-    "max_range_share": (0.45, 0.65),    # of the field length, then clipped to MAX_RANGE
-    "min_range": (0.2, 0.5),            # m, closer landmarks are below the image
-    "detection": (0.4, 0.95),           # probability per visible landmark and frame
-    "range_a": (0.02, 0.15),            # m
-    "range_b": (0.02, 0.10),            # σ_r = a + b·r  (law "linear")
-    "range_c": (0.005, 0.04),           # 1/m, σ_r = a + c·r²  (law "quadratic")
-    "bearing_sigma": (0.01, 0.08),      # rad
-    "false_rate": (0.0, 0.3),           # false detections per frame (Poisson mean)
+    "pan_period": (2.0, 6.0),  # s
+    "max_range_share": (0.45, 0.65),  # of the field length, then clipped to MAX_RANGE
+    "min_range": (0.2, 0.5),  # m, closer landmarks are below the image
+    "detection": (0.4, 0.95),  # probability per visible landmark and frame
+    "range_a": (0.02, 0.15),  # m
+    "range_b": (0.02, 0.10),  # σ_r = a + b·r  (law "linear")
+    "range_c": (0.005, 0.04),  # 1/m, σ_r = a + c·r²  (law "quadratic")
+    "bearing_sigma": (0.01, 0.08),  # rad
+    "false_rate": (0.0, 0.3),  # false detections per frame (Poisson mean)
 }
-MAX_RANGE = (4.0, 8.0)                  # m
-EVENT_AT = (0.35, 0.55)                 # share of the run
-KIDNAP_DISTANCE = (1.0, 4.0)            # m
+MAX_RANGE = (4.0, 8.0)  # m
+EVENT_AT = (0.35, 0.55)  # share of the run
+KIDNAP_DISTANCE = (1.0, 4.0)  # m
 STUCK_SECONDS = (1.5, 4.0)
-STUCK_EXCESS = (0.3, 1.0)               # m the odometry runs ahead while stuck
-STUCK_SPEED = (0.1, 0.35)               # m/s the walking engine reports while stuck
+STUCK_EXCESS = (0.3, 1.0)  # m the odometry runs ahead while stuck
+STUCK_SPEED = (0.1, 0.35)  # m/s the walking engine reports while stuck
 SPIN_DEG = (30.0, 120.0)
 SPIN_SECONDS = 0.5
-FALL_SHIFT = (0.0, 0.3)                 # m
-FALL_TURN_DEG = 90.0                    # ± heading change
-FALL_SECONDS = 0.5                      # the fall itself
-LYING = (2.0, 5.0)                      # s
-BURSTS = (2, 4)                         # number of false-detection bursts
+FALL_SHIFT = (0.0, 0.3)  # m
+FALL_TURN_DEG = 90.0  # ± heading change
+FALL_SECONDS = 0.5  # the fall itself
+LYING = (2.0, 5.0)  # s
+BURSTS = (2, 4)  # number of false-detection bursts
 BURST_SECONDS = (1.0, 3.0)
-BURST_GAP = (3.0, 8.0)                  # s between bursts
-BURST_RATE = (3.0, 8.0)                 # false detections per frame inside a burst
-BURST_KEEP = 0.3                        # share of the real detections a burst lets through
-BLACKOUT = (10.0, 20.0)                 # s
-EVEN_ODDS = math.log(2.0)               # an even kidnapping: |kidnap_mirror_log_odds| below this
-EVEN_BOX = (2.2, 1.8)                   # m, half extents of the middle of the field the even families walk in
-                                        # until the kidnapping (only there does an even landing point exist)
-EVEN_TRIES = 200                        # landing points tried per attempt (the law's own draws, then rejected)
-EVEN_RETRY_STEPS = 20                   # when none is even, the kidnapping waits this many steps and tries again
-TEAM_STREAM = 7                         # the team world's generator: SeedSequence([seed, family code, 7])
+BURST_GAP = (3.0, 8.0)  # s between bursts
+BURST_RATE = (3.0, 8.0)  # false detections per frame inside a burst
+BURST_KEEP = 0.3  # share of the real detections a burst lets through
+BLACKOUT = (10.0, 20.0)  # s
+EVEN_ODDS = math.log(2.0)  # an even kidnapping: |kidnap_mirror_log_odds| below this
+EVEN_BOX = (2.2, 1.8)  # m, half extents of the middle of the field the even families walk in
+# until the kidnapping (only there does an even landing point exist)
+EVEN_TRIES = 200  # landing points tried per attempt (the law's own draws, then rejected)
+EVEN_RETRY_STEPS = 20  # when none is even, the kidnapping waits this many steps and tries again
+TEAM_STREAM = 7  # the team world's generator: SeedSequence([seed, family code, 7])
 
 _KINDS = tuple(LandmarkType)
 
@@ -206,11 +218,19 @@ def _draw_parameters(rng: np.random.Generator, field: Field) -> dict:
     p["odometry_scale"] = [float(v) for v in rng.uniform(*RANGES["odometry_scale"], 3)]
     p["turn_bias"] = _u(rng, "turn_bias")
     p["drift_sigma"] = [float(v) for v in rng.uniform(*RANGES["drift_sigma"], 3)]
-    for key in ("drift_time", "step_noise", "camera_rate", "latency", "latency_jitter", "fov_deg",
-                "pan_amplitude_deg", "pan_period"):
+    for key in (
+        "drift_time",
+        "step_noise",
+        "camera_rate",
+        "latency",
+        "latency_jitter",
+        "fov_deg",
+        "pan_amplitude_deg",
+        "pan_period",
+    ):
         p[key] = _u(rng, key)
     p["pan_phase"] = float(rng.uniform(0.0, 2.0 * math.pi))
-    p["camera_phase"] = float(rng.uniform(0.0, 1.0))        # first capture, in frame intervals
+    p["camera_phase"] = float(rng.uniform(0.0, 1.0))  # first capture, in frame intervals
     p["max_range"] = float(np.clip(_u(rng, "max_range_share") * field.dims.length, *MAX_RANGE))
     for key in ("min_range", "detection", "range_a"):
         p[key] = _u(rng, key)
@@ -253,7 +273,7 @@ def _plan_event(rng: np.random.Generator, family: str, seed: int, duration: floa
     """When and what happens (anything depending on where the robot is then is drawn at that moment)."""
     at = float(rng.uniform(*EVENT_AT)) * duration
     step = min(max(int(round(at / DT)) - 1, 0), n_steps - 1)
-    last = n_steps - 1 - int(round(1.0 / DT))        # events end at least 1 s before the run does
+    last = n_steps - 1 - int(round(1.0 / DT))  # events end at least 1 s before the run does
     plan: dict = {"type": "none"}
     if family in ("tracking", "start_unknown"):
         return plan
@@ -279,7 +299,7 @@ def _plan_event(rng: np.random.Generator, family: str, seed: int, duration: floa
         if seed % 2 == 0:
             plan["type"] = "stuck"
             plan["excess_target"] = float(rng.uniform(*STUCK_EXCESS))
-            plan["u_seconds"] = float(rng.random())      # where in the feasible durations
+            plan["u_seconds"] = float(rng.random())  # where in the feasible durations
         else:
             plan["type"] = "spun"
             plan["turn_deg"] = float(rng.uniform(*SPIN_DEG)) * (1 if rng.random() < 0.5 else -1)
@@ -313,8 +333,9 @@ def _kidnap_target(rng: np.random.Generator, field: Field, xy: np.ndarray, dista
         d = distance if attempt < 50 else float(rng.uniform(*KIDNAP_DISTANCE))
         angles = rng.uniform(-math.pi, math.pi, 64)
         targets = xy + d * np.column_stack([np.cos(angles), np.sin(angles)])
-        ok = ((np.abs(targets[:, 0]) <= field.half_length - INSIDE)
-              & (np.abs(targets[:, 1]) <= field.half_width - INSIDE))
+        ok = (np.abs(targets[:, 0]) <= field.half_length - INSIDE) & (
+            np.abs(targets[:, 1]) <= field.half_width - INSIDE
+        )
         if ok.any():
             return targets[int(np.argmax(ok))]
     raise RuntimeError("no kidnapping target inside the field")
@@ -329,13 +350,15 @@ def _even_target(rng: np.random.Generator, field: Field, pose: np.ndarray) -> np
         d = float(rng.uniform(*KIDNAP_DISTANCE))
         angles = rng.uniform(-math.pi, math.pi, 64)
         targets = pose[:2] + d * np.column_stack([np.cos(angles), np.sin(angles)])
-        ok = ((np.abs(targets[:, 0]) <= field.half_length - INSIDE)
-              & (np.abs(targets[:, 1]) <= field.half_width - INSIDE))
+        ok = (np.abs(targets[:, 0]) <= field.half_length - INSIDE) & (
+            np.abs(targets[:, 1]) <= field.half_width - INSIDE
+        )
         if not ok.any():
             continue
         target = targets[int(np.argmax(ok))]
-        odds = kidnap_mirror_log_odds(field, {"type": "kidnap", "from": start,
-                                              "to": [float(target[0]), float(target[1]), 0.0]})
+        odds = kidnap_mirror_log_odds(
+            field, {"type": "kidnap", "from": start, "to": [float(target[0]), float(target[1]), 0.0]}
+        )
         if odds is not None and abs(odds) < EVEN_ODDS:
             return target
     return None
@@ -366,8 +389,11 @@ def kidnap_mirror_log_odds(field: Field, event: dict) -> float | None:
         if not KIDNAP_DISTANCE[0] - 1e-9 <= d <= KIDNAP_DISTANCE[1] + 1e-9:
             return 0.0
         ring = start + d * directions
-        inside = float(((np.abs(ring[:, 0]) <= field.half_length - INSIDE)
-                        & (np.abs(ring[:, 1]) <= field.half_width - INSIDE)).mean())
+        inside = float(
+            (
+                (np.abs(ring[:, 0]) <= field.half_length - INSIDE) & (np.abs(ring[:, 1]) <= field.half_width - INSIDE)
+            ).mean()
+        )
         return 1.0 / (d * max(inside, 1.0 / angles.shape[0]))
 
     truth, mirror = density(land), density(-land)
@@ -390,7 +416,7 @@ class _Walker:
         self.turn_to = 0.0
         self.turn_rate = 0.0
         self.side = 0.0
-        self.box = False            # waypoints in the middle of the field (`EVEN_BOX`) instead of anywhere
+        self.box = False  # waypoints in the middle of the field (`EVEN_BOX`) instead of anywhere
 
     def stand(self, t: float, seconds: float) -> None:
         self.mode, self.until = "stop", t + seconds
@@ -446,7 +472,7 @@ def _walk(rng: np.random.Generator, field: Field, p: dict, plan: dict, start: np
     body = np.zeros((n_steps, 3))
     walking = np.zeros(n_steps, dtype=bool)
     moving = np.ones(n_steps, dtype=bool)
-    external = np.zeros((n_steps, 3))          # world-frame motion the odometry does not see
+    external = np.zeros((n_steps, 3))  # world-frame motion the odometry does not see
     teleports: dict[int, str] = {}
     lying = np.zeros(n_steps, dtype=bool)
     forced: dict[int, tuple[float, float, float]] = {}
@@ -465,26 +491,26 @@ def _walk(rng: np.random.Generator, field: Field, p: dict, plan: dict, start: np
         plan["seconds"] = n * DT
         plan["speed"] = plan["excess_target"] / (n * DT * scale_x)
         plan["end_step"] = min(k0 + n - 1, n_steps - 1)
-        moving[k0:plan["end_step"] + 1] = False
+        moving[k0 : plan["end_step"] + 1] = False
         for k in range(k0, plan["end_step"] + 1):
             forced[k] = (plan["speed"], 0.0, 0.0)
     elif kind == "spun":
         n = plan["end_step"] - k0 + 1
-        external[k0:k0 + n, 2] = math.radians(plan["turn_deg"]) / n
+        external[k0 : k0 + n, 2] = math.radians(plan["turn_deg"]) / n
     elif kind == "fall":
         n = max(1, min(int(round(FALL_SECONDS / DT)), plan["end_step"] - k0 + 1))
         shift = plan["shift"] * np.array([math.cos(plan["shift_direction"]), math.sin(plan["shift_direction"])])
-        external[k0:k0 + n, :2] = shift / n
-        external[k0:k0 + n, 2] = math.radians(plan["turn_deg"]) / n
-        lying[k0:plan["end_step"] + 1] = True
-        moving[k0:plan["end_step"] + 1] = False
+        external[k0 : k0 + n, :2] = shift / n
+        external[k0 : k0 + n, 2] = math.radians(plan["turn_deg"]) / n
+        lying[k0 : plan["end_step"] + 1] = True
+        moving[k0 : plan["end_step"] + 1] = False
     walker = _Walker(rng, field, p)
     walker.box = even
     walker.stand(0.0, float(rng.uniform(0.0, 1.0)))
-    pending = even           # an even kidnapping not done yet: tried from its step on, every EVEN_RETRY_STEPS
+    pending = even  # an even kidnapping not done yet: tried from its step on, every EVEN_RETRY_STEPS
     pose = start.copy()
     velocity = np.zeros(3)
-    limits = np.array([0.6, 0.6, 3.0]) * DT       # m/s², m/s², rad/s² (times dt): the engine's acceleration
+    limits = np.array([0.6, 0.6, 3.0]) * DT  # m/s², m/s², rad/s² (times dt): the engine's acceleration
     two_pi_f = 2.0 * math.pi * p["step_frequency"]
     sway_phase = float(rng.uniform(0.0, 2.0 * math.pi))
     for k in range(n_steps):
@@ -521,7 +547,7 @@ def _walk(rng: np.random.Generator, field: Field, p: dict, plan: dict, start: np
         if pending and k >= k0 and (k - k0) % EVEN_RETRY_STEPS == 0:
             target = _even_target(rng, field, pose)
             if target is not None or k + EVEN_RETRY_STEPS >= n_steps - int(round(1.0 / DT)):
-                if target is None:        # never even before the run's end (not seen): a plain kidnapping
+                if target is None:  # never even before the run's end (not seen): a plain kidnapping
                     plan["even"] = False
                     target = _kidnap_target(rng, field, pose[:2], float(rng.uniform(*KIDNAP_DISTANCE)))
                 plan["step"], plan["time"] = k, (k + 1) * DT
@@ -548,8 +574,13 @@ def _teleport(rng: np.random.Generator, field: Field, plan: dict, pose: np.ndarr
         new = np.array([xy[0], xy[1], pose[2] + math.radians(plan["turn_deg"])])
     elif kind == "penalty":
         side = plan["side"]
-        new = np.array([-hl + field.dims.penalty_mark_distance + rng.uniform(-0.1, 0.1),
-                        side * (hw - rng.uniform(0.0, 0.1)), -side * math.pi / 2 + rng.uniform(-0.1, 0.1)])
+        new = np.array(
+            [
+                -hl + field.dims.penalty_mark_distance + rng.uniform(-0.1, 0.1),
+                side * (hw - rng.uniform(0.0, 0.1)),
+                -side * math.pi / 2 + rng.uniform(-0.1, 0.1),
+            ]
+        )
     else:
         xy = _inside_point(rng, field, (-hl + INSIDE, -INSIDE))
         new = np.array([xy[0], xy[1], rng.uniform(-0.3, 0.3)])
@@ -558,15 +589,16 @@ def _teleport(rng: np.random.Generator, field: Field, plan: dict, pose: np.ndarr
     return new
 
 
-def _odometry(rng: np.random.Generator, p: dict, body: np.ndarray, walking: np.ndarray,
-              lying: np.ndarray) -> np.ndarray:
+def _odometry(
+    rng: np.random.Generator, p: dict, body: np.ndarray, walking: np.ndarray, lying: np.ndarray
+) -> np.ndarray:
     """The measured increments: scale, turn bias while stepping, a correlated velocity error, white noise."""
     n = body.shape[0]
     rho = math.exp(-DT / p["drift_time"])
     shocks = rng.standard_normal((n, 3)) * (np.asarray(p["drift_sigma"]) * math.sqrt(1.0 - rho * rho))
     drift = np.empty((n, 3))
     state = rng.standard_normal(3) * np.asarray(p["drift_sigma"])
-    for k in range(n):          # a first-order recursion (6000 small steps: cheap)
+    for k in range(n):  # a first-order recursion (6000 small steps: cheap)
         state = rho * state + shocks[k]
         drift[k] = state
     white = rng.standard_normal((n, 3)) * (p["step_noise"] * np.abs(body) + np.array([5e-5, 5e-5, 1e-4]))
@@ -576,14 +608,16 @@ def _odometry(rng: np.random.Generator, p: dict, body: np.ndarray, walking: np.n
     return odometry
 
 
-def _camera(rng: np.random.Generator, field: Field, p: dict, plan: dict, truth: np.ndarray,
-            n_steps: int) -> tuple[Frame, ...]:
+def _camera(
+    rng: np.random.Generator, field: Field, p: dict, plan: dict, truth: np.ndarray, n_steps: int
+) -> tuple[Frame, ...]:
     """Every frame of the run, in arrival order (all frames' detections drawn at once)."""
     duration = n_steps * DT
     interval = 1.0 / p["camera_rate"]
     captures = np.arange(p["camera_phase"] * interval, duration, interval)
-    latency = np.clip(p["latency"] + rng.uniform(-1.0, 1.0, captures.shape[0]) * p["latency_jitter"],
-                      *RANGES["latency"])
+    latency = np.clip(
+        p["latency"] + rng.uniform(-1.0, 1.0, captures.shape[0]) * p["latency_jitter"], *RANGES["latency"]
+    )
     arrivals = captures + latency
     steps = np.ceil(arrivals / DT - 1e-9).astype(np.int64) - 1
     keep = steps < n_steps
@@ -591,8 +625,7 @@ def _camera(rng: np.random.Generator, field: Field, p: dict, plan: dict, truth: 
     order = np.argsort(arrivals, kind="stable")
     captures, arrivals, steps = captures[order], arrivals[order], steps[order]
     n_frames = captures.shape[0]
-    heads = math.radians(p["pan_amplitude_deg"]) * np.sin(2 * math.pi * captures / p["pan_period"]
-                                                          + p["pan_phase"])
+    heads = math.radians(p["pan_amplitude_deg"]) * np.sin(2 * math.pi * captures / p["pan_period"] + p["pan_phase"])
     poses = truth[np.clip(np.rint(captures / DT).astype(np.int64), 0, n_steps)]
     burst = np.zeros(n_frames, dtype=bool)
     blind = np.zeros(n_frames, dtype=bool)
@@ -607,8 +640,9 @@ def _camera(rng: np.random.Generator, field: Field, p: dict, plan: dict, truth: 
     r = np.hypot(d[..., 0], d[..., 1])
     bearing = wrap_angles(np.arctan2(d[..., 1], d[..., 0]) - poses[:, 2:3])
     half_fov = 0.5 * math.radians(p["fov_deg"])
-    visible = ((np.abs(wrap_angles(bearing - heads[:, None])) <= half_fov)
-               & (r >= p["min_range"]) & (r <= p["max_range"]))
+    visible = (
+        (np.abs(wrap_angles(bearing - heads[:, None])) <= half_fov) & (r >= p["min_range"]) & (r <= p["max_range"])
+    )
     chance = p["detection"] * np.where(burst, BURST_KEEP, 1.0)
     detected = visible & (rng.random(r.shape) < chance[:, None]) & ~blind[:, None]
     growth = r if p["range_law"] == "linear" else r * r
@@ -631,9 +665,19 @@ def _camera(rng: np.random.Generator, field: Field, p: dict, plan: dict, truth: 
         observations = Observations.from_arrays(
             np.concatenate([kinds[seen], false_kinds[a:b]]),
             np.concatenate([ranges[i, seen], false_ranges[a:b]]),
-            np.concatenate([bearings[i, seen], false_bearings[a:b]]))
-        frames.append(Frame(float(captures[i]), float(arrivals[i]), int(steps[i]), float(heads[i]),
-                            observations, int(seen.shape[0]), int(b - a)))
+            np.concatenate([bearings[i, seen], false_bearings[a:b]]),
+        )
+        frames.append(
+            Frame(
+                float(captures[i]),
+                float(arrivals[i]),
+                int(steps[i]),
+                float(heads[i]),
+                observations,
+                int(seen.shape[0]),
+                int(b - a),
+            )
+        )
     return tuple(frames)
 
 
@@ -654,7 +698,7 @@ def _calls_and_windows(plan: dict) -> tuple[tuple[Call, ...], tuple[tuple[float,
         return (Call(k0, "fallen"), Call(plan["end_step"], "got_up")), ((t0, (plan["end_step"] + 1) * DT),)
     if kind == "false_bursts":
         return (), tuple((float(a), float(b)) for a, b in plan["bursts"])
-    return (), ((t0, float(plan["end"])),)          # blackout
+    return (), ((t0, float(plan["end"])),)  # blackout
 
 
 def simulate(family: str, seed: int, duration: float = 60.0, overrides: dict | None = None) -> BatteryRun:
@@ -681,7 +725,7 @@ def simulate(family: str, seed: int, duration: float = 60.0, overrides: dict | N
     truth, body, walking, moving = _walk(rng, field, p, plan, start, n_steps)
     lying = np.zeros(n_steps, dtype=bool)
     if plan["type"] == "fall":
-        lying[plan["step"]:plan["end_step"] + 1] = True
+        lying[plan["step"] : plan["end_step"] + 1] = True
     odometry = _odometry(rng, p, body, walking, lying)
     if plan["type"] == "stuck":
         steps = slice(plan["step"], plan["end_step"] + 1)
@@ -690,16 +734,50 @@ def simulate(family: str, seed: int, duration: float = 60.0, overrides: dict | N
     calls, windows = _calls_and_windows(plan)
     # The team world last, from a generator of its own: the run above is the same with or without it.
     team_rng = np.random.default_rng(np.random.SeedSequence([seed, code, TEAM_STREAM]))
-    team = simulate_team(team_rng, field, DT, truth, frames, p["fov_deg"],
-                         teammates=(2, 4) if family == "kidnap_even_wrong" else (1, 4),
-                         messages_on=family in ("kidnap_even_team", "kidnap_even_wrong"),
-                         wrong=family == "kidnap_even_wrong", kidnap_time=plan.get("time"),
-                         blind=(plan["time"], plan["end"]) if plan["type"] == "blackout" else None)
-    params = {"family": family, "seed": seed, "field": field.name, "duration": n_steps * DT,
-              "start": [float(v) for v in start], **p, "event": plan, "team": team.params}
-    return BatteryRun(family, seed, field, DT, (np.arange(n_steps) + 1) * DT, start, truth[1:], body, odometry,
-                      walking, moving, frames, calls, windows, params, team.ball, team.ball_detections,
-                      team.messages, team)
+    team = simulate_team(
+        team_rng,
+        field,
+        DT,
+        truth,
+        frames,
+        p["fov_deg"],
+        teammates=(2, 4) if family == "kidnap_even_wrong" else (1, 4),
+        messages_on=family in ("kidnap_even_team", "kidnap_even_wrong"),
+        wrong=family == "kidnap_even_wrong",
+        kidnap_time=plan.get("time"),
+        blind=(plan["time"], plan["end"]) if plan["type"] == "blackout" else None,
+    )
+    params = {
+        "family": family,
+        "seed": seed,
+        "field": field.name,
+        "duration": n_steps * DT,
+        "start": [float(v) for v in start],
+        **p,
+        "event": plan,
+        "team": team.params,
+    }
+    return BatteryRun(
+        family,
+        seed,
+        field,
+        DT,
+        (np.arange(n_steps) + 1) * DT,
+        start,
+        truth[1:],
+        body,
+        odometry,
+        walking,
+        moving,
+        frames,
+        calls,
+        windows,
+        params,
+        team.ball,
+        team.ball_detections,
+        team.messages,
+        team,
+    )
 
 
 def as_robot_log(run: BatteryRun) -> RobotLog:

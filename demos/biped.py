@@ -37,6 +37,7 @@ disturbances, the sensor noise, the robot's draw and the gyro drift come from se
 the seed, so switching twist off leaves the noise identical, and two variations of one seed move the same robot
 in the same directions. Same seed, same run, bit for bit.
 """
+
 from __future__ import annotations
 
 import dataclasses
@@ -48,14 +49,14 @@ import numpy as np
 from field.angles import wrap_angles
 from proprioception.kinematics import LegChain, NaoLegDimensions, nao_leg, rotation_z
 
-FINE_RATE = 3000.0          # Hz: truth grid; IMU and kinematics rates must divide it
+FINE_RATE = 3000.0  # Hz: truth grid; IMU and kinematics rates must divide it
 GRAVITY = 9.81
 
 # Sole outline of the NAO-like foot (sole frame: origin under the ankle, x forward), metres.
 SOLE_X = (-0.05, 0.10)
 SOLE_Y = (-0.04, 0.04)
 CONTACT_SENSORS = np.array([[0.07, 0.03], [0.07, -0.03], [-0.03, 0.03], [-0.03, -0.03]])
-LIFT_THRESHOLD = 1e-3       # a contact switch opens once its corner is this far above the floor
+LIFT_THRESHOLD = 1e-3  # a contact switch opens once its corner is this far above the floor
 
 
 @dataclass(frozen=True)
@@ -88,8 +89,10 @@ class GaitParams:
         if not self.double_support < self.step_period:
             raise ValueError(f"double_support must be shorter than step_period, got {self.double_support!r}")
         if self.stand_time < 0.5:
-            raise ValueError(f"stand_time must be at least 0.5 s (the estimators start from a standing robot), "
-                             f"got {self.stand_time!r}")
+            raise ValueError(
+                f"stand_time must be at least 0.5 s (the estimators start from a standing robot), "
+                f"got {self.stand_time!r}"
+            )
 
 
 def turning_gait(duration: float, turn_rate: float = 0.25, **kwargs) -> GaitParams:
@@ -174,27 +177,47 @@ class RobotVariation:
             value = getattr(self, name)
             if not (isinstance(value, (int, float)) and math.isfinite(value) and 0.0 <= value < 0.5):
                 raise ValueError(f"{name} must be in [0, 0.5), got {value!r}")
-        for name in ("backlash", "accel_noise_factor", "gyro_noise_factor", "accel_bias_factor", "gyro_bias_factor",
-                     "gyro_bias_drift"):
+        for name in (
+            "backlash",
+            "accel_noise_factor",
+            "gyro_noise_factor",
+            "accel_bias_factor",
+            "gyro_bias_factor",
+            "gyro_bias_drift",
+        ):
             value = getattr(self, name)
-            if not (isinstance(value, tuple) and len(value) == 2 and all(math.isfinite(v) for v in value)
-                    and 0.0 <= value[0] <= value[1]):
+            if not (
+                isinstance(value, tuple)
+                and len(value) == 2
+                and all(math.isfinite(v) for v in value)
+                and 0.0 <= value[0] <= value[1]
+            ):
                 raise ValueError(f"{name} must be a range (low, high) with 0 <= low <= high, got {value!r}")
 
     @classmethod
     def nominal(cls) -> RobotVariation:
         """The robot of the drawings with the datasheet's sensors: every range a single point."""
-        return cls(link_length_error=0.0, joint_zero_error=0.0, backlash=(0.0, 0.0), accel_noise_factor=(1.0, 1.0),
-                   gyro_noise_factor=(1.0, 1.0), accel_bias_factor=(1.0, 1.0), gyro_bias_factor=(1.0, 1.0),
-                   accel_scale_error=0.0, gyro_scale_error=0.0, gyro_bias_drift=(0.0, 0.0))
+        return cls(
+            link_length_error=0.0,
+            joint_zero_error=0.0,
+            backlash=(0.0, 0.0),
+            accel_noise_factor=(1.0, 1.0),
+            gyro_noise_factor=(1.0, 1.0),
+            accel_bias_factor=(1.0, 1.0),
+            gyro_bias_factor=(1.0, 1.0),
+            accel_scale_error=0.0,
+            gyro_scale_error=0.0,
+            gyro_bias_drift=(0.0, 0.0),
+        )
 
     def with_chain_error(self, error: float) -> RobotVariation:
         """These ranges with the links ±`error` and the joint zeros ±`JOINT_ZERO_PER_LINK_ERROR`·`error`."""
-        return dataclasses.replace(self, link_length_error=float(error),
-                                   joint_zero_error=JOINT_ZERO_PER_LINK_ERROR * float(error))
+        return dataclasses.replace(
+            self, link_length_error=float(error), joint_zero_error=JOINT_ZERO_PER_LINK_ERROR * float(error)
+        )
 
 
-JOINT_ZERO_PER_LINK_ERROR = math.radians(20.0)   # rad per unit of link error: ±1° of joint zero at links ±5 %
+JOINT_ZERO_PER_LINK_ERROR = math.radians(20.0)  # rad per unit of link error: ±1° of joint zero at links ±5 %
 
 
 @dataclass(frozen=True)
@@ -219,12 +242,18 @@ class RobotDraw:
 
     def as_dict(self) -> dict:
         """The draw as plain numbers (for results files)."""
-        return {"dimensions_m": [list(d.as_tuple()) for d in self.dimensions],
-                "joint_offsets_rad": self.joint_offsets.tolist(), "backlash_rad": self.backlash.tolist(),
-                "accel_noise": self.accel_noise, "gyro_noise": self.gyro_noise,
-                "accel_bias_scale": self.accel_bias_scale, "gyro_bias_scale": self.gyro_bias_scale,
-                "accel_scale": self.accel_scale.tolist(), "gyro_scale": self.gyro_scale.tolist(),
-                "gyro_bias_drift": self.gyro_bias_drift}
+        return {
+            "dimensions_m": [list(d.as_tuple()) for d in self.dimensions],
+            "joint_offsets_rad": self.joint_offsets.tolist(),
+            "backlash_rad": self.backlash.tolist(),
+            "accel_noise": self.accel_noise,
+            "gyro_noise": self.gyro_noise,
+            "accel_bias_scale": self.accel_bias_scale,
+            "gyro_bias_scale": self.gyro_bias_scale,
+            "accel_scale": self.accel_scale.tolist(),
+            "gyro_scale": self.gyro_scale.tolist(),
+            "gyro_bias_drift": self.gyro_bias_drift,
+        }
 
 
 def _in_range(low_high: tuple[float, float], u: float) -> float:
@@ -232,8 +261,9 @@ def _in_range(low_high: tuple[float, float], u: float) -> float:
     return low + u * (high - low)
 
 
-def draw_robot(seed: int, sensors: SensorParams = SensorParams(),
-               variation: RobotVariation = RobotVariation()) -> RobotDraw:
+def draw_robot(
+    seed: int, sensors: SensorParams = SensorParams(), variation: RobotVariation = RobotVariation()
+) -> RobotDraw:
     """The physical parameters of run `seed`, drawn from `variation` around the drawings and `sensors`.
 
     The draw uses its own stream of the seed and a fixed number of variates, all uniform in [0, 1) and mapped to
@@ -261,7 +291,8 @@ def draw_robot(seed: int, sensors: SensorParams = SensorParams(),
         gyro_bias_scale=_in_range(variation.gyro_bias_factor, u_imu[3]),
         accel_scale=1.0 + variation.accel_scale_error * (2.0 * u_accel_scale - 1.0),
         gyro_scale=1.0 + variation.gyro_scale_error * (2.0 * u_gyro_scale - 1.0),
-        gyro_bias_drift=_in_range(variation.gyro_bias_drift, u_imu[4]))
+        gyro_bias_drift=_in_range(variation.gyro_bias_drift, u_imu[4]),
+    )
 
 
 def _backlash(angles: np.ndarray, play: np.ndarray) -> np.ndarray:
@@ -367,9 +398,9 @@ class _Support:
     x: float
     y: float
     yaw: float
-    yaw_twist: tuple | None = None      # (start, duration, pivot_local (2,), angle)
-    tilt_twist: tuple | None = None     # (start, duration, point_local (3,), axis_local (3,), angle)
-    slip: tuple | None = None           # (start, duration, displacement (2,))
+    yaw_twist: tuple | None = None  # (start, duration, pivot_local (2,), angle)
+    tilt_twist: tuple | None = None  # (start, duration, point_local (3,), axis_local (3,), angle)
+    slip: tuple | None = None  # (start, duration, displacement (2,))
 
     def base(self):
         return _pose(rotation_z(self.yaw), (self.x, self.y, 0.0))
@@ -474,10 +505,14 @@ def _foot_pose(supports: list[_Support], t: float, step_height: float):
 # ---------------------------------------------------------------------------------------------------------
 # The simulation
 # ---------------------------------------------------------------------------------------------------------
-def simulate_walk(duration: float = 28.0, seed: int = 0, gait: GaitParams = GaitParams(),
-                  sensors: SensorParams = SensorParams(),
-                  disturbances: DisturbanceParams = DisturbanceParams(),
-                  variation: RobotVariation | None = None) -> BipedRun:
+def simulate_walk(
+    duration: float = 28.0,
+    seed: int = 0,
+    gait: GaitParams = GaitParams(),
+    sensors: SensorParams = SensorParams(),
+    disturbances: DisturbanceParams = DisturbanceParams(),
+    variation: RobotVariation | None = None,
+) -> BipedRun:
     """Simulate `duration` seconds of walking (standing first for `gait.stand_time`).
 
     `variation` draws the robot of this run (`draw_robot`); None is `RobotVariation.nominal()`, the robot of the
@@ -502,8 +537,9 @@ def simulate_walk(duration: float = 28.0, seed: int = 0, gait: GaitParams = Gait
     # Trunk path.
     envelope = _smoother((t - t_walk) / gait.ramp_time)
     speed = gait.speed * envelope
-    yaw_rate = gait.turn_rate * (_smoother((t - gait.turn_start) / gait.turn_ramp)
-                                 - _smoother((t - gait.turn_end) / gait.turn_ramp))
+    yaw_rate = gait.turn_rate * (
+        _smoother((t - gait.turn_start) / gait.turn_ramp) - _smoother((t - gait.turn_end) / gait.turn_ramp)
+    )
     yaw = _cumtrapz(yaw_rate, dt)
     path = np.stack([_cumtrapz(speed * np.cos(yaw), dt), _cumtrapz(speed * np.sin(yaw), dt)], axis=1)
 
@@ -526,7 +562,7 @@ def simulate_walk(duration: float = 28.0, seed: int = 0, gait: GaitParams = Gait
         _draw_disturbances(support, rng_world, disturbances)
         supports[foot].append(support)
         j += 1
-    phase_ref = t_walk + (T - ds) + T + (T + ds) / 2.0          # mid-support of the first left step
+    phase_ref = t_walk + (T - ds) + T + (T + ds) / 2.0  # mid-support of the first left step
     phase = (t - phase_ref) / T
 
     # Trunk pose: path plus the walk's oscillations, in the path frame.
@@ -543,9 +579,14 @@ def simulate_walk(duration: float = 28.0, seed: int = 0, gait: GaitParams = Gait
     roll_rate = np.gradient(roll, dt, edge_order=2)
     pitch_rate = np.gradient(pitch, dt, edge_order=2)
     yaw_rate_total = np.gradient(yaw, dt, edge_order=2)
-    omega = np.stack([roll_rate - yaw_rate_total * np.sin(pitch),
-                      pitch_rate * np.cos(roll) + yaw_rate_total * np.cos(pitch) * np.sin(roll),
-                      -pitch_rate * np.sin(roll) + yaw_rate_total * np.cos(pitch) * np.cos(roll)], axis=1)
+    omega = np.stack(
+        [
+            roll_rate - yaw_rate_total * np.sin(pitch),
+            pitch_rate * np.cos(roll) + yaw_rate_total * np.cos(pitch) * np.sin(roll),
+            -pitch_rate * np.sin(roll) + yaw_rate_total * np.cos(pitch) * np.cos(roll),
+        ],
+        axis=1,
+    )
     up = np.array([0.0, 0.0, GRAVITY])
     body_velocity = np.einsum("nji,nj->ni", rotation, velocity)
     body_gravity = np.einsum("nji,j->ni", rotation, up)
@@ -557,10 +598,12 @@ def simulate_walk(duration: float = 28.0, seed: int = 0, gait: GaitParams = Gait
     imu_index = np.arange(n_imu) * imu_stride
     accel_bias = rng_sensor.normal(0.0, 1.0, 3) * sensors.accel_bias * robot.accel_bias_scale
     gyro_bias = rng_sensor.normal(0.0, 1.0, 3) * sensors.gyro_bias * robot.gyro_bias_scale
-    accel = (robot.accel_scale * body_specific_force[imu_index] + accel_bias
-             + rng_sensor.normal(0.0, 1.0, (n_imu, 3)) * robot.accel_noise)
-    gyro = (robot.gyro_scale * omega[imu_index] + gyro_bias
-            + rng_sensor.normal(0.0, 1.0, (n_imu, 3)) * robot.gyro_noise)
+    accel = (
+        robot.accel_scale * body_specific_force[imu_index]
+        + accel_bias
+        + rng_sensor.normal(0.0, 1.0, (n_imu, 3)) * robot.accel_noise
+    )
+    gyro = robot.gyro_scale * omega[imu_index] + gyro_bias + rng_sensor.normal(0.0, 1.0, (n_imu, 3)) * robot.gyro_noise
     if robot.gyro_bias_drift > 0.0:
         # From a stream of its own, so the walk and the other sensor noise are the same with and without it.
         rng_drift = np.random.default_rng(np.random.SeedSequence(seed).spawn(4)[3])
@@ -569,8 +612,10 @@ def simulate_walk(duration: float = 28.0, seed: int = 0, gait: GaitParams = Gait
         gyro = gyro + np.cumsum(steps, axis=0)
 
     # Kinematics samples: inverse kinematics of both legs of this run's robot, encoders, contact switches.
-    chains = tuple(nao_leg(side, dimensions=robot.dimensions[leg], joint_offsets=robot.joint_offsets[leg])
-                   for leg, side in enumerate(("left", "right")))
+    chains = tuple(
+        nao_leg(side, dimensions=robot.dimensions[leg], joint_offsets=robot.joint_offsets[leg])
+        for leg, side in enumerate(("left", "right"))
+    )
     kin_stride = int(round(FINE_RATE / sensors.kinematics_rate))
     n_kin = int(math.floor(duration * sensors.kinematics_rate + 1e-9)) + 1
     kin_index = np.arange(n_kin) * kin_stride
@@ -610,19 +655,35 @@ def simulate_walk(duration: float = 28.0, seed: int = 0, gait: GaitParams = Gait
             if s.yaw_twist is not None:
                 episodes.append(("yaw twist", foot, s.yaw_twist[0], s.yaw_twist[1], math.degrees(s.yaw_twist[3])))
             if s.tilt_twist is not None:
-                episodes.append(("tilt twist", foot, s.tilt_twist[0], s.tilt_twist[1],
-                                 math.degrees(s.tilt_twist[4])))
+                episodes.append(("tilt twist", foot, s.tilt_twist[0], s.tilt_twist[1], math.degrees(s.tilt_twist[4])))
             if s.slip is not None:
                 episodes.append(("slip", foot, s.slip[0], s.slip[1], float(np.linalg.norm(s.slip[2]))))
     episodes.sort(key=lambda e: e[2])
 
     return BipedRun(
-        imu_time=t[imu_index], gyro=gyro, accel=accel, true_velocity=body_velocity[imu_index],
-        true_gravity=body_gravity[imu_index], true_omega=omega[imu_index], trunk_position=position[imu_index],
-        trunk_yaw=yaw[imu_index], kin_time=t[kin_index], joint_angles=joint_angles, true_joint_angles=true_angles,
-        contacts=contacts, true_contact=true_contact, twist=twist, slip=slip,
-        true_kin_velocity=body_velocity[kin_index], true_chains=(chains[0], chains[1]), gait=gait, sensors=sensors,
-        disturbances=disturbances, robot=robot, episodes=episodes)
+        imu_time=t[imu_index],
+        gyro=gyro,
+        accel=accel,
+        true_velocity=body_velocity[imu_index],
+        true_gravity=body_gravity[imu_index],
+        true_omega=omega[imu_index],
+        trunk_position=position[imu_index],
+        trunk_yaw=yaw[imu_index],
+        kin_time=t[kin_index],
+        joint_angles=joint_angles,
+        true_joint_angles=true_angles,
+        contacts=contacts,
+        true_contact=true_contact,
+        twist=twist,
+        slip=slip,
+        true_kin_velocity=body_velocity[kin_index],
+        true_chains=(chains[0], chains[1]),
+        gait=gait,
+        sensors=sensors,
+        disturbances=disturbances,
+        robot=robot,
+        episodes=episodes,
+    )
 
 
 # ---------------------------------------------------------------------------------------------------------
@@ -641,8 +702,9 @@ def gait_command(gait: GaitParams, times) -> np.ndarray:
     if not np.all(np.isfinite(times)):
         raise ValueError("times must be finite")
     speed = gait.speed * _smoother((times - gait.stand_time) / gait.ramp_time)
-    omega = gait.turn_rate * (_smoother((times - gait.turn_start) / gait.turn_ramp)
-                              - _smoother((times - gait.turn_end) / gait.turn_ramp))
+    omega = gait.turn_rate * (
+        _smoother((times - gait.turn_start) / gait.turn_ramp) - _smoother((times - gait.turn_end) / gait.turn_ramp)
+    )
     return np.stack(np.broadcast_arrays(speed, np.zeros_like(speed), omega), axis=-1)
 
 
@@ -658,5 +720,4 @@ def field_poses(run: BipedRun, start) -> np.ndarray:
         raise ValueError(f"start must be three finite numbers (x, y, θ), got {start.tolist()}")
     c, s = math.cos(start[2]), math.sin(start[2])
     x, y = run.trunk_position[:, 0], run.trunk_position[:, 1]
-    return np.stack([start[0] + c * x - s * y, start[1] + s * x + c * y, wrap_angles(start[2] + run.trunk_yaw)],
-                    axis=1)
+    return np.stack([start[0] + c * x - s * y, start[1] + s * x + c * y, wrap_angles(start[2] + run.trunk_yaw)], axis=1)

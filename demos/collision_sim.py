@@ -57,6 +57,7 @@ simulator (`robocup-mcl fit adaptive`), and a test checks that no model default 
 
 Ground truth for all of it: pose, mobility state and contact side per step, and the list of events.
 """
+
 from __future__ import annotations
 
 import math
@@ -82,10 +83,10 @@ class CollisionEvent:
     """A period in a non-free mobility state. `side` is where the contact is (LEFT, RIGHT, BOTH; slippage has
     no contact). `severity` in [0, 1] scales the effect (how hard the robot is held, pushed or turned)."""
 
-    start: float          # s
-    duration: float       # s
-    mode: int             # SLIPPAGE, HINDRANCE, PUSHED or STOPPED
-    side: int             # NO_CONTACT, LEFT, RIGHT or BOTH
+    start: float  # s
+    duration: float  # s
+    mode: int  # SLIPPAGE, HINDRANCE, PUSHED or STOPPED
+    side: int  # NO_CONTACT, LEFT, RIGHT or BOTH
     severity: float = 0.5
     direction: float = 1.0  # +1 or -1: the sense of a slippage's turn
 
@@ -97,38 +98,38 @@ class CollisionEvent:
 @dataclass(frozen=True)
 class CollisionScenario:
     field: Field = dataclass_field(default_factory=spl)
-    duration: float = 10.0               # s
-    rate: float = 100.0                  # Hz, motion, servo and filter rate
-    command: tuple[float, float, float] | None = (0.2, 0.0, 0.0)   # constant walk request; None: varied
+    duration: float = 10.0  # s
+    rate: float = 100.0  # Hz, motion, servo and filter rate
+    command: tuple[float, float, float] | None = (0.2, 0.0, 0.0)  # constant walk request; None: varied
     events: tuple[CollisionEvent, ...] = ()
-    start: tuple[float, float, float] | None = None   # None: random in the own half, facing up the field
+    start: tuple[float, float, float] | None = None  # None: random in the own half, facing up the field
     # gait
-    cycle: float = 0.5                   # s per gait cycle (each leg swings once)
-    foot_separation: float = 0.12        # m, lateral distance between the feet (the stopped robot's pivot arm)
+    cycle: float = 0.5  # s per gait cycle (each leg swings once)
+    foot_separation: float = 0.12  # m, lateral distance between the feet (the stopped robot's pivot arm)
     # servos
-    servo_delay: float = 0.03            # s between a command and the servo starting to act on it (whole frames)
-    servo_gain: float = 0.55             # share of the remaining error a servo closes per frame
-    reading_noise: float = 0.0025        # rad (1σ)
-    quantization: float = math.radians(0.1)   # rad, encoder resolution
+    servo_delay: float = 0.03  # s between a command and the servo starting to act on it (whole frames)
+    servo_gain: float = 0.55  # share of the remaining error a servo closes per frame
+    reading_noise: float = 0.0025  # rad (1σ)
+    quantization: float = math.radians(0.1)  # rad, encoder resolution
     held_joints: tuple[int, ...] = (1, 2, 3)  # indices into JOINTS: the joints an obstacle holds back
     # free-walking odometry error of a calibrated walking engine
-    scale_sigma: float = 0.025           # per-run scale error of vx, vy, ω (1σ)
-    turn_bias_sigma: float = 0.006       # rad/s (1σ), per run
-    step_noise: float = 0.045            # relative step-to-step velocity noise
+    scale_sigma: float = 0.025  # per-run scale error of vx, vy, ω (1σ)
+    turn_bias_sigma: float = 0.006  # rad/s (1σ), per run
+    step_noise: float = 0.045  # relative step-to-step velocity noise
     # effects of the mobility states (per event, interpolated by its severity)
     hindrance_speed: tuple[float, float] = (0.75, 0.22)  # speed factor at severity 0 and 1
-    push_speed: tuple[float, float] = (0.12, 0.45)       # m/s of the push at severity 0 and 1
-    push_turn: float = 0.7                                # rad/s at severity 1
-    stop_turn: tuple[float, float] = (0.15, 0.55)        # the free foot's speed while stopped, share of the
-                                                          # request, at severity 0 and 1 (see the module doc)
+    push_speed: tuple[float, float] = (0.12, 0.45)  # m/s of the push at severity 0 and 1
+    push_turn: float = 0.7  # rad/s at severity 1
+    stop_turn: tuple[float, float] = (0.15, 0.55)  # the free foot's speed while stopped, share of the
+    # request, at severity 0 and 1 (see the module doc)
     slip_speed: tuple[float, float] = (0.85, 0.45)
-    slip_turn: float = 0.35                               # rad/s at severity 1
-    contact_hold: tuple[float, float] = (0.3, 0.75)      # share of a held servo's motion lost, severity 0..1,
-                                                          # on the forward swing (a third of it otherwise)
-    ground_bumps: float = 0.8            # per second of walking: a foot landing hard jolts one joint
-    bump_size: float = 0.011             # rad (1σ) of such a jolt
-    physics: str = "nominal"             # "nominal": these fields; "mismatch": drawn per run (MISMATCH_RANGES)
-    robot_seed: int | None = None        # seeds the per-run draw (None: the run's seed)
+    slip_turn: float = 0.35  # rad/s at severity 1
+    contact_hold: tuple[float, float] = (0.3, 0.75)  # share of a held servo's motion lost, severity 0..1,
+    # on the forward swing (a third of it otherwise)
+    ground_bumps: float = 0.8  # per second of walking: a foot landing hard jolts one joint
+    bump_size: float = 0.011  # rad (1σ) of such a jolt
+    physics: str = "nominal"  # "nominal": these fields; "mismatch": drawn per run (MISMATCH_RANGES)
+    robot_seed: int | None = None  # seeds the per-run draw (None: the run's seed)
     # camera (landmark detections only)
     camera: WalkScenario = dataclass_field(default_factory=lambda: WalkScenario(kidnap_time=None))
     vision: bool = False
@@ -147,7 +148,7 @@ MISMATCH_RANGES: dict[str, tuple[float, float] | tuple[tuple[float, float], tupl
     "hindrance_speed": ((0.55, 0.95), (0.0, 0.45)),
     "push_speed": ((0.04, 0.28), (0.3, 0.8)),
     "push_turn": (0.15, 1.3),
-    "stop_turn": (0.05, 1.05),          # one share for both ends of the pair
+    "stop_turn": (0.05, 1.05),  # one share for both ends of the pair
     "slip_speed": ((0.65, 1.0), (0.05, 0.55)),
     "slip_turn": (0.08, 0.9),
     "contact_hold": ((0.05, 0.4), (0.5, 0.95)),
@@ -187,16 +188,16 @@ def draw_physics(scenario: CollisionScenario, seed: int) -> CollisionScenario:
 class CollisionLog:
     scenario: CollisionScenario
     dt: float
-    times: np.ndarray            # (T,) time at the end of each step
-    truth: np.ndarray            # (T, 3) true pose at the end of each step
-    start: np.ndarray            # (3,) true pose at t = 0
-    commands: np.ndarray         # (T, 3) walk request (vx, vy, ω)
-    phase: np.ndarray            # (T,) gait phase in [0, 1)
-    servo_commands: np.ndarray   # (T, 8) joint commands: left leg JOINTS, then right leg JOINTS [rad]
-    servo_readings: np.ndarray   # (T, 8) servo readings [rad]
-    joint_sides: np.ndarray      # (8,) LEFT_LEG or RIGHT_LEG per joint
-    mode: np.ndarray             # (T,) true mobility state (FREE ... STOPPED)
-    contact: np.ndarray          # (T,) true contact side (NO_CONTACT, LEFT, RIGHT, BOTH)
+    times: np.ndarray  # (T,) time at the end of each step
+    truth: np.ndarray  # (T, 3) true pose at the end of each step
+    start: np.ndarray  # (3,) true pose at t = 0
+    commands: np.ndarray  # (T, 3) walk request (vx, vy, ω)
+    phase: np.ndarray  # (T,) gait phase in [0, 1)
+    servo_commands: np.ndarray  # (T, 8) joint commands: left leg JOINTS, then right leg JOINTS [rad]
+    servo_readings: np.ndarray  # (T, 8) servo readings [rad]
+    joint_sides: np.ndarray  # (8,) LEFT_LEG or RIGHT_LEG per joint
+    mode: np.ndarray  # (T,) true mobility state (FREE ... STOPPED)
+    contact: np.ndarray  # (T,) true contact side (NO_CONTACT, LEFT, RIGHT, BOTH)
     events: tuple[CollisionEvent, ...]
     frames: tuple[CameraFrame, ...]
 
@@ -211,22 +212,28 @@ def paper_case(case: str, vision: bool = False, **overrides) -> CollisionScenari
     elif case == "single":
         events = (CollisionEvent(3.0, 0.4, HINDRANCE, LEFT, 0.5), CollisionEvent(3.4, 1.6, STOPPED, LEFT, 0.6))
     elif case == "double":
-        events = (CollisionEvent(3.0, 0.3, HINDRANCE, LEFT, 0.5), CollisionEvent(3.3, 0.9, STOPPED, LEFT, 0.6),
-                  CollisionEvent(4.8, 0.3, HINDRANCE, RIGHT, 0.5), CollisionEvent(5.1, 0.9, STOPPED, RIGHT, 0.6))
+        events = (
+            CollisionEvent(3.0, 0.3, HINDRANCE, LEFT, 0.5),
+            CollisionEvent(3.3, 0.9, STOPPED, LEFT, 0.6),
+            CollisionEvent(4.8, 0.3, HINDRANCE, RIGHT, 0.5),
+            CollisionEvent(5.1, 0.9, STOPPED, RIGHT, 0.6),
+        )
     else:
         raise ValueError(f"case = {case!r} must be 'none', 'single' or 'double'")
     return CollisionScenario(events=events, vision=vision, **overrides)
 
 
-def jitter_events(events: tuple[CollisionEvent, ...], rng: np.random.Generator,
-                  time_jitter: float = 0.5) -> tuple[CollisionEvent, ...]:
+def jitter_events(
+    events: tuple[CollisionEvent, ...], rng: np.random.Generator, time_jitter: float = 0.5
+) -> tuple[CollisionEvent, ...]:
     """The same story with a per-run shift of all start times (±time_jitter s) and fresh severities."""
     shift = rng.uniform(-time_jitter, time_jitter)
     return tuple(replace(e, start=e.start + shift, severity=float(rng.uniform(0.2, 1.0))) for e in events)
 
 
-def random_collisions(duration: float, rng: np.random.Generator, mean_gap: float = 8.0,
-                      first: float = 3.0) -> tuple[CollisionEvent, ...]:
+def random_collisions(
+    duration: float, rng: np.random.Generator, mean_gap: float = 8.0, first: float = 3.0
+) -> tuple[CollisionEvent, ...]:
     """Collisions of every kind and side at random times (exponential gaps of `mean_gap` s, at least 2 s
     of free walking between them), for measuring the detector: contact episodes are a hindrance that may turn
     into a stop, or a push; slippage episodes have no contact."""
@@ -272,8 +279,7 @@ def _joint_commands(phase: float, command: np.ndarray, cycle: float, out: np.nda
         sign = 1.0 if leg == LEFT_LEG else -1.0
         swing = max(0.0, math.sin(leg_phase))
         base = 4 * leg
-        out[base + 0] = sign * 0.04 * math.sin(leg_phase) + 1.2 * step_y * math.sin(leg_phase) \
-            + sign * 0.05 * step_turn
+        out[base + 0] = sign * 0.04 * math.sin(leg_phase) + 1.2 * step_y * math.sin(leg_phase) + sign * 0.05 * step_turn
         out[base + 1] = -0.35 - 1.6 * step_x * math.cos(leg_phase) - 0.3 * swing
         out[base + 2] = 0.7 + (0.25 + 1.2 * math.hypot(step_x, step_y)) * swing
         out[base + 3] = -0.35 + 1.6 * step_x * math.cos(leg_phase) * 0.5 - 0.2 * swing
@@ -303,8 +309,9 @@ def simulate(scenario: CollisionScenario, seed: int = 0) -> CollisionLog:
     s = draw_physics(scenario, seed)
     delay_frames = int(round(s.servo_delay * s.rate))
     rng = np.random.default_rng(seed)
-    motion_rng, servo_rng, camera_rng = (np.random.default_rng(child) for child in
-                                         np.random.SeedSequence(seed).spawn(3))
+    motion_rng, servo_rng, camera_rng = (
+        np.random.default_rng(child) for child in np.random.SeedSequence(seed).spawn(3)
+    )
     dt = 1.0 / s.rate
     n = int(round(s.duration * s.rate))
     scale = 1.0 + s.scale_sigma * rng.standard_normal(3)
@@ -335,7 +342,7 @@ def simulate(scenario: CollisionScenario, seed: int = 0) -> CollisionLog:
     history = np.tile(current, (delay_frames + 1, 1))
     frame_command = np.empty(8)
     for k in range(n):
-        t = k * dt     # the step covers [t, t + dt)
+        t = k * dt  # the step covers [t, t + dt)
         command = np.array(s.command if s.command is not None else _varied_command(t, command_phases))
         commands[k] = command
         phase[k] = (phase0 + t / s.cycle) % 1.0
@@ -343,7 +350,7 @@ def simulate(scenario: CollisionScenario, seed: int = 0) -> CollisionLog:
         joint_commands[k] = frame_command
         history = np.roll(history, -1, axis=0)
         history[-1] = frame_command
-        target = history[0]                    # the command `delay_frames` frames ago
+        target = history[0]  # the command `delay_frames` frames ago
         event = _event_at(s.events, t)
         gain = np.full(8, s.servo_gain)
         offset = np.zeros(8)
@@ -388,7 +395,7 @@ def simulate(scenario: CollisionScenario, seed: int = 0) -> CollisionLog:
                 free_leg = RIGHT_LEG if event.side == LEFT else LEFT_LEG
                 stance = max(0.0, -math.sin(2.0 * math.pi * (phase[k] + 0.5 * free_leg)))
                 speed = math.hypot(command[0], command[1])
-                foot = _lerp(s.stop_turn, share) * speed * math.pi * stance     # a cycle's mean: share·|v|
+                foot = _lerp(s.stop_turn, share) * speed * math.pi * stance  # a cycle's mean: share·|v|
                 turn = sense * foot / s.foot_separation
                 heading = velocity[:2] / max(math.hypot(velocity[0], velocity[1]), 1e-12)
                 velocity[:2] = heading * abs(turn) * 0.5 * s.foot_separation
@@ -411,5 +418,19 @@ def simulate(scenario: CollisionScenario, seed: int = 0) -> CollisionLog:
             next_frame += camera_every
             head = s.camera.head_pan_amplitude * math.sin(2 * math.pi * t / s.camera.head_pan_period)
             frames.append(CameraFrame(k, _camera(replace(s.camera, field=s.field), pose, head, camera_rng), head))
-    return CollisionLog(s, dt, times, truth, start, commands, phase, joint_commands, readings, joint_sides,
-                        mode, contact, tuple(s.events), tuple(frames))
+    return CollisionLog(
+        s,
+        dt,
+        times,
+        truth,
+        start,
+        commands,
+        phase,
+        joint_commands,
+        readings,
+        joint_sides,
+        mode,
+        contact,
+        tuple(s.events),
+        tuple(frames),
+    )

@@ -56,6 +56,7 @@ The defaults of `motion_models.AdaptiveMotion` are these values rounded to `DIGI
 the JSON; the transition rates' in "transitions"). The other transition rates and `frequent_rate` are not
 fitted here (they stay the model's documented settings).
 """
+
 from __future__ import annotations
 
 import argparse
@@ -82,19 +83,19 @@ from .collision_sim import (
 from .walk import parse_seeds
 
 TRAINING_SEEDS = "2000-2039"
-MIN_EPISODE = 0.2        # s: shorter annotated stretches are left out (too short for a mean velocity)
-MIN_SPEED = 0.03         # m/s: an episode whose request is slower gives no speed share
-MIN_TURN = 0.1           # rad/s: an episode whose request turns less gives no turn share
+MIN_EPISODE = 0.2  # s: shorter annotated stretches are left out (too short for a mean velocity)
+MIN_SPEED = 0.03  # m/s: an episode whose request is slower gives no speed share
+MIN_TURN = 0.1  # rad/s: an episode whose request turns less gives no turn share
 MAX_SHARE = 0.99
-FOOT_SEPARATION = 0.1    # m, the model's w (eq. 25); β_turn is fitted for it
+FOOT_SEPARATION = 0.1  # m, the model's w (eq. 25); β_turn is fitted for it
 DIGITS = 3
-HORIZON = 5.0            # s: the free-walking stretches the odometry noise is fitted on
-FREQUENT_RATE = 0.25     # the model's frequent_rate (a setting, not fitted): the percept conditions' split
+HORIZON = 5.0  # s: the free-walking stretches the odometry noise is fitted on
+FREQUENT_RATE = 0.25  # the model's frequent_rate (a setting, not fitted): the percept conditions' split
 CONDITIONS = ("quiet", "collision", "frequent")
-FITTED_CONDITION = "frequent"   # the condition whose episode-end rates the model takes (see the docstring)
-ODOMETRY_SHAPE = (1.0, 0.6, 0.6, 0.6)   # eq. 10's earlier settings; the fit keeps their β3 : β4 (θ's mix)
+FITTED_CONDITION = "frequent"  # the condition whose episode-end rates the model takes (see the docstring)
+ODOMETRY_SHAPE = (1.0, 0.6, 0.6, 0.6)  # eq. 10's earlier settings; the fit keeps their β3 : β4 (θ's mix)
 FITTED = ("beta1", "beta2", "beta3", "beta4", "beta5", "beta6", "beta7", "beta_turn", "stop_creep")
-LOWER = ("beta1", "beta3", "beta4")      # lower bounds of their ranges; the others are upper bounds
+LOWER = ("beta1", "beta3", "beta4")  # lower bounds of their ranges; the others are upper bounds
 
 
 def training_log(seed: int, minutes: float) -> tuple[CollisionLog, np.ndarray, np.ndarray]:
@@ -106,13 +107,13 @@ def training_log(seed: int, minutes: float) -> tuple[CollisionLog, np.ndarray, n
     reference = robot_reference("mismatch", seed)
     duration = 60.0 * minutes
     events = random_collisions(duration, np.random.default_rng(np.random.SeedSequence([seed, 13])))
-    scenario = replace(CollisionScenario(duration=duration, command=None, physics="mismatch", robot_seed=seed),
-                       events=events)
+    scenario = replace(
+        CollisionScenario(duration=duration, command=None, physics="mismatch", robot_seed=seed), events=events
+    )
     log = simulate(scenario, seed)
     percepts = detect(reference, log.servo_commands, log.servo_readings, log.phase, log.commands)
     recent = percepts["recent"]
-    side = np.where(recent[:, 0] & recent[:, 1], 0.0, np.where(recent[:, 0], 1.0, np.where(recent[:, 1], -1.0,
-                                                                                           np.nan)))
+    side = np.where(recent[:, 0] & recent[:, 1], 0.0, np.where(recent[:, 0], 1.0, np.where(recent[:, 1], -1.0, np.nan)))
     return log, side, percepts["rate"]
 
 
@@ -141,8 +142,10 @@ def fit_end_rates(ends: np.ndarray, exposure: np.ndarray, min_exposure: float = 
     the training logs spent less than `min_exposure` seconds in the state under the condition."""
     out: dict[str, dict[str, float | None]] = {}
     for c, condition in enumerate(CONDITIONS):
-        out[condition] = {MODE_NAMES[s]: (float(ends[c, s] / exposure[c, s]) if exposure[c, s] >= min_exposure
-                                          else None) for s in (SLIPPAGE, HINDRANCE, PUSHED, STOPPED)}
+        out[condition] = {
+            MODE_NAMES[s]: (float(ends[c, s] / exposure[c, s]) if exposure[c, s] >= min_exposure else None)
+            for s in (SLIPPAGE, HINDRANCE, PUSHED, STOPPED)
+        }
     return out
 
 
@@ -155,11 +158,11 @@ def free_walk_errors(log: CollisionLog, rate: np.ndarray, horizon: float = HORIZ
     rows = []
     k = 0
     while k + steps < quiet.size:
-        if not quiet[k:k + steps + 1].all():
+        if not quiet[k : k + steps + 1].all():
             k += 1
             continue
         pose = log.truth[k].copy()
-        commands = log.commands[k + 1:k + steps + 1]
+        commands = log.commands[k + 1 : k + steps + 1]
         for vx, vy, omega in commands:
             half = pose[2] + 0.5 * omega * log.dt
             pose[0] += (math.cos(half) * vx - math.sin(half) * vy) * log.dt
@@ -169,8 +172,15 @@ def free_walk_errors(log: CollisionLog, rate: np.ndarray, horizon: float = HORIZ
         c, s = math.cos(pose[2]), math.sin(pose[2])
         speed = np.hypot(commands[:, 0], commands[:, 1])
         mix = ODOMETRY_SHAPE[2] * speed + ODOMETRY_SHAPE[3] * np.abs(commands[:, 2])
-        rows.append((c * dx + s * dy, -s * dx + c * dy, float(wrap_angles(log.truth[k + steps, 2] - pose[2])),
-                     float(np.sqrt(np.mean(speed ** 2))), float(np.sqrt(np.mean(mix ** 2)))))
+        rows.append(
+            (
+                c * dx + s * dy,
+                -s * dx + c * dy,
+                float(wrap_angles(log.truth[k + steps, 2] - pose[2])),
+                float(np.sqrt(np.mean(speed**2))),
+                float(np.sqrt(np.mean(mix**2))),
+            )
+        )
         k += steps
     return np.array(rows).reshape(-1, 5)
 
@@ -179,8 +189,10 @@ def fit_odometry(errors: np.ndarray, dt: float, horizon: float, coverage: float 
     """Eq. 10's β1..β4 from `free_walk_errors` rows (see the module docstring). Raises ValueError without a
     stretch to fit on."""
     if errors.shape[0] == 0:
-        raise ValueError(f"no stretch of {horizon:g} s of free, quiet walking in the training logs; record longer "
-                         "logs or give a shorter --horizon")
+        raise ValueError(
+            f"no stretch of {horizon:g} s of free, quiet walking in the training logs; record longer "
+            "logs or give a shorter --horizon"
+        )
     z = float(_normal_quantile(0.5 + 0.5 * coverage))
     gain = math.sqrt(dt * horizon / 3.0)
 
@@ -191,12 +203,13 @@ def fit_odometry(errors: np.ndarray, dt: float, horizon: float, coverage: float 
             raise ValueError(f"no stretch of {horizon:g} s in the training logs walks at all; record walking")
         return float(np.quantile(np.abs(errors[moving, column]) / (errors[moving, term] * gain), coverage)) / z
 
-    along, across, heading = scale(0, 3), scale(1, 3), scale(2, 4)   # heading: a factor on the shape's θ mix
+    along, across, heading = scale(0, 3), scale(1, 3), scale(2, 4)  # heading: a factor on the shape's θ mix
     return (along, across, ODOMETRY_SHAPE[2] * heading, ODOMETRY_SHAPE[3] * heading)
 
 
 def _normal_quantile(p: float) -> float:
     from scipy.stats import norm
+
     return float(norm.ppf(p))
 
 
@@ -214,9 +227,20 @@ def robot_frame_velocities(truth: np.ndarray, start: np.ndarray, dt: float) -> n
 def episode_rates(log: CollisionLog, side: np.ndarray, foot_separation: float = FOOT_SEPARATION) -> dict:
     """The per-episode rates of the module docstring, from one log: a dict of name -> list of floats."""
     velocity = robot_frame_velocities(log.truth, log.start, log.dt)
-    rates: dict[str, list[float]] = {name: [] for name in ("slip_speed", "slip_turn", "hinder_speed",
-                                                            "hinder_turn", "push_speed", "push_turn",
-                                                            "stop_turn_unknown", "stop_turn", "stop_creep")}
+    rates: dict[str, list[float]] = {
+        name: []
+        for name in (
+            "slip_speed",
+            "slip_turn",
+            "hinder_speed",
+            "hinder_turn",
+            "push_speed",
+            "push_turn",
+            "stop_turn_unknown",
+            "stop_turn",
+            "stop_creep",
+        )
+    }
     mode = log.mode.astype(np.int64)
     edges = np.flatnonzero(np.diff(mode)) + 1
     for first, stop in zip(np.r_[0, edges], np.r_[edges, mode.size]):
@@ -244,7 +268,7 @@ def episode_rates(log: CollisionLog, side: np.ndarray, foot_separation: float = 
                 rates["stop_turn_unknown"].append(abs(true[2]))
             else:
                 rates["stop_turn"].append(c * true[2] / (speed / foot_separation))
-                rates["stop_creep"].append((true[0] * request[0] + true[1] * request[1]) / speed ** 2)
+                rates["stop_creep"].append((true[0] * request[0] + true[1] * request[1]) / speed**2)
     return rates
 
 
@@ -255,9 +279,17 @@ def fit_betas(rates: dict, coverage: float = 0.95) -> dict[str, float]:
     """
     if not (isinstance(coverage, float) and 0.5 < coverage < 1.0):
         raise ValueError(f"coverage = {coverage!r} must be a number within (0.5, 1)")
-    sources = {"beta1": "slip_speed", "beta2": "slip_turn", "beta3": "hinder_speed", "beta4": "hinder_turn",
-               "beta5": "push_speed", "beta6": "push_turn", "beta7": "stop_turn_unknown", "beta_turn": "stop_turn",
-               "stop_creep": "stop_creep"}
+    sources = {
+        "beta1": "slip_speed",
+        "beta2": "slip_turn",
+        "beta3": "hinder_speed",
+        "beta4": "hinder_turn",
+        "beta5": "push_speed",
+        "beta6": "push_turn",
+        "beta7": "stop_turn_unknown",
+        "beta_turn": "stop_turn",
+        "stop_creep": "stop_creep",
+    }
     out = {}
     for name, source in sources.items():
         values = np.asarray(rates.get(source, []), dtype=np.float64)
@@ -268,8 +300,7 @@ def fit_betas(rates: dict, coverage: float = 0.95) -> dict[str, float]:
     return out
 
 
-def fit(seeds, minutes: float = 3.0, coverage: float = 0.95, progress: bool = False,
-        horizon: float = HORIZON) -> dict:
+def fit(seeds, minutes: float = 3.0, coverage: float = 0.95, progress: bool = False, horizon: float = HORIZON) -> dict:
     """Record the training logs of `seeds`, pool their episodes, fit; the JSON of the command."""
     from mcl.tools.cli_checks import progress_bar
 
@@ -298,21 +329,31 @@ def fit(seeds, minutes: float = 3.0, coverage: float = 0.95, progress: bool = Fa
     end_rates = fit_end_rates(ends, exposure)
     stretches = np.vstack(errors)
     odometry = fit_odometry(stretches, float(dt), horizon, coverage)
-    transitions = {f"{state}->free": rate for state, rate in end_rates[FITTED_CONDITION].items()
-                   if rate is not None}
-    return {"seeds": list(seeds), "minutes_per_seed": minutes, "coverage": coverage,
-            "foot_separation": FOOT_SEPARATION, "horizon_s": horizon, "free_walk_stretches": int(stretches.shape[0]),
-            "odometry": list(odometry), "odometry_default": [round(b, DIGITS) for b in odometry],
-            "end_rates": end_rates,
-            "end_exposure_s": {c: {MODE_NAMES[s]: float(exposure[i, s]) for s in range(1, 5)}
-                               for i, c in enumerate(CONDITIONS)},
-            "transitions": {"condition": FITTED_CONDITION,
-                            "rates": {k: round(v, DIGITS) for k, v in transitions.items()}},
-            "episodes": {name: len(values) for name, values in pooled.items()},
-            "rate_quantiles": {name: [float(v) for v in np.quantile(values, (0.05, 0.5, 0.95))]
-                               for name, values in pooled.items() if values},
-            "fitted": fitted, "defaults": {name: round(value, DIGITS) for name, value in fitted.items()},
-            "modes": list(MODE_NAMES)}
+    transitions = {f"{state}->free": rate for state, rate in end_rates[FITTED_CONDITION].items() if rate is not None}
+    return {
+        "seeds": list(seeds),
+        "minutes_per_seed": minutes,
+        "coverage": coverage,
+        "foot_separation": FOOT_SEPARATION,
+        "horizon_s": horizon,
+        "free_walk_stretches": int(stretches.shape[0]),
+        "odometry": list(odometry),
+        "odometry_default": [round(b, DIGITS) for b in odometry],
+        "end_rates": end_rates,
+        "end_exposure_s": {
+            c: {MODE_NAMES[s]: float(exposure[i, s]) for s in range(1, 5)} for i, c in enumerate(CONDITIONS)
+        },
+        "transitions": {"condition": FITTED_CONDITION, "rates": {k: round(v, DIGITS) for k, v in transitions.items()}},
+        "episodes": {name: len(values) for name, values in pooled.items()},
+        "rate_quantiles": {
+            name: [float(v) for v in np.quantile(values, (0.05, 0.5, 0.95))]
+            for name, values in pooled.items()
+            if values
+        },
+        "fitted": fitted,
+        "defaults": {name: round(value, DIGITS) for name, value in fitted.items()},
+        "modes": list(MODE_NAMES),
+    }
 
 
 PROG = "robocup-mcl fit adaptive"
@@ -323,14 +364,24 @@ def build_parser(prog: str = PROG) -> argparse.ArgumentParser:
     from mcl.tools.cli_checks import add_progress_option, add_save_option, description
 
     parser = argparse.ArgumentParser(prog=prog, description=description(__doc__))
-    parser.add_argument("--seeds", default=TRAINING_SEEDS,
-                        help=f'training robots (seeds), e.g. "2000-2039" (default {TRAINING_SEEDS})')
-    parser.add_argument("--minutes", type=float, default=3.0,
-                        help="minutes of walking with collisions per robot (default 3)")
-    parser.add_argument("--coverage", type=float, default=0.95,
-                        help="share of the training episodes' rates each range covers (default 0.95)")
-    parser.add_argument("--horizon", type=float, default=HORIZON,
-                        help=f"seconds of free walking the odometry noise is fitted on (default {HORIZON:g})")
+    parser.add_argument(
+        "--seeds", default=TRAINING_SEEDS, help=f'training robots (seeds), e.g. "2000-2039" (default {TRAINING_SEEDS})'
+    )
+    parser.add_argument(
+        "--minutes", type=float, default=3.0, help="minutes of walking with collisions per robot (default 3)"
+    )
+    parser.add_argument(
+        "--coverage",
+        type=float,
+        default=0.95,
+        help="share of the training episodes' rates each range covers (default 0.95)",
+    )
+    parser.add_argument(
+        "--horizon",
+        type=float,
+        default=HORIZON,
+        help=f"seconds of free walking the odometry noise is fitted on (default {HORIZON:g})",
+    )
     parser.add_argument("--json", action="store_true", help="print JSON instead of text")
     add_save_option(parser)
     add_progress_option(parser)
@@ -357,20 +408,31 @@ def main(argv: list[str] | None = None, prog: str = PROG) -> int:
 
 
 def _print(result: dict, robots: int, minutes: float, coverage: float) -> None:
-    print(f"adaptive motion model fitted on {robots} training robots × {minutes:g} min, ranges covering "
-          f"{100 * coverage:.0f}% of the episodes' rates:")
+    print(
+        f"adaptive motion model fitted on {robots} training robots × {minutes:g} min, ranges covering "
+        f"{100 * coverage:.0f}% of the episodes' rates:"
+    )
     for name in FITTED:
         print(f"  {name:<10} {result['fitted'][name]:.4f}  (default {result['defaults'][name]})")
     print("  episodes: " + ", ".join(f"{name} {count}" for name, count in result["episodes"].items()))
-    print(f"episode ends (-> free) per second, maximum likelihood per percept condition (the model takes "
-          f"{result['transitions']['condition']!r}):")
+    print(
+        f"episode ends (-> free) per second, maximum likelihood per percept condition (the model takes "
+        f"{result['transitions']['condition']!r}):"
+    )
     for condition, rates in result["end_rates"].items():
-        print(f"  {condition:<10} " + ", ".join(
-            f"{state} {'—' if rate is None else f'{rate:.3f}'} ({result['end_exposure_s'][condition][state]:.0f} s)"
-            for state, rate in rates.items()))
-    print(f"free walking, eq. 10's β1..β4 on {result['free_walk_stretches']} stretches of {result['horizon_s']:g} s: "
-          + ", ".join(f"{b:.4f}" for b in result["odometry"])
-          + f"  (default {tuple(result['odometry_default'])})")
+        print(
+            f"  {condition:<10} "
+            + ", ".join(
+                f"{state} {'—' if rate is None else f'{rate:.3f}'} ({result['end_exposure_s'][condition][state]:.0f} s)"
+                for state, rate in rates.items()
+            )
+        )
+    print(
+        f"free walking, eq. 10's β1..β4 on {result['free_walk_stretches']} stretches of {result['horizon_s']:g} s: "
+        + ", ".join(f"{b:.4f}" for b in result["odometry"])
+        + f"  (default {tuple(result['odometry_default'])})"
+    )
+
 
 if __name__ == "__main__":
     raise SystemExit(main())

@@ -21,6 +21,7 @@ settings (`BASELINE_GRID`: the inputs it uses and the ridge penalty) is scored b
 `motion_models.learned_odometry.LWPRSettings`' defaults and `demos.odometry.BASELINE` are the values this
 command wrote to results/odometry_fit.json (a test checks them against the file).
 """
+
 from __future__ import annotations
 
 import argparse
@@ -35,16 +36,20 @@ from motion_models.learned_odometry import LearnedFootstepOdometry, LWPRSettings
 
 SURFACE_NAMES = ("carpet", "grass")
 # Half-decade grids (10^(k/2)): the first value of each STAGE_2 list is where stage 1 holds it.
-STAGE_1 = {"init_D": tuple(10 ** (k / 2) for k in range(-6, 2)), "init_alpha": tuple(10 ** (k / 2) for k in range(-1, 4))}
-STAGE_2 = {"w_gen": tuple(10 ** (k / 4) for k in (-4, -5, -3)), "penalty": tuple(10 ** k for k in (-6, -4, -2))}
+STAGE_1 = {
+    "init_D": tuple(10 ** (k / 2) for k in range(-6, 2)),
+    "init_alpha": tuple(10 ** (k / 2) for k in range(-1, 4)),
+}
+STAGE_2 = {"w_gen": tuple(10 ** (k / 4) for k in (-4, -5, -3)), "penalty": tuple(10**k for k in (-6, -4, -2))}
 BASELINE_GRID = tuple({"features": f, "ridge": r} for f in ("axis", "inputs") for r in (0.0, 1e-3, 1e-2, 1e-1))
 FITTED = ("init_D", "init_alpha", "w_gen", "penalty")
 TRAINING_SPREAD = 1.0
 PROG = "robocup-mcl fit odometry"
 
 
-def training_logs(surfaces=SURFACE_NAMES, robots=TRAIN_ROBOTS, spread: float = TRAINING_SPREAD,
-                  duration: float = 300.0) -> list:
+def training_logs(
+    surfaces=SURFACE_NAMES, robots=TRAIN_ROBOTS, spread: float = TRAINING_SPREAD, duration: float = 300.0
+) -> list:
     """(surface, learning half, tuning half) of log 0 of each training robot on each surface."""
     out = []
     for surface in surfaces:
@@ -69,25 +74,34 @@ def _score(logs: list, make_models) -> dict:
 
 def score_lwpr(logs: list, settings: LWPRSettings, seed: int = 0) -> dict:
     """The LWPR score per input set (see the module docstring) and their mean under "mean"."""
+
     def make(first, kind):
-        return {"model": LearnedFootstepOdometry.train(
-            step_inputs(first, kind), truth_displacements(first), kind, seed=seed, settings=settings)}
+        return {
+            "model": LearnedFootstepOdometry.train(
+                step_inputs(first, kind), truth_displacements(first), kind, seed=seed, settings=settings
+            )
+        }
+
     per_kind = _score(logs, make)
     return {**per_kind, "mean": float(np.mean(list(per_kind.values())))}
 
 
 def score_baseline(logs: list, setting: dict) -> dict:
     """The linear baseline's score per input set for one setting (features, ridge)."""
+
     def make(first, kind):
         return {"model": LinearCorrection.fit(step_inputs(first, kind), truth_displacements(first), kind, **setting)}
+
     return _score(logs, make)
 
 
-def fit(surfaces=SURFACE_NAMES, robots=TRAIN_ROBOTS, seed: int = 0, progress: bool = False,
-        duration: float = 300.0) -> dict:
+def fit(
+    surfaces=SURFACE_NAMES, robots=TRAIN_ROBOTS, seed: int = 0, progress: bool = False, duration: float = 300.0
+) -> dict:
     """The search of the module docstring; returns the fitted settings, the fixed ones, every candidate's score
     and the baseline's choice per input set."""
     from mcl.tools.cli_checks import progress_bar
+
     logs = training_logs(surfaces, robots, duration=duration)
     base = LWPRSettings()
     candidates = []
@@ -110,15 +124,23 @@ def fit(surfaces=SURFACE_NAMES, robots=TRAIN_ROBOTS, seed: int = 0, progress: bo
     baseline = {kind: min(baseline_scores, key=lambda c: c["score"][kind]) for kind in KINDS}
     fixed = {k: v for k, v in dataclasses.asdict(base).items() if k not in FITTED}
     return {
-        "protocol": {"surfaces": list(surfaces), "train_robots": list(robots), "spread": TRAINING_SPREAD,
-                     "log_seconds": duration, "seed": seed, "logs": len(logs),
-                     "score": "mean over surfaces of mean learned / mean raw drift after 10 s on the second "
-                              "halves, per input set; LWPR: mean over input sets"},
+        "protocol": {
+            "surfaces": list(surfaces),
+            "train_robots": list(robots),
+            "spread": TRAINING_SPREAD,
+            "log_seconds": duration,
+            "seed": seed,
+            "logs": len(logs),
+            "score": "mean over surfaces of mean learned / mean raw drift after 10 s on the second "
+            "halves, per input set; LWPR: mean over input sets",
+        },
         "settings": {k: best[k] for k in FITTED},
         "score": best["score"],
         "fixed": fixed,
-        "baseline": {kind: {"features": b["features"], "ridge": b["ridge"], "score": b["score"][kind]}
-                     for kind, b in baseline.items()},
+        "baseline": {
+            kind: {"features": b["features"], "ridge": b["ridge"], "score": b["score"][kind]}
+            for kind, b in baseline.items()
+        },
         "candidates": candidates,
         "baseline_candidates": baseline_scores,
     }
@@ -126,26 +148,41 @@ def fit(surfaces=SURFACE_NAMES, robots=TRAIN_ROBOTS, seed: int = 0, progress: bo
 
 def _print(result: dict) -> None:
     p = result["protocol"]
-    print(f"LWPR meta-parameters fitted on {p['logs']} training logs ({', '.join(p['surfaces'])}; robots "
-          f"{p['train_robots'][0]}-{p['train_robots'][-1]}, spread {p['spread']:g}): learn on the first half, "
-          "score on the second")
+    print(
+        f"LWPR meta-parameters fitted on {p['logs']} training logs ({', '.join(p['surfaces'])}; robots "
+        f"{p['train_robots'][0]}-{p['train_robots'][-1]}, spread {p['spread']:g}): learn on the first half, "
+        "score on the second"
+    )
     print("score = learned / raw drift after 10 s (lower is better)")
-    print(f"{'stage':>5} {'init_D':>7} {'init_alpha':>10} {'w_gen':>6} {'penalty':>8} {'apriori':>8} {'online':>7} "
-          f"{'mean':>6}")
+    print(
+        f"{'stage':>5} {'init_D':>7} {'init_alpha':>10} {'w_gen':>6} {'penalty':>8} {'apriori':>8} {'online':>7} "
+        f"{'mean':>6}"
+    )
     for c in result["candidates"]:
         s = c["score"]
-        print(f"{c['stage']:>5} {c['init_D']:>7g} {c['init_alpha']:>10g} {c['w_gen']:>6g} {c['penalty']:>8g} "
-              f"{s['apriori']:>8.3f} {s['online']:>7.3f} {s['mean']:>6.3f}")
+        print(
+            f"{c['stage']:>5} {c['init_D']:>7g} {c['init_alpha']:>10g} {c['w_gen']:>6g} {c['penalty']:>8g} "
+            f"{s['apriori']:>8.3f} {s['online']:>7.3f} {s['mean']:>6.3f}"
+        )
     s = result["settings"]
-    print(f"fitted: init_D = {s['init_D']:g}, init_alpha = {s['init_alpha']:g}, w_gen = {s['w_gen']:g}, "
-          f"penalty = {s['penalty']:g} (score {result['score']['mean']:.3f}); fixed: "
-          + ", ".join(f"{k} = {v}" for k, v in result["fixed"].items()))
+    print(
+        f"fitted: init_D = {s['init_D']:g}, init_alpha = {s['init_alpha']:g}, w_gen = {s['w_gen']:g}, "
+        f"penalty = {s['penalty']:g} (score {result['score']['mean']:.3f}); fixed: "
+        + ", ".join(f"{k} = {v}" for k, v in result["fixed"].items())
+    )
     print("\nlinear baseline (score = baseline / raw drift after 10 s):")
     for c in result["baseline_candidates"]:
-        print(f"  features {c['features']:<6} ridge {c['ridge']:<6g} apriori {c['score']['apriori']:.3f} "
-              f"online {c['score']['online']:.3f}")
-    print("chosen: " + ", ".join(f"{k}: features {b['features']}, ridge {b['ridge']:g} (score {b['score']:.3f})"
-                                 for k, b in result["baseline"].items()))
+        print(
+            f"  features {c['features']:<6} ridge {c['ridge']:<6g} apriori {c['score']['apriori']:.3f} "
+            f"online {c['score']['online']:.3f}"
+        )
+    print(
+        "chosen: "
+        + ", ".join(
+            f"{k}: features {b['features']}, ridge {b['ridge']:g} (score {b['score']:.3f})"
+            for k, b in result["baseline"].items()
+        )
+    )
 
 
 def build_parser(prog: str = PROG) -> argparse.ArgumentParser:
@@ -187,6 +224,7 @@ def main(argv: list[str] | None = None, prog: str = PROG) -> int:
         The exit status (0).
     """
     from mcl.tools.cli_checks import check_output_file, progress_wanted, save_and_print
+
     parser = build_parser(prog)
     args = parser.parse_args(argv)
     check_output_file(args.save, "--save")

@@ -10,6 +10,7 @@ current (not compensated), and a log without latency (the floor). Per run: the m
 the position error and the median heading error over all steps; the summary gives their medians over the
 seeds. Same seed, same walk and same filter random numbers in all three runs.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -35,19 +36,23 @@ def run_seed(seed: int, latency: float, particles: int, scenario: WalkScenario) 
     out = {"seed": seed}
     for name, compensate, override in VARIANTS:
         log = to_robot_log(walk, latency=latency if override is None else override)
-        result = replay(log, scenario.field, particles=particles, seed=seed, compensate_latency=compensate,
-                        start=tuple(walk.start))
-        has_truth = result.has_truth          # the last step, held until the last frame arrives, has none
+        result = replay(
+            log, scenario.field, particles=particles, seed=seed, compensate_latency=compensate, start=tuple(walk.start)
+        )
+        has_truth = result.has_truth  # the last step, held until the last frame arrives, has none
         position, heading = result.position_errors[has_truth], result.heading_errors[has_truth]
-        out[name] = {"position_median_m": float(np.median(position)),
-                     "position_p95_m": float(np.percentile(position, 95)),
-                     "heading_median_deg": math.degrees(float(np.median(heading)))}
+        out[name] = {
+            "position_median_m": float(np.median(position)),
+            "position_p95_m": float(np.percentile(position, 95)),
+            "heading_median_deg": math.degrees(float(np.median(heading))),
+        }
     return out
 
 
 def summarize(runs: list[dict]) -> dict:
-    return {name: {key: float(np.median([r[name][key] for r in runs])) for key in runs[0][name]}
-            for name, _, _ in VARIANTS}
+    return {
+        name: {key: float(np.median([r[name][key] for r in runs])) for key in runs[0][name]} for name, _, _ in VARIANTS
+    }
 
 
 PROG = "robocup-mcl demo latency"
@@ -77,6 +82,7 @@ def main(argv: list[str] | None = None, prog: str = PROG) -> int:
     parser = build_parser(prog)
     args = parser.parse_args(argv)
     from mcl.tools.cli_checks import check_output_file, save_json
+
     check_output_file(args.save, "--save")
     if not (math.isfinite(args.latency) and 0 <= args.latency <= 1.0):
         parser.error(f"--latency {args.latency} must be within [0, 1] s")
@@ -89,7 +95,7 @@ def main(argv: list[str] | None = None, prog: str = PROG) -> int:
     except ValueError:
         parser.error(f"--seeds {args.seeds!r}: give seeds as 3, 0-9 or 1,4,7")
     progress = progress_wanted(args)
-    warm_up_walk(WalkScenario(), "velocity-linear", progress=progress)      # the first run says it compiles
+    warm_up_walk(WalkScenario(), "velocity-linear", progress=progress)  # the first run says it compiles
     result = {"latency_s": args.latency, "particles": args.particles, "duration_s": args.duration}
     bar = progress_bar(enabled=progress, total=len(PACES) * len(seeds), desc="latency", unit="seed")
     for pace, changes in PACES:
@@ -106,14 +112,18 @@ def main(argv: list[str] | None = None, prog: str = PROG) -> int:
         json.dump(result, sys.stdout, indent=2)
         print()
         return 0
-    print(f"walk scenario, {args.duration:.0f} s, camera latency {1e3 * args.latency:.0f} ms, "
-          f"{args.particles} particles, seeds {args.seeds}; errors over every step, started at the true pose")
+    print(
+        f"walk scenario, {args.duration:.0f} s, camera latency {1e3 * args.latency:.0f} ms, "
+        f"{args.particles} particles, seeds {args.seeds}; errors over every step, started at the true pose"
+    )
     print(f"{'':>10} {'':>16} {'position median':>16} {'position p95':>13} {'heading median':>15}")
     for pace, _ in PACES:
         for name, _, _ in VARIANTS:
             s = result[pace]["summary"][name]
-            print(f"{pace:>10} {name:>16} {100 * s['position_median_m']:>13.1f} cm "
-                  f"{100 * s['position_p95_m']:>10.1f} cm {s['heading_median_deg']:>13.2f}°")
+            print(
+                f"{pace:>10} {name:>16} {100 * s['position_median_m']:>13.1f} cm "
+                f"{100 * s['position_p95_m']:>10.1f} cm {s['heading_median_deg']:>13.2f}°"
+            )
     print("(medians over the seeds of each run's figure)")
     return 0
 

@@ -28,15 +28,20 @@ from motion_models.lwpr_reference import ReferenceLWPR
 N_TRAIN = 500
 N_EPOCHS = 20
 GRID = 41
-REFERENCE_LIBRARY = {"nmse": 0.039, "nmse_sd": 0.004, "num_rfs": 47.5, "num_rfs_sd": 1.8,
-                     "us_per_update": [1.3, 1.7], "us_per_predict": [0.7, 0.9]}
+REFERENCE_LIBRARY = {
+    "nmse": 0.039,
+    "nmse_sd": 0.004,
+    "num_rfs": 47.5,
+    "num_rfs_sd": 1.8,
+    "us_per_update": [1.3, 1.7],
+    "us_per_predict": [0.7, 0.9],
+}
 
 
 def cross(x: np.ndarray) -> np.ndarray:
     """f(x₁, x₂) = max(exp(−10x₁²), exp(−50x₂²), 1.25·exp(−5(x₁² + x₂²)))."""
     x1, x2 = x[..., 0], x[..., 1]
-    return np.maximum.reduce([np.exp(-10.0 * x1**2), np.exp(-50.0 * x2**2),
-                              1.25 * np.exp(-5.0 * (x1**2 + x2**2))])
+    return np.maximum.reduce([np.exp(-10.0 * x1**2), np.exp(-50.0 * x2**2), 1.25 * np.exp(-5.0 * (x1**2 + x2**2))])
 
 
 def make_model(cls=LWPR):
@@ -112,9 +117,15 @@ def run_seed(seed: int) -> dict:
 
     us_predict = _best_us(predictions, len(points))
     us_batch = _best_us(batch, 1) / len(G)
-    return {"seed": seed, "nmse": nmse, "num_rfs": int(model.num_rfs[0]),
-            "us_per_update": us_update, "us_per_predict": us_predict, "us_per_predict_batched": us_batch,
-            "train_seconds": train_seconds}
+    return {
+        "seed": seed,
+        "nmse": nmse,
+        "num_rfs": int(model.num_rfs[0]),
+        "us_per_update": us_update,
+        "us_per_predict": us_predict,
+        "us_per_predict_batched": us_batch,
+        "train_seconds": train_seconds,
+    }
 
 
 def reference_timing(seed: int) -> dict:
@@ -144,13 +155,21 @@ def reference_timing(seed: int) -> dict:
     for x in G:
         model.predict(x)
     us_predict = (time.perf_counter() - start) / len(G) * 1e6
-    return {"seed": seed, "reference_us_per_update": us_update_ref, "reference_us_per_predict": us_predict_ref,
-            "speedup_update": us_update_ref / us_update, "speedup_predict": us_predict_ref / us_predict}
+    return {
+        "seed": seed,
+        "reference_us_per_update": us_update_ref,
+        "reference_us_per_predict": us_predict_ref,
+        "speedup_update": us_update_ref / us_update,
+        "speedup_predict": us_predict_ref / us_predict,
+    }
 
 
 def _summary(values: list[float]) -> dict:
-    return {"mean": statistics.fmean(values), "median": statistics.median(values),
-            "sd": statistics.stdev(values) if len(values) > 1 else 0.0}
+    return {
+        "mean": statistics.fmean(values),
+        "median": statistics.median(values),
+        "sd": statistics.stdev(values) if len(values) > 1 else 0.0,
+    }
 
 
 PROG = "robocup-mcl bench lwpr"
@@ -175,9 +194,11 @@ def warm_up_lwpr(progress: bool = False):
     from motion_models import lwpr
 
     warm = make_model()
-    stages = [("update", lambda: warm.update(np.zeros(2), np.zeros(1))),
-              ("predict", lambda: (warm.predict(np.zeros(2)), warm.predict(np.zeros((2, 2))))),
-              ("predict with confidence", lambda: (warm.predict_conf(np.zeros(2)), warm.predict_conf(np.zeros((2, 2)))))]
+    stages = [
+        ("update", lambda: warm.update(np.zeros(2), np.zeros(1))),
+        ("predict", lambda: (warm.predict(np.zeros(2)), warm.predict(np.zeros((2, 2))))),
+        ("predict with confidence", lambda: (warm.predict_conf(np.zeros(2)), warm.predict_conf(np.zeros((2, 2))))),
+    ]
     kernels = (lwpr._update_kernel, lwpr._predict_kernel, lwpr._predict_one_kernel)
     return warm_up(stages, kernels, progress=progress)
 
@@ -189,19 +210,28 @@ def main(argv: list[str] | None = None, prog: str = PROG) -> int:
     parser = build_parser(prog)
     args = parser.parse_args(argv)
     from mcl.tools.cli_checks import check_output_file, save_json
+
     check_output_file(args.save, "--save")
     if args.seeds < 1:
         parser.error(f"--seeds must be at least 1, got {args.seeds}")
     progress = progress_wanted(args)
-    warm = warm_up_lwpr(progress)          # outside the timings
+    warm = warm_up_lwpr(progress)  # outside the timings
 
     runs = [run_seed(seed) for seed in progress_bar(range(args.seeds), enabled=progress, desc="lwpr", unit="seed")]
     reference = reference_timing(0)
     keys = ("nmse", "num_rfs", "us_per_update", "us_per_predict", "us_per_predict_batched")
     summary = {key: _summary([float(run[key]) for run in runs]) for key in keys}
-    result = {"benchmark": "lwpr cross", "n_train": N_TRAIN, "epochs": N_EPOCHS, "grid": f"{GRID}x{GRID}",
-              "seeds": runs, "summary": summary, "reference_python": reference,
-              "reference_library": REFERENCE_LIBRARY, **warm.as_dict()}
+    result = {
+        "benchmark": "lwpr cross",
+        "n_train": N_TRAIN,
+        "epochs": N_EPOCHS,
+        "grid": f"{GRID}x{GRID}",
+        "seeds": runs,
+        "summary": summary,
+        "reference_python": reference,
+        "reference_library": REFERENCE_LIBRARY,
+        **warm.as_dict(),
+    }
     save_json(args.save, result)
     if args.json:
         print(json.dumps(result, indent=2))
@@ -210,19 +240,27 @@ def main(argv: list[str] | None = None, prog: str = PROG) -> int:
     print(f"LWPR cross benchmark: {N_TRAIN} points, {N_EPOCHS} epochs, {GRID}x{GRID} test grid")
     print(f"{'seed':>4}  {'nMSE':>7}  {'#RFs':>4}  {'us/update':>9}  {'us/predict':>10}  {'us/pt batched':>13}")
     for run in runs:
-        print(f"{run['seed']:>4}  {run['nmse']:7.4f}  {run['num_rfs']:>4}  {run['us_per_update']:9.2f}  "
-              f"{run['us_per_predict']:10.2f}  {run['us_per_predict_batched']:13.2f}")
+        print(
+            f"{run['seed']:>4}  {run['nmse']:7.4f}  {run['num_rfs']:>4}  {run['us_per_update']:9.2f}  "
+            f"{run['us_per_predict']:10.2f}  {run['us_per_predict_batched']:13.2f}"
+        )
     for stat in ("mean", "median"):
         s = {key: summary[key][stat] for key in keys}
-        print(f"{stat:>6}  {s['nmse']:5.4f}  {s['num_rfs']:4.1f}  {s['us_per_update']:9.2f}  "
-              f"{s['us_per_predict']:10.2f}  {s['us_per_predict_batched']:13.2f}")
+        print(
+            f"{stat:>6}  {s['nmse']:5.4f}  {s['num_rfs']:4.1f}  {s['us_per_update']:9.2f}  "
+            f"{s['us_per_predict']:10.2f}  {s['us_per_predict_batched']:13.2f}"
+        )
     lib = REFERENCE_LIBRARY
-    print(f"reference library (C): nMSE {lib['nmse']} ± {lib['nmse_sd']}, {lib['num_rfs']} ± {lib['num_rfs_sd']} "
-          f"RFs, {lib['us_per_update'][0]}–{lib['us_per_update'][1]} us/update, "
-          f"{lib['us_per_predict'][0]}–{lib['us_per_predict'][1]} us/predict")
-    print(f"plain-Python reference (seed 0): {reference['reference_us_per_update']:.1f} us/update, "
-          f"{reference['reference_us_per_predict']:.1f} us/predict; numba is "
-          f"{reference['speedup_update']:.0f}x / {reference['speedup_predict']:.0f}x faster")
+    print(
+        f"reference library (C): nMSE {lib['nmse']} ± {lib['nmse_sd']}, {lib['num_rfs']} ± {lib['num_rfs_sd']} "
+        f"RFs, {lib['us_per_update'][0]}–{lib['us_per_update'][1]} us/update, "
+        f"{lib['us_per_predict'][0]}–{lib['us_per_predict'][1]} us/predict"
+    )
+    print(
+        f"plain-Python reference (seed 0): {reference['reference_us_per_update']:.1f} us/update, "
+        f"{reference['reference_us_per_predict']:.1f} us/predict; numba is "
+        f"{reference['speedup_update']:.0f}x / {reference['speedup_predict']:.0f}x faster"
+    )
     print(f"warm-up: {warm.summary()}, not counted in the timings")
     return 0
 

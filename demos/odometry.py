@@ -46,6 +46,7 @@ the variant "lin+LWPR" (`LearnedFootstepOdometry.train(..., linear_stage=True)`:
 map leaves). Figures: mean drift after 10 s over the 20 s sequences, and the change against the raw odometry
 with a 95 % bootstrap interval over sequences (paired: the same resampled sequences for both methods).
 """
+
 from __future__ import annotations
 
 import argparse
@@ -75,8 +76,10 @@ from motion_models.learned_odometry import LearnedFootstepOdometry, LinearStage,
 
 METHODS = ("apriori_raw", "apriori_learned", "online_raw", "online_learned")
 OTHER = ("apriori_learned_other", "online_learned_other")
-OTHER_LABELS = {"apriori_learned_other": "a priori learned as a correction of the commanded step",
-                "online_learned_other": "online learned on the true step itself, not its correction"}
+OTHER_LABELS = {
+    "apriori_learned_other": "a priori learned as a correction of the commanded step",
+    "online_learned_other": "online learned on the true step itself, not its correction",
+}
 KINDS = ("apriori", "online")
 # The linear baseline's setting per input set, chosen by `robocup-mcl fit odometry` (results/odometry_fit.json).
 BASELINE = {"apriori": {"features": "inputs", "ridge": 0.0}, "online": {"features": "axis", "ridge": 0.001}}
@@ -86,7 +89,7 @@ SEQUENCE_SECONDS = 20.0
 HORIZONS = (10.0, 20.0)
 CURVE_SECONDS = (10, 20, 30, 45, 60, 90, 120, 150)
 Z95 = 1.959964
-LOST = 0.5          # m: a filter whose estimate is farther than this from the truth has lost the robot
+LOST = 0.5  # m: a filter whose estimate is farther than this from the truth has lost the robot
 
 
 # ---------------------------------------------------------------------------------------------------------
@@ -105,8 +108,13 @@ def step_inputs(log: FootstepLog, kind: str) -> np.ndarray:
     displacement, one nominal period, the other support foot), as `FootstepLog.events` has it."""
     support = np.concatenate(([RIGHT if log.support[0] == LEFT else LEFT], log.support))
     zero = np.zeros((1, 3))
-    return input_matrix(kind, support, np.vstack([zero, log.commanded]), np.vstack([zero, log.sensor]),
-                        np.concatenate(([log.step_period], log.durations)))
+    return input_matrix(
+        kind,
+        support,
+        np.vstack([zero, log.commanded]),
+        np.vstack([zero, log.sensor]),
+        np.concatenate(([log.step_period], log.durations)),
+    )
 
 
 def train(log: FootstepLog, seed: int = 0, settings: LWPRSettings = LWPRSettings()) -> dict:
@@ -131,8 +139,7 @@ def method_steps(log: FootstepLog, models: dict) -> dict:
 # ---------------------------------------------------------------------------------------------------------
 # The drift protocol
 # ---------------------------------------------------------------------------------------------------------
-def sequence_drifts(log: FootstepLog, steps: dict, sequence: float = SEQUENCE_SECONDS,
-                    horizons=HORIZONS) -> dict:
+def sequence_drifts(log: FootstepLog, steps: dict, sequence: float = SEQUENCE_SECONDS, horizons=HORIZONS) -> dict:
     """Per method and horizon, the Cartesian [m] and angular [rad] drift on each non-overlapping sequence:
     the odometry restarts at the swap that opens the sequence and integrates until the swap nearest
     start + horizon; the truth is the motion capture at those swaps."""
@@ -186,32 +193,51 @@ def evaluate(surface: str, seed: int = 0, logs: list[FootstepLog] | None = None)
             for h, (cart, ang) in per_h.items():
                 pooled[m][h][0].extend(cart)
                 pooled[m][h][1].extend(ang)
-    drift = {m: {f"{h:g}s": {"cartesian_m": _stat(pooled[m][h][0]), "angular_deg": _stat(np.degrees(pooled[m][h][1]))}
-                 for h in HORIZONS} for m in pooled}
-    per_step = {m: dict(zip(("dx_mm", "dy_mm", "dtheta_deg"),
-                            (np.concatenate(step_errors[m]).mean(axis=0) * np.array([1e3, 1e3, 180 / math.pi])).tolist()))
-                for m in pooled}
+    drift = {
+        m: {
+            f"{h:g}s": {"cartesian_m": _stat(pooled[m][h][0]), "angular_deg": _stat(np.degrees(pooled[m][h][1]))}
+            for h in HORIZONS
+        }
+        for m in pooled
+    }
+    per_step = {
+        m: dict(
+            zip(
+                ("dx_mm", "dy_mm", "dtheta_deg"),
+                (np.concatenate(step_errors[m]).mean(axis=0) * np.array([1e3, 1e3, 180 / math.pi])).tolist(),
+            )
+        )
+        for m in pooled
+    }
     learned = {kind: models[f"{kind}_learned"] for kind in KINDS}
     other_figures = {m: {"drift": drift.pop(m), "per_step_error": per_step.pop(m)} for m in OTHER}
-    reduction = {kind: 1.0 - drift[f"{kind}_learned"]["10s"]["cartesian_m"]["mean"]
-                 / drift[f"{kind}_raw"]["10s"]["cartesian_m"]["mean"] for kind in KINDS}
+    reduction = {
+        kind: 1.0
+        - drift[f"{kind}_learned"]["10s"]["cartesian_m"]["mean"] / drift[f"{kind}_raw"]["10s"]["cartesian_m"]["mean"]
+        for kind in KINDS
+    }
     return {
-        "surface": surface, "seed": seed,
-        "learning_steps": learn.n_steps, "learning_seconds": float(learn.swap_times[-1] - learn.swap_times[0]),
-        "test_logs": len(logs) - 1, "test_steps": int(sum(log.n_steps for log in logs[1:])),
+        "surface": surface,
+        "seed": seed,
+        "learning_steps": learn.n_steps,
+        "learning_seconds": float(learn.swap_times[-1] - learn.swap_times[0]),
+        "test_logs": len(logs) - 1,
+        "test_steps": int(sum(log.n_steps for log in logs[1:])),
         "sequences": drift["online_raw"]["10s"]["cartesian_m"]["n"],
-        "drift": drift, "per_step_error": per_step,
+        "drift": drift,
+        "per_step_error": per_step,
         "drift_reduction_10s": reduction,
         "other_targets": other_figures,
-        "receptive_fields": {kind: {name: int(mod.num_rfs[0]) for name, mod in zip(("dx", "dy", "dtheta"),
-                                                                                    learned[kind].models)}
-                             for kind in KINDS},
-        "_logs": logs, "_models": models,
+        "receptive_fields": {
+            kind: {name: int(mod.num_rfs[0]) for name, mod in zip(("dx", "dy", "dtheta"), learned[kind].models)}
+            for kind in KINDS
+        },
+        "_logs": logs,
+        "_models": models,
     }
 
 
-def learning_curve(surface: str, seed: int = 0, logs: list[FootstepLog] | None = None,
-                   seconds=CURVE_SECONDS) -> dict:
+def learning_curve(surface: str, seed: int = 0, logs: list[FootstepLog] | None = None, seconds=CURVE_SECONDS) -> dict:
     """Drift after 10 s on the test logs and mean per-step forward error against seconds of learning."""
     logs = make_logs(surface, seed) if logs is None else logs
     rows = []
@@ -225,9 +251,14 @@ def learning_curve(surface: str, seed: int = 0, logs: list[FootstepLog] | None =
             for m, per_h in sequence_drifts(log, steps, horizons=(10.0,)).items():
                 cart[m].extend(per_h[10.0][0])
                 dx[m].append(np.abs(steps[m][:, 0] - truth[:, 0]))
-        rows.append({"seconds": t, "steps": logs[0].first(float(t)).n_steps,
-                     **{f"{m}_drift10_m": float(np.mean(cart[m])) for m in METHODS},
-                     **{f"{m}_dx_mm": float(1e3 * np.concatenate(dx[m]).mean()) for m in METHODS}})
+        rows.append(
+            {
+                "seconds": t,
+                "steps": logs[0].first(float(t)).n_steps,
+                **{f"{m}_drift10_m": float(np.mean(cart[m])) for m in METHODS},
+                **{f"{m}_dx_mm": float(1e3 * np.concatenate(dx[m]).mean()) for m in METHODS},
+            }
+        )
     return {"surface": surface, "seed": seed, "rows": rows}
 
 
@@ -243,11 +274,10 @@ def filter_run(log: FootstepLog, model, seed: int, vision_gaps: bool, particles:
 
     scenario = WalkScenario()
     camera_rng = np.random.default_rng([seed, 1])
-    pf = ParticleFilter(scenario.field, model, LandmarkSensorModel(scenario.field), n_particles=particles,
-                        seed=seed)
+    pf = ParticleFilter(scenario.field, model, LandmarkSensorModel(scenario.field), n_particles=particles, seed=seed)
     pf.reset_around(log.truth[0], sigma=(0.1, 0.1, 0.05))
     events = log.events()
-    swap_tick = np.rint(log.swap_times[1:] * 100.0).astype(np.int64)   # tick at whose end each step ends
+    swap_tick = np.rint(log.swap_times[1:] * 100.0).astype(np.int64)  # tick at whose end each step ends
     event_at = dict(zip(swap_tick.tolist(), events))
     dt = float(log.mocap_times[1] - log.mocap_times[0])
     camera_every = 1.0 / scenario.camera_rate
@@ -267,22 +297,30 @@ def filter_run(log: FootstepLog, model, seed: int, vision_gaps: bool, particles:
             if not (vision_gaps and (t % 10.0) >= 5.0):
                 pf.correct(observations)
         estimate = pf.estimate().pose
-        errors[k - 1] = (math.hypot(*(estimate[:2] - log.truth[k, :2])),
-                         abs(float(wrap_angles(estimate[2] - log.truth[k, 2]))))
-    return {"position_rmse_m": float(np.sqrt(np.mean(errors[:, 0] ** 2))),
-            "position_median_m": float(np.median(errors[:, 0])),
-            "heading_rmse_deg": math.degrees(float(np.sqrt(np.mean(errors[:, 1] ** 2)))),
-            "max_position_error_m": float(errors[:, 0].max()),
-            "lost_share": float(np.mean(errors[:, 0] > LOST))}
+        errors[k - 1] = (
+            math.hypot(*(estimate[:2] - log.truth[k, :2])),
+            abs(float(wrap_angles(estimate[2] - log.truth[k, 2]))),
+        )
+    return {
+        "position_rmse_m": float(np.sqrt(np.mean(errors[:, 0] ** 2))),
+        "position_median_m": float(np.median(errors[:, 0])),
+        "heading_rmse_deg": math.degrees(float(np.sqrt(np.mean(errors[:, 1] ** 2)))),
+        "max_position_error_m": float(errors[:, 0].max()),
+        "lost_share": float(np.mean(errors[:, 0] > LOST)),
+    }
 
 
 def field_walk(surface: str, seed: int, duration: float = 60.0) -> FootstepLog:
     """A footstep walk over the SPL field (kept 0.6 m inside the lines), starting in the own half."""
     from field import spl
+
     f = spl()
     rng = np.random.default_rng([seed, 2])
-    start = (rng.uniform(-f.half_length + 0.6, -0.5), rng.uniform(-f.half_width + 0.6, f.half_width - 0.6),
-             rng.uniform(-1.5, 1.5))
+    start = (
+        rng.uniform(-f.half_length + 0.6, -0.5),
+        rng.uniform(-f.half_width + 0.6, f.half_width - 0.6),
+        rng.uniform(-1.5, 1.5),
+    )
     driver = Driver(area=(f.half_length - 0.6, f.half_width - 0.6), margin=0.5, change_rate=0.3)
     return simulate(duration, surface, seed=10_000 + seed, driver=driver, start=start)
 
@@ -297,9 +335,12 @@ def filter_comparison(surface: str, models: dict, seed: int = 0, runs: int = 3) 
             for m in METHODS:
                 per_method[m].append(filter_run(log, models[m], seed=100 * seed + r, vision_gaps=gaps))
         out["vision_gaps" if gaps else "vision"] = {
-            m: {key: float((np.max if key.startswith("max") else np.mean)([run[key] for run in per_method[m]]))
-                for key in per_method[m][0]}
-            for m in METHODS}
+            m: {
+                key: float((np.max if key.startswith("max") else np.mean)([run[key] for run in per_method[m]]))
+                for key in per_method[m][0]
+            }
+            for m in METHODS
+        }
     out["runs"] = runs
     return out
 
@@ -310,17 +351,19 @@ def filter_comparison(surface: str, models: dict, seed: int = 0, runs: int = 3) 
 # (robot, run) spreads: multiples of the documented ranges of demos.footstep_sim (0: nominal); the last two
 # rows vary only the robots or only the runs.
 SPREADS = ((0.0, 0.0), (0.5, 0.5), (1.0, 1.0), (2.0, 2.0), (1.0, 0.0), (0.0, 1.0))
-TRAIN_ROBOTS = tuple(range(6))      # robot ids whose logs fit the meta-parameters and the baseline
-TEST_ROBOTS = tuple(range(100, 104))   # held-out robot ids: never in any fit
-TEST_LOGS = 5                       # logs per test robot: the first's first half learns, the others test
+TRAIN_ROBOTS = tuple(range(6))  # robot ids whose logs fit the meta-parameters and the baseline
+TEST_ROBOTS = tuple(range(100, 104))  # held-out robot ids: never in any fit
+TEST_LOGS = 5  # logs per test robot: the first's first half learns, the others test
 REGIMES = ("own", "fleet")
-REGIME_LABELS = {"own": "learned on the test robot's own first log (the paper's protocol)",
-                 "fleet": "learned on the training robots only, none of the test robot's data"}
+REGIME_LABELS = {
+    "own": "learned on the test robot's own first log (the paper's protocol)",
+    "fleet": "learned on the training robots only, none of the test robot's data",
+}
 MISMATCH_METHODS = ("raw", "linear", "lwpr", "variant")
 METHOD_LABELS = {"raw": "raw", "linear": "linear", "lwpr": "LWPR", "variant": "lin+LWPR"}
-VARIANT_LINEAR = {"features": "inputs", "ridge": 0.0}   # the variant's `LinearStage`: every input, no penalty
+VARIANT_LINEAR = {"features": "inputs", "ridge": 0.0}  # the variant's `LinearStage`: every input, no penalty
 BOOTSTRAP = 2000
-PAPER_REDUCTION = {"apriori": 0.76, "online": 0.58}    # Rouxel sec. IV-B: 62.0 → 14.8 cm, 24.5 → 10.3 cm
+PAPER_REDUCTION = {"apriori": 0.76, "online": 0.58}  # Rouxel sec. IV-B: 62.0 → 14.8 cm, 24.5 → 10.3 cm
 BOOTSTRAP_SEED = 29
 
 
@@ -330,14 +373,16 @@ def fleet_seed(split: str, surface: str, robot: int, index: int) -> int:
     return base + 1000 * list(SURFACES).index(surface) + 10 * (robot % 100) + index
 
 
-def fleet_log(split: str, surface: str, robot: int, index: int, spread: float | tuple[float, float],
-              duration: float = LOG_SECONDS) -> FootstepLog:
+def fleet_log(
+    split: str, surface: str, robot: int, index: int, spread: float | tuple[float, float], duration: float = LOG_SECONDS
+) -> FootstepLog:
     """One log of robot `robot` under the run's own conditions (drawn from its seed); `spread` is one number
     for both or a pair (robot spread, run spread)."""
     robot_spread, run_spread = spread if isinstance(spread, tuple) else (spread, spread)
     seed = fleet_seed(split, surface, robot, index)
-    return simulate(duration, surface, seed, robot=draw_robot(robot, robot_spread),
-                    conditions=draw_conditions(seed, run_spread))
+    return simulate(
+        duration, surface, seed, robot=draw_robot(robot, robot_spread), conditions=draw_conditions(seed, run_spread)
+    )
 
 
 def halves(log: FootstepLog) -> tuple[FootstepLog, FootstepLog]:
@@ -358,8 +403,9 @@ class LinearCorrection:
     stage: LinearStage
 
     @classmethod
-    def fit(cls, X: np.ndarray, Y: np.ndarray, kind: str, features: str = "inputs",
-            ridge: float = 0.0) -> LinearCorrection:
+    def fit(
+        cls, X: np.ndarray, Y: np.ndarray, kind: str, features: str = "inputs", ridge: float = 0.0
+    ) -> LinearCorrection:
         """Least squares on standardized inputs with penalty `ridge`·n on the weights (not the offsets)."""
         if features not in ("axis", "inputs"):
             raise ValueError(f"features = {features!r} must be 'axis' or 'inputs'")
@@ -375,14 +421,15 @@ class LinearCorrection:
         return self.stage.predict(X), None
 
 
-def train_methods(learn: list[FootstepLog], kind: str, settings: LWPRSettings, baseline: dict,
-                  seed: int = 0) -> dict:
+def train_methods(learn: list[FootstepLog], kind: str, settings: LWPRSettings, baseline: dict, seed: int = 0) -> dict:
     """LWPR, the linear baseline and the variant for input set `kind`, learned on the pooled steps of `learn`."""
     X = np.vstack([step_inputs(log, kind) for log in learn])
     Y = np.vstack([truth_displacements(log) for log in learn])
-    return {"linear": LinearCorrection.fit(X, Y, kind, **baseline[kind]),
-            "lwpr": LearnedFootstepOdometry.train(X, Y, kind, seed=seed, settings=settings),
-            "variant": LearnedFootstepOdometry.train(X, Y, kind, seed=seed, settings=settings, linear_stage=True)}
+    return {
+        "linear": LinearCorrection.fit(X, Y, kind, **baseline[kind]),
+        "lwpr": LearnedFootstepOdometry.train(X, Y, kind, seed=seed, settings=settings),
+        "variant": LearnedFootstepOdometry.train(X, Y, kind, seed=seed, settings=settings, linear_stage=True),
+    }
 
 
 def sequence_errors(log: FootstepLog, kind: str, models: dict) -> dict:
@@ -402,7 +449,9 @@ def reduction_interval(drifts: dict, method: str, reference: str = "raw", rng_se
     return {"mean": float(1.0 - a.mean() / b.mean()), "ci95": [float(low), float(high)]}
 
 
-def mismatch_cell(surface: str, spread: tuple[float, float], settings: LWPRSettings, baseline: dict, seed: int = 0) -> dict:
+def mismatch_cell(
+    surface: str, spread: tuple[float, float], settings: LWPRSettings, baseline: dict, seed: int = 0
+) -> dict:
     """Both regimes and both input sets at one spread on one surface (see `mismatch`)."""
     fleet_learn = [halves(fleet_log("train", surface, r, 0, spread))[0] for r in TRAIN_ROBOTS]
     fleet = {kind: train_methods(fleet_learn, kind, settings, baseline, seed) for kind in KINDS}
@@ -419,104 +468,172 @@ def mismatch_cell(surface: str, spread: tuple[float, float], settings: LWPRSetti
     for regime in REGIMES:
         for kind in KINDS:
             d = drifts[regime][kind]
-            rows.append({"surface": surface, "robot_spread": spread[0], "run_spread": spread[1],
-                         "regime": regime, "kind": kind,
-                         "sequences": len(d["raw"]),
-                         "drift10_cm": {m: 100 * float(np.mean(d[m])) for m in MISMATCH_METHODS},
-                         "reduction": {m: reduction_interval(d, m) for m in MISMATCH_METHODS[1:]},
-                         "lwpr_vs_linear": reduction_interval(d, "lwpr", "linear")})
+            rows.append(
+                {
+                    "surface": surface,
+                    "robot_spread": spread[0],
+                    "run_spread": spread[1],
+                    "regime": regime,
+                    "kind": kind,
+                    "sequences": len(d["raw"]),
+                    "drift10_cm": {m: 100 * float(np.mean(d[m])) for m in MISMATCH_METHODS},
+                    "reduction": {m: reduction_interval(d, m) for m in MISMATCH_METHODS[1:]},
+                    "lwpr_vs_linear": reduction_interval(d, "lwpr", "linear"),
+                }
+            )
     return {"rows": rows}
 
 
-def mismatch(surfaces=("carpet", "grass"), spreads=SPREADS, settings: LWPRSettings = LWPRSettings(),
-             baseline: dict | None = None, seed: int = 0, progress: bool = False) -> dict:
+def mismatch(
+    surfaces=("carpet", "grass"),
+    spreads=SPREADS,
+    settings: LWPRSettings = LWPRSettings(),
+    baseline: dict | None = None,
+    seed: int = 0,
+    progress: bool = False,
+) -> dict:
     """The robustness table: on held-out robots (`TEST_ROBOTS`), drift after 10 s of the raw odometry, the
     linear baseline and LWPR, learned on the test robot's own first log ("own") or on the training robots
     ("fleet"), at each robot and run parameter spread (0: the nominal simulator) and surface."""
     from mcl.tools.cli_checks import progress_bar
+
     baseline = BASELINE if baseline is None else baseline
     rows = []
     cells = [(s, x) for s in surfaces for x in spreads]
     for surface, spread in progress_bar(cells, enabled=progress, desc="mismatch", unit="cell"):
         rows.extend(mismatch_cell(surface, spread, settings, baseline, seed)["rows"])
-    goals = {"half": "LWPR cuts the drift after 10 s by at least half (the goal of docs/papers/rouxel.md)",
-             "paper": "LWPR cuts it as much as the paper reports: a priori -76 %, online -58 % (Rouxel sec. IV-B)"}
+    goals = {
+        "half": "LWPR cuts the drift after 10 s by at least half (the goal of docs/papers/rouxel.md)",
+        "paper": "LWPR cuts it as much as the paper reports: a priori -76 %, online -58 % (Rouxel sec. IV-B)",
+    }
     for row in rows:
         cut = row["reduction"]["lwpr"]["mean"]
-        row["goals"] = {"half": "met" if cut >= 0.5 else "missed",
-                        "paper": "met" if cut >= PAPER_REDUCTION[row["kind"]] else "missed"}
-    return {"goals": goals,
-            "protocol": {"train_robots": list(TRAIN_ROBOTS), "test_robots": list(TEST_ROBOTS),
-                         "test_logs_per_robot": TEST_LOGS, "log_seconds": LOG_SECONDS,
-                         "sequence_seconds": SEQUENCE_SECONDS, "bootstrap": BOOTSTRAP,
-                         "settings": dataclasses.asdict(settings), "baseline": baseline,
-                         "variant_linear": VARIANT_LINEAR},
-            "rows": rows}
+        row["goals"] = {
+            "half": "met" if cut >= 0.5 else "missed",
+            "paper": "met" if cut >= PAPER_REDUCTION[row["kind"]] else "missed",
+        }
+    return {
+        "goals": goals,
+        "protocol": {
+            "train_robots": list(TRAIN_ROBOTS),
+            "test_robots": list(TEST_ROBOTS),
+            "test_logs_per_robot": TEST_LOGS,
+            "log_seconds": LOG_SECONDS,
+            "sequence_seconds": SEQUENCE_SECONDS,
+            "bootstrap": BOOTSTRAP,
+            "settings": dataclasses.asdict(settings),
+            "baseline": baseline,
+            "variant_linear": VARIANT_LINEAR,
+        },
+        "rows": rows,
+    }
 
 
 def _print_mismatch(result: dict) -> None:
-    print("drift after 10 s [cm] on held-out robots; change of the 10 s drift [%] against the raw odometry (and of "
-          "LWPR against the linear baseline), with its 95 % bootstrap interval over sequences")
+    print(
+        "drift after 10 s [cm] on held-out robots; change of the 10 s drift [%] against the raw odometry (and of "
+        "LWPR against the linear baseline), with its 95 % bootstrap interval over sequences"
+    )
     names = MISMATCH_METHODS[1:]
     for regime in REGIMES:
         print(f"\n{regime}: {REGIME_LABELS[regime]}")
-        print(f"{'surface':<7} {'spread':>7} {'inputs':<7} {'seq':>4} "
-              + " ".join(f"{METHOD_LABELS[m]:>8}" for m in MISMATCH_METHODS) + "  "
-              + " ".join(f"{METHOD_LABELS[m] + ' vs raw':>17}" for m in names) + f" {'LWPR vs linear':>17}")
+        print(
+            f"{'surface':<7} {'spread':>7} {'inputs':<7} {'seq':>4} "
+            + " ".join(f"{METHOD_LABELS[m]:>8}" for m in MISMATCH_METHODS)
+            + "  "
+            + " ".join(f"{METHOD_LABELS[m] + ' vs raw':>17}" for m in names)
+            + f" {'LWPR vs linear':>17}"
+        )
         for row in result["rows"]:
             if row["regime"] != regime:
                 continue
             cells = [row["reduction"][m] for m in names] + [row["lwpr_vs_linear"]]
-            text = [f"{-100 * c['mean']:+4.0f} [{-100 * c['ci95'][1]:+4.0f},{-100 * c['ci95'][0]:+4.0f}]"
-                    for c in cells]
+            text = [
+                f"{-100 * c['mean']:+4.0f} [{-100 * c['ci95'][1]:+4.0f},{-100 * c['ci95'][0]:+4.0f}]" for c in cells
+            ]
             spread = f"{row['robot_spread']:g}/{row['run_spread']:g}"
-            print(f"{row['surface']:<7} {spread:>7} {row['kind']:<7} {row['sequences']:>4} "
-                  + " ".join(f"{row['drift10_cm'][m]:>8.1f}" for m in MISMATCH_METHODS) + "  "
-                  + " ".join(f"{t:>17}" for t in text))
+            print(
+                f"{row['surface']:<7} {spread:>7} {row['kind']:<7} {row['sequences']:>4} "
+                + " ".join(f"{row['drift10_cm'][m]:>8.1f}" for m in MISMATCH_METHODS)
+                + "  "
+                + " ".join(f"{t:>17}" for t in text)
+            )
     for key, text in result["goals"].items():
-        missed = [f"{r['surface']} {r['robot_spread']:g}/{r['run_spread']:g} {r['regime']} {r['kind']}"
-                  for r in result["rows"] if r["goals"][key] == "missed"]
-        print(f"\ngoal: {text}: met in {len(result['rows']) - len(missed)} of {len(result['rows'])} rows"
-              + (f"; missed in: {', '.join(missed)}" if missed else ""))
-    print("\n(spread R/C: multiples of the documented robot (R) and run (C) parameter ranges of demos.footstep_sim;"
-          " 0/0 is the nominal simulator, every robot and run alike)")
+        missed = [
+            f"{r['surface']} {r['robot_spread']:g}/{r['run_spread']:g} {r['regime']} {r['kind']}"
+            for r in result["rows"]
+            if r["goals"][key] == "missed"
+        ]
+        print(
+            f"\ngoal: {text}: met in {len(result['rows']) - len(missed)} of {len(result['rows'])} rows"
+            + (f"; missed in: {', '.join(missed)}" if missed else "")
+        )
+    print(
+        "\n(spread R/C: multiples of the documented robot (R) and run (C) parameter ranges of demos.footstep_sim;"
+        " 0/0 is the nominal simulator, every robot and run alike)"
+    )
 
 
 # ---------------------------------------------------------------------------------------------------------
 # Command line
 # ---------------------------------------------------------------------------------------------------------
-LABELS = {"apriori_raw": "a priori raw", "apriori_learned": "a priori learned", "online_raw": "online raw",
-          "online_learned": "online learned"}
+LABELS = {
+    "apriori_raw": "a priori raw",
+    "apriori_learned": "a priori learned",
+    "online_raw": "online raw",
+    "online_learned": "online learned",
+}
 
 
 def _print_evaluation(r: dict) -> None:
-    print(f"\n{r['surface']}: learned on {r['learning_steps']} steps ({r['learning_seconds']:.0f} s), tested on "
-          f"{r['test_logs']} logs ({r['test_steps']} steps, {r['sequences']} sequences of 20 s)")
-    print(f"{'method':<17} {'drift 10 s [cm]':>17} {'drift 20 s [cm]':>17} {'angle 10 s [°]':>15} "
-          f"{'angle 20 s [°]':>15} {'step err x/y [mm], θ [°]':>26}")
+    print(
+        f"\n{r['surface']}: learned on {r['learning_steps']} steps ({r['learning_seconds']:.0f} s), tested on "
+        f"{r['test_logs']} logs ({r['test_steps']} steps, {r['sequences']} sequences of 20 s)"
+    )
+    print(
+        f"{'method':<17} {'drift 10 s [cm]':>17} {'drift 20 s [cm]':>17} {'angle 10 s [°]':>15} "
+        f"{'angle 20 s [°]':>15} {'step err x/y [mm], θ [°]':>26}"
+    )
     for m in METHODS:
         d, e = r["drift"][m], r["per_step_error"][m]
-        cells = [f"{100 * d[h]['cartesian_m']['mean']:6.1f} ± {100 * d[h]['cartesian_m']['ci95']:4.1f}" for h in ("10s", "20s")]
+        cells = [
+            f"{100 * d[h]['cartesian_m']['mean']:6.1f} ± {100 * d[h]['cartesian_m']['ci95']:4.1f}"
+            for h in ("10s", "20s")
+        ]
         cells += [f"{d[h]['angular_deg']['mean']:5.1f} ± {d[h]['angular_deg']['ci95']:4.1f}" for h in ("10s", "20s")]
-        print(f"{LABELS[m]:<17} {cells[0]:>17} {cells[1]:>17} {cells[2]:>15} {cells[3]:>15} "
-              f"{e['dx_mm']:8.1f} {e['dy_mm']:5.1f} {e['dtheta_deg']:5.2f}")
+        print(
+            f"{LABELS[m]:<17} {cells[0]:>17} {cells[1]:>17} {cells[2]:>15} {cells[3]:>15} "
+            f"{e['dx_mm']:8.1f} {e['dy_mm']:5.1f} {e['dtheta_deg']:5.2f}"
+        )
     for m in OTHER:
         d, e = r["other_targets"][m]["drift"], r["other_targets"][m]["per_step_error"]
-        print(f"  ({OTHER_LABELS[m]}: 10 s drift "
-              f"{100 * d['10s']['cartesian_m']['mean']:.1f} cm, {d['10s']['angular_deg']['mean']:.1f}°; step error "
-              f"{e['dx_mm']:.1f} / {e['dy_mm']:.1f} mm, {e['dtheta_deg']:.2f}°)")
+        print(
+            f"  ({OTHER_LABELS[m]}: 10 s drift "
+            f"{100 * d['10s']['cartesian_m']['mean']:.1f} cm, {d['10s']['angular_deg']['mean']:.1f}°; step error "
+            f"{e['dx_mm']:.1f} / {e['dy_mm']:.1f} mm, {e['dtheta_deg']:.2f}°)"
+        )
     red = r["drift_reduction_10s"]
-    print(f"learning cuts the 10 s drift by {100 * red['apriori']:.0f} % (a priori) and {100 * red['online']:.0f} % "
-          f"(online); receptive fields {r['receptive_fields']}")
+    print(
+        f"learning cuts the 10 s drift by {100 * red['apriori']:.0f} % (a priori) and {100 * red['online']:.0f} % "
+        f"(online); receptive fields {r['receptive_fields']}"
+    )
 
 
 def _print_curve(c: dict) -> None:
     print(f"\nlearning curve ({c['surface']}): drift after 10 s [cm] | mean forward step error [mm]")
-    print(f"{'learn s':>7} {'steps':>5}  " + " ".join(f"{LABELS[m]:>16}" for m in METHODS) + "  |  "
-          + " ".join(f"{m.split('_')[0][:2]}-{m.split('_')[1][:3]:>3}" for m in METHODS))
+    print(
+        f"{'learn s':>7} {'steps':>5}  "
+        + " ".join(f"{LABELS[m]:>16}" for m in METHODS)
+        + "  |  "
+        + " ".join(f"{m.split('_')[0][:2]}-{m.split('_')[1][:3]:>3}" for m in METHODS)
+    )
     for row in c["rows"]:
-        print(f"{row['seconds']:>7} {row['steps']:>5}  " + " ".join(f"{100 * row[f'{m}_drift10_m']:>16.1f}" for m in METHODS)
-              + "  |  " + " ".join(f"{row[f'{m}_dx_mm']:>6.1f}" for m in METHODS))
+        print(
+            f"{row['seconds']:>7} {row['steps']:>5}  "
+            + " ".join(f"{100 * row[f'{m}_drift10_m']:>16.1f}" for m in METHODS)
+            + "  |  "
+            + " ".join(f"{row[f'{m}_dx_mm']:>6.1f}" for m in METHODS)
+        )
 
 
 def _print_filter(surface: str, f: dict) -> None:
@@ -525,9 +642,11 @@ def _print_filter(surface: str, f: dict) -> None:
         print(f"  {label}:")
         for m in METHODS:
             v = f[key][m]
-            print(f"    {LABELS[m]:<17} position RMSE {100 * v['position_rmse_m']:5.1f} cm, median "
-                  f"{100 * v['position_median_m']:4.1f} cm, heading RMSE {v['heading_rmse_deg']:4.1f}°, worst "
-                  f"{100 * v['max_position_error_m']:5.1f} cm, error > 0.5 m {100 * v['lost_share']:4.1f} % of the time")
+            print(
+                f"    {LABELS[m]:<17} position RMSE {100 * v['position_rmse_m']:5.1f} cm, median "
+                f"{100 * v['position_median_m']:4.1f} cm, heading RMSE {v['heading_rmse_deg']:4.1f}°, worst "
+                f"{100 * v['max_position_error_m']:5.1f} cm, error > 0.5 m {100 * v['lost_share']:4.1f} % of the time"
+            )
 
 
 def _public(obj):
@@ -570,26 +689,42 @@ def build_parser(prog: str = PROG) -> argparse.ArgumentParser:
     from mcl.tools.cli_checks import add_progress_option, description
 
     parser = argparse.ArgumentParser(prog=prog, description=description(__doc__))
-    parser.add_argument("--surface", choices=("carpet", "grass", "both"), default="both",
-                        help="the walking surface (default both)")
+    parser.add_argument(
+        "--surface", choices=("carpet", "grass", "both"), default="both", help="the walking surface (default both)"
+    )
     parser.add_argument("--seed", type=int, default=0, help="seed of the simulated walks (default 0)")
     parser.add_argument("--curve", action="store_true", help="the learning curve (drift against learning time)")
     parser.add_argument("--filter", action="store_true", help="particle filter: learned versus raw odometry")
     parser.add_argument("--filter-runs", type=int, default=3, help="field walks per surface for --filter")
     parser.add_argument("--json", action="store_true", help="print JSON instead of tables")
-    parser.add_argument("--record", metavar="LOG", help="simulate one walk (--surface, --seed, --duration) "
-                        "and write it as a .npz log")
+    parser.add_argument(
+        "--record", metavar="LOG", help="simulate one walk (--surface, --seed, --duration) and write it as a .npz log"
+    )
     parser.add_argument("--duration", type=float, default=LOG_SECONDS, help="seconds of walk for --record")
     parser.add_argument("--train", metavar="LOG", help="train on this recorded .npz log (needs --save)")
     parser.add_argument("--half", action="store_true", help="with --train: learn on the first half of the log")
-    parser.add_argument("--mismatch", action="store_true", help="the robustness table: held-out robots, the "
-                        "robot and run parameter spreads of demos.footstep_sim, the linear baseline")
-    parser.add_argument("--spreads", type=_spread, nargs="+", default=list(SPREADS), metavar="R[:C]",
-                        help="with --mismatch: multiples of the documented robot (R) and run (C, default R) "
-                        "parameter ranges, each >= 0 (0:0 is the nominal simulator; default "
-                        f"{' '.join(f'{r:g}:{c:g}' for r, c in SPREADS)})")
-    parser.add_argument("--save", metavar="PATH", help="with --train: save the models to PATH/apriori, "
-                        "PATH/online; with --mismatch: also write the JSON results to PATH")
+    parser.add_argument(
+        "--mismatch",
+        action="store_true",
+        help="the robustness table: held-out robots, the "
+        "robot and run parameter spreads of demos.footstep_sim, the linear baseline",
+    )
+    parser.add_argument(
+        "--spreads",
+        type=_spread,
+        nargs="+",
+        default=list(SPREADS),
+        metavar="R[:C]",
+        help="with --mismatch: multiples of the documented robot (R) and run (C, default R) "
+        "parameter ranges, each >= 0 (0:0 is the nominal simulator; default "
+        f"{' '.join(f'{r:g}:{c:g}' for r, c in SPREADS)})",
+    )
+    parser.add_argument(
+        "--save",
+        metavar="PATH",
+        help="with --train: save the models to PATH/apriori, "
+        "PATH/online; with --mismatch: also write the JSON results to PATH",
+    )
     add_progress_option(parser)
     return parser
 
@@ -599,10 +734,12 @@ def main(argv: list[str] | None = None, prog: str = PROG) -> int:
     parser = build_parser(prog)
     args = parser.parse_args(argv)
     from mcl.tools.cli_checks import check_input_file, check_output_directory, check_output_file, save_and_print
+
     if args.mismatch:
         if args.train or args.record or args.curve or args.filter:
             parser.error("--mismatch goes alone (with --surface, --spreads, --seed, --json, --save)")
         from mcl.tools.cli_checks import progress_wanted
+
         check_output_file(args.save, "--save")
         surfaces = ("carpet", "grass") if args.surface == "both" else (args.surface,)
         result = mismatch(surfaces, tuple(args.spreads), seed=args.seed, progress=progress_wanted(args))
@@ -611,17 +748,22 @@ def main(argv: list[str] | None = None, prog: str = PROG) -> int:
     if args.train or args.save:
         if not (args.train and args.save):
             parser.error("--train LOG and --save DIR go together")
-        check_input_file(args.train, "--train")       # before the training, not after it
+        check_input_file(args.train, "--train")  # before the training, not after it
         check_output_directory(args.save, "--save")
         try:
             result = train_command(args.train, args.save, args.seed, half=args.half)
         except ValueError as exc:
             print(f"robocup-mcl demo odometry: {exc}", file=sys.stderr)
             return 1
-        print(json.dumps(result, indent=2) if args.json else
-              f"trained on {result['steps']} steps of {args.train} ({result['surface']}): "
-              + ", ".join(f"{k} → {v['directory']} (receptive fields dx/dy/dθ {v['receptive_fields']})"
-                          for k, v in result["saved"].items()))
+        print(
+            json.dumps(result, indent=2)
+            if args.json
+            else f"trained on {result['steps']} steps of {args.train} ({result['surface']}): "
+            + ", ".join(
+                f"{k} → {v['directory']} (receptive fields dx/dy/dθ {v['receptive_fields']})"
+                for k, v in result["saved"].items()
+            )
+        )
         return 0
     if args.record:
         check_output_file(args.record, "--record")
@@ -639,7 +781,8 @@ def main(argv: list[str] | None = None, prog: str = PROG) -> int:
     from mcl.tools.cli_checks import progress_bar, progress_wanted
 
     from .lwpr_cross import warm_up_lwpr
-    warm = warm_up_lwpr(progress_wanted(args))          # a machine's first run says it compiles LWPR's kernels
+
+    warm = warm_up_lwpr(progress_wanted(args))  # a machine's first run says it compiles LWPR's kernels
     started = time.perf_counter()
     result: dict = {"surfaces": {}, **warm.as_dict()}
     for surface in progress_bar(surfaces, enabled=progress_wanted(args), desc="odometry", unit="surface"):

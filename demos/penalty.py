@@ -12,6 +12,7 @@ run, from the return on:
 - how the run ends (last second): on the true pose, on the other touchline's pose (x, −y, −θ), on the point
   mirror (−x, −y, θ+π), or elsewhere (within 0.5 m and 0.5 rad of each, else "elsewhere").
 """
+
 from __future__ import annotations
 
 import argparse
@@ -41,9 +42,12 @@ def return_pose(scenario: WalkScenario, side: int) -> tuple[float, float, float]
 
 def ending(estimates: np.ndarray, truth: np.ndarray) -> str:
     """Which pose the last estimates sit on (see the module docstring)."""
+
     def near(target):
-        return (np.hypot(*(estimates[:, :2] - target[:, :2]).T) < 0.5) & \
-            (np.abs(wrap_angles(estimates[:, 2] - target[:, 2])) < 0.5)
+        return (np.hypot(*(estimates[:, :2] - target[:, :2]).T) < 0.5) & (
+            np.abs(wrap_angles(estimates[:, 2] - target[:, 2])) < 0.5
+        )
+
     other = truth * np.array([1.0, -1.0, -1.0])
     mirror = np.column_stack([-truth[:, 0], -truth[:, 1], wrap_angles(truth[:, 2] + math.pi)])
     for name, target in zip(ENDINGS, (truth, other, mirror)):
@@ -62,8 +66,10 @@ def run_seed(seed: int, particles: int, scenario: WalkScenario) -> dict:
         # An error above the threshold wherever the other hypothesis still holds more than 10 % of the weight.
         errors = np.where(result.weights >= 0.9, result.position_errors, np.inf)
         last = result.times >= result.times[-1] - 1.0
-        out[name] = {"converged_s": settle_time(errors, result.times, 0, errors.shape[0], walk.dt),
-                     "ending": ending(result.estimates[last], result.truth[last])}
+        out[name] = {
+            "converged_s": settle_time(errors, result.times, 0, errors.shape[0], walk.dt),
+            "ending": ending(result.estimates[last], result.truth[last]),
+        }
     return out
 
 
@@ -77,7 +83,8 @@ def summarize(runs: list[dict]) -> dict:
             "converged_worst_s": None if ordered[-1] == math.inf else ordered[-1],
             "never_converged": times.count(None),
             "endings": {e: sum(r[name]["ending"] == e for r in runs) for e in ENDINGS},
-            "runs": len(runs)}
+            "runs": len(runs),
+        }
     return summary
 
 
@@ -91,8 +98,9 @@ def build_parser(prog: str = PROG) -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog=prog, description=description(__doc__))
     parser.add_argument("--seeds", default="0-19", help='seeds: "0-19", "3" or "1,4,7" (default 0-19)')
     parser.add_argument("--particles", type=int, default=500, help="particles (default 500)")
-    parser.add_argument("--duration", type=float, default=20.0,
-                        help="seconds of walking after the return (default 20, at least 3)")
+    parser.add_argument(
+        "--duration", type=float, default=20.0, help="seconds of walking after the return (default 20, at least 3)"
+    )
     parser.add_argument("--json", action="store_true", help="print JSON instead of the summary")
     add_save_option(parser)
     add_progress_option(parser)
@@ -108,6 +116,7 @@ def main(argv: list[str] | None = None, prog: str = PROG) -> int:
     parser = build_parser(prog)
     args = parser.parse_args(argv)
     from mcl.tools.cli_checks import check_duration, check_output_file, save_json
+
     check_output_file(args.save, "--save")
     if args.particles <= 0:
         parser.error(f"--particles {args.particles} must be > 0")
@@ -118,9 +127,11 @@ def main(argv: list[str] | None = None, prog: str = PROG) -> int:
         parser.error(f"--seeds {args.seeds!r}: give seeds as 3, 0-9 or 1,4,7")
     scenario = replace(WalkScenario(), duration=args.duration, kidnap_time=None)
     progress = progress_wanted(args)
-    warm_up_walk(WalkScenario(), "velocity-linear", progress=progress)      # the first run says it compiles
-    runs = [run_seed(seed, args.particles, scenario)
-            for seed in progress_bar(seeds, enabled=progress, desc="penalty", unit="seed")]
+    warm_up_walk(WalkScenario(), "velocity-linear", progress=progress)  # the first run says it compiles
+    runs = [
+        run_seed(seed, args.particles, scenario)
+        for seed in progress_bar(seeds, enabled=progress, desc="penalty", unit="seed")
+    ]
     summary = summarize(runs)
     result = {"particles": args.particles, "duration_s": args.duration, "runs": runs, "summary": summary}
     save_json(args.save, result)
@@ -128,15 +139,18 @@ def main(argv: list[str] | None = None, prog: str = PROG) -> int:
         json.dump(result, sys.stdout, indent=2)
         print()
         return 0
-    print(f"penalty return on a random touchline, {len(runs)} seeds, {args.duration:.0f} s each, "
-          f"{args.particles} particles")
+    print(
+        f"penalty return on a random touchline, {len(runs)} seeds, {args.duration:.0f} s each, "
+        f"{args.particles} particles"
+    )
     for name, _ in STARTS:
         s = summary[name]
         median = "never" if s["converged_median_s"] is None else f"{s['converged_median_s']:.2f} s"
         worst = "never" if s["converged_worst_s"] is None else f"{s['converged_worst_s']:.2f} s"
         endings = ", ".join(f"{e} {n}" for e, n in s["endings"].items())
-        print(f"{name:>15}: converged median {median}, worst {worst} (never: {s['never_converged']}); "
-              f"ends on: {endings}")
+        print(
+            f"{name:>15}: converged median {median}, worst {worst} (never: {s['never_converged']}); ends on: {endings}"
+        )
     return 0
 
 

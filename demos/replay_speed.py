@@ -8,6 +8,7 @@ filter, once without and once with a Rerun recording (particles logged every 5th
 log seconds / wall seconds of reading plus replaying. The filter's kernels are warmed up first
 (`mcl.tools.replay.warm_up_replay`), so no timing counts their compilation; the warm-up's time is reported apart.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -41,13 +42,24 @@ def measure(minutes: float, particles: int, seed: int = 0, progress: bool = Fals
             started = time.perf_counter()
             log, report = read_log(path)
             read_seconds = time.perf_counter() - started
-            result = replay(log, scenario.field, particles=particles, seed=seed, rrd=None if rrd is None else str(rrd),
-                            progress=progress)
+            result = replay(
+                log,
+                scenario.field,
+                particles=particles,
+                seed=seed,
+                rrd=None if rrd is None else str(rrd),
+                progress=progress,
+            )
             total = time.perf_counter() - started
-            out[name] = {"read_s": read_seconds, "replay_s": result.elapsed, "total_s": total,
-                         "real_time_factor": log.duration / total, "steps": int(result.times.shape[0]),
-                         "messages": sum(report.messages.values()),
-                         "rrd_bytes": None if rrd is None else rrd.stat().st_size}
+            out[name] = {
+                "read_s": read_seconds,
+                "replay_s": result.elapsed,
+                "total_s": total,
+                "real_time_factor": log.duration / total,
+                "steps": int(result.times.shape[0]),
+                "messages": sum(report.messages.values()),
+                "rrd_bytes": None if rrd is None else rrd.stat().st_size,
+            }
         return out
 
 
@@ -74,6 +86,7 @@ def main(argv: list[str] | None = None, prog: str = PROG) -> int:
     parser = build_parser(prog)
     args = parser.parse_args(argv)
     from mcl.tools.cli_checks import check_output_file, save_json
+
     check_output_file(args.save, "--save")
     if not (args.minutes > 0 and args.particles > 0):
         parser.error("--minutes and --particles must be > 0")
@@ -83,14 +96,20 @@ def main(argv: list[str] | None = None, prog: str = PROG) -> int:
         json.dump(result, sys.stdout, indent=2)
         print()
         return 0
-    print(f"replay of a {args.minutes:g}-minute log (100 Hz motion, 30 Hz camera; MCAP "
-          f"{result['mcap_bytes'] / 1e6:.1f} MB), {args.particles} particles")
+    print(
+        f"replay of a {args.minutes:g}-minute log (100 Hz motion, 30 Hz camera; MCAP "
+        f"{result['mcap_bytes'] / 1e6:.1f} MB), {args.particles} particles"
+    )
     for name in ("without recording", "with recording"):
         r = result[name]
-        print(f"{name:>18}: read {r['read_s']:.1f} s + replay {r['replay_s']:.1f} s = {r['total_s']:.1f} s, "
-              f"{r['real_time_factor']:.1f}x real time")
-    print(f"warm-up: {'compiled' if result['kernels_cached'] is False else 'kernels ready'} in "
-          f"{result['compile_seconds']:.1f} s, not counted")
+        print(
+            f"{name:>18}: read {r['read_s']:.1f} s + replay {r['replay_s']:.1f} s = {r['total_s']:.1f} s, "
+            f"{r['real_time_factor']:.1f}x real time"
+        )
+    print(
+        f"warm-up: {'compiled' if result['kernels_cached'] is False else 'kernels ready'} in "
+        f"{result['compile_seconds']:.1f} s, not counted"
+    )
     return 0
 
 

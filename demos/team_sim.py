@@ -48,6 +48,7 @@ The world, at the motion rate (dt):
 A message sent at time t arrives at t + latency; it is delivered after the first motion step k whose end
 times[k] = (k + 1)·dt is not before that, like a camera frame.
 """
+
 from __future__ import annotations
 
 import math
@@ -62,55 +63,55 @@ from sensing.team import BallDetection, TeamMessage
 
 # The ranges the team world draws from (uniform unless said otherwise); see the module docstring.
 BALL = {
-    "deceleration": (0.3, 1.5),         # m/s², the rolling friction
-    "kick_rate": (0.03, 0.2),           # kicks per second by unseen players (opponents, the referee's drop)
-    "robot_kick_rate": (0.3, 2.0),      # per second while the robot's feet are at a slow ball
+    "deceleration": (0.3, 1.5),  # m/s², the rolling friction
+    "kick_rate": (0.03, 0.2),  # kicks per second by unseen players (opponents, the referee's drop)
+    "robot_kick_rate": (0.3, 2.0),  # per second while the robot's feet are at a slow ball
 }
-KICK_SPEED = (0.5, 4.0)                 # m/s, per kick
-KICK_REACH = 0.25                       # m, feet to ball centre for a kick
-KICKABLE = 0.5                          # m/s, a ball faster than this is not kicked by a player
-KICK_COOLDOWN = 1.0                     # s between two kicks of one player
-TEAMMATE_KICK_RATE = 1.0                # per second while a teammate's feet are at a slow ball
+KICK_SPEED = (0.5, 4.0)  # m/s, per kick
+KICK_REACH = 0.25  # m, feet to ball centre for a kick
+KICKABLE = 0.5  # m/s, a ball faster than this is not kicked by a player
+KICK_COOLDOWN = 1.0  # s between two kicks of one player
+TEAMMATE_KICK_RATE = 1.0  # per second while a teammate's feet are at a slow ball
 BALL_CAMERA = {
-    "range": (3.0, 7.0),                # m, the farthest the robot's camera finds the ball
-    "min_range": (0.1, 0.3),            # m, closer is below the image
-    "detection": (0.5, 0.98),           # probability per frame with the ball in view and range
-    "range_scale": (0.9, 1.1),          # measured range = scale · true range + noise (a camera pitch error)
-    "range_a": (0.02, 0.2),             # m
-    "range_b": (0.03, 0.15),            # σ_r = a + b·r
-    "bearing_sigma": (0.01, 0.1),       # rad
-    "false_rate": (0.0, 0.05),          # share of frames with a false ball
+    "range": (3.0, 7.0),  # m, the farthest the robot's camera finds the ball
+    "min_range": (0.1, 0.3),  # m, closer is below the image
+    "detection": (0.5, 0.98),  # probability per frame with the ball in view and range
+    "range_scale": (0.9, 1.1),  # measured range = scale · true range + noise (a camera pitch error)
+    "range_a": (0.02, 0.2),  # m
+    "range_b": (0.03, 0.15),  # σ_r = a + b·r
+    "bearing_sigma": (0.01, 0.1),  # rad
+    "false_rate": (0.0, 0.05),  # share of frames with a false ball
 }
-TEAMMATES = (1, 4)                      # how many (a run with a wrong teammate: at least 2)
-GOALKEEPER_CHANCE = 0.5                 # that one of them is the goalkeeper
+TEAMMATES = (1, 4)  # how many (a run with a wrong teammate: at least 2)
+GOALKEEPER_CHANCE = 0.5  # that one of them is the goalkeeper
 PLAYER_NUMBERS = (1, 6)
 TEAMMATE = {
-    "speed": (0.15, 0.4),               # m/s
-    "turn": (0.6, 1.2),                 # rad/s
-    "ball_range": (2.5, 6.0),           # m
-    "see": (0.4, 0.95),                 # probability per look at a ball in range
-    "range_sigma": (0.05, 0.4),         # m, its ball range noise (plus 10 % of the range)
-    "bearing_sigma": (0.02, 0.15),      # rad
-    "bias_position": (0.02, 0.4),       # m, stationary σ of its pose bias (x and y)
-    "bias_heading": (0.01, 0.2),        # rad
-    "bias_time": (2.0, 15.0),           # s, the bias's correlation time
-    "noise_share": (0.1, 0.5),          # white noise σ as a share of the bias σ
-    "stated_scale": (0.3, 3.0),         # stated σ / true σ (log-uniform)
-    "rate": (1.0, 5.0),                 # Hz, messages
-    "max_age": (2.0, 5.0),              # s, an older sighting is not reported
-    "velocity_sigma": (0.1, 0.6),       # m/s, its ball velocity estimate's noise (when it reports one)
+    "speed": (0.15, 0.4),  # m/s
+    "turn": (0.6, 1.2),  # rad/s
+    "ball_range": (2.5, 6.0),  # m
+    "see": (0.4, 0.95),  # probability per look at a ball in range
+    "range_sigma": (0.05, 0.4),  # m, its ball range noise (plus 10 % of the range)
+    "bearing_sigma": (0.02, 0.15),  # rad
+    "bias_position": (0.02, 0.4),  # m, stationary σ of its pose bias (x and y)
+    "bias_heading": (0.01, 0.2),  # rad
+    "bias_time": (2.0, 15.0),  # s, the bias's correlation time
+    "noise_share": (0.1, 0.5),  # white noise σ as a share of the bias σ
+    "stated_scale": (0.3, 3.0),  # stated σ / true σ (log-uniform)
+    "rate": (1.0, 5.0),  # Hz, messages
+    "max_age": (2.0, 5.0),  # s, an older sighting is not reported
+    "velocity_sigma": (0.1, 0.6),  # m/s, its ball velocity estimate's noise (when it reports one)
 }
-VELOCITY_CHANCE = 0.5                   # that a teammate reports a ball velocity
-COVARIANCE_CHANCE = 0.5                 # that a teammate states a covariance (else a confidence)
-LOSS = (0.0, 0.6)                       # share of messages lost, per run
-LATENCY = (0.0, 0.5)                    # s, each message's latency is uniform in [0, latency_max], per run
-CLOCK_OFFSET_CHANCE = 0.3               # runs whose teammates' clocks are off by a constant
-CLOCK_OFFSET = 100.0                    # s, ± that constant, per teammate
-WRONG_SECONDS = (10.0, 40.0)            # the wrong teammate's interval, which covers the kidnapping
+VELOCITY_CHANCE = 0.5  # that a teammate reports a ball velocity
+COVARIANCE_CHANCE = 0.5  # that a teammate states a covariance (else a confidence)
+LOSS = (0.0, 0.6)  # share of messages lost, per run
+LATENCY = (0.0, 0.5)  # s, each message's latency is uniform in [0, latency_max], per run
+CLOCK_OFFSET_CHANCE = 0.3  # runs whose teammates' clocks are off by a constant
+CLOCK_OFFSET = 100.0  # s, ± that constant, per teammate
+WRONG_SECONDS = (10.0, 40.0)  # the wrong teammate's interval, which covers the kidnapping
 WRONG_SIGMA = {"position": (0.03, 0.1), "heading": (0.02, 0.06), "confidence": (0.9, 1.0)}
-LOOK_STEPS = 10                         # motion steps between two looks of a teammate for the ball (10 Hz)
-GOALKEEPER_DEPTH = (0.3, 0.8)           # m in front of its goal line
-GOALKEEPER_RUSH = 1.2                   # m, a ball this close to its spot draws the goalkeeper out
+LOOK_STEPS = 10  # motion steps between two looks of a teammate for the ball (10 Hz)
+GOALKEEPER_DEPTH = (0.3, 0.8)  # m in front of its goal line
+GOALKEEPER_RUSH = 1.2  # m, a ball this close to its spot draws the goalkeeper out
 
 
 @dataclass(frozen=True)
@@ -132,8 +133,10 @@ class SentMessage:
 def deliveries(sent, n_steps: int) -> tuple:
     """The (arrival step, TeamMessage) deliveries of the messages `sent` that are not lost and arrive within the
     run's `n_steps` steps, in the order they arrive (step, then time, then sender)."""
-    kept = sorted((s for s in sent if not s.lost and s.arrival_step < n_steps),
-                  key=lambda s: (s.arrival_step, s.arrival_time, s.message.sender))
+    kept = sorted(
+        (s for s in sent if not s.lost and s.arrival_step < n_steps),
+        key=lambda s: (s.arrival_step, s.arrival_time, s.message.sender),
+    )
     return tuple((s.arrival_step, s.message) for s in kept)
 
 
@@ -217,16 +220,30 @@ def _u(rng: np.random.Generator, bounds: tuple[float, float]) -> float:
 def _draw_teammates(rng: np.random.Generator, field: Field, count: int, wrong: bool) -> tuple[int, list[dict]]:
     """The robot's number and each teammate's parameters, in a fixed drawing order."""
     lo, hi = PLAYER_NUMBERS
-    numbers = [int(v) for v in rng.permutation(np.arange(lo, hi + 1))[:count + 1]]
+    numbers = [int(v) for v in rng.permutation(np.arange(lo, hi + 1))[: count + 1]]
     own = numbers[0]
     keeper = rng.random() < GOALKEEPER_CHANCE
     hl, hw = field.half_length, field.half_width
     mates = []
     for i in range(count):
-        m: dict[str, Any] = {key: _u(rng, TEAMMATE[key])
-                             for key in ("speed", "turn", "ball_range", "see", "range_sigma", "bearing_sigma",
-                                         "bias_position", "bias_heading", "bias_time", "noise_share", "rate",
-                                         "max_age", "velocity_sigma")}
+        m: dict[str, Any] = {
+            key: _u(rng, TEAMMATE[key])
+            for key in (
+                "speed",
+                "turn",
+                "ball_range",
+                "see",
+                "range_sigma",
+                "bearing_sigma",
+                "bias_position",
+                "bias_heading",
+                "bias_time",
+                "noise_share",
+                "rate",
+                "max_age",
+                "velocity_sigma",
+            )
+        }
         lo_s, hi_s = TEAMMATE["stated_scale"]
         m["stated_scale"] = float(math.exp(rng.uniform(math.log(lo_s), math.log(hi_s))))
         m["states"] = "covariance" if rng.random() < COVARIANCE_CHANCE else "confidence"
@@ -250,8 +267,9 @@ def _draw_teammates(rng: np.random.Generator, field: Field, count: int, wrong: b
     return own, mates
 
 
-def _play(rng: np.random.Generator, field: Field, dt: float, robot: np.ndarray, mates: list[dict],
-          ball_params: dict) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[float], dict]:
+def _play(
+    rng: np.random.Generator, field: Field, dt: float, robot: np.ndarray, mates: list[dict], ball_params: dict
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[float], dict]:
     """The ball and the teammates, step by step (they interact through kicks): ball (T + 1, 2), its velocity
     (T + 1, 2), teammates (n, T + 1, 3) with the start at index 0; the goals' times; kick and out counts."""
     n_steps = robot.shape[0] - 1
@@ -271,7 +289,7 @@ def _play(rng: np.random.Generator, field: Field, dt: float, robot: np.ndarray, 
         poses[i, 0] = state[i]
     # The random numbers of the step loop, drawn at once: the unseen kicks and each player's chance to kick.
     chances = rng.random((n_steps, n + 2))
-    cooldown = [0.0] * (n + 1)              # the robot, then each teammate
+    cooldown = [0.0] * (n + 1)  # the robot, then each teammate
     goals: list[float] = []
     counts = {"kicks": 0, "outs": 0}
     field_players = [i for i, m in enumerate(mates) if not m["goalkeeper"]]
@@ -279,8 +297,7 @@ def _play(rng: np.random.Generator, field: Field, dt: float, robot: np.ndarray, 
         t = (k + 1) * dt
         bx, by = float(ball.position[0]), float(ball.position[1])
         # Who walks to the ball: the field player nearest to it; the others hold their position.
-        striker = min(field_players, key=lambda i: (state[i][0] - bx) ** 2 + (state[i][1] - by) ** 2,
-                      default=None)
+        striker = min(field_players, key=lambda i: (state[i][0] - bx) ** 2 + (state[i][1] - by) ** 2, default=None)
         for i, m in enumerate(mates):
             x, y, theta = state[i]
             if m["goalkeeper"]:
@@ -311,12 +328,15 @@ def _play(rng: np.random.Generator, field: Field, dt: float, robot: np.ndarray, 
             players: list[tuple[Any, float, dict | None]] = [(robot[k + 1], ball_params["robot_kick_rate"], None)]
             players += [(state[i], TEAMMATE_KICK_RATE, m) for i, m in enumerate(mates)]
             for j, (pose, rate, mate) in enumerate(players):
-                if (t < cooldown[j] or chances[k, j + 1] >= rate * dt
-                        or math.hypot(pose[0] - bx, pose[1] - by) > KICK_REACH):
+                if (
+                    t < cooldown[j]
+                    or chances[k, j + 1] >= rate * dt
+                    or math.hypot(pose[0] - bx, pose[1] - by) > KICK_REACH
+                ):
                     continue
-                if mate is None:                    # the robot: along its heading
+                if mate is None:  # the robot: along its heading
                     direction = float(pose[2]) + float(rng.uniform(-0.3, 0.3))
-                else:                               # a teammate: toward the opponent goal
+                else:  # a teammate: toward the opponent goal
                     spread = 0.8 if mate["goalkeeper"] else 0.4
                     direction = math.atan2(-by, hl - bx) + float(rng.uniform(-spread, spread))
                 ball.kick(_u(rng, KICK_SPEED), direction)
@@ -333,8 +353,15 @@ def _play(rng: np.random.Generator, field: Field, dt: float, robot: np.ndarray, 
     return balls, velocities, poses, goals, counts
 
 
-def _robot_ball(rng: np.random.Generator, dt: float, robot: np.ndarray, balls: np.ndarray, frames,
-                fov_deg: float, blind: tuple[float, float] | None) -> tuple[tuple, np.ndarray, dict]:
+def _robot_ball(
+    rng: np.random.Generator,
+    dt: float,
+    robot: np.ndarray,
+    balls: np.ndarray,
+    frames,
+    fov_deg: float,
+    blind: tuple[float, float] | None,
+) -> tuple[tuple, np.ndarray, dict]:
     """The robot's ball detection in each frame (all frames at once), whether it is a false ball, the drawn
     camera parameters."""
     c = {key: _u(rng, bounds) for key, bounds in BALL_CAMERA.items()}
@@ -350,8 +377,7 @@ def _robot_ball(rng: np.random.Generator, dt: float, robot: np.ndarray, balls: n
     half_fov = 0.5 * math.radians(fov_deg)
     visible = (np.abs(wrap_angles(bearing - heads)) <= half_fov) & (r >= c["min_range"]) & (r <= c["range"])
     seen = visible & (rng.random(n_frames) < c["detection"])
-    ranges = np.maximum(c["range_scale"] * r + (c["range_a"] + c["range_b"] * r) * rng.standard_normal(n_frames),
-                        0.0)
+    ranges = np.maximum(c["range_scale"] * r + (c["range_a"] + c["range_b"] * r) * rng.standard_normal(n_frames), 0.0)
     bearings = wrap_angles(bearing + c["bearing_sigma"] * rng.standard_normal(n_frames))
     # A false ball (a robot's foot, a white spot) replaces the frame's detection, somewhere in the view.
     false = rng.random(n_frames) < c["false_rate"]
@@ -385,12 +411,21 @@ def _pose_errors(rng: np.random.Generator, m: dict, n_looks: int, look_dt: float
     return bias + rng.standard_normal((n_looks, 3)) * sigma * m["noise_share"]
 
 
-def _messages(rng: np.random.Generator, dt: float, duration: float, n_steps: int, balls: np.ndarray,
-              velocities: np.ndarray, poses: np.ndarray, mates: list[dict], comm: dict,
-              wrong_interval: tuple[float, float] | None) -> list[SentMessage]:
+def _messages(
+    rng: np.random.Generator,
+    dt: float,
+    duration: float,
+    n_steps: int,
+    balls: np.ndarray,
+    velocities: np.ndarray,
+    poses: np.ndarray,
+    mates: list[dict],
+    comm: dict,
+    wrong_interval: tuple[float, float] | None,
+) -> list[SentMessage]:
     """Every teammate's looks for the ball and messages; the messages in send order (all teammates)."""
     look_dt = LOOK_STEPS * dt
-    looks = np.arange(0, n_steps + 1, LOOK_STEPS)           # indices into the (T + 1) arrays
+    looks = np.arange(0, n_steps + 1, LOOK_STEPS)  # indices into the (T + 1) arrays
     look_times = looks * dt
     n_looks = looks.shape[0]
     sent: list[SentMessage] = []
@@ -402,8 +437,9 @@ def _messages(rng: np.random.Generator, dt: float, duration: float, n_steps: int
         if m.get("wrong") and wrong_interval is not None:
             wrong = (look_times >= wrong_interval[0]) & (look_times <= wrong_interval[1])
             # The point mirror of its truth, off by a small share of its error (it is sure of itself).
-            believed[wrong] = (np.column_stack([-truth[wrong, :2], truth[wrong, 2:] + math.pi])
-                               + error[wrong] * m["noise_share"])
+            believed[wrong] = (
+                np.column_stack([-truth[wrong, :2], truth[wrong, 2:] + math.pi]) + error[wrong] * m["noise_share"]
+            )
         believed[:, 2] = wrap_angles(believed[:, 2])
         # Its looks for the ball, placed on the field through what it believes.
         d = balls[looks] - truth[:, :2]
@@ -418,8 +454,9 @@ def _messages(rng: np.random.Generator, dt: float, duration: float, n_steps: int
         turn = believed[:, 2] - truth[:, 2]
         v = velocities[looks]
         c, s = np.cos(turn), np.sin(turn)
-        velocity_est = (np.column_stack([c * v[:, 0] - s * v[:, 1], s * v[:, 0] + c * v[:, 1]])
-                        + m["velocity_sigma"] * rng.standard_normal((n_looks, 2)))
+        velocity_est = np.column_stack([c * v[:, 0] - s * v[:, 1], s * v[:, 0] + c * v[:, 1]]) + m[
+            "velocity_sigma"
+        ] * rng.standard_normal((n_looks, 2))
         last = np.maximum.accumulate(np.where(seen, np.arange(n_looks), -1))
         # What it says about its own error: the true σ scaled by its over- or under-confidence.
         true_position = m["bias_position"] * math.hypot(1.0, m["noise_share"])
@@ -428,23 +465,24 @@ def _messages(rng: np.random.Generator, dt: float, duration: float, n_steps: int
         interval = 1.0 / m["rate"]
         count = int(duration / (0.5 * interval)) + 2
         times = float(rng.uniform(0.0, interval)) + np.concatenate(
-            [[0.0], np.cumsum(interval * rng.uniform(0.5, 1.5, count))])
+            [[0.0], np.cumsum(interval * rng.uniform(0.5, 1.5, count))]
+        )
         times = times[times < duration]
         lost = rng.random(times.shape[0]) < comm["loss"]
         latency = rng.uniform(0.0, comm["latency_max"], times.shape[0])
-        jitter = np.exp(0.2 * rng.standard_normal(times.shape[0]))     # its stated σ wanders a little
+        jitter = np.exp(0.2 * rng.standard_normal(times.shape[0]))  # its stated σ wanders a little
         # What it states while wrong (sure of itself), per message.
         wrong_position, wrong_heading, wrong_confidence = (
             np.asarray(rng.uniform(WRONG_SIGMA[key][0], WRONG_SIGMA[key][1], times.shape[0]))
-            for key in ("position", "heading", "confidence"))
+            for key in ("position", "heading", "confidence")
+        )
         for j, t in enumerate(times.tolist()):
-            g = min(int(t / look_dt + 1e-9), n_looks - 1)            # its last look at or before t
+            g = min(int(t / look_dt + 1e-9), n_looks - 1)  # its last look at or before t
             step = min(int(round(t / dt)), n_steps)
             pose_truth = poses[i, step]
             # Its pose now: the truth now, off by its error at its last look (mirrored when wrong then).
             if wrong[g]:
-                pose = (np.array([-pose_truth[0], -pose_truth[1], pose_truth[2] + math.pi])
-                        + error[g] * m["noise_share"])
+                pose = np.array([-pose_truth[0], -pose_truth[1], pose_truth[2] + math.pi]) + error[g] * m["noise_share"]
                 sp, sh = float(wrong_position[j]), float(wrong_heading[j])
                 confidence = float(wrong_confidence[j])
             else:
@@ -459,26 +497,53 @@ def _messages(rng: np.random.Generator, dt: float, duration: float, n_steps: int
             has_ball = age <= m["max_age"]
             offset = m["clock_offset"]
             message = TeamMessage(
-                sender=m["number"], time=t - offset, pose=(float(pose[0]), float(pose[1]), float(pose[2])),
-                pose_covariance=covariance, confidence=None if covariance is not None else confidence,
+                sender=m["number"],
+                time=t - offset,
+                pose=(float(pose[0]), float(pose[1]), float(pose[2])),
+                pose_covariance=covariance,
+                confidence=None if covariance is not None else confidence,
                 is_goalkeeper=m["goalkeeper"],
                 ball=(float(ball_est[h, 0]), float(ball_est[h, 1])) if has_ball else None,
-                ball_velocity=((float(velocity_est[h, 0]), float(velocity_est[h, 1]))
-                               if has_ball and m["reports_velocity"] else None),
-                ball_age=float(age) if has_ball else 0.0, clock_offset=offset)
+                ball_velocity=(
+                    (float(velocity_est[h, 0]), float(velocity_est[h, 1]))
+                    if has_ball and m["reports_velocity"]
+                    else None
+                ),
+                ball_age=float(age) if has_ball else 0.0,
+                clock_offset=offset,
+            )
             arrival = t + float(latency[j])
             arrival_step = max(int(math.ceil(arrival / dt - 1e-9)) - 1, 0)
             true_ball = balls[looks[h]] if has_ball else None
-            sent.append(SentMessage(message, t, arrival, arrival_step, bool(lost[j]), bool(wrong[g]),
-                                    (float(pose_truth[0]), float(pose_truth[1]), float(pose_truth[2])),
-                                    None if true_ball is None else (float(true_ball[0]), float(true_ball[1]))))
+            sent.append(
+                SentMessage(
+                    message,
+                    t,
+                    arrival,
+                    arrival_step,
+                    bool(lost[j]),
+                    bool(wrong[g]),
+                    (float(pose_truth[0]), float(pose_truth[1]), float(pose_truth[2])),
+                    None if true_ball is None else (float(true_ball[0]), float(true_ball[1])),
+                )
+            )
     sent.sort(key=lambda s: (s.send_time, s.message.sender))
     return sent
 
 
-def simulate_team(rng: np.random.Generator, field: Field, dt: float, robot: np.ndarray, frames, fov_deg: float,
-                  teammates: tuple[int, int] = TEAMMATES, messages_on: bool = True, wrong: bool = False,
-                  kidnap_time: float | None = None, blind: tuple[float, float] | None = None) -> TeamWorld:
+def simulate_team(
+    rng: np.random.Generator,
+    field: Field,
+    dt: float,
+    robot: np.ndarray,
+    frames,
+    fov_deg: float,
+    teammates: tuple[int, int] = TEAMMATES,
+    messages_on: bool = True,
+    wrong: bool = False,
+    kidnap_time: float | None = None,
+    blind: tuple[float, float] | None = None,
+) -> TeamWorld:
     """The team world of one run, drawn from `rng` alone.
 
     Parameters
@@ -511,8 +576,11 @@ def simulate_team(rng: np.random.Generator, field: Field, dt: float, robot: np.n
     ball_params = {key: _u(rng, bounds) for key, bounds in BALL.items()}
     count = int(rng.integers(max(teammates[0], 2 if wrong else 1), teammates[1] + 1))
     own, mates = _draw_teammates(rng, field, count, wrong)
-    comm = {"loss": _u(rng, LOSS), "latency_max": _u(rng, LATENCY),
-            "clock_offsets": bool(rng.random() < CLOCK_OFFSET_CHANCE)}
+    comm = {
+        "loss": _u(rng, LOSS),
+        "latency_max": _u(rng, LATENCY),
+        "clock_offsets": bool(rng.random() < CLOCK_OFFSET_CHANCE),
+    }
     for m in mates:
         m["clock_offset"] = float(rng.uniform(-CLOCK_OFFSET, CLOCK_OFFSET)) if comm["clock_offsets"] else 0.0
     wrong_interval = None
@@ -528,14 +596,34 @@ def simulate_team(rng: np.random.Generator, field: Field, dt: float, robot: np.n
     delivered = deliveries(sent, n_steps) if messages_on else ()
     keeper = next((m["number"] for m in mates if m["goalkeeper"]), None)
     params = {
-        "messages_on": bool(messages_on), "own_number": own, "ball": ball_params, "ball_camera": camera,
-        **comm, "teammates": mates,
-        "wrong": None if wrong_interval is None else {
+        "messages_on": bool(messages_on),
+        "own_number": own,
+        "ball": ball_params,
+        "ball_camera": camera,
+        **comm,
+        "teammates": mates,
+        "wrong": None
+        if wrong_interval is None
+        else {
             "number": next(m["number"] for m in mates if m.get("wrong")),
-            "start": float(wrong_interval[0]), "end": float(wrong_interval[1])},
-        "goals": [float(t) for t in goals], **counts,
-        "sent": len(sent), "delivered": len(delivered),
+            "start": float(wrong_interval[0]),
+            "end": float(wrong_interval[1]),
+        },
+        "goals": [float(t) for t in goals],
+        **counts,
+        "sent": len(sent),
+        "delivered": len(delivered),
     }
-    return TeamWorld(balls[1:], velocities[1:], detections, ball_false, tuple(m["number"] for m in mates), keeper,
-                     poses[:, 1:], tuple(sent), delivered,
-                     tuple(goals), params)
+    return TeamWorld(
+        balls[1:],
+        velocities[1:],
+        detections,
+        ball_false,
+        tuple(m["number"] for m in mates),
+        keeper,
+        poses[:, 1:],
+        tuple(sent),
+        delivered,
+        tuple(goals),
+        params,
+    )

@@ -24,6 +24,7 @@ logs (`--holdout`), per held-out log, and a convergence and a parameter-importan
 With truth in the logs and the evidence objective, it also gives the rank correlation of evidence and error
 over the trials. `--json` prints everything as JSON, `--save PATH` writes it to a file.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -40,17 +41,34 @@ def build_parser(prog: str = PROG) -> argparse.ArgumentParser:
     parser.add_argument("logs", nargs="*", metavar="LOG", help="training logs (MCAP, .npz or a CSV folder)")
     parser.add_argument("--space", required=True, metavar="TOML", help="the settings to tune and their ranges")
     parser.add_argument("--trials", type=positive_int, required=True, help="completed trials to reach")
-    parser.add_argument("--holdout", nargs="+", default=[], metavar="LOG",
-                        help="held-out logs: the defaults and the tuned profile are compared on them")
-    parser.add_argument("--battery", type=positive_int, metavar="K",
-                        help="tune on the evaluation battery's training seeds 0..K-1 instead of logs")
-    parser.add_argument("--battery-holdout", type=positive_int, default=10, metavar="H",
-                        help="with --battery: report on held-out seeds 1000..1000+H-1 (default 10)")
-    parser.add_argument("--families", default=None,
-                        help="with --battery: comma-separated families (default: all)")
+    parser.add_argument(
+        "--holdout",
+        nargs="+",
+        default=[],
+        metavar="LOG",
+        help="held-out logs: the defaults and the tuned profile are compared on them",
+    )
+    parser.add_argument(
+        "--battery",
+        type=positive_int,
+        metavar="K",
+        help="tune on the evaluation battery's training seeds 0..K-1 instead of logs",
+    )
+    parser.add_argument(
+        "--battery-holdout",
+        type=positive_int,
+        default=10,
+        metavar="H",
+        help="with --battery: report on held-out seeds 1000..1000+H-1 (default 10)",
+    )
+    parser.add_argument("--families", default=None, help="with --battery: comma-separated families (default: all)")
     parser.add_argument("--duration", type=float, default=60.0, help="with --battery: seconds per run (default 60)")
-    parser.add_argument("--objective", default="auto", choices=("auto", "truth", "evidence"),
-                        help="what to minimize (default auto: truth when every training log has it)")
+    parser.add_argument(
+        "--objective",
+        default="auto",
+        choices=("auto", "truth", "evidence"),
+        help="what to minimize (default auto: truth when every training log has it)",
+    )
     parser.add_argument("--seeds", type=positive_int, default=1, help="filter seeds per log (default 1)")
     parser.add_argument("--sampler", default="tpe", choices=("tpe", "cmaes"), help="Optuna's sampler (default tpe)")
     parser.add_argument("--seed", type=int, default=0, help="the sampler's seed (default 0)")
@@ -58,12 +76,17 @@ def build_parser(prog: str = PROG) -> argparse.ArgumentParser:
     parser.add_argument("--out", metavar="TOML", help="write the tuned profile here")
     parser.add_argument("--plots", metavar="DIR", help="write convergence.png and importance.png here")
     parser.add_argument("--address", help="an existing Ray cluster (HOST:PORT); default: a local Ray instance")
-    parser.add_argument("--workers", type=positive_int, default=None,
-                        help="CPUs of the local Ray instance (default: the machine's)")
-    parser.add_argument("--parallel-trials", type=positive_int, default=1,
-                        help="trials proposed and evaluated at once (default 1)")
-    parser.add_argument("--field", default="spl",
-                        help="the logs' field: spl, kidsize, adultsize, or a field file (.toml/.json) (default spl)")
+    parser.add_argument(
+        "--workers", type=positive_int, default=None, help="CPUs of the local Ray instance (default: the machine's)"
+    )
+    parser.add_argument(
+        "--parallel-trials", type=positive_int, default=1, help="trials proposed and evaluated at once (default 1)"
+    )
+    parser.add_argument(
+        "--field",
+        default="spl",
+        help="the logs' field: spl, kidsize, adultsize, or a field file (.toml/.json) (default spl)",
+    )
     parser.add_argument("--particles", type=positive_int, default=500, help="particles (default 500)")
     parser.add_argument("--json", action="store_true", help="the results as JSON on stdout instead of the report")
     add_save_option(parser)
@@ -88,14 +111,15 @@ def _cases(parser, args):
         families = parse_families(parser, args.families) if args.families else list(FAMILIES)
         check_duration(parser, args.duration, 10.0)
         train = tuple(BatteryCase(f, s, args.duration) for s in split_seeds("train", args.battery) for f in families)
-        held = tuple(BatteryCase(f, s, args.duration) for s in split_seeds("holdout", args.battery_holdout)
-                     for f in families)
+        held = tuple(
+            BatteryCase(f, s, args.duration) for s in split_seeds("holdout", args.battery_holdout) for f in families
+        )
         return train, held, True
     if not args.logs:
         parser.error("give training LOGs, or --battery K")
     from field.io import field_by_name_or_path
 
-    field_by_name_or_path(args.field)          # an unknown preset or a bad field file: one line, before Ray starts
+    field_by_name_or_path(args.field)  # an unknown preset or a bad field file: one line, before Ray starts
     truth = True
     topics = topics_from_args(args)
     for group in (args.logs, args.holdout):
@@ -107,8 +131,11 @@ def _cases(parser, args):
             check_inputs(log)
             if group is args.logs:
                 truth = truth and log.has_truth
-    return (tuple(LogCase(p, args.field, topics) for p in args.logs),
-            tuple(LogCase(p, args.field, topics) for p in args.holdout), truth)
+    return (
+        tuple(LogCase(p, args.field, topics) for p in args.logs),
+        tuple(LogCase(p, args.field, topics) for p in args.holdout),
+        truth,
+    )
 
 
 def _warm_up(cases, field: str, progress: bool) -> None:
@@ -127,8 +154,9 @@ def _warm_up(cases, field: str, progress: bool) -> None:
     from mcl.tools.logs import read_log
     from mcl.tools.replay import warm_up_replay
 
-    warm_up_replay(read_log(case.path, topics=case.topics)[0], field_by_name_or_path(field), "velocity-linear",
-                   progress=progress)
+    warm_up_replay(
+        read_log(case.path, topics=case.topics)[0], field_by_name_or_path(field), "velocity-linear", progress=progress
+    )
 
 
 def run(args, parser) -> dict:
@@ -149,8 +177,17 @@ def run(args, parser) -> dict:
         objective = "truth" if has_truth else "evidence"
     elif objective == "truth" and not has_truth:
         parser.error("--objective truth needs ground truth in every training log (use evidence)")
-    settings = TuneSettings(train, space, objective, args.trials, tuple(range(args.seeds)), args.sampler, args.seed,
-                            args.particles, args.parallel_trials)
+    settings = TuneSettings(
+        train,
+        space,
+        objective,
+        args.trials,
+        tuple(range(args.seeds)),
+        args.sampler,
+        args.seed,
+        args.particles,
+        args.parallel_trials,
+    )
     if args.address:
         check_address(args.address)
     progress = progress_wanted(args)
@@ -171,13 +208,25 @@ def run(args, parser) -> dict:
             ray.shutdown()
     result["ray"] = {**info, **result["ray"]}
     result["settings"] = {
-        "trials": args.trials, "sampler": args.sampler, "seed": args.seed, "objective": objective,
-        "seeds": list(settings.seeds), "training_cases": len(train), "holdout_cases": len(held),
-        "cases": [c.label for c in train], "holdout": [c.label for c in held], "space": space.to_dict(),
-        "space_file": args.space, "study": args.study, "field": args.field, "particles": args.particles,
-        "parallel_trials": args.parallel_trials, "battery": args.battery,
+        "trials": args.trials,
+        "sampler": args.sampler,
+        "seed": args.seed,
+        "objective": objective,
+        "seeds": list(settings.seeds),
+        "training_cases": len(train),
+        "holdout_cases": len(held),
+        "cases": [c.label for c in train],
+        "holdout": [c.label for c in held],
+        "space": space.to_dict(),
+        "space_file": args.space,
+        "study": args.study,
+        "field": args.field,
+        "particles": args.particles,
+        "parallel_trials": args.parallel_trials,
+        "battery": args.battery,
         "battery_holdout": args.battery_holdout if args.battery else None,
-        "tasks_per_trial": len(train) * len(settings.seeds)}
+        "tasks_per_trial": len(train) * len(settings.seeds),
+    }
     return result
 
 
@@ -192,19 +241,25 @@ def main(argv: list[str] | None = None, prog: str = PROG) -> int:
 
     if importlib.util.find_spec("ray") is None or importlib.util.find_spec("optuna") is None:
         from mcl.tools.cli_checks import CommandError
+
         raise CommandError("tune needs Ray and Optuna: pip install 'robocup-mcl[tune]'")
     check_output_file(args.save, "--save")
     check_output_file(args.out, "--out")
     result = run(args, parser)
     if args.out:
-        Profile.from_values(result["best"]["values"]).save(args.out, header=[
-            f"robocup-mcl tune: best of {args.trials} trials, objective {result['settings']['objective']}",
-            f"training: {', '.join(result['settings']['cases'][:6])}"
-            + (", ..." if len(result["settings"]["cases"]) > 6 else ""),
-            f"search space: {args.space}"])
+        Profile.from_values(result["best"]["values"]).save(
+            args.out,
+            header=[
+                f"robocup-mcl tune: best of {args.trials} trials, objective {result['settings']['objective']}",
+                f"training: {', '.join(result['settings']['cases'][:6])}"
+                + (", ..." if len(result["settings"]["cases"]) > 6 else ""),
+                f"search space: {args.space}",
+            ],
+        )
         result["profile"] = args.out
     if args.plots:
         from mcl.tools.tuning.report import plot
+
         result["plots"] = plot(result, args.plots)
     from mcl.tools.tuning.report import format_report
 

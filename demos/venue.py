@@ -15,6 +15,7 @@ So with the defaults (1.2 and 1.2) the venue is 20 % off the defaults in both. T
 not read; the report uses it to say how far off each profile is. Log i (venue-00i.npz) is the battery's run of
 seed first + 3·i: with `--first` a multiple of 3 every log is on the SPL field (a venue has one field).
 """
+
 from __future__ import annotations
 
 import argparse
@@ -22,7 +23,7 @@ import math
 import os
 
 PROG = "robocup-mcl demo venue"
-STRIDE = 3          # the battery's field cycles with the seed (FIELDS[seed % 3]): one field per venue
+STRIDE = 3  # the battery's field cycles with the seed (FIELDS[seed % 3]): one field per venue
 
 
 def venue_overrides(scale: float, noise: float) -> dict:
@@ -30,14 +31,24 @@ def venue_overrides(scale: float, noise: float) -> dict:
     from mcl.profile import default_values
 
     defaults = default_values()
-    return {"odometry_scale": [scale] * 3, "range_law": "quadratic",
-            "range_a": noise * defaults["sensor.range_noise_floor"],
-            "range_growth": noise * defaults["sensor.range_noise_growth"],
-            "bearing_sigma": noise * defaults["sensor.bearing_sigma"]}
+    return {
+        "odometry_scale": [scale] * 3,
+        "range_law": "quadratic",
+        "range_a": noise * defaults["sensor.range_noise_floor"],
+        "range_growth": noise * defaults["sensor.range_noise_growth"],
+        "bearing_sigma": noise * defaults["sensor.bearing_sigma"],
+    }
 
 
-def write_venue(out: str, logs: int = 12, first: int = 0, duration: float = 60.0, scale: float = 1.2,
-                noise: float = 1.2, progress: bool = False) -> dict:
+def write_venue(
+    out: str,
+    logs: int = 12,
+    first: int = 0,
+    duration: float = 60.0,
+    scale: float = 1.2,
+    noise: float = 1.2,
+    progress: bool = False,
+) -> dict:
     """Write the venue's logs to the folder `out`; returns {"files", "overrides", "fields"}."""
     from mcl.tools.cli_checks import progress_bar
     from mcl.tools.logs import write_log
@@ -57,8 +68,15 @@ def write_venue(out: str, logs: int = 12, first: int = 0, duration: float = 60.0
         fields.append(run.field.name)
         bar.update(1)
     bar.close()
-    return {"files": files, "fields": fields, "overrides": overrides, "scale": scale, "noise": noise,
-            "duration_s": duration, "seeds": [first + STRIDE * i for i in range(logs)]}
+    return {
+        "files": files,
+        "fields": fields,
+        "overrides": overrides,
+        "scale": scale,
+        "noise": noise,
+        "duration_s": duration,
+        "seeds": [first + STRIDE * i for i in range(logs)],
+    }
 
 
 def build_parser(prog: str = PROG) -> argparse.ArgumentParser:
@@ -71,8 +89,9 @@ def build_parser(prog: str = PROG) -> argparse.ArgumentParser:
     parser.add_argument("--first", type=int, default=0, help="the first log's seed (default 0)")
     parser.add_argument("--duration", type=float, default=60.0, help="seconds per log (default 60, at least 10)")
     parser.add_argument("--scale", type=float, default=1.2, help="odometry scale of the venue (default 1.2)")
-    parser.add_argument("--noise", type=float, default=1.2,
-                        help="detection noise as a multiple of the default model's (default 1.2)")
+    parser.add_argument(
+        "--noise", type=float, default=1.2, help="detection noise as a multiple of the default model's (default 1.2)"
+    )
     parser.add_argument("--json", action="store_true", help="print what was written as JSON")
     add_save_option(parser)
     add_progress_option(parser)
@@ -100,13 +119,14 @@ def main(argv: list[str] | None = None, prog: str = PROG) -> int:
             parser.error(f"--{name} {value} must lie in [0.1, 10]")
     check_output_directory(args.out, "--out")
     check_output_file(args.save, "--save")
-    result = write_venue(args.out, args.logs, args.first, args.duration, args.scale, args.noise,
-                         progress_wanted(args))
+    result = write_venue(args.out, args.logs, args.first, args.duration, args.scale, args.noise, progress_wanted(args))
 
     def printer(r: dict) -> None:
-        print(f"{len(r['files'])} logs of {r['duration_s']:g} s on the {', '.join(sorted(set(r['fields'])))} field "
-              f"written to {args.out} (odometry ×{r['scale']:g}, detection noise ×{r['noise']:g} the defaults): "
-              f"{', '.join(os.path.basename(f) for f in r['files'])}")
+        print(
+            f"{len(r['files'])} logs of {r['duration_s']:g} s on the {', '.join(sorted(set(r['fields'])))} field "
+            f"written to {args.out} (odometry ×{r['scale']:g}, detection noise ×{r['noise']:g} the defaults): "
+            f"{', '.join(os.path.basename(f) for f in r['files'])}"
+        )
 
     save_and_print(result, args.save, args.json, printer)
     return 0

@@ -17,6 +17,7 @@ cache afterwards. ms/step is measured after the warm-up; the warm-up's time is r
 41 s"; compile_seconds in the JSON), and first_step_s is the time from the command's start to the end of the
 first filter step.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -37,8 +38,8 @@ from sensing.view import CameraView
 from .walk_sim import WalkLog, WalkScenario, simulate
 
 MODELS = {"constant": ConstantNoise, "velocity-linear": VelocityLinear}
-CONVERGED = 0.3     # m
-HOLD = 1.0          # s the error must stay below CONVERGED
+CONVERGED = 0.3  # m
+HOLD = 1.0  # s the error must stay below CONVERGED
 
 
 def settle_time(errors: np.ndarray, times: np.ndarray, start: int, end: int, dt: float) -> float | None:
@@ -58,8 +59,9 @@ def camera_view(scenario: WalkScenario, frame) -> CameraView:
     return CameraView(frame.head_angle, 0.5 * scenario.field_of_view, scenario.max_range, scenario.min_range)
 
 
-def walk_filter(scenario: WalkScenario, model: str, particles: int, seed: int,
-                sensor: LandmarkSensorModel | None = None) -> ParticleFilter:
+def walk_filter(
+    scenario: WalkScenario, model: str, particles: int, seed: int, sensor: LandmarkSensorModel | None = None
+) -> ParticleFilter:
     """The demo's filter for `scenario`: the motion `model`, the landmark model (and the line model with
     `scenario.lines`) unless `sensor` is given, uniform over the own half."""
     if sensor is None:
@@ -94,9 +96,18 @@ def warm_up_walk(scenario: WalkScenario, model: str, view: bool = False, progres
     return warm_up(stages, filter_kernels(pf), progress=progress)
 
 
-def run_walk(model: str = "velocity-linear", particles: int = 500, seed: int = 0, rrd: str | None = None,
-             scenario: WalkScenario = WalkScenario(), sensor: LandmarkSensorModel | None = None,
-             record_every: int = 5, series: bool = False, view: bool = False, progress: bool = False) -> dict:
+def run_walk(
+    model: str = "velocity-linear",
+    particles: int = 500,
+    seed: int = 0,
+    rrd: str | None = None,
+    scenario: WalkScenario = WalkScenario(),
+    sensor: LandmarkSensorModel | None = None,
+    record_every: int = 5,
+    series: bool = False,
+    view: bool = False,
+    progress: bool = False,
+) -> dict:
     """Simulate the scenario with `seed`, run the filter on it, and return the figures.
 
     With `view`, each frame comes with its camera view (`sensing.view.CameraView`: the head's pan, the
@@ -113,11 +124,12 @@ def run_walk(model: str = "velocity-linear", particles: int = 500, seed: int = 0
     recorder = None
     if rrd:
         from mcl.tools.recording import Recorder
+
         recorder = Recorder(rrd, scenario.field, particles_every=record_every)
     n = log.times.shape[0]
     estimates = np.empty((n, 3))
     entropy = np.empty((n, 2))
-    fit = np.full(n, np.nan)     # w_fast after each correction: augmented MCL's short-term fit
+    fit = np.full(n, np.nan)  # w_fast after each correction: augmented MCL's short-term fit
     frames = {frame.step: frame for frame in log.frames}
     first_step_at = None
     steps = progress_bar(range(n), enabled=progress, desc=f"seed {seed}", unit="step", mininterval=0.25)
@@ -134,11 +146,18 @@ def run_walk(model: str = "velocity-linear", particles: int = 500, seed: int = 0
         if first_step_at is None:
             first_step_at = time.perf_counter()
         if recorder is not None:
-            recorder.log_step(k, float(log.times[k]), pf, truth=log.truth[k],
-                              observations=frame.observations if frame is not None else None, entropy=h)
+            recorder.log_step(
+                k,
+                float(log.times[k]),
+                pf,
+                truth=log.truth[k],
+                observations=frame.observations if frame is not None else None,
+                entropy=h,
+            )
             if log.kidnap_step is not None and k == log.kidnap_step + 1:
-                recorder.log_event("kidnap", f"the robot was carried {scenario.kidnap_distance:g} m "
-                                   "(heading kept)", level="WARN")
+                recorder.log_event(
+                    "kidnap", f"the robot was carried {scenario.kidnap_distance:g} m (heading kept)", level="WARN"
+                )
     elapsed = time.perf_counter() - started
     steps.close()
     if recorder is not None:
@@ -150,8 +169,17 @@ def run_walk(model: str = "velocity-linear", particles: int = 500, seed: int = 0
     return result
 
 
-def summarize(log: WalkLog, estimates: np.ndarray, entropy: np.ndarray, elapsed: float, model: str,
-              particles: int, seed: int, rrd: str | None, fit: np.ndarray | None = None) -> dict:
+def summarize(
+    log: WalkLog,
+    estimates: np.ndarray,
+    entropy: np.ndarray,
+    elapsed: float,
+    model: str,
+    particles: int,
+    seed: int,
+    rrd: str | None,
+    fit: np.ndarray | None = None,
+) -> dict:
     truth, times, dt = log.truth, log.times, log.dt
     position_error = np.hypot(*(estimates[:, :2] - truth[:, :2]).T)
     heading_error = np.abs(wrap_angles(estimates[:, 2] - truth[:, 2]))
@@ -161,27 +189,35 @@ def summarize(log: WalkLog, estimates: np.ndarray, entropy: np.ndarray, elapsed:
     reconverged = settle_time(position_error, times, kidnap, n, dt) if kidnap < n else None
     tracking = np.zeros(n, dtype=bool)
     if converged is not None:
-        tracking[int(round(converged / dt)):kidnap] = True
+        tracking[int(round(converged / dt)) : kidnap] = True
     if reconverged is not None:
-        tracking[kidnap + int(round(reconverged / dt)):] = True
+        tracking[kidnap + int(round(reconverged / dt)) :] = True
     mirror = truth.copy()
     mirror[:, :2] *= -1.0
     mirror[:, 2] = wrap_angles(truth[:, 2] + math.pi)
-    on_mirror = ((np.hypot(*(estimates[:, :2] - mirror[:, :2]).T) < 0.5)
-                 & (np.abs(wrap_angles(estimates[:, 2] - mirror[:, 2])) < 0.5))
+    on_mirror = (np.hypot(*(estimates[:, :2] - mirror[:, :2]).T) < 0.5) & (
+        np.abs(wrap_angles(estimates[:, 2] - mirror[:, 2])) < 0.5
+    )
 
     def rmse(values):
         return float(np.sqrt(np.mean(values[tracking] ** 2))) if tracking.any() else None
 
     return {
-        "model": model, "particles": particles, "seed": seed, "lines": log.scenario.lines,
-        "converged_s": converged, "reconverged_s": reconverged,
-        "position_rmse_m": rmse(position_error), "heading_rmse_deg": None if rmse(heading_error) is None
-        else math.degrees(rmse(heading_error)),
-        "tracking_share": float(tracking.mean()), "mirror_share": float(on_mirror.mean()),
+        "model": model,
+        "particles": particles,
+        "seed": seed,
+        "lines": log.scenario.lines,
+        "converged_s": converged,
+        "reconverged_s": reconverged,
+        "position_rmse_m": rmse(position_error),
+        "heading_rmse_deg": None if rmse(heading_error) is None else math.degrees(rmse(heading_error)),
+        "tracking_share": float(tracking.mean()),
+        "mirror_share": float(on_mirror.mean()),
         "final_position_error_m": float(position_error[-1]),
         "mean_entropy_bits": {"position": float(entropy[:, 0].mean()), "orientation": float(entropy[:, 1].mean())},
-        "filter_seconds": elapsed, "steps": n, "ms_per_step": 1e3 * elapsed / n,
+        "filter_seconds": elapsed,
+        "steps": n,
+        "ms_per_step": 1e3 * elapsed / n,
         "rrd": rrd,
         "_fit": _fit_samples(fit, position_error),
     }
@@ -204,12 +240,18 @@ def fit_figures(runs: list[dict]) -> dict:
     def pct(values, q):
         return float(np.percentile(values, q)) if values.size else None
 
-    return {"tracking_p1": pct(tracking, 1), "tracking_p5": pct(tracking, 5), "lost_p50": pct(lost, 50),
-            "lost_p95": pct(lost, 95), "tracking_frames": int(tracking.size), "lost_frames": int(lost.size)}
+    return {
+        "tracking_p1": pct(tracking, 1),
+        "tracking_p5": pct(tracking, 5),
+        "lost_p50": pct(lost, 50),
+        "lost_p95": pct(lost, 95),
+        "tracking_frames": int(tracking.size),
+        "lost_frames": int(lost.size),
+    }
 
 
 def parse_seeds(text: str) -> list[int]:
-    """"3" → [3]; "0-9" → [0..9]; "1,4,7" → [1, 4, 7]."""
+    """ "3" → [3]; "0-9" → [0..9]; "1,4,7" → [1, 4, 7]."""
     seeds: list[int] = []
     for part in text.split(","):
         if "-" in part.strip()[1:]:
@@ -224,6 +266,7 @@ def parse_seeds(text: str) -> list[int]:
 
 def aggregate(runs: list[dict]) -> dict:
     """Medians and worst seeds of the figures over several runs (None = never converged = worst)."""
+
     def never_last(value):
         return math.inf if value is None else value
 
@@ -234,11 +277,10 @@ def aggregate(runs: list[dict]) -> dict:
             return {"median": None, "worst": None, "worst_seed": None, "failed_seeds": missing}
         ordered = sorted(values, key=never_last)
         middle = len(ordered) // 2
-        pair = ordered[middle - 1:middle + 1] if len(ordered) % 2 == 0 else [ordered[middle]]
+        pair = ordered[middle - 1 : middle + 1] if len(ordered) % 2 == 0 else [ordered[middle]]
         median = None if None in pair else sum(pair) / len(pair)
         worst_run = max(runs, key=lambda r: never_last(r[key]))
-        return {"median": median, "worst": worst_run[key], "worst_seed": worst_run["seed"],
-                "failed_seeds": missing}
+        return {"median": median, "worst": worst_run[key], "worst_seed": worst_run["seed"], "failed_seeds": missing}
 
     keys = ("position_rmse_m", "heading_rmse_deg", "converged_s", "reconverged_s", "mirror_share", "ms_per_step")
     summary = {key: stat(key) for key in keys}
@@ -259,16 +301,21 @@ def build_parser(prog: str = PROG) -> argparse.ArgumentParser:
     from mcl.tools.cli_checks import add_progress_option, description
 
     parser = argparse.ArgumentParser(prog=prog, description=description(__doc__))
-    parser.add_argument("--model", choices=sorted(MODELS), default="velocity-linear",
-                        help="the motion model (default velocity-linear)")
+    parser.add_argument(
+        "--model", choices=sorted(MODELS), default="velocity-linear", help="the motion model (default velocity-linear)"
+    )
     parser.add_argument("--particles", type=int, default=500, help="particles (default 500)")
     parser.add_argument("--seed", type=int, default=0, help="seed of the simulated walk and the filter (default 0)")
     parser.add_argument("--seeds", help='several seeds: "0-9" or "0,3,5" (overrides --seed)')
     parser.add_argument("--duration", type=float, default=60.0, help="seconds of walking (default 60)")
-    parser.add_argument("--lines", action="store_true",
-                        help="the camera also reports points on field lines, scored by the line model")
-    parser.add_argument("--view", action="store_true",
-                        help="pass each frame's camera view: the landmark model also scores what should have been seen")
+    parser.add_argument(
+        "--lines", action="store_true", help="the camera also reports points on field lines, scored by the line model"
+    )
+    parser.add_argument(
+        "--view",
+        action="store_true",
+        help="pass each frame's camera view: the landmark model also scores what should have been seen",
+    )
     parser.add_argument("--rrd", help="write a Rerun recording here (one seed only)")
     parser.add_argument("--json", action="store_true", help="print JSON instead of a table")
     parser.add_argument("--save", metavar="PATH", help="also write the JSON results to PATH")
@@ -292,7 +339,8 @@ def main(argv: list[str] | None = None, prog: str = PROG) -> int:
     if args.rrd and len(seeds) > 1:
         parser.error("--rrd records one run: give --seed, not --seeds")
     from mcl.tools.cli_checks import check_output_file, progress_wanted, save_json
-    check_output_file(args.rrd, "--rrd")          # before the run, not after it
+
+    check_output_file(args.rrd, "--rrd")  # before the run, not after it
     check_output_file(args.save, "--save")
     progress = progress_wanted(args)
     scenario = WalkScenario(lines=args.lines)
@@ -300,8 +348,9 @@ def main(argv: list[str] | None = None, prog: str = PROG) -> int:
         kidnap = scenario.kidnap_time if args.duration > (scenario.kidnap_time or 0) + 5 else None
         scenario = replace(scenario, duration=args.duration, kidnap_time=kidnap)
     warm = warm_up_walk(scenario, args.model, args.view, progress)
-    runs = [run_walk(args.model, args.particles, s, args.rrd, scenario, view=args.view, progress=progress)
-            for s in seeds]
+    runs = [
+        run_walk(args.model, args.particles, s, args.rrd, scenario, view=args.view, progress=progress) for s in seeds
+    ]
     first_step_s = runs[0]["_first_step_at"] - command_started
     summary = aggregate(runs)
     runs = [{k: v for k, v in r.items() if not k.startswith("_")} for r in runs]
@@ -312,29 +361,40 @@ def main(argv: list[str] | None = None, prog: str = PROG) -> int:
         json.dump(result, sys.stdout, indent=2)
         print()
         return 0
-    print(f"walk scenario: {scenario.duration:.0f} s on {scenario.field.name}, model {args.model}, "
-          f"{args.particles} particles, kidnapping at {scenario.kidnap_time} s, "
-          f"{'landmarks and lines' if scenario.lines else 'landmarks only'}"
-          f"{', frames with their camera view' if args.view else ''}")
+    print(
+        f"walk scenario: {scenario.duration:.0f} s on {scenario.field.name}, model {args.model}, "
+        f"{args.particles} particles, kidnapping at {scenario.kidnap_time} s, "
+        f"{'landmarks and lines' if scenario.lines else 'landmarks only'}"
+        f"{', frames with their camera view' if args.view else ''}"
+    )
     print(f"{'seed':>4} {'pos RMSE':>9} {'head RMSE':>9} {'converge':>9} {'reconv.':>8} {'mirror':>7} {'ms/step':>8}")
     for r in runs:
-        print(f"{r['seed']:>4} {_fmt(r['position_rmse_m'], ' m'):>9} {_fmt(r['heading_rmse_deg'], '°', 2):>9} "
-              f"{_fmt(r['converged_s'], ' s', 2):>9} {_fmt(r['reconverged_s'], ' s', 2):>8} "
-              f"{100 * r['mirror_share']:>6.1f}% {r['ms_per_step']:>8.3f}")
+        print(
+            f"{r['seed']:>4} {_fmt(r['position_rmse_m'], ' m'):>9} {_fmt(r['heading_rmse_deg'], '°', 2):>9} "
+            f"{_fmt(r['converged_s'], ' s', 2):>9} {_fmt(r['reconverged_s'], ' s', 2):>8} "
+            f"{100 * r['mirror_share']:>6.1f}% {r['ms_per_step']:>8.3f}"
+        )
     if len(runs) > 1:
         s = result["summary"]
-        for label, key, unit in (("position RMSE", "position_rmse_m", " m"), ("heading RMSE", "heading_rmse_deg", "°"),
-                                 ("convergence", "converged_s", " s"), ("re-convergence", "reconverged_s", " s"),
-                                 ("mirror share", "mirror_share", "")):
-            print(f"{label:>15}: median {_fmt(s[key]['median'], unit)}, worst {_fmt(s[key]['worst'], unit)} "
-                  f"(seed {s[key]['worst_seed']}), never: {s[key]['failed_seeds']}")
+        for label, key, unit in (
+            ("position RMSE", "position_rmse_m", " m"),
+            ("heading RMSE", "heading_rmse_deg", "°"),
+            ("convergence", "converged_s", " s"),
+            ("re-convergence", "reconverged_s", " s"),
+            ("mirror share", "mirror_share", ""),
+        ):
+            print(
+                f"{label:>15}: median {_fmt(s[key]['median'], unit)}, worst {_fmt(s[key]['worst'], unit)} "
+                f"(seed {s[key]['worst_seed']}), never: {s[key]['failed_seeds']}"
+            )
         fit = s["fit_w_fast"]
         if fit["tracking_p1"] is not None and fit["lost_p50"] is not None:
-            print(f"  w_fast (fit), all frames of all seeds: while tracking 1st percentile {fit['tracking_p1']:.3f}, "
-                  f"5th {fit['tracking_p5']:.3f} ({fit['tracking_frames']} frames); while lost median "
-                  f"{fit['lost_p50']:.3f} ({fit['lost_frames']} frames)")
-    print(f"warm-up: {warm.summary()}, not counted in ms/step; first step done {first_step_s:.1f} s "
-          "after the start")
+            print(
+                f"  w_fast (fit), all frames of all seeds: while tracking 1st percentile {fit['tracking_p1']:.3f}, "
+                f"5th {fit['tracking_p5']:.3f} ({fit['tracking_frames']} frames); while lost median "
+                f"{fit['lost_p50']:.3f} ({fit['lost_frames']} frames)"
+            )
+    print(f"warm-up: {warm.summary()}, not counted in ms/step; first step done {first_step_s:.1f} s after the start")
     if args.rrd:
         print(f"recording written to {args.rrd} (open it with: rerun {args.rrd})")
     if args.save:

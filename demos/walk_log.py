@@ -10,6 +10,7 @@
 `mcl.tools.logs.mcap_io.write_mcap(log, "walk.mcap")` turns it into a ROS 2 MCAP file that `robocup-mcl replay`
 reads like any robot's log.
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -25,11 +26,18 @@ def to_robot_log(walk: WalkLog, latency: float = 0.0, origin_ns: int = 1_700_000
     if not (np.isfinite(latency) and latency >= 0):
         raise ValueError(f"latency = {latency!r} must be finite and >= 0")
     n = walk.times.shape[0]
-    frames = tuple(VisionFrame(stamp=float(walk.times[f.step]), received=float(walk.times[f.step]) + latency,
-                               observations=f.observations) for f in walk.frames)
-    return RobotLog(origin_ns=origin_ns,
-                    # k·dt: the same products as walk.times, so step ends and capture times match exactly
-                    command_times=np.arange(n) * walk.dt, commands=walk.commands,
-                    vision=frames,
-                    truth_times=np.concatenate([[0.0], walk.times]),
-                    truth=np.concatenate([walk.start[None, :], walk.truth]))
+    frames = tuple(
+        VisionFrame(
+            stamp=float(walk.times[f.step]), received=float(walk.times[f.step]) + latency, observations=f.observations
+        )
+        for f in walk.frames
+    )
+    return RobotLog(
+        origin_ns=origin_ns,
+        # k·dt: the same products as walk.times, so step ends and capture times match exactly
+        command_times=np.arange(n) * walk.dt,
+        commands=walk.commands,
+        vision=frames,
+        truth_times=np.concatenate([[0.0], walk.times]),
+        truth=np.concatenate([walk.start[None, :], walk.truth]),
+    )

@@ -13,6 +13,7 @@ the frame also holds points on the visible field lines (same noise, some missed,
 `kidnap_time` the robot is carried `kidnap_distance` metres in a random direction (heading kept, as the
 gyro keeps it); the motion input says nothing of it.
 """
+
 from __future__ import annotations
 
 import math
@@ -36,24 +37,24 @@ class WalkingRobot:
     """
 
     field: Field = dataclass_field(default_factory=spl)
-    motion_rate: float = 100.0            # Hz
-    camera_rate: float = 30.0             # Hz
-    max_speed: float = 0.25               # m/s
-    max_turn_rate: float = 0.8            # rad/s
-    lateral_speed: float = 0.05           # m/s, amplitude of the sideways sway of the request
+    motion_rate: float = 100.0  # Hz
+    camera_rate: float = 30.0  # Hz
+    max_speed: float = 0.25  # m/s
+    max_turn_rate: float = 0.8  # rad/s
+    lateral_speed: float = 0.05  # m/s, amplitude of the sideways sway of the request
     field_of_view: float = math.radians(60.0)
     head_pan_amplitude: float = math.radians(45.0)
-    head_pan_period: float = 4.0          # s
-    min_range: float = 0.3                # m, closer landmarks are below the image
-    max_range: float = 6.0                # m
-    detection_near: float = 0.9           # detection probability at min_range ...
-    detection_far: float = 0.3            # ... falling linearly to this at max_range
-    range_noise_floor: float = 0.03       # m
-    range_noise_growth: float = 0.015     # 1/m (σ_r = floor + growth·r²)
-    bearing_noise: float = 0.03           # rad
-    false_positive_rate: float = 0.15     # per camera frame
-    step_noise: float = 0.05              # relative step-to-step velocity noise
-    margin: float = 0.6                   # m, waypoints and start stay this far inside the field
+    head_pan_period: float = 4.0  # s
+    min_range: float = 0.3  # m, closer landmarks are below the image
+    max_range: float = 6.0  # m
+    detection_near: float = 0.9  # detection probability at min_range ...
+    detection_far: float = 0.3  # ... falling linearly to this at max_range
+    range_noise_floor: float = 0.03  # m
+    range_noise_growth: float = 0.015  # 1/m (σ_r = floor + growth·r²)
+    bearing_noise: float = 0.03  # rad
+    false_positive_rate: float = 0.15  # per camera frame
+    step_noise: float = 0.05  # relative step-to-step velocity noise
+    margin: float = 0.6  # m, waypoints and start stay this far inside the field
 
 
 @dataclass(frozen=True)
@@ -61,35 +62,35 @@ class WalkScenario(WalkingRobot):
     """A walk of `duration` seconds with a kidnapping (see the module docstring); `simulate` runs it."""
 
     duration: float = 60.0
-    lines: bool = False                   # report points on detected field lines too
-    line_max_range: float = 4.0           # m
-    line_point_spacing: float = 0.15      # m between points reported along a line
-    line_detection: float = 0.6           # probability that a visible line point is reported
-    false_line_points: float = 1.0        # per camera frame (white things that are not lines)
-    odometry_scale_sigma: float = 0.06    # per-run scale error of vx, vy, ω (1σ)
-    turn_bias_sigma: float = 0.03         # rad/s, per-run drift while walking
-    kidnap_time: float | None = 30.0      # s, None for no kidnapping
-    kidnap_distance: float = 3.0          # m
-    start_pose: tuple[float, float, float] | None = None   # where the robot starts (None: random, own half)
+    lines: bool = False  # report points on detected field lines too
+    line_max_range: float = 4.0  # m
+    line_point_spacing: float = 0.15  # m between points reported along a line
+    line_detection: float = 0.6  # probability that a visible line point is reported
+    false_line_points: float = 1.0  # per camera frame (white things that are not lines)
+    odometry_scale_sigma: float = 0.06  # per-run scale error of vx, vy, ω (1σ)
+    turn_bias_sigma: float = 0.03  # rad/s, per-run drift while walking
+    kidnap_time: float | None = 30.0  # s, None for no kidnapping
+    kidnap_distance: float = 3.0  # m
+    start_pose: tuple[float, float, float] | None = None  # where the robot starts (None: random, own half)
 
 
 @dataclass(frozen=True)
 class CameraFrame:
-    step: int                  # index of the motion step after which the frame arrives
+    step: int  # index of the motion step after which the frame arrives
     observations: Observations
-    head_angle: float          # rad, relative to the body
+    head_angle: float  # rad, relative to the body
 
 
 @dataclass(frozen=True)
 class WalkLog:
     scenario: WalkScenario
     dt: float
-    times: np.ndarray          # (T,) time at the end of each motion step
-    truth: np.ndarray          # (T, 3) true pose at the end of each step
-    commands: np.ndarray       # (T, 3) walk request (vx, vy, ω) during each step
+    times: np.ndarray  # (T,) time at the end of each motion step
+    truth: np.ndarray  # (T, 3) true pose at the end of each step
+    commands: np.ndarray  # (T, 3) walk request (vx, vy, ω) during each step
     frames: tuple[CameraFrame, ...]
-    start: np.ndarray          # (3,) true pose at t = 0
-    kidnap_step: int | None    # step at whose end the robot was carried away
+    start: np.ndarray  # (3,) true pose at t = 0
+    kidnap_step: int | None  # step at whose end the robot was carried away
 
 
 def _detection_probability(s: WalkScenario, r: np.ndarray) -> np.ndarray:
@@ -104,16 +105,21 @@ def _random_point(s: WalkScenario, rng: np.random.Generator, x_range=None) -> np
     return np.array([rng.uniform(lo, hi), rng.uniform(-hw, hw)])
 
 
-def _line_points(s: WalkScenario, pose: np.ndarray, head: float, rng: np.random.Generator,
-                 candidates: np.ndarray) -> np.ndarray:
+def _line_points(
+    s: WalkScenario, pose: np.ndarray, head: float, rng: np.random.Generator, candidates: np.ndarray
+) -> np.ndarray:
     """Points on the visible lines, in the robot frame, with the camera's range and bearing noise."""
     d = candidates - pose[:2]
     r = np.hypot(d[:, 0], d[:, 1])
     bearing = wrap_angles(np.arctan2(d[:, 1], d[:, 0]) - pose[2])
-    visible = ((np.abs(wrap_angles(bearing - head)) <= 0.5 * s.field_of_view) & (r >= s.min_range)
-               & (r <= s.line_max_range) & (rng.random(r.shape[0]) < s.line_detection))
+    visible = (
+        (np.abs(wrap_angles(bearing - head)) <= 0.5 * s.field_of_view)
+        & (r >= s.min_range)
+        & (r <= s.line_max_range)
+        & (rng.random(r.shape[0]) < s.line_detection)
+    )
     r, bearing = r[visible], bearing[visible]
-    r = np.maximum(r + (s.range_noise_floor + s.range_noise_growth * r ** 2) * rng.standard_normal(r.shape[0]), 0)
+    r = np.maximum(r + (s.range_noise_floor + s.range_noise_growth * r**2) * rng.standard_normal(r.shape[0]), 0)
     bearing = bearing + s.bearing_noise * rng.standard_normal(bearing.shape[0])
     n_false = rng.poisson(s.false_line_points)
     r = np.append(r, rng.uniform(s.min_range, s.line_max_range, n_false))
@@ -121,8 +127,9 @@ def _line_points(s: WalkScenario, pose: np.ndarray, head: float, rng: np.random.
     return np.column_stack([r * np.cos(bearing), r * np.sin(bearing)])
 
 
-def _camera(s: WalkScenario, pose: np.ndarray, head: float, rng: np.random.Generator,
-            line_candidates: np.ndarray | None = None) -> Observations:
+def _camera(
+    s: WalkScenario, pose: np.ndarray, head: float, rng: np.random.Generator, line_candidates: np.ndarray | None = None
+) -> Observations:
     kinds, ranges, bearings = [], [], []
     half_fov = 0.5 * s.field_of_view
     for kind in LandmarkType:
@@ -144,8 +151,9 @@ def _camera(s: WalkScenario, pose: np.ndarray, head: float, rng: np.random.Gener
         ranges.append(rng.uniform(s.min_range, 0.6 * s.max_range))
         bearings.append(head + rng.uniform(-half_fov, half_fov))
     points = None if line_candidates is None else _line_points(s, pose, head, rng, line_candidates)
-    return Observations.from_arrays(kinds, ranges, wrap_angles(np.array(bearings, dtype=np.float64)),
-                                    line_points=points)
+    return Observations.from_arrays(
+        kinds, ranges, wrap_angles(np.array(bearings, dtype=np.float64)), line_points=points
+    )
 
 
 def simulate(scenario: WalkScenario = WalkScenario(), seed: int = 0) -> WalkLog:
@@ -159,7 +167,7 @@ def simulate(scenario: WalkScenario = WalkScenario(), seed: int = 0) -> WalkLog:
     turn_bias = s.turn_bias_sigma * rng.standard_normal()
     # Start in the own half (kick-off placement), facing roughly up the field.
     start = np.append(_random_point(s, rng, (-s.field.half_length + s.margin, -0.5)), rng.uniform(-1.5, 1.5))
-    if s.start_pose is not None:     # drawn all the same, so that the rest of the run keeps its random numbers
+    if s.start_pose is not None:  # drawn all the same, so that the rest of the run keeps its random numbers
         start = np.array(s.start_pose, dtype=np.float64)
     pose = start.copy()
     waypoint = _random_point(s, rng)
@@ -218,9 +226,9 @@ class StreamScenario(WalkingRobot):
     """A long walk without end (the soak's hour), generated a chunk at a time by `WalkStream`: the shared robot
     and camera, a camera latency, and odometry with a per-run scale error and a relative noise per reading."""
 
-    latency: float = 0.04                  # s from capture to arrival of a frame
-    odometry_scale_sigma: float = 0.03     # per-run scale error of the odometry on each axis (1σ)
-    odometry_noise: float = 0.05           # relative noise of each odometry reading
+    latency: float = 0.04  # s from capture to arrival of a frame
+    odometry_scale_sigma: float = 0.03  # per-run scale error of the odometry on each axis (1σ)
+    odometry_noise: float = 0.05  # relative noise of each odometry reading
 
     @property
     def dt(self) -> float:
@@ -262,7 +270,7 @@ class WalkStream:
         self.scale = 1.0 + s.odometry_scale_sigma * self.rng.standard_normal(3)
         self.phase = float(self.rng.uniform(0.0, 2.0 * math.pi))
         hl, hw = s.field.half_length, s.field.half_width
-        side = 1.0 if self.rng.random() < 0.5 else -1.0          # which own touchline
+        side = 1.0 if self.rng.random() < 0.5 else -1.0  # which own touchline
         x = float(self.rng.uniform(-hl + s.margin, -0.5))
         heading = -side * math.pi / 2 + float(self.rng.normal(0.0, 0.05))
         self.start = np.array([x, side * hw, heading])
@@ -302,11 +310,11 @@ class WalkStream:
             vx = s.max_speed * max(0.0, math.cos(error)) ** 2
             vy = s.lateral_speed * math.sin(0.4 * t + self.phase)
             e = noise[k]
-            ddx = vx * (1.0 + s.step_noise * e[0]) * dt          # the true motion, robot frame
+            ddx = vx * (1.0 + s.step_noise * e[0]) * dt  # the true motion, robot frame
             ddy = vy * (1.0 + s.step_noise * e[1]) * dt
             dth = omega * (1.0 + s.step_noise * e[2]) * dt
             c, sn = math.cos(0.5 * dth), math.sin(0.5 * dth)
-            ox, oy = c * ddx - sn * ddy, sn * ddx + c * ddy      # the pose change in the previous robot frame
+            ox, oy = c * ddx - sn * ddy, sn * ddx + c * ddy  # the pose change in the previous robot frame
             c, sn = math.cos(th), math.sin(th)
             x += c * ox - sn * oy
             y += sn * ox + c * oy
@@ -330,18 +338,25 @@ class WalkStream:
         poses = truth[steps - first]
         n_frames = steps.shape[0]
         head = s.head_pan_amplitude * np.sin(2.0 * math.pi * (steps + 1) * s.dt / s.head_pan_period)
-        d = self.landmarks[None, :, :] - poses[:, None, :2]                       # (F, L, 2)
+        d = self.landmarks[None, :, :] - poses[:, None, :2]  # (F, L, 2)
         r = np.hypot(d[..., 0], d[..., 1])
         bearing = wrap_angles(np.arctan2(d[..., 1], d[..., 0]) - poses[:, 2:3])
         share = np.clip((r - s.min_range) / (s.max_range - s.min_range), 0.0, 1.0)
         probability = s.detection_near + share * (s.detection_far - s.detection_near)
         half_fov = 0.5 * s.field_of_view
-        seen = ((np.abs(wrap_angles(bearing - head[:, None])) <= half_fov) & (r >= s.min_range)
-                & (r <= s.max_range) & (rng.random(r.shape) < probability))
+        seen = (
+            (np.abs(wrap_angles(bearing - head[:, None])) <= half_fov)
+            & (r >= s.min_range)
+            & (r <= s.max_range)
+            & (rng.random(r.shape) < probability)
+        )
         frame, landmark = np.nonzero(seen)
         true_range = r[frame, landmark]
-        ranges = np.maximum(true_range + (s.range_noise_floor + s.range_noise_growth * true_range ** 2)
-                            * rng.standard_normal(true_range.shape[0]), 0.0)
+        ranges = np.maximum(
+            true_range
+            + (s.range_noise_floor + s.range_noise_growth * true_range**2) * rng.standard_normal(true_range.shape[0]),
+            0.0,
+        )
         bearings = bearing[frame, landmark] + s.bearing_noise * rng.standard_normal(true_range.shape[0])
         kinds = self.landmark_kinds[landmark]
         false = rng.poisson(s.false_positive_rate, n_frames)

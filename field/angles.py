@@ -5,6 +5,7 @@
 Both compute the same floor-based formula, so a kernel and its numpy reference agree bit for bit, and an angle
 already in range comes back unchanged.
 """
+
 import math
 
 import numba

@@ -11,6 +11,7 @@ catches every refused call. Every public entry point checks its arguments with t
     n = integer("n_particles", n, low=1, high=10**7)
     sigma = reals("sigma", sigma, 3, low=0.0)          # a float64 array of shape (3,)
 """
+
 from __future__ import annotations
 
 import math
@@ -71,13 +72,20 @@ def _bounds_text(low, high, low_open, high_open) -> str:
     return " and ".join(parts)
 
 
-def real(name: str, value, low: float | None = None, high: float | None = None, *, low_open: bool = False,
-         high_open: bool = False) -> float:
+def real(
+    name: str,
+    value,
+    low: float | None = None,
+    high: float | None = None,
+    *,
+    low_open: bool = False,
+    high_open: bool = False,
+) -> float:
     """`value` as a finite float within [low, high] (open ends with `low_open`, `high_open`).
 
     TypeError unless `value` is a real number (int, float, numpy number; not bool); ValueError unless it is
     finite and within the bounds."""
-    if type(value) is float:                      # the common case, checked without the number ABCs
+    if type(value) is float:  # the common case, checked without the number ABCs
         number = value
     elif not _is_real(value):
         raise ArgumentTypeError(f"{name} = {show(value)} must be a number, not {type(value).__name__}")
@@ -86,8 +94,11 @@ def real(name: str, value, low: float | None = None, high: float | None = None, 
             number = float(value)
         except OverflowError:
             number = math.inf if value > 0 else -math.inf
-    if (math.isfinite(number) and (low is None or number > low or (number == low and not low_open))
-            and (high is None or number < high or (number == high and not high_open))):
+    if (
+        math.isfinite(number)
+        and (low is None or number > low or (number == low and not low_open))
+        and (high is None or number < high or (number == high and not high_open))
+    ):
         return number
     bounds = _bounds_text(low, high, low_open, high_open)
     raise ValueError(f"{name} = {show(value)} must be finite{' and ' + bounds if bounds else ''}")
@@ -127,7 +138,10 @@ def reals(name: str, value, length: int, low: float | None = None, high: float |
     bounds = _bounds_text(low, high, False, False)
     if bounds:
         rule += f" {bounds}"
-    if not np.isfinite(array).all() or (low is not None and (array < low).any()) \
-            or (high is not None and (array > high).any()):
+    if (
+        not np.isfinite(array).all()
+        or (low is not None and (array < low).any())
+        or (high is not None and (array > high).any())
+    ):
         raise ValueError(f"{name} = {show(value)} {rule}")
     return array

@@ -110,10 +110,7 @@ class FieldDimensions:
             if value <= 0.0:
                 raise ValueError(f"{key} = {value!r} must be greater than 0")
             if value > MAX_FIELD_EXTENT:
-                raise ValueError(
-                    f"{key} = {value!r} must be at most "
-                    f"MAX_FIELD_EXTENT = {MAX_FIELD_EXTENT!r} (metres)"
-                )
+                raise ValueError(f"{key} = {value!r} must be at most MAX_FIELD_EXTENT = {MAX_FIELD_EXTENT!r} (metres)")
             # Frozen dataclass: normalising ints to floats needs object.__setattr__.
             object.__setattr__(self, key, value)
         for key in ("length", "width"):
@@ -147,15 +144,9 @@ class FieldDimensions:
             "penalty_area_length",
             self.penalty_area_length,
         )
-        _require_smaller(
-            "goal_area_width", self.goal_area_width, "penalty_area_width", self.penalty_area_width
-        )
-        _require_smaller(
-            "penalty_mark_distance", self.penalty_mark_distance, "length / 2", half_length
-        )
-        _require_smaller(
-            "center_circle_diameter", self.center_circle_diameter, "width", self.width
-        )
+        _require_smaller("goal_area_width", self.goal_area_width, "penalty_area_width", self.penalty_area_width)
+        _require_smaller("penalty_mark_distance", self.penalty_mark_distance, "length / 2", half_length)
+        _require_smaller("center_circle_diameter", self.center_circle_diameter, "width", self.width)
         # A circle reaching into a penalty area would create crossings that the
         # landmark model does not list.
         _require_smaller(
@@ -179,18 +170,13 @@ class FieldDimensions:
 
         gaps = {
             "goal_area_length": self.goal_area_length,
-            "penalty_area_length - goal_area_length": self.penalty_area_length
-            - self.goal_area_length,
+            "penalty_area_length - goal_area_length": self.penalty_area_length - self.goal_area_length,
             "length / 2 - penalty_area_length - center_circle_diameter / 2": half_length
             - self.penalty_area_length
             - circle_radius,
-            "(penalty_area_width - goal_area_width) / 2": (
-                self.penalty_area_width - self.goal_area_width
-            )
-            / 2.0,
+            "(penalty_area_width - goal_area_width) / 2": (self.penalty_area_width - self.goal_area_width) / 2.0,
             "(width - penalty_area_width) / 2": (self.width - self.penalty_area_width) / 2.0,
-            "(width - center_circle_diameter) / 2": (self.width - self.center_circle_diameter)
-            / 2.0,
+            "(width - center_circle_diameter) / 2": (self.width - self.center_circle_diameter) / 2.0,
             "center_circle_diameter / 2": circle_radius,
         }
         narrowest = min(gaps, key=gaps.__getitem__)
@@ -205,6 +191,4 @@ class FieldDimensions:
 def _require_smaller(key: str, value: float, bound_name: str, bound: float) -> None:
     if not value < bound:
         # Rounded for display only, so derived bounds read 0.65 rather than 0.6499999999999999.
-        raise ValueError(
-            f"{key} = {value!r} must be smaller than {bound_name} = {round(bound, 9)!r}"
-        )
+        raise ValueError(f"{key} = {value!r} must be smaller than {bound_name} = {round(bound, 9)!r}")

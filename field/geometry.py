@@ -111,16 +111,18 @@ def _name_key(text: str) -> str:
     return re.sub(r"[\s\-]+", "_", text.strip()).upper()
 
 
-LANDMARK_TYPE_ALIASES: Mapping[str, LandmarkType] = types.MappingProxyType({
-    "L": LandmarkType.L_CROSSING,
-    "T": LandmarkType.T_CROSSING,
-    "X": LandmarkType.X_CROSSING,
-    "POST": LandmarkType.GOALPOST,
-    "PENALTY": LandmarkType.PENALTY_MARK,
-    "CENTER": LandmarkType.CENTER_MARK,
-    "CENTRE": LandmarkType.CENTER_MARK,
-    "CENTRE_MARK": LandmarkType.CENTER_MARK,
-})
+LANDMARK_TYPE_ALIASES: Mapping[str, LandmarkType] = types.MappingProxyType(
+    {
+        "L": LandmarkType.L_CROSSING,
+        "T": LandmarkType.T_CROSSING,
+        "X": LandmarkType.X_CROSSING,
+        "POST": LandmarkType.GOALPOST,
+        "PENALTY": LandmarkType.PENALTY_MARK,
+        "CENTER": LandmarkType.CENTER_MARK,
+        "CENTRE": LandmarkType.CENTER_MARK,
+        "CENTRE_MARK": LandmarkType.CENTER_MARK,
+    }
+)
 """Short names `LandmarkType.parse` accepts besides the members' names, keyed as it looks
 them up (upper case, '_' for hyphens and spaces): L, T, X (the crossings), post (goalpost),
 penalty (penalty mark), center, centre, centre_mark (centre mark)."""
@@ -202,13 +204,9 @@ class Field:
 
     name: str
     dims: FieldDimensions
-    landmarks: Mapping[LandmarkType, np.ndarray] = dataclass_field(
-        init=False, repr=False, compare=False
-    )
+    landmarks: Mapping[LandmarkType, np.ndarray] = dataclass_field(init=False, repr=False, compare=False)
     segments: np.ndarray = dataclass_field(init=False, repr=False, compare=False)
-    center_circle: tuple[float, float, float] = dataclass_field(
-        init=False, repr=False, compare=False
-    )
+    center_circle: tuple[float, float, float] = dataclass_field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         if not isinstance(self.name, str) or not self.name.strip():
@@ -223,9 +221,7 @@ class Field:
         # Frozen dataclass: derived attributes are set once, here.
         object.__setattr__(self, "landmarks", types.MappingProxyType(self._derive_landmarks()))
         object.__setattr__(self, "segments", self._derive_segments())
-        object.__setattr__(
-            self, "center_circle", (0.0, 0.0, self.dims.center_circle_diameter / 2.0)
-        )
+        object.__setattr__(self, "center_circle", (0.0, 0.0, self.dims.center_circle_diameter / 2.0))
 
     @property
     def half_length(self) -> float:

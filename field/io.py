@@ -41,7 +41,7 @@ from .geometry import Field
 
 if sys.version_info >= (3, 11):
     import tomllib
-else:                                   # Python 3.10: the same parser, as the tomli package
+else:  # Python 3.10: the same parser, as the tomli package
     import tomli as tomllib
 
 PRESET_NAMES: tuple[str, ...] = ("spl", "kidsize", "adultsize")
@@ -75,9 +75,7 @@ def preset(name: str) -> Field:
         If `name` is not a preset's name.
     """
     if not isinstance(name, str) or name.strip().lower() not in PRESET_NAMES:
-        raise ValueError(
-            f"preset = {short_repr(name)} is unknown; valid names: {', '.join(PRESET_NAMES)}"
-        )
+        raise ValueError(f"preset = {short_repr(name)} is unknown; valid names: {', '.join(PRESET_NAMES)}")
     return _load_preset(name.strip().lower())
 
 
@@ -151,8 +149,10 @@ def field_by_name_or_path(text: str | os.PathLike) -> Field:
     if path.suffix.lower() not in _EXTENSIONS and not path.is_file():
         close = difflib.get_close_matches(str(text).strip().lower(), PRESET_NAMES, n=1)
         hint = f" (did you mean {close[0]!r}?)" if close else ""
-        raise ValueError(f"unknown field {str(text)!r}{hint}; presets: {', '.join(PRESET_NAMES)}, "
-                         f"or a path to a {' or '.join(_EXTENSIONS)} field file")
+        raise ValueError(
+            f"unknown field {str(text)!r}{hint}; presets: {', '.join(PRESET_NAMES)}, "
+            f"or a path to a {' or '.join(_EXTENSIONS)} field file"
+        )
     return load_field(path)
 
 
@@ -204,9 +204,7 @@ def to_toml(field: Field) -> str:
 
 def _checked_path(path: object) -> Path:
     if not isinstance(path, (str, os.PathLike)):
-        raise TypeError(
-            f"path = {short_repr(path)} must be a str or os.PathLike, not {type(path).__name__}"
-        )
+        raise TypeError(f"path = {short_repr(path)} must be a str or os.PathLike, not {type(path).__name__}")
     return Path(path)
 
 
@@ -291,9 +289,7 @@ def _field_from_document(document: object, default_name: str) -> Field:
 
     overrides = document.get("dimensions", {})
     if not isinstance(overrides, dict):
-        raise ValueError(
-            f"dimensions = {short_repr(overrides)} must be a table of key = value pairs"
-        )
+        raise ValueError(f"dimensions = {short_repr(overrides)} must be a table of key = value pairs")
     return Field(name, _dimensions(overrides, base))
 
 
@@ -302,8 +298,7 @@ def _dimensions(overrides: dict, base: FieldDimensions | None) -> FieldDimension
     for key, value in overrides.items():
         if key not in keys:
             raise ValueError(
-                f"unknown key {short_repr(key)} = {short_repr(value)} in [dimensions]"
-                f"{_suggestion(key, keys)}"
+                f"unknown key {short_repr(key)} = {short_repr(value)} in [dimensions]{_suggestion(key, keys)}"
             )
     values = base.to_dict() if base is not None else {}
     values.update(overrides)

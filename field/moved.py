@@ -8,6 +8,7 @@ An import of an old name (or of anything below it: `mcl.logs.mcap_io`) gives the
 same module object, so classes and exceptions compare equal whichever name a caller used; `python -m` with an
 old name runs the new module. Every package that moved modules out calls this once from its `__init__`.
 """
+
 from __future__ import annotations
 
 import importlib
@@ -22,8 +23,9 @@ from typing import Any
 
 
 def _warn(old: str, new: str) -> None:
-    warnings.warn(f"{old} moved to {new}: import it from there (the old name will be removed)", DeprecationWarning,
-                  stacklevel=3)
+    warnings.warn(
+        f"{old} moved to {new}: import it from there (the old name will be removed)", DeprecationWarning, stacklevel=3
+    )
 
 
 class _OldNames(importlib.abc.MetaPathFinder, importlib.abc.Loader):
@@ -36,7 +38,7 @@ class _OldNames(importlib.abc.MetaPathFinder, importlib.abc.Loader):
     def new_name(self, fullname: str) -> str | None:
         for old, new in self.moved.items():
             if fullname == old or fullname.startswith(old + "."):
-                return new + fullname[len(old):]
+                return new + fullname[len(old) :]
         return None
 
     def find_spec(self, fullname, path=None, target=None):
@@ -46,13 +48,12 @@ class _OldNames(importlib.abc.MetaPathFinder, importlib.abc.Loader):
         target = importlib.util.find_spec(new)
         if target is None:
             return None
-        return importlib.machinery.ModuleSpec(fullname, self,
-                                              is_package=target.submodule_search_locations is not None)
+        return importlib.machinery.ModuleSpec(fullname, self, is_package=target.submodule_search_locations is not None)
 
     def create_module(self, spec) -> ModuleType:
         new = self.new_name(spec.name)
         _warn(spec.name, new)
-        return importlib.import_module(new)   # type: ignore[arg-type]
+        return importlib.import_module(new)  # type: ignore[arg-type]
 
     def exec_module(self, module: ModuleType) -> None:
         """Nothing to run: the module at the new name has run already."""
@@ -89,6 +90,7 @@ def moved_names(module: str, moves: dict[str, str]) -> Callable[[str], Any]:
     callable
         `__getattr__(name)`: the moved object, with a DeprecationWarning; AttributeError for any other name.
     """
+
     def __getattr__(name: str) -> Any:
         target = moves.get(name)
         if target is None:
@@ -96,4 +98,5 @@ def moved_names(module: str, moves: dict[str, str]) -> Callable[[str], Any]:
         _warn(f"{module}.{name}", target)
         where, _, attribute = target.rpartition(".")
         return getattr(importlib.import_module(where), attribute)
+
     return __getattr__

@@ -10,6 +10,7 @@ is `mcl.localizer`. The tools around it (logs, replay, Rerun recording, the ROS 
 tuning, evaluation, the testing kit) are `mcl.tools`, which the core never imports. The layers:
 docs/architecture.md.
 """
+
 from field.moved import keep_old_names
 
 from .filter import AugmentedMCL, ParticleFilter
@@ -18,5 +19,20 @@ from .summary import Entropy, Estimate, Grid
 __all__ = ["ParticleFilter", "AugmentedMCL", "Estimate", "Entropy", "Grid"]
 
 # The tools moved to mcl.tools; their old names still import, with a DeprecationWarning.
-keep_old_names({f"mcl.{name}": f"mcl.tools.{name}" for name in
-                ("logs", "formats", "replay", "recording", "evaluation", "cli", "cli_checks", "tuning", "ros", "testing")})
+keep_old_names(
+    {
+        f"mcl.{name}": f"mcl.tools.{name}"
+        for name in (
+            "logs",
+            "formats",
+            "replay",
+            "recording",
+            "evaluation",
+            "cli",
+            "cli_checks",
+            "tuning",
+            "ros",
+            "testing",
+        )
+    }
+)

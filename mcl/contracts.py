@@ -31,6 +31,7 @@ the kernels' motion, so the two paths agree bit for bit). `capabilities(model)` 
 `fast_path(motion_model, sensor_model)` whether a filter with them takes the fused step;
 `mcl.tools.testing.check_motion_model` and `check_sensor_model` check a model against its contract.
 """
+
 from __future__ import annotations
 
 from typing import Any, Protocol, runtime_checkable
@@ -41,9 +42,24 @@ from motion_models.base import BoundedNoiseModel, MotionInput, MotionModel
 from sensing.fused import FusedLikelihoodKernels
 from sensing.observations import Observations
 
-__all__ = ["MotionModel", "SensorModel", "Relocalization", "FusedLikelihood", "FusedLikelihoodKernels", "TermCount",
-           "SensorResetting", "ViewScoring", "ParticleState", "BoundedNoise", "capabilities",
-           "moves_by_bounded_noise", "fused_kernels", "fast_path", "REQUIRED_METHODS", "lacks"]
+__all__ = [
+    "MotionModel",
+    "SensorModel",
+    "Relocalization",
+    "FusedLikelihood",
+    "FusedLikelihoodKernels",
+    "TermCount",
+    "SensorResetting",
+    "ViewScoring",
+    "ParticleState",
+    "BoundedNoise",
+    "capabilities",
+    "moves_by_bounded_noise",
+    "fused_kernels",
+    "fast_path",
+    "REQUIRED_METHODS",
+    "lacks",
+]
 
 
 @runtime_checkable
@@ -64,8 +80,9 @@ class SensorModel(Protocol):
             If the model cannot score `observations` (naming what it lacks).
         """
 
-    def log_likelihood(self, poses: np.ndarray, observations: Observations,
-                       out: np.ndarray | None = None) -> np.ndarray:
+    def log_likelihood(
+        self, poses: np.ndarray, observations: Observations, out: np.ndarray | None = None
+    ) -> np.ndarray:
         """(N,) log-likelihoods of `observations` at `poses` (N, 3): finite or -inf, never NaN or +inf.
 
         Parameters
@@ -88,7 +105,7 @@ class SensorModel(Protocol):
 class Relocalization(Protocol):
     """Which poses augmented MCL injects, and the priors that tell a pose from its mirror image."""
 
-    tracking: bool                    # whether the filter has been confident since the last reset
+    tracking: bool  # whether the filter has been confident since the last reset
 
     def bind(self, carpet: tuple[float, float, float, float]) -> None:
         """The carpet (x_min, x_max, y_min, y_max) the filter's particles live on.
@@ -148,8 +165,9 @@ class Relocalization(Protocol):
             True to ask the filter to mirror its particles through the centre mark.
         """
 
-    def propose(self, count: int, observations: Observations, sensor_model: Any,
-                rng: np.random.Generator) -> np.ndarray:
+    def propose(
+        self, count: int, observations: Observations, sensor_model: Any, rng: np.random.Generator
+    ) -> np.ndarray:
         """(count, 3) poses to inject, drawn from `rng`.
 
         Parameters
@@ -201,8 +219,14 @@ class TermCount(Protocol):
 class SensorResetting(Protocol):
     """Capability: poses drawn from the detections themselves (Lenser and Veloso's sensor resetting)."""
 
-    def sample_poses(self, observations: Observations, n: int, rng: np.random.Generator,
-                     heading: float | None = None, heading_sigma: float = 0.3) -> np.ndarray:
+    def sample_poses(
+        self,
+        observations: Observations,
+        n: int,
+        rng: np.random.Generator,
+        heading: float | None = None,
+        heading_sigma: float = 0.3,
+    ) -> np.ndarray:
         """(n, 3) poses that explain `observations`, drawn from `rng`.
 
         Parameters
@@ -284,8 +308,11 @@ class BoundedNoise(Protocol):
         """
 
 
-REQUIRED_METHODS: dict[type, tuple[str, ...]] = {MotionModel: ("check", "predict"), SensorModel: ("check", "log_likelihood"),
-                    Relocalization: ("bind", "reset_region", "reset_pose", "mirror", "carry", "confirm", "propose")}
+REQUIRED_METHODS: dict[type, tuple[str, ...]] = {
+    MotionModel: ("check", "predict"),
+    SensorModel: ("check", "log_likelihood"),
+    Relocalization: ("bind", "reset_region", "reset_pose", "mirror", "carry", "confirm", "propose"),
+}
 """The methods the filter calls on each required collaborator (what `lacks` checks before it takes one)."""
 
 
@@ -312,9 +339,14 @@ def lacks(obj: object, contract: type) -> list[str]:
     return [name for name in REQUIRED_METHODS[contract] if not callable(getattr(obj, name, None))]
 
 
-_CAPABILITIES = (("fused likelihood", FusedLikelihood), ("per-term fit", TermCount),
-                 ("sensor resetting", SensorResetting), ("negative information", ViewScoring),
-                 ("per-particle state", ParticleState), ("bounded noise", BoundedNoise))
+_CAPABILITIES = (
+    ("fused likelihood", FusedLikelihood),
+    ("per-term fit", TermCount),
+    ("sensor resetting", SensorResetting),
+    ("negative information", ViewScoring),
+    ("per-particle state", ParticleState),
+    ("bounded noise", BoundedNoise),
+)
 
 
 def capabilities(model: object) -> tuple[str, ...]:
@@ -348,8 +380,11 @@ def moves_by_bounded_noise(model: object) -> bool:
         True when the filter's kernels may move the particles for `model`.
     """
     kind: Any = type(model)
-    return (isinstance(model, BoundedNoiseModel) and kind.predict is BoundedNoiseModel.predict
-            and kind.check is BoundedNoiseModel.check)
+    return (
+        isinstance(model, BoundedNoiseModel)
+        and kind.predict is BoundedNoiseModel.predict
+        and kind.check is BoundedNoiseModel.check
+    )
 
 
 def fused_kernels(sensor_model: object) -> FusedLikelihoodKernels | None:
@@ -377,8 +412,10 @@ def fused_kernels(sensor_model: object) -> FusedLikelihoodKernels | None:
     if kernels is None:
         return None
     if not isinstance(kernels, FusedLikelihoodKernels):
-        raise TypeError(f"{type(sensor_model).__name__}.fused_likelihood() must return a "
-                        f"sensing.fused.FusedLikelihoodKernels or None, not {type(kernels).__name__}")
+        raise TypeError(
+            f"{type(sensor_model).__name__}.fused_likelihood() must return a "
+            f"sensing.fused.FusedLikelihoodKernels or None, not {type(kernels).__name__}"
+        )
     return kernels
 
 

@@ -21,6 +21,7 @@ weights, resampling and the summary as one call into compiled code (`fused_step`
 of the stages one by one bit for bit. `fuses` says whether a frame can be corrected that way: frames the
 sensor model scores with its camera view (negative information) cannot.
 """
+
 from __future__ import annotations
 
 from typing import Any, NamedTuple
@@ -62,12 +63,12 @@ from .step import (
 from .summary import Entropy, Estimate, Summary
 from .weights import reweigh, weigh
 
-_CHUNK = 4096        # particles per chunk with threads > 1, about (`balanced_chunk`: a function of N alone, so the
-                     # results do not depend on the threads)
+_CHUNK = 4096  # particles per chunk with threads > 1, about (`balanced_chunk`: a function of N alone, so the
+# results do not depend on the threads)
 _NO_TRIG = np.empty((0, 2))
 _NO_COORDINATES = np.empty((3, 0))
 _NO_MOTION = (0.0,) * 6
-_NO_MEAN, _NO_COVARIANCE = np.empty(3), np.empty((3, 3))     # out_mean, out_cov of a summary without estimate
+_NO_MEAN, _NO_COVARIANCE = np.empty(3), np.empty((3, 3))  # out_mean, out_cov of a summary without estimate
 
 
 class _Threads:
@@ -93,12 +94,12 @@ class _Threads:
 class FusedOutcome(NamedTuple):
     """What `Engine.fused_step` computed (see `mcl.step.compiled_step`)."""
 
-    status: int               # one of `mcl.step`'s STEP_* codes
+    status: int  # one of `mcl.step`'s STEP_* codes
     native_log_average: float
     ess: float
     w_slow: float
     w_fast: float
-    fraction: float           # the injection share augmented MCL asks for
+    fraction: float  # the injection share augmented MCL asks for
     resampled: bool
 
 
@@ -127,14 +128,13 @@ class Engine:
         self.scope = _Threads(threads)
         p = particles
         # the compiled step's particle arguments (`mcl.step`), the same arrays for the engine's life
-        self._group = (p.poses, p.log_weights, p.weights, p.log_likelihood, p.previous, p.trig, p.counts,
-                       summary.local)
-        self._handle: tuple | None = None         # (bit generator, its kernel handle)
-        self._bounded_of: Any = None              # the motion model `_bounded` was asked of
-        self._bounded = False                     # whether it moves as BoundedNoiseModel does
-        self._sensor_of: Any = None               # the sensor model `_kernels` were asked of
-        self._kernels: Any = None                 # its `FusedLikelihoodKernels`, or None
-        self._step: StepKernels | None = None     # `mcl.step.fused_step` of those kernels
+        self._group = (p.poses, p.log_weights, p.weights, p.log_likelihood, p.previous, p.trig, p.counts, summary.local)
+        self._handle: tuple | None = None  # (bit generator, its kernel handle)
+        self._bounded_of: Any = None  # the motion model `_bounded` was asked of
+        self._bounded = False  # whether it moves as BoundedNoiseModel does
+        self._sensor_of: Any = None  # the sensor model `_kernels` were asked of
+        self._kernels: Any = None  # its `FusedLikelihoodKernels`, or None
+        self._step: StepKernels | None = None  # `mcl.step.fused_step` of those kernels
 
     def __getstate__(self) -> dict:
         # Pickles and deep copies leave out the generator's kernel handle: it holds the addresses of the
@@ -159,18 +159,19 @@ class Engine:
         so that the engine's kernels move the particles themselves, else None."""
         if not isinstance(u, MotionInput):
             raise ArgumentTypeError(f"u = {u!r} must be a motion_models.MotionInput, not {type(u).__name__}")
-        if motion_model is not self._bounded_of:      # (asked once per motion model: this runs every step)
+        if motion_model is not self._bounded_of:  # (asked once per motion model: this runs every step)
             self._bounded = moves_by_bounded_noise(motion_model)
             self._bounded_of = motion_model
         if self.particles.motion_state is not None or not self._bounded:
             motion_model.check(u)
             return None
-        dx, dy, dtheta = u.displacement()             # BoundedNoiseModel.check
+        dx, dy, dtheta = u.displacement()  # BoundedNoiseModel.check
         bound_x, bound_y, bound_theta = motion_model.noise_bounds(u)
         return float(dx), float(dy), float(dtheta), float(bound_x), float(bound_y), float(bound_theta)
 
-    def predict(self, motion_model: Any, u: MotionInput, rng: np.random.Generator,
-                motion: tuple[float, ...] | None = None) -> None:
+    def predict(
+        self, motion_model: Any, u: MotionInput, rng: np.random.Generator, motion: tuple[float, ...] | None = None
+    ) -> None:
         """Move every particle by the motion model (by `motion`, `Engine.motion`'s answer for `u`, when given),
         with the noise drawn from `rng`."""
         p = self.particles
@@ -223,14 +224,14 @@ class Engine:
         p.previous[:] = p.poses
         bounds = roughening * SQRT3
         if scheme == "systematic":
-            u0 = resample_with_jitter(p.weights, keep, p.previous, bounds, p.poses, _NO_TRIG, *self.generator(rng),
-                                      p.counts, _NO_COORDINATES)
+            u0 = resample_with_jitter(
+                p.weights, keep, p.previous, bounds, p.poses, _NO_TRIG, *self.generator(rng), p.counts, _NO_COORDINATES
+            )
             if p.motion_state is not None:
                 gather_offspring_rows(p.weights, keep, u0, p.counts, p.state_rows, p.state_scratch)
         else:
             ancestors = SCHEMES[scheme](p.weights, keep, rng)
-            gather_with_jitter(p.previous, ancestors, bounds, draw_variates(rng, keep, False, out=p.variates),
-                               p.poses)
+            gather_with_jitter(p.previous, ancestors, bounds, draw_variates(rng, keep, False, out=p.variates), p.poses)
             if p.motion_state is not None:
                 p.motion_state[:keep] = p.motion_state[ancestors]
         p.fresh_state(keep)
@@ -244,8 +245,9 @@ class Engine:
         if not s.valid:
             if self.threads > 1:
                 with self.scope:
-                    summary_fill_chunked(s.parameters, p.poses, p.weights, s.coordinates, s.histograms, s.bitmaps,
-                                         s.local, self.chunk)
+                    summary_fill_chunked(
+                        s.parameters, p.poses, p.weights, s.coordinates, s.histograms, s.bitmaps, s.local, self.chunk
+                    )
             else:
                 summary_fill(s.parameters, p.poses, p.weights, s.coordinates, s.histograms, s.bitmaps)
             s.valid = True
@@ -261,8 +263,17 @@ class Engine:
                 s.keep(None, position, orientation)
             else:
                 self.fill()
-                arguments = (s.parameters, s.coordinates, p.weights, s.histograms, s.bitmaps, s.previous,
-                             s.has_previous, mean, cov)
+                arguments = (
+                    s.parameters,
+                    s.coordinates,
+                    p.weights,
+                    s.histograms,
+                    s.bitmaps,
+                    s.previous,
+                    s.has_previous,
+                    mean,
+                    cov,
+                )
                 if self.threads > 1:
                     with self.scope:
                         weight = summary_estimate_chunked(*arguments, self.chunk)
@@ -281,8 +292,12 @@ class Engine:
         if s.entropy is None:
             if self.threads == 1 and not s.valid:
                 # One dispatch: the histograms and the entropy (no estimate: it would move the hysteresis anchor).
-                _, position, orientation = summarize(p.poses, p.weights, s.group(
-                    False, _NO_MEAN, _NO_COVARIANCE, use_previous=False, want_entropy=True), self.fast)
+                _, position, orientation = summarize(
+                    p.poses,
+                    p.weights,
+                    s.group(False, _NO_MEAN, _NO_COVARIANCE, use_previous=False, want_entropy=True),
+                    self.fast,
+                )
                 s.valid = True
             else:
                 self.fill()
@@ -307,16 +322,25 @@ class Engine:
         scores_view = getattr(sensor_model, "scores_view", None)
         return not (callable(scores_view) and bool(scores_view(observations)))
 
-    def fused_step(self, motion_model: Any, motion: tuple[float, ...] | None, sensor_model: Any,
-                   observations: Observations, weighting: tuple, resampling: tuple, want_estimate: bool,
-                   since: np.ndarray | None, rng: np.random.Generator) -> FusedOutcome:
+    def fused_step(
+        self,
+        motion_model: Any,
+        motion: tuple[float, ...] | None,
+        sensor_model: Any,
+        observations: Observations,
+        weighting: tuple,
+        resampling: tuple,
+        want_estimate: bool,
+        since: np.ndarray | None,
+        rng: np.random.Generator,
+    ) -> FusedOutcome:
         """[predict by `motion` (`Engine.motion`),] likelihood, weights, augmented MCL's rates, resampling without
         injection and the summary in one call (`mcl.step.compiled_step`, after `fuses` said yes). `weighting`
         as `compiled_step` takes it; `resampling` (scheme, threshold, roughening). The summary keeps the
         estimate (when `want_estimate`) and the entropy it computed, when the step is done."""
         p, s = self.particles, self.summary
         kernels, step = self._kernels, self._step
-        assert kernels is not None and step is not None       # `fuses` said yes
+        assert kernels is not None and step is not None  # `fuses` said yes
         move = motion is not None
         chunk = self.chunk
         gaussian = move and bool(motion_model.gaussian)
@@ -324,34 +348,54 @@ class Engine:
         if motion is None:
             motion = _NO_MOTION
         elif gaussian:
-            sensor_model.check(observations)      # before the noise is drawn
+            sensor_model.check(observations)  # before the noise is drawn
             variates = draw_variates(rng, p.n, True, out=p.variates)
         scheme, threshold, roughening = resampling
         can_resample = scheme == "systematic" and (p.motion_state is None or not chunk)
         mean, covariance = np.empty(3), np.empty((3, 3))
         with self.scope:
-            (status, native, ess, w_slow, w_fast, fraction, resampled, weight, position,
-             orientation) = step.compiled_step(
-                self._group, (move, *motion, gaussian, variates), self.generator(rng),
-                (kernels.params, kernels.inputs(observations)),
-                weighting, (threshold, can_resample, roughening, p.state_rows, p.state_scratch),
-                s.group(want_estimate, mean, covariance), chunk, self.fast, NO_SINCE if since is None else since)
+            (status, native, ess, w_slow, w_fast, fraction, resampled, weight, position, orientation) = (
+                step.compiled_step(
+                    self._group,
+                    (move, *motion, gaussian, variates),
+                    self.generator(rng),
+                    (kernels.params, kernels.inputs(observations)),
+                    weighting,
+                    (threshold, can_resample, roughening, p.state_rows, p.state_scratch),
+                    s.group(want_estimate, mean, covariance),
+                    chunk,
+                    self.fast,
+                    NO_SINCE if since is None else since,
+                )
+            )
         if status != STEP_MISSING and (move or status != STEP_INVALID):
-            s.changed()                           # the particles moved, or their weights changed
-        if status == STEP_DONE:                   # `previous` was moved to the estimate in the kernel
+            s.changed()  # the particles moved, or their weights changed
+        if status == STEP_DONE:  # `previous` was moved to the estimate in the kernel
             s.keep(Estimate(mean, covariance, weight) if want_estimate else None, position, orientation)
         return FusedOutcome(status, native, ess, w_slow, w_fast, fraction, resampled)
 
-    def resample_and_summarize(self, injected: np.ndarray, roughening: np.ndarray, want_estimate: bool,
-                               rng: np.random.Generator) -> None:
+    def resample_and_summarize(
+        self, injected: np.ndarray, roughening: np.ndarray, want_estimate: bool, rng: np.random.Generator
+    ) -> None:
         """After a fused step that asks for injection (one thread, systematic resampling): `resample` of the
         scored particles and the summary that follows, in one call into compiled code; the same draws and
         results as `resample` then `estimate` and `entropy`."""
         p, s = self.particles, self.summary
         mean, covariance = np.empty(3), np.empty((3, 3))
         weight, position, orientation = resample_and_summarize(
-            p.weights, p.n - injected.shape[0], p.previous, roughening, p.poses, p.trig, self.generator(rng),
-            p.counts, injected, p.log_weights, s.group(want_estimate, mean, covariance), self.fast)
+            p.weights,
+            p.n - injected.shape[0],
+            p.previous,
+            roughening,
+            p.poses,
+            p.trig,
+            self.generator(rng),
+            p.counts,
+            injected,
+            p.log_weights,
+            s.group(want_estimate, mean, covariance),
+            self.fast,
+        )
         s.changed()
         s.keep(Estimate(mean, covariance, weight) if want_estimate else None, position, orientation)
 

@@ -21,6 +21,7 @@ change (`summary_fill`, `summary_estimate`, `summary_entropy`): the results of `
 `grid_entropy` bit for bit. `summary_estimate_chunked` (several threads) and `summary_estimate_fast`
 (reassociated sums) are its opt-in variants, equal to rounding.
 """
+
 from __future__ import annotations
 
 import math
@@ -37,10 +38,13 @@ from numerics.compile import variant
 from numerics.trig import wrap
 
 # The numpy twins moved to the package's `reference` module; their old names still work, with a warning.
-__getattr__ = moved_names(__name__, {
-    "grid_entropy_reference": "mcl.reference.grid_entropy",
-    "cluster_estimate_reference": "mcl.reference.cluster_estimate"
-})
+__getattr__ = moved_names(
+    __name__,
+    {
+        "grid_entropy_reference": "mcl.reference.grid_entropy",
+        "cluster_estimate_reference": "mcl.reference.cluster_estimate",
+    },
+)
 
 
 @numba.njit(cache=True, inline="always")
@@ -55,7 +59,7 @@ def _cell(value, origin, size, count):
     return int(q)
 
 
-BLOCK = 256        # particles per block of the vectorized loops below
+BLOCK = 256  # particles per block of the vectorized loops below
 
 
 @numba.njit(cache=True, inline="always")
@@ -75,6 +79,7 @@ def _cell_float(value, origin, size, count):
 
 # (The block kernels take slices and index them from 0: an index offset by a variable start would need
 # numba's negative-index wraparound, which keeps LLVM from vectorizing.)
+
 
 @numba.njit(cache=True, error_model="numpy")
 def _kernel_terms(xs, ys, ts, weights, count, cx, cy, ct, r2, angle_radius, rows):
@@ -108,8 +113,19 @@ def _kernel_mean(xs, ys, ts, weights, cx, cy, ct, radius, angle_radius, rows, ch
     for start in range(0, n, BLOCK):
         count = min(BLOCK, n - start)
         stop = start + count
-        _kernel_terms(xs[start:stop], ys[start:stop], ts[start:stop], weights[start:stop], count, cx, cy, ct, r2,
-                      angle_radius, rows)
+        _kernel_terms(
+            xs[start:stop],
+            ys[start:stop],
+            ts[start:stop],
+            weights[start:stop],
+            count,
+            cx,
+            cy,
+            ct,
+            r2,
+            angle_radius,
+            rows,
+        )
         for p in range(count):
             sx += rows[0, p]
             sy += rows[1, p]
@@ -146,8 +162,20 @@ def _kernel_covariance(xs, ys, ts, weights, mx, my, mt, radius, angle_radius, to
         for start in range(0, n, BLOCK):
             count = min(BLOCK, n - start)
             stop = start + count
-            _covariance_terms(xs[start:stop], ys[start:stop], ts[start:stop], weights[start:stop], count, mx, my,
-                              mt, r2, angle_radius, total, rows)
+            _covariance_terms(
+                xs[start:stop],
+                ys[start:stop],
+                ts[start:stop],
+                weights[start:stop],
+                count,
+                mx,
+                my,
+                mt,
+                r2,
+                angle_radius,
+                total,
+                rows,
+            )
             for p in range(count):
                 c00 += rows[0, p]
                 c01 += rows[1, p]
@@ -169,12 +197,14 @@ def _cell_centre(best, x_min, y_min, cell_size, ny, n_theta):
     bt = best % n_theta
     by = (best // n_theta) % ny
     bx = best // (n_theta * ny)
-    return (x_min + (bx + 0.5) * cell_size, y_min + (by + 0.5) * cell_size,
-            -math.pi + (bt + 0.5) * (2.0 * math.pi / n_theta))
+    return (
+        x_min + (bx + 0.5) * cell_size,
+        y_min + (by + 0.5) * cell_size,
+        -math.pi + (bt + 0.5) * (2.0 * math.pi / n_theta),
+    )
 
 
-def _dominant_cluster_body(xs, ys, ts, weights, best, cells, shift, previous, use_previous, out_mean, out_cov,
-                          chunk=0):
+def _dominant_cluster_body(xs, ys, ts, weights, best, cells, shift, previous, use_previous, out_mean, out_cov, chunk=0):
     """Mean shift from the centre of histogram cell `best` (and from `previous`), then the covariance; returns
     the cluster's weight. xs, ys, ts: the particles' coordinates as separate arrays; cells, shift: the groups of
     `cluster_estimate`. (A template: `_dominant_cluster` and its fast and chunked variants, below, compile it
@@ -203,8 +233,9 @@ def _dominant_cluster_body(xs, ys, ts, weights, best, cells, shift, previous, us
 
 # The kernels the template above calls by these names, bound by each variant (`numerics.compile.variant`).
 kernel_mean = kernel_covariance = dominant_cluster = None
-_dominant_cluster = variant(_dominant_cluster_body, "serial", {"kernel_mean": _kernel_mean,
-                                                               "kernel_covariance": _kernel_covariance})
+_dominant_cluster = variant(
+    _dominant_cluster_body, "serial", {"kernel_mean": _kernel_mean, "kernel_covariance": _kernel_covariance}
+)
 
 
 @numba.njit(cache=True)
@@ -226,9 +257,19 @@ def cluster_estimate(poses, weights, cells, shift, histogram, previous, use_prev
         cy = _cell(poses[i, 1], y_min, cell_size, ny)
         ct = _cell(poses[i, 2], -math.pi, theta_size, n_theta)
         histogram[(cx * ny + cy) * n_theta + ct] += weights[i]
-    return _dominant_cluster(np.ascontiguousarray(poses[:, 0]), np.ascontiguousarray(poses[:, 1]),
-                             np.ascontiguousarray(poses[:, 2]), weights, np.argmax(histogram), cells, shift, previous,
-                             use_previous, out_mean, out_cov)
+    return _dominant_cluster(
+        np.ascontiguousarray(poses[:, 0]),
+        np.ascontiguousarray(poses[:, 1]),
+        np.ascontiguousarray(poses[:, 2]),
+        weights,
+        np.argmax(histogram),
+        cells,
+        shift,
+        previous,
+        use_previous,
+        out_mean,
+        out_cov,
+    )
 
 
 @numba.njit(cache=True)
@@ -241,8 +282,7 @@ def _entropy_bits(histogram):
 
 
 @numba.njit(cache=True)
-def grid_entropy(poses, weights, x_min, y_min, cell_size, nx, ny, n_theta, position_histogram,
-                 orientation_histogram):
+def grid_entropy(poses, weights, x_min, y_min, cell_size, nx, ny, n_theta, position_histogram, orientation_histogram):
     """Position and orientation entropy in bits (Hoffmann eq. 27) on a grid; weights must sum to one.
 
     Particles beyond the grid count in its border cells. The histograms are scratch arrays of nx·ny and
@@ -267,6 +307,7 @@ def grid_entropy(poses, weights, x_min, y_min, cell_size, nx, ny, n_theta, posit
 # the dominant cell, the entropies and the clearing visit the marked cells only, in index order, so every
 # sum and every tie is resolved as the full scans above resolve them.
 
+
 @intrinsic
 def _trailing_zeros(typingctx, word):
     """Index of the lowest set bit of a nonzero uint64 (llvm.cttz)."""
@@ -274,8 +315,9 @@ def _trailing_zeros(typingctx, word):
 
     def codegen(context, builder, sig, args):
         int64 = ir.IntType(64)
-        function = builder.module.declare_intrinsic("llvm.cttz", [int64],
-                                                    ir.FunctionType(int64, [int64, ir.IntType(1)]))
+        function = builder.module.declare_intrinsic(
+            "llvm.cttz", [int64], ir.FunctionType(int64, [int64, ir.IntType(1)])
+        )
         return builder.call(function, [args[0], ir.Constant(ir.IntType(1), 1)])
 
     return signature, codegen
@@ -322,16 +364,57 @@ def _marked_entropy_bits(histogram, bitmap):
 
 
 # Summary grid parameters, one float64 array (counts as floats).
-(G_X_MIN, G_Y_MIN, G_CLUSTER_CELL, G_CLUSTER_NX, G_CLUSTER_NY, G_CLUSTER_NT, G_RADIUS, G_ANGLE_RADIUS,
- G_ITERATIONS, G_POSITION_CELL, G_ENTROPY_NX, G_ENTROPY_NY, G_ENTROPY_NT) = range(13)
+(
+    G_X_MIN,
+    G_Y_MIN,
+    G_CLUSTER_CELL,
+    G_CLUSTER_NX,
+    G_CLUSTER_NY,
+    G_CLUSTER_NT,
+    G_RADIUS,
+    G_ANGLE_RADIUS,
+    G_ITERATIONS,
+    G_POSITION_CELL,
+    G_ENTROPY_NX,
+    G_ENTROPY_NY,
+    G_ENTROPY_NT,
+) = range(13)
 
 
-def summary_grid(x_min, y_min, cluster_cell, cluster_nx, cluster_ny, cluster_orientation_bins, cluster_radius,
-                 cluster_angle_radius, iterations, position_cell, entropy_nx, entropy_ny, orientation_bins):
+def summary_grid(
+    x_min,
+    y_min,
+    cluster_cell,
+    cluster_nx,
+    cluster_ny,
+    cluster_orientation_bins,
+    cluster_radius,
+    cluster_angle_radius,
+    iterations,
+    position_cell,
+    entropy_nx,
+    entropy_ny,
+    orientation_bins,
+):
     """The parameter array of the summary kernels (see `mcl.filter.Grid`)."""
-    return np.array([x_min, y_min, cluster_cell, cluster_nx, cluster_ny, cluster_orientation_bins, cluster_radius,
-                     cluster_angle_radius, iterations, position_cell, entropy_nx, entropy_ny, orientation_bins],
-                    dtype=np.float64)
+    return np.array(
+        [
+            x_min,
+            y_min,
+            cluster_cell,
+            cluster_nx,
+            cluster_ny,
+            cluster_orientation_bins,
+            cluster_radius,
+            cluster_angle_radius,
+            iterations,
+            position_cell,
+            entropy_nx,
+            entropy_ny,
+            orientation_bins,
+        ],
+        dtype=np.float64,
+    )
 
 
 @numba.njit(cache=True)
@@ -347,8 +430,7 @@ def summary_buffers(grid, n):
     """The summary's arrays: coordinates (3, n) (x, y, θ rows for the mean shift), the three histograms end to
     end and their bitmaps (both zero)."""
     sizes = _layout(grid)
-    return (np.empty((3, n)), np.zeros(sum(sizes)),
-            np.zeros(sum((size + 63) // 64 for size in sizes), dtype=np.uint64))
+    return (np.empty((3, n)), np.zeros(sum(sizes)), np.zeros(sum((size + 63) // 64 for size in sizes), dtype=np.uint64))
 
 
 @numba.njit(cache=True)
@@ -357,8 +439,14 @@ def _parts(grid, histograms, bitmaps):
     cluster, position, orientation = _layout(grid)
     wc = (cluster + 63) // 64
     wp = (position + 63) // 64
-    return (histograms[:cluster], histograms[cluster:cluster + position], histograms[cluster + position:],
-            bitmaps[:wc], bitmaps[wc:wc + wp], bitmaps[wc + wp:])
+    return (
+        histograms[:cluster],
+        histograms[cluster : cluster + position],
+        histograms[cluster + position :],
+        bitmaps[:wc],
+        bitmaps[wc : wc + wp],
+        bitmaps[wc + wp :],
+    )
 
 
 @numba.njit(cache=True, error_model="numpy")
@@ -380,12 +468,14 @@ def _summary_cells(grid, xs, ys, ts, count, cells):
         x = xs[p]
         y = ys[p]
         theta = ts[p]
-        cell = ((_cell_float(x, x_min, cluster_cell, cluster_nx) * cluster_ny
-                 + _cell_float(y, y_min, cluster_cell, cluster_ny)) * cluster_nt
-                + _cell_float(theta, -math.pi, cluster_theta, cluster_nt))
+        cell = (
+            _cell_float(x, x_min, cluster_cell, cluster_nx) * cluster_ny
+            + _cell_float(y, y_min, cluster_cell, cluster_ny)
+        ) * cluster_nt + _cell_float(theta, -math.pi, cluster_theta, cluster_nt)
         cells[0, p] = np.int32(cell)
-        cell = (_cell_float(x, x_min, position_cell, entropy_nx) * entropy_ny
-                + _cell_float(y, y_min, position_cell, entropy_ny))
+        cell = _cell_float(x, x_min, position_cell, entropy_nx) * entropy_ny + _cell_float(
+            y, y_min, position_cell, entropy_ny
+        )
         cells[1, p] = np.int32(cell)
         cells[2, p] = np.int32(_cell_float(theta, -math.pi, entropy_theta, entropy_nt))
 
@@ -404,8 +494,7 @@ def summary_fill(grid, poses, weights, coordinates, histograms, bitmaps):
     (as `cluster_estimate` and `grid_entropy` bin them), marking each cell as it first receives weight. The
     coordinates are copied to the rows of `coordinates` (x, y, θ) on the way; with `poses` of no rows they
     are taken from there (written by `mcl.resampling.resample_with_jitter`)."""
-    cluster, position, orientation, cluster_bits, position_bits, orientation_bits = _parts(grid, histograms,
-                                                                                          bitmaps)
+    cluster, position, orientation, cluster_bits, position_bits, orientation_bits = _parts(grid, histograms, bitmaps)
     _clear_marked(cluster, cluster_bits)
     _clear_marked(position, position_bits)
     _clear_marked(orientation, orientation_bits)
@@ -463,20 +552,38 @@ def summary_fill(grid, poses, weights, coordinates, histograms, bitmaps):
 @numba.njit(cache=True, inline="always")
 def _cluster_groups(grid):
     """The groups cells and shift of `cluster_estimate`, from the summary's parameter array."""
-    cells = (grid[G_X_MIN], grid[G_Y_MIN], grid[G_CLUSTER_CELL], int(grid[G_CLUSTER_NX]), int(grid[G_CLUSTER_NY]),
-             int(grid[G_CLUSTER_NT]))
+    cells = (
+        grid[G_X_MIN],
+        grid[G_Y_MIN],
+        grid[G_CLUSTER_CELL],
+        int(grid[G_CLUSTER_NX]),
+        int(grid[G_CLUSTER_NY]),
+        int(grid[G_CLUSTER_NT]),
+    )
     return cells, (grid[G_RADIUS], grid[G_ANGLE_RADIUS], int(grid[G_ITERATIONS]))
 
 
-def _summary_estimate_body(grid, coordinates, weights, histograms, bitmaps, previous, use_previous, out_mean,
-                           out_cov, chunk=0):
+def _summary_estimate_body(
+    grid, coordinates, weights, histograms, bitmaps, previous, use_previous, out_mean, out_cov, chunk=0
+):
     """`cluster_estimate` from the filled summary: the same mean, covariance and weight. (A template:
     `summary_estimate`, `summary_estimate_fast` and `summary_estimate_chunked` bind its `dominant_cluster`.)"""
     cluster, _, _, cluster_bits, _, _ = _parts(grid, histograms, bitmaps)
     cells, shift = _cluster_groups(grid)
-    return dominant_cluster(coordinates[0], coordinates[1], coordinates[2], weights,
-                            _marked_argmax(cluster, cluster_bits), cells, shift, previous, use_previous, out_mean,
-                            out_cov, chunk)
+    return dominant_cluster(
+        coordinates[0],
+        coordinates[1],
+        coordinates[2],
+        weights,
+        _marked_argmax(cluster, cluster_bits),
+        cells,
+        shift,
+        previous,
+        use_previous,
+        out_mean,
+        out_cov,
+        chunk,
+    )
 
 
 summary_estimate = variant(_summary_estimate_body, "serial", {"dominant_cluster": _dominant_cluster})
@@ -496,6 +603,7 @@ def summary_entropy(grid, histograms, bitmaps):
 # the chunks in order), the chunks spread over threads: the same estimate for any number of threads, the
 # serial one's bit for bit when a chunk holds every particle, otherwise equal to rounding.
 
+
 @numba.njit(cache=True, parallel=True)
 def _kernel_mean_chunked(xs, ys, ts, weights, cx, cy, ct, radius, angle_radius, scratch, chunk):
     n = xs.shape[0]
@@ -511,8 +619,19 @@ def _kernel_mean_chunked(xs, ys, ts, weights, cx, cy, ct, radius, angle_radius, 
         for start in range(t * chunk, min(n, (t + 1) * chunk), BLOCK):
             stop = min(start + BLOCK, n, (t + 1) * chunk)
             count = stop - start
-            _kernel_terms(xs[start:stop], ys[start:stop], ts[start:stop], weights[start:stop], count, cx, cy, ct,
-                          r2, angle_radius, rows)
+            _kernel_terms(
+                xs[start:stop],
+                ys[start:stop],
+                ts[start:stop],
+                weights[start:stop],
+                count,
+                cx,
+                cy,
+                ct,
+                r2,
+                angle_radius,
+                rows,
+            )
             for p in range(count):
                 sx += rows[0, p]
                 sy += rows[1, p]
@@ -537,8 +656,7 @@ def _kernel_mean_chunked(xs, ys, ts, weights, cx, cy, ct, radius, angle_radius, 
 
 
 @numba.njit(cache=True, parallel=True)
-def _kernel_covariance_chunked(xs, ys, ts, weights, mx, my, mt, radius, angle_radius, total, scratch, out_cov,
-                               chunk):
+def _kernel_covariance_chunked(xs, ys, ts, weights, mx, my, mt, radius, angle_radius, total, scratch, out_cov, chunk):
     n = xs.shape[0]
     chunks = max(1, (n + chunk - 1) // chunk)
     partial = np.zeros((chunks, 6))
@@ -550,8 +668,20 @@ def _kernel_covariance_chunked(xs, ys, ts, weights, mx, my, mt, radius, angle_ra
             for start in range(t * chunk, min(n, (t + 1) * chunk), BLOCK):
                 stop = min(start + BLOCK, n, (t + 1) * chunk)
                 count = stop - start
-                _covariance_terms(xs[start:stop], ys[start:stop], ts[start:stop], weights[start:stop], count, mx,
-                                  my, mt, r2, angle_radius, total, rows)
+                _covariance_terms(
+                    xs[start:stop],
+                    ys[start:stop],
+                    ts[start:stop],
+                    weights[start:stop],
+                    count,
+                    mx,
+                    my,
+                    mt,
+                    r2,
+                    angle_radius,
+                    total,
+                    rows,
+                )
                 for p in range(count):
                     for q in range(6):
                         sums[q] += rows[q, p]
@@ -568,9 +698,17 @@ def _kernel_covariance_chunked(xs, ys, ts, weights, mx, my, mt, radius, angle_ra
     out_cov[2, 2] = c[5]
 
 
-summary_estimate_chunked = variant(_summary_estimate_body, "chunked", {"dominant_cluster": variant(
-    _dominant_cluster_body, "chunked", {"kernel_mean": _kernel_mean_chunked,
-                                        "kernel_covariance": _kernel_covariance_chunked})})
+summary_estimate_chunked = variant(
+    _summary_estimate_body,
+    "chunked",
+    {
+        "dominant_cluster": variant(
+            _dominant_cluster_body,
+            "chunked",
+            {"kernel_mean": _kernel_mean_chunked, "kernel_covariance": _kernel_covariance_chunked},
+        )
+    },
+)
 """`summary_estimate` with its sums in chunks of `chunk` on several threads (see above): its arguments, then
 chunk."""
 
@@ -578,7 +716,7 @@ chunk."""
 # Several threads fill the histograms in fixed point (weights in units of 2⁻⁶⁰, one row of `local` per thread),
 # where sums in any order are exact: the histograms do not depend on how the chunks fell to the threads, and
 # differ from the serial ones by rounding only.
-_FIXED = 2.0 ** 60
+_FIXED = 2.0**60
 
 
 @numba.njit(cache=True, parallel=True)
@@ -608,8 +746,7 @@ def _fill_fixed(grid, poses, weights, coordinates, local, chunk):
 def summary_fill_chunked(grid, poses, weights, coordinates, histograms, bitmaps, local, chunk):
     """`summary_fill` on several threads (`local`: (threads, cells) int64 scratch, zero on entry and on return):
     the same cells, the weights summed in fixed point (equal to rounding)."""
-    cluster, position, orientation, cluster_bits, position_bits, orientation_bits = _parts(grid, histograms,
-                                                                                          bitmaps)
+    cluster, position, orientation, cluster_bits, position_bits, orientation_bits = _parts(grid, histograms, bitmaps)
     _clear_marked(cluster, cluster_bits)
     _clear_marked(position, position_bits)
     _clear_marked(orientation, orientation_bits)
@@ -639,7 +776,7 @@ def summary_fill_chunked(grid, poses, weights, coordinates, histograms, bitmaps,
 # -- the opt-in fast variant ----------------------------------------------------------------------------------------
 # With `ParticleFilter(fast=True)`: the mean shift's and the covariance's sums reassociated (one vectorized loop
 # each), equal to the serial estimate to rounding.
-FAST = {"nsz", "arcp", "contract", "afn", "reassoc"}     # fast-math without assuming no NaN / inf
+FAST = {"nsz", "arcp", "contract", "afn", "reassoc"}  # fast-math without assuming no NaN / inf
 
 
 @numba.njit(cache=True, fastmath=FAST, error_model="numpy")
@@ -690,8 +827,17 @@ def _kernel_covariance_fast(xs, ys, ts, weights, mx, my, mt, radius, angle_radiu
     out_cov[2, 2] = c22
 
 
-summary_estimate_fast = variant(_summary_estimate_body, "fast", {"dominant_cluster": variant(
-    _dominant_cluster_body, "fast", {"kernel_mean": _kernel_mean_fast, "kernel_covariance": _kernel_covariance_fast})})
+summary_estimate_fast = variant(
+    _summary_estimate_body,
+    "fast",
+    {
+        "dominant_cluster": variant(
+            _dominant_cluster_body,
+            "fast",
+            {"kernel_mean": _kernel_mean_fast, "kernel_covariance": _kernel_covariance_fast},
+        )
+    },
+)
 """`summary_estimate` with reassociated sums (equal to rounding)."""
 
 
@@ -705,8 +851,9 @@ def _belief_kde(poses, weights, pose, mass: float | None, min_bandwidth) -> tupl
     weights = np.asarray(weights, dtype=np.float64)
     pose = np.asarray(pose, dtype=np.float64)
     if poses.ndim != 2 or poses.shape[1] != 3 or weights.shape != (poses.shape[0],) or pose.shape != (3,):
-        raise ValueError(f"poses (N, 3), weights (N,) and pose (3,) expected, got {poses.shape}, {weights.shape}, "
-                         f"{pose.shape}")
+        raise ValueError(
+            f"poses (N, 3), weights (N,) and pose (3,) expected, got {poses.shape}, {weights.shape}, {pose.shape}"
+        )
     if not (np.isfinite(poses).all() and np.isfinite(pose).all()):
         raise ValueError("poses and pose must be finite")
     if mass is not None and not (0 < mass < 1):
@@ -718,13 +865,18 @@ def _belief_kde(poses, weights, pose, mass: float | None, min_bandwidth) -> tupl
     if not (math.isfinite(total) and total > 0) or (weights < 0).any():
         raise ValueError("weights must be >= 0 with a positive finite sum")
     weights = weights / total
-    n_effective = 1.0 / float(np.sum(weights ** 2))
-    centre = np.array([weights @ poses[:, 0], weights @ poses[:, 1],
-                       math.atan2(weights @ np.sin(poses[:, 2]), weights @ np.cos(poses[:, 2]))])
+    n_effective = 1.0 / float(np.sum(weights**2))
+    centre = np.array(
+        [
+            weights @ poses[:, 0],
+            weights @ poses[:, 1],
+            math.atan2(weights @ np.sin(poses[:, 2]), weights @ np.cos(poses[:, 2])),
+        ]
+    )
     residual = poses - centre
     residual[:, 2] = wrap_angles(residual[:, 2])
-    spread = np.sqrt(weights @ residual ** 2)
-    bandwidth = np.maximum(spread * n_effective ** (-1.0 / 7.0), floor)   # Scott, d = 3
+    spread = np.sqrt(weights @ residual**2)
+    bandwidth = np.maximum(spread * n_effective ** (-1.0 / 7.0), floor)  # Scott, d = 3
     return poses, weights, pose, bandwidth
 
 
@@ -734,9 +886,14 @@ def _kernel_exponents(points: np.ndarray, poses: np.ndarray, bandwidth: np.ndarr
     return -0.5 * np.sum((difference / bandwidth) ** 2, axis=-1)
 
 
-def credible_region_contains(poses: np.ndarray, weights: np.ndarray, pose, mass: float = 0.95,
-                             min_bandwidth: tuple[float, float, float] = (0.005, 0.005, 0.005),
-                             leave_one_out: bool = True) -> bool:
+def credible_region_contains(
+    poses: np.ndarray,
+    weights: np.ndarray,
+    pose,
+    mass: float = 0.95,
+    min_bandwidth: tuple[float, float, float] = (0.005, 0.005, 0.005),
+    leave_one_out: bool = True,
+) -> bool:
     """Whether `pose` (x, y, θ) lies inside the smallest region holding `mass` of the belief.
 
     The belief's density is a weighted kernel density estimate over the particles (Gaussian kernels, diagonal
@@ -756,8 +913,8 @@ def credible_region_contains(poses: np.ndarray, weights: np.ndarray, pose, mass:
         return np.exp(_kernel_exponents(points, poses, bandwidth)) @ weights
 
     at_particles = density(poses)
-    others = 1.0 - weights                     # the weight of the other particles, for leaving one out
-    alone = (others <= 1e-9) | (not leave_one_out)   # a particle holding (nearly) all of the weight keeps its kernel
+    others = 1.0 - weights  # the weight of the other particles, for leaving one out
+    alone = (others <= 1e-9) | (not leave_one_out)  # a particle holding (nearly) all of the weight keeps its kernel
     at_particles = np.where(alone, at_particles, (at_particles - weights) / np.where(alone, 1.0, others))
     order = np.argsort(-at_particles, kind="stable")
     held = np.cumsum(weights[order])
@@ -765,8 +922,9 @@ def credible_region_contains(poses: np.ndarray, weights: np.ndarray, pose, mass:
     return bool(density(pose[None, :])[0] >= level)
 
 
-def belief_log_density(poses: np.ndarray, weights: np.ndarray, pose,
-                       min_bandwidth: tuple[float, float, float] = (0.005, 0.005, 0.005)) -> float:
+def belief_log_density(
+    poses: np.ndarray, weights: np.ndarray, pose, min_bandwidth: tuple[float, float, float] = (0.005, 0.005, 0.005)
+) -> float:
     """The log of the belief's density at `pose` (x, y, θ), in log(1 / (m²·rad)): the logarithmic score.
 
     The density is the kernel density estimate of `credible_region_contains` (same bandwidths), normalised: each

@@ -54,6 +54,7 @@ injects draws the injected poses and finishes in a second call; the rare branche
 stateful motion models, threads with injection, particles that explain nothing) take the stages one by one.
 `fast=True` and `threads=n` trade the last bits for speed.
 """
+
 from __future__ import annotations
 
 import math
@@ -116,22 +117,22 @@ class AugmentedMCL:
 
     alpha_slow: float = 0.002
     alpha_fast: float = 0.1
-    ratio_threshold: float = 0.5         # inject 1 - (w_fast/w_slow)/ratio_threshold of the particles: only
-                                         # when the short-term fit drops below this share of the long-term
-                                         # one (1.0 is plain augmented MCL, which reacts to every false
-                                         # positive in a frame with a single detection)
-    fit_threshold: float = 0.2           # also inject 1 - w_fast/fit_threshold when the fit is poor in absolute
-                                         # terms (sensor resetting, Lenser & Veloso 2000): a perfect match
-                                         # scores 1 per detection with sensing.LandmarkSensorModel. Below the
-                                         # 1st percentile of w_fast while tracking (0.29 over every frame of
-                                         # `robocup-mcl demo walk --seeds 0-9`), so it rarely fires then;
-                                         # 0 switches it off
-    max_fraction: float = 0.25           # never replace more than this share of the particles at once ...
+    ratio_threshold: float = 0.5  # inject 1 - (w_fast/w_slow)/ratio_threshold of the particles: only
+    # when the short-term fit drops below this share of the long-term
+    # one (1.0 is plain augmented MCL, which reacts to every false
+    # positive in a frame with a single detection)
+    fit_threshold: float = 0.2  # also inject 1 - w_fast/fit_threshold when the fit is poor in absolute
+    # terms (sensor resetting, Lenser & Veloso 2000): a perfect match
+    # scores 1 per detection with sensing.LandmarkSensorModel. Below the
+    # 1st percentile of w_fast while tracking (0.29 over every frame of
+    # `robocup-mcl demo walk --seeds 0-9`), so it rarely fires then;
+    # 0 switches it off
+    max_fraction: float = 0.25  # never replace more than this share of the particles at once ...
     max_fraction_tracking: float = 0.05  # ... nor more than this once the filter has been confident (the
-                                         # relocalization's `tracking`): a streak of false positives must not
-                                         # dissolve a correct cluster (at 25 % a frame, 90 % of it is gone in 8
-                                         # frames); the injected poses are chosen among many candidates for how
-                                         # well they explain the frame, so few are needed
+    # relocalization's `tracking`): a streak of false positives must not
+    # dissolve a correct cluster (at 25 % a frame, 90 % of it is gone in 8
+    # frames); the injected poses are chosen among many candidates for how
+    # well they explain the frame, so few are needed
 
     def update(self, w_slow: float, w_fast: float, log_average: float) -> tuple[float, float, float]:
         """w_slow and w_fast moved towards exp(log_average), the frame's average likelihood per detection (set
@@ -155,8 +156,10 @@ class AugmentedMCL:
         real("alpha_slow", self.alpha_slow)
         real("alpha_fast", self.alpha_fast)
         if not (0 < self.alpha_slow < self.alpha_fast <= 1):
-            raise ValueError(f"alpha_slow = {self.alpha_slow!r}, alpha_fast = {self.alpha_fast!r}: "
-                             "need 0 < alpha_slow < alpha_fast <= 1")
+            raise ValueError(
+                f"alpha_slow = {self.alpha_slow!r}, alpha_fast = {self.alpha_fast!r}: "
+                "need 0 < alpha_slow < alpha_fast <= 1"
+            )
         for name in ("max_fraction", "max_fraction_tracking", "ratio_threshold"):
             real(name, getattr(self, name), 0.0, 1.0)
         real("fit_threshold", self.fit_threshold, 0.0)
@@ -313,13 +316,24 @@ class ParticleFilter:
         If an argument has the wrong type (`field` not a `Field`, `fast` not a bool, ...); a ValueError too.
     """
 
-    def __init__(self, field: Field, motion_model: MotionModel, sensor_model: SensorModel, n_particles: int = 500,
-                 seed: int | None = 0, resampling: str = "systematic", resample_threshold: float = 0.5,
-                 augmented: AugmentedMCL | None = AugmentedMCL(), grid: Grid = Grid(),
-                 roughening: tuple[float, float, float] = (0.02, 0.02, 0.02), threads: int = 1,
-                 fast: bool = False, relocalization: Relocalization | None = None) -> None:
+    def __init__(
+        self,
+        field: Field,
+        motion_model: MotionModel,
+        sensor_model: SensorModel,
+        n_particles: int = 500,
+        seed: int | None = 0,
+        resampling: str = "systematic",
+        resample_threshold: float = 0.5,
+        augmented: AugmentedMCL | None = AugmentedMCL(),
+        grid: Grid = Grid(),
+        roughening: tuple[float, float, float] = (0.02, 0.02, 0.02),
+        threads: int = 1,
+        fast: bool = False,
+        relocalization: Relocalization | None = None,
+    ) -> None:
         _check_field_and_seed(field, n_particles, seed)
-        self.resampling = resampling                  # (the setters check them)
+        self.resampling = resampling  # (the setters check them)
         self.resample_threshold = resample_threshold
         _check_contract("motion_model", motion_model, MotionModel)
         _check_contract("sensor_model", sensor_model, SensorModel)
@@ -332,13 +346,13 @@ class ParticleFilter:
         self.augmented = augmented
         self.rng = np.random.default_rng(seed)
         self._summary = Summary(field, grid, int(n_particles), int(threads))
-        self.w_slow = self.w_fast = 0.0           # augmented MCL's long- and short-term average likelihoods
-        self.frame_fit = self.frame_log_likelihood = math.nan   # the last correction's evidence (see above)
+        self.w_slow = self.w_fast = 0.0  # augmented MCL's long- and short-term average likelihoods
+        self.frame_fit = self.frame_log_likelihood = math.nan  # the last correction's evidence (see above)
         self.ess = float(n_particles)
-        self.resampled = False                    # whether the last correction resampled
-        self.injected = 0                         # particles injected by the last correction
+        self.resampled = False  # whether the last correction resampled
+        self.injected = 0  # particles injected by the last correction
         self.relocalization = SoccerRelocalization() if relocalization is None else relocalization
-        _check_contract("relocalization", self.relocalization, Relocalization)   # which poses to inject
+        _check_contract("relocalization", self.relocalization, Relocalization)  # which poses to inject
         self.relocalization.bind(self._summary.carpet)
         self._particles = Particles(int(n_particles), motion_model)
         self._engine = Engine(self._particles, self._summary, int(threads), bool(fast))
@@ -348,13 +362,18 @@ class ParticleFilter:
 
     n: _Fixed[int] = _Fixed("_particles.n")
     """The number of particles N (fixed: the filter's arrays are made for it)."""
-    poses: _Fixed[np.ndarray] = _Fixed("_particles.poses", "ParticleFilter.poses cannot be rebound: use "
-                                       "set_particles(poses, log_weights), which checks them")
+    poses: _Fixed[np.ndarray] = _Fixed(
+        "_particles.poses",
+        "ParticleFilter.poses cannot be rebound: use set_particles(poses, log_weights), which checks them",
+    )
     """The particles, (N, 3) [x, y, θ]: the filter's own array, which its kernels work in. Replace them with
     `set_particles` (validated; the kernels trust the array's shape)."""
-    log_weights: _Fixed[np.ndarray] = _Fixed("_particles.log_weights", "ParticleFilter.log_weights cannot be "
-                                             "rebound: use set_particles(poses, log_weights), which checks them "
-                                             "and normalizes the weights")
+    log_weights: _Fixed[np.ndarray] = _Fixed(
+        "_particles.log_weights",
+        "ParticleFilter.log_weights cannot be "
+        "rebound: use set_particles(poses, log_weights), which checks them "
+        "and normalizes the weights",
+    )
     """The particles' log-weights, (N,): the filter's own array (normalized with `weights`). Replace them with
     `set_particles`."""
     particles: _Fixed[Particles] = _Fixed("_particles")
@@ -385,7 +404,7 @@ class ParticleFilter:
     roughening: _Setting[np.ndarray] = _Setting(_roughening)
     """The roughening's standard deviations (x [m], y [m], θ [rad]), read-only (may be replaced between steps by
     three finite numbers >= 0)."""
-    _resampling: str                  # the settings' checked values
+    _resampling: str  # the settings' checked values
     _resample_threshold: float
     _augmented: AugmentedMCL | None
     _roughening: np.ndarray
@@ -403,8 +422,9 @@ class ParticleFilter:
 
     # -- resets -------------------------------------------------------------------------------------------------
 
-    def reset_uniform(self, region: str | Sequence[float] = "field", heading: float | None = None,
-                      heading_sigma: float = 0.0) -> None:
+    def reset_uniform(
+        self, region: str | Sequence[float] = "field", heading: float | None = None, heading_sigma: float = 0.0
+    ) -> None:
         """Spread the particles uniformly over a region ("field", "own_half", "opponent_half", or bounds).
 
         Injection stays in this region until the filter is first confident (see the module docstring).
@@ -427,8 +447,9 @@ class ParticleFilter:
         self._reset(self._particles.uniform_poses(bounds, self.rng, heading, heading_sigma))
         self.relocalization.reset_region(bounds)
 
-    def reset_around(self, pose: Sequence[float] | np.ndarray,
-                     sigma: Sequence[float] | np.ndarray = (0.1, 0.1, 0.1)) -> None:
+    def reset_around(
+        self, pose: Sequence[float] | np.ndarray, sigma: Sequence[float] | np.ndarray = (0.1, 0.1, 0.1)
+    ) -> None:
         """Normal particles around a known pose (x, y, θ) with standard deviations `sigma`.
 
         The pose is taken as known: its heading guides injection from now on (as after a confident sweep).
@@ -454,9 +475,12 @@ class ParticleFilter:
         self._mirror()
         self.relocalization.mirror()
 
-    def reset_candidates(self, poses: Sequence[Sequence[float]] | np.ndarray,
-                         sigma: Sequence[float] | np.ndarray = (0.1, 0.1, 0.1),
-                         region: str | Sequence[float] = "field") -> None:
+    def reset_candidates(
+        self,
+        poses: Sequence[Sequence[float]] | np.ndarray,
+        sigma: Sequence[float] | np.ndarray = (0.1, 0.1, 0.1),
+        region: str | Sequence[float] = "field",
+    ) -> None:
         """Spread the particles evenly over several candidate poses (K, 3), normal around each with `sigma`.
 
         For a placement the rules fix up to a choice the robot cannot know (which touchline, which kick-off
@@ -525,9 +549,12 @@ class ParticleFilter:
         self.ess = self._particles.reweigh(log_factors)
         self._summary.changed()
 
-    def set_particles(self, poses: Sequence[Sequence[float]] | np.ndarray,
-                      log_weights: Sequence[float] | np.ndarray | None = None,
-                      motion_state: np.ndarray | None = None) -> None:
+    def set_particles(
+        self,
+        poses: Sequence[Sequence[float]] | np.ndarray,
+        log_weights: Sequence[float] | np.ndarray | None = None,
+        motion_state: np.ndarray | None = None,
+    ) -> None:
         """Replace the particle set (N, 3) and optionally its log-weights (N,) and, for a stateful motion model,
         its per-particle state (fresh when not given); validated first.
 
@@ -596,8 +623,9 @@ class ParticleFilter:
             self.relocalization.carry(motion[0], motion[1], motion[2])
         self._summary.changed()
 
-    def correct(self, observations: Observations | Iterable | None,
-                since: Sequence[float] | np.ndarray | None = None) -> None:
+    def correct(
+        self, observations: Observations | Iterable | None, since: Sequence[float] | np.ndarray | None = None
+    ) -> None:
         """Weigh the particles by the detections, then resample (and inject) if needed.
 
         A frame with its camera view (`Observations.view`) is also scored by the landmarks each particle puts in
@@ -666,7 +694,7 @@ class ParticleFilter:
             self.sensor_model.check(observations)
             raise
         if not fused or motion is None:
-            self.sensor_model.check(observations)     # before the particles move
+            self.sensor_model.check(observations)  # before the particles move
             self._predict(u, motion)
         return motion
 
@@ -719,12 +747,13 @@ class ParticleFilter:
         if type(since) is tuple and len(since) == 3 and all(type(v) is float for v in since):
             # `MotionHistory.since` gives three floats: checked without numpy's calls on a tiny array
             if not (math.hypot(since[0], since[1]) <= LARGEST_COORDINATE and abs(since[2]) <= LARGEST_ANGLE):
-                return ParticleFilter._check_since(list(since))       # raises, naming the rule
+                return ParticleFilter._check_since(list(since))  # raises, naming the rule
             return None if since == (0.0, 0.0, 0.0) else np.array(since)
         array = reals("since", since, 3)
         if math.hypot(array[0], array[1]) > LARGEST_COORDINATE or abs(array[2]) > LARGEST_ANGLE:
-            raise ValueError(f"since = {since!r} must move at most {LARGEST_COORDINATE:g} m and turn at most "
-                             f"{LARGEST_ANGLE:g} rad")
+            raise ValueError(
+                f"since = {since!r} must move at most {LARGEST_COORDINATE:g} m and turn at most {LARGEST_ANGLE:g} rad"
+            )
         return None if not array.any() else array
 
     def _correct(self, observations: Observations, since: np.ndarray | None = None) -> None:
@@ -768,28 +797,45 @@ class ParticleFilter:
         self._particles.weights[:] = 1.0 / self._n
         self._resample(self._injection_count(1.0), observations, since)
 
-    def _correct_fused(self, motion: tuple | None, observations: Observations, in_step: bool,
-                       since: np.ndarray | None = None) -> None:
+    def _correct_fused(
+        self, motion: tuple | None, observations: Observations, in_step: bool, since: np.ndarray | None = None
+    ) -> None:
         """[predict by `motion`,] correct(observations) [captured `since` ago] in the engine's fused step."""
         a = self._augmented
         terms = getattr(self.sensor_model, "terms", len)(observations)
         if a is None:
             augmented = (False, 0.0, 0.0, 1.0, 0.0, self.w_slow, self.w_fast, 0.0)
         else:
-            augmented = (True, a.alpha_slow, a.alpha_fast, a.ratio_threshold, a.fit_threshold, self.w_slow,
-                         self.w_fast, a.cap(self.relocalization.tracking))
+            augmented = (
+                True,
+                a.alpha_slow,
+                a.alpha_fast,
+                a.ratio_threshold,
+                a.fit_threshold,
+                self.w_slow,
+                self.w_fast,
+                a.cap(self.relocalization.tracking),
+            )
         # Only an estimate the stages one by one compute (after a correction with augmentation, or at the end of
         # `step`) may be computed here: computing one moves the hysteresis anchor.
         want_estimate = in_step or a is not None
-        outcome = self._engine.fused_step(self.motion_model, motion, self.sensor_model, observations,
-                                          (self._n - self.injected, terms, *augmented),
-                                          (self._resampling, self._resample_threshold, self._roughening),
-                                          want_estimate, since, self.rng)
+        outcome = self._engine.fused_step(
+            self.motion_model,
+            motion,
+            self.sensor_model,
+            observations,
+            (self._n - self.injected, terms, *augmented),
+            (self._resampling, self._resample_threshold, self._roughening),
+            want_estimate,
+            since,
+            self.rng,
+        )
         if outcome.status == STEP_MISSING:
-            self.sensor_model.check(observations)     # raises, naming the detection; nothing has changed
-            raise ValueError("the sensor model's fused kernels refuse a detection that its check() accepts; "
-                             "filter left unchanged")
-        if motion is not None:                        # the particles have moved, whatever follows
+            self.sensor_model.check(observations)  # raises, naming the detection; nothing has changed
+            raise ValueError(
+                "the sensor model's fused kernels refuse a detection that its check() accepts; filter left unchanged"
+            )
+        if motion is not None:  # the particles have moved, whatever follows
             self.relocalization.carry(motion[0], motion[1], motion[2])
         if outcome.status == STEP_INVALID:
             raise ValueError(_INVALID_LIKELIHOODS + (_MOVED if motion is not None else "; filter left unchanged"))
@@ -812,11 +858,12 @@ class ParticleFilter:
             self.injected = 0
         self._track_confidence()
 
-    def _inject_fused(self, count: int, observations: Observations, want_estimate: bool,
-                      since: np.ndarray | None) -> None:
+    def _inject_fused(
+        self, count: int, observations: Observations, want_estimate: bool, since: np.ndarray | None
+    ) -> None:
         """The end of a fused step that injects: `_resample` and the summary that follows it, in one call."""
         injected = self._sample_injection(count, observations)
-        if since is not None:                     # placed where the detections were captured: carried to now
+        if since is not None:  # placed where the detections were captured: carried to now
             move_forward(injected, since, injected)
         self._engine.resample_and_summarize(injected, self._roughening, want_estimate, self.rng)
         self.ess = float(self._n)
@@ -838,7 +885,7 @@ class ParticleFilter:
 
     def _update_augmented(self, log_average: float) -> float:
         """Update w_slow, w_fast with the per-detection average likelihood; return the injection share."""
-        assert self._augmented is not None           # called with augmented MCL on only
+        assert self._augmented is not None  # called with augmented MCL on only
         self.w_slow, self.w_fast, fraction = self._augmented.update(self.w_slow, self.w_fast, log_average)
         return fraction
 
@@ -849,8 +896,9 @@ class ParticleFilter:
 
     def _sample_injection(self, count: int, observations: Observations) -> np.ndarray:
         """`count` poses for augmented MCL to inject, as the relocalization proposes them (`propose`)."""
-        return np.ascontiguousarray(self.relocalization.propose(count, observations, self.sensor_model, self.rng),
-                                    dtype=np.float64)
+        return np.ascontiguousarray(
+            self.relocalization.propose(count, observations, self.sensor_model, self.rng), dtype=np.float64
+        )
 
     def _resample(self, count: int, observations: Observations, since: np.ndarray | None = None) -> None:
         """Resample N - count particles by the scheme and inject `count` the relocalization proposes."""

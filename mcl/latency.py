@@ -16,6 +16,7 @@ displacement (not their own noise draws), which is exact for the odometry they w
 the motion noise of 0.15 s at most. With no motion since the capture, nothing is moved: the result is that of
 an observation without latency, bit for bit.
 """
+
 from __future__ import annotations
 
 import math
@@ -31,12 +32,10 @@ from field.moved import moved_names
 from numerics.trig import moved_back, sincos
 
 # The numpy twins moved to the package's `reference` module; their old names still work, with a warning.
-__getattr__ = moved_names(__name__, {
-    "move_back_reference": "mcl.reference.move_back"
-})
+__getattr__ = moved_names(__name__, {"move_back_reference": "mcl.reference.move_back"})
 
 IDENTITY = (0.0, 0.0, 0.0)
-SAME_TIME = 1e-6     # s: times closer than this are one instant (log stamps are integer nanoseconds)
+SAME_TIME = 1e-6  # s: times closer than this are one instant (log stamps are integer nanoseconds)
 
 
 def compose(first, second) -> tuple[float, float, float]:
@@ -79,7 +78,7 @@ class MotionHistory:
             raise ValueError(f"keep = {keep!r} must be a finite number of seconds > 0")
         self.keep = float(keep)
         self._steps: deque[tuple[float, float, tuple[float, float, float]]] = deque()
-        self._start: float | None = None      # earliest time `since` can reach back to
+        self._start: float | None = None  # earliest time `since` can reach back to
 
     def clear(self, t: float | None = None) -> None:
         """Forget every step; with `t`, the history starts again at that time."""
@@ -101,10 +100,14 @@ class MotionHistory:
         in its frame at the step's start (at most 1 km and 100 rad)."""
         t_end = real("t_end", t_end)
         dt = real("dt", dt, 0.0)
-        if not (type(displacement) is tuple and len(displacement) == 3
-                and all(type(v) is float and abs(v) <= LARGEST_COORDINATE for v in displacement)):
-            displacement = tuple(float(v) for v in reals("displacement", displacement, 3, -LARGEST_COORDINATE,
-                                                         LARGEST_COORDINATE))
+        if not (
+            type(displacement) is tuple
+            and len(displacement) == 3
+            and all(type(v) is float and abs(v) <= LARGEST_COORDINATE for v in displacement)
+        ):
+            displacement = tuple(
+                float(v) for v in reals("displacement", displacement, 3, -LARGEST_COORDINATE, LARGEST_COORDINATE)
+            )
         if abs(displacement[2]) > LARGEST_ANGLE:
             raise ValueError(f"displacement = {displacement!r} turns by more than {LARGEST_ANGLE:g} rad")
         latest = self.latest
@@ -124,8 +127,10 @@ class MotionHistory:
         """
         t = real("t", t)
         if self._start is not None and t < self._start - 1e-9:
-            raise ValueError(f"an observation captured at {t:.3f} s is older than the motion history, which "
-                             f"reaches back to {self._start:.3f} s (keep = {self.keep} s)")
+            raise ValueError(
+                f"an observation captured at {t:.3f} s is older than the motion history, which "
+                f"reaches back to {self._start:.3f} s (keep = {self.keep} s)"
+            )
         # The steps that end after t are a suffix (steps are kept in time order): found from the end, then
         # composed in time order.
         after = 0

@@ -47,6 +47,7 @@ odds must hold without the heading reference, see `mcl.relocalization`):
 - OKAY: usable for behaviour, but wider or with less support, the pose at least as probable as its mirror;
 - POOR: anything else. `is_lost` is POOR for `lost_after` seconds (1 s) in a row.
 """
+
 from __future__ import annotations
 
 import enum
@@ -77,7 +78,7 @@ if TYPE_CHECKING:
 
     from .contracts import SensorModel
 
-MAX_ODOMETRY_SCALE = 10.0     # the largest odometry calibration factor a Localizer accepts
+MAX_ODOMETRY_SCALE = 10.0  # the largest odometry calibration factor a Localizer accepts
 
 
 class Quality(enum.Enum):
@@ -173,38 +174,37 @@ class QualityThresholds:
         If a limit is negative, not finite or out of its range.
     """
 
-    superb_position: float = 0.15      # m, sqrt(var x + var y) of the dominant cluster
-    superb_heading: float = 0.1        # rad
-    superb_weight: float = 0.9         # share of the weight in the dominant cluster
-    superb_entropy: float = 7.0        # bits of position entropy (10 cm cells: 128 cells ~ 1.3 m²)
+    superb_position: float = 0.15  # m, sqrt(var x + var y) of the dominant cluster
+    superb_heading: float = 0.1  # rad
+    superb_weight: float = 0.9  # share of the weight in the dominant cluster
+    superb_entropy: float = 7.0  # bits of position entropy (10 cm cells: 128 cells ~ 1.3 m²)
     okay_position: float = 0.4
     okay_heading: float = 0.3
     okay_weight: float = 0.6
     okay_entropy: float = 9.0
-    superb_fit: float = 0.7            # share of the recent detections the estimate explains ...
-    superb_detections: int = 3         # ... of at least this many explained ...
-    superb_age: float = 1.5            # s: ... the last explained one captured at most this long ago
-    superb_mirror_odds: float = 10.0   # the last re-localization preferred its pose to the mirror pose by this
-                                       # much at least (`SoccerRelocalization.mirror_log_odds`; the mirror
-                                       # explains every detection as well, so nothing seen afterwards can)
-    okay_mirror_odds: float = 3.0      # below these odds the pose is UNSURE_HALF (its mirror image too probable)
+    superb_fit: float = 0.7  # share of the recent detections the estimate explains ...
+    superb_detections: int = 3  # ... of at least this many explained ...
+    superb_age: float = 1.5  # s: ... the last explained one captured at most this long ago
+    superb_mirror_odds: float = 10.0  # the last re-localization preferred its pose to the mirror pose by this
+    # much at least (`SoccerRelocalization.mirror_log_odds`; the mirror
+    # explains every detection as well, so nothing seen afterwards can)
+    okay_mirror_odds: float = 3.0  # below these odds the pose is UNSURE_HALF (its mirror image too probable)
     okay_fit: float = 0.4
-    okay_age: float = 10.0             # s since the last explained detection, at most
-    fit_window: float = 1.5            # s of detections the fit is taken over
-    gate: float = 3.0                  # standard deviations within which a detection is explained
-    range_slack: float = 0.1           # m, added to the sensor model's range σ (the model's noise is a guess)
-    bearing_slack: float = 0.03        # rad, added to its bearing σ
-    lost_after: float = 1.0            # s of POOR in a row before is_lost
-    okay_walked: float = 2.0           # m dead-reckoned since the last explained detection, at most
-    superb_seen: float = 0.4           # with views (`observe(..., view=)`): the share of the landmarks the estimate
-    okay_seen: float = 0.3             # expects in view that were detected (`seen_share`), at least this ...
-    view_expected: int = 4             # ... once the recent frames expected this many
-    view_inset: float = 0.8            # a landmark is expected inside this share of the view (`CameraView.inset`)
+    okay_age: float = 10.0  # s since the last explained detection, at most
+    fit_window: float = 1.5  # s of detections the fit is taken over
+    gate: float = 3.0  # standard deviations within which a detection is explained
+    range_slack: float = 0.1  # m, added to the sensor model's range σ (the model's noise is a guess)
+    bearing_slack: float = 0.03  # rad, added to its bearing σ
+    lost_after: float = 1.0  # s of POOR in a row before is_lost
+    okay_walked: float = 2.0  # m dead-reckoned since the last explained detection, at most
+    superb_seen: float = 0.4  # with views (`observe(..., view=)`): the share of the landmarks the estimate
+    okay_seen: float = 0.3  # expects in view that were detected (`seen_share`), at least this ...
+    view_expected: int = 4  # ... once the recent frames expected this many
+    view_inset: float = 0.8  # a landmark is expected inside this share of the view (`CameraView.inset`)
 
     def __post_init__(self) -> None:
         for name, value in self.__dict__.items():
-            if isinstance(value, bool) or not (isinstance(value, (int, float)) and math.isfinite(value)
-                                               and value >= 0):
+            if isinstance(value, bool) or not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0):
                 raise ValueError(f"{name} = {value!r} must be a finite number >= 0")
         for name in ("superb_fit", "okay_fit", "superb_seen", "okay_seen"):
             if getattr(self, name) > 1:
@@ -215,23 +215,30 @@ class QualityThresholds:
             raise ValueError(f"view_inset = {self.view_inset!r} must be within (0, 1]")
 
 
-TWIN_RADIUS = 1.0                # m: particles this close to the estimate's mirror image form its twin ...
-TWIN_HEADING = 0.8               # rad: ... and this close in heading
+TWIN_RADIUS = 1.0  # m: particles this close to the estimate's mirror image form its twin ...
+TWIN_HEADING = 0.8  # rad: ... and this close in heading
 
 
 def _same_place(a: np.ndarray, b: np.ndarray) -> bool:
     """Whether two poses are the same place for the side evidence (TWIN_RADIUS, TWIN_HEADING)."""
-    return (math.hypot(a[0] - b[0], a[1] - b[1]) <= TWIN_RADIUS
-            and abs(math.remainder(a[2] - b[2], 2 * math.pi)) <= TWIN_HEADING)
+    return (
+        math.hypot(a[0] - b[0], a[1] - b[1]) <= TWIN_RADIUS
+        and abs(math.remainder(a[2] - b[2], 2 * math.pi)) <= TWIN_HEADING
+    )
 
 
 def _log(odds: float) -> float:
     return math.log(odds) if odds > 0 else -math.inf
 
 
-def explained_detections(sensor_model: SensorModel, pose: Sequence[float] | np.ndarray,
-                         observations: Observations, gate: float = 3.0, range_slack: float = 0.0,
-                         bearing_slack: float = 0.0) -> np.ndarray | None:
+def explained_detections(
+    sensor_model: SensorModel,
+    pose: Sequence[float] | np.ndarray,
+    observations: Observations,
+    gate: float = 3.0,
+    range_slack: float = 0.0,
+    bearing_slack: float = 0.0,
+) -> np.ndarray | None:
     """Which detections (bool per detection) the pose (x, y, θ) explains, as the sensor model says
     (`explained(pose, observations, gate, range_slack, bearing_slack)`, a capability `LandmarkSensorModel`
     offers); None when the model cannot say.
@@ -309,9 +316,15 @@ def default_kickoff_positions(field: Field, kicking: bool) -> np.ndarray:
     front = -hl + d.penalty_area_length
     radius = 0.5 * d.center_circle_diameter
     striker = -0.2 if kicking else -(radius + 0.2)
-    return np.array([[-hl, 0.0, 0.0], [front, 0.5 * d.penalty_area_width, 0.0],
-                     [front, -0.5 * d.penalty_area_width, 0.0], [-hl + d.penalty_mark_distance, 0.0, 0.0],
-                     [striker, 0.0, 0.0]])
+    return np.array(
+        [
+            [-hl, 0.0, 0.0],
+            [front, 0.5 * d.penalty_area_width, 0.0],
+            [front, -0.5 * d.penalty_area_width, 0.0],
+            [-hl + d.penalty_mark_distance, 0.0, 0.0],
+            [striker, 0.0, 0.0],
+        ]
+    )
 
 
 class Localizer:
@@ -368,29 +381,41 @@ class Localizer:
         How many frames it sums.
     """
 
-    def __init__(self, field: Field, motion_model: MotionModel | None = None,
-                 sensor_model: SensorModel | None = None, n_particles: int = 500, seed: int | None = 0,
-                 history: float = 1.0, compensate_latency: bool = True,
-                 quality: QualityThresholds = QualityThresholds(),
-                 getup_sigma: Sequence[float] | np.ndarray = (0.15, 0.15, 0.5),
-                 placement_sigma: Sequence[float] | np.ndarray = (0.15, 0.08, 0.15),
-                 odometry_scale: Sequence[float] | np.ndarray = (1.0, 1.0, 1.0),
-                 side: SideSettings = SideSettings(), team: Team = Team(), **filter_options: Any) -> None:
+    def __init__(
+        self,
+        field: Field,
+        motion_model: MotionModel | None = None,
+        sensor_model: SensorModel | None = None,
+        n_particles: int = 500,
+        seed: int | None = 0,
+        history: float = 1.0,
+        compensate_latency: bool = True,
+        quality: QualityThresholds = QualityThresholds(),
+        getup_sigma: Sequence[float] | np.ndarray = (0.15, 0.15, 0.5),
+        placement_sigma: Sequence[float] | np.ndarray = (0.15, 0.08, 0.15),
+        odometry_scale: Sequence[float] | np.ndarray = (1.0, 1.0, 1.0),
+        side: SideSettings = SideSettings(),
+        team: Team = Team(),
+        **filter_options: Any,
+    ) -> None:
         scale = reals("odometry_scale", odometry_scale, 3)
         if not isinstance(side, SideSettings):
             raise ArgumentTypeError(f"side = {side!r} must be an mcl.side.SideSettings")
         if not isinstance(team, Team):
             raise ArgumentTypeError(f"team = {team!r} must be an mcl.side.Team")
         if not all(0.0 < v <= MAX_ODOMETRY_SCALE for v in scale):
-            raise ValueError(f"odometry_scale = {tuple(scale.tolist())!r}: each factor must lie in "
-                             f"(0, {MAX_ODOMETRY_SCALE:g}]")
+            raise ValueError(
+                f"odometry_scale = {tuple(scale.tolist())!r}: each factor must lie in (0, {MAX_ODOMETRY_SCALE:g}]"
+            )
         if motion_model is None:
             from motion_models import VelocityLinear
+
             motion_model = VelocityLinear()
         if sensor_model is None:
             sensor_model = LandmarkSensorModel(field)
-        self.filter = ParticleFilter(field, motion_model, sensor_model, n_particles=n_particles, seed=seed,
-                                     **filter_options)
+        self.filter = ParticleFilter(
+            field, motion_model, sensor_model, n_particles=n_particles, seed=seed, **filter_options
+        )
         self.field = field
         self.history = MotionHistory(history)
         self.compensate_latency = bool(compensate_latency)
@@ -406,17 +431,17 @@ class Localizer:
         self.counts: Counter = Counter()
         self._poor_since: float | None = None
         self._quality: Quality | None = None
-        self._frames: deque = deque()   # (capture time, detections, explained, expected in view, seen) per frame
-        self._last_explained: float | None = None   # capture time of the last frame with an explained detection
-        self._walked = 0.0         # m dead-reckoned since then (since the last reset, before the first one)
+        self._frames: deque = deque()  # (capture time, detections, explained, expected in view, seen) per frame
+        self._last_explained: float | None = None  # capture time of the last frame with an explained detection
+        self._walked = 0.0  # m dead-reckoned since then (since the last reset, before the first one)
         self.is_penalized = False
         # (start, end) of the stretches the robot was fallen or penalized (end None while it lasts): a frame
         # captured inside one is not used, whenever it arrives
         self._blind: deque = deque()
         self.team = team
         self.side = SideBelief(field, side)
-        self._side_sign = 1.0      # +1 while the main pose is the one the re-localization's odds were taken for
-        self._side_pose: np.ndarray | None = None      # where the side evidence was last weighed
+        self._side_sign = 1.0  # +1 while the main pose is the one the re-localization's odds were taken for
+        self._side_pose: np.ndarray | None = None  # where the side evidence was last weighed
         self._relocalizations = self._relocalization_count()
 
     @classmethod
@@ -432,8 +457,9 @@ class Localizer:
         """
         build = getattr(profile, "localizer", None)
         if not callable(build):
-            raise ArgumentTypeError(f"profile = {profile!r} must be an mcl.profile.Profile "
-                                    "(read a file with mcl.profile.Profile.load)")
+            raise ArgumentTypeError(
+                f"profile = {profile!r} must be an mcl.profile.Profile (read a file with mcl.profile.Profile.load)"
+            )
         localizer = build(field, **overrides)
         if not isinstance(localizer, cls):
             raise ArgumentTypeError(f"profile = {profile!r} did not build a {cls.__name__}")
@@ -477,8 +503,13 @@ class Localizer:
         self._track_side()
         self._update_lost()
 
-    def observe(self, observations: Observations | Iterable | None, capture_time: float | None = None,
-                view: CameraView | None = None, ball: BallDetection | None = None) -> bool:
+    def observe(
+        self,
+        observations: Observations | Iterable | None,
+        capture_time: float | None = None,
+        view: CameraView | None = None,
+        ball: BallDetection | None = None,
+    ) -> bool:
         """Correct with one camera frame's detections, captured at `capture_time` (None: now).
 
         A frame captured while the robot was fallen or penalized is not used (and counted), whenever it
@@ -512,10 +543,11 @@ class Localizer:
         """
         observations = Observations.coerce(observations)
         if view is not None:
-            observations = observations.with_view(view)      # TypeError unless a CameraView
+            observations = observations.with_view(view)  # TypeError unless a CameraView
         if ball is not None and not isinstance(ball, BallDetection):
-            raise ArgumentTypeError(f"ball = {ball!r} must be a sensing.team.BallDetection or None, "
-                                    f"not {type(ball).__name__}")
+            raise ArgumentTypeError(
+                f"ball = {ball!r} must be a sensing.team.BallDetection or None, not {type(ball).__name__}"
+            )
         since = None
         if capture_time is not None:
             capture_time = real("capture_time", capture_time)
@@ -569,8 +601,7 @@ class Localizer:
             before the kept motion history; the localizer is left unchanged.
         """
         if not isinstance(ball, BallDetection):
-            raise ArgumentTypeError(f"ball = {ball!r} must be a sensing.team.BallDetection, "
-                                    f"not {type(ball).__name__}")
+            raise ArgumentTypeError(f"ball = {ball!r} must be a sensing.team.BallDetection, not {type(ball).__name__}")
         since = None
         if capture_time is not None:
             capture_time = real("capture_time", capture_time)
@@ -602,8 +633,9 @@ class Localizer:
             robot's clock or more than `SideSettings.past` before it; the localizer is left unchanged.
         """
         if not isinstance(message, TeamMessage):
-            raise ArgumentTypeError(f"message = {message!r} must be a sensing.team.TeamMessage, "
-                                    f"not {type(message).__name__}")
+            raise ArgumentTypeError(
+                f"message = {message!r} must be a sensing.team.TeamMessage, not {type(message).__name__}"
+            )
         if not self.team.accepts(message.sender):
             known = "any but the robot's own" if self.team.teammates is None else list(self.team.teammates)
             raise ValueError(f"message sender = {message.sender} is not a teammate (teammates: {known})")
@@ -611,9 +643,11 @@ class Localizer:
             s = self.side.settings
             sent = message.received_time
             if not self.time - s.past <= sent <= self.time + s.future:
-                raise ValueError(f"message time = {sent:.3f} s (on this robot's clock) must lie within "
-                                 f"[{self.time - s.past:.3f}, {self.time + s.future:.3f}] s (the robot's clock "
-                                 f"{self.time:.3f} s, SideSettings.past and future)")
+                raise ValueError(
+                    f"message time = {sent:.3f} s (on this robot's clock) must lie within "
+                    f"[{self.time - s.past:.3f}, {self.time + s.future:.3f}] s (the robot's clock "
+                    f"{self.time:.3f} s, SideSettings.past and future)"
+                )
         self.counts["team message"] += 1
         if self.is_fallen or self.is_penalized:
             return
@@ -621,7 +655,7 @@ class Localizer:
         self._track_side()
         self.side.message(message, self._now())
         if self.side.reports == reports:
-            return                     # nothing new was weighed: the belief is as it was
+            return  # nothing new was weighed: the belief is as it was
         if self._side_pose is None:
             self._side_pose = self.filter.estimate().pose.copy()
         self._settle_side()
@@ -661,8 +695,10 @@ class Localizer:
         odds = self.side_log_odds
         main_share = 1.0 / (1.0 + math.exp(-odds)) if odds > -700 else 0.0
         mirror_pose = self.field.mirror_poses(estimate.pose[None])[0]
-        out = [Hypothesis(estimate.pose.copy(), estimate.covariance.copy(), estimate.weight * main_share, "main"),
-               Hypothesis(mirror_pose, estimate.covariance.copy(), estimate.weight * (1.0 - main_share), "mirror")]
+        out = [
+            Hypothesis(estimate.pose.copy(), estimate.covariance.copy(), estimate.weight * main_share, "main"),
+            Hypothesis(mirror_pose, estimate.covariance.copy(), estimate.weight * (1.0 - main_share), "mirror"),
+        ]
         rest = 1.0 - estimate.weight
         if rest >= 0.05:
             poses, weights = self.filter.poses, self.filter.weights
@@ -672,8 +708,13 @@ class Localizer:
                 w = weights[outside] / weights[outside].sum()
                 p = poses[outside]
                 mean_heading = math.atan2(float(w @ np.sin(p[:, 2])), float(w @ np.cos(p[:, 2])))
-                centred = np.column_stack([p[:, 0] - w @ p[:, 0], p[:, 1] - w @ p[:, 1],
-                                           np.remainder(p[:, 2] - mean_heading + math.pi, 2 * math.pi) - math.pi])
+                centred = np.column_stack(
+                    [
+                        p[:, 0] - w @ p[:, 0],
+                        p[:, 1] - w @ p[:, 1],
+                        np.remainder(p[:, 2] - mean_heading + math.pi, 2 * math.pi) - math.pi,
+                    ]
+                )
                 mean = np.array([w @ p[:, 0], w @ p[:, 1], mean_heading])
                 out.append(Hypothesis(mean, (centred * w[:, None]).T @ centred, float(rest), "other"))
         return sorted(out, key=lambda h: -h.weight)
@@ -762,9 +803,9 @@ class Localizer:
         poses, weights = self.filter.poses, self.filter.weights
         x, y, theta = (float(v) for v in estimate.pose)
         # the mirror image (-x, -y, θ + π); within TWIN_HEADING of its heading: cos(Δ) >= cos(TWIN_HEADING)
-        near = (((poses[:, 0] + x) ** 2 + (poses[:, 1] + y) ** 2 <= TWIN_RADIUS ** 2)
-                & (-(np.cos(poses[:, 2]) * math.cos(theta) + np.sin(poses[:, 2]) * math.sin(theta))
-                   >= math.cos(TWIN_HEADING)))
+        near = ((poses[:, 0] + x) ** 2 + (poses[:, 1] + y) ** 2 <= TWIN_RADIUS**2) & (
+            -(np.cos(poses[:, 2]) * math.cos(theta) + np.sin(poses[:, 2]) * math.sin(theta)) >= math.cos(TWIN_HEADING)
+        )
         held = float(weights[near].sum())
         allowed = estimate.weight * math.exp(-odds)
         if held > allowed > 0.0:
@@ -818,22 +859,24 @@ class Localizer:
             return
         q = self.thresholds
         pose = self.filter.estimate().pose
-        if since is not None:                      # where the estimate was at capture
+        if since is not None:  # where the estimate was at capture
             at_capture = np.empty((1, 3))
             move_back(pose[None], np.asarray(since, dtype=np.float64), at_capture)
             pose = at_capture[0]
-        explained = explained_detections(self.filter.sensor_model, pose, observations, q.gate, q.range_slack,
-                                         q.bearing_slack)
-        if explained is None:                      # a sensor model without landmarks: the frame's own fit
+        explained = explained_detections(
+            self.filter.sensor_model, pose, observations, q.gate, q.range_slack, q.bearing_slack
+        )
+        if explained is None:  # a sensor model without landmarks: the frame's own fit
             frame_fit = self.filter.frame_fit
-            count = m if frame_fit >= 0.5 else 0    # (False for NaN)
+            count = m if frame_fit >= 0.5 else 0  # (False for NaN)
         else:
             count = int(explained.sum())
         expected = seen = 0
         counter = getattr(self.filter.sensor_model, "seen", None)
         if observations.view is not None and callable(counter):
-            expected, seen = counter(pose, observations, observations.view.inset(q.view_inset), q.gate,
-                                     q.range_slack, q.bearing_slack)
+            expected, seen = counter(
+                pose, observations, observations.view.inset(q.view_inset), q.gate, q.range_slack, q.bearing_slack
+            )
         now = capture_time if capture_time is not None else 0.0
         self._frames.append((now, m, count, expected, seen))
         while self._frames and self._frames[0][0] < now - q.fit_window:
@@ -859,18 +902,32 @@ class Localizer:
         # negative information, when frames came with their view: judged once enough landmarks were expected
         expected = sum(frame[3] for frame in self._frames)
         seen = self.seen_share if expected >= q.view_expected else 1.0
-        superb = (position_sigma <= q.superb_position and heading_sigma <= q.superb_heading
-                  and estimate.weight >= q.superb_weight and entropy <= q.superb_entropy and fit >= q.superb_fit
-                  and explained >= q.superb_detections and age <= q.superb_age and seen >= q.superb_seen)
+        superb = (
+            position_sigma <= q.superb_position
+            and heading_sigma <= q.superb_heading
+            and estimate.weight >= q.superb_weight
+            and entropy <= q.superb_entropy
+            and fit >= q.superb_fit
+            and explained >= q.superb_detections
+            and age <= q.superb_age
+            and seen >= q.superb_seen
+        )
         if superb and side_log_odds >= _log(q.superb_mirror_odds):
             return Quality.SUPERB
-        okay = (position_sigma <= q.okay_position and heading_sigma <= q.okay_heading
-                and estimate.weight >= q.okay_weight and entropy <= q.okay_entropy and age <= q.okay_age
-                and self._walked <= q.okay_walked and not fit < q.okay_fit and seen >= q.okay_seen)
+        okay = (
+            position_sigma <= q.okay_position
+            and heading_sigma <= q.okay_heading
+            and estimate.weight >= q.okay_weight
+            and entropy <= q.okay_entropy
+            and age <= q.okay_age
+            and self._walked <= q.okay_walked
+            and not fit < q.okay_fit
+            and seen >= q.okay_seen
+        )
         if okay and side_log_odds >= _log(q.okay_mirror_odds):
             return Quality.OKAY
         if superb or okay:
-            return Quality.UNSURE_HALF      # sure where, not which half: its mirror image is about as probable
+            return Quality.UNSURE_HALF  # sure where, not which half: its mirror image is about as probable
         return Quality.POOR
 
     @property
@@ -878,8 +935,11 @@ class Localizer:
         """POOR quality for at least `lost_after` seconds in a row while standing (a fallen or penalized robot's
         pose is POOR, but it is not lost: `got_up` widens the belief and `penalty_return` places it, and the clock
         starts then). UNSURE_HALF is not lost: the pose is known up to the field's symmetry."""
-        return (self._poor_since is not None and self.time is not None
-                and self.time - self._poor_since >= self.thresholds.lost_after)
+        return (
+            self._poor_since is not None
+            and self.time is not None
+            and self.time - self._poor_since >= self.thresholds.lost_after
+        )
 
     def _update_lost(self) -> None:
         if self.quality() is Quality.POOR and not (self.is_fallen or self.is_penalized):
@@ -920,8 +980,9 @@ class Localizer:
         x = -self.field.half_length + self.field.dims.penalty_mark_distance
         self._reset(touchline_poses(self.field, [x]), self.placement_sigma)
 
-    def kickoff_placement(self, poses: Sequence[Sequence[float]] | np.ndarray | None = None,
-                          kicking: bool = True) -> None:
+    def kickoff_placement(
+        self, poses: Sequence[Sequence[float]] | np.ndarray | None = None, kicking: bool = True
+    ) -> None:
         """Placed at kick-off positions: around `poses` (K, 3), or `default_kickoff_positions`.
 
         Parameters
@@ -998,7 +1059,7 @@ class Localizer:
             self._blind.popleft()
 
     def _blind_at(self, capture_time: float | None) -> str | None:
-        """"fallen" or "penalized" when a frame captured at `capture_time` (None: now) was taken while the robot
+        """ "fallen" or "penalized" when a frame captured at `capture_time` (None: now) was taken while the robot
         was so, else None."""
         if capture_time is None:
             return "fallen" if self.is_fallen else "penalized" if self.is_penalized else None

@@ -23,6 +23,7 @@ signatures saved together can end up with one process's index pointing at the ot
 kernel loaded later, or a crash). `serialize_cache_access` puts a file lock around numba's index-and-data
 save and load, so that processes sharing a cache (the test suite's parallel workers) see it whole.
 """
+
 from __future__ import annotations
 
 import hashlib
@@ -102,7 +103,8 @@ def serialize_cache_access() -> bool:
                 fcntl.flock(directory, mode)
                 return method(self, *args, **kwargs)
             finally:
-                os.close(directory)                                  # closing it releases the lock
+                os.close(directory)  # closing it releases the lock
+
         return call
 
     IndexDataCacheFile.save = locked(IndexDataCacheFile.save, fcntl.LOCK_EX)
@@ -117,8 +119,10 @@ def serialize_cache_access() -> bool:
 # compilation: when the kernels are not yet cached for this machine it says so on stderr before compiling,
 # shows which group of kernels is compiling (a progress bar, when bars are on), and reports the time apart.
 
-FIRST_RUN_MESSAGE = ("compiling the filter's kernels once for this machine (a minute or more on a busy "
-                     "machine); later runs start at once")
+FIRST_RUN_MESSAGE = (
+    "compiling the filter's kernels once for this machine (a minute or more on a busy "
+    "machine); later runs start at once"
+)
 
 
 def kernel_cached(dispatcher) -> bool | None:
@@ -173,14 +177,17 @@ def filter_stages(pf, u, observations) -> list[tuple[str, object]]:
     motion input `u`, correct with `observations` (the likelihood, the weights, resampling and injection), the
     estimate and the entropy, and the fused step. `pf` should be a throw-away filter (a few particles, its own
     seed) built like the one to be measured: the warm-up moves it and draws from its generator."""
+
     def correct():
         pf.correct(observations)
-        pf.correct(observations)           # the second correction runs with the entropy asked for, as a loop does
+        pf.correct(observations)  # the second correction runs with the entropy asked for, as a loop does
 
-    return [("motion model", lambda: pf.predict(u)),
-            ("sensor model, weights and resampling", correct),
-            ("estimate and entropy", lambda: (pf.estimate(), pf.entropy())),
-            ("fused step", lambda: pf.step(u, observations))]
+    return [
+        ("motion model", lambda: pf.predict(u)),
+        ("sensor model, weights and resampling", correct),
+        ("estimate and entropy", lambda: (pf.estimate(), pf.entropy())),
+        ("fused step", lambda: pf.step(u, observations)),
+    ]
 
 
 class WarmUp:
@@ -237,9 +244,11 @@ def warm_up(stages, dispatchers=(), progress: bool = False, quiet: bool = False,
     ticking = threading.Event()
     ticker = None
     if bar is not None:
+
         def tick():
             while not ticking.wait(1.0):
                 bar.refresh()
+
         ticker = threading.Thread(target=tick, name="robocup-mcl compile clock", daemon=True)
         ticker.start()
     started = time.perf_counter()
@@ -269,5 +278,12 @@ def _stage_bar(total: int, stream):
         from tqdm import tqdm
     except ImportError:
         return None
-    return tqdm(total=total, desc="", unit="group", file=stream, leave=False, dynamic_ncols=True,
-                bar_format="compiling: {n}/{total} groups |{bar:20}| {elapsed} {desc}")
+    return tqdm(
+        total=total,
+        desc="",
+        unit="group",
+        file=stream,
+        leave=False,
+        dynamic_ncols=True,
+        bar_format="compiling: {n}/{total} groups |{bar:20}| {elapsed} {desc}",
+    )

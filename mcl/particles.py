@@ -8,6 +8,7 @@ steady-state step allocates nothing that grows with N, and the calls that replac
 `replace`, `mirror`, `diffuse`, `reweigh`). It knows nothing of the summary or of the engine: the filter tells
 its summary when the particles changed, and its engine (`mcl.engine`) moves, weighs and resamples the arrays.
 """
+
 from __future__ import annotations
 
 import math
@@ -20,7 +21,7 @@ from field.checks import LARGEST_ANGLE, LARGEST_COORDINATE, LARGEST_SIGMA, Argum
 
 from .weights import normalize
 
-_NO_STATE = np.empty((0, 0))      # no per-particle motion state
+_NO_STATE = np.empty((0, 0))  # no per-particle motion state
 
 
 def check_pose(name: str, pose) -> np.ndarray:
@@ -29,6 +30,7 @@ def check_pose(name: str, pose) -> np.ndarray:
     if max(abs(array[0]), abs(array[1])) > LARGEST_COORDINATE or abs(array[2]) > LARGEST_ANGLE:
         raise ValueError(f"{name} = {pose!r} must be within {LARGEST_COORDINATE:g} m and {LARGEST_ANGLE:g} rad")
     return array
+
 
 def check_poses(name: str, poses) -> np.ndarray:
     """Poses (K, 3) (or one (3,)) as float64 (K, 3), each within the bounds of `check_pose`."""
@@ -42,12 +44,17 @@ def check_poses(name: str, poses) -> np.ndarray:
         array = array.reshape(1, 3)
     if array.ndim != 2 or array.shape[1] != 3:
         raise ValueError(f"{name} must have shape (K, 3), got {array.shape}")
-    inside = (np.isfinite(array).all(axis=1) & (np.abs(array[:, :2]) <= LARGEST_COORDINATE).all(axis=1)
-              & (np.abs(array[:, 2]) <= LARGEST_ANGLE))
+    inside = (
+        np.isfinite(array).all(axis=1)
+        & (np.abs(array[:, :2]) <= LARGEST_COORDINATE).all(axis=1)
+        & (np.abs(array[:, 2]) <= LARGEST_ANGLE)
+    )
     if not inside.all():
         i = int(np.argmin(inside))
-        raise ValueError(f"{name}[{i}] = {array[i].tolist()!r} must be finite, within {LARGEST_COORDINATE:g} m "
-                         f"and {LARGEST_ANGLE:g} rad")
+        raise ValueError(
+            f"{name}[{i}] = {array[i].tolist()!r} must be finite, within {LARGEST_COORDINATE:g} m "
+            f"and {LARGEST_ANGLE:g} rad"
+        )
     return array
 
 
@@ -76,17 +83,18 @@ class Particles:
         self.log_weights = np.full(n, -math.log(n))
         self.weights = np.full(n, 1.0 / n)
         self.log_likelihood = np.empty(n)
-        self.previous = np.empty((n, 3))          # the particles before resampling (the copy's source)
-        self.capture_poses = np.empty((n, 3))     # the particles moved back to a frame's capture (latency)
-        self.trig = np.empty((n, 2))              # cos, sin of the scored headings, for the roughening
-        self.variates = np.empty((n, 3))          # drawn Gaussian motion noise, resampling variates
-        self.counts = np.zeros(n + 1, dtype=np.int64)   # resampling scratch (zero between uses)
+        self.previous = np.empty((n, 3))  # the particles before resampling (the copy's source)
+        self.capture_poses = np.empty((n, 3))  # the particles moved back to a frame's capture (latency)
+        self.trig = np.empty((n, 2))  # cos, sin of the scored headings, for the roughening
+        self.variates = np.empty((n, 3))  # drawn Gaussian motion noise, resampling variates
+        self.counts = np.zeros(n + 1, dtype=np.int64)  # resampling scratch (zero between uses)
         self.motion_state: np.ndarray | None = None
         if callable(getattr(motion_model, "particle_state", None)):
             self.motion_state = np.ascontiguousarray(motion_model.particle_state(n))
             if self.motion_state.shape[:1] != (n,):
-                raise ValueError(f"motion_model.particle_state({n}) must have {n} rows, "
-                                 f"got shape {self.motion_state.shape}")
+                raise ValueError(
+                    f"motion_model.particle_state({n}) must have {n} rows, got shape {self.motion_state.shape}"
+                )
         self._bind_state_rows()
         self.state_scratch = np.empty_like(self.state_rows)
 
@@ -96,7 +104,7 @@ class Particles:
 
     def __getstate__(self) -> dict:
         state = self.__dict__.copy()
-        del state["state_rows"]        # a view of `motion_state`: made again, so that a copy's view is its own
+        del state["state_rows"]  # a view of `motion_state`: made again, so that a copy's view is its own
         return state
 
     def __setstate__(self, state: dict) -> None:
@@ -120,8 +128,13 @@ class Particles:
         self.poses[:, 2] = wrap_angles(self.poses[:, 2])
         self.uniform_weights()
 
-    def uniform_poses(self, bounds: tuple[float, float, float, float], rng: np.random.Generator,
-                      heading: float | None = None, heading_sigma: float = 0.0) -> np.ndarray:
+    def uniform_poses(
+        self,
+        bounds: tuple[float, float, float, float],
+        rng: np.random.Generator,
+        heading: float | None = None,
+        heading_sigma: float = 0.0,
+    ) -> np.ndarray:
         """N poses uniform over `bounds` (x_min, x_max, y_min, y_max) [m], drawn from `rng`: uniform headings, or
         normal ones around `heading` with `heading_sigma` [rad] (both checked first)."""
         if heading is not None:
@@ -191,8 +204,9 @@ class Particles:
             except (TypeError, ValueError):
                 raise ArgumentTypeError(f"motion_state = {motion_state!r} must be an array of numbers") from None
             if motion_state.shape != self.motion_state.shape or not np.isfinite(motion_state).all():
-                raise ValueError(f"motion_state must be finite with shape {self.motion_state.shape}, "
-                                 f"got {motion_state.shape}")
+                raise ValueError(
+                    f"motion_state must be finite with shape {self.motion_state.shape}, got {motion_state.shape}"
+                )
         if poses.shape != (self.n, 3):
             raise ValueError(f"poses must have shape ({self.n}, 3), got {poses.shape}")
         if log_weights is not None:
@@ -200,12 +214,16 @@ class Particles:
                 log_weights = np.asarray(log_weights, dtype=np.float64)
             except (TypeError, ValueError):
                 raise ArgumentTypeError(f"log_weights = {log_weights!r} must be an array of numbers") from None
-            if (log_weights.shape != (self.n,) or np.isnan(log_weights).any() or np.isposinf(log_weights).any()
-                    or not (log_weights > -np.inf).any()):
+            if (
+                log_weights.shape != (self.n,)
+                or np.isnan(log_weights).any()
+                or np.isposinf(log_weights).any()
+                or not (log_weights > -np.inf).any()
+            ):
                 raise ValueError("log_weights must have shape (N,), no NaN or +inf, and at least one finite entry")
         self.assign(poses)
         ess = float(self.n)
-        if motion_state is not None and self.motion_state is not None:    # (checked above: both or neither)
+        if motion_state is not None and self.motion_state is not None:  # (checked above: both or neither)
             self.motion_state[:] = motion_state
         if log_weights is not None:
             total, ess = normalize(log_weights, self.weights)

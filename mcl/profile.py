@@ -39,6 +39,7 @@ class refuses (a negative noise, say) raises `ProfileError` (a ValueError) with 
 section and the setting. Floats are written with `repr`, so a profile saved and loaded again is the same, bit
 for bit.
 """
+
 from __future__ import annotations
 
 import dataclasses
@@ -59,7 +60,7 @@ from .relocalization import RelocalizationPrior, SoccerRelocalization
 
 if sys.version_info >= (3, 11):
     import tomllib
-else:                                   # Python 3.10: the same parser, as the tomli package
+else:  # Python 3.10: the same parser, as the tomli package
     import tomli as tomllib
 
 if TYPE_CHECKING:
@@ -68,11 +69,18 @@ if TYPE_CHECKING:
 MOTION_MODELS = {"velocity-linear": VelocityLinear, "constant": ConstantNoise}
 DEFAULT_MOTION = "velocity-linear"
 # The localizer's own settings: name -> (type, the Localizer keyword)
-LOCALIZER_SETTINGS = {"particles": (int, "n_particles"), "history": (float, "history"),
-                      "compensate_latency": (bool, "compensate_latency")}
+LOCALIZER_SETTINGS = {
+    "particles": (int, "n_particles"),
+    "history": (float, "history"),
+    "compensate_latency": (bool, "compensate_latency"),
+}
 ODOMETRY_SETTINGS = ("scale_x", "scale_y", "scale_theta")
-_CLASSES = {"sensor": LandmarkSensorModel, "augmented": AugmentedMCL, "relocalization": RelocalizationPrior,
-            "quality": QualityThresholds}
+_CLASSES = {
+    "sensor": LandmarkSensorModel,
+    "augmented": AugmentedMCL,
+    "relocalization": RelocalizationPrior,
+    "quality": QualityThresholds,
+}
 _TYPES = {"float": float, "int": int, "bool": bool, "str": str}
 
 
@@ -177,8 +185,7 @@ class Profile:
             clean[section] = {}
             for name, value in values.items():
                 if name not in known:
-                    raise ProfileError(self._where(f"[{section}] unknown setting {name!r}; known: "
-                                                   f"{', '.join(known)}"))
+                    raise ProfileError(self._where(f"[{section}] unknown setting {name!r}; known: {', '.join(known)}"))
                 clean[section][name] = _check_value(self._where(f"[{section}] {name}"), value, known[name])
         object.__setattr__(self, "sections", {k: v for k, v in clean.items() if v})
         model = self.sections.get("motion", {}).get("model", DEFAULT_MOTION)
@@ -187,20 +194,25 @@ class Profile:
         own = _scalar_fields(MOTION_MODELS[model])
         for name in self.sections.get("motion", {}):
             if name != "model" and name not in own:
-                raise ProfileError(self._where(f"[motion] {name!r} is not a setting of the {model!r} model; "
-                                               f"it has {', '.join(own)}"))
+                raise ProfileError(
+                    self._where(f"[motion] {name!r} is not a setting of the {model!r} model; it has {', '.join(own)}")
+                )
         localizer = self.sections.get("localizer", {})
         if not 1 <= localizer.get("particles", 1) <= MAX_PARTICLES:
-            raise ProfileError(self._where(f"[localizer] particles = {localizer['particles']!r} must lie in "
-                                           f"[1, {MAX_PARTICLES}]"))
+            raise ProfileError(
+                self._where(f"[localizer] particles = {localizer['particles']!r} must lie in [1, {MAX_PARTICLES}]")
+            )
         if not localizer.get("history", 1.0) > 0:
             raise ProfileError(self._where(f"[localizer] history = {localizer['history']!r} must be > 0 s"))
         for name, value in self.sections.get("odometry", {}).items():
             if not 0 < value <= MAX_ODOMETRY_SCALE:
-                raise ProfileError(self._where(f"[odometry] {name} = {value!r} must lie in (0, {MAX_ODOMETRY_SCALE:g}]"
-                                               " (odometry_scale)"))
+                raise ProfileError(
+                    self._where(
+                        f"[odometry] {name} = {value!r} must lie in (0, {MAX_ODOMETRY_SCALE:g}] (odometry_scale)"
+                    )
+                )
         try:
-            self.localizer_options(spl())        # every class checks its own numbers
+            self.localizer_options(spl())  # every class checks its own numbers
         except ProfileError:
             raise
         except (TypeError, ValueError) as error:
@@ -227,8 +239,11 @@ class Profile:
 
     def values(self) -> dict[str, Any]:
         """{"section.setting": value} for every setting the profile names."""
-        return {f"{section}.{name}": value for section, settings in self.sections.items()
-                for name, value in settings.items()}
+        return {
+            f"{section}.{name}": value
+            for section, settings in self.sections.items()
+            for name, value in settings.items()
+        }
 
     def with_values(self, values: Mapping[str, Any]) -> Profile:
         """A new profile: this one with the settings in {"section.setting": value} set (checked)."""

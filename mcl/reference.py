@@ -8,6 +8,7 @@ Each function computes what the kernel of the same name in `mcl.weights`, `mcl.r
 `mcl.latency` computes, with numpy's arrays: the same random draws in the same order, and the same results to
 rounding (bit for bit where its docstring says so). The filter never calls them.
 """
+
 from __future__ import annotations
 
 import math
@@ -74,8 +75,9 @@ def grid_entropy(poses, weights, x_min, y_min, cell_size, nx, ny, n_theta):
     return bits(cx * ny + cy, nx * ny), bits(ct, n_theta)
 
 
-def cluster_estimate(poses, weights, x_min, y_min, cell_size, nx, ny, n_theta, radius, angle_radius,
-                               iterations, previous=None):
+def cluster_estimate(
+    poses, weights, x_min, y_min, cell_size, nx, ny, n_theta, radius, angle_radius, iterations, previous=None
+):
     """Numpy version of `mcl.estimate.cluster_estimate`: returns (mean (3,), cov (3, 3), weight)."""
     theta_size = 2 * np.pi / n_theta
     cx = _cells(poses[:, 0], x_min, cell_size, nx)
@@ -85,11 +87,12 @@ def cluster_estimate(poses, weights, x_min, y_min, cell_size, nx, ny, n_theta, r
     best = int(np.argmax(histogram))
     bt, by, bx = best % n_theta, (best // n_theta) % ny, best // (n_theta * ny)
     mean = np.array([x_min + (bx + 0.5) * cell_size, y_min + (by + 0.5) * cell_size, -np.pi + (bt + 0.5) * theta_size])
+
     def shift(mean):
         total = 0.0
         for _ in range(iterations):
             d = np.column_stack([poses[:, 0] - mean[0], poses[:, 1] - mean[1], wrap_angles(poses[:, 2] - mean[2])])
-            mask = ((d[:, :2] ** 2).sum(axis=1) <= radius ** 2) & (np.abs(d[:, 2]) <= angle_radius)
+            mask = ((d[:, :2] ** 2).sum(axis=1) <= radius**2) & (np.abs(d[:, 2]) <= angle_radius)
             w = weights[mask]
             total = w.sum()
             if total <= 0:
@@ -104,7 +107,7 @@ def cluster_estimate(poses, weights, x_min, y_min, cell_size, nx, ny, n_theta, r
         if other_total > total:
             mean, total = other, other_total
     d = np.column_stack([poses[:, 0] - mean[0], poses[:, 1] - mean[1], wrap_angles(poses[:, 2] - mean[2])])
-    mask = ((d[:, :2] ** 2).sum(axis=1) <= radius ** 2) & (np.abs(d[:, 2]) <= angle_radius)
+    mask = ((d[:, :2] ** 2).sum(axis=1) <= radius**2) & (np.abs(d[:, 2]) <= angle_radius)
     cov = np.zeros((3, 3))
     if total > 0:
         w = weights[mask] / total

@@ -43,6 +43,7 @@ same methods (`mcl.contracts.Relocalization`). The soccer rules live here: the n
 over (`REGIONS`, `region_bounds`), the heading reference, the mirror guard. The design, the alternatives measured
 and the limits: docs/relocalization.md.
 """
+
 from __future__ import annotations
 
 import math
@@ -62,7 +63,7 @@ from sensing.resetting import poses_from_pairs
 from .resampling import systematic
 
 TWO_PI = 2.0 * math.pi
-KIDNAP_AMBIGUITY = 3.0    # a pose and its mirror image within this ratio of distances from the anchor: ambiguous
+KIDNAP_AMBIGUITY = 3.0  # a pose and its mirror image within this ratio of distances from the anchor: ambiguous
 
 
 REGIONS = ("field", "own_half", "opponent_half")
@@ -96,10 +97,10 @@ def region_bounds(field: Field, region: str | Sequence[float] | np.ndarray) -> t
     if isinstance(region, str):
         if region not in REGIONS:
             raise ValueError(f"region = {region!r} must be one of {REGIONS} or (x_min, x_max, y_min, y_max)")
-        return {"field": (-hl, hl, -hw, hw), "own_half": (-hl, 0.0, -hw, hw),
-                "opponent_half": (0.0, hl, -hw, hw)}[region]
-    x_min, x_max, y_min, y_max = (float(v) for v in reals("region", region, 4, -LARGEST_COORDINATE,
-                                                          LARGEST_COORDINATE))
+        return {"field": (-hl, hl, -hw, hw), "own_half": (-hl, 0.0, -hw, hw), "opponent_half": (0.0, hl, -hw, hw)}[
+            region
+        ]
+    x_min, x_max, y_min, y_max = (float(v) for v in reals("region", region, 4, -LARGEST_COORDINATE, LARGEST_COORDINATE))
     if x_min >= x_max or y_min >= y_max:
         raise ValueError(f"region = {region!r} must have x_min < x_max and y_min < y_max")
     return x_min, x_max, y_min, y_max
@@ -187,14 +188,24 @@ class RelocalizationPrior:
             value = getattr(self, name)
             if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
                 raise ValueError(f"{name} = {value!r} must be a finite number > 0")
-        for name in ("kidnap_share", "heading_kept", "tail_share", "confident_weight", "drift", "region_tail",
-                     "pair_share", "uniform_share"):
+        for name in (
+            "kidnap_share",
+            "heading_kept",
+            "tail_share",
+            "confident_weight",
+            "drift",
+            "region_tail",
+            "pair_share",
+            "uniform_share",
+        ):
             value = getattr(self, name)
             if not (isinstance(value, (int, float)) and math.isfinite(value) and 0 <= value <= 1):
                 raise ValueError(f"{name} = {value!r} must be within [0, 1]")
         if self.tail_share <= 0 or self.region_tail <= 0:
-            raise ValueError(f"tail_share = {self.tail_share!r}, region_tail = {self.region_tail!r} must be > 0: "
-                             "a prior of zero would be a gate")
+            raise ValueError(
+                f"tail_share = {self.tail_share!r}, region_tail = {self.region_tail!r} must be > 0: "
+                "a prior of zero would be a gate"
+            )
         if self.kidnap_share + self.tail_share >= 1:
             raise ValueError(f"kidnap_share + tail_share = {self.kidnap_share + self.tail_share!r} must be < 1")
         if self.pair_share + self.uniform_share > 1:
@@ -203,8 +214,9 @@ class RelocalizationPrior:
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, int) or value < 1:
                 raise ValueError(f"{name} = {value!r} must be an integer >= 1")
-        if not (isinstance(self.mirror_odds, (int, float)) and math.isfinite(self.mirror_odds)
-                and self.mirror_odds >= 1):
+        if not (
+            isinstance(self.mirror_odds, (int, float)) and math.isfinite(self.mirror_odds) and self.mirror_odds >= 1
+        ):
             raise ValueError(f"mirror_odds = {self.mirror_odds!r} must be a finite number >= 1")
         jitter = np.asarray(self.jitter, dtype=np.float64)
         if jitter.shape != (3,) or not np.isfinite(jitter).all() or (jitter < 0).any():
@@ -253,9 +265,9 @@ class SoccerRelocalization:
             raise ValueError(f"prior = {prior!r} must be an mcl.relocalization.RelocalizationPrior")
         self.prior = prior
         self._anchor: list[float] | None = None  # last confident pose, dead-reckoned since
-        self.travelled = 0.0                     # m dead-reckoned since the anchor was confirmed
+        self.travelled = 0.0  # m dead-reckoned since the anchor was confirmed
         self.region: tuple[float, float, float, float] | None = None
-        self.tracking = False                    # confident once since the last reset
+        self.tracking = False  # confident once since the last reset
         self._pending: list[float] | None = None  # a confident estimate away from the anchor, not yet accepted
         self._pending_count = 0
         # the prior's log odds of the last re-localized pose against its mirror image (+inf: none since a known
@@ -263,8 +275,8 @@ class SoccerRelocalization:
         self.mirror_log_odds = math.inf
         self._streak = 0
         self._carpet = (-1.0, 1.0, -1.0, 1.0)
-        self.relocalizations = 0                 # re-localized poses accepted so far (`confirm`)
-        self.kidnapped = False                   # a re-localized pose since the reset rested on the kidnap law
+        self.relocalizations = 0  # re-localized poses accepted so far (`confirm`)
+        self.kidnapped = False  # a re-localized pose since the reset rested on the kidnap law
 
     @property
     def anchor(self) -> np.ndarray | None:
@@ -392,8 +404,11 @@ class SoccerRelocalization:
                 # a new place must hold for `jump_corrections` corrections in a row before it counts: early in
                 # a re-localization a wrong cluster can be tight and fit a few detections for a moment
                 previous = self._pending
-                if previous is not None and math.hypot(pose[0] - previous[0], pose[1] - previous[1]) <= 0.5 \
-                        and abs(math.remainder(pose[2] - previous[2], TWO_PI)) <= 0.5:
+                if (
+                    previous is not None
+                    and math.hypot(pose[0] - previous[0], pose[1] - previous[1]) <= 0.5
+                    and abs(math.remainder(pose[2] - previous[2], TWO_PI)) <= 0.5
+                ):
                     self._pending_count += 1
                 else:
                     self._pending_count = 1
@@ -463,8 +478,12 @@ class SoccerRelocalization:
         turn = math.remainder(float(pose[2]) - at, TWO_PI)
         heading = math.exp(-0.5 * (turn / heading_sigma) ** 2) / (math.sqrt(TWO_PI) * heading_sigma)
         tracking = (1.0 - kidnap_share - tail_share) * math.exp(-0.5 * d2 / track2) / (TWO_PI * track2) * heading
-        kidnap = (kidnap_share * math.exp(-0.5 * d2 / kidnap2) / (TWO_PI * kidnap2)
-                  * ((1.0 - heading_kept) / TWO_PI + heading_kept * heading))
+        kidnap = (
+            kidnap_share
+            * math.exp(-0.5 * d2 / kidnap2)
+            / (TWO_PI * kidnap2)
+            * ((1.0 - heading_kept) / TWO_PI + heading_kept * heading)
+        )
         total = tracking + kidnap + tail_share * uniform
         return tracking / total if total > 0 else 0.0
 
@@ -497,10 +516,19 @@ class SoccerRelocalization:
         widen = (p.drift * self.travelled) ** 2
         anchor = (0.0, 0.0, 0.0) if self._anchor is None else tuple(self._anchor)
         region = (0.0, 0.0, 0.0, 0.0) if self.region is None else tuple(self.region)
-        return ((self._anchor is not None, *anchor),
-                (p.track_sigma ** 2 + widen, p.kidnap_sigma ** 2 + widen, p.track_heading_sigma, p.kidnap_share,
-                 p.tail_share, p.heading_kept if heading_kept is None else heading_kept, uniform),
-                (self.region is not None, *region, math.log(p.region_tail)))
+        return (
+            (self._anchor is not None, *anchor),
+            (
+                p.track_sigma**2 + widen,
+                p.kidnap_sigma**2 + widen,
+                p.track_heading_sigma,
+                p.kidnap_share,
+                p.tail_share,
+                p.heading_kept if heading_kept is None else heading_kept,
+                uniform,
+            ),
+            (self.region is not None, *region, math.log(p.region_tail)),
+        )
 
     def log_prior(self, poses: np.ndarray, heading_kept: float | None = None) -> np.ndarray:
         """The prior's log-density at each pose (N, 3) (see `RelocalizationPrior`); without an anchor, uniform
@@ -549,18 +577,25 @@ class SoccerRelocalization:
             turn = wrap_angles(poses[:, 2] - at)
             heading = np.exp(-0.5 * (turn / heading_sigma) ** 2) / (math.sqrt(TWO_PI) * heading_sigma)
             kidnap_heading = (1.0 - heading_kept) / TWO_PI + heading_kept * heading
-            density = ((1.0 - kidnap_share - tail_share) * np.exp(-0.5 * d2 / track2) / (TWO_PI * track2) * heading
-                       + kidnap_share * np.exp(-0.5 * d2 / kidnap2) / (TWO_PI * kidnap2) * kidnap_heading
-                       + tail_share * uniform)
+            density = (
+                (1.0 - kidnap_share - tail_share) * np.exp(-0.5 * d2 / track2) / (TWO_PI * track2) * heading
+                + kidnap_share * np.exp(-0.5 * d2 / kidnap2) / (TWO_PI * kidnap2) * kidnap_heading
+                + tail_share * uniform
+            )
             log_prior = np.log(density)
         if has_region:
-            inside = ((poses[:, 0] >= x_min) & (poses[:, 0] <= x_max)
-                      & (poses[:, 1] >= y_min) & (poses[:, 1] <= y_max))
+            inside = (poses[:, 0] >= x_min) & (poses[:, 0] <= x_max) & (poses[:, 1] >= y_min) & (poses[:, 1] <= y_max)
             log_prior = log_prior + np.where(inside, 0.0, log_region_tail)
         return log_prior
 
-    def propose(self, count: int, observations: Observations, sensor_model: Any, rng: np.random.Generator,
-                reference: bool = False) -> np.ndarray:
+    def propose(
+        self,
+        count: int,
+        observations: Observations,
+        sensor_model: Any,
+        rng: np.random.Generator,
+        reference: bool = False,
+    ) -> np.ndarray:
         """`count` poses (count, 3) to inject: candidates drawn from the detections, weighed by how well they
         explain the whole frame and by the prior, `count` of them drawn in proportion (systematic).
         reference: use the plain twins (`sample_poses_reference`, `poses_from_pairs(..., reference=True)`), for
@@ -588,7 +623,7 @@ class SoccerRelocalization:
         p = self.prior
         if count <= 0:
             return np.empty((0, 3))
-        pool = p.pool * count                   # candidates before their mirror images are added
+        pool = p.pool * count  # candidates before their mirror images are added
         parts = []
         n_pairs = 0
         if len(observations) >= 2 and getattr(sensor_model, "landmark_table", None) is not None:
@@ -602,7 +637,7 @@ class SoccerRelocalization:
         if n_single > 0 and sampler is not None and len(observations) > 0:
             parts.append(np.asarray(sampler(observations, n_single, rng, heading=None), dtype=np.float64))
         else:
-            n_uniform = pool - n_pairs          # at least one: a uniform candidate is always on the carpet
+            n_uniform = pool - n_pairs  # at least one: a uniform candidate is always on the carpet
         x_min, x_max, y_min, y_max = self.region if self.region is not None and not parts else self._carpet
         uniform = np.empty((n_uniform, 3))
         uniform[:, 0] = rng.uniform(x_min, x_max, n_uniform)
@@ -614,8 +649,12 @@ class SoccerRelocalization:
         base = np.concatenate(parts)
         candidates = np.concatenate([base, Field.mirror_poses(base)])
         x_min, x_max, y_min, y_max = self._carpet
-        on_carpet = ((candidates[:, 0] >= x_min) & (candidates[:, 0] <= x_max)
-                     & (candidates[:, 1] >= y_min) & (candidates[:, 1] <= y_max))
+        on_carpet = (
+            (candidates[:, 0] >= x_min)
+            & (candidates[:, 0] <= x_max)
+            & (candidates[:, 1] >= y_min)
+            & (candidates[:, 1] <= y_max)
+        )
         log_prior = self.log_prior(candidates)
         # Of a twin pair, the side the prior prefers by more than `mirror_odds` is kept alone: the likelihood
         # cannot tell the two apart, and a few particles' noise would otherwise decide which cluster grows.
@@ -627,7 +666,7 @@ class SoccerRelocalization:
         if len(observations) > 0:
             score = score + np.asarray(sensor_model.log_likelihood(candidates, observations), dtype=np.float64)
         score = np.where(on_carpet & np.isfinite(score), score, -np.inf)
-        if not np.isfinite(score).any():          # nothing explains anything: any candidate on the carpet
+        if not np.isfinite(score).any():  # nothing explains anything: any candidate on the carpet
             score = np.where(on_carpet, 0.0, -np.inf)
         weights = np.exp(score - score.max())
         weights /= weights.sum()
@@ -657,10 +696,11 @@ def log_prior_kernel(poses, anchor, mixture, region, out):
             turn = wrap_angle(poses[i, 2] - at)
             heading = math.exp(-0.5 * (turn / heading_sigma) ** 2) / (math.sqrt(TWO_PI) * heading_sigma)
             kidnap_heading = (1.0 - heading_kept) / TWO_PI + heading_kept * heading
-            density = ((1.0 - kidnap_share - tail_share) * math.exp(-0.5 * d2 / track2) / (TWO_PI * track2)
-                       * heading
-                       + kidnap_share * math.exp(-0.5 * d2 / kidnap2) / (TWO_PI * kidnap2) * kidnap_heading
-                       + tail_share * uniform)
+            density = (
+                (1.0 - kidnap_share - tail_share) * math.exp(-0.5 * d2 / track2) / (TWO_PI * track2) * heading
+                + kidnap_share * math.exp(-0.5 * d2 / kidnap2) / (TWO_PI * kidnap2) * kidnap_heading
+                + tail_share * uniform
+            )
             value = math.log(density)
         else:
             value = math.log(uniform)

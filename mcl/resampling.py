@@ -15,6 +15,7 @@ uniforms in the kernel from the filter's generator (see `numerics.random.next_do
 particles, bit for bit, as `systematic` followed by `gather_with_jitter` on `rng.random((M, 3))`, without
 the ancestor array or the variate array.
 """
+
 from __future__ import annotations
 
 import math
@@ -27,12 +28,15 @@ from numerics.random import draw_uniforms, next_double, parallel_uniforms
 from numerics.trig import sincos, wrap
 
 # The numpy twins moved to the package's `reference` module; their old names still work, with a warning.
-__getattr__ = moved_names(__name__, {
-    "gather_with_jitter_reference": "mcl.reference.gather_with_jitter",
-    "systematic_reference": "mcl.reference.systematic",
-    "stratified_reference": "mcl.reference.stratified",
-    "multinomial_reference": "mcl.reference.multinomial"
-})
+__getattr__ = moved_names(
+    __name__,
+    {
+        "gather_with_jitter_reference": "mcl.reference.gather_with_jitter",
+        "systematic_reference": "mcl.reference.systematic",
+        "stratified_reference": "mcl.reference.stratified",
+        "multinomial_reference": "mcl.reference.multinomial",
+    },
+)
 
 
 @numba.njit(cache=True, inline="always")
@@ -133,8 +137,13 @@ def systematic(weights: np.ndarray, m: int, rng: np.random.Generator, out: np.nd
     m = int(m)
     if out is None:
         return _systematic_in_place(weights, m, rng.random(), np.zeros(m, dtype=np.int64))
-    if not isinstance(out, np.ndarray) or out.dtype != np.int64 or out.shape != (m,) or not out.flags.c_contiguous \
-            or not out.flags.writeable:
+    if (
+        not isinstance(out, np.ndarray)
+        or out.dtype != np.int64
+        or out.shape != (m,)
+        or not out.flags.c_contiguous
+        or not out.flags.writeable
+    ):
         raise ValueError(f"out must be a writeable contiguous int64 array of shape ({m},)")
     out.fill(0)
     return _systematic_in_place(weights, m, rng.random(), out)
@@ -183,8 +192,9 @@ def gather_with_jitter(source, ancestors, bounds, uniforms, out):
         i = ancestors[k]
         theta = source[i, 2]
         c, s = sincos(theta)
-        out[k, 0], out[k, 1], out[k, 2] = jitter_pose(source[i, 0], source[i, 1], theta, c, s, uniforms[k, 0],
-                                                      uniforms[k, 1], uniforms[k, 2], bx, by, bt)
+        out[k, 0], out[k, 1], out[k, 2] = jitter_pose(
+            source[i, 0], source[i, 1], theta, c, s, uniforms[k, 0], uniforms[k, 1], uniforms[k, 2], bx, by, bt
+        )
     return out
 
 
@@ -198,6 +208,7 @@ def gather_with_jitter(source, ancestors, bounds, uniforms, out):
 # makes them; so the ancestors equal the merge's bit for bit, with C_j the same running sum. (The float error
 # of C_j·M - u0 is about M·2⁻⁵², far below the margin for any M a filter uses.)
 
+
 @numba.njit(cache=True, inline="always")
 def _passed_count(cumulative, m, u0):
     """c = #{k : (u0 + k)/M < cumulative}, as `_passed_counts` finds it."""
@@ -209,7 +220,7 @@ def _passed_count(cumulative, m, u0):
         while c < m and (u0 + c) / m < cumulative:
             c += 1
         return c
-    return int(min(max(np.ceil(t), 0.0), float(m)))      # (in floats: one conversion to an integer)
+    return int(min(max(np.ceil(t), 0.0), float(m)))  # (in floats: one conversion to an integer)
 
 
 @numba.njit(cache=True)
@@ -217,7 +228,7 @@ def _passed_counts(weights, m, u0, counts):
     """counts[c] = #{j < N-1 : c_j = c} (counts (M + 1,) zero on entry)."""
     cumulative = 0.0
     for j in range(weights.shape[0] - 1):
-        cumulative += weights[j]                # 0 + w0 = w0: the merge's running total
+        cumulative += weights[j]  # 0 + w0 = w0: the merge's running total
         counts[_passed_count(cumulative, m, u0)] += 1
 
 
@@ -251,7 +262,7 @@ def _systematic_in_place(weights, m, u0, out):
     return out
 
 
-DRAWS = 256        # offspring per block of drawn uniforms
+DRAWS = 256  # offspring per block of drawn uniforms
 
 
 # `_place`, `_place_run` and `_place_range` take three groups (tuples): ancestors (source, trig), the particles
@@ -271,8 +282,9 @@ def _place(ancestors, j, known, uniforms, u, bounds, offspring, k, split):
         s = trig[j, 1]
     else:
         c, s = sincos(theta)
-    x, y, theta = jitter_pose(source[j, 0], source[j, 1], theta, c, s, uniforms[u], uniforms[u + 1],
-                              uniforms[u + 2], bx, by, bt)
+    x, y, theta = jitter_pose(
+        source[j, 0], source[j, 1], theta, c, s, uniforms[u], uniforms[u + 1], uniforms[u + 2], bx, by, bt
+    )
     out[k, 0] = x
     out[k, 1] = y
     out[k, 2] = theta
@@ -328,8 +340,7 @@ def resample_with_jitter(weights, m, source, bounds, out, trig, function, state,
     for start in range(0, m, DRAWS):
         count = min(DRAWS, m - start)
         draw_uniforms(function, state, uniforms, 3 * count)
-        j = _place_range((source, trig), j, uniforms, 0, (bx, by, bt), (out, coordinates), start, start + count,
-                         counts)
+        j = _place_range((source, trig), j, uniforms, 0, (bx, by, bt), (out, coordinates), start, start + count, counts)
     counts[m] = 0
     return u0
 
@@ -353,13 +364,15 @@ def gather_offspring_rows(weights, m, u0, counts, rows, scratch):
 @numba.njit(cache=True)
 def systematic_with_jitter(weights, m, source, bounds, out, trig, function, state):
     """`resample_with_jitter` with its scratch allocated here."""
-    return resample_with_jitter(weights, m, source, bounds, out, trig, function, state,
-                                np.zeros(m + 1, dtype=np.int64), np.empty((3, 0)))
+    return resample_with_jitter(
+        weights, m, source, bounds, out, trig, function, state, np.zeros(m + 1, dtype=np.int64), np.empty((3, 0))
+    )
 
 
 @numba.njit(cache=True, parallel=True)
-def resample_with_jitter_chunked(weights, m, source, bounds, out, trig, function, state, counts, coordinates,
-                                 uniforms, chunk):
+def resample_with_jitter_chunked(
+    weights, m, source, bounds, out, trig, function, state, counts, coordinates, uniforms, chunk
+):
     """`resample_with_jitter` with the running total of the weights taken chunk by chunk (each chunk's total
     in index order, the chunks' in order, then each chunk's running sum on top of its prefix) and the chunks
     spread over threads: the same offspring for any number of threads; `resample_with_jitter`'s bit for bit
@@ -368,7 +381,7 @@ def resample_with_jitter_chunked(weights, m, source, bounds, out, trig, function
     u0 = next_double(function, state)
     parallel_uniforms(function, state, uniforms, 3 * m)
     n = weights.shape[0]
-    passed = n - 1                                  # particles that the points can pass
+    passed = n - 1  # particles that the points can pass
     chunks = max(1, (passed + chunk - 1) // chunk)
     totals = np.zeros(chunks)
     for t in numba.prange(chunks):
@@ -413,8 +426,17 @@ def resample_with_jitter_chunked(weights, m, source, bounds, out, trig, function
         running_start += total
     bx, by, bt = bounds[0], bounds[1], bounds[2]
     for t in numba.prange(k_chunks):
-        _place_range((source, trig), starts[t], uniforms, 3 * t * chunk, (bx, by, bt), (out, coordinates), t * chunk,
-                     min(m, (t + 1) * chunk), counts)
+        _place_range(
+            (source, trig),
+            starts[t],
+            uniforms,
+            3 * t * chunk,
+            (bx, by, bt),
+            (out, coordinates),
+            t * chunk,
+            min(m, (t + 1) * chunk),
+            counts,
+        )
     counts[m] = 0
     return u0
 

@@ -40,6 +40,7 @@ The robot changes sides (mirrors its particles: exact, since the likelihood is s
 stay below −`flip` for `flip_hold` seconds. This module holds the numbers; `mcl.localizer.Localizer` feeds
 it and acts on it.
 """
+
 from __future__ import annotations
 
 import functools
@@ -141,13 +142,17 @@ class SideSettings:
         real("teammate_mirrored", self.teammate_mirrored, 0.0, 0.5, low_open=True, high_open=True)
         trust = self.teammate_trust
         if trust >= self.prior_cap + self.flip:
-            raise ValueError(f"teammate_mirrored = {self.teammate_mirrored!r}: one teammate could move the odds by "
-                             f"{trust:.2f} >= prior_cap + flip = {self.prior_cap + self.flip:.2f}: one teammate "
-                             "alone must never flip a robot its own prior holds")
+            raise ValueError(
+                f"teammate_mirrored = {self.teammate_mirrored!r}: one teammate could move the odds by "
+                f"{trust:.2f} >= prior_cap + flip = {self.prior_cap + self.flip:.2f}: one teammate "
+                "alone must never flip a robot its own prior holds"
+            )
         if 2 * trust <= self.prior_cap + self.flip:
-            raise ValueError(f"teammate_mirrored = {self.teammate_mirrored!r}: two agreeing teammates move the odds "
-                             f"by {2 * trust:.2f} <= prior_cap + flip = {self.prior_cap + self.flip:.2f}: two "
-                             "agreeing teammates must be able to flip")
+            raise ValueError(
+                f"teammate_mirrored = {self.teammate_mirrored!r}: two agreeing teammates move the odds "
+                f"by {2 * trust:.2f} <= prior_cap + flip = {self.prior_cap + self.flip:.2f}: two "
+                "agreeing teammates must be able to flip"
+            )
 
     @property
     def teammate_trust(self) -> float:
@@ -155,7 +160,7 @@ class SideSettings:
         return math.log((1.0 - self.teammate_mirrored) / self.teammate_mirrored)
 
 
-AGE_STEP = 1.0    # s: the teammates' flags are aged at most this often (the hazard is slow)
+AGE_STEP = 1.0  # s: the teammates' flags are aged at most this often (the hazard is slow)
 
 
 @dataclass(frozen=True)
@@ -182,8 +187,9 @@ class Team:
 
     def __post_init__(self) -> None:
         if self.player_number is not None:
-            object.__setattr__(self, "player_number",
-                               integer("player_number", self.player_number, 1, MAX_PLAYER_NUMBER))
+            object.__setattr__(
+                self, "player_number", integer("player_number", self.player_number, 1, MAX_PLAYER_NUMBER)
+            )
         if self.teammates is not None:
             try:
                 numbers = tuple(sorted({integer("teammates", n, 1, MAX_PLAYER_NUMBER) for n in self.teammates}))
@@ -245,16 +251,16 @@ class SideBelief:
             raise ValueError(f"settings = {settings!r} must be an mcl.side.SideSettings")
         self.settings = settings
         self._area = 4.0 * field.half_length * field.half_width
-        self._senders: list[int] = []                         # teammate j is bit j + 1
-        self._log_joint = np.zeros(2)                         # over the robot's side alone, at first
-        self._joint_time: float | None = None                 # when the teammates' flags were last aged
-        self._side_evidence = False                           # whether the joint says anything of the side
-        self._latest: dict[int, TeamMessage] = {}             # sender: its newest message
-        self._used: dict[int, float] = {}                     # sender: its sighting last compared
+        self._senders: list[int] = []  # teammate j is bit j + 1
+        self._log_joint = np.zeros(2)  # over the robot's side alone, at first
+        self._joint_time: float | None = None  # when the teammates' flags were last aged
+        self._side_evidence = False  # whether the joint says anything of the side
+        self._latest: dict[int, TeamMessage] = {}  # sender: its newest message
+        self._used: dict[int, float] = {}  # sender: its sighting last compared
         self._sighting: _Sighting | None = None
-        self._recent: list[_Sighting] = []                    # own sightings of the last `confirm_window` s
+        self._recent: list[_Sighting] = []  # own sightings of the last `confirm_window` s
         self._below_since: float | None = None
-        self._prior = 0.0                                     # the robot's own prior, as last read
+        self._prior = 0.0  # the robot's own prior, as last read
         self.reports = 0
         self.ignored = 0
         self.unconfirmed = 0
@@ -304,22 +310,25 @@ class SideBelief:
         the robot's latest sighting when the two are close enough in time."""
         latest = self._latest.get(message.sender)
         if latest is not None and latest.received_time > message.received_time:
-            self.ignored += 1            # an older message arriving late: its newer one is kept
+            self.ignored += 1  # an older message arriving late: its newer one is kept
             return
         self._latest[message.sender] = message
         if self._sighting is not None:
             self._compare(message.sender, now)
 
-    def sighting(self, detection: BallDetection, pose: np.ndarray, pose_covariance: np.ndarray,
-                 capture_time: float, now: float) -> None:
+    def sighting(
+        self, detection: BallDetection, pose: np.ndarray, pose_covariance: np.ndarray, capture_time: float, now: float
+    ) -> None:
         """The robot saw the ball at `capture_time`, where the main estimate was `pose` (x, y, θ) with
         `pose_covariance`: once confirmed, compared with each teammate's newest report not yet compared."""
         s = self.settings
         point, covariance = ball_on_field(pose, pose_covariance, detection)
         new = _Sighting(capture_time, point, covariance)
         self._recent = [old for old in self._recent if 0.0 <= capture_time - old.time <= s.confirm_window]
-        confirmed = any(float(np.hypot(*(old.point - point))) <= s.confirm_distance
-                        + s.rolling_sigma * (capture_time - old.time) for old in self._recent)
+        confirmed = any(
+            float(np.hypot(*(old.point - point))) <= s.confirm_distance + s.rolling_sigma * (capture_time - old.time)
+            for old in self._recent
+        )
         self._recent.append(new)
         if not confirmed:
             self.unconfirmed += 1
@@ -345,7 +354,7 @@ class SideBelief:
             return
         point, covariance = report
         if message.is_goalkeeper and message.pose[0] > 0.0:
-            point = -point              # a goalkeeper in the opponent half is on the mirror: so is its ball
+            point = -point  # a goalkeeper in the opponent half is on the mirror: so is its ball
         total = sighting.covariance + covariance
         if min(mahalanobis2(sighting.point - point, total), mahalanobis2(-sighting.point - point, total)) > s.gate:
             self.ignored += 1
@@ -374,7 +383,7 @@ class SideBelief:
         that changes at rate `teammate_hazard` towards its prior (on the mirror with probability q), so a
         teammate falls onto the mirror at rate hazard · q and recovers at rate hazard · (1 − q)."""
         if self._joint_time is not None and now - self._joint_time < AGE_STEP:
-            return                      # evaluated in steps of AGE_STEP: the hazard is far slower than that
+            return  # evaluated in steps of AGE_STEP: the hazard is far slower than that
         if self._joint_time is not None and now > self._joint_time and self._senders:
             s = self.settings
             share = -math.expm1(-s.teammate_hazard * (now - self._joint_time))

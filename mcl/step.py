@@ -34,6 +34,7 @@ Its arguments come in groups (tuples), each built by the filter:
 
 and then `chunk` (> 0: the threads variant), `fast` (fast-math) and `since` (camera latency).
 """
+
 from __future__ import annotations
 
 import hashlib
@@ -63,9 +64,9 @@ from .weights import reweigh, reweigh_chunked, weigh, weigh_chunked, weigh_fast
 # The model's kernels, until `fused_step` binds them (the templates below call them by these names).
 prepare = workspace = score = None
 
-STEP_BLOCK = 128     # particles moved and scored at a time (the block and the model's scratch stay in L1)
+STEP_BLOCK = 128  # particles moved and scored at a time (the block and the model's scratch stay in L1)
 NO_VARIATES = np.empty((0, 3))
-NO_SINCE = np.empty(0)           # detections captured now: nothing to move back
+NO_SINCE = np.empty(0)  # detections captured now: nothing to move back
 # `compiled_step` status: done; a detection the model cannot score (nothing changed); NaN or +inf likelihoods
 # (predicted only); no particle explains the detections; resampling (with injection) is left to Python.
 STEP_DONE, STEP_MISSING, STEP_INVALID, STEP_UNEXPLAINED, STEP_RESAMPLE = range(5)
@@ -82,7 +83,7 @@ def augmented_update(w_slow, w_fast, log_average, alpha_slow, alpha_fast, ratio_
         w_fast += alpha_fast * (average - w_fast)
     relative = 1.0 - w_fast / (ratio_threshold * w_slow) if w_slow > 0 else 1.0
     absolute = 1.0 - w_fast / fit_threshold if fit_threshold > 0 else 0.0
-    fraction = 0.0                       # max(0.0, relative, absolute), resolved as Python's max resolves it
+    fraction = 0.0  # max(0.0, relative, absolute), resolved as Python's max resolves it
     if relative > fraction:
         fraction = relative
     if absolute > fraction:
@@ -91,8 +92,9 @@ def augmented_update(w_slow, w_fast, log_average, alpha_slow, alpha_fast, ratio_
 
 
 @numba.njit(cache=True)
-def resample_and_summarize(weights, keep, scratch, roughening, poses, trig, draws, counts, injected, log_weights,
-                           summary, fast):
+def resample_and_summarize(
+    weights, keep, scratch, roughening, poses, trig, draws, counts, injected, log_weights, summary, fast
+):
     """After `compiled_step` returned `STEP_RESAMPLE` for injection (one thread): systematic resampling of
     `keep` particles from `scratch` (the scored particles; trig their cos and sin) into poses[:keep] with
     roughening, `injected` into poses[keep:], uniform weights; then the summary (see `summarize`). Returns
@@ -115,17 +117,20 @@ def summarize(source, weights, summary, fast):
     """The end of a step on one thread: the summary histograms (of `source`, or of the coordinates the
     resampling wrote when it has no rows), the estimate when `want_estimate` (moving `previous` to it) and the
     entropy when `want_entropy`. Returns (estimate weight, position entropy, orientation entropy)."""
-    (grid, coordinates, histograms, bitmaps, want_estimate, previous, use_previous, out_mean, out_cov,
-     want_entropy) = summary
+    (grid, coordinates, histograms, bitmaps, want_estimate, previous, use_previous, out_mean, out_cov, want_entropy) = (
+        summary
+    )
     summary_fill(grid, source, weights, coordinates, histograms, bitmaps)
     weight = 0.0
     if want_estimate:
         if fast:
-            weight = summary_estimate_fast(grid, coordinates, weights, histograms, bitmaps, previous, use_previous,
-                                           out_mean, out_cov)
+            weight = summary_estimate_fast(
+                grid, coordinates, weights, histograms, bitmaps, previous, use_previous, out_mean, out_cov
+            )
         else:
-            weight = summary_estimate(grid, coordinates, weights, histograms, bitmaps, previous, use_previous,
-                                      out_mean, out_cov)
+            weight = summary_estimate(
+                grid, coordinates, weights, histograms, bitmaps, previous, use_previous, out_mean, out_cov
+            )
         previous[:] = out_mean
     position = orientation = 0.0
     if want_entropy:
@@ -160,11 +165,31 @@ def predict_and_score(poses, scratch, trig, log_likelihood, motion, draws, frame
         if not move:
             scratch[block:end] = poses[block:end]
         elif fast:
-            move_range_fast(poses, scratch, block, end, (dx, dy, dtheta), (bound_x, bound_y, bound_theta), gaussian,
-                            variates, draws, move_work)
+            move_range_fast(
+                poses,
+                scratch,
+                block,
+                end,
+                (dx, dy, dtheta),
+                (bound_x, bound_y, bound_theta),
+                gaussian,
+                variates,
+                draws,
+                move_work,
+            )
         else:
-            move_range(poses, scratch, block, end, (dx, dy, dtheta), (bound_x, bound_y, bound_theta), gaussian,
-                       variates, draws, move_work)
+            move_range(
+                poses,
+                scratch,
+                block,
+                end,
+                (dx, dy, dtheta),
+                (bound_x, bound_y, bound_theta),
+                gaussian,
+                variates,
+                draws,
+                move_work,
+            )
         block_trig(scratch, block, end - block, trig, rows, fast)
         score(scratch, rows[1:3], block, end - block, work, since, fast, frame, log_likelihood)
 
@@ -175,23 +200,35 @@ def predict_and_score_chunked(poses, scratch, trig, log_likelihood, motion, fram
     no_draws = (0, 0)
     for t in numba.prange(max(1, (n + chunk - 1) // chunk)):
         work = workspace(frame, min(chunk, STEP_BLOCK))
-        predict_and_score(poses, scratch, trig, log_likelihood, motion, no_draws, frame, work, t * chunk,
-                          min(n, (t + 1) * chunk), fast, since)
+        predict_and_score(
+            poses,
+            scratch,
+            trig,
+            log_likelihood,
+            motion,
+            no_draws,
+            frame,
+            work,
+            t * chunk,
+            min(n, (t + 1) * chunk),
+            fast,
+            since,
+        )
 
 
 @numba.njit(cache=True, parallel=True)
 def _fill_chunked(first, first_value, second, second_value, chunk):
     n = first.shape[0]
     for t in numba.prange(max(1, (n + chunk - 1) // chunk)):
-        first[t * chunk:min(n, (t + 1) * chunk)] = first_value
-        second[t * chunk:min(n, (t + 1) * chunk)] = second_value
+        first[t * chunk : min(n, (t + 1) * chunk)] = first_value
+        second[t * chunk : min(n, (t + 1) * chunk)] = second_value
 
 
 @numba.njit(cache=True, parallel=True)
 def _copy_chunked(source, out, chunk):
     n = source.shape[0]
     for t in numba.prange(max(1, (n + chunk - 1) // chunk)):
-        out[t * chunk:min(n, (t + 1) * chunk)] = source[t * chunk:min(n, (t + 1) * chunk)]
+        out[t * chunk : min(n, (t + 1) * chunk)] = source[t * chunk : min(n, (t + 1) * chunk)]
 
 
 @numba.njit(cache=True)
@@ -214,8 +251,20 @@ def _resample(particles, draws, resampling, variates, coordinates, chunk):
     for axis in range(3):
         bounds[axis] = roughening[axis] * SQRT3
     if chunk > 0:
-        resample_with_jitter_chunked(weights, n, scratch, bounds, poses, trig, draws[0], draws[1], counts,
-                                     coordinates, variates.reshape(-1), chunk)
+        resample_with_jitter_chunked(
+            weights,
+            n,
+            scratch,
+            bounds,
+            poses,
+            trig,
+            draws[0],
+            draws[1],
+            counts,
+            coordinates,
+            variates.reshape(-1),
+            chunk,
+        )
         _fill_chunked(log_weights, -math.log(n), weights, 1.0 / n, chunk)
     else:
         u0 = resample_with_jitter(weights, n, scratch, bounds, poses, trig, draws[0], draws[1], counts, coordinates)
@@ -271,12 +320,12 @@ def compiled_step(particles, motion, draws, sensor, weighting, resampling, summa
     if not valid or log_evidence == -np.inf:
         if move:
             poses[:, :] = scratch
-        return (STEP_INVALID if not valid else STEP_UNEXPLAINED, native, 0.0, w_slow, w_fast, 0.0, False, 0.0,
-                0.0, 0.0)
+        return (STEP_INVALID if not valid else STEP_UNEXPLAINED, native, 0.0, w_slow, w_fast, 0.0, False, 0.0, 0.0, 0.0)
     fraction = 0.0
     if augmented and terms > 0:
-        w_slow, w_fast, fraction = augmented_update(w_slow, w_fast, native / terms, alpha_slow, alpha_fast,
-                                                    ratio_threshold, fit_threshold)
+        w_slow, w_fast, fraction = augmented_update(
+            w_slow, w_fast, native / terms, alpha_slow, alpha_fast, ratio_threshold, fit_threshold
+        )
     # `_injection_count`: round(min(fraction, cap)·N) > 0, i.e. the product exceeds one half.
     inject = augmented and (cap if cap < fraction else fraction) * n > 0.5
     resample = ess < resample_threshold * n
@@ -286,7 +335,7 @@ def compiled_step(particles, motion, draws, sensor, weighting, resampling, summa
         return STEP_RESAMPLE, native, ess, w_slow, w_fast, fraction, False, 0.0, 0.0, 0.0
     if resample:
         ess = _resample(particles, draws, resampling, variates, summary[1], chunk)
-        source = NO_VARIATES                   # the coordinates were written by the resampling
+        source = NO_VARIATES  # the coordinates were written by the resampling
     else:
         if move:
             if chunk > 0:
@@ -299,13 +348,24 @@ def compiled_step(particles, motion, draws, sensor, weighting, resampling, summa
             reweigh(log_weights, log_likelihood, log_evidence)
         source = poses
     if chunk > 0:
-        (grid, coordinates, histograms, bitmaps, want_estimate, previous, use_previous, out_mean, out_cov,
-         want_entropy) = summary
+        (
+            grid,
+            coordinates,
+            histograms,
+            bitmaps,
+            want_estimate,
+            previous,
+            use_previous,
+            out_mean,
+            out_cov,
+            want_entropy,
+        ) = summary
         summary_fill_chunked(grid, source, weights, coordinates, histograms, bitmaps, local, chunk)
         weight = 0.0
         if want_estimate:
-            weight = summary_estimate_chunked(grid, coordinates, weights, histograms, bitmaps, previous, use_previous,
-                                              out_mean, out_cov, chunk)
+            weight = summary_estimate_chunked(
+                grid, coordinates, weights, histograms, bitmaps, previous, use_previous, out_mean, out_cov, chunk
+            )
             previous[:] = out_mean
         position = orientation = 0.0
         if want_entropy:
@@ -320,7 +380,7 @@ class StepKernels(NamedTuple):
     """The compiled step for one kind of sensor model (`fused_step`)."""
 
     key: str
-    compiled_step: Callable[..., Any]     # numba dispatchers
+    compiled_step: Callable[..., Any]  # numba dispatchers
     predict_and_score: Callable[..., Any]
     predict_and_score_chunked: Callable[..., Any]
 
@@ -351,6 +411,7 @@ def fused_step(kernels) -> StepKernels:
         names = {"prepare": kernels.prepare, "workspace": kernels.workspace, "score": kernels.score}
         names["predict_and_score"] = variant(predict_and_score, key, names)
         names["predict_and_score_chunked"] = variant(predict_and_score_chunked, key, names, parallel=True)
-        step = _STEPS[key] = StepKernels(key, variant(compiled_step, key, names), names["predict_and_score"],
-                                         names["predict_and_score_chunked"])
+        step = _STEPS[key] = StepKernels(
+            key, variant(compiled_step, key, names), names["predict_and_score"], names["predict_and_score_chunked"]
+        )
     return step

@@ -9,6 +9,7 @@ previous estimate, preferred when no cluster holds half the weight). The filter'
 the histograms and computes the estimate and the entropy into it; `group` gives the compiled step these
 buffers.
 """
+
 from __future__ import annotations
 
 import math
@@ -80,8 +81,12 @@ class Estimate:
             True when all three hold.
         """
         position_std = math.sqrt(max(self.covariance[0, 0] + self.covariance[1, 1], 0.0))
-        return (self.weight >= weight and position_std <= position_sigma
-                and math.sqrt(max(self.covariance[2, 2], 0.0)) <= heading_sigma)
+        return (
+            self.weight >= weight
+            and position_std <= position_sigma
+            and math.sqrt(max(self.covariance[2, 2], 0.0)) <= heading_sigma
+        )
+
 
 @dataclass(frozen=True)
 class Entropy:
@@ -97,6 +102,7 @@ class Entropy:
 
     position: float
     orientation: float
+
 
 @dataclass(frozen=True)
 class Grid:
@@ -123,12 +129,12 @@ class Grid:
         If a value is out of range (TypeError, `field.checks.ArgumentTypeError`, for the wrong type).
     """
 
-    position_cell: float = 0.1            # m
-    orientation_bins: int = 36            # 10° bins
-    cluster_cell: float = 0.5             # m, seed histogram of the estimate
+    position_cell: float = 0.1  # m
+    orientation_bins: int = 36  # 10° bins
+    cluster_cell: float = 0.5  # m, seed histogram of the estimate
     cluster_orientation_bins: int = 8
-    cluster_radius: float = 0.75          # m, mean-shift kernel
-    cluster_angle_radius: float = 0.8     # rad
+    cluster_radius: float = 0.75  # m, mean-shift kernel
+    cluster_angle_radius: float = 0.8  # rad
 
     def __post_init__(self) -> None:
         # Cells of at least 1 cm and at most 3600 orientation bins: the histograms stay within memory.
@@ -172,25 +178,42 @@ class Summary:
         self.entropy_ny = max(1, math.ceil((self.y_max - self.y_min) / grid.position_cell))
         self.cluster_nx = max(1, math.ceil((self.x_max - self.x_min) / grid.cluster_cell))
         self.cluster_ny = max(1, math.ceil((self.y_max - self.y_min) / grid.cluster_cell))
-        for what, cells in (("position", self.entropy_nx * self.entropy_ny * grid.orientation_bins),
-                            ("cluster", self.cluster_nx * self.cluster_ny * grid.cluster_orientation_bins)):
+        for what, cells in (
+            ("position", self.entropy_nx * self.entropy_ny * grid.orientation_bins),
+            ("cluster", self.cluster_nx * self.cluster_ny * grid.cluster_orientation_bins),
+        ):
             if cells > MAX_GRID_CELLS:
-                raise ValueError(f"grid = {grid!r} makes {cells} {what} cells on this field; at most "
-                                 f"{MAX_GRID_CELLS} are accepted (larger cells, fewer bins)")
-        self.parameters = summary_grid(self.x_min, self.y_min, grid.cluster_cell, self.cluster_nx, self.cluster_ny,
-                                       grid.cluster_orientation_bins, grid.cluster_radius, grid.cluster_angle_radius,
-                                       3, grid.position_cell, self.entropy_nx, self.entropy_ny, grid.orientation_bins)
+                raise ValueError(
+                    f"grid = {grid!r} makes {cells} {what} cells on this field; at most "
+                    f"{MAX_GRID_CELLS} are accepted (larger cells, fewer bins)"
+                )
+        self.parameters = summary_grid(
+            self.x_min,
+            self.y_min,
+            grid.cluster_cell,
+            self.cluster_nx,
+            self.cluster_ny,
+            grid.cluster_orientation_bins,
+            grid.cluster_radius,
+            grid.cluster_angle_radius,
+            3,
+            grid.position_cell,
+            self.entropy_nx,
+            self.entropy_ny,
+            grid.orientation_bins,
+        )
         self.coordinates, self.histograms, self.bitmaps = summary_buffers(self.parameters, n)
         # threads > 1: each thread's histograms, in fixed point (see mcl.estimate.summary_fill_chunked)
-        self.local = np.zeros((numba.config.NUMBA_NUM_THREADS if threads > 1 else 0, self.histograms.shape[0]),
-                              dtype=np.int64)
-        self.valid = False                     # whether the histograms are those of the particles as they are
+        self.local = np.zeros(
+            (numba.config.NUMBA_NUM_THREADS if threads > 1 else 0, self.histograms.shape[0]), dtype=np.int64
+        )
+        self.valid = False  # whether the histograms are those of the particles as they are
         self.estimate: Estimate | None = None  # the cached estimate and entropy (None: stale)
         self.entropy: Entropy | None = None
         # Once the entropy has been asked for, the compiled step (and the estimate) computes it from the
         # histograms it fills anyway, sparing the call its own dispatch into compiled code.
         self.entropy_wanted = False
-        self.previous = np.zeros(3)            # the hysteresis anchor: the last estimate's mean
+        self.previous = np.zeros(3)  # the hysteresis anchor: the last estimate's mean
         self.has_previous = False
 
     @property
@@ -214,13 +237,28 @@ class Summary:
         next estimate starts without its hysteresis anchor."""
         self.has_previous = False
 
-    def group(self, want_estimate: bool, mean: np.ndarray, covariance: np.ndarray, use_previous: bool | None = None,
-              want_entropy: bool | None = None) -> tuple:
+    def group(
+        self,
+        want_estimate: bool,
+        mean: np.ndarray,
+        covariance: np.ndarray,
+        use_previous: bool | None = None,
+        want_entropy: bool | None = None,
+    ) -> tuple:
         """The summary's arguments of the compiled step (`mcl.step`): the grid and its histograms, whether to
         compute the estimate (into `mean`, `covariance`; its hysteresis anchor) and the entropy."""
-        return (self.parameters, self.coordinates, self.histograms, self.bitmaps, want_estimate, self.previous,
-                self.has_previous if use_previous is None else use_previous, mean, covariance,
-                self.entropy_wanted if want_entropy is None else want_entropy)
+        return (
+            self.parameters,
+            self.coordinates,
+            self.histograms,
+            self.bitmaps,
+            want_estimate,
+            self.previous,
+            self.has_previous if use_previous is None else use_previous,
+            mean,
+            covariance,
+            self.entropy_wanted if want_entropy is None else want_entropy,
+        )
 
     def keep(self, estimate: Estimate | None, position: float, orientation: float) -> None:
         """What a step computed with the histograms it filled: the estimate when it computed one (its anchor

@@ -11,6 +11,7 @@ per particle where they take three; `reweigh` then stores the normalized log-wei
 several threads) and `weigh_fast` (polynomial exp, vectorized) are the filter's opt-in variants: equal to
 rounding.
 """
+
 import math
 
 import numba
@@ -22,9 +23,7 @@ from numba.extending import intrinsic
 from field.moved import moved_names
 
 # The numpy twins moved to the package's `reference` module; their old names still work, with a warning.
-__getattr__ = moved_names(__name__, {
-    "normalize_reference": "mcl.reference.normalize"
-})
+__getattr__ = moved_names(__name__, {"normalize_reference": "mcl.reference.normalize"})
 
 
 @numba.njit(cache=True)
@@ -172,8 +171,8 @@ def weigh_chunked(log_weights, log_likelihood, count, weights_out, chunk):
     threads, `weigh`'s bit for bit when chunk >= N, and otherwise equal to rounding."""
     n = log_weights.shape[0]
     chunks = max(1, (n + chunk - 1) // chunk)
-    peaks = np.full((chunks, 3), -np.inf)            # all, joint (first `count`), prior (first `count`)
-    flags = np.zeros((chunks, 2), dtype=np.bool_)    # invalid, unequal prior
+    peaks = np.full((chunks, 3), -np.inf)  # all, joint (first `count`), prior (first `count`)
+    flags = np.zeros((chunks, 2), dtype=np.bool_)  # invalid, unequal prior
     first = log_weights[0] if n > 0 else 0.0
     for t in numba.prange(chunks):
         invalid = False
@@ -209,7 +208,7 @@ def weigh_chunked(log_weights, log_likelihood, count, weights_out, chunk):
         peak_joint = max(peak_joint, peaks[t, 1])
         peak_prior = max(peak_prior, peaks[t, 2])
         equal_prior = equal_prior and not flags[t, 1]
-    sums = np.zeros((chunks, 3))                    # exp total, joint, prior
+    sums = np.zeros((chunks, 3))  # exp total, joint, prior
     if peak > -np.inf:
         for t in numba.prange(chunks):
             total = 0.0
@@ -281,13 +280,13 @@ def reweigh_chunked(log_weights, log_likelihood, log_total, chunk):
 # -- the opt-in fast variant ----------------------------------------------------------------------------------------
 # With `ParticleFilter(fast=True)`: the exponentials by a polynomial (no libm call, so the loop vectorizes) and
 # the sums reassociated (vectorized). Equal to `weigh` to about 10⁻¹⁵ relative.
-FAST = {"nsz", "arcp", "contract", "afn", "reassoc"}     # fast-math without assuming no NaN / inf
-_LOG2E = 1.44269504088896338700e+00
+FAST = {"nsz", "arcp", "contract", "afn", "reassoc"}  # fast-math without assuming no NaN / inf
+_LOG2E = 1.44269504088896338700e00
 _LN2_HIGH = 6.93147180369123816490e-01
 _LN2_LOW = 1.90821492927058770002e-10
 
 
-_EXPONENT_SHIFTER = 4503599627370496.0 + 1023.0       # 2⁵² plus the exponent bias
+_EXPONENT_SHIFTER = 4503599627370496.0 + 1023.0  # 2⁵² plus the exponent bias
 
 
 @intrinsic
@@ -321,11 +320,40 @@ def fast_exp(x):
     and one whose error is large in relative terms is negligible."""
     x = x if x > -745.2 else -745.2
     k = np.floor(x * _LOG2E + 0.5)
-    r = (x - k * _LN2_HIGH) - k * _LN2_LOW               # |r| <= ln 2 / 2
-    p = 1.0 + r * (1.0 + r * (1.0 / 2 + r * (1.0 / 6 + r * (1.0 / 24 + r * (1.0 / 120 + r * (
-        1.0 / 720 + r * (1.0 / 5040 + r * (1.0 / 40320 + r * (1.0 / 362880 + r * (1.0 / 3628800 + r * (
-            1.0 / 39916800 + r / 479001600)))))))))))
-    half = np.floor(k * 0.5)                             # 2ᵏ as two normal powers of two, for k down to -1075
+    r = (x - k * _LN2_HIGH) - k * _LN2_LOW  # |r| <= ln 2 / 2
+    p = 1.0 + r * (
+        1.0
+        + r
+        * (
+            1.0 / 2
+            + r
+            * (
+                1.0 / 6
+                + r
+                * (
+                    1.0 / 24
+                    + r
+                    * (
+                        1.0 / 120
+                        + r
+                        * (
+                            1.0 / 720
+                            + r
+                            * (
+                                1.0 / 5040
+                                + r
+                                * (
+                                    1.0 / 40320
+                                    + r * (1.0 / 362880 + r * (1.0 / 3628800 + r * (1.0 / 39916800 + r / 479001600)))
+                                )
+                            )
+                        )
+                    )
+                )
+            )
+        )
+    )
+    half = np.floor(k * 0.5)  # 2ᵏ as two normal powers of two, for k down to -1075
     # Their biased exponents e (integers in [0, 2¹¹)) are the low bits of the double 2⁵² + e, which a shift
     # by 52 moves into place: no conversion to an integer, which AVX2 has no vector instruction for.
     first = _bits_to_double(_double_bits(half + _EXPONENT_SHIFTER) << 52)

@@ -16,6 +16,7 @@ A model is a frozen dataclass with `check(u)` (raise ValueError if `u` lacks wha
 `base.BoundedNoiseModel` and gets the filter's fused step (`motion_models.kernels`). A new model is a new module
 here or in a team's own package (docs/extending.md).
 """
+
 from .adaptive import AdaptiveMotion, MobilityTransitions
 from .base import MotionInput, MotionModel
 from .constant import ConstantNoise
@@ -23,5 +24,14 @@ from .footsteps import FootstepEvent
 from .learned_odometry import LearnedFootstepOdometry, RawFootstepOdometry
 from .velocity_linear import VelocityLinear
 
-__all__ = ["MotionInput", "MotionModel", "ConstantNoise", "VelocityLinear", "AdaptiveMotion", "MobilityTransitions",
-           "FootstepEvent", "LearnedFootstepOdometry", "RawFootstepOdometry"]
+__all__ = [
+    "MotionInput",
+    "MotionModel",
+    "ConstantNoise",
+    "VelocityLinear",
+    "AdaptiveMotion",
+    "MobilityTransitions",
+    "FootstepEvent",
+    "LearnedFootstepOdometry",
+    "RawFootstepOdometry",
+]

@@ -60,6 +60,7 @@ second at any rate, and are eq. 10's exactly at 100 Hz; `noise_rate="per_step"` 
 `redraw="step"` the perturbations are drawn afresh every step and average out faster at a higher rate: that
 variant is not rate-independent.
 """
+
 from __future__ import annotations
 
 import functools
@@ -79,17 +80,15 @@ from .kernels import DRAWS
 from .percepts import CollisionPercept
 
 # The numpy twins moved to the package's `reference` module; their old names still work, with a warning.
-__getattr__ = moved_names(__name__, {
-    "adaptive_move_reference": "motion_models.reference.adaptive_move"
-})
+__getattr__ = moved_names(__name__, {"adaptive_move_reference": "motion_models.reference.adaptive_move"})
 
 FREE, SLIPPAGE, HINDRANCE, PUSHED, STOPPED = range(5)
 STATES = ("free", "slippage", "hindrance", "pushed", "stopped")
 CONDITIONS = ("quiet", "collision", "frequent")
-STATE_COLUMNS = 4          # per particle: mobility state, then the three rand() values of its episode
-VARIATES = 7               # per particle and step: transition, three fresh episode values, three odometry noise
+STATE_COLUMNS = 4  # per particle: mobility state, then the three rand() values of its episode
+VARIATES = 7  # per particle and step: transition, three fresh episode values, three odometry noise
 MAX_ODOMETRY_SPEED = 1000.0  # m/s and rad/s: the most odometry over dt may imply (a shorter step is a clock glitch)
-_CUMULATIVE_MEMO = 64      # (condition, dt) pairs an AdaptiveMotion keeps the cumulative transition rows of
+_CUMULATIVE_MEMO = 64  # (condition, dt) pairs an AdaptiveMotion keeps the cumulative transition rows of
 
 
 def _rates(pairs: dict[tuple[str, str], float]) -> tuple[tuple[str, str, float], ...]:
@@ -119,17 +118,36 @@ class MobilityTransitions:
         If an entry is not (from, to, rate) with two different names of `STATES` and a finite rate >= 0.
     """
 
-    quiet: tuple[tuple[str, str, float], ...] = _rates({
-        ("slippage", "free"): 3.0, ("hindrance", "free"): 4.0, ("pushed", "free"): 5.0, ("stopped", "free"): 4.0})
-    collision: tuple[tuple[str, str, float], ...] = _rates({
-        ("free", "slippage"): 2.0, ("free", "hindrance"): 4.0, ("free", "pushed"): 2.0,
-        ("slippage", "hindrance"): 1.0, ("pushed", "hindrance"): 1.0, ("hindrance", "stopped"): 1.0,
-        ("stopped", "hindrance"): 1.0, ("stopped", "free"): 5.0})
-    frequent: tuple[tuple[str, str, float], ...] = _rates({
-        ("free", "hindrance"): 4.0, ("free", "pushed"): 1.0, ("free", "slippage"): 1.0, ("free", "stopped"): 2.0,
-        ("slippage", "stopped"): 3.0, ("hindrance", "stopped"): 3.0, ("pushed", "stopped"): 3.0,
-        # Episode ends while the percept still says "frequent" (fitted: results/adaptive_fit.json).
-        ("hindrance", "free"): 0.911, ("pushed", "free"): 2.486, ("stopped", "free"): 0.641})
+    quiet: tuple[tuple[str, str, float], ...] = _rates(
+        {("slippage", "free"): 3.0, ("hindrance", "free"): 4.0, ("pushed", "free"): 5.0, ("stopped", "free"): 4.0}
+    )
+    collision: tuple[tuple[str, str, float], ...] = _rates(
+        {
+            ("free", "slippage"): 2.0,
+            ("free", "hindrance"): 4.0,
+            ("free", "pushed"): 2.0,
+            ("slippage", "hindrance"): 1.0,
+            ("pushed", "hindrance"): 1.0,
+            ("hindrance", "stopped"): 1.0,
+            ("stopped", "hindrance"): 1.0,
+            ("stopped", "free"): 5.0,
+        }
+    )
+    frequent: tuple[tuple[str, str, float], ...] = _rates(
+        {
+            ("free", "hindrance"): 4.0,
+            ("free", "pushed"): 1.0,
+            ("free", "slippage"): 1.0,
+            ("free", "stopped"): 2.0,
+            ("slippage", "stopped"): 3.0,
+            ("hindrance", "stopped"): 3.0,
+            ("pushed", "stopped"): 3.0,
+            # Episode ends while the percept still says "frequent" (fitted: results/adaptive_fit.json).
+            ("hindrance", "free"): 0.911,
+            ("pushed", "free"): 2.486,
+            ("stopped", "free"): 0.641,
+        }
+    )
 
     def __post_init__(self) -> None:
         for condition in CONDITIONS:
@@ -192,6 +210,7 @@ class MobilityTransitions:
 @functools.lru_cache(maxsize=64)
 def _transition_matrix(transitions: MobilityTransitions, condition: str, dt: float) -> np.ndarray:
     import scipy.linalg  # here, not at module level: `import mcl` does not load scipy.linalg
+
     p = scipy.linalg.expm(transitions.generator(condition) * dt)
     p = np.clip(p, 0.0, None)
     return p / p.sum(axis=1, keepdims=True)
@@ -200,7 +219,7 @@ def _transition_matrix(transitions: MobilityTransitions, condition: str, dt: flo
 @functools.lru_cache(maxsize=64)
 def _cumulative(transitions: MobilityTransitions, condition: str, dt: float) -> np.ndarray:
     cumulative = np.cumsum(_transition_matrix(transitions, condition, dt), axis=1)
-    cumulative[:, -1] = 1.0       # rounding must never let a uniform variate fall past the last state
+    cumulative[:, -1] = 1.0  # rounding must never let a uniform variate fall past the last state
     cumulative.flags.writeable = False
     return cumulative
 
@@ -252,24 +271,24 @@ class AdaptiveMotion:
         If a parameter is out of its range.
     """
 
-    beta1: float = 0.189          # slippage: speed kept at least this share (eq. 14)
-    beta2: float = 0.651          # rad/s, slippage: heading rate error bound (eq. 15)
-    beta3: float = 0.162          # hindrance: speed kept at least this share (eq. 16)
-    beta4: float = 0.886          # hindrance: turn rate kept at least this share (eq. 17)
-    beta5: float = 0.659          # m/s, pushed: push speed bound (eq. 19)
-    beta6: float = 0.899          # rad/s, pushed: heading rate bound (eq. 22)
-    beta7: float = 0.0            # rad/s, stopped without a known side: turn rate bound (eq. 24)
-    beta_turn: float = 1.204      # stopped: turn toward the collision, share of |v|/w (eq. 25)
+    beta1: float = 0.189  # slippage: speed kept at least this share (eq. 14)
+    beta2: float = 0.651  # rad/s, slippage: heading rate error bound (eq. 15)
+    beta3: float = 0.162  # hindrance: speed kept at least this share (eq. 16)
+    beta4: float = 0.886  # hindrance: turn rate kept at least this share (eq. 17)
+    beta5: float = 0.659  # m/s, pushed: push speed bound (eq. 19)
+    beta6: float = 0.899  # rad/s, pushed: heading rate bound (eq. 22)
+    beta7: float = 0.0  # rad/s, stopped without a known side: turn rate bound (eq. 24)
+    beta_turn: float = 1.204  # stopped: turn toward the collision, share of |v|/w (eq. 25)
     foot_separation: float = 0.1  # m, w of eq. 25: lateral distance between the feet
-    odometry: tuple[float, float, float, float] = (1.24, 1.23, 1.701, 1.701)   # β1..β4 of eq. 10, free walking
-    frequent_rate: float = 0.25   # share of the recent second with a collision that counts as "at high
-                                  # frequency": a burst each step, or a quarter second of continuous contact
+    odometry: tuple[float, float, float, float] = (1.24, 1.23, 1.701, 1.701)  # β1..β4 of eq. 10, free walking
+    frequent_rate: float = 0.25  # share of the recent second with a collision that counts as "at high
+    # frequency": a burst each step, or a quarter second of continuous contact
     transitions: MobilityTransitions = field(default_factory=MobilityTransitions)
-    redraw: str = "episode"       # "episode" or "step": when the rand() of eq. 14-26 are drawn
-    stop_creep: float = 0.0       # stopped: walks on at |v|·stop_creep·rand(0, 1) (0: the paper's eq. 23)
+    redraw: str = "episode"  # "episode" or "step": when the rand() of eq. 14-26 are drawn
+    stop_creep: float = 0.0  # stopped: walks on at |v|·stop_creep·rand(0, 1) (0: the paper's eq. 23)
     noise_rate: str = "per_second"  # eq. 10's noise: "per_second" holds at any update rate, "per_step" as written
-    if TYPE_CHECKING:             # per-instance memos `_memoize` sets, not fields (ClassVar keeps them out of
-        _kernel_params: ClassVar[np.ndarray]                      # the dataclass's fields for mypy)
+    if TYPE_CHECKING:  # per-instance memos `_memoize` sets, not fields (ClassVar keeps them out of
+        _kernel_params: ClassVar[np.ndarray]  # the dataclass's fields for mypy)
         _cumulative_rows: ClassVar[dict[tuple[str, float], np.ndarray]]
         _scaled_params: ClassVar[dict[float, np.ndarray]]
 
@@ -279,14 +298,20 @@ class AdaptiveMotion:
             value = getattr(self, name)
             if isinstance(value, bool) or not (isinstance(value, (int, float)) and 0 <= value < 1):
                 raise ValueError(f"{name} = {value!r} must be within [0, 1) (Hoffmann eq. 14-17)")
-        if not (isinstance(self.foot_separation, (int, float)) and math.isfinite(self.foot_separation)
-                and self.foot_separation > 0):
+        if not (
+            isinstance(self.foot_separation, (int, float))
+            and math.isfinite(self.foot_separation)
+            and self.foot_separation > 0
+        ):
             raise ValueError(f"foot_separation = {self.foot_separation!r} must be finite and > 0")
         odometry = tuple(self.odometry)
-        if len(odometry) != 4 or not all(isinstance(b, (int, float)) and math.isfinite(b)
-                                         and 0 <= b <= MAX_NOISE_PARAMETER for b in odometry):
-            raise ValueError(f"odometry = {self.odometry!r} must be four numbers within [0, {MAX_NOISE_PARAMETER:g}] "
-                             "(eq. 10's β1..β4)")
+        if len(odometry) != 4 or not all(
+            isinstance(b, (int, float)) and math.isfinite(b) and 0 <= b <= MAX_NOISE_PARAMETER for b in odometry
+        ):
+            raise ValueError(
+                f"odometry = {self.odometry!r} must be four numbers within [0, {MAX_NOISE_PARAMETER:g}] "
+                "(eq. 10's β1..β4)"
+            )
         object.__setattr__(self, "odometry", tuple(float(b) for b in odometry))
         if not (isinstance(self.frequent_rate, (int, float)) and 0 < self.frequent_rate <= 1):
             raise ValueError(f"frequent_rate = {self.frequent_rate!r} must be within (0, 1]")
@@ -299,9 +324,22 @@ class AdaptiveMotion:
 
     def _memoize(self) -> None:
         # Memos of the validated parameters, not fields: what every `predict` hands the kernel unchanged.
-        params = np.array([self.beta1, self.beta2, self.beta3, self.beta4, self.beta5, self.beta6, self.beta7,
-                           self.beta_turn, self.foot_separation, *self.odometry, self.stop_creep],
-                          dtype=np.float64)
+        params = np.array(
+            [
+                self.beta1,
+                self.beta2,
+                self.beta3,
+                self.beta4,
+                self.beta5,
+                self.beta6,
+                self.beta7,
+                self.beta_turn,
+                self.foot_separation,
+                *self.odometry,
+                self.stop_creep,
+            ],
+            dtype=np.float64,
+        )
         params.flags.writeable = False
         object.__setattr__(self, "_kernel_params", params)
         object.__setattr__(self, "_cumulative_rows", {})
@@ -365,8 +403,10 @@ class AdaptiveMotion:
             `MAX_ODOMETRY_SPEED`.
         """
         if not isinstance(u.collision, CollisionPercept):
-            raise ValueError(f"AdaptiveMotion needs MotionInput.collision, a proprioception.collision.CollisionPercept "
-                             f"(proprioception.collision.NO_COLLISION when nothing was detected); got {u.collision!r}")
+            raise ValueError(
+                f"AdaptiveMotion needs MotionInput.collision, a proprioception.collision.CollisionPercept "
+                f"(proprioception.collision.NO_COLLISION when nothing was detected); got {u.collision!r}"
+            )
         u.displacement()
         self._check_speed(u)
 
@@ -378,9 +418,11 @@ class AdaptiveMotion:
         if u.command is None and u.odometry is not None and u.dt > 0:
             speed = max(abs(v) for v in u.odometry) / u.dt
             if not speed <= MAX_ODOMETRY_SPEED:
-                raise ValueError(f"odometry = {u.odometry!r} over dt = {u.dt!r} s implies {speed:.3g} m/s or rad/s; "
-                                 f"AdaptiveMotion takes at most {MAX_ODOMETRY_SPEED:g} (a step that short is a "
-                                 "timestamp glitch)")
+                raise ValueError(
+                    f"odometry = {u.odometry!r} over dt = {u.dt!r} s implies {speed:.3g} m/s or rad/s; "
+                    f"AdaptiveMotion takes at most {MAX_ODOMETRY_SPEED:g} (a step that short is a "
+                    "timestamp glitch)"
+                )
 
     def condition(self, percept: CollisionPercept) -> str:
         """Which transition set applies: "frequent", "collision" or "quiet".
@@ -438,7 +480,7 @@ class AdaptiveMotion:
         key = (condition, dt)
         rows = self._cumulative_rows.get(key)
         if rows is None:
-            if len(self._cumulative_rows) >= _CUMULATIVE_MEMO:     # a varying dt must not grow it without end
+            if len(self._cumulative_rows) >= _CUMULATIVE_MEMO:  # a varying dt must not grow it without end
                 self._cumulative_rows.clear()
             rows = _cumulative(self.transitions, condition, float(dt))
             self._cumulative_rows[key] = rows
@@ -460,8 +502,16 @@ class AdaptiveMotion:
         percept: CollisionPercept = u.collision
         side = percept.side
         vx, vy, omega = self.velocities(u)
-        return (self.cumulative_transitions(self.condition(percept), u.dt), vx, vy, omega, u.dt,
-                np.nan if side is None else float(side), self.kernel_parameters(u.dt), self.redraw == "step")
+        return (
+            self.cumulative_transitions(self.condition(percept), u.dt),
+            vx,
+            vy,
+            omega,
+            u.dt,
+            np.nan if side is None else float(side),
+            self.kernel_parameters(u.dt),
+            self.redraw == "step",
+        )
 
     def kernel_parameters(self, dt: float) -> np.ndarray:
         """The parameters `adaptive_move` takes for a step of `dt` seconds (read-only (14,)): β1..β7, β_turn, the
@@ -483,7 +533,7 @@ class AdaptiveMotion:
             return self._kernel_params
         params = self._scaled_params.get(factor)
         if params is None:
-            if len(self._scaled_params) >= _CUMULATIVE_MEMO:     # a varying dt must not grow it without end
+            if len(self._scaled_params) >= _CUMULATIVE_MEMO:  # a varying dt must not grow it without end
                 self._scaled_params.clear()
             params = self._kernel_params.copy()
             params[9:13] *= factor
@@ -491,8 +541,9 @@ class AdaptiveMotion:
             self._scaled_params[factor] = params
         return params
 
-    def predict(self, poses: np.ndarray, u: MotionInput, rng: np.random.Generator,
-                state: np.ndarray | None = None) -> None:
+    def predict(
+        self, poses: np.ndarray, u: MotionInput, rng: np.random.Generator, state: np.ndarray | None = None
+    ) -> None:
         """Move `poses` in place; `state` (N, 4) is each particle's mobility state, updated in place (the
         filter passes its own; None uses a throw-away all-free state, i.e. a single-step prediction).
 
@@ -515,7 +566,7 @@ class AdaptiveMotion:
         check_poses(poses)
         percept = u.collision
         if not isinstance(percept, CollisionPercept) or (u.command is None and u.odometry is None):
-            self.check(u)                   # raises the ValueError that names what is missing
+            self.check(u)  # raises the ValueError that names what is missing
         self._check_speed(u)
         n = poses.shape[0]
         if state is None:
@@ -536,13 +587,23 @@ def adaptive_move(poses, state, cumulative, vx, vy, omega, dt, side, params, red
     share their chord, noise bounds and turn, so these are computed once; a stopped particle whose coordinates
     are both non-zero is given a displacement of exactly ±0, which leaves them unchanged."""
     model, odometry = _step_groups(cumulative, vx, vy, omega, dt, side, params, redraw_each_step)
-    _adaptive_range(poses, state, model, odometry, (variates, False, _NO_BASES, _NO_BASES), 0, 0, poses.shape[0],
-                    np.empty((MOVE_ROWS, DRAWS)))
+    _adaptive_range(
+        poses,
+        state,
+        model,
+        odometry,
+        (variates, False, _NO_BASES, _NO_BASES),
+        0,
+        0,
+        poses.shape[0],
+        np.empty((MOVE_ROWS, DRAWS)),
+    )
 
 
 @numba.njit(cache=True)
-def adaptive_move_drawing(poses, state, cumulative, vx, vy, omega, dt, side, params, redraw_each_step, function,
-                          generator):
+def adaptive_move_drawing(
+    poses, state, cumulative, vx, vy, omega, dt, side, params, redraw_each_step, function, generator
+):
     """`adaptive_move` with its variates drawn here, a block of particles at a time, from a bit generator
     (`numerics.random.bit_generator_handle`): the same poses and states as `adaptive_move(...,
     rng.random((N, 7)))`, without the (N, 7) array.
@@ -559,12 +620,13 @@ def adaptive_move_drawing(poses, state, cumulative, vx, vy, omega, dt, side, par
     for start in range(0, n, DRAWS):
         stop = min(start + DRAWS, n)
         deferred = draw_rows_deferring(function, generator, variates, stop - start, 1, 4, bases, increments)
-        _adaptive_range(poses, state, model, odometry, (variates, deferred, bases, increments), start, start, stop,
-                        rows)
+        _adaptive_range(
+            poses, state, model, odometry, (variates, deferred, bases, increments), start, start, stop, rows
+        )
 
 
-MOVE_ROWS = 6      # `_adaptive_range`'s scratch rows: turned heading, dx, dy, new heading, cos, sin
-_NO_BASES = np.empty((0, 2), dtype=np.uint64)     # no deferred episode values
+MOVE_ROWS = 6  # `_adaptive_range`'s scratch rows: turned heading, dx, dy, new heading, cos, sin
+_NO_BASES = np.empty((0, 2), dtype=np.uint64)  # no deferred episode values
 
 
 # `_adaptive_range` and `_adaptive_block` take their arguments in groups (tuples):
@@ -588,9 +650,16 @@ def _adaptive_range(poses, state, model, odometry, draws, first, start, stop, ro
     all_variates, deferred, bases, increments = draws
     for block in range(start, stop, DRAWS):
         end = min(block + DRAWS, stop)
-        _adaptive_block(poses, state, model, odometry,
-                        (all_variates[block - first:end - first], deferred, bases[block - first:end - first],
-                         increments), block, end - block, rows)
+        _adaptive_block(
+            poses,
+            state,
+            model,
+            odometry,
+            (all_variates[block - first : end - first], deferred, bases[block - first : end - first], increments),
+            block,
+            end - block,
+            rows,
+        )
         _rotate_rows(rows, end - block)
         for p in range(end - block):
             i = block + p
@@ -633,9 +702,9 @@ def _adaptive_block(poses, state, model, odometry, draws, start, count, rows):
     free_bound_y = odo2 * speed * dt
     free_bound_theta = (odo3 * speed + odo4 * abs(omega)) * dt
     free_turn = omega * dt
-    side_known = side == side        # not NaN
+    side_known = side == side  # not NaN
     stopped_turn_rate = speed / separation * side * beta_turn
-    creep_share = creep * abs(side) if side_known else 0.0     # the pivot variant's walk on (0: the paper's)
+    creep_share = creep * abs(side) if side_known else 0.0  # the pivot variant's walk on (0: the paper's)
     for p in range(count):
         i = start + p
         old = int(state[i, 0])
@@ -652,17 +721,17 @@ def _adaptive_block(poses, state, model, odometry, draws, start, count, rows):
                 state[i, 2] = variates[p, 2]
                 state[i, 3] = variates[p, 3]
         if new != old:
-            state[i, 0] = new         # (unchanged states stay clean in the cache: no write-back at large N)
+            state[i, 0] = new  # (unchanged states stay clean in the cache: no write-back at large N)
         theta = poses[i, 2]
-        if new == 0:      # free: the request plus eq. 10's noise
+        if new == 0:  # free: the request plus eq. 10's noise
             rows[0, p] = theta + free_half
             rows[1, p] = free_dx + (2.0 * variates[p, 4] - 1.0) * free_bound_x
             rows[2, p] = free_dy + (2.0 * variates[p, 5] - 1.0) * free_bound_y
-            rows[3, p] = (theta + free_turn + (2.0 * variates[p, 6] - 1.0) * free_bound_theta)
+            rows[3, p] = theta + free_turn + (2.0 * variates[p, 6] - 1.0) * free_bound_theta
             continue
         e1, e2, e3 = state[i, 1], state[i, 2], state[i, 3]
-        px, py = 0.0, 0.0                 # push velocity
-        if new == 4:      # stopped, eq. 23-26
+        px, py = 0.0, 0.0  # push velocity
+        if new == 4:  # stopped, eq. 23-26
             if side_known:
                 w = stopped_turn_rate * e1
             else:
@@ -672,19 +741,19 @@ def _adaptive_block(poses, state, model, odometry, draws, start, count, rows):
                 rows[0, p] = theta
                 rows[1, p] = 0.0
                 rows[2, p] = 0.0
-                rows[3, p] = (theta + w * dt + (2.0 * variates[p, 6] - 1.0) * (odo4 * abs(w) * dt))
+                rows[3, p] = theta + w * dt + (2.0 * variates[p, 6] - 1.0) * (odo4 * abs(w) * dt)
                 continue
             # At a zero coordinate the sign of the zero displacement shows.
             ex, ey = (vx * creep_share * e1, vy * creep_share * e1) if creep_share != 0.0 else (0.0, 0.0)
-        elif new == 1:    # slippage, eq. 14-15
+        elif new == 1:  # slippage, eq. 14-15
             factor = beta1 + (1.0 - beta1) * e1
             ex, ey = vx * factor, vy * factor
             w = omega + beta2 * (2.0 * e2 - 1.0)
-        elif new == 2:    # hindrance, eq. 16-17
+        elif new == 2:  # hindrance, eq. 16-17
             factor = beta3 + (1.0 - beta3) * e1
             ex, ey = vx * factor, vy * factor
             w = omega * (beta4 + (1.0 - beta4) * e2)
-        else:             # pushed, eq. 18-22
+        else:  # pushed, eq. 18-22
             ex, ey = vx, vy
             alpha = math.pi * (2.0 * e1 - 1.0)
             push = beta5 * e2
@@ -700,5 +769,4 @@ def _adaptive_block(poses, state, model, odometry, draws, start, count, rows):
         rows[0, p] = theta + half
         rows[1, p] = (ex + px) * dt * chord + (2.0 * variates[p, 4] - 1.0) * bound_x
         rows[2, p] = (ey + py) * dt * chord + (2.0 * variates[p, 5] - 1.0) * bound_y
-        rows[3, p] = (theta + w * dt + (2.0 * variates[p, 6] - 1.0) * bound_theta)
-
+        rows[3, p] = theta + w * dt + (2.0 * variates[p, 6] - 1.0) * bound_theta

@@ -8,6 +8,7 @@
 A model reads the fields of `MotionInput` it needs and raises `ValueError` naming the missing one.
 Every field is in SI units and in the robot frame (+x forward, +y left).
 """
+
 from __future__ import annotations
 
 import math
@@ -24,16 +25,16 @@ from .kernels import move_with_noise
 # The largest pose change one motion input may ask for: far beyond any robot's step (a field is at most 22 m
 # long), small enough that every pose a filter computes from it stays finite. A larger one is refused with a
 # ValueError naming the input, before any filter state changes.
-MAX_STEP_DISTANCE = 100.0     # m, |(dx, dy)|
+MAX_STEP_DISTANCE = 100.0  # m, |(dx, dy)|
 MAX_STEP_TURN = LARGEST_ANGLE  # rad, |dθ|
-MAX_STEP_DT = 3600.0          # s: one step of at most an hour (a log's longest gap)
+MAX_STEP_DT = 3600.0  # s: one step of at most an hour (a log's longest gap)
 
 
 def _finite_triple(name: str, value: Any) -> tuple[float, float, float] | None:
     if value is None:
         return None
     if type(value) is tuple and len(value) == 3 and all(type(v) is float and math.isfinite(v) for v in value):
-        return value                              # the common case, without numpy
+        return value  # the common case, without numpy
     return tuple(float(v) for v in reals(name, value, 3))  # type: ignore[return-value]
 
 
@@ -84,14 +85,16 @@ class MotionInput:
         if self.odometry is not None or self.command is not None:
             try:
                 dx, dy, dtheta = self.displacement()
-            except (ValueError, OverflowError):          # sin/cos of an infinite turn
+            except (ValueError, OverflowError):  # sin/cos of an infinite turn
                 dx = dy = dtheta = math.inf
             name = "odometry" if self.odometry is not None else f"dt = {dt!r} with command"
             value = self.odometry if self.odometry is not None else self.command
             distance = math.hypot(dx, dy)
             if not (distance <= MAX_STEP_DISTANCE and abs(dtheta) <= MAX_STEP_TURN):
-                raise ValueError(f"{name} = {value!r} moves the robot by {distance:.3g} m and {dtheta:.3g} rad in "
-                                 f"one step; at most {MAX_STEP_DISTANCE:g} m and {MAX_STEP_TURN:g} rad are accepted")
+                raise ValueError(
+                    f"{name} = {value!r} moves the robot by {distance:.3g} m and {dtheta:.3g} rad in "
+                    f"one step; at most {MAX_STEP_DISTANCE:g} m and {MAX_STEP_TURN:g} rad are accepted"
+                )
 
     def displacement(self) -> tuple[float, float, float]:
         """The intended pose change (dx, dy, dtheta) in the robot frame: odometry if given, else dt * command.
@@ -146,8 +149,10 @@ class MotionModel(Protocol):
 def check_poses(poses: np.ndarray) -> None:
     """The particle array contract shared by every model (see DESIGN.md: float64 (N, 3) C-contiguous)."""
     if not isinstance(poses, np.ndarray) or poses.dtype != np.float64 or poses.ndim != 2 or poses.shape[1] != 3:
-        raise ValueError(f"poses must be a float64 array of shape (N, 3), got {getattr(poses, 'dtype', type(poses))} "
-                         f"{getattr(poses, 'shape', '')}")
+        raise ValueError(
+            f"poses must be a float64 array of shape (N, 3), got {getattr(poses, 'dtype', type(poses))} "
+            f"{getattr(poses, 'shape', '')}"
+        )
     if not poses.flags.c_contiguous or not poses.flags.writeable:
         raise ValueError("poses must be C-contiguous and writeable (models update them in place)")
 
@@ -186,8 +191,9 @@ def check_noise_rate(value: Any) -> str:
     """`value` if it is one of `NOISE_RATES`; ValueError naming `noise_rate` otherwise (TypeError,
     `field.checks.ArgumentTypeError`, unless it is a string)."""
     if not isinstance(value, str):
-        raise ArgumentTypeError(f"noise_rate = {value!r} must be a string, one of {NOISE_RATES}, "
-                                f"not {type(value).__name__}")
+        raise ArgumentTypeError(
+            f"noise_rate = {value!r} must be a string, one of {NOISE_RATES}, not {type(value).__name__}"
+        )
     if value not in NOISE_RATES:
         raise ValueError(f"noise_rate = {value!r} must be one of {NOISE_RATES}")
     return value
@@ -273,5 +279,6 @@ class BoundedNoiseModel:
         check_poses(poses)
         dx, dy, dtheta = u.displacement()
         bx, by, bt = self.noise_bounds(u)
-        move_with_noise(poses, dx, dy, dtheta, bx, by, bt, self.gaussian,
-                        draw_variates(rng, poses.shape[0], self.gaussian))
+        move_with_noise(
+            poses, dx, dy, dtheta, bx, by, bt, self.gaussian, draw_variates(rng, poses.shape[0], self.gaussian)
+        )

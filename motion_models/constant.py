@@ -15,6 +15,7 @@ the particles over T seconds by sqrt(dt·T)·rate: the rates would hold at one u
 so the rates give the same spread per second at any update rate, and exactly dt·rate at 100 Hz;
 `noise_rate="per_step"` is dt·rate as written.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -49,7 +50,7 @@ class ConstantNoise(BoundedNoiseModel):
     rate_y: float = 0.2
     rate_theta: float = 0.3
     gaussian: bool = False
-    noise_rate: str = "per_second"   # "per_second": the rates hold at any update rate; "per_step": dt·rate as written
+    noise_rate: str = "per_second"  # "per_second": the rates hold at any update rate; "per_step": dt·rate as written
 
     def __post_init__(self) -> None:
         check_nonnegative(self, ("rate_x", "rate_y", "rate_theta"))
@@ -69,5 +70,6 @@ class ConstantNoise(BoundedNoiseModel):
         tuple of float
             (dt·rate_x [m], dt·rate_y [m], dt·rate_theta [rad]), each times the factor.
         """
-        return scaled((u.dt * self.rate_x, u.dt * self.rate_y, u.dt * self.rate_theta),
-                      noise_rate_factor(u.dt, self.noise_rate))
+        return scaled(
+            (u.dt * self.rate_x, u.dt * self.rate_y, u.dt * self.rate_theta), noise_rate_factor(u.dt, self.noise_rate)
+        )

@@ -19,6 +19,7 @@ the per-particle hot path of a footstep model is `motion_models.kernels.move_wit
 Support foot: `LEFT` (+1) when the left foot is on the ground during the step, `RIGHT` (-1) otherwise; the
 LWPR inputs use this ±1 value as the paper's binary support-foot variable.
 """
+
 from __future__ import annotations
 
 import math
@@ -179,11 +180,13 @@ class FootstepEvent:
         if kind == "online":
             sensor, previous_sensor = self.sensor, self.previous_sensor
             if sensor is None or previous_sensor is None or self.duration is None or self.previous_duration is None:
-                missing = [n for n in ("sensor", "previous_sensor", "duration", "previous_duration")
-                           if getattr(self, n) is None]
+                missing = [
+                    n
+                    for n in ("sensor", "previous_sensor", "duration", "previous_duration")
+                    if getattr(self, n) is None
+                ]
                 raise ValueError(f"footstep event lacks {', '.join(missing)}: the online inputs need them")
-            return np.array([*sensor, *previous_sensor, float(self.support),
-                             self.duration, self.previous_duration])
+            return np.array([*sensor, *previous_sensor, float(self.support), self.duration, self.previous_duration])
         raise ValueError(f"kind = {kind!r} must be one of {INPUT_KINDS}")
 
 

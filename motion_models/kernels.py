@@ -14,6 +14,7 @@ step calls it block by block), `move_chunked` spreads the particles over threads
 displacement; bounds (bound_x, bound_y, bound_θ), the noise bounds; draws (function, state), the bit generator's
 handle (`numerics.random.bit_generator_handle`; (0, 0) when the variates are given).
 """
+
 import numba
 import numpy as np
 
@@ -22,13 +23,11 @@ from numerics.random import draw_uniforms
 from numerics.trig import FAST, SQRT3, fast_wrap, sincos, wrap
 
 # The numpy twins moved to the package's `reference` module; their old names still work, with a warning.
-__getattr__ = moved_names(__name__, {
-    "move_with_noise_reference": "motion_models.reference.move_with_noise"
-})
+__getattr__ = moved_names(__name__, {"move_with_noise_reference": "motion_models.reference.move_with_noise"})
 
-DRAWS = 256       # particles per block of uniforms drawn at once
-MOVE_WORK = 6 * DRAWS     # the scratch of `move_range` and `move_range_fast`
-NO_WORK = np.empty(0)     # (from Python; a kernel passes np.empty(0): a global array is read-only there)
+DRAWS = 256  # particles per block of uniforms drawn at once
+MOVE_WORK = 6 * DRAWS  # the scratch of `move_range` and `move_range_fast`
+NO_WORK = np.empty(0)  # (from Python; a kernel passes np.empty(0): a global array is read-only there)
 
 
 @numba.njit(cache=True, inline="always")
@@ -50,8 +49,16 @@ def _move_rows(rows, count, dx, dy, dtheta, bound_x, bound_y, bound_theta, gauss
             _move_row(rows, p, dx, dy, dtheta, noise[3 * p] * sx, noise[3 * p + 1] * sy, noise[3 * p + 2] * st)
     else:
         for p in range(count):
-            _move_row(rows, p, dx, dy, dtheta, (2.0 * noise[3 * p] - 1.0) * bound_x,
-                      (2.0 * noise[3 * p + 1] - 1.0) * bound_y, (2.0 * noise[3 * p + 2] - 1.0) * bound_theta)
+            _move_row(
+                rows,
+                p,
+                dx,
+                dy,
+                dtheta,
+                (2.0 * noise[3 * p] - 1.0) * bound_x,
+                (2.0 * noise[3 * p + 1] - 1.0) * bound_y,
+                (2.0 * noise[3 * p + 2] - 1.0) * bound_theta,
+            )
 
 
 @numba.njit(cache=True, inline="always")
@@ -73,8 +80,8 @@ def _move_blocks(source, out, start, stop, displacement, bounds, gaussian, varia
     bound_x, bound_y, bound_theta = bounds
     function, state = draws
     work = _move_work(work)
-    uniforms = work[:3 * DRAWS]
-    rows = work[3 * DRAWS:MOVE_WORK].reshape((3, DRAWS))
+    uniforms = work[: 3 * DRAWS]
+    rows = work[3 * DRAWS : MOVE_WORK].reshape((3, DRAWS))
     for block in range(start, stop, DRAWS):
         end = min(block + DRAWS, stop)
         count = end - block
@@ -118,16 +125,36 @@ def move_with_noise(poses, dx, dy, dtheta, bound_x, bound_y, bound_theta, gaussi
     (2u - 1)·bound, or, with `gaussian`, normal with the same variance (sigma = bound / sqrt(3)), so that
     switching the distribution keeps the spread. `variates` (N, 3) come from `draw_variates`.
     """
-    move_range(poses, poses, 0, poses.shape[0], (dx, dy, dtheta), (bound_x, bound_y, bound_theta), gaussian,
-               variates, (0, 0), np.empty(0))
+    move_range(
+        poses,
+        poses,
+        0,
+        poses.shape[0],
+        (dx, dy, dtheta),
+        (bound_x, bound_y, bound_theta),
+        gaussian,
+        variates,
+        (0, 0),
+        np.empty(0),
+    )
 
 
 @numba.njit(cache=True)
 def move_drawing_noise(poses, dx, dy, dtheta, bound_x, bound_y, bound_theta, function, state):
     """`move_with_noise` with uniform noise whose variates are drawn in the kernel from a bit generator
     (`bit_generator_handle`): the same poses as `move_with_noise(..., False, rng.random((N, 3)))`."""
-    move_range(poses, poses, 0, poses.shape[0], (dx, dy, dtheta), (bound_x, bound_y, bound_theta), False,
-               np.empty((0, 3)), (function, state), np.empty(0))
+    move_range(
+        poses,
+        poses,
+        0,
+        poses.shape[0],
+        (dx, dy, dtheta),
+        (bound_x, bound_y, bound_theta),
+        False,
+        np.empty((0, 3)),
+        (function, state),
+        np.empty(0),
+    )
 
 
 @numba.njit(cache=True, parallel=True)
@@ -135,8 +162,18 @@ def move_chunked(poses, dx, dy, dtheta, bound_x, bound_y, bound_theta, gaussian,
     """`move_with_noise` with chunks of `chunk` particles on several threads (elementwise: the same poses)."""
     n = poses.shape[0]
     for t in numba.prange(max(1, (n + chunk - 1) // chunk)):
-        move_range(poses, poses, t * chunk, min(n, (t + 1) * chunk), (dx, dy, dtheta), (bound_x, bound_y, bound_theta),
-                   gaussian, variates, (0, 0), np.empty(0))
+        move_range(
+            poses,
+            poses,
+            t * chunk,
+            min(n, (t + 1) * chunk),
+            (dx, dy, dtheta),
+            (bound_x, bound_y, bound_theta),
+            gaussian,
+            variates,
+            (0, 0),
+            np.empty(0),
+        )
 
 
 # -- the opt-in fast variant ----------------------------------------------------------------------------------------
@@ -176,4 +213,3 @@ def _move_fast_rows(rows, count, dx, dy, dtheta, bound_x, bound_y, bound_theta, 
 def move_range_fast(source, out, start, stop, displacement, bounds, gaussian, variates, draws, work):
     """`move_range` with fast-math: the same draws, the poses to rounding."""
     _move_blocks(source, out, start, stop, displacement, bounds, gaussian, variates, draws, work, True)
-

@@ -52,6 +52,7 @@ before it reads a model; a problem raises ValueError naming the file and the key
 and returns a new holder only when done; `updated` trains copies: a holder's models are never left
 half-updated. The same data and seed give the same models, bit for bit.
 """
+
 from __future__ import annotations
 
 import json
@@ -76,12 +77,21 @@ MODEL_FORMAT_VERSION = 1
 META_FILE = "footstep_odometry.json"
 MAX_META_FILE_BYTES = 1 << 20
 """Largest metadata file `LearnedFootstepOdometry.load` reads, in bytes (1 MiB; `save` writes about 500)."""
-_META_KEYS = ("format", "format_version", "inputs", "n_inputs", "models", "fallback_sigma", "noise_scale",
-              "min_sigma", "residual")
-_OPTIONAL_META_KEYS = ("linear",)      # written only for a holder with a linear stage
+_META_KEYS = (
+    "format",
+    "format_version",
+    "inputs",
+    "n_inputs",
+    "models",
+    "fallback_sigma",
+    "noise_scale",
+    "min_sigma",
+    "residual",
+)
+_OPTIONAL_META_KEYS = ("linear",)  # written only for a holder with a linear stage
 _LINEAR_KEYS = ("mean_in", "scale_in", "mean_out", "weights")
 MIN_SAMPLES = 10
-NO_FIELD = 1e19     # LWPR's bound where no receptive field is active is 1e20·norm_out
+NO_FIELD = 1e19  # LWPR's bound where no receptive field is active is 1e20·norm_out
 
 
 @dataclass(frozen=True)
@@ -121,15 +131,15 @@ class LWPRSettings:
         If a value is out of its range.
     """
 
-    init_D: float = 1.0                 # fitted
-    init_alpha: float = 10 ** -0.5      # fitted
-    w_gen: float = 0.1                  # fitted
-    penalty: float = 1e-4               # fitted
+    init_D: float = 1.0  # fitted
+    init_alpha: float = 10**-0.5  # fitted
+    w_gen: float = 0.1  # fitted
+    penalty: float = 1e-4  # fitted
     init_lambda: float = 0.995
     final_lambda: float = 0.9999
     epochs: int = 10
     residual: bool | None = None
-    input_floor: float = 1e-3    # smallest input scale (a constant input would divide by zero)
+    input_floor: float = 1e-3  # smallest input scale (a constant input would divide by zero)
 
     def __post_init__(self) -> None:
         for name in ("init_D", "init_alpha", "w_gen", "input_floor"):
@@ -166,8 +176,7 @@ def _training_arrays(inputs, targets, kind: str) -> tuple[np.ndarray, np.ndarray
         bad = ~np.isfinite(A).all(axis=1)
         if bad.any():
             row = int(np.flatnonzero(bad)[0])
-            raise ValueError(f"{name} must be finite: row {row} is {A[row].tolist()} "
-                             f"({int(bad.sum())} bad rows)")
+            raise ValueError(f"{name} must be finite: row {row} is {A[row].tolist()} ({int(bad.sum())} bad rows)")
     return X, Y
 
 
@@ -225,8 +234,10 @@ class LinearStage:
         shapes = {"mean_in": (n,), "scale_in": (n,), "mean_out": (3,), "weights": (n, 3)}
         for name, shape in shapes.items():
             if n < 1 or arrays[name].shape != shape:
-                raise ValueError(f"{name} has shape {arrays[name].shape}; a linear stage of n >= 1 inputs needs "
-                                 "mean_in (n,), scale_in (n,), mean_out (3,), weights (n, 3)")
+                raise ValueError(
+                    f"{name} has shape {arrays[name].shape}; a linear stage of n >= 1 inputs needs "
+                    "mean_in (n,), scale_in (n,), mean_out (3,), weights (n, 3)"
+                )
         if not (arrays["scale_in"] > 0).all():
             raise ValueError("scale_in must be > 0")
         for name, value in arrays.items():
@@ -237,8 +248,7 @@ class LinearStage:
         return int(self.mean_in.shape[0])
 
     @classmethod
-    def fit(cls, inputs: np.ndarray, targets: np.ndarray, ridge: float = 0.0,
-            per_axis: bool = False) -> LinearStage:
+    def fit(cls, inputs: np.ndarray, targets: np.ndarray, ridge: float = 0.0, per_axis: bool = False) -> LinearStage:
         """Least squares of targets (m, 3) on standardized inputs (m, n), with an offset per output and the
         penalty `ridge`·m on the weights (not the offsets); the minimum-norm solution where an input is constant.
         `per_axis`: each output from its own raw-step input alone (inputs 0-2: a scale and an offset per axis)
@@ -318,8 +328,9 @@ class LearnedFootstepOdometry:
             if not isinstance(self.linear, LinearStage):
                 raise ValueError(f"linear = {_short_repr(self.linear)} must be a LinearStage or None")
             if self.linear.n_in != N_INPUTS[self.inputs]:
-                raise ValueError(f"linear maps {self.linear.n_in} inputs; the {self.inputs} input set has "
-                                 f"{N_INPUTS[self.inputs]}")
+                raise ValueError(
+                    f"linear maps {self.linear.n_in} inputs; the {self.inputs} input set has {N_INPUTS[self.inputs]}"
+                )
             if not self.residual:
                 raise ValueError("a linear stage needs residual=True (the models learn what the stage leaves)")
         models = tuple(self.models) if isinstance(self.models, (tuple, list)) else None
@@ -327,8 +338,10 @@ class LearnedFootstepOdometry:
             raise ValueError(f"models = {self.models!r} must be three LWPR models (dx, dy, dθ)")
         for name, m in zip(OUTPUTS, models):
             if m.n_in != N_INPUTS[self.inputs] or m.n_out != 1:
-                raise ValueError(f"model {name!r} maps R^{m.n_in} → R^{m.n_out}; the {self.inputs} input set "
-                                 f"needs R^{N_INPUTS[self.inputs]} → R^1")
+                raise ValueError(
+                    f"model {name!r} maps R^{m.n_in} → R^{m.n_out}; the {self.inputs} input set "
+                    f"needs R^{N_INPUTS[self.inputs]} → R^1"
+                )
             if m.n_data == 0:
                 raise ValueError(f"model {name!r} is untrained: train it (LearnedFootstepOdometry.train) first")
         object.__setattr__(self, "models", models)
@@ -339,9 +352,17 @@ class LearnedFootstepOdometry:
 
     # -- training ---------------------------------------------------------------------------------------
     @classmethod
-    def train(cls, inputs: ArrayLike, targets: ArrayLike, kind: str = "online", *, seed: int = 0,
-              settings: LWPRSettings = LWPRSettings(), noise_scale: float = 1.0,
-              linear_stage: bool = False) -> LearnedFootstepOdometry:
+    def train(
+        cls,
+        inputs: ArrayLike,
+        targets: ArrayLike,
+        kind: str = "online",
+        *,
+        seed: int = 0,
+        settings: LWPRSettings = LWPRSettings(),
+        noise_scale: float = 1.0,
+        linear_stage: bool = False,
+    ) -> LearnedFootstepOdometry:
         """Train three new LWPR models on inputs (n, 7|9) and true displacements targets (n, 3).
 
         Everything is validated first; nothing is returned until all three models are trained.
@@ -402,8 +423,9 @@ class LearnedFootstepOdometry:
         _fit(models, X, fit, seed, settings.epochs)
         return cls(tuple(models), kind, _raw_rms(X, Y), noise_scale, residual=residual, linear=linear)
 
-    def updated(self, inputs: ArrayLike, targets: ArrayLike, *, seed: int = 0,
-                epochs: int = 1) -> LearnedFootstepOdometry:
+    def updated(
+        self, inputs: ArrayLike, targets: ArrayLike, *, seed: int = 0, epochs: int = 1
+    ) -> LearnedFootstepOdometry:
         """A new holder whose models are copies of these trained further on (inputs, targets); this one is
         untouched (online learning without ever exposing a half-updated model).
 
@@ -433,8 +455,15 @@ class LearnedFootstepOdometry:
         if self.linear is not None:
             Y = Y - self.linear.predict(X) + X[:, :3]
         _fit(models, X, Y - X[:, :3] if self.residual else Y, seed, epochs)
-        return LearnedFootstepOdometry(tuple(models), self.inputs, self.fallback_sigma, self.noise_scale,
-                                       self.min_sigma, self.residual, self.linear)
+        return LearnedFootstepOdometry(
+            tuple(models),
+            self.inputs,
+            self.fallback_sigma,
+            self.noise_scale,
+            self.min_sigma,
+            self.residual,
+            self.linear,
+        )
 
     # -- prediction -------------------------------------------------------------------------------------
     def predict_steps(self, inputs: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
@@ -460,8 +489,7 @@ class LearnedFootstepOdometry:
         X = np.asarray(inputs, dtype=np.float64)
         n_in = N_INPUTS[self.inputs]
         if X.ndim != 2 or X.shape[1] != n_in:
-            raise ValueError(f"inputs must have shape (m, {n_in}) for the {self.inputs} input set, "
-                             f"got shape {X.shape}")
+            raise ValueError(f"inputs must have shape (m, {n_in}) for the {self.inputs} input set, got shape {X.shape}")
         if not np.isfinite(X).all():
             row = int(np.flatnonzero(~np.isfinite(X).all(axis=1))[0])
             raise ValueError(f"inputs must be finite: row {row} is {X[row].tolist()}")
@@ -553,10 +581,17 @@ class LearnedFootstepOdometry:
         os.makedirs(directory, exist_ok=True)
         for name, m in zip(OUTPUTS, self.models):
             m.save(os.path.join(directory, f"{name}.npz"))
-        meta = {"format": MODEL_FORMAT, "format_version": MODEL_FORMAT_VERSION, "inputs": self.inputs,
-                "n_inputs": N_INPUTS[self.inputs], "models": {name: f"{name}.npz" for name in OUTPUTS},
-                "fallback_sigma": list(self.fallback_sigma), "noise_scale": self.noise_scale,
-                "min_sigma": list(self.min_sigma), "residual": self.residual}
+        meta = {
+            "format": MODEL_FORMAT,
+            "format_version": MODEL_FORMAT_VERSION,
+            "inputs": self.inputs,
+            "n_inputs": N_INPUTS[self.inputs],
+            "models": {name: f"{name}.npz" for name in OUTPUTS},
+            "fallback_sigma": list(self.fallback_sigma),
+            "noise_scale": self.noise_scale,
+            "min_sigma": list(self.min_sigma),
+            "residual": self.residual,
+        }
         if self.linear is not None:
             meta["linear"] = self.linear.as_dict()
         path = os.path.join(directory, META_FILE)
@@ -594,8 +629,9 @@ class LearnedFootstepOdometry:
             If `directory` is not a str or os.PathLike.
         """
         if not isinstance(directory, (str, os.PathLike)) or not isinstance(os.fspath(directory), str):
-            raise TypeError(f"directory = {_short_repr(directory)} must be a str or os.PathLike, not "
-                            f"{type(directory).__name__}")
+            raise TypeError(
+                f"directory = {_short_repr(directory)} must be a str or os.PathLike, not {type(directory).__name__}"
+            )
         directory = os.fspath(directory)
         path = os.path.join(directory, META_FILE)
         if not os.path.isfile(path):
@@ -609,8 +645,15 @@ class LearnedFootstepOdometry:
             raise ValueError(f"{directory!r}: {exc}") from None
         try:
             linear = None if meta.get("linear") is None else LinearStage(**meta["linear"])
-            return cls(models, meta["inputs"], meta["fallback_sigma"], meta["noise_scale"], meta["min_sigma"],
-                       meta["residual"], linear)
+            return cls(
+                models,
+                meta["inputs"],
+                meta["fallback_sigma"],
+                meta["noise_scale"],
+                meta["min_sigma"],
+                meta["residual"],
+                linear,
+            )
         except ValueError as exc:
             raise ValueError(f"{path!r}: {exc}") from None
 
@@ -623,25 +666,31 @@ def _read_meta(path: str) -> dict:
     except OSError as exc:
         raise ValueError(f"{path!r} cannot be read: {exc}") from None
     if len(data) > MAX_META_FILE_BYTES:
-        raise ValueError(f"{path!r} holds more than MAX_META_FILE_BYTES = {MAX_META_FILE_BYTES} bytes; "
-                         "not a learned footstep odometry file")
+        raise ValueError(
+            f"{path!r} holds more than MAX_META_FILE_BYTES = {MAX_META_FILE_BYTES} bytes; "
+            "not a learned footstep odometry file"
+        )
     try:
         meta = json.loads(data)
     except RecursionError:
         raise ValueError(f"{path!r} is not JSON that can be read: nested too deeply") from None
-    except ValueError as exc:   # JSONDecodeError, bad UTF-8, a number beyond Python's digit limit
+    except ValueError as exc:  # JSONDecodeError, bad UTF-8, a number beyond Python's digit limit
         raise ValueError(f"{path!r} is truncated or not JSON: {exc}") from None
     if not isinstance(meta, dict) or meta.get("format") != MODEL_FORMAT:
         shown = _short_repr(meta.get("format")) if isinstance(meta, dict) else f"a JSON {type(meta).__name__}"
         raise ValueError(f"{path!r} is not a learned footstep odometry file (format {shown})")
     version = meta.get("format_version")
     if isinstance(version, bool) or version != MODEL_FORMAT_VERSION:
-        raise ValueError(f"{path!r} has format version {_short_repr(version)} (format_version); this version "
-                         f"of robocup-mcl reads version {MODEL_FORMAT_VERSION}")
+        raise ValueError(
+            f"{path!r} has format version {_short_repr(version)} (format_version); this version "
+            f"of robocup-mcl reads version {MODEL_FORMAT_VERSION}"
+        )
     for key in meta:
         if key not in _META_KEYS + _OPTIONAL_META_KEYS:
-            raise ValueError(f"{path!r}: unknown key {_short_repr(key)} = {_short_repr(meta[key])} "
-                             f"(valid: {', '.join(_META_KEYS + _OPTIONAL_META_KEYS)})")
+            raise ValueError(
+                f"{path!r}: unknown key {_short_repr(key)} = {_short_repr(meta[key])} "
+                f"(valid: {', '.join(_META_KEYS + _OPTIONAL_META_KEYS)})"
+            )
     for key in _META_KEYS:
         if key not in meta:
             raise ValueError(f"{path!r} lacks the key {key!r}")
@@ -660,10 +709,18 @@ def _read_meta(path: str) -> dict:
         raise bad("models", f"a table of a model file name for each of {', '.join(OUTPUTS)}")
     for name in OUTPUTS:
         file = models[name]
-        if not (isinstance(file, str) and 0 < len(file) <= 255 and file not in (".", "..") and "\0" not in file
-                and os.path.basename(file) == file and "/" not in file and os.sep not in file):
-            raise ValueError(f"{path!r}: models.{name} = {_short_repr(file)} must be the name of a file in the "
-                             "same directory")
+        if not (
+            isinstance(file, str)
+            and 0 < len(file) <= 255
+            and file not in (".", "..")
+            and "\0" not in file
+            and os.path.basename(file) == file
+            and "/" not in file
+            and os.sep not in file
+        ):
+            raise ValueError(
+                f"{path!r}: models.{name} = {_short_repr(file)} must be the name of a file in the same directory"
+            )
     for key in ("fallback_sigma", "min_sigma"):
         value = meta[key]
         if not (isinstance(value, list) and len(value) == 3 and all(_finite_number(v) >= 0 for v in value)):
@@ -679,18 +736,24 @@ def _read_meta(path: str) -> dict:
 
 def _check_linear_meta(linear, n_inputs: int, bad) -> None:
     """The metadata's "linear" table: exactly `_LINEAR_KEYS`, lists of finite numbers of the stage's shapes."""
-    must = (f"a table of {', '.join(_LINEAR_KEYS)}: {n_inputs}, {n_inputs}, 3 and {n_inputs} rows of 3 finite "
-            "numbers, scale_in > 0")
+    must = (
+        f"a table of {', '.join(_LINEAR_KEYS)}: {n_inputs}, {n_inputs}, 3 and {n_inputs} rows of 3 finite "
+        "numbers, scale_in > 0"
+    )
     if not (isinstance(linear, dict) and sorted(linear) == sorted(_LINEAR_KEYS)):
         raise bad("linear", must)
 
     def numbers(value, count: int) -> bool:
-        return isinstance(value, list) and len(value) == count and all(math.isfinite(_finite_number(v))
-                                                                      for v in value)
+        return isinstance(value, list) and len(value) == count and all(math.isfinite(_finite_number(v)) for v in value)
 
-    ok = (numbers(linear["mean_in"], n_inputs) and numbers(linear["scale_in"], n_inputs)
-          and numbers(linear["mean_out"], 3) and isinstance(linear["weights"], list)
-          and len(linear["weights"]) == n_inputs and all(numbers(row, 3) for row in linear["weights"]))
+    ok = (
+        numbers(linear["mean_in"], n_inputs)
+        and numbers(linear["scale_in"], n_inputs)
+        and numbers(linear["mean_out"], 3)
+        and isinstance(linear["weights"], list)
+        and len(linear["weights"]) == n_inputs
+        and all(numbers(row, 3) for row in linear["weights"])
+    )
     if not ok or not all(v > 0 for v in linear["scale_in"]):
         raise bad("linear", must)
 
@@ -713,14 +776,23 @@ def _fit(models: list, X: np.ndarray, Y: np.ndarray, seed: int, epochs: int) -> 
     for _ in range(epochs):
         for i in rng.permutation(X.shape[0]):
             for j, m in enumerate(models):
-                m.update(X[i], Y[i, j:j + 1])
+                m.update(X[i], Y[i, j : j + 1])
 
 
 def _move_gaussian(poses: np.ndarray, mean, sigma, rng: np.random.Generator) -> None:
     # move_with_noise's Gaussian mode takes bounds b with σ = b/√3 (same variance as uniform on [-b, b]).
     variates = rng.standard_normal((poses.shape[0], 3))
-    move_with_noise(poses, float(mean[0]), float(mean[1]), float(mean[2]), float(sigma[0]) * SQRT3,
-                    float(sigma[1]) * SQRT3, float(sigma[2]) * SQRT3, True, variates)
+    move_with_noise(
+        poses,
+        float(mean[0]),
+        float(mean[1]),
+        float(mean[2]),
+        float(sigma[0]) * SQRT3,
+        float(sigma[1]) * SQRT3,
+        float(sigma[2]) * SQRT3,
+        True,
+        variates,
+    )
 
 
 @dataclass(frozen=True)

@@ -110,10 +110,18 @@ _N_INTS = 2
 _NUM_RFS, _N_PRUNED = 0, 1
 
 # Scalar parameters (float) and switches (int), in the order of the parameter arrays handed to the kernels.
-_FLOAT_PARAMS = ("penalty", "w_gen", "w_prune", "init_lambda", "final_lambda", "tau_lambda", "init_S2",
-                 "add_threshold", "meta_rate")
-_PENALTY, _W_GEN, _W_PRUNE, _INIT_LAMBDA, _FINAL_LAMBDA, _TAU_LAMBDA, _INIT_S2, _ADD_THRESHOLD, \
-    _META_RATE = range(9)
+_FLOAT_PARAMS = (
+    "penalty",
+    "w_gen",
+    "w_prune",
+    "init_lambda",
+    "final_lambda",
+    "tau_lambda",
+    "init_S2",
+    "add_threshold",
+    "meta_rate",
+)
+_PENALTY, _W_GEN, _W_PRUNE, _INIT_LAMBDA, _FINAL_LAMBDA, _TAU_LAMBDA, _INIT_S2, _ADD_THRESHOLD, _META_RATE = range(9)
 _FLOAT_DEFAULTS = (1e-6, 0.1, 1.0, 0.999, 0.99999, 0.9999, 1e-10, 0.5, 250.0)
 _BOOL_PARAMS = ("diag_only", "update_D", "meta")
 _DIAG_ONLY, _UPDATE_D, _META, _KERNEL, _SAMPLES = 0, 1, 2, 3, 4
@@ -125,8 +133,20 @@ _INIT_D, _INIT_M, _INIT_ALPHA = 0, 1, 2
 
 _RF_ARRAYS = ("vec", "mat", "proj", "reg", "scal", "ints")
 # Attributes that are views of the four flat buffers: never stored, made again by LWPR._bind.
-_VIEWS = ("_norm_in", "_norm_out", "_fpar", "_init", "_xstats", "_vec", "_mat", "_proj", "_reg", "_scal", "_ints",
-          "_counts")
+_VIEWS = (
+    "_norm_in",
+    "_norm_out",
+    "_fpar",
+    "_init",
+    "_xstats",
+    "_vec",
+    "_mat",
+    "_proj",
+    "_reg",
+    "_scal",
+    "_ints",
+    "_counts",
+)
 _FLOAT64 = np.dtype(np.float64)
 _N_FLOAT_PARAMS = len(_FLOAT_PARAMS)
 
@@ -135,6 +155,7 @@ _N_FLOAT_PARAMS = len(_FLOAT_PARAMS)
 def _c_contiguous(typingctx, array):
     """The same array, typed C-contiguous: for a view that is C-ordered by construction (`_view2` ...), so that
     the kernels index it as they index a C array."""
+
     def codegen(context, builder, signature, args):
         return impl_ret_borrowed(context, builder, signature.return_type, args[0])
 
@@ -154,14 +175,20 @@ def _view3(buffer, start, d0, d1, d2):
 
 @numba.njit(cache=True, inline="always")
 def _view4(buffer, start, d0, d1, d2, d3):
-    return _c_contiguous(as_strided(buffer[start:], shape=(d0, d1, d2, d3),
-                                    strides=(8 * d1 * d2 * d3, 8 * d2 * d3, 8 * d3, 8)))
+    return _c_contiguous(
+        as_strided(buffer[start:], shape=(d0, d1, d2, d3), strides=(8 * d1 * d2 * d3, 8 * d2 * d3, 8 * d3, 8))
+    )
 
 
 @numba.njit(cache=True, inline="always")
 def _view5(buffer, start, d0, d1, d2, d3, d4):
-    return _c_contiguous(as_strided(buffer[start:], shape=(d0, d1, d2, d3, d4),
-                                    strides=(8 * d1 * d2 * d3 * d4, 8 * d2 * d3 * d4, 8 * d3 * d4, 8 * d4, 8)))
+    return _c_contiguous(
+        as_strided(
+            buffer[start:],
+            shape=(d0, d1, d2, d3, d4),
+            strides=(8 * d1 * d2 * d3 * d4, 8 * d2 * d3 * d4, 8 * d3 * d4, 8 * d4, 8),
+        )
+    )
 
 
 @numba.njit(cache=True)
@@ -182,10 +209,15 @@ def _rf_views(rf, rf_int, n, n_out):
     b = a + m * _N_MAT * n * n
     c = b + m * _N_PROJ * n * n
     d = c + m * _N_REG * n
-    return (_view4(rf, 0, n_out, capacity, _N_VEC, n), _view5(rf, a, n_out, capacity, _N_MAT, n, n),
-            _view5(rf, b, n_out, capacity, _N_PROJ, n, n), _view4(rf, c, n_out, capacity, _N_REG, n),
-            _view3(rf, d, n_out, capacity, _N_SCAL), _view3(rf_int, 2 * n_out, n_out, capacity, _N_INTS),
-            _view2(rf_int, 0, n_out, 2))
+    return (
+        _view4(rf, 0, n_out, capacity, _N_VEC, n),
+        _view5(rf, a, n_out, capacity, _N_MAT, n, n),
+        _view5(rf, b, n_out, capacity, _N_PROJ, n, n),
+        _view4(rf, c, n_out, capacity, _N_REG, n),
+        _view3(rf, d, n_out, capacity, _N_SCAL),
+        _view3(rf_int, 2 * n_out, n_out, capacity, _N_INTS),
+        _view2(rf_int, 0, n_out, 2),
+    )
 
 
 # =========================================================================================================
@@ -305,7 +337,7 @@ def _update_metric(o, k, xn, activation, e_star, e, params, rfs, scratch):
 
     if not n_data[0] * (1.0 - lam[0]) > 0.1:
         return
-    ok = work[0]      # 1.0 where n_data_j (1 − λ₁) > 0.1
+    ok = work[0]  # 1.0 where n_data_j (1 − λ₁) > 0.1
     Ps = work[1]
     Pse = work[2]
     dx = work[3]
@@ -455,8 +487,11 @@ def _check_add_projection(o, k, n, fpar, proj, reg, scal, ints):
     mse_r = reg[o, k, _SUM_ECV2, R - 1] / reg[o, k, _SUM_W, R - 1] + 1e-10
     mse_r1 = reg[o, k, _SUM_ECV2, R - 2] / reg[o, k, _SUM_W, R - 2] + 1e-10
     n_data_r = reg[o, k, _N_DATA, R - 1]
-    if (mse_r < fpar[_ADD_THRESHOLD] * mse_r1 and n_data_r > 0.99 * reg[o, k, _N_DATA, 0]
-            and n_data_r * (1.0 - reg[o, k, _LAMBDA, R - 1]) > 0.5):
+    if (
+        mse_r < fpar[_ADD_THRESHOLD] * mse_r1
+        and n_data_r > 0.99 * reg[o, k, _N_DATA, 0]
+        and n_data_r * (1.0 - reg[o, k, _LAMBDA, R - 1]) > 0.5
+    ):
         proj[o, k, :, R, :] = 0.0
         reg[o, k, :, R] = 0.0
         proj[o, k, _U, R, R] = 1.0
@@ -495,7 +530,7 @@ def _update_rf(o, k, xn, yn, activation, params, rfs, scratch):
     e_cv = work[5]
     target = work[6]
     xu = work[7]
-    zres = mwork[4]   # (R_max, n): row j is z_j
+    zres = mwork[4]  # (R_max, n): row j is z_j
 
     # Weighted means, variances and β0.
     swl = sum_w[0] * lam[0]
@@ -731,8 +766,7 @@ def _predict_point(x, cutoff, kernel, norms, rfs, y, conf, with_conf, scratch):
             sum_w += w
             sum_wy += w * y_k
             if with_conf:
-                sig = reg[o, k, _SUM_ECV2, R - 1] / (reg[o, k, _SUM_W, R - 1] - scal[o, k, _SSP]) \
-                    * (1.0 + w * sig)
+                sig = reg[o, k, _SUM_ECV2, R - 1] / (reg[o, k, _SUM_W, R - 1] - scal[o, k, _SSP]) * (1.0 + w * sig)
                 sum_wyy += w * y_k * y_k
                 sum_conf += w * sig
         if sum_w > 0.0:
@@ -776,8 +810,9 @@ def _predict_one_kernel(x, cutoff, model, ipar, rf, rf_int, y, conf, with_conf):
     norm_in, norm_out, _, _, _ = _model_views(model, n, n_out)
     rfs = _rf_views(rf, rf_int, n, n_out)
     scratch = np.empty((3, n))
-    _predict_point(x, cutoff, ipar[_KERNEL], (norm_in, norm_out), rfs, y, conf, with_conf,
-                   (scratch[0], scratch[1], scratch[2]))
+    _predict_point(
+        x, cutoff, ipar[_KERNEL], (norm_in, norm_out), rfs, y, conf, with_conf, (scratch[0], scratch[1], scratch[2])
+    )
     return -1
 
 
@@ -829,9 +864,11 @@ def _check_size(n: int, n_out: int) -> None:
         raise ValueError(f"LWPR n_out must be at most MAX_OUTPUTS = {MAX_OUTPUTS}, got {n_out}")
     need = LWPR._initial_bytes(n, n_out)
     if need > MAX_INITIAL_BYTES:
-        raise ValueError(f"LWPR n_in = {n} with n_out = {n_out} needs {need / 2**30:.2f} GiB for the model and "
-                         f"its first {LWPR._INITIAL_CAPACITY} receptive fields per output; at most "
-                         f"MAX_INITIAL_BYTES = {MAX_INITIAL_BYTES} bytes (1 GiB)")
+        raise ValueError(
+            f"LWPR n_in = {n} with n_out = {n_out} needs {need / 2**30:.2f} GiB for the model and "
+            f"its first {LWPR._INITIAL_CAPACITY} receptive fields per output; at most "
+            f"MAX_INITIAL_BYTES = {MAX_INITIAL_BYTES} bytes (1 GiB)"
+        )
 
 
 def _checked_path(path: Any) -> str | bytes:
@@ -879,7 +916,7 @@ class LWPR:
         for name, value in (("n_in", n_in), ("n_out", n_out)):
             if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer)) or value < 1:
                 raise ValueError(f"LWPR {name} must be a positive integer, got {_short_repr(value)}")
-        assert n_out is not None                    # checked above
+        assert n_out is not None  # checked above
         n, n_out = int(n_in), int(n_out)
         _check_size(n, n_out)
         self._n_in = n
@@ -888,7 +925,7 @@ class LWPR:
         # attribute is a view of one of them, made by _bind.
         self._model = np.zeros(n + n_out + _N_FLOAT_PARAMS + 3 * n * n + 2 * n)
         self._ipar = np.array([*(int(b) for b in _BOOL_DEFAULTS), _GAUSSIAN, 0], dtype=np.int64)
-        self._rf_int = np.zeros(2 * n_out, dtype=np.int64)       # the counts, until _allocate adds the RFs
+        self._rf_int = np.zeros(2 * n_out, dtype=np.int64)  # the counts, until _allocate adds the RFs
         self._bind_model()
         self._fpar[:] = _FLOAT_DEFAULTS
         self._init[_INIT_D] = 25.0 * np.eye(n)
@@ -903,21 +940,23 @@ class LWPR:
         """Fresh, zeroed RF storage for ``capacity`` RFs per output (the counts are kept)."""
         n, n_out = self._n_in, self._n_out
         per_rf = _N_VEC * n + (_N_MAT + _N_PROJ) * n * n + _N_REG * n + _N_SCAL
-        counts = self._rf_int[:2 * n_out].copy()
+        counts = self._rf_int[: 2 * n_out].copy()
         self._rf = np.zeros(n_out * capacity * per_rf)
         self._rf_int = np.zeros(2 * n_out + n_out * capacity * _N_INTS, dtype=np.int64)
-        self._rf_int[:2 * n_out] = counts
+        self._rf_int[: 2 * n_out] = counts
         self._capacity = capacity
         self._bind()
 
     def _bind_model(self) -> None:
         self._norm_in, self._norm_out, self._fpar, self._init, self._xstats = _model_views(
-            self._model, self._n_in, self._n_out)
+            self._model, self._n_in, self._n_out
+        )
 
     def _bind(self) -> None:
         self._bind_model()
         self._vec, self._mat, self._proj, self._reg, self._scal, self._ints, self._counts = _rf_views(
-            self._rf, self._rf_int, self._n_in, self._n_out)
+            self._rf, self._rf_int, self._n_in, self._n_out
+        )
 
     def _grow(self, capacity: int) -> None:
         old = {name: getattr(self, "_" + name) for name in _RF_ARRAYS}
@@ -1159,24 +1198,45 @@ class LWPR:
         R = int(self._ints[o, k, _NREG])
         v, m, p, r, s = self._vec[o, k], self._mat[o, k], self._proj[o, k], self._reg[o, k], self._scal[o, k]
         return {
-            "c": v[_C].copy(), "mean_x": v[_MEAN_X].copy(), "var_x": v[_VAR_X].copy(),
-            "D": m[_D].copy(), "M": m[_M].copy(), "alpha": m[_ALPHA].copy(), "b": m[_B].copy(),
+            "c": v[_C].copy(),
+            "mean_x": v[_MEAN_X].copy(),
+            "var_x": v[_VAR_X].copy(),
+            "D": m[_D].copy(),
+            "M": m[_M].copy(),
+            "alpha": m[_ALPHA].copy(),
+            "b": m[_B].copy(),
             "h": m[_HMETA].copy(),
-            "U": p[_U, :R].copy(), "P": p[_P, :R].copy(), "SXresYres": p[_SXY, :R].copy(),
+            "U": p[_U, :R].copy(),
+            "P": p[_P, :R].copy(),
+            "SXresYres": p[_SXY, :R].copy(),
             "SSXres": p[_SSX, :R].copy(),
-            "beta": r[_BETA, :R].copy(), "SSs2": r[_SSS2, :R].copy(), "SSYres": r[_SSY, :R].copy(),
-            "sum_w": r[_SUM_W, :R].copy(), "n_data": r[_N_DATA, :R].copy(), "lambda": r[_LAMBDA, :R].copy(),
-            "sum_e_cv2": r[_SUM_ECV2, :R].copy(), "H": r[_H, :R].copy(), "r": r[_R, :R].copy(),
+            "beta": r[_BETA, :R].copy(),
+            "SSs2": r[_SSS2, :R].copy(),
+            "SSYres": r[_SSY, :R].copy(),
+            "sum_w": r[_SUM_W, :R].copy(),
+            "n_data": r[_N_DATA, :R].copy(),
+            "lambda": r[_LAMBDA, :R].copy(),
+            "sum_e_cv2": r[_SUM_ECV2, :R].copy(),
+            "H": r[_H, :R].copy(),
+            "r": r[_R, :R].copy(),
             "s": r[_S, :R].copy(),
-            "beta0": float(s[_BETA0]), "sum_e2": float(s[_SUM_E2]), "SSp": float(s[_SSP]), "w": float(s[_W]),
-            "n_reg": R, "trustworthy": bool(self._ints[o, k, _TRUST]),
+            "beta0": float(s[_BETA0]),
+            "sum_e2": float(s[_SUM_E2]),
+            "SSp": float(s[_SSP]),
+            "w": float(s[_W]),
+            "n_reg": R,
+            "trustworthy": bool(self._ints[o, k, _TRUST]),
         }
 
     def copy(self) -> LWPR:
         """An independent copy of the model (parameters and every receptive field)."""
         twin = object.__new__(LWPR)
-        twin.__setstate__({key: (value.copy() if isinstance(value, np.ndarray) else value)
-                           for key, value in self.__getstate__().items()})
+        twin.__setstate__(
+            {
+                key: (value.copy() if isinstance(value, np.ndarray) else value)
+                for key, value in self.__getstate__().items()
+            }
+        )
         return twin
 
     def __getstate__(self) -> dict[str, Any]:
@@ -1188,8 +1248,7 @@ class LWPR:
         self._bind()
 
     def __repr__(self) -> str:
-        return (f"LWPR(n_in={self._n_in}, n_out={self._n_out}, n_data={self.n_data}, "
-                f"num_rfs={self.num_rfs.tolist()})")
+        return f"LWPR(n_in={self._n_in}, n_out={self._n_out}, n_data={self.n_data}, num_rfs={self.num_rfs.tolist()})"
 
     # ------------------------------------------------------------ save / load
     def save(self, path: str | os.PathLike) -> None:
@@ -1202,9 +1261,13 @@ class LWPR:
             "n_out": np.array(self._n_out, dtype=np.int64),
             "n_data": np.array(self.n_data, dtype=np.int64),
             "kernel": np.array(self.kernel),
-            "init_D": self._init[_INIT_D], "init_M": self._init[_INIT_M], "init_alpha": self._init[_INIT_ALPHA],
-            "norm_in": self._norm_in, "norm_out": self._norm_out,
-            "mean_x": self._xstats[0], "var_x": self._xstats[1],
+            "init_D": self._init[_INIT_D],
+            "init_M": self._init[_INIT_M],
+            "init_alpha": self._init[_INIT_ALPHA],
+            "norm_in": self._norm_in,
+            "norm_out": self._norm_out,
+            "mean_x": self._xstats[0],
+            "var_x": self._xstats[1],
             "counts": self._counts,
         }
         for index, name in enumerate(_FLOAT_PARAMS):
@@ -1235,8 +1298,9 @@ class LWPR:
             array = data[key]
             accepted = "fiu" if kind == "f" else kind
             if array.dtype.kind not in accepted:
-                raise ValueError(f"{where}: field {key!r} = {_short_repr(array)} has dtype {array.dtype}; "
-                                 f"expected {kinds[kind]}")
+                raise ValueError(
+                    f"{where}: field {key!r} = {_short_repr(array)} has dtype {array.dtype}; expected {kinds[kind]}"
+                )
             if shape is not None and array.shape != shape:
                 raise ValueError(f"{where}: field {key!r} has shape {array.shape}, expected {shape}")
             if kind == "f" and not np.all(np.isfinite(array)):
@@ -1256,8 +1320,9 @@ class LWPR:
             raise ValueError(f"{where} is not an LWPR model file (format {_short_repr(fmt)})")
         version = int(need("format_version", "i", ()))
         if version != FORMAT_VERSION:
-            raise ValueError(f"{where} has format version {version}; this version of "
-                             f"robocup-mcl reads version {FORMAT_VERSION}")
+            raise ValueError(
+                f"{where} has format version {version}; this version of robocup-mcl reads version {FORMAT_VERSION}"
+            )
         # The header scalars, then every array against the sizes they give; nothing is allocated before all
         # of them passed.
         n = integer("n_in", 1, MAX_INPUTS)
@@ -1277,25 +1342,30 @@ class LWPR:
         counts = need("counts", "i", (n_out, 2))
         vec = need("rf_vec", "f")
         if vec.ndim != 4:
-            raise ValueError(f"{where}: field 'rf_vec' has shape {vec.shape}, expected (n_out, used, {_N_VEC}, "
-                             f"{n}) with n_out = {n_out}")
+            raise ValueError(
+                f"{where}: field 'rf_vec' has shape {vec.shape}, expected (n_out, used, {_N_VEC}, "
+                f"{n}) with n_out = {n_out}"
+            )
         used = vec.shape[1]
         expected = {
-            "vec": (n_out, used, _N_VEC, n), "mat": (n_out, used, _N_MAT, n, n),
-            "proj": (n_out, used, _N_PROJ, n, n), "reg": (n_out, used, _N_REG, n),
-            "scal": (n_out, used, _N_SCAL), "ints": (n_out, used, _N_INTS),
+            "vec": (n_out, used, _N_VEC, n),
+            "mat": (n_out, used, _N_MAT, n, n),
+            "proj": (n_out, used, _N_PROJ, n, n),
+            "reg": (n_out, used, _N_REG, n),
+            "scal": (n_out, used, _N_SCAL),
+            "ints": (n_out, used, _N_INTS),
         }
-        arrays = {name: need("rf_" + name, "i" if name == "ints" else "f", shape)
-                  for name, shape in expected.items()}
+        arrays = {name: need("rf_" + name, "i" if name == "ints" else "f", shape) for name, shape in expected.items()}
         if counts.min() < 0 or counts[:, _NUM_RFS].max() > used:
-            raise ValueError(f"{where}: field 'counts' = {_short_repr(counts.tolist())} does not fit {used} "
-                             "stored RFs")
+            raise ValueError(f"{where}: field 'counts' = {_short_repr(counts.tolist())} does not fit {used} stored RFs")
         n_reg = arrays["ints"][..., _NREG]
         for o in range(n_out):
             live = n_reg[o, : counts[o, _NUM_RFS]]
             if live.size and (live.min() < 1 or live.max() > n):
-                raise ValueError(f"{where}: field 'rf_ints': an RF of output {o} has {live.min()}..{live.max()} "
-                                 f"projections, outside [1, {n}]")
+                raise ValueError(
+                    f"{where}: field 'rf_ints': an RF of output {o} has {live.min()}..{live.max()} "
+                    f"projections, outside [1, {n}]"
+                )
         try:
             model = cls(n, n_out)
             for name, value in floats.items():
@@ -1335,7 +1405,7 @@ def load_npz(path: str | bytes, what: str) -> dict[str, np.ndarray]:
     Members whose names do not end in ``.npy`` are skipped."""
     try:
         archive_size = os.path.getsize(path)
-        with zipfile.ZipFile(os.fsdecode(path)) as archive:         # zipfile takes no bytes path
+        with zipfile.ZipFile(os.fsdecode(path)) as archive:  # zipfile takes no bytes path
             arrays = {}
             for info in archive.infolist():
                 if info.filename.endswith(".npy"):
@@ -1345,8 +1415,19 @@ def load_npz(path: str | bytes, what: str) -> dict[str, np.ndarray]:
         raise
     # zipfile raises NotImplementedError for an unknown compression method, RuntimeError for an encrypted
     # member, zlib.error and struct.error for damaged data; numpy raises ValueError for a bad header.
-    except (zipfile.BadZipFile, zipfile.LargeZipFile, EOFError, OSError, ValueError, KeyError, NotImplementedError,
-            RuntimeError, OverflowError, zlib.error, struct.error) as exc:
+    except (
+        zipfile.BadZipFile,
+        zipfile.LargeZipFile,
+        EOFError,
+        OSError,
+        ValueError,
+        KeyError,
+        NotImplementedError,
+        RuntimeError,
+        OverflowError,
+        zlib.error,
+        struct.error,
+    ) as exc:
         raise ValueError(f"{path!r} is truncated or not {what}: {exc}") from None
 
 
@@ -1356,12 +1437,15 @@ def _read_npy(archive: zipfile.ZipFile, info: zipfile.ZipInfo, archive_size: int
     if info.flag_bits & 0x1:
         raise ValueError(f"member {name!r} is encrypted")
     if info.compress_type not in (zipfile.ZIP_STORED, zipfile.ZIP_DEFLATED):
-        raise ValueError(f"member {name!r} uses compression method {info.compress_type}; only stored and "
-                         "deflated members are read")
+        raise ValueError(
+            f"member {name!r} uses compression method {info.compress_type}; only stored and deflated members are read"
+        )
     ratio = 1 if info.compress_type == zipfile.ZIP_STORED else _MAX_DEFLATE_RATIO
     if info.compress_size > archive_size or info.file_size > ratio * info.compress_size:
-        raise ValueError(f"member {name!r} claims {info.file_size} bytes from {info.compress_size} stored bytes, "
-                         f"in a file of {archive_size} bytes")
+        raise ValueError(
+            f"member {name!r} claims {info.file_size} bytes from {info.compress_size} stored bytes, "
+            f"in a file of {archive_size} bytes"
+        )
     with archive.open(info) as member:
         version = np.lib.format.read_magic(member)
         if version == (1, 0):
@@ -1375,8 +1459,9 @@ def _read_npy(archive: zipfile.ZipFile, info: zipfile.ZipInfo, archive_size: int
         count = math.prod(shape)
         data_bytes = info.file_size - member.tell()
         if dtype.itemsize == 0 or count < 0 or count * dtype.itemsize != data_bytes:
-            raise ValueError(f"member {name!r} declares shape {_short_repr(shape)} of {dtype} but holds "
-                             f"{data_bytes} bytes of data")
+            raise ValueError(
+                f"member {name!r} declares shape {_short_repr(shape)} of {dtype} but holds {data_bytes} bytes of data"
+            )
         member.seek(0)
         return np.lib.format.read_array(member, allow_pickle=False)
 

@@ -67,7 +67,7 @@ class ReferenceLWPR:
 
     # ------------------------------------------------------------------ kernel
     def _activation(self, q: float) -> tuple[float, float, float]:
-        """"update(x, y)" step 1: activation w and its derivatives w_q, w_qq."""
+        """ "update(x, y)" step 1: activation w and its derivatives w_q, w_qq."""
         if self.kernel == "Gaussian":
             w = math.exp(-0.5 * q)
             return w, -0.5 * w, 0.25 * w
@@ -142,17 +142,33 @@ class ReferenceLWPR:
             beta0 = template["beta0"]
         eye = np.eye(n)
         return {
-            "c": xn.copy(), "D": D, "M": M, "alpha": alpha,
-            "b": np.triu(np.log(alpha + 1e-10)), "h": np.zeros((n, n)),
-            "mean_x": np.zeros(n), "var_x": np.zeros(n),
-            "beta0": float(beta0), "n_reg": n_reg, "trustworthy": False,
-            "U": eye[:n_reg].copy(), "P": eye[:n_reg].copy(),
-            "SXresYres": np.zeros((n_reg, n)), "SSXres": np.zeros((n_reg, n)),
-            "beta": np.zeros(n_reg), "SSs2": np.full(n_reg, self.init_S2),
-            "SSYres": np.zeros(n_reg), "sum_w": np.full(n_reg, 1e-10),
-            "n_data": np.full(n_reg, 1e-10), "lambda": np.full(n_reg, self.init_lambda),
-            "sum_e_cv2": np.zeros(n_reg), "H": np.zeros(n_reg), "r": np.zeros(n_reg),
-            "s": np.zeros(n_reg), "sum_e2": 0.0, "SSp": 0.0,
+            "c": xn.copy(),
+            "D": D,
+            "M": M,
+            "alpha": alpha,
+            "b": np.triu(np.log(alpha + 1e-10)),
+            "h": np.zeros((n, n)),
+            "mean_x": np.zeros(n),
+            "var_x": np.zeros(n),
+            "beta0": float(beta0),
+            "n_reg": n_reg,
+            "trustworthy": False,
+            "U": eye[:n_reg].copy(),
+            "P": eye[:n_reg].copy(),
+            "SXresYres": np.zeros((n_reg, n)),
+            "SSXres": np.zeros((n_reg, n)),
+            "beta": np.zeros(n_reg),
+            "SSs2": np.full(n_reg, self.init_S2),
+            "SSYres": np.zeros(n_reg),
+            "sum_w": np.full(n_reg, 1e-10),
+            "n_data": np.full(n_reg, 1e-10),
+            "lambda": np.full(n_reg, self.init_lambda),
+            "sum_e_cv2": np.zeros(n_reg),
+            "H": np.zeros(n_reg),
+            "r": np.zeros(n_reg),
+            "s": np.zeros(n_reg),
+            "sum_e2": 0.0,
+            "SSp": 0.0,
         }
 
     @staticmethod
@@ -166,7 +182,7 @@ class ReferenceLWPR:
         return s
 
     def _update_rf(self, rf: dict, xn, yn, w, dwdq, ddwdqdq) -> float:
-        """"update(x, y)" step 2 for one activated RF; returns its prediction ŷ + β0."""
+        """ "update(x, y)" step 2 for one activated RF; returns its prediction ŷ + β0."""
         n = self.n_in
         R = rf["n_reg"]
         lam = rf["lambda"]
@@ -234,7 +250,7 @@ class ReferenceLWPR:
         return yp_total
 
     def _update_metric(self, rf, xn, w, dwdq, ddwdqdq, e_star, e) -> None:
-        """"Metric update (per RF)"."""
+        """ "Metric update (per RF)"."""
         n = self.n_in
         R = rf["n_reg"]
         lam, s, SSs2 = rf["lambda"], rf["s"], rf["SSs2"]
@@ -333,25 +349,36 @@ class ReferenceLWPR:
                 rf["r"][i] = lam[i] * rf["r"][i] + (w * w * e_cv2 / (1.0 - h)) * s[i] * s[i] * T
 
     def _check_add_projection(self, rf: dict) -> None:
-        """"Add a projection"."""
+        """ "Add a projection"."""
         n = self.n_in
         R = rf["n_reg"]
         if R >= n:
             return
         mse_r = rf["sum_e_cv2"][R - 1] / rf["sum_w"][R - 1] + 1e-10
         mse_r1 = rf["sum_e_cv2"][R - 2] / rf["sum_w"][R - 2] + 1e-10
-        if (mse_r < self.add_threshold * mse_r1
-                and rf["n_data"][R - 1] > 0.99 * rf["n_data"][0]
-                and rf["n_data"][R - 1] * (1.0 - rf["lambda"][R - 1]) > 0.5):
+        if (
+            mse_r < self.add_threshold * mse_r1
+            and rf["n_data"][R - 1] > 0.99 * rf["n_data"][0]
+            and rf["n_data"][R - 1] * (1.0 - rf["lambda"][R - 1]) > 0.5
+        ):
             unit = np.zeros((1, n))
             unit[0, R] = 1.0
             rf["U"] = np.vstack([rf["U"], unit])
             rf["P"] = np.vstack([rf["P"], unit])
             rf["SXresYres"] = np.vstack([rf["SXresYres"], np.zeros((1, n))])
             rf["SSXres"] = np.vstack([rf["SSXres"], np.zeros((1, n))])
-            for key, value in (("beta", 0.0), ("SSs2", self.init_S2), ("SSYres", 0.0), ("sum_w", 1e-10),
-                               ("n_data", 0.0), ("lambda", self.init_lambda), ("sum_e_cv2", 0.0),
-                               ("H", 0.0), ("r", 0.0), ("s", 0.0)):
+            for key, value in (
+                ("beta", 0.0),
+                ("SSs2", self.init_S2),
+                ("SSYres", 0.0),
+                ("sum_w", 1e-10),
+                ("n_data", 0.0),
+                ("lambda", self.init_lambda),
+                ("sum_e_cv2", 0.0),
+                ("H", 0.0),
+                ("r", 0.0),
+                ("s", 0.0),
+            ):
                 rf[key] = np.append(rf[key], value)
             rf["n_reg"] = R + 1
             rf["SSp"] = 0.0
@@ -364,7 +391,7 @@ class ReferenceLWPR:
         return self._predict(x, cutoff)
 
     def _predict(self, x, cutoff: float) -> tuple[np.ndarray, np.ndarray]:
-        """"predict(x, cutoff=0.001)" with its confidence bound."""
+        """ "predict(x, cutoff=0.001)" with its confidence bound."""
         xn = np.asarray(x, dtype=np.float64).reshape(self.n_in) / self.norm_in
         y = np.zeros(self.n_out)
         conf = np.zeros(self.n_out)

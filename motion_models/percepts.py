@@ -6,6 +6,7 @@
 `proprioception.collision` re-exports both names); `MotionInput.collision` carries it to `AdaptiveMotion`. The type
 lives with the models that take it, so that the sensing layer depends on the motion models and not the reverse.
 """
+
 from __future__ import annotations
 
 import math

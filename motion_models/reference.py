@@ -6,6 +6,7 @@
 The same variates give the same poses (and mobility states) as the kernels of the same name in
 `motion_models.kernels` and `motion_models.adaptive`. (`motion_models.lwpr_reference` is LWPR's.)
 """
+
 from __future__ import annotations
 
 import math

@@ -27,6 +27,7 @@ the same at 30, 100 and 200 Hz. At Δt = 0.01 s the factor is exactly 1 and the 
 `noise_rate="per_step"` is eq. 10 as written (the spread then depends on the rate; scale β by
 sqrt(0.01 s / Δt) by hand).
 """
+
 from __future__ import annotations
 
 import math
@@ -62,12 +63,12 @@ class VelocityLinear(BoundedNoiseModel):
         If a β is not within [0, `MAX_NOISE_PARAMETER`] or `noise_rate` is not one of `NOISE_RATES`.
     """
 
-    beta1: float = 1.7   # along-track noise per unit speed
-    beta2: float = 1.0   # lateral noise per unit speed
-    beta3: float = 1.0   # rad/m: heading noise per unit translational speed (drift while walking straight)
-    beta4: float = 1.0   # heading noise per unit angular speed
+    beta1: float = 1.7  # along-track noise per unit speed
+    beta2: float = 1.0  # lateral noise per unit speed
+    beta3: float = 1.0  # rad/m: heading noise per unit translational speed (drift while walking straight)
+    beta4: float = 1.0  # heading noise per unit angular speed
     gaussian: bool = False
-    noise_rate: str = "per_second"   # "per_second": the β hold at any update rate; "per_step": eq. 10 as written
+    noise_rate: str = "per_second"  # "per_second": the β hold at any update rate; "per_step": eq. 10 as written
 
     def __post_init__(self) -> None:
         check_nonnegative(self, ("beta1", "beta2", "beta3", "beta4"))

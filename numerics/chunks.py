@@ -1,10 +1,11 @@
 """Spreading work over threads: chunk sizes that split evenly and do not depend on the number of threads.
 
-    from numerics.chunks import balanced_chunk, CHUNK
+from numerics.chunks import balanced_chunk, CHUNK
 """
+
 import numba
 
-CHUNK = 8192       # draws per chunk of `parallel_uniforms`, about (the numbers do not depend on the chunks)
+CHUNK = 8192  # draws per chunk of `parallel_uniforms`, about (the numbers do not depend on the chunks)
 
 
 @numba.njit(cache=True)

@@ -14,6 +14,7 @@ numba keys a cached variant by its source file's stamp and bytecode, not by the 
 a key must therefore name what was bound (its qualified name and a hash of its bytecode, as
 `mcl.step.fused_step` does), so that different bindings never share a cache entry.
 """
+
 from __future__ import annotations
 
 import types

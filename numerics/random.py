@@ -12,6 +12,7 @@ an array that grows with N, a pass over it, or the Python call that fills it; nu
 is stepped in the kernel, eight independent steps at a time, and `parallel_uniforms` lets threads draw
 their chunks of the same stream (jumping ahead). `bounded_integers` draws `rng.integers(0, high)` likewise.
 """
+
 import ctypes
 from typing import Any
 
@@ -41,7 +42,7 @@ def draw_variates(rng, n: int, gaussian: bool, out: np.ndarray | None = None) ->
 
 
 # -- drawing in a kernel ------------------------------------------------------------------------------------------
-PCG64_INLINE = 0      # the `function` of a handle whose generator is numpy's PCG64, stepped in the kernel itself
+PCG64_INLINE = 0  # the `function` of a handle whose generator is numpy's PCG64, stepped in the kernel itself
 
 
 def bit_generator_handle(rng: np.random.Generator) -> tuple[int, int]:
@@ -135,7 +136,7 @@ def _pcg64_double(typingctx, high, low):
         rotr = builder.module.declare_intrinsic("llvm.fshr", [i64], ir.FunctionType(i64, [i64, i64, i64]))
         x = builder.xor(high, low)
         word = builder.call(rotr, [x, x, rotate])
-        mantissa = builder.sitofp(builder.lshr(word, ir.Constant(i64, 11)), ir.DoubleType())   # < 2⁵³: exact
+        mantissa = builder.sitofp(builder.lshr(word, ir.Constant(i64, 11)), ir.DoubleType())  # < 2⁵³: exact
         return builder.fmul(mantissa, ir.Constant(ir.DoubleType(), 1.0 / 9007199254740992.0))
 
     return signature, codegen
@@ -145,8 +146,8 @@ def _pcg64_double(typingctx, high, low):
 # at once: state_k = A_k·state + G_k·inc with A_k = aᵏ and G_k = 1 + a + … + aᵏ⁻¹, so eight steps are eight
 # independent multiplications instead of a chain of eight.
 _PCG64_MULTIPLIER = (2549297995355413924 << 64) + 4865540595714422341
-PCG64_LANES = 8    # `_pcg64_fill` spells out its eight lanes
-PCG64_STEPS = 2 * PCG64_LANES     # A_k and G_k are tabled for k = 1 ... PCG64_STEPS (index k - 1)
+PCG64_LANES = 8  # `_pcg64_fill` spells out its eight lanes
+PCG64_STEPS = 2 * PCG64_LANES  # A_k and G_k are tabled for k = 1 ... PCG64_STEPS (index k - 1)
 
 
 def _pcg64_tables() -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
@@ -160,8 +161,10 @@ def _pcg64_tables() -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         sums.append(total)
 
     def halves(values):
-        return (np.array([v >> 64 for v in values], dtype=np.uint64),
-                np.array([v & ((1 << 64) - 1) for v in values], dtype=np.uint64))
+        return (
+            np.array([v >> 64 for v in values], dtype=np.uint64),
+            np.array([v & ((1 << 64) - 1) for v in values], dtype=np.uint64),
+        )
 
     return (*halves(powers), *halves(sums))
 
@@ -181,9 +184,16 @@ def _pcg64_fill(s_high, s_low, inc_high, inc_low, out, count):
     """out[:count] ← the uniforms of the PCG64 stream that follows state s (increment inc); returns the state
     after them."""
     # G_k·inc for the eight lanes, kept in a tuple (no array: this runs once per block of draws)
-    c = (_lane(0, inc_high, inc_low), _lane(1, inc_high, inc_low), _lane(2, inc_high, inc_low),
-         _lane(3, inc_high, inc_low), _lane(4, inc_high, inc_low), _lane(5, inc_high, inc_low),
-         _lane(6, inc_high, inc_low), _lane(7, inc_high, inc_low))
+    c = (
+        _lane(0, inc_high, inc_low),
+        _lane(1, inc_high, inc_low),
+        _lane(2, inc_high, inc_low),
+        _lane(3, inc_high, inc_low),
+        _lane(4, inc_high, inc_low),
+        _lane(5, inc_high, inc_low),
+        _lane(6, inc_high, inc_low),
+        _lane(7, inc_high, inc_low),
+    )
     i = 0
     while i + PCG64_LANES <= count:
         high = s_high
@@ -208,18 +218,21 @@ def _pcg64_jump(s_high, s_low, inc_high, inc_low, delta):
     one = np.uint64(1)
     multiplier_high, multiplier_low = _A_HIGH[0], _A_LOW[0]
     plus_high, plus_low = inc_high, inc_low
-    total_m_high, total_m_low = zero, one          # the accumulated map x ↦ total_m·x + total_p
+    total_m_high, total_m_low = zero, one  # the accumulated map x ↦ total_m·x + total_p
     total_p_high, total_p_low = zero, zero
     while delta > 0:
         if delta & 1:
-            total_m_high, total_m_low = _mul_add_128(total_m_high, total_m_low, multiplier_high, multiplier_low, zero,
-                                                     zero)
-            total_p_high, total_p_low = _mul_add_128(total_p_high, total_p_low, multiplier_high, multiplier_low,
-                                                     plus_high, plus_low)
+            total_m_high, total_m_low = _mul_add_128(
+                total_m_high, total_m_low, multiplier_high, multiplier_low, zero, zero
+            )
+            total_p_high, total_p_low = _mul_add_128(
+                total_p_high, total_p_low, multiplier_high, multiplier_low, plus_high, plus_low
+            )
         # (m, p) ↦ (m², (m + 1)·p): the map applied twice
         plus_high, plus_low = _mul_add_128(multiplier_high, multiplier_low, plus_high, plus_low, plus_high, plus_low)
-        multiplier_high, multiplier_low = _mul_add_128(multiplier_high, multiplier_low, multiplier_high,
-                                                       multiplier_low, zero, zero)
+        multiplier_high, multiplier_low = _mul_add_128(
+            multiplier_high, multiplier_low, multiplier_high, multiplier_low, zero, zero
+        )
         delta >>= 1
     return _mul_add_128(total_m_high, total_m_low, s_high, s_low, total_p_high, total_p_low)
 
@@ -227,9 +240,10 @@ def _pcg64_jump(s_high, s_low, inc_high, inc_low, delta):
 @numba.njit(cache=True)
 def _pcg64_uniforms(state, out, count):
     """out[:count] ← the next `count` uniforms of the PCG64 whose pcg64_state is at address `state`."""
-    pointer = np.intp(_load_u64(state))          # pcg64_state.pcg_state: {state, inc}, 128-bit little-endian
-    s_high, s_low = _pcg64_fill(_load_u64(pointer + 8), _load_u64(pointer), _load_u64(pointer + 24),
-                                _load_u64(pointer + 16), out, count)
+    pointer = np.intp(_load_u64(state))  # pcg64_state.pcg_state: {state, inc}, 128-bit little-endian
+    s_high, s_low = _pcg64_fill(
+        _load_u64(pointer + 8), _load_u64(pointer), _load_u64(pointer + 24), _load_u64(pointer + 16), out, count
+    )
     _store_u64(pointer, s_low)
     _store_u64(pointer + 8, s_high)
 
@@ -261,8 +275,14 @@ def parallel_uniforms(function, state, out, count):
 @numba.njit(cache=True)
 def _pcg64_next(state):
     pointer = np.intp(_load_u64(state))
-    high, low = _mul_add_128(_A_HIGH[0], _A_LOW[0], _load_u64(pointer + 8), _load_u64(pointer),
-                             _load_u64(pointer + 24), _load_u64(pointer + 16))
+    high, low = _mul_add_128(
+        _A_HIGH[0],
+        _A_LOW[0],
+        _load_u64(pointer + 8),
+        _load_u64(pointer),
+        _load_u64(pointer + 24),
+        _load_u64(pointer + 16),
+    )
     _store_u64(pointer, low)
     _store_u64(pointer + 8, high)
     return _pcg64_double(high, low)
@@ -332,10 +352,12 @@ def draw_rows_deferring(function, state, out, count, defer_from, defer_to, bases
     pair = 2 * width - 1
     p = 0
     while p + 1 < count:
-        t_high, t_low = _mul_add_128(_A_HIGH[last], _A_LOW[last], s_high, s_low, increments[last, 0],
-                                     increments[last, 1])
-        u_high, u_low = _mul_add_128(_A_HIGH[pair], _A_LOW[pair], s_high, s_low, increments[pair, 0],
-                                     increments[pair, 1])
+        t_high, t_low = _mul_add_128(
+            _A_HIGH[last], _A_LOW[last], s_high, s_low, increments[last, 0], increments[last, 1]
+        )
+        u_high, u_low = _mul_add_128(
+            _A_HIGH[pair], _A_LOW[pair], s_high, s_low, increments[pair, 0], increments[pair, 1]
+        )
         _deferring_row(s_high, s_low, out, p, defer_from, defer_to, bases, increments)
         out[p, last] = _pcg64_double(t_high, t_low)
         _deferring_row(t_high, t_low, out, p + 1, defer_from, defer_to, bases, increments)
@@ -345,8 +367,9 @@ def draw_rows_deferring(function, state, out, count, defer_from, defer_to, bases
         p += 2
     if p < count:
         _deferring_row(s_high, s_low, out, p, defer_from, defer_to, bases, increments)
-        s_high, s_low = _mul_add_128(_A_HIGH[last], _A_LOW[last], s_high, s_low, increments[last, 0],
-                                     increments[last, 1])
+        s_high, s_low = _mul_add_128(
+            _A_HIGH[last], _A_LOW[last], s_high, s_low, increments[last, 0], increments[last, 1]
+        )
         out[p, last] = _pcg64_double(s_high, s_low)
     _store_u64(pointer, s_low)
     _store_u64(pointer + 8, s_high)
@@ -367,7 +390,7 @@ def skip_doubles(count, function, state):
 
 
 # -- bounded integers as numpy draws them ------------------------------------------------------------------------
-INTEGERS_LIMIT = 1 << 31     # `integers_function` handles rng.integers(0, high) for 1 <= high <= this
+INTEGERS_LIMIT = 1 << 31  # `integers_function` handles rng.integers(0, high) for 1 <= high <= this
 
 
 def integers_function(rng: np.random.Generator) -> int:
@@ -378,7 +401,7 @@ def integers_function(rng: np.random.Generator) -> int:
     return _address(rng.bit_generator.ctypes.next_uint32)
 
 
-_LAST_HANDLES: list[tuple] = []      # (bit generator, function, state, integers) of the last `draw_handles`
+_LAST_HANDLES: list[tuple] = []  # (bit generator, function, state, integers) of the last `draw_handles`
 
 
 def draw_handles(rng: np.random.Generator) -> tuple[int, int, int]:
@@ -415,12 +438,12 @@ def bounded_integers(function, state, high, out):
     if high == 1:
         out[:] = 0
         return
-    span = np.uint64(high)                   # numpy's rng_excl: the count of values
+    span = np.uint64(high)  # numpy's rng_excl: the count of values
     low_mask = np.uint64(0xFFFFFFFF)
     threshold = (low_mask - (span - np.uint64(1))) % span
     for i in range(out.shape[0]):
         m = _call_next_uint32(function, state) * span
-        if (m & low_mask) < span:            # rarely: reject the few products that would bias the result
+        if (m & low_mask) < span:  # rarely: reject the few products that would bias the result
             while (m & low_mask) < threshold:
                 m = _call_next_uint32(function, state) * span
         out[i] = np.int64(m >> np.uint64(32))
@@ -446,7 +469,7 @@ def _pcg64_layout_ok() -> bool:
                 _pcg64_uniforms(address, drawn, 20)
                 drawn[20] = _pcg64_next(address)
                 ok = np.array_equal(drawn, np.random.Generator(twin).random(21)) and probe.state == twin.state
-        except Exception:        # any surprise: draw through next_double instead
+        except Exception:  # any surprise: draw through next_double instead
             ok = False
         _PCG64_LAYOUT.append(bool(ok))
     return _PCG64_LAYOUT[0]

@@ -5,6 +5,7 @@ the same bits on every machine; the tests compare the kernels with them.
     c, s = reference.sincos(angles)
     a = reference.atan2_poly(y, x)
 """
+
 from __future__ import annotations
 
 import numpy as np
@@ -59,8 +60,7 @@ def sincos(x) -> tuple[np.ndarray, np.ndarray]:
     odd = (quadrant == 1.0) | (quadrant == 3.0)
     sine = np.where(odd, c, s)
     cosine = np.where(odd, s, c)
-    return (np.where((quadrant == 1.0) | (quadrant == 2.0), -cosine, cosine),
-            np.where(quadrant >= 2.0, -sine, sine))
+    return (np.where((quadrant == 1.0) | (quadrant == 2.0), -cosine, cosine), np.where(quadrant >= 2.0, -sine, sine))
 
 
 def atan2_poly(y, x) -> np.ndarray:
@@ -77,8 +77,9 @@ def atan2_poly(y, x) -> np.ndarray:
     a = np.where(numerator > 0.0, a, numerator + 0.0 * denominator)
     upper = a >= 0.6875
     middle = (a >= 0.4375) & (a < 0.6875)
-    t = (np.where(upper, a - 1.0, np.where(middle, 2.0 * a - 1.0, a))
-         / np.where(upper, a + 1.0, np.where(middle, 2.0 + a, 1.0)))
+    t = np.where(upper, a - 1.0, np.where(middle, 2.0 * a - 1.0, a)) / np.where(
+        upper, a + 1.0, np.where(middle, 2.0 + a, 1.0)
+    )
     high = np.where(upper, _ATAN_ONE_HIGH, np.where(middle, _ATAN_HALF_HIGH, 0.0))
     low = np.where(upper, _ATAN_ONE_LOW, np.where(middle, _ATAN_HALF_LOW, 0.0))
     z = t * t

@@ -34,6 +34,7 @@ walking raise ValueError naming the problem; a rejected `update` leaves the dete
 detector; `CollisionReference.load` checks every field of a file before it builds anything, and a damaged or
 foreign file raises ValueError naming the file and the field (a missing file stays FileNotFoundError).
 """
+
 from __future__ import annotations
 
 import math
@@ -65,6 +66,7 @@ MIN_REFERENCE = 1e-12
 make S_rel infinite or NaN, and a subnormal R would overflow it for any deviation. A free walk deviates far more
 (servo sensors resolve about 1e-3 rad, 1e-6 rad²; learned tables are around 1e-3), so a smaller R is damage."""
 
+
 def _as_2d(name: str, value, columns: int | None = None) -> np.ndarray:
     array = np.asarray(value, dtype=np.float64)
     if array.ndim != 2 or (columns is not None and array.shape[1] != columns):
@@ -89,29 +91,31 @@ def estimate_delays(commands: np.ndarray, readings: np.ndarray, max_delay: int =
     if readings.shape != commands.shape:
         raise ValueError(f"readings {readings.shape} and commands {commands.shape} must have the same shape")
     if commands.shape[0] <= 2 * max_delay:
-        raise ValueError(f"need more than {2 * max_delay} frames to estimate delays up to {max_delay}, "
-                         f"got {commands.shape[0]}")
+        raise ValueError(
+            f"need more than {2 * max_delay} frames to estimate delays up to {max_delay}, got {commands.shape[0]}"
+        )
     costs = np.empty((max_delay + 1, commands.shape[1]))
     for d in range(max_delay + 1):
         # The same frames (t >= max_delay) for every candidate, so the costs compare.
-        costs[d] = np.mean((readings[max_delay:] - commands[max_delay - d:commands.shape[0] - d]) ** 2, axis=0)
+        costs[d] = np.mean((readings[max_delay:] - commands[max_delay - d : commands.shape[0] - d]) ** 2, axis=0)
     return np.argmin(costs, axis=0).astype(np.int64)
 
 
-def windowed_deviation(commands: np.ndarray, readings: np.ndarray, delays: np.ndarray, joint_sides: np.ndarray,
-                       window: int) -> np.ndarray:
+def windowed_deviation(
+    commands: np.ndarray, readings: np.ndarray, delays: np.ndarray, joint_sides: np.ndarray, window: int
+) -> np.ndarray:
     """D(t) per side (T, 2): Σ over the last `window` frames and the side's joints of (reading - delayed
     command)². Rows before a full window (and before the longest delay) are NaN."""
     n, joints = commands.shape
     deviation = np.full((n, joints), np.nan)
     for j in range(joints):
         d = int(delays[j])
-        deviation[d:, j] = (readings[d:, j] - commands[:n - d, j]) ** 2
+        deviation[d:, j] = (readings[d:, j] - commands[: n - d, j]) ** 2
     per_side = np.column_stack([deviation[:, joint_sides == side].sum(axis=1) for side in (LEFT_LEG, RIGHT_LEG)])
     out = np.full((n, 2), np.nan)
     if n >= window:
-        windows = np.lib.stride_tricks.sliding_window_view(per_side, window, axis=0)   # (n - window + 1, 2, w)
-        out[window - 1:] = windows.sum(axis=-1)
+        windows = np.lib.stride_tricks.sliding_window_view(per_side, window, axis=0)  # (n - window + 1, 2, w)
+        out[window - 1 :] = windows.sum(axis=-1)
     return out
 
 
@@ -142,37 +146,47 @@ class CollisionReference:
         if not 1 <= joints <= MAX_JOINTS:
             raise ValueError(f"delays covers {joints} joints; a reference needs 1 to MAX_JOINTS = {MAX_JOINTS}")
         if delays.min() < 0 or delays.max() > MAX_DELAY:
-            raise ValueError(f"delays = {_short_repr(delays.tolist())} must be frames in [0, MAX_DELAY = "
-                             f"{MAX_DELAY}]")
+            raise ValueError(f"delays = {_short_repr(delays.tolist())} must be frames in [0, MAX_DELAY = {MAX_DELAY}]")
         sides = _array("joint_sides", self.joint_sides, "iu", np.int64, 1)
         if sides.shape != (joints,) or not np.isin(sides, (LEFT_LEG, RIGHT_LEG)).all():
-            raise ValueError(f"joint_sides = {_short_repr(sides.tolist())} must be {joints} values of 0 (left) or "
-                             "1 (right), one per delay")
+            raise ValueError(
+                f"joint_sides = {_short_repr(sides.tolist())} must be {joints} values of 0 (left) or "
+                "1 (right), one per delay"
+            )
         for side, name in ((LEFT_LEG, "left"), (RIGHT_LEG, "right")):
             if not (sides == side).any():
                 raise ValueError(f"joint_sides = {_short_repr(sides.tolist())} has no {name} joint")
         window = self.window
-        if isinstance(window, (bool, np.bool_)) or not isinstance(window, (int, np.integer)) \
-                or not 1 <= window <= MAX_WINDOW:
+        if (
+            isinstance(window, (bool, np.bool_))
+            or not isinstance(window, (int, np.integer))
+            or not 1 <= window <= MAX_WINDOW
+        ):
             raise ValueError(f"window = {_short_repr(window)} must be an integer in [1, MAX_WINDOW = {MAX_WINDOW}]")
         speeds = _array("speeds", self.speeds, "fiu", np.float64, 1)
-        if speeds.shape[0] == 0 or not np.isfinite(speeds).all() or speeds.min() < 0 \
-                or (np.diff(speeds) <= 0).any():
-            raise ValueError(f"speeds = {_short_repr(speeds.tolist())} must be one or more finite walking speeds "
-                             ">= 0, strictly increasing")
+        if speeds.shape[0] == 0 or not np.isfinite(speeds).all() or speeds.min() < 0 or (np.diff(speeds) <= 0).any():
+            raise ValueError(
+                f"speeds = {_short_repr(speeds.tolist())} must be one or more finite walking speeds "
+                ">= 0, strictly increasing"
+            )
         table = _array("table", self.table, "fiu", np.float64, 3)
         if table.shape[:2] != (2, speeds.shape[0]) or table.shape[2] == 0:
-            raise ValueError(f"table has shape {table.shape}; expected (2, {speeds.shape[0]}, phase_bins) with "
-                             "phase_bins >= 1 (sides, speeds, phase bins)")
+            raise ValueError(
+                f"table has shape {table.shape}; expected (2, {speeds.shape[0]}, phase_bins) with "
+                "phase_bins >= 1 (sides, speeds, phase bins)"
+            )
         bad = ~(np.isfinite(table) & (table >= MIN_REFERENCE))
         if bad.any():
             side, speed, phase_bin = (int(i) for i in np.argwhere(bad)[0])
             value = float(table[side, speed, phase_bin])
-            raise ValueError(f"table[{side}, {speed}, {phase_bin}] = {value!r} must be finite and at least "
-                             f"MIN_REFERENCE = {MIN_REFERENCE!r} (S_rel = D / R divides by it)")
+            raise ValueError(
+                f"table[{side}, {speed}, {phase_bin}] = {value!r} must be finite and at least "
+                f"MIN_REFERENCE = {MIN_REFERENCE!r} (S_rel = D / R divides by it)"
+            )
         half_stance = self.half_stance
         number = not isinstance(half_stance, (bool, np.bool_)) and isinstance(
-            half_stance, (int, float, np.integer, np.floating))
+            half_stance, (int, float, np.integer, np.floating)
+        )
         try:
             half_stance = float(half_stance) if number else math.nan
         except OverflowError:  # an int too large for a float
@@ -181,8 +195,13 @@ class CollisionReference:
             raise ValueError(f"half_stance = {_short_repr(self.half_stance)} must be a finite number > 0 (metres)")
         # Frozen dataclass: the normalised values are set with object.__setattr__.
         normalised: tuple[tuple[str, object], ...] = (
-            ("delays", delays), ("joint_sides", sides), ("window", int(window)), ("speeds", speeds), ("table", table),
-            ("half_stance", float(half_stance)))
+            ("delays", delays),
+            ("joint_sides", sides),
+            ("window", int(window)),
+            ("speeds", speeds),
+            ("table", table),
+            ("half_stance", float(half_stance)),
+        )
         for name, normal in normalised:
             object.__setattr__(self, name, normal)
 
@@ -201,7 +220,7 @@ class CollisionReference:
         bins = np.minimum((np.mod(phase, 1.0) * self.phase_bins).astype(np.int64), self.phase_bins - 1)
         out = np.empty(np.broadcast(phase, speed).shape + (2,))
         for side in (LEFT_LEG, RIGHT_LEG):
-            rows = self.table[side]                                     # (S, P)
+            rows = self.table[side]  # (S, P)
             if self.speeds.shape[0] == 1:
                 out[..., side] = rows[0][bins]
                 continue
@@ -212,9 +231,17 @@ class CollisionReference:
         return out
 
     def save(self, path: str | Path) -> None:
-        np.savez(path, format=np.array(FORMAT), version=np.array(FORMAT_VERSION), delays=self.delays,
-                 joint_sides=self.joint_sides, window=np.array(self.window), speeds=self.speeds,
-                 table=self.table, half_stance=np.array(self.half_stance))
+        np.savez(
+            path,
+            format=np.array(FORMAT),
+            version=np.array(FORMAT_VERSION),
+            delays=self.delays,
+            joint_sides=self.joint_sides,
+            window=np.array(self.window),
+            speeds=self.speeds,
+            table=self.table,
+            half_stance=np.array(self.half_stance),
+        )
 
     @classmethod
     def load(cls, path: str | Path) -> CollisionReference:
@@ -233,8 +260,10 @@ class CollisionReference:
                 raise ValueError(f"{where} lacks the field {key!r}")
             array = data[key]
             if array.dtype.kind not in kinds or array.ndim != ndim:
-                raise ValueError(f"{where}: field {key!r} = {_short_repr(array)} has dtype {array.dtype} and "
-                                 f"{array.ndim} dimensions; expected {_KIND_NAMES[kinds]} in {ndim} dimensions")
+                raise ValueError(
+                    f"{where}: field {key!r} = {_short_repr(array)} has dtype {array.dtype} and "
+                    f"{array.ndim} dimensions; expected {_KIND_NAMES[kinds]} in {ndim} dimensions"
+                )
             return array
 
         fmt = data.get("format")
@@ -242,14 +271,21 @@ class CollisionReference:
             raise ValueError(f"{where} is not a collision reference (format {_short_repr(fmt)})")
         version = int(need("version", "iu", 0))
         if version != FORMAT_VERSION:
-            raise ValueError(f"{where} has format version {version}; this version of robocup-mcl reads version "
-                             f"{FORMAT_VERSION}")
+            raise ValueError(
+                f"{where} has format version {version}; this version of robocup-mcl reads version {FORMAT_VERSION}"
+            )
         delays, joint_sides = need("delays", "iu", 1), need("joint_sides", "iu", 1)
         window, speeds = int(need("window", "iu", 0)), need("speeds", "fiu", 1)
         table, half_stance = need("table", "fiu", 3), float(need("half_stance", "fiu", 0))
         try:
-            return cls(delays=delays, joint_sides=joint_sides, window=window, speeds=speeds, table=table,
-                       half_stance=half_stance)
+            return cls(
+                delays=delays,
+                joint_sides=joint_sides,
+                window=window,
+                speeds=speeds,
+                table=table,
+                half_stance=half_stance,
+            )
         except ValueError as error:
             raise ValueError(f"{where}: {error}") from None
 
@@ -271,10 +307,21 @@ def _array(name: str, value, kinds: str, dtype, ndim: int) -> np.ndarray:
     return array.astype(dtype, copy=False)
 
 
-def learn_reference(commands, readings, phase, walk_commands, joint_sides, *, window: int = 10,
-                    phase_bins: int = 10, speed_grid=(0.0, 0.05, 0.1, 0.15, 0.2, 0.25, 0.3, 0.35),
-                    margin: float = 1.5, max_delay: int = 10, min_samples: int = 20,
-                    half_stance: float = 0.05) -> CollisionReference:
+def learn_reference(
+    commands,
+    readings,
+    phase,
+    walk_commands,
+    joint_sides,
+    *,
+    window: int = 10,
+    phase_bins: int = 10,
+    speed_grid=(0.0, 0.05, 0.1, 0.15, 0.2, 0.25, 0.3, 0.35),
+    margin: float = 1.5,
+    max_delay: int = 10,
+    min_samples: int = 20,
+    half_stance: float = 0.05,
+) -> CollisionReference:
     """Learn the reference from a recording of free walking (no collisions).
 
     commands, readings: (T, J) joint commands and servo readings [rad]; phase: (T,) gait phase in [0, 1);
@@ -300,8 +347,12 @@ def learn_reference(commands, readings, phase, walk_commands, joint_sides, *, wi
     for side, name in ((LEFT_LEG, "left"), (RIGHT_LEG, "right")):
         if not (joint_sides == side).any():
             raise ValueError(f"joint_sides has no {name} joint")
-    for name, value, low in (("window", window, 1), ("phase_bins", phase_bins, 1), ("max_delay", max_delay, 0),
-                             ("min_samples", min_samples, 1)):
+    for name, value, low in (
+        ("window", window, 1),
+        ("phase_bins", phase_bins, 1),
+        ("max_delay", max_delay, 0),
+        ("min_samples", min_samples, 1),
+    ):
         if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < low:
             raise ValueError(f"{name} = {value!r} must be an integer >= {low}")
     if not (math.isfinite(margin) and margin >= 1.0):
@@ -328,12 +379,12 @@ def learn_reference(commands, readings, phase, walk_commands, joint_sides, *, wi
             np.maximum.at(largest, bins[rows], deviation[rows, side])
             table[side, s] = margin * largest
     if not kept:
-        raise ValueError(f"too little free walking to learn a reference: no walking speed of {grid.tolist()} has "
-                         f"{min_samples} frames in each of its {phase_bins} phase bins ({int(valid.sum())} usable "
-                         "frames given)")
+        raise ValueError(
+            f"too little free walking to learn a reference: no walking speed of {grid.tolist()} has "
+            f"{min_samples} frames in each of its {phase_bins} phase bins ({int(valid.sum())} usable "
+            "frames given)"
+        )
     return CollisionReference(delays, joint_sides, int(window), grid[kept], table[:, kept, :], float(half_stance))
-
-
 
 
 class CollisionDetector:
@@ -352,11 +403,11 @@ class CollisionDetector:
 
     def reset(self) -> None:
         longest = int(self.reference.delays.max())
-        self._commands = np.zeros((longest + 1, self.reference.n_joints))   # ring buffer of past commands
+        self._commands = np.zeros((longest + 1, self.reference.n_joints))  # ring buffer of past commands
         self._frames = 0
         self._deviation: deque[tuple[float, float]] = deque(maxlen=self.reference.window)  # (left, right) sums
-        self._recent: deque[bool] = deque(maxlen=self.recent_frames)                     # per-frame collision flags
-        self._last = [-math.inf, -math.inf]                                 # frame of each side's last collision
+        self._recent: deque[bool] = deque(maxlen=self.recent_frames)  # per-frame collision flags
+        self._last = [-math.inf, -math.inf]  # frame of each side's last collision
 
     def update(self, command, reading, phase: float, walk_command) -> CollisionPercept:
         """One frame: joint commands (J,) and readings (J,) [rad], gait phase, walk request (vx, vy, ω)."""
@@ -397,8 +448,9 @@ class CollisionDetector:
             self._last[1] = frame
         rate = sum(self._recent) / len(self._recent)
         latest = max(self._last)
-        recent_left, recent_right = (frame - latest < self.recent_frames and self._last[side] >= latest - self.side_frames
-                                     for side in (0, 1))
+        recent_left, recent_right = (
+            frame - latest < self.recent_frames and self._last[side] >= latest - self.side_frames for side in (0, 1)
+        )
         return CollisionPercept(left, right, s_left, s_right, rate, recent_left, recent_right)
 
 
@@ -412,8 +464,15 @@ def _check_frames(recent_frames, side_frames) -> None:
             raise ValueError(f"{name} = {value!r} must be an integer within [1, {MAX_FRAMES}]")
 
 
-def detect(reference: CollisionReference, commands, readings, phase, walk_commands,
-           recent_frames: int = 60, side_frames: int = 30) -> dict[str, np.ndarray]:
+def detect(
+    reference: CollisionReference,
+    commands,
+    readings,
+    phase,
+    walk_commands,
+    recent_frames: int = 60,
+    side_frames: int = 30,
+) -> dict[str, np.ndarray]:
     """The detector over a whole recording at once: arrays s_rel (T, 2), collision (T, 2) bool, rate (T,),
     recent (T, 2) bool; the same as feeding `CollisionDetector.update` frame by frame (up to rounding)."""
     commands = _as_2d("commands", commands, reference.n_joints)
@@ -437,8 +496,9 @@ def detect(reference: CollisionReference, commands, readings, phase, walk_comman
     counts = np.convolve(any_collision, kernel)[:n]
     available = np.minimum(np.arange(1, n + 1), recent_frames)
     frames = np.arange(n, dtype=np.float64)
-    last = np.column_stack([np.maximum.accumulate(np.where(collision[:, side], frames, -np.inf))
-                            for side in (LEFT_LEG, RIGHT_LEG)])
+    last = np.column_stack(
+        [np.maximum.accumulate(np.where(collision[:, side], frames, -np.inf)) for side in (LEFT_LEG, RIGHT_LEG)]
+    )
     latest = last.max(axis=1)
     recent = (frames - latest < recent_frames)[:, None] & (last >= latest[:, None] - side_frames)
     return {"s_rel": s_rel, "collision": collision, "rate": counts / available, "recent": recent}

@@ -23,6 +23,7 @@ eq. 12 is the joint's own axis z_i (the print writes w_i^z, the IMU's z axis).
 Velocities are those of the IMU with respect to the ground, in the IMU's immobile frame, assuming the sole
 frame's origin does not move (eq. 10), or that it only turns, at the rate the gyroscope sees (eq. 13–14).
 """
+
 from __future__ import annotations
 
 import math
@@ -75,7 +76,7 @@ class NaoLegDimensions:
 
     def __post_init__(self) -> None:
         for name in ("hip_offset_y", "hip_offset_z", "thigh", "tibia", "foot_height"):
-            real(name, getattr(self, name), 0.0, low_open=True)     # metres, finite and > 0
+            real(name, getattr(self, name), 0.0, low_open=True)  # metres, finite and > 0
 
     def scaled(self, factors) -> NaoLegDimensions:
         """The dimensions multiplied one by one by `factors`.
@@ -141,8 +142,7 @@ def rotation_log(rotation: np.ndarray) -> np.ndarray:
     """Rotation vector (axis times angle) of a rotation matrix."""
     cos_angle = min(1.0, max(-1.0, (np.trace(rotation) - 1.0) / 2.0))
     angle = math.acos(cos_angle)
-    skew = np.array([rotation[2, 1] - rotation[1, 2], rotation[0, 2] - rotation[2, 0],
-                     rotation[1, 0] - rotation[0, 1]])
+    skew = np.array([rotation[2, 1] - rotation[1, 2], rotation[0, 2] - rotation[2, 0], rotation[1, 0] - rotation[0, 1]])
     if angle < 1e-9:
         return 0.5 * skew
     if math.pi - angle < 1e-6:
@@ -176,10 +176,10 @@ def leg_velocities_kernel(chain, angles, rates, gyro, out_vk, out_vkg):
     """
     theta_offset, a, d, alpha, base_rotation, base_position, imu_rotation, imu_position = chain
     n = a.shape[0]
-    p = imu_position.copy()                      # eq. 5 (p_{n+1}; zero when the IMU sits at the frame origin)
-    v = np.zeros(3)                              # eq. 6
-    w = imu_rotation.copy()                      # columns w^x, w^y, w^z
-    omega = imu_rotation @ gyro                  # eq. 11
+    p = imu_position.copy()  # eq. 5 (p_{n+1}; zero when the IMU sits at the frame origin)
+    v = np.zeros(3)  # eq. 6
+    w = imu_rotation.copy()  # columns w^x, w^y, w^z
+    omega = imu_rotation @ gyro  # eq. 11
     for j in range(n - 1, -1, -1):
         theta = angles[j] + theta_offset[j]
         ct, st = math.cos(theta), math.sin(theta)
@@ -199,14 +199,14 @@ def leg_velocities_kernel(chain, angles, rates, gyro, out_vk, out_vkg):
         lp[0] = a[j] + p[0]
         lp[1] = d[j] * sa + p[1]
         lp[2] = d[j] * ca + p[2]
-        p = rot @ lp                             # eq. 7
+        p = rot @ lp  # eq. 7
         cx, cy, cz = _cross(0.0, 0.0, 1.0, p[0], p[1], p[2])
-        v = rot @ v                              # eq. 8: rotated, plus the joint's own motion z × p
+        v = rot @ v  # eq. 8: rotated, plus the joint's own motion z × p
         v[0] += rates[j] * cx
         v[1] += rates[j] * cy
         v[2] += rates[j] * cz
-        w = rot @ w                              # eq. 9
-        omega = rot @ omega                      # eq. 12
+        w = rot @ w  # eq. 9
+        omega = rot @ omega  # eq. 12
         omega[2] -= rates[j]
     # Foot link: from DH frame 0 to the sole frame (rigid, no joint).
     p = base_position + base_rotation @ p
@@ -214,12 +214,12 @@ def leg_velocities_kernel(chain, angles, rates, gyro, out_vk, out_vkg):
     w = base_rotation @ w
     omega = base_rotation @ omega
     ox, oy, oz = _cross(omega[0], omega[1], omega[2], p[0], p[1], p[2])
-    vkg0 = v[0] + ox                             # eq. 13
+    vkg0 = v[0] + ox  # eq. 13
     vkg1 = v[1] + oy
     vkg2 = v[2] + oz
     for k in range(3):
-        out_vk[k] = v[0] * w[0, k] + v[1] * w[1, k] + v[2] * w[2, k]           # eq. 10
-        out_vkg[k] = vkg0 * w[0, k] + vkg1 * w[1, k] + vkg2 * w[2, k]          # eq. 14
+        out_vk[k] = v[0] * w[0, k] + v[1] * w[1, k] + v[2] * w[2, k]  # eq. 10
+        out_vkg[k] = vkg0 * w[0, k] + vkg1 * w[1, k] + vkg2 * w[2, k]  # eq. 14
 
 
 @numba.njit(cache=True)
@@ -349,8 +349,16 @@ class LegChain:
     def kernel_chain(self) -> tuple[np.ndarray, ...]:
         """The group `chain` of the velocity kernels: (theta_offset, a, d, alpha, base_rotation, base_position,
         imu_rotation, imu_position)."""
-        return (self.theta_offset, self.a, self.d, self.alpha, self.base_rotation, self.base_position,
-                self.imu_rotation, self.imu_position)
+        return (
+            self.theta_offset,
+            self.a,
+            self.d,
+            self.alpha,
+            self.base_rotation,
+            self.base_position,
+            self.imu_rotation,
+            self.imu_position,
+        )
 
     def velocities(self, angles, rates, gyro=(0.0, 0.0, 0.0)) -> tuple[np.ndarray, np.ndarray]:
         """(v^K, v^KG): IMU velocity in its immobile frame from the leg alone (eq. 10) and with the gyro (eq. 14)."""
@@ -405,12 +413,17 @@ class LegChain:
             jac = self.jacobian(angles)
             step = np.linalg.solve(jac.T @ jac + damping * np.eye(self.n_joints), jac.T @ error)
             angles = angles + step
-        raise ValueError(f"target is out of reach of {self.name}: residual {error_norm:.3g} after "
-                         f"{max_iterations} iterations")
+        raise ValueError(
+            f"target is out of reach of {self.name}: residual {error_norm:.3g} after {max_iterations} iterations"
+        )
 
 
-def nao_leg(side: str = "left", imu_offset=(0.0, 0.0, 0.0), dimensions: NaoLegDimensions = NaoLegDimensions(),
-            joint_offsets=None) -> LegChain:
+def nao_leg(
+    side: str = "left",
+    imu_offset=(0.0, 0.0, 0.0),
+    dimensions: NaoLegDimensions = NaoLegDimensions(),
+    joint_offsets=None,
+) -> LegChain:
     """The NAO leg from Aldebaran's published dimensions, joints foot → trunk (`NAO_JOINT_NAMES`).
 
     Angles are NAOqi joint angles: at zero the leg hangs straight with the sole level under the hip. Axes in
@@ -446,28 +459,31 @@ def nao_leg(side: str = "left", imu_offset=(0.0, 0.0, 0.0), dimensions: NaoLegDi
         raise ValueError(f"side must be 'left' or 'right', got {side!r}")
     if not isinstance(dimensions, NaoLegDimensions):
         raise ValueError(f"dimensions must be a NaoLegDimensions, got {type(dimensions).__name__}")
-    offsets = np.zeros(6) if joint_offsets is None else reals("joint_offsets", joint_offsets, 6)   # radians
+    offsets = np.zeros(6) if joint_offsets is None else reals("joint_offsets", joint_offsets, 6)  # radians
     dims = dimensions
     mirror = 1.0 if side == "left" else -1.0
     half_pi = math.pi / 2.0
     # Reversing the chain (trunk relative to foot) turns each joint the other way, so every DH z axis
     # points against the NAO joint axis and the DH angle equals the NAOqi angle.
     rows = [
-        (0.0, 0.0, 0.0, half_pi),                         # ankle roll: z0 = -x, x1 = up
-        (0.0, dims.tibia, 0.0, 0.0),                      # ankle pitch: z1 = -y, up the tibia to the knee
-        (0.0, dims.thigh, 0.0, 0.0),                      # knee pitch: z2 = -y, up the thigh to the hip
-        (0.0, 0.0, 0.0, -half_pi),                        # hip pitch: z3 = -y, to z4 = -x
-        (mirror * math.pi / 4.0, 0.0, 0.0, half_pi),      # hip roll: z4 = -x, to z5 = -(yaw-pitch axis)
-        (0.0, 0.0, 0.0, 0.0),                             # hip yaw-pitch: frame 6 is fixed to the torso
+        (0.0, 0.0, 0.0, half_pi),  # ankle roll: z0 = -x, x1 = up
+        (0.0, dims.tibia, 0.0, 0.0),  # ankle pitch: z1 = -y, up the tibia to the knee
+        (0.0, dims.thigh, 0.0, 0.0),  # knee pitch: z2 = -y, up the thigh to the hip
+        (0.0, 0.0, 0.0, -half_pi),  # hip pitch: z3 = -y, to z4 = -x
+        (mirror * math.pi / 4.0, 0.0, 0.0, half_pi),  # hip roll: z4 = -x, to z5 = -(yaw-pitch axis)
+        (0.0, 0.0, 0.0, 0.0),  # hip yaw-pitch: frame 6 is fixed to the torso
     ]
-    base_rotation = np.array([[0.0, 0.0, -1.0], [0.0, 1.0, 0.0], [1.0, 0.0, 0.0]])   # columns x0 = up, y0 = y, z0 = -x
+    base_rotation = np.array([[0.0, 0.0, -1.0], [0.0, 1.0, 0.0], [1.0, 0.0, 0.0]])  # columns x0 = up, y0 = y, z0 = -x
     prefix = "L" if side == "left" else "R"
     provisional = LegChain.from_dh(rows, base_rotation=base_rotation, base_position=(0.0, 0.0, dims.foot_height))
     # IMU pose in the last DH frame, from the zero pose: torso straight above the sole.
     last = provisional.frames(np.zeros(6))[-2]
     torso = np.eye(4)
     torso[:3, 3] = np.asarray(imu_offset, dtype=np.float64) + (
-        0.0, -mirror * dims.hip_offset_y, dims.foot_height + dims.tibia + dims.thigh + dims.hip_offset_z)
+        0.0,
+        -mirror * dims.hip_offset_y,
+        dims.foot_height + dims.tibia + dims.thigh + dims.hip_offset_z,
+    )
     imu_in_last = np.linalg.inv(last) @ torso
     rotation = imu_in_last[:3, :3]
     # Remove rounding so the rotation check is exact.
@@ -475,9 +491,15 @@ def nao_leg(side: str = "left", imu_offset=(0.0, 0.0, 0.0), dimensions: NaoLegDi
     rotation = u @ vt
     # Joint offsets go in after the IMU pose is fixed: the leg's zero pose moves, the torso stays on the chain.
     rows = [(theta + float(offset), a, d, alpha) for (theta, a, d, alpha), offset in zip(rows, offsets)]
-    return LegChain.from_dh(rows, base_rotation=base_rotation, base_position=(0.0, 0.0, dims.foot_height),
-                            imu_rotation=rotation, imu_position=imu_in_last[:3, 3],
-                            joint_names=tuple(prefix + name for name in NAO_JOINT_NAMES), name=f"NAO {side} leg")
+    return LegChain.from_dh(
+        rows,
+        base_rotation=base_rotation,
+        base_position=(0.0, 0.0, dims.foot_height),
+        imu_rotation=rotation,
+        imu_position=imu_in_last[:3, 3],
+        joint_names=tuple(prefix + name for name in NAO_JOINT_NAMES),
+        name=f"NAO {side} leg",
+    )
 
 
 def nao_leg_reference_pose(side: str, angles, imu_offset=(0.0, 0.0, 0.0)) -> np.ndarray:
@@ -497,11 +519,17 @@ def nao_leg_reference_pose(side: str, angles, imu_offset=(0.0, 0.0, 0.0)) -> np.
 
     yaw_pitch_axis = np.array([0.0, 1.0, -mirror]) / math.sqrt(2.0)
     # Torso → sole with NAOqi angles, then inverted.
-    torso_to_sole = (trans(0.0, mirror * NAO_HIP_OFFSET_Y, -NAO_HIP_OFFSET_Z)
-                     @ rot(axis_angle(yaw_pitch_axis, q_hip_yaw_pitch)) @ rot(rotation_x(q_hip_roll))
-                     @ rot(rotation_y(q_hip_pitch)) @ trans(0.0, 0.0, -NAO_THIGH_LENGTH)
-                     @ rot(rotation_y(q_knee)) @ trans(0.0, 0.0, -NAO_TIBIA_LENGTH)
-                     @ rot(rotation_y(q_ankle_pitch)) @ rot(rotation_x(q_ankle_roll))
-                     @ trans(0.0, 0.0, -NAO_FOOT_HEIGHT))
+    torso_to_sole = (
+        trans(0.0, mirror * NAO_HIP_OFFSET_Y, -NAO_HIP_OFFSET_Z)
+        @ rot(axis_angle(yaw_pitch_axis, q_hip_yaw_pitch))
+        @ rot(rotation_x(q_hip_roll))
+        @ rot(rotation_y(q_hip_pitch))
+        @ trans(0.0, 0.0, -NAO_THIGH_LENGTH)
+        @ rot(rotation_y(q_knee))
+        @ trans(0.0, 0.0, -NAO_TIBIA_LENGTH)
+        @ rot(rotation_y(q_ankle_pitch))
+        @ rot(rotation_x(q_ankle_roll))
+        @ trans(0.0, 0.0, -NAO_FOOT_HEIGHT)
+    )
     imu = trans(*np.asarray(imu_offset, dtype=np.float64))
     return np.linalg.inv(torso_to_sole) @ imu

@@ -36,6 +36,7 @@ Bad input raises ValueError naming the field, and leaves the filter as it was: n
 does not advance, an IMU gap longer than `max_imu_gap`. With no foot on the ground the filter only predicts;
 its velocity covariance grows and `is_stale` turns true after `max_prediction_time` without a correction.
 """
+
 from __future__ import annotations
 
 import math
@@ -154,11 +155,11 @@ def imu_step_kernel(state, gyro, accel, dt):
     half = np.empty((3, 3))
     rotation_matrix_kernel(-gyro[0] * dt / 2.0, -gyro[1] * dt / 2.0, -gyro[2] * dt / 2.0, half)
     full = half @ half
-    g_mid = half @ state[:3]                              # eq. 2
-    v_new = full @ state[3:]                              # eq. 3, f(-ωδ, v) + (q - g)δ
+    g_mid = half @ state[:3]  # eq. 2
+    v_new = full @ state[3:]  # eq. 3, f(-ωδ, v) + (q - g)δ
     for k in range(3):
         state[3 + k] = v_new[k] + (accel[k] - g_mid[k]) * dt
-    g_new = half @ g_mid                                  # eq. 4
+    g_new = half @ g_mid  # eq. 4
     for k in range(3):
         state[k] = g_new[k]
 
@@ -314,8 +315,11 @@ def ekf_correct_kernel(state, cov, measured, sigma_v):
         for c in range(3):
             s[r, c] = cov[3 + r, 3 + c]
         s[r, r] += sigma_v * sigma_v
-    det = (s[0, 0] * (s[1, 1] * s[2, 2] - s[1, 2] * s[2, 1]) - s[0, 1] * (s[1, 0] * s[2, 2] - s[1, 2] * s[2, 0])
-           + s[0, 2] * (s[1, 0] * s[2, 1] - s[1, 1] * s[2, 0]))
+    det = (
+        s[0, 0] * (s[1, 1] * s[2, 2] - s[1, 2] * s[2, 1])
+        - s[0, 1] * (s[1, 0] * s[2, 2] - s[1, 2] * s[2, 0])
+        + s[0, 2] * (s[1, 0] * s[2, 1] - s[1, 1] * s[2, 0])
+    )
     inv = np.empty((3, 3))
     inv[0, 0] = (s[1, 1] * s[2, 2] - s[1, 2] * s[2, 1]) / det
     inv[0, 1] = (s[0, 2] * s[2, 1] - s[0, 1] * s[2, 2]) / det
@@ -326,17 +330,17 @@ def ekf_correct_kernel(state, cov, measured, sigma_v):
     inv[2, 0] = (s[1, 0] * s[2, 1] - s[1, 1] * s[2, 0]) / det
     inv[2, 1] = (s[0, 1] * s[2, 0] - s[0, 0] * s[2, 1]) / det
     inv[2, 2] = (s[0, 0] * s[1, 1] - s[0, 1] * s[1, 0]) / det
-    gain = np.zeros((n, 3))                                # K = P Hᵀ S⁻¹ (eq. 35)
+    gain = np.zeros((n, 3))  # K = P Hᵀ S⁻¹ (eq. 35)
     for i in range(n):
         for j in range(3):
             acc = 0.0
             for k in range(3):
                 acc += cov[i, 3 + k] * inv[k, j]
             gain[i, j] = acc
-    innovation = np.empty(3)                               # eq. 32
+    innovation = np.empty(3)  # eq. 32
     for k in range(3):
         innovation[k] = measured[k] - state[3 + k]
-    for i in range(n):                                     # eq. 36
+    for i in range(n):  # eq. 36
         acc = 0.0
         for k in range(3):
             acc += gain[i, k] * innovation[k]
@@ -391,8 +395,9 @@ def ekf_jacobians_reference(state, gyro, dt, sigma_w, sigma_q, exact=True) -> tu
         f = np.block([[eye, np.zeros((3, 3))], [-eye * dt, eye]])
     dg = rotation_derivative(state[:3])
     dv = rotation_derivative(state[3:])
-    c = np.block([[dg * dt * sigma_w, np.zeros((3, 3))],
-                  [dv * dt * sigma_w - dg * dt ** 2 * sigma_w / 2.0, -eye * dt * sigma_q]])
+    c = np.block(
+        [[dg * dt * sigma_w, np.zeros((3, 3))], [dv * dt * sigma_w - dg * dt**2 * sigma_w / 2.0, -eye * dt * sigma_q]]
+    )
     return f, c
 
 
@@ -410,8 +415,9 @@ def bias_imu_step_reference(state, gyro, accel, dt) -> np.ndarray:
     return np.concatenate([imu_step_reference(state[:6], corrected, accel, dt), state[6:]])
 
 
-def ekf_bias_jacobians_reference(state, gyro, dt, sigma_w, sigma_q, sigma_b,
-                                 exact=True) -> tuple[np.ndarray, np.ndarray]:
+def ekf_bias_jacobians_reference(
+    state, gyro, dt, sigma_w, sigma_q, sigma_b, exact=True
+) -> tuple[np.ndarray, np.ndarray]:
     """F and C of the filter with state [g, v, b] in numpy (see `ekf_bias_jacobians_kernel`)."""
     state = np.asarray(state, dtype=np.float64)
     corrected = np.asarray(gyro, dtype=np.float64) - state[6:]
@@ -421,10 +427,10 @@ def ekf_bias_jacobians_reference(state, gyro, dt, sigma_w, sigma_q, sigma_b,
         # -∂[g, v]⁺/∂u with g⁺ = f(-uδ, g), v⁺ = f(-uδ, v) + (q - f(-uδ/2, g))δ.
         full, half = -corrected * dt, -corrected * dt / 2.0
         f_gb = rotation_derivative_at(full, g) * dt
-        f_vb = rotation_derivative_at(full, v) * dt - rotation_derivative_at(half, g) * dt ** 2 / 2.0
+        f_vb = rotation_derivative_at(full, v) * dt - rotation_derivative_at(half, g) * dt**2 / 2.0
     else:
         f_gb = rotation_derivative(g) * dt
-        f_vb = rotation_derivative(v) * dt - rotation_derivative(g) * dt ** 2 / 2.0
+        f_vb = rotation_derivative(v) * dt - rotation_derivative(g) * dt**2 / 2.0
     f_b = np.vstack([f_gb, f_vb])
     f = np.block([[f6, f_b], [np.zeros((3, 6)), np.eye(3)]])
     c = np.zeros((9, 9))
@@ -444,13 +450,13 @@ def ekf_bias_predict_reference(state, cov, gyro, accel, dt, sigma_w, sigma_q, si
 def ekf_correct_reference(state, cov, measured, sigma_v):
     """Numpy twin of `ekf_correct_kernel`: returns (state, covariance)."""
     n = state.shape[0]
-    h = np.zeros((3, n))                          # eq. 33, H = [0 I] (and 0 for the bias)
+    h = np.zeros((3, n))  # eq. 33, H = [0 I] (and 0 for the bias)
     h[:, 3:6] = np.eye(3)
-    s = h @ cov @ h.T + np.eye(3) * sigma_v ** 2
-    gain = np.linalg.solve(s, h @ cov).T          # P Hᵀ S⁻¹ (S and P symmetric)
+    s = h @ cov @ h.T + np.eye(3) * sigma_v**2
+    gain = np.linalg.solve(s, h @ cov).T  # P Hᵀ S⁻¹ (S and P symmetric)
     new_state = state + gain @ (np.asarray(measured, dtype=np.float64) - state[3:6])
     a = np.eye(n) - gain @ h
-    new_cov = a @ cov @ a.T + sigma_v ** 2 * gain @ gain.T
+    new_cov = a @ cov @ a.T + sigma_v**2 * gain @ gain.T
     return new_state, (new_cov + new_cov.T) / 2.0
 
 
@@ -515,7 +521,7 @@ def _standing_gravity(accel_samples) -> np.ndarray:
         raise ValueError(f"accel_samples must have shape (N, 3) with N >= 1, got {samples.shape}")
     if not np.all(np.isfinite(samples)):
         raise ValueError("accel_samples must be finite")
-    gravity = samples.mean(axis=0)                       # eq. 1, averaged over the standing samples
+    gravity = samples.mean(axis=0)  # eq. 1, averaged over the standing samples
     if np.linalg.norm(gravity) < 1.0:
         raise ValueError(f"accel_samples must show gravity (mean norm >= 1 m/s²), got {gravity.tolist()}")
     return gravity
@@ -546,8 +552,9 @@ class _GravityVelocityState:
 class ImuOnlyEstimator(_GravityVelocityState):
     """Dead reckoning from the IMU (eq. 1–4): gravity turned by the gyro, velocity integrated from q - g."""
 
-    def __init__(self, gravity, time: float, velocity=(0.0, 0.0, 0.0), max_imu_gap: float = 0.1,
-                 gyro_bias=(0.0, 0.0, 0.0)):
+    def __init__(
+        self, gravity, time: float, velocity=(0.0, 0.0, 0.0), max_imu_gap: float = 0.1, gyro_bias=(0.0, 0.0, 0.0)
+    ):
         self._state = np.concatenate([_vector3(gravity, "gravity"), _vector3(velocity, "velocity")])
         self._time = _time(time)
         self.max_imu_gap = _positive(max_imu_gap, "max_imu_gap")
@@ -571,16 +578,19 @@ class ImuOnlyEstimator(_GravityVelocityState):
         self._time = float(time)
 
 
-
 def _imu_interval(time, previous: float, max_gap: float) -> float:
     t = _time(time)
     dt = t - previous
     if not dt > 0.0:
-        raise ValueError(f"time must be after the previous sample time {previous!r}, got {t!r} (IMU samples "
-                         "out of order or repeated)")
+        raise ValueError(
+            f"time must be after the previous sample time {previous!r}, got {t!r} (IMU samples "
+            "out of order or repeated)"
+        )
     if dt > max_gap:
-        raise ValueError(f"time {t!r} leaves a gap of {dt:.4g} s after the previous sample, more than "
-                         f"max_imu_gap = {max_gap!r} s: restart the estimator from a standing robot")
+        raise ValueError(
+            f"time {t!r} leaves a gap of {dt:.4g} s after the previous sample, more than "
+            f"max_imu_gap = {max_gap!r} s: restart the estimator from a standing robot"
+        )
     return dt
 
 
@@ -654,8 +664,14 @@ class VelocityEKFParams:
     gyro_bias_random_walk: float = 0.000317
 
     def __post_init__(self):
-        for name in ("gyro_noise", "accel_noise", "velocity_noise", "initial_gravity_std",
-                     "initial_velocity_std", "initial_gyro_bias_std"):
+        for name in (
+            "gyro_noise",
+            "accel_noise",
+            "velocity_noise",
+            "initial_gravity_std",
+            "initial_velocity_std",
+            "initial_gyro_bias_std",
+        ):
             real(name, getattr(self, name), SMALLEST_SIGMA, LARGEST_SIGMA)
         for name in ("max_imu_gap", "max_prediction_time", "gyro_bias_random_walk"):
             _positive(getattr(self, name), name)
@@ -666,10 +682,10 @@ class VelocityEKFParams:
 
     def initial_covariance(self, gyro_bias_std: float | None = None) -> np.ndarray:
         """The starting P: diagonal, from the initial standard deviations (bias: `gyro_bias_std` if given)."""
-        variances = [self.initial_gravity_std ** 2] * 3 + [self.initial_velocity_std ** 2] * 3
+        variances = [self.initial_gravity_std**2] * 3 + [self.initial_velocity_std**2] * 3
         if self.estimate_gyro_bias:
             std = self.initial_gyro_bias_std if gyro_bias_std is None else gyro_bias_std
-            variances += [std ** 2] * 3
+            variances += [std**2] * 3
         return np.diag(variances)
 
 
@@ -685,8 +701,16 @@ class VelocityEKF(_GravityVelocityState):
     numpy twins); both give the same numbers to rounding. Accessors return copies.
     """
 
-    def __init__(self, gravity, time: float, params: VelocityEKFParams = VelocityEKFParams(),
-                 velocity=(0.0, 0.0, 0.0), covariance=None, backend: str = "numba", gyro_bias=(0.0, 0.0, 0.0)):
+    def __init__(
+        self,
+        gravity,
+        time: float,
+        params: VelocityEKFParams = VelocityEKFParams(),
+        velocity=(0.0, 0.0, 0.0),
+        covariance=None,
+        backend: str = "numba",
+        gyro_bias=(0.0, 0.0, 0.0),
+    ):
         if backend not in BACKENDS:
             raise ValueError(f"backend must be one of {BACKENDS}, got {backend!r}")
         if not isinstance(params, VelocityEKFParams):
@@ -713,8 +737,14 @@ class VelocityEKF(_GravityVelocityState):
         self.n_corrections = 0
 
     @classmethod
-    def from_standing(cls, accel_samples, time: float, params: VelocityEKFParams = VelocityEKFParams(),
-                      backend: str = "numba", gyro_samples=None) -> VelocityEKF:
+    def from_standing(
+        cls,
+        accel_samples,
+        time: float,
+        params: VelocityEKFParams = VelocityEKFParams(),
+        backend: str = "numba",
+        gyro_samples=None,
+    ) -> VelocityEKF:
         """Eq. 1: start from a robot standing still; gravity is the mean accelerometer sample, v = 0.
 
         With `gyro_samples` of the same still period, their mean is taken as the gyro bias. The paper's filter
@@ -739,22 +769,39 @@ class VelocityEKF(_GravityVelocityState):
         accel = _vector3(accel, "accel")
         if p.estimate_gyro_bias:
             if self.backend == "numba":
-                ekf_bias_predict_kernel(self._state, self._cov, gyro, accel, dt, p.gyro_noise, p.accel_noise,
-                                        p.gyro_bias_random_walk, p.exact_jacobian)
+                ekf_bias_predict_kernel(
+                    self._state,
+                    self._cov,
+                    gyro,
+                    accel,
+                    dt,
+                    p.gyro_noise,
+                    p.accel_noise,
+                    p.gyro_bias_random_walk,
+                    p.exact_jacobian,
+                )
             else:
                 self._state, self._cov = ekf_bias_predict_reference(
-                    self._state, self._cov, gyro, accel, dt, p.gyro_noise, p.accel_noise, p.gyro_bias_random_walk,
-                    p.exact_jacobian)
+                    self._state,
+                    self._cov,
+                    gyro,
+                    accel,
+                    dt,
+                    p.gyro_noise,
+                    p.accel_noise,
+                    p.gyro_bias_random_walk,
+                    p.exact_jacobian,
+                )
             self._time = float(time)
             self.n_predictions += 1
             return
         gyro = gyro - self._fixed_gyro_bias
         if self.backend == "numba":
-            ekf_predict_kernel(self._state, self._cov, gyro, accel, dt, p.gyro_noise, p.accel_noise,
-                               p.exact_jacobian)
+            ekf_predict_kernel(self._state, self._cov, gyro, accel, dt, p.gyro_noise, p.accel_noise, p.exact_jacobian)
         else:
-            self._state, self._cov = ekf_predict_reference(self._state, self._cov, gyro, accel, dt,
-                                                           p.gyro_noise, p.accel_noise, p.exact_jacobian)
+            self._state, self._cov = ekf_predict_reference(
+                self._state, self._cov, gyro, accel, dt, p.gyro_noise, p.accel_noise, p.exact_jacobian
+            )
         self._time = float(time)
         self.n_predictions += 1
 
@@ -819,8 +866,8 @@ class KinematicSample(NamedTuple):
     """One kinematics-rate result of `LegOdometry.kinematics`."""
 
     time: float
-    foot: int                   # index of the support leg, -1 when no correction was made
-    velocity_kinematic: np.ndarray       # v^K (eq. 10), NaN when foot == -1
+    foot: int  # index of the support leg, -1 when no correction was made
+    velocity_kinematic: np.ndarray  # v^K (eq. 10), NaN when foot == -1
     velocity_kinematic_gyro: np.ndarray  # v^KG (eq. 14), NaN when foot == -1
 
 
@@ -874,7 +921,7 @@ class LegOdometry:
         foot = -1
         nan = np.full(3, np.nan)
         vk, vkg = nan, nan
-        if self._previous_time is not None and self._previous_angles is not None:   # set together
+        if self._previous_time is not None and self._previous_angles is not None:  # set together
             usable = np.where((down & self._previous_down)[:, None], contacts, False)
             foot = support_foot(usable, self._previous_foot, self.min_pressed)
             if foot >= 0:
@@ -937,8 +984,8 @@ def planar_increment(gravity, velocity, gyro, dt) -> np.ndarray:
     # ∫₀^dt R(ωt) v dt = [[s, -(1-c)], [(1-c), s]] v / ω, written so it stays exact as ω → 0.
     small = np.abs(dtheta) < 1e-6
     safe = np.where(small, 1.0, dtheta)
-    sin_term = np.where(small, 1.0 - dtheta ** 2 / 6.0, np.sin(safe) / safe) * dt
-    cos_term = np.where(small, dtheta / 2.0 - dtheta ** 3 / 24.0, (1.0 - np.cos(safe)) / safe) * dt
+    sin_term = np.where(small, 1.0 - dtheta**2 / 6.0, np.sin(safe) / safe) * dt
+    cos_term = np.where(small, dtheta / 2.0 - dtheta**3 / 24.0, (1.0 - np.cos(safe)) / safe) * dt
     dx = sin_term * vx - cos_term * vy
     dy = cos_term * vx + sin_term * vy
     return np.stack(np.broadcast_arrays(dx, dy, dtheta), axis=-1)

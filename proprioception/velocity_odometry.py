@@ -29,6 +29,7 @@ Errors: a `ValueError` naming the field and value (non-finite samples, a time th
 gap longer than the EKF's `max_imu_gap`), raised before anything changes: a rejected sample leaves the EKF
 and the running sum as they were.
 """
+
 from __future__ import annotations
 
 import math
@@ -156,7 +157,9 @@ class EKFOdometry:
 
     def __init__(self, leg_odometry: LegOdometry) -> None:
         if not isinstance(leg_odometry, LegOdometry):
-            raise ValueError(f"leg_odometry must be a proprioception.velocity.LegOdometry, got {type(leg_odometry).__name__}")
+            raise ValueError(
+                f"leg_odometry must be a proprioception.velocity.LegOdometry, got {type(leg_odometry).__name__}"
+            )
         self.leg_odometry = leg_odometry
         self.sum = PlanarOdometry()
 
@@ -178,7 +181,7 @@ class EKFOdometry:
         raw = _vector3(gyro, "gyro")
         _vector3(accel, "accel")
         increment = planar_increment(ekf.gravity, ekf.velocity, raw - ekf.gyro_bias, dt)
-        self.leg_odometry.imu(t, raw, accel)           # validates the gap; raises before changing anything
+        self.leg_odometry.imu(t, raw, accel)  # validates the gap; raises before changing anything
         self.sum.add(increment, dt)
         return increment
 

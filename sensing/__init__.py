@@ -8,6 +8,7 @@
 `proprioception.velocity` (and `proprioception.velocity_odometry` turns the EKF into filter odometry); collision detection
 from servo commands and readings, the percept the adaptive motion model needs, in `proprioception.collision`.
 """
+
 from field.moved import keep_old_names
 
 from .combined import CombinedSensorModel
@@ -18,5 +19,9 @@ from .observations import LandmarkObservation, Observations
 __all__ = ["LandmarkObservation", "Observations", "LandmarkSensorModel", "LineSensorModel", "CombinedSensorModel"]
 
 # What the robot feels moved to its own package, proprioception; the old names still import, with a warning.
-keep_old_names({f"sensing.{name}": f"proprioception.{name}"
-                for name in ("collision", "kinematics", "velocity", "velocity_odometry")})
+keep_old_names(
+    {
+        f"sensing.{name}": f"proprioception.{name}"
+        for name in ("collision", "kinematics", "velocity", "velocity_odometry")
+    }
+)

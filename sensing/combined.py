@@ -5,6 +5,7 @@
 
 Sensor resetting (`sample_poses`) is delegated to the first model that offers it.
 """
+
 from __future__ import annotations
 
 from dataclasses import dataclass
@@ -75,8 +76,9 @@ class CombinedSensorModel:
         """
         return sum(getattr(model, "terms", len)(observations) for model in self.models)
 
-    def log_likelihood(self, poses: np.ndarray, observations: Observations,
-                       out: np.ndarray | None = None) -> np.ndarray:
+    def log_likelihood(
+        self, poses: np.ndarray, observations: Observations, out: np.ndarray | None = None
+    ) -> np.ndarray:
         """(N,) sum of the models' log-likelihoods of `observations` at `poses`.
 
         Parameters
@@ -97,8 +99,7 @@ class CombinedSensorModel:
             out += model.log_likelihood(poses, observations, out=part)
         return out
 
-    def sample_poses(self, observations: Observations, n: int, rng: np.random.Generator,
-                     **kwargs: Any) -> np.ndarray:
+    def sample_poses(self, observations: Observations, n: int, rng: np.random.Generator, **kwargs: Any) -> np.ndarray:
         """(n, 3) poses drawn by the first model that has `sample_poses` (sensor resetting); none when no model
         has one.
 

@@ -30,6 +30,7 @@ The calling convention (every argument is positional; `params` and the frame are
 The results must equal `log_likelihood` bit for bit when `fast` is False, since the filter picks either path
 by what the frame needs (`mcl.tools.testing.assert_fused_likelihood` checks it).
 """
+
 from __future__ import annotations
 
 import hashlib
@@ -49,10 +50,10 @@ NO_SINCE = np.empty(0)
 class FusedLikelihoodKernels(NamedTuple):
     """A sensor model's compiled likelihood, in the calling convention of the module docstring."""
 
-    prepare: Any                   # numba dispatcher: (inputs, params) -> (frame, missing)
-    workspace: Any                 # numba dispatcher: (frame, columns) -> scratch array
-    score: Any                     # numba dispatcher: (poses, trig, start, count, work, since, fast, frame, out)
-    params: tuple                  # the model's constants, as the kernels take them
+    prepare: Any  # numba dispatcher: (inputs, params) -> (frame, missing)
+    workspace: Any  # numba dispatcher: (frame, columns) -> scratch array
+    score: Any  # numba dispatcher: (poses, trig, start, count, work, since, fast, frame, out)
+    params: tuple  # the model's constants, as the kernels take them
     inputs: Callable[[Any], tuple]  # observations -> the frame's arrays
 
 
@@ -70,7 +71,7 @@ class FusedLikelihoodKernels(NamedTuple):
 # function and `numerics.trig.sincos` then gives what the fused step gives, bit for bit
 # (`per_particle_log_likelihood` is that loop).
 
-particle_log_likelihood = None     # bound by `per_particle_kernels` in the template below
+particle_log_likelihood = None  # bound by `per_particle_kernels` in the template below
 
 
 def _score_particles(poses, trig, start, count, work, since, fast, frame, out):
@@ -101,7 +102,7 @@ def _function_key(function) -> str:
     return f"{source.__module__}.{source.__qualname__}.{digest}"
 
 
-_COMPILED: dict[str, tuple[Any, Any]] = {}     # key -> (score, loop) for each per-particle function
+_COMPILED: dict[str, tuple[Any, Any]] = {}  # key -> (score, loop) for each per-particle function
 
 
 def _compiled(log_likelihood: Any) -> tuple[Any, Any]:
@@ -113,8 +114,9 @@ def _compiled(log_likelihood: Any) -> tuple[Any, Any]:
     return kernels
 
 
-def per_particle_kernels(prepare: Any, log_likelihood: Any, params: tuple,
-                         inputs: Callable[[Any], tuple]) -> FusedLikelihoodKernels:
+def per_particle_kernels(
+    prepare: Any, log_likelihood: Any, params: tuple, inputs: Callable[[Any], tuple]
+) -> FusedLikelihoodKernels:
     """A sensor model's fused kernels from one compiled per-particle log-likelihood (see above).
 
     Parameters
@@ -149,8 +151,9 @@ def _loop(poses, frame, out):
         out[i] = particle_log_likelihood(poses[i, 0], poses[i, 1], c, s, frame)
 
 
-def per_particle_log_likelihood(log_likelihood: Any, poses: np.ndarray, frame: tuple,
-                                out: np.ndarray | None = None) -> np.ndarray:
+def per_particle_log_likelihood(
+    log_likelihood: Any, poses: np.ndarray, frame: tuple, out: np.ndarray | None = None
+) -> np.ndarray:
     """Every particle's log-likelihood by a per-particle function (see above), with the cos and sin of each
     heading from `numerics.trig.sincos`: what the fused step's `score` gives them, bit for bit.
 

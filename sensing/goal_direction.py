@@ -17,6 +17,7 @@ and nothing else: the filter's blocks, heading cache, camera latency and `fast` 
 `log_likelihood` runs the same function over the particles (so both paths give the same bits); `reference`
 is its plain numpy twin, which the tests compare with.
 """
+
 from __future__ import annotations
 
 import math
@@ -46,7 +47,7 @@ def prepare(inputs, params):
     detections = np.empty((bearings.shape[0], 4))
     missing = -1
     for j in range(bearings.shape[0]):
-        if kinds[j] != 0 and missing < 0:      # LandmarkType.GOALPOST
+        if kinds[j] != 0 and missing < 0:  # LandmarkType.GOALPOST
             missing = j
         sigma = bearing_sigma if np.isnan(bearing_sigmas[j]) else bearing_sigmas[j]
         detections[j, 0] = math.cos(bearings[j])
@@ -67,7 +68,7 @@ def particle_log_likelihood(x, y, cos_theta, sin_theta, frame):
         for g in range(goals.shape[0]):
             dx = goals[g, 0] - x
             dy = goals[g, 1] - y
-            forward = cos_theta * dx + sin_theta * dy          # the goal in the robot's frame
+            forward = cos_theta * dx + sin_theta * dy  # the goal in the robot's frame
             left = cos_theta * dy - sin_theta * dx
             # The angle from the detection's direction to the goal's, in [-π, π]: the bearing error, wrapped
             # (`atan2_poly`: branch-free, no call into libm).
@@ -130,15 +131,18 @@ class GoalDirectionSensorModel:
         others = np.flatnonzero(observations.kinds != LandmarkType.GOALPOST)
         if others.size:
             j = int(others[0])
-            raise ValueError(f"detection {j} is a {LandmarkType(int(observations.kinds[j])).name}: the goal-direction "
-                             "model scores goals (kind goalpost) only")
+            raise ValueError(
+                f"detection {j} is a {LandmarkType(int(observations.kinds[j])).name}: the goal-direction "
+                "model scores goals (kind goalpost) only"
+            )
 
     def terms(self, observations: Observations) -> int:
         """The independent terms a frame scores: one per detection."""
         return len(Observations.coerce(observations))
 
-    def log_likelihood(self, poses: np.ndarray, observations: Observations,
-                       out: np.ndarray | None = None) -> np.ndarray:
+    def log_likelihood(
+        self, poses: np.ndarray, observations: Observations, out: np.ndarray | None = None
+    ) -> np.ndarray:
         """log p(detections | pose) for each of the (N, 3) poses, in compiled code (`particle_log_likelihood`).
 
         Raises

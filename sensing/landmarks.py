@@ -53,6 +53,7 @@ The kernels that take a batch of detections take their arguments in groups (tupl
     view       (yaw, half_fov, min_range, max_ranges): the camera's view, `max_ranges[v]` the farthest range of
                landmark type value v (`view_group`)
 """
+
 from __future__ import annotations
 
 import functools
@@ -80,9 +81,7 @@ from .observations import Observations
 from .view import CameraView
 
 # The numpy twins moved to the package's `reference` module; their old names still work, with a warning.
-__getattr__ = moved_names(__name__, {
-    "landmark_log_likelihood_reference": "sensing.reference.landmark_log_likelihood"
-})
+__getattr__ = moved_names(__name__, {"landmark_log_likelihood_reference": "sensing.reference.landmark_log_likelihood"})
 
 BEARING_MODELS = ("von_mises", "exact")
 
@@ -105,12 +104,15 @@ def range_noise_sigma(r, range_noise_floor, range_noise_growth):
 @overload(range_noise_sigma, inline="always")
 def _range_noise_sigma_compiled(r, range_noise_floor, range_noise_growth):
     if isinstance(range_noise_growth, numba_types.BaseTuple):
+
         def law(r, range_noise_floor, range_noise_growth):
             return range_noise_floor + range_noise_growth[0] * r + range_noise_growth[1] * r * r
+
         return law
 
     def quadratic_law(r, range_noise_floor, range_noise_growth):
         return range_noise_floor + range_noise_growth * r * r
+
     return quadratic_law
 
 
@@ -133,15 +135,24 @@ def landmark_log_likelihood(poses, landmarks, batch, noise, exact, sum_mixture, 
         stop = min(start + TRIG_CHUNK, n)
         for i in range(start, stop):
             trig[i - start, 0], trig[i - start, 1] = sincos(poses[i, 2])
-        chunk = (poses[start:stop], trig[:stop - start], landmarks, batch, noise, exact, sum_mixture, log_outlier,
-                 out[start:stop])
+        chunk = (
+            poses[start:stop],
+            trig[: stop - start],
+            landmarks,
+            batch,
+            noise,
+            exact,
+            sum_mixture,
+            log_outlier,
+            out[start:stop],
+        )
         if exact or sum_mixture:
             _landmark_log_likelihood_fast(*chunk)
         else:
             _landmark_log_likelihood(*chunk)
 
 
-TRIG_CHUNK = 4096      # particles per call of the general kernel from `landmark_log_likelihood`
+TRIG_CHUNK = 4096  # particles per call of the general kernel from `landmark_log_likelihood`
 
 
 # The default variant (von Mises, max-mixture) in plain IEEE arithmetic, no fast-math: the same bits on every
@@ -171,10 +182,10 @@ def _general_likelihood(poses, trig, landmarks, batch, noise, exact, sum_mixture
     order = np.argsort(kinds, kind="mergesort")
     obs_range = np.empty(m)
     obs_bearing = np.empty(m)
-    range_weight = np.empty(m)       # -½/σ_r²
-    bearing_cos = np.empty(m)        # κ cos b (von Mises)  or  -½/σ_b² (exact)
-    bearing_sin = np.empty(m)        # κ sin b (von Mises)
-    bearing_offset = np.empty(m)     # -κ (von Mises)  or  0 (exact)
+    range_weight = np.empty(m)  # -½/σ_r²
+    bearing_cos = np.empty(m)  # κ cos b (von Mises)  or  -½/σ_b² (exact)
+    bearing_sin = np.empty(m)  # κ sin b (von Mises)
+    bearing_offset = np.empty(m)  # -κ (von Mises)  or  0 (exact)
     group_kind = np.empty(m, dtype=np.int64)
     group_start = np.empty(m + 1, dtype=np.int64)
     n_groups = 0
@@ -184,7 +195,7 @@ def _general_likelihood(poses, trig, landmarks, batch, noise, exact, sum_mixture
         r = ranges[o]
         sr = range_sigmas[o]
         if np.isnan(sr):
-            sr = range_noise_sigma(r, range_noise_floor, range_noise_growth)   # `LandmarkSensorModel.range_sigma`
+            sr = range_noise_sigma(r, range_noise_floor, range_noise_growth)  # `LandmarkSensorModel.range_sigma`
         sb = bearing_sigmas[o]
         if np.isnan(sb):
             sb = bearing_sigma
@@ -254,7 +265,7 @@ def _general_likelihood(poses, trig, landmarks, batch, noise, exact, sum_mixture
                 else:
                     bc = bearing_cos[j]
                     bs = bearing_sin[j]
-                    for k in range(n_cand):   # branch-free, so LLVM can vectorize over the candidates
+                    for k in range(n_cand):  # branch-free, so LLVM can vectorize over the candidates
                         er = r - dist[k]
                         best = max(best, wr * er * er + bc * ux[k] + bs * uy[k])
                     best += bearing_offset[j]
@@ -287,14 +298,24 @@ def _general_likelihood(poses, trig, landmarks, batch, noise, exact, sum_mixture
 # (`BEST`), because a row that is read and written in the same loop becomes a masked store, which is slow on
 # AMD processors.
 
-BLOCK = 128        # particles per block: the rows below stay in L1
-X, Y, COS, SIN, TOTAL, BEST = 0, 1, 2, 3, 4, 5       # rows of the block work array; BEST takes rows 5 and 6
-GEOMETRY = 7       # then, for each candidate k of the widest type: distance, unit x, unit y (rows 7 + 3k ...)
+BLOCK = 128  # particles per block: the rows below stay in L1
+X, Y, COS, SIN, TOTAL, BEST = 0, 1, 2, 3, 4, 5  # rows of the block work array; BEST takes rows 5 and 6
+GEOMETRY = 7  # then, for each candidate k of the widest type: distance, unit x, unit y (rows 7 + 3k ...)
 
 
 @numba.njit(cache=True)
-def prepare_detections(kinds, ranges, bearings, range_sigmas, bearing_sigmas, offsets, range_noise_floor,
-                       range_noise_growth, bearing_sigma, exact=False):
+def prepare_detections(
+    kinds,
+    ranges,
+    bearings,
+    range_sigmas,
+    bearing_sigmas,
+    offsets,
+    range_noise_floor,
+    range_noise_growth,
+    bearing_sigma,
+    exact=False,
+):
     """The per-detection constants of the von Mises max-mixture (with `exact`, of the exact bearing term's),
     grouped by type.
 
@@ -475,7 +496,7 @@ def score_block_exact(work, count, table, offsets, detections, groups, log_outli
                 target = BEST + 1 - k % 2
                 for p in range(count):
                     er = r - work[row, p]
-                    eb = b - work[row + 1, p]            # in [-2π, 2π]: b is wrapped, atan2 in [-π, π]
+                    eb = b - work[row + 1, p]  # in [-2π, 2π]: b is wrapped, atan2 in [-π, π]
                     eb = eb - TWO_PI if eb > math.pi else eb
                     eb = eb + TWO_PI if eb <= -math.pi else eb
                     score = wr * er * er + wb * eb * eb
@@ -495,8 +516,18 @@ def fused_prepare(inputs, params):
     landmark (-1 if none)."""
     kinds, ranges, bearings, range_sigmas, bearing_sigmas = inputs
     _, offsets, range_noise_floor, range_noise_growth, bearing_sigma, _, exact = params
-    detections, groups, missing = prepare_detections(kinds, ranges, bearings, range_sigmas, bearing_sigmas, offsets,
-                                                     range_noise_floor, range_noise_growth, bearing_sigma, exact)
+    detections, groups, missing = prepare_detections(
+        kinds,
+        ranges,
+        bearings,
+        range_sigmas,
+        bearing_sigmas,
+        offsets,
+        range_noise_floor,
+        range_noise_growth,
+        bearing_sigma,
+        exact,
+    )
     return (params[0], offsets, detections, groups, params[5], exact), missing
 
 
@@ -532,8 +563,13 @@ def fused_score(poses, trig, start, count, work, since, fast, frame, out):
 def detection_batch(observations: Observations) -> tuple:
     """The group `batch` of the kernels (kinds, ranges, bearings, range_sigmas, bearing_sigmas): the detections'
     arrays, as `fused_prepare` (its `inputs`) and the batch kernels take them."""
-    return (observations.kinds, observations.ranges, observations.bearings, observations.range_sigmas,
-            observations.bearing_sigmas)
+    return (
+        observations.kinds,
+        observations.ranges,
+        observations.bearings,
+        observations.range_sigmas,
+        observations.bearing_sigmas,
+    )
 
 
 @numba.njit(cache=True)
@@ -559,8 +595,17 @@ def _von_mises_log_likelihood(poses, landmarks, batch, noise, log_outlier, out):
     table, offsets, _ = landmarks
     kinds, ranges, bearings, range_sigmas, bearing_sigmas = batch
     range_noise_floor, range_noise_growth, bearing_sigma = noise
-    detections, groups, missing = prepare_detections(kinds, ranges, bearings, range_sigmas, bearing_sigmas, offsets,
-                                                     range_noise_floor, range_noise_growth, bearing_sigma)
+    detections, groups, missing = prepare_detections(
+        kinds,
+        ranges,
+        bearings,
+        range_sigmas,
+        bearing_sigmas,
+        offsets,
+        range_noise_floor,
+        range_noise_growth,
+        bearing_sigma,
+    )
     if missing < 0:
         von_mises_log_likelihood(poses, table, offsets, detections, groups, log_outlier, out, np.empty((0, 2)))
     return missing
@@ -589,11 +634,22 @@ def _exact_log_likelihood(poses, landmarks, batch, noise, log_outlier, out):
     table, offsets, _ = landmarks
     kinds, ranges, bearings, range_sigmas, bearing_sigmas = batch
     range_noise_floor, range_noise_growth, bearing_sigma = noise
-    detections, groups, missing = prepare_detections(kinds, ranges, bearings, range_sigmas, bearing_sigmas, offsets,
-                                                     range_noise_floor, range_noise_growth, bearing_sigma, True)
+    detections, groups, missing = prepare_detections(
+        kinds,
+        ranges,
+        bearings,
+        range_sigmas,
+        bearing_sigmas,
+        offsets,
+        range_noise_floor,
+        range_noise_growth,
+        bearing_sigma,
+        True,
+    )
     if missing < 0:
         exact_log_likelihood(poses, table, offsets, detections, groups, log_outlier, out)
     return missing
+
 
 _NO_ANGLES = np.empty(0)
 
@@ -654,7 +710,7 @@ def sensor_reset_poses(landmarks, batch, noise, draws, heading_noise, out):
         start = offsets[kind]
         k = start + np.int64(math.floor(landmark[i] * (offsets[kind + 1] - start)))
         if uniform_heading:
-            theta = -math.pi + (math.pi - -math.pi) * angles[i]    # rng.uniform(-π, π)
+            theta = -math.pi + (math.pi - -math.pi) * angles[i]  # rng.uniform(-π, π)
         else:
             theta = heading + heading_sigma * normals[i]
         range_sigma, sigma = _detection_sigmas(j, batch, noise, 0.0, 0.0)
@@ -686,7 +742,7 @@ def explained_detections(landmarks, pose, batch, noise, gate, out):
             dy = table[k, 1] - y
             range_error = (r - math.hypot(dx, dy)) / range_sigma
             bearing_error = wrap_angle(bearings[j] - (math.atan2(dy, dx) - theta)) / sigma
-            if range_error ** 2 + bearing_error ** 2 <= limit:
+            if range_error**2 + bearing_error**2 <= limit:
                 found = True
                 break
         out[j] = found
@@ -697,8 +753,8 @@ def explained_detections(landmarks, pose, batch, noise, gate, out):
 # standard deviations, the model's σ widened by these slacks (the noise model is a guess; a pose a little off
 # should still see what it sees).
 VIEW_GATE = 3.0
-VIEW_RANGE_SLACK = 0.1      # m
-VIEW_BEARING_SLACK = 0.03   # rad
+VIEW_RANGE_SLACK = 0.1  # m
+VIEW_BEARING_SLACK = 0.03  # rad
 
 
 def gate_group(gate: float, range_slack: float, bearing_slack: float) -> tuple[float, float, float]:
@@ -743,7 +799,7 @@ def _view_counts(landmarks, pose, batch, noise, gate, view):
             range_sigma, sigma = _detection_sigmas(j, batch, noise, range_slack, bearing_slack)
             range_error = (ranges[j] - r) / range_sigma
             bearing_error = wrap_angle(bearings[j] - bearing) / sigma
-            if range_error ** 2 + bearing_error ** 2 <= limit:
+            if range_error**2 + bearing_error**2 <= limit:
                 seen += 1
                 break
     return expected, seen
@@ -856,8 +912,9 @@ class LandmarkSensorModel:
         real("range_noise_growth", self.range_noise_growth, 0.0, LARGEST_SIGMA)
         real("range_noise_linear", self.range_noise_linear, 0.0, LARGEST_SIGMA)
         if not isinstance(self.mixture, str) or not isinstance(self.bearing_model, str):
-            raise ArgumentTypeError(f"mixture = {self.mixture!r}, bearing_model = {self.bearing_model!r} must be "
-                                    "strings")
+            raise ArgumentTypeError(
+                f"mixture = {self.mixture!r}, bearing_model = {self.bearing_model!r} must be strings"
+            )
         if self.mixture not in ("max", "sum"):
             raise ValueError(f"mixture = {self.mixture!r} must be 'max' or 'sum'")
         if self.bearing_model not in BEARING_MODELS:
@@ -927,10 +984,16 @@ class LandmarkSensorModel:
             (K, 2) positions [m]; K = 0 when the field has none of that type.
         """
         k = int(kind)
-        return self._table[self._offsets[k]:self._offsets[k + 1]]
+        return self._table[self._offsets[k] : self._offsets[k + 1]]
 
-    def explained(self, pose: Sequence[float] | np.ndarray, observations: Observations, gate: float = 3.0,
-                  range_slack: float = 0.0, bearing_slack: float = 0.0) -> np.ndarray:
+    def explained(
+        self,
+        pose: Sequence[float] | np.ndarray,
+        observations: Observations,
+        gate: float = 3.0,
+        range_slack: float = 0.0,
+        bearing_slack: float = 0.0,
+    ) -> np.ndarray:
         """Which detections (bool per detection) the pose (x, y, θ) explains: a landmark of the detection's type
         lies within `gate` standard deviations, in range and bearing together (σ: the detection's own, else
         the model's, plus the slacks). Compiled (`explained_detections`); numpy twin `explained_reference`.
@@ -955,13 +1018,23 @@ class LandmarkSensorModel:
         """
         observations = Observations.coerce(observations)
         self.check(observations)
-        return explained_detections(self._landmarks, (float(pose[0]), float(pose[1]), float(pose[2])),
-                                    detection_batch(observations), self.noise_group(),
-                                    gate_group(gate, range_slack, bearing_slack),
-                                    np.empty(len(observations), dtype=np.bool_))
+        return explained_detections(
+            self._landmarks,
+            (float(pose[0]), float(pose[1]), float(pose[2])),
+            detection_batch(observations),
+            self.noise_group(),
+            gate_group(gate, range_slack, bearing_slack),
+            np.empty(len(observations), dtype=np.bool_),
+        )
 
-    def explained_reference(self, pose: Sequence[float] | np.ndarray, observations: Observations,
-                            gate: float = 3.0, range_slack: float = 0.0, bearing_slack: float = 0.0) -> np.ndarray:
+    def explained_reference(
+        self,
+        pose: Sequence[float] | np.ndarray,
+        observations: Observations,
+        gate: float = 3.0,
+        range_slack: float = 0.0,
+        bearing_slack: float = 0.0,
+    ) -> np.ndarray:
         """Plain numpy twin of `explained`: the same parameters and result."""
         observations = Observations.coerce(observations)
         self.check(observations)
@@ -977,13 +1050,22 @@ class LandmarkSensorModel:
             dx = landmarks[:, 0] - x
             dy = landmarks[:, 1] - y
             range_error = (observations.ranges[rows, None] - np.hypot(dx, dy)[None, :]) / range_sigmas[rows, None]
-            bearing_error = wrap_angles(observations.bearings[rows, None] - (np.arctan2(dy, dx) - theta)[None, :]) \
+            bearing_error = (
+                wrap_angles(observations.bearings[rows, None] - (np.arctan2(dy, dx) - theta)[None, :])
                 / bearing_sigmas[rows, None]
-            explained[rows] = (range_error ** 2 + bearing_error ** 2 <= gate * gate).any(axis=1)
+            )
+            explained[rows] = (range_error**2 + bearing_error**2 <= gate * gate).any(axis=1)
         return explained
 
-    def seen(self, pose: Sequence[float] | np.ndarray, observations: Observations, view: CameraView,
-             gate: float = 3.0, range_slack: float = 0.0, bearing_slack: float = 0.0) -> tuple[int, int]:
+    def seen(
+        self,
+        pose: Sequence[float] | np.ndarray,
+        observations: Observations,
+        view: CameraView,
+        gate: float = 3.0,
+        range_slack: float = 0.0,
+        bearing_slack: float = 0.0,
+    ) -> tuple[int, int]:
         """Negative information: (expected, seen), how many landmarks the pose (x, y, θ) puts inside the camera's
         `view` (`sensing.view.CameraView`), and how many of those a detection of their type lies within `gate`
         standard deviations of (σ as in `explained`). A right pose sees most of what it expects; a wrong pose
@@ -1019,14 +1101,26 @@ class LandmarkSensorModel:
         self.check(observations)
         if not isinstance(view, CameraView):
             raise ArgumentTypeError(f"view = {view!r} must be a sensing.view.CameraView, not {type(view).__name__}")
-        out = landmarks_in_view(self._landmarks, (float(pose[0]), float(pose[1]), float(pose[2])),
-                                detection_batch(observations), self.noise_group(),
-                                gate_group(gate, range_slack, bearing_slack), view_group(view),
-                                np.zeros(2, dtype=np.int64))
+        out = landmarks_in_view(
+            self._landmarks,
+            (float(pose[0]), float(pose[1]), float(pose[2])),
+            detection_batch(observations),
+            self.noise_group(),
+            gate_group(gate, range_slack, bearing_slack),
+            view_group(view),
+            np.zeros(2, dtype=np.int64),
+        )
         return int(out[0]), int(out[1])
 
-    def seen_reference(self, pose: Sequence[float] | np.ndarray, observations: Observations, view: CameraView,
-                       gate: float = 3.0, range_slack: float = 0.0, bearing_slack: float = 0.0) -> tuple[int, int]:
+    def seen_reference(
+        self,
+        pose: Sequence[float] | np.ndarray,
+        observations: Observations,
+        view: CameraView,
+        gate: float = 3.0,
+        range_slack: float = 0.0,
+        bearing_slack: float = 0.0,
+    ) -> tuple[int, int]:
         """Plain numpy twin of `seen`: the same parameters and result."""
         observations = Observations.coerce(observations)
         self.check(observations)
@@ -1035,8 +1129,11 @@ class LandmarkSensorModel:
         dy = self._table[:, 1] - y
         r = np.hypot(dx, dy)
         bearing = np.arctan2(dy, dx) - theta
-        inside = ((r >= view.min_range) & (r <= view.max_ranges[self._table_kinds])
-                  & (np.abs(wrap_angles(bearing - view.yaw)) <= view.half_fov))
+        inside = (
+            (r >= view.min_range)
+            & (r <= view.max_ranges[self._table_kinds])
+            & (np.abs(wrap_angles(bearing - view.yaw)) <= view.half_fov)
+        )
         range_sigmas, bearing_sigmas = self._sigmas(observations)
         range_sigmas = range_sigmas + range_slack
         bearing_sigmas = bearing_sigmas + bearing_slack
@@ -1045,7 +1142,7 @@ class LandmarkSensorModel:
             rows = observations.kinds == self._table_kinds[k]
             range_error = (observations.ranges[rows] - r[k]) / range_sigmas[rows]
             bearing_error = wrap_angles(observations.bearings[rows] - bearing[k]) / bearing_sigmas[rows]
-            seen += bool((range_error ** 2 + bearing_error ** 2 <= gate * gate).any())
+            seen += bool((range_error**2 + bearing_error**2 <= gate * gate).any())
         return int(inside.sum()), seen
 
     @property
@@ -1068,12 +1165,13 @@ class LandmarkSensorModel:
             Naming the first detection whose type the field lacks.
         """
         kinds = observations.kinds
-        if kinds.shape[0] == 0:                  # (a frame without detections: no compiled call)
+        if kinds.shape[0] == 0:  # (a frame without detections: no compiled call)
             return
         i = first_missing(self._offsets, kinds)
         if i >= 0:
-            raise ValueError(f"observation {i}: field {self.field.name!r} has no landmark of type "
-                             f"{LandmarkType(int(kinds[i])).name}")
+            raise ValueError(
+                f"observation {i}: field {self.field.name!r} has no landmark of type {LandmarkType(int(kinds[i])).name}"
+            )
 
     def terms(self, observations: Observations) -> int:
         """How many independent terms the likelihood sums: one per landmark detection.
@@ -1123,26 +1221,31 @@ class LandmarkSensorModel:
         log_outlier_mass = math.log(self.outlier_weight * TWO_PI * diagonal)
         growth = self._range_noise_growth()
         total = 0.0
-        for r, given_r, given_b in zip(observations.ranges.tolist(), observations.range_sigmas.tolist(),
-                                       observations.bearing_sigmas.tolist()):
+        for r, given_r, given_b in zip(
+            observations.ranges.tolist(), observations.range_sigmas.tolist(), observations.bearing_sigmas.tolist()
+        ):
             range_sigma = given_r if given_r == given_r else range_noise_sigma(r, self.range_noise_floor, growth)
             bearing_sigma = given_b if given_b == given_b else self.bearing_sigma
-            log_c = (_LOG_SQRT_TWO_PI_INV - math.log(range_sigma)
-                     + _log_bearing_constant(self.bearing_model, bearing_sigma))
-            x = log_c + log_outlier_mass          # log(c·outlier_weight·A); log(1 + e^x) without overflow
+            log_c = (
+                _LOG_SQRT_TWO_PI_INV - math.log(range_sigma) + _log_bearing_constant(self.bearing_model, bearing_sigma)
+            )
+            x = log_c + log_outlier_mass  # log(c·outlier_weight·A); log(1 + e^x) without overflow
             total += log_c - (x + math.log1p(math.exp(-x)) if x > 0 else math.log1p(math.exp(x)))
         return total
 
     def _sigmas(self, observations: Observations) -> tuple[np.ndarray, np.ndarray]:
-        range_sigmas = np.where(np.isnan(observations.range_sigmas), self.range_sigma(observations.ranges),
-                                observations.range_sigmas)
-        bearing_sigmas = np.where(np.isnan(observations.bearing_sigmas), self.bearing_sigma,
-                                  observations.bearing_sigmas)
+        range_sigmas = np.where(
+            np.isnan(observations.range_sigmas), self.range_sigma(observations.ranges), observations.range_sigmas
+        )
+        bearing_sigmas = np.where(
+            np.isnan(observations.bearing_sigmas), self.bearing_sigma, observations.bearing_sigmas
+        )
         return range_sigmas, bearing_sigmas
 
     # -- likelihood ---------------------------------------------------------------------------------------
-    def log_likelihood(self, poses: np.ndarray, observations: Observations,
-                       out: np.ndarray | None = None) -> np.ndarray:
+    def log_likelihood(
+        self, poses: np.ndarray, observations: Observations, out: np.ndarray | None = None
+    ) -> np.ndarray:
         """Log-likelihood of `observations` for each pose in `poses` (N, 3); shape (N,).
 
         Parameters
@@ -1171,22 +1274,45 @@ class LandmarkSensorModel:
         if self.mixture == "max":
             # The type check runs inside the kernel, before anything is written; check() then names the culprit.
             kernel = _von_mises_log_likelihood if self.bearing_model == "von_mises" else _exact_log_likelihood
-            if kernel(poses, self._landmarks, detection_batch(observations), self.noise_group(),
-                      math.log(self.outlier_weight), out) >= 0:
+            if (
+                kernel(
+                    poses,
+                    self._landmarks,
+                    detection_batch(observations),
+                    self.noise_group(),
+                    math.log(self.outlier_weight),
+                    out,
+                )
+                >= 0
+            ):
                 self.check(observations)
         else:
             self.check(observations)
             if len(observations) == 0:
                 out[:] = 0.0
                 return out
-            landmark_log_likelihood(poses, self._landmarks, detection_batch(observations), self.noise_group(),
-                                    self.bearing_model == "exact", self.mixture == "sum",
-                                    math.log(self.outlier_weight), out)
+            landmark_log_likelihood(
+                poses,
+                self._landmarks,
+                detection_batch(observations),
+                self.noise_group(),
+                self.bearing_model == "exact",
+                self.mixture == "sum",
+                math.log(self.outlier_weight),
+                out,
+            )
         if observations.view is not None and self.scores_view(observations):
             view = observations.view.inset(self.view_inset)
-            add_missed_in_view(poses, self._landmarks, detection_batch(observations), self.noise_group(),
-                               gate_group(VIEW_GATE, VIEW_RANGE_SLACK, VIEW_BEARING_SLACK), view_group(view),
-                               math.log1p(-self.detection_rate), out)
+            add_missed_in_view(
+                poses,
+                self._landmarks,
+                detection_batch(observations),
+                self.noise_group(),
+                gate_group(VIEW_GATE, VIEW_RANGE_SLACK, VIEW_BEARING_SLACK),
+                view_group(view),
+                math.log1p(-self.detection_rate),
+                out,
+            )
         return out
 
     def scores_view(self, observations: Observations) -> bool:
@@ -1208,8 +1334,15 @@ class LandmarkSensorModel:
         if observations.view is None or not self.scores_view(observations):
             return np.zeros(poses.shape[0])
         view = observations.view.inset(self.view_inset)
-        missed = np.array([np.subtract(*self.seen_reference(pose, observations, view, VIEW_GATE, VIEW_RANGE_SLACK,
-                                                            VIEW_BEARING_SLACK)) for pose in poses], dtype=np.float64)
+        missed = np.array(
+            [
+                np.subtract(
+                    *self.seen_reference(pose, observations, view, VIEW_GATE, VIEW_RANGE_SLACK, VIEW_BEARING_SLACK)
+                )
+                for pose in poses
+            ],
+            dtype=np.float64,
+        )
         return missed * math.log1p(-self.detection_rate)
 
     def fused_likelihood(self) -> FusedLikelihoodKernels | None:
@@ -1221,8 +1354,15 @@ class LandmarkSensorModel:
         (`range_noise_sigma`). A frame with a camera view is scored through `log_likelihood` (`scores_view`)."""
         if self.mixture != "max":
             return None
-        params = (self._table, self._offsets, float(self.range_noise_floor), self._range_noise_growth(),
-                  float(self.bearing_sigma), math.log(self.outlier_weight), self.bearing_model == "exact")
+        params = (
+            self._table,
+            self._offsets,
+            float(self.range_noise_floor),
+            self._range_noise_growth(),
+            float(self.bearing_sigma),
+            math.log(self.outlier_weight),
+            self.bearing_model == "exact",
+        )
         return FusedLikelihoodKernels(fused_prepare, fused_workspace, fused_score, params, detection_batch)
 
     def log_likelihood_reference(self, poses: np.ndarray, observations: Observations) -> np.ndarray:
@@ -1232,13 +1372,27 @@ class LandmarkSensorModel:
         range_sigmas, bearing_sigmas = self._sigmas(observations)
         by_kind = {t.value: self.candidates(t) for t in LandmarkType}
         return reference.landmark_log_likelihood(
-            poses, by_kind, observations.kinds, observations.ranges, observations.bearings, range_sigmas,
-            bearing_sigmas, self.bearing_model == "exact", self.outlier_weight, self.mixture == "sum") \
-            + self.missed_in_view_reference(poses, observations)
+            poses,
+            by_kind,
+            observations.kinds,
+            observations.ranges,
+            observations.bearings,
+            range_sigmas,
+            bearing_sigmas,
+            self.bearing_model == "exact",
+            self.outlier_weight,
+            self.mixture == "sum",
+        ) + self.missed_in_view_reference(poses, observations)
 
     # -- sensor resetting ---------------------------------------------------------------------------------
-    def sample_poses(self, observations: Observations, n: int, rng: np.random.Generator,
-                     heading: float | None = None, heading_sigma: float = 0.3) -> np.ndarray:
+    def sample_poses(
+        self,
+        observations: Observations,
+        n: int,
+        rng: np.random.Generator,
+        heading: float | None = None,
+        heading_sigma: float = 0.3,
+    ) -> np.ndarray:
         """Draw `n` poses that explain one detection each (sensor resetting, Lenser & Veloso 2000).
 
         Each pose: a random detection, a random landmark of its type, a heading (normal around `heading`, or
@@ -1282,22 +1436,33 @@ class LandmarkSensorModel:
         # The landmarks' n uniforms, then the headings' n when uniform (rng.uniform(-π, π, n) is -π + 2π·u on
         # these): one stream, so rng.random(n) twice is rng.random(2n).
         uniforms = np.empty(2 * n if uniform_heading else n)
-        function, state, integers = draw_handles(rng)      # (m <= INTEGERS_LIMIT: far more than fit in memory)
+        function, state, integers = draw_handles(rng)  # (m <= INTEGERS_LIMIT: far more than fit in memory)
         reset_choices(integers, function, state, m, detection, uniforms)
         landmark = uniforms[:n]
         if uniform_heading:
             angles = uniforms[n:]
-            normals = rng.standard_normal(2 * n)       # = the ranges' n, then the bearings' n
+            normals = rng.standard_normal(2 * n)  # = the ranges' n, then the bearings' n
             heading_mean, heading_sigma = 0.0, 0.0
         else:
             angles = _NO_ANGLES
-            normals = rng.standard_normal(3 * n)       # = the headings' n, the ranges' n, the bearings' n
-        return sensor_reset_poses(self._landmarks, detection_batch(observations), self.noise_group(),
-                                  (detection, landmark, angles, normals), (float(heading_mean), float(heading_sigma)),
-                                  np.empty((n, 3)))
+            normals = rng.standard_normal(3 * n)  # = the headings' n, the ranges' n, the bearings' n
+        return sensor_reset_poses(
+            self._landmarks,
+            detection_batch(observations),
+            self.noise_group(),
+            (detection, landmark, angles, normals),
+            (float(heading_mean), float(heading_sigma)),
+            np.empty((n, 3)),
+        )
 
-    def sample_poses_reference(self, observations: Observations, n: int, rng: np.random.Generator,
-                               heading: float | None = None, heading_sigma: float = 0.3) -> np.ndarray:
+    def sample_poses_reference(
+        self,
+        observations: Observations,
+        n: int,
+        rng: np.random.Generator,
+        heading: float | None = None,
+        heading_sigma: float = 0.3,
+    ) -> np.ndarray:
         """Plain numpy twin of `sample_poses` (the same parameters and result): the same draws give the same
         poses."""
         observations = Observations.coerce(observations)

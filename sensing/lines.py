@@ -12,6 +12,7 @@ on a line are not independent, so at most `max_points` (spread evenly over the d
 factor exp(-½(d/σ)²) + outlier_weight of every cell is computed once with the map (the likelihood field
 proper, as B-Human keeps it), so scoring a point is a lookup and a multiplication.
 """
+
 from __future__ import annotations
 
 import math
@@ -30,9 +31,7 @@ from . import reference
 from .observations import Observations
 
 # The numpy twins moved to the package's `reference` module; their old names still work, with a warning.
-__getattr__ = moved_names(__name__, {
-    "line_log_likelihood_reference": "sensing.reference.line_log_likelihood"
-})
+__getattr__ = moved_names(__name__, {"line_log_likelihood_reference": "sensing.reference.line_log_likelihood"})
 
 
 @numba.njit(cache=True)
@@ -123,27 +122,31 @@ class LineSensorModel:
         real("outlier_weight", self.outlier_weight, 0.0, 1.0, low_open=True)
         integer("max_points", self.max_points, 1, 10**6)
         border = self.field.dims.border_strip_width
-        cells = (math.ceil(2 * (self.field.half_length + border) / self.resolution)
-                 * math.ceil(2 * (self.field.half_width + border) / self.resolution))
+        cells = math.ceil(2 * (self.field.half_length + border) / self.resolution) * math.ceil(
+            2 * (self.field.half_width + border) / self.resolution
+        )
         if cells > MAX_CELLS:
-            raise ValueError(f"resolution = {self.resolution!r} makes {cells} cells on field {self.field.name!r}; "
-                             f"at most {MAX_CELLS} are accepted (a coarser resolution)")
+            raise ValueError(
+                f"resolution = {self.resolution!r} makes {cells} cells on field {self.field.name!r}; "
+                f"at most {MAX_CELLS} are accepted (a coarser resolution)"
+            )
         border = self.field.dims.border_strip_width
         x0, y0 = -self.field.half_length - border, -self.field.half_width - border
         nx = int(math.ceil(2 * (self.field.half_length + border) / self.resolution))
         ny = int(math.ceil(2 * (self.field.half_width + border) / self.resolution))
-        on_line = np.ones((ny, nx), dtype=bool)   # True = not a line cell (the transform measures to False)
+        on_line = np.ones((ny, nx), dtype=bool)  # True = not a line cell (the transform measures to False)
         points = self.field.line_points(spacing=self.resolution / 2)
         cols = np.clip(((points[:, 0] - x0) / self.resolution).astype(np.int64), 0, nx - 1)
         rows = np.clip(((points[:, 1] - y0) / self.resolution).astype(np.int64), 0, ny - 1)
         on_line[rows, cols] = False
         from scipy import ndimage  # here, not at module level: `import sensing` stays light
+
         distance = ndimage.distance_transform_edt(on_line) * self.resolution
         distance = np.ascontiguousarray(distance, dtype=np.float64)
         distance.flags.writeable = False
         object.__setattr__(self, "_distance", distance)
         log_outlier = math.log(self.outlier_weight)
-        factors = line_factors(distance, 1.0 / self.sigma ** 2, log_outlier)
+        factors = line_factors(distance, 1.0 / self.sigma**2, log_outlier)
         factors.flags.writeable = False
         object.__setattr__(self, "_factors", factors)
         object.__setattr__(self, "_outlier", math.exp(log_outlier))
@@ -193,8 +196,9 @@ class LineSensorModel:
         """
         return int(self.used_points(observations).shape[0])
 
-    def log_likelihood(self, poses: np.ndarray, observations: Observations,
-                       out: np.ndarray | None = None) -> np.ndarray:
+    def log_likelihood(
+        self, poses: np.ndarray, observations: Observations, out: np.ndarray | None = None
+    ) -> np.ndarray:
         """(N,) log-likelihoods of the frame's line points at `poses`: Σ log(exp(-½ d²/σ²) + outlier_weight),
         d the distance of a point to the nearest line (looked up in the likelihood field, nearest cell).
 
@@ -224,5 +228,6 @@ class LineSensorModel:
         points = self.used_points(Observations.coerce(observations))
         if points.shape[0] == 0:
             return np.zeros(poses.shape[0])
-        return reference.line_log_likelihood(poses, points, self._distance, *self._origin, self.resolution,
-                                             self.sigma, self.outlier_weight)
+        return reference.line_log_likelihood(
+            poses, points, self._distance, *self._origin, self.resolution, self.sigma, self.outlier_weight
+        )

@@ -22,6 +22,7 @@ A value of the wrong type raises TypeError (`field.checks.ArgumentTypeError`, al
 ValueError, each naming the argument. A noise left as NaN ("not given") is filled in by the sensor model from
 its noise model.
 """
+
 from __future__ import annotations
 
 import math
@@ -39,9 +40,7 @@ from field.moved import moved_names
 from .view import CameraView
 
 # The numpy twins moved to the package's `reference` module; their old names still work, with a warning.
-__getattr__ = moved_names(__name__, {
-    "first_invalid_reference": "sensing.reference.first_invalid"
-})
+__getattr__ = moved_names(__name__, {"first_invalid_reference": "sensing.reference.first_invalid"})
 
 MAX_RANGE = LARGEST_COORDINATE
 """The largest range a detection may have (m); a farther one is refused with the frame."""
@@ -53,14 +52,19 @@ IS_KIND = np.zeros(max(kind.value for kind in LandmarkType) + 1, dtype=np.bool_)
 IS_KIND[[kind.value for kind in LandmarkType]] = True
 # The checks of a batch's detections, in the order they are made (`first_invalid`).
 BAD_KIND, RANGE_NOT_FINITE, BEARING_NOT_FINITE, NEGATIVE_RANGE, BAD_RANGE_SIGMA, BAD_BEARING_SIGMA = range(6)
-_RULES = ("", "must be finite", "must be finite", "", f"must be within [{SMALLEST_SIGMA:g}, {LARGEST_SIGMA:g}] "
-          "(or NaN for 'not given')", f"must be within [{SMALLEST_SIGMA:g}, {LARGEST_SIGMA:g}] (or NaN for 'not given')")
+_RULES = (
+    "",
+    "must be finite",
+    "must be finite",
+    "",
+    f"must be within [{SMALLEST_SIGMA:g}, {LARGEST_SIGMA:g}] (or NaN for 'not given')",
+    f"must be within [{SMALLEST_SIGMA:g}, {LARGEST_SIGMA:g}] (or NaN for 'not given')",
+)
 
 
 def _check_view(view) -> None:
     if view is not None and not isinstance(view, CameraView):
-        raise ArgumentTypeError(f"view = {view!r} must be a sensing.view.CameraView or None, "
-                                f"not {type(view).__name__}")
+        raise ArgumentTypeError(f"view = {view!r} must be a sensing.view.CameraView or None, not {type(view).__name__}")
 
 
 def landmark_type(kind: LandmarkType | int | str) -> LandmarkType:
@@ -167,15 +171,17 @@ def _check_kind_dtype(raw) -> None:
     except (TypeError, ValueError, OverflowError):
         return
     if values.size and values.dtype.kind in "fcb":
-        raise ArgumentTypeError(f"kinds has dtype {values.dtype}: it must hold integer landmark type values "
-                                f"(LandmarkType members or their values; Observations.from_arrays also takes names)")
+        raise ArgumentTypeError(
+            f"kinds has dtype {values.dtype}: it must hold integer landmark type values "
+            f"(LandmarkType members or their values; Observations.from_arrays also takes names)"
+        )
 
 
 _NO_VALUES = np.zeros(0)
 _LANDMARK_FIELDS = ("kinds", "ranges", "bearings", "range_sigmas", "bearing_sigmas")
 _NO_LINE_POINTS = np.zeros((0, 2))
-_NO_LINE_POINTS.flags.writeable = False       # shared by every batch without field-line points
-_EMPTY: dict[type, Observations] = {}        # `Observations.empty()` of each class
+_NO_LINE_POINTS.flags.writeable = False  # shared by every batch without field-line points
+_EMPTY: dict[type, Observations] = {}  # `Observations.empty()` of each class
 
 
 def _line_points(raw) -> np.ndarray:
@@ -185,7 +191,7 @@ def _line_points(raw) -> np.ndarray:
     if isinstance(raw, (str, bytes, dict)) or np.ndim(raw) == 0 and not isinstance(raw, np.ndarray):
         raise ArgumentTypeError(f"line_points = {raw!r} must be an array of (x, y) points, not {type(raw).__name__}")
     try:
-        points = np.array(raw, dtype=np.float64)                              # owning its data
+        points = np.array(raw, dtype=np.float64)  # owning its data
     except (TypeError, ValueError, OverflowError):
         raise ArgumentTypeError(f"line_points = {raw!r} must be an array of (x, y) points") from None
     if points.size == 0:
@@ -195,8 +201,9 @@ def _line_points(raw) -> np.ndarray:
     inside = np.isfinite(points).all(axis=1) & (np.abs(points) <= LARGEST_COORDINATE).all(axis=1)
     if not inside.all():
         i = int(np.argmin(inside))
-        raise ValueError(f"line_points[{i}] = {points[i].tolist()!r} must be finite and within "
-                         f"{LARGEST_COORDINATE:g} m")
+        raise ValueError(
+            f"line_points[{i}] = {points[i].tolist()!r} must be finite and within {LARGEST_COORDINATE:g} m"
+        )
     points.flags.writeable = False
     return points
 
@@ -242,7 +249,7 @@ class Observations:
     range_sigmas: np.ndarray
     bearing_sigmas: np.ndarray
     # None (no line points) is replaced by a read-only (0, 2) array in __post_init__: the attribute is never None
-    line_points: np.ndarray = None                                            # type: ignore[assignment]
+    line_points: np.ndarray = None  # type: ignore[assignment]
     view: CameraView | None = None
 
     def __post_init__(self) -> None:
@@ -257,7 +264,7 @@ class Observations:
             if name == "kinds":
                 _check_kind_dtype(raw)
             try:
-                arr = np.array(raw, dtype=dtype)                              # owning its data
+                arr = np.array(raw, dtype=dtype)  # owning its data
             except (TypeError, ValueError, OverflowError):
                 raise ArgumentTypeError(f"{name} = {raw!r} must be an array of numbers") from None
             if arr.ndim > 1:
@@ -288,8 +295,9 @@ class Observations:
         return batch
 
     def _check_landmarks(self) -> None:
-        check, i = first_invalid(self.kinds, self.ranges, self.bearings, self.range_sigmas, self.bearing_sigmas,
-                                 IS_KIND)
+        check, i = first_invalid(
+            self.kinds, self.ranges, self.bearings, self.range_sigmas, self.bearing_sigmas, IS_KIND
+        )
         if check == BAD_KIND:
             raise ValueError(f"kinds[{i}] = {int(self.kinds[i])} is not a landmark type")
         if check >= 0:
@@ -306,10 +314,15 @@ class Observations:
             raise ValueError(f"{name}[{i}] = {value!r} {rule}")
 
     @classmethod
-    def from_arrays(cls, kinds: Sequence | np.ndarray, ranges: Sequence[float] | np.ndarray,
-                    bearings: Sequence[float] | np.ndarray, range_sigmas: Sequence[float] | np.ndarray | None = None,
-                    bearing_sigmas: Sequence[float] | np.ndarray | None = None,
-                    line_points: Any = None) -> Observations:
+    def from_arrays(
+        cls,
+        kinds: Sequence | np.ndarray,
+        ranges: Sequence[float] | np.ndarray,
+        bearings: Sequence[float] | np.ndarray,
+        range_sigmas: Sequence[float] | np.ndarray | None = None,
+        bearing_sigmas: Sequence[float] | np.ndarray | None = None,
+        line_points: Any = None,
+    ) -> Observations:
         """A batch from equal-length sequences; kinds as LandmarkType members, their values, their names or
         aliases ("T", "post", ...; see the module docstring).
 
@@ -340,8 +353,14 @@ class Observations:
         n = kinds_arr.shape[0]
         nan = np.full(n, np.nan)
         # the constructor converts the sequences to arrays (and refuses the rest naming the argument)
-        arguments: tuple[Any, ...] = (kinds_arr, ranges, bearings, nan if range_sigmas is None else range_sigmas,
-                                      nan if bearing_sigmas is None else bearing_sigmas, line_points)
+        arguments: tuple[Any, ...] = (
+            kinds_arr,
+            ranges,
+            bearings,
+            nan if range_sigmas is None else range_sigmas,
+            nan if bearing_sigmas is None else bearing_sigmas,
+            line_points,
+        )
         return cls(*arguments)
 
     @classmethod
@@ -368,16 +387,23 @@ class Observations:
         try:
             items = list(observations)
         except TypeError:
-            raise ArgumentTypeError(f"observations = {observations!r} must be an Observations, a list of "
-                            f"LandmarkObservation or None, not {type(observations).__name__}") from None
+            raise ArgumentTypeError(
+                f"observations = {observations!r} must be an Observations, a list of "
+                f"LandmarkObservation or None, not {type(observations).__name__}"
+            ) from None
         for i, o in enumerate(items):
             if not isinstance(o, LandmarkObservation):
                 raise ArgumentTypeError(f"observations[{i}] = {o!r} is not a LandmarkObservation")
         # Two arrays built here, adopted as they are: a frame's few detections cost numpy calls, not elements.
-        rows = np.array([[o.range for o in items], [o.bearing for o in items],
-                         [math.nan if o.range_sigma is None else o.range_sigma for o in items],
-                         [math.nan if o.bearing_sigma is None else o.bearing_sigma for o in items]],
-                        dtype=np.float64)
+        rows = np.array(
+            [
+                [o.range for o in items],
+                [o.bearing for o in items],
+                [math.nan if o.range_sigma is None else o.range_sigma for o in items],
+                [math.nan if o.bearing_sigma is None else o.bearing_sigma for o in items],
+            ],
+            dtype=np.float64,
+        )
         return cls._adopt(np.array([o.kind.value for o in items], dtype=np.int64), rows, line_points)
 
     @classmethod

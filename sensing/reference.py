@@ -8,6 +8,7 @@ Each function computes what the kernel it names computes (`sensing.landmarks`, `
 rounding, bit for bit where its docstring says so. The models' `*_reference` methods and
 `sample_poses(..., reference=True)` score and draw through them.
 """
+
 from __future__ import annotations
 
 import math
@@ -21,14 +22,24 @@ from numerics.reference import sincos
 from .observations import MAX_BEARING, MAX_RANGE
 
 
-def landmark_log_likelihood(poses, candidates_by_kind, kinds, ranges, bearings, range_sigmas,
-                                      bearing_sigmas, exact, outlier_weight, sum_mixture=False):
+def landmark_log_likelihood(
+    poses,
+    candidates_by_kind,
+    kinds,
+    ranges,
+    bearings,
+    range_sigmas,
+    bearing_sigmas,
+    exact,
+    outlier_weight,
+    sum_mixture=False,
+):
     """Plain numpy version of `sensing.landmarks.landmark_log_likelihood`, one detection at a time (for tests
     and the benchmark)."""
     total = np.zeros(poses.shape[0])
     for kind, r, b, sr, sb in zip(kinds, ranges, bearings, range_sigmas, bearing_sigmas):
         cand = candidates_by_kind[int(kind)]
-        d = cand[None, :, :] - poses[:, None, :2]                       # (N, K, 2) in the field frame
+        d = cand[None, :, :] - poses[:, None, :2]  # (N, K, 2) in the field frame
         dist = np.hypot(d[..., 0], d[..., 1])
         expected = np.arctan2(d[..., 1], d[..., 0]) - poses[:, 2:3]
         error = wrap_angles(b - expected)
@@ -36,7 +47,7 @@ def landmark_log_likelihood(poses, candidates_by_kind, kinds, ranges, bearings, 
         if exact:
             score = score - 0.5 * (error / sb) ** 2
         else:
-            score = score + (np.cos(error) - 1.0) / sb ** 2
+            score = score + (np.cos(error) - 1.0) / sb**2
         best = score.max(axis=1)
         floor = math.log(outlier_weight)
         total += np.logaddexp(best, floor) if sum_mixture else np.maximum(best, floor)
@@ -61,8 +72,12 @@ def first_invalid(kinds, ranges, bearings, range_sigmas, bearing_sigmas, is_kind
     inside = (kinds >= 0) & (kinds < is_kind.shape[0])
     known = np.zeros(kinds.shape[0], dtype=bool)
     known[inside] = is_kind[kinds[inside]]
-    failing = [~known, ~np.isfinite(ranges), ~np.isfinite(bearings),
-               ~((ranges >= 0) & (ranges <= MAX_RANGE) & (np.abs(bearings) <= MAX_BEARING))]
+    failing = [
+        ~known,
+        ~np.isfinite(ranges),
+        ~np.isfinite(bearings),
+        ~((ranges >= 0) & (ranges <= MAX_RANGE) & (np.abs(bearings) <= MAX_BEARING)),
+    ]
     for sigmas in (range_sigmas, bearing_sigmas):
         failing.append(~np.isnan(sigmas) & ~((sigmas >= SMALLEST_SIGMA) & (sigmas <= LARGEST_SIGMA)))
     for check, bad in enumerate(failing):
@@ -95,6 +110,11 @@ def pair_poses(table, offsets, kinds, points, range_sigmas, gate, slack):
                         continue
                     theta = math.atan2(by - ay, bx - ax) - seen_angle
                     c, s = math.cos(theta), math.sin(theta)
-                    out.append((0.5 * (ax + bx) - (c * middle_seen_x - s * middle_seen_y),
-                                0.5 * (ay + by) - (s * middle_seen_x + c * middle_seen_y), wrap_angle(theta)))
+                    out.append(
+                        (
+                            0.5 * (ax + bx) - (c * middle_seen_x - s * middle_seen_y),
+                            0.5 * (ay + by) - (s * middle_seen_x + c * middle_seen_y),
+                            wrap_angle(theta),
+                        )
+                    )
     return np.array(out, dtype=np.float64).reshape(-1, 3)

@@ -19,6 +19,7 @@ the heading: `mcl.relocalization` scores these poses and decides which to inject
 kernel, `sensing.reference.pair_poses` its plain Python twin (the same poses in the same order, bit for bit); no random
 draws.
 """
+
 from __future__ import annotations
 
 import math
@@ -33,11 +34,9 @@ from . import reference as twins
 from .observations import Observations
 
 # The numpy twins moved to the package's `reference` module; their old names still work, with a warning.
-__getattr__ = moved_names(__name__, {
-    "pair_poses_reference": "sensing.reference.pair_poses"
-})
+__getattr__ = moved_names(__name__, {"pair_poses_reference": "sensing.reference.pair_poses"})
 
-MAX_DETECTIONS = 8      # detections used per frame (the closest ones): 28 pairs at most
+MAX_DETECTIONS = 8  # detections used per frame (the closest ones): 28 pairs at most
 
 
 def _nearest(model, observations: Observations, max_detections: int):
@@ -52,8 +51,14 @@ def _nearest(model, observations: Observations, max_detections: int):
     return np.ascontiguousarray(observations.kinds[order]), np.ascontiguousarray(points), range_sigmas
 
 
-def poses_from_pairs(model, observations: Observations, gate: float = 3.0, slack: float = 0.1,
-                     max_detections: int = MAX_DETECTIONS, reference: bool = False) -> np.ndarray:
+def poses_from_pairs(
+    model,
+    observations: Observations,
+    gate: float = 3.0,
+    slack: float = 0.1,
+    max_detections: int = MAX_DETECTIONS,
+    reference: bool = False,
+) -> np.ndarray:
     """Every pose (P, 3) that sees two of the frame's detections where they were seen, one per consistent
     association of the pair with landmarks of their types (see the module docstring). Needs a landmark
     model with `landmark_table` and `range_sigma(ranges)`; empty (0, 3) with fewer than two detections.
@@ -107,4 +112,3 @@ def pair_poses(table, offsets, kinds, points, range_sigmas, gate, slack):
                     out[n, 2] = wrap_angle(theta)
                     n += 1
     return out[:n].copy()
-

@@ -20,6 +20,7 @@ Conventions: the field frame (metres, radians; +x toward the opponent goal); a d
 (x forward, y left); times in seconds on the receiving robot's clock (`TeamMessage.clock_offset` converts the
 sender's clock to it).
 """
+
 from __future__ import annotations
 
 import math
@@ -66,9 +67,11 @@ def _covariance(name: str, value: Any, size: int) -> np.ndarray:
         raise ValueError(f"{name} must be symmetric, got {matrix.tolist()!r}")
     matrix = 0.5 * (matrix + matrix.T)
     diagonal = np.diag(matrix)
-    if (diagonal < SMALLEST_SIGMA ** 2).any() or (diagonal > LARGEST_SIGMA ** 2).any():
-        raise ValueError(f"{name}: each variance must be within [{SMALLEST_SIGMA ** 2:g}, {LARGEST_SIGMA ** 2:g}], "
-                         f"got {diagonal.tolist()!r}")
+    if (diagonal < SMALLEST_SIGMA**2).any() or (diagonal > LARGEST_SIGMA**2).any():
+        raise ValueError(
+            f"{name}: each variance must be within [{SMALLEST_SIGMA**2:g}, {LARGEST_SIGMA**2:g}], "
+            f"got {diagonal.tolist()!r}"
+        )
     try:
         np.linalg.cholesky(matrix)
     except np.linalg.LinAlgError:
@@ -152,8 +155,7 @@ class TeamMessage:
             raise ArgumentTypeError(f"is_goalkeeper = {self.is_goalkeeper!r} must be True or False")
         set_(self, "is_goalkeeper", bool(self.is_goalkeeper))
         set_(self, "ball", _optional_point("ball", self.ball, -LARGEST_COORDINATE, LARGEST_COORDINATE))
-        set_(self, "ball_velocity", _optional_point("ball_velocity", self.ball_velocity, -LARGEST_SPEED,
-                                                     LARGEST_SPEED))
+        set_(self, "ball_velocity", _optional_point("ball_velocity", self.ball_velocity, -LARGEST_SPEED, LARGEST_SPEED))
         set_(self, "ball_age", real("ball_age", self.ball_age, 0.0, LARGEST_AGE))
         if self.ball_covariance is not None:
             set_(self, "ball_covariance", _covariance("ball_covariance", self.ball_covariance, 2))
@@ -219,8 +221,9 @@ class BallDetection:
         return range_sigma, 0.05 if self.bearing_sigma is None else self.bearing_sigma
 
 
-def ball_on_field(pose: np.ndarray, pose_covariance: np.ndarray, detection: BallDetection) -> tuple[np.ndarray,
-                                                                                                       np.ndarray]:
+def ball_on_field(
+    pose: np.ndarray, pose_covariance: np.ndarray, detection: BallDetection
+) -> tuple[np.ndarray, np.ndarray]:
     """Where a detection puts the ball on the field through `pose` (x, y, θ), and the covariance of that point
     from the pose's covariance (3x3) and the detection's noise (first order).
 
@@ -238,13 +241,16 @@ def ball_on_field(pose: np.ndarray, pose_covariance: np.ndarray, detection: Ball
     # d point / d (x, y, θ) and d point / d (range, bearing)
     pose_jacobian = np.array([[1.0, 0.0, -r * s], [0.0, 1.0, r * c]])
     detection_jacobian = np.array([[c, -r * s], [s, r * c]])
-    covariance = (pose_jacobian @ np.asarray(pose_covariance, dtype=np.float64) @ pose_jacobian.T
-                  + detection_jacobian @ np.diag([range_sigma ** 2, bearing_sigma ** 2]) @ detection_jacobian.T)
+    covariance = (
+        pose_jacobian @ np.asarray(pose_covariance, dtype=np.float64) @ pose_jacobian.T
+        + detection_jacobian @ np.diag([range_sigma**2, bearing_sigma**2]) @ detection_jacobian.T
+    )
     return point, covariance
 
 
-def teammate_ball(message: TeamMessage, at_time: float, rolling_sigma: float = 1.0,
-                  horizon: float = 2.0) -> tuple[np.ndarray, np.ndarray] | None:
+def teammate_ball(
+    message: TeamMessage, at_time: float, rolling_sigma: float = 1.0, horizon: float = 2.0
+) -> tuple[np.ndarray, np.ndarray] | None:
     """Where `message` says the ball is at `at_time` (receiver's clock), and how uncertain that is; None when it
     reports no ball or its sighting is more than `horizon` seconds before (or after) `at_time`.
 
@@ -266,7 +272,7 @@ def teammate_ball(message: TeamMessage, at_time: float, rolling_sigma: float = 1
     else:
         position_sigma, heading_sigma = message.pose_sigmas()
         distance = math.hypot(point[0] - message.pose[0], point[1] - message.pose[1])
-        variance = position_sigma ** 2 + (heading_sigma * distance) ** 2 + (0.05 + 0.1 * distance) ** 2
+        variance = position_sigma**2 + (heading_sigma * distance) ** 2 + (0.05 + 0.1 * distance) ** 2
         covariance = _EYE2 * variance
     covariance = covariance + _EYE2 * (rolling_sigma * abs(elapsed)) ** 2
     return point, covariance
@@ -283,8 +289,14 @@ def _log_normal2(d: np.ndarray, covariance: np.ndarray) -> float:
     return -0.5 * mahalanobis2(d, covariance) - math.log(2.0 * math.pi) - 0.5 * math.log(det)
 
 
-def side_evidence(own_point: np.ndarray, own_covariance: np.ndarray, team_point: np.ndarray,
-                  team_covariance: np.ndarray, outlier_share: float, area: float) -> float:
+def side_evidence(
+    own_point: np.ndarray,
+    own_covariance: np.ndarray,
+    team_point: np.ndarray,
+    team_covariance: np.ndarray,
+    outlier_share: float,
+    area: float,
+) -> float:
     """log p(teammate's ball | the pose) − log p(teammate's ball | its mirror image): how much one report of
     the ball by a teammate favours the robot's pose over its mirror image.
 

@@ -24,6 +24,7 @@ All angles in the robot frame (x forward, y left), radians; ranges in metres. A 
 angle (the joint reading at capture time), its camera's field of view and roughly how far its vision detects
 landmarks; the view is optional everywhere it is taken.
 """
+
 from __future__ import annotations
 
 import math
@@ -51,8 +52,10 @@ def _range(name: str, value: Any) -> float:
 def _type_key(key: Any) -> LandmarkType:
     """A mapping key as a `LandmarkType` (as `sensing.observations.landmark_type` parses it)."""
     if isinstance(key, (bool, np.bool_)) or not isinstance(key, (int, np.integer, str)):
-        raise ArgumentTypeError(f"max_range key {_show(key)} must be a landmark type (a LandmarkType, its value or "
-                                f"its name) or {OTHERS!r}, not {type(key).__name__}")
+        raise ArgumentTypeError(
+            f"max_range key {_show(key)} must be a landmark type (a LandmarkType, its value or "
+            f"its name) or {OTHERS!r}, not {type(key).__name__}"
+        )
     try:
         return LandmarkType.parse(int(key) if isinstance(key, np.integer) else key)
     except ValueError as error:
@@ -87,12 +90,16 @@ def parse_max_range(value: Any) -> float | tuple[float, ...]:
         return tuple(ranges.get(kind, default) for kind in sorted(LandmarkType, key=lambda t: t.value))
     if isinstance(value, tuple):
         if len(value) != N_TYPES:
-            raise ValueError(f"max_range = {_show(value)} must hold {N_TYPES} ranges, one per landmark type "
-                             f"(or be a number, or a mapping {{landmark type: range}})")
+            raise ValueError(
+                f"max_range = {_show(value)} must hold {N_TYPES} ranges, one per landmark type "
+                f"(or be a number, or a mapping {{landmark type: range}})"
+            )
         return tuple(_range(f"max_range[{LandmarkType(k).name.lower()}]", metres) for k, metres in enumerate(value))
     if isinstance(value, (list, set, frozenset, str, bytes, np.ndarray)) or value is None:
-        raise ArgumentTypeError(f"max_range = {_show(value)} must be a number [m] or a mapping {{landmark type: "
-                                f"range}}, not {type(value).__name__}")
+        raise ArgumentTypeError(
+            f"max_range = {_show(value)} must be a number [m] or a mapping {{landmark type: "
+            f"range}}, not {type(value).__name__}"
+        )
     return _range("max_range", value)
 
 

@@ -17,6 +17,7 @@ tests/test_numba_cache.py (in the directory named by MCL_KERNEL_WARMUP), which c
 everything a second time when the warm-up started from an empty cache (a fresh clone, or sources changed since
 the last run). MCL_KERNEL_WARMUP=0 skips the warm-up (each worker then compiles what it needs).
 """
+
 import json
 import os
 import shutil
@@ -36,21 +37,24 @@ ROOT = Path(__file__).resolve().parent.parent
 WARMUP_VARIABLE = "MCL_KERNEL_WARMUP"
 WARMUP_PARTS = ("filter", "models")
 
-settings.register_profile("ci", max_examples=60, deadline=None, derandomize=True,
-                          suppress_health_check=[HealthCheck.too_slow])
-settings.register_profile("thorough", max_examples=1000, deadline=None,
-                          suppress_health_check=[HealthCheck.too_slow])
+settings.register_profile(
+    "ci", max_examples=60, deadline=None, derandomize=True, suppress_health_check=[HealthCheck.too_slow]
+)
+settings.register_profile("thorough", max_examples=1000, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "ci"))
 
 serialize_cache_access()
-if "PYTEST_XDIST_WORKER" not in os.environ:          # a worker: the controller has guarded the caches
+if "PYTEST_XDIST_WORKER" not in os.environ:  # a worker: the controller has guarded the caches
     guard_source_checkout()
 
 
 def _controller_of_workers(config) -> bool:
     """Whether this process is the controller of parallel workers (pytest-xdist's -n with at least one)."""
-    return not hasattr(config, "workerinput") and getattr(config.option, "dist", "no") != "no" \
+    return (
+        not hasattr(config, "workerinput")
+        and getattr(config.option, "dist", "no") != "no"
         and bool(getattr(config.option, "numprocesses", 0))
+    )
 
 
 def pytest_configure(config):
@@ -63,23 +67,33 @@ def pytest_configure(config):
     # an empty cache (a fresh clone, or one whose sources changed): the exercise compiles every kernel from
     # nothing, which tests/test_numba_cache.py can then check instead of compiling everything once more
     empty = not os.environ.get("NUMBA_CACHE_DIR") and not any(
-        True for package in PACKAGES for _ in (ROOT / package).rglob("*.nbi"))
+        True for package in PACKAGES for _ in (ROOT / package).rglob("*.nbi")
+    )
     env = dict(os.environ, PYTHONPATH=os.pathsep.join(filter(None, [str(ROOT), os.environ.get("PYTHONPATH")])))
     env.pop(WARMUP_VARIABLE, None)
-    processes = {part: subprocess.Popen([sys.executable, str(ROOT / "tests" / "kernel_exercise.py"), part],
-                                        cwd=ROOT, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-                 for part in WARMUP_PARTS}
+    processes = {
+        part: subprocess.Popen(
+            [sys.executable, str(ROOT / "tests" / "kernel_exercise.py"), part],
+            cwd=ROOT,
+            env=env,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+        )
+        for part in WARMUP_PARTS
+    }
     for part, process in processes.items():
         try:
             stdout, stderr = process.communicate(timeout=900)
         except subprocess.TimeoutExpired:
             process.kill()
             stdout, stderr = process.communicate()
-        (folder / f"{part}.json").write_text(json.dumps({"returncode": process.returncode, "stdout": stdout,
-                                                         "stderr": stderr[-20_000:]}))
+        (folder / f"{part}.json").write_text(
+            json.dumps({"returncode": process.returncode, "stdout": stdout, "stderr": stderr[-20_000:]})
+        )
     seconds = time.time() - started
     (folder / "session.json").write_text(json.dumps({"started": started, "seconds": seconds, "empty": empty}))
-    os.environ[WARMUP_VARIABLE] = str(folder)        # inherited by the workers, started after this hook
+    os.environ[WARMUP_VARIABLE] = str(folder)  # inherited by the workers, started after this hook
     config._mcl_kernel_warmup = (folder, seconds)
 
 
@@ -93,6 +107,7 @@ def pytest_unconfigure(config):
 @pytest.fixture(scope="session")
 def spl_field():
     from field import spl
+
     return spl()
 
 
@@ -120,8 +135,10 @@ def pytest_terminal_summary(terminalreporter, config):
     ran in this process (its table, as the runner printed it)."""
     warmup = getattr(config, "_mcl_kernel_warmup", None)
     if warmup is not None:
-        terminalreporter.write_line(f"kernels compiled (or loaded) for the workers in {warmup[1]:.0f} s before "
-                                    f"they started ({', '.join(WARMUP_PARTS)} side by side)")
+        terminalreporter.write_line(
+            f"kernels compiled (or loaded) for the workers in {warmup[1]:.0f} s before "
+            f"they started ({', '.join(WARMUP_PARTS)} side by side)"
+        )
     report = getattr(sys.modules.get("test_fuzz"), "REPORT", None) or getattr(config, "_mcl_fuzz_report", None)
     if report:
         terminalreporter.write_sep("-", "fuzz suite (CI profile)")

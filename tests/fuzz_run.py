@@ -11,6 +11,7 @@ Each target runs in a child process of its own, which writes each case down befo
 dies (a crash in compiled code), the runner reports the case it was running and goes on with the next target.
 Exit status 0 when every target passed.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -26,7 +27,7 @@ from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parent
-PROFILES = {"ci": 2400, "full": 12000}       # examples over all targets
+PROFILES = {"ci": 2400, "full": 12000}  # examples over all targets
 
 
 def _child(target: str, examples: int, derandomize: bool, seed: int | None, out: str) -> int:
@@ -35,26 +36,39 @@ def _child(target: str, examples: int, derandomize: bool, seed: int | None, out:
     from hypothesis import seed as hypothesis_seed
 
     from mcl.numba_cache import guard_source_checkout, serialize_cache_access
-    guard_source_checkout()                       # no stale compiled kernel (as tests/conftest.py)
-    serialize_cache_access()                      # the test session's workers may share the cache
+
+    guard_source_checkout()  # no stale compiled kernel (as tests/conftest.py)
+    serialize_cache_access()  # the test session's workers may share the cache
     import fuzz_targets
     from fuzzing import COUNTS
 
     test = {**fuzz_targets.TARGETS, **fuzz_targets.HIDDEN}[target]
-    test = settings(max_examples=examples, deadline=None, derandomize=derandomize, database=None,
-                    suppress_health_check=list(HealthCheck), print_blob=True,
-                    phases=[Phase.explicit, Phase.generate, Phase.shrink])(test)
+    test = settings(
+        max_examples=examples,
+        deadline=None,
+        derandomize=derandomize,
+        database=None,
+        suppress_health_check=list(HealthCheck),
+        print_blob=True,
+        phases=[Phase.explicit, Phase.generate, Phase.shrink],
+    )(test)
     if seed is not None and not derandomize:
         test = hypothesis_seed(seed)(test)
     start = time.perf_counter()
     failure = None
     try:
         test()
-    except Exception as error:                     # the falsifying example is in the message (hypothesis)
+    except Exception as error:  # the falsifying example is in the message (hypothesis)
         failure = "".join(traceback.format_exception(error))[-8000:]
-    result = {"target": target, "cases": COUNTS[(target, "cases")], "accepted": COUNTS[(target, "accepted")],
-              "refused": COUNTS[(target, "refused")], "seconds": round(time.perf_counter() - start, 1),
-              "failure": failure, "crash": None}
+    result = {
+        "target": target,
+        "cases": COUNTS[(target, "cases")],
+        "accepted": COUNTS[(target, "accepted")],
+        "refused": COUNTS[(target, "refused")],
+        "seconds": round(time.perf_counter() - start, 1),
+        "failure": failure,
+        "crash": None,
+    }
     Path(out).write_text(json.dumps(result))
     return 0
 
@@ -76,9 +90,15 @@ def run_target(target: str, examples: int, derandomize: bool, seed: int | None) 
         last = Path(case).read_text() if os.path.exists(case) else "(none recorded)"
         code = process.returncode
         how = f"killed by {signal.Signals(-code).name}" if code < 0 else f"exit status {code}"
-        return {"target": target, "cases": None, "accepted": None, "refused": None,
-                "seconds": round(time.perf_counter() - start, 1), "failure": None,
-                "crash": f"the process died ({how}) on the case {last}\n{process.stderr[-3000:]}"}
+        return {
+            "target": target,
+            "cases": None,
+            "accepted": None,
+            "refused": None,
+            "seconds": round(time.perf_counter() - start, 1),
+            "failure": None,
+            "crash": f"the process died ({how}) on the case {last}\n{process.stderr[-3000:]}",
+        }
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -98,6 +118,7 @@ def main(argv: list[str] | None = None) -> int:
 
     sys.path.insert(0, str(HERE))
     from fuzz_targets import TARGETS, WEIGHTS
+
     targets = list(TARGETS) if not args.targets else args.targets.split(",")
     unknown = [t for t in targets if t not in TARGETS]
     if unknown:
@@ -118,18 +139,24 @@ def main(argv: list[str] | None = None) -> int:
         if not args.json:
             verdict = "ok" if not (result["failure"] or result["crash"]) else "CRASH" if result["crash"] else "FAIL"
             cells = [result[k] if result[k] is not None else "-" for k in ("cases", "accepted", "refused")]
-            print(f"{target:<22}{cells[0]:>8}{cells[1]:>10}{cells[2]:>10}{result['seconds']:>9}  {verdict}",
-                  flush=True)
+            print(f"{target:<22}{cells[0]:>8}{cells[1]:>10}{cells[2]:>10}{result['seconds']:>9}  {verdict}", flush=True)
     cases = sum(r["cases"] or 0 for r in results)
-    summary = {"profile": args.profile, "seed": seed, "cases": cases,
-               "crashes": sum(1 for r in results if r["crash"]),
-               "failures": sum(1 for r in results if r["failure"]),
-               "seconds": round(time.perf_counter() - start, 1), "targets": results}
+    summary = {
+        "profile": args.profile,
+        "seed": seed,
+        "cases": cases,
+        "crashes": sum(1 for r in results if r["crash"]),
+        "failures": sum(1 for r in results if r["failure"]),
+        "seconds": round(time.perf_counter() - start, 1),
+        "targets": results,
+    }
     if args.json:
         print(json.dumps(summary, indent=2))
     else:
-        print(f"{'total':<22}{cases:>8}{'':>29}  {summary['seconds']} s; "
-              f"{summary['crashes']} crashes, {summary['failures']} failures")
+        print(
+            f"{'total':<22}{cases:>8}{'':>29}  {summary['seconds']} s; "
+            f"{summary['crashes']} crashes, {summary['failures']} failures"
+        )
         for r in results:
             for key in ("crash", "failure"):
                 if r[key]:

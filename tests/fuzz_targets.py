@@ -4,6 +4,7 @@ with generated (mostly hostile) arguments through `fuzzing.attempt`.
 A target is a hypothesis test; `TARGETS` names them for `tests/fuzz_run.py`, which runs each in a child process
 with the profile it is given ("ci" or "full") and counts the cases.
 """
+
 from __future__ import annotations
 
 import math
@@ -25,14 +26,22 @@ from sensing.team import BallDetection, TeamMessage
 from sensing.view import CameraView
 
 FIELDS = {name: preset(name) for name in ("spl", "kidsize", "adultsize")}
-KIND_NAMES = [kind.name for kind in LandmarkType] + ["L", "T", "X", "goalpost", "penalty_mark", "center_mark",
-                                                       "post", "centre"]
+KIND_NAMES = [kind.name for kind in LandmarkType] + [
+    "L",
+    "T",
+    "X",
+    "goalpost",
+    "penalty_mark",
+    "center_mark",
+    "post",
+    "centre",
+]
 BAD_KINDS = ["nope", "", 99, -1, 1.5, None, True]
 _LINE_MODELS: dict = {}
 
 
 def _line_model(field_name: str) -> LineSensorModel:
-    if field_name not in _LINE_MODELS:                  # its likelihood field takes a while to build
+    if field_name not in _LINE_MODELS:  # its likelihood field takes a while to build
         _LINE_MODELS[field_name] = LineSensorModel(FIELDS[field_name])
     return _LINE_MODELS[field_name]
 
@@ -40,16 +49,28 @@ def _line_model(field_name: str) -> LineSensorModel:
 # -- arguments -------------------------------------------------------------------------------------------------
 def motion_args():
     """Keyword arguments of a MotionInput: often sane, often not."""
-    sane_step = st.fixed_dictionaries({"dt": st.sampled_from([0.0, 0.01, 0.033, 0.1]),
-                                       "command": st.tuples(sane(-0.5, 0.5), sane(-0.3, 0.3), sane(-1, 1))})
-    sane_odometry = st.fixed_dictionaries({"dt": st.sampled_from([0.01, 0.02]),
-                                           "odometry": st.tuples(sane(-0.05, 0.05), sane(-0.05, 0.05),
-                                                                 sane(-0.2, 0.2))})
-    hostile = st.fixed_dictionaries({"dt": number_or_junk()},
-                                    optional={"command": triples(5.0), "odometry": triples(5.0),
-                                              "collision": st.one_of(st.just(NO_COLLISION), junk(),
-                                                                     st.just(CollisionPercept(left=True, rate=0.5,
-                                                                                              recent_left=True)))})
+    sane_step = st.fixed_dictionaries(
+        {
+            "dt": st.sampled_from([0.0, 0.01, 0.033, 0.1]),
+            "command": st.tuples(sane(-0.5, 0.5), sane(-0.3, 0.3), sane(-1, 1)),
+        }
+    )
+    sane_odometry = st.fixed_dictionaries(
+        {
+            "dt": st.sampled_from([0.01, 0.02]),
+            "odometry": st.tuples(sane(-0.05, 0.05), sane(-0.05, 0.05), sane(-0.2, 0.2)),
+        }
+    )
+    hostile = st.fixed_dictionaries(
+        {"dt": number_or_junk()},
+        optional={
+            "command": triples(5.0),
+            "odometry": triples(5.0),
+            "collision": st.one_of(
+                st.just(NO_COLLISION), junk(), st.just(CollisionPercept(left=True, rate=0.5, recent_left=True))
+            ),
+        },
+    )
     return st.one_of(sane_step, sane_step, sane_odometry, hostile)
 
 
@@ -57,19 +78,28 @@ def detection_args():
     """One detection as (kind, range, bearing, range_sigma, bearing_sigma)."""
     kind = st.one_of(st.sampled_from(KIND_NAMES), st.sampled_from(KIND_NAMES), st.sampled_from(BAD_KINDS))
     sigma = st.one_of(st.none(), st.none(), sane(0.01, 0.5), numbers(), junk())
-    return st.one_of(st.tuples(kind, sane(0.1, 8.0), sane(-1.5, 1.5), st.none(), st.none()),
-                     st.tuples(kind, number_or_junk(), number_or_junk(), sigma, sigma))
+    return st.one_of(
+        st.tuples(kind, sane(0.1, 8.0), sane(-1.5, 1.5), st.none(), st.none()),
+        st.tuples(kind, number_or_junk(), number_or_junk(), sigma, sigma),
+    )
 
 
 def observation_args():
     """A frame's detections: a list of detections, as `from_list` or `from_arrays` takes them, or junk."""
     detections = st.lists(detection_args(), max_size=5)
-    line_points = st.one_of(st.none(), st.lists(st.tuples(sane(-4, 4), sane(-4, 4)), max_size=6),
-                            st.lists(st.tuples(numbers(), numbers()), max_size=3), junk(),
-                            st.just(np.zeros((2, 3))), st.just(np.ones((3,))))
-    return st.one_of(st.tuples(st.just("list"), detections, line_points),
-                     st.tuples(st.just("arrays"), detections, line_points),
-                     st.tuples(st.just("junk"), junk(), st.none()))
+    line_points = st.one_of(
+        st.none(),
+        st.lists(st.tuples(sane(-4, 4), sane(-4, 4)), max_size=6),
+        st.lists(st.tuples(numbers(), numbers()), max_size=3),
+        junk(),
+        st.just(np.zeros((2, 3))),
+        st.just(np.ones((3,))),
+    )
+    return st.one_of(
+        st.tuples(st.just("list"), detections, line_points),
+        st.tuples(st.just("arrays"), detections, line_points),
+        st.tuples(st.just("junk"), junk(), st.none()),
+    )
 
 
 def build_observations(args):
@@ -82,31 +112,40 @@ def build_observations(args):
         return Observations.from_list([LandmarkObservation(*d) for d in detections], line_points=line_points)
     columns = list(zip(*detections)) if detections else [[], [], [], [], []]
     kinds, ranges, bearings, range_sigmas, bearing_sigmas = columns
-    range_sigmas = None if all(v is None for v in range_sigmas) else [math.nan if v is None else v
-                                                                      for v in range_sigmas]
-    bearing_sigmas = None if all(v is None for v in bearing_sigmas) else [math.nan if v is None else v
-                                                                          for v in bearing_sigmas]
-    return Observations.from_arrays(list(kinds), list(ranges), list(bearings), range_sigmas, bearing_sigmas,
-                                    line_points)
+    range_sigmas = (
+        None if all(v is None for v in range_sigmas) else [math.nan if v is None else v for v in range_sigmas]
+    )
+    bearing_sigmas = (
+        None if all(v is None for v in bearing_sigmas) else [math.nan if v is None else v for v in bearing_sigmas]
+    )
+    return Observations.from_arrays(
+        list(kinds), list(ranges), list(bearings), range_sigmas, bearing_sigmas, line_points
+    )
 
 
 def filter_config():
-    return st.fixed_dictionaries({
-        "field": st.sampled_from(sorted(FIELDS)),
-        "motion": st.sampled_from(["velocity_linear", "velocity_linear_gaussian", "constant", "adaptive"]),
-        "sensor": st.sampled_from(["landmarks", "landmarks", "landmarks_sum", "lines", "combined"]),
-        "n": st.sampled_from([1, 2, 7, 64]),
-        "seed": st.integers(0, 3),
-        "fast": st.booleans(),
-        "augmented": st.booleans(),
-        "resampling": st.sampled_from(["systematic", "stratified", "residual", "multinomial"]),
-    })
+    return st.fixed_dictionaries(
+        {
+            "field": st.sampled_from(sorted(FIELDS)),
+            "motion": st.sampled_from(["velocity_linear", "velocity_linear_gaussian", "constant", "adaptive"]),
+            "sensor": st.sampled_from(["landmarks", "landmarks", "landmarks_sum", "lines", "combined"]),
+            "n": st.sampled_from([1, 2, 7, 64]),
+            "seed": st.integers(0, 3),
+            "fast": st.booleans(),
+            "augmented": st.booleans(),
+            "resampling": st.sampled_from(["systematic", "stratified", "residual", "multinomial"]),
+        }
+    )
 
 
 def make_filter(config) -> ParticleFilter:
     field = FIELDS[config["field"]]
-    motion = {"velocity_linear": VelocityLinear(), "velocity_linear_gaussian": VelocityLinear(gaussian=True),
-              "constant": ConstantNoise(), "adaptive": AdaptiveMotion()}[config["motion"]]
+    motion = {
+        "velocity_linear": VelocityLinear(),
+        "velocity_linear_gaussian": VelocityLinear(gaussian=True),
+        "constant": ConstantNoise(),
+        "adaptive": AdaptiveMotion(),
+    }[config["motion"]]
     sensor = config["sensor"]
     if sensor == "lines":
         sensor_model = _line_model(config["field"])
@@ -114,9 +153,16 @@ def make_filter(config) -> ParticleFilter:
         sensor_model = CombinedSensorModel((LandmarkSensorModel(field), _line_model(config["field"])))
     else:
         sensor_model = LandmarkSensorModel(field, mixture="sum" if sensor == "landmarks_sum" else "max")
-    return ParticleFilter(field, motion, sensor_model, n_particles=config["n"], seed=config["seed"],
-                          fast=config["fast"], resampling=config["resampling"],
-                          augmented=AugmentedMCL() if config["augmented"] else None)
+    return ParticleFilter(
+        field,
+        motion,
+        sensor_model,
+        n_particles=config["n"],
+        seed=config["seed"],
+        fast=config["fast"],
+        resampling=config["resampling"],
+        augmented=AugmentedMCL() if config["augmented"] else None,
+    )
 
 
 def motion_input(kwargs, adaptive: bool) -> MotionInput:
@@ -126,30 +172,41 @@ def motion_input(kwargs, adaptive: bool) -> MotionInput:
     return MotionInput(**kwargs)
 
 
-REGIONS = st.one_of(st.sampled_from(["field", "own_half", "opponent_half", "nowhere"]),
-                    st.tuples(sane(-5, 0), sane(0.1, 5), sane(-3, 0), sane(0.1, 3)),
-                    st.tuples(numbers(), numbers(), numbers(), numbers()), junk())
+REGIONS = st.one_of(
+    st.sampled_from(["field", "own_half", "opponent_half", "nowhere"]),
+    st.tuples(sane(-5, 0), sane(0.1, 5), sane(-3, 0), sane(0.1, 3)),
+    st.tuples(numbers(), numbers(), numbers(), numbers()),
+    junk(),
+)
 SIGMAS = st.one_of(st.tuples(sane(0, 0.5), sane(0, 0.5), sane(0, 0.5)), triples(1.0))
 POSES = st.one_of(st.tuples(sane(-4, 4), sane(-3, 3), sane(-3.2, 3.2)), triples(5.0))
 
 
 def filter_operations():
-    return st.lists(st.one_of(
-        st.tuples(st.just("predict"), motion_args()),
-        st.tuples(st.just("step"), motion_args(), observation_args()),
-        st.tuples(st.just("step"), motion_args(), observation_args()),
-        st.tuples(st.just("correct"), observation_args(), st.one_of(st.none(), triples(0.2))),
-        st.tuples(st.just("reset_uniform"), REGIONS, st.one_of(st.none(), number_or_junk()), number_or_junk()),
-        st.tuples(st.just("reset_around"), POSES, SIGMAS),
-        st.tuples(st.just("reset_candidates"), st.one_of(st.lists(POSES, max_size=3), junk()), SIGMAS, REGIONS),
-        st.tuples(st.just("diffuse"), SIGMAS),
-        st.tuples(st.just("reset_mirrored")),
-        st.tuples(st.just("set_particles"), st.sampled_from(["valid", "huge", "nan", "shape", "weights",
-                                                             "bad_weights"])),
-        st.tuples(st.just("setting"), st.sampled_from(["resampling", "resample_threshold", "roughening",
-                                                        "augmented"]), number_or_junk()),
-        st.tuples(st.just("estimate")),
-    ), min_size=1, max_size=8)
+    return st.lists(
+        st.one_of(
+            st.tuples(st.just("predict"), motion_args()),
+            st.tuples(st.just("step"), motion_args(), observation_args()),
+            st.tuples(st.just("step"), motion_args(), observation_args()),
+            st.tuples(st.just("correct"), observation_args(), st.one_of(st.none(), triples(0.2))),
+            st.tuples(st.just("reset_uniform"), REGIONS, st.one_of(st.none(), number_or_junk()), number_or_junk()),
+            st.tuples(st.just("reset_around"), POSES, SIGMAS),
+            st.tuples(st.just("reset_candidates"), st.one_of(st.lists(POSES, max_size=3), junk()), SIGMAS, REGIONS),
+            st.tuples(st.just("diffuse"), SIGMAS),
+            st.tuples(st.just("reset_mirrored")),
+            st.tuples(
+                st.just("set_particles"), st.sampled_from(["valid", "huge", "nan", "shape", "weights", "bad_weights"])
+            ),
+            st.tuples(
+                st.just("setting"),
+                st.sampled_from(["resampling", "resample_threshold", "roughening", "augmented"]),
+                number_or_junk(),
+            ),
+            st.tuples(st.just("estimate")),
+        ),
+        min_size=1,
+        max_size=8,
+    )
 
 
 def apply_filter_operation(pf: ParticleFilter, op, adaptive: bool) -> None:
@@ -158,8 +215,7 @@ def apply_filter_operation(pf: ParticleFilter, op, adaptive: bool) -> None:
     if name == "predict":
         attempt("filter", pf, lambda: pf.predict(motion_input(op[1], adaptive)), check_filter)
     elif name == "step":
-        attempt("filter", pf, lambda: pf.step(motion_input(op[1], adaptive), build_observations(op[2])),
-                check_filter)
+        attempt("filter", pf, lambda: pf.step(motion_input(op[1], adaptive), build_observations(op[2])), check_filter)
     elif name == "correct":
         attempt("filter", pf, lambda: pf.correct(build_observations(op[1]), since=op[2]), check_filter)
     elif name == "reset_uniform":
@@ -210,6 +266,7 @@ def fuzz_motion_input(kwargs):
     """MotionInput: an accepted input has a finite displacement within the documented bounds."""
     record_case("motion_input", kwargs)
     from motion_models.base import MAX_STEP_DISTANCE, MAX_STEP_TURN
+
     holder = []
     if attempt("motion_input", None, lambda: holder.append(MotionInput(**kwargs))):
         u = holder[0]
@@ -218,10 +275,18 @@ def fuzz_motion_input(kwargs):
             assert math.hypot(dx, dy) <= MAX_STEP_DISTANCE and abs(dtheta) <= MAX_STEP_TURN
 
 
-@given(detections=st.lists(detection_args(), max_size=4), how=st.sampled_from(["list", "arrays"]),
-       line_points=st.one_of(st.none(), st.lists(st.tuples(numbers(), numbers()), max_size=3), junk(),
-                             st.just(np.zeros((2, 3))), st.just(np.zeros((2, 2, 2)))),
-       shape=st.sampled_from([None, (2, 2), (1, 4), (4, 1)]))
+@given(
+    detections=st.lists(detection_args(), max_size=4),
+    how=st.sampled_from(["list", "arrays"]),
+    line_points=st.one_of(
+        st.none(),
+        st.lists(st.tuples(numbers(), numbers()), max_size=3),
+        junk(),
+        st.just(np.zeros((2, 3))),
+        st.just(np.zeros((2, 2, 2))),
+    ),
+    shape=st.sampled_from([None, (2, 2), (1, 4), (4, 1)]),
+)
 def fuzz_observations(detections, how, line_points, shape):
     """Observations and LandmarkObservation: accepted batches hold finite, in-bound, 1-D arrays."""
     record_case("observations", (detections, how, line_points, shape))
@@ -229,9 +294,13 @@ def fuzz_observations(detections, how, line_points, shape):
 
     def build():
         if shape is not None and how == "arrays" and len(detections) == 4:
-            holder.append(Observations.from_arrays([d[0] for d in detections],
-                                                   np.reshape([d[1] for d in detections], shape),
-                                                   [d[2] for d in detections]))
+            holder.append(
+                Observations.from_arrays(
+                    [d[0] for d in detections],
+                    np.reshape([d[1] for d in detections], shape),
+                    [d[2] for d in detections],
+                )
+            )
         else:
             holder.append(Observations.coerce(build_observations((how, detections, line_points))))
 
@@ -244,22 +313,40 @@ def fuzz_observations(detections, how, line_points, shape):
         assert np.isfinite(batch.line_points).all()
 
 
-@given(kwargs=st.fixed_dictionaries({}, optional={
-    "n_particles": st.one_of(st.sampled_from([0, -1, 10**13, 2**63, 1.5, True, 10**7 + 1]), junk()),
-    "seed": st.one_of(st.integers(-5, 10**30), junk()),
-    "resampling": st.one_of(st.sampled_from(["systematic", "bogus"]), junk()),
-    "resample_threshold": number_or_junk(),
-    "roughening": triples(1.0),
-    "threads": st.one_of(st.sampled_from([0, -1, 10**9, 1.0]), junk()),
-    "fast": st.one_of(st.booleans(), junk()),
-    "augmented": st.one_of(st.just(AugmentedMCL()), junk()),
-    "grid": st.one_of(st.just("grid"), junk()),
-    "relocalization": junk(),
-}), grid=st.fixed_dictionaries({}, optional={"position_cell": number_or_junk(), "orientation_bins":
-                                             number_or_junk(), "cluster_cell": number_or_junk()}),
-   augmented=st.fixed_dictionaries({}, optional={"alpha_slow": number_or_junk(), "alpha_fast": number_or_junk(),
-                                                 "max_fraction": number_or_junk(),
-                                                 "fit_threshold": number_or_junk()}))
+@given(
+    kwargs=st.fixed_dictionaries(
+        {},
+        optional={
+            "n_particles": st.one_of(st.sampled_from([0, -1, 10**13, 2**63, 1.5, True, 10**7 + 1]), junk()),
+            "seed": st.one_of(st.integers(-5, 10**30), junk()),
+            "resampling": st.one_of(st.sampled_from(["systematic", "bogus"]), junk()),
+            "resample_threshold": number_or_junk(),
+            "roughening": triples(1.0),
+            "threads": st.one_of(st.sampled_from([0, -1, 10**9, 1.0]), junk()),
+            "fast": st.one_of(st.booleans(), junk()),
+            "augmented": st.one_of(st.just(AugmentedMCL()), junk()),
+            "grid": st.one_of(st.just("grid"), junk()),
+            "relocalization": junk(),
+        },
+    ),
+    grid=st.fixed_dictionaries(
+        {},
+        optional={
+            "position_cell": number_or_junk(),
+            "orientation_bins": number_or_junk(),
+            "cluster_cell": number_or_junk(),
+        },
+    ),
+    augmented=st.fixed_dictionaries(
+        {},
+        optional={
+            "alpha_slow": number_or_junk(),
+            "alpha_fast": number_or_junk(),
+            "max_fraction": number_or_junk(),
+            "fit_threshold": number_or_junk(),
+        },
+    ),
+)
 def fuzz_filter_construction(kwargs, grid, augmented):
     """ParticleFilter, Grid and AugmentedMCL constructors: refused with ValueError/TypeError, or a filter
     that steps."""
@@ -278,24 +365,43 @@ def fuzz_filter_construction(kwargs, grid, augmented):
     if attempt("filter_construction", None, build):
         pf = holder[0]
         if pf.n <= 5000:
-            pf.step(MotionInput(dt=0.01, command=(0.2, 0.0, 0.1)),
-                    [LandmarkObservation("goalpost", 2.0, 0.3), LandmarkObservation("T", 1.0, -0.5)])
+            pf.step(
+                MotionInput(dt=0.01, command=(0.2, 0.0, 0.1)),
+                [LandmarkObservation("goalpost", 2.0, 0.3), LandmarkObservation("T", 1.0, -0.5)],
+            )
             check_filter(pf)
             check_estimate(pf)
 
 
-@given(kwargs=st.fixed_dictionaries({}, optional={
-    "range_noise_floor": number_or_junk(), "range_noise_growth": number_or_junk(),
-    "range_noise_linear": number_or_junk(), "bearing_sigma": number_or_junk(), "outlier_weight": number_or_junk(),
-    "mixture": st.one_of(st.sampled_from(["max", "sum", "x"]), junk()),
-    "bearing_model": st.one_of(st.sampled_from(["von_mises", "gaussian", "x"]), junk())}),
-    line_kwargs=st.fixed_dictionaries({}, optional={
-        "sigma": number_or_junk(), "resolution": st.one_of(st.sampled_from([1e-9, 0.0, -1.0, 1e-300]), junk()),
-        "max_points": number_or_junk(), "outlier_weight": number_or_junk()}),
-    motion_kwargs=st.fixed_dictionaries({}, optional={"beta1": number_or_junk(), "beta4": number_or_junk(),
-                                                      "gaussian": st.one_of(st.booleans(), junk())}),
+@given(
+    kwargs=st.fixed_dictionaries(
+        {},
+        optional={
+            "range_noise_floor": number_or_junk(),
+            "range_noise_growth": number_or_junk(),
+            "range_noise_linear": number_or_junk(),
+            "bearing_sigma": number_or_junk(),
+            "outlier_weight": number_or_junk(),
+            "mixture": st.one_of(st.sampled_from(["max", "sum", "x"]), junk()),
+            "bearing_model": st.one_of(st.sampled_from(["von_mises", "gaussian", "x"]), junk()),
+        },
+    ),
+    line_kwargs=st.fixed_dictionaries(
+        {},
+        optional={
+            "sigma": number_or_junk(),
+            "resolution": st.one_of(st.sampled_from([1e-9, 0.0, -1.0, 1e-300]), junk()),
+            "max_points": number_or_junk(),
+            "outlier_weight": number_or_junk(),
+        },
+    ),
+    motion_kwargs=st.fixed_dictionaries(
+        {},
+        optional={"beta1": number_or_junk(), "beta4": number_or_junk(), "gaussian": st.one_of(st.booleans(), junk())},
+    ),
     constant_kwargs=st.fixed_dictionaries({}, optional={"rate_x": number_or_junk(), "rate_theta": number_or_junk()}),
-    observations=observation_args())
+    observations=observation_args(),
+)
 def fuzz_models(kwargs, line_kwargs, motion_kwargs, constant_kwargs, observations):
     """The models' constructors: refused cleanly, or models a filter steps with."""
     record_case("models", (kwargs, line_kwargs, motion_kwargs, constant_kwargs, observations))
@@ -311,62 +417,96 @@ def fuzz_models(kwargs, line_kwargs, motion_kwargs, constant_kwargs, observation
     for sensor in sensors:
         for motion in motions:
             pf = ParticleFilter(field, motion, sensor, n_particles=32, seed=1)
-            attempt("models", pf, lambda: pf.step(MotionInput(dt=0.05, command=(0.3, 0.1, 0.5)),
-                                                  build_observations(observations)), check_filter)
+            attempt(
+                "models",
+                pf,
+                lambda: pf.step(MotionInput(dt=0.05, command=(0.3, 0.1, 0.5)), build_observations(observations)),
+                check_filter,
+            )
             check_estimate(pf)
 
 
 def localizer_operations():
-    return st.lists(st.one_of(
-        st.tuples(st.just("motion"), st.one_of(sane(0, 0.05), number_or_junk()), motion_args()),
-        st.tuples(st.just("motion"), sane(0, 0.05), motion_args()),
-        st.tuples(st.just("observe"), observation_args(), st.one_of(st.none(), sane(-0.2, 0.0), number_or_junk())),
-        st.tuples(st.just("observe"), observation_args(), st.none(), view_args()),
-        st.tuples(st.just("initial_placement"), st.one_of(sane(0.05, 1.0), number_or_junk())),
-        st.tuples(st.just("penalty_return")),
-        st.tuples(st.just("kickoff_placement"), st.one_of(st.none(), st.lists(POSES, max_size=3), junk()),
-                  st.one_of(st.booleans(), junk())),
-        st.tuples(st.just("manual_placement"), st.one_of(st.none(), st.lists(POSES, max_size=3), junk())),
-        st.tuples(st.just("anywhere_in_own_half")),
-        st.tuples(st.just("place"), POSES, st.one_of(st.none(), SIGMAS)),
-        st.tuples(st.just("fallen")),
-        st.tuples(st.just("got_up")),
-        st.tuples(st.just("quality")),
-        st.tuples(st.just("penalized")),
-        st.tuples(st.just("team_message"), team_message_args()),
-        st.tuples(st.just("observe_ball"), ball_args(), st.one_of(st.none(), sane(-0.2, 0.0), number_or_junk())),
-        st.tuples(st.just("hypotheses")),
-    ), min_size=1, max_size=10)
+    return st.lists(
+        st.one_of(
+            st.tuples(st.just("motion"), st.one_of(sane(0, 0.05), number_or_junk()), motion_args()),
+            st.tuples(st.just("motion"), sane(0, 0.05), motion_args()),
+            st.tuples(st.just("observe"), observation_args(), st.one_of(st.none(), sane(-0.2, 0.0), number_or_junk())),
+            st.tuples(st.just("observe"), observation_args(), st.none(), view_args()),
+            st.tuples(st.just("initial_placement"), st.one_of(sane(0.05, 1.0), number_or_junk())),
+            st.tuples(st.just("penalty_return")),
+            st.tuples(
+                st.just("kickoff_placement"),
+                st.one_of(st.none(), st.lists(POSES, max_size=3), junk()),
+                st.one_of(st.booleans(), junk()),
+            ),
+            st.tuples(st.just("manual_placement"), st.one_of(st.none(), st.lists(POSES, max_size=3), junk())),
+            st.tuples(st.just("anywhere_in_own_half")),
+            st.tuples(st.just("place"), POSES, st.one_of(st.none(), SIGMAS)),
+            st.tuples(st.just("fallen")),
+            st.tuples(st.just("got_up")),
+            st.tuples(st.just("quality")),
+            st.tuples(st.just("penalized")),
+            st.tuples(st.just("team_message"), team_message_args()),
+            st.tuples(st.just("observe_ball"), ball_args(), st.one_of(st.none(), sane(-0.2, 0.0), number_or_junk())),
+            st.tuples(st.just("hypotheses")),
+        ),
+        min_size=1,
+        max_size=10,
+    )
 
 
 def team_message_args():
     """A teammate's message as `TeamMessage` takes it: sane, with bad numbers (NaN, inf, huge), a covariance
     that is not positive definite, a time far away, an unknown sender; or junk."""
-    covariances = st.one_of(st.none(), st.just(np.diag([0.01, 0.01, 0.01])), st.just(np.ones((3, 3))),
-                            st.just(-np.eye(3)), st.just(np.full((3, 3), np.nan)), st.just(np.eye(2)), junk())
+    covariances = st.one_of(
+        st.none(),
+        st.just(np.diag([0.01, 0.01, 0.01])),
+        st.just(np.ones((3, 3))),
+        st.just(-np.eye(3)),
+        st.just(np.full((3, 3), np.nan)),
+        st.just(np.eye(2)),
+        junk(),
+    )
     return st.one_of(
-        st.fixed_dictionaries({"sender": st.one_of(st.integers(-1, 22), junk()),
-                               "time": st.one_of(sane(-2.0, 0.5), st.just(1e12), number_or_junk()),
-                               "pose": POSES},
-                              optional={"pose_covariance": covariances,
-                                        "confidence": st.one_of(sane(-0.5, 1.5), number_or_junk()),
-                                        "is_goalkeeper": st.one_of(st.booleans(), junk()),
-                                        "ball": st.one_of(st.none(), st.tuples(sane(-5, 5), sane(-4, 4)),
-                                                          st.tuples(number_or_junk(), number_or_junk())),
-                                        "ball_velocity": st.one_of(st.none(), st.tuples(sane(-3, 3), sane(-3, 3)),
-                                                                   st.tuples(number_or_junk(), number_or_junk())),
-                                        "ball_age": st.one_of(sane(0, 3), number_or_junk()),
-                                        "clock_offset": st.one_of(sane(-1, 1), number_or_junk())}),
-        junk())
+        st.fixed_dictionaries(
+            {
+                "sender": st.one_of(st.integers(-1, 22), junk()),
+                "time": st.one_of(sane(-2.0, 0.5), st.just(1e12), number_or_junk()),
+                "pose": POSES,
+            },
+            optional={
+                "pose_covariance": covariances,
+                "confidence": st.one_of(sane(-0.5, 1.5), number_or_junk()),
+                "is_goalkeeper": st.one_of(st.booleans(), junk()),
+                "ball": st.one_of(
+                    st.none(), st.tuples(sane(-5, 5), sane(-4, 4)), st.tuples(number_or_junk(), number_or_junk())
+                ),
+                "ball_velocity": st.one_of(
+                    st.none(), st.tuples(sane(-3, 3), sane(-3, 3)), st.tuples(number_or_junk(), number_or_junk())
+                ),
+                "ball_age": st.one_of(sane(0, 3), number_or_junk()),
+                "clock_offset": st.one_of(sane(-1, 1), number_or_junk()),
+            },
+        ),
+        junk(),
+    )
 
 
 def ball_args():
     """A ball detection as `BallDetection` takes it (range, bearing, sigmas), sane or not; or junk."""
-    return st.one_of(st.tuples(sane(0, 6), sane(-3.2, 3.2), st.one_of(st.none(), sane(0.01, 0.5)),
-                               st.one_of(st.none(), sane(0.01, 0.5))),
-                     st.tuples(number_or_junk(), number_or_junk(), st.one_of(st.none(), number_or_junk()),
-                               st.one_of(st.none(), number_or_junk())),
-                     junk())
+    return st.one_of(
+        st.tuples(
+            sane(0, 6), sane(-3.2, 3.2), st.one_of(st.none(), sane(0.01, 0.5)), st.one_of(st.none(), sane(0.01, 0.5))
+        ),
+        st.tuples(
+            number_or_junk(),
+            number_or_junk(),
+            st.one_of(st.none(), number_or_junk()),
+            st.one_of(st.none(), number_or_junk()),
+        ),
+        junk(),
+    )
 
 
 def build_team_message(args, clock: float):
@@ -385,8 +525,11 @@ def build_ball(args):
 
 def view_args():
     """A camera view as `CameraView` takes it (sane or not), or something that is not one."""
-    return st.one_of(st.tuples(sane(-3.5, 3.5), sane(0.1, 1.6), sane(1.0, 9.0), sane(0.0, 0.5)),
-                     st.tuples(number_or_junk(), number_or_junk(), number_or_junk(), number_or_junk()), junk())
+    return st.one_of(
+        st.tuples(sane(-3.5, 3.5), sane(0.1, 1.6), sane(1.0, 9.0), sane(0.0, 0.5)),
+        st.tuples(number_or_junk(), number_or_junk(), number_or_junk(), number_or_junk()),
+        junk(),
+    )
 
 
 def build_view(args):
@@ -405,11 +548,20 @@ def check_hypotheses(hypotheses) -> None:
         assert np.isfinite(h.pose).all() and np.isfinite(h.covariance).all() and 0.0 <= h.weight <= 1.0, h
 
 
-@given(field_name=st.sampled_from(sorted(FIELDS)), n=st.sampled_from([1, 16, 64]),
-       operations=localizer_operations(),
-       options=st.fixed_dictionaries({}, optional={"history": number_or_junk(),
-                                                   "getup_sigma": SIGMAS, "placement_sigma": SIGMAS,
-                                                   "compensate_latency": st.booleans()}))
+@given(
+    field_name=st.sampled_from(sorted(FIELDS)),
+    n=st.sampled_from([1, 16, 64]),
+    operations=localizer_operations(),
+    options=st.fixed_dictionaries(
+        {},
+        optional={
+            "history": number_or_junk(),
+            "getup_sigma": SIGMAS,
+            "placement_sigma": SIGMAS,
+            "compensate_latency": st.booleans(),
+        },
+    ),
+)
 def fuzz_localizer(field_name, n, operations, options):
     """Localizer: the loop (motion, observe), the game events, the quality."""
     record_case("localizer", (field_name, n, operations, options))
@@ -428,14 +580,21 @@ def fuzz_localizer(field_name, n, operations, options):
                 t = clock[0] + float(dt)
                 loc.motion(t, MotionInput(**op[2]))
                 clock[0] = t
+
             attempt("localizer", loc, motion, check_localizer)
         elif name == "observe":
             offset = op[2]
             view = op[3] if len(op) > 3 else None
-            attempt("localizer", loc, lambda: loc.observe(build_observations(op[1]), None if offset is None else
-                                                          clock[0] + offset,
-                                                          None if view is None else build_view(view)),
-                    check_localizer)
+            attempt(
+                "localizer",
+                loc,
+                lambda: loc.observe(
+                    build_observations(op[1]),
+                    None if offset is None else clock[0] + offset,
+                    None if view is None else build_view(view),
+                ),
+                check_localizer,
+            )
         elif name == "initial_placement":
             attempt("localizer", loc, lambda: loc.initial_placement(op[1]), check_localizer)
         elif name == "kickoff_placement":
@@ -450,8 +609,12 @@ def fuzz_localizer(field_name, n, operations, options):
             attempt("localizer", loc, lambda: loc.team_message(build_team_message(op[1], clock[0])), check_localizer)
         elif name == "observe_ball":
             offset = op[2]
-            attempt("localizer", loc, lambda: loc.observe_ball(build_ball(op[1]), None if offset is None else
-                                                               clock[0] + offset), check_localizer)
+            attempt(
+                "localizer",
+                loc,
+                lambda: loc.observe_ball(build_ball(op[1]), None if offset is None else clock[0] + offset),
+                check_localizer,
+            )
         elif name == "hypotheses":
             attempt("localizer", loc, lambda: check_hypotheses(loc.hypotheses()))
         else:
@@ -480,20 +643,33 @@ def _valid_files() -> dict:
         for x in rng.uniform(-1, 1, (60, 2)):
             model.update(x, [math.sin(3 * x[0]) + x[1]])
         model.save(os.path.join(tmp, "lwpr.npz"))
-        CollisionReference(np.array([1, 2]), np.array([0, 1]), 5, np.array([0.0, 0.1]),
-                           rng.uniform(0.01, 0.1, (2, 2, 4)), 0.05).save(os.path.join(tmp, "collision.npz"))
+        CollisionReference(
+            np.array([1, 2]), np.array([0, 1]), 5, np.array([0.0, 0.1]), rng.uniform(0.01, 0.1, (2, 2, 4)), 0.05
+        ).save(os.path.join(tmp, "collision.npz"))
         inputs = rng.uniform(-0.05, 0.05, (80, 9))
         odometry = LearnedFootstepOdometry.train(inputs, inputs[:, :3] * 1.1, "online")
         odometry.save(os.path.join(tmp, "odometry"))
         LearnedFootstepOdometry.train(inputs, inputs[:, :3] * 1.1 + 0.01, "online", linear_stage=True).save(
-            os.path.join(tmp, "odometry_linear"))
+            os.path.join(tmp, "odometry_linear")
+        )
         from mcl.profile import Profile
-        Profile.from_values({"sensor.outlier_weight": 0.02, "odometry.scale_x": 1.1, "localizer.particles": 300,
-                             "motion.beta1": 2.0, "quality.superb_fit": 0.6}).save(os.path.join(tmp, "profile.toml"))
+
+        Profile.from_values(
+            {
+                "sensor.outlier_weight": 0.02,
+                "odometry.scale_x": 1.1,
+                "localizer.particles": 300,
+                "motion.beta1": 2.0,
+                "quality.superb_fit": 0.6,
+            }
+        ).save(os.path.join(tmp, "profile.toml"))
         with open(os.path.join(tmp, "space.toml"), "w", encoding="utf-8") as handle:
-            handle.write('[sensor]\noutlier_weight = { low = 0.001, high = 0.1, log = true }\n'
-                         'mixture = { choices = ["max", "sum"] }\n[localizer]\nparticles = { low = 100, high = 900 }\n')
+            handle.write(
+                "[sensor]\noutlier_weight = { low = 0.001, high = 0.1, log = true }\n"
+                'mixture = { choices = ["max", "sum"] }\n[localizer]\nparticles = { low = 100, high = 900 }\n'
+            )
         from mcl.tools.logs import write_log
+
         log = _small_log()
         write_log(log, os.path.join(tmp, "log.mcap"))
         write_log(log, os.path.join(tmp, "log.npz"))
@@ -514,15 +690,27 @@ def _small_log():
 
     t = np.arange(5) * 0.1
     rng = np.random.default_rng(5)
-    seen = Observations.from_arrays(["goalpost", "T", "penalty_mark"], [1.0, 2.5, 3.0], [0.1, -0.2, 0.4],
-                                    line_points=[[1.0, 2.0], [3.0, 4.0]])
-    return RobotLog(origin_ns=1_700_000_000 * 10**9, odometry_times=t, odometry=rng.uniform(-1, 1, (5, 3)),
-                    command_times=t, commands=rng.uniform(-1, 1, (5, 3)), imu_times=t,
-                    gyro=rng.uniform(-1, 1, (5, 3)), acceleration=rng.uniform(-1, 1, (5, 3)),
-                    joint_names=("HeadYaw", "HeadPitch"), joint_command_times=t,
-                    joint_commands=rng.uniform(-1, 1, (5, 2)), joint_reading_times=t,
-                    joint_readings=rng.uniform(-1, 1, (5, 2)), truth_times=t, truth=rng.uniform(-1, 1, (5, 3)),
-                    vision=(VisionFrame(0.0, 0.02, seen), VisionFrame(0.15, 0.17, Observations.empty())))
+    seen = Observations.from_arrays(
+        ["goalpost", "T", "penalty_mark"], [1.0, 2.5, 3.0], [0.1, -0.2, 0.4], line_points=[[1.0, 2.0], [3.0, 4.0]]
+    )
+    return RobotLog(
+        origin_ns=1_700_000_000 * 10**9,
+        odometry_times=t,
+        odometry=rng.uniform(-1, 1, (5, 3)),
+        command_times=t,
+        commands=rng.uniform(-1, 1, (5, 3)),
+        imu_times=t,
+        gyro=rng.uniform(-1, 1, (5, 3)),
+        acceleration=rng.uniform(-1, 1, (5, 3)),
+        joint_names=("HeadYaw", "HeadPitch"),
+        joint_command_times=t,
+        joint_commands=rng.uniform(-1, 1, (5, 2)),
+        joint_reading_times=t,
+        joint_readings=rng.uniform(-1, 1, (5, 2)),
+        truth_times=t,
+        truth=rng.uniform(-1, 1, (5, 3)),
+        vision=(VisionFrame(0.0, 0.02, seen), VisionFrame(0.15, 0.17, Observations.empty())),
+    )
 
 
 def _load(name: str, path: str):
@@ -535,15 +723,18 @@ def _load(name: str, path: str):
         return load_field(path)
     if name == "profile.toml":
         from mcl.profile import Profile
+
         profile = Profile.load(path)
         profile.localizer_options(FIELDS["spl"])
         return profile
     if name == "space.toml":
         from mcl.tools.tuning.space import SearchSpace
+
         return SearchSpace.load(path)
     if name.startswith("log") or name.startswith("csv/"):
         from mcl.tools.logs import read_log
         from mcl.tools.logs.mcap_io import list_topics
+
         log, report = read_log(path if name.startswith("log") else os.path.dirname(path))
         assert math.isfinite(log.duration) and np.isfinite(log.odometry).all()
         if name == "log.mcap":
@@ -592,18 +783,30 @@ def _fuzz_files(data, target: str, names: list[str]) -> None:
             offset = data.draw(st.integers(0, len(content) - 1), label="offset")
             content[offset] ^= data.draw(st.integers(1, 255), label="mask")
     elif how == "truncate":
-        del content[data.draw(st.integers(0, len(content) - 1), label="length"):]
+        del content[data.draw(st.integers(0, len(content) - 1), label="length") :]
     elif how == "insert":
         offset = data.draw(st.integers(0, len(content)), label="offset")
         content[offset:offset] = data.draw(st.binary(min_size=1, max_size=64), label="bytes")
     else:
         offset = data.draw(st.integers(0, len(content) - 1), label="offset")
-        chunk = data.draw(st.sampled_from([b"\xff" * 8, b"\x00" * 8, b"9" * 30, b"[" * 200, b"-1e400", b"nan",
-                                           b"\x7f\xff\xff\xff\xff\xff\xff\xff"]), label="chunk")
-        content[offset:offset + len(chunk)] = chunk
+        chunk = data.draw(
+            st.sampled_from(
+                [
+                    b"\xff" * 8,
+                    b"\x00" * 8,
+                    b"9" * 30,
+                    b"[" * 200,
+                    b"-1e400",
+                    b"nan",
+                    b"\x7f\xff\xff\xff\xff\xff\xff\xff",
+                ]
+            ),
+            label="chunk",
+        )
+        content[offset : offset + len(chunk)] = chunk
     record_case(target, (name, how, bytes(content[:64])))
     with tempfile.TemporaryDirectory() as tmp:
-        if "/" in name:                                   # a directory of files: the others stay valid
+        if "/" in name:  # a directory of files: the others stay valid
             directory, _ = name.split("/")
             os.makedirs(os.path.join(tmp, directory))
             for other, valid in files.items():
@@ -619,30 +822,58 @@ VECTOR3 = st.one_of(st.tuples(sane(-3, 3), sane(-3, 3), sane(-12, 12)), triples(
 
 
 def estimator_operations():
-    return st.lists(st.one_of(
-        st.tuples(st.just("ekf_predict"), st.one_of(sane(0.001, 0.05), number_or_junk()), VECTOR3, VECTOR3),
-        st.tuples(st.just("ekf_correct"), VECTOR3, st.one_of(st.none(), number_or_junk())),
-        st.tuples(st.just("history_record"), st.one_of(sane(0.0, 0.05), number_or_junk()),
-                  st.one_of(sane(0.0, 0.05), number_or_junk()), triples(0.1)),
-        st.tuples(st.just("history_since"), st.one_of(sane(-1.0, 0.1), number_or_junk())),
-        st.tuples(st.just("lwpr_update"), st.one_of(st.tuples(sane(-1, 1), sane(-1, 1)), triples(1.0)),
-                  st.one_of(sane(-1, 1), number_or_junk())),
-        st.tuples(st.just("lwpr_predict"), st.one_of(st.tuples(sane(-1, 1), sane(-1, 1)), triples(1.0))),
-        st.tuples(st.just("collision"), st.one_of(st.lists(sane(-1, 1), min_size=2, max_size=2), triples(1.0)),
-                  st.one_of(st.lists(sane(-1, 1), min_size=2, max_size=2), triples(1.0)),
-                  st.one_of(sane(0, 1), number_or_junk()), VECTOR3),
-        st.tuples(st.just("leg_imu"), st.one_of(sane(0.001, 0.02), number_or_junk()), VECTOR3, VECTOR3),
-        st.tuples(st.just("leg_kinematics"), st.one_of(sane(0.0, 0.02), number_or_junk()),
-                  st.one_of(st.lists(st.lists(sane(-1, 1), min_size=6, max_size=6), min_size=2, max_size=2),
-                            st.lists(st.lists(numbers(), min_size=6, max_size=6), min_size=2, max_size=2),
-                            st.lists(numbers(), max_size=13), junk()),
-                  st.one_of(st.lists(st.lists(st.booleans(), min_size=4, max_size=4), min_size=2, max_size=2),
-                            junk(), st.lists(numbers(), max_size=3))),
-        st.tuples(st.just("leg_take")),
-        st.tuples(st.just("footstep"), st.one_of(st.sampled_from([1, -1]), number_or_junk()),
-                  st.one_of(st.tuples(sane(-0.1, 0.1), sane(-0.1, 0.1), sane(-0.3, 0.3)), triples(1.0)),
-                  st.one_of(st.none(), triples(0.1)), st.one_of(st.none(), sane(0.2, 0.5), number_or_junk())),
-    ), min_size=1, max_size=10)
+    return st.lists(
+        st.one_of(
+            st.tuples(st.just("ekf_predict"), st.one_of(sane(0.001, 0.05), number_or_junk()), VECTOR3, VECTOR3),
+            st.tuples(st.just("ekf_correct"), VECTOR3, st.one_of(st.none(), number_or_junk())),
+            st.tuples(
+                st.just("history_record"),
+                st.one_of(sane(0.0, 0.05), number_or_junk()),
+                st.one_of(sane(0.0, 0.05), number_or_junk()),
+                triples(0.1),
+            ),
+            st.tuples(st.just("history_since"), st.one_of(sane(-1.0, 0.1), number_or_junk())),
+            st.tuples(
+                st.just("lwpr_update"),
+                st.one_of(st.tuples(sane(-1, 1), sane(-1, 1)), triples(1.0)),
+                st.one_of(sane(-1, 1), number_or_junk()),
+            ),
+            st.tuples(st.just("lwpr_predict"), st.one_of(st.tuples(sane(-1, 1), sane(-1, 1)), triples(1.0))),
+            st.tuples(
+                st.just("collision"),
+                st.one_of(st.lists(sane(-1, 1), min_size=2, max_size=2), triples(1.0)),
+                st.one_of(st.lists(sane(-1, 1), min_size=2, max_size=2), triples(1.0)),
+                st.one_of(sane(0, 1), number_or_junk()),
+                VECTOR3,
+            ),
+            st.tuples(st.just("leg_imu"), st.one_of(sane(0.001, 0.02), number_or_junk()), VECTOR3, VECTOR3),
+            st.tuples(
+                st.just("leg_kinematics"),
+                st.one_of(sane(0.0, 0.02), number_or_junk()),
+                st.one_of(
+                    st.lists(st.lists(sane(-1, 1), min_size=6, max_size=6), min_size=2, max_size=2),
+                    st.lists(st.lists(numbers(), min_size=6, max_size=6), min_size=2, max_size=2),
+                    st.lists(numbers(), max_size=13),
+                    junk(),
+                ),
+                st.one_of(
+                    st.lists(st.lists(st.booleans(), min_size=4, max_size=4), min_size=2, max_size=2),
+                    junk(),
+                    st.lists(numbers(), max_size=3),
+                ),
+            ),
+            st.tuples(st.just("leg_take")),
+            st.tuples(
+                st.just("footstep"),
+                st.one_of(st.sampled_from([1, -1]), number_or_junk()),
+                st.one_of(st.tuples(sane(-0.1, 0.1), sane(-0.1, 0.1), sane(-0.3, 0.3)), triples(1.0)),
+                st.one_of(st.none(), triples(0.1)),
+                st.one_of(st.none(), sane(0.2, 0.5), number_or_junk()),
+            ),
+        ),
+        min_size=1,
+        max_size=10,
+    )
 
 
 @given(operations=estimator_operations())
@@ -659,15 +890,20 @@ def fuzz_estimators(operations):
     ekf = VelocityEKF.from_standing(np.tile([0.0, 0.0, 9.81], (10, 1)), 0.0)
     history = MotionHistory(1.0)
     model = LWPR(2, 1)
-    detector = CollisionDetector(CollisionReference(np.array([1, 2]), np.array([0, 1]), 5, np.array([0.0, 0.1]),
-                                                    np.full((2, 2, 4), 0.05), 0.05))
+    detector = CollisionDetector(
+        CollisionReference(np.array([1, 2]), np.array([0, 1]), 5, np.array([0.0, 0.1]), np.full((2, 2, 4), 0.05), 0.05)
+    )
     field = FIELDS["kidsize"]
     pf = ParticleFilter(field, RawFootstepOdometry(), LandmarkSensorModel(field), n_particles=16, seed=2)
     from proprioception.kinematics import nao_leg
     from proprioception.velocity import LegOdometry
     from proprioception.velocity_odometry import EKFOdometry
-    legs = EKFOdometry(LegOdometry((nao_leg("left"), nao_leg("right")),
-                                   VelocityEKF.from_standing(np.tile([0.0, 0.0, 9.81], (10, 1)), 0.0)))
+
+    legs = EKFOdometry(
+        LegOdometry(
+            (nao_leg("left"), nao_leg("right")), VelocityEKF.from_standing(np.tile([0.0, 0.0, 9.81], (10, 1)), 0.0)
+        )
+    )
     clock = {"ekf": 0.0, "history": 0.0, "legs": 0.0}
 
     def leg_imu(dt, gyro, accel):
@@ -721,20 +957,36 @@ def fuzz_estimators(operations):
             if attempt("estimators", legs, lambda: result.append(legs.take())):
                 assert np.isfinite(result[0].odometry).all() and math.isfinite(result[0].dt)
         elif name == "footstep":
-            attempt("estimators", pf, lambda: pf.predict(MotionInput(
-                dt=0.3, footstep=FootstepEvent(op[1], op[2], sensor=op[3], duration=op[4]))), check_filter)
+            attempt(
+                "estimators",
+                pf,
+                lambda: pf.predict(
+                    MotionInput(dt=0.3, footstep=FootstepEvent(op[1], op[2], sensor=op[3], duration=op[4]))
+                ),
+                check_filter,
+            )
 
 
 def recorder_operations():
-    return st.lists(st.one_of(
-        st.tuples(st.just("log_step"), st.one_of(st.integers(0, 20), number_or_junk()),
-                  st.one_of(sane(0, 5), number_or_junk()), st.one_of(st.none(), POSES, triples(1.0)),
-                  st.one_of(st.none(), observation_args())),
-        st.tuples(st.just("log_scalars"), st.one_of(st.dictionaries(st.sampled_from(["a/b", "c", ""]),
-                                                                    number_or_junk(), max_size=3), junk())),
-        st.tuples(st.just("set_time"), st.one_of(st.integers(0, 20), number_or_junk()), number_or_junk()),
-        st.tuples(st.just("flush")),
-    ), min_size=1, max_size=8)
+    return st.lists(
+        st.one_of(
+            st.tuples(
+                st.just("log_step"),
+                st.one_of(st.integers(0, 20), number_or_junk()),
+                st.one_of(sane(0, 5), number_or_junk()),
+                st.one_of(st.none(), POSES, triples(1.0)),
+                st.one_of(st.none(), observation_args()),
+            ),
+            st.tuples(
+                st.just("log_scalars"),
+                st.one_of(st.dictionaries(st.sampled_from(["a/b", "c", ""]), number_or_junk(), max_size=3), junk()),
+            ),
+            st.tuples(st.just("set_time"), st.one_of(st.integers(0, 20), number_or_junk()), number_or_junk()),
+            st.tuples(st.just("flush")),
+        ),
+        min_size=1,
+        max_size=8,
+    )
 
 
 @given(operations=recorder_operations(), particles_every=st.one_of(st.sampled_from([1, 2, 5]), number_or_junk()))
@@ -750,15 +1002,20 @@ def fuzz_recorder(operations, particles_every):
         pf = _RECORDED["pf"] = ParticleFilter(field, VelocityLinear(), LandmarkSensorModel(field), n_particles=32)
     with tempfile.TemporaryDirectory() as tmp:
         holder = []
-        if not attempt("recorder", None, lambda: holder.append(Recorder(os.path.join(tmp, "run.rrd"), field,
-                                                                        particles_every=particles_every))):
+        if not attempt(
+            "recorder",
+            None,
+            lambda: holder.append(Recorder(os.path.join(tmp, "run.rrd"), field, particles_every=particles_every)),
+        ):
             return
         recorder = holder[0]
         for op in operations:
             if op[0] == "log_step":
+
                 def log_step(op=op):
                     observations = None if op[4] is None else Observations.coerce(build_observations(op[4]))
                     recorder.log_step(op[1], op[2], pf, truth=op[3], observations=observations)
+
                 attempt("recorder", recorder, log_step)
             elif op[0] == "log_scalars":
                 attempt("recorder", recorder, lambda: recorder.log_scalars(op[1]))
@@ -780,6 +1037,7 @@ def fuzz_crash(value):
     if value >= 0:
         import ctypes
         import faulthandler
+
         faulthandler.disable()
         ctypes.string_at(0)
 
@@ -796,7 +1054,17 @@ TARGETS = {
     "estimators": fuzz_estimators,
     "recorder": fuzz_recorder,
 }
-HIDDEN = {"_crash": fuzz_crash}        # run by name only
+HIDDEN = {"_crash": fuzz_crash}  # run by name only
 # The share of a profile's examples each target gets (the filter and the localizer hold the most).
-WEIGHTS = {"motion_input": 1, "observations": 1, "filter": 3, "filter_construction": 1, "models": 1,
-           "localizer": 3, "loaders": 2, "logs": 2, "estimators": 2, "recorder": 1}
+WEIGHTS = {
+    "motion_input": 1,
+    "observations": 1,
+    "filter": 3,
+    "filter_construction": 1,
+    "models": 1,
+    "localizer": 3,
+    "loaders": 2,
+    "logs": 2,
+    "estimators": 2,
+    "recorder": 1,
+}

@@ -7,6 +7,7 @@ tests/test_numba_cache.py runs it against an empty NUMBA_CACHE_DIR; the test ses
 against the project's own cache before its parallel workers start (tests/conftest.py), so that the workers load
 these kernels instead of each compiling them.
 """
+
 import contextlib
 import importlib
 import inspect
@@ -21,7 +22,7 @@ from numba.core.errors import NumbaWarning
 
 from mcl.numba_cache import serialize_cache_access
 
-serialize_cache_access()              # other processes may share the cache (the test session's workers)
+serialize_cache_access()  # other processes may share the cache (the test session's workers)
 
 # "Cannot cache compiled function ..." (numba.core.caching) and any other caching complaint fail the run.
 warnings.filterwarnings("error", message=".*cach", category=NumbaWarning)
@@ -57,32 +58,47 @@ if part in ("filter", "all"):
     from mcl.weights import log_mean_likelihood, normalize
     from motion_models.kernels import move_drawing_noise, move_with_noise
     from numerics.random import bit_generator_handle, skip_doubles
+
     with contextlib.redirect_stdout(io.StringIO()):
         walk_main(["--duration", "0.5", "--particles", "60", "--lines", "--json"])
 
     for bearing_model, mixture in (("von_mises", "max"), ("exact", "max"), ("exact", "sum")):
         for scheme in SCHEMES:
-            pf = ParticleFilter(field, VelocityLinear(gaussian=scheme == "residual"),
-                                LandmarkSensorModel(field, bearing_model=bearing_model, mixture=mixture),
-                                n_particles=64, seed=1,
-                                resampling=scheme, resample_threshold=1.0,
-                                augmented=AugmentedMCL(fit_threshold=10.0))
+            pf = ParticleFilter(
+                field,
+                VelocityLinear(gaussian=scheme == "residual"),
+                LandmarkSensorModel(field, bearing_model=bearing_model, mixture=mixture),
+                n_particles=64,
+                seed=1,
+                resampling=scheme,
+                resample_threshold=1.0,
+                augmented=AugmentedMCL(fit_threshold=10.0),
+            )
             pf.step(MotionInput(dt=0.01, command=(0.2, 0.0, 0.1)), observations)
-            pf.correct(observations, since=(0.05, 0.0, 0.02))      # camera latency: moved back (and forward)
+            pf.correct(observations, since=(0.05, 0.0, 0.02))  # camera latency: moved back (and forward)
             pf.estimate(), pf.entropy()
-    if "threads" in inspect.signature(ParticleFilter).parameters:      # the chunked, multi-threaded variants
+    if "threads" in inspect.signature(ParticleFilter).parameters:  # the chunked, multi-threaded variants
         for bearing_model in ("von_mises", "exact"):
-            threaded = ParticleFilter(field, VelocityLinear(), LandmarkSensorModel(field, bearing_model=bearing_model),
-                                      n_particles=20_000, seed=3, resample_threshold=1.0, threads=2)
+            threaded = ParticleFilter(
+                field,
+                VelocityLinear(),
+                LandmarkSensorModel(field, bearing_model=bearing_model),
+                n_particles=20_000,
+                seed=3,
+                resample_threshold=1.0,
+                threads=2,
+            )
             threaded.step(MotionInput(dt=0.01, command=(0.2, 0.0, 0.1)), observations)
             threaded.estimate(), threaded.entropy()
-        threaded.predict(MotionInput(dt=0.01, command=(0.2, 0.0, 0.1)))     # moved on threads alone
+        threaded.predict(MotionInput(dt=0.01, command=(0.2, 0.0, 0.1)))  # moved on threads alone
 
     from proprioception.collision import CollisionPercept
+
     adaptive = ParticleFilter(field, AdaptiveMotion(), LandmarkSensorModel(field), n_particles=64, seed=2)
     percept = CollisionPercept(left=True, s_rel_left=1.5, rate=0.3, recent_left=True)
     adaptive.step(MotionInput(dt=0.01, command=(0.2, 0.0, 0.0), collision=percept), observations)
     from motion_models.adaptive import VARIATES, adaptive_move  # (predict draws in the kernel instead)
+
     model = AdaptiveMotion()
     arguments = model.kernel_arguments(MotionInput(dt=0.01, command=(0.2, 0.0, 0.0), collision=percept))
     adaptive_move(adaptive.poses.copy(), model.particle_state(64), *arguments, rng.random((64, VARIATES)))
@@ -90,6 +106,7 @@ if part in ("filter", "all"):
     # A sensor model on the per-particle contract (`sensing.fused.per_particle_kernels`): its fused step,
     # with camera latency, and its `log_likelihood`.
     from sensing.goal_direction import GoalDirectionSensorModel
+
     goals = Observations.from_arrays(["goalpost", "goalpost"], [4.0, 4.0], [0.3, -2.6])
     goal_filter = ParticleFilter(field, VelocityLinear(), GoalDirectionSensorModel(field), n_particles=64, seed=5)
     goal_filter.step(MotionInput(dt=0.01, command=(0.2, 0.0, 0.1)), goals)
@@ -97,12 +114,14 @@ if part in ("filter", "all"):
     goal_filter.sensor_model.log_likelihood(goal_filter.poses, goals)
 
     # Injection around a known pose (the relocalization's proposal: the single-detection sampler).
-    injecting = ParticleFilter(field, VelocityLinear(), LandmarkSensorModel(field), n_particles=64, seed=4,
-                               augmented=AugmentedMCL())
+    injecting = ParticleFilter(
+        field, VelocityLinear(), LandmarkSensorModel(field), n_particles=64, seed=4, augmented=AugmentedMCL()
+    )
     injecting.reset_around((0.5, 0.5, 0.0))
     injecting._sample_injection(8, observations)
-    injecting.sensor_model.explained((0.5, 0.5, 0.0), observations)      # the localizer's quality
+    injecting.sensor_model.explained((0.5, 0.5, 0.0), observations)  # the localizer's quality
     from sensing.view import CameraView  # ... and its negative information
+
     injecting.sensor_model.seen((0.5, 0.5, 0.0), observations, CameraView(0.0, 0.5, 5.0))
     injecting.sensor_model.log_likelihood(injecting.poses, observations.with_view(CameraView(0.0, 0.5, 5.0)))
 
@@ -117,16 +136,28 @@ if part in ("filter", "all"):
     normalize(log_weights, np.empty(len(poses)))
     log_mean_likelihood(log_weights, log_weights, len(poses))
     from mcl.tools.recording import weight_colors  # the recorded particles' colours
+
     weight_colors(weights)
     grid_entropy(poses, weights, -5.0, -3.5, 0.1, 100, 70, 36, np.empty(7000), np.empty(36))
-    cluster_estimate(poses, weights, (-5.0, -3.5, 0.5, 20, 14, 8), (0.75, 0.8, 3), np.empty(20 * 14 * 8),
-                     np.zeros(3), False, np.empty(3), np.empty((3, 3)))
+    cluster_estimate(
+        poses,
+        weights,
+        (-5.0, -3.5, 0.5, 20, 14, 8),
+        (0.75, 0.8, 3),
+        np.empty(20 * 14 * 8),
+        np.zeros(3),
+        False,
+        np.empty(3),
+        np.empty((3, 3)),
+    )
     for scheme in SCHEMES.values():
         scheme(weights, len(weights), rng)
-    systematic_with_jitter(weights, len(poses), poses, np.full(3, 0.02), out, np.empty((0, 2)),
-                           *bit_generator_handle(rng))
-    systematic_counted(weights, len(weights), 0.5, np.empty(len(weights), dtype=np.int64),
-                       np.zeros(len(weights) + 1, dtype=np.int64))
+    systematic_with_jitter(
+        weights, len(poses), poses, np.full(3, 0.02), out, np.empty((0, 2)), *bit_generator_handle(rng)
+    )
+    systematic_counted(
+        weights, len(weights), 0.5, np.empty(len(weights), dtype=np.int64), np.zeros(len(weights) + 1, dtype=np.int64)
+    )
     LandmarkSensorModel(field, bearing_model="exact").log_likelihood(poses, observations)
     move_with_noise(poses, 0.01, 0.0, 0.01, 0.001, 0.001, 0.001, False, rng.random((len(poses), 3)))
     move_drawing_noise(poses, 0.01, 0.0, 0.01, 0.001, 0.001, 0.001, *bit_generator_handle(rng))
@@ -166,12 +197,15 @@ from numba.core.registry import CPUDispatcher
 report = {"kernels": [], "inlined": [], "compiled": [], "no_index": [], "cache_misses": {}}
 for module in modules:
     for name, kernel in vars(module).items():
-        if not (isinstance(kernel, CPUDispatcher) and kernel.py_func.__module__ == module.__name__
-                and type(kernel._cache).__name__ != "NullCache"):
+        if not (
+            isinstance(kernel, CPUDispatcher)
+            and kernel.py_func.__module__ == module.__name__
+            and type(kernel._cache).__name__ != "NullCache"
+        ):
             continue
         label = f"{module.__name__}.{name}"
         report["kernels"].append(label)
-        if kernel.targetoptions.get("inline") == "always":     # compiled inside its callers
+        if kernel.targetoptions.get("inline") == "always":  # compiled inside its callers
             report["inlined"].append(label)
         if not kernel.signatures:
             continue

@@ -7,6 +7,7 @@ variants on fixed seeds, recorded once in `tests/data/same_results.npz` and comp
 Each case returns named arrays (estimates, entropy, quality, final particles and weights) from public calls
 only, so the cases keep running whatever moves inside the packages.
 """
+
 from __future__ import annotations
 
 import argparse
@@ -39,8 +40,14 @@ def _filter_variant(seed: int, **options) -> dict[str, np.ndarray]:
     """The filter driven directly (predict, correct, estimate, entropy) on a simulated walk."""
     log = simulate(SHORT, seed)
     collide = isinstance(options.get("motion"), AdaptiveMotion)
-    pf = ParticleFilter(SHORT.field, options.pop("motion", VelocityLinear()), LandmarkSensorModel(SHORT.field),
-                        n_particles=options.pop("particles", 400), seed=seed, **options)
+    pf = ParticleFilter(
+        SHORT.field,
+        options.pop("motion", VelocityLinear()),
+        LandmarkSensorModel(SHORT.field),
+        n_particles=options.pop("particles", 400),
+        seed=seed,
+        **options,
+    )
     pf.reset_uniform("own_half")
     frames = {frame.step: frame for frame in log.frames}
     n = log.times.shape[0]
@@ -65,16 +72,21 @@ def _collision(k: int) -> CollisionPercept:
     if 300 <= k < 400:
         return CollisionPercept(left=True, s_rel_left=1.5, rate=0.5, recent_left=True)
     if 800 <= k < 850:
-        return CollisionPercept(left=True, right=True, s_rel_left=1.2, s_rel_right=1.3, rate=0.8, recent_left=True,
-                                recent_right=True)
+        return CollisionPercept(
+            left=True, right=True, s_rel_left=1.2, s_rel_right=1.3, rate=0.8, recent_left=True, recent_right=True
+        )
     return NO_COLLISION
 
 
 def _replay(seed: int) -> dict[str, np.ndarray]:
     log = to_robot_log(simulate(SHORT, seed), latency=0.05)
     result = replay(log, spl(), particles=300, seed=seed)
-    return {"estimates": result.estimates, "entropy": result.entropy, "quality": result.quality.astype(np.int64),
-            "lost": result.lost.astype(np.int64)}
+    return {
+        "estimates": result.estimates,
+        "entropy": result.entropy,
+        "quality": result.quality.astype(np.int64),
+        "lost": result.lost.astype(np.int64),
+    }
 
 
 CASES = {
@@ -94,6 +106,7 @@ TO_ROUNDING = {"filter_fast"}
 def machine() -> str:
     """What the recorded bits may depend on: the processor and the numeric libraries."""
     import numba
+
     return f"{platform.machine()} {platform.processor()} numpy {np.__version__} numba {numba.__version__}"
 
 

@@ -1,4 +1,5 @@
 """The adaptive five-state motion model (Hoffmann eq. 11-26) and the filter's per-particle motion state."""
+
 import copy
 import dataclasses
 import math
@@ -29,7 +30,7 @@ from sensing import LandmarkSensorModel
 
 DT = 0.01
 LEFT_HIT = CollisionPercept(left=True, s_rel_left=2.0, rate=0.1, recent_left=True)
-STAY = np.triu(np.ones((5, 5)))          # cumulative transition rows that keep every particle in its state
+STAY = np.triu(np.ones((5, 5)))  # cumulative transition rows that keep every particle in its state
 
 speeds = st.floats(-0.4, 0.4)
 turns = st.floats(-1.5, 1.5)
@@ -46,19 +47,20 @@ def _step(model, state_index, vx, vy, omega, side, seed, n=64, odometry_noise=Fa
     state[:, 1:] = rng.random((n, 3))
     episode = state[:, 1:].copy()
     _, vx_, vy_, omega_, dt, _, params, redraw = model.kernel_arguments(
-        MotionInput(DT, (vx, vy, omega), collision=LEFT_HIT))
+        MotionInput(DT, (vx, vy, omega), collision=LEFT_HIT)
+    )
     adaptive_move(poses, state, STAY, vx, vy, omega, DT, side, params, False, rng.random((n, VARIATES)))
     return poses, episode
 
 
-@given(speeds, speeds, turns, st.integers(0, 2 ** 32 - 1), st.booleans())
+@given(speeds, speeds, turns, st.integers(0, 2**32 - 1), st.booleans())
 def test_stopped_never_translates(vx, vy, omega, seed, noise):
     # eq. 23: v' = 0, with and without the odometry noise (which scales with the effective speed).
     poses, _ = _step(AdaptiveMotion(), STOPPED, vx, vy, omega, 1.0, seed, odometry_noise=noise)
     assert (poses[:, :2] == 0.0).all()
 
 
-@given(speeds, speeds, st.integers(0, 2 ** 32 - 1), st.sampled_from([1.0, -1.0, 0.0]))
+@given(speeds, speeds, st.integers(0, 2**32 - 1), st.sampled_from([1.0, -1.0, 0.0]))
 def test_stopped_turns_toward_the_collision(vx, vy, seed, side):
     # eq. 25-26: ω' = |v|/w · c · β_turn · rand(0, 1), so the turn has the sign of c and a bounded size.
     model = AdaptiveMotion()
@@ -67,7 +69,7 @@ def test_stopped_turns_toward_the_collision(vx, vy, seed, side):
     np.testing.assert_allclose(poses[:, 2], expected, atol=1e-12)
 
 
-@given(speeds, speeds, st.integers(0, 2 ** 32 - 1), st.sampled_from([1.0, -1.0, 0.0, math.nan]))
+@given(speeds, speeds, st.integers(0, 2**32 - 1), st.sampled_from([1.0, -1.0, 0.0, math.nan]))
 def test_pivot_variant_walks_on_along_the_request_while_it_turns(vx, vy, seed, side):
     # stop_creep > 0 (the variant "adaptive-pivot"): pivoting about the held foot, the centre walks on along the
     # request at |v|·stop_creep·rand(0, 1), the same rand() as the turn; no side known (or both): no walk.
@@ -75,8 +77,11 @@ def test_pivot_variant_walks_on_along_the_request_while_it_turns(vx, vy, seed, s
     poses, episode = _step(model, STOPPED, vx, vy, 0.0, side, seed)
     e1 = episode[:, 0]
     known = 0.0 if math.isnan(side) else abs(side)
-    turn = (math.hypot(vx, vy) / model.foot_separation * side * model.beta_turn * e1 if not math.isnan(side)
-            else model.beta7 * (2 * e1 - 1))
+    turn = (
+        math.hypot(vx, vy) / model.foot_separation * side * model.beta_turn * e1
+        if not math.isnan(side)
+        else model.beta7 * (2 * e1 - 1)
+    )
     half = 0.5 * turn * DT
     chord = np.where(np.abs(half) > 1e-9, np.sin(half) / np.where(half == 0, 1.0, half), 1.0)
     dx, dy = vx * 0.5 * known * e1 * DT * chord, vy * 0.5 * known * e1 * DT * chord
@@ -85,15 +90,23 @@ def test_pivot_variant_walks_on_along_the_request_while_it_turns(vx, vy, seed, s
     np.testing.assert_allclose(poses[:, 2], turn * DT, atol=1e-12)
 
 
-@given(st.integers(0, 2 ** 32 - 1), speeds, speeds, turns, st.sampled_from([1.0, -1.0, 0.0, math.nan]),
-       st.booleans(), st.sampled_from(CONDITIONS))
+@given(
+    st.integers(0, 2**32 - 1),
+    speeds,
+    speeds,
+    turns,
+    st.sampled_from([1.0, -1.0, 0.0, math.nan]),
+    st.booleans(),
+    st.sampled_from(CONDITIONS),
+)
 def test_pivot_variant_kernel_matches_reference(seed, vx, vy, omega, side, redraw, condition):
     rng = np.random.default_rng(seed)
-    _kernel_and_reference(rng, rng.normal(size=(50, 3)), vx, vy, omega, side, redraw, condition,
-                          AdaptiveMotion(stop_creep=0.4))
+    _kernel_and_reference(
+        rng, rng.normal(size=(50, 3)), vx, vy, omega, side, redraw, condition, AdaptiveMotion(stop_creep=0.4)
+    )
 
 
-@given(turns, st.integers(0, 2 ** 32 - 1))
+@given(turns, st.integers(0, 2**32 - 1))
 def test_stopped_without_a_side_turns_either_way(omega, seed):
     # eq. 24: ω' = β7 rand(-1, 1) when the percept names no side.
     model = AdaptiveMotion()
@@ -101,21 +114,21 @@ def test_stopped_without_a_side_turns_either_way(omega, seed):
     assert (np.abs(poses[:, 2]) <= model.beta7 * DT + 1e-12).all()
 
 
-@given(speeds, speeds, turns, st.integers(0, 2 ** 32 - 1))
+@given(speeds, speeds, turns, st.integers(0, 2**32 - 1))
 def test_hindrance_never_exceeds_the_request(vx, vy, omega, seed):
     # eq. 16-17: v' = v rand(β3, 1), ω' = ω rand(β4, 1).
     model = AdaptiveMotion()
     poses, _ = _step(model, HINDRANCE, vx, vy, omega, 1.0, seed)
     travelled = np.hypot(poses[:, 0], poses[:, 1])
     assert (travelled <= math.hypot(vx, vy) * DT * (1 + 1e-12) + 1e-15).all()
-    assert (travelled >= model.beta3 * math.hypot(vx, vy) * DT * (1 - 1e-4) - 1e-12).all()   # chord <= 1e-4
+    assert (travelled >= model.beta3 * math.hypot(vx, vy) * DT * (1 - 1e-4) - 1e-12).all()  # chord <= 1e-4
     turned = poses[:, 2]
     assert (np.abs(turned) <= abs(omega) * DT + 1e-15).all()
     assert (np.abs(turned) >= model.beta4 * abs(omega) * DT - 1e-12).all()
     assert (np.sign(turned) * np.sign(omega) >= 0).all()
 
 
-@given(speeds, speeds, turns, st.integers(0, 2 ** 32 - 1))
+@given(speeds, speeds, turns, st.integers(0, 2**32 - 1))
 def test_slippage_bounds(vx, vy, omega, seed):
     # eq. 14-15: v' = v rand(β1, 1), ω' = ω + β2 rand(-1, 1).
     model = AdaptiveMotion()
@@ -126,7 +139,7 @@ def test_slippage_bounds(vx, vy, omega, seed):
     assert (np.abs(poses[:, 2] - omega * DT) <= model.beta2 * DT + 1e-12).all()
 
 
-@given(speeds, turns, st.integers(0, 2 ** 32 - 1))
+@given(speeds, turns, st.integers(0, 2**32 - 1))
 def test_pushed_displacement_is_bounded_and_all_around(vx, omega, seed):
     # eq. 18-22: displaced by up to β5 (per second here) in any direction, turned by up to β6.
     model = AdaptiveMotion()
@@ -140,7 +153,7 @@ def test_pushed_displacement_is_bounded_and_all_around(vx, omega, seed):
     assert np.histogram(directions, bins=4, range=(-math.pi, math.pi))[0].min() > 0
 
 
-@given(speeds, speeds, turns, st.integers(0, 2 ** 32 - 1))
+@given(speeds, speeds, turns, st.integers(0, 2**32 - 1))
 def test_free_is_the_request_plus_bounded_odometry_noise(vx, vy, omega, seed):
     model = AdaptiveMotion()
     poses, _ = _step(model, FREE, vx, vy, omega, 1.0, seed, odometry_noise=True)
@@ -207,8 +220,15 @@ def _kernel_and_reference(rng, poses, vx, vy, omega, side, redraw, condition, mo
     return a, sa
 
 
-kernel_cases = given(st.integers(0, 2 ** 32 - 1), speeds, speeds, turns,
-                     st.sampled_from([1.0, -1.0, 0.0, math.nan]), st.booleans(), st.sampled_from(CONDITIONS))
+kernel_cases = given(
+    st.integers(0, 2**32 - 1),
+    speeds,
+    speeds,
+    turns,
+    st.sampled_from([1.0, -1.0, 0.0, math.nan]),
+    st.booleans(),
+    st.sampled_from(CONDITIONS),
+)
 
 
 @kernel_cases
@@ -250,7 +270,7 @@ def test_transition_rows_are_computed_once_per_condition_and_dt():
 def test_copies_and_pickles_move_the_particles_alike():
     model = AdaptiveMotion(beta1=0.3, redraw="step")
     u = MotionInput(DT, (0.2, 0.05, 0.3), collision=LEFT_HIT)
-    model.predict(np.zeros((4, 3)), u, np.random.default_rng(0))        # fills the memo that copies must not share
+    model.predict(np.zeros((4, 3)), u, np.random.default_rng(0))  # fills the memo that copies must not share
     runs = []
     for clone in (model, pickle.loads(pickle.dumps(model)), copy.deepcopy(model), dataclasses.replace(model)):
         assert clone == model
@@ -261,7 +281,7 @@ def test_copies_and_pickles_move_the_particles_alike():
     assert len(set(runs)) == 1
 
 
-@given(st.integers(0, 2 ** 32 - 1), st.floats(-math.pi, math.pi), st.sampled_from(CONDITIONS))
+@given(st.integers(0, 2**32 - 1), st.floats(-math.pi, math.pi), st.sampled_from(CONDITIONS))
 def test_commutes_with_rotating_the_world(seed, angle, condition):
     rng = np.random.default_rng(seed)
     n = 40
@@ -301,8 +321,15 @@ def test_missing_percept_is_rejected_and_the_filter_untouched():
 
 
 def test_parameters_validate():
-    for bad in ({"beta1": 1.0}, {"beta3": -0.1}, {"beta5": math.nan}, {"foot_separation": 0.0},
-                {"odometry": (1.0, 1.0)}, {"frequent_rate": 0.0}, {"redraw": "sometimes"}):
+    for bad in (
+        {"beta1": 1.0},
+        {"beta3": -0.1},
+        {"beta5": math.nan},
+        {"foot_separation": 0.0},
+        {"odometry": (1.0, 1.0)},
+        {"frequent_rate": 0.0},
+        {"redraw": "sometimes"},
+    ):
         with pytest.raises(ValueError):
             AdaptiveMotion(**bad)
     with pytest.raises(ValueError, match="not one of"):
@@ -311,20 +338,27 @@ def test_parameters_validate():
 
 def test_resampling_carries_each_particles_state():
     n = 200
-    pf = ParticleFilter(spl(), AdaptiveMotion(), LandmarkSensorModel(spl()), n_particles=n, seed=4,
-                        roughening=(0.0, 0.0, 0.0), augmented=None)
+    pf = ParticleFilter(
+        spl(),
+        AdaptiveMotion(),
+        LandmarkSensorModel(spl()),
+        n_particles=n,
+        seed=4,
+        roughening=(0.0, 0.0, 0.0),
+        augmented=None,
+    )
     poses = np.zeros((n, 3))
     poses[:, 0] = np.linspace(-4, 4, n)
     state = np.zeros((n, 4))
     state[:, 0] = np.arange(n) % 5
-    state[:, 1] = poses[:, 0]            # a tag: the particle's own x
+    state[:, 1] = poses[:, 0]  # a tag: the particle's own x
     log_weights = -0.5 * (poses[:, 0] / 0.5) ** 2
     pf.set_particles(poses, log_weights, motion_state=state)
     pf._resample(0, None)
     after = pf.motion_state
     np.testing.assert_array_equal(after[:, 1], pf.poses[:, 0])
     np.testing.assert_array_equal(after[:, 0], state[np.searchsorted(poses[:, 0], pf.poses[:, 0]), 0])
-    assert abs(pf.poses[:, 0]).max() < 2.5          # the heavy middle survived
+    assert abs(pf.poses[:, 0]).max() < 2.5  # the heavy middle survived
 
 
 def test_stateless_models_have_no_motion_state():
@@ -347,13 +381,14 @@ def test_same_seed_same_run():
 
 
 @pytest.mark.parametrize("bit_generator", [np.random.PCG64, np.random.Philox])
-@given(st.integers(0, 2 ** 32 - 1), st.integers(1, 700), st.booleans(), st.sampled_from(CONDITIONS))
+@given(st.integers(0, 2**32 - 1), st.integers(1, 700), st.booleans(), st.sampled_from(CONDITIONS))
 def test_drawing_in_the_kernel_equals_the_drawn_variates(bit_generator, seed, n, redraw, condition):
     # `predict` draws the 7 uniforms per particle inside the kernel, a block at a time (with PCG64 the episode
     # values only for the particles that take them): the same poses and states, bit for bit, as `adaptive_move`
     # on rng.random((n, 7)), and the generator ends where that leaves it.
     from motion_models.adaptive import adaptive_move_drawing
     from numerics.random import bit_generator_handle
+
     setup = np.random.default_rng(seed)
     poses = np.column_stack([setup.uniform(-4, 4, n), setup.uniform(-3, 3, n), setup.uniform(-3, 3, n)])
     state = np.column_stack([setup.integers(0, 5, n), setup.random((n, 3))]).astype(np.float64)

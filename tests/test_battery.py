@@ -1,4 +1,5 @@
 """The evaluation battery: its metrics on hand-made arrays, its simulator, and one short run end to end."""
+
 import json
 import math
 
@@ -63,10 +64,11 @@ def with_error(truth, position):
 
 # -- metrics ------------------------------------------------------------------------------------------------
 
+
 def test_mirrored_stretch_counts_as_mirrored_and_failed():
     truth = still(1000)
     est = truth.copy()
-    est[300:600] = [2.0, -1.0, 0.3 + math.pi]          # the point mirror, 3 s
+    est[300:600] = [2.0, -1.0, 0.3 + math.pi]  # the point mirror, 3 s
     m = mirrored(truth, est)
     assert m.sum() == 300 and m[300:600].all()
     assert failed(truth, est).sum() == 300
@@ -83,7 +85,7 @@ def test_mirrored_stretch_counts_as_mirrored_and_failed():
 
 def test_mirror_near_the_centre_fails_although_the_position_is_close():
     truth = still(10, (0.1, 0.0, 0.0))
-    est = still(10, (-0.1, 0.0, math.pi))               # 0.2 m off, facing the other way: the mirror image
+    est = still(10, (-0.1, 0.0, math.pi))  # 0.2 m off, facing the other way: the mirror image
     p, _ = pose_errors(truth, est)
     assert p.max() < 0.5
     assert mirrored(truth, est).all() and failed(truth, est).all()
@@ -95,12 +97,12 @@ def test_convergence_time_is_the_start_of_the_first_second_long_good_stretch():
     n = 1000
     truth = still(n)
     err = np.full(n, 1.0)
-    err[250:300] = 0.1                  # 0.5 s good: too short
-    err[330:] = 0.1                     # good for good from sample 330 (t = 3.31 s)
+    err[250:300] = 0.1  # 0.5 s good: too short
+    err[330:] = 0.1  # good for good from sample 330 (t = 3.31 s)
     est = with_error(truth, err)
     p, h = pose_errors(truth, est)
     assert convergence_time(grid(n), p, h) == pytest.approx(3.31)
-    assert convergence_time(grid(n), p, h, since=4.0) == pytest.approx(0.0)       # already converged at 4 s
+    assert convergence_time(grid(n), p, h, since=4.0) == pytest.approx(0.0)  # already converged at 4 s
     # Heading counts too: 30° off is not converged, 10° is.
     h30 = np.where(np.arange(n) < 600, math.radians(30), math.radians(10))
     assert convergence_time(grid(n), p, h30) == pytest.approx(6.01)
@@ -114,8 +116,7 @@ def test_convergence_time_is_the_start_of_the_first_second_long_good_stretch():
     # From an event's end: a window ending at 2.0 s, the estimate good again from 2.5 s.
     e = np.zeros(n)
     e[150:250] = 3.0
-    fig = evaluate(grid(n), truth, with_error(truth, e), np.zeros(n, np.int8), np.zeros(n, bool),
-                   windows=[(1.5, 2.0)])
+    fig = evaluate(grid(n), truth, with_error(truth, e), np.zeros(n, np.int8), np.zeros(n, bool), windows=[(1.5, 2.0)])
     assert fig["reconverge_s"] == pytest.approx(0.51)
     assert fig["converge_s"] == pytest.approx(0.01)
 
@@ -124,11 +125,11 @@ def test_lost_recall_and_false_alarms():
     n = 1000
     t = grid(n)
     err = np.full(n, 0.1)
-    err[100:450] = 2.0                  # 3.5 s lost: the flag is due from 2 s in (samples 300..449)
-    err[700:850] = 2.0                  # 1.5 s: too short to be due
+    err[100:450] = 2.0  # 3.5 s lost: the flag is due from 2 s in (samples 300..449)
+    err[700:850] = 2.0  # 1.5 s: too short to be due
     lost = np.zeros(n, bool)
-    lost[350:450] = True                # flagged for 100 of the 150 due samples
-    lost[600:650] = True                # a false alarm while within 0.3 m (50 samples)
+    lost[350:450] = True  # flagged for 100 of the 150 due samples
+    lost[600:650] = True  # a false alarm while within 0.3 m (50 samples)
     counts = lost_counts(t, err, lost)
     assert counts["recall"] == {"steps": 150, "lost": 100}
     calm = n - 350 - 150
@@ -142,20 +143,24 @@ def test_lost_recall_and_false_alarms():
 def test_quality_counts_rmse_and_pooling():
     err = np.array([0.1, 0.6, 0.2, 0.7, 0.9, 0.05])
     q = quality_codes([Quality.SUPERB, Quality.SUPERB, Quality.OKAY, Quality.OKAY, Quality.POOR, Quality.POOR])
-    assert q.tolist() == [QUALITY_CODE[Quality.SUPERB]] * 2 + [QUALITY_CODE[Quality.OKAY]] * 2 + \
-        [QUALITY_CODE[Quality.POOR]] * 2
+    assert (
+        q.tolist()
+        == [QUALITY_CODE[Quality.SUPERB]] * 2 + [QUALITY_CODE[Quality.OKAY]] * 2 + [QUALITY_CODE[Quality.POOR]] * 2
+    )
     c = quality_counts(q, err)
     assert c["SUPERB"] == {"steps": 2, "wrong": 1}
     assert c["OKAY"] == {"steps": 2, "wrong": 1}
     assert c["POOR"] == {"steps": 2, "wrong": 1}
-    assert c["superb_coverage"] == {"steps": 3, "superb": 1}       # within 0.3 m: 0.1 (SUPERB), 0.2, 0.05
+    assert c["superb_coverage"] == {"steps": 3, "superb": 1}  # within 0.3 m: 0.1 (SUPERB), 0.2, 0.05
     fail = err > 0.5
     rp, rh = tracking_rmse(err, np.full(6, 0.1), fail)
     assert rp == pytest.approx(math.sqrt((0.01 + 0.04 + 0.0025) / 3))
     assert rh == pytest.approx(0.1)
     assert tracking_rmse(err, err, np.ones(6, bool)) == (None, None)
-    runs = [{"quality": c, "lost": {"recall": {"steps": 4, "lost": 1}, "false_alarm": {"steps": 10, "lost": 0}}},
-            {"quality": c, "lost": {"recall": {"steps": 0, "lost": 0}, "false_alarm": {"steps": 10, "lost": 2}}}]
+    runs = [
+        {"quality": c, "lost": {"recall": {"steps": 4, "lost": 1}, "false_alarm": {"steps": 10, "lost": 0}}},
+        {"quality": c, "lost": {"recall": {"steps": 0, "lost": 0}, "false_alarm": {"steps": 10, "lost": 2}}},
+    ]
     pooled = pool_counts(runs)
     assert pooled["SUPERB"]["share"] == pytest.approx(0.5)
     assert pooled["superb_coverage"]["share"] == pytest.approx(1 / 3)
@@ -172,11 +177,23 @@ def test_hold_last_puts_estimates_on_the_truth_grid():
 
 def test_family_summary_counts_never_and_strong_excess():
     def run(seed, converge, reconverge, excess=None):
-        return {"seed": seed, "field": "spl", "converge_s": converge, "reconverge_s": reconverge,
-                "windows": [[1.0, 2.0]], "excess_m": excess, "fail_share": 0.1, "mirrored_share": 0.0,
-                "on_mirror": False, "rmse_position_m": 0.1, "rmse_heading_deg": 2.0, "dropped_frames": 0,
-                "quality": quality_counts(np.zeros(3, np.int8), np.zeros(3)),
-                "lost": {"recall": {"steps": 0, "lost": 0}, "false_alarm": {"steps": 3, "lost": 0}}}
+        return {
+            "seed": seed,
+            "field": "spl",
+            "converge_s": converge,
+            "reconverge_s": reconverge,
+            "windows": [[1.0, 2.0]],
+            "excess_m": excess,
+            "fail_share": 0.1,
+            "mirrored_share": 0.0,
+            "on_mirror": False,
+            "rmse_position_m": 0.1,
+            "rmse_heading_deg": 2.0,
+            "dropped_frames": 0,
+            "quality": quality_counts(np.zeros(3, np.int8), np.zeros(3)),
+            "lost": {"recall": {"steps": 0, "lost": 0}, "false_alarm": {"steps": 3, "lost": 0}},
+        }
+
     s = summarize_family([run(0, 1.0, 2.0, 0.7), run(1, 2.0, None, 0.3), run(2, None, 4.0, 0.9)])
     assert s["converge_s"]["never"] == 1 and s["converge_s"]["median"] == 2.0
     assert s["reconverge_s"]["worst"] == math.inf and s["reconverge_s"]["never"] == 1
@@ -184,6 +201,7 @@ def test_family_summary_counts_never_and_strong_excess():
 
 
 # -- simulator ----------------------------------------------------------------------------------------------
+
 
 def test_same_seed_same_run_bit_for_bit():
     a, b = simulate("false_bursts", 4, 20.0), simulate("false_bursts", 4, 20.0)
@@ -212,9 +230,23 @@ def test_parameters_and_events_in_their_ranges(family):
         run = simulate(family, seed, 60.0)
         p, event = run.params, run.params["event"]
         fields.add(p["field"])
-        for key in ("max_speed", "max_turn", "turn_bias", "drift_time", "step_noise", "camera_rate", "latency",
-                    "fov_deg", "pan_amplitude_deg", "pan_period", "min_range", "detection", "range_a",
-                    "bearing_sigma", "false_rate"):
+        for key in (
+            "max_speed",
+            "max_turn",
+            "turn_bias",
+            "drift_time",
+            "step_noise",
+            "camera_rate",
+            "latency",
+            "fov_deg",
+            "pan_amplitude_deg",
+            "pan_period",
+            "min_range",
+            "detection",
+            "range_a",
+            "bearing_sigma",
+            "false_rate",
+        ):
             assert _within(p[key], RANGES[key]), key
         assert all(_within(s, RANGES["odometry_scale"]) for s in p["odometry_scale"])
         assert _within(p["range_growth"], RANGES["range_b" if p["range_law"] == "linear" else "range_c"])
@@ -235,7 +267,7 @@ def test_parameters_and_events_in_their_ranges(family):
             k = event["step"]
             jump = run.truth[k, :2] - run.truth[k - 1, :2]
             assert _within(float(np.hypot(*jump)), (KIDNAP_DISTANCE[0] - 0.01, KIDNAP_DISTANCE[1] + 0.01))
-            assert np.abs(run.odometry[k, :2]).max() < 0.01             # the odometry sees nothing
+            assert np.abs(run.odometry[k, :2]).max() < 0.01  # the odometry sees nothing
             if family == "kidnap_special":
                 turn = math.degrees(wrap_angles(run.truth[k, 2] - run.truth[k - 1, 2]))
                 assert abs(wrap_angles(math.radians(turn - SPECIAL_TURNS[seed % 4]))) < 0.05
@@ -247,7 +279,7 @@ def test_parameters_and_events_in_their_ranges(family):
             assert _within(event["seconds"], STUCK_SECONDS) and _within(event["excess_target"], STUCK_EXCESS)
             assert _within(event["excess"], (STUCK_EXCESS[0] - 0.1, STUCK_EXCESS[1] + 0.1))
             window = slice(event["step"], event["end_step"] + 1)
-            assert np.ptp(run.truth[window, :2], axis=0).max() == 0.0   # the truth stands still
+            assert np.ptp(run.truth[window, :2], axis=0).max() == 0.0  # the truth stands still
         elif family == "collision":
             assert _within(abs(event["turn_deg"]), SPIN_DEG)
         elif family == "fall":
@@ -275,8 +307,9 @@ def test_odometry_differs_from_the_truth_by_the_drawn_errors():
         prev = np.vstack([run.start, run.truth[:-1]])
         d = run.truth[:, :2] - prev[:, :2]
         c, s = np.cos(prev[:, 2]), np.sin(prev[:, 2])
-        local = np.column_stack([c * d[:, 0] + s * d[:, 1], -s * d[:, 0] + c * d[:, 1],
-                                 wrap_angles(run.truth[:, 2] - prev[:, 2])])
+        local = np.column_stack(
+            [c * d[:, 0] + s * d[:, 1], -s * d[:, 0] + c * d[:, 1], wrap_angles(run.truth[:, 2] - prev[:, 2])]
+        )
         assert np.allclose(local, run.body, atol=1e-12)
         walking = run.walking
         scale = np.asarray(p["odometry_scale"])
@@ -293,8 +326,9 @@ def test_odometry_differs_from_the_truth_by_the_drawn_errors():
         # What is left after scale and bias is the small per-step noise: drift and white noise.
         residual = run.odometry - run.body * scale
         residual[:, 2] -= walking * p["turn_bias"] * DT
-        bound = 6 * (np.asarray(p["drift_sigma"]) * DT + p["step_noise"] * np.abs(run.body)
-                     + np.array([5e-5, 5e-5, 1e-4]))
+        bound = 6 * (
+            np.asarray(p["drift_sigma"]) * DT + p["step_noise"] * np.abs(run.body) + np.array([5e-5, 5e-5, 1e-4])
+        )
         assert (np.abs(residual) <= bound).all()
         assert not np.allclose(run.odometry, run.body)
 
@@ -304,8 +338,9 @@ def test_detections_only_inside_the_drawn_view():
         run = simulate(family, seed, 30.0)
         p = run.params
         half_fov = math.radians(p["fov_deg"]) / 2
-        sigma_max = p["range_a"] + p["range_growth"] * (p["max_range"] if p["range_law"] == "linear"
-                                                        else p["max_range"] ** 2)
+        sigma_max = p["range_a"] + p["range_growth"] * (
+            p["max_range"] if p["range_law"] == "linear" else p["max_range"] ** 2
+        )
         total = 0
         for frame in run.frames:
             o = frame.observations
@@ -314,13 +349,14 @@ def test_detections_only_inside_the_drawn_view():
             assert (off <= half_fov + 5 * p["bearing_sigma"]).all()
             assert (o.ranges <= p["max_range"] + 5 * sigma_max).all()
             # False detections are drawn inside the view exactly.
-            assert (off[frame.real:] <= half_fov + 1e-9).all()
+            assert (off[frame.real :] <= half_fov + 1e-9).all()
             assert len(o) == frame.real + frame.false
-            assert np.isnan(o.range_sigmas).all()        # no noise figures passed with the detections
+            assert np.isnan(o.range_sigmas).all()  # no noise figures passed with the detections
         assert total > 0
 
 
 # -- end to end ---------------------------------------------------------------------------------------------
+
 
 def test_short_tracking_run_end_to_end():
     run = simulate("tracking", 3, 8.0)
@@ -335,17 +371,46 @@ def test_short_tracking_run_end_to_end():
 
 def test_command_line(capsys, tmp_path):
     assert split_seeds("train", 3) == [0, 1, 2] and split_seeds("holdout", 2) == [1000, 1001]
-    for bad in (["--families", "tracking,nope"], ["--split", "dev"], ["--seeds", "0"], ["--duration", "2"],
-                ["--particles", "-5"], ["--jobs", "x"], ["--prior", "bogus=1"], ["--prior", "pool=0"],
-                ["--quality", "gate=x"], ["--quality", "superb_fit=2"], ["--sensor", "detection_rate=1"],
-                ["--sensor", "field=1"], ["--sensor", "bogus=0.1"]):
+    for bad in (
+        ["--families", "tracking,nope"],
+        ["--split", "dev"],
+        ["--seeds", "0"],
+        ["--duration", "2"],
+        ["--particles", "-5"],
+        ["--jobs", "x"],
+        ["--prior", "bogus=1"],
+        ["--prior", "pool=0"],
+        ["--quality", "gate=x"],
+        ["--quality", "superb_fit=2"],
+        ["--sensor", "detection_rate=1"],
+        ["--sensor", "field=1"],
+        ["--sensor", "bogus=0.1"],
+    ):
         with pytest.raises(SystemExit) as exit_info:
             battery_main(bad)
         assert exit_info.value.code == 2
     capsys.readouterr()
     path = tmp_path / "battery.json"
-    assert battery_main(["--families", "tracking", "--split", "train", "--seeds", "1", "--duration", "10",
-                         "--jobs", "1", "--json", "--save", str(path)]) == 0
+    assert (
+        battery_main(
+            [
+                "--families",
+                "tracking",
+                "--split",
+                "train",
+                "--seeds",
+                "1",
+                "--duration",
+                "10",
+                "--jobs",
+                "1",
+                "--json",
+                "--save",
+                str(path),
+            ]
+        )
+        == 0
+    )
     printed = json.loads(capsys.readouterr().out)
     assert printed["splits"]["train"]["seeds"] == [0]
     assert json.loads(path.read_text())["splits"]["train"]["families"]["tracking"]["runs"][0]["seed"] == 0
@@ -358,37 +423,74 @@ def test_command_line(capsys, tmp_path):
             battery_main(bad)
         assert exit_info.value.code == 2
     # a variant is labelled as one, in the report and in the results
-    assert battery_main(["--families", "tracking", "--split", "train", "--seeds", "1", "--duration", "10",
-                         "--jobs", "1", "--prior", "kidnap_sigma=1.5", "--quality", "lost_after=2"]) == 0
+    assert (
+        battery_main(
+            [
+                "--families",
+                "tracking",
+                "--split",
+                "train",
+                "--seeds",
+                "1",
+                "--duration",
+                "10",
+                "--jobs",
+                "1",
+                "--prior",
+                "kidnap_sigma=1.5",
+                "--quality",
+                "lost_after=2",
+            ]
+        )
+        == 0
+    )
     report = capsys.readouterr().out
     assert "VARIANT (kidnap_sigma=1.5, lost_after=2.0)" in report
 
 
 def test_a_view_and_a_sensor_variant_are_labelled_and_the_view_is_passed(capsys):
-    assert battery_main(["--families", "tracking", "--split", "train", "--seeds", "1", "--duration", "10",
-                         "--jobs", "1", "--view", "--sensor", "detection_rate=0.4"]) == 0
+    assert (
+        battery_main(
+            [
+                "--families",
+                "tracking",
+                "--split",
+                "train",
+                "--seeds",
+                "1",
+                "--duration",
+                "10",
+                "--jobs",
+                "1",
+                "--view",
+                "--sensor",
+                "detection_rate=0.4",
+            ]
+        )
+        == 0
+    )
     report = capsys.readouterr().out
     assert "VARIANT (detection_rate=0.4), frames with their camera view" in report
     run = simulate("tracking", 3, 10.0)
     with_view = localize(run, particles=300, view=True)
     without = localize(run, particles=300)
-    assert not np.array_equal(with_view["estimates"], without["estimates"])     # the view changes the weights
+    assert not np.array_equal(with_view["estimates"], without["estimates"])  # the view changes the weights
 
 
 def test_kidnap_mirror_odds_follow_the_simulators_own_law():
     """The odds the battery splits kidnappings by: +inf when the mirror image lies at a distance the law never
     draws, about even when both lie as far from the start, None for other events."""
-    field = field_for(0)                                                            # SPL
+    field = field_for(0)  # SPL
     start = [-2.0, 0.5, 0.0]
-    far_mirror = {"type": "kidnap", "from": start, "to": [-1.0, -1.0, 1.0]}       # mirror (1, 1): 3.04 m
+    far_mirror = {"type": "kidnap", "from": start, "to": [-1.0, -1.0, 1.0]}  # mirror (1, 1): 3.04 m
     assert math.isfinite(kidnap_mirror_log_odds(field, far_mirror))
-    clear = {"type": "kidnap_special", "from": start, "to": [-3.5, 1.5, 0.0]}      # mirror (3.5, -1.5): 5.6 m
+    clear = {"type": "kidnap_special", "from": start, "to": [-3.5, 1.5, 0.0]}  # mirror (3.5, -1.5): 5.6 m
     assert kidnap_mirror_log_odds(field, clear) == math.inf
     # the start on the centre mark: the landing point and its mirror are equally far, so the odds are even
     even = {"type": "kidnap", "from": [0.0, 0.0, 0.0], "to": [1.5, 1.0, 2.0]}
     assert abs(kidnap_mirror_log_odds(field, even)) < 1e-9
     assert kidnap_mirror_log_odds(field, {"type": "blackout"}) is None
-    assert kidnap_mirror_log_odds(field, {"type": "kidnap"}) is None              # not happened yet
+    assert kidnap_mirror_log_odds(field, {"type": "kidnap"}) is None  # not happened yet
     # in the results (JSON has no infinity: None, which the summary reads as certain for a kidnapping)
     fig = run_case("kidnap", 2, 20.0, 300)
     assert fig["event"] == "kidnap" and "kidnap_log_odds" in fig

@@ -3,6 +3,7 @@
 No timing is checked here (speed is the benchmark's business, not the tests'): the runs use tiny sizes and a
 tiny sampling budget.
 """
+
 import contextlib
 import io
 import json
@@ -31,8 +32,13 @@ def quick_run(tmp_path_factory):
     stdout = io.StringIO()
     with contextlib.redirect_stdout(stdout):
         code = cli_main(argv)
-    return {"code": code, "printed": json.loads(stdout.getvalue()), "folder": folder, "plotting": plotting,
-            "saved": json.loads((folder / "bench.json").read_text())}
+    return {
+        "code": code,
+        "printed": json.loads(stdout.getvalue()),
+        "folder": folder,
+        "plotting": plotting,
+        "saved": json.loads((folder / "bench.json").read_text()),
+    }
 
 
 def _importable(name: str) -> bool:
@@ -47,12 +53,37 @@ def test_quick_run_writes_every_section(quick_run):
     assert quick_run["code"] == 0
     result = quick_run["printed"]
     assert result == quick_run["saved"]
-    for key in ("benchmark", "schema", "machine", "settings", "phases", "rows", "resampling", "threads", "memory",
-                "numpy_without_avx512", "startup", "demo_walk", "models", "between_frames", "bearing_accuracy",
-                "targets", "duration_s"):
+    for key in (
+        "benchmark",
+        "schema",
+        "machine",
+        "settings",
+        "phases",
+        "rows",
+        "resampling",
+        "threads",
+        "memory",
+        "numpy_without_avx512",
+        "startup",
+        "demo_walk",
+        "models",
+        "between_frames",
+        "bearing_accuracy",
+        "targets",
+        "duration_s",
+    ):
         assert key in result, key
-    for key in ("resampling", "threads", "memory", "numpy_without_avx512", "startup", "demo_walk", "models",
-                "between_frames", "bearing_accuracy"):
+    for key in (
+        "resampling",
+        "threads",
+        "memory",
+        "numpy_without_avx512",
+        "startup",
+        "demo_walk",
+        "models",
+        "between_frames",
+        "bearing_accuracy",
+    ):
         assert "error" not in result[key], (key, result[key].get("traceback"))
     assert result["settings"]["quick"] is True and result["settings"]["sizes"] == [40, 120]
 
@@ -79,14 +110,24 @@ def test_rows_hold_the_full_step_and_every_phase(quick_run):
 
 def test_machine_description(quick_run):
     machine = quick_run["printed"]["machine"]
-    for key in ("cpu_model", "cpus", "simd_flags", "python", "numpy", "numba", "load_average",
-                "load_average_end", "numpy_cpu_dispatch"):
+    for key in (
+        "cpu_model",
+        "cpus",
+        "simd_flags",
+        "python",
+        "numpy",
+        "numba",
+        "load_average",
+        "load_average_end",
+        "numpy_cpu_dispatch",
+    ):
         assert key in machine, key
     assert machine["cpus"] >= 1 and machine["cpu_model"]
     if machine["simd_flags"] is not None:
         assert {"avx2", "avx512f"} <= set(machine["simd_flags"])
     assert {"numba_cpu_name", "numba_cpu_features"} <= set(machine)
     import numba
+
     assert machine["numba_svml"] is bool(numba.config.USING_SVML)
     assert machine["llvmlite_svml"] in (True, False, None)
 
@@ -96,27 +137,38 @@ def test_the_header_names_a_foreign_compile_target():
     says the kernels were not compiled for this CPU; without them it says nothing of the kind."""
     machine = {"cpu_model": "x", "cpus": 1, "python": "3", "numpy": "2", "numba": "0"}
     base = {"settings": {"quick": True}, "targets": []}
-    text = format_report({**base, "machine": {**machine, "numba_cpu_name": "silvermont",
-                                              "numba_cpu_features": "-avx,-fma"}})
+    text = format_report(
+        {**base, "machine": {**machine, "numba_cpu_name": "silvermont", "numba_cpu_features": "-avx,-fma"}}
+    )
     assert "kernels compiled for silvermont (-avx,-fma), not this CPU" in text.splitlines()[0]
-    assert "compiled for" not in format_report({**base, "machine": {**machine, "numba_cpu_name": None,
-                                                                     "numba_cpu_features": None}})
+    assert "compiled for" not in format_report(
+        {**base, "machine": {**machine, "numba_cpu_name": None, "numba_cpu_features": None}}
+    )
 
 
 def test_the_header_says_whether_numba_uses_svml():
-    machine = {"cpu_model": "x", "cpus": 1, "python": "3", "numpy": "2", "numba": "0",
-               "simd_flags": {"avx2": True, "avx512f": False}}
+    machine = {
+        "cpu_model": "x",
+        "cpus": 1,
+        "python": "3",
+        "numpy": "2",
+        "numba": "0",
+        "simd_flags": {"avx2": True, "avx512f": False},
+    }
     base = {"settings": {"quick": True}, "targets": []}
     assert "(avx2 yes, avx512f no; SVML no)" in format_report({**base, "machine": {**machine, "numba_svml": False}})
     assert "; SVML yes)" in format_report({**base, "machine": {**machine, "numba_svml": True}})
-    assert "SVML" not in format_report({**base, "machine": machine})      # a result saved before it was recorded
+    assert "SVML" not in format_report({**base, "machine": machine})  # a result saved before it was recorded
 
 
 def test_resampling_section_names_ours_and_the_peers(quick_run):
     section = quick_run["printed"]["resampling"]
     assert "mcl.resampling.systematic" in section["ours"]
-    for label in ("filterpy.monte_carlo.systematic_resample", "particles.resampling.systematic",
-                  "mcl.resampling.systematic_reference"):
+    for label in (
+        "filterpy.monte_carlo.systematic_resample",
+        "particles.resampling.systematic",
+        "mcl.resampling.systematic_reference",
+    ):
         assert label in section["entries"]
     for row in section["rows"]:
         assert row["best_ours_ns_per_particle"] > 0
@@ -131,15 +183,22 @@ def test_memory_startup_models_sections(quick_run):
     memory = result["memory"]
     assert [row["n"] for row in memory["rows"]] == list(bench.MEMORY_SIZES)
     assert isinstance(memory["grows_with_n"], bool) and isinstance(memory["retains_memory"], bool)
-    assert result["startup"]["warm_cache_s"] > 0 and result["startup"]["cold_cache_s"] is None   # --quick
+    assert result["startup"]["warm_cache_s"] > 0 and result["startup"]["cold_cache_s"] is None  # --quick
     assert result["demo_walk"]["wall_s"] > 0
     models = result["models"]
     assert models["lwpr"]["inputs"] == 2 and models["lwpr"]["update_us"] > 0
     assert {"default", "paper"} == set(models["ekf"])
     loop = models["robot_loop"]
     assert loop["particles"] == 500
-    for key in ("frame_us", "predict_us", "correct_list_us", "from_list_us", "from_arrays_us", "localizer_frame_us",
-                "localizer_observe_us"):
+    for key in (
+        "frame_us",
+        "predict_us",
+        "correct_list_us",
+        "from_list_us",
+        "from_arrays_us",
+        "localizer_frame_us",
+        "localizer_observe_us",
+    ):
         assert math.isfinite(loop[key]) and loop[key] > 0, key
     threads = result["threads"]
     assert threads["available"] in (True, False)
@@ -151,7 +210,7 @@ def test_memory_startup_models_sections(quick_run):
 
 def test_between_frames_times_both_steps_at_each_small_n(quick_run):
     frames = quick_run["printed"]["between_frames"]
-    assert frames["idle_s"] == 0.01 and frames["samples"] == 10          # --quick
+    assert frames["idle_s"] == 0.01 and frames["samples"] == 10  # --quick
     assert [row["n"] for row in frames["rows"]] == [40, 120]
     for row in frames["rows"]:
         for key in ("full_step_us", "issue_step_us"):
@@ -172,10 +231,10 @@ def test_between_frames_sleeps_before_every_timed_call(monkeypatch):
     monkeypatch.setattr(bench_models, "_first", lambda values: events.append(("numba", 0)))
     monkeypatch.setattr(bench_models, "measure", lambda work, **options: {name: {"s": 1e-7} for name in work})
     result = bench_models.time_between_frames([5000, 100, 1000, 100], samples=3, idle_s=0.5)
-    assert [row["n"] for row in result["rows"]] == [100, 1000]           # N > 1 000 left out, each N once
+    assert [row["n"] for row in result["rows"]] == [100, 1000]  # N > 1 000 left out, each N once
     items = [("python", 0), ("numba", 0), ("full", 100), ("issue", 100), ("full", 1000), ("issue", 1000)]
-    expected = [item for item in items for _ in range(2)]                           # warm-up, untimed
-    for _ in range(3):                                                              # each timed call after a sleep
+    expected = [item for item in items for _ in range(2)]  # warm-up, untimed
+    for _ in range(3):  # each timed call after a sleep
         expected += [event for item in items for event in (("sleep", 0.5), item)]
     assert events == expected
     assert result["back_to_back_us"] == pytest.approx({"python_call": 0.1, "numba_call": 0.1})
@@ -202,44 +261,64 @@ def test_plot_is_written(quick_run):
 
 
 def test_a_missing_peer_is_reported_as_not_installed(monkeypatch):
-    monkeypatch.setattr(bench_step, "PEERS", bench_step.PEERS + (("nonexistent", "no_such_resampling_lib",
-                                                                  "systematic"),))
-    monkeypatch.setitem(sys.modules, "filterpy", None)        # as if filterpy were not installed
+    monkeypatch.setattr(
+        bench_step, "PEERS", bench_step.PEERS + (("nonexistent", "no_such_resampling_lib", "systematic"),)
+    )
+    monkeypatch.setitem(sys.modules, "filterpy", None)  # as if filterpy were not installed
     monkeypatch.setitem(sys.modules, "filterpy.monte_carlo", None)
     section = bench_step.time_resamplers([50], budget_s=0.001)
     for label in ("no_such_resampling_lib.systematic", "filterpy.monte_carlo.systematic_resample"):
-        assert section["entries"][label] == {"package": section["entries"][label]["package"], "available": False,
-                                             "note": "not installed", "version": None}
+        assert section["entries"][label] == {
+            "package": section["entries"][label]["package"],
+            "available": False,
+            "note": "not installed",
+            "version": None,
+        }
         assert section["rows"][0]["ns_per_particle"][label] is None
     assert section["rows"][0]["ns_per_particle"]["mcl.resampling.systematic"] > 0
-    text = format_report({"machine": {"cpu_model": "x", "cpus": 1, "python": "3", "numpy": "2", "numba": "0"},
-                          "settings": {"quick": True}, "resampling": section, "targets": []})
+    text = format_report(
+        {
+            "machine": {"cpu_model": "x", "cpus": 1, "python": "3", "numpy": "2", "numba": "0"},
+            "settings": {"quick": True},
+            "resampling": section,
+            "targets": [],
+        }
+    )
     assert "no_such_resampling_lib.systematic" in text and "not installed" in text
 
 
 def test_targets_judge_the_figures():
     def row(n, seconds, speedup):
         phases = {"predict_adaptive": {"numba_s": 1.2}, "predict_velocity_linear": {"numba_s": 1.0}}
-        return {"n": n, "ns_per_particle": 1e9 * seconds / n, "speedup": speedup,
-                "full_step": {"numba_s": seconds}, "phases": phases,
-                "full_step_back_to_back": {"numba_s": 0.8 * seconds},
-                "full_step_fast": {"numba_ns_per_particle": 0.6e9 * seconds / n},
-                "issue_step": {"numba_s": 0.45 * seconds, "numba_ns_per_particle": 0.45e9 * seconds / n},
-                "issue_step_fast": {"numba_ns_per_particle": 0.3e9 * seconds / n}}
+        return {
+            "n": n,
+            "ns_per_particle": 1e9 * seconds / n,
+            "speedup": speedup,
+            "full_step": {"numba_s": seconds},
+            "phases": phases,
+            "full_step_back_to_back": {"numba_s": 0.8 * seconds},
+            "full_step_fast": {"numba_ns_per_particle": 0.6e9 * seconds / n},
+            "issue_step": {"numba_s": 0.45 * seconds, "numba_ns_per_particle": 0.45e9 * seconds / n},
+            "issue_step_fast": {"numba_ns_per_particle": 0.3e9 * seconds / n},
+        }
 
-    result = {"rows": [row(100, 10e-6, 25.0), row(1000, 0.2e-3, 10.0), row(10_000, 0.5e-3, 6.0)],
-              "threads": {"available": False, "note": "not available: no threads option", "rows": []},
-              "models": {"lwpr": {"update_us": 12.0, "predict_us": 2.0},
-                         "ekf": {"default": {"predict_us": 5.0, "correct_us": 30.0}}},
-              "demo_walk": {"wall_s": 2.0}}
+    result = {
+        "rows": [row(100, 10e-6, 25.0), row(1000, 0.2e-3, 10.0), row(10_000, 0.5e-3, 6.0)],
+        "threads": {"available": False, "note": "not available: no threads option", "rows": []},
+        "models": {
+            "lwpr": {"update_us": 12.0, "predict_us": 2.0},
+            "ekf": {"default": {"predict_us": 5.0, "correct_us": 30.0}},
+        },
+        "demo_walk": {"wall_s": 2.0},
+    }
     verdicts = {t["id"]: t["met"] for t in evaluate_targets(result)}
-    assert verdicts["full_step_ns_per_particle"] is True          # 50 ns at 10 000
-    assert verdicts["full_step_ns_per_particle_aim"] is True      # 30 ns with fast=True
+    assert verdicts["full_step_ns_per_particle"] is True  # 50 ns at 10 000
+    assert verdicts["full_step_ns_per_particle_aim"] is True  # 30 ns with fast=True
     assert verdicts["issue_step_ns_per_particle"] is True and verdicts["issue_step_ns_per_particle_aim"] is True
     notes = {t["id"]: t["note"] for t in evaluate_targets(result)}
     assert notes["full_step_1000"] == "back to back 0.16 ms"
     assert verdicts["full_step_1000"] is False and verdicts["full_step_100"] is True
-    assert verdicts["issue_step_1000"] is True and verdicts["issue_step_100"] is True   # 0.09 ms, 4.5 µs
+    assert verdicts["issue_step_1000"] is True and verdicts["issue_step_100"] is True  # 0.09 ms, 4.5 µs
     assert {t["id"]: t["value"] for t in evaluate_targets(result)}["issue_step_1000"] == pytest.approx(0.09)
     without = {t["id"]: t for t in evaluate_targets({**result, "rows": result["rows"][2:]})}
     assert without["issue_step_100"]["met"] is None and "not among the sizes" in without["issue_step_100"]["note"]
@@ -253,14 +332,14 @@ def test_targets_judge_the_figures():
 
 def test_measure_interleaves_and_counts_samples():
     calls = []
-    timed = bench_step.measure({"a": lambda: calls.append("a"), "b": lambda: calls.append("b")}, budget_s=0.0,
-                               min_samples=4, sample_s=0.0)
+    timed = bench_step.measure(
+        {"a": lambda: calls.append("a"), "b": lambda: calls.append("b")}, budget_s=0.0, min_samples=4, sample_s=0.0
+    )
     assert {name: t["samples"] for name, t in timed.items()} == {"a": 4, "b": 4}
-    assert calls[4:] == ["a", "b"] * 4          # after two warm-up calls each: A, B, A, B, ...
+    assert calls[4:] == ["a", "b"] * 4  # after two warm-up calls each: A, B, A, B, ...
 
 
-@pytest.mark.parametrize("argv", [["--sizes", "ten"], ["--sizes", "0"], ["--skip", "everything"],
-                                  ["--budget", "0"]])
+@pytest.mark.parametrize("argv", [["--sizes", "ten"], ["--sizes", "0"], ["--skip", "everything"], ["--budget", "0"]])
 def test_bad_options_are_refused(argv):
     with pytest.raises(SystemExit):
         bench.main(argv)
@@ -291,18 +370,23 @@ def test_adaptive_phase_starts_from_its_stationary_mix():
     # with the number of calls: one more transition leaves the shares of the five states where they were.
     from benchmarks.step import COLLISION, stationary_mobility
     from motion_models import AdaptiveMotion, MotionInput
+
     model = AdaptiveMotion()
     u = MotionInput(dt=0.01, command=(0.2, 0.0, 0.1), collision=COLLISION)
     state = stationary_mobility(model, u, 200_000, np.random.default_rng(3))
     shares = np.bincount(state[:, 0].astype(int), minlength=5) / state.shape[0]
     after = shares @ model.transitions.matrix(model.condition(COLLISION), u.dt)
     np.testing.assert_allclose(after, shares, atol=0.01)
-    assert shares[0] < 0.5                       # not the all-free start
+    assert shares[0] < 0.5  # not the all-free start
     assert ((state[:, 1:] >= 0) & (state[:, 1:] < 1)).all()
 
 
 def test_adaptive_ratio_takes_the_slower_scenario():
     from benchmarks.report import adaptive_ratios
-    phases = {"predict_adaptive": {"numba_s": 1.2}, "predict_adaptive_quiet": {"numba_s": 1.6},
-              "predict_velocity_linear": {"numba_s": 1.0}}
+
+    phases = {
+        "predict_adaptive": {"numba_s": 1.2},
+        "predict_adaptive_quiet": {"numba_s": 1.6},
+        "predict_velocity_linear": {"numba_s": 1.0},
+    }
     assert adaptive_ratios({"rows": [{"n": 10, "phases": phases}]}) == [(10, 1.6)]

@@ -1,5 +1,6 @@
 """mcl.tools.logs.cdr: the compiled CDR decoders give mcap_ros2's messages, field for field, on every schema the log
 reader accepts and on a schema of every primitive and array kind; what they leave to mcap_ros2 goes there."""
+
 import math
 import struct
 
@@ -16,26 +17,73 @@ from mcl.tools.logs.mcap_io import _DECODE_ERRORS
 
 # Every primitive, as a scalar and as fixed, bounded and unbounded arrays; strings around the alignment;
 # nested messages and arrays of them; an empty message.
-EVERY_KIND = "\n".join([
-    "bool flag", "byte raw", "char letter", "int8 i8", "uint8 u8", "int16 i16", "uint16 u16", "int32 i32",
-    "uint32 u32", "int64 i64", "uint64 u64", "float32 f32", "float64 f64", "string text", "string<=5 short",
-    "bool[] flags", "byte[3] raw3", "uint8[] bytes", "char[] letters", "int8[2] pair", "int16[] i16s",
-    "uint16[<=3] u16s", "int32[] i32s", "uint32[2] u32s", "int64[] i64s", "uint64[<=2] u64s", "float32[] f32s",
-    "float64[3] f64s", "float64[] f64d", "string[] texts", "string[2] two_texts",
-    "test_msgs/Inner inner", "test_msgs/Inner[] inners", "test_msgs/Inner[2] two_inners", "test_msgs/Empty empty",
-    "uint8 CONSTANT=7", "float64 with_default 1.5",
-    "=" * 80, "MSG: test_msgs/Inner", "uint8 tag", "float64 value", "string name", "int16[] counts",
-    "=" * 80, "MSG: test_msgs/Empty", "",
-])
-INTEGER_RANGES = {"byte": (0, 255), "uint8": (0, 255), "char": (-128, 127), "int8": (-128, 127),
-                  "int16": (-2 ** 15, 2 ** 15 - 1), "uint16": (0, 2 ** 16 - 1), "int32": (-2 ** 31, 2 ** 31 - 1),
-                  "uint32": (0, 2 ** 32 - 1), "int64": (-2 ** 63, 2 ** 63 - 1), "uint64": (0, 2 ** 64 - 1)}
+EVERY_KIND = "\n".join(
+    [
+        "bool flag",
+        "byte raw",
+        "char letter",
+        "int8 i8",
+        "uint8 u8",
+        "int16 i16",
+        "uint16 u16",
+        "int32 i32",
+        "uint32 u32",
+        "int64 i64",
+        "uint64 u64",
+        "float32 f32",
+        "float64 f64",
+        "string text",
+        "string<=5 short",
+        "bool[] flags",
+        "byte[3] raw3",
+        "uint8[] bytes",
+        "char[] letters",
+        "int8[2] pair",
+        "int16[] i16s",
+        "uint16[<=3] u16s",
+        "int32[] i32s",
+        "uint32[2] u32s",
+        "int64[] i64s",
+        "uint64[<=2] u64s",
+        "float32[] f32s",
+        "float64[3] f64s",
+        "float64[] f64d",
+        "string[] texts",
+        "string[2] two_texts",
+        "test_msgs/Inner inner",
+        "test_msgs/Inner[] inners",
+        "test_msgs/Inner[2] two_inners",
+        "test_msgs/Empty empty",
+        "uint8 CONSTANT=7",
+        "float64 with_default 1.5",
+        "=" * 80,
+        "MSG: test_msgs/Inner",
+        "uint8 tag",
+        "float64 value",
+        "string name",
+        "int16[] counts",
+        "=" * 80,
+        "MSG: test_msgs/Empty",
+        "",
+    ]
+)
+INTEGER_RANGES = {
+    "byte": (0, 255),
+    "uint8": (0, 255),
+    "char": (-128, 127),
+    "int8": (-128, 127),
+    "int16": (-(2**15), 2**15 - 1),
+    "uint16": (0, 2**16 - 1),
+    "int32": (-(2**31), 2**31 - 1),
+    "uint32": (0, 2**32 - 1),
+    "int64": (-(2**63), 2**63 - 1),
+    "uint64": (0, 2**64 - 1),
+}
 
 
 def _definitions(name: str, text: str) -> dict:
     found = {}
-    _for_each_msgdef(name, text, lambda full, short, definition: found.update({full: definition,
-                                                                              short: definition}))
+    _for_each_msgdef(name, text, lambda full, short, definition: found.update({full: definition, short: definition}))
     return found
 
 
@@ -48,7 +96,7 @@ def _scalar(type_name: str):
         return st.floats(width=32)
     if type_name == "float64":
         return st.floats()
-    return st.text(max_size=9)                      # strings: every length mod 4 and 8, any code point
+    return st.text(max_size=9)  # strings: every length mod 4 and 8, any code point
 
 
 def _message(definition, definitions: dict):
@@ -78,8 +126,11 @@ def _same(a, b) -> bool:
     """Field for field equal, with the same Python types (NaN equal to NaN)."""
     kind = type(a)
     if hasattr(kind, "_type"):
-        return (kind._type == type(b)._type and kind.__slots__ == type(b).__slots__
-                and all(_same(getattr(a, name), getattr(b, name)) for name in kind.__slots__))
+        return (
+            kind._type == type(b)._type
+            and kind.__slots__ == type(b).__slots__
+            and all(_same(getattr(a, name), getattr(b, name)) for name in kind.__slots__)
+        )
     if isinstance(a, list):
         return type(b) is list and len(a) == len(b) and all(_same(x, y) for x, y in zip(a, b))
     if isinstance(a, float) and math.isnan(a):
@@ -88,7 +139,8 @@ def _same(a, b) -> bool:
 
 
 SCHEMAS = [(schemas.full_name(name), schemas.definition(name)) for name in schemas.FIELDS] + [
-    ("test_msgs/msg/EveryKind", EVERY_KIND)]
+    ("test_msgs/msg/EveryKind", EVERY_KIND)
+]
 
 
 @pytest.mark.parametrize("name, text", SCHEMAS, ids=[name for name, _ in SCHEMAS])
@@ -112,7 +164,7 @@ def test_cut_or_corrupt_data_raises_a_decode_error_or_decodes_as_mcap_ros2(data)
     definitions = _definitions(name, text)
     encoded = bytearray(serialize_dynamic(name, text)[name](data.draw(_message(definitions[name], definitions))))
     if data.draw(st.booleans()):
-        encoded = encoded[:data.draw(st.integers(0, len(encoded) - 1))]
+        encoded = encoded[: data.draw(st.integers(0, len(encoded) - 1))]
     else:
         encoded[data.draw(st.integers(4, len(encoded) - 1))] = data.draw(st.integers(0, 255))
     encoded = bytes(encoded)
@@ -130,20 +182,21 @@ def test_big_endian_data_goes_to_mcap_ros2():
     schema = Schema(id=1, name=name, encoding="ros2msg", data=text.encode())
     decoded = DecoderFactory().decoder_for("cdr", schema)(big)
     assert (decoded.x, decoded.y, decoded.z) == (1.0, -2.5, 3.25)
-    with pytest.raises(ValueError, match="big-endian"):        # never read as little-endian
+    with pytest.raises(ValueError, match="big-endian"):  # never read as little-endian
         compile_decoders(name, text)[name](big)
 
 
 def test_what_it_leaves_to_mcap_ros2():
-    assert compile_decoders("test_msgs/msg/Wide", "wstring text\n") == {}           # mcap_ros2 cannot either
+    assert compile_decoders("test_msgs/msg/Wide", "wstring text\n") == {}  # mcap_ros2 cannot either
     schema = Schema(id=1, name="test_msgs/msg/Wide", encoding="ros2msg", data=b"wstring text\n")
     assert DecoderFactory().decoder_for("cdr", schema) is not None
-    assert DecoderFactory().decoder_for("json", schema) is None                      # as mcap_ros2's factory
+    assert DecoderFactory().decoder_for("json", schema) is None  # as mcap_ros2's factory
     with pytest.raises(ValueError, match="4-byte header"):
         compile_decoders(*SCHEMAS[0])[SCHEMAS[0][0]](b"\x00\x01")
-    with pytest.raises(ValueError, match="4-byte header"):                           # mcap_ros2's own error
-        DecoderFactory().decoder_for("cdr", Schema(id=1, name=SCHEMAS[0][0], encoding="ros2msg",
-                                                   data=SCHEMAS[0][1].encode()))(b"\x00\x01")
+    with pytest.raises(ValueError, match="4-byte header"):  # mcap_ros2's own error
+        DecoderFactory().decoder_for(
+            "cdr", Schema(id=1, name=SCHEMAS[0][0], encoding="ros2msg", data=SCHEMAS[0][1].encode())
+        )(b"\x00\x01")
 
 
 def test_a_schema_that_does_not_parse_raises_as_mcap_ros2s():

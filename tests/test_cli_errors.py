@@ -3,6 +3,7 @@
 Every case here fails before any simulation or kernel runs (the output paths are checked right after the
 arguments are parsed), so each subprocess takes about as long as the imports.
 """
+
 import os
 import subprocess
 import sys
@@ -13,21 +14,28 @@ import pytest
 from mcl.tools.cli_checks import CommandError, check_input_file, check_output_directory, check_output_file, one_line
 
 ROOT = Path(__file__).resolve().parent.parent
-UNWRITABLE = "/proc/robocup-mcl-test.rrd"      # /proc takes no new files, not even from root
+UNWRITABLE = "/proc/robocup-mcl-test.rrd"  # /proc takes no new files, not even from root
 
 
 def cli(*argv, env=None, timeout=180):
     environment = {k: v for k, v in os.environ.items() if k != "ROBOCUP_MCL_DEBUG"}
     environment.update(env or {})
-    return subprocess.run([sys.executable, "-m", "mcl.tools.cli", *map(str, argv)], cwd=ROOT, capture_output=True,
-                          text=True, timeout=timeout, env=environment)
+    return subprocess.run(
+        [sys.executable, "-m", "mcl.tools.cli", *map(str, argv)],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=timeout,
+        env=environment,
+    )
 
 
 def python(code, env=None):
     environment = {k: v for k, v in os.environ.items() if k != "ROBOCUP_MCL_DEBUG"}
     environment.update(env or {})
-    return subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, timeout=180,
-                          env=environment)
+    return subprocess.run(
+        [sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, timeout=180, env=environment
+    )
 
 
 def assert_one_line(done, *named, code=1, prefix="robocup-mcl: "):
@@ -57,15 +65,19 @@ def garbage(tmp_path):
 
 
 # -- output paths, checked before the run ---------------------------------------------------------------------
-@pytest.mark.parametrize("argv", [
-    ("demo", "walk", "--rrd", UNWRITABLE),
-    ("demo", "velocity", "--rrd", UNWRITABLE),
-    ("demo", "collision", "--case", "single", "--model", "adaptive", "--rrd", UNWRITABLE),
-    ("demo", "odometry", "--record", "/proc/robocup-mcl-test.npz"),
-    ("bench", "--save", "/proc/robocup-mcl-test.json"),
-    ("bench", "--quick", "--plot=/proc/robocup-mcl-test.png"),
-    ("soak", "--save", "/proc/robocup-mcl-test.json"),
-], ids=lambda argv: " ".join(argv[:2]))
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ("demo", "walk", "--rrd", UNWRITABLE),
+        ("demo", "velocity", "--rrd", UNWRITABLE),
+        ("demo", "collision", "--case", "single", "--model", "adaptive", "--rrd", UNWRITABLE),
+        ("demo", "odometry", "--record", "/proc/robocup-mcl-test.npz"),
+        ("bench", "--save", "/proc/robocup-mcl-test.json"),
+        ("bench", "--quick", "--plot=/proc/robocup-mcl-test.png"),
+        ("soak", "--save", "/proc/robocup-mcl-test.json"),
+    ],
+    ids=lambda argv: " ".join(argv[:2]),
+)
 def test_an_unwritable_output_path_fails_at_once(argv):
     line = assert_one_line(cli(*argv), argv[-1].split("=")[-1])
     assert "cannot write there" in line
@@ -117,18 +129,21 @@ def test_replay_of_a_file_that_is_not_a_log(tmp_path, name):
 
 
 def test_replay_with_a_missing_field_file(garbage):
-    assert_one_line(cli("replay", garbage, "--field", "no_such.toml"), "no_such.toml",
-                    prefix="robocup-mcl replay: ")
+    assert_one_line(cli("replay", garbage, "--field", "no_such.toml"), "no_such.toml", prefix="robocup-mcl replay: ")
 
 
 def test_replay_checks_its_outputs_before_reading_the_log(tmp_path):
-    log = tmp_path / "not-read-yet.mcap"          # does not exist: the outputs are checked first
+    log = tmp_path / "not-read-yet.mcap"  # does not exist: the outputs are checked first
     assert_one_line(cli("replay", log, "--rrd", UNWRITABLE), UNWRITABLE, prefix="robocup-mcl replay: ")
-    line = assert_one_line(cli("replay", log, "--out", tmp_path / "poses.txt"), tmp_path / "poses.txt",
-                           prefix="robocup-mcl replay: ")
+    line = assert_one_line(
+        cli("replay", log, "--out", tmp_path / "poses.txt"), tmp_path / "poses.txt", prefix="robocup-mcl replay: "
+    )
     assert ".mcap, .csv, .npz" in line
-    assert_one_line(cli("replay", log, "--out", "/proc/robocup-mcl-test.csv"), "/proc/robocup-mcl-test.csv",
-                    prefix="robocup-mcl replay: ")
+    assert_one_line(
+        cli("replay", log, "--out", "/proc/robocup-mcl-test.csv"),
+        "/proc/robocup-mcl-test.csv",
+        prefix="robocup-mcl replay: ",
+    )
 
 
 # -- usage errors stay argparse's -------------------------------------------------------------------------------
@@ -144,14 +159,19 @@ def test_usage_errors_exit_2_without_a_traceback():
 RAISE = "import sys, mcl.tools.cli as cli\ndef run(argv):\n    raise {error}\ncli._run = run\nsys.exit(cli.main([]))\n"
 
 
-@pytest.mark.parametrize("error, message", [
-    ("ValueError('particles = -1 must be > 0')", "robocup-mcl: particles = -1 must be > 0"),
-    ("TypeError('seed must be an integer')", "robocup-mcl: seed must be an integer"),
-    ("FileNotFoundError(2, 'No such file or directory', '/data/game.mcap')",
-     "robocup-mcl: /data/game.mcap: No such file or directory"),
-    ("PermissionError(13, 'Permission denied', '/data/out.rrd')", "robocup-mcl: /data/out.rrd: Permission denied"),
-    ("ValueError('first line\\nsecond line')", "robocup-mcl: first line; second line"),
-])
+@pytest.mark.parametrize(
+    "error, message",
+    [
+        ("ValueError('particles = -1 must be > 0')", "robocup-mcl: particles = -1 must be > 0"),
+        ("TypeError('seed must be an integer')", "robocup-mcl: seed must be an integer"),
+        (
+            "FileNotFoundError(2, 'No such file or directory', '/data/game.mcap')",
+            "robocup-mcl: /data/game.mcap: No such file or directory",
+        ),
+        ("PermissionError(13, 'Permission denied', '/data/out.rrd')", "robocup-mcl: /data/out.rrd: Permission denied"),
+        ("ValueError('first line\\nsecond line')", "robocup-mcl: first line; second line"),
+    ],
+)
 def test_user_errors_are_one_line(error, message):
     done = python(RAISE.format(error=error))
     assert done.returncode == 1 and done.stderr.splitlines() == [message]
@@ -168,7 +188,7 @@ def test_a_bug_is_one_line_with_a_hint_and_a_traceback_on_request():
 def test_the_debug_variable_shows_the_traceback_of_a_user_error():
     done = cli("demo", "walk", "--rrd", UNWRITABLE, env={"ROBOCUP_MCL_DEBUG": "1"})
     assert done.returncode == 1 and "Traceback" in done.stderr and "CommandError" in done.stderr
-    done = cli("demo", "walk", "--rrd", UNWRITABLE, env={"ROBOCUP_MCL_DEBUG": "0"})   # "0": off
+    done = cli("demo", "walk", "--rrd", UNWRITABLE, env={"ROBOCUP_MCL_DEBUG": "0"})  # "0": off
     assert_one_line(done, UNWRITABLE)
 
 
@@ -191,7 +211,7 @@ def test_the_output_check_leaves_no_trace_and_truncates_nothing(tmp_path):
     check_output_file(old, "--save")
     assert old.read_text() == "keep me\n"
     nested = tmp_path / "a" / "b" / "walk.rrd"
-    check_output_file(nested, "--rrd")                   # the writers create missing directories too
+    check_output_file(nested, "--rrd")  # the writers create missing directories too
     assert nested.parent.is_dir() and not nested.exists()
     with pytest.raises(CommandError, match="does not exist"):
         check_output_file(tmp_path / "c" / "x.json", "--save", make_parents=False)
@@ -204,8 +224,7 @@ def test_the_output_check_leaves_no_trace_and_truncates_nothing(tmp_path):
 
 
 def test_one_line_messages():
-    assert one_line(FileNotFoundError(2, "No such file or directory", "x.mcap")) == \
-        "x.mcap: No such file or directory"
+    assert one_line(FileNotFoundError(2, "No such file or directory", "x.mcap")) == "x.mcap: No such file or directory"
     assert one_line(OSError(28, "No space left on device")) == "No space left on device"
     assert one_line(ValueError("a\n\n  b  \n")) == "a; b"
     assert one_line(RuntimeError()) == "RuntimeError"
@@ -214,10 +233,15 @@ def test_one_line_messages():
 def test_a_module_run_with_python_dash_m_refuses_in_one_line(tmp_path):
     """`python -m mcl.tools.ros.bench` (as `make ros` and the node's docs run the ROS tools) refuses a bad value
     the way `robocup-mcl` does: one line naming the program, exit 1, no traceback."""
-    done = subprocess.run([sys.executable, "-m", "mcl.tools.ros.bench", str(tmp_path / "missing.mcap"), "--rate", "0"],
-                          capture_output=True, text=True, check=False)
+    done = subprocess.run(
+        [sys.executable, "-m", "mcl.tools.ros.bench", str(tmp_path / "missing.mcap"), "--rate", "0"],
+        capture_output=True,
+        text=True,
+        check=False,
+    )
     assert done.returncode == 1 and done.stderr.splitlines() == [
-        "python -m mcl.tools.ros.bench: --rate must be > 0, --repeat >= 1 and --particles > 0"], done.stderr
+        "python -m mcl.tools.ros.bench: --rate must be > 0, --repeat >= 1 and --particles > 0"
+    ], done.stderr
 
 
 def test_run_main_turns_a_refusal_into_one_line(capsys):

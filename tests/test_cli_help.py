@@ -2,6 +2,7 @@
 option a help text; `robocup-mcl --version`; a wrong --field name lists the presets in one line; progress bars
 stay out of --json output; the first run says that it compiles (mcl.numba_cache.warm_up) and reports the time
 apart."""
+
 from __future__ import annotations
 
 import argparse
@@ -31,8 +32,11 @@ def test_every_option_has_help_and_the_parser_names_the_command(prog):
     assert parser.prog == prog
     assert parser.description and parser.description.rstrip().endswith("."), parser.description
     assert "python -m" not in parser.format_usage()
-    silent = [action.option_strings or [action.dest] for action in parser._actions
-              if not isinstance(action, argparse._HelpAction) and not (action.help or "").strip()]
+    silent = [
+        action.option_strings or [action.dest]
+        for action in parser._actions
+        if not isinstance(action, argparse._HelpAction) and not (action.help or "").strip()
+    ]
     assert not silent, f"{prog}: options without help text: {silent}"
 
 
@@ -69,13 +73,15 @@ def test_a_field_is_a_preset_name_in_any_case_or_a_file(tmp_path):
     path = tmp_path / "lab.toml"
     save_field(field_by_name_or_path("spl"), path)
     assert field_by_name_or_path(str(path)).dims == field_by_name_or_path("spl").dims
-    with pytest.raises(ValueError, match="does not exist"):          # a field file's name: the file's problem
+    with pytest.raises(ValueError, match="does not exist"):  # a field file's name: the file's problem
         field_by_name_or_path(str(tmp_path / "missing.toml"))
 
 
 def test_descriptions_are_whole_sentences():
-    assert description("`robocup-mcl x`: one thing,\n    over two lines\n\nmore") == \
-        "robocup-mcl x: one thing, over two lines."
+    assert (
+        description("`robocup-mcl x`: one thing,\n    over two lines\n\nmore")
+        == "robocup-mcl x: one thing, over two lines."
+    )
     assert description("Done.") == "Done."
 
 
@@ -119,10 +125,11 @@ def test_no_bar_in_json_output_even_on_a_terminal(monkeypatch, capsys):
 
 # The first run: what decides the message, and what warm_up prints.
 
+
 def test_first_run_decision():
-    assert numba_cache.first_run_decision(False) == (True, True)       # not cached: say so, compile
-    assert numba_cache.first_run_decision(True) == (False, False)      # cached: nothing to say
-    assert numba_cache.first_run_decision(None) == (False, True)       # cannot tell: no promise either way
+    assert numba_cache.first_run_decision(False) == (True, True)  # not cached: say so, compile
+    assert numba_cache.first_run_decision(True) == (False, False)  # cached: nothing to say
+    assert numba_cache.first_run_decision(None) == (False, True)  # cannot tell: no promise either way
     assert numba_cache.first_run_decision(False, quiet=True) == (False, True)
 
 
@@ -139,8 +146,12 @@ def test_kernels_cached_combines_the_kernels(monkeypatch):
 def test_warm_up_announces_a_compilation_and_reports_its_time(monkeypatch, cached):
     monkeypatch.setattr(numba_cache, "kernels_cached", lambda kernels: cached)
     called, stream = [], io.StringIO()
-    warm = numba_cache.warm_up([("one", lambda: called.append(1)), ("two", lambda: called.append(2))],
-                               ["kernel"], progress=False, stream=stream)
+    warm = numba_cache.warm_up(
+        [("one", lambda: called.append(1)), ("two", lambda: called.append(2))],
+        ["kernel"],
+        progress=False,
+        stream=stream,
+    )
     assert called == [1, 2] and warm.seconds >= 0 and warm.as_dict()["kernels_cached"] is cached
     lines = stream.getvalue().splitlines()
     if cached:
@@ -161,20 +172,22 @@ def test_kernel_cached_reads_numba_s_cache(tmp_path, monkeypatch):
     """A real kernel in a fresh module: not cached before its first call, cached after it, and not cached once
     its source changes."""
     source = tmp_path / "fresh_kernel_module.py"
-    source.write_text(textwrap.dedent("""
+    source.write_text(
+        textwrap.dedent("""
         import numba
 
         @numba.njit(cache=True)
         def twice(x):
             return 2 * x
-    """))
+    """)
+    )
     monkeypatch.syspath_prepend(str(tmp_path))
     module = importlib.import_module("fresh_kernel_module")
     try:
         assert numba_cache.kernel_cached(module.twice) is False
         assert module.twice(2) == 4
         assert numba_cache.kernel_cached(module.twice) is True
-        assert numba_cache.kernel_cached(len) is None              # not a numba kernel: cannot tell
+        assert numba_cache.kernel_cached(len) is None  # not a numba kernel: cannot tell
     finally:
         sys.modules.pop("fresh_kernel_module", None)
 
@@ -183,6 +196,7 @@ def test_a_command_without_rerun_says_so_in_one_line(monkeypatch, capsys, tmp_pa
     """On a Python without rerun-sdk (3.10), a command asked for a recording fails at once with one line naming
     the package; the same command without --rrd runs."""
     import mcl.tools.cli as cli
+
     monkeypatch.setattr(cli, "rerun_available", lambda: False)
     assert cli_main(["demo", "walk", "--duration", "1", "--rrd", str(tmp_path / "walk.rrd")]) == 1
     err = capsys.readouterr().err.strip().splitlines()

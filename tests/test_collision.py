@@ -1,4 +1,5 @@
 """Collision detection by sensor-actuator comparison (proprioception.collision) on synthetic and simulated servo data."""
+
 import math
 
 import numpy as np
@@ -36,7 +37,7 @@ def test_delay_estimate_recovers_a_pure_delay():
     readings = np.empty_like(commands)
     delays = np.array([0, 2, 5, 7])
     for j, d in enumerate(delays):
-        readings[d:, j] = commands[:commands.shape[0] - d, j]
+        readings[d:, j] = commands[: commands.shape[0] - d, j]
         readings[:d, j] = commands[0, j]
     assert (estimate_delays(commands, readings + 1e-4 * rng.standard_normal(readings.shape), 10) == delays).all()
 
@@ -57,8 +58,11 @@ def test_quiet_on_free_walking_and_fires_on_a_collision(reference):
     onsets = int((alarms & ~np.r_[False, alarms[:-1]]).sum())
     assert onsets <= 2, f"{onsets} false alarms in a minute of free walking"
 
-    events = (CollisionEvent(3.0, 1.5, HINDRANCE, LEFT, 0.6), CollisionEvent(6.0, 1.5, STOPPED, RIGHT, 0.6),
-              CollisionEvent(9.0, 1.0, HINDRANCE, BOTH, 0.6))
+    events = (
+        CollisionEvent(3.0, 1.5, HINDRANCE, LEFT, 0.6),
+        CollisionEvent(6.0, 1.5, STOPPED, RIGHT, 0.6),
+        CollisionEvent(9.0, 1.0, HINDRANCE, BOTH, 0.6),
+    )
     log = simulate(CollisionScenario(duration=12.0, events=events), seed=2002)
     out = detect(reference, log.servo_commands, log.servo_readings, log.phase, log.commands)
     start_times = log.times - log.dt
@@ -77,8 +81,10 @@ def test_online_detector_equals_batch(reference):
     events = (CollisionEvent(1.0, 1.0, STOPPED, LEFT, 0.5), CollisionEvent(2.5, 0.8, HINDRANCE, RIGHT, 0.4))
     log = simulate(CollisionScenario(duration=5.0, events=events), seed=2003)
     detector = CollisionDetector(reference)
-    percepts = [detector.update(log.servo_commands[k], log.servo_readings[k], log.phase[k], log.commands[k])
-                for k in range(log.times.shape[0])]
+    percepts = [
+        detector.update(log.servo_commands[k], log.servo_readings[k], log.phase[k], log.commands[k])
+        for k in range(log.times.shape[0])
+    ]
     out = detect(reference, log.servo_commands, log.servo_readings, log.phase, log.commands)
     s_rel = np.array([[p.s_rel_left, p.s_rel_right] for p in percepts])
     np.testing.assert_allclose(s_rel, out["s_rel"], rtol=1e-12, atol=1e-15)
@@ -107,7 +113,7 @@ def test_rejected_update_leaves_the_detector_unchanged(reference, free_walk):
             with pytest.raises(ValueError, match="finite"):
                 a.update(log.servo_commands[k], bad_reading, log.phase[k], log.commands[k])
             with pytest.raises(ValueError, match="shape"):
-                a.update(log.servo_commands[k][:joints - 1], log.servo_readings[k], log.phase[k], log.commands[k])
+                a.update(log.servo_commands[k][: joints - 1], log.servo_readings[k], log.phase[k], log.commands[k])
             with pytest.raises(ValueError, match="walk_command"):
                 a.update(*args[:3], (0.1, 0.0))
         assert a.update(*args) == b.update(*args)
@@ -122,8 +128,9 @@ def test_bad_training_data(free_walk):
     with pytest.raises(ValueError, match="non-finite"):
         learn_reference(log.servo_commands, readings, log.phase, log.commands, log.joint_sides)
     with pytest.raises(ValueError, match="too little free walking"):
-        learn_reference(log.servo_commands[:150], log.servo_readings[:150], log.phase[:150], log.commands[:150],
-                        log.joint_sides)
+        learn_reference(
+            log.servo_commands[:150], log.servo_readings[:150], log.phase[:150], log.commands[:150], log.joint_sides
+        )
     with pytest.raises(ValueError, match="no right joint"):
         learn_reference(log.servo_commands, log.servo_readings, log.phase, log.commands, np.zeros(8, dtype=int))
     with pytest.raises(ValueError, match="CollisionReference"):
@@ -154,8 +161,9 @@ _CACHE: dict = {}
 def _cached_reference():
     if "reference" not in _CACHE:
         log = simulate(CollisionScenario(duration=40.0, command=None), seed=2004)
-        _CACHE["reference"] = learn_reference(log.servo_commands, log.servo_readings, log.phase, log.commands,
-                                              log.joint_sides, min_samples=5)
+        _CACHE["reference"] = learn_reference(
+            log.servo_commands, log.servo_readings, log.phase, log.commands, log.joint_sides, min_samples=5
+        )
     return _CACHE["reference"]
 
 
@@ -214,5 +222,7 @@ def test_collision_command_json(capsys):
     out = json.loads(capsys.readouterr().out)
     block = out["no_vision"]["single"]
     assert set(block) == {"velocity-linear", "adaptive"}
-    assert block["adaptive"]["summary"]["contained_share"]["mean"] > block["velocity-linear"]["summary"][
-        "contained_share"]["mean"]
+    assert (
+        block["adaptive"]["summary"]["contained_share"]["mean"]
+        > block["velocity-linear"]["summary"]["contained_share"]["mean"]
+    )

@@ -1,5 +1,6 @@
 """The collision simulator's mismatched physics, the adaptive model's fit from training logs, and the rule that
 no model default is a simulator constant."""
+
 import ast
 import dataclasses
 import json
@@ -66,13 +67,15 @@ def test_every_range_is_drawn_within_its_bounds_and_the_same_robot_seed_gives_th
             assert column.max() - column.min() > 0.8 * (high - low), name
     turns = np.array([robot.stop_turn for robot in robots])
     assert (turns[:, 0] == turns[:, 1]).all()
-    assert turns.min() < 0.1 and turns.max() > 1.0            # the stop turn anywhere in 0.1-1.0 of v / w, and beyond
+    assert turns.min() < 0.1 and turns.max() > 1.0  # the stop turn anywhere in 0.1-1.0 of v / w, and beyond
     subsets = {robot.held_joints for robot in robots}
-    assert len(subsets) == 15 and all(subsets)                 # every non-empty subset of the four joints
+    assert len(subsets) == 15 and all(subsets)  # every non-empty subset of the four joints
     one, other = draw_physics(MISMATCH, 7), draw_physics(dataclasses.replace(MISMATCH, duration=3.0), 7)
     assert all(getattr(one, name) == getattr(other, name) for name in (*MISMATCH_RANGES, "held_joints"))
-    assert draw_physics(dataclasses.replace(MISMATCH, robot_seed=5), 1).foot_separation == \
-        draw_physics(MISMATCH, 5).foot_separation
+    assert (
+        draw_physics(dataclasses.replace(MISMATCH, robot_seed=5), 1).foot_separation
+        == draw_physics(MISMATCH, 5).foot_separation
+    )
     assert draw_physics(CollisionScenario(), 3) == CollisionScenario()
 
 
@@ -92,13 +95,18 @@ def test_stopped_robot_pivots_about_the_held_foot():
     # A left contact: the body turns left at the stop share times |v| / w over a gait cycle, and its centre
     # walks on at half the foot separation times the turn rate.
     share = 0.8
-    scenario = CollisionScenario(duration=4.0, stop_turn=(share, share), step_noise=0.0, scale_sigma=0.0,
-                                 turn_bias_sigma=0.0,
-                                 events=(CollisionEvent(1.0, 2.5, STOPPED, LEFT, 0.5),))
+    scenario = CollisionScenario(
+        duration=4.0,
+        stop_turn=(share, share),
+        step_noise=0.0,
+        scale_sigma=0.0,
+        turn_bias_sigma=0.0,
+        events=(CollisionEvent(1.0, 2.5, STOPPED, LEFT, 0.5),),
+    )
     log = simulate(scenario, 3)
     stopped = np.flatnonzero(log.mode == STOPPED)
     cycles = int(len(stopped) * log.dt / scenario.cycle)
-    stopped = stopped[:int(round(cycles * scenario.cycle / log.dt))]
+    stopped = stopped[: int(round(cycles * scenario.cycle / log.dt))]
     first, last = stopped[0] - 1, stopped[-1]
     turned = log.truth[last, 2] - log.truth[first, 2]
     duration = len(stopped) * log.dt
@@ -112,13 +120,28 @@ def test_stopped_robot_pivots_about_the_held_foot():
 def test_the_fit_recovers_known_ranges():
     rng = np.random.default_rng(0)
     n = 4000
-    truth = {"beta1": 0.3, "beta2": 0.5, "beta3": 0.2, "beta4": 0.6, "beta5": 0.45, "beta6": 0.8, "beta7": 0.25,
-             "beta_turn": 0.9, "stop_creep": 0.4}
-    rates = {"slip_speed": rng.uniform(truth["beta1"], 1.0, n), "slip_turn": rng.uniform(0, truth["beta2"], n),
-             "hinder_speed": rng.uniform(truth["beta3"], 1.0, n), "hinder_turn": rng.uniform(truth["beta4"], 1.0, n),
-             "push_speed": rng.uniform(0, truth["beta5"], n), "push_turn": rng.uniform(0, truth["beta6"], n),
-             "stop_turn_unknown": rng.uniform(0, truth["beta7"], n), "stop_turn": rng.uniform(0, truth["beta_turn"], n),
-             "stop_creep": rng.uniform(0, truth["stop_creep"], n)}
+    truth = {
+        "beta1": 0.3,
+        "beta2": 0.5,
+        "beta3": 0.2,
+        "beta4": 0.6,
+        "beta5": 0.45,
+        "beta6": 0.8,
+        "beta7": 0.25,
+        "beta_turn": 0.9,
+        "stop_creep": 0.4,
+    }
+    rates = {
+        "slip_speed": rng.uniform(truth["beta1"], 1.0, n),
+        "slip_turn": rng.uniform(0, truth["beta2"], n),
+        "hinder_speed": rng.uniform(truth["beta3"], 1.0, n),
+        "hinder_turn": rng.uniform(truth["beta4"], 1.0, n),
+        "push_speed": rng.uniform(0, truth["beta5"], n),
+        "push_turn": rng.uniform(0, truth["beta6"], n),
+        "stop_turn_unknown": rng.uniform(0, truth["beta7"], n),
+        "stop_turn": rng.uniform(0, truth["beta_turn"], n),
+        "stop_creep": rng.uniform(0, truth["stop_creep"], n),
+    }
     # With every episode covered (coverage close to 1) the quantiles are the bounds themselves.
     fitted = fit_betas({k: list(v) for k, v in rates.items()}, coverage=0.999)
     for name in FITTED:
@@ -131,8 +154,14 @@ def test_the_fit_recovers_known_ranges():
 
 def test_episode_rates_measure_the_simulated_stop_from_poses():
     share = 0.5
-    scenario = CollisionScenario(duration=5.0, stop_turn=(share, share), step_noise=0.0, scale_sigma=0.0,
-                                 turn_bias_sigma=0.0, events=(CollisionEvent(1.0, 3.0, STOPPED, LEFT, 0.5),))
+    scenario = CollisionScenario(
+        duration=5.0,
+        stop_turn=(share, share),
+        step_noise=0.0,
+        scale_sigma=0.0,
+        turn_bias_sigma=0.0,
+        events=(CollisionEvent(1.0, 3.0, STOPPED, LEFT, 0.5),),
+    )
     log = simulate(scenario, 1)
     rates = episode_rates(log, np.ones(log.times.shape[0]))
     # c·ω / (|v| / w) for the model's w: the simulated share scaled by w_model / w_sim (a cycle's mean turn).
@@ -159,8 +188,9 @@ def test_defaults_are_the_fitted_values():
     for name in FITTED:
         expected = round(fit["fitted"][name], DIGITS)
         assert fit["defaults"][name] == expected
-        if name == "stop_creep":       # the pivot variant's parameter; the paper's model keeps 0
+        if name == "stop_creep":  # the pivot variant's parameter; the paper's model keeps 0
             from demos.collision import PIVOT_CREEP
+
             assert PIVOT_CREEP == expected and model.stop_creep == 0.0
         else:
             assert getattr(model, name) == expected, name
@@ -175,7 +205,7 @@ def test_defaults_are_the_fitted_values():
 
 def test_episode_end_rates_are_the_maximum_likelihood_rates_of_the_chain():
     rng = np.random.default_rng(4)
-    dt, rate = 0.01, 0.8                       # 1/s: how fast a stop ends
+    dt, rate = 0.01, 0.8  # 1/s: how fast a stop ends
     mode, total_stopped, ends = [], 0.0, 0
     for _ in range(300):
         free = int(rng.integers(50, 200))
@@ -185,14 +215,14 @@ def test_episode_end_rates_are_the_maximum_likelihood_rates_of_the_chain():
         ends += 1
     mode += [FREE]
     log = dataclasses.replace(simulate(CollisionScenario(duration=0.05), 0), mode=np.array(mode, dtype=np.int8), dt=dt)
-    percept = np.full(len(mode), 0.5)          # "frequent" throughout
+    percept = np.full(len(mode), 0.5)  # "frequent" throughout
     counted, exposure = episode_ends(log, percept)
     assert counted[CONDITIONS.index("frequent"), STOPPED] == ends
     # The time in the state is counted frame by frame before each change: every stopped frame once.
     assert exposure[CONDITIONS.index("frequent"), STOPPED] == pytest.approx(total_stopped)
     fitted = fit_end_rates(counted, exposure)
     assert fitted["frequent"]["stopped"] == pytest.approx(rate, rel=0.15)
-    assert fitted["quiet"]["stopped"] is None                  # no time there: no rate
+    assert fitted["quiet"]["stopped"] is None  # no time there: no rate
     # Another condition sees none of it.
     counted, exposure = episode_ends(log, np.zeros(len(mode)))
     assert counted[CONDITIONS.index("frequent")].sum() == 0 and counted[CONDITIONS.index("quiet"), STOPPED] == ends
@@ -206,8 +236,15 @@ def test_fit_odometry_recovers_the_noise_of_eq_10_from_its_own_errors():
     mix = ODOMETRY_SHAPE[2] * speed
     gain = math.sqrt(dt * horizon / 3.0)
     factor_theta = beta[2] / ODOMETRY_SHAPE[2]
-    errors = np.column_stack([rng.normal(0, beta[0] * speed * gain), rng.normal(0, beta[1] * speed * gain),
-                              rng.normal(0, factor_theta * mix * gain), speed, mix])
+    errors = np.column_stack(
+        [
+            rng.normal(0, beta[0] * speed * gain),
+            rng.normal(0, beta[1] * speed * gain),
+            rng.normal(0, factor_theta * mix * gain),
+            speed,
+            mix,
+        ]
+    )
     fitted = fit_odometry(errors, dt, horizon, coverage=0.95)
     assert fitted[0] == pytest.approx(beta[0], rel=0.05) and fitted[1] == pytest.approx(beta[1], rel=0.05)
     assert fitted[2] == pytest.approx(beta[2], rel=0.05) and fitted[3] == pytest.approx(beta[2], rel=0.05)
@@ -220,8 +257,9 @@ def test_fit_odometry_recovers_the_noise_of_eq_10_from_its_own_errors():
 
 
 def test_free_walk_errors_are_zero_for_a_robot_that_walks_as_requested():
-    scenario = CollisionScenario(duration=12.0, command=(0.2, 0.05, 0.3), scale_sigma=0.0, turn_bias_sigma=0.0,
-                                 step_noise=0.0)
+    scenario = CollisionScenario(
+        duration=12.0, command=(0.2, 0.05, 0.3), scale_sigma=0.0, turn_bias_sigma=0.0, step_noise=0.0
+    )
     log = simulate(scenario, 2)
     errors = free_walk_errors(log, np.zeros(log.times.shape[0]), horizon=5.0)
     assert errors.shape == (2, 5)
@@ -241,6 +279,7 @@ def test_a_refused_fit_says_why():
 
 def test_the_baseline_widenings_are_the_tuned_ones():
     from demos.collision import BASELINE_WIDEN
+
     tuning = json.loads((ROOT / "results" / "collision_baseline_tuning.json").read_text())["baseline_tuning"]
     assert BASELINE_WIDEN == tuning["best"]
 
@@ -257,7 +296,7 @@ def test_no_model_default_is_a_simulator_constant():
     nominal = CollisionScenario()
     simulator_values = set()
     for f in dataclasses.fields(nominal):
-        if f.name in ("field", "camera", "events", "held_joints"):    # objects, and joint indices (not physics)
+        if f.name in ("field", "camera", "events", "held_joints"):  # objects, and joint indices (not physics)
             continue
         simulator_values.update(_numbers(getattr(nominal, f.name)))
     simulator_values.update(_numbers(MISMATCH_RANGES))
@@ -289,7 +328,8 @@ def test_detection_on_mismatched_robots_is_told_per_held_joint_subset():
     assert sum(row["episodes"] for row in d["by_held_joints"].values()) == d["episodes"]
     shares = [row["detected_share"] * row["episodes"] for row in d["by_held_joints"].values() if row["episodes"]]
     assert sum(shares) == pytest.approx(d["detected_share"] * d["episodes"])
-    robots = {"+".join(collision_sim.JOINTS[j] for j in draw_physics(MISMATCH, seed).held_joints)
-              for seed in (4100, 4101)}
+    robots = {
+        "+".join(collision_sim.JOINTS[j] for j in draw_physics(MISMATCH, seed).held_joints) for seed in (4100, 4101)
+    }
     assert set(d["by_held_joints"]) == robots
-    assert robot_reference.cache_info().currsize >= 2      # each robot's own reference
+    assert robot_reference.cache_info().currsize >= 2  # each robot's own reference

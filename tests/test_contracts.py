@@ -6,6 +6,7 @@ and poses finite and wrapped after every step, a refused call leaves the filter 
 the same run. A contract a model is known to break is a strict xfail below, naming the input: the day the model
 keeps it, the test says so.
 """
+
 import math
 
 import numpy as np
@@ -30,12 +31,13 @@ from sensing import CombinedSensorModel, LandmarkSensorModel, LineSensorModel
 
 FIELD = spl()
 EXAMPLES = 15
-FILTER_SETTINGS = settings(max_examples=EXAMPLES, deadline=None, derandomize=True, database=None,
-                           suppress_health_check=[HealthCheck.too_slow])
+FILTER_SETTINGS = settings(
+    max_examples=EXAMPLES, deadline=None, derandomize=True, database=None, suppress_health_check=[HealthCheck.too_slow]
+)
 STEP = MotionInput(dt=0.01, command=(0.2, 0.0, 0.1), collision=NO_COLLISION)
-NOT_STEPPING = MotionInput(dt=0.01)                         # neither command nor odometry
+NOT_STEPPING = MotionInput(dt=0.01)  # neither command nor odometry
 NO_PERCEPT = MotionInput(dt=0.01, command=(0.2, 0.0, 0.1))  # the adaptive model needs the collision percept
-OLD_EVENT = FootstepEvent(support=1, commanded=(0.04, 0.0, 0.1))   # no sensor-based step: a-priori inputs only
+OLD_EVENT = FootstepEvent(support=1, commanded=(0.04, 0.0, 0.1))  # no sensor-based step: a-priori inputs only
 
 
 def _learned(kind: str) -> LearnedFootstepOdometry:
@@ -73,16 +75,30 @@ def motion_model(name: str):
     return _MADE[name]
 
 
-MOTION_MODELS = ["constant", "constant-gaussian", "velocity-linear", "velocity-linear-gaussian", "adaptive",
-                 "adaptive-redraw-step", "raw-footstep-online", "raw-footstep-apriori", "learned-footstep-online",
-                 "learned-footstep-apriori"]
+MOTION_MODELS = [
+    "constant",
+    "constant-gaussian",
+    "velocity-linear",
+    "velocity-linear-gaussian",
+    "adaptive",
+    "adaptive-redraw-step",
+    "raw-footstep-online",
+    "raw-footstep-apriori",
+    "learned-footstep-online",
+    "learned-footstep-apriori",
+]
 
 # What each model must refuse (beyond what `MotionInput` refuses itself).
 REFUSED = {
-    "constant": [NOT_STEPPING], "constant-gaussian": [NOT_STEPPING],
-    "velocity-linear": [NOT_STEPPING], "velocity-linear-gaussian": [NOT_STEPPING],
-    "adaptive": [NO_PERCEPT, MotionInput(dt=0.01, command=(0.2, 0.0, 0.1), collision="bump"),
-                 MotionInput(dt=0.01, collision=NO_COLLISION)],
+    "constant": [NOT_STEPPING],
+    "constant-gaussian": [NOT_STEPPING],
+    "velocity-linear": [NOT_STEPPING],
+    "velocity-linear-gaussian": [NOT_STEPPING],
+    "adaptive": [
+        NO_PERCEPT,
+        MotionInput(dt=0.01, command=(0.2, 0.0, 0.1), collision="bump"),
+        MotionInput(dt=0.01, collision=NO_COLLISION),
+    ],
     "raw-footstep-online": [MotionInput(dt=0.01, footstep="swap"), MotionInput(dt=0.01, footstep=OLD_EVENT)],
     "raw-footstep-apriori": [MotionInput(dt=0.01, footstep="swap")],
     "learned-footstep-online": [MotionInput(dt=0.01, footstep="swap"), MotionInput(dt=0.01, footstep=OLD_EVENT)],
@@ -95,6 +111,7 @@ def _within_the_adaptive_speed(u: MotionInput) -> bool:
     """Leaves out odometry over a step so short that `AdaptiveMotion` refuses it (a clock glitch: see
     `test_adaptive_motion_refuses_odometry_over_a_tiny_dt_and_nothing_moves`)."""
     from motion_models.adaptive import MAX_ODOMETRY_SPEED
+
     return u.odometry is None or u.dt == 0.0 or max(map(abs, u.odometry)) / u.dt <= MAX_ODOMETRY_SPEED
 
 
@@ -111,11 +128,17 @@ def hostile_inputs_for(name: str) -> st.SearchStrategy:
 # -- motion models -----------------------------------------------------------------------------------------------
 @pytest.mark.parametrize("name", MOTION_MODELS)
 def test_every_shipped_motion_model_keeps_the_contract(name):
-    report = mt.check_motion_model(motion_model(name), FIELD, strict=True, refused=REFUSED[name],
-                                   inputs=motion_inputs_for(name), hostile=hostile_inputs_for(name),
-                                   max_examples=EXAMPLES)
+    report = mt.check_motion_model(
+        motion_model(name),
+        FIELD,
+        strict=True,
+        refused=REFUSED[name],
+        inputs=motion_inputs_for(name),
+        hostile=hostile_inputs_for(name),
+        max_examples=EXAMPLES,
+    )
     assert report.examples >= EXAMPLES and report.accepted >= EXAMPLES
-    assert report.hostile_refused > 0          # inputs without what the model needs were drawn, and refused
+    assert report.hostile_refused > 0  # inputs without what the model needs were drawn, and refused
 
 
 def test_adaptive_motion_refuses_odometry_over_a_tiny_dt_and_nothing_moves():
@@ -128,13 +151,13 @@ def test_adaptive_motion_refuses_odometry_over_a_tiny_dt_and_nothing_moves():
         AdaptiveMotion().check(u)
     pf = ParticleFilter(FIELD, AdaptiveMotion(), LandmarkSensorModel(FIELD), n_particles=50, seed=1)
     mt.assert_refused_leaves_state(pf, pf.predict, u)
-    pf.predict(MotionInput(dt=0.01, odometry=(0.0625, 0.0, 0.0), collision=NO_COLLISION))   # 6.25 m/s: taken
+    pf.predict(MotionInput(dt=0.01, odometry=(0.0625, 0.0, 0.0), collision=NO_COLLISION))  # 6.25 m/s: taken
     mt.assert_poses_finite_and_wrapped(pf.poses)
     assert np.isfinite(pf.estimate().pose).all()
 
 
 # -- sensor models -----------------------------------------------------------------------------------------------
-_LINES = LineSensorModel(FIELD)          # its likelihood field takes a moment to build: once
+_LINES = LineSensorModel(FIELD)  # its likelihood field takes a moment to build: once
 SENSOR_MODELS = {
     "landmark-von_mises-max": LandmarkSensorModel(FIELD),
     "landmark-von_mises-sum": LandmarkSensorModel(FIELD, mixture="sum"),
@@ -157,7 +180,7 @@ def test_every_shipped_sensor_model_keeps_the_contract(name):
     model = SENSOR_MODELS[name]
     report = mt.check_sensor_model(model, FIELD, bound=per_term_bound(model), max_examples=EXAMPLES)
     assert report.examples >= EXAMPLES and report.accepted >= EXAMPLES
-    assert report.hostile_accepted > 0        # the edge frames are scored (every preset has every landmark type)
+    assert report.hostile_accepted > 0  # the edge frames are scored (every preset has every landmark type)
 
 
 # -- the filter with each model --------------------------------------------------------------------------------------
@@ -171,7 +194,7 @@ def refusals(motion_name: str) -> st.SearchStrategy:
     """(method name, arguments) of calls a filter must refuse, changing nothing."""
     hostile = mt.hostile_values()
     return st.one_of(
-        st.tuples(st.just("step"), st.tuples(hostile)),                         # not a MotionInput
+        st.tuples(st.just("step"), st.tuples(hostile)),  # not a MotionInput
         st.tuples(st.just("predict"), st.tuples(hostile)),
         st.tuples(st.just("step"), st.tuples(st.just(STEP), st.sampled_from(["goalpost", [("T", 1.0, 0.2)]]))),
         st.tuples(st.just("step"), st.tuples(st.sampled_from(REFUSED[motion_name]))),
@@ -181,11 +204,13 @@ def refusals(motion_name: str) -> st.SearchStrategy:
     )
 
 
-CONFIGURATIONS = st.fixed_dictionaries({
-    "resampling": st.sampled_from(["systematic", "stratified", "residual", "multinomial"]),
-    "resample_threshold": st.sampled_from([0.0, 0.5, 1.0]),      # never, the default, every correction
-    "augmented": st.sampled_from([AugmentedMCL(), None]),
-})
+CONFIGURATIONS = st.fixed_dictionaries(
+    {
+        "resampling": st.sampled_from(["systematic", "stratified", "residual", "multinomial"]),
+        "resample_threshold": st.sampled_from([0.0, 0.5, 1.0]),  # never, the default, every correction
+        "augmented": st.sampled_from([AugmentedMCL(), None]),
+    }
+)
 
 
 @pytest.mark.parametrize("case", filter_cases(), ids=lambda case: case[0])
@@ -196,17 +221,23 @@ def test_a_filter_with_every_shipped_model_keeps_its_invariants(case):
 
     def frames(pose):
         """Frames of any detections, and frames a robot at `pose` sees (which the filter can explain)."""
-        return st.one_of(st.none(),
-                         mt.observations(FIELD, max_detections=5, with_sigmas=True, with_view=True,
-                                         max_line_points=lines),
-                         mt.observations(FIELD, max_detections=5, max_line_points=lines, seen_from=pose))
+        return st.one_of(
+            st.none(),
+            mt.observations(FIELD, max_detections=5, with_sigmas=True, with_view=True, max_line_points=lines),
+            mt.observations(FIELD, max_detections=5, max_line_points=lines, seen_from=pose),
+        )
 
-    steps = mt.poses(FIELD, margin=0.5).flatmap(lambda pose: st.lists(
-        st.tuples(motion_inputs_for(motion_name), frames(pose)), min_size=1, max_size=5))
+    steps = mt.poses(FIELD, margin=0.5).flatmap(
+        lambda pose: st.lists(st.tuples(motion_inputs_for(motion_name), frames(pose)), min_size=1, max_size=5)
+    )
 
     @FILTER_SETTINGS
-    @given(configuration=CONFIGURATIONS, start=st.one_of(st.none(), mt.particle_sets(FIELD, n=48)), steps=steps,
-           refusal=refusals(motion_name))
+    @given(
+        configuration=CONFIGURATIONS,
+        start=st.one_of(st.none(), mt.particle_sets(FIELD, n=48)),
+        steps=steps,
+        refusal=refusals(motion_name),
+    )
     def run(configuration, start, steps, refusal):
         def make():
             return ParticleFilter(FIELD, motion, sensor, n_particles=48, seed=11, **configuration)
@@ -250,6 +281,7 @@ class _Plain:
 @pytest.mark.parametrize("name", MOTION_MODELS)
 def test_which_shipped_motion_models_get_the_fast_path(name):
     from mcl.contracts import fast_path, moves_by_bounded_noise
+
     model = motion_model(name)
     assert moves_by_bounded_noise(model) == (name in FAST_MOTION)
     assert fast_path(model, LandmarkSensorModel(FIELD))["step"] == (name in FAST_MOTION)
@@ -258,14 +290,17 @@ def test_which_shipped_motion_models_get_the_fast_path(name):
 @pytest.mark.parametrize("name", list(SENSOR_MODELS))
 def test_which_shipped_sensor_models_get_the_fast_path(name):
     from mcl.contracts import fast_path
+
     assert fast_path(VelocityLinear(), SENSOR_MODELS[name])["likelihood"] == (name in FAST_SENSORS)
 
 
-@pytest.mark.parametrize("motion, sensor", [("velocity-linear", "landmark-von_mises-max"),
-                                           ("constant-gaussian", "landmark-exact-max")])
+@pytest.mark.parametrize(
+    "motion, sensor", [("velocity-linear", "landmark-von_mises-max"), ("constant-gaussian", "landmark-exact-max")]
+)
 def test_the_fast_path_gives_the_plain_calls_particles(motion, sensor):
     from mcl.contracts import fast_path
     from sensing import Observations
+
     plain_motion, plain_sensor = _Plain(motion_model(motion)), _Plain(SENSOR_MODELS[sensor])
     assert not any(fast_path(plain_motion, plain_sensor).values())
     fast = ParticleFilter(FIELD, motion_model(motion), SENSOR_MODELS[sensor], n_particles=200, seed=5)
@@ -278,12 +313,19 @@ def test_the_fast_path_gives_the_plain_calls_particles(motion, sensor):
 
 
 @settings(max_examples=EXAMPLES, deadline=None, derandomize=True, database=None)
-@given(poses=mt.pose_arrays(FIELD, n=(1, 300)), observations=mt.observations(FIELD, min_detections=1),
-       since=st.none() | st.tuples(*[st.floats(-0.2, 0.2)] * 3))
+@given(
+    poses=mt.pose_arrays(FIELD, n=(1, 300)),
+    observations=mt.observations(FIELD, min_detections=1),
+    since=st.none() | st.tuples(*[st.floats(-0.2, 0.2)] * 3),
+)
 def test_the_fused_kernels_of_every_shipped_sensor_model_equal_its_log_likelihood(poses, observations, since):
     from mcl.contracts import fused_kernels
-    offered = [name for name, model in SENSOR_MODELS.items()
-               if mt.assert_fused_likelihood(model, poses, observations.with_view(None), since)]
+
+    offered = [
+        name
+        for name, model in SENSOR_MODELS.items()
+        if mt.assert_fused_likelihood(model, poses, observations.with_view(None), since)
+    ]
     assert set(offered) == FAST_SENSORS
     assert all(fused_kernels(SENSOR_MODELS[name]) is not None for name in offered)
 
@@ -293,6 +335,7 @@ def test_a_motion_model_that_returns_nan_poses_does_not_crash_the_filter():
     not an out-of-bounds write (run in a child process: a crash must fail the test, not end the run)."""
     import subprocess
     import sys
+
     code = """
 import numpy as np
 from field import spl
@@ -321,8 +364,9 @@ print("estimate", pf.estimate().weight, "entropy", pf.entropy().position)
 # is reported as skipped (an empty parameter set).
 @pytest.mark.parametrize("entry", mt.registered_models(), ids=lambda entry: f"{entry.kind}-{entry.name}")
 def test_every_registered_model_keeps_the_contract(entry):
-    reports = [r for r in mt.check_registered(FIELD, kind=entry.kind, max_examples=EXAMPLES)
-               if r.model.name == entry.name]
+    reports = [
+        r for r in mt.check_registered(FIELD, kind=entry.kind, max_examples=EXAMPLES) if r.model.name == entry.name
+    ]
     assert len(reports) == 1 and reports[0].contract.accepted > 0
 
 
@@ -360,9 +404,16 @@ def test_a_registered_model_that_breaks_the_contract_is_named(model, says):
     assert all(entry.name != "broken" for entry in mt.registered_models())
 
 
-@pytest.mark.parametrize("name, make, refused, error", [
-    ("", ConstantNoise, (), ValueError), ("  ", ConstantNoise, (), ValueError), (3, ConstantNoise, (), ValueError),
-    ("x", "ConstantNoise", (), TypeError), ("x", ConstantNoise, ("not an input",), TypeError)])
+@pytest.mark.parametrize(
+    "name, make, refused, error",
+    [
+        ("", ConstantNoise, (), ValueError),
+        ("  ", ConstantNoise, (), ValueError),
+        (3, ConstantNoise, (), ValueError),
+        ("x", "ConstantNoise", (), TypeError),
+        ("x", ConstantNoise, ("not an input",), TypeError),
+    ],
+)
 def test_a_refused_registration_registers_nothing(name, make, refused, error):
     before = mt.registered_models()
     with pytest.raises(error):
@@ -385,8 +436,9 @@ def test_a_name_is_registered_once():
 def test_models_declared_by_an_installed_package_are_found(tmp_path, monkeypatch):
     """An entry point of an installed distribution (a dist-info folder on the path) is listed and checked."""
     package = tmp_path / "team_models.py"
-    package.write_text("from motion_models import VelocityLinear\n\n"
-                       "def odometry():\n    return VelocityLinear(gaussian=True)\n")
+    package.write_text(
+        "from motion_models import VelocityLinear\n\ndef odometry():\n    return VelocityLinear(gaussian=True)\n"
+    )
     info = tmp_path / "team_models-1.0.dist-info"
     info.mkdir()
     (info / "METADATA").write_text("Metadata-Version: 2.1\nName: team-models\nVersion: 1.0\n")
@@ -394,6 +446,5 @@ def test_models_declared_by_an_installed_package_are_found(tmp_path, monkeypatch
     monkeypatch.syspath_prepend(str(tmp_path))
     found = [e for e in mt.registered_models("motion") if e.name == "team-odometry"]
     assert len(found) == 1 and found[0].source == "entry point team_models:odometry"
-    reports = [r for r in mt.check_registered(FIELD, kind="motion", max_examples=5)
-               if r.model.name == "team-odometry"]
+    reports = [r for r in mt.check_registered(FIELD, kind="motion", max_examples=5) if r.model.name == "team-odometry"]
     assert len(reports) == 1 and reports[0].fast_path["motion"]

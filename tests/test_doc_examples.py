@@ -18,6 +18,7 @@ The blocks run in a fresh working directory per page that holds those files and 
 `results/` (the examples that read a results file name it as from the clone's root). An import under a
 module's old name (a DeprecationWarning of `field.moved`) fails the block: the docs use the new names.
 """
+
 from __future__ import annotations
 
 import contextlib
@@ -45,8 +46,8 @@ class Block:
     page: Path
     line: int
     code: str
-    output: str | None = None          # the ```text block right after it
-    not_run: str | None = None         # the reason given by the marker before it
+    output: str | None = None  # the ```text block right after it
+    not_run: str | None = None  # the reason given by the marker before it
 
     @property
     def name(self) -> str:
@@ -77,7 +78,7 @@ def parse(page: Path) -> tuple[list[Block], dict[str, str]]:
         block.not_run = marker.group(1).strip() if marker else None
         if i + 1 < len(fences):
             following = fences[i + 1]
-            if following.group(1) == "text" and not text[fence.end():following.start()].strip():
+            if following.group(1) == "text" and not text[fence.end() : following.start()].strip():
                 block.output = following.group(2)
         blocks.append(block)
     return blocks, files
@@ -120,8 +121,11 @@ class PageRun:
         with _cwd(self.directory), contextlib.redirect_stdout(out), warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always", DeprecationWarning)
             exec(compile(block.code, str(block.page), "exec"), self.module.__dict__)
-        moved = [str(w.message) for w in caught if issubclass(w.category, DeprecationWarning)
-                 and " moved to " in str(w.message)]
+        moved = [
+            str(w.message)
+            for w in caught
+            if issubclass(w.category, DeprecationWarning) and " moved to " in str(w.message)
+        ]
         assert not moved, f"{block.name} imports an old name: {moved[0]}"
         return out.getvalue()
 
@@ -140,8 +144,9 @@ def runs(tmp_path_factory):
 
 def _compared(text: str) -> list[str]:
     """The lines, without trailing spaces or leading and trailing blank lines."""
-    return [line.rstrip() for line in text.splitlines()] and \
-        "\n".join(line.rstrip() for line in text.splitlines()).strip("\n").splitlines()
+    return [line.rstrip() for line in text.splitlines()] and "\n".join(
+        line.rstrip() for line in text.splitlines()
+    ).strip("\n").splitlines()
 
 
 @pytest.mark.parametrize("block", BLOCKS, ids=[block.name for block in BLOCKS])
@@ -151,7 +156,7 @@ def test_the_block_runs_and_prints_what_the_page_shows(block, runs):
     page = runs(block.page)
     blocks = PARSED[block.page][0]
     index = blocks.index(block)
-    while page.ran < index:                 # the page's earlier blocks first (run alone with -k, say)
+    while page.ran < index:  # the page's earlier blocks first (run alone with -k, say)
         earlier = blocks[page.ran]
         page.ran += 1
         if not earlier.not_run:
@@ -164,15 +169,18 @@ def assert_prints(block: Block, printed: str) -> None:
     """What the block printed is what the page shows after it (when it shows anything)."""
     if block.output is not None:
         assert _compared(printed) == _compared(block.output), (
-            f"{block.name} printed\n{printed}\nwhile the page shows\n{block.output}")
+            f"{block.name} printed\n{printed}\nwhile the page shows\n{block.output}"
+        )
 
 
 def test_the_blocks_not_run_are_few_and_say_why(capsys):
     not_run = [block for block in BLOCKS if block.not_run]
     with capsys.disabled():
-        print(f"\ndocs' Python blocks: {len(BLOCKS)}, run {len(BLOCKS) - len(not_run)} "
-              f"(output compared: {sum(b.output is not None for b in BLOCKS if not b.not_run)}), "
-              f"not run {len(not_run)}:")
+        print(
+            f"\ndocs' Python blocks: {len(BLOCKS)}, run {len(BLOCKS) - len(not_run)} "
+            f"(output compared: {sum(b.output is not None for b in BLOCKS if not b.not_run)}), "
+            f"not run {len(not_run)}:"
+        )
         for block in not_run:
             print(f"  {block.name}: {block.not_run}")
     assert len(not_run) <= MOST_NOT_RUN

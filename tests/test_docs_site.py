@@ -2,6 +2,7 @@
 missing anchor or a broken API reference fails the build, and so this test. The site is built once (from
 another directory than the repository's, as a team's script might) and then read: it works offline (no asset
 from an outside host), the math is MathML, and the API reference has a page per module."""
+
 import os
 import re
 import subprocess
@@ -21,9 +22,14 @@ def site(tmp_path_factory) -> Path:
     snippets, the hooks and the API reference must not depend on the current directory."""
     elsewhere = tmp_path_factory.mktemp("elsewhere")
     out = elsewhere / "site"
-    done = subprocess.run([sys.executable, "-m", "mkdocs", "build", "--strict", "-f", str(ROOT / "mkdocs.yml"),
-                           "--site-dir", str(out)], cwd=elsewhere, capture_output=True, text=True, timeout=900,
-                          env={**os.environ, "NO_MKDOCS_2_WARNING": "1"})
+    done = subprocess.run(
+        [sys.executable, "-m", "mkdocs", "build", "--strict", "-f", str(ROOT / "mkdocs.yml"), "--site-dir", str(out)],
+        cwd=elsewhere,
+        capture_output=True,
+        text=True,
+        timeout=900,
+        env={**os.environ, "NO_MKDOCS_2_WARNING": "1"},
+    )
     assert done.returncode == 0, done.stderr[-4000:]
     return out
 
@@ -31,7 +37,7 @@ def site(tmp_path_factory) -> Path:
 def test_the_site_builds_strict_from_another_directory(site):
     assert (site / "index.html").exists()
     latency = (site / "integration" / "index.html").read_text()
-    assert "--8<--" not in latency and "seed" in latency          # the snippets were found from elsewhere
+    assert "--8<--" not in latency and "seed" in latency  # the snippets were found from elsewhere
     filter_page = (site / "api" / "mcl" / "filter" / "index.html").read_text()
     localizer = (site / "api" / "mcl" / "localizer" / "index.html").read_text()
     assert 'id="mcl.filter.ParticleFilter"' in filter_page and 'id="mcl.localizer.Localizer"' in localizer
@@ -40,8 +46,12 @@ def test_the_site_builds_strict_from_another_directory(site):
 def test_the_api_reference_has_a_page_per_module_in_the_navigation(site):
     hooks = _hooks()
     pages = hooks.api_pages()
-    modules = [p.relative_to(ROOT) for package in hooks.API_PACKAGES for p in (ROOT / package).rglob("*.py")
-               if not p.name.startswith("_") and "__pycache__" not in p.parts]
+    modules = [
+        p.relative_to(ROOT)
+        for package in hooks.API_PACKAGES
+        for p in (ROOT / package).rglob("*.py")
+        if not p.name.startswith("_") and "__pycache__" not in p.parts
+    ]
     for module in modules:
         assert f"api/{module.with_suffix('').as_posix()}.md" in pages, f"{module} has no API page"
     assert len(pages) >= len(modules) + len(hooks.API_PACKAGES)
@@ -51,8 +61,8 @@ def test_the_api_reference_has_a_page_per_module_in_the_navigation(site):
         assert f'href="{target}"' in nav, f"{uri} is not in the navigation"
         assert (site / target / "index.html").exists()
     lwpr = (site / "api" / "motion_models" / "lwpr" / "index.html").read_text()
-    assert '<span class="kn">import</span>' in lwpr             # its docstring's example, highlighted as Python
-    for page in (site / "api").rglob("index.html"):             # no docstring code left plain
+    assert '<span class="kn">import</span>' in lwpr  # its docstring's example, highlighted as Python
+    for page in (site / "api").rglob("index.html"):  # no docstring code left plain
         for code in re.findall(r"<pre><span></span><code>(.*?)</code>|<pre><code>(.*?)</code>", page.read_text(), re.S):
             assert "<span" in "".join(code), f"{page.relative_to(site)}: {''.join(code)[:200]}"
 
@@ -86,10 +96,10 @@ def test_the_site_loads_nothing_from_an_outside_host(site):
             assert 'data-md-component="source"' not in text, f"{path.relative_to(site)}: the GitHub API widget"
         if path.suffix in (".css", ".html"):
             match = CSS_URL.search(text)
-            assert match is None, f"{path.relative_to(site)}: {text[match.start():match.start() + 120]}"
+            assert match is None, f"{path.relative_to(site)}: {text[match.start() : match.start() + 120]}"
         if path.suffix == ".js":
             match = JS_LOAD.search(text)
-            assert match is None, f"{path.relative_to(site)}: {text[match.start():match.start() + 120]}"
+            assert match is None, f"{path.relative_to(site)}: {text[match.start() : match.start() + 120]}"
     assert checked > 50
 
 
@@ -99,7 +109,7 @@ def test_the_outside_host_check_finds_what_it_is_for():
     assert LOADING.search('<script src="https://unpkg.com/mathjax@3/es5/tex-mml-chtml.js"></script>')
     assert LOADING.search('<link rel="stylesheet" href="https://fonts.googleapis.com/css?family=Roboto">')
     assert LOADING.search('<img alt="x" src="//cdn.example.org/x.png">')
-    assert CSS_URL.search('@font-face{src:url(https://fonts.gstatic.com/s/roboto.woff2)}')
+    assert CSS_URL.search("@font-face{src:url(https://fonts.gstatic.com/s/roboto.woff2)}")
     assert CSS_URL.search('@import "https://example.org/a.css";')
     assert JS_LOAD.search('importScripts("https://cdn.example.org/lunr.js")')
     assert not LOADING.search('<a href="https://doi.org/10.1007/978-3-540-32256-6_45">the paper</a>')
@@ -116,6 +126,7 @@ def test_no_page_links_outside_the_repository_but_to_public_urls():
 
 def _hooks():
     import importlib.util
+
     spec = importlib.util.spec_from_file_location("docs_hooks", ROOT / "docs" / "hooks.py")
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
@@ -124,12 +135,14 @@ def _hooks():
 
 def test_results_tables_are_built_from_the_results_files():
     import json
+
     hooks = _hooks()
     page = "before\n<!-- results-table: battery-families -->\nafter"
     table = hooks.results_tables(page)
     assert "results-table" not in table and table.startswith("before\n| family |") and table.endswith("\nafter")
     kidnap = json.loads((ROOT / "results" / "eval_holdout.json").read_text())["splits"]["holdout"]["families"][
-        "kidnap"]["summary"]
+        "kidnap"
+    ]["summary"]
     row = next(line for line in table.splitlines() if line.startswith("| kidnap |"))
     assert f"{kidnap['reconverge_s']['median']:.2f} / never, {kidnap['reconverge_s']['never']} never" in row
     with pytest.raises(KeyError):
@@ -143,6 +156,7 @@ def test_the_acting_page_says_what_the_results_and_the_code_say():
     import json
 
     from mcl.localizer import QualityThresholds
+
     hooks = _hooks()
     page = (ROOT / "docs" / "acting.md").read_text()
     assert "<!-- results-table: acting-levels -->" in page and "<!-- results-table: acting-thresholds -->" in page
@@ -155,8 +169,9 @@ def test_the_acting_page_says_what_the_results_and_the_code_say():
     thresholds = hooks.acting_thresholds()
     for field in dataclasses.fields(QualityThresholds):
         assert f"`{field.name}` = {field.default:g}" in thresholds, field.name
-    assert len(thresholds.splitlines()) == 2 + len({f.name.removeprefix("superb_").removeprefix("okay_")
-                                                    for f in dataclasses.fields(QualityThresholds)})
+    assert len(thresholds.splitlines()) == 2 + len(
+        {f.name.removeprefix("superb_").removeprefix("okay_") for f in dataclasses.fields(QualityThresholds)}
+    )
 
 
 def test_the_home_page_is_the_readme_with_links_into_docs():
@@ -166,11 +181,14 @@ def test_the_home_page_is_the_readme_with_links_into_docs():
 
 def test_the_targets_table_says_what_the_results_say():
     import json
+
     table = _hooks().battery_targets()
     split = json.loads((ROOT / "results" / "eval_holdout.json").read_text())["splits"]["holdout"]
     on_mirror = sum(f["summary"]["on_mirror"] for f in split["families"].values())
     first = next(line for line in table.splitlines() if line.startswith("| no run converges on the mirror"))
-    assert f"| {on_mirror} of {split['overall']['runs']} runs" in first and first.endswith(f"| {'no' if on_mirror else 'yes'} |")
+    assert f"| {on_mirror} of {split['overall']['runs']} runs" in first and first.endswith(
+        f"| {'no' if on_mirror else 'yes'} |"
+    )
     superb = split["overall"]["pooled"]["SUPERB"]["share"]
     row = next(line for line in table.splitlines() if line.startswith("| SUPERB steps"))
     assert f"{100 * superb:.2f} %" in row and row.endswith("| yes |" if superb <= 0.01 else "| no |")
@@ -178,6 +196,7 @@ def test_the_targets_table_says_what_the_results_say():
 
 def test_the_reliability_tables_are_those_of_the_results_files():
     import json
+
     hooks = _hooks()
     fuzz = json.loads((ROOT / "results" / "fuzz_full.json").read_text())
     table = hooks.fuzz_targets()
@@ -190,6 +209,7 @@ def test_the_reliability_tables_are_those_of_the_results_files():
 
 def test_the_team_tables_say_what_the_results_say():
     import json
+
     hooks = _hooks()
     split = json.loads((ROOT / "results" / "eval_team.json").read_text())["splits"]["holdout"]
     table = hooks.team_targets()

@@ -1,5 +1,6 @@
 """docs/testing.md's team test file runs as written and passes, and its tests fail when the model they check
 is broken; its parametrized example runs too."""
+
 import re
 import sys
 import types
@@ -48,14 +49,19 @@ def test_the_team_test_file_is_complete_and_passes(load):
     assert len(code.strip().splitlines()) <= 50 and len([line for line in code.splitlines() if line.strip()]) <= 40
     module = load(code, "docs_testing_team_file")
     tests = example_tests(module)
-    assert sorted(tests) == ["test_our_filter_stays_sane_and_reproducible",
-                             "test_our_odometry_keeps_the_motion_model_contract"]
+    assert sorted(tests) == [
+        "test_our_filter_stays_sane_and_reproducible",
+        "test_our_odometry_keeps_the_motion_model_contract",
+    ]
     for test in tests.values():
         test()
 
 
-settings.register_profile("docs-no-shrinking", parent=settings.get_profile(settings.get_current_profile_name()),
-                          phases=(Phase.explicit, Phase.generate))
+settings.register_profile(
+    "docs-no-shrinking",
+    parent=settings.get_profile(settings.get_current_profile_name()),
+    phases=(Phase.explicit, Phase.generate),
+)
 
 
 @pytest.fixture
@@ -74,9 +80,9 @@ def test_the_team_tests_fail_when_the_model_forgets_to_wrap_headings(load, no_sh
     class Unwrapped(module.ScaledOdometry):
         def predict(self, poses, u, rng):
             super().predict(poses, u, rng)
-            poses[:, 2] += 2 * np.pi                  # headings leave (-π, π]
+            poses[:, 2] += 2 * np.pi  # headings leave (-π, π]
 
-    module.ScaledOdometry = Unwrapped                 # what make_filter and the contract test build
+    module.ScaledOdometry = Unwrapped  # what make_filter and the contract test build
     for test in example_tests(module).values():
         with pytest.raises(AssertionError, match="heading not wrapped"):
             test()
@@ -96,6 +102,7 @@ def test_the_parametrized_example_runs(load):
 
 def test_the_registration_example_runs_and_leaves_nothing_registered(load, capsys):
     from mcl.tools import testing as mt
+
     team = load(team_file(), "docs_testing_team_registered")
     block = next(block for block in python_blocks() if "register_motion_model" in block)
     module = load(block, "docs_testing_registration", {k: v for k, v in vars(team).items() if not k.startswith("__")})

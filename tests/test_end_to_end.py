@@ -1,4 +1,5 @@
 """End to end: the walk scenario through the filter, the recording read back, the command line."""
+
 import json
 import math
 from dataclasses import replace
@@ -59,8 +60,16 @@ def test_recording_holds_the_entropy_the_filter_computed(short_run):
 def test_recording_has_the_scene(short_run):
     _, path = short_run
     entities = {chunk.entity_path for chunk in rrc.RrdReader(str(path)).stream()}
-    for expected in ("/field/lines", "/field/center_circle", "/field/landmarks/goalpost", "/particles",
-                     "/robot/estimate", "/robot/truth", "/observations", "/error/position"):
+    for expected in (
+        "/field/lines",
+        "/field/center_circle",
+        "/field/landmarks/goalpost",
+        "/particles",
+        "/robot/estimate",
+        "/robot/truth",
+        "/observations",
+        "/error/position",
+    ):
         assert expected in entities
     assert rrc.RrdReader(str(path)).blueprints(), "the file carries its blueprint"
 
@@ -101,8 +110,18 @@ def test_bench_json(capsys):
 
 def test_seed_parsing_and_aggregate():
     assert parse_seeds("0-3") == [0, 1, 2, 3] and parse_seeds("5") == [5] and parse_seeds("1,4") == [1, 4]
-    runs = [{"seed": s, "position_rmse_m": v, "heading_rmse_deg": 1.0, "converged_s": c, "reconverged_s": 1.0,
-             "mirror_share": 0.0, "ms_per_step": 0.1} for s, v, c in ((0, 0.05, 1.0), (1, 0.07, None), (2, 0.06, 2.0))]
+    runs = [
+        {
+            "seed": s,
+            "position_rmse_m": v,
+            "heading_rmse_deg": 1.0,
+            "converged_s": c,
+            "reconverged_s": 1.0,
+            "mirror_share": 0.0,
+            "ms_per_step": 0.1,
+        }
+        for s, v, c in ((0, 0.05, 1.0), (1, 0.07, None), (2, 0.06, 2.0))
+    ]
     summary = aggregate(runs)
     assert summary["position_rmse_m"]["median"] == 0.06 and summary["position_rmse_m"]["worst_seed"] == 1
     assert summary["converged_s"]["worst"] is None and summary["converged_s"]["failed_seeds"] == 1
@@ -115,5 +134,6 @@ def test_walk_with_lines_runs(capsys):
 
 def test_bench_reports_the_accuracy_cost_of_the_fast_bearing_term():
     from benchmarks.bench import bearing_accuracy
+
     accuracy = bearing_accuracy(n=500)
     assert 0.0 <= accuracy["total_variation"] < 0.01

@@ -15,15 +15,33 @@ GRID = dict(x_min=-5.2, y_min=-3.7, cell_size=0.1, nx=104, ny=74, n_theta=36)
 
 def entropy(poses, weights, **grid):
     g = dict(GRID, **grid)
-    return grid_entropy(poses, weights, g["x_min"], g["y_min"], g["cell_size"], g["nx"], g["ny"], g["n_theta"],
-                        np.empty(g["nx"] * g["ny"]), np.empty(g["n_theta"]))
+    return grid_entropy(
+        poses,
+        weights,
+        g["x_min"],
+        g["y_min"],
+        g["cell_size"],
+        g["nx"],
+        g["ny"],
+        g["n_theta"],
+        np.empty(g["nx"] * g["ny"]),
+        np.empty(g["n_theta"]),
+    )
 
 
 def estimate(poses, weights, previous=None):
     mean, cov = np.empty(3), np.empty((3, 3))
-    weight = cluster_estimate(poses, weights, (-5.2, -3.7, 0.5, 21, 15, 8), (0.75, 0.8, 3), np.empty(21 * 15 * 8),
-                              np.zeros(3) if previous is None else np.asarray(previous, float), previous is not None,
-                              mean, cov)
+    weight = cluster_estimate(
+        poses,
+        weights,
+        (-5.2, -3.7, 0.5, 21, 15, 8),
+        (0.75, 0.8, 3),
+        np.empty(21 * 15 * 8),
+        np.zeros(3) if previous is None else np.asarray(previous, float),
+        previous is not None,
+        mean,
+        cov,
+    )
     return mean, cov, weight
 
 
@@ -61,8 +79,9 @@ def test_cluster_estimate_matches_reference(rng, with_previous):
     poses, weights = random_cloud(rng)
     previous = poses[int(np.argmax(weights))] if with_previous else None
     mean, cov, weight = estimate(poses, weights, previous)
-    ref_mean, ref_cov, ref_weight = cluster_estimate_reference(poses, weights, -5.2, -3.7, 0.5, 21, 15, 8, 0.75,
-                                                               0.8, 3, previous)
+    ref_mean, ref_cov, ref_weight = cluster_estimate_reference(
+        poses, weights, -5.2, -3.7, 0.5, 21, 15, 8, 0.75, 0.8, 3, previous
+    )
     np.testing.assert_allclose(mean, ref_mean, atol=1e-9)
     np.testing.assert_allclose(cov, ref_cov, atol=1e-9)
     assert weight == pytest.approx(ref_weight, abs=1e-9)
@@ -95,8 +114,9 @@ def test_a_split_cluster_is_not_lost_to_a_clump_in_one_cell():
     """A wide true cluster straddling cell boundaries holds more weight than a clump filling one cell, but
     each of its cells holds less: seeded from the previous estimate, the estimate stays on the true one."""
     rng = np.random.default_rng(3)
-    true = np.column_stack([rng.uniform(-0.3, 0.3, 700) - 0.2, rng.uniform(-0.3, 0.3, 700) - 0.2,
-                            rng.normal(0.0, 0.02, 700)])              # spread over the cells around (-0.2, -0.2)
+    true = np.column_stack(
+        [rng.uniform(-0.3, 0.3, 700) - 0.2, rng.uniform(-0.3, 0.3, 700) - 0.2, rng.normal(0.0, 0.02, 700)]
+    )  # spread over the cells around (-0.2, -0.2)
     clump = np.column_stack([rng.normal(2.85, 0.02, 300), rng.normal(1.85, 0.02, 300), rng.normal(0.0, 0.02, 300)])
     poses = np.vstack([true, clump])
     weights = np.full(1000, 1 / 1000)
@@ -107,9 +127,21 @@ def test_a_split_cluster_is_not_lost_to_a_clump_in_one_cell():
 
 
 # -- the filter's summary: shared histograms, bitmaps of the cells in use -------------------------------------------
-SUMMARY = dict(x_min=-5.2, y_min=-3.7, cluster_cell=0.5, cluster_nx=21, cluster_ny=15, cluster_orientation_bins=8,
-               cluster_radius=0.75, cluster_angle_radius=0.8, iterations=3, position_cell=0.1, entropy_nx=104,
-               entropy_ny=74, orientation_bins=36)
+SUMMARY = dict(
+    x_min=-5.2,
+    y_min=-3.7,
+    cluster_cell=0.5,
+    cluster_nx=21,
+    cluster_ny=15,
+    cluster_orientation_bins=8,
+    cluster_radius=0.75,
+    cluster_angle_radius=0.8,
+    iterations=3,
+    position_cell=0.1,
+    entropy_nx=104,
+    entropy_ny=74,
+    orientation_bins=36,
+)
 
 
 @given(clouds, st.booleans(), st.booleans())
@@ -118,15 +150,24 @@ def test_summary_equals_cluster_estimate_and_grid_entropy_bit_for_bit(rng, with_
 
     grid = summary_grid(**SUMMARY)
     coordinates, histograms, bitmaps = summary_buffers(grid, 300)
-    for _ in range(2):                  # the buffers are reused: the second fill must forget the first
+    for _ in range(2):  # the buffers are reused: the second fill must forget the first
         poses, weights = random_cloud(rng)
         if equal_weights:
             weights = np.full(300, 1 / 300)
         previous = poses[int(np.argmax(weights))] if with_previous else None
         summary_fill(grid, poses, weights, coordinates, histograms, bitmaps)
         mean, cov = np.empty(3), np.empty((3, 3))
-        weight = summary_estimate(grid, coordinates, weights, histograms, bitmaps,
-                                  np.zeros(3) if previous is None else previous, previous is not None, mean, cov)
+        weight = summary_estimate(
+            grid,
+            coordinates,
+            weights,
+            histograms,
+            bitmaps,
+            np.zeros(3) if previous is None else previous,
+            previous is not None,
+            mean,
+            cov,
+        )
         expected = estimate(poses, weights, previous)
         assert np.array_equal(mean, expected[0]) and np.array_equal(cov, expected[1]) and weight == expected[2]
         assert summary_entropy(grid, histograms, bitmaps) == entropy(poses, weights)
@@ -152,8 +193,9 @@ def test_fast_and_chunked_estimates_match_to_rounding(rng):
     expected = np.empty(3), np.empty((3, 3))
     weight = summary_estimate(grid, coordinates, weights, histograms, bitmaps, poses[0], True, *expected)
     mean, cov = np.empty(3), np.empty((3, 3))
-    assert summary_estimate_fast(grid, coordinates, weights, histograms, bitmaps, poses[0], True, mean,
-                                 cov) == pytest.approx(weight, abs=1e-12)
+    assert summary_estimate_fast(
+        grid, coordinates, weights, histograms, bitmaps, poses[0], True, mean, cov
+    ) == pytest.approx(weight, abs=1e-12)
     np.testing.assert_allclose(mean, expected[0], atol=1e-12)
     np.testing.assert_allclose(cov, expected[1], atol=1e-12)
     chunked_histograms, chunked_bitmaps = histograms.copy(), bitmaps.copy()
@@ -162,8 +204,9 @@ def test_fast_and_chunked_estimates_match_to_rounding(rng):
     np.testing.assert_allclose(chunked_histograms, histograms, rtol=1e-12, atol=1e-17)
     assert np.array_equal(chunked_bitmaps, bitmaps) and not local.any()
     for chunk in (1 << 20, 64):
-        c_weight = summary_estimate_chunked(grid, coordinates, weights, histograms, bitmaps, poses[0], True, mean,
-                                            cov, chunk)
+        c_weight = summary_estimate_chunked(
+            grid, coordinates, weights, histograms, bitmaps, poses[0], True, mean, cov, chunk
+        )
         if chunk > 700:
             assert c_weight == weight and np.array_equal(mean, expected[0]) and np.array_equal(cov, expected[1])
         np.testing.assert_allclose(mean, expected[0], atol=1e-12)
@@ -174,18 +217,26 @@ def test_fast_and_chunked_estimates_match_to_rounding(rng):
 def _kde_log_density_reference(poses, weights, pose):
     """The normalised kernel density at a pose written out as a sum of Gaussians (Scott's bandwidths)."""
     weights = weights / weights.sum()
-    n_effective = 1.0 / np.sum(weights ** 2)
-    centre = np.array([weights @ poses[:, 0], weights @ poses[:, 1],
-                       math.atan2(weights @ np.sin(poses[:, 2]), weights @ np.cos(poses[:, 2]))])
+    n_effective = 1.0 / np.sum(weights**2)
+    centre = np.array(
+        [
+            weights @ poses[:, 0],
+            weights @ poses[:, 1],
+            math.atan2(weights @ np.sin(poses[:, 2]), weights @ np.cos(poses[:, 2])),
+        ]
+    )
     residual = poses - centre
     residual[:, 2] = (residual[:, 2] + math.pi) % (2 * math.pi) - math.pi
-    bandwidth = np.maximum(np.sqrt(weights @ residual ** 2) * n_effective ** (-1 / 7), 0.005)
+    bandwidth = np.maximum(np.sqrt(weights @ residual**2) * n_effective ** (-1 / 7), 0.005)
     total = 0.0
     for p, w in zip(poses, weights):
         d = pose - p
         d[2] = (d[2] + math.pi) % (2 * math.pi) - math.pi
-        total += w * math.exp(-0.5 * float(np.sum((d / bandwidth) ** 2))) / (
-            (2 * math.pi) ** 1.5 * float(np.prod(bandwidth)))
+        total += (
+            w
+            * math.exp(-0.5 * float(np.sum((d / bandwidth) ** 2)))
+            / ((2 * math.pi) ** 1.5 * float(np.prod(bandwidth)))
+        )
     return math.log(total)
 
 
@@ -195,8 +246,13 @@ def test_belief_log_density_is_the_normalised_kernel_density(rng):
     from mcl.estimate import belief_log_density
 
     n = int(rng.integers(1, 60))
-    poses = np.column_stack([rng.normal(0, rng.uniform(0.01, 1), n), rng.normal(0, rng.uniform(0.01, 1), n),
-                             rng.uniform(-math.pi, math.pi, n)])
+    poses = np.column_stack(
+        [
+            rng.normal(0, rng.uniform(0.01, 1), n),
+            rng.normal(0, rng.uniform(0.01, 1), n),
+            rng.uniform(-math.pi, math.pi, n),
+        ]
+    )
     weights = rng.uniform(0.01, 1, n)
     pose = np.array([rng.normal(0, 0.5), rng.normal(0, 0.5), rng.uniform(-math.pi, math.pi)])
     expected = _kde_log_density_reference(poses, weights, pose)
@@ -215,8 +271,8 @@ def test_belief_log_density_integrates_to_one_and_rewards_a_tight_cloud_that_hol
     assert mass * cell == pytest.approx(1.0, abs=0.01)
     truth = np.zeros(3)
     tight, wide = belief_log_density(poses, weights, truth), belief_log_density(poses * 4, weights, truth)
-    assert tight > wide + 3 * math.log(4) - 0.5          # four times as wide in x, y and θ: log 4 each, less
-    missed = belief_log_density(poses + [1.0, 0.0, 0.0], weights, truth)   # tight, but a metre off
+    assert tight > wide + 3 * math.log(4) - 0.5  # four times as wide in x, y and θ: log 4 each, less
+    missed = belief_log_density(poses + [1.0, 0.0, 0.0], weights, truth)  # tight, but a metre off
     assert missed < wide
     far = belief_log_density(poses, weights, np.array([1e3, -1e3, 3.0]))  # far: very low, never -inf or NaN
     assert math.isfinite(far) and far < -1e6
@@ -232,7 +288,7 @@ def test_credible_region_holds_the_truth_about_as_often_as_its_mass(n):
         poses = np.column_stack([rng.normal(0, 0.3, n), rng.normal(0, 0.2, n), rng.normal(0, 0.2, n)])
         truth = np.array([rng.normal(0, 0.3), rng.normal(0, 0.2), rng.normal(0, 0.2)])
         inside.append(credible_region_contains(poses, np.ones(n), truth))
-    assert 0.91 <= np.mean(inside) <= 0.98        # 95 %, to the sampling error of 300 draws
+    assert 0.91 <= np.mean(inside) <= 0.98  # 95 %, to the sampling error of 300 draws
 
 
 def test_credible_region_of_a_single_heavy_particle_is_its_kernel():
@@ -245,16 +301,19 @@ def test_credible_region_of_a_single_heavy_particle_is_its_kernel():
     assert credible_region_contains(poses[:1], np.ones(1), np.zeros(3))
 
 
-@pytest.mark.parametrize("poses, weights, pose, match", [
-    (np.zeros((3, 2)), np.ones(3), np.zeros(3), "expected"),
-    (np.zeros((3, 3)), np.ones(2), np.zeros(3), "expected"),
-    (np.zeros((3, 3)), np.ones(3), np.zeros(2), "expected"),
-    (np.zeros((3, 3)), np.array([1.0, -1.0, 1.0]), np.zeros(3), "weights"),
-    (np.zeros((3, 3)), np.zeros(3), np.zeros(3), "weights"),
-    (np.zeros((3, 3)), np.ones(3), np.array([0.0, math.nan, 0.0]), "finite"),
-    (np.array([[0.0, 0.0, 0.0], [math.inf, 0.0, 0.0], [0.0, 0.0, 0.0]]), np.ones(3), np.zeros(3), "finite"),
-    (np.zeros((3, 3)), np.array([1.0, math.nan, 1.0]), np.zeros(3), "weights"),
-])
+@pytest.mark.parametrize(
+    "poses, weights, pose, match",
+    [
+        (np.zeros((3, 2)), np.ones(3), np.zeros(3), "expected"),
+        (np.zeros((3, 3)), np.ones(2), np.zeros(3), "expected"),
+        (np.zeros((3, 3)), np.ones(3), np.zeros(2), "expected"),
+        (np.zeros((3, 3)), np.array([1.0, -1.0, 1.0]), np.zeros(3), "weights"),
+        (np.zeros((3, 3)), np.zeros(3), np.zeros(3), "weights"),
+        (np.zeros((3, 3)), np.ones(3), np.array([0.0, math.nan, 0.0]), "finite"),
+        (np.array([[0.0, 0.0, 0.0], [math.inf, 0.0, 0.0], [0.0, 0.0, 0.0]]), np.ones(3), np.zeros(3), "finite"),
+        (np.zeros((3, 3)), np.array([1.0, math.nan, 1.0]), np.zeros(3), "weights"),
+    ],
+)
 def test_belief_log_density_refuses_bad_input_and_leaves_it_unchanged(poses, weights, pose, match):
     from mcl.estimate import belief_log_density, credible_region_contains
 

@@ -1,5 +1,6 @@
 """docs/extending.md: the motion model and the sensor model written there from scratch run as written, get the
 filter's fast path, and give the plain sequence of calls' particles bit for bit (with camera latency too)."""
+
 import re
 import sys
 import types
@@ -25,7 +26,7 @@ def namespace():
     # A module of its own, importable by name: numba finds a cached kernel's module again when it loads it.
     module = sys.modules.setdefault("extending_example", types.ModuleType("extending_example"))
     for block in blocks:
-        exec(compile(block, str(DOC), "exec"), module.__dict__)   # the third block asserts the fast path, steps
+        exec(compile(block, str(DOC), "exec"), module.__dict__)  # the third block asserts the fast path, steps
     return module.__dict__
 
 
@@ -50,10 +51,12 @@ def test_the_examples_get_the_fast_path(namespace):
     assert fast_path(motion, sensor)["step"]
     assert not fast_path(_Plain(motion), _Plain(sensor))["step"]
     from mcl.tools.testing import assert_fused_likelihood
+
     poses = np.random.default_rng(2).uniform([-5, -3, -4], [5, 3, 4], (300, 3))
     frame = Observations.from_arrays(["goalpost", "T", "X"], [3.2, 2.0, 1.1], [0.0, 0.0, 0.0])
-    assert assert_fused_likelihood(sensor, poses, frame) and assert_fused_likelihood(sensor, poses, frame,
-                                                                                     (0.1, -0.05, 0.2))
+    assert assert_fused_likelihood(sensor, poses, frame) and assert_fused_likelihood(
+        sensor, poses, frame, (0.1, -0.05, 0.2)
+    )
 
 
 @pytest.mark.parametrize("latency", [False, True])
@@ -82,6 +85,7 @@ def test_the_fast_path_equals_the_plain_calls_bit_for_bit(namespace, latency):
 def test_the_range_kernel_moves_back_as_the_filter_does(namespace):
     """`numerics.trig.moved_back`, which the example's kernel uses, is `mcl.latency.move_back` bit for bit."""
     from numerics.trig import moved_back
+
     rng = np.random.default_rng(0)
     poses = np.column_stack([rng.uniform(-5, 5, 200), rng.uniform(-3, 3, 200), rng.uniform(-4, 4, 200)])
     since = np.array([0.07, -0.02, 0.3])
@@ -110,6 +114,7 @@ def test_a_refused_step_changes_nothing(namespace):
 def test_the_examples_pass_the_registered_contract_checks(namespace):
     """Registered, the two models go through the checks the shipped ones pass, and reach the fast path."""
     from mcl.tools import testing as mt
+
     mt.register_motion_model("extending-proportional-noise", namespace["ProportionalNoise"])
     mt.register_sensor_model("extending-range-only", namespace["RangeOnlyModel"])
     try:

@@ -4,6 +4,7 @@ Default settings give what the plain sequence of calls gives, bit for bit: the s
 a sensor model that offers no compiled likelihood (so the filter scores through `log_likelihood`, weighs with
 `weigh`, resamples with `_resample`), and compared after every call with the compiled path on the same seed.
 """
+
 import math
 import tracemalloc
 from dataclasses import dataclass
@@ -84,9 +85,17 @@ class PlainEngine(Engine):
             g = s.grid
             mean, cov = np.empty(3), np.empty((3, 3))
             cells = (s.x_min, s.y_min, g.cluster_cell, s.cluster_nx, s.cluster_ny, g.cluster_orientation_bins)
-            weight = cluster_estimate(p.poses, p.weights, cells, (g.cluster_radius, g.cluster_angle_radius, 3),
-                                      np.empty(s.cluster_nx * s.cluster_ny * g.cluster_orientation_bins),
-                                      s.previous, s.has_previous, mean, cov)
+            weight = cluster_estimate(
+                p.poses,
+                p.weights,
+                cells,
+                (g.cluster_radius, g.cluster_angle_radius, 3),
+                np.empty(s.cluster_nx * s.cluster_ny * g.cluster_orientation_bins),
+                s.previous,
+                s.has_previous,
+                mean,
+                cov,
+            )
             s.estimate = Estimate(mean, cov, float(weight))
             s.previous[:] = mean
             s.has_previous = True
@@ -96,9 +105,18 @@ class PlainEngine(Engine):
         s, p = self.summary, self.particles
         g = s.grid
         cells = s.entropy_nx * s.entropy_ny
-        position, orientation = grid_entropy(p.poses, p.weights, s.x_min, s.y_min, g.position_cell, s.entropy_nx,
-                                             s.entropy_ny, g.orientation_bins, np.empty(cells),
-                                             np.empty(g.orientation_bins))
+        position, orientation = grid_entropy(
+            p.poses,
+            p.weights,
+            s.x_min,
+            s.y_min,
+            g.position_cell,
+            s.entropy_nx,
+            s.entropy_ny,
+            g.orientation_bins,
+            np.empty(cells),
+            np.empty(g.orientation_bins),
+        )
         return Entropy(float(position), float(orientation))
 
 
@@ -119,38 +137,67 @@ def detections(pose, rng, count=10, kinds=("goalpost",), false_positives=0):
         kind = kinds[rng.integers(len(kinds))]
         target = FIELD.landmarks_of(kind)[rng.integers(len(FIELD.landmarks_of(kind)))]
         d = target - pose[:2]
-        rows.append((kind, math.hypot(*d) + 0.05 * rng.standard_normal(),
-                     math.atan2(d[1], d[0]) - pose[2] + 0.03 * rng.standard_normal()))
+        rows.append(
+            (
+                kind,
+                math.hypot(*d) + 0.05 * rng.standard_normal(),
+                math.atan2(d[1], d[0]) - pose[2] + 0.03 * rng.standard_normal(),
+            )
+        )
     for _ in range(false_positives):
         rows.append((kinds[0], rng.uniform(0.5, 6.0), rng.uniform(-1.0, 1.0)))
     return Observations.from_arrays(*zip(*rows))
 
 
 def relocalization_state(relocalization):
-    return repr({name: (value.tolist() if isinstance(value, np.ndarray) else value)
-                 for name, value in vars(relocalization).items()})
+    return repr(
+        {
+            name: (value.tolist() if isinstance(value, np.ndarray) else value)
+            for name, value in vars(relocalization).items()
+        }
+    )
 
 
 def state(pf):
     estimate = pf.estimate()
     entropy = pf.entropy()
-    return (pf.poses.copy(), pf.log_weights.copy(), np.array(pf.weights), pf.w_slow, pf.w_fast, pf.ess,
-            pf.resampled, pf.injected, pf.frame_fit, relocalization_state(pf.relocalization),
-            pf.rng.bit_generator.state, estimate.pose.copy(), estimate.covariance.copy(), estimate.weight,
-            entropy.position, entropy.orientation, None if pf.motion_state is None else pf.motion_state.copy())
+    return (
+        pf.poses.copy(),
+        pf.log_weights.copy(),
+        np.array(pf.weights),
+        pf.w_slow,
+        pf.w_fast,
+        pf.ess,
+        pf.resampled,
+        pf.injected,
+        pf.frame_fit,
+        relocalization_state(pf.relocalization),
+        pf.rng.bit_generator.state,
+        estimate.pose.copy(),
+        estimate.covariance.copy(),
+        estimate.weight,
+        entropy.position,
+        entropy.orientation,
+        None if pf.motion_state is None else pf.motion_state.copy(),
+    )
 
 
 def same(a, b):
-    return all(np.array_equal(x, y, equal_nan=True) if isinstance(x, np.ndarray)
-               else (x == y or (isinstance(x, float) and math.isnan(x) and math.isnan(y))) for x, y in zip(a, b))
+    return all(
+        np.array_equal(x, y, equal_nan=True)
+        if isinstance(x, np.ndarray)
+        else (x == y or (isinstance(x, float) and math.isnan(x) and math.isnan(y)))
+        for x, y in zip(a, b)
+    )
 
 
 def make(n=300, seed=0, sensor=LandmarkSensorModel(FIELD), motion=VelocityLinear(), **kwargs):
     return ParticleFilter(FIELD, motion, sensor, n_particles=n, seed=seed, **kwargs)
 
 
-def scenario(pf, steps=45, seed=1, use_step=True, kinds=("goalpost", "t_crossing"), kidnap=True,
-             compare_every_call=None):
+def scenario(
+    pf, steps=45, seed=1, use_step=True, kinds=("goalpost", "t_crossing"), kidnap=True, compare_every_call=None
+):
     """A walk with detections most frames, a kidnapping halfway (injection), a frame with false positives."""
     rng = np.random.default_rng(seed)
     truth = TRUE_POSE.copy()
@@ -171,45 +218,62 @@ def scenario(pf, steps=45, seed=1, use_step=True, kinds=("goalpost", "t_crossing
         yield k
 
 
-@pytest.mark.parametrize("options", [
-    dict(),
-    dict(resample_threshold=1.0, augmented=None),
-    dict(augmented=None),
-    dict(motion=VelocityLinear(gaussian=True)),
-    dict(motion=ConstantNoise()),
-    dict(resampling="stratified"),
-    dict(roughening=(0.0, 0.0, 0.0)),
-    dict(n=1),
-    dict(n=700),
-    dict(motion=AdaptiveMotion()),
-    dict(motion=AdaptiveMotion(), resample_threshold=1.0, augmented=None),
-    dict(bearing_model="exact"),
-    dict(bearing_model="exact", motion=AdaptiveMotion(), resample_threshold=1.0),
-])
+@pytest.mark.parametrize(
+    "options",
+    [
+        dict(),
+        dict(resample_threshold=1.0, augmented=None),
+        dict(augmented=None),
+        dict(motion=VelocityLinear(gaussian=True)),
+        dict(motion=ConstantNoise()),
+        dict(resampling="stratified"),
+        dict(roughening=(0.0, 0.0, 0.0)),
+        dict(n=1),
+        dict(n=700),
+        dict(motion=AdaptiveMotion()),
+        dict(motion=AdaptiveMotion(), resample_threshold=1.0, augmented=None),
+        dict(bearing_model="exact"),
+        dict(bearing_model="exact", motion=AdaptiveMotion(), resample_threshold=1.0),
+    ],
+)
 @pytest.mark.parametrize("use_step", [True, False])
 def test_compiled_path_equals_the_plain_sequence_bit_for_bit(options, use_step):
     options = dict(options)
     bearing_model = options.pop("bearing_model", "von_mises")
     compiled = make(sensor=LandmarkSensorModel(FIELD, bearing_model=bearing_model), **options)
     options = {"n": 300, "motion": VelocityLinear(), **options}
-    plain = PlainFilter(FIELD, options.pop("motion"), StagedLandmarks(FIELD, bearing_model=bearing_model),
-                        n_particles=options.pop("n"), seed=0, **options)
+    plain = PlainFilter(
+        FIELD,
+        options.pop("motion"),
+        StagedLandmarks(FIELD, bearing_model=bearing_model),
+        n_particles=options.pop("n"),
+        seed=0,
+        **options,
+    )
     for pf in (compiled, plain):
         pf.reset_uniform("own_half")
     for _ in zip(scenario(compiled, use_step=use_step), scenario(plain, use_step=use_step)):
         assert same(state(compiled), state(plain))
 
 
-@pytest.mark.parametrize("law", [dict(range_noise_linear=0.04, range_noise_growth=0.005),
-                                 dict(range_noise_floor=0.08, range_noise_linear=0.02, range_noise_growth=0.0),
-                                 dict(range_noise_linear=0.03, bearing_model="exact")])
+@pytest.mark.parametrize(
+    "law",
+    [
+        dict(range_noise_linear=0.04, range_noise_growth=0.005),
+        dict(range_noise_floor=0.08, range_noise_linear=0.02, range_noise_growth=0.0),
+        dict(range_noise_linear=0.03, bearing_model="exact"),
+    ],
+)
 @pytest.mark.parametrize("use_step", [True, False])
 def test_compiled_path_with_a_linear_range_noise_law_equals_the_plain_sequence_bit_for_bit(law, use_step):
     """σ_r = floor + linear·r + growth·r² reaches the compiled step through `fused_likelihood()` (the pair
     (linear, growth)): the one-dispatch step, sensor resetting included, gives what the plain calls give."""
     compiled = make(sensor=LandmarkSensorModel(FIELD, **law))
     plain = PlainFilter(FIELD, VelocityLinear(), StagedLandmarks(FIELD, **law), n_particles=300, seed=0)
-    assert fused_kernels(compiled.sensor_model).params[3] == (law["range_noise_linear"], law.get("range_noise_growth", 0.02))
+    assert fused_kernels(compiled.sensor_model).params[3] == (
+        law["range_noise_linear"],
+        law.get("range_noise_growth", 0.02),
+    )
     for pf in (compiled, plain):
         pf.reset_uniform("own_half")
     for _ in zip(scenario(compiled, use_step=use_step), scenario(plain, use_step=use_step)):
@@ -218,7 +282,7 @@ def test_compiled_path_with_a_linear_range_noise_law_equals_the_plain_sequence_b
     default.reset_uniform("own_half")
     for _ in scenario(default, use_step=use_step):
         pass
-    assert not np.array_equal(default.poses, compiled.poses)      # the law changed what the filter did
+    assert not np.array_equal(default.poses, compiled.poses)  # the law changed what the filter did
 
 
 def test_compiled_path_covers_injection_and_global_localization():
@@ -233,16 +297,25 @@ def test_compiled_path_covers_injection_and_global_localization():
     assert injected and resampled and kept
 
 
-@given(count=st.integers(1, 400), anchored=st.booleans(), heading=st.floats(-4.0, 4.0),
-       share=st.sampled_from([0.0, 0.5, 0.9]), region=st.sampled_from(["field", "own_half", "opponent_half"]),
-       seed=st.integers(0, 2**32 - 1))
+@given(
+    count=st.integers(1, 400),
+    anchored=st.booleans(),
+    heading=st.floats(-4.0, 4.0),
+    share=st.sampled_from([0.0, 0.5, 0.9]),
+    region=st.sampled_from(["field", "own_half", "opponent_half"]),
+    seed=st.integers(0, 2**32 - 1),
+)
 def test_injection_equals_its_numpy_twin_bit_for_bit(count, anchored, heading, share, region, seed):
     """The relocalization's proposal with the compiled single-detection sampler gives the same poses as
     `sample_injection_reference` (its numpy twin), and leaves the generator at the same place; every injected
     pose is on the carpet (up to the jitter)."""
     rng = np.random.default_rng(seed)
-    obs = detections(TRUE_POSE + np.array([rng.uniform(-3, 3), rng.uniform(-2, 2), 0.0]), rng,
-                     count=int(rng.integers(1, 8)), kinds=("goalpost", "t_crossing", "penalty_mark"))
+    obs = detections(
+        TRUE_POSE + np.array([rng.uniform(-3, 3), rng.uniform(-2, 2), 0.0]),
+        rng,
+        count=int(rng.integers(1, 8)),
+        kinds=("goalpost", "t_crossing", "penalty_mark"),
+    )
     prior = RelocalizationPrior(pair_share=share, uniform_share=min(0.1, 1.0 - share))
     pfs = [make(n=500, seed=seed % 1000, relocalization=SoccerRelocalization(prior)) for _ in range(2)]
     for pf in pfs:
@@ -273,8 +346,10 @@ def test_step_equals_predict_then_correct_then_estimate():
         assert np.array_equal(estimate.pose, b.estimate().pose) and same(state(a), state(b))
 
 
-@pytest.mark.parametrize("options", [dict(), dict(fast=True), dict(motion=VelocityLinear(gaussian=True)),
-                                     dict(motion=ConstantNoise(), augmented=None)])
+@pytest.mark.parametrize(
+    "options",
+    [dict(), dict(fast=True), dict(motion=VelocityLinear(gaussian=True)), dict(motion=ConstantNoise(), augmented=None)],
+)
 @pytest.mark.parametrize("entropy_wanted", [False, True])
 def test_a_step_without_detections_is_predict_then_estimate(options, entropy_wanted):
     """`step(u)` with no detections (None, or an empty list) is `predict(u)` then `estimate()`, bit for bit,
@@ -312,7 +387,7 @@ def test_a_step_without_detections_checks_its_input_before_anything_changes():
     pf = make(seed=2)
     pf.reset_around(TRUE_POSE, (0.3, 0.3, 0.2))
     before = (pf.poses.copy(), pf.rng.bit_generator.state)
-    no_motion = MotionInput(dt=0.01)                 # neither command nor odometry: the model cannot move
+    no_motion = MotionInput(dt=0.01)  # neither command nor odometry: the model cannot move
     with pytest.raises(ValueError, match="neither command nor odometry"):
         pf.step(no_motion)
     with pytest.raises(ValueError, match="must be a motion_models.MotionInput"):
@@ -329,40 +404,51 @@ def test_the_entropy_from_the_step_is_the_entropy_computed_afresh(options):
     rng_a, rng_b = np.random.default_rng(2), np.random.default_rng(2)
     u = MotionInput(dt=0.033, command=(0.1, 0.05, 0.2))
     first = asking.entropy()
-    assert asking.entropy() is first                    # kept until the particles change
+    assert asking.entropy() is first  # kept until the particles change
     for _ in range(12):
         asking.step(u, detections(TRUE_POSE, rng_a))
         silent.step(u, detections(TRUE_POSE, rng_b))
-        assert asking.summary.entropy is not None              # computed by the step itself
+        assert asking.summary.entropy is not None  # computed by the step itself
         assert silent.summary.entropy is None
         from_step = asking.entropy()
-        asking.summary.entropy = None                          # the same histograms, entropy computed by its own call
+        asking.summary.entropy = None  # the same histograms, entropy computed by its own call
         assert asking.entropy() == from_step
         assert np.array_equal(asking.poses, silent.poses) and np.array_equal(asking.log_weights, silent.log_weights)
     assert silent.entropy() == asking.entropy()
     asking.predict(u)
-    assert asking.summary.entropy is None                      # the particles moved
-    fresh = grid_entropy(asking.poses, np.array(asking.weights), asking.summary.x_min, asking.summary.y_min,
-                         asking.grid.position_cell, asking.summary.entropy_nx, asking.summary.entropy_ny,
-                         asking.grid.orientation_bins, np.empty(asking.summary.entropy_nx * asking.summary.entropy_ny),
-                         np.empty(asking.grid.orientation_bins))
+    assert asking.summary.entropy is None  # the particles moved
+    fresh = grid_entropy(
+        asking.poses,
+        np.array(asking.weights),
+        asking.summary.x_min,
+        asking.summary.y_min,
+        asking.grid.position_cell,
+        asking.summary.entropy_nx,
+        asking.summary.entropy_ny,
+        asking.grid.orientation_bins,
+        np.empty(asking.summary.entropy_nx * asking.summary.entropy_ny),
+        np.empty(asking.grid.orientation_bins),
+    )
     entropy = asking.entropy()
-    if options:                                         # threads: histograms summed in fixed point
+    if options:  # threads: histograms summed in fixed point
         assert (entropy.position, entropy.orientation) == pytest.approx(fresh, rel=1e-12)
     else:
         assert (entropy.position, entropy.orientation) == fresh
 
 
-@pytest.mark.parametrize("options", [
-    dict(),
-    dict(augmented=None),
-    dict(resample_threshold=1.0, augmented=None),
-    dict(augmented=AugmentedMCL(fit_threshold=1e9)),          # injects every frame: sensor resetting moved forward
-    dict(motion=AdaptiveMotion()),
-    dict(resampling="stratified"),
-    dict(n=1),
-    dict(bearing_model="exact"),
-])
+@pytest.mark.parametrize(
+    "options",
+    [
+        dict(),
+        dict(augmented=None),
+        dict(resample_threshold=1.0, augmented=None),
+        dict(augmented=AugmentedMCL(fit_threshold=1e9)),  # injects every frame: sensor resetting moved forward
+        dict(motion=AdaptiveMotion()),
+        dict(resampling="stratified"),
+        dict(n=1),
+        dict(bearing_model="exact"),
+    ],
+)
 def test_latency_compensated_correct_in_the_compiled_step_equals_the_plain_sequence(options):
     """`correct(observations, since)` scores each particle where it was at capture in the compiled step (the
     block moved back as `move_back` moves it); the filter that scores through `log_likelihood` on the poses
@@ -370,10 +456,12 @@ def test_latency_compensated_correct_in_the_compiled_step_equals_the_plain_seque
     included."""
     options = {"n": 300, "motion": VelocityLinear(), "bearing_model": "von_mises", **options}
     n, motion, bearing_model = options.pop("n"), options.pop("motion"), options.pop("bearing_model")
-    compiled = ParticleFilter(FIELD, motion, LandmarkSensorModel(FIELD, bearing_model=bearing_model), n_particles=n,
-                              seed=2, **options)
-    plain = ParticleFilter(FIELD, motion, StagedLandmarks(FIELD, bearing_model=bearing_model), n_particles=n, seed=2,
-                           **options)
+    compiled = ParticleFilter(
+        FIELD, motion, LandmarkSensorModel(FIELD, bearing_model=bearing_model), n_particles=n, seed=2, **options
+    )
+    plain = ParticleFilter(
+        FIELD, motion, StagedLandmarks(FIELD, bearing_model=bearing_model), n_particles=n, seed=2, **options
+    )
     rng = np.random.default_rng(4)
     sinces = [(0.03, 0.01, 0.05), (0.0, 0.0, 0.0), (-0.02, 0.0, -0.3), None, (0.1, -0.05, 3.0)]
     for pf in (compiled, plain):
@@ -381,7 +469,7 @@ def test_latency_compensated_correct_in_the_compiled_step_equals_the_plain_seque
     u = MotionInput(dt=0.033, command=(0.2, 0.05, 0.3), collision=NO_COLLISION)
     for k in range(25):
         observations = detections(TRUE_POSE, rng, 1 + k % 6, ("goalpost", "t_crossing"))
-        if k == 11:                                   # nothing explains these: every particle at zero
+        if k == 11:  # nothing explains these: every particle at zero
             observations = Observations.from_arrays(["goalpost"], [0.1], [math.pi])
         since = sinces[k % len(sinces)]
         for pf in (compiled, plain):
@@ -401,12 +489,21 @@ def test_latency_compensated_correct_on_threads_matches_one_thread_to_rounding()
             pf.correct(detections(TRUE_POSE, rng, 6), since=(0.02, 0.01, 0.1 * (k - 1)))
         runs.append(state(pf))
     one, two = runs
-    np.testing.assert_allclose(two[0], one[0], rtol=0, atol=1e-9)      # the same offspring, particles to rounding
+    np.testing.assert_allclose(two[0], one[0], rtol=0, atol=1e-9)  # the same offspring, particles to rounding
     np.testing.assert_allclose(two[12], one[12], atol=1e-9)
 
 
-@pytest.mark.parametrize("since", [(float("nan"), 0.0, 0.0), (0.0, float("inf"), 0.0), (0.1, 0.2), "abc",
-                                   np.array([0.1, np.nan, 0.0]), (0.1, 0.2, 0.3, 0.4)])
+@pytest.mark.parametrize(
+    "since",
+    [
+        (float("nan"), 0.0, 0.0),
+        (0.0, float("inf"), 0.0),
+        (0.1, 0.2),
+        "abc",
+        np.array([0.1, np.nan, 0.0]),
+        (0.1, 0.2, 0.3, 0.4),
+    ],
+)
 def test_a_bad_since_is_rejected_before_anything_changes(since):
     pf = make(seed=6)
     before = state(pf)
@@ -438,12 +535,14 @@ class Unfused(ParticleFilter):
         return super().entropy()
 
 
-LOOP_CALLS = st.lists(st.sampled_from(["predict", "predict", "estimate", "entropy", "correct", "nothing"]),
-                      min_size=1, max_size=30)
+LOOP_CALLS = st.lists(
+    st.sampled_from(["predict", "predict", "estimate", "entropy", "correct", "nothing"]), min_size=1, max_size=30
+)
 
 
-@pytest.mark.parametrize("options", [dict(), dict(fast=True), dict(motion=VelocityLinear(gaussian=True)),
-                                     dict(augmented=None)])
+@pytest.mark.parametrize(
+    "options", [dict(), dict(fast=True), dict(motion=VelocityLinear(gaussian=True)), dict(augmented=None)]
+)
 @given(calls=LOOP_CALLS)
 def test_the_robot_loop_in_any_order_gives_what_separate_calls_give(options, calls):
     """predict, estimate, entropy and correct in any order, as a robot's loop makes them. `estimate()` fills the
@@ -453,12 +552,26 @@ def test_the_robot_loop_in_any_order_gives_what_separate_calls_give(options, cal
     the plain sequence of calls."""
     options = {"motion": VelocityLinear(), **options}
     fused = make(n=200, seed=5, **options)
-    unfused = Unfused(FIELD, options["motion"], LandmarkSensorModel(FIELD), n_particles=200, seed=5,
-                      **{k: v for k, v in options.items() if k != "motion"})
+    unfused = Unfused(
+        FIELD,
+        options["motion"],
+        LandmarkSensorModel(FIELD),
+        n_particles=200,
+        seed=5,
+        **{k: v for k, v in options.items() if k != "motion"},
+    )
     filters = [fused, unfused]
     if set(options) <= {"motion", "augmented"}:
-        filters.append(PlainFilter(FIELD, options["motion"], StagedLandmarks(FIELD), n_particles=200, seed=5,
-                                   **{k: v for k, v in options.items() if k != "motion"}))
+        filters.append(
+            PlainFilter(
+                FIELD,
+                options["motion"],
+                StagedLandmarks(FIELD),
+                n_particles=200,
+                seed=5,
+                **{k: v for k, v in options.items() if k != "motion"},
+            )
+        )
     rngs = [np.random.default_rng(9) for _ in filters]
     for pf in filters:
         pf.reset_around(TRUE_POSE, (0.3, 0.3, 0.2))
@@ -477,8 +590,10 @@ def test_the_robot_loop_in_any_order_gives_what_separate_calls_give(options, cal
                 items = [h.position, h.orientation]
             elif call == "correct":
                 pf.correct(detections(TRUE_POSE, rng, count=4))
-            seen.append(items + [pf.poses.copy(), pf.summary.previous.copy(), pf.summary.has_previous,
-                                 pf.rng.bit_generator.state])
+            seen.append(
+                items
+                + [pf.poses.copy(), pf.summary.previous.copy(), pf.summary.has_previous, pf.rng.bit_generator.state]
+            )
         assert all(same(seen[0], other) for other in seen[1:]), call
     assert all(same(state(fused), state(pf)) for pf in filters[1:])
 
@@ -486,7 +601,7 @@ def test_the_robot_loop_in_any_order_gives_what_separate_calls_give(options, cal
 def test_a_missing_landmark_type_is_rejected_before_anything_changes():
     sensor = LandmarkSensorModel(FIELD)
     offsets = sensor._offsets.copy()
-    offsets[2:] -= offsets[2] - offsets[1]            # a field without L crossings (the later types' rows shift)
+    offsets[2:] -= offsets[2] - offsets[1]  # a field without L crossings (the later types' rows shift)
     object.__setattr__(sensor, "_offsets", offsets)
     pf = make(sensor=sensor)
     pf.step(MotionInput(dt=0.01, command=(0.1, 0.0, 0.0)), detections(TRUE_POSE, np.random.default_rng(0)))
@@ -498,16 +613,31 @@ def test_a_missing_landmark_type_is_rejected_before_anything_changes():
         assert same(before, state(pf))
 
 
-@given(st.floats(0.0, 2.0), st.floats(0.0, 2.0), st.floats(-50.0, 1.0), st.floats(0.001, 0.2),
-       st.floats(0.2, 1.0), st.floats(0.05, 1.0), st.floats(0.0, 1.0))
-def test_augmented_update_in_compiled_code_equals_the_python_method(w_slow, w_fast, log_average, alpha_slow,
-                                                                    alpha_fast, ratio, fit):
-    pf = make(augmented=AugmentedMCL(alpha_slow=alpha_slow, alpha_fast=max(alpha_fast, alpha_slow * 1.01),
-                                     ratio_threshold=ratio, fit_threshold=fit))
+@given(
+    st.floats(0.0, 2.0),
+    st.floats(0.0, 2.0),
+    st.floats(-50.0, 1.0),
+    st.floats(0.001, 0.2),
+    st.floats(0.2, 1.0),
+    st.floats(0.05, 1.0),
+    st.floats(0.0, 1.0),
+)
+def test_augmented_update_in_compiled_code_equals_the_python_method(
+    w_slow, w_fast, log_average, alpha_slow, alpha_fast, ratio, fit
+):
+    pf = make(
+        augmented=AugmentedMCL(
+            alpha_slow=alpha_slow,
+            alpha_fast=max(alpha_fast, alpha_slow * 1.01),
+            ratio_threshold=ratio,
+            fit_threshold=fit,
+        )
+    )
     pf.w_slow, pf.w_fast = w_slow, w_fast
     a = pf.augmented
-    compiled = augmented_update(w_slow, w_fast, log_average, a.alpha_slow, a.alpha_fast, a.ratio_threshold,
-                                a.fit_threshold)
+    compiled = augmented_update(
+        w_slow, w_fast, log_average, a.alpha_slow, a.alpha_fast, a.ratio_threshold, a.fit_threshold
+    )
     fraction = pf._update_augmented(log_average)
     assert compiled == (pf.w_slow, pf.w_fast, fraction)
 
@@ -521,8 +651,13 @@ def test_options_are_validated():
         make(fast="yes")
 
 
-@given(st.lists(st.one_of(st.floats(-745.1, 0.0), st.floats(-1e300, -745.2), st.sampled_from([-math.inf, -0.0])),
-                min_size=1, max_size=40))
+@given(
+    st.lists(
+        st.one_of(st.floats(-745.1, 0.0), st.floats(-1e300, -745.2), st.sampled_from([-math.inf, -0.0])),
+        min_size=1,
+        max_size=40,
+    )
+)
 def test_fast_exp_is_exp_to_rounding(values):
     """`fast_exp`, the polynomial exp of fast=True (compiled with its fast-math flags, as its callers inline
     it): relative error within 6e-16 + 3.5e-17·|x| where exp(x) is a normal number, absolute error within
@@ -564,8 +699,9 @@ def test_fast_matches_the_default_to_rounding(threshold):
 
 
 def run_threads(threads, n, numba_threads=None, steps=5, bearing_model="von_mises"):
-    pf = make(n=n, resample_threshold=0.9, threads=threads,
-              sensor=LandmarkSensorModel(FIELD, bearing_model=bearing_model))
+    pf = make(
+        n=n, resample_threshold=0.9, threads=threads, sensor=LandmarkSensorModel(FIELD, bearing_model=bearing_model)
+    )
     pf.reset_around(TRUE_POSE, (0.3, 0.3, 0.2))
     if numba_threads is not None:
         pf.engine.scope.threads = numba_threads
@@ -583,7 +719,7 @@ def run_threads(threads, n, numba_threads=None, steps=5, bearing_model="von_mise
 
 
 def test_threads_give_the_same_results_on_any_number_of_threads():
-    n = 20000                                           # eight chunks
+    n = 20000  # eight chunks
     if numba.config.NUMBA_NUM_THREADS < 2:
         pytest.skip("numba has one thread here")
     for a, b in zip(run_threads(2, n), run_threads(2, n, numba_threads=1)):
@@ -594,22 +730,22 @@ def test_threads_give_the_same_results_on_any_number_of_threads():
 def test_threads_match_one_thread_to_rounding(bearing_model):
     one, two = (run_threads(threads, 20000, bearing_model=bearing_model) for threads in (1, 2))
     for a, b in zip(one, two):
-        np.testing.assert_allclose(b[0], a[0], rtol=0, atol=1e-9)     # the same offspring, particles to rounding
+        np.testing.assert_allclose(b[0], a[0], rtol=0, atol=1e-9)  # the same offspring, particles to rounding
         np.testing.assert_allclose(b[1], a[1], rtol=0, atol=1e-9)
         np.testing.assert_allclose(b[12], a[12], atol=1e-9)
         np.testing.assert_allclose(b[13], a[13], atol=1e-9)
         assert b[5] == pytest.approx(a[5], rel=1e-9)
 
 
-@given(st.integers(1, 4096 ** 2), st.sampled_from([4096, CHUNK]))
+@given(st.integers(1, 4096**2), st.sampled_from([4096, CHUNK]))
 def test_chunks_split_evenly_over_1_2_4_or_8_threads(count, target):
     chunk = balanced_chunk(count, target)
     chunks = -(-count // chunk)
     if count <= target:
-        assert chunk == target                          # one chunk: the serial sums, bit for bit
+        assert chunk == target  # one chunk: the serial sums, bit for bit
     else:
-        assert chunk <= target and chunks % 8 == 0      # prange's equal shares are equal work
-        assert chunks * chunk - count < chunk           # only the last chunk is short
+        assert chunk <= target and chunks % 8 == 0  # prange's equal shares are equal work
+        assert chunks * chunk - count < chunk  # only the last chunk is short
 
 
 # -- what the benchmark calls -----------------------------------------------------------------------------------
@@ -672,13 +808,22 @@ def test_issue_shaped_step_equals_its_numpy_twin(fast):
     ess, position, orientation = issue_shaped_step(pf, u, observations)()
 
     move_with_noise_reference(poses, *u.displacement(), *pf.motion_model.noise_bounds(u), False, rng.random((700, 3)))
-    weights, _, expected_ess = normalize_reference(log_weights + pf.sensor_model.log_likelihood_reference(
-        poses, observations))
+    weights, _, expected_ess = normalize_reference(
+        log_weights + pf.sensor_model.log_likelihood_reference(poses, observations)
+    )
     expected = poses[systematic_reference(weights, 700, rng)]
     np.testing.assert_allclose(pf.poses, expected, rtol=0, atol=1e-12)
     assert ess == pytest.approx(expected_ess, rel=1e-12)
     g = pf.grid
-    bits = grid_entropy_reference(expected, np.full(700, 1 / 700), pf.summary.x_min, pf.summary.y_min, g.position_cell,
-                                  pf.summary.entropy_nx, pf.summary.entropy_ny, g.orientation_bins)
+    bits = grid_entropy_reference(
+        expected,
+        np.full(700, 1 / 700),
+        pf.summary.x_min,
+        pf.summary.y_min,
+        g.position_cell,
+        pf.summary.entropy_nx,
+        pf.summary.entropy_ny,
+        g.orientation_bins,
+    )
     assert (position, orientation) == pytest.approx(bits, rel=1e-12)
     assert (pf.weights == 1 / 700).all() and rng.random() == pf.rng.random()

@@ -242,14 +242,23 @@ def test_landmarks_of_rejects_unknown_kind(kind):
 
 
 ALIASES = {
-    "L": LandmarkType.L_CROSSING, "T": LandmarkType.T_CROSSING, "X": LandmarkType.X_CROSSING,
-    "goalpost": LandmarkType.GOALPOST, "post": LandmarkType.GOALPOST,
-    "penalty_mark": LandmarkType.PENALTY_MARK, "penalty": LandmarkType.PENALTY_MARK,
-    "center_mark": LandmarkType.CENTER_MARK, "centre_mark": LandmarkType.CENTER_MARK,
-    "center": LandmarkType.CENTER_MARK, "centre": LandmarkType.CENTER_MARK,
-    "L-crossing": LandmarkType.L_CROSSING, "l_crossing": LandmarkType.L_CROSSING,
-    "T crossing": LandmarkType.T_CROSSING, "x-Crossing": LandmarkType.X_CROSSING,
-    "penalty mark": LandmarkType.PENALTY_MARK, "Centre-Mark": LandmarkType.CENTER_MARK,
+    "L": LandmarkType.L_CROSSING,
+    "T": LandmarkType.T_CROSSING,
+    "X": LandmarkType.X_CROSSING,
+    "goalpost": LandmarkType.GOALPOST,
+    "post": LandmarkType.GOALPOST,
+    "penalty_mark": LandmarkType.PENALTY_MARK,
+    "penalty": LandmarkType.PENALTY_MARK,
+    "center_mark": LandmarkType.CENTER_MARK,
+    "centre_mark": LandmarkType.CENTER_MARK,
+    "center": LandmarkType.CENTER_MARK,
+    "centre": LandmarkType.CENTER_MARK,
+    "L-crossing": LandmarkType.L_CROSSING,
+    "l_crossing": LandmarkType.L_CROSSING,
+    "T crossing": LandmarkType.T_CROSSING,
+    "x-Crossing": LandmarkType.X_CROSSING,
+    "penalty mark": LandmarkType.PENALTY_MARK,
+    "Centre-Mark": LandmarkType.CENTER_MARK,
 }
 
 
@@ -290,8 +299,14 @@ def test_an_unknown_name_lists_the_names_and_the_aliases():
     assert "'corner'" in message
     for member in LandmarkType:
         assert member.name in message
-    for alias in ("L (L_CROSSING)", "T (T_CROSSING)", "X (X_CROSSING)", "post (GOALPOST)",
-                  "penalty (PENALTY_MARK)", "center, centre, centre_mark (CENTER_MARK)"):
+    for alias in (
+        "L (L_CROSSING)",
+        "T (T_CROSSING)",
+        "X (X_CROSSING)",
+        "post (GOALPOST)",
+        "penalty (PENALTY_MARK)",
+        "center, centre, centre_mark (CENTER_MARK)",
+    ):
         assert alias in message
 
 
@@ -376,9 +391,7 @@ def test_mirror_negates_position_and_wraps_heading(rows):
 
 
 def test_mirror_examples():
-    poses = np.array(
-        [[1.0, 2.0, 0.0], [1.0, -2.0, math.pi], [0.0, 0.0, -math.pi / 2], [0.0, 0.0, -math.pi]]
-    )
+    poses = np.array([[1.0, 2.0, 0.0], [1.0, -2.0, math.pi], [0.0, 0.0, -math.pi / 2], [0.0, 0.0, -math.pi]])
     mirrored = spl().mirror_poses(poses)
     np.testing.assert_allclose(
         mirrored,

@@ -35,13 +35,25 @@ def make(n=300, seed=0, **kwargs):
 
 
 def relocalization_state(relocalization):
-    return repr({name: (value.tolist() if isinstance(value, np.ndarray) else value)
-                 for name, value in vars(relocalization).items()})
+    return repr(
+        {
+            name: (value.tolist() if isinstance(value, np.ndarray) else value)
+            for name, value in vars(relocalization).items()
+        }
+    )
 
 
 def state(pf):
-    return (pf.poses.copy(), pf.log_weights.copy(), np.array(pf.weights), pf.w_slow, pf.w_fast,
-            pf.rng.bit_generator.state, pf.ess, relocalization_state(pf.relocalization))
+    return (
+        pf.poses.copy(),
+        pf.log_weights.copy(),
+        np.array(pf.weights),
+        pf.w_slow,
+        pf.w_fast,
+        pf.rng.bit_generator.state,
+        pf.ess,
+        relocalization_state(pf.relocalization),
+    )
 
 
 def same_state(a, b):
@@ -49,9 +61,16 @@ def same_state(a, b):
 
 
 # -- construction ---------------------------------------------------------------------------------------------
-@pytest.mark.parametrize("kwargs,match", [(dict(n_particles=0), "n_particles"), (dict(n_particles=-5), "n_particles"),
-                                          (dict(n_particles=2.5), "n_particles"), (dict(resampling="best"), "resampling"),
-                                          (dict(resample_threshold=1.5), "resample_threshold")])
+@pytest.mark.parametrize(
+    "kwargs,match",
+    [
+        (dict(n_particles=0), "n_particles"),
+        (dict(n_particles=-5), "n_particles"),
+        (dict(n_particles=2.5), "n_particles"),
+        (dict(resampling="best"), "resampling"),
+        (dict(resample_threshold=1.5), "resample_threshold"),
+    ],
+)
 def test_bad_construction(kwargs, match):
     with pytest.raises(ValueError, match=match):
         ParticleFilter(FIELD, VelocityLinear(), SENSOR, **kwargs)
@@ -66,18 +85,21 @@ def test_bad_models_are_named():
 
 # -- rejected calls leave the filter exactly as it was ----------------------------------------------------------
 BAD_OBSERVATIONS = [
-    [LandmarkObservation.__new__(LandmarkObservation)],                # not constructed: no fields
+    [LandmarkObservation.__new__(LandmarkObservation)],  # not constructed: no fields
     "goalpost",
     [("goalpost", 1.0, 0.0)],
 ]
 
 
-@pytest.mark.parametrize("make_bad", [
-    lambda: Observations.from_arrays(["goalpost"], [float("nan")], [0.0]),
-    lambda: Observations.from_arrays(["goalpost"], [-1.0], [0.0]),
-    lambda: Observations.from_arrays(["penalty_box"], [1.0], [0.0]),
-    lambda: [LandmarkObservation("goalpost", float("inf"), 0.0)],
-])
+@pytest.mark.parametrize(
+    "make_bad",
+    [
+        lambda: Observations.from_arrays(["goalpost"], [float("nan")], [0.0]),
+        lambda: Observations.from_arrays(["goalpost"], [-1.0], [0.0]),
+        lambda: Observations.from_arrays(["penalty_box"], [1.0], [0.0]),
+        lambda: [LandmarkObservation("goalpost", float("inf"), 0.0)],
+    ],
+)
 def test_bad_observations_raise_before_anything_changes(make_bad):
     pf = make()
     pf.correct(detections())
@@ -87,12 +109,15 @@ def test_bad_observations_raise_before_anything_changes(make_bad):
     assert same_state(before, state(pf))
 
 
-@pytest.mark.parametrize("bad_input", [
-    lambda: MotionInput(dt=-0.01, command=(0.1, 0, 0)),
-    lambda: MotionInput(dt=float("nan"), command=(0.1, 0, 0)),
-    lambda: MotionInput(dt=0.01),
-    lambda: (0.01, 0.1, 0.0, 0.0),
-])
+@pytest.mark.parametrize(
+    "bad_input",
+    [
+        lambda: MotionInput(dt=-0.01, command=(0.1, 0, 0)),
+        lambda: MotionInput(dt=float("nan"), command=(0.1, 0, 0)),
+        lambda: MotionInput(dt=0.01),
+        lambda: (0.01, 0.1, 0.0, 0.0),
+    ],
+)
 def test_bad_motion_input_raises_before_anything_changes(bad_input):
     pf = make()
     before = state(pf)
@@ -108,13 +133,18 @@ def test_step_validates_observations_before_predicting():
     pf = make()
     before = state(pf)
     with pytest.raises(ValueError):
-        pf.step(MotionInput(dt=0.01, command=(0.2, 0, 0)), Observations.from_arrays(["goalpost"], [-2.0], [0.0])
-                if False else [LandmarkObservation("goalpost", 1.0, 0.0), "not an observation"])
+        pf.step(
+            MotionInput(dt=0.01, command=(0.2, 0, 0)),
+            Observations.from_arrays(["goalpost"], [-2.0], [0.0])
+            if False
+            else [LandmarkObservation("goalpost", 1.0, 0.0), "not an observation"],
+        )
     assert same_state(before, state(pf))
 
 
-@pytest.mark.parametrize("name,value", [("poses", np.zeros((5000, 3))), ("poses", np.zeros((300, 3))),
-                                        ("log_weights", np.zeros(300))])
+@pytest.mark.parametrize(
+    "name,value", [("poses", np.zeros((5000, 3))), ("poses", np.zeros((300, 3))), ("log_weights", np.zeros(300))]
+)
 def test_the_particle_arrays_cannot_be_rebound(name, value):
     """The kernels trust the particle arrays' shape (a larger array rebound in their place made the compiled
     step write past the others); replacing them goes through set_particles, which checks them."""
@@ -127,11 +157,20 @@ def test_the_particle_arrays_cannot_be_rebound(name, value):
     assert getattr(pf, name) is getattr(pf, name) and getattr(pf, name).flags.writeable
 
 
-@pytest.mark.parametrize("name,value", [("roughening", (0.1, -0.1, 0.0)), ("roughening", (0.1, 0.1)),
-                                        ("roughening", (np.nan, 0.0, 0.0)), ("resampling", "best"),
-                                        ("resampling", None), ("resample_threshold", 1.5),
-                                        ("resample_threshold", True), ("resample_threshold", "0.5"),
-                                        ("augmented", {"alpha_slow": 0.01})])
+@pytest.mark.parametrize(
+    "name,value",
+    [
+        ("roughening", (0.1, -0.1, 0.0)),
+        ("roughening", (0.1, 0.1)),
+        ("roughening", (np.nan, 0.0, 0.0)),
+        ("resampling", "best"),
+        ("resampling", None),
+        ("resample_threshold", 1.5),
+        ("resample_threshold", True),
+        ("resample_threshold", "0.5"),
+        ("augmented", {"alpha_slow": 0.01}),
+    ],
+)
 def test_bad_settings_between_steps_are_refused_unchanged(name, value):
     pf = make()
     u = MotionInput(dt=0.033, command=(0.1, 0.05, 0.2))
@@ -144,8 +183,7 @@ def test_bad_settings_between_steps_are_refused_unchanged(name, value):
 
 def test_settings_changed_between_steps_take_effect():
     u = MotionInput(dt=0.033, command=(0.1, 0.05, 0.2))
-    made = make(seed=3, resample_threshold=1.0, roughening=(0.0, 0.0, 0.0), resampling="stratified",
-                augmented=None)
+    made = make(seed=3, resample_threshold=1.0, roughening=(0.0, 0.0, 0.0), resampling="stratified", augmented=None)
     changed = make(seed=3)
     changed.roughening = [0.0, 0.0, 0.0]
     changed.resample_threshold = 1
@@ -157,8 +195,8 @@ def test_settings_changed_between_steps_take_effect():
     assert same_state(state(made), state(changed)) and changed.resampled
     assert changed.resample_threshold == 1.0 and isinstance(changed.resample_threshold, float)
     with pytest.raises(ValueError):
-        changed.roughening[0] = 1.0              # read-only: a new value goes through the setter's checks
-    for fixed, value in (("n", 10), ("grid", Grid()), ("field", FIELD)):     # the filter's arrays are made for them
+        changed.roughening[0] = 1.0  # read-only: a new value goes through the setter's checks
+    for fixed, value in (("n", 10), ("grid", Grid()), ("field", FIELD)):  # the filter's arrays are made for them
         with pytest.raises(AttributeError):
             setattr(changed, fixed, value)
     with pytest.raises(ValueError, match="grid"):
@@ -168,21 +206,26 @@ def test_settings_changed_between_steps_take_effect():
 def test_bad_resets_are_rejected_unchanged():
     pf = make()
     before = state(pf)
-    for call in (lambda: pf.reset_uniform("left_wing"), lambda: pf.reset_uniform((1, 0, 0, 1)),
-                 lambda: pf.reset_around((0, float("nan"), 0)), lambda: pf.reset_around((0, 0, 0), (1, -1, 1)),
-                 lambda: pf.set_particles(np.zeros((3, 3))),
-                 lambda: pf.set_particles(np.zeros((300, 3)), np.full(300, -np.inf)),
-                 lambda: pf.set_particles(np.zeros((300, 3)), np.r_[np.inf, np.zeros(299)]),
-                 lambda: pf.reset_uniform("field", heading="north"),
-                 lambda: pf.reset_uniform("field", heading=0.0, heading_sigma=float("nan"))):
+    for call in (
+        lambda: pf.reset_uniform("left_wing"),
+        lambda: pf.reset_uniform((1, 0, 0, 1)),
+        lambda: pf.reset_around((0, float("nan"), 0)),
+        lambda: pf.reset_around((0, 0, 0), (1, -1, 1)),
+        lambda: pf.set_particles(np.zeros((3, 3))),
+        lambda: pf.set_particles(np.zeros((300, 3)), np.full(300, -np.inf)),
+        lambda: pf.set_particles(np.zeros((300, 3)), np.r_[np.inf, np.zeros(299)]),
+        lambda: pf.reset_uniform("field", heading="north"),
+        lambda: pf.reset_uniform("field", heading=0.0, heading_sigma=float("nan")),
+    ):
         with pytest.raises(ValueError):
             call()
     assert same_state(before, state(pf))
 
 
 # -- invariants -------------------------------------------------------------------------------------------------
-steps = st.lists(st.tuples(st.floats(-0.3, 0.3), st.floats(-0.1, 0.1), st.floats(-1, 1), st.booleans()),
-                 min_size=1, max_size=15)
+steps = st.lists(
+    st.tuples(st.floats(-0.3, 0.3), st.floats(-0.1, 0.1), st.floats(-1, 1), st.booleans()), min_size=1, max_size=15
+)
 
 
 @given(steps, st.integers(0, 1000), st.sampled_from(["systematic", "stratified", "residual", "multinomial"]))
@@ -232,8 +275,9 @@ def test_same_seed_same_run_bit_for_bit():
 
 
 @pytest.mark.parametrize("adaptive", [False, True], ids=["velocity-linear", "adaptive"])
-@pytest.mark.parametrize("clone", [copy.deepcopy, lambda pf: pickle.loads(pickle.dumps(pf))],
-                         ids=["deepcopy", "pickle"])
+@pytest.mark.parametrize(
+    "clone", [copy.deepcopy, lambda pf: pickle.loads(pickle.dumps(pf))], ids=["deepcopy", "pickle"]
+)
 def test_a_copied_filter_steps_as_the_original(clone, adaptive):
     """A copy of a filter that has drawn in its kernels steps as the original does, and leaves the original's
     generator where it was (the kernels draw through the addresses of a bit generator). With the adaptive
@@ -257,7 +301,7 @@ def test_a_copied_filter_steps_as_the_original(clone, adaptive):
         pf.predict(u)
     assert same_state(state(twin), state(pf))
     if adaptive:
-        assert len(np.unique(pf.motion_state[:, 0])) > 1      # the states differ: resampling moved them
+        assert len(np.unique(pf.motion_state[:, 0])) > 1  # the states differ: resampling moved them
         np.testing.assert_array_equal(twin.motion_state, pf.motion_state)
 
 
@@ -283,11 +327,15 @@ def test_converges_from_uniform_with_detections():
 
 
 # -- resets -----------------------------------------------------------------------------------------------------
-@pytest.mark.parametrize("region,check", [
-    ("own_half", lambda p: (p[:, 0] <= 0).all()), ("opponent_half", lambda p: (p[:, 0] >= 0).all()),
-    ("field", lambda p: (np.abs(p[:, 0]) <= 4.5).all() and (np.abs(p[:, 1]) <= 3.0).all()),
-    ((1.0, 2.0, -0.5, 0.5), lambda p: ((p[:, 0] >= 1) & (p[:, 0] <= 2) & (np.abs(p[:, 1]) <= 0.5)).all()),
-])
+@pytest.mark.parametrize(
+    "region,check",
+    [
+        ("own_half", lambda p: (p[:, 0] <= 0).all()),
+        ("opponent_half", lambda p: (p[:, 0] >= 0).all()),
+        ("field", lambda p: (np.abs(p[:, 0]) <= 4.5).all() and (np.abs(p[:, 1]) <= 3.0).all()),
+        ((1.0, 2.0, -0.5, 0.5), lambda p: ((p[:, 0] >= 1) & (p[:, 0] <= 2) & (np.abs(p[:, 1]) <= 0.5)).all()),
+    ],
+)
 def test_uniform_reset_regions(region, check):
     pf = make()
     pf.reset_uniform(region)
@@ -326,7 +374,7 @@ def test_zero_likelihood_everywhere_recovers_by_injection_without_nan():
     pf.correct(detections())
     assert np.isfinite(pf.poses).all() and np.isfinite(pf.log_weights).all()
     assert pf.weights.sum() == pytest.approx(1.0)
-    assert pf.injected == int(round(AugmentedMCL().max_fraction_tracking * 200))   # reset_around: pose known
+    assert pf.injected == int(round(AugmentedMCL().max_fraction_tracking * 200))  # reset_around: pose known
     assert np.isfinite(pf.estimate().pose).all()
 
 
@@ -349,7 +397,7 @@ def test_nan_from_a_sensor_model_is_refused_unchanged():
 def test_kidnapping_triggers_injection_and_recovery():
     pf = make(n=500, seed=2)
     pf.reset_around(TRUE_POSE, (0.05, 0.05, 0.05))
-    for _ in range(60):                       # a confident second of tracking
+    for _ in range(60):  # a confident second of tracking
         pf.step(MotionInput(dt=0.033, command=(0, 0, 0)), detections())
     carried = TRUE_POSE + np.array([-3.0, 1.5, 0.0])
     injected = 0
@@ -382,14 +430,14 @@ def test_the_anchor_follows_odometry_and_a_confident_cluster_on_its_mirror_is_pu
     pf = make(n=500, seed=4)
     pf.reset_around(TRUE_POSE, (0.05, 0.05, 0.02))
     np.testing.assert_allclose(pf.relocalization.anchor, TRUE_POSE)
-    for _ in range(10):                                   # turn at 1 rad/s for 0.5 s, no camera
+    for _ in range(10):  # turn at 1 rad/s for 0.5 s, no camera
         pf.predict(MotionInput(dt=0.05, command=(0.0, 0.0, 1.0)))
     assert pf.relocalization.anchor[2] == pytest.approx(TRUE_POSE[2] + 0.5, abs=1e-9)
     turned = TRUE_POSE + np.array([0.0, 0.0, 0.5])
-    for _ in range(10):                                   # a consistent confident estimate becomes the anchor
+    for _ in range(10):  # a consistent confident estimate becomes the anchor
         pf.step(MotionInput(dt=0.033, command=(0, 0, 0)), detections(turned))
     assert abs(math.remainder(pf.relocalization.anchor[2] - turned[2], 2 * math.pi)) < 0.05
-    mirror = FIELD.mirror_poses(turned[None])[0]          # a tight cluster at the mirror pose fits just as well
+    mirror = FIELD.mirror_poses(turned[None])[0]  # a tight cluster at the mirror pose fits just as well
     pf.set_particles(mirror + np.random.default_rng(0).normal(0, 0.02, (pf.n, 3)))
     for _ in range(RelocalizationPrior().jump_corrections + 2):
         pf.step(MotionInput(dt=0.033, command=(0, 0, 0)), detections(mirror))
@@ -416,8 +464,10 @@ def test_weigh_is_log_mean_likelihood_and_normalize_bit_for_bit():
         expected = normalize(log_weights + log_likelihood, expected_weights)
         assert valid and (log_total, ess) == expected and np.array_equal(weights, expected_weights)
         assert native == log_mean_likelihood(log_weights, log_likelihood, count)
-        for variant in (lambda w: weigh_chunked(log_weights, log_likelihood, count, w, 16),
-                        lambda w: weigh_fast(log_weights, log_likelihood, count, w)):
+        for variant in (
+            lambda w: weigh_chunked(log_weights, log_likelihood, count, w, 16),
+            lambda w: weigh_fast(log_weights, log_likelihood, count, w),
+        ):
             other = np.empty(n)
             result = variant(other)
             np.testing.assert_allclose(result[1:], (native, log_total, ess), rtol=1e-12, atol=1e-12)

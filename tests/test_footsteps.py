@@ -1,4 +1,5 @@
 """Footstep displacements and their integration, the footstep event, and the footstep walk simulator."""
+
 import math
 
 import numpy as np
@@ -13,9 +14,11 @@ from motion_models.footsteps import LEFT, RIGHT, FootstepEvent, displacements, i
 coordinate = st.floats(-20, 20, allow_nan=False)
 heading = st.floats(-math.pi, math.pi, allow_nan=False)
 trajectories = st.lists(st.tuples(coordinate, coordinate, heading), min_size=1, max_size=40).map(
-    lambda rows: np.array(rows, dtype=np.float64))
-steps_strategy = st.lists(st.tuples(st.floats(-0.2, 0.2), st.floats(-0.2, 0.2), st.floats(-3.0, 3.0)),
-                          min_size=0, max_size=40).map(lambda rows: np.array(rows, dtype=np.float64).reshape(-1, 3))
+    lambda rows: np.array(rows, dtype=np.float64)
+)
+steps_strategy = st.lists(
+    st.tuples(st.floats(-0.2, 0.2), st.floats(-0.2, 0.2), st.floats(-3.0, 3.0)), min_size=0, max_size=40
+).map(lambda rows: np.array(rows, dtype=np.float64).reshape(-1, 3))
 
 
 def assert_poses_close(a, b, tol=1e-9):
@@ -53,8 +56,9 @@ def test_displacement_is_in_the_frame_of_the_earlier_pose():
     np.testing.assert_allclose(square[1:4, :2], [[1, 0], [1, 1], [0, 1]], atol=1e-12)
 
 
-@pytest.mark.parametrize("bad,match", [(np.zeros((3, 2)), "shape"), (np.zeros(3), "shape"),
-                                       (np.array([[0, 0, 0], [np.nan, 0, 0]]), "row 1")])
+@pytest.mark.parametrize(
+    "bad,match", [(np.zeros((3, 2)), "shape"), (np.zeros(3), "shape"), (np.array([[0, 0, 0], [np.nan, 0, 0]]), "row 1")]
+)
 def test_bad_poses_and_steps_are_rejected(bad, match):
     with pytest.raises(ValueError, match=match):
         displacements(bad)
@@ -66,18 +70,31 @@ def test_bad_poses_and_steps_are_rejected(bad, match):
 
 # -- the footstep event ------------------------------------------------------------------------------------------
 def test_event_inputs_are_the_papers_lists():
-    event = FootstepEvent(support=RIGHT, commanded=(0.04, 0.01, 0.1), previous_commanded=(0.03, 0.0, 0.05),
-                          sensor=(0.035, 0.008, 0.11), previous_sensor=(0.02, 0.001, 0.04), duration=0.3,
-                          previous_duration=0.28)
+    event = FootstepEvent(
+        support=RIGHT,
+        commanded=(0.04, 0.01, 0.1),
+        previous_commanded=(0.03, 0.0, 0.05),
+        sensor=(0.035, 0.008, 0.11),
+        previous_sensor=(0.02, 0.001, 0.04),
+        duration=0.3,
+        previous_duration=0.28,
+    )
     np.testing.assert_array_equal(event.inputs("apriori"), [0.04, 0.01, 0.1, 0.03, 0.0, 0.05, -1.0])
     np.testing.assert_array_equal(event.inputs("online"), [0.035, 0.008, 0.11, 0.02, 0.001, 0.04, -1.0, 0.3, 0.28])
 
 
-@pytest.mark.parametrize("kwargs,match", [
-    ({"support": 0}, "support"), ({"support": True}, "support"),
-    ({"commanded": (0.1, math.nan, 0.0)}, "commanded"), ({"commanded": (0.1, 0.0)}, "commanded"),
-    ({"sensor": "abc"}, "sensor"), ({"duration": -0.1}, "duration"), ({"previous_duration": math.inf}, "previous_duration"),
-])
+@pytest.mark.parametrize(
+    "kwargs,match",
+    [
+        ({"support": 0}, "support"),
+        ({"support": True}, "support"),
+        ({"commanded": (0.1, math.nan, 0.0)}, "commanded"),
+        ({"commanded": (0.1, 0.0)}, "commanded"),
+        ({"sensor": "abc"}, "sensor"),
+        ({"duration": -0.1}, "duration"),
+        ({"previous_duration": math.inf}, "previous_duration"),
+    ],
+)
 def test_bad_events_are_rejected(kwargs, match):
     base = {"support": LEFT, "commanded": (0.04, 0.0, 0.0)}
     with pytest.raises(ValueError, match=match):
@@ -142,12 +159,15 @@ def test_real_steps_are_longer_than_commanded_and_sensors_underestimate(logs):
         standing = np.abs(log.commanded[:, 0]) < 0.003
         assert np.mean(truth[standing, 0]) > 0.002
         # The gyro-based yaw is far better than the commanded one.
-        assert np.mean(np.abs(log.sensor[:, 2] - truth[:, 2])) < 0.3 * np.mean(np.abs(log.commanded[:, 2] - truth[:, 2]))
+        assert np.mean(np.abs(log.sensor[:, 2] - truth[:, 2])) < 0.3 * np.mean(
+            np.abs(log.commanded[:, 2] - truth[:, 2])
+        )
 
 
 def test_support_foot_asymmetry_turns_the_robot():
     # Walking straight ahead on command, the legs' turn biases differ: left-support steps turn more.
     from demos.footstep_sim import _leg_target
+
     r = Robot()
     left = _leg_target(r, CARPET, np.array([0.03, 0.0, 0.0]), LEFT, 0.0)
     right = _leg_target(r, CARPET, np.array([0.03, 0.0, 0.0]), RIGHT, 0.0)
@@ -157,6 +177,7 @@ def test_support_foot_asymmetry_turns_the_robot():
 def test_grass_hurts_the_a_priori_odometry_more_than_the_sensor_based(logs):
     def per_step(log, steps):
         return np.mean(np.abs(steps - truth_displacements(log)), axis=0)
+
     carpet, grass = logs["carpet"], logs["grass"]
     leg_noise_ratio = GRASS.leg_noise[0] / CARPET.leg_noise[0]
     assert leg_noise_ratio > 2

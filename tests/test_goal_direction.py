@@ -1,6 +1,7 @@
 """The goal-direction sensor model: a model that reaches the fused step through one per-particle log-likelihood
 (`sensing.fused.per_particle_kernels`), compared with its numpy reference and with the filter's stages one by
 one."""
+
 import math
 
 import numpy as np
@@ -47,8 +48,9 @@ def test_the_compiled_likelihood_equals_its_numpy_reference():
     for k in range(5):
         frame = goal_sightings(TRUE_POSE, rng, false_positive=k % 2 == 1)
         particles = poses(1000, seed=k)
-        np.testing.assert_allclose(model.log_likelihood(particles, frame), model.reference(particles, frame),
-                                   rtol=1e-12, atol=1e-9)
+        np.testing.assert_allclose(
+            model.log_likelihood(particles, frame), model.reference(particles, frame), rtol=1e-12, atol=1e-9
+        )
 
 
 def test_the_model_reaches_the_fused_step_through_one_function():
@@ -62,8 +64,19 @@ def test_the_model_reaches_the_fused_step_through_one_function():
 
 def state(pf):
     estimate = pf.estimate()
-    return (pf.poses.copy(), pf.log_weights.copy(), pf.w_slow, pf.w_fast, pf.ess, pf.resampled, pf.injected,
-            pf.rng.bit_generator.state, estimate.pose.copy(), estimate.covariance.copy(), estimate.weight)
+    return (
+        pf.poses.copy(),
+        pf.log_weights.copy(),
+        pf.w_slow,
+        pf.w_fast,
+        pf.ess,
+        pf.resampled,
+        pf.injected,
+        pf.rng.bit_generator.state,
+        estimate.pose.copy(),
+        estimate.covariance.copy(),
+        estimate.weight,
+    )
 
 
 def same(a, b):

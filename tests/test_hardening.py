@@ -1,5 +1,6 @@
 """The inputs a fuzz run of the public entry points found mishandled, each refused now with a clear error and
 the filter left bit for bit as it was (`fuzzing.snapshot` compares everything it holds, the generator too)."""
+
 import math
 import sys
 from pathlib import Path
@@ -34,8 +35,16 @@ def refused_unchanged(owner, call, error=ValueError, match=None):
     assert snapshot(owner) == before
 
 
-@pytest.mark.parametrize("sigmas", [dict(bearing_sigma=1e-160), dict(range_sigma=1e-200), dict(range_sigma=5e-324),
-                                    dict(bearing_sigma=1e300), dict(range_sigma=SMALLEST_SIGMA / 2)])
+@pytest.mark.parametrize(
+    "sigmas",
+    [
+        dict(bearing_sigma=1e-160),
+        dict(range_sigma=1e-200),
+        dict(range_sigma=5e-324),
+        dict(bearing_sigma=1e300),
+        dict(range_sigma=SMALLEST_SIGMA / 2),
+    ],
+)
 def test_a_noise_below_the_smallest_is_refused_before_anything_changes(sigmas):
     with pytest.raises(ValueError, match=r"sigma = .* must be finite and >= 1e-06 and <= 1000"):
         LandmarkObservation("goalpost", 2.0, 0.3, **sigmas)
@@ -50,22 +59,26 @@ def test_a_noise_below_the_smallest_is_refused_before_anything_changes(sigmas):
 def test_the_smallest_and_largest_noise_are_accepted_and_stay_finite():
     pf = make_filter()
     for sigma in (SMALLEST_SIGMA, LARGEST_SIGMA):
-        pf.step(STEP, Observations.from_arrays(["goalpost", "T"], [2.0, 7.0], [0.3, -2.0], [sigma, sigma],
-                                               [sigma, sigma]))
+        pf.step(
+            STEP, Observations.from_arrays(["goalpost", "T"], [2.0, 7.0], [0.3, -2.0], [sigma, sigma], [sigma, sigma])
+        )
         check_filter(pf)
         assert np.isfinite(pf.estimate().pose).all()
 
 
-@pytest.mark.parametrize("call, match", [
-    (lambda pf: pf.reset_uniform("field", heading=1e300, heading_sigma=1e300), "heading"),
-    (lambda pf: pf.reset_uniform("field", heading=0.0, heading_sigma=1e300), "heading_sigma"),
-    (lambda pf: pf.diffuse((0.0, 0.0, 1e308)), "sigma"),
-    (lambda pf: pf.reset_around((1e6, 0.0, 0.0)), "pose"),
-    (lambda pf: pf.reset_candidates([(0.0, 0.0, 0.0), (0.0, 0.0, 1e9)]), r"poses\[1\]"),
-    (lambda pf: pf.set_particles(np.full((64, 3), 1e300)), r"poses\[0\]"),
-    (lambda pf: pf.correct([LandmarkObservation("goalpost", 2.0, 0.3)], since=(1e6, 0.0, 0.0)), "since"),
-    (lambda pf: pf.reset_uniform((0.0, 1e308, 0.0, 1.0)), "region"),
-])
+@pytest.mark.parametrize(
+    "call, match",
+    [
+        (lambda pf: pf.reset_uniform("field", heading=1e300, heading_sigma=1e300), "heading"),
+        (lambda pf: pf.reset_uniform("field", heading=0.0, heading_sigma=1e300), "heading_sigma"),
+        (lambda pf: pf.diffuse((0.0, 0.0, 1e308)), "sigma"),
+        (lambda pf: pf.reset_around((1e6, 0.0, 0.0)), "pose"),
+        (lambda pf: pf.reset_candidates([(0.0, 0.0, 0.0), (0.0, 0.0, 1e9)]), r"poses\[1\]"),
+        (lambda pf: pf.set_particles(np.full((64, 3), 1e300)), r"poses\[0\]"),
+        (lambda pf: pf.correct([LandmarkObservation("goalpost", 2.0, 0.3)], since=(1e6, 0.0, 0.0)), "since"),
+        (lambda pf: pf.reset_uniform((0.0, 1e308, 0.0, 1.0)), "region"),
+    ],
+)
 def test_values_beyond_the_bounds_are_refused_and_change_nothing(call, match):
     pf = make_filter()
     refused_unchanged(pf, lambda: call(pf), match=match)
@@ -81,11 +94,16 @@ def test_headings_come_back_wrapped():
     check_filter(pf)
 
 
-@pytest.mark.parametrize("kwargs, error, match", [
-    (dict(n_particles=10**13), ValueError, "n_particles"), (dict(n_particles=2.5), TypeError, "n_particles"),
-    (dict(threads=10**9), ValueError, "threads"), (dict(seed="x"), TypeError, "seed"),
-    (dict(grid=Grid(position_cell=0.01, orientation_bins=3600)), ValueError, "grid"),
-])
+@pytest.mark.parametrize(
+    "kwargs, error, match",
+    [
+        (dict(n_particles=10**13), ValueError, "n_particles"),
+        (dict(n_particles=2.5), TypeError, "n_particles"),
+        (dict(threads=10**9), ValueError, "threads"),
+        (dict(seed="x"), TypeError, "seed"),
+        (dict(grid=Grid(position_cell=0.01, orientation_bins=3600)), ValueError, "grid"),
+    ],
+)
 def test_constructions_that_would_exhaust_memory_are_refused(kwargs, error, match):
     with pytest.raises(error, match=match):
         ParticleFilter(FIELD, VelocityLinear(), LandmarkSensorModel(FIELD), **kwargs)
@@ -111,20 +129,23 @@ def test_observation_arrays_are_never_reshaped():
         Observations.from_arrays(["T"], [1.0], [1e300])
 
 
-@pytest.mark.parametrize("call, match", [
-    (lambda pf: pf.correct(math.nan), "observations = nan must be an Observations"),
-    (lambda pf: pf.step("u"), "u = 'u' must be a motion_models.MotionInput, not str"),
-    (lambda pf: pf.diffuse("wide"), "sigma = 'wide' must be 3 numbers, not str"),
-    (lambda pf: pf.reset_around(None), "pose = None must be 3 numbers"),
-    (lambda pf: pf.correct([LandmarkObservation("T", 1.0, 0.0)], since="now"), "since = 'now'"),
-    (lambda pf: setattr(pf, "resample_threshold", "half"), "resample_threshold = 'half' must be a number"),
-])
+@pytest.mark.parametrize(
+    "call, match",
+    [
+        (lambda pf: pf.correct(math.nan), "observations = nan must be an Observations"),
+        (lambda pf: pf.step("u"), "u = 'u' must be a motion_models.MotionInput, not str"),
+        (lambda pf: pf.diffuse("wide"), "sigma = 'wide' must be 3 numbers, not str"),
+        (lambda pf: pf.reset_around(None), "pose = None must be 3 numbers"),
+        (lambda pf: pf.correct([LandmarkObservation("T", 1.0, 0.0)], since="now"), "since = 'now'"),
+        (lambda pf: setattr(pf, "resample_threshold", "half"), "resample_threshold = 'half' must be a number"),
+    ],
+)
 def test_wrong_types_raise_a_type_error_naming_the_argument(call, match):
     pf = make_filter()
     before = snapshot(pf)
     with pytest.raises(TypeError, match=match) as error:
         call(pf)
-    assert isinstance(error.value, ValueError)      # one family: a loop catching ValueError catches it too
+    assert isinstance(error.value, ValueError)  # one family: a loop catching ValueError catches it too
     assert snapshot(pf) == before
 
 
@@ -162,6 +183,7 @@ def test_noise_parameters_are_bounded(make):
 def test_the_largest_noise_of_the_largest_step_stays_finite_and_wrapped():
     from motion_models import ConstantNoise
     from motion_models.base import MAX_NOISE_PARAMETER, MAX_STEP_DT
+
     for model in (ConstantNoise(*(3 * [MAX_NOISE_PARAMETER])), VelocityLinear(*(4 * [MAX_NOISE_PARAMETER]))):
         pf = ParticleFilter(FIELD, model, LandmarkSensorModel(FIELD), n_particles=64, seed=1)
         pf.step(MotionInput(dt=MAX_STEP_DT, command=(0.0, 0.0, 0.02)), [LandmarkObservation("goalpost", 2.0, 0.3)])

@@ -15,12 +15,18 @@ def planar_arm(l1=1.0, l2=0.5) -> LegChain:
 
 
 def random_chain(rng, n=5) -> LegChain:
-    rows = np.column_stack([rng.uniform(-1, 1, n), rng.uniform(-0.2, 0.2, n), rng.uniform(-0.2, 0.2, n),
-                            rng.uniform(-math.pi, math.pi, n)])
+    rows = np.column_stack(
+        [rng.uniform(-1, 1, n), rng.uniform(-0.2, 0.2, n), rng.uniform(-0.2, 0.2, n), rng.uniform(-math.pi, math.pi, n)]
+    )
     base = axis_angle(rng.normal(size=3), rng.uniform(0, 3))
     imu = axis_angle(rng.normal(size=3), rng.uniform(0, 3))
-    return LegChain.from_dh(rows, base_rotation=base, base_position=rng.uniform(-0.1, 0.1, 3),
-                            imu_rotation=imu, imu_position=rng.uniform(-0.1, 0.1, 3))
+    return LegChain.from_dh(
+        rows,
+        base_rotation=base,
+        base_position=rng.uniform(-0.1, 0.1, 3),
+        imu_rotation=imu,
+        imu_position=rng.uniform(-0.1, 0.1, 3),
+    )
 
 
 # --- forward kinematics against hand-computed poses -----------------------------------------------------
@@ -30,8 +36,9 @@ def test_planar_two_link_arm_hand_computed():
     np.testing.assert_allclose(pose[:3, 3], [0.5, 1.0, 0.0], atol=1e-15)
     np.testing.assert_allclose(pose[:3, :3], np.eye(3), atol=1e-15)
     pose = arm.forward([0.3, 0.4])
-    np.testing.assert_allclose(pose[:3, 3], [math.cos(0.3) + 0.5 * math.cos(0.7),
-                                             math.sin(0.3) + 0.5 * math.sin(0.7), 0.0], atol=1e-15)
+    np.testing.assert_allclose(
+        pose[:3, 3], [math.cos(0.3) + 0.5 * math.cos(0.7), math.sin(0.3) + 0.5 * math.sin(0.7), 0.0], atol=1e-15
+    )
     np.testing.assert_allclose(pose[:3, :3], rotation_z(0.7), atol=1e-15)
 
 
@@ -45,8 +52,13 @@ def test_single_row_with_offset_twist_and_theta_offset():
 
 def test_base_and_imu_mounts_compose():
     base = rotation_x(0.3)
-    chain = LegChain.from_dh([(0.0, 1.0, 0.0, 0.0)], base_rotation=base, base_position=(0.0, 0.0, 2.0),
-                             imu_rotation=rotation_z(0.5), imu_position=(0.1, 0.0, 0.0))
+    chain = LegChain.from_dh(
+        [(0.0, 1.0, 0.0, 0.0)],
+        base_rotation=base,
+        base_position=(0.0, 0.0, 2.0),
+        imu_rotation=rotation_z(0.5),
+        imu_position=(0.1, 0.0, 0.0),
+    )
     pose = chain.forward([0.0])
     np.testing.assert_allclose(pose[:3, 3], np.array([0, 0, 2.0]) + base @ [1.1, 0.0, 0.0], atol=1e-15)
     np.testing.assert_allclose(pose[:3, :3], base @ rotation_z(0.5), atol=1e-15)
@@ -65,8 +77,7 @@ def test_nao_dh_matches_joint_axes_directly():
         leg = nao_leg(side, imu_offset=(0.01, -0.02, 0.03))
         for _ in range(20):
             q = rng.uniform(-1.0, 1.0, 6)
-            np.testing.assert_allclose(leg.forward(q), nao_leg_reference_pose(side, q, (0.01, -0.02, 0.03)),
-                                       atol=1e-13)
+            np.testing.assert_allclose(leg.forward(q), nao_leg_reference_pose(side, q, (0.01, -0.02, 0.03)), atol=1e-13)
 
 
 def test_nao_knee_bends_forward():
@@ -80,8 +91,11 @@ def test_nao_knee_bends_forward():
 @pytest.mark.parametrize("which", ["nao-left", "nao-right", "random"])
 def test_eq8_kinematic_velocity_matches_finite_difference(which):
     rng = np.random.default_rng(2)
-    chain = {"nao-left": nao_leg("left"), "nao-right": nao_leg("right", (0.0, 0.01, 0.02)),
-             "random": random_chain(rng)}[which]
+    chain = {
+        "nao-left": nao_leg("left"),
+        "nao-right": nao_leg("right", (0.0, 0.01, 0.02)),
+        "random": random_chain(rng),
+    }[which]
     h = 1e-6
     for _ in range(10):
         q = rng.uniform(-0.8, 0.8, chain.n_joints)
@@ -110,7 +124,7 @@ def test_eq13_eq14_remove_foot_rotation():
         plus, minus = world(h), world(-h)
         velocity = now[:3, :3].T @ (plus[:3, 3] - minus[:3, 3]) / (2 * h)
         rot_dot = (plus[:3, :3] - minus[:3, :3]) / (2 * h)
-        omega_skew = now[:3, :3].T @ rot_dot                  # body angular velocity, as a gyro reads it
+        omega_skew = now[:3, :3].T @ rot_dot  # body angular velocity, as a gyro reads it
         gyro = np.array([omega_skew[2, 1], omega_skew[0, 2], omega_skew[1, 0]])
         vk, vkg = chain.velocities(q, qd, gyro)
         np.testing.assert_allclose(vkg, velocity, atol=1e-7)
@@ -122,9 +136,9 @@ def test_imu_positions_eq7():
     q = np.array([0.1, -0.3, 0.7, -0.4, 0.05, -0.1])
     p = chain.imu_positions(q)
     assert p.shape == (9, 3)
-    np.testing.assert_allclose(p[0], chain.forward(q)[:3, 3], atol=1e-15)      # foot (sole) frame
-    np.testing.assert_allclose(p[-1], 0.0)                                       # eq. 5
-    np.testing.assert_allclose(p[-2], chain.imu_position, atol=1e-15)           # last link
+    np.testing.assert_allclose(p[0], chain.forward(q)[:3, 3], atol=1e-15)  # foot (sole) frame
+    np.testing.assert_allclose(p[-1], 0.0)  # eq. 5
+    np.testing.assert_allclose(p[-2], chain.imu_position, atol=1e-15)  # last link
 
 
 def test_batch_matches_single():

@@ -1,6 +1,7 @@
 """The house: imports point down the layers of docs/architecture.md (the import-linter contract in pyproject.toml),
 no module imports another package's private module or name, and the library never imports demos or
 benchmarks (the command line finds them by name at run time, from a clone)."""
+
 from pathlib import Path
 
 import pytest

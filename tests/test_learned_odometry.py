@@ -1,4 +1,5 @@
 """LearnedFootstepOdometry: training, prediction, the motion-model interface, files, and the odometry demo."""
+
 import json
 import math
 
@@ -24,8 +25,10 @@ from motion_models.lwpr import LWPR
 def data():
     """A 90 s learning walk and a 60 s test walk on grass (inputs, true displacements)."""
     learn, test = simulate(90.0, GRASS, seed=11), simulate(60.0, GRASS, seed=12)
-    return {kind: (step_inputs(learn, kind), truth_displacements(learn), step_inputs(test, kind),
-                   truth_displacements(test)) for kind in ("apriori", "online")}
+    return {
+        kind: (step_inputs(learn, kind), truth_displacements(learn), step_inputs(test, kind), truth_displacements(test))
+        for kind in ("apriori", "online")
+    }
 
 
 @pytest.fixture(scope="module")
@@ -34,9 +37,15 @@ def models(data):
 
 
 def event(kind="online"):
-    return FootstepEvent(support=LEFT, commanded=(0.03, 0.005, 0.1), previous_commanded=(0.03, 0.0, 0.08),
-                         sensor=(0.035, 0.004, 0.12), previous_sensor=(0.03, 0.001, 0.09), duration=0.3,
-                         previous_duration=0.29)
+    return FootstepEvent(
+        support=LEFT,
+        commanded=(0.03, 0.005, 0.1),
+        previous_commanded=(0.03, 0.0, 0.08),
+        sensor=(0.035, 0.004, 0.12),
+        previous_sensor=(0.03, 0.001, 0.09),
+        duration=0.3,
+        previous_duration=0.29,
+    )
 
 
 # -- learning ----------------------------------------------------------------------------------------------------
@@ -46,7 +55,7 @@ def test_learning_beats_the_raw_displacement_on_a_new_walk(data, models, kind):
     mean, sigma = models[kind].predict_steps(X)
     learned = np.mean(np.abs(mean - Y), axis=0)
     raw = np.mean(np.abs(X[:, :3] - Y), axis=0)
-    assert learned[0] < 0.7 * raw[0]            # the forward step, where inertia and backlash bite
+    assert learned[0] < 0.7 * raw[0]  # the forward step, where inertia and backlash bite
     assert learned[1] < raw[1] and learned[2] < 1.05 * raw[2]
     # The confidence bounds are of the size of the errors (a 2σ band holds most of them).
     assert 0.75 < np.mean(np.abs(mean - Y) < 2 * sigma) <= 1.0
@@ -128,7 +137,7 @@ def test_particles_move_only_at_support_swaps(models):
     state = rng.bit_generator.state
     model.predict(poses, MotionInput(dt=0.01, odometry=(0.0, 0.0, 0.0)), rng)
     np.testing.assert_array_equal(poses, before)
-    assert rng.bit_generator.state == state        # no variates drawn between swaps
+    assert rng.bit_generator.state == state  # no variates drawn between swaps
 
 
 def test_a_swap_moves_each_particle_by_the_predicted_step(models):
@@ -167,14 +176,18 @@ def test_particle_filter_rejects_a_bad_event_and_stays_as_it_was(models):
     from field import spl
     from mcl import ParticleFilter
     from sensing import LandmarkSensorModel
+
     pf = ParticleFilter(spl(), models["online"], LandmarkSensorModel(spl()), n_particles=100, seed=0)
     pf.reset_around((0.0, 0.0, 0.0))
     before = pf.poses.copy()
     pf.predict(MotionInput(dt=0.01, odometry=(0.0, 0.0, 0.0)))
     np.testing.assert_array_equal(pf.poses, before)
     with pytest.raises(ValueError):
-        pf.predict(MotionInput(dt=0.01, odometry=(0.0, 0.0, 0.0),
-                               footstep=FootstepEvent(support=LEFT, commanded=(0.03, 0.0, 0.0))))
+        pf.predict(
+            MotionInput(
+                dt=0.01, odometry=(0.0, 0.0, 0.0), footstep=FootstepEvent(support=LEFT, commanded=(0.03, 0.0, 0.0))
+            )
+        )
     np.testing.assert_array_equal(pf.poses, before)
     pf.predict(MotionInput(dt=0.01, odometry=event().sensor, footstep=event()))
     assert np.mean(pf.poses[:, 0] - before[:, 0]) > 0.02
@@ -249,6 +262,7 @@ def test_the_papers_protocol_learning_halves_the_drift(capsys):
 # -- the linear stage (the variant lin+LWPR) ------------------------------------------------------------------
 def _linear_data(seed=3, n=500, kind="apriori"):
     from motion_models.footsteps import N_INPUTS
+
     rng = np.random.default_rng(seed)
     X = rng.uniform(-0.05, 0.05, (n, N_INPUTS[kind]))
     Y = 0.8 * X[:, :3] + 0.3 * X[:, 3:6] + 0.01 + 0.0005 * rng.standard_normal((n, 3))
@@ -263,7 +277,7 @@ def test_a_linear_stage_holds_an_affine_step_and_is_saved_with_the_models(tmp_pa
     assert isinstance(model.linear, LinearStage) and model.residual
     stage = LinearStage.fit(X, Y)
     np.testing.assert_array_equal(model.linear.weights, stage.weights)
-    assert np.abs(stage.predict(X) - Y).max() < 0.003                 # the affine part is the linear stage's
+    assert np.abs(stage.predict(X) - Y).max() < 0.003  # the affine part is the linear stage's
     # Far outside every receptive field the prediction is the linear step, not the raw one.
     far = np.full((1, 7), 5.0)
     np.testing.assert_allclose(model.predict_steps(far)[0], stage.predict(far), rtol=1e-12, atol=1e-12)
@@ -287,16 +301,19 @@ def test_a_holder_without_a_linear_stage_saves_no_linear_key(tmp_path):
     assert "linear" not in json.loads((tmp_path / "m" / META_FILE).read_text())
 
 
-@pytest.mark.parametrize("change, match", [
-    (lambda linear: linear.pop("weights"), "linear"),
-    (lambda linear: linear.update(extra=1), "linear"),
-    (lambda linear: linear["scale_in"].__setitem__(0, 0.0), "linear"),
-    (lambda linear: linear["scale_in"].__setitem__(0, -1.0), "linear"),
-    (lambda linear: linear["mean_out"].append(0.0), "linear"),
-    (lambda linear: linear["weights"][0].__setitem__(1, "x"), "linear"),
-    (lambda linear: linear["weights"].pop(), "linear"),
-    (lambda linear: linear["mean_in"].__setitem__(2, True), "linear"),
-])
+@pytest.mark.parametrize(
+    "change, match",
+    [
+        (lambda linear: linear.pop("weights"), "linear"),
+        (lambda linear: linear.update(extra=1), "linear"),
+        (lambda linear: linear["scale_in"].__setitem__(0, 0.0), "linear"),
+        (lambda linear: linear["scale_in"].__setitem__(0, -1.0), "linear"),
+        (lambda linear: linear["mean_out"].append(0.0), "linear"),
+        (lambda linear: linear["weights"][0].__setitem__(1, "x"), "linear"),
+        (lambda linear: linear["weights"].pop(), "linear"),
+        (lambda linear: linear["mean_in"].__setitem__(2, True), "linear"),
+    ],
+)
 def test_load_refuses_a_bad_linear_stage(tmp_path, change, match):
     import json
 
@@ -321,7 +338,7 @@ def test_a_linear_stage_must_fit_the_holder():
     model = LearnedFootstepOdometry.train(X, Y, "apriori", linear_stage=True)
     with pytest.raises(ValueError, match="residual"):
         dataclasses.replace(model, residual=False)
-    online = LinearStage.fit(np.hstack([X, X[:, :2]]), Y)                      # nine inputs
+    online = LinearStage.fit(np.hstack([X, X[:, :2]]), Y)  # nine inputs
     with pytest.raises(ValueError, match="inputs"):
         dataclasses.replace(model, linear=online)
     with pytest.raises(ValueError, match="LinearStage"):
@@ -338,6 +355,6 @@ def test_a_constant_input_leaves_the_linear_stage_finite():
     from motion_models.learned_odometry import LinearStage
 
     X, Y = _linear_data()
-    X[:, 6] = 0.02                                    # an input that never changes: a singular normal matrix
+    X[:, 6] = 0.02  # an input that never changes: a singular normal matrix
     stage = LinearStage.fit(X, Y)
     assert np.isfinite(stage.weights).all() and np.abs(stage.predict(X) - Y).max() < 0.003

@@ -28,7 +28,7 @@ def test_distance_map_is_zero_on_lines_and_grows_away():
     def at(x, y):
         return dist[int((y - y0) / LINES.resolution), int((x - x0) / LINES.resolution)]
 
-    assert at(0.0, 1.5) <= LINES.resolution            # on the centre line
+    assert at(0.0, 1.5) <= LINES.resolution  # on the centre line
     assert at(1.0, 0.0) == pytest.approx(0.25, abs=0.03)  # centre circle r = 0.75, at 1 m from the centre
     assert at(-1.5, 1.5) == pytest.approx(math.hypot(1.5, 1.5) - 0.75, abs=0.03)  # nearest: the centre circle
     assert not dist.flags.writeable
@@ -39,8 +39,7 @@ def test_kernel_matches_numpy_reference(seed, n_points):
     rng = np.random.default_rng(seed)
     poses = np.column_stack([rng.uniform(-6, 6, 80), rng.uniform(-4, 4, 80), rng.uniform(-math.pi, math.pi, 80)])
     obs = Observations.from_arrays([], [], [], line_points=rng.uniform(-4, 4, (n_points, 2)))
-    np.testing.assert_allclose(LINES.log_likelihood(poses, obs), LINES.log_likelihood_reference(poses, obs),
-                               atol=1e-9)
+    np.testing.assert_allclose(LINES.log_likelihood(poses, obs), LINES.log_likelihood_reference(poses, obs), atol=1e-9)
     assert LINES.terms(obs) == min(n_points, LINES.max_points)
 
 
@@ -49,14 +48,14 @@ def test_likelihood_field_follows_the_model_parameters(sigma, outlier_weight):
     """The per-cell factors the kernel looks up are exp(-½(d/σ)²) + outlier_weight of the distance map, and
     scoring with them matches the numpy reference for other σ and outlier weights too."""
     model = LineSensorModel(FIELD, sigma=sigma, outlier_weight=outlier_weight)
-    np.testing.assert_allclose(model._factors, np.exp(-0.5 * (model.distance_map / sigma) ** 2) + outlier_weight,
-                               rtol=1e-14)
+    np.testing.assert_allclose(
+        model._factors, np.exp(-0.5 * (model.distance_map / sigma) ** 2) + outlier_weight, rtol=1e-14
+    )
     assert not model._factors.flags.writeable
     rng = np.random.default_rng(1)
     poses = np.column_stack([rng.uniform(-6, 6, 50), rng.uniform(-4, 4, 50), rng.uniform(-math.pi, math.pi, 50)])
     obs = Observations.from_arrays([], [], [], line_points=rng.uniform(-4, 4, (20, 2)))
-    np.testing.assert_allclose(model.log_likelihood(poses, obs), model.log_likelihood_reference(poses, obs),
-                               atol=1e-9)
+    np.testing.assert_allclose(model.log_likelihood(poses, obs), model.log_likelihood_reference(poses, obs), atol=1e-9)
 
 
 def test_true_pose_explains_the_line_points_best():
@@ -75,8 +74,9 @@ def test_combined_model_adds_and_delegates():
     combined = CombinedSensorModel((landmarks, LINES))
     pose = np.array([[1.0, 0.5, 0.2], [-1.0, 2.0, 2.0]])
     obs = Observations.from_arrays(["penalty_mark"], [2.3], [0.1], line_points=[[1.0, 0.0], [1.5, 0.2]])
-    np.testing.assert_allclose(combined.log_likelihood(pose, obs),
-                               landmarks.log_likelihood(pose, obs) + LINES.log_likelihood(pose, obs))
+    np.testing.assert_allclose(
+        combined.log_likelihood(pose, obs), landmarks.log_likelihood(pose, obs) + LINES.log_likelihood(pose, obs)
+    )
     assert combined.terms(obs) == 3
     assert combined.sample_poses(obs, 4, np.random.default_rng(0)).shape == (4, 3)
     with pytest.raises(ValueError, match="models"):

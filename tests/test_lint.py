@@ -1,11 +1,9 @@
 """The code keeps the project's lint and format rules: ruff, configured once in pyproject.toml ([tool.ruff]),
 over the whole tree (the packages, tests, demos, benchmarks and docs' hooks).
 
-`test_format` checks `ruff format --check`. It is skipped until the tree has been formatted once as a whole
-(the filter's engine is being restructured, and a formatting pass over it waits for that to land): set
-RUFF_FORMAT_CHECK=1 to run it, and make it the default (drop the skip) once `make format` has been applied.
+`test_format` checks `ruff format --check`: `make format` formats the tree.
 """
-import os
+
 import subprocess
 import sys
 from pathlib import Path
@@ -19,8 +17,9 @@ pytest.importorskip("ruff", reason="ruff is in the test extra: pip install -e '.
 
 def ruff(*arguments: str) -> subprocess.CompletedProcess:
     """ruff (the one installed beside this Python) over the project, with the project's configuration."""
-    return subprocess.run([sys.executable, "-m", "ruff", *arguments], cwd=ROOT, capture_output=True, text=True,
-                          timeout=600)
+    return subprocess.run(
+        [sys.executable, "-m", "ruff", *arguments], cwd=ROOT, capture_output=True, text=True, timeout=600
+    )
 
 
 def test_the_configuration_is_in_pyproject_only():
@@ -37,16 +36,18 @@ def test_ruff_check_reads_the_configuration(tmp_path):
     # an unused import (pyflakes), imports out of order (isort) and an old-style annotation (Python 3.10's
     # idioms): all found with the project's rules
     probe = tmp_path / "probe.py"
-    probe.write_text("import sys\nimport os\nfrom typing import Optional\n\n\n"
-                     "def f(x: Optional[int]) -> None:\n    print(sys.argv, x)\n", encoding="utf-8")
-    done = ruff("check", "--output-format", "concise", "--no-cache", "--config", str(ROOT / "pyproject.toml"),
-                str(probe))
+    probe.write_text(
+        "import sys\nimport os\nfrom typing import Optional\n\n\n"
+        "def f(x: Optional[int]) -> None:\n    print(sys.argv, x)\n",
+        encoding="utf-8",
+    )
+    done = ruff(
+        "check", "--output-format", "concise", "--no-cache", "--config", str(ROOT / "pyproject.toml"), str(probe)
+    )
     assert done.returncode == 1, done.stdout + done.stderr
-    assert all(rule in done.stdout for rule in ("F401", "I001", "UP0")), done.stdout   # UP007 or UP045
+    assert all(rule in done.stdout for rule in ("F401", "I001", "UP0")), done.stdout  # UP007 or UP045
 
 
-@pytest.mark.skipif(os.environ.get("RUFF_FORMAT_CHECK") != "1",
-                    reason="applied after the engine restructure merges (RUFF_FORMAT_CHECK=1 runs it)")
 def test_format():
     done = ruff("format", "--check", "--no-cache", ".")
     assert done.returncode == 0, done.stdout[-6000:] + done.stderr[-2000:]

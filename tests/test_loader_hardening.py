@@ -6,6 +6,7 @@ Covers `field.load_field` (and `Field` / `FieldDimensions` built directly), `LWP
 concrete hostile files (deep nesting, huge sizes, wrong dtypes, damaged zip entries), deterministic byte flips
 of a valid file, and a hypothesis property over corrupted fields.
 """
+
 from __future__ import annotations
 
 import dataclasses
@@ -37,7 +38,7 @@ from proprioception.collision import (
     detect,
 )
 
-DEEP = 100_000          # nesting levels of the deeply nested files
+DEEP = 100_000  # nesting levels of the deeply nested files
 
 
 def flipped_copies(data: bytes, budget: int = 400):
@@ -49,7 +50,7 @@ def flipped_copies(data: bytes, budget: int = 400):
     if start >= 0:
         offsets |= set(range(start, start + 46)) | set(range(len(data) - 22, len(data)))
     for offset in sorted(offsets):
-        yield offset, data[:offset] + bytes([data[offset] ^ 0xFF]) + data[offset + 1:]
+        yield offset, data[:offset] + bytes([data[offset] ^ 0xFF]) + data[offset + 1 :]
 
 
 def npz_fields(path) -> dict:
@@ -88,11 +89,18 @@ def huge_member_npz(path, name: str = "n_in", shape=(10**12,)) -> None:
 
 def json_values(max_leaves: int = 8):
     """Any JSON value, nested a few levels."""
-    leaves = st.one_of(st.none(), st.booleans(), st.integers(-10**30, 10**30),
-                       st.floats(allow_nan=True, allow_infinity=True), st.text(max_size=20))
-    return st.recursive(leaves, lambda inner: st.one_of(st.lists(inner, max_size=4),
-                                                        st.dictionaries(st.text(max_size=12), inner, max_size=4)),
-                        max_leaves=max_leaves)
+    leaves = st.one_of(
+        st.none(),
+        st.booleans(),
+        st.integers(-(10**30), 10**30),
+        st.floats(allow_nan=True, allow_infinity=True),
+        st.text(max_size=20),
+    )
+    return st.recursive(
+        leaves,
+        lambda inner: st.one_of(st.lists(inner, max_size=4), st.dictionaries(st.text(max_size=12), inner, max_size=4)),
+        max_leaves=max_leaves,
+    )
 
 
 # =============================================================================================================
@@ -141,21 +149,27 @@ def assert_field_error(path, *fragments: str) -> str:
     return assert_load_error(load_field, path, *fragments)
 
 
-@pytest.mark.parametrize(("name", "text"), [
-    ("top.json", "[" * DEEP + "]" * DEEP),
-    ("object.json", '{"a":' * DEEP + "1" + "}" * DEEP),
-    ("value.json", '{"preset": "spl", "dimensions": {"width": ' + "[" * DEEP + "]" * DEEP + "}}"),
-    ("array.toml", "a = " + "[" * DEEP + "]" * DEEP + "\n"),
-    ("inline.toml", "a = " + "{b = " * DEEP + "1" + "}" * DEEP + "\n"),
-])
+@pytest.mark.parametrize(
+    ("name", "text"),
+    [
+        ("top.json", "[" * DEEP + "]" * DEEP),
+        ("object.json", '{"a":' * DEEP + "1" + "}" * DEEP),
+        ("value.json", '{"preset": "spl", "dimensions": {"width": ' + "[" * DEEP + "]" * DEEP + "}}"),
+        ("array.toml", "a = " + "[" * DEEP + "]" * DEEP + "\n"),
+        ("inline.toml", "a = " + "{b = " * DEEP + "1" + "}" * DEEP + "\n"),
+    ],
+)
 def test_deeply_nested_field_files_are_value_errors(tmp_path, name, text):
     assert_field_error(write(tmp_path, name, text), "nested too deeply")
 
 
-@pytest.mark.parametrize(("header", "key"), [
-    ("a", "'a'"),                                 # an unknown top-level key holding a deep table
-    ("dimensions.length", "length"),              # a dimension that is a deep table
-])
+@pytest.mark.parametrize(
+    ("header", "key"),
+    [
+        ("a", "'a'"),  # an unknown top-level key holding a deep table
+        ("dimensions.length", "length"),  # a dimension that is a deep table
+    ],
+)
 def test_deep_dotted_toml_tables_are_value_errors_naming_the_key(tmp_path, header, key):
     # Dotted table headers nest without recursion in the parser; the error message must not recurse either.
     # (10 000 levels, ten times Python's recursion limit: tomllib takes seconds per 100 000.)
@@ -170,9 +184,20 @@ def test_a_field_file_beyond_the_size_bound_is_refused_unread(tmp_path):
 
 @pytest.mark.parametrize("suffix", [".toml", ".json"])
 def test_a_million_metre_field_is_refused(tmp_path, suffix):
-    dims = dict(length=1e6, width=1e6, line_width=0.05, penalty_area_length=1e5, penalty_area_width=1e5,
-                goal_area_length=1e4, goal_area_width=1e4, penalty_mark_distance=1e4, center_circle_diameter=1e4,
-                goal_inner_width=10.0, goalpost_diameter=0.1, border_strip_width=1.0)
+    dims = dict(
+        length=1e6,
+        width=1e6,
+        line_width=0.05,
+        penalty_area_length=1e5,
+        penalty_area_width=1e5,
+        goal_area_length=1e4,
+        goal_area_width=1e4,
+        penalty_mark_distance=1e4,
+        center_circle_diameter=1e4,
+        goal_inner_width=10.0,
+        goalpost_diameter=0.1,
+        border_strip_width=1.0,
+    )
     if suffix == ".json":
         text = json.dumps({"name": "huge", "dimensions": dims})
     else:
@@ -181,39 +206,46 @@ def test_a_million_metre_field_is_refused(tmp_path, suffix):
 
 
 def test_the_carpet_bound_counts_the_border_strip(tmp_path):
-    text = SPL_TOML.replace("length = 9.0", "length = 199.0").replace("border_strip_width = 0.7",
-                                                                       "border_strip_width = 1.0")
+    text = SPL_TOML.replace("length = 9.0", "length = 199.0").replace(
+        "border_strip_width = 0.7", "border_strip_width = 1.0"
+    )
     assert_field_error(write(tmp_path, "wide.toml", text), "length + 2 * border_strip_width", "201.0")
 
 
 HUGE = "x" * 500_000
 
 
-@pytest.mark.parametrize(("name", "text", "fragments"), [
-    ("string.json", '"spl"', ["top level", "str"]),
-    ("number.json", "3.5", ["top level", "float"]),
-    ("null.json", "null", ["top level", "NoneType"]),
-    ("name_list.json", '{"name": [1, 2], "preset": "spl"}', ["name", "[1, 2]"]),
-    ("name_table.toml", 'preset = "spl"\n[name]\na = 1\n', ["name", "{'a': 1}"]),
-    ("name_huge.json", json.dumps({"name": HUGE, "preset": "spl"}), ["name", "500000 characters",
-                                                                     "MAX_NAME_LENGTH"]),
-    ("name_long.toml", f'preset = "spl"\nname = "{"y" * (MAX_NAME_LENGTH + 1)}"\n', ["name", "MAX_NAME_LENGTH"]),
-    ("preset_huge.json", json.dumps({"preset": HUGE}), ["preset", "xxx"]),
-    ("key_huge.json", json.dumps({HUGE: 1}), ["unknown key", "xxx"]),
-    ("value_huge.json", json.dumps({"preset": "spl", "dimensions": {"lenght": HUGE}}), ["lenght", "length"]),
-    ("dim_string.json", json.dumps({"preset": "spl", "dimensions": {"width": HUGE}}), ["width", "number"]),
-    ("dim_bool.json", '{"preset": "spl", "dimensions": {"width": true}}', ["width", "True"]),
-    ("dim_nan.json", '{"preset": "spl", "dimensions": {"length": NaN}}', ["length", "nan"]),
-    ("dim_inf.json", '{"preset": "spl", "dimensions": {"length": -Infinity}}', ["length", "inf"]),
-    ("dim_negative.toml", 'preset = "spl"\n[dimensions]\nwidth = -6.0\n', ["width", "-6.0"]),
-    ("dim_date.toml", 'preset = "spl"\n[dimensions]\nwidth = 1979-05-27\n', ["width", "1979"]),
-    ("dim_digits.json", '{"preset": "spl", "dimensions": {"width": 1%s}}' % ("0" * 5000), ["not valid JSON"]),
-    ("dim_digits.toml", 'preset = "spl"\n[dimensions]\nwidth = 1%s\n' % ("0" * 5000), ["not valid TOML"]),
-    ("dim_bigint.json", '{"preset": "spl", "dimensions": {"width": 1%s}}' % ("0" * 4000), ["width", "finite"]),
-    ("unknown.toml", 'preset = "spl"\ncolour = "green"\n', ["colour", "green"]),
-    ("unknown_dim.toml", 'preset = "spl"\n[dimensions]\ncolour = 3\n', ["colour", "3"]),
-    ("binary.toml", b"\xff\xfe\x00name", ["UTF-8"]),
-])
+@pytest.mark.parametrize(
+    ("name", "text", "fragments"),
+    [
+        ("string.json", '"spl"', ["top level", "str"]),
+        ("number.json", "3.5", ["top level", "float"]),
+        ("null.json", "null", ["top level", "NoneType"]),
+        ("name_list.json", '{"name": [1, 2], "preset": "spl"}', ["name", "[1, 2]"]),
+        ("name_table.toml", 'preset = "spl"\n[name]\na = 1\n', ["name", "{'a': 1}"]),
+        (
+            "name_huge.json",
+            json.dumps({"name": HUGE, "preset": "spl"}),
+            ["name", "500000 characters", "MAX_NAME_LENGTH"],
+        ),
+        ("name_long.toml", f'preset = "spl"\nname = "{"y" * (MAX_NAME_LENGTH + 1)}"\n', ["name", "MAX_NAME_LENGTH"]),
+        ("preset_huge.json", json.dumps({"preset": HUGE}), ["preset", "xxx"]),
+        ("key_huge.json", json.dumps({HUGE: 1}), ["unknown key", "xxx"]),
+        ("value_huge.json", json.dumps({"preset": "spl", "dimensions": {"lenght": HUGE}}), ["lenght", "length"]),
+        ("dim_string.json", json.dumps({"preset": "spl", "dimensions": {"width": HUGE}}), ["width", "number"]),
+        ("dim_bool.json", '{"preset": "spl", "dimensions": {"width": true}}', ["width", "True"]),
+        ("dim_nan.json", '{"preset": "spl", "dimensions": {"length": NaN}}', ["length", "nan"]),
+        ("dim_inf.json", '{"preset": "spl", "dimensions": {"length": -Infinity}}', ["length", "inf"]),
+        ("dim_negative.toml", 'preset = "spl"\n[dimensions]\nwidth = -6.0\n', ["width", "-6.0"]),
+        ("dim_date.toml", 'preset = "spl"\n[dimensions]\nwidth = 1979-05-27\n', ["width", "1979"]),
+        ("dim_digits.json", '{"preset": "spl", "dimensions": {"width": 1%s}}' % ("0" * 5000), ["not valid JSON"]),
+        ("dim_digits.toml", 'preset = "spl"\n[dimensions]\nwidth = 1%s\n' % ("0" * 5000), ["not valid TOML"]),
+        ("dim_bigint.json", '{"preset": "spl", "dimensions": {"width": 1%s}}' % ("0" * 4000), ["width", "finite"]),
+        ("unknown.toml", 'preset = "spl"\ncolour = "green"\n', ["colour", "green"]),
+        ("unknown_dim.toml", 'preset = "spl"\n[dimensions]\ncolour = 3\n', ["colour", "3"]),
+        ("binary.toml", b"\xff\xfe\x00name", ["UTF-8"]),
+    ],
+)
 def test_hostile_field_contents_are_value_errors_naming_file_and_key(tmp_path, name, text, fragments):
     assert_field_error(write(tmp_path, name, text), *fragments)
 
@@ -224,10 +256,18 @@ def test_a_field_path_of_the_wrong_type_is_a_type_error(path):
         load_field(path)
 
 
-@pytest.mark.parametrize(("key", "value"), [
-    ("length", 1e6), ("width", 250.0), ("border_strip_width", 300.0), ("line_width", 1e300), ("length", 10**400),
-    ("length", [[[[[[[[1.0]]]]]]]]), ("width", "w" * 1_000_000),
-])
+@pytest.mark.parametrize(
+    ("key", "value"),
+    [
+        ("length", 1e6),
+        ("width", 250.0),
+        ("border_strip_width", 300.0),
+        ("line_width", 1e300),
+        ("length", 10**400),
+        ("length", [[[[[[[[1.0]]]]]]]]),
+        ("width", "w" * 1_000_000),
+    ],
+)
 def test_absurd_dimensions_built_directly_are_value_errors_naming_the_dimension(key, value):
     values = spl().dims.to_dict()
     values[key] = value
@@ -251,8 +291,9 @@ def test_a_deeply_nested_value_built_directly_is_a_value_error():
 def test_the_largest_fields_are_still_accepted(tmp_path):
     pitch = dataclasses.replace(spl().dims, length=105.0, width=68.0, border_strip_width=5.0)
     field = Field("pitch", pitch)
-    edge = dataclasses.replace(spl().dims, length=MAX_FIELD_EXTENT - 2.0, width=MAX_FIELD_EXTENT - 2.0,
-                               border_strip_width=1.0)
+    edge = dataclasses.replace(
+        spl().dims, length=MAX_FIELD_EXTENT - 2.0, width=MAX_FIELD_EXTENT - 2.0, border_strip_width=1.0
+    )
     for name, dims in (("pitch", pitch), ("edge", edge)):
         path = tmp_path / f"{name}.json"
         save_field(Field(name, dims), path)
@@ -273,8 +314,7 @@ def test_byte_flipped_field_files_load_or_raise_value_error(tmp_path, suffix):
         assert isinstance(field, Field), offset
 
 
-@given(text=st.one_of(st.text(max_size=200), json_values().map(json.dumps)), suffix=st.sampled_from([".toml",
-                                                                                                        ".json"]))
+@given(text=st.one_of(st.text(max_size=200), json_values().map(json.dumps)), suffix=st.sampled_from([".toml", ".json"]))
 def test_any_field_file_text_loads_or_raises_value_error(tmp_path_factory, text, suffix):
     path = tmp_path_factory.mktemp("field") / f"any{suffix}"
     path.write_text(text, encoding="utf-8", errors="surrogatepass")
@@ -319,36 +359,39 @@ def assert_lwpr_error(path, *fragments: str) -> str:
     return assert_load_error(LWPR.load, path, *fragments)
 
 
-@pytest.mark.parametrize(("field", "value", "fragments"), [
-    ("n_in", np.array(10**5, dtype=np.int64), ["n_in", "100000"]),
-    ("n_out", np.array(10**6, dtype=np.int64), ["n_out", "1000000"]),
-    ("n_in", np.array(-3, dtype=np.int64), ["n_in", "-3"]),
-    ("n_in", np.array("2"), ["n_in", "dtype"]),
-    ("n_in", np.array([[2]], dtype=np.int64), ["n_in", "shape"]),
-    ("n_in", np.array(2.0), ["n_in", "dtype"]),
-    ("n_data", np.array(1e30), ["n_data", "dtype"]),
-    ("n_data", np.array(2**63, dtype=np.uint64), ["n_data", str(2**63)]),
-    ("n_data", np.array(-1, dtype=np.int64), ["n_data", "-1"]),
-    ("format_version", np.array([1, 1]), ["format_version", "shape"]),
-    ("format_version", np.array(1 + 2j), ["format_version", "dtype"]),
-    ("format", np.array(7), ["format"]),
-    ("format", np.array(["robocup-mcl LWPR model"] * 2), ["format"]),
-    ("kernel", np.array(0), ["kernel", "dtype"]),
-    ("w_gen", np.array("0.1"), ["w_gen", "dtype"]),
-    ("w_gen", np.array(np.nan), ["w_gen", "non-finite"]),
-    ("w_gen", np.array(7.0), ["w_gen", "7.0"]),
-    ("diag_only", np.array(1.0), ["diag_only", "dtype"]),
-    ("init_D", np.eye(3), ["init_D", "shape"]),
-    ("init_M", np.full((2, 2), np.inf), ["init_M", "non-finite"]),
-    ("norm_in", np.array(1.0), ["norm_in", "shape"]),
-    ("mean_x", np.array(["a", "b"]), ["mean_x", "dtype"]),
-    ("counts", np.array([[1.0, 0.0]]), ["counts", "dtype"]),
-    ("counts", np.array([[10**6, 0]]), ["counts"]),
-    ("rf_vec", np.zeros(3), ["rf_vec", "shape"]),
-    ("rf_mat", np.zeros((1, 1, 5, 2, 2), dtype=np.complex128), ["rf_mat"]),
-    ("rf_ints", np.zeros((1, 1, 2)), ["rf_ints"]),
-    ("rf_scal", None, ["rf_scal"]),
-])
+@pytest.mark.parametrize(
+    ("field", "value", "fragments"),
+    [
+        ("n_in", np.array(10**5, dtype=np.int64), ["n_in", "100000"]),
+        ("n_out", np.array(10**6, dtype=np.int64), ["n_out", "1000000"]),
+        ("n_in", np.array(-3, dtype=np.int64), ["n_in", "-3"]),
+        ("n_in", np.array("2"), ["n_in", "dtype"]),
+        ("n_in", np.array([[2]], dtype=np.int64), ["n_in", "shape"]),
+        ("n_in", np.array(2.0), ["n_in", "dtype"]),
+        ("n_data", np.array(1e30), ["n_data", "dtype"]),
+        ("n_data", np.array(2**63, dtype=np.uint64), ["n_data", str(2**63)]),
+        ("n_data", np.array(-1, dtype=np.int64), ["n_data", "-1"]),
+        ("format_version", np.array([1, 1]), ["format_version", "shape"]),
+        ("format_version", np.array(1 + 2j), ["format_version", "dtype"]),
+        ("format", np.array(7), ["format"]),
+        ("format", np.array(["robocup-mcl LWPR model"] * 2), ["format"]),
+        ("kernel", np.array(0), ["kernel", "dtype"]),
+        ("w_gen", np.array("0.1"), ["w_gen", "dtype"]),
+        ("w_gen", np.array(np.nan), ["w_gen", "non-finite"]),
+        ("w_gen", np.array(7.0), ["w_gen", "7.0"]),
+        ("diag_only", np.array(1.0), ["diag_only", "dtype"]),
+        ("init_D", np.eye(3), ["init_D", "shape"]),
+        ("init_M", np.full((2, 2), np.inf), ["init_M", "non-finite"]),
+        ("norm_in", np.array(1.0), ["norm_in", "shape"]),
+        ("mean_x", np.array(["a", "b"]), ["mean_x", "dtype"]),
+        ("counts", np.array([[1.0, 0.0]]), ["counts", "dtype"]),
+        ("counts", np.array([[10**6, 0]]), ["counts"]),
+        ("rf_vec", np.zeros(3), ["rf_vec", "shape"]),
+        ("rf_mat", np.zeros((1, 1, 5, 2, 2), dtype=np.complex128), ["rf_mat"]),
+        ("rf_ints", np.zeros((1, 1, 2)), ["rf_ints"]),
+        ("rf_scal", None, ["rf_scal"]),
+    ],
+)
 def test_hostile_lwpr_fields_are_value_errors_naming_file_and_field(tmp_path, lwpr_file, field, value, fragments):
     path = tmp_path / "hostile.npz"
     rewrite_npz(lwpr_file, path, **{field: value})
@@ -360,12 +403,15 @@ def test_a_member_claiming_a_terabyte_is_refused_before_allocation(tmp_path):
     assert_lwpr_error(tmp_path / "huge.npz", "n_in.npy", "shape")
 
 
-@pytest.mark.parametrize(("what", "offset", "fmt", "value"), [
-    ("compression method 1 (shrunk)", 10, "<H", 1),   # zipfile: NotImplementedError
-    ("compression method 14 (lzma)", 10, "<H", 14),
-    ("encryption flag", 8, "<H", 1),                  # zipfile: RuntimeError (password required)
-    ("uncompressed size", 24, "<I", 0xFFFFFFF0),
-])
+@pytest.mark.parametrize(
+    ("what", "offset", "fmt", "value"),
+    [
+        ("compression method 1 (shrunk)", 10, "<H", 1),  # zipfile: NotImplementedError
+        ("compression method 14 (lzma)", 10, "<H", 14),
+        ("encryption flag", 8, "<H", 1),  # zipfile: RuntimeError (password required)
+        ("uncompressed size", 24, "<I", 0xFFFFFFF0),
+    ],
+)
 def test_damaged_zip_entries_are_value_errors(tmp_path, lwpr_file, what, offset, fmt, value):
     path = tmp_path / "damaged.npz"
     path.write_bytes(patch_central_directory(lwpr_file.read_bytes(), offset, fmt, value))
@@ -393,8 +439,10 @@ def test_a_compressed_model_file_still_loads_bit_for_bit(tmp_path, lwpr_file):
     np.testing.assert_array_equal(a.predict_conf(grid)[1], b.predict_conf(grid)[1])
 
 
-@pytest.mark.parametrize(("n_in", "n_out"), [(10**5, 1), (MAX_INPUTS + 1, 1), (1, MAX_OUTPUTS + 1),
-                                             (MAX_INPUTS, 2), (100, MAX_OUTPUTS), (2**62, 2**62)])
+@pytest.mark.parametrize(
+    ("n_in", "n_out"),
+    [(10**5, 1), (MAX_INPUTS + 1, 1), (1, MAX_OUTPUTS + 1), (MAX_INPUTS, 2), (100, MAX_OUTPUTS), (2**62, 2**62)],
+)
 def test_absurd_lwpr_sizes_are_value_errors_not_memory_errors(n_in, n_out):
     with pytest.raises(ValueError, match="n_in|n_out"):
         LWPR(n_in, n_out)
@@ -419,9 +467,31 @@ def test_a_missing_lwpr_file_stays_file_not_found(tmp_path):
         load_npz(str(tmp_path / "absent.npz"), "anything")
 
 
-LWPR_KEYS = ("format", "format_version", "n_in", "n_out", "n_data", "kernel", "init_D", "init_M", "init_alpha",
-             "norm_in", "norm_out", "mean_x", "var_x", "counts", "w_gen", "penalty", "meta", "rf_vec", "rf_mat",
-             "rf_proj", "rf_reg", "rf_scal", "rf_ints")
+LWPR_KEYS = (
+    "format",
+    "format_version",
+    "n_in",
+    "n_out",
+    "n_data",
+    "kernel",
+    "init_D",
+    "init_M",
+    "init_alpha",
+    "norm_in",
+    "norm_out",
+    "mean_x",
+    "var_x",
+    "counts",
+    "w_gen",
+    "penalty",
+    "meta",
+    "rf_vec",
+    "rf_mat",
+    "rf_proj",
+    "rf_reg",
+    "rf_scal",
+    "rf_ints",
+)
 ANY_ARRAY = hnp.arrays(
     dtype=st.sampled_from([np.int64, np.uint64, np.int8, np.float64, np.float32, np.bool_, np.complex128, "<U4"]),
     shape=hnp.array_shapes(min_dims=0, max_dims=5, min_side=0, max_side=3),
@@ -439,7 +509,7 @@ def test_any_array_in_any_lwpr_field_loads_or_raises_value_error(tmp_path_factor
         return
     try:
         y = model.predict(np.zeros(model.n_in))
-    except ValueError as error:   # a model that holds no sample yet
+    except ValueError as error:  # a model that holds no sample yet
         assert "untrained" in str(error)
     else:
         assert y.shape == (model.n_out,)
@@ -450,9 +520,14 @@ def test_any_array_in_any_lwpr_field_loads_or_raises_value_error(tmp_path_factor
 # =============================================================================================================
 def small_reference(**changes) -> CollisionReference:
     rng = np.random.default_rng(5)
-    fields = dict(delays=np.array([2, 3, 1, 0], dtype=np.int64), joint_sides=np.array([0, 0, 1, 1], dtype=np.int64),
-                  window=5, speeds=np.array([0.0, 0.1, 0.2]), table=rng.uniform(1e-3, 1e-2, (2, 3, 4)),
-                  half_stance=0.05)
+    fields = dict(
+        delays=np.array([2, 3, 1, 0], dtype=np.int64),
+        joint_sides=np.array([0, 0, 1, 1], dtype=np.int64),
+        window=5,
+        speeds=np.array([0.0, 0.1, 0.2]),
+        table=rng.uniform(1e-3, 1e-2, (2, 3, 4)),
+        half_stance=0.05,
+    )
     fields.update(changes)
     return CollisionReference(**fields)
 
@@ -478,48 +553,79 @@ def reference_file(tmp_path_factory):
     return path
 
 
-@pytest.mark.parametrize(("field", "value"), [
-    ("window", -5), ("window", 0), ("window", MAX_WINDOW + 1), ("window", True), ("window", 2.5),
-    ("window", 10**30),
-    ("delays", np.array([2.0, 3.0, 1.0, 0.0])), ("delays", np.array([2, -1, 1, 0])),
-    ("delays", np.array([2, 3, 1, MAX_DELAY + 1])), ("delays", np.zeros(0, dtype=np.int64)),
-    ("delays", np.zeros(MAX_JOINTS + 1, dtype=np.int64)), ("delays", np.array([[2, 3, 1, 0]])),
-    ("delays", np.array([True, False, True, True])), ("delays", "2310"),
-    ("joint_sides", np.array([0, 0, 2, 1])), ("joint_sides", np.array([0, 0, 0, 0])),
-    ("joint_sides", np.array([0, 1, 1])), ("joint_sides", np.array([0.0, 0.0, 1.0, 1.0])),
-    ("speeds", np.array([0.2, 0.1, 0.0])), ("speeds", np.array([0.0, 0.1, 0.1])),
-    ("speeds", np.array([-0.1, 0.1, 0.2])), ("speeds", np.array([0.0, np.nan, 0.2])), ("speeds", np.zeros(0)),
-    ("table", np.full((2, 3, 4), np.nan)), ("table", np.zeros((2, 3, 4))), ("table", -np.ones((2, 3, 4))),
-    ("table", np.full((2, 3, 4), 1e-320)), ("table", np.full((2, 3, 4), MIN_REFERENCE / 2)),
-    ("table", np.ones((2, 3, 0))), ("table", np.ones((2, 2, 4))),
-    ("table", np.ones((3, 3, 4))), ("table", np.ones((2, 3))), ("table", np.ones((2, 3, 4), dtype=np.complex128)),
-    ("half_stance", 0.0), ("half_stance", -0.05), ("half_stance", math.nan), ("half_stance", math.inf),
-    ("half_stance", True), ("half_stance", "0.05"), ("half_stance", 10**400),
-])
+@pytest.mark.parametrize(
+    ("field", "value"),
+    [
+        ("window", -5),
+        ("window", 0),
+        ("window", MAX_WINDOW + 1),
+        ("window", True),
+        ("window", 2.5),
+        ("window", 10**30),
+        ("delays", np.array([2.0, 3.0, 1.0, 0.0])),
+        ("delays", np.array([2, -1, 1, 0])),
+        ("delays", np.array([2, 3, 1, MAX_DELAY + 1])),
+        ("delays", np.zeros(0, dtype=np.int64)),
+        ("delays", np.zeros(MAX_JOINTS + 1, dtype=np.int64)),
+        ("delays", np.array([[2, 3, 1, 0]])),
+        ("delays", np.array([True, False, True, True])),
+        ("delays", "2310"),
+        ("joint_sides", np.array([0, 0, 2, 1])),
+        ("joint_sides", np.array([0, 0, 0, 0])),
+        ("joint_sides", np.array([0, 1, 1])),
+        ("joint_sides", np.array([0.0, 0.0, 1.0, 1.0])),
+        ("speeds", np.array([0.2, 0.1, 0.0])),
+        ("speeds", np.array([0.0, 0.1, 0.1])),
+        ("speeds", np.array([-0.1, 0.1, 0.2])),
+        ("speeds", np.array([0.0, np.nan, 0.2])),
+        ("speeds", np.zeros(0)),
+        ("table", np.full((2, 3, 4), np.nan)),
+        ("table", np.zeros((2, 3, 4))),
+        ("table", -np.ones((2, 3, 4))),
+        ("table", np.full((2, 3, 4), 1e-320)),
+        ("table", np.full((2, 3, 4), MIN_REFERENCE / 2)),
+        ("table", np.ones((2, 3, 0))),
+        ("table", np.ones((2, 2, 4))),
+        ("table", np.ones((3, 3, 4))),
+        ("table", np.ones((2, 3))),
+        ("table", np.ones((2, 3, 4), dtype=np.complex128)),
+        ("half_stance", 0.0),
+        ("half_stance", -0.05),
+        ("half_stance", math.nan),
+        ("half_stance", math.inf),
+        ("half_stance", True),
+        ("half_stance", "0.05"),
+        ("half_stance", 10**400),
+    ],
+)
 def test_invalid_references_are_value_errors_naming_the_field(field, value):
     with pytest.raises(ValueError, match=field):
         small_reference(**{field: value})
 
 
-@pytest.mark.parametrize(("field", "value", "fragments"), [
-    ("window", np.array(-5), ["window", "-5"]),
-    ("window", np.array(5.0), ["window", "dtype"]),
-    ("window", np.array([5, 5]), ["window", "dimensions"]),
-    ("delays", np.array([2.0, 3.0, 1.0, 0.0]), ["delays", "dtype"]),
-    ("delays", np.array([2, 3, 1, 2**40]), ["delays", "MAX_DELAY"]),
-    ("joint_sides", np.array(["l", "l", "r", "r"]), ["joint_sides", "dtype"]),
-    ("speeds", np.array([0.2, 0.1, 0.0]), ["speeds", "increasing"]),
-    ("table", np.full((2, 3, 4), np.nan), ["table", "nan"]),
-    ("table", np.ones((2, 3, 4), dtype=np.complex64), ["table", "dtype"]),
-    ("half_stance", np.array("wide"), ["half_stance", "dtype"]),
-    ("half_stance", np.array(-1.0), ["half_stance", "-1.0"]),
-    ("version", np.array(2), ["version", "2"]),
-    ("version", np.array("1"), ["version", "dtype"]),
-    ("format", np.array("something else"), ["format", "something else"]),
-    ("table", None, ["table"]),
-])
-def test_hostile_reference_files_are_value_errors_naming_file_and_field(tmp_path, reference_file, field, value,
-                                                                        fragments):
+@pytest.mark.parametrize(
+    ("field", "value", "fragments"),
+    [
+        ("window", np.array(-5), ["window", "-5"]),
+        ("window", np.array(5.0), ["window", "dtype"]),
+        ("window", np.array([5, 5]), ["window", "dimensions"]),
+        ("delays", np.array([2.0, 3.0, 1.0, 0.0]), ["delays", "dtype"]),
+        ("delays", np.array([2, 3, 1, 2**40]), ["delays", "MAX_DELAY"]),
+        ("joint_sides", np.array(["l", "l", "r", "r"]), ["joint_sides", "dtype"]),
+        ("speeds", np.array([0.2, 0.1, 0.0]), ["speeds", "increasing"]),
+        ("table", np.full((2, 3, 4), np.nan), ["table", "nan"]),
+        ("table", np.ones((2, 3, 4), dtype=np.complex64), ["table", "dtype"]),
+        ("half_stance", np.array("wide"), ["half_stance", "dtype"]),
+        ("half_stance", np.array(-1.0), ["half_stance", "-1.0"]),
+        ("version", np.array(2), ["version", "2"]),
+        ("version", np.array("1"), ["version", "dtype"]),
+        ("format", np.array("something else"), ["format", "something else"]),
+        ("table", None, ["table"]),
+    ],
+)
+def test_hostile_reference_files_are_value_errors_naming_file_and_field(
+    tmp_path, reference_file, field, value, fragments
+):
     path = tmp_path / "hostile.npz"
     rewrite_npz(reference_file, path, **{field: value})
     with pytest.raises(ValueError) as error:
@@ -530,8 +636,9 @@ def test_hostile_reference_files_are_value_errors_naming_file_and_field(tmp_path
         assert fragment in message, (fragment, message)
 
 
-@pytest.mark.parametrize(("offset", "fmt", "value"), [(10, "<H", 1), (10, "<H", 99), (8, "<H", 1),
-                                                      (24, "<I", 0xFFFFFFF0)])
+@pytest.mark.parametrize(
+    ("offset", "fmt", "value"), [(10, "<H", 1), (10, "<H", 99), (8, "<H", 1), (24, "<I", 0xFFFFFFF0)]
+)
 def test_damaged_reference_zip_entries_are_value_errors(tmp_path, reference_file, offset, fmt, value):
     path = tmp_path / "damaged.npz"
     path.write_bytes(patch_central_directory(reference_file.read_bytes(), offset, fmt, value))
@@ -557,10 +664,12 @@ def test_byte_flipped_reference_files_load_or_raise_value_error(tmp_path, refere
 
 
 def test_the_reference_bounds_themselves_are_accepted():
-    exercise(small_reference(table=np.full((2, 3, 4), MIN_REFERENCE), window=MAX_WINDOW,
-                             delays=np.array([0, MAX_DELAY, 1, 2])))
-    exercise(small_reference(delays=np.zeros(MAX_JOINTS, dtype=np.int64),
-                             joint_sides=np.arange(MAX_JOINTS) % 2))
+    exercise(
+        small_reference(
+            table=np.full((2, 3, 4), MIN_REFERENCE), window=MAX_WINDOW, delays=np.array([0, MAX_DELAY, 1, 2])
+        )
+    )
+    exercise(small_reference(delays=np.zeros(MAX_JOINTS, dtype=np.int64), joint_sides=np.arange(MAX_JOINTS) % 2))
 
 
 def test_a_valid_reference_round_trips_and_works(tmp_path, reference_file):
@@ -579,8 +688,7 @@ REFERENCE_KEYS = ("format", "version", "delays", "joint_sides", "window", "speed
 
 
 @given(key=st.sampled_from(REFERENCE_KEYS), value=ANY_ARRAY)
-def test_any_array_in_any_reference_field_loads_or_raises_value_error(tmp_path_factory, reference_file, key,
-                                                                       value):
+def test_any_array_in_any_reference_field_loads_or_raises_value_error(tmp_path_factory, reference_file, key, value):
     path = tmp_path_factory.mktemp("collision") / "any.npz"
     rewrite_npz(reference_file, path, **{key: value})
     try:
@@ -591,17 +699,19 @@ def test_any_array_in_any_reference_field_loads_or_raises_value_error(tmp_path_f
     exercise(reference)
 
 
-@given(delays=st.lists(st.integers(-2, 12), min_size=1, max_size=6),
-       sides=st.lists(st.integers(-1, 2), min_size=1, max_size=6),
-       window=st.one_of(st.integers(-3, 30), st.floats(-1.0, 30.0), st.booleans()),
-       speeds=st.lists(st.one_of(st.floats(-1.0, 1.0), st.sampled_from([math.nan, math.inf])), min_size=0,
-                       max_size=4),
-       bins=st.integers(0, 4), low=st.sampled_from([0.0, 1e-300, 1e-3]), half_stance=st.floats(allow_nan=True))
+@given(
+    delays=st.lists(st.integers(-2, 12), min_size=1, max_size=6),
+    sides=st.lists(st.integers(-1, 2), min_size=1, max_size=6),
+    window=st.one_of(st.integers(-3, 30), st.floats(-1.0, 30.0), st.booleans()),
+    speeds=st.lists(st.one_of(st.floats(-1.0, 1.0), st.sampled_from([math.nan, math.inf])), min_size=0, max_size=4),
+    bins=st.integers(0, 4),
+    low=st.sampled_from([0.0, 1e-300, 1e-3]),
+    half_stance=st.floats(allow_nan=True),
+)
 def test_any_reference_built_directly_is_refused_or_works(delays, sides, window, speeds, bins, low, half_stance):
     table = np.random.default_rng(len(delays)).uniform(low, 1e-2, (2, len(speeds), bins))
     try:
-        reference = CollisionReference(np.array(delays), np.array(sides), window, np.array(speeds), table,
-                                       half_stance)
+        reference = CollisionReference(np.array(delays), np.array(sides), window, np.array(speeds), table, half_stance)
     except ValueError:
         return
     exercise(reference)
@@ -649,10 +759,13 @@ def assert_odometry_error(directory, *fragments: str) -> str:
     return assert_load_error(LearnedFootstepOdometry.load, directory, *fragments)
 
 
-@pytest.mark.parametrize("text", [
-    "[" * DEEP + "]" * DEEP,
-    '{"format": ' + "[" * DEEP + "]" * DEEP + "}",
-])
+@pytest.mark.parametrize(
+    "text",
+    [
+        "[" * DEEP + "]" * DEEP,
+        '{"format": ' + "[" * DEEP + "]" * DEEP + "}",
+    ],
+)
 def test_deeply_nested_meta_files_are_value_errors(odometry_copy, text):
     (odometry_copy / META_FILE).write_text(text)
     assert_odometry_error(odometry_copy, META_FILE)
@@ -663,21 +776,42 @@ def test_a_huge_meta_file_is_refused_unread(odometry_copy):
     assert_odometry_error(odometry_copy, "MAX_META_FILE_BYTES")
 
 
-@pytest.mark.parametrize(("key", "value"), [
-    ("format_version", True), ("format_version", "1"), ("format", ["robocup-mcl learned footstep odometry"]),
-    ("inputs", 3), ("inputs", ["apriori"]), ("inputs", "sideways"), ("n_inputs", True), ("n_inputs", 9),
-    ("n_inputs", "7"), ("models", ["dx.npz", "dy.npz", "dtheta.npz"]),
-    ("models", {"dx": "dx.npz", "dy": "dy.npz", "dtheta": "dtheta.npz", "dz": "dz.npz"}),
-    ("models", {"dx": 3, "dy": "dy.npz", "dtheta": "dtheta.npz"}),
-    ("models", {"dx": "../copy/dx.npz", "dy": "dy.npz", "dtheta": "dtheta.npz"}),
-    ("models", {"dx": "/dev/zero", "dy": "dy.npz", "dtheta": "dtheta.npz"}),
-    ("models", {"dx": "", "dy": "dy.npz", "dtheta": "dtheta.npz"}),
-    ("models", {"dx": "d\u0000x.npz", "dy": "dy.npz", "dtheta": "dtheta.npz"}),
-    ("fallback_sigma", "abc"), ("fallback_sigma", [0.1, 0.1]), ("fallback_sigma", [0.1, 0.1, True]),
-    ("fallback_sigma", [0.1, 0.1, -0.1]), ("fallback_sigma", [0.1, 0.1, 10**400]), ("fallback_sigma", {"x": 1}),
-    ("min_sigma", [0.1, 0.1, None]), ("noise_scale", True), ("noise_scale", "1"), ("noise_scale", 10**400),
-    ("noise_scale", -1.0), ("residual", "yes"), ("residual", 1), ("colour", "green"), ("comment", "x" * 100_000),
-])
+@pytest.mark.parametrize(
+    ("key", "value"),
+    [
+        ("format_version", True),
+        ("format_version", "1"),
+        ("format", ["robocup-mcl learned footstep odometry"]),
+        ("inputs", 3),
+        ("inputs", ["apriori"]),
+        ("inputs", "sideways"),
+        ("n_inputs", True),
+        ("n_inputs", 9),
+        ("n_inputs", "7"),
+        ("models", ["dx.npz", "dy.npz", "dtheta.npz"]),
+        ("models", {"dx": "dx.npz", "dy": "dy.npz", "dtheta": "dtheta.npz", "dz": "dz.npz"}),
+        ("models", {"dx": 3, "dy": "dy.npz", "dtheta": "dtheta.npz"}),
+        ("models", {"dx": "../copy/dx.npz", "dy": "dy.npz", "dtheta": "dtheta.npz"}),
+        ("models", {"dx": "/dev/zero", "dy": "dy.npz", "dtheta": "dtheta.npz"}),
+        ("models", {"dx": "", "dy": "dy.npz", "dtheta": "dtheta.npz"}),
+        ("models", {"dx": "d\u0000x.npz", "dy": "dy.npz", "dtheta": "dtheta.npz"}),
+        ("fallback_sigma", "abc"),
+        ("fallback_sigma", [0.1, 0.1]),
+        ("fallback_sigma", [0.1, 0.1, True]),
+        ("fallback_sigma", [0.1, 0.1, -0.1]),
+        ("fallback_sigma", [0.1, 0.1, 10**400]),
+        ("fallback_sigma", {"x": 1}),
+        ("min_sigma", [0.1, 0.1, None]),
+        ("noise_scale", True),
+        ("noise_scale", "1"),
+        ("noise_scale", 10**400),
+        ("noise_scale", -1.0),
+        ("residual", "yes"),
+        ("residual", 1),
+        ("colour", "green"),
+        ("comment", "x" * 100_000),
+    ],
+)
 def test_hostile_meta_keys_are_value_errors_naming_file_and_key(odometry_copy, key, value):
     meta = meta_of(odometry_copy)
     meta[key] = value
@@ -715,8 +849,11 @@ def test_an_odometry_directory_of_the_wrong_type_is_a_type_error(directory):
 def test_a_valid_odometry_directory_still_loads(odometry_saved):
     holder, directory = odometry_saved
     loaded = LearnedFootstepOdometry.load(directory)
-    assert (loaded.inputs, loaded.fallback_sigma, loaded.residual) == (holder.inputs, holder.fallback_sigma,
-                                                                       holder.residual)
+    assert (loaded.inputs, loaded.fallback_sigma, loaded.residual) == (
+        holder.inputs,
+        holder.fallback_sigma,
+        holder.residual,
+    )
     X = np.random.default_rng(9).uniform(-1.0, 1.0, (5, 7))
     for got, want in zip(loaded.predict_steps(X), holder.predict_steps(X)):
         np.testing.assert_array_equal(got, want)
@@ -732,9 +869,23 @@ def test_byte_flipped_meta_files_load_or_raise_value_error(odometry_copy):
             pass
 
 
-@given(key=st.sampled_from(["format", "format_version", "inputs", "n_inputs", "models", "fallback_sigma",
-                            "noise_scale", "min_sigma", "residual", "other"]),
-       value=json_values())
+@given(
+    key=st.sampled_from(
+        [
+            "format",
+            "format_version",
+            "inputs",
+            "n_inputs",
+            "models",
+            "fallback_sigma",
+            "noise_scale",
+            "min_sigma",
+            "residual",
+            "other",
+        ]
+    ),
+    value=json_values(),
+)
 def test_any_json_value_for_a_meta_key_loads_or_raises_value_error(tmp_path_factory, odometry_dir, key, value):
     directory = tmp_path_factory.mktemp("odometry")
     for path in odometry_dir.iterdir():

@@ -1,4 +1,5 @@
 """The robot-loop localizer: latency compensation, game-event resets, quality, and replaying logs."""
+
 import math
 from dataclasses import replace
 
@@ -78,8 +79,11 @@ def since_reference(steps, t):
     return total
 
 
-@given(st.lists(st.tuples(st.sampled_from([0.0, 0.005, 0.01, 0.02]), displacements), min_size=1, max_size=40),
-       st.floats(0.0, 1.0), st.sampled_from([0.05, 0.3, 10.0]))
+@given(
+    st.lists(st.tuples(st.sampled_from([0.0, 0.005, 0.01, 0.02]), displacements), min_size=1, max_size=40),
+    st.floats(0.0, 1.0),
+    st.sampled_from([0.05, 0.3, 10.0]),
+)
 def test_history_since_is_the_composition_over_the_steps_after_the_capture(steps, fraction, keep):
     """From the end of the history back to the capture: the same compositions in the same order as a pass
     over every kept step, bit for bit, for captures inside steps, at their ends and after the latest."""
@@ -91,7 +95,8 @@ def test_history_since_is_the_composition_over_the_steps_after_the_capture(steps
     kept = list(history._steps)
     oldest, latest = history.oldest, history.latest
     captures = [oldest + fraction * (latest - oldest), latest, oldest] + [
-        t_end + shift for t_end, _, _ in kept[-3:] for shift in (0.0, -0.5 * SAME_TIME, -2 * SAME_TIME)]
+        t_end + shift for t_end, _, _ in kept[-3:] for shift in (0.0, -0.5 * SAME_TIME, -2 * SAME_TIME)
+    ]
     for capture in captures:
         if capture >= oldest:
             assert history.since(capture) == since_reference(kept, capture)
@@ -122,8 +127,14 @@ def test_compensation_brings_a_late_camera_back_to_the_no_latency_accuracy():
     scenario, sim = walk(seed=1, duration=20.0, max_speed=0.4, max_turn_rate=1.5)
     errors = {}
     for name, latency, compensate in (("compensated", 0.15, True), ("late", 0.15, False), ("floor", 0.0, True)):
-        result = replay(to_robot_log(sim, latency=latency), FIELD, particles=300, seed=1,
-                        compensate_latency=compensate, start=tuple(sim.start))
+        result = replay(
+            to_robot_log(sim, latency=latency),
+            FIELD,
+            particles=300,
+            seed=1,
+            compensate_latency=compensate,
+            start=tuple(sim.start),
+        )
         errors[name] = float(np.median(result.position_errors[result.has_truth]))
     assert errors["compensated"] < 0.75 * errors["late"], errors
     assert errors["compensated"] < 1.3 * errors["floor"], errors
@@ -182,7 +193,7 @@ def test_each_reset_leaves_a_valid_particle_set_in_the_right_region(event):
         assert (np.abs(np.abs(poses[:, 1]) - hw) < 0.4).all()
         facing_in = np.sign(poses[:, 1]) == -np.sign(np.sin(poses[:, 2]))
         assert facing_in.all()
-        assert 0.4 < np.mean(poses[:, 1] > 0) < 0.6      # both touchlines
+        assert 0.4 < np.mean(poses[:, 1] > 0) < 0.6  # both touchlines
     elif event == "penalty":
         loc.penalty_return()
         candidates = touchline_poses(FIELD, [-hl + FIELD.dims.penalty_mark_distance])
@@ -220,7 +231,7 @@ def test_fallen_robot_ignores_motion_and_detections_and_getting_up_widens_the_be
     np.testing.assert_array_equal(loc.filter.poses, before)
     assert loc.quality() is Quality.POOR
     assert loc.counts == {"motion while fallen": 1, "observation while fallen": 1}
-    for k in range(2, 400):                     # lying for 4 s: POOR, but not lost (it knows why)
+    for k in range(2, 400):  # lying for 4 s: POOR, but not lost (it knows why)
         loc.motion(0.01 * k, MotionInput(dt=0.01, command=(0.0, 0.0, 0.0)))
     assert loc.quality() is Quality.POOR and not loc.is_lost
     loc.got_up()
@@ -232,6 +243,7 @@ def test_fallen_robot_ignores_motion_and_detections_and_getting_up_widens_the_be
 
 def test_penalty_return_settles_on_the_true_touchline_not_the_other_or_the_mirror():
     from demos.penalty import ending, return_pose
+
     for seed, side in ((0, 1), (1, -1)):
         scenario, sim = walk(seed=seed, duration=6.0)
         scenario = replace(scenario, start_pose=return_pose(scenario, side))
@@ -260,7 +272,7 @@ def test_quality_is_superb_while_tracking_and_the_robot_is_lost_when_detections_
             loc.observe(frames[k].observations, capture_time=float(sim.times[k]))
         if loc.is_lost and lost_at is None:
             lost_at = float(sim.times[k])
-    assert lost_at is not None and lost_at < 2.0     # the estimate stops explaining the detections: lost within 2 s
+    assert lost_at is not None and lost_at < 2.0  # the estimate stops explaining the detections: lost within 2 s
     assert loc.fit < 0.2
     loc.place(sim.truth[-1])
     assert not loc.is_lost
@@ -269,6 +281,7 @@ def test_quality_is_superb_while_tracking_and_the_robot_is_lost_when_detections_
 # -- replay -----------------------------------------------------------------------------------------------
 def test_replaying_a_walk_log_gives_the_estimates_of_feeding_the_filter_directly():
     from demos.walk import run_walk
+
     scenario, sim = walk(seed=2, duration=5.0)
     direct = run_walk(particles=200, seed=2, scenario=scenario, series=True)["series"]["estimates"]
     replayed = replay(to_robot_log(sim), FIELD, particles=200, seed=2)
@@ -277,6 +290,7 @@ def test_replaying_a_walk_log_gives_the_estimates_of_feeding_the_filter_directly
 
 def test_odometry_logs_move_the_filter_by_the_odometry_change_in_the_robot_frame():
     from mcl.tools.logs import RobotLog
+
     pose = np.array([[1.0, 2.0, math.pi / 2], [1.0, 2.1, math.pi / 2 + 0.1]])
     log = RobotLog(odometry_times=[0.0, 0.02], odometry=pose)
     times, inputs = motion_events(log)
@@ -287,6 +301,7 @@ def test_odometry_logs_move_the_filter_by_the_odometry_change_in_the_robot_frame
 
 def test_a_log_that_nothing_moves_is_refused():
     from mcl.tools.logs import LogError, RobotLog
+
     with pytest.raises(LogError, match="neither odometry"):
         replay(RobotLog(), FIELD)
     with pytest.raises(ValueError, match="poses_out"):
@@ -297,6 +312,7 @@ def test_a_log_that_nothing_moves_is_refused():
 def test_a_walk_written_to_mcap_replays_to_the_estimates_of_feeding_it_directly(tmp_path):
     from demos.walk import run_walk
     from mcl.tools.logs import read_log, write_log
+
     scenario, sim = walk(seed=6, duration=4.0)
     direct = run_walk(particles=200, seed=6, scenario=scenario, series=True)["series"]["estimates"]
     for name in ("walk.mcap", "walk.npz", "walk_csv"):
@@ -311,6 +327,7 @@ def test_a_walk_written_to_mcap_replays_to_the_estimates_of_feeding_it_directly(
 def test_a_truncated_mcap_replays_up_to_where_it_breaks(tmp_path):
     from mcl.tools.logs import read_log
     from mcl.tools.logs.mcap_io import write_mcap
+
     _, sim = walk(seed=7, duration=6.0)
     path = tmp_path / "walk.mcap"
     write_mcap(to_robot_log(sim, latency=0.05), path, chunk_size=1 << 14)
@@ -326,12 +343,19 @@ def test_a_truncated_mcap_replays_up_to_where_it_breaks(tmp_path):
 
 def test_replay_counts_and_names_a_frame_older_than_the_history():
     from mcl.tools.logs import RobotLog, VisionFrame
+
     _, sim = walk(seed=8, duration=4.0)
     log = to_robot_log(sim)
     late = VisionFrame(stamp=0.5, received=2.5, observations=log.vision[0].observations)
     frames = sorted(log.vision + (late,), key=lambda f: f.received)
-    log = RobotLog(origin_ns=log.origin_ns, command_times=log.command_times, commands=log.commands,
-                   vision=tuple(frames), truth_times=log.truth_times, truth=log.truth)
+    log = RobotLog(
+        origin_ns=log.origin_ns,
+        command_times=log.command_times,
+        commands=log.commands,
+        vision=tuple(frames),
+        truth_times=log.truth_times,
+        truth=log.truth,
+    )
     result = replay(log, FIELD, particles=100, seed=8, history=1.0)
     assert result.dropped == {"observation older than history": 1}
     assert result.frames_used == len(frames) - 1
@@ -341,12 +365,19 @@ def test_replay_counts_and_names_a_frame_older_than_the_history():
 
 def test_replay_recording_holds_the_pose_quality_and_lost_series(tmp_path):
     import rerun.chunk as rrc
+
     _, sim = walk(seed=9, duration=1.0)
     path = tmp_path / "replay.rrd"
     result = replay(to_robot_log(sim), FIELD, particles=100, seed=9, rrd=str(path))
     entities = {chunk.entity_path for chunk in rrc.RrdReader(str(path)).stream()}
-    for expected in ("/particles", "/robot/estimate", "/robot/truth", "/localization/quality",
-                     "/localization/lost", "/entropy/position"):
+    for expected in (
+        "/particles",
+        "/robot/estimate",
+        "/robot/truth",
+        "/localization/quality",
+        "/localization/lost",
+        "/entropy/position",
+    ):
         assert expected in entities
     quality = []
     for chunk in rrc.RrdReader(str(path)).stream():

@@ -5,6 +5,7 @@ Small valid logs of each form (ROS 2 MCAP compressed and not, NPZ stored and com
 are corrupted: bit flips and cuts at deterministic offsets and at offsets hypothesis draws; then CSV folders,
 NPZ arrays and MCAP messages with hostile contents written on purpose, and arguments of the wrong type.
 """
+
 import functools
 import io
 import math
@@ -36,23 +37,37 @@ from sensing.observations import Observations
 
 ORIGIN_NS = 1_700_000_000_000_000_000
 SECOND = 1_000_000_000
-SMALL_ALLOCATION = 32 << 20        # [bytes] the most a hostile file of a few kB may make a reader allocate
+SMALL_ALLOCATION = 32 << 20  # [bytes] the most a hostile file of a few kB may make a reader allocate
 
 
 def small_log() -> RobotLog:
     """Every stream, a few rows each, on the nanosecond grid; two camera frames."""
     t = np.arange(4) * 0.1
     rng = np.random.default_rng(5)
-    seen = Observations.from_arrays(["goalpost", "t_crossing", "penalty_mark"], [1.0, 2.5, 3.0], [0.1, -0.2, 0.4],
-                                    line_points=[[1.0, 2.0], [3.0, 4.0]])
-    return RobotLog(origin_ns=ORIGIN_NS, odometry_times=t, odometry=rng.uniform(-1, 1, (4, 3)),
-                    command_times=t, commands=rng.uniform(-1, 1, (4, 3)), imu_times=t,
-                    gyro=rng.uniform(-1, 1, (4, 3)), acceleration=rng.uniform(-1, 1, (4, 3)),
-                    joint_names=("HeadYaw", "HeadPitch"),
-                    joint_command_times=t, joint_commands=rng.uniform(-1, 1, (4, 2)),
-                    joint_reading_times=t, joint_readings=rng.uniform(-1, 1, (4, 2)),
-                    truth_times=t, truth=rng.uniform(-1, 1, (4, 3)),
-                    vision=(VisionFrame(0.0, 0.02, seen), VisionFrame(0.15, 0.17, Observations.empty())))
+    seen = Observations.from_arrays(
+        ["goalpost", "t_crossing", "penalty_mark"],
+        [1.0, 2.5, 3.0],
+        [0.1, -0.2, 0.4],
+        line_points=[[1.0, 2.0], [3.0, 4.0]],
+    )
+    return RobotLog(
+        origin_ns=ORIGIN_NS,
+        odometry_times=t,
+        odometry=rng.uniform(-1, 1, (4, 3)),
+        command_times=t,
+        commands=rng.uniform(-1, 1, (4, 3)),
+        imu_times=t,
+        gyro=rng.uniform(-1, 1, (4, 3)),
+        acceleration=rng.uniform(-1, 1, (4, 3)),
+        joint_names=("HeadYaw", "HeadPitch"),
+        joint_command_times=t,
+        joint_commands=rng.uniform(-1, 1, (4, 2)),
+        joint_reading_times=t,
+        joint_readings=rng.uniform(-1, 1, (4, 2)),
+        truth_times=t,
+        truth=rng.uniform(-1, 1, (4, 3)),
+        vision=(VisionFrame(0.0, 0.02, seen), VisionFrame(0.15, 0.17, Observations.empty())),
+    )
 
 
 def write_plain_mcap(log: RobotLog, path: Path) -> None:
@@ -65,8 +80,10 @@ def write_plain_mcap(log: RobotLog, path: Path) -> None:
 def assert_usable(log: RobotLog) -> None:
     """What every reader promises of the log it returns."""
     assert isinstance(log, RobotLog) and isinstance(log.origin_ns, int)
-    for times_name, values_name, _ in log.STREAMS + (("joint_command_times", "joint_commands", 0),
-                                                     ("joint_reading_times", "joint_readings", 0)):
+    for times_name, values_name, _ in log.STREAMS + (
+        ("joint_command_times", "joint_commands", 0),
+        ("joint_reading_times", "joint_readings", 0),
+    ):
         times, values = getattr(log, times_name), getattr(log, values_name)
         assert times.dtype == np.float64 and values.dtype == np.float64
         assert np.isfinite(times).all() and np.isfinite(values).all()
@@ -84,7 +101,7 @@ def outcome(read, path, label: str = ""):
     except ValueError as error:
         assert str(path) in str(error), f"{label}: the error does not name the file: {error}"
         return error
-    except Exception as error:        # the failure this file is about: say which input did it
+    except Exception as error:  # the failure this file is about: say which input did it
         raise AssertionError(f"{label}: {type(error).__name__} escaped: {error}") from error
     if read is list_topics:
         for row in result:
@@ -102,7 +119,7 @@ def flips(data: bytes, count: int):
     step = max(1, len(data) // count)
     for i, offset in enumerate(range(0, len(data), step)):
         mask = (0x01, 0x80, 0xFF)[i % 3]
-        yield f"byte {offset} ^ {mask:#04x}", data[:offset] + bytes([data[offset] ^ mask]) + data[offset + 1:]
+        yield f"byte {offset} ^ {mask:#04x}", data[:offset] + bytes([data[offset] ^ mask]) + data[offset + 1 :]
 
 
 def cuts(data: bytes, count: int):
@@ -202,7 +219,7 @@ META = b"key,value\nformat_version,1\n"
 CSV_CASES = [
     ("odometry.csv", b"", "error"),
     ("odometry.csv", b"\n\n\n", "error"),
-    ("odometry.csv", b"0.0,1,2,3\n0.1,1,2,3\n", "error"),                       # no header row
+    ("odometry.csv", b"0.0,1,2,3\n0.1,1,2,3\n", "error"),  # no header row
     ("odometry.csv", b",,,\n", "error"),
     ("odometry.csv", b"t_s,t_s,x_m,y_m,yaw_rad\n", "error"),
     ("odometry.csv", ODOMETRY_HEADER, "log"),
@@ -213,33 +230,33 @@ CSV_CASES = [
     ("odometry.csv", ODOMETRY_HEADER + b"0.0,NaN,2,3\n", "error"),
     ("odometry.csv", ODOMETRY_HEADER + b"0.0,-inf,2,3\n", "error"),
     ("odometry.csv", ODOMETRY_HEADER + b"infinity,1,2,3\n", "error"),
-    ("odometry.csv", ODOMETRY_HEADER + b"0.0,1e308,-1e308,3\n0.1,1e308,1e308,3\n", "log"),   # huge, but finite
-    ("odometry.csv", ODOMETRY_HEADER + b"0.0,1e400,2,3\n", "error"),               # inf
-    ("odometry.csv", ODOMETRY_HEADER + b"0.0,1e-400,2,3\n", "log"),                # 0.0
-    ("odometry.csv", ODOMETRY_HEADER + b"1e308,1,2,3\n", "error"),                 # beyond MAX_TIME
+    ("odometry.csv", ODOMETRY_HEADER + b"0.0,1e308,-1e308,3\n0.1,1e308,1e308,3\n", "log"),  # huge, but finite
+    ("odometry.csv", ODOMETRY_HEADER + b"0.0,1e400,2,3\n", "error"),  # inf
+    ("odometry.csv", ODOMETRY_HEADER + b"0.0,1e-400,2,3\n", "log"),  # 0.0
+    ("odometry.csv", ODOMETRY_HEADER + b"1e308,1,2,3\n", "error"),  # beyond MAX_TIME
     ("odometry.csv", ODOMETRY_HEADER + b"-1e308,1,2,3\n1e308,1,2,3\n", "error"),
-    ("odometry.csv", ODOMETRY_HEADER + b"-5,1,2,3\n-4.5,1,2,3\n", "log"),          # before the origin: fine
-    ("odometry.csv", ODOMETRY_HEADER + b"1,1,2,3\n0,1,2,3\n", "error"),            # decreasing
-    ("odometry.csv", ODOMETRY_HEADER + b"1,1,2,3\n1,1,2,3\n", "error"),            # repeated
+    ("odometry.csv", ODOMETRY_HEADER + b"-5,1,2,3\n-4.5,1,2,3\n", "log"),  # before the origin: fine
+    ("odometry.csv", ODOMETRY_HEADER + b"1,1,2,3\n0,1,2,3\n", "error"),  # decreasing
+    ("odometry.csv", ODOMETRY_HEADER + b"1,1,2,3\n1,1,2,3\n", "error"),  # repeated
     ("odometry.csv", ODOMETRY_HEADER + b"0,1,2\n", "error"),
     ("odometry.csv", ODOMETRY_HEADER + b"0,1,2,3,4\n", "error"),
-    ("odometry.csv", ODOMETRY_HEADER + b"0," + b"1" * 200_000 + b",2,3\n", "error"),    # beyond csv's field limit
-    ("odometry.csv", ODOMETRY_HEADER + b",".join([b"1"] * 100_000) + b"\n", "error"),   # a very long line
-    ("odometry.csv", ODOMETRY_HEADER + b"0," + b"9" * 5000 + b",2,3\n", "error"),       # 1e5000: inf
-    ("odometry.csv", ODOMETRY_HEADER + b"0,\xff\xfe,2,3\n", "error"),               # not UTF-8
-    ("odometry.csv", b"\xef\xbb\xbf" + ODOMETRY_HEADER + b"0,1,2,3\n", "error"),    # a byte order mark
+    ("odometry.csv", ODOMETRY_HEADER + b"0," + b"1" * 200_000 + b",2,3\n", "error"),  # beyond csv's field limit
+    ("odometry.csv", ODOMETRY_HEADER + b",".join([b"1"] * 100_000) + b"\n", "error"),  # a very long line
+    ("odometry.csv", ODOMETRY_HEADER + b"0," + b"9" * 5000 + b",2,3\n", "error"),  # 1e5000: inf
+    ("odometry.csv", ODOMETRY_HEADER + b"0,\xff\xfe,2,3\n", "error"),  # not UTF-8
+    ("odometry.csv", b"\xef\xbb\xbf" + ODOMETRY_HEADER + b"0,1,2,3\n", "error"),  # a byte order mark
     ("odometry.csv", ODOMETRY_HEADER + b"0,1\x00,2,3\n", "error"),
     ("odometry.csv", ODOMETRY_HEADER + b'0,"1\n2",2,3\n', "error"),
-    ("odometry.csv", ODOMETRY_HEADER + b'0,"1,2,3\n', "error"),                     # a quote never closed
+    ("odometry.csv", ODOMETRY_HEADER + b'0,"1,2,3\n', "error"),  # a quote never closed
     ("imu.csv", b"t_s\n", "error"),
     ("joint_readings.csv", b"t_s," + b",".join(b"j%d_rad" % i for i in range(3000)) + b"\n", "error"),
     ("joint_readings.csv", b"t_s,_rad\n", "error"),
     ("joint_readings.csv", b"t_s,HeadYaw_rad,HeadYaw_rad\n", "error"),
     ("meta.csv", b"", "error"),
     ("meta.csv", b"key,value\n", "error"),
-    ("meta.csv", META + b"origin_ns," + b"9" * 30 + b"\n", "error"),               # beyond int64
+    ("meta.csv", META + b"origin_ns," + b"9" * 30 + b"\n", "error"),  # beyond int64
     ("meta.csv", META + b"origin_ns,-" + b"9" * 30 + b"\n", "error"),
-    ("meta.csv", META + b"origin_ns," + b"9" * 5000 + b"\n", "error"),             # beyond Python's int parsing
+    ("meta.csv", META + b"origin_ns," + b"9" * 5000 + b"\n", "error"),  # beyond Python's int parsing
     ("meta.csv", META + b"origin_ns,9223372036854775807\n", "log"),
     ("meta.csv", b"key,value\nformat_version," + b"9" * 100 + b"\norigin_ns,0\n", "error"),
     ("meta.csv", META + b"origin_ns,1e18\n", "error"),
@@ -307,7 +324,7 @@ NPZ_CASES = {
     "2-d times": dict(odometry_times=np.arange(4.0).reshape(4, 1)),
     "version as an array": dict(format_version=np.array([1])),
     "version as text": dict(format_version=np.array("1")),
-    "origin beyond int64": dict(origin_ns=np.uint64(2 ** 64 - 1)),
+    "origin beyond int64": dict(origin_ns=np.uint64(2**64 - 1)),
     "origin NaN": dict(origin_ns=np.float64(np.nan)),
     "NaN time": dict(odometry_times=np.array([0.0, np.nan, 0.2, 0.3])),
     "infinite time": dict(odometry_times=np.array([0.0, np.inf, 0.2, 0.3])),
@@ -316,8 +333,8 @@ NPZ_CASES = {
     "a stream without its times": dict(truth_times=None),
     "NaN frame stamp": dict(vision_stamps=np.array([np.nan, 0.15])),
     "huge frame time": dict(vision_received=np.array([0.02, 1e300])),
-    "huge landmark count": dict(vision_landmark_counts=np.array([2 ** 62, 2 ** 62])),
-    "landmark count beyond int64": dict(vision_landmark_counts=np.array([2 ** 64 - 1, 4], dtype=np.uint64)),
+    "huge landmark count": dict(vision_landmark_counts=np.array([2**62, 2**62])),
+    "landmark count beyond int64": dict(vision_landmark_counts=np.array([2**64 - 1, 4], dtype=np.uint64)),
     "negative landmark count": dict(vision_landmark_counts=np.array([-1, 4])),
     "huge range": dict(vision_ranges=np.array([1e308, 2.5, 3.0])),
     "joint names not UTF-8": dict(joint_names=np.array([b"\xff\xfe", b"a"])),
@@ -372,13 +389,17 @@ ABSURD_MEMBERS = {
     "2^40 objects": {"joint_names": npy("{'descr': '|O', 'fortran_order': False, 'shape': (1099511627776,), }")},
     "a header that is a list": {"odometry_times": npy("[1, 2, 3]", b"\x00" * 32)},
     "a header without shape": {"odometry_times": npy("{'descr': '<f8', 'fortran_order': False, }", b"\x00" * 32)},
-    "a huge version 2 header": {"odometry_times": b"\x93NUMPY\x02\x00" + struct.pack("<I", 2 ** 31) + b"{" * 64},
+    "a huge version 2 header": {"odometry_times": b"\x93NUMPY\x02\x00" + struct.pack("<I", 2**31) + b"{" * 64},
     "version 9": {"odometry_times": b"\x93NUMPY\x09\x00" + b"\x00" * 64},
     "not a .npy": {"odometry_times": b"just some bytes, no magic"},
-    "joint names beyond Unicode": {"joint_names": npy("{'descr': '<U1', 'fortran_order': False, 'shape': (2,), }",
-                                                      b"a\x00\x00\x00\xff\xff\xff\xff")},
-    "joint names of surrogates": {"joint_names": npy("{'descr': '>U1', 'fortran_order': False, 'shape': (1,), }",
-                                                     b"\x00\x00\xd8\x00")},
+    "joint names beyond Unicode": {
+        "joint_names": npy(
+            "{'descr': '<U1', 'fortran_order': False, 'shape': (2,), }", b"a\x00\x00\x00\xff\xff\xff\xff"
+        )
+    },
+    "joint names of surrogates": {
+        "joint_names": npy("{'descr': '>U1', 'fortran_order': False, 'shape': (1,), }", b"\x00\x00\xd8\x00")
+    },
     "empty member": {"origin_ns": b""},
 }
 
@@ -397,20 +418,24 @@ def patch_central_directory(data: bytes, field_offset: int, value: int, size: in
     changed = bytearray(data)
     start = 0
     while (start := changed.find(b"PK\x01\x02", start)) >= 0:
-        changed[start + field_offset:start + field_offset + size] = value.to_bytes(size, "little")
+        changed[start + field_offset : start + field_offset + size] = value.to_bytes(size, "little")
         start += 4
     return bytes(changed)
 
 
-@pytest.mark.parametrize("case, field_offset, value", [
-    ("uncompressed size of 4 GB", 24, 2 ** 32 - 1),
-    ("compressed size of 4 GB", 20, 2 ** 32 - 1),
-    ("encrypted", 8, 0x0001),
-    ("compressed patched data", 8, 0x0020),
-    ("bzip2", 10, zipfile.ZIP_BZIP2),
-    ("an unknown compression", 10, 99),
-    ("a zip version from the future", 6, 0x00FF),
-], ids=lambda value: value if isinstance(value, str) else "")
+@pytest.mark.parametrize(
+    "case, field_offset, value",
+    [
+        ("uncompressed size of 4 GB", 24, 2**32 - 1),
+        ("compressed size of 4 GB", 20, 2**32 - 1),
+        ("encrypted", 8, 0x0001),
+        ("compressed patched data", 8, 0x0020),
+        ("bzip2", 10, zipfile.ZIP_BZIP2),
+        ("an unknown compression", 10, 99),
+        ("a zip version from the future", 6, 0x00FF),
+    ],
+    ids=lambda value: value if isinstance(value, str) else "",
+)
 def test_npz_zip_entries_claiming_what_they_are_not(tmp_path, case, field_offset, value):
     path = tmp_path / "log.npz"
     path.write_bytes(patch_central_directory(npz_bytes(), field_offset, value, 2 if field_offset < 20 else 4))
@@ -480,13 +505,13 @@ def strings(order: str, *texts: bytes) -> bytes:
     return b"".join(struct.pack(f"{order}I", len(t) + 1) + t + b"\x00" * (4 - len(t) % 4) for t in texts)
 
 
-HUGE_SEQUENCES = {       # (tail, frame_id length)
-    "2^31 names": (lambda e: struct.pack(f"{e}I", 2 ** 31) + strings(e, b"abcd", b"ef", b"g"), 1),
-    "2^32 - 1 names": (lambda e: struct.pack(f"{e}I", 2 ** 32 - 1), 1),
-    "2^31 positions": (lambda e: struct.pack(f"{e}II", 0, 2 ** 31) + b"\x00" * 64, 1),
-    "2^32 - 1 efforts": (lambda e: struct.pack(f"{e}IIII", 0, 0, 0, 2 ** 32 - 1) + b"\x00" * 64, 1),
-    "a frame_id of 2^31 bytes": (lambda e: b"abc" * 10, 2 ** 31),
-    "a name of 2^31 bytes": (lambda e: struct.pack(f"{e}II", 1, 2 ** 31) + b"abc" * 10, 1),
+HUGE_SEQUENCES = {  # (tail, frame_id length)
+    "2^31 names": (lambda e: struct.pack(f"{e}I", 2**31) + strings(e, b"abcd", b"ef", b"g"), 1),
+    "2^32 - 1 names": (lambda e: struct.pack(f"{e}I", 2**32 - 1), 1),
+    "2^31 positions": (lambda e: struct.pack(f"{e}II", 0, 2**31) + b"\x00" * 64, 1),
+    "2^32 - 1 efforts": (lambda e: struct.pack(f"{e}IIII", 0, 0, 0, 2**32 - 1) + b"\x00" * 64, 1),
+    "a frame_id of 2^31 bytes": (lambda e: b"abc" * 10, 2**31),
+    "a name of 2^31 bytes": (lambda e: struct.pack(f"{e}II", 1, 2**31) + b"abc" * 10, 1),
 }
 
 
@@ -498,11 +523,16 @@ def test_cdr_lengths_claiming_huge_sequences_do_not_allocate(tmp_path, case):
     schema = Schema(id=1, name=schemas.JOINT_STATE, encoding="ros2msg", data=text.encode())
     compiled = compile_decoders(schemas.JOINT_STATE, text)[schemas.JOINT_STATE]
     factory = DecoderFactory().decoder_for("cdr", schema)
-    for name, decode, data in (("compiled", compiled, little), ("factory", factory, little),
-                               ("mcap_ros2, big-endian", factory, big)):
+    for name, decode, data in (
+        ("compiled", compiled, little),
+        ("factory", factory, little),
+        ("mcap_ros2, big-endian", factory, big),
+    ):
+
         def attempt():
             with pytest.raises(_DECODE_ERRORS):
                 decode(data)
+
         started = time.perf_counter()
         peak = peak_allocation(attempt)
         assert peak < SMALL_ALLOCATION, f"{case}, {name}: {peak / 1e6:.0f} MB"
@@ -531,9 +561,12 @@ RECURSIVE = {
     "itself": "nav_msgs/Odometry next\n",
     "itself in a sequence": "int32 a\nnav_msgs/Odometry[] children\n",
     "through another type": ("test_msgs/A a\n" + schemas.SEPARATOR + "\nMSG: test_msgs/A\nnav_msgs/Odometry back\n"),
-    "too deep": "\n".join(["test_msgs/T0 t"] + [f"{schemas.SEPARATOR}\nMSG: test_msgs/T{i}\ntest_msgs/T{i + 1} t"
-                                                for i in range(MAX_NESTING + 5)]
-                          + [f"{schemas.SEPARATOR}\nMSG: test_msgs/T{MAX_NESTING + 5}\nint32 x"]) + "\n",
+    "too deep": "\n".join(
+        ["test_msgs/T0 t"]
+        + [f"{schemas.SEPARATOR}\nMSG: test_msgs/T{i}\ntest_msgs/T{i + 1} t" for i in range(MAX_NESTING + 5)]
+        + [f"{schemas.SEPARATOR}\nMSG: test_msgs/T{MAX_NESTING + 5}\nint32 x"]
+    )
+    + "\n",
 }
 
 
@@ -546,14 +579,19 @@ def test_definitions_that_contain_themselves_are_not_followed(tmp_path, case):
     write_cdr(tmp_path / "r.mcap", "/motion_odometry", schemas.ODOMETRY, text, [payload, payload[:-4]])
     log, report = outcome(read_log, tmp_path / "r.mcap", case)
     assert log.odometry_times.shape == (0,)
-    ((topic, reason), count), = report.dropped.items()
+    (((topic, reason), count),) = report.dropped.items()
     assert topic == "/motion_odometry" and count == 2 and "does not parse (ValueError)" in reason
 
 
 def test_a_nesting_as_deep_as_allowed_decodes():
-    text = "\n".join(["test_msgs/T1 t"] + [f"{schemas.SEPARATOR}\nMSG: test_msgs/T{i}\ntest_msgs/T{i + 1} t"
-                                          for i in range(1, MAX_NESTING - 1)]
-                     + [f"{schemas.SEPARATOR}\nMSG: test_msgs/T{MAX_NESTING - 1}\nint32 x"]) + "\n"
+    text = (
+        "\n".join(
+            ["test_msgs/T1 t"]
+            + [f"{schemas.SEPARATOR}\nMSG: test_msgs/T{i}\ntest_msgs/T{i + 1} t" for i in range(1, MAX_NESTING - 1)]
+            + [f"{schemas.SEPARATOR}\nMSG: test_msgs/T{MAX_NESTING - 1}\nint32 x"]
+        )
+        + "\n"
+    )
     decode = compile_decoders("test_msgs/msg/T0", text)["test_msgs/msg/T0"]
     message = decode(LITTLE_ENDIAN + struct.pack("<i", 7))
     for _ in range(MAX_NESTING - 1):
@@ -569,47 +607,96 @@ def definition_with(type_name: str, old: str, new: str) -> str:
 
 # (stream's type, a changed definition, a message that fits it, the reason it is dropped)
 MISFIT_SCHEMAS = {
-    "no header stamp": (schemas.ODOMETRY, definition_with(schemas.ODOMETRY, "builtin_interfaces/Time stamp",
-                                                          "int32 stamp"),
-                        {"header": {"stamp": 5}}, "no field sec"),
-    "a header of text": (schemas.ODOMETRY, definition_with(schemas.ODOMETRY, "std_msgs/Header header\n",
-                                                           "string header\n"),
-                         {"header": "odom"}, "no field stamp"),
-    "sec as a float": (schemas.ODOMETRY, definition_with(schemas.ODOMETRY, "int32 sec", "float64 sec"),
-                       odometry_message(1), "not integer sec and nanosec"),
-    "sec as an int64": (schemas.ODOMETRY, definition_with(schemas.ODOMETRY, "int32 sec", "int64 sec"),
-                        odometry_message(2 ** 62), "does not fit builtin_interfaces/Time"),
-    "position x as text": (schemas.ODOMETRY, definition_with(schemas.ODOMETRY, "float64 x\nfloat64 y\nfloat64 z",
-                                                             "string x\nfloat64 y\nfloat64 z"),
-                           {"header": header(1), "pose": {"pose": {"position": {"x": "1.5"}}}}, "holds str"),
-    "no orientation": (schemas.ODOMETRY, definition_with(schemas.ODOMETRY, "geometry_msgs/Quaternion orientation",
-                                                         "float64 orientation"),
-                       odometry_message(1), "no field"),
-    "twist without angular": (schemas.TWIST, "geometry_msgs/Vector3 linear\n" + schemas.SEPARATOR
-                              + "\nMSG: geometry_msgs/Vector3\nfloat64 x\nfloat64 y\nfloat64 z\n",
-                              {"linear": {"x": 1.0}}, "no field angular"),
-    "joint names as a number": (schemas.JOINT_STATE, definition_with(schemas.JOINT_STATE, "string[] name",
-                                                                     "float64 name"),
-                                {"header": header(1), "name": 1.5, "position": [1.0]}, "not an array"),
-    "joint positions as text": (schemas.JOINT_STATE, definition_with(schemas.JOINT_STATE, "float64[] position",
-                                                                     "string[] position"),
-                                {"header": header(1), "name": ["a"], "position": ["1"]}, "holds str"),
-    "joint names as numbers": (schemas.JOINT_STATE, definition_with(schemas.JOINT_STATE, "string[] name",
-                                                                    "int32[] name"),
-                               {"header": header(1), "name": [3], "position": [1.0]}, "not text"),
-    "num_rays as a float": (schemas.MARKING_ARRAY, definition_with(schemas.MARKING_ARRAY, "int32 num_rays",
-                                                                   "float64 num_rays"),
-                            {"header": header(1), "intersections": [{"num_rays": math.nan}]}, "not an integer"),
-    "diameter as text": (schemas.MARKING_ARRAY, definition_with(schemas.MARKING_ARRAY, "float64 diameter",
-                                                                "string diameter"),
-                         {"header": header(1), "ellipses": [{"diameter": "big"}]}, "holds str"),
-    "posts as one post": (schemas.GOALPOST_ARRAY, definition_with(schemas.GOALPOST_ARRAY,
-                                                                  "soccer_vision_3d_msgs/Goalpost[] posts",
-                                                                  "soccer_vision_3d_msgs/Goalpost posts"),
-                          {"header": header(1), "posts": {}}, "not an array"),
+    "no header stamp": (
+        schemas.ODOMETRY,
+        definition_with(schemas.ODOMETRY, "builtin_interfaces/Time stamp", "int32 stamp"),
+        {"header": {"stamp": 5}},
+        "no field sec",
+    ),
+    "a header of text": (
+        schemas.ODOMETRY,
+        definition_with(schemas.ODOMETRY, "std_msgs/Header header\n", "string header\n"),
+        {"header": "odom"},
+        "no field stamp",
+    ),
+    "sec as a float": (
+        schemas.ODOMETRY,
+        definition_with(schemas.ODOMETRY, "int32 sec", "float64 sec"),
+        odometry_message(1),
+        "not integer sec and nanosec",
+    ),
+    "sec as an int64": (
+        schemas.ODOMETRY,
+        definition_with(schemas.ODOMETRY, "int32 sec", "int64 sec"),
+        odometry_message(2**62),
+        "does not fit builtin_interfaces/Time",
+    ),
+    "position x as text": (
+        schemas.ODOMETRY,
+        definition_with(schemas.ODOMETRY, "float64 x\nfloat64 y\nfloat64 z", "string x\nfloat64 y\nfloat64 z"),
+        {"header": header(1), "pose": {"pose": {"position": {"x": "1.5"}}}},
+        "holds str",
+    ),
+    "no orientation": (
+        schemas.ODOMETRY,
+        definition_with(schemas.ODOMETRY, "geometry_msgs/Quaternion orientation", "float64 orientation"),
+        odometry_message(1),
+        "no field",
+    ),
+    "twist without angular": (
+        schemas.TWIST,
+        "geometry_msgs/Vector3 linear\n"
+        + schemas.SEPARATOR
+        + "\nMSG: geometry_msgs/Vector3\nfloat64 x\nfloat64 y\nfloat64 z\n",
+        {"linear": {"x": 1.0}},
+        "no field angular",
+    ),
+    "joint names as a number": (
+        schemas.JOINT_STATE,
+        definition_with(schemas.JOINT_STATE, "string[] name", "float64 name"),
+        {"header": header(1), "name": 1.5, "position": [1.0]},
+        "not an array",
+    ),
+    "joint positions as text": (
+        schemas.JOINT_STATE,
+        definition_with(schemas.JOINT_STATE, "float64[] position", "string[] position"),
+        {"header": header(1), "name": ["a"], "position": ["1"]},
+        "holds str",
+    ),
+    "joint names as numbers": (
+        schemas.JOINT_STATE,
+        definition_with(schemas.JOINT_STATE, "string[] name", "int32[] name"),
+        {"header": header(1), "name": [3], "position": [1.0]},
+        "not text",
+    ),
+    "num_rays as a float": (
+        schemas.MARKING_ARRAY,
+        definition_with(schemas.MARKING_ARRAY, "int32 num_rays", "float64 num_rays"),
+        {"header": header(1), "intersections": [{"num_rays": math.nan}]},
+        "not an integer",
+    ),
+    "diameter as text": (
+        schemas.MARKING_ARRAY,
+        definition_with(schemas.MARKING_ARRAY, "float64 diameter", "string diameter"),
+        {"header": header(1), "ellipses": [{"diameter": "big"}]},
+        "holds str",
+    ),
+    "posts as one post": (
+        schemas.GOALPOST_ARRAY,
+        definition_with(
+            schemas.GOALPOST_ARRAY, "soccer_vision_3d_msgs/Goalpost[] posts", "soccer_vision_3d_msgs/Goalpost posts"
+        ),
+        {"header": header(1), "posts": {}},
+        "not an array",
+    ),
 }
-STREAM_TOPIC = {schemas.ODOMETRY: "/motion_odometry", schemas.TWIST: "/cmd_vel", schemas.JOINT_STATE: "/joint_states",
-                schemas.MARKING_ARRAY: "/markings_relative", schemas.GOALPOST_ARRAY: "/goal_posts_relative"}
+STREAM_TOPIC = {
+    schemas.ODOMETRY: "/motion_odometry",
+    schemas.TWIST: "/cmd_vel",
+    schemas.JOINT_STATE: "/joint_states",
+    schemas.MARKING_ARRAY: "/markings_relative",
+    schemas.GOALPOST_ARRAY: "/goal_posts_relative",
+}
 
 
 @pytest.mark.parametrize("case", list(MISFIT_SCHEMAS))
@@ -618,25 +705,32 @@ def test_a_message_type_defined_otherwise_is_dropped_with_the_reason(tmp_path, c
     topic = STREAM_TOPIC[type_name]
     write_messages(tmp_path / "m.mcap", [(topic, type_name, message, ORIGIN_NS)], {type_name: text})
     log, report = outcome(read_log, tmp_path / "m.mcap", case)
-    ((dropped_topic, why), count), = report.dropped.items()
+    (((dropped_topic, why), count),) = report.dropped.items()
     assert dropped_topic == topic and count == 1 and reason in why, why
 
 
 def test_stamps_far_from_the_origin_that_round_to_one_time_are_one_stamp(tmp_path):
     """Sim-time stamps near -2^31 s in a file whose log times end near 2^64 ns: 1 ns apart is one float64 time."""
-    last = 2 ** 64 - 1
-    write_messages(tmp_path / "far.mcap", [
-        ("/motion_odometry", schemas.ODOMETRY, odometry_message(-2 ** 31, 0, 1.0), last - 1),
-        ("/motion_odometry", schemas.ODOMETRY, odometry_message(-2 ** 31, 1, 2.0), last)])
+    last = 2**64 - 1
+    write_messages(
+        tmp_path / "far.mcap",
+        [
+            ("/motion_odometry", schemas.ODOMETRY, odometry_message(-(2**31), 0, 1.0), last - 1),
+            ("/motion_odometry", schemas.ODOMETRY, odometry_message(-(2**31), 1, 2.0), last),
+        ],
+    )
     log, report = outcome(read_log, tmp_path / "far.mcap")
     assert log.odometry[:, 0].tolist() == [1.0] and log.origin_ns == last - 1
     assert report.dropped == {("/motion_odometry", "same stamp as the previous message"): 1}
 
 
-@pytest.mark.parametrize("origin", ["9" * 30, "-" + "9" * 30, "9" * 5000, "1e18", "nan", "", str(2 ** 64)])
+@pytest.mark.parametrize("origin", ["9" * 30, "-" + "9" * 30, "9" * 5000, "1e18", "nan", "", str(2**64)])
 def test_an_absurd_recorded_origin_is_ignored(tmp_path, origin):
-    write_messages(tmp_path / "o.mcap", [("/motion_odometry", schemas.ODOMETRY, odometry_message(1), ORIGIN_NS)],
-                   metadata={"origin_ns": origin})
+    write_messages(
+        tmp_path / "o.mcap",
+        [("/motion_odometry", schemas.ODOMETRY, odometry_message(1), ORIGIN_NS)],
+        metadata={"origin_ns": origin},
+    )
     log, _ = outcome(read_log, tmp_path / "o.mcap")
     assert log.origin_ns == ORIGIN_NS and log.odometry_times.tolist() == [(SECOND - ORIGIN_NS) / 1e9]
 
@@ -649,21 +743,30 @@ def test_absurd_detections(tmp_path):
     """A segment of a million metres is not sampled into millions of points; far detections are refused or read,
     as `Observations` decides, never an escape."""
     stamp = header(1)
-    markings = {"header": stamp, "segments": [{"start": point(0.0, 0.0), "end": point(1e6, 0.0)},
-                                              {"start": point(-1e300, 0.0), "end": point(1e300, 0.0)},
-                                              {"start": point(0.0, 0.0), "end": point(0.3, 0.0)}]}
+    markings = {
+        "header": stamp,
+        "segments": [
+            {"start": point(0.0, 0.0), "end": point(1e6, 0.0)},
+            {"start": point(-1e300, 0.0), "end": point(1e300, 0.0)},
+            {"start": point(0.0, 0.0), "end": point(0.3, 0.0)},
+        ],
+    }
     far = {"header": header(2), "posts": [{"bb": {"center": {"position": point(1e300, 1e300)}}}]}
     overflow = {"header": header(3), "posts": [{"bb": {"center": {"position": point(1.7e308, 1.7e308)}}}]}
-    write_messages(tmp_path / "v.mcap", [
-        ("/markings_relative", schemas.MARKING_ARRAY, markings, ORIGIN_NS + SECOND),
-        ("/goal_posts_relative", schemas.GOALPOST_ARRAY, far, ORIGIN_NS + 2 * SECOND),
-        ("/goal_posts_relative", schemas.GOALPOST_ARRAY, overflow, ORIGIN_NS + 3 * SECOND)])
+    write_messages(
+        tmp_path / "v.mcap",
+        [
+            ("/markings_relative", schemas.MARKING_ARRAY, markings, ORIGIN_NS + SECOND),
+            ("/goal_posts_relative", schemas.GOALPOST_ARRAY, far, ORIGIN_NS + 2 * SECOND),
+            ("/goal_posts_relative", schemas.GOALPOST_ARRAY, overflow, ORIGIN_NS + 3 * SECOND),
+        ],
+    )
     started = time.perf_counter()
     log, report = outcome(read_log, tmp_path / "v.mcap")
     assert time.perf_counter() - started < 5.0
     assert report.dropped[("/markings_relative", "segment longer than 30 m")] == 2
     np.testing.assert_allclose(log.vision[0].observations.line_points, [[0.0, 0.0], [0.15, 0.0], [0.3, 0.0]])
-    assert len(log.vision) in (1, 2)       # the far goalpost's frame is read or refused; the overflowing one refused
+    assert len(log.vision) in (1, 2)  # the far goalpost's frame is read or refused; the overflowing one refused
 
 
 def claim_content_size(frame_header: bytes, content_size: int) -> bytes:
@@ -690,13 +793,13 @@ def test_compressed_chunks_claiming_huge_sizes_are_not_allocated(tmp_path):
     log = small_log()
     with mock.patch.object(mcap_io, "Ros2Writer", functools.partial(Ros2Writer, compression=CompressionType.LZ4)):
         write_mcap(log, tmp_path / "lz4.mcap", chunk_size=1 << 20)
-    back, report = read_log(tmp_path / "lz4.mcap")                # lz4 chunks read as the zstd ones
+    back, report = read_log(tmp_path / "lz4.mcap")  # lz4 chunks read as the zstd ones
     assert report.complete and not report.dropped
     np.testing.assert_array_equal(back.gyro, zstd_round_trip(log).gyro)
     data = (tmp_path / "lz4.mcap").read_bytes()
-    start = data.index(b"\x04\x22\x4d\x18")                 # the first chunk's lz4 frame
-    assert lz4.frame.get_frame_info(data[start:start + 15])["content_size"] > 0    # the writer records it
-    patched = data[:start] + claim_content_size(data[start:start + 15], 1 << 33) + data[start + 15:]
+    start = data.index(b"\x04\x22\x4d\x18")  # the first chunk's lz4 frame
+    assert lz4.frame.get_frame_info(data[start : start + 15])["content_size"] > 0  # the writer records it
+    patched = data[:start] + claim_content_size(data[start : start + 15], 1 << 33) + data[start + 15 :]
     (tmp_path / "claims.mcap").write_bytes(patched)
     peak = peak_allocation(lambda: outcome(read_log, tmp_path / "claims.mcap"))
     assert peak < SMALL_ALLOCATION, f"{peak / 1e6:.0f} MB"
@@ -705,21 +808,35 @@ def test_compressed_chunks_claiming_huge_sizes_are_not_allocated(tmp_path):
     # A zstd frame that does not record its size is decompressed as it comes, not into a buffer of the size
     # the chunk claims (up to MAX_CHUNK_BYTES, a gigabyte).
     records = zstandard.ZstdCompressor(write_content_size=False).compress(b"\x00" * 1000)
-    chunk = Chunk(compression="zstd", data=records, message_start_time=0, message_end_time=0, uncompressed_crc=0,
-                  uncompressed_size=mcap_io.MAX_CHUNK_BYTES)
+    chunk = Chunk(
+        compression="zstd",
+        data=records,
+        message_start_time=0,
+        message_end_time=0,
+        uncompressed_crc=0,
+        uncompressed_size=mcap_io.MAX_CHUNK_BYTES,
+    )
     assert peak_allocation(lambda: mcap_io._decompressed(chunk)) < SMALL_ALLOCATION
     assert mcap_io._decompressed(chunk) == b"\x00" * 1000
     with pytest.raises(mcap_io.McapError, match="more than the 999 bytes"):
-        mcap_io._decompressed(Chunk(compression="zstd", data=records, message_start_time=0, message_end_time=0,
-                                    uncompressed_crc=0, uncompressed_size=999))
+        mcap_io._decompressed(
+            Chunk(
+                compression="zstd",
+                data=records,
+                message_start_time=0,
+                message_end_time=0,
+                uncompressed_crc=0,
+                uncompressed_size=999,
+            )
+        )
 
 
 def test_footer_and_index_offsets_outside_the_file(valid_files, workdir):
     """list_topics seeks where the footer and the indexes point: an offset beyond the file falls back to a scan."""
     data = valid_files["zstd.mcap"]
     footer = len(data) - 8 - 29
-    for offset in (2 ** 63 - 1, 2 ** 64 - 1, len(data) + 5):
-        broken = data[:footer + 9] + offset.to_bytes(8, "little") + data[footer + 17:]
+    for offset in (2**63 - 1, 2**64 - 1, len(data) + 5):
+        broken = data[: footer + 9] + offset.to_bytes(8, "little") + data[footer + 17 :]
         (workdir / "footer.mcap").write_bytes(broken)
         rows = outcome(list_topics, workdir / "footer.mcap")
         assert {row["topic"] for row in rows} >= {"/motion_odometry", "/imu/data"}
@@ -733,12 +850,19 @@ def test_arguments_of_the_wrong_type_or_value(valid_files, workdir, tmp_path):
             read_log(bad)
         with pytest.raises(TypeError, match="path"):
             list_topics(bad)
-    for gap, error in (("x", TypeError), (None, TypeError), (True, TypeError), (-1, ValueError), (0, ValueError),
-                       (math.nan, ValueError), (math.inf, ValueError)):
+    for gap, error in (
+        ("x", TypeError),
+        (None, TypeError),
+        (True, TypeError),
+        (-1, ValueError),
+        (0, ValueError),
+        (math.nan, ValueError),
+        (math.inf, ValueError),
+    ):
         with pytest.raises(error, match="gap"):
             read_log(path, gap=gap)
         with pytest.raises(error, match="gap"):
-            read_log(workdir / "stored.npz", gap=gap)         # checked whatever the form
+            read_log(workdir / "stored.npz", gap=gap)  # checked whatever the form
         with pytest.raises(error, match="gap"):
             read_mcap(path, gap=gap)
     for topics in ("/odom", 5, {"odometry": "/odom"}):
@@ -757,7 +881,7 @@ def test_arguments_of_the_wrong_type_or_value(valid_files, workdir, tmp_path):
     with pytest.raises(LogError, match="folder.mcap is a folder"):
         list_topics(tmp_path / "folder.mcap")
     with pytest.raises(LogError, match="meta.csv is missing"):
-        read_log(tmp_path / "folder.mcap")                     # a folder is read as the CSV form
+        read_log(tmp_path / "folder.mcap")  # a folder is read as the CSV form
 
 
 def test_robot_log_refuses_what_no_stream_may_hold():
@@ -790,4 +914,3 @@ def test_robot_log_refuses_what_no_stream_may_hold():
         RobotLog(vision=(VisionFrame(0.0, 0.1, None),))
     assert RobotLog(origin_ns=np.int64(7)).origin_ns == 7 and type(RobotLog(origin_ns=np.int64(7)).origin_ns) is int
     assert RobotLog(truth_times=[-MAX_TIME, MAX_TIME], truth=np.zeros((2, 3))).duration == 2 * MAX_TIME
-

@@ -52,8 +52,13 @@ def assert_same_rfs(model: LWPR, ref: ReferenceLWPR, rtol: float = 1e-9, atol: f
         for k, rf_ref in enumerate(ref.rfs[dim]):
             rf = model.receptive_field(dim, k)
             for key, value in rf_ref.items():
-                np.testing.assert_allclose(np.asarray(rf[key], float), np.asarray(value, float), rtol=rtol,
-                                           atol=atol, err_msg=f"output {dim}, RF {k}, field {key}")
+                np.testing.assert_allclose(
+                    np.asarray(rf[key], float),
+                    np.asarray(value, float),
+                    rtol=rtol,
+                    atol=atol,
+                    err_msg=f"output {dim}, RF {k}, field {key}",
+                )
 
 
 # ------------------------------------------------------------------------------------------ the library
@@ -76,7 +81,7 @@ def test_linear_function_is_learned_with_one_receptive_field():
     # The library's incremental PLS carries statistics gathered with earlier projection directions, so the
     # fit of an exactly linear function is close (nMSE ~ 1e-4 here), not exact to rounding.
     model = LWPR(2, 1)
-    model.init_D = 0.05 * np.eye(2)      # one wide RF covers the whole domain
+    model.init_D = 0.05 * np.eye(2)  # one wide RF covers the whole domain
     rng = np.random.default_rng(3)
     for _ in range(2000):
         x = rng.uniform(-1.0, 1.0, 2)
@@ -137,7 +142,7 @@ def test_numba_matches_reference_three_inputs_two_outputs():
         # Meta-learning feeds each update's rounding into the next step sizes: the relative difference grows
         # from 5e-16 after 10 updates to 1e-9 after 300 (numpy 2.4, numba 0.68), so the bounds leave room.
         np.testing.assert_allclose(model.update(x, y), ref.update(x, y), rtol=1e-7, atol=1e-12)
-    assert_same_rfs(model, ref, rtol=1e-7, atol=1e-8)     # the meta trace h holds small differences: 5e-9
+    assert_same_rfs(model, ref, rtol=1e-7, atol=1e-8)  # the meta trace h holds small differences: 5e-9
     assert max(model.receptive_field(0, k)["n_reg"] for k in range(model.num_rfs[0])) == 3
 
 
@@ -185,8 +190,10 @@ def test_confidence_is_large_far_away(trained):
 
 # -------------------------------------------------------------------------------------------- properties
 @settings(max_examples=200, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
-@given(st.lists(st.floats(allow_nan=False, allow_infinity=False), min_size=2, max_size=2),
-       st.floats(min_value=0.0, max_value=1.0))
+@given(
+    st.lists(st.floats(allow_nan=False, allow_infinity=False), min_size=2, max_size=2),
+    st.floats(min_value=0.0, max_value=1.0),
+)
 def test_predictions_finite_for_any_finite_input(trained, x, cutoff):
     y, conf = trained.predict_conf(np.array(x), cutoff=cutoff)
     assert np.all(np.isfinite(y)) and np.all(np.isfinite(conf))
@@ -216,12 +223,12 @@ def test_one_point_predictions_equal_the_batched_rows(trained):
         np.testing.assert_array_equal(y, batch[i])
         np.testing.assert_array_equal(conf, batch_conf[i])
         assert y.shape == (1,) and conf.shape == (1,)
-    assert trained.predict(G[0]) is not trained.predict(G[0])           # a fresh array each call
+    assert trained.predict(G[0]) is not trained.predict(G[0])  # a fresh array each call
 
 
 def test_copy_is_independent_and_learns_the_same(trained):
     twin = trained.copy()
-    X, Y = cross_data(11, 300)              # enough new RFs to grow the copy's storage
+    X, Y = cross_data(11, 300)  # enough new RFs to grow the copy's storage
     G = np.random.default_rng(6).uniform(-1.0, 1.0, (100, 2))
     before = trained.predict(G)
     again = trained.copy()
@@ -306,10 +313,21 @@ def test_predicting_with_an_untrained_model_is_an_error():
 
 @pytest.mark.parametrize(
     ("name", "value"),
-    [("w_gen", 1.5), ("w_gen", float("nan")), ("init_lambda", 0.0), ("meta_rate", -1.0), ("penalty", "x"),
-     ("diag_only", 1), ("kernel", "Epanechnikov"), ("init_D", -np.eye(2)), ("init_D", np.ones((3, 3))),
-     ("init_D", np.array([[1.0, 2.0], [0.0, 1.0]])), ("init_alpha", 0.0), ("norm_in", [1.0, 0.0]),
-     ("norm_out", [1.0, 1.0])],
+    [
+        ("w_gen", 1.5),
+        ("w_gen", float("nan")),
+        ("init_lambda", 0.0),
+        ("meta_rate", -1.0),
+        ("penalty", "x"),
+        ("diag_only", 1),
+        ("kernel", "Epanechnikov"),
+        ("init_D", -np.eye(2)),
+        ("init_D", np.ones((3, 3))),
+        ("init_D", np.array([[1.0, 2.0], [0.0, 1.0]])),
+        ("init_alpha", 0.0),
+        ("norm_in", [1.0, 0.0]),
+        ("norm_out", [1.0, 1.0]),
+    ],
 )
 def test_bad_parameters_are_rejected(name, value):
     model = LWPR(2, 1)

@@ -3,6 +3,7 @@
 Every file here is written by the real MCAP writers (ours, or mcap_ros2's with our schemas) and read by
 the real reader.
 """
+
 import math
 
 import numpy as np
@@ -70,30 +71,49 @@ def robot_logs(draw):
     command_joint_times = times() if names else np.zeros(0)
     frames = []
     frame_stamps = sorted(draw(st.sets(st.integers(0, 20 * SECOND), max_size=4)))
-    latency = draw(st.integers(0, SECOND // 5))     # one camera: frames arrive in the order they were taken
+    latency = draw(st.integers(0, SECOND // 5))  # one camera: frames arrive in the order they were taken
     for frame_stamp in frame_stamps:
         n = draw(st.integers(0, 6))
         kinds = draw(st.lists(st.sampled_from(list(LandmarkType)), min_size=n, max_size=n))
-        observations = Observations.from_arrays(kinds, rows(1, n, 0.1, 12.0)[0], rows(1, n, -3.1, 3.1)[0],
-                                                line_points=rows(draw(st.integers(0, 3)), 2, -9.0, 9.0))
+        observations = Observations.from_arrays(
+            kinds,
+            rows(1, n, 0.1, 12.0)[0],
+            rows(1, n, -3.1, 3.1)[0],
+            line_points=rows(draw(st.integers(0, 3)), 2, -9.0, 9.0),
+        )
         frames.append(VisionFrame(frame_stamp / 1e9, (frame_stamp + latency) / 1e9, observations))
     frames.sort(key=lambda frame: frame.received)
     return RobotLog(
         origin_ns=draw(st.integers(ORIGIN_NS, ORIGIN_NS + 1000 * SECOND)),
-        odometry_times=odometry_times, odometry=poses(len(odometry_times)),
-        command_times=command_times, commands=rows(len(command_times), 3),
-        imu_times=imu_times, gyro=rows(len(imu_times), 3), acceleration=rows(len(imu_times), 3),
+        odometry_times=odometry_times,
+        odometry=poses(len(odometry_times)),
+        command_times=command_times,
+        commands=rows(len(command_times), 3),
+        imu_times=imu_times,
+        gyro=rows(len(imu_times), 3),
+        acceleration=rows(len(imu_times), 3),
         joint_names=names,
-        joint_reading_times=reading_times, joint_readings=rows(len(reading_times), len(names)),
-        joint_command_times=command_joint_times, joint_commands=rows(len(command_joint_times), len(names)),
-        truth_times=truth_times, truth=poses(len(truth_times)), vision=tuple(frames))
+        joint_reading_times=reading_times,
+        joint_readings=rows(len(reading_times), len(names)),
+        joint_command_times=command_joint_times,
+        joint_commands=rows(len(command_joint_times), len(names)),
+        truth_times=truth_times,
+        truth=poses(len(truth_times)),
+        vision=tuple(frames),
+    )
 
 
 def assert_same_log(back: RobotLog, log: RobotLog) -> None:
     """Values to float64 rounding (vision landmarks to 1e-9), times to the nanosecond they are written at."""
     assert back.origin_ns == log.origin_ns
-    for times in ("odometry_times", "command_times", "imu_times", "truth_times", "joint_reading_times",
-                  "joint_command_times"):
+    for times in (
+        "odometry_times",
+        "command_times",
+        "imu_times",
+        "truth_times",
+        "joint_reading_times",
+        "joint_command_times",
+    ):
         np.testing.assert_allclose(getattr(back, times), getattr(log, times), rtol=0, atol=1e-9, err_msg=times)
     np.testing.assert_allclose(back.commands, log.commands, rtol=0, atol=0)
     np.testing.assert_allclose(back.gyro, log.gyro, rtol=0, atol=0)
@@ -101,7 +121,7 @@ def assert_same_log(back: RobotLog, log: RobotLog) -> None:
     for name in ("odometry", "truth"):
         np.testing.assert_allclose(getattr(back, name)[:, :2], getattr(log, name)[:, :2], rtol=0, atol=1e-12)
         assert np.abs(angle_difference(getattr(back, name)[:, 2], getattr(log, name)[:, 2])).max(initial=0) < 1e-12
-    if log.joint_reading_times.shape[0]:       # names travel with the readings
+    if log.joint_reading_times.shape[0]:  # names travel with the readings
         assert back.joint_names == log.joint_names
         for name in ("joint_readings", "joint_commands"):
             np.testing.assert_array_equal(getattr(back, name), getattr(log, name), err_msg=name)
@@ -126,16 +146,30 @@ def test_write_then_read_gives_the_same_log(tmp_path_factory, log):
 def full_log() -> RobotLog:
     t = np.arange(5) * 0.1
     rng = np.random.default_rng(7)
-    observations = Observations.from_arrays(list(LandmarkType), [1.0, 2.0, 3.0, 4.0, 5.0, 6.0],
-                                            [0.1, -0.2, 0.3, 3.0, -3.0, 0.5], line_points=[[1.0, 2.0], [3.0, 4.0]])
-    return RobotLog(origin_ns=ORIGIN_NS, odometry_times=t, odometry=rng.uniform(-1, 1, (5, 3)),
-                    command_times=t, commands=rng.uniform(-1, 1, (5, 3)), imu_times=t,
-                    gyro=rng.uniform(-1, 1, (5, 3)), acceleration=rng.uniform(-1, 1, (5, 3)),
-                    joint_names=("head_pan", "l_knee"),
-                    joint_command_times=t, joint_commands=rng.uniform(-1, 1, (5, 2)),
-                    joint_reading_times=t, joint_readings=rng.uniform(-1, 1, (5, 2)),
-                    truth_times=t, truth=rng.uniform(-1, 1, (5, 3)),
-                    vision=(VisionFrame(0.15, 0.2, observations),))
+    observations = Observations.from_arrays(
+        list(LandmarkType),
+        [1.0, 2.0, 3.0, 4.0, 5.0, 6.0],
+        [0.1, -0.2, 0.3, 3.0, -3.0, 0.5],
+        line_points=[[1.0, 2.0], [3.0, 4.0]],
+    )
+    return RobotLog(
+        origin_ns=ORIGIN_NS,
+        odometry_times=t,
+        odometry=rng.uniform(-1, 1, (5, 3)),
+        command_times=t,
+        commands=rng.uniform(-1, 1, (5, 3)),
+        imu_times=t,
+        gyro=rng.uniform(-1, 1, (5, 3)),
+        acceleration=rng.uniform(-1, 1, (5, 3)),
+        joint_names=("head_pan", "l_knee"),
+        joint_command_times=t,
+        joint_commands=rng.uniform(-1, 1, (5, 2)),
+        joint_reading_times=t,
+        joint_readings=rng.uniform(-1, 1, (5, 2)),
+        truth_times=t,
+        truth=rng.uniform(-1, 1, (5, 3)),
+        vision=(VisionFrame(0.15, 0.2, observations),),
+    )
 
 
 def test_round_trip_of_every_stream_on_other_topics(tmp_path):
@@ -154,11 +188,16 @@ def test_list_topics_from_the_summary_and_from_a_truncated_file(tmp_path):
     rows = {row["topic"]: row for row in list_topics(tmp_path / "log.mcap")}
     topics = Topics()
     assert set(rows) == {getattr(topics, stream) for stream in Topics.STREAMS}
-    assert rows["/motion_odometry"] == {"topic": "/motion_odometry", "type": schemas.ODOMETRY, "count": 5,
-                                        "first_s": 0.0, "last_s": pytest.approx(0.4)}
-    assert rows["/goal_posts_relative"]["first_s"] == pytest.approx(0.2)       # log time: arrival
+    assert rows["/motion_odometry"] == {
+        "topic": "/motion_odometry",
+        "type": schemas.ODOMETRY,
+        "count": 5,
+        "first_s": 0.0,
+        "last_s": pytest.approx(0.4),
+    }
+    assert rows["/goal_posts_relative"]["first_s"] == pytest.approx(0.2)  # log time: arrival
     data = (tmp_path / "log.mcap").read_bytes()
-    (tmp_path / "cut.mcap").write_bytes(data[:-40])                              # no footer, no summary
+    (tmp_path / "cut.mcap").write_bytes(data[:-40])  # no footer, no summary
     assert list_topics(tmp_path / "cut.mcap") == list(rows.values())
 
 
@@ -170,25 +209,41 @@ def point(x, y):
 def test_vision_kinds_segments_and_frames(tmp_path):
     header = stamp(ORIGIN_NS + SECOND, "base_footprint")
     goalposts = {"header": header, "posts": [{"bb": {"center": {"position": point(3.0, 4.0)}}}]}
-    markings = {"header": header,
-                "intersections": [{"center": point(1.0, 0.0), "num_rays": rays} for rays in (2, 3, 4, 5)],
-                "ellipses": [{"diameter": 0.12, "center": {"position": point(0.0, 2.0)}},
-                             {"diameter": 1.5, "center": {"position": point(-1.0, 0.0)}}],
-                "segments": [{"start": point(0.0, 0.0), "end": point(0.45, 0.0)},
-                             {"start": point(2.0, 2.0), "end": point(2.0, 2.0)}]}
+    markings = {
+        "header": header,
+        "intersections": [{"center": point(1.0, 0.0), "num_rays": rays} for rays in (2, 3, 4, 5)],
+        "ellipses": [
+            {"diameter": 0.12, "center": {"position": point(0.0, 2.0)}},
+            {"diameter": 1.5, "center": {"position": point(-1.0, 0.0)}},
+        ],
+        "segments": [
+            {"start": point(0.0, 0.0), "end": point(0.45, 0.0)},
+            {"start": point(2.0, 2.0), "end": point(2.0, 2.0)},
+        ],
+    }
     later = {"header": stamp(ORIGIN_NS + 2 * SECOND, "base_footprint"), "posts": []}
-    write_raw(tmp_path / "v.mcap", [
-        ("/goal_posts_relative", schemas.GOALPOST_ARRAY, goalposts, ORIGIN_NS + SECOND + 30_000_000),
-        ("/markings_relative", schemas.MARKING_ARRAY, markings, ORIGIN_NS + SECOND + 50_000_000),
-        ("/goal_posts_relative", schemas.GOALPOST_ARRAY, later, ORIGIN_NS + 2 * SECOND + 10_000_000)])
+    write_raw(
+        tmp_path / "v.mcap",
+        [
+            ("/goal_posts_relative", schemas.GOALPOST_ARRAY, goalposts, ORIGIN_NS + SECOND + 30_000_000),
+            ("/markings_relative", schemas.MARKING_ARRAY, markings, ORIGIN_NS + SECOND + 50_000_000),
+            ("/goal_posts_relative", schemas.GOALPOST_ARRAY, later, ORIGIN_NS + 2 * SECOND + 10_000_000),
+        ],
+    )
     log, report = read_mcap(tmp_path / "v.mcap")
     assert report.dropped == {("/markings_relative", "intersection with 5 rays"): 1}
     assert len(log.vision) == 2
     frame = log.vision[0]
-    assert frame.stamp == pytest.approx(-0.03) and frame.received == pytest.approx(0.02)   # origin: first log time
+    assert frame.stamp == pytest.approx(-0.03) and frame.received == pytest.approx(0.02)  # origin: first log time
     obs = frame.observations
-    assert obs.kinds.tolist() == [LandmarkType.GOALPOST, LandmarkType.L_CROSSING, LandmarkType.T_CROSSING,
-                                  LandmarkType.X_CROSSING, LandmarkType.PENALTY_MARK, LandmarkType.CENTER_MARK]
+    assert obs.kinds.tolist() == [
+        LandmarkType.GOALPOST,
+        LandmarkType.L_CROSSING,
+        LandmarkType.T_CROSSING,
+        LandmarkType.X_CROSSING,
+        LandmarkType.PENALTY_MARK,
+        LandmarkType.CENTER_MARK,
+    ]
     np.testing.assert_allclose(obs.ranges, [5.0, 1.0, 1.0, 1.0, 2.0, 1.0])
     np.testing.assert_allclose(obs.bearings, [math.atan2(4, 3), 0, 0, 0, math.pi / 2, math.pi])
     np.testing.assert_allclose(obs.line_points, [[0.0, 0.0], [0.15, 0.0], [0.3, 0.0], [0.45, 0.0], [2.0, 2.0]])
@@ -197,17 +252,23 @@ def test_vision_kinds_segments_and_frames(tmp_path):
 
 # -- broken files ---------------------------------------------------------------------------------------------
 def long_log(n=120) -> RobotLog:
-    t = np.arange(n) * 10_000_000 / 1e9          # on the nanosecond grid, so times read back exactly
+    t = np.arange(n) * 10_000_000 / 1e9  # on the nanosecond grid, so times read back exactly
     rng = np.random.default_rng(3)
-    return RobotLog(origin_ns=ORIGIN_NS, odometry_times=t, odometry=rng.uniform(-1, 1, (n, 3)),
-                    imu_times=t, gyro=rng.uniform(-1, 1, (n, 3)), acceleration=rng.uniform(-1, 1, (n, 3)))
+    return RobotLog(
+        origin_ns=ORIGIN_NS,
+        odometry_times=t,
+        odometry=rng.uniform(-1, 1, (n, 3)),
+        imu_times=t,
+        gyro=rng.uniform(-1, 1, (n, 3)),
+        acceleration=rng.uniform(-1, 1, (n, 3)),
+    )
 
 
 def test_a_truncated_file_gives_the_messages_before_the_break(tmp_path):
     log = long_log()
     write_mcap(log, tmp_path / "log.mcap", chunk_size=1500)
     data = (tmp_path / "log.mcap").read_bytes()
-    header_end = 8 + 9 + int.from_bytes(data[9:17], "little")         # magic, then the Header record
+    header_end = 8 + 9 + int.from_bytes(data[9:17], "little")  # magic, then the Header record
     read_counts = []
     for cut in np.linspace(header_end, len(data) - 1, 25).astype(int):
         (tmp_path / "cut.mcap").write_bytes(data[:cut])
@@ -216,14 +277,14 @@ def test_a_truncated_file_gives_the_messages_before_the_break(tmp_path):
         k = len(back.odometry_times)
         np.testing.assert_array_equal(back.odometry_times, log.odometry_times[:k])
         np.testing.assert_allclose(back.odometry[:, :2], log.odometry[:k, :2], rtol=0, atol=1e-15)
-        np.testing.assert_array_equal(back.gyro, log.gyro[:len(back.imu_times)])
+        np.testing.assert_array_equal(back.gyro, log.gyro[: len(back.imu_times)])
         if k:
             assert report.stopped_at == pytest.approx(max(back.odometry_times[-1], back.imu_times[-1]))
         read_counts.append(k)
     assert read_counts == sorted(read_counts) and read_counts[0] == 0 and read_counts[-1] == len(log.odometry_times)
     assert any(0 < k < len(log.odometry_times) for k in read_counts)
-    with pytest.raises(LogError, match="not an MCAP file"):                   # cut inside the header
-        (tmp_path / "cut.mcap").write_bytes(data[:header_end - 3])
+    with pytest.raises(LogError, match="not an MCAP file"):  # cut inside the header
+        (tmp_path / "cut.mcap").write_bytes(data[: header_end - 3])
         read_mcap(tmp_path / "cut.mcap")
 
 
@@ -253,7 +314,7 @@ def test_a_missing_topic_is_an_error_only_when_named(tmp_path):
     assert len(log.odometry_times) == 1 and "/cmd_vel" in report.missing and "not in the log" in report.summary()
     with pytest.raises(LogError, match=r"/motion_odom.*has: /odom"):
         read_mcap(tmp_path / "o.mcap", Topics().override(odometry="/motion_odom", imu=None))
-    assert Topics(odometry="odom").odometry == "/odom"                 # ROS resolves it in the root namespace
+    assert Topics(odometry="odom").odometry == "/odom"  # ROS resolves it in the root namespace
     assert Topics(odometry="odom", truth="", imu=Topics.imu).required == {"odometry"}
     with pytest.raises(ValueError, match="teleport"):
         Topics().override(teleport="/x")
@@ -261,23 +322,43 @@ def test_a_missing_topic_is_an_error_only_when_named(tmp_path):
         Topics(commands="/motion_odometry")
 
 
-RENAMED = Topics(odometry="/odom", commands="/walk/cmd_vel", imu="/imu/raw", goalposts="/vision/posts",
-                 markings="/vision/markings", truth="/sim/truth", joint_commands="")
+RENAMED = Topics(
+    odometry="/odom",
+    commands="/walk/cmd_vel",
+    imu="/imu/raw",
+    goalposts="/vision/posts",
+    markings="/vision/markings",
+    truth="/sim/truth",
+    joint_commands="",
+)
 
 
 def test_a_default_topic_the_log_lacks_is_found_by_its_type(tmp_path):
     log = full_log()
     write_mcap(log, tmp_path / "renamed.mcap", RENAMED)
     back, report = read_mcap(tmp_path / "renamed.mcap")
-    for name in ("odometry_times", "odometry", "command_times", "commands", "imu_times", "gyro", "acceleration",
-                 "joint_reading_times", "joint_readings"):
+    for name in (
+        "odometry_times",
+        "odometry",
+        "command_times",
+        "commands",
+        "imu_times",
+        "gyro",
+        "acceleration",
+        "joint_reading_times",
+        "joint_readings",
+    ):
         np.testing.assert_allclose(getattr(back, name), getattr(log, name), rtol=0, atol=1e-9, err_msg=name)
     assert len(back.vision) == 1
-    np.testing.assert_allclose(canonical(back.vision[0].observations), canonical(log.vision[0].observations),
-                               atol=1e-9)
-    assert report.topics == {"odometry": ("/odom", "type"), "commands": ("/walk/cmd_vel", "type"),
-                             "joint_states": ("/joint_states", "default name"), "imu": ("/imu/raw", "type"),
-                             "goalposts": ("/vision/posts", "type"), "markings": ("/vision/markings", "type")}
+    np.testing.assert_allclose(canonical(back.vision[0].observations), canonical(log.vision[0].observations), atol=1e-9)
+    assert report.topics == {
+        "odometry": ("/odom", "type"),
+        "commands": ("/walk/cmd_vel", "type"),
+        "joint_states": ("/joint_states", "default name"),
+        "imu": ("/imu/raw", "type"),
+        "goalposts": ("/vision/posts", "type"),
+        "markings": ("/vision/markings", "type"),
+    }
     # Ground truth is never guessed from a pose topic, and a JointState topic is not taken for the commands.
     assert not back.has_truth and back.joint_command_times.shape == (0,)
     assert report.missing == ["/joint_commands", "/ground_truth"]
@@ -290,18 +371,30 @@ def test_a_default_topic_the_log_lacks_is_found_by_its_type(tmp_path):
 
 
 def test_several_topics_of_a_missing_streams_type_are_an_error_naming_them(tmp_path):
-    write_raw(tmp_path / "two.mcap", [("/odom", schemas.ODOMETRY, odometry(ORIGIN_NS, 1.0), ORIGIN_NS),
-                                      ("/odometry/filtered", schemas.ODOMETRY, odometry(ORIGIN_NS, 2.0), ORIGIN_NS)])
-    with pytest.raises(LogError, match=r"/motion_odometry \(odometry\) is not in the log.*2 topics carry "
-                                       r"nav_msgs/Odometry: /odom, /odometry/filtered; choose one with "
-                                       r"--topic-odometry"):
+    write_raw(
+        tmp_path / "two.mcap",
+        [
+            ("/odom", schemas.ODOMETRY, odometry(ORIGIN_NS, 1.0), ORIGIN_NS),
+            ("/odometry/filtered", schemas.ODOMETRY, odometry(ORIGIN_NS, 2.0), ORIGIN_NS),
+        ],
+    )
+    with pytest.raises(
+        LogError,
+        match=r"/motion_odometry \(odometry\) is not in the log.*2 topics carry "
+        r"nav_msgs/Odometry: /odom, /odometry/filtered; choose one with "
+        r"--topic-odometry",
+    ):
         read_mcap(tmp_path / "two.mcap")
     log, report = read_mcap(tmp_path / "two.mcap", Topics(odometry="/odometry/filtered"))
     assert log.odometry[:, 0].tolist() == [2.0] and report.topics["odometry"] == ("/odometry/filtered", "name")
     # The default topic, when there, is read whatever else the log holds.
-    write_raw(tmp_path / "default.mcap", [
-        ("/odom", schemas.ODOMETRY, odometry(ORIGIN_NS, 1.0), ORIGIN_NS),
-        ("/motion_odometry", schemas.ODOMETRY, odometry(ORIGIN_NS, 3.0), ORIGIN_NS)])
+    write_raw(
+        tmp_path / "default.mcap",
+        [
+            ("/odom", schemas.ODOMETRY, odometry(ORIGIN_NS, 1.0), ORIGIN_NS),
+            ("/motion_odometry", schemas.ODOMETRY, odometry(ORIGIN_NS, 3.0), ORIGIN_NS),
+        ],
+    )
     log, report = read_mcap(tmp_path / "default.mcap")
     assert log.odometry[:, 0].tolist() == [3.0] and report.topics["odometry"] == ("/motion_odometry", "default name")
     # Joint readings and commands share a type: two JointState topics and no /joint_states cannot be told apart.
@@ -322,21 +415,44 @@ def test_a_topic_of_the_wrong_type_is_an_error_naming_both(tmp_path):
 # -- what is dropped ------------------------------------------------------------------------------------------
 def test_backwards_duplicate_repeated_and_non_finite_messages_are_dropped_and_counted(tmp_path):
     topic, ms = "/motion_odometry", 1_000_000
-    sequence = [(0, 0.0), (100, 1.0), (100, 1.0), (50, 0.5), (200, 2.0), (200, 2.5), (300, float("nan")),
-                (400, 4.0), (100, 1.0)]
-    write_raw(tmp_path / "d.mcap", [(topic, schemas.ODOMETRY, odometry(ORIGIN_NS + t * ms, x), ORIGIN_NS + i * ms)
-                                    for i, (t, x) in enumerate(sequence)])
+    sequence = [
+        (0, 0.0),
+        (100, 1.0),
+        (100, 1.0),
+        (50, 0.5),
+        (200, 2.0),
+        (200, 2.5),
+        (300, float("nan")),
+        (400, 4.0),
+        (100, 1.0),
+    ]
+    write_raw(
+        tmp_path / "d.mcap",
+        [
+            (topic, schemas.ODOMETRY, odometry(ORIGIN_NS + t * ms, x), ORIGIN_NS + i * ms)
+            for i, (t, x) in enumerate(sequence)
+        ],
+    )
     log, report = read_mcap(tmp_path / "d.mcap")
-    assert report.dropped == {(topic, "duplicate"): 2, (topic, "time went backwards"): 1,
-                              (topic, "same stamp as the previous message"): 1, (topic, "non-finite value"): 1}
+    assert report.dropped == {
+        (topic, "duplicate"): 2,
+        (topic, "time went backwards"): 1,
+        (topic, "same stamp as the previous message"): 1,
+        (topic, "non-finite value"): 1,
+    }
     np.testing.assert_allclose(log.odometry_times, [0.0, 0.1, 0.2, 0.4])
     np.testing.assert_allclose(log.odometry[:, 0], [0.0, 1.0, 2.0, 4.0])
     assert report.messages[topic] == len(sequence)
 
 
 def test_a_gap_is_reported(tmp_path):
-    write_raw(tmp_path / "g.mcap", [("/motion_odometry", schemas.ODOMETRY, odometry(ORIGIN_NS + ns, 0.0),
-                                     ORIGIN_NS + ns) for ns in (0, SECOND // 10, 25 * SECOND // 10, 26 * SECOND // 10)])
+    write_raw(
+        tmp_path / "g.mcap",
+        [
+            ("/motion_odometry", schemas.ODOMETRY, odometry(ORIGIN_NS + ns, 0.0), ORIGIN_NS + ns)
+            for ns in (0, SECOND // 10, 25 * SECOND // 10, 26 * SECOND // 10)
+        ],
+    )
     _, report = read_mcap(tmp_path / "g.mcap", gap=1.0)
     assert report.gaps == [("/motion_odometry", pytest.approx(0.1), pytest.approx(2.4))]
     assert read_mcap(tmp_path / "g.mcap", gap=3.0)[1].gaps == []
@@ -347,12 +463,22 @@ def test_a_gap_is_reported(tmp_path):
 def test_joint_commands_are_mapped_by_name_and_held(tmp_path):
     def joints(ns, names, positions):
         return {"header": stamp(ns, ""), "name": names, "position": positions}
-    write_raw(tmp_path / "j.mcap", [
-        ("/joint_states", schemas.JOINT_STATE, joints(ORIGIN_NS, ["a", "b", "c"], [0.1, 0.2, 0.3]), ORIGIN_NS),
-        ("/joint_commands", schemas.JOINT_STATE, joints(ORIGIN_NS + 1, ["c", "a"], [3.0, 1.0]), ORIGIN_NS + 1),
-        ("/joint_commands", schemas.JOINT_STATE, joints(ORIGIN_NS + 2, ["b", "zz"], [2.0, 9.0]), ORIGIN_NS + 2),
-        ("/joint_states", schemas.JOINT_STATE, joints(ORIGIN_NS + 3, ["c", "b", "a"], [3.3, 2.2, 1.1]), ORIGIN_NS + 3),
-        ("/joint_states", schemas.JOINT_STATE, joints(ORIGIN_NS + 4, ["a", "b"], [0.0, 0.0]), ORIGIN_NS + 4)])
+
+    write_raw(
+        tmp_path / "j.mcap",
+        [
+            ("/joint_states", schemas.JOINT_STATE, joints(ORIGIN_NS, ["a", "b", "c"], [0.1, 0.2, 0.3]), ORIGIN_NS),
+            ("/joint_commands", schemas.JOINT_STATE, joints(ORIGIN_NS + 1, ["c", "a"], [3.0, 1.0]), ORIGIN_NS + 1),
+            ("/joint_commands", schemas.JOINT_STATE, joints(ORIGIN_NS + 2, ["b", "zz"], [2.0, 9.0]), ORIGIN_NS + 2),
+            (
+                "/joint_states",
+                schemas.JOINT_STATE,
+                joints(ORIGIN_NS + 3, ["c", "b", "a"], [3.3, 2.2, 1.1]),
+                ORIGIN_NS + 3,
+            ),
+            ("/joint_states", schemas.JOINT_STATE, joints(ORIGIN_NS + 4, ["a", "b"], [0.0, 0.0]), ORIGIN_NS + 4),
+        ],
+    )
     log, report = read_mcap(tmp_path / "j.mcap")
     assert log.joint_names == ("a", "b", "c")
     np.testing.assert_array_equal(log.joint_commands, [[1.0, 0.2, 3.0], [1.0, 2.0, 3.0]])

@@ -17,13 +17,15 @@ from numerics.trig import atan2_poly, sincos, wrap
 
 finite = st.floats(-5, 5, allow_nan=False)
 speeds = st.tuples(st.floats(-0.4, 0.4), st.floats(-0.2, 0.2), st.floats(-1.5, 1.5))
-models = st.sampled_from([VelocityLinear(), VelocityLinear(gaussian=True), ConstantNoise(),
-                          ConstantNoise(gaussian=True)])
+models = st.sampled_from(
+    [VelocityLinear(), VelocityLinear(gaussian=True), ConstantNoise(), ConstantNoise(gaussian=True)]
+)
 
 
 def poses_strategy(n=8):
     return st.lists(st.tuples(finite, finite, st.floats(-math.pi, math.pi)), min_size=1, max_size=n).map(
-        lambda rows: np.ascontiguousarray(np.array(rows, dtype=np.float64)))
+        lambda rows: np.ascontiguousarray(np.array(rows, dtype=np.float64))
+    )
 
 
 # -- MotionInput ----------------------------------------------------------------------------------------------
@@ -33,8 +35,15 @@ def test_motion_input_rejects_bad_dt(dt):
         MotionInput(dt=dt, command=(0.1, 0.0, 0.0))
 
 
-@pytest.mark.parametrize("field,value", [("command", (0.1, float("nan"), 0.0)), ("command", (1.0, 2.0)),
-                                         ("odometry", (0.0, 0.0, float("inf"))), ("odometry", "abc")])
+@pytest.mark.parametrize(
+    "field,value",
+    [
+        ("command", (0.1, float("nan"), 0.0)),
+        ("command", (1.0, 2.0)),
+        ("odometry", (0.0, 0.0, float("inf"))),
+        ("odometry", "abc"),
+    ],
+)
 def test_motion_input_rejects_bad_vectors(field, value):
     with pytest.raises(ValueError, match=field):
         MotionInput(dt=0.01, **{field: value})
@@ -79,8 +88,15 @@ def test_kernel_matches_numpy_reference(poses, command, gaussian, seed):
     np.testing.assert_allclose(a, b, rtol=0, atol=1e-12)
 
 
-@given(poses_strategy(), speeds, models, st.integers(0, 2**32 - 1),
-       st.floats(-math.pi, math.pi), st.floats(-3, 3), st.floats(-3, 3))
+@given(
+    poses_strategy(),
+    speeds,
+    models,
+    st.integers(0, 2**32 - 1),
+    st.floats(-math.pi, math.pi),
+    st.floats(-3, 3),
+    st.floats(-3, 3),
+)
 def test_commutes_with_rotating_and_translating_the_world(poses, command, model, seed, angle, tx, ty):
     """Moving then transforming the world equals transforming then moving (same draws)."""
     u = MotionInput(dt=0.02, command=command)
@@ -99,8 +115,7 @@ def test_commutes_with_rotating_and_translating_the_world(poses, command, model,
     transformed_then_moved = transform(poses)
     model.predict(transformed_then_moved, u, np.random.default_rng(seed))
     np.testing.assert_allclose(moved_then_transformed[:, :2], transformed_then_moved[:, :2], atol=1e-9)
-    np.testing.assert_allclose(wrap_angles(moved_then_transformed[:, 2] - transformed_then_moved[:, 2]), 0,
-                               atol=1e-9)
+    np.testing.assert_allclose(wrap_angles(moved_then_transformed[:, 2] - transformed_then_moved[:, 2]), 0, atol=1e-9)
 
 
 @given(poses_strategy(), speeds, models, st.integers(0, 2**32 - 1))
@@ -172,8 +187,9 @@ def test_predict_rejects_bad_pose_arrays():
 
 
 # -- drawing in the kernels ---------------------------------------------------------------------------------------
-@pytest.mark.parametrize("bit_generator", [np.random.PCG64, np.random.PCG64DXSM, np.random.MT19937,
-                                           np.random.Philox, np.random.SFC64])
+@pytest.mark.parametrize(
+    "bit_generator", [np.random.PCG64, np.random.PCG64DXSM, np.random.MT19937, np.random.Philox, np.random.SFC64]
+)
 @given(st.integers(0, 2**32 - 1), st.lists(st.integers(0, 40), min_size=1, max_size=6), st.integers(0, 3))
 def test_kernel_draws_are_the_generators_own(bit_generator, seed, counts, jump):
     """draw_uniforms, next_double and parallel_uniforms give what rng.random gives and leave the generator where
@@ -205,12 +221,14 @@ def same_state(a, b):
 
 # highs around the edge cases of Lemire's method: one value (no draw), two, small counts of detections, and
 # counts near 2³¹ where about a quarter of the 32-bit draws are rejected
-integer_highs = st.one_of(st.integers(1, 40), st.sampled_from([2**31 - 1, 2**31, 3 * 2**29 + 1]),
-                          st.integers(2**20, 2**31))
+integer_highs = st.one_of(
+    st.integers(1, 40), st.sampled_from([2**31 - 1, 2**31, 3 * 2**29 + 1]), st.integers(2**20, 2**31)
+)
 
 
-@pytest.mark.parametrize("bit_generator", [np.random.PCG64, np.random.PCG64DXSM, np.random.MT19937,
-                                           np.random.Philox, np.random.SFC64])
+@pytest.mark.parametrize(
+    "bit_generator", [np.random.PCG64, np.random.PCG64DXSM, np.random.MT19937, np.random.Philox, np.random.SFC64]
+)
 @given(st.integers(0, 2**32 - 1), st.lists(st.tuples(integer_highs, st.integers(0, 30)), min_size=1, max_size=5))
 def test_kernel_integers_are_the_generators_own(bit_generator, seed, draws):
     """bounded_integers gives what rng.integers(0, high, size) gives, interleaved with uniforms, and leaves the
@@ -230,8 +248,13 @@ def test_kernel_integers_are_the_generators_own(bit_generator, seed, draws):
 
 
 @pytest.mark.parametrize("bit_generator", [np.random.PCG64, np.random.MT19937])
-@given(st.integers(0, 2**32 - 1), st.integers(1, 9), st.integers(0, 8), st.integers(0, 9),
-       st.lists(st.integers(0, 300), min_size=1, max_size=4))
+@given(
+    st.integers(0, 2**32 - 1),
+    st.integers(1, 9),
+    st.integers(0, 8),
+    st.integers(0, 9),
+    st.lists(st.integers(0, 300), min_size=1, max_size=4),
+)
 def test_deferred_columns_are_the_generators_own(bit_generator, seed, width, defer_from, defer_to, counts):
     """draw_rows_deferring gives rng.random((count, width)) in the columns it computes, deferred_uniform the
     deferred ones, and the generator ends where rng.random leaves it; with a shape it cannot defer (or another
@@ -248,7 +271,7 @@ def test_deferred_columns_are_the_generators_own(bit_generator, seed, width, def
     plain = np.random.Generator(bit_generator(seed))
     drawn = np.random.Generator(bit_generator(seed))
     function, state = bit_generator_handle(drawn)
-    can_defer = (function == PCG64_INLINE and width <= PCG64_LANES and defer_from < defer_to < width)
+    can_defer = function == PCG64_INLINE and width <= PCG64_LANES and defer_from < defer_to < width
     for count in counts:
         out = np.full((count, width), -1.0)
         bases = np.empty((count, 2), dtype=np.uint64)
@@ -257,7 +280,7 @@ def test_deferred_columns_are_the_generators_own(bit_generator, seed, width, def
         expected = plain.random((count, width))
         assert deferred == can_defer
         if deferred:
-            assert np.all(out[:, defer_from:defer_to] == -1.0)      # not computed
+            assert np.all(out[:, defer_from:defer_to] == -1.0)  # not computed
             for p in range(count):
                 for j in range(defer_from, defer_to):
                     out[p, j] = deferred_uniform(bases, increments, p, j)
@@ -312,7 +335,7 @@ def test_fast_motion_matches_to_rounding(poses, command, gaussian, seed):
     variates = draw_variates(np.random.default_rng(seed), poses.shape[0], True) if gaussian else np.empty((0, 3))
     a, b = poses.copy(), poses.copy()
     args = (tuple(u.displacement()), tuple(model.noise_bounds(u)), gaussian, variates)
-    generators = np.random.default_rng(seed), np.random.default_rng(seed)     # (a handle does not keep them)
+    generators = np.random.default_rng(seed), np.random.default_rng(seed)  # (a handle does not keep them)
     move_range(a, a, 0, a.shape[0], *args, bit_generator_handle(generators[0]), NO_WORK)
     move_range_fast(b, b, 0, b.shape[0], *args, bit_generator_handle(generators[1]), NO_WORK)
     np.testing.assert_allclose(b[:, :2], a[:, :2], rtol=0, atol=1e-12)
@@ -327,8 +350,9 @@ def _sincos_all(values, out):
 
 
 def test_sincos_is_accurate():
-    values = np.concatenate([np.random.default_rng(0).uniform(-100, 100, 100000),
-                             np.arange(-8, 9) * math.pi / 4, [1e-300, -1e-300, 0.0]])
+    values = np.concatenate(
+        [np.random.default_rng(0).uniform(-100, 100, 100000), np.arange(-8, 9) * math.pi / 4, [1e-300, -1e-300, 0.0]]
+    )
     out = np.empty((values.shape[0], 2))
     _sincos_all(values, out)
     assert np.abs(out[:, 0] - np.cos(values)).max() < 2.5e-16 and np.abs(out[:, 1] - np.sin(values)).max() < 2.5e-16
@@ -374,7 +398,7 @@ def test_atan2_at_zeros_axes_and_nan_is_atan2():
     y, x = (a.ravel() for a in np.meshgrid(values, values))
     out, libm = _atan2_of(y, x), np.arctan2(y, x)
     assert (np.abs(out - libm) <= 2 * np.spacing(np.abs(libm))).all()
-    assert np.array_equal(np.signbit(out), np.signbit(libm))       # ±0 and ±π as atan2 gives them
+    assert np.array_equal(np.signbit(out), np.signbit(libm))  # ±0 and ±π as atan2 gives them
     assert np.isnan(_atan2_of([np.nan, 1.0, np.nan, 0.0], [1.0, np.nan, np.nan, np.nan])).all()
 
 
@@ -393,21 +417,31 @@ def _filter(model):
     from field import spl
     from mcl import ParticleFilter
     from sensing import LandmarkSensorModel
+
     field = spl()
     return ParticleFilter(field, model, LandmarkSensorModel(field), n_particles=64, seed=3)
 
 
-@pytest.mark.parametrize("kwargs", [dict(dt=1e300, command=(1e300, 0.0, 0.0)),
-                                    dict(dt=0.01, odometry=(0.0, 0.0, -1e300)),
-                                    dict(dt=1e12, command=(0.0, -3e11, -5e11)),
-                                    dict(dt=1e300, command=(0.0, 0.0, 1e300)),
-                                    dict(dt=0.01, odometry=(1e6, 0.0, 0.0))])
+@pytest.mark.parametrize(
+    "kwargs",
+    [
+        dict(dt=1e300, command=(1e300, 0.0, 0.0)),
+        dict(dt=0.01, odometry=(0.0, 0.0, -1e300)),
+        dict(dt=1e12, command=(0.0, -3e11, -5e11)),
+        dict(dt=1e300, command=(0.0, 0.0, 1e300)),
+        dict(dt=0.01, odometry=(1e6, 0.0, 0.0)),
+    ],
+)
 def test_a_step_beyond_the_bounds_is_refused_naming_the_input(kwargs):
     from motion_models.base import MAX_STEP_DISTANCE, MAX_STEP_DT
+
     with pytest.raises(ValueError, match=r"^(odometry|dt = .* with command|dt) = ") as error:
         MotionInput(**kwargs)
-    bound = f"{MAX_STEP_DT:g}" if str(error.value).startswith("dt = ") and "command" not in str(error.value) \
+    bound = (
+        f"{MAX_STEP_DT:g}"
+        if str(error.value).startswith("dt = ") and "command" not in str(error.value)
         else f"{MAX_STEP_DISTANCE:g} m"
+    )
     assert bound in str(error.value)
 
 
@@ -416,6 +450,7 @@ def test_the_inputs_that_crashed_the_process_are_refused_in_a_child_process():
     (SIGSEGV). Run in a child process, so that a crash fails this test instead of ending the run."""
     import subprocess
     import sys
+
     script = """
 from field import spl
 from mcl import ParticleFilter
@@ -441,8 +476,12 @@ print("refused", refused)
 
 
 @settings(max_examples=80, deadline=None)
-@given(dt=st.floats(0.0, 1e6), triple=st.tuples(*[st.floats(-1e9, 1e9)] * 3), odometry=st.booleans(),
-       constant=st.booleans())
+@given(
+    dt=st.floats(0.0, 1e6),
+    triple=st.tuples(*[st.floats(-1e9, 1e9)] * 3),
+    odometry=st.booleans(),
+    constant=st.booleans(),
+)
 def test_every_accepted_step_keeps_the_poses_finite_and_wrapped(dt, triple, odometry, constant):
     pf = _filter(ConstantNoise() if constant else VelocityLinear())
     pf.reset_around((-1.0, 0.5, 3.0), (0.1, 0.1, 0.1))

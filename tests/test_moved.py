@@ -1,4 +1,5 @@
 """Modules that moved keep their old names for a while: the same module objects, with a DeprecationWarning."""
+
 import importlib
 import subprocess
 import sys
@@ -6,12 +7,18 @@ import warnings
 
 import pytest
 
-MOVED = [("mcl.replay", "mcl.tools.replay"), ("mcl.logs", "mcl.tools.logs"),
-         ("mcl.logs.mcap_io", "mcl.tools.logs.mcap_io"), ("mcl.testing", "mcl.tools.testing"),
-         ("mcl.recording", "mcl.tools.recording"), ("mcl.tuning.space", "mcl.tools.tuning.space"),
-         ("sensing.collision", "proprioception.collision"), ("sensing.velocity", "proprioception.velocity"),
-         ("sensing.velocity_odometry", "proprioception.velocity_odometry"),
-         ("sensing.kinematics", "proprioception.kinematics")]
+MOVED = [
+    ("mcl.replay", "mcl.tools.replay"),
+    ("mcl.logs", "mcl.tools.logs"),
+    ("mcl.logs.mcap_io", "mcl.tools.logs.mcap_io"),
+    ("mcl.testing", "mcl.tools.testing"),
+    ("mcl.recording", "mcl.tools.recording"),
+    ("mcl.tuning.space", "mcl.tools.tuning.space"),
+    ("sensing.collision", "proprioception.collision"),
+    ("sensing.velocity", "proprioception.velocity"),
+    ("sensing.velocity_odometry", "proprioception.velocity_odometry"),
+    ("sensing.kinematics", "proprioception.kinematics"),
+]
 
 
 @pytest.mark.parametrize("old, new", MOVED)
@@ -31,6 +38,7 @@ def test_classes_are_the_same_whichever_name_imported_them():
         from sensing.collision import CollisionDetector as old_detector
     from mcl.tools.logs import LogError
     from proprioception.collision import CollisionDetector
+
     assert old_error is LogError and old_detector is CollisionDetector
 
 
@@ -42,6 +50,5 @@ def test_an_unknown_name_is_still_an_import_error():
 
 
 def test_python_dash_m_runs_the_moved_module_under_its_old_name():
-    done = subprocess.run([sys.executable, "-m", "mcl.cli", "--version"], capture_output=True, text=True,
-                          check=False)
+    done = subprocess.run([sys.executable, "-m", "mcl.cli", "--version"], capture_output=True, text=True, check=False)
     assert done.returncode == 0 and done.stdout.startswith("robocup-mcl"), done.stderr

@@ -1,6 +1,7 @@
 """The motion models' noise and the update rate (`noise_rate`): with "per_second" (the default) a walk spreads
 the same at any update rate, with "per_step" (Hoffmann eq. 10 as written) it spreads by sqrt(Δt); at the
 reference period (100 Hz) both are the same floats, bit for bit."""
+
 import math
 
 import numpy as np
@@ -14,8 +15,8 @@ from motion_models.base import NOISE_RATES, REFERENCE_DT, noise_rate_factor
 from proprioception.collision import NO_COLLISION
 
 PARTICLES = 3000
-DURATION = 10.0        # s
-RATES = (30.0, 100.0, 200.0)   # Hz
+DURATION = 10.0  # s
+RATES = (30.0, 100.0, 200.0)  # Hz
 
 
 def walk_spread(model, command, rate: float, seed: int) -> tuple[float, float]:
@@ -38,8 +39,14 @@ def spreads(make, command, seed, rates=RATES):
     return np.array([walk_spread(make(), command, rate, seed + k) for k, rate in enumerate(rates)])
 
 
-models = st.sampled_from([lambda **kw: VelocityLinear(**kw), lambda **kw: VelocityLinear(gaussian=True, **kw),
-                          lambda **kw: ConstantNoise(**kw), lambda **kw: AdaptiveMotion(**kw)])
+models = st.sampled_from(
+    [
+        lambda **kw: VelocityLinear(**kw),
+        lambda **kw: VelocityLinear(gaussian=True, **kw),
+        lambda **kw: ConstantNoise(**kw),
+        lambda **kw: AdaptiveMotion(**kw),
+    ]
+)
 
 
 @settings(max_examples=3, deadline=None)
@@ -57,13 +64,19 @@ def test_a_walk_spreads_the_same_at_30_100_and_200_hz(make, speed, turn, seed):
 
 
 @pytest.mark.parametrize("model", [VelocityLinear(), VelocityLinear(gaussian=True), ConstantNoise()])
-@pytest.mark.parametrize("u", [MotionInput(dt=0.01, command=(0.25, 0.05, 0.4)),
-                               MotionInput(dt=0.010000000000000009, command=(0.25, 0.05, 0.4)),
-                               MotionInput(dt=0.009999999999999787, odometry=(0.002, 0.0005, 0.004))])
+@pytest.mark.parametrize(
+    "u",
+    [
+        MotionInput(dt=0.01, command=(0.25, 0.05, 0.4)),
+        MotionInput(dt=0.010000000000000009, command=(0.25, 0.05, 0.4)),
+        MotionInput(dt=0.009999999999999787, odometry=(0.002, 0.0005, 0.004)),
+    ],
+)
 def test_at_the_reference_period_the_bounds_are_eq10s_bit_for_bit(model, u):
     """At 100 Hz (also with timestamps differenced in floating point) the default bounds are the per-step
     ones, the same floats; so is AdaptiveMotion's kernel parameter array (the very memo)."""
     from dataclasses import replace
+
     per_step = replace(model, noise_rate="per_step")
     assert noise_rate_factor(u.dt) == 1.0
     bounds = model.noise_bounds(u)
@@ -83,7 +96,7 @@ def test_elsewhere_the_bounds_are_scaled_by_sqrt_of_the_period_ratio(dt):
         np.testing.assert_allclose(model.noise_bounds(u), np.array(per_step.noise_bounds(u)) * factor, rtol=1e-15)
     adaptive, plain = AdaptiveMotion(), AdaptiveMotion(noise_rate="per_step")
     scaled = adaptive.kernel_parameters(dt)
-    assert not scaled.flags.writeable and adaptive.kernel_parameters(dt) is scaled       # kept per factor
+    assert not scaled.flags.writeable and adaptive.kernel_parameters(dt) is scaled  # kept per factor
     np.testing.assert_array_equal(scaled[9:13], plain.kernel_parameters(dt)[9:13] * factor)
     np.testing.assert_array_equal(np.delete(scaled, range(9, 13)), np.delete(plain.kernel_parameters(dt), range(9, 13)))
 
@@ -108,5 +121,6 @@ def test_a_bad_noise_rate_is_refused_naming_it(make):
 
 def test_a_profile_takes_the_noise_rate():
     from mcl.profile import SECTIONS, default_values
+
     assert SECTIONS["motion"]["noise_rate"] is str
     assert default_values()["motion.noise_rate"] == "per_second"

@@ -14,6 +14,7 @@ process each. In a parallel session (`make test`) that starts from an empty cach
 has already run both parts against the cache its workers share (tests/conftest.py); the test checks their
 reports, and runs the second process against that cache, instead of compiling everything once more.
 """
+
 import json
 import os
 import subprocess
@@ -31,8 +32,14 @@ def _start(part: str, cache_dir: Path | None) -> subprocess.Popen:
     env = dict(os.environ, PYTHONPATH=str(ROOT))
     if cache_dir is not None:
         env["NUMBA_CACHE_DIR"] = str(cache_dir)
-    return subprocess.Popen([sys.executable, str(EXERCISE), part], cwd=ROOT, env=env, stdout=subprocess.PIPE,
-                            stderr=subprocess.PIPE, text=True)
+    return subprocess.Popen(
+        [sys.executable, str(EXERCISE), part],
+        cwd=ROOT,
+        env=env,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
 
 
 def _report(process: subprocess.Popen) -> dict:
@@ -77,7 +84,7 @@ def test_every_kernel_is_cached_and_found_again(tmp_path):
     warmup = _session_warmup()
     if warmup is None:
         before, cache = _sources(), tmp_path
-        parts = [_start(part, cache) for part in ("filter", "models")]   # side by side: two cores
+        parts = [_start(part, cache) for part in ("filter", "models")]  # side by side: two cores
         reports = [_report(process) for process in parts]
     else:
         reports, started = warmup
@@ -97,8 +104,7 @@ def test_every_kernel_is_cached_and_found_again(tmp_path):
     # A module edited while the test ran has a stale cache by right (numba keys the cache on the source file).
     after = _sources()
     edited = {module for module, stamp in after.items() if before.get(module) != stamp}
-    misses = {label: count for label, count in again["cache_misses"].items()
-              if label.rsplit(".", 1)[0] not in edited}
+    misses = {label: count for label, count in again["cache_misses"].items() if label.rsplit(".", 1)[0] not in edited}
     assert misses == {}, f"compiled again although cached: {misses}"
 
 
@@ -120,12 +126,12 @@ def test_a_changed_source_file_drops_the_cached_kernels(tmp_path):
             path.write_bytes(b"cached")
 
     cache()
-    assert forget_stale_numba_caches(tmp_path, stamp)              # no stamp yet: dropped
+    assert forget_stale_numba_caches(tmp_path, stamp)  # no stamp yet: dropped
     assert not any(path.exists() for path in cached) and kept.exists() and stamp.exists()
     cache()
-    assert not forget_stale_numba_caches(tmp_path, stamp)          # nothing changed: kept
+    assert not forget_stale_numba_caches(tmp_path, stamp)  # nothing changed: kept
     assert all(path.exists() for path in cached)
-    (tmp_path / "sensing" / "kernels.py").write_text("x = 22\n")   # a callee in another package changed
+    (tmp_path / "sensing" / "kernels.py").write_text("x = 22\n")  # a callee in another package changed
     assert forget_stale_numba_caches(tmp_path, stamp)
     assert not any(path.exists() for path in cached) and kept.exists()
 
@@ -140,12 +146,12 @@ def test_only_a_source_checkout_is_guarded(tmp_path):
         (tmp_path / package / "kernels.py").write_text("x = 1\n")
     cached = tmp_path / "field" / "__pycache__" / "kernel-3.py311.nbi"
     cached.write_bytes(b"cached")
-    assert not guard_source_checkout(tmp_path)                      # an installed copy: left alone
+    assert not guard_source_checkout(tmp_path)  # an installed copy: left alone
     assert cached.exists() and not (tmp_path / SOURCES_STAMP).exists()
     (tmp_path / "pyproject.toml").write_text('[project]\nname = "another-project"\n')
     assert not guard_source_checkout(tmp_path) and cached.exists()
     (tmp_path / "pyproject.toml").write_text('[project]\nname = "robocup-mcl"\n')
-    assert guard_source_checkout(tmp_path)                          # the project's tree, no stamp yet
+    assert guard_source_checkout(tmp_path)  # the project's tree, no stamp yet
     assert not cached.exists() and (tmp_path / SOURCES_STAMP).exists()
     cached.write_bytes(b"cached")
     assert not guard_source_checkout(tmp_path) and cached.exists()  # nothing changed since
@@ -163,7 +169,7 @@ def test_the_command_line_guards_the_caches_before_running_anything(monkeypatch)
 
 
 SAVES = 200
-SAVER = r'''
+SAVER = r"""
 import sys
 from pathlib import Path
 
@@ -180,7 +186,7 @@ while not (folder / "go").exists():           # both start saving together
     pass
 for i in range(SAVES):
     cache.save((name, i), {"key": (name, i)})
-'''.replace("SAVES", str(SAVES))
+""".replace("SAVES", str(SAVES))
 
 
 def test_processes_saving_one_kernel_side_by_side_keep_its_index_whole(tmp_path):
@@ -190,9 +196,16 @@ def test_processes_saving_one_kernel_side_by_side_keep_its_index_whole(tmp_path)
     and holds its own data."""
     from numba.core.caching import IndexDataCacheFile
 
-    savers = [subprocess.Popen([sys.executable, "-c", SAVER, str(tmp_path), name, "lock"], cwd=ROOT,
-                               env=dict(os.environ, PYTHONPATH=str(ROOT)), stderr=subprocess.PIPE, text=True)
-              for name in ("a", "b")]
+    savers = [
+        subprocess.Popen(
+            [sys.executable, "-c", SAVER, str(tmp_path), name, "lock"],
+            cwd=ROOT,
+            env=dict(os.environ, PYTHONPATH=str(ROOT)),
+            stderr=subprocess.PIPE,
+            text=True,
+        )
+        for name in ("a", "b")
+    ]
     while not all((tmp_path / f"ready-{name}").exists() for name in ("a", "b")):
         assert all(saver.poll() is None for saver in savers), [saver.stderr.read() for saver in savers]
     (tmp_path / "go").touch()
@@ -211,12 +224,15 @@ def test_the_cache_lock_is_taken_on_the_cache_directory(tmp_path, monkeypatch):
 
     from mcl.numba_cache import serialize_cache_access
 
-    assert serialize_cache_access() and serialize_cache_access()               # in place, and only once
+    assert serialize_cache_access() and serialize_cache_access()  # in place, and only once
     assert not hasattr(IndexDataCacheFile.save.__wrapped__, "__wrapped__")
     taken = []
     real_flock = fcntl.flock
-    monkeypatch.setattr(fcntl, "flock", lambda fd, mode: (taken.append((os.readlink(f"/proc/self/fd/{fd}"), mode)),
-                                                          real_flock(fd, mode))[1])
+    monkeypatch.setattr(
+        fcntl,
+        "flock",
+        lambda fd, mode: (taken.append((os.readlink(f"/proc/self/fd/{fd}"), mode)), real_flock(fd, mode))[1],
+    )
     cache = IndexDataCacheFile(cache_path=str(tmp_path), filename_base="kernel-1.py311", source_stamp=("stamp", 1))
     cache.save(("sig",), {"data": 1})
     assert cache.load(("sig",)) == {"data": 1}

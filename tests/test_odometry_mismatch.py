@@ -1,5 +1,6 @@
 """The footstep simulator under model mismatch: drawn robots and runs, the fit of LWPR's meta-parameters and of
 the linear baseline, the robustness table's statistics, and the separation of the simulator from the model."""
+
 from __future__ import annotations
 
 import ast
@@ -54,12 +55,15 @@ def test_draws_stay_in_the_scaled_ranges(spread):
             values = np.array([getattr(d, name) for d in drawn])
             assert np.all(values >= min(lo, 0.0 if lo < 0 else lo) - 1e-12), name
             assert np.all(values <= hi + 1e-12), name
-            assert values.std() > 0.1 * (hi - lo) / math.sqrt(12), name     # they do vary
+            assert values.std() > 0.1 * (hi - lo) / math.sqrt(12), name  # they do vary
     for r in robots:
         assert sum(r.momentum) <= MAX_MOMENTUM + 1e-12 and min(r.momentum) >= 0
-    if spread == 2.0:     # the draws go beyond the documented ranges
-        beyond = [name for name, (low, high) in ROBOT_RANGES.items()
-                  if any(not low <= getattr(r, name) <= high for r in robots)]
+    if spread == 2.0:  # the draws go beyond the documented ranges
+        beyond = [
+            name
+            for name, (low, high) in ROBOT_RANGES.items()
+            if any(not low <= getattr(r, name) <= high for r in robots)
+        ]
         assert len(beyond) > len(ROBOT_RANGES) // 2
 
 
@@ -118,7 +122,7 @@ def test_run_conditions_change_what_the_inputs_do_not_see():
     slippery = simulate(60.0, "carpet", 1, conditions=Conditions(friction=0.6))
     nominal = simulate(60.0, "carpet", 1)
     same = int(np.argmax(np.any(slippery.commanded != nominal.commanded, axis=1))) or nominal.n_steps
-    assert same > 50         # the same commands until the operator steers the two robots differently
+    assert same > 50  # the same commands until the operator steers the two robots differently
     true_n, true_s = truth_displacements(nominal)[:same], truth_displacements(slippery)[:same]
     walking = nominal.commanded[:same, 0] > 0.02
     assert walking.sum() > 10
@@ -159,10 +163,16 @@ def _numbers(value) -> list[float]:
 
 
 def _simulator_constants() -> set[float]:
-    values = _numbers([Robot(), Conditions(), footstep_sim.Driver(), *footstep_sim.SURFACES.values(),
-                       ROBOT_RANGES, CONDITION_RANGES])
-    values += [v for name, v in vars(footstep_sim).items() if name.isupper() or name.startswith("_")
-               for v in _numbers(v) if not isinstance(v, bool)]
+    values = _numbers(
+        [Robot(), Conditions(), footstep_sim.Driver(), *footstep_sim.SURFACES.values(), ROBOT_RANGES, CONDITION_RANGES]
+    )
+    values += [
+        v
+        for name, v in vars(footstep_sim).items()
+        if name.isupper() or name.startswith("_")
+        for v in _numbers(v)
+        if not isinstance(v, bool)
+    ]
     return set(values) - STRUCTURAL
 
 
@@ -181,7 +191,7 @@ def _model_defaults() -> dict[str, float]:
 
 def test_no_model_default_equals_a_simulator_constant():
     constants = _simulator_constants()
-    assert len(constants) > 60      # Robot, Conditions, Driver, surfaces, every range end
+    assert len(constants) > 60  # Robot, Conditions, Driver, surfaces, every range end
     shared = {name: v for name, v in _model_defaults().items() if v not in STRUCTURAL and v in constants}
     assert not shared, f"model defaults equal to simulator constants: {shared}"
 
@@ -220,8 +230,9 @@ def test_linear_baseline_recovers_a_known_affine_map():
 def test_the_search_picks_its_best_candidate_on_training_logs_only(monkeypatch):
     monkeypatch.setattr(fit_odometry, "STAGE_1", {"init_D": (0.006, 0.6), "init_alpha": (2.0,)})
     monkeypatch.setattr(fit_odometry, "STAGE_2", {"w_gen": (0.1,), "penalty": (1e-6, 1e-2)})
-    monkeypatch.setattr(fit_odometry, "BASELINE_GRID", ({"features": "axis", "ridge": 0.0},
-                                                         {"features": "inputs", "ridge": 0.0}))
+    monkeypatch.setattr(
+        fit_odometry, "BASELINE_GRID", ({"features": "axis", "ridge": 0.0}, {"features": "inputs", "ridge": 0.0})
+    )
     result = fit_odometry.fit(surfaces=("carpet",), robots=(0, 1), duration=60.0)
     assert len(result["candidates"]) == 4
     best = min(c["score"]["mean"] for c in result["candidates"])
@@ -229,7 +240,7 @@ def test_the_search_picks_its_best_candidate_on_training_logs_only(monkeypatch):
     assert result["settings"]["init_D"] in (0.006, 0.6) and result["protocol"]["train_robots"] == [0, 1]
     assert set(result["baseline"]) == {"apriori", "online"}
     again = fit_odometry.fit(surfaces=("carpet",), robots=(0, 1), duration=60.0)
-    assert json.dumps(again) == json.dumps(result)       # same logs, same seed: same fit, bit for bit
+    assert json.dumps(again) == json.dumps(result)  # same logs, same seed: same fit, bit for bit
 
 
 def test_the_defaults_are_the_fit_files_values():
@@ -263,6 +274,7 @@ def test_mismatch_refuses_bad_spreads_and_writes_nothing(tmp_path, capsys):
 
 def test_mismatch_table_on_the_nominal_simulator(tmp_path, capsys, monkeypatch):
     import demos.odometry as odometry
+
     monkeypatch.setattr(odometry, "TRAIN_ROBOTS", (0, 1))
     monkeypatch.setattr(odometry, "TEST_ROBOTS", (100,))
     monkeypatch.setattr(odometry, "TEST_LOGS", 2)
@@ -282,6 +294,7 @@ def test_mismatch_table_on_the_nominal_simulator(tmp_path, capsys, monkeypatch):
 
 def test_training_and_held_out_seeds_and_robots_never_meet():
     from demos.odometry import TEST_LOGS, TEST_ROBOTS, TRAIN_ROBOTS, fleet_seed
+
     train = {fleet_seed("train", s, r, i) for s in ("carpet", "grass") for r in TRAIN_ROBOTS for i in range(TEST_LOGS)}
     test = {fleet_seed("test", s, r, i) for s in ("carpet", "grass") for r in TEST_ROBOTS for i in range(TEST_LOGS)}
     assert not train & test and len(test) == 2 * len(TEST_ROBOTS) * TEST_LOGS
@@ -290,9 +303,10 @@ def test_training_and_held_out_seeds_and_robots_never_meet():
 
 def test_the_variant_learns_what_the_linear_map_leaves():
     from motion_models.learned_odometry import LearnedFootstepOdometry
+
     rng = np.random.default_rng(3)
     X = rng.uniform(-1, 1, (600, 7))
-    Y = 0.5 * X[:, :3] + 0.05 * X[:, 3:4] ** 2 + 0.001 * rng.standard_normal((600, 3))   # a bend in one input
+    Y = 0.5 * X[:, :3] + 0.05 * X[:, 3:4] ** 2 + 0.001 * rng.standard_normal((600, 3))  # a bend in one input
     linear = LinearCorrection.fit(X, Y, "apriori")
     variant = LearnedFootstepOdometry.train(X, Y, "apriori", settings=LWPRSettings(), linear_stage=True)
     # The variant's linear stage is the linear baseline with every input and no penalty, bit for bit.

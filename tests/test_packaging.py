@@ -1,6 +1,7 @@
 """What the package promises about its surroundings: the Python versions it runs on (`requires-python`, checked
 with vermin over the library's source) and an `import mcl` that stays light (no Rerun, MCAP, Hypothesis,
 matplotlib or scipy submodule loaded until a feature needs it)."""
+
 import json
 import shutil
 import subprocess
@@ -30,8 +31,13 @@ def test_the_library_needs_no_feature_newer_than_the_minimum():
     # vermin runs as its console script (the package has no __main__), installed beside this interpreter
     vermin = shutil.which("vermin", path=str(Path(sys.executable).parent)) or shutil.which("vermin")
     assert vermin, "vermin is importable but its command is not on PATH"
-    done = subprocess.run([vermin, f"--target={MINIMUM}-", "--no-tips", "--violations",
-                           "--eval-annotations", *LIBRARY], cwd=ROOT, capture_output=True, text=True, timeout=600)
+    done = subprocess.run(
+        [vermin, f"--target={MINIMUM}-", "--no-tips", "--violations", "--eval-annotations", *LIBRARY],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
     assert done.returncode == 0, done.stdout + done.stderr
 
 
@@ -51,8 +57,14 @@ print(json.dumps({{"heavy": heavy, "seconds": seconds}}))
 
 
 def probe(module: str) -> dict:
-    done = subprocess.run([sys.executable, "-c", PROBE.format(module=module)], cwd=ROOT, capture_output=True,
-                          text=True, timeout=300, check=True)
+    done = subprocess.run(
+        [sys.executable, "-c", PROBE.format(module=module)],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=300,
+        check=True,
+    )
     return json.loads(done.stdout.splitlines()[-1])
 
 

@@ -1,4 +1,5 @@
 """Profiles (mcl.profile), the localizer's odometry calibration and its log evidence."""
+
 from __future__ import annotations
 
 import math
@@ -23,17 +24,20 @@ def _frame(kind=LandmarkType.CENTER_MARK, r=2.0, b=0.3):
 
 
 # -- profiles --------------------------------------------------------------------------------------------------
-values = st.fixed_dictionaries({}, optional={
-    "sensor.range_noise_floor": st.floats(0.01, 1.0),
-    "sensor.outlier_weight": st.floats(1e-4, 1.0),
-    "sensor.mixture": st.sampled_from(["max", "sum"]),
-    "motion.beta1": st.floats(0.0, 10.0),
-    "odometry.scale_x": st.floats(0.5, 2.0),
-    "augmented.fit_threshold": st.floats(0.0, 1.0),
-    "quality.superb_detections": st.integers(1, 10),
-    "localizer.particles": st.integers(1, 2000),
-    "localizer.compensate_latency": st.booleans(),
-})
+values = st.fixed_dictionaries(
+    {},
+    optional={
+        "sensor.range_noise_floor": st.floats(0.01, 1.0),
+        "sensor.outlier_weight": st.floats(1e-4, 1.0),
+        "sensor.mixture": st.sampled_from(["max", "sum"]),
+        "motion.beta1": st.floats(0.0, 10.0),
+        "odometry.scale_x": st.floats(0.5, 2.0),
+        "augmented.fit_threshold": st.floats(0.0, 1.0),
+        "quality.superb_detections": st.integers(1, 10),
+        "localizer.particles": st.integers(1, 2000),
+        "localizer.compensate_latency": st.booleans(),
+    },
+)
 
 
 @settings(max_examples=60, deadline=None)
@@ -48,9 +52,17 @@ def test_profile_round_trips_bit_for_bit(chosen):
 
 def test_profile_sets_what_it_names_and_keeps_the_rest(tmp_path):
     path = tmp_path / "venue.toml"
-    Profile.from_values({"sensor.outlier_weight": 0.02, "odometry.scale_x": 1.2, "motion.beta1": 2.5,
-                         "localizer.particles": 123, "augmented.fit_threshold": 0.1,
-                         "relocalization.kidnap_share": 0.2, "quality.superb_fit": 0.6}).save(path)
+    Profile.from_values(
+        {
+            "sensor.outlier_weight": 0.02,
+            "odometry.scale_x": 1.2,
+            "motion.beta1": 2.5,
+            "localizer.particles": 123,
+            "augmented.fit_threshold": 0.1,
+            "relocalization.kidnap_share": 0.2,
+            "quality.superb_fit": 0.6,
+        }
+    ).save(path)
     loc = Localizer.from_profile(FIELD, Profile.load(path), seed=4)
     assert loc.filter.sensor_model.outlier_weight == 0.02
     assert loc.filter.sensor_model.range_noise_floor == LandmarkSensorModel(FIELD).range_noise_floor
@@ -77,20 +89,23 @@ def test_an_empty_profile_is_the_defaults_bit_for_bit():
     assert a.log_evidence == b.log_evidence
 
 
-@pytest.mark.parametrize("sections, words", [
-    ({"venue": {}}, "unknown section [venue]"),
-    ({"sensor": {"noise": 1.0}}, "unknown setting 'noise'"),
-    ({"sensor": {"outlier_weight": "high"}}, "must be a number"),
-    ({"sensor": {"outlier_weight": -0.1}}, "outlier_weight"),
-    ({"sensor": {"mixture": "mean"}}, "mixture"),
-    ({"localizer": {"particles": 2.5}}, "must be an integer"),
-    ({"localizer": {"compensate_latency": 1}}, "true or false"),
-    ({"motion": {"model": "teleport"}}, "must be one of"),
-    ({"motion": {"model": "constant", "beta1": 1.0}}, "not a setting of the 'constant' model"),
-    ({"odometry": {"scale_x": 0.0}}, "odometry_scale"),
-    ({"augmented": {"alpha_slow": 0.5, "alpha_fast": 0.1}}, "alpha_slow"),
-    ({"sensor": 3}, "must be a table"),
-])
+@pytest.mark.parametrize(
+    "sections, words",
+    [
+        ({"venue": {}}, "unknown section [venue]"),
+        ({"sensor": {"noise": 1.0}}, "unknown setting 'noise'"),
+        ({"sensor": {"outlier_weight": "high"}}, "must be a number"),
+        ({"sensor": {"outlier_weight": -0.1}}, "outlier_weight"),
+        ({"sensor": {"mixture": "mean"}}, "mixture"),
+        ({"localizer": {"particles": 2.5}}, "must be an integer"),
+        ({"localizer": {"compensate_latency": 1}}, "true or false"),
+        ({"motion": {"model": "teleport"}}, "must be one of"),
+        ({"motion": {"model": "constant", "beta1": 1.0}}, "not a setting of the 'constant' model"),
+        ({"odometry": {"scale_x": 0.0}}, "odometry_scale"),
+        ({"augmented": {"alpha_slow": 0.5, "alpha_fast": 0.1}}, "alpha_slow"),
+        ({"sensor": 3}, "must be a table"),
+    ],
+)
 def test_a_wrong_profile_is_refused_in_one_line_naming_the_file(sections, words):
     with pytest.raises(ProfileError) as error:
         Profile(sections, "venue.toml")
@@ -126,8 +141,9 @@ def test_odometry_scale_is_the_same_as_scaled_odometry_bit_for_bit():
     assert np.array_equal(scaled.filter.poses, plain.filter.poses)
 
 
-@pytest.mark.parametrize("scale", [(0.0, 1.0, 1.0), (1.0, -1.0, 1.0), (1.0, 1.0, 11.0), (1.0, math.nan, 1.0),
-                                   (1.0, 1.0)])
+@pytest.mark.parametrize(
+    "scale", [(0.0, 1.0, 1.0), (1.0, -1.0, 1.0), (1.0, 1.0, 11.0), (1.0, math.nan, 1.0), (1.0, 1.0)]
+)
 def test_a_wrong_odometry_scale_is_refused(scale):
     with pytest.raises(ValueError):
         Localizer(FIELD, odometry_scale=scale)
@@ -137,11 +153,12 @@ def test_a_wrong_odometry_scale_is_refused(scale):
 def test_log_normalizer_makes_a_density_over_range_and_bearing():
     """One candidate landmark (the centre mark), the sum mixture and a negligible floor: the frame's density
     integrates to 1 over range and bearing."""
-    model = LandmarkSensorModel(FIELD, mixture="sum", outlier_weight=1e-12, range_noise_floor=0.1,
-                                range_noise_growth=0.0, bearing_sigma=0.1)
+    model = LandmarkSensorModel(
+        FIELD, mixture="sum", outlier_weight=1e-12, range_noise_floor=0.1, range_noise_growth=0.0, bearing_sigma=0.1
+    )
     pose = np.array([[-2.0, 0.5, 0.2]])
     ranges = np.linspace(1.0, 3.2, 441)
-    bearings = np.linspace(-1.05, 0.15, 401)        # the centre mark is seen at -0.445 rad
+    bearings = np.linspace(-1.05, 0.15, 401)  # the centre mark is seen at -0.445 rad
     density = np.empty((ranges.size, bearings.size))
     for i, r in enumerate(ranges):
         for j, b in enumerate(bearings):
@@ -162,10 +179,11 @@ def test_log_evidence_sums_the_frames_and_a_refused_frame_changes_nothing():
         total += loc.filter.frame_log_likelihood + loc.filter.sensor_model.log_normalizer(frame)
     assert loc.evidence_frames == 3 and loc.log_evidence == total
     with pytest.raises(ValueError):
-        loc.observe(Observations.from_arrays(np.array([int(LandmarkType.CENTER_MARK)]), np.array([-1.0]),
-                                             np.array([0.0])))
+        loc.observe(
+            Observations.from_arrays(np.array([int(LandmarkType.CENTER_MARK)]), np.array([-1.0]), np.array([0.0]))
+        )
     assert loc.evidence_frames == 3 and loc.log_evidence == total
-    loc.observe(Observations.from_arrays(np.zeros(0, np.int64), np.zeros(0), np.zeros(0)))   # nothing seen
+    loc.observe(Observations.from_arrays(np.zeros(0, np.int64), np.zeros(0), np.zeros(0)))  # nothing seen
     assert loc.evidence_frames == 3
 
 
@@ -177,9 +195,13 @@ def test_evidence_prefers_the_noise_the_detections_have():
     landmarks = FIELD.landmarks_of(LandmarkType.L_CROSSING)
     evidence = {}
     for sigma in (0.02, 0.2, 1.0):
-        loc = Localizer(FIELD, sensor_model=LandmarkSensorModel(FIELD, range_noise_floor=sigma, range_noise_growth=0.0,
-                                                             outlier_weight=1e-5),
-                        seed=2)
+        loc = Localizer(
+            FIELD,
+            sensor_model=LandmarkSensorModel(
+                FIELD, range_noise_floor=sigma, range_noise_growth=0.0, outlier_weight=1e-5
+            ),
+            seed=2,
+        )
         loc.place(truth)
         draw = np.random.default_rng(5)
         for k in range(40):
@@ -188,31 +210,51 @@ def test_evidence_prefers_the_noise_the_detections_have():
             r = np.hypot(d[:, 0], d[:, 1]) + 0.2 * draw.standard_normal(len(landmarks))
             b = np.arctan2(d[:, 1], d[:, 0]) - truth[2] + 0.05 * draw.standard_normal(len(landmarks))
             near = (r < 5.0) & (np.abs(np.angle(np.exp(1j * b))) < 1.0)
-            loc.observe(Observations.from_arrays(np.full(int(near.sum()), int(LandmarkType.L_CROSSING)), r[near],
-                                                 np.angle(np.exp(1j * b[near]))))
+            loc.observe(
+                Observations.from_arrays(
+                    np.full(int(near.sum()), int(LandmarkType.L_CROSSING)), r[near], np.angle(np.exp(1j * b[near]))
+                )
+            )
         evidence[sigma] = loc.log_evidence
     assert evidence[0.2] > evidence[0.02] and evidence[0.2] > evidence[1.0]
 
 
 @settings(max_examples=40, deadline=None)
-@given(st.lists(st.tuples(st.floats(0.1, 12.0), st.one_of(st.none(), st.floats(0.01, 2.0)),
-                          st.one_of(st.none(), st.floats(0.005, 3.0))), min_size=1, max_size=8),
-       st.sampled_from(["von_mises", "exact"]), st.floats(1e-6, 1.0), st.floats(0.0, 0.3))
+@given(
+    st.lists(
+        st.tuples(
+            st.floats(0.1, 12.0),
+            st.one_of(st.none(), st.floats(0.01, 2.0)),
+            st.one_of(st.none(), st.floats(0.005, 3.0)),
+        ),
+        min_size=1,
+        max_size=8,
+    ),
+    st.sampled_from(["von_mises", "exact"]),
+    st.floats(1e-6, 1.0),
+    st.floats(0.0, 0.3),
+)
 def test_log_normalizer_is_its_formula(rows, bearing_model, outlier_weight, linear):
     """The per-detection loop against the formula in numpy (scipy's i0e), with and without the detections' own
     noise figures."""
     from scipy.special import i0e
 
-    model = LandmarkSensorModel(FIELD, bearing_model=bearing_model, outlier_weight=outlier_weight,
-                                range_noise_linear=linear)
+    model = LandmarkSensorModel(
+        FIELD, bearing_model=bearing_model, outlier_weight=outlier_weight, range_noise_linear=linear
+    )
     ranges = np.array([r for r, _, _ in rows])
     range_sigmas = np.array([np.nan if s is None else s for _, s, _ in rows])
     bearing_sigmas = np.array([np.nan if s is None else s for _, _, s in rows])
-    obs = Observations.from_arrays(np.full(len(rows), int(LandmarkType.GOALPOST)), ranges, np.zeros(len(rows)),
-                                   range_sigmas=range_sigmas, bearing_sigmas=bearing_sigmas)
+    obs = Observations.from_arrays(
+        np.full(len(rows), int(LandmarkType.GOALPOST)),
+        ranges,
+        np.zeros(len(rows)),
+        range_sigmas=range_sigmas,
+        bearing_sigmas=bearing_sigmas,
+    )
     sr = np.where(np.isnan(range_sigmas), model.range_sigma(ranges), range_sigmas)
     sb = np.where(np.isnan(bearing_sigmas), model.bearing_sigma, bearing_sigmas)
-    log_b = -np.log(2 * np.pi * i0e(1 / sb ** 2)) if bearing_model == "von_mises" else -np.log(np.sqrt(2 * np.pi) * sb)
+    log_b = -np.log(2 * np.pi * i0e(1 / sb**2)) if bearing_model == "von_mises" else -np.log(np.sqrt(2 * np.pi) * sb)
     log_c = -np.log(np.sqrt(2 * np.pi) * sr) + log_b
     d = FIELD.dims
     area = 2 * np.pi * np.hypot(d.length + 2 * d.border_strip_width, d.width + 2 * d.border_strip_width)

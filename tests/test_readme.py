@@ -1,5 +1,6 @@
 """The README and the documentation pages: their examples run as written and do what the text says, the Quick
 start has exactly its two commands, and the README stays a front door (at most 15 KB)."""
+
 import contextlib
 import io
 import math
@@ -33,7 +34,7 @@ def test_integration_example_runs_and_localizes():
     assert abs(math.remainder(pose[2] - math.pi, 2 * math.pi)) < 0.03
     h = namespace["h"]
     assert 0 <= h.position and 0 <= h.orientation
-    assert (namespace["est"].covariance.diagonal() < 0.002).all()      # what the text says of the printed figures
+    assert (namespace["est"].covariance.diagonal() < 0.002).all()  # what the text says of the printed figures
 
 
 def test_the_readme_integration_and_getting_started_hold_the_same_robot_loop():
@@ -47,8 +48,13 @@ def test_getting_started_goes_from_the_clone_to_the_loop_in_order():
     text = (DOCS / "getting-started.md").read_text()
     repo_url = re.search(r"^repo_url: (\S+)$", (ROOT / "mkdocs.yml").read_text(), flags=re.M).group(1)
     assert f"git clone {repo_url}.git" in text
-    steps = ["## 1. Clone", "## 2. `make demo`", "## 3. Open the recording", "## 4. The robot's loop",
-             "## 5. What each printed figure means"]
+    steps = [
+        "## 1. Clone",
+        "## 2. `make demo`",
+        "## 3. Open the recording",
+        "## 4. The robot's loop",
+        "## 5. What each printed figure means",
+    ]
     assert [text.index(step) for step in steps] == sorted(text.index(step) for step in steps)
     demo = (ROOT / "results" / "demo_walk.txt").read_text()
     header = demo.splitlines()[1].split()
@@ -86,6 +92,7 @@ def test_localizer_example_runs_and_finds_the_touchline_its_frames_show():
 
 def _results(name: str) -> dict:
     import json
+
     return json.loads((ROOT / "results" / name).read_text())
 
 
@@ -107,8 +114,10 @@ def test_the_readme_headline_figures_are_those_of_the_results_files():
     kidnap, tracking = families["kidnap"]["summary"], families["tracking"]["summary"]
     row = _headline("evaluation battery")
     assert f"tracking RMSE {tracking['rmse_position_m']['median']:.3f} m" in row
-    assert f"in {kidnap['reconverge_s']['median']:.2f} s (median), {kidnap['reconverge_s']['never']} of " \
-           f"{kidnap['reconverge_s']['runs']} runs never" in row
+    assert (
+        f"in {kidnap['reconverge_s']['median']:.2f} s (median), {kidnap['reconverge_s']['never']} of "
+        f"{kidnap['reconverge_s']['runs']} runs never" in row
+    )
 
     soak = _results("soak.json")
     row = _headline("an hour in the loop")
@@ -121,10 +130,15 @@ def test_the_readme_headline_figures_are_those_of_the_results_files():
 
     loop = _results("bench.json")["models"]["robot_loop"]
     row = _headline("robot loop")
-    assert f"without detections {loop['frame_us']:.1f} µs" in row and f"detections {loop['correct_list_us']:.1f} µs" in row
+    assert (
+        f"without detections {loop['frame_us']:.1f} µs" in row and f"detections {loop['correct_list_us']:.1f} µs" in row
+    )
 
     row = _headline("tuned on the battery")
-    for name, words in (("tune_battery_8.json", "fail share {:.1f} → {:.1f} %"), ("tune_battery.json", "({:.1f} → {:.1f} %)")):
+    for name, words in (
+        ("tune_battery_8.json", "fail share {:.1f} → {:.1f} %"),
+        ("tune_battery.json", "({:.1f} → {:.1f} %)"),
+    ):
         held = _results(name)["comparison"]["holdout"]
         assert words.format(100 * held["default"]["fail_share"], 100 * held["tuned"]["fail_share"]) in row
     held = _results("tune_battery_8.json")["comparison"]["holdout"]
@@ -140,17 +154,26 @@ def test_the_readme_headline_figures_are_those_of_the_results_files():
     assert f"{100 * single['adaptive']['bins']['0.7-1.05']['median']:.0f} % in the fastest stop turns" in row
     assert mismatch["goals"]["single/adaptive"]["at_least_80_percent_everywhere"] is True and "met" in row
     assert mismatch["goals"]["single/adaptive"]["log_score_above_velocity_linear_everywhere"] is True
+
     def signed(value: float) -> str:
         return f"{value:.2f}".replace("-", "−")
-    assert (f"log score {signed(single['adaptive']['mismatch']['log_score_median'])} against "
-            f"{signed(single[scored]['mismatch']['log_score_median'])} for velocity-linear at its best") in row
-    assert (f"widened ×{mismatch['baseline_widen']['containment']:g} holds the truth in "
-            f"{100 * single[baseline]['mismatch']['median']:.0f} % with a cloud "
-            f"{single[baseline]['mismatch']['final_spread_median_m']:.2f} m across against "
-            f"{single['adaptive']['mismatch']['final_spread_median_m']:.2f} m") in row
 
-    rows = [r for r in _results("odometry_mismatch.json")["rows"]
-            if (r["surface"], r["regime"], r["robot_spread"], r["run_spread"]) == ("carpet", "fleet", 1.0, 1.0)]
+    assert (
+        f"log score {signed(single['adaptive']['mismatch']['log_score_median'])} against "
+        f"{signed(single[scored]['mismatch']['log_score_median'])} for velocity-linear at its best"
+    ) in row
+    assert (
+        f"widened ×{mismatch['baseline_widen']['containment']:g} holds the truth in "
+        f"{100 * single[baseline]['mismatch']['median']:.0f} % with a cloud "
+        f"{single[baseline]['mismatch']['final_spread_median_m']:.2f} m across against "
+        f"{single['adaptive']['mismatch']['final_spread_median_m']:.2f} m"
+    ) in row
+
+    rows = [
+        r
+        for r in _results("odometry_mismatch.json")["rows"]
+        if (r["surface"], r["regime"], r["robot_spread"], r["run_spread"]) == ("carpet", "fleet", 1.0, 1.0)
+    ]
     row = _headline("Rouxel")
     for kind in ("apriori", "online"):
         (r,) = [r for r in rows if r["kind"] == kind]
@@ -164,9 +187,14 @@ def test_the_readme_headline_figures_are_those_of_the_results_files():
     row = _headline("Wawrzyński")
     seeds = velocity["seeds"]
     assert f"walks {seeds[0]}–{seeds[-1]}" in row
-    for name, text in (("ekf", "for the paper's filter as written"), ("ekf+bias", "for the bias-state variant"),
-                       ("kinematics+gyro", "for kinematics+gyro")):
-        assert f"{five[name]['median']:.1f} %, worst {five[name]['max']:.1f} % {text}" in row \
+    for name, text in (
+        ("ekf", "for the paper's filter as written"),
+        ("ekf+bias", "for the bias-state variant"),
+        ("kinematics+gyro", "for kinematics+gyro"),
+    ):
+        assert (
+            f"{five[name]['median']:.1f} %, worst {five[name]['max']:.1f} % {text}" in row
             or f"{five[name]['median']:.1f} %, {five[name]['max']:.1f} % {text}" in row
+        )
     missed = len(seeds) - five["ekf"]["within_goal"]
     assert f"missed on {missed} of {len(seeds)}" in row

@@ -1,4 +1,5 @@
 """The recording: what `Recorder.log_step` buffers is what the .rrd file holds, row by row."""
+
 import math
 import subprocess
 
@@ -183,18 +184,18 @@ def test_the_ellipse_is_the_weighted_covariance_of_the_particles(tmp_path):
         np.testing.assert_allclose(reach, np.sqrt(ELLIPSE_CHI2 * values), rtol=0.01)
         unweighted = np.cov(poses[:, :2].T, bias=True)
         d0 = outline - poses[:, :2].mean(axis=0)
-        assert not np.allclose(np.einsum("ij,jk,ik->i", d0, np.linalg.inv(unweighted), d0), ELLIPSE_CHI2,
-                               rtol=0.05)
+        assert not np.allclose(np.einsum("ij,jk,ik->i", d0, np.linalg.inv(unweighted), d0), ELLIPSE_CHI2, rtol=0.05)
     stand_in = StandInFilter(poses, weights)
     estimate_outline = rows(path, "/robot/uncertainty/estimate", "strips")[0].reshape(-1, 2).astype(np.float64)
     d = estimate_outline - stand_in.estimate().pose[:2]
-    np.testing.assert_allclose(np.einsum("ij,jk,ik->i", d, np.linalg.inv(stand_in.covariance[:2, :2]), d),
-                               ELLIPSE_CHI2, rtol=1e-4)
+    np.testing.assert_allclose(
+        np.einsum("ij,jk,ik->i", d, np.linalg.inv(stand_in.covariance[:2, :2]), d), ELLIPSE_CHI2, rtol=1e-4
+    )
 
 
 def test_weighted_covariance_and_ellipse_helpers():
     poses, weights = skewed_particles(40)
-    mean, covariance = weighted_position_covariance(poses, 7.0 * weights)      # not normalised
+    mean, covariance = weighted_position_covariance(poses, 7.0 * weights)  # not normalised
     np.testing.assert_allclose(mean, np.average(poses[:, :2], axis=0, weights=weights))
     np.testing.assert_allclose(covariance, np.cov(poses[:, :2].T, aweights=weights, bias=True))
     circle = covariance_ellipse((1.0, 2.0), np.eye(2), chi2=4.0)
@@ -213,8 +214,9 @@ def test_particle_headings_are_logged(tmp_path):
     vectors = rows(path, "/particles/headings", "vectors")[0]
     assert origins.shape == vectors.shape == (84, 2)
     np.testing.assert_allclose(origins, poses[::3, :2], atol=1e-6)
-    np.testing.assert_allclose(vectors, HEADING_LENGTH * np.column_stack([np.cos(poses[::3, 2]),
-                                                                          np.sin(poses[::3, 2])]), atol=1e-6)
+    np.testing.assert_allclose(
+        vectors, HEADING_LENGTH * np.column_stack([np.cos(poses[::3, 2]), np.sin(poses[::3, 2])]), atol=1e-6
+    )
     assert static_rows(path, "/particles", "radii") == [pytest.approx(PARTICLE_RADIUS)]
 
 
@@ -239,10 +241,20 @@ def test_events_are_a_text_log_with_marks_on_the_plots(tmp_path):
     texts = rows(path, "/events", "text")
     levels = rows(path, "/events", "level")
     logged = sorted((step, text) for step, row in texts.items() for text in row)
-    assert logged == [(0, "quality: poor"), (1, "kidnap: the robot was carried 3 m"), (2, "quality: okay"),
-                      (3, "reset: sensor resetting: 30 of 250 particles injected"), (4, "quality: superb")]
-    assert {step: list(row) for step, row in levels.items()} == {0: ["INFO"], 1: ["WARN"], 2: ["INFO"],
-                                                                   3: ["INFO"], 4: ["INFO"]}
+    assert logged == [
+        (0, "quality: poor"),
+        (1, "kidnap: the robot was carried 3 m"),
+        (2, "quality: okay"),
+        (3, "reset: sensor resetting: 30 of 250 particles injected"),
+        (4, "quality: superb"),
+    ]
+    assert {step: list(row) for step, row in levels.items()} == {
+        0: ["INFO"],
+        1: ["WARN"],
+        2: ["INFO"],
+        3: ["INFO"],
+        4: ["INFO"],
+    }
     assert sorted(rows(path, "/events/marks/kidnap", "scalars")) == [1]
     assert sorted(rows(path, "/events/marks/quality", "scalars")) == [0, 2, 4]
     blueprint = default_blueprint()
@@ -263,8 +275,11 @@ def test_the_log_time_timeline_when_the_origin_is_given(tmp_path):
             for step in range(5):
                 recorder.log_step(step, 0.25 * step, pf, observations=observations)
             recorder.log_event("kidnap", "x")
-    timelines = {chunk.entity_path: set(chunk.timeline_names)
-                 for chunk in rrc.RrdReader(str(without)).stream() if not chunk.is_static}
+    timelines = {
+        chunk.entity_path: set(chunk.timeline_names)
+        for chunk in rrc.RrdReader(str(without)).stream()
+        if not chunk.is_static
+    }
     assert timelines and all(names == {"step", "time"} for names in timelines.values())
     found = {}
     for chunk in rrc.RrdReader(str(with_origin)).stream():
@@ -291,8 +306,9 @@ def test_the_file_is_compact_and_opens_with_its_blueprint(tmp_path):
     pf, u, observations = bench_setup(30)
     compact, plain = tmp_path / "compact.rrd", tmp_path / "plain.rrd"
     for path, compacting in ((compact, True), (plain, False)):
-        with Recorder(path, pf.field, particles_every=3, flush_every=10, compact=compacting,
-                      recording_id="review-test") as recorder:
+        with Recorder(
+            path, pf.field, particles_every=3, flush_every=10, compact=compacting, recording_id="review-test"
+        ) as recorder:
             for step in range(300):
                 recorder.log_step(step, 0.01 * step, pf, truth=TRUE_POSE, observations=observations)
                 if step % 50 == 0:

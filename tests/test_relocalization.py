@@ -1,5 +1,6 @@
 """Re-localization: candidates from detection pairs, the prior, the mirror decision, and kidnaps that turn the
 robot (`mcl.relocalization`, `sensing.resetting`)."""
+
 import math
 
 import numpy as np
@@ -18,8 +19,14 @@ from sensing.resetting import poses_from_pairs
 
 FIELD = spl()
 SENSOR = LandmarkSensorModel(FIELD)
-KINDS = (LandmarkType.GOALPOST, LandmarkType.L_CROSSING, LandmarkType.T_CROSSING, LandmarkType.X_CROSSING,
-         LandmarkType.PENALTY_MARK, LandmarkType.CENTER_MARK)
+KINDS = (
+    LandmarkType.GOALPOST,
+    LandmarkType.L_CROSSING,
+    LandmarkType.T_CROSSING,
+    LandmarkType.X_CROSSING,
+    LandmarkType.PENALTY_MARK,
+    LandmarkType.CENTER_MARK,
+)
 
 
 def seen_from(pose, max_range=5.0, fov=math.radians(70), noise=None, rng=None):
@@ -41,8 +48,9 @@ def seen_from(pose, max_range=5.0, fov=math.radians(70), noise=None, rng=None):
 
 
 def near(poses, pose, position=0.05, heading=0.02):
-    return ((np.hypot(poses[:, 0] - pose[0], poses[:, 1] - pose[1]) < position)
-            & (np.abs(wrap_angles(poses[:, 2] - pose[2])) < heading))
+    return (np.hypot(poses[:, 0] - pose[0], poses[:, 1] - pose[1]) < position) & (
+        np.abs(wrap_angles(poses[:, 2] - pose[2])) < heading
+    )
 
 
 poses_on_field = st.tuples(st.floats(-4.0, 4.0), st.floats(-2.5, 2.5), st.floats(-math.pi, math.pi))
@@ -70,8 +78,7 @@ def test_a_pair_pose_sees_both_of_its_detections_where_they_were_seen():
     # every candidate explains at least two detections (its pair, up to the distances' tolerance); the true
     # association explains them exactly
     for candidate in candidates:
-        explained = explained_detections(SENSOR, candidate, observations, gate=3.0, range_slack=0.1,
-                                         bearing_slack=0.05)
+        explained = explained_detections(SENSOR, candidate, observations, gate=3.0, range_slack=0.1, bearing_slack=0.05)
         assert explained.sum() >= 2
     exact = candidates[near(candidates, pose)]
     assert all(explained_detections(SENSOR, c, observations, gate=1e-3, range_slack=1e-9).all() for c in exact)
@@ -84,10 +91,15 @@ def test_fewer_than_two_detections_give_no_pair():
 
 # -- the prior ---------------------------------------------------------------------------------------------------
 @settings(max_examples=60, deadline=None)
-@given(anchor=poses_on_field, poses=st.lists(poses_on_field, min_size=1, max_size=20),
-       angle=st.floats(-math.pi, math.pi), travelled=st.floats(0.0, 20.0))
+@given(
+    anchor=poses_on_field,
+    poses=st.lists(poses_on_field, min_size=1, max_size=20),
+    angle=st.floats(-math.pi, math.pi),
+    travelled=st.floats(0.0, 20.0),
+)
 def test_the_prior_commutes_with_rotating_the_world(anchor, poses, angle, travelled):
     """Rotating the anchor and the poses about the centre mark leaves the prior unchanged (no region)."""
+
     def rotate(p):
         c, s = math.cos(angle), math.sin(angle)
         p = np.atleast_2d(np.asarray(p, dtype=np.float64))
@@ -117,9 +129,20 @@ def test_the_prior_prefers_the_anchor_keeps_every_pose_possible_and_weighs_the_r
     assert relocalization.log_prior(inside)[0] - relocalization.log_prior(FIELD.mirror_poses(inside))[0] > 5
 
 
-@pytest.mark.parametrize("name,value", [("kidnap_sigma", 0.0), ("kidnap_share", 1.5), ("tail_share", 0.0),
-                                        ("region_tail", 0.0), ("pool", 0), ("mirror_odds", 0.5),
-                                        ("jitter", (0.1, 0.1)), ("pair_share", 0.95), ("jump_corrections", 0)])
+@pytest.mark.parametrize(
+    "name,value",
+    [
+        ("kidnap_sigma", 0.0),
+        ("kidnap_share", 1.5),
+        ("tail_share", 0.0),
+        ("region_tail", 0.0),
+        ("pool", 0),
+        ("mirror_odds", 0.5),
+        ("jitter", (0.1, 0.1)),
+        ("pair_share", 0.95),
+        ("jump_corrections", 0),
+    ],
+)
 def test_bad_prior_parameters_are_refused(name, value):
     with pytest.raises(ValueError, match=name):
         RelocalizationPrior(**{name: value})
@@ -132,7 +155,7 @@ def test_a_filter_refuses_a_relocalization_without_the_contract():
 
 # -- the proposal ----------------------------------------------------------------------------------------------
 def test_the_proposal_is_deterministic_and_prefers_the_side_the_prior_prefers():
-    truth = np.array([-3.0, 1.0, -2.5])           # carried 2 m from the anchor and turned by 90°
+    truth = np.array([-3.0, 1.0, -2.5])  # carried 2 m from the anchor and turned by 90°
     anchor = np.array([-2.0, -0.7, -2.5 - math.pi / 2])
     observations = seen_from(truth, max_range=6.0, fov=math.radians(90))
     assert len(observations) >= 5
@@ -153,7 +176,7 @@ def test_a_confident_cluster_on_the_less_likely_side_is_mirrored_after_it_holds(
     relocalization = SoccerRelocalization()
     relocalization.bind((-5.2, 5.2, -3.7, 3.7))
     relocalization.reset_pose((-3.0, -1.0, 0.0))
-    mirror_side = np.array([2.0, 2.0, 1.0])       # the truth would be (-2, -2, 1 - π): 1 m from the anchor
+    mirror_side = np.array([2.0, 2.0, 1.0])  # the truth would be (-2, -2, 1 - π): 1 m from the anchor
     confident = Estimate(mirror_side, np.diag([1e-3, 1e-3, 1e-3]), 1.0)
     flips = [relocalization.confirm(confident, True) for _ in range(RelocalizationPrior().jump_corrections)]
     assert flips[-1] and not any(flips[:-1])
@@ -177,8 +200,8 @@ def test_the_mirror_odds_must_hold_without_the_heading_reference():
     full = relocalization.log_prior(pair)
     position = relocalization.log_prior(pair, heading_kept=0.0)
     np.testing.assert_allclose(relocalization.log_prior_reference(pair, heading_kept=0.0), position, rtol=1e-12)
-    assert full[0] - full[1] > math.log(RelocalizationPrior().mirror_odds)      # the heading prefers it ...
-    assert abs(position[0] - position[1]) < 0.2                                  # ... position cannot tell
+    assert full[0] - full[1] > math.log(RelocalizationPrior().mirror_odds)  # the heading prefers it ...
+    assert abs(position[0] - position[1]) < 0.2  # ... position cannot tell
     confident = Estimate(pose, np.diag([1e-3, 1e-3, 1e-3]), 1.0)
     flips = [relocalization.confirm(confident, True) for _ in range(RelocalizationPrior().jump_corrections)]
     assert not any(flips)
@@ -211,7 +234,7 @@ def test_a_filter_recovers_from_a_kidnap_that_turns_the_robot(turn):
     for k in range(60):
         pf.step(standing, frame(start, k))
     found = None
-    for k in range(150):                          # 5 s at 30 Hz
+    for k in range(150):  # 5 s at 30 Hz
         estimate = pf.step(standing, frame(kidnapped, k))
         error = math.hypot(estimate.x - kidnapped[0], estimate.y - kidnapped[1])
         if error < 0.3 and abs(math.remainder(estimate.theta - kidnapped[2], 2 * math.pi)) < 0.35:
@@ -230,7 +253,7 @@ def test_anywhere_in_own_half_spreads_the_belief_over_the_own_half_with_any_head
     loc.anywhere_in_own_half()
     poses = loc.filter.poses
     assert (poses[:, 0] <= 0.0).all() and (poses[:, 0] >= -FIELD.half_length - 1).all()
-    assert np.std(poses[:, 2]) > 1.5                # headings spread over the circle
+    assert np.std(poses[:, 2]) > 1.5  # headings spread over the circle
     assert math.isnan(loc.fit) and not loc.is_lost
 
 
@@ -253,17 +276,24 @@ def test_kernels_equal_their_numpy_twins(pose, seed, linear):
     model = LandmarkSensorModel(FIELD, range_noise_linear=linear)
     pose = np.array(pose)
     observations = seen_from(pose, max_range=7.0, fov=math.radians(100), noise=(0.1, 0.05), rng=rng)
-    np.testing.assert_array_equal(poses_from_pairs(model, observations),
-                                  poses_from_pairs(model, observations, reference=True))
+    np.testing.assert_array_equal(
+        poses_from_pairs(model, observations), poses_from_pairs(model, observations, reference=True)
+    )
     probe = pose + rng.normal(0, 0.3, 3)
-    np.testing.assert_array_equal(model.explained(probe, observations, 2.5, 0.1, 0.03),
-                                  model.explained_reference(probe, observations, 2.5, 0.1, 0.03))
+    np.testing.assert_array_equal(
+        model.explained(probe, observations, 2.5, 0.1, 0.03),
+        model.explained_reference(probe, observations, 2.5, 0.1, 0.03),
+    )
     relocalization = SoccerRelocalization()
     relocalization.bind((-5.2, 5.2, -3.7, 3.7))
     poses = np.column_stack([rng.uniform(-6, 6, 50), rng.uniform(-4, 4, 50), rng.uniform(-7, 7, 50)])
-    for reset in (lambda: None, lambda: relocalization.reset_region((-5.2, 0.0, -3.7, 3.7)),
-                  lambda: relocalization.reset_pose(probe)):
+    for reset in (
+        lambda: None,
+        lambda: relocalization.reset_region((-5.2, 0.0, -3.7, 3.7)),
+        lambda: relocalization.reset_pose(probe),
+    ):
         reset()
         relocalization.travelled = float(rng.uniform(0, 5))
-        np.testing.assert_allclose(relocalization.log_prior(poses), relocalization.log_prior_reference(poses),
-                                   rtol=0, atol=1e-12)
+        np.testing.assert_allclose(
+            relocalization.log_prior(poses), relocalization.log_prior_reference(poses), rtol=0, atol=1e-12
+        )

@@ -3,6 +3,7 @@
 Every log here is a real MCAP file written by `write_mcap` from the walk scenario and read by the real reader
 through the command's entry point.
 """
+
 import json
 from dataclasses import replace
 
@@ -17,8 +18,13 @@ from mcl.tools.logs.mcap_io import Topics, write_mcap
 from mcl.tools.replay import check_inputs, main, replay
 
 FIELD = spl()
-RENAMED = Topics(odometry="/robot/odom", commands="/walk/cmd_vel", goalposts="/vision/goalposts",
-                 markings="/vision/markings", truth="/sim/truth")
+RENAMED = Topics(
+    odometry="/robot/odom",
+    commands="/walk/cmd_vel",
+    goalposts="/vision/goalposts",
+    markings="/vision/markings",
+    truth="/sim/truth",
+)
 
 
 @pytest.fixture(scope="module")
@@ -30,9 +36,16 @@ def walk_log():
 
 
 def replace_streams(log: RobotLog, **streams) -> RobotLog:
-    fields = dict(origin_ns=log.origin_ns, odometry_times=log.odometry_times, odometry=log.odometry,
-                  command_times=log.command_times, commands=log.commands, vision=log.vision,
-                  truth_times=log.truth_times, truth=log.truth)
+    fields = dict(
+        origin_ns=log.origin_ns,
+        odometry_times=log.odometry_times,
+        odometry=log.odometry,
+        command_times=log.command_times,
+        commands=log.commands,
+        vision=log.vision,
+        truth_times=log.truth_times,
+        truth=log.truth,
+    )
     return RobotLog(**{**fields, **streams})
 
 
@@ -45,14 +58,27 @@ def run(capsys, *argv):
 def test_a_log_with_renamed_topics_is_replayed_from_the_topics_of_the_right_types(tmp_path, capsys, walk_log):
     path = tmp_path / "renamed.mcap"
     write_mcap(walk_log, path, RENAMED)
-    code, out, err = run(capsys, path, "--json", "--particles", 200, "--seed", 3, "--topic-truth", "/sim/truth",
-                         "--start=" + ",".join(str(v) for v in walk_log.truth[0]))
+    code, out, err = run(
+        capsys,
+        path,
+        "--json",
+        "--particles",
+        200,
+        "--seed",
+        3,
+        "--topic-truth",
+        "/sim/truth",
+        "--start=" + ",".join(str(v) for v in walk_log.truth[0]),
+    )
     assert code == 0, err
     report = json.loads(out)
     assert report["log"]["topics"] == {
-        "odometry": {"topic": "/robot/odom", "by": "type"}, "commands": {"topic": "/walk/cmd_vel", "by": "type"},
+        "odometry": {"topic": "/robot/odom", "by": "type"},
+        "commands": {"topic": "/walk/cmd_vel", "by": "type"},
         "goalposts": {"topic": "/vision/goalposts", "by": "type"},
-        "markings": {"topic": "/vision/markings", "by": "type"}, "truth": {"topic": "/sim/truth", "by": "name"}}
+        "markings": {"topic": "/vision/markings", "by": "type"},
+        "truth": {"topic": "/sim/truth", "by": "name"},
+    }
     figures = report["replay"]
     late = figures["dropped"].get("camera frame after the last motion step", 0)
     assert figures["frames_used"] + late == len(walk_log.vision) and late <= 1
@@ -60,8 +86,9 @@ def test_a_log_with_renamed_topics_is_replayed_from_the_topics_of_the_right_type
     # The same estimates as replaying the log in memory.
     log, _ = read_log(path, topics=Topics(truth="/sim/truth"))
     direct = replay(walk_log, FIELD, particles=200, seed=3, start=tuple(walk_log.truth[0]))
-    np.testing.assert_allclose(replay(log, FIELD, particles=200, seed=3, start=tuple(walk_log.truth[0])).estimates,
-                               direct.estimates, atol=1e-9)
+    np.testing.assert_allclose(
+        replay(log, FIELD, particles=200, seed=3, start=tuple(walk_log.truth[0])).estimates, direct.estimates, atol=1e-9
+    )
     # Without --json the choices are printed.
     code, out, _ = run(capsys, path, "--particles", 50)
     assert code == 0 and "odometry from /robot/odom (by type" in out and "goalposts from /vision/goalposts" in out
@@ -69,8 +96,13 @@ def test_a_log_with_renamed_topics_is_replayed_from_the_topics_of_the_right_type
 
 def test_a_log_without_motion_input_is_refused_naming_what_is_missing(tmp_path, capsys, walk_log):
     path = tmp_path / "still.mcap"
-    still = replace_streams(walk_log, odometry_times=np.zeros(0), odometry=np.zeros((0, 3)),
-                            command_times=np.zeros(0), commands=np.zeros((0, 3)))
+    still = replace_streams(
+        walk_log,
+        odometry_times=np.zeros(0),
+        odometry=np.zeros((0, 3)),
+        command_times=np.zeros(0),
+        commands=np.zeros((0, 3)),
+    )
     write_mcap(still, path, RENAMED)
     code, out, err = run(capsys, path, "--particles", 50, "--out", tmp_path / "poses.npz")
     assert code == 1 and out == ""
@@ -85,8 +117,11 @@ def test_a_log_without_motion_input_is_refused_naming_what_is_missing(tmp_path, 
 @pytest.mark.parametrize("frames", ["none", "empty"])
 def test_a_log_without_detections_is_refused_naming_what_is_missing(tmp_path, capsys, walk_log, frames):
     path = tmp_path / "blind.mcap"
-    vision = () if frames == "none" else tuple(replace(f, observations=type(f.observations).empty())
-                                               for f in walk_log.vision)
+    vision = (
+        ()
+        if frames == "none"
+        else tuple(replace(f, observations=type(f.observations).empty()) for f in walk_log.vision)
+    )
     write_mcap(replace_streams(walk_log, vision=vision), path, RENAMED)
     code, out, err = run(capsys, path, "--particles", 50)
     assert code == 1 and out == ""
@@ -117,8 +152,9 @@ def merge(out_path, *sources) -> None:
                     if schema.name not in schema_ids:
                         schema_ids[schema.name] = writer.register_schema(schema.name, schema.encoding, schema.data)
                     if channel.topic not in channel_ids:
-                        channel_ids[channel.topic] = writer.register_channel(channel.topic, channel.message_encoding,
-                                                                             schema_ids[schema.name])
+                        channel_ids[channel.topic] = writer.register_channel(
+                            channel.topic, channel.message_encoding, schema_ids[schema.name]
+                        )
                     entries.append((message.log_time, channel_ids[channel.topic], message.data))
         for log_time, channel_id, data in sorted(entries, key=lambda entry: entry[0]):
             writer.add_message(channel_id, log_time, data, log_time)
@@ -127,14 +163,16 @@ def merge(out_path, *sources) -> None:
 
 def test_two_odometry_topics_are_an_error_naming_both(tmp_path, capsys, walk_log):
     write_mcap(walk_log, tmp_path / "walk.mcap", RENAMED)
-    write_mcap(replace_streams(walk_log, command_times=np.zeros(0), commands=np.zeros((0, 3)), vision=()),
-               tmp_path / "fused.mcap", Topics(odometry="/odom/fused", truth=""))
+    write_mcap(
+        replace_streams(walk_log, command_times=np.zeros(0), commands=np.zeros((0, 3)), vision=()),
+        tmp_path / "fused.mcap",
+        Topics(odometry="/odom/fused", truth=""),
+    )
     merge(tmp_path / "both.mcap", tmp_path / "walk.mcap", tmp_path / "fused.mcap")
     code, out, err = run(capsys, tmp_path / "both.mcap", "--particles", 50)
     assert code == 1 and out == ""
     assert "2 topics carry nav_msgs/Odometry: /odom/fused, /robot/odom" in err and "--topic-odometry" in err
-    code, out, err = run(capsys, tmp_path / "both.mcap", "--particles", 50, "--topic-odometry", "/robot/odom",
-                         "--json")
+    code, out, err = run(capsys, tmp_path / "both.mcap", "--particles", 50, "--topic-odometry", "/robot/odom", "--json")
     assert code == 0, err
     assert json.loads(out)["log"]["topics"]["odometry"] == {"topic": "/robot/odom", "by": "name"}
 
@@ -147,7 +185,7 @@ def test_npz_output_holds_the_documented_arrays(tmp_path, capsys, walk_log):
     with np.load(tmp_path / "poses.npz") as poses:
         assert sorted(poses.files) == ["covariances", "lost", "origin_ns", "poses", "quality", "times"]
         m = poses["times"].shape[0]
-        assert m == walk_log.odometry_times.shape[0] - 1          # one row per motion step
+        assert m == walk_log.odometry_times.shape[0] - 1  # one row per motion step
         assert poses["poses"].shape == (m, 3) and poses["covariances"].shape == (m, 3, 3)
         assert poses["quality"].dtype == np.int8 and poses["lost"].dtype == bool
         assert poses["origin_ns"].shape == () and int(poses["origin_ns"]) == walk_log.origin_ns

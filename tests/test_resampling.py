@@ -9,17 +9,22 @@ from mcl.reference import systematic as systematic_reference
 from mcl.resampling import SCHEMES, multinomial, stratified, systematic
 from numerics.reference import sincos as sincos_reference
 
-weight_lists = st.lists(st.floats(0.0, 1.0), min_size=1, max_size=40).filter(lambda w: sum(w) > 1e-6).map(
-    lambda w: np.array(w) / np.sum(w))
+weight_lists = (
+    st.lists(st.floats(0.0, 1.0), min_size=1, max_size=40)
+    .filter(lambda w: sum(w) > 1e-6)
+    .map(lambda w: np.array(w) / np.sum(w))
+)
 
 
-@pytest.mark.parametrize("scheme,reference", [(systematic, systematic_reference),
-                                              (stratified, stratified_reference),
-                                              (multinomial, multinomial_reference)])
+@pytest.mark.parametrize(
+    "scheme,reference",
+    [(systematic, systematic_reference), (stratified, stratified_reference), (multinomial, multinomial_reference)],
+)
 @given(weights=weight_lists, seed=st.integers(0, 2**32 - 1), m=st.integers(1, 60))
 def test_matches_numpy_reference(scheme, reference, weights, seed, m):
-    assert np.array_equal(scheme(weights, m, np.random.default_rng(seed)),
-                          reference(weights, m, np.random.default_rng(seed)))
+    assert np.array_equal(
+        scheme(weights, m, np.random.default_rng(seed)), reference(weights, m, np.random.default_rng(seed))
+    )
 
 
 @pytest.mark.parametrize("name", sorted(SCHEMES))
@@ -28,7 +33,7 @@ def test_valid_indices_and_count(name, weights, seed, m):
     ancestors = SCHEMES[name](weights, m, np.random.default_rng(seed))
     assert ancestors.shape == (m,) and ancestors.dtype == np.int64
     assert ((ancestors >= 0) & (ancestors < weights.shape[0])).all()
-    assert (weights[ancestors] > 0).all()   # a particle of zero weight is never drawn
+    assert (weights[ancestors] > 0).all()  # a particle of zero weight is never drawn
 
 
 @pytest.mark.parametrize("name", sorted(SCHEMES))
@@ -102,14 +107,13 @@ def test_resampling_with_jitter_equals_systematic_then_gather(weights, seed, m, 
     source = np.column_stack([rng.uniform(-5, 5, n), rng.uniform(-3, 3, n), rng.uniform(-np.pi, np.pi, n)])
     bounds = np.array([0.03, 0.02, 0.05])
     plain, drawn = np.random.default_rng(seed + 1), np.random.default_rng(seed + 1)
-    expected = gather_with_jitter(source, systematic(weights, m, plain), bounds, plain.random((m, 3)),
-                                  np.empty((m, 3)))
+    expected = gather_with_jitter(source, systematic(weights, m, plain), bounds, plain.random((m, 3)), np.empty((m, 3)))
     trig = np.column_stack(sincos_reference(source[:, 2])) if known_trig else np.empty((0, 2))
     out, coordinates, counts = np.empty((m, 3)), np.empty((3, m)), np.zeros(m + 1, dtype=np.int64)
     resample_with_jitter(weights, m, source, bounds, out, trig, *bit_generator_handle(drawn), counts, coordinates)
     assert np.array_equal(out, expected) and np.array_equal(coordinates, expected.T) and not counts.any()
     assert plain.bit_generator.state == drawn.bit_generator.state
-    again, generator = np.empty((m, 3)), np.random.default_rng(seed + 1)     # (a handle does not keep it)
+    again, generator = np.empty((m, 3)), np.random.default_rng(seed + 1)  # (a handle does not keep it)
     systematic_with_jitter(weights, m, source, bounds, again, trig, *bit_generator_handle(generator))
     assert np.array_equal(again, expected)
 
@@ -126,9 +130,18 @@ def test_motion_state_follows_the_resampled_particles(weights, seed, m, columns)
     expected = rows.copy()
     expected[:m] = rows[systematic(weights, m, np.random.default_rng(seed))]
     counts, scratch = np.zeros(m + 1, dtype=np.int64), np.full((m, columns), np.nan)
-    generator = np.random.default_rng(seed)          # (kept: a handle does not keep its generator alive)
-    u0 = resample_with_jitter(weights, m, np.zeros((n, 3)), np.zeros(3), np.empty((m, 3)), np.empty((0, 2)),
-                              *bit_generator_handle(generator), counts, np.empty((3, 0)))
+    generator = np.random.default_rng(seed)  # (kept: a handle does not keep its generator alive)
+    u0 = resample_with_jitter(
+        weights,
+        m,
+        np.zeros((n, 3)),
+        np.zeros(3),
+        np.empty((m, 3)),
+        np.empty((0, 2)),
+        *bit_generator_handle(generator),
+        counts,
+        np.empty((3, 0)),
+    )
     assert u0 == np.random.default_rng(seed).random()
     gather_offspring_rows(weights, m, u0, counts, rows, scratch)
     assert np.array_equal(rows, expected) and not counts.any()
@@ -152,12 +165,31 @@ def test_chunked_resampling(weights, seed):
         generator = np.random.default_rng(seed)
         counts = np.zeros(m + 1, dtype=np.int64)
         if chunk:
-            resample_with_jitter_chunked(weights, m, source, bounds, out, np.empty((0, 2)),
-                                         *bit_generator_handle(generator), counts, np.empty((3, 0)),
-                                         np.empty(3 * m), chunk)
+            resample_with_jitter_chunked(
+                weights,
+                m,
+                source,
+                bounds,
+                out,
+                np.empty((0, 2)),
+                *bit_generator_handle(generator),
+                counts,
+                np.empty((3, 0)),
+                np.empty(3 * m),
+                chunk,
+            )
         else:
-            resample_with_jitter(weights, m, source, bounds, out, np.empty((0, 2)), *bit_generator_handle(generator),
-                                 counts, np.empty((3, 0)))
+            resample_with_jitter(
+                weights,
+                m,
+                source,
+                bounds,
+                out,
+                np.empty((0, 2)),
+                *bit_generator_handle(generator),
+                counts,
+                np.empty((3, 0)),
+            )
         assert not counts.any()
         results.append(out)
     assert np.array_equal(results[0], results[1])

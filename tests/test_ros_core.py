@@ -1,6 +1,7 @@
 """The ROS node's logic without ROS (`mcl.tools.ros.core`, `mcl.tools.ros.parameters`): messages decoded from an MCAP log,
 fed in the order the log has them, give `robocup-mcl replay`'s estimates bit for bit; the game events; the
 parameters' checks; and `robocup-mcl node` without the ROS wheels says what to install in one line."""
+
 from __future__ import annotations
 
 import dataclasses
@@ -16,7 +17,7 @@ from mcl.tools.replay import replay
 from mcl.tools.ros.core import NodeCore, map_to_odom
 from mcl.tools.ros.parameters import NodeSettings
 
-ORIGIN_NS = 1_750_000_000_000_000_000       # a stamp of our time: the log's t = 0
+ORIGIN_NS = 1_750_000_000_000_000_000  # a stamp of our time: the log's t = 0
 
 
 @pytest.fixture(scope="module")
@@ -36,8 +37,10 @@ def decoded_messages(path):
 
     with open(path, "rb") as stream:
         reader = make_reader(stream, decoder_factories=[DecoderFactory()])
-        rows = [(message.log_time, channel.topic, decoded)
-                for _, channel, message, decoded in reader.iter_decoded_messages()]
+        rows = [
+            (message.log_time, channel.topic, decoded)
+            for _, channel, message, decoded in reader.iter_decoded_messages()
+        ]
     return sorted(rows, key=lambda row: (row[0], row[1] == "/motion_odometry"))
 
 
@@ -56,6 +59,7 @@ def test_the_core_gives_the_replay_s_estimates_bit_for_bit(battery_log):
         elif topic == "/markings_relative":
             core.markings(message)
     from mcl.tools.logs import read_log
+
     read, _ = read_log(str(path))
     result = replay(read, settings.localizer().field, particles=200, seed=3)
     assert len(outputs) == result.times.shape[0] > 1000
@@ -71,8 +75,9 @@ def test_map_to_odom_composes_with_the_odometry_pose_to_the_estimate():
     x, y, theta = map_to_odom(estimate, odometry)
     c, s = math.cos(theta), math.sin(theta)
     back = (x + c * odometry[0] - s * odometry[1], y + s * odometry[0] + c * odometry[1], theta + odometry[2])
-    assert np.allclose(back[:2], estimate[:2]) and math.isclose(math.remainder(back[2] - estimate[2], math.tau), 0,
-                                                                abs_tol=1e-12)
+    assert np.allclose(back[:2], estimate[:2]) and math.isclose(
+        math.remainder(back[2] - estimate[2], math.tau), 0, abs_tol=1e-12
+    )
 
 
 def _state(game_state, penalized=False):
@@ -97,21 +102,32 @@ def test_events_and_a_known_pose():
     core.event("got_up")
     with pytest.raises(ValueError, match="event = 'jump'"):
         core.event("jump")
-    pose = SimpleNamespace(header=SimpleNamespace(stamp=SimpleNamespace(sec=1, nanosec=0), frame_id="map"),
-                           pose=SimpleNamespace(pose=SimpleNamespace(
-                               position=SimpleNamespace(x=1.0, y=-0.5, z=0.0),
-                               orientation=SimpleNamespace(x=0.0, y=0.0, z=0.0, w=1.0)),
-                               covariance=[0.0] * 36))
+    pose = SimpleNamespace(
+        header=SimpleNamespace(stamp=SimpleNamespace(sec=1, nanosec=0), frame_id="map"),
+        pose=SimpleNamespace(
+            pose=SimpleNamespace(
+                position=SimpleNamespace(x=1.0, y=-0.5, z=0.0), orientation=SimpleNamespace(x=0.0, y=0.0, z=0.0, w=1.0)
+            ),
+            covariance=[0.0] * 36,
+        ),
+    )
     core.initial_pose(pose)
     assert np.allclose(core.localizer.pose().pose[:2], (1.0, -0.5), atol=0.1)
     assert core.all_counts()["event place"] == 1
 
 
-@pytest.mark.parametrize("values, match", [({"particles": 0}, "particles = 0"), ({"model": "x"}, "model = 'x'"),
-                                           ({"history": -1.0}, "history = -1.0"), ({"start": "z"}, "start = 'z'"),
-                                           ({"particles": "5"}, "particles = '5' must be a int"),
-                                           ({"nope": 1}, "unknown parameters"),
-                                           ({"pose_topic": "a b"}, "pose_topic")])
+@pytest.mark.parametrize(
+    "values, match",
+    [
+        ({"particles": 0}, "particles = 0"),
+        ({"model": "x"}, "model = 'x'"),
+        ({"history": -1.0}, "history = -1.0"),
+        ({"start": "z"}, "start = 'z'"),
+        ({"particles": "5"}, "particles = '5' must be a int"),
+        ({"nope": 1}, "unknown parameters"),
+        ({"pose_topic": "a b"}, "pose_topic"),
+    ],
+)
 def test_bad_parameters_are_refused_by_name(values, match):
     with pytest.raises(ValueError, match=match):
         NodeSettings.from_dict(values)
@@ -140,8 +156,10 @@ def test_the_field_markers_are_the_field_s_own_geometry():
     assert np.array_equal(np.array([m.points[0] for m in posts]), field.landmarks_of(LandmarkType.GOALPOST))
     assert all(m.shape == "cylinder" and m.width == field.dims.goalpost_diameter and m.height > 0 for m in posts)
     marks = np.array([m.points[0] for m in by_namespace["marks"]])
-    assert np.array_equal(marks, np.concatenate([field.landmarks_of(LandmarkType.PENALTY_MARK),
-                                                 field.landmarks_of(LandmarkType.CENTER_MARK)]))
+    assert np.array_equal(
+        marks,
+        np.concatenate([field.landmarks_of(LandmarkType.PENALTY_MARK), field.landmarks_of(LandmarkType.CENTER_MARK)]),
+    )
 
 
 def test_the_particles_are_the_filter_s_a_copy():
@@ -155,7 +173,10 @@ def test_the_particles_are_the_filter_s_a_copy():
 def test_the_output_rates_and_topics_are_parameters():
     settings = NodeSettings()
     assert (settings.particles_rate, settings.particles_topic, settings.field_topic) == (
-        2.0, "/robocup_mcl/particles", "/robocup_mcl/field")
+        2.0,
+        "/robocup_mcl/particles",
+        "/robocup_mcl/field",
+    )
     with pytest.raises(ValueError, match="particles_rate = -1.0"):
         NodeSettings(particles_rate=-1.0)
 
@@ -167,10 +188,15 @@ def test_without_send_times_a_frame_captured_after_the_odometry_stamp_waits(batt
     rows = decoded_messages(path)
     odometry = [m for _, topic, m in rows if topic == "/motion_odometry"]
     goalposts = [m for _, topic, m in rows if topic == "/goal_posts_relative"]
-    markings = {m.header.stamp.sec * 10**9 + m.header.stamp.nanosec: m
-                for _, topic, m in rows if topic == "/markings_relative"}
-    frame = next(g for g in goalposts if (g.header.stamp.sec * 10**9 + g.header.stamp.nanosec) in markings
-                 and g.header.stamp.sec * 10**9 + g.header.stamp.nanosec > stamp_of(odometry[2]))
+    markings = {
+        m.header.stamp.sec * 10**9 + m.header.stamp.nanosec: m for _, topic, m in rows if topic == "/markings_relative"
+    }
+    frame = next(
+        g
+        for g in goalposts
+        if (g.header.stamp.sec * 10**9 + g.header.stamp.nanosec) in markings
+        and g.header.stamp.sec * 10**9 + g.header.stamp.nanosec > stamp_of(odometry[2])
+    )
     capture = frame.header.stamp.sec * 10**9 + frame.header.stamp.nanosec
     before = [m for m in odometry if stamp_of(m) < capture]
     after = next(m for m in odometry if stamp_of(m) >= capture)
@@ -178,7 +204,7 @@ def test_without_send_times_a_frame_captured_after_the_odometry_stamp_waits(batt
     core.odometry(before[-2])
     core.goalposts(frame)
     core.markings(markings[capture])
-    assert core.odometry(before[-1]).frames_used == 0        # captured after this stamp: not yet
+    assert core.odometry(before[-1]).frames_used == 0  # captured after this stamp: not yet
     assert core.odometry(after).frames_used == 1
     # with send times, the send times decide (today's behaviour where rclpy gives them)
     core = NodeCore(NodeSettings(field=field_name, particles=100), origin_ns=log.origin_ns)
@@ -197,7 +223,7 @@ def test_callbacks_take_message_info_only_where_rclpy_gives_it():
 
     from mcl.tools.ros.node import Statistics, message_info_supported
 
-    assert message_info_supported() == (importlib.util.find_spec("rclpy") is not None)   # Kilted here, or none
+    assert message_info_supported() == (importlib.util.find_spec("rclpy") is not None)  # Kilted here, or none
     seen = []
     stats = Statistics()
     stats.timed("/a", lambda message, sent_ns: seen.append((message, sent_ns)), with_info=False)("m")

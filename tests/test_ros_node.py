@@ -5,6 +5,7 @@ The DDS test runs only where the `ros` extra and the generated messages are inst
 these tests with its own environment) and a loopback-only namespace can be made (root, unshare); it skips
 otherwise, saying why. It asserts what the node did, never how fast: the figures come from
 `robocup-mcl node bench --json --save results/ros_*.json`."""
+
 from __future__ import annotations
 
 import dataclasses
@@ -33,7 +34,7 @@ def log_path(tmp_path_factory):
     from demos.battery_sim import as_robot_log, simulate
     from mcl.tools.logs.mcap_io import write_mcap
 
-    run = simulate("tracking", 1011, 6.0)         # a held-out-like seed (the battery's held-out range)
+    run = simulate("tracking", 1011, 6.0)  # a held-out-like seed (the battery's held-out range)
     path = tmp_path_factory.mktemp("ros") / "tracking_1011.mcap"
     write_mcap(dataclasses.replace(as_robot_log(run), origin_ns=ORIGIN_NS), path)
     return path, run.field.name
@@ -42,9 +43,26 @@ def log_path(tmp_path_factory):
 def test_the_node_answers_a_played_log_over_dds(log_path):
     _dds_or_skip()
     path, field = log_path
-    done = subprocess.run([sys.executable, "-m", "mcl.tools.cli", "node", "bench", str(path), "--field", field,
-                           "--particles", "100", "--seed", "2", "--json"],
-                          capture_output=True, text=True, timeout=600)
+    done = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "mcl.tools.cli",
+            "node",
+            "bench",
+            str(path),
+            "--field",
+            field,
+            "--particles",
+            "100",
+            "--seed",
+            "2",
+            "--json",
+        ],
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
     assert done.returncode == 0, done.stderr[-3000:]
     result = json.loads(done.stdout)
     assert result["odometry_sent"] == 601 and result["poses_expected"] == 600
@@ -67,9 +85,27 @@ def test_the_node_answers_without_source_timestamps_as_on_humble(log_path):
     by the order taken and their header stamps."""
     _dds_or_skip()
     path, field = log_path
-    done = subprocess.run([sys.executable, "-m", "mcl.tools.cli", "node", "bench", str(path), "--field", field,
-                           "--particles", "100", "--seed", "2", "--no-source-timestamps", "--json"],
-                          capture_output=True, text=True, timeout=600)
+    done = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "mcl.tools.cli",
+            "node",
+            "bench",
+            str(path),
+            "--field",
+            field,
+            "--particles",
+            "100",
+            "--seed",
+            "2",
+            "--no-source-timestamps",
+            "--json",
+        ],
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
     assert done.returncode == 0, done.stderr[-3000:]
     result = json.loads(done.stdout)
     node = result["node"]
@@ -82,5 +118,7 @@ def test_without_ros_the_commands_say_what_to_install(tmp_path):
     if ros_available() is None:
         pytest.skip("ROS 2 is installed here: the commands run")
     for argv in (["node"], ["node", "play", str(tmp_path / "x.mcap")]):
-        done = subprocess.run([sys.executable, "-m", "mcl.tools.cli", *argv], capture_output=True, text=True, timeout=120)
+        done = subprocess.run(
+            [sys.executable, "-m", "mcl.tools.cli", *argv], capture_output=True, text=True, timeout=120
+        )
         assert done.returncode == 1 and "make ros" in done.stderr and done.stderr.count("\n") == 1, done.stderr

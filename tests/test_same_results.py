@@ -3,6 +3,7 @@ a stateful motion model with multinomial resampling, latency) give the arrays re
 `tests/data/same_results.npz`, bit for bit (`tests/same_results.py` says how they were made). The fast-math
 variant (`fast=True`) promises results to rounding only, and is compared so: LLVM may contract and reassociate
 its arithmetic differently when the code around a kernel changes."""
+
 import numpy as np
 import pytest
 

@@ -20,15 +20,18 @@ def observe(pose, kind, field=FIELD, index=0):
 
 
 # -- observations ---------------------------------------------------------------------------------------------
-@pytest.mark.parametrize("kwargs,match", [
-    (dict(kind="goalpost", range=float("nan"), bearing=0.0), "range"),
-    (dict(kind="goalpost", range=1.0, bearing=float("inf")), "bearing"),
-    (dict(kind="goalpost", range=-0.5, bearing=0.0), "range"),
-    (dict(kind="corner_flag", range=1.0, bearing=0.0), "corner_flag"),
-    (dict(kind=17, range=1.0, bearing=0.0), "17"),
-    (dict(kind="goalpost", range=1.0, bearing=0.0, range_sigma=0.0), "range_sigma"),
-    (dict(kind="goalpost", range=1.0, bearing=0.0, bearing_sigma=float("nan")), "bearing_sigma"),
-])
+@pytest.mark.parametrize(
+    "kwargs,match",
+    [
+        (dict(kind="goalpost", range=float("nan"), bearing=0.0), "range"),
+        (dict(kind="goalpost", range=1.0, bearing=float("inf")), "bearing"),
+        (dict(kind="goalpost", range=-0.5, bearing=0.0), "range"),
+        (dict(kind="corner_flag", range=1.0, bearing=0.0), "corner_flag"),
+        (dict(kind=17, range=1.0, bearing=0.0), "17"),
+        (dict(kind="goalpost", range=1.0, bearing=0.0, range_sigma=0.0), "range_sigma"),
+        (dict(kind="goalpost", range=1.0, bearing=0.0, bearing_sigma=float("nan")), "bearing_sigma"),
+    ],
+)
 def test_bad_observation_is_rejected_with_its_field(kwargs, match):
     with pytest.raises(ValueError, match=match):
         LandmarkObservation(**kwargs)
@@ -47,14 +50,17 @@ def test_bad_batches_are_rejected():
         Observations.from_list([("goalpost", 1.0, 0.0)])
 
 
-
-@pytest.mark.parametrize("kinds", [np.array([0.0, 2.0]), np.array([0.0, 1.7]), [0, 1.5], np.array([True, False])],
-                         ids=["integral floats", "float array", "list with a float", "booleans"])
+@pytest.mark.parametrize(
+    "kinds",
+    [np.array([0.0, 2.0]), np.array([0.0, 1.7]), [0, 1.5], np.array([True, False])],
+    ids=["integral floats", "float array", "list with a float", "booleans"],
+)
 def test_kinds_that_are_not_integers_are_refused(kinds):
     # a cast to int64 would truncate 1.7 to 1 (another landmark type): the constructor refuses instead
     given = np.array(kinds, copy=True) if isinstance(kinds, np.ndarray) else list(kinds)
-    with pytest.raises(TypeError, match=r"^kinds has dtype (float64|bool): it must hold integer landmark type") \
-            as error:
+    with pytest.raises(
+        TypeError, match=r"^kinds has dtype (float64|bool): it must hold integer landmark type"
+    ) as error:
         Observations(kinds, [1.0, 2.0], [0.0, 0.1], [np.nan, np.nan], [np.nan, np.nan])
     assert "\n" not in str(error.value)
     # the refused call changed nothing it was given
@@ -66,18 +72,24 @@ def test_kinds_that_are_not_integers_are_refused(kinds):
 
 
 def test_kinds_as_integers_members_or_an_empty_array_are_taken():
-    members = Observations([LandmarkType.GOALPOST, LandmarkType.T_CROSSING], [1.0, 2.0], [0.0, 0.1],
-                           [np.nan, np.nan], [np.nan, np.nan])
-    values = Observations(np.array([0, 2], dtype=np.int32), [1.0, 2.0], [0.0, 0.1], [np.nan, np.nan],
-                          [np.nan, np.nan])
+    members = Observations(
+        [LandmarkType.GOALPOST, LandmarkType.T_CROSSING], [1.0, 2.0], [0.0, 0.1], [np.nan, np.nan], [np.nan, np.nan]
+    )
+    values = Observations(np.array([0, 2], dtype=np.int32), [1.0, 2.0], [0.0, 0.1], [np.nan, np.nan], [np.nan, np.nan])
     assert members.kinds.tolist() == values.kinds.tolist() == [0, 2] and values.kinds.dtype == np.int64
     assert len(Observations(np.zeros(0), np.zeros(0), np.zeros(0), np.zeros(0), np.zeros(0))) == 0
+
 
 ENTRIES = st.sampled_from([0.0, 1.5, -0.0, -2.0, 1e-300, float("nan"), float("inf"), -float("inf")])
 
 
-@given(st.integers(0, 6).flatmap(lambda m: st.tuples(
-    st.lists(st.integers(-2, 8), min_size=m, max_size=m), *(st.lists(ENTRIES, min_size=m, max_size=m),) * 4)))
+@given(
+    st.integers(0, 6).flatmap(
+        lambda m: st.tuples(
+            st.lists(st.integers(-2, 8), min_size=m, max_size=m), *(st.lists(ENTRIES, min_size=m, max_size=m),) * 4
+        )
+    )
+)
 def test_batch_checks_match_their_numpy_twin(columns):
     """`first_invalid` (compiled, one pass per check) names the check and the detection its numpy twin
     names, and `Observations` raises for that detection, or accepts the batch when both find nothing."""
@@ -85,7 +97,9 @@ def test_batch_checks_match_their_numpy_twin(columns):
     from sensing.reference import first_invalid as first_invalid_reference
 
     kinds, ranges, bearings, range_sigmas, bearing_sigmas = (
-        np.array(columns[0], dtype=np.int64), *(np.array(c, dtype=np.float64) for c in columns[1:]))
+        np.array(columns[0], dtype=np.int64),
+        *(np.array(c, dtype=np.float64) for c in columns[1:]),
+    )
     found = first_invalid(kinds, ranges, bearings, range_sigmas, bearing_sigmas, IS_KIND)
     assert found == first_invalid_reference(kinds, ranges, bearings, range_sigmas, bearing_sigmas, IS_KIND)
     if found[0] < 0:
@@ -151,18 +165,26 @@ def test_the_empty_batch_is_made_once_and_cannot_change():
 SIGMAS = st.one_of(st.none(), st.floats(0.01, 2.0))
 
 
-@given(st.lists(st.tuples(st.sampled_from(list(LandmarkType)), st.floats(0.0, 12.0), st.floats(-3.2, 3.2),
-                          SIGMAS, SIGMAS), max_size=12),
-       st.one_of(st.none(), st.lists(st.tuples(st.floats(-5, 5), st.floats(-5, 5)), max_size=4)))
+@given(
+    st.lists(
+        st.tuples(st.sampled_from(list(LandmarkType)), st.floats(0.0, 12.0), st.floats(-3.2, 3.2), SIGMAS, SIGMAS),
+        max_size=12,
+    ),
+    st.one_of(st.none(), st.lists(st.tuples(st.floats(-5, 5), st.floats(-5, 5)), max_size=4)),
+)
 def test_a_list_makes_the_batch_its_arrays_make(detections, line_points):
     """`from_list` (which adopts the two arrays it builds) gives the batch `from_arrays` gives: the same
     values, dtypes, contiguous read-only arrays, and nothing writable behind them."""
     batch = Observations.from_list([LandmarkObservation(*d) for d in detections], line_points=line_points)
     columns = list(zip(*detections)) or [[]] * 5
     expected = Observations.from_arrays(
-        list(columns[0]), list(columns[1]), list(columns[2]),
-        [np.nan if v is None else v for v in columns[3]], [np.nan if v is None else v for v in columns[4]],
-        line_points=line_points)
+        list(columns[0]),
+        list(columns[1]),
+        list(columns[2]),
+        [np.nan if v is None else v for v in columns[3]],
+        [np.nan if v is None else v for v in columns[4]],
+        line_points=line_points,
+    )
     for name in ("kinds", "ranges", "bearings", "range_sigmas", "bearing_sigmas", "line_points"):
         got, want = getattr(batch, name), getattr(expected, name)
         assert got.dtype == want.dtype and got.shape == want.shape
@@ -186,15 +208,22 @@ def test_type_absent_from_the_field_is_an_error(spl_field):
     model.check(Observations.from_arrays(["x_crossing"], [1.0], [0.0]))
     # A sensor model over a field whose table lacks a type must say so (simulate with an offsets hole).
     offsets = model._offsets.copy()
-    offsets[LandmarkType.X_CROSSING + 1:] -= 2
+    offsets[LandmarkType.X_CROSSING + 1 :] -= 2
     object.__setattr__(model, "_offsets", offsets)
     with pytest.raises(ValueError, match="X_CROSSING"):
         model.check(Observations.from_arrays(["x_crossing"], [1.0], [0.0]))
 
 
-@pytest.mark.parametrize("name,value", [("range_noise_floor", 0.0), ("bearing_sigma", -1.0),
-                                        ("outlier_weight", float("nan")), ("bearing_model", "cosine"),
-                                        ("mixture", "product")])
+@pytest.mark.parametrize(
+    "name,value",
+    [
+        ("range_noise_floor", 0.0),
+        ("bearing_sigma", -1.0),
+        ("outlier_weight", float("nan")),
+        ("bearing_model", "cosine"),
+        ("mixture", "product"),
+    ],
+)
 def test_bad_sensor_parameters(name, value):
     with pytest.raises(ValueError, match=name):
         LandmarkSensorModel(FIELD, **{name: value})
@@ -202,17 +231,21 @@ def test_bad_sensor_parameters(name, value):
 
 # -- likelihood -----------------------------------------------------------------------------------------------
 kinds = st.sampled_from([t.name for t in LandmarkType])
-detection = st.tuples(kinds, st.floats(0.0, 8.0), st.floats(-math.pi, math.pi),
-                      st.one_of(st.none(), st.floats(0.01, 1.0)))
+detection = st.tuples(
+    kinds, st.floats(0.0, 8.0), st.floats(-math.pi, math.pi), st.one_of(st.none(), st.floats(0.01, 1.0))
+)
 
 
-@given(st.lists(detection, min_size=1, max_size=12), st.sampled_from(["von_mises", "exact"]),
-       st.integers(0, 2**32 - 1))
+@given(st.lists(detection, min_size=1, max_size=12), st.sampled_from(["von_mises", "exact"]), st.integers(0, 2**32 - 1))
 def test_kernel_matches_numpy_reference(detections, bearing_model, seed):
     rng = np.random.default_rng(seed)
     poses = np.column_stack([rng.uniform(-5, 5, 50), rng.uniform(-3.5, 3.5, 50), rng.uniform(-math.pi, math.pi, 50)])
-    obs = Observations.from_arrays([d[0] for d in detections], [d[1] for d in detections],
-                                   [d[2] for d in detections], [np.nan if d[3] is None else d[3] for d in detections])
+    obs = Observations.from_arrays(
+        [d[0] for d in detections],
+        [d[1] for d in detections],
+        [d[2] for d in detections],
+        [np.nan if d[3] is None else d[3] for d in detections],
+    )
     model = LandmarkSensorModel(FIELD, bearing_model=bearing_model)
     fast = model.log_likelihood(poses, obs)
     slow = model.log_likelihood_reference(poses, obs)
@@ -222,15 +255,18 @@ def test_kernel_matches_numpy_reference(detections, bearing_model, seed):
 
 def test_true_pose_scores_best_and_perfect_match_scores_near_zero():
     pose = np.array([1.0, -0.5, 0.4])
-    detections = [observe(pose, kind, index=i) for kind, i in (("goalpost", 3), ("penalty_mark", 1),
-                                                               ("x_crossing", 0), ("l_crossing", 7))]
-    obs = Observations.from_arrays(["goalpost", "penalty_mark", "x_crossing", "l_crossing"],
-                                   [d[0] for d in detections], [d[1] for d in detections])
+    detections = [
+        observe(pose, kind, index=i)
+        for kind, i in (("goalpost", 3), ("penalty_mark", 1), ("x_crossing", 0), ("l_crossing", 7))
+    ]
+    obs = Observations.from_arrays(
+        ["goalpost", "penalty_mark", "x_crossing", "l_crossing"], [d[0] for d in detections], [d[1] for d in detections]
+    )
     model = LandmarkSensorModel(FIELD)
     rng = np.random.default_rng(0)
     others = pose + np.column_stack([rng.normal(0, 0.5, 200), rng.normal(0, 0.5, 200), rng.normal(0, 0.3, 200)])
     scores = model.log_likelihood(np.vstack([pose, others]), obs)
-    assert scores[0] == pytest.approx(0.0, abs=1e-9)             # max-mixture: a perfect match scores 0
+    assert scores[0] == pytest.approx(0.0, abs=1e-9)  # max-mixture: a perfect match scores 0
     assert scores[0] >= scores[1:].max()
     summed = LandmarkSensorModel(FIELD, mixture="sum").log_likelihood(pose[None], obs)
     assert summed[0] == pytest.approx(4 * math.log1p(model.outlier_weight), abs=1e-9)
@@ -255,13 +291,13 @@ def test_von_mises_matches_exact_for_small_bearing_errors(error, sigma):
     exact = LandmarkSensorModel(FIELD, bearing_model="exact", outlier_weight=1e-300).log_likelihood(pose, obs)
     von_mises = LandmarkSensorModel(FIELD, outlier_weight=1e-300).log_likelihood(pose, obs)
     # κ(cos e − 1) = −e²/(2σ²) + e⁴/(24σ²) − ...
-    assert von_mises[0] == pytest.approx(exact[0], abs=error ** 4 / (24 * sigma ** 2) + 1e-9)
+    assert von_mises[0] == pytest.approx(exact[0], abs=error**4 / (24 * sigma**2) + 1e-9)
 
 
 def test_outlier_floor_bounds_the_cost_of_a_false_positive():
     model = LandmarkSensorModel(FIELD)
     poses = np.array([[0.0, 0.0, 0.0], [3.0, 2.0, 1.0]])
-    far_off = Observations.from_arrays(["goalpost"], [0.1], [math.pi])   # nothing explains this
+    far_off = Observations.from_arrays(["goalpost"], [0.1], [math.pi])  # nothing explains this
     scores = model.log_likelihood(poses, far_off)
     assert (scores >= math.log(model.outlier_weight) - 1e-12).all()
 
@@ -270,12 +306,16 @@ def test_outlier_floor_bounds_the_cost_of_a_false_positive():
 def test_max_and_sum_mixtures_differ_by_at_most_log2(seed, bearing_model):
     rng = np.random.default_rng(seed)
     poses = np.column_stack([rng.uniform(-5, 5, 40), rng.uniform(-3, 3, 40), rng.uniform(-3, 3, 40)])
-    obs = Observations.from_arrays(["goalpost", "t_crossing", "l_crossing"], rng.uniform(0, 6, 3),
-                                   rng.uniform(-3, 3, 3))
+    obs = Observations.from_arrays(
+        ["goalpost", "t_crossing", "l_crossing"], rng.uniform(0, 6, 3), rng.uniform(-3, 3, 3)
+    )
     by_max = LandmarkSensorModel(FIELD, bearing_model=bearing_model).log_likelihood(poses, obs)
     by_sum = LandmarkSensorModel(FIELD, bearing_model=bearing_model, mixture="sum").log_likelihood(poses, obs)
-    np.testing.assert_allclose(by_sum, LandmarkSensorModel(FIELD, bearing_model=bearing_model, mixture="sum")
-                               .log_likelihood_reference(poses, obs), atol=1e-9)
+    np.testing.assert_allclose(
+        by_sum,
+        LandmarkSensorModel(FIELD, bearing_model=bearing_model, mixture="sum").log_likelihood_reference(poses, obs),
+        atol=1e-9,
+    )
     assert (by_sum >= by_max - 1e-12).all() and (by_sum - by_max <= 3 * math.log(2) + 1e-12).all()
 
 
@@ -286,8 +326,9 @@ def test_range_noise_grows_with_range():
 
 
 # -- the range noise law σ_r = floor + linear·r + growth·r² -------------------------------------------------------
-@pytest.mark.parametrize("floor,linear,growth", [(0.05, 0.0, 0.02), (0.05, 0.03, 0.0), (0.1, 0.0, 0.0),
-                                                 (0.02, 0.01, 0.005)])
+@pytest.mark.parametrize(
+    "floor,linear,growth", [(0.05, 0.0, 0.02), (0.05, 0.03, 0.0), (0.1, 0.0, 0.0), (0.02, 0.01, 0.005)]
+)
 def test_range_sigma_is_floor_plus_linear_plus_quadratic_term(floor, linear, growth):
     model = LandmarkSensorModel(FIELD, range_noise_floor=floor, range_noise_linear=linear, range_noise_growth=growth)
     for r in (0.0, 0.5, 2.0, 7.5):
@@ -321,10 +362,16 @@ def test_a_linear_law_scores_the_hand_computed_gaussian(bearing_model, mixture):
     from sensing.landmarks import prepare_detections, von_mises_log_likelihood
 
     floor, linear, growth = 0.05, 0.08, 0.01
-    outlier = 1e-30                               # a floor far below the score
-    model = LandmarkSensorModel(FIELD, range_noise_floor=floor, range_noise_linear=linear,
-                                range_noise_growth=growth, bearing_model=bearing_model, mixture=mixture,
-                                outlier_weight=outlier)
+    outlier = 1e-30  # a floor far below the score
+    model = LandmarkSensorModel(
+        FIELD,
+        range_noise_floor=floor,
+        range_noise_linear=linear,
+        range_noise_growth=growth,
+        bearing_model=bearing_model,
+        mixture=mixture,
+        outlier_weight=outlier,
+    )
     post = FIELD.landmarks_of("goalpost")[0]
     poses = np.array([[post[0] + 2.0, post[1], math.pi], [post[0] + 1.5, post[1] + 0.2, math.pi - 0.3]])
     d, b = observe(poses[0], "goalpost", index=0)
@@ -339,22 +386,45 @@ def test_a_linear_law_scores_the_hand_computed_gaussian(bearing_model, mixture):
     assert model.log_likelihood_reference(poses, obs)[0] == pytest.approx(expected, rel=1e-9, abs=1e-12)
     np.testing.assert_allclose(scores, model.log_likelihood_reference(poses, obs), rtol=1e-9, atol=1e-12)
     # The same law with only the quadratic term would score otherwise: the linear term is used.
-    quadratic = LandmarkSensorModel(FIELD, range_noise_floor=floor, range_noise_growth=growth,
-                                    bearing_model=bearing_model, mixture=mixture, outlier_weight=outlier)
+    quadratic = LandmarkSensorModel(
+        FIELD,
+        range_noise_floor=floor,
+        range_noise_growth=growth,
+        bearing_model=bearing_model,
+        mixture=mixture,
+        outlier_weight=outlier,
+    )
     assert abs(quadratic.log_likelihood(poses, obs)[0] - expected) > 1.0
     if mixture == "max" and bearing_model == "von_mises":
         table, offsets, range_floor, range_growth, bearing_sigma, log_outlier, _ = model.fused_likelihood().params
-        prepared, groups, _ = prepare_detections(obs.kinds, obs.ranges, obs.bearings, obs.range_sigmas,
-                                                 obs.bearing_sigmas, offsets, range_floor, range_growth, bearing_sigma)
+        prepared, groups, _ = prepare_detections(
+            obs.kinds,
+            obs.ranges,
+            obs.bearings,
+            obs.range_sigmas,
+            obs.bearing_sigmas,
+            offsets,
+            range_floor,
+            range_growth,
+            bearing_sigma,
+        )
         assert prepared[0, 1] == -0.5 / (sigma * sigma)
-        out = von_mises_log_likelihood(poses, table, offsets, prepared, groups, log_outlier, np.empty(2),
-                                       np.empty((0, 2)))
+        out = von_mises_log_likelihood(
+            poses, table, offsets, prepared, groups, log_outlier, np.empty(2), np.empty((0, 2))
+        )
         assert np.array_equal(out, scores)
 
 
-@given(st.lists(st.tuples(kinds, st.floats(0.0, 8.0), st.floats(-3.2, 3.2), st.one_of(st.none(), st.floats(0.01, 1.0))),
-                max_size=10),
-       st.integers(0, 2**32 - 1), st.floats(0.01, 0.3), st.floats(0.0, 0.2), st.floats(0.0, 0.05))
+@given(
+    st.lists(
+        st.tuples(kinds, st.floats(0.0, 8.0), st.floats(-3.2, 3.2), st.one_of(st.none(), st.floats(0.01, 1.0))),
+        max_size=10,
+    ),
+    st.integers(0, 2**32 - 1),
+    st.floats(0.01, 0.3),
+    st.floats(0.0, 0.2),
+    st.floats(0.0, 0.05),
+)
 def test_kernels_with_a_linear_law_equal_their_twins(detections, seed, floor, linear, growth):
     """With a linear term: the block kernel equals the particle-by-particle kernel bit for bit, both equal the
     numpy reference to rounding (exact bearing term too), and sensor resetting equals its numpy twin bit for
@@ -364,18 +434,34 @@ def test_kernels_with_a_linear_law_equal_their_twins(detections, seed, floor, li
     rng = np.random.default_rng(seed)
     n = 150
     poses = np.column_stack([rng.uniform(-6, 6, n), rng.uniform(-4, 4, n), rng.uniform(-math.pi, math.pi, n)])
-    obs = Observations.from_arrays([d[0] for d in detections], [d[1] for d in detections],
-                                   [d[2] for d in detections], [np.nan if d[3] is None else d[3] for d in detections])
+    obs = Observations.from_arrays(
+        [d[0] for d in detections],
+        [d[1] for d in detections],
+        [d[2] for d in detections],
+        [np.nan if d[3] is None else d[3] for d in detections],
+    )
     for bearing_model in ("von_mises", "exact"):
-        model = LandmarkSensorModel(FIELD, range_noise_floor=floor, range_noise_linear=linear,
-                                    range_noise_growth=growth, bearing_model=bearing_model)
+        model = LandmarkSensorModel(
+            FIELD,
+            range_noise_floor=floor,
+            range_noise_linear=linear,
+            range_noise_growth=growth,
+            bearing_model=bearing_model,
+        )
         scores = model.log_likelihood(poses, obs)
         np.testing.assert_allclose(scores, model.log_likelihood_reference(poses, obs), rtol=1e-9, atol=1e-9)
         if bearing_model == "von_mises":
             general = np.empty(n)
-            landmark_log_likelihood(poses, model.landmark_group, detection_batch(obs),
-                                    (floor, model.fused_likelihood().params[3], model.bearing_sigma), False, False,
-                                    math.log(model.outlier_weight), general)
+            landmark_log_likelihood(
+                poses,
+                model.landmark_group,
+                detection_batch(obs),
+                (floor, model.fused_likelihood().params[3], model.bearing_sigma),
+                False,
+                False,
+                math.log(model.outlier_weight),
+                general,
+            )
             assert np.array_equal(scores, general)
     if len(obs):
         compiled_rng, plain_rng = np.random.default_rng(seed), np.random.default_rng(seed)
@@ -405,8 +491,13 @@ def test_sampled_poses_explain_the_detection():
     assert model.sample_poses(Observations.empty(), 5, np.random.default_rng(0)).shape == (0, 3)
 
 
-@given(n=st.integers(0, 300), heading=st.one_of(st.none(), st.floats(-10.0, 10.0)),
-       heading_sigma=st.floats(0.0, 2.0), own_sigmas=st.booleans(), seed=st.integers(0, 2**32 - 1))
+@given(
+    n=st.integers(0, 300),
+    heading=st.one_of(st.none(), st.floats(-10.0, 10.0)),
+    heading_sigma=st.floats(0.0, 2.0),
+    own_sigmas=st.booleans(),
+    seed=st.integers(0, 2**32 - 1),
+)
 def test_sampled_poses_equal_their_numpy_twin_bit_for_bit(n, heading, heading_sigma, own_sigmas, seed):
     rng = np.random.default_rng(seed)
     m = int(rng.integers(1, 12))
@@ -424,8 +515,8 @@ def test_sampled_poses_equal_their_numpy_twin_bit_for_bit(n, heading, heading_si
 
 def test_sampling_poses_for_a_type_the_field_lacks_raises_and_draws_nothing():
     model = LandmarkSensorModel(FIELD)
-    offsets = model._offsets.copy()                  # a table without X crossings, as above
-    offsets[LandmarkType.X_CROSSING + 1:] -= 2
+    offsets = model._offsets.copy()  # a table without X crossings, as above
+    offsets[LandmarkType.X_CROSSING + 1 :] -= 2
     object.__setattr__(model, "_offsets", offsets)
     obs = Observations.from_arrays(["goalpost", "x_crossing"], [2.0, 3.0], [0.1, 0.2])
     rng = np.random.default_rng(0)
@@ -436,25 +527,50 @@ def test_sampling_poses_for_a_type_the_field_lacks_raises_and_draws_nothing():
 
 
 # -- the block kernel of the default model ------------------------------------------------------------------------
-@given(st.lists(detection, min_size=0, max_size=14), st.integers(1, 300), st.integers(0, 2**32 - 1),
-       st.floats(0.01, 0.3), st.floats(0.0, 0.1), st.floats(0.005, 0.5), st.floats(1e-4, 0.9))
-def test_block_kernel_equals_the_particle_by_particle_kernel_bit_for_bit(detections, n, seed, floor, growth,
-                                                                         bearing_sigma, outlier_weight):
+@given(
+    st.lists(detection, min_size=0, max_size=14),
+    st.integers(1, 300),
+    st.integers(0, 2**32 - 1),
+    st.floats(0.01, 0.3),
+    st.floats(0.0, 0.1),
+    st.floats(0.005, 0.5),
+    st.floats(1e-4, 0.9),
+)
+def test_block_kernel_equals_the_particle_by_particle_kernel_bit_for_bit(
+    detections, n, seed, floor, growth, bearing_sigma, outlier_weight
+):
     """`von_mises_log_likelihood` (what `log_likelihood` runs for the default model) against the general kernel
     `landmark_log_likelihood`, which computes every variant particle by particle."""
     from sensing.landmarks import detection_batch, landmark_log_likelihood
 
     rng = np.random.default_rng(seed)
     poses = np.column_stack([rng.uniform(-6, 6, n), rng.uniform(-4, 4, n), rng.uniform(-math.pi, math.pi, n)])
-    poses[: min(n, 4), :2] = FIELD.landmarks_of("goalpost")[: min(n, 4)]      # on a candidate: distance 0
-    obs = Observations.from_arrays([d[0] for d in detections], [d[1] for d in detections],
-                                   [d[2] for d in detections], [np.nan if d[3] is None else d[3] for d in detections],
-                                   rng.choice([np.nan, 0.1], len(detections)))
-    model = LandmarkSensorModel(FIELD, range_noise_floor=floor, range_noise_growth=growth,
-                                bearing_sigma=bearing_sigma, outlier_weight=outlier_weight)
+    poses[: min(n, 4), :2] = FIELD.landmarks_of("goalpost")[: min(n, 4)]  # on a candidate: distance 0
+    obs = Observations.from_arrays(
+        [d[0] for d in detections],
+        [d[1] for d in detections],
+        [d[2] for d in detections],
+        [np.nan if d[3] is None else d[3] for d in detections],
+        rng.choice([np.nan, 0.1], len(detections)),
+    )
+    model = LandmarkSensorModel(
+        FIELD,
+        range_noise_floor=floor,
+        range_noise_growth=growth,
+        bearing_sigma=bearing_sigma,
+        outlier_weight=outlier_weight,
+    )
     general = np.empty(n)
-    landmark_log_likelihood(poses, model.landmark_group, detection_batch(obs), (floor, growth, bearing_sigma), False,
-                            False, math.log(outlier_weight), general)
+    landmark_log_likelihood(
+        poses,
+        model.landmark_group,
+        detection_batch(obs),
+        (floor, growth, bearing_sigma),
+        False,
+        False,
+        math.log(outlier_weight),
+        general,
+    )
     assert np.array_equal(model.log_likelihood(poses, obs), general)
 
 
@@ -471,7 +587,7 @@ def test_general_kernel_scores_each_particle_alone(bearing_model, mixture):
     model = LandmarkSensorModel(FIELD, bearing_model=bearing_model, mixture=mixture)
     together = model.log_likelihood(poses, obs)
     picked = np.r_[0, TRIG_CHUNK - 1, TRIG_CHUNK, TRIG_CHUNK + 1, 2 * TRIG_CHUNK, n - 1]
-    alone = np.array([model.log_likelihood(poses[i:i + 1], obs)[0] for i in picked])
+    alone = np.array([model.log_likelihood(poses[i : i + 1], obs)[0] for i in picked])
     assert np.array_equal(together[picked], alone)
     np.testing.assert_allclose(together, model.log_likelihood_reference(poses, obs), rtol=1e-9, atol=1e-9)
 
@@ -486,8 +602,9 @@ def test_block_kernel_keeps_cos_and_sin_of_the_headings():
     model = LandmarkSensorModel(FIELD)
     table, offsets, floor, growth, bearing_sigma, log_outlier, exact = model.fused_likelihood().params
     assert not exact
-    detections, groups, missing = prepare_detections(obs.kinds, obs.ranges, obs.bearings, obs.range_sigmas,
-                                                     obs.bearing_sigmas, offsets, floor, growth, bearing_sigma)
+    detections, groups, missing = prepare_detections(
+        obs.kinds, obs.ranges, obs.bearings, obs.range_sigmas, obs.bearing_sigmas, offsets, floor, growth, bearing_sigma
+    )
     assert missing == -1 and groups[:, 0].tolist() == [0, 2]
     trig = np.empty((300, 2))
     out = von_mises_log_likelihood(poses, table, offsets, detections, groups, log_outlier, np.empty(300), trig)
@@ -499,8 +616,14 @@ def test_block_kernel_keeps_cos_and_sin_of_the_headings():
     assert LandmarkSensorModel(FIELD, bearing_model="exact", mixture="sum").fused_likelihood() is None
 
 
-@given(st.lists(st.tuples(kinds, st.floats(0.0, 8.0), st.floats(-10.0, 10.0), st.one_of(st.none(), st.floats(0.01, 1.0))),
-                min_size=1, max_size=12), st.integers(0, 2**32 - 1))
+@given(
+    st.lists(
+        st.tuples(kinds, st.floats(0.0, 8.0), st.floats(-10.0, 10.0), st.one_of(st.none(), st.floats(0.01, 1.0))),
+        min_size=1,
+        max_size=12,
+    ),
+    st.integers(0, 2**32 - 1),
+)
 def test_exact_block_kernel_matches_the_general_kernel(detections, seed):
     """The exact bearing term with the max-mixture runs a block of particles at a time (`score_block_exact`:
     `atan2_poly`, detections' bearings wrapped once); it equals the particle-by-particle kernel (libm's atan2)
@@ -512,17 +635,37 @@ def test_exact_block_kernel_matches_the_general_kernel(detections, seed):
     poses = np.column_stack([rng.uniform(-6, 6, 300), rng.uniform(-4, 4, 300), rng.uniform(-7, 7, 300)])
     model = LandmarkSensorModel(FIELD, bearing_model="exact")
     table, offsets = model._table, model._offsets
-    poses[:len(table), :2] = table[:300]                     # standing on a landmark
-    obs = Observations.from_arrays([d[0] for d in detections], [d[1] for d in detections],
-                                   [d[2] for d in detections], [np.nan if d[3] is None else d[3] for d in detections])
+    poses[: len(table), :2] = table[:300]  # standing on a landmark
+    obs = Observations.from_arrays(
+        [d[0] for d in detections],
+        [d[1] for d in detections],
+        [d[2] for d in detections],
+        [np.nan if d[3] is None else d[3] for d in detections],
+    )
     log_outlier = math.log(model.outlier_weight)
     general = np.empty(300)
-    landmark_log_likelihood(poses, model.landmark_group, detection_batch(obs),
-                            (model.range_noise_floor, model.range_noise_growth, model.bearing_sigma), True, False,
-                            log_outlier, general)
-    prepared, groups, missing = prepare_detections(obs.kinds, obs.ranges, obs.bearings, obs.range_sigmas,
-                                                   obs.bearing_sigmas, offsets, model.range_noise_floor,
-                                                   model.range_noise_growth, model.bearing_sigma, True)
+    landmark_log_likelihood(
+        poses,
+        model.landmark_group,
+        detection_batch(obs),
+        (model.range_noise_floor, model.range_noise_growth, model.bearing_sigma),
+        True,
+        False,
+        log_outlier,
+        general,
+    )
+    prepared, groups, missing = prepare_detections(
+        obs.kinds,
+        obs.ranges,
+        obs.bearings,
+        obs.range_sigmas,
+        obs.bearing_sigmas,
+        offsets,
+        model.range_noise_floor,
+        model.range_noise_growth,
+        model.bearing_sigma,
+        True,
+    )
     assert missing == -1
     blocks = exact_log_likelihood(poses, table, offsets, prepared, groups, log_outlier, np.empty(300))
     assert np.isfinite(blocks).all()
@@ -554,8 +697,9 @@ def test_default_scoring_gives_the_same_bits_on_a_robots_instruction_set(tmp_pat
 
     def run(name, extra):
         env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / name), **extra}
-        done = subprocess.run([sys.executable, "-c", _SCORE_SCRIPT], cwd=root, env=env, capture_output=True,
-                              text=True, timeout=600)
+        done = subprocess.run(
+            [sys.executable, "-c", _SCORE_SCRIPT], cwd=root, env=env, capture_output=True, text=True, timeout=600
+        )
         assert done.returncode == 0, done.stderr
         return done.stdout.strip()
 

@@ -3,6 +3,7 @@
 Nothing here reads the repository's own figures (they change with every restructuring); the one subprocess run
 measures a synthetic tree too.
 """
+
 import importlib.util
 import json
 import subprocess
@@ -65,7 +66,7 @@ TREE = {
         """,
     "demos/__init__.py": "",
     "demos/walk.py": "from alpha._hidden import helper\nfrom demos import _local\n",
-    "tests/test_x.py": "from alpha._hidden import helper\n",   # tests are not scanned
+    "tests/test_x.py": "from alpha._hidden import helper\n",  # tests are not scanned
 }
 
 
@@ -106,19 +107,26 @@ def test_relative_imports_are_resolved(tmp_path):
     init = next(m for m in modules if m.path == "alpha/sub/__init__.py")
     assert resolve(leaf, 1, None) == "alpha.sub"
     assert resolve(leaf, 2, "core") == "alpha.core"
-    assert resolve(init, 1, "leaf") == "alpha.sub.leaf"     # a package's __init__ is the package
+    assert resolve(init, 1, "leaf") == "alpha.sub.leaf"  # a package's __init__ is the package
     assert resolve(init, 2, None) == "alpha"
-    assert resolve(leaf, 3, "beta") is None                 # above the top-level package
+    assert resolve(leaf, 3, "beta") is None  # above the top-level package
     assert resolve(leaf, 0, "os.path") == "os.path"
 
 
 def test_a_relative_import_into_another_package_private_module_is_counted(tmp_path):
     """alpha/sub/m.py's `from .._x import y` is alpha._x (not counted); demos' relative one is demos'."""
-    root = write(tmp_path, {
-        "alpha/__init__.py": "", "alpha/_x.py": "", "alpha/sub/__init__.py": "",
-        "alpha/sub/m.py": "from .._x import y\n",
-        "demos/__init__.py": "", "demos/_shared.py": "", "demos/run.py": "from ._shared import z\n",
-    })
+    root = write(
+        tmp_path,
+        {
+            "alpha/__init__.py": "",
+            "alpha/_x.py": "",
+            "alpha/sub/__init__.py": "",
+            "alpha/sub/m.py": "from .._x import y\n",
+            "demos/__init__.py": "",
+            "demos/_shared.py": "",
+            "demos/run.py": "from ._shared import z\n",
+        },
+    )
     assert analyse(root, run_contract=False)["private_imports"]["count"] == 0
     (root / "demos" / "run.py").write_text("from ._shared import z\nfrom alpha.sub import _m\n")
     assert analyse(root, run_contract=False)["private_imports"]["list"] == ["demos/run.py:2: from alpha.sub import _m"]
@@ -184,22 +192,38 @@ def test_a_njit_decorated_function_counts_as_a_kernel(tmp_path):
     modules, _ = structure.read_modules(write(tmp_path, KERNELS), ["k"])
     functions, _ = structure.definitions(next(m for m in modules if m.path == "k/code.py"))
     kernel = {f.name: f.kernel for f in functions}
-    assert kernel == {"a": True, "b": True, "c": True, "d": True, "e": True, "f": True,
-                      "f.<locals>.impl": True, "g": False, "h": False}
+    assert kernel == {
+        "a": True,
+        "b": True,
+        "c": True,
+        "d": True,
+        "e": True,
+        "f": True,
+        "f.<locals>.impl": True,
+        "g": False,
+        "h": False,
+    }
 
 
 def test_the_longest_function_outside_kernels_and_among_them(tmp_path):
     report = analyse(write(tmp_path, KERNELS), run_contract=False)
     assert report["longest_function"]["outside_kernels"] == {
-        "name": "h", "file": "k/code.py", "line": 38, "lines": 5, "parameters": 1}
+        "name": "h",
+        "file": "k/code.py",
+        "line": 38,
+        "lines": 5,
+        "parameters": 1,
+    }
     longest_kernel = report["longest_function"]["kernels"]
     assert (longest_kernel["name"], longest_kernel["lines"]) == ("f", 4)
 
 
 def test_the_widest_parameter_list(tmp_path):
-    root = write(tmp_path, {
-        "p/__init__.py": "",
-        "p/m.py": """\
+    root = write(
+        tmp_path,
+        {
+            "p/__init__.py": "",
+            "p/m.py": """\
             import numba
 
             def narrow(a, b):
@@ -220,19 +244,26 @@ def test_the_widest_parameter_list(tmp_path):
             def kernel(a, b, c, d, e, f, g, h, i, j):
                 pass
             """,
-    })
+        },
+    )
     widest = analyse(root, run_contract=False)["widest_parameters"]
     assert widest["outside_kernels"]["widest"]["name"] == "Wide.method"
     assert widest["outside_kernels"]["widest"]["parameters"] == 8
     assert [(f["name"], f["parameters"]) for f in widest["outside_kernels"]["top"]] == [
-        ("Wide.method", 8), ("seven", 7), ("Wide.make", 3), ("narrow", 2)]
+        ("Wide.method", 8),
+        ("seven", 7),
+        ("Wide.make", 3),
+        ("narrow", 2),
+    ]
     assert widest["kernels"]["widest"]["name"] == "kernel" and widest["kernels"]["widest"]["parameters"] == 10
 
 
 def test_the_largest_class_by_lines_and_by_methods(tmp_path):
-    root = write(tmp_path, {
-        "c/__init__.py": "",
-        "c/m.py": """\
+    root = write(
+        tmp_path,
+        {
+            "c/__init__.py": "",
+            "c/m.py": """\
             class Long:
                 '''Docs.'''
 
@@ -249,23 +280,32 @@ def test_the_largest_class_by_lines_and_by_methods(tmp_path):
                 def two(self): pass
                 def three(self): pass
             """,
-    })
+        },
+    )
     largest = analyse(root, run_contract=False)["largest_class"]
     assert (largest["by_lines"]["name"], largest["by_lines"]["lines"]) == ("Long", 9)
     assert (largest["by_methods"]["name"], largest["by_methods"]["methods"]) == ("Many", 3)
 
 
 def test_lines_per_module_package_and_group(tmp_path):
-    root = write(tmp_path, {
-        "mcl/__init__.py": "",
-        "mcl/filter.py": "a = 1\nb = 2\nc = 3\n",
-        "mcl/step.py": "a = 1\nb = 2",                  # no final newline: still two lines
-        "mcl/relocalization.py": "a = 1\n",
-        "field/__init__.py": "x = 1\n",
-    })
+    root = write(
+        tmp_path,
+        {
+            "mcl/__init__.py": "",
+            "mcl/filter.py": "a = 1\nb = 2\nc = 3\n",
+            "mcl/step.py": "a = 1\nb = 2",  # no final newline: still two lines
+            "mcl/relocalization.py": "a = 1\n",
+            "field/__init__.py": "x = 1\n",
+        },
+    )
     lines = analyse(root, run_contract=False)["lines"]
-    assert lines["modules"] == {"field/__init__.py": 1, "mcl/__init__.py": 0, "mcl/filter.py": 3,
-                                "mcl/relocalization.py": 1, "mcl/step.py": 2}
+    assert lines["modules"] == {
+        "field/__init__.py": 1,
+        "mcl/__init__.py": 0,
+        "mcl/filter.py": 3,
+        "mcl/relocalization.py": 1,
+        "mcl/step.py": 2,
+    }
     assert lines["packages"] == {"field": 1, "mcl": 6} and lines["total"] == 7
     assert lines["groups"]["core"] == {"members": {"mcl/filter.py": 3, "mcl/step.py": 2}, "missing": [], "lines": 5}
     assert lines["groups"]["soccer"]["lines"] == 1
@@ -291,14 +331,19 @@ def test_the_table_names_the_figures(tree, capsys):
 
 
 def git(root: Path, *args: str) -> str:
-    return subprocess.run(["git", "-C", str(root), "-c", "user.name=t", "-c", "user.email=t@t", *args],
-                          check=True, capture_output=True, text=True).stdout.strip()
+    return subprocess.run(
+        ["git", "-C", str(root), "-c", "user.name=t", "-c", "user.email=t@t", *args],
+        check=True,
+        capture_output=True,
+        text=True,
+    ).stdout.strip()
 
 
 @pytest.fixture
 def repo(tmp_path):
-    root = write(tmp_path / "repo", {"alpha/__init__.py": "", "alpha/m.py": "from beta import _x\n",
-                                     "beta/__init__.py": ""})
+    root = write(
+        tmp_path / "repo", {"alpha/__init__.py": "", "alpha/m.py": "from beta import _x\n", "beta/__init__.py": ""}
+    )
     git(root, "init", "-q")
     git(root, "add", ".")
     git(root, "commit", "-q", "-m", "one")
@@ -306,7 +351,7 @@ def repo(tmp_path):
 
 
 def test_rev_measures_the_committed_tree_and_names_it(repo, capsys):
-    (repo / "alpha" / "m.py").write_text("from beta import x\n")     # the working tree differs from HEAD
+    (repo / "alpha" / "m.py").write_text("from beta import x\n")  # the working tree differs from HEAD
     commit = git(repo, "rev-parse", "HEAD")
     assert main(["--root", str(repo), "--rev", "HEAD", "--json", "--no-contract"]) == 0
     report = json.loads(capsys.readouterr().out)
@@ -332,8 +377,13 @@ def test_rev_outside_a_git_checkout_gives_exit_1_and_one_line(tmp_path, capsys):
 
 
 def test_runs_as_a_module(tree):
-    run = subprocess.run([sys.executable, "-m", "benchmarks.structure", "--root", str(tree), "--json",
-                          "--no-contract"], cwd=REPO, capture_output=True, text=True, timeout=120)
+    run = subprocess.run(
+        [sys.executable, "-m", "benchmarks.structure", "--root", str(tree), "--json", "--no-contract"],
+        cwd=REPO,
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
     assert run.returncode == 0, run.stderr
     assert json.loads(run.stdout)["cross_layer"]["count"] == 1
 
@@ -380,10 +430,16 @@ lib is not allowed to import demos:
 
 def test_lint_imports_output_is_parsed():
     parsed = parse_lint_imports(LINT_OUTPUT)
-    assert parsed == {"kept": 1, "broken": 2, "violations": 3, "contracts": [
-        {"name": "Library does not import demos", "status": "broken", "violations": 2},
-        {"name": "Layers", "status": "broken", "violations": 1},
-        {"name": "Independent", "status": "kept", "violations": 0}]}
+    assert parsed == {
+        "kept": 1,
+        "broken": 2,
+        "violations": 3,
+        "contracts": [
+            {"name": "Library does not import demos", "status": "broken", "violations": 2},
+            {"name": "Layers", "status": "broken", "violations": 1},
+            {"name": "Independent", "status": "kept", "violations": 0},
+        ],
+    }
     assert parse_lint_imports("Error: no such package") is None
 
 
@@ -396,10 +452,15 @@ def test_no_contract_without_the_section(tree):
 @pytest.mark.skipif(importlib.util.find_spec("importlinter") is None, reason="importlinter is not installed")
 def test_import_contract_runs_lint_imports_on_the_analysed_tree(tmp_path):
     """The tree's own packages, not the installed ones of the same name (its `demos` here)."""
-    root = write(tmp_path, {
-        "lib/__init__.py": "", "lib/x.py": "import demos.a\n", "lib/y.py": "",
-        "demos/__init__.py": "", "demos/a.py": "",
-        "pyproject.toml": """\
+    root = write(
+        tmp_path,
+        {
+            "lib/__init__.py": "",
+            "lib/x.py": "import demos.a\n",
+            "lib/y.py": "",
+            "demos/__init__.py": "",
+            "demos/a.py": "",
+            "pyproject.toml": """\
             [tool.importlinter]
             root_packages = ["lib", "demos"]
 
@@ -409,7 +470,8 @@ def test_import_contract_runs_lint_imports_on_the_analysed_tree(tmp_path):
             source_modules = ["lib"]
             forbidden_modules = ["demos"]
             """,
-    })
+        },
+    )
     report = analyse(root)
     assert report["import_contract_reason"] is None
     contract = report["import_contract"]

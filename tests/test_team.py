@@ -1,5 +1,6 @@
 """Team messages, the ball and the side belief: validation, the evidence's invariants, and the Localizer's calls
 (team_message, observe_ball, hypotheses, penalized, capture-time gating)."""
+
 import math
 
 import numpy as np
@@ -24,8 +25,17 @@ variance = st.floats(1e-3, 1.0)
 def state(loc):
     """What a refused call must leave as it was."""
     pf = loc.filter
-    return (pf.poses.copy(), pf.log_weights.copy(), pf.rng.bit_generator.state, dict(loc.counts),
-            loc.side._log_joint.copy(), dict(loc.side._latest), loc.side.reports, loc.side.ignored, loc.time)
+    return (
+        pf.poses.copy(),
+        pf.log_weights.copy(),
+        pf.rng.bit_generator.state,
+        dict(loc.counts),
+        loc.side._log_joint.copy(),
+        dict(loc.side._latest),
+        loc.side.reports,
+        loc.side.ignored,
+        loc.time,
+    )
 
 
 def same(a, b):
@@ -56,22 +66,40 @@ def report(sender, t, ball, confidence=0.95, **fields):
 
 
 # -- the types ---------------------------------------------------------------------------------------------
-@pytest.mark.parametrize("fields, word", [
-    ({"sender": 0}, "sender"), ({"sender": 21}, "sender"), ({"time": math.nan}, "time"),
-    ({"pose": (0.0, math.inf, 0.0)}, "pose"), ({"pose_covariance": np.ones((3, 3))}, "positive definite"),
-    ({"pose_covariance": -np.eye(3)}, "pose_covariance"), ({"pose_covariance": np.eye(2)}, "shape"),
-    ({"pose_covariance": [[1, 2, 0], [0, 1, 0], [0, 0, 1]]}, "symmetric"), ({"confidence": 1.5}, "confidence"),
-    ({"ball": (math.nan, 0.0)}, "ball"), ({"ball_age": -1.0}, "ball_age"), ({"ball_velocity": (1e6, 0)}, "ball_velocity"),
-    ({"is_goalkeeper": "yes"}, "is_goalkeeper"), ({"ball_covariance": np.zeros((2, 2))}, "ball_covariance"),
-])
+@pytest.mark.parametrize(
+    "fields, word",
+    [
+        ({"sender": 0}, "sender"),
+        ({"sender": 21}, "sender"),
+        ({"time": math.nan}, "time"),
+        ({"pose": (0.0, math.inf, 0.0)}, "pose"),
+        ({"pose_covariance": np.ones((3, 3))}, "positive definite"),
+        ({"pose_covariance": -np.eye(3)}, "pose_covariance"),
+        ({"pose_covariance": np.eye(2)}, "shape"),
+        ({"pose_covariance": [[1, 2, 0], [0, 1, 0], [0, 0, 1]]}, "symmetric"),
+        ({"confidence": 1.5}, "confidence"),
+        ({"ball": (math.nan, 0.0)}, "ball"),
+        ({"ball_age": -1.0}, "ball_age"),
+        ({"ball_velocity": (1e6, 0)}, "ball_velocity"),
+        ({"is_goalkeeper": "yes"}, "is_goalkeeper"),
+        ({"ball_covariance": np.zeros((2, 2))}, "ball_covariance"),
+    ],
+)
 def test_a_bad_message_is_refused_naming_the_field(fields, word):
     base = {"sender": 2, "time": 1.0, "pose": (0.0, 0.0, 0.0)}
     with pytest.raises(ValueError, match=word):
         TeamMessage(**{**base, **fields})
 
 
-@pytest.mark.parametrize("fields, word", [({"range": -1.0}, "range"), ({"bearing": math.nan}, "bearing"),
-                                          ({"range_sigma": 0.0}, "range_sigma"), ({"range": "far"}, "range")])
+@pytest.mark.parametrize(
+    "fields, word",
+    [
+        ({"range": -1.0}, "range"),
+        ({"bearing": math.nan}, "bearing"),
+        ({"range_sigma": 0.0}, "range_sigma"),
+        ({"range": "far"}, "range"),
+    ],
+)
 def test_a_bad_ball_detection_is_refused(fields, word):
     with pytest.raises(ValueError, match=word):
         BallDetection(**{"range": 1.0, "bearing": 0.0, **fields})
@@ -96,27 +124,32 @@ def test_side_evidence_is_antisymmetric_bounded_and_invariant_under_the_half_tur
 
 @given(variance, variance)
 def test_a_ball_on_the_centre_mark_says_nothing_about_the_side(a, b):
-    assert side_evidence(np.zeros(2), np.eye(2) * a, np.array([1.0, 0.5]), np.eye(2) * b, 0.2, AREA) == \
-        pytest.approx(0.0, abs=1e-12)
+    assert side_evidence(np.zeros(2), np.eye(2) * a, np.array([1.0, 0.5]), np.eye(2) * b, 0.2, AREA) == pytest.approx(
+        0.0, abs=1e-12
+    )
 
 
 def test_ball_on_field_places_the_detection_through_the_pose():
-    point, covariance = ball_on_field(np.array([1.0, 2.0, math.pi / 2]), np.zeros((3, 3)),
-                                      BallDetection(2.0, 0.0, range_sigma=0.1, bearing_sigma=0.01))
+    point, covariance = ball_on_field(
+        np.array([1.0, 2.0, math.pi / 2]),
+        np.zeros((3, 3)),
+        BallDetection(2.0, 0.0, range_sigma=0.1, bearing_sigma=0.01),
+    )
     np.testing.assert_allclose(point, [1.0, 4.0], atol=1e-12)
-    np.testing.assert_allclose(np.diag(covariance), [(2 * 0.01) ** 2, 0.1 ** 2], atol=1e-12)
+    np.testing.assert_allclose(np.diag(covariance), [(2 * 0.01) ** 2, 0.1**2], atol=1e-12)
 
 
 def test_a_teammate_ball_is_moved_on_by_its_velocity_and_widened_by_its_age():
-    message = TeamMessage(3, 10.0, (0.0, 0.0, 0.0), confidence=1.0, ball=(1.0, 0.0), ball_velocity=(1.0, 0.0),
-                          ball_age=0.5)
+    message = TeamMessage(
+        3, 10.0, (0.0, 0.0, 0.0), confidence=1.0, ball=(1.0, 0.0), ball_velocity=(1.0, 0.0), ball_age=0.5
+    )
     p_now, cov_now = teammate_ball(message, 9.5)
     p_later, cov_later = teammate_ball(message, 10.5)
     np.testing.assert_allclose(p_now, [1.0, 0.0])
     np.testing.assert_allclose(p_later, [2.0, 0.0])
     assert cov_later[0, 0] > cov_now[0, 0]
-    assert teammate_ball(message, 20.0) is None                       # beyond the horizon
-    assert teammate_ball(TeamMessage(3, 10.0, (0.0, 0.0, 0.0)), 10.0) is None     # no ball
+    assert teammate_ball(message, 20.0) is None  # beyond the horizon
+    assert teammate_ball(TeamMessage(3, 10.0, (0.0, 0.0, 0.0)), 10.0) is None  # no ball
 
 
 def test_settings_keep_one_teammate_from_flipping_a_held_robot():
@@ -146,7 +179,7 @@ def test_one_confident_teammate_never_flips_a_robot_its_prior_holds():
     loc = standing()
     before = loc.pose().pose.copy()
     t = 1.0
-    for k in range(200):                                   # 20 s of a confident, mirrored teammate
+    for k in range(200):  # 20 s of a confident, mirrored teammate
         t = 1.0 + 0.1 * (k + 1)
         for j in range(10):
             loc.motion(t - 0.1 + 0.01 * (j + 1), MotionInput(0.01, odometry=(0.0, 0.0, 0.0)))
@@ -174,7 +207,7 @@ def test_two_agreeing_teammates_flip_it_and_the_flip_is_exact():
             flipped_at = t
             np.testing.assert_allclose(loc.filter.poses, FIELD.mirror_poses(particles), atol=1e-12)
     assert flipped_at is not None and flipped_at - 1.0 >= loc.side.settings.flip_hold
-    assert loc.counts["side changed by the team"] == 1      # and it stays: the evidence now agrees
+    assert loc.counts["side changed by the team"] == 1  # and it stays: the evidence now agrees
     np.testing.assert_allclose(loc.pose().pose[:2], -before[:2], atol=0.05)
     assert loc.side_log_odds > 0
 
@@ -182,8 +215,7 @@ def test_two_agreeing_teammates_flip_it_and_the_flip_is_exact():
 def test_a_goalkeeper_that_believes_it_is_in_the_opponent_half_is_taken_mirrored():
     ball = (-1.0, 0.8)
     loc = standing()
-    loc.team_message(TeamMessage(1, 0.95, (4.4, 0.0, math.pi), confidence=1.0, is_goalkeeper=True,
-                                 ball=(1.0, -0.8)))
+    loc.team_message(TeamMessage(1, 0.95, (4.4, 0.0, math.pi), confidence=1.0, is_goalkeeper=True, ball=(1.0, -0.8)))
     sees_ball_at(loc, ball, 0.99)
     assert loc.side_log_odds > standing().side_log_odds
 
@@ -191,16 +223,16 @@ def test_a_goalkeeper_that_believes_it_is_in_the_opponent_half_is_taken_mirrored
 def test_a_sighting_seen_once_is_not_compared():
     loc = standing()
     loc.team_message(report(2, 0.95, (-1.0, 0.8)))
-    sees_ball_at(loc, (-1.0, 0.8), 0.98, twice=False)      # a single, unconfirmed sighting (a false ball?)
+    sees_ball_at(loc, (-1.0, 0.8), 0.98, twice=False)  # a single, unconfirmed sighting (a false ball?)
     assert loc.side.reports == 0 and loc.side.unconfirmed == 1
-    sees_ball_at(loc, (1.5, -2.0), 0.99, twice=False)      # not at the same place: still unconfirmed
+    sees_ball_at(loc, (1.5, -2.0), 0.99, twice=False)  # not at the same place: still unconfirmed
     assert loc.side.reports == 0 and loc.side.unconfirmed == 2
 
 
 def test_a_report_far_from_both_sides_says_nothing():
     loc = standing()
     loc.team_message(report(2, 0.95, (-1.0, -2.9), confidence=1.0))
-    sees_ball_at(loc, (-1.5, 2.5), 0.99)                   # neither at the report nor at its point image
+    sees_ball_at(loc, (-1.5, 2.5), 0.99)  # neither at the report nor at its point image
     assert loc.side.reports == 0 and loc.side.ignored == 1
     assert loc.side_log_odds == standing().side_log_odds
 
@@ -211,22 +243,25 @@ def test_each_teammate_sighting_is_evidence_once():
     sees_ball_at(loc, (-1.0, 0.8), 0.98)
     assert loc.side.reports == 1
     odds = loc.side_log_odds
-    sees_ball_at(loc, (-1.0, 0.8), 0.99, twice=False)     # a further sighting of the robot's own: not again
+    sees_ball_at(loc, (-1.0, 0.8), 0.99, twice=False)  # a further sighting of the robot's own: not again
     assert loc.side.reports == 1 and loc.side_log_odds == odds
     # the teammate repeats its last sighting (sent later, its age grown by as much): the same pair, no evidence
     loc.team_message(report(2, 0.97, (-1.0, 0.8), ball_age=0.02))
     assert loc.side.reports == 1 and loc.side_log_odds == odds
-    loc.team_message(report(2, 0.90, (-1.0, 0.8)))        # older than the one kept: ignored
+    loc.team_message(report(2, 0.90, (-1.0, 0.8)))  # older than the one kept: ignored
     assert loc.side.reports == 1
 
 
-@pytest.mark.parametrize("message, word", [
-    (report(7, 0.9, (0.0, 0.0)), "not a teammate"),       # not among the teammates
-    (report(5, 0.9, (0.0, 0.0)), "not a teammate"),       # the robot's own number
-    (report(2, 100.0, (0.0, 0.0)), "message time"),       # far in the future
-    (report(2, -50.0, (0.0, 0.0)), "message time"),       # far in the past
-    ((2, 0.9), "TeamMessage"),
-])
+@pytest.mark.parametrize(
+    "message, word",
+    [
+        (report(7, 0.9, (0.0, 0.0)), "not a teammate"),  # not among the teammates
+        (report(5, 0.9, (0.0, 0.0)), "not a teammate"),  # the robot's own number
+        (report(2, 100.0, (0.0, 0.0)), "message time"),  # far in the future
+        (report(2, -50.0, (0.0, 0.0)), "message time"),  # far in the past
+        ((2, 0.9), "TeamMessage"),
+    ],
+)
 def test_a_refused_message_leaves_the_localizer_untouched(message, word):
     loc = standing(team=Team(player_number=5, teammates=[1, 2, 3, 4]))
     loc.team_message(report(2, 0.8, (-1.0, 0.8)))
@@ -239,8 +274,11 @@ def test_a_refused_message_leaves_the_localizer_untouched(message, word):
 def test_a_refused_ball_leaves_the_localizer_untouched():
     loc = standing()
     before = state(loc)
-    for call in (lambda: loc.observe_ball((1.0, 0.0)), lambda: loc.observe_ball(BallDetection(1.0, 0.0), -5.0),
-                 lambda: loc.observe([], ball=(1.0, 0.0))):
+    for call in (
+        lambda: loc.observe_ball((1.0, 0.0)),
+        lambda: loc.observe_ball(BallDetection(1.0, 0.0), -5.0),
+        lambda: loc.observe([], ball=(1.0, 0.0)),
+    ):
         with pytest.raises(ValueError):
             call()
         assert same(before, state(loc))
@@ -255,8 +293,7 @@ def test_without_teammates_the_ball_changes_nothing_bit_for_bit():
             loc.motion(t, MotionInput(0.01, odometry=(0.002, 0.0, 0.001)))
             if k % 3 == 0:
                 frame = [Seen("penalty_mark", 1.2, 0.0), Seen("goalpost", 2.65, 0.31), Seen("goalpost", 2.65, -0.31)]
-                loc.observe(frame, capture_time=max(t - 0.02, 0.0),
-                            ball=BallDetection(1.0, 0.2) if with_ball else None)
+                loc.observe(frame, capture_time=max(t - 0.02, 0.0), ball=BallDetection(1.0, 0.2) if with_ball else None)
         return loc.filter.poses.copy(), loc.filter.log_weights.copy(), loc.quality()
 
     plain, seen = run(False), run(True)
@@ -276,13 +313,15 @@ def test_hypotheses_hold_the_mirror_image_weighted_by_the_side_odds():
 
 
 def test_unsure_of_the_half_when_the_side_odds_are_even():
-    loc = standing((-2.0, 0.0, math.pi))                   # facing its own goal: the frames below fit
+    loc = standing((-2.0, 0.0, math.pi))  # facing its own goal: the frames below fit
     for k in range(30):
         t = 1.0 + 0.03 * (k + 1)
         for j in range(3):
             loc.motion(t - 0.03 + 0.01 * (j + 1), MotionInput(0.01, odometry=(0.0, 0.0, 0.0)))
-        loc.observe([Seen("penalty_mark", 1.2, 0.0), Seen("goalpost", 2.65, 0.31), Seen("goalpost", 2.65, -0.31)],
-                    capture_time=t)
+        loc.observe(
+            [Seen("penalty_mark", 1.2, 0.0), Seen("goalpost", 2.65, 0.31), Seen("goalpost", 2.65, -0.31)],
+            capture_time=t,
+        )
     assert loc.quality() in (Quality.SUPERB, Quality.OKAY)
     # as a re-localization that could not tell the pose from its mirror image
     loc.filter.relocalization.mirror_log_odds = math.log(loc.thresholds.okay_mirror_odds) - 0.1
@@ -309,16 +348,16 @@ def test_penalized_ignores_motion_and_frames_until_the_return():
 
 def test_a_frame_captured_while_fallen_is_not_used_when_it_arrives_after_getting_up():
     loc = standing()
-    loc.fallen()                                            # at t = 1.0
+    loc.fallen()  # at t = 1.0
     for k in range(50):
         loc.motion(1.0 + 0.01 * (k + 1), MotionInput(0.01, odometry=(0.0, 0.0, 0.0)))
-    loc.got_up()                                            # at t = 1.5
+    loc.got_up()  # at t = 1.5
     loc.motion(1.51, MotionInput(0.01, odometry=(0.0, 0.0, 0.0)))
     poses = loc.filter.poses.copy()
-    assert not loc.observe([Seen("penalty_mark", 1.2, 0.0)], capture_time=1.45)    # captured while lying
+    assert not loc.observe([Seen("penalty_mark", 1.2, 0.0)], capture_time=1.45)  # captured while lying
     np.testing.assert_array_equal(loc.filter.poses, poses)
     assert loc.counts["observation while fallen"] == 1
-    assert loc.observe([Seen("penalty_mark", 1.2, 0.0)], capture_time=1.505)        # captured standing
+    assert loc.observe([Seen("penalty_mark", 1.2, 0.0)], capture_time=1.505)  # captured standing
 
 
 def test_a_teammate_that_contradicts_the_team_is_taken_for_mirrored_and_stays_so_after_a_move():
@@ -328,16 +367,16 @@ def test_a_teammate_that_contradicts_the_team_is_taken_for_mirrored_and_stays_so
         t = 1.0 + 0.1 * (k + 1)
         for j in range(10):
             loc.motion(t - 0.1 + 0.01 * (j + 1), MotionInput(0.01, odometry=(0.0, 0.0, 0.0)))
-        loc.team_message(report(2, t - 0.05, (-1.0, 0.8)))       # two teammates agree with the robot ...
+        loc.team_message(report(2, t - 0.05, (-1.0, 0.8)))  # two teammates agree with the robot ...
         loc.team_message(report(4, t - 0.05, (-0.95, 0.85)))
-        loc.team_message(report(5, t - 0.04, (1.0, -0.8)))       # ... one reports the point image
+        loc.team_message(report(5, t - 0.04, (1.0, -0.8)))  # ... one reports the point image
         sees_ball_at(loc, (-1.0, 0.8), t)
     assert loc.side.teammate_mirrored(5) > 0.9
     assert loc.side.teammate_mirrored(2) < 0.1 and loc.side.teammate_mirrored(4) < 0.1
     assert loc.counts["side changed by the team"] == 0
-    loc.side.moved()                                             # the robot re-localized somewhere new
-    assert loc.side.team_log_odds() == 0.0                       # nothing is known of its new side ...
-    assert loc.side.teammate_mirrored(5) > 0.9                   # ... but teammate 5 is still doubted
+    loc.side.moved()  # the robot re-localized somewhere new
+    assert loc.side.team_log_odds() == 0.0  # nothing is known of its new side ...
+    assert loc.side.teammate_mirrored(5) > 0.9  # ... but teammate 5 is still doubted
 
 
 @given(st.lists(st.tuples(st.integers(1, 4), st.floats(-6.0, 6.0)), max_size=40), st.floats(-10.0, 10.0))

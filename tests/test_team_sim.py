@@ -1,5 +1,6 @@
 """The battery's team world (`demos.team_sim`): a ball, the robot's sightings of it, teammates' messages, and the
 even-kidnapping families; and the old families' runs unchanged by it."""
+
 import hashlib
 import json
 import math
@@ -41,13 +42,32 @@ OLD_RUNS = {
 def message_key(message):
     """A message as plain values (its covariance is an array, which == cannot compare)."""
     cov = message.pose_covariance
-    return (message.sender, message.time, message.pose, None if cov is None else cov.tolist(), message.confidence,
-            message.is_goalkeeper, message.ball, message.ball_velocity, message.ball_age, message.clock_offset)
+    return (
+        message.sender,
+        message.time,
+        message.pose,
+        None if cov is None else cov.tolist(),
+        message.confidence,
+        message.is_goalkeeper,
+        message.ball,
+        message.ball_velocity,
+        message.ball_age,
+        message.clock_offset,
+    )
 
 
 def test_old_families_keep_their_codes_and_runs():
-    assert FAMILIES[:9] == ("tracking", "kidnap", "kidnap_special", "kidnap_announced", "collision", "fall",
-                            "false_bursts", "blackout", "start_unknown")
+    assert FAMILIES[:9] == (
+        "tracking",
+        "kidnap",
+        "kidnap_special",
+        "kidnap_announced",
+        "collision",
+        "fall",
+        "false_bursts",
+        "blackout",
+        "start_unknown",
+    )
     assert FAMILIES[9:] == EVEN_FAMILIES
     for (family, seed), expected in OLD_RUNS.items():
         run = simulate(family, seed, 20.0)
@@ -65,7 +85,7 @@ def test_same_seed_same_team_world_bit_for_bit():
     assert a.params == b.params
     assert a.ball_detections == b.ball_detections
     assert [(k, message_key(m)) for k, m in a.messages] == [(k, message_key(m)) for k, m in b.messages]
-    json.dumps(a.params)                                        # JSON-ready
+    json.dumps(a.params)  # JSON-ready
     c = simulate("kidnap_even_wrong", 4, 20.0)
     assert not np.array_equal(a.ball, c.ball)
 
@@ -84,7 +104,7 @@ def test_even_kidnappings_are_even(family):
         assert np.allclose(run.truth[k, :2], event["to"][:2])
         jump = float(np.hypot(*(run.truth[k, :2] - run.truth[k - 1, :2])))
         assert KIDNAP_DISTANCE[0] - 0.01 <= jump <= KIDNAP_DISTANCE[1] + 0.01
-        assert np.abs(run.odometry[k, :2]).max() < 0.01                     # unsignalled
+        assert np.abs(run.odometry[k, :2]).max() < 0.01  # unsignalled
         assert run.windows == ((event["time"], event["time"]),) and run.calls == ()
         team = run.params["team"]
         if family == "kidnap_even_silent":
@@ -94,8 +114,7 @@ def test_even_kidnappings_are_even(family):
         if family == "kidnap_even_wrong":
             assert 2 <= len(team["teammates"]) <= 4
     # the plain kidnapping's odds are not restricted (a clear case exists among few seeds)
-    odds = [kidnap_mirror_log_odds(r.field, r.params["event"]) for r in (simulate("kidnap", s, 20.0)
-                                                                         for s in range(4))]
+    odds = [kidnap_mirror_log_odds(r.field, r.params["event"]) for r in (simulate("kidnap", s, 20.0) for s in range(4))]
     assert any(abs(o) >= math.log(2.0) for o in odds)
 
 
@@ -117,7 +136,7 @@ def test_messages_are_valid_sorted_and_lost_at_the_drawn_rate():
         for s in delivered:
             k = s.arrival_step
             assert run.times[k] >= s.arrival_time - 1e-9 and (k == 0 or run.times[k - 1] < s.arrival_time)
-            assert s.message.received_time == pytest.approx(s.send_time, abs=1e-9)     # the robot's clock
+            assert s.message.received_time == pytest.approx(s.send_time, abs=1e-9)  # the robot's clock
             assert 0.0 <= s.arrival_time - s.send_time <= team["latency_max"] + 1e-12
         received = [m.received_time for _, m in run.messages]
         out_of_order += sum(b < a for a, b in zip(received, received[1:]))
@@ -138,12 +157,15 @@ def test_messages_are_valid_sorted_and_lost_at_the_drawn_rate():
             # its error: its pose error (carried out to the ball by its heading error) and its own noise
             mate = by_number[m.sender]
             r = mate["ball_range"]
-            scale = (1.5 * mate["bias_position"] + r * (1.5 * mate["bias_heading"] + mate["bearing_sigma"] + 0.1)
-                     + mate["range_sigma"])
+            scale = (
+                1.5 * mate["bias_position"]
+                + r * (1.5 * mate["bias_heading"] + mate["bearing_sigma"] + 0.1)
+                + mate["range_sigma"]
+            )
             errors.append(math.dist(m.ball, s.true_ball) / scale)
             assert (m.pose_covariance is None) == (by_number[m.sender]["states"] == "confidence")
         assert errors and np.median(errors) < 1.0 and max(errors) < 5.0
-    assert out_of_order > 0                                     # latency reorders some messages
+    assert out_of_order > 0  # latency reorders some messages
 
 
 def test_the_wrong_teammate_reports_the_mirror_during_its_interval():
@@ -154,8 +176,11 @@ def test_the_wrong_teammate_reports_the_mirror_during_its_interval():
         kidnap = run.params["event"]["time"]
         assert wrong["start"] <= kidnap <= wrong["end"]
         assert wrong["end"] - wrong["start"] <= WRONG_SECONDS[1] + 1e-9
-        assert wrong["end"] - wrong["start"] >= WRONG_SECONDS[0] - 1e-9 or wrong["start"] == 0.0 \
+        assert (
+            wrong["end"] - wrong["start"] >= WRONG_SECONDS[0] - 1e-9
+            or wrong["start"] == 0.0
             or wrong["end"] == run.params["duration"]
+        )
         for s in run.team.sent:
             m = s.message
             inside = wrong["start"] <= s.send_time <= wrong["end"]
@@ -169,7 +194,7 @@ def test_the_wrong_teammate_reports_the_mirror_during_its_interval():
             mirror = np.array([-s.true_pose[0], -s.true_pose[1]])
             assert np.hypot(*(np.array(m.pose[:2]) - mirror)) < 0.5
             assert abs(wrap_angles(m.pose[2] - s.true_pose[2] - math.pi)) < 0.3
-            if m.pose_covariance is None:                       # sure of itself
+            if m.pose_covariance is None:  # sure of itself
                 assert m.confidence >= 0.9
             else:
                 assert m.pose_sigmas()[0] <= 0.1 + 1e-12
@@ -192,17 +217,18 @@ def test_ball_stays_on_the_field_and_kicks_happen():
         assert (np.abs(run.ball[:, 0]) <= hl + 1e-12).all() and (np.abs(run.ball[:, 1]) <= hw + 1e-12).all()
         assert run.params["team"]["kicks"] > 0 and np.ptp(run.ball, axis=0).max() > 0.5
         assert (np.abs(run.team.teammates[..., 0]) <= hl).all() and (np.abs(run.team.teammates[..., 1]) <= hw).all()
-        for t in run.team.goals:                                # after a goal, the centre mark
+        for t in run.team.goals:  # after a goal, the centre mark
             k = int(round(t / run.dt)) - 1
             assert np.array_equal(run.ball[k], [0.0, 0.0])
         keeper = [m for m in run.params["team"]["teammates"] if m["goalkeeper"]]
-        for m in keeper:                                        # the goalkeeper stays near its own goal
+        for m in keeper:  # the goalkeeper stays near its own goal
             i = run.team.numbers.index(m["number"])
             assert (run.team.teammates[i, :, 0] < -hl + 2.5).all()
 
 
 def test_ball_goal_and_lines():
     from demos.battery_sim import field_for
+
     field = field_for(0)
     hl, hw = field.half_length, field.half_width
     # into the goal between the posts: back to the centre mark, at rest
@@ -244,7 +270,7 @@ def test_ball_detections_only_inside_the_view():
             if detection is None:
                 continue
             assert isinstance(detection, BallDetection)
-            assert detection.range_sigma is None and detection.bearing_sigma is None     # no noise figures
+            assert detection.range_sigma is None and detection.bearing_sigma is None  # no noise figures
             total += 1
             off = abs(wrap_angles(detection.bearing - frame.head))
             if false:
@@ -255,12 +281,15 @@ def test_ball_detections_only_inside_the_view():
             d = ball[k] - truth[k, :2]
             r = float(np.hypot(*d))
             bearing = wrap_angles(math.atan2(d[1], d[0]) - truth[k, 2])
-            assert abs(wrap_angles(bearing - frame.head)) <= half_fov + 1e-9           # the true ball in view
+            assert abs(wrap_angles(bearing - frame.head)) <= half_fov + 1e-9  # the true ball in view
             assert camera["min_range"] <= r <= camera["range"]
             assert off <= half_fov + 5 * camera["bearing_sigma"]
         if p["event"]["type"] == "blackout":
-            dark = [d for f, d in zip(run.frames, run.ball_detections)
-                    if p["event"]["time"] <= f.capture_time <= p["event"]["end"]]
+            dark = [
+                d
+                for f, d in zip(run.frames, run.ball_detections)
+                if p["event"]["time"] <= f.capture_time <= p["event"]["end"]
+            ]
             assert dark and all(d is None for d in dark)
         for key, bounds in BALL_CAMERA.items():
             assert bounds[0] <= camera[key] <= bounds[1]

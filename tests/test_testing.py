@@ -1,5 +1,6 @@
 """`mcl.tools.testing`: its strategies draw what they promise, and each of its checks passes on good models and
 filters and fails (AssertionError, naming the fault) on deliberately broken ones."""
+
 import math
 import types
 from dataclasses import dataclass
@@ -21,7 +22,7 @@ FIELD = spl()
 SENSOR = LandmarkSensorModel(FIELD)
 STEP = MotionInput(dt=0.01, command=(0.2, 0.0, 0.1))
 FRAME = Observations.from_arrays(["goalpost", "T"], [3.0, 1.5], [0.2, -0.4])
-FEW = 8          # examples for a check that is expected to fail (without shrinking the failure: faster)
+FEW = 8  # examples for a check that is expected to fail (without shrinking the failure: faster)
 
 
 def make_filter(seed=5, motion=None, n=32):
@@ -92,8 +93,11 @@ def test_particle_sets_are_what_set_particles_takes(particles):
 def test_observations_are_typed_finite_and_accepted(data):
     field = data.draw(mt.fields())
     with_sigmas = data.draw(st.booleans())
-    batch = data.draw(mt.observations(field, max_detections=5, with_sigmas=with_sigmas, min_detections=1,
-                                      max_line_points=4, with_view=True))
+    batch = data.draw(
+        mt.observations(
+            field, max_detections=5, with_sigmas=with_sigmas, min_detections=1, max_line_points=4, with_view=True
+        )
+    )
     assert isinstance(batch, Observations) and 1 <= len(batch) <= 5 and batch.line_points.shape[0] <= 4
     present = {kind.value for kind in LandmarkType if len(field.landmarks_of(kind))}
     assert set(batch.kinds.tolist()) <= present
@@ -170,15 +174,22 @@ REFUSED_FILTER = make_filter()
 
 @given(mt.hostile_values())
 def test_hostile_values_are_refused_as_numbers_triples_and_poses(value):
-    builds = [lambda: MotionInput(dt=value), lambda: LandmarkObservation("T", value, 0.0),
-              lambda: LandmarkObservation("T", 1.0, value)]
-    if value is not None:                      # (an optional argument's "not given")
+    builds = [
+        lambda: MotionInput(dt=value),
+        lambda: LandmarkObservation("T", value, 0.0),
+        lambda: LandmarkObservation("T", 1.0, value),
+    ]
+    if value is not None:  # (an optional argument's "not given")
         builds += [lambda: MotionInput(dt=0.01, command=value), lambda: MotionInput(dt=0.01, odometry=value)]
     for build in builds:
         with pytest.raises((ValueError, TypeError)):
             build()
-    for method in (REFUSED_FILTER.reset_around, REFUSED_FILTER.set_particles, REFUSED_FILTER.diffuse,
-                   REFUSED_FILTER.predict):
+    for method in (
+        REFUSED_FILTER.reset_around,
+        REFUSED_FILTER.set_particles,
+        REFUSED_FILTER.diffuse,
+        REFUSED_FILTER.predict,
+    ):
         mt.assert_refused_leaves_state(REFUSED_FILTER, method, value)
 
 
@@ -199,15 +210,21 @@ def test_weights_normalized_passes_on_filters():
     mt.assert_weights_normalized(stub([0.25, 0.75, 0.0]))
 
 
-@pytest.mark.parametrize("broken, match", [
-    (stub([0.25, 0.25]), "sum to 0.5"),
-    (stub([0.5, math.nan, 0.5]), r"weights\[1\] = nan"),
-    (stub([1.5, -0.5]), r"weights\[1\] = -0.5"),
-    (stub([0.5, 0.5], [0.0, math.log(0.5)]), r"weights\[0\] = 0.5 but exp\(log_weights\[0\]\) = 1.0"),
-    (stub([0.5, 0.5], [math.log(0.5), math.inf]), r"log_weights\[1\] = inf"),
-    (types.SimpleNamespace(weights=np.full(3, 1 / 3), log_weights=np.zeros(2), n=3), r"log_weights must have shape"),
-    (types.SimpleNamespace(weights=np.full(3, 1 / 3), log_weights=np.zeros(3), n=4), r"weights must have shape"),
-])
+@pytest.mark.parametrize(
+    "broken, match",
+    [
+        (stub([0.25, 0.25]), "sum to 0.5"),
+        (stub([0.5, math.nan, 0.5]), r"weights\[1\] = nan"),
+        (stub([1.5, -0.5]), r"weights\[1\] = -0.5"),
+        (stub([0.5, 0.5], [0.0, math.log(0.5)]), r"weights\[0\] = 0.5 but exp\(log_weights\[0\]\) = 1.0"),
+        (stub([0.5, 0.5], [math.log(0.5), math.inf]), r"log_weights\[1\] = inf"),
+        (
+            types.SimpleNamespace(weights=np.full(3, 1 / 3), log_weights=np.zeros(2), n=3),
+            r"log_weights must have shape",
+        ),
+        (types.SimpleNamespace(weights=np.full(3, 1 / 3), log_weights=np.zeros(3), n=4), r"weights must have shape"),
+    ],
+)
 def test_weights_normalized_fails_on_broken_weights(broken, match):
     with pytest.raises(AssertionError, match=match):
         mt.assert_weights_normalized(broken)
@@ -218,11 +235,14 @@ def test_poses_finite_and_wrapped_passes_and_fails():
     mt.assert_poses_finite_and_wrapped(pf)
     mt.assert_poses_finite_and_wrapped(pf.poses)
     mt.assert_poses_finite_and_wrapped(np.array([[0.0, 0.0, math.pi], [0.0, 0.0, -math.pi]]))
-    for bad, match in ((np.array([[0.0, 0.0, 0.0], [1.0, math.nan, 0.0]]), r"poses\[1\] .* not finite"),
-                       (np.array([[0.0, 0.0, 3.5]]), r"poses\[0\] .* heading not wrapped"),
-                       (np.array([[0.0, math.inf, 0.0]]), "not finite"),
-                       (np.zeros((4, 2)), r"shape \(N, 3\)"), (np.zeros(3), r"shape \(N, 3\)"),
-                       (np.zeros((2, 3), dtype=np.int64), "floats")):
+    for bad, match in (
+        (np.array([[0.0, 0.0, 0.0], [1.0, math.nan, 0.0]]), r"poses\[1\] .* not finite"),
+        (np.array([[0.0, 0.0, 3.5]]), r"poses\[0\] .* heading not wrapped"),
+        (np.array([[0.0, math.inf, 0.0]]), "not finite"),
+        (np.zeros((4, 2)), r"shape \(N, 3\)"),
+        (np.zeros(3), r"shape \(N, 3\)"),
+        (np.zeros((2, 3), dtype=np.int64), "floats"),
+    ):
         with pytest.raises(AssertionError, match=match):
             mt.assert_poses_finite_and_wrapped(bad)
 
@@ -233,11 +253,15 @@ def test_snapshots_see_every_change_and_nothing_else():
     before = mt.snapshot(pf)
     mt.assert_unchanged(before, mt.snapshot(pf))
     assert before == mt.snapshot(pf) and before.w_slow == pf.w_slow and before.w_fast == pf.w_fast
-    assert mt.snapshot(make_filter()) == mt.snapshot(make_filter())          # NaN frame_fit equals itself
-    for change, what in ((lambda: pf.rng.random(), "rng_state"), (lambda: pf.predict(STEP), "poses"),
-                         (lambda: pf.correct(FRAME), "poses|weights"), (lambda: setattr(pf, "w_slow", 0.5), "w_slow"),
-                         (lambda: setattr(pf, "roughening", (0.1, 0.0, 0.0)), "roughening"),
-                         (lambda: setattr(pf, "resampling", "residual"), "resampling")):
+    assert mt.snapshot(make_filter()) == mt.snapshot(make_filter())  # NaN frame_fit equals itself
+    for change, what in (
+        (lambda: pf.rng.random(), "rng_state"),
+        (lambda: pf.predict(STEP), "poses"),
+        (lambda: pf.correct(FRAME), "poses|weights"),
+        (lambda: setattr(pf, "w_slow", 0.5), "w_slow"),
+        (lambda: setattr(pf, "roughening", (0.1, 0.0, 0.0)), "roughening"),
+        (lambda: setattr(pf, "resampling", "residual"), "resampling"),
+    ):
         before = mt.snapshot(pf)
         change()
         with pytest.raises(AssertionError, match=rf"the filter changed: .*({what})"):
@@ -252,7 +276,7 @@ def test_snapshots_see_every_change_and_nothing_else():
 
 def test_a_snapshot_without_the_estimate_leaves_the_filter_alone():
     pf = make_filter()
-    pf.predict(STEP)                      # the estimate is stale: computing it would move its anchor
+    pf.predict(STEP)  # the estimate is stale: computing it would move its anchor
     first = mt.snapshot(pf, estimate=False)
     assert first.estimate is None
     assert mt.snapshot(pf, estimate=False) == first
@@ -278,11 +302,14 @@ def test_refused_leaves_state_fails_on_a_refusal_that_changed_the_filter():
     pf = make_filter()
 
     def sneaky(sigma):
-        pf.diffuse(sigma)                  # changes the particles and draws numbers, then refuses
+        pf.diffuse(sigma)  # changes the particles and draws numbers, then refuses
         raise ValueError("sigma refused")
 
-    with pytest.raises(AssertionError, match=r"was refused \(ValueError: sigma refused\) but changed the filter: "
-                                             r"poses.*rng_state"):
+    with pytest.raises(
+        AssertionError,
+        match=r"was refused \(ValueError: sigma refused\) but changed the filter: "
+        r"poses.*rng_state",
+    ):
         mt.assert_refused_leaves_state(pf, sneaky, (0.1, 0.1, 0.1))
 
 
@@ -299,8 +326,11 @@ def test_refused_leaves_state_fails_on_other_exceptions_and_silent_refusals():
         mt.assert_refused_leaves_state(pf, crash)
     with pytest.raises(AssertionError, match="without a message"):
         mt.assert_refused_leaves_state(pf, silent)
-    with pytest.raises(AssertionError, match="raised ArgumentTypeError: .*; a refused call must raise one of "
-                                             r"\('KeyError',\)"):
+    with pytest.raises(
+        AssertionError,
+        match="raised ArgumentTypeError: .*; a refused call must raise one of "
+        r"\('KeyError',\)",
+    ):
         mt.assert_refused_leaves_state(pf, pf.step, "u", exceptions=(KeyError,))
 
 
@@ -309,9 +339,10 @@ STEPS = [(STEP, FRAME), STEP, (MotionInput(dt=0.01, odometry=(0.01, 0.0, 0.02)),
 
 def test_same_seed_same_run_passes_on_seeded_filters():
     mt.assert_same_seed_same_run(make_filter, STEPS)
-    mt.assert_same_seed_same_run(lambda: make_filter(motion=AdaptiveMotion()),
-                                 [(MotionInput(dt=0.01, command=(0.2, 0.0, 0.1), collision=CollisionPercept()),
-                                   FRAME)] * 3)
+    mt.assert_same_seed_same_run(
+        lambda: make_filter(motion=AdaptiveMotion()),
+        [(MotionInput(dt=0.01, command=(0.2, 0.0, 0.1), collision=CollisionPercept()), FRAME)] * 3,
+    )
 
 
 @dataclass(frozen=True)
@@ -372,9 +403,14 @@ def test_same_seed_same_run_fails_on_unseeded_filters_and_hidden_state():
 def test_good_motion_models_pass():
     report = mt.check_motion_model(Walk(), FIELD, strict=True, refused=[MotionInput(dt=0.01)], max_examples=15)
     assert report.examples >= 15 and report.accepted >= 15 and report.hostile_refused > 0
-    report = mt.check_motion_model(AdaptiveMotion(), FIELD, strict=True, max_examples=10,
-                                   inputs=mt.motion_inputs("command", collision=True),
-                                   hostile=mt.hostile_motion_inputs().filter(lambda u: u.odometry is None))
+    report = mt.check_motion_model(
+        AdaptiveMotion(),
+        FIELD,
+        strict=True,
+        max_examples=10,
+        inputs=mt.motion_inputs("command", collision=True),
+        hostile=mt.hostile_motion_inputs().filter(lambda u: u.odometry is None),
+    )
     assert report.accepted >= 10
 
 
@@ -383,7 +419,7 @@ def test_good_motion_models_pass():
 def test_the_single_example_contract_composes_with_given(poses, u, seed):
     before = poses.copy()
     assert mt.assert_motion_contract(VelocityLinear(), poses, u, seed, strict=True)
-    np.testing.assert_array_equal(poses, before)          # the check moves a copy
+    np.testing.assert_array_equal(poses, before)  # the check moves a copy
 
 
 class NaNMotion(Walk):
@@ -445,21 +481,28 @@ class StateGrows(Walk):
         state[:, 0] = math.inf
 
 
-@pytest.mark.parametrize("model, kwargs, match", [
-    (NaNMotion(), {}, r"NaNMotion.predict with .*poses\[\d+\] = .* not finite"),
-    (Unwrapped(), {}, r"heading not wrapped"),
-    (GlobalRandom(), {}, r"from the same seed gave different results: poses"),
-    (Counting(), {}, r"from the same seed gave different results: poses"),
-    (RuntimeCheck(), {}, r"RuntimeCheck.check\(.*\) raised RuntimeError: no displacement; a refused input must "
-                         r"raise ValueError or TypeError"),
-    (LateRefusal(), {}, r"check accepted .* but predict raised ValueError"),
-    (PredictsWithoutChecking(), dict(strict=True), r"check refused .* but predict accepted it"),
-    (MovesThenRefuses(), dict(strict=True), r"predict refused .* but changed poses"),
-    (RefusesAll(), {}, r"RefusesAll refused all \d+ inputs drawn"),
-    (WrongStateRows(), {}, r"particle_state\(\d+\) must have \d+ rows"),
-    (StateGrows(), {}, r"non-finite particle state"),
-    (Walk(), dict(refused=[STEP]), r"Walk.check accepted .* which it must refuse"),
-])
+@pytest.mark.parametrize(
+    "model, kwargs, match",
+    [
+        (NaNMotion(), {}, r"NaNMotion.predict with .*poses\[\d+\] = .* not finite"),
+        (Unwrapped(), {}, r"heading not wrapped"),
+        (GlobalRandom(), {}, r"from the same seed gave different results: poses"),
+        (Counting(), {}, r"from the same seed gave different results: poses"),
+        (
+            RuntimeCheck(),
+            {},
+            r"RuntimeCheck.check\(.*\) raised RuntimeError: no displacement; a refused input must "
+            r"raise ValueError or TypeError",
+        ),
+        (LateRefusal(), {}, r"check accepted .* but predict raised ValueError"),
+        (PredictsWithoutChecking(), dict(strict=True), r"check refused .* but predict accepted it"),
+        (MovesThenRefuses(), dict(strict=True), r"predict refused .* but changed poses"),
+        (RefusesAll(), {}, r"RefusesAll refused all \d+ inputs drawn"),
+        (WrongStateRows(), {}, r"particle_state\(\d+\) must have \d+ rows"),
+        (StateGrows(), {}, r"non-finite particle state"),
+        (Walk(), dict(refused=[STEP]), r"Walk.check accepted .* which it must refuse"),
+    ],
+)
 def test_broken_motion_models_fail(model, kwargs, match):
     with pytest.raises(AssertionError, match=match):
         mt.check_motion_model(model, FIELD, max_examples=FEW, shrink=False, **kwargs)
@@ -522,7 +565,7 @@ class Integers(Delegating):
 
 class MutatesPoses(Delegating):
     def log_likelihood(self, poses, observations, out=None):
-        poses[:, 2] = wrap_angles(poses[:, 2] + 0.1)      # "normalizes" the headings it was given
+        poses[:, 2] = wrap_angles(poses[:, 2] + 0.1)  # "normalizes" the headings it was given
         return super().log_likelihood(poses, observations, out)
 
 
@@ -578,23 +621,26 @@ def test_good_sensor_models_pass():
     mt.check_sensor_model(MinusInf(), FIELD, allow_neg_inf=True, max_examples=FEW)
 
 
-@pytest.mark.parametrize("model, kwargs, match", [
-    (NaNOutput(), {}, r"log_likelihood gave nan for poses\[0\]"),
-    (PlusInf(), {}, r"log_likelihood gave inf .* must be finite"),
-    (MinusInf(), {}, r"log_likelihood gave -inf .* must be finite\n"),
-    (OneTooMany(), {}, r"returned shape \(\d+,\) for \d+ poses"),
-    (Column(), {}, r"returned shape \(\d+, 1\)"),
-    (Integers(), {}, r"returned dtype int64; must be floats"),
-    (MutatesPoses(), {}, r"log_likelihood changed its input: poses"),
-    (Noisy(), {}, r"different results for the same input"),
-    (Accumulates(), {}, r"log_likelihood gave nan"),
-    (NoOut(), {}, r"the filter passes `out=`"),
-    (NegativeTerms(), {}, r"terms returned -1, not >= 0"),
-    (FloatTerms(), {}, r"terms returned 1.5 \(float\), not an int"),
-    (KeyErrorCheck(), {}, r"check raised KeyError.*must raise ValueError or TypeError"),
-    (RefusesEveryFrame(), {}, r"refused all \d+ frames drawn"),
-    (Positive(), dict(bound=0.0), r"log_likelihood gave 1.0 .* above the bound 0.0"),
-])
+@pytest.mark.parametrize(
+    "model, kwargs, match",
+    [
+        (NaNOutput(), {}, r"log_likelihood gave nan for poses\[0\]"),
+        (PlusInf(), {}, r"log_likelihood gave inf .* must be finite"),
+        (MinusInf(), {}, r"log_likelihood gave -inf .* must be finite\n"),
+        (OneTooMany(), {}, r"returned shape \(\d+,\) for \d+ poses"),
+        (Column(), {}, r"returned shape \(\d+, 1\)"),
+        (Integers(), {}, r"returned dtype int64; must be floats"),
+        (MutatesPoses(), {}, r"log_likelihood changed its input: poses"),
+        (Noisy(), {}, r"different results for the same input"),
+        (Accumulates(), {}, r"log_likelihood gave nan"),
+        (NoOut(), {}, r"the filter passes `out=`"),
+        (NegativeTerms(), {}, r"terms returned -1, not >= 0"),
+        (FloatTerms(), {}, r"terms returned 1.5 \(float\), not an int"),
+        (KeyErrorCheck(), {}, r"check raised KeyError.*must raise ValueError or TypeError"),
+        (RefusesEveryFrame(), {}, r"refused all \d+ frames drawn"),
+        (Positive(), dict(bound=0.0), r"log_likelihood gave 1.0 .* above the bound 0.0"),
+    ],
+)
 def test_broken_sensor_models_fail(model, kwargs, match):
     with pytest.raises(AssertionError, match=match):
         mt.check_sensor_model(model, FIELD, max_examples=FEW, shrink=False, **kwargs)

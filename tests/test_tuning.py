@@ -1,6 +1,7 @@
 """`robocup-mcl tune` (mcl.tools.tuning): the space file, the objectives, the study on a local Ray instance with two
 workers (seeded, resumable), and the command's one-line errors. The two-node cluster and a worker that dies
 mid-task are in tests/test_tuning_cluster.py."""
+
 from __future__ import annotations
 
 import json
@@ -33,8 +34,15 @@ CASES = (BatteryCase("tracking", 0, 12.0), BatteryCase("kidnap", 0, 12.0))
 
 
 def settings(trials=3, seed=0, **overrides):
-    options = dict(cases=CASES, space=SearchSpace.from_toml(SPACE), objective="truth", trials=trials, seeds=(0,),
-                   seed=seed, particles=100)
+    options = dict(
+        cases=CASES,
+        space=SearchSpace.from_toml(SPACE),
+        objective="truth",
+        trials=trials,
+        seeds=(0,),
+        seed=seed,
+        particles=100,
+    )
     options.update(overrides)
     return TuneSettings(**options)
 
@@ -56,35 +64,46 @@ def history(outcome):
 
 # -- the space file ------------------------------------------------------------------------------------------
 def test_space_reads_ranges_scales_integers_and_choices():
-    space = SearchSpace.from_toml(SPACE + """
+    space = SearchSpace.from_toml(
+        SPACE
+        + """
 [localizer]
 particles = { low = 100, high = 1000, log = true }
 [sensor.mixture]
 choices = ["max", "sum"]
-""")
-    assert space.names == ["sensor.outlier_weight", "sensor.range_noise_floor", "sensor.mixture",
-                           "augmented.fit_threshold", "localizer.particles"]      # TOML's table order
+"""
+    )
+    assert space.names == [
+        "sensor.outlier_weight",
+        "sensor.range_noise_floor",
+        "sensor.mixture",
+        "augmented.fit_threshold",
+        "localizer.particles",
+    ]  # TOML's table order
     d = space.distributions()
     assert d["sensor.outlier_weight"].log and d["localizer.particles"].low == 100
     assert d["sensor.mixture"].choices == ("max", "sum")
 
 
-@pytest.mark.parametrize("text, words", [
-    ("[venue]\nx = { low = 0, high = 1 }", "unknown section [venue]"),
-    ("[sensor]\nnoise = { low = 0, high = 1 }", "unknown setting 'noise'"),
-    ("[sensor]\noutlier_weight = 0.1", "must be a table"),
-    ("[sensor]\noutlier_weight = { low = 0.1 }", "needs low and high"),
-    ("[sensor]\noutlier_weight = { low = 0.1, high = 0.01 }", "must be below"),
-    ("[sensor]\noutlier_weight = { low = 0.0, high = 0.1, log = true }", "log scale needs low > 0"),
-    ("[sensor]\noutlier_weight = { low = 0.01, high = 3.0 }", "refused"),
-    ("[sensor]\noutlier_weight = { low = 0.01, high = 0.1, step = 2 }", "unknown key 'step'"),
-    ("[sensor]\nmixture = { low = 0, high = 1 }", "choices"),
-    ("[sensor]\nmixture = { choices = [] }", "non-empty list"),
-    ("[localizer]\nparticles = { low = 10.5, high = 100 }", "must be an integer"),
-    ("[sensor]\noutlier_weight = { low = 'a', high = 0.1 }", "finite number"),
-    ("", "names no setting"),
-    ("[sensor\n", "not TOML"),
-])
+@pytest.mark.parametrize(
+    "text, words",
+    [
+        ("[venue]\nx = { low = 0, high = 1 }", "unknown section [venue]"),
+        ("[sensor]\nnoise = { low = 0, high = 1 }", "unknown setting 'noise'"),
+        ("[sensor]\noutlier_weight = 0.1", "must be a table"),
+        ("[sensor]\noutlier_weight = { low = 0.1 }", "needs low and high"),
+        ("[sensor]\noutlier_weight = { low = 0.1, high = 0.01 }", "must be below"),
+        ("[sensor]\noutlier_weight = { low = 0.0, high = 0.1, log = true }", "log scale needs low > 0"),
+        ("[sensor]\noutlier_weight = { low = 0.01, high = 3.0 }", "refused"),
+        ("[sensor]\noutlier_weight = { low = 0.01, high = 0.1, step = 2 }", "unknown key 'step'"),
+        ("[sensor]\nmixture = { low = 0, high = 1 }", "choices"),
+        ("[sensor]\nmixture = { choices = [] }", "non-empty list"),
+        ("[localizer]\nparticles = { low = 10.5, high = 100 }", "must be an integer"),
+        ("[sensor]\noutlier_weight = { low = 'a', high = 0.1 }", "finite number"),
+        ("", "names no setting"),
+        ("[sensor\n", "not TOML"),
+    ],
+)
 def test_a_wrong_space_is_refused_in_one_line(text, words):
     with pytest.raises(SpaceError) as error:
         SearchSpace.from_toml(text, "space.toml")
@@ -113,7 +132,7 @@ def test_a_log_case_gives_evidence_and_truth_figures_and_the_battery_case_agrees
     assert result["evidence_frames"] > 50 and math.isfinite(result["log_evidence"])
     assert 0.0 <= result["truth"]["fail_share"] <= 1.0 and result["truth"]["loss"] >= 0.0
     again = evaluate_case(LogCase(logs[0]), {"sensor.outlier_weight": 0.02}, seed=0, particles=100)
-    assert again["log_evidence"] == result["log_evidence"]          # same seed, same result
+    assert again["log_evidence"] == result["log_evidence"]  # same seed, same result
     battery = evaluate_case(CASES[0], {}, seed=0, particles=100)
     assert battery["truth"]["reconverge_s"] is None and battery["evidence_frames"] > 0
 
@@ -146,7 +165,7 @@ def test_the_truth_loss_is_zero_for_a_perfect_run_and_counts_a_never():
     perfect = truth_figures(times, truth, truth, np.zeros(500, np.int8), np.zeros(500, bool), [(1.0, 1.0)])
     assert perfect["loss"] == 0.0
     off = truth.copy()
-    off[200:, 0] = 2.0                  # 2 m off after 2 s, never back, flagged SUPERB throughout
+    off[200:, 0] = 2.0  # 2 m off after 2 s, never back, flagged SUPERB throughout
     lost = truth_figures(times, truth, off, np.zeros(500, np.int8), np.zeros(500, bool), [(2.5, 2.5)])
     assert lost["never"] and lost["loss"] == pytest.approx(0.6 + 0.0 + 0.25 + 0.6)
 
@@ -158,8 +177,11 @@ def test_the_same_seed_gives_the_same_study_and_it_starts_from_the_defaults(loca
     second = run_study(settings(), str(tmp_path / "b.journal"))
     assert history(first) == history(second)
     assert first.trials[0]["start"] == "library defaults"
-    assert first.trials[0]["values"] == {"sensor.outlier_weight": 0.01, "sensor.range_noise_floor": 0.05,
-                                         "augmented.fit_threshold": 0.2}
+    assert first.trials[0]["values"] == {
+        "sensor.outlier_weight": 0.01,
+        "sensor.range_noise_floor": 0.05,
+        "augmented.fit_threshold": 0.2,
+    }
     assert first.best_value == min(t["value"] for t in first.trials)
     assert first.tasks.costs()["tasks"] == 3 * len(CASES)
     other = run_study(settings(seed=1), str(tmp_path / "c.journal"))
@@ -185,8 +207,10 @@ def test_an_interrupted_study_resumes_where_it_stopped(local_ray, tmp_path):
     path = str(tmp_path / "resumed.journal")
     run_study(settings(trials=2), path)
     # a run killed mid-trial leaves a running trial behind
-    study = optuna.load_study(study_name="robocup-mcl-tune",
-                              storage=optuna.storages.JournalStorage(optuna.storages.journal.JournalFileBackend(path)))
+    study = optuna.load_study(
+        study_name="robocup-mcl-tune",
+        storage=optuna.storages.JournalStorage(optuna.storages.journal.JournalFileBackend(path)),
+    )
     study.ask()
     resumed = run_study(settings(trials=4), path)
     straight = run_study(settings(trials=4), str(tmp_path / "straight.journal"))
@@ -204,8 +228,9 @@ def test_a_study_file_made_for_other_settings_is_refused(local_ray, tmp_path):
 
 
 def test_refused_combinations_are_failed_trials_that_do_not_count(local_ray):
-    space = SearchSpace.from_toml("[augmented]\nalpha_slow = { low = 0.001, high = 0.3 }\n"
-                                  "alpha_fast = { low = 0.05, high = 0.5 }\n")
+    space = SearchSpace.from_toml(
+        "[augmented]\nalpha_slow = { low = 0.001, high = 0.3 }\nalpha_fast = { low = 0.05, high = 0.5 }\n"
+    )
     outcome = run_study(settings(trials=6, space=space, cases=CASES[:1]))
     assert len(outcome.trials) == 6
     assert all(t["values"]["augmented.alpha_slow"] < t["values"]["augmented.alpha_fast"] for t in outcome.trials)
@@ -213,17 +238,40 @@ def test_refused_combinations_are_failed_trials_that_do_not_count(local_ray):
 
 # -- the command -------------------------------------------------------------------------------------------------
 def run_command(*args, env=None):
-    return subprocess.run([sys.executable, "-m", "mcl.tools.cli", "tune", *args], capture_output=True, text=True,
-                          env={**os.environ, **(env or {})}, timeout=600)
+    return subprocess.run(
+        [sys.executable, "-m", "mcl.tools.cli", "tune", *args],
+        capture_output=True,
+        text=True,
+        env={**os.environ, **(env or {})},
+        timeout=600,
+    )
 
 
 def test_the_command_tunes_logs_writes_a_profile_that_replay_and_eval_load(logs, tmp_path):
     space = tmp_path / "space.toml"
     space.write_text(SPACE)
     profile, saved, plots = tmp_path / "venue.toml", tmp_path / "tune.json", tmp_path / "plots"
-    done = run_command(logs[0], "--holdout", logs[1], "--space", str(space), "--trials", "3", "--workers", "2",
-                       "--particles", "100", "--objective", "evidence", "--out", str(profile), "--save", str(saved),
-                       "--plots", str(plots))
+    done = run_command(
+        logs[0],
+        "--holdout",
+        logs[1],
+        "--space",
+        str(space),
+        "--trials",
+        "3",
+        "--workers",
+        "2",
+        "--particles",
+        "100",
+        "--objective",
+        "evidence",
+        "--out",
+        str(profile),
+        "--save",
+        str(saved),
+        "--plots",
+        str(plots),
+    )
     assert done.returncode == 0, done.stderr
     result = json.loads(saved.read_text())
     assert result["settings"]["objective"] == "evidence" and len(result["trials"]) == 3
@@ -232,12 +280,48 @@ def test_the_command_tunes_logs_writes_a_profile_that_replay_and_eval_load(logs,
     assert "profile written to" in done.stdout and "held-out" in done.stdout
     loaded = Profile.load(profile)
     assert loaded.values() == result["best"]["values"]
-    replayed = subprocess.run([sys.executable, "-m", "mcl.tools.cli", "replay", logs[1], "--profile", str(profile),
-                               "--particles", "100", "--json"], capture_output=True, text=True, timeout=600)
+    replayed = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "mcl.tools.cli",
+            "replay",
+            logs[1],
+            "--profile",
+            str(profile),
+            "--particles",
+            "100",
+            "--json",
+        ],
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
     assert replayed.returncode == 0, replayed.stderr
-    evaluated = subprocess.run([sys.executable, "-m", "mcl.tools.cli", "eval", "--families", "tracking", "--seeds", "1",
-                                "--duration", "10", "--particles", "100", "--jobs", "1", "--profile", str(profile),
-                                "--json"], capture_output=True, text=True, timeout=600)
+    evaluated = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "mcl.tools.cli",
+            "eval",
+            "--families",
+            "tracking",
+            "--seeds",
+            "1",
+            "--duration",
+            "10",
+            "--particles",
+            "100",
+            "--jobs",
+            "1",
+            "--profile",
+            str(profile),
+            "--json",
+        ],
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
     assert evaluated.returncode == 0, evaluated.stderr
     assert json.loads(evaluated.stdout)["profile"]["values"] == result["best"]["values"]
 
@@ -245,8 +329,25 @@ def test_the_command_tunes_logs_writes_a_profile_that_replay_and_eval_load(logs,
 def test_the_command_tunes_on_the_battery_and_reports_held_out_seeds(tmp_path):
     space = tmp_path / "space.toml"
     space.write_text(SPACE)
-    done = run_command("--battery", "1", "--battery-holdout", "1", "--families", "tracking,fall", "--duration", "10",
-                       "--space", str(space), "--trials", "2", "--workers", "2", "--particles", "100", "--json")
+    done = run_command(
+        "--battery",
+        "1",
+        "--battery-holdout",
+        "1",
+        "--families",
+        "tracking,fall",
+        "--duration",
+        "10",
+        "--space",
+        str(space),
+        "--trials",
+        "2",
+        "--workers",
+        "2",
+        "--particles",
+        "100",
+        "--json",
+    )
     assert done.returncode == 0, done.stderr
     result = json.loads(done.stdout)
     assert result["settings"]["objective"] == "truth"
@@ -272,28 +373,47 @@ def test_the_command_reads_an_mcap_log_by_the_topics_given(logs, tmp_path):
     assert missing.returncode == 1 and "/not/there" in missing.stderr and len(missing.stderr.strip().splitlines()) == 1
 
 
-@pytest.mark.parametrize("case", ["missing log", "bad space", "missing space", "unreachable", "no logs",
-                                  "truth without truth", "bad profile out", "unknown field"])
+@pytest.mark.parametrize(
+    "case",
+    [
+        "missing log",
+        "bad space",
+        "missing space",
+        "unreachable",
+        "no logs",
+        "truth without truth",
+        "bad profile out",
+        "unknown field",
+    ],
+)
 def test_the_command_fails_in_one_line(case, logs, tmp_path):
     space = tmp_path / "space.toml"
     space.write_text(SPACE)
     bad = tmp_path / "bad.toml"
     bad.write_text("[sensor]\noutlier_weight = { low = 0.1, high = 0.01 }\n")
-    args = {"missing log": [str(tmp_path / "nope.mcap"), "--space", str(space)],
-            "bad space": [logs[0], "--space", str(bad)],
-            "missing space": [logs[0], "--space", str(tmp_path / "none.toml")],
-            "unreachable": [logs[0], "--space", str(space), "--address", "127.0.0.1:1"],
-            "no logs": ["--space", str(space)],
-            "truth without truth": [logs[2], "--space", str(space), "--objective", "truth"],
-            "bad profile out": [logs[0], "--space", str(space), "--out", str(space / "p.toml")],
-            "unknown field": [logs[0], "--space", str(space), "--field", "spll"],
-            }[case]
+    args = {
+        "missing log": [str(tmp_path / "nope.mcap"), "--space", str(space)],
+        "bad space": [logs[0], "--space", str(bad)],
+        "missing space": [logs[0], "--space", str(tmp_path / "none.toml")],
+        "unreachable": [logs[0], "--space", str(space), "--address", "127.0.0.1:1"],
+        "no logs": ["--space", str(space)],
+        "truth without truth": [logs[2], "--space", str(space), "--objective", "truth"],
+        "bad profile out": [logs[0], "--space", str(space), "--out", str(space / "p.toml")],
+        "unknown field": [logs[0], "--space", str(space), "--field", "spll"],
+    }[case]
     done = run_command(*args, "--trials", "1")
     assert done.returncode in (1, 2), done.stderr
     lines = [line for line in done.stderr.splitlines() if line.strip()]
     assert lines and (len(lines) == 1 or done.returncode == 2), done.stderr
     assert "Traceback" not in done.stderr and "internal error" not in done.stderr
-    words = {"missing log": "nope.mcap", "bad space": "must be below", "missing space": "none.toml",
-             "unreachable": "cannot reach the Ray cluster at 127.0.0.1:1", "no logs": "give training LOG",
-             "truth without truth": "needs ground truth", "bad profile out": "--out", "unknown field": "spll"}[case]
+    words = {
+        "missing log": "nope.mcap",
+        "bad space": "must be below",
+        "missing space": "none.toml",
+        "unreachable": "cannot reach the Ray cluster at 127.0.0.1:1",
+        "no logs": "give training LOG",
+        "truth without truth": "needs ground truth",
+        "bad profile out": "--out",
+        "unknown field": "spll",
+    }[case]
     assert words in done.stderr

@@ -1,5 +1,6 @@
 """The tuning study on a two-node Ray cluster on this machine (`ray.cluster_utils.Cluster`), and with a worker
 that dies mid-task: the same study as on one local instance, every time."""
+
 from __future__ import annotations
 
 import os
@@ -13,10 +14,16 @@ from demos.battery import BatteryCase  # noqa: E402
 from mcl.tools.tuning import SearchSpace, TuneSettings, run_study  # noqa: E402
 from mcl.tools.tuning.search import CRASH_VARIABLE, start_ray  # noqa: E402
 
-SETTINGS = TuneSettings(cases=(BatteryCase("tracking", 1, 12.0), BatteryCase("fall", 1, 12.0)),
-                        space=SearchSpace.from_toml("[sensor]\noutlier_weight = { low = 0.002, high = 0.1, log = true }\n"
-                                                    "[motion]\nbeta1 = { low = 0.5, high = 4.0 }\n"),
-                        objective="truth", trials=3, particles=100)
+SETTINGS = TuneSettings(
+    cases=(BatteryCase("tracking", 1, 12.0), BatteryCase("fall", 1, 12.0)),
+    space=SearchSpace.from_toml(
+        "[sensor]\noutlier_weight = { low = 0.002, high = 0.1, log = true }\n"
+        "[motion]\nbeta1 = { low = 0.5, high = 4.0 }\n"
+    ),
+    objective="truth",
+    trials=3,
+    particles=100,
+)
 
 
 def history(outcome):
@@ -56,12 +63,12 @@ def test_a_worker_that_dies_mid_task_is_retried_and_the_study_does_not_change(re
     import ray
 
     marker = tmp_path / "crashed"
-    os.environ[CRASH_VARIABLE] = str(marker)      # the workers start with it and the first task kills its worker
+    os.environ[CRASH_VARIABLE] = str(marker)  # the workers start with it and the first task kills its worker
     try:
         start_ray(None, workers=2)
         outcome = run_study(SETTINGS)
     finally:
         ray.shutdown()
         del os.environ[CRASH_VARIABLE]
-    assert marker.exists()                         # a worker did die
+    assert marker.exists()  # a worker did die
     assert history(outcome) == reference

@@ -91,7 +91,7 @@ def test_noise_jacobian_C_finite_difference(gyro_scale):
     state = np.concatenate([G_UP + rng.normal(size=3) * 0.3, rng.normal(size=3) * 0.2])
     gyro_hat, accel_hat = rng.normal(size=3) * gyro_scale, G_UP + rng.normal(size=3)
 
-    def with_noise(noise):           # eq. 16–18: true inputs are ω̂ - ω̃ and q̂ - q̃, noise scaled as in eq. 23
+    def with_noise(noise):  # eq. 16–18: true inputs are ω̂ - ω̃ and q̂ - q̃, noise scaled as in eq. 23
         return imu_step_reference(state, gyro_hat - noise[:3] * sigma_w, accel_hat - noise[3:] * sigma_q, dt)
 
     numeric = _numeric_jacobian(with_noise, np.zeros(6), h=1e-4)
@@ -108,8 +108,11 @@ def test_rotation_derivative_at_any_angle_finite_difference(scale):
     np.testing.assert_allclose(rotation_derivative_at(beta, x), numeric, atol=1e-8)
     # J(β) maps to the left perturbation: R(β + dβ) = R(J dβ) R(β).
     d_beta = rng.normal(size=3) * 1e-7
-    np.testing.assert_allclose(rotation_matrix(beta + d_beta),
-                               rotation_matrix(left_jacobian(beta) @ d_beta) @ rotation_matrix(beta), atol=1e-13)
+    np.testing.assert_allclose(
+        rotation_matrix(beta + d_beta),
+        rotation_matrix(left_jacobian(beta) @ d_beta) @ rotation_matrix(beta),
+        atol=1e-13,
+    )
     if scale == 0.0:
         np.testing.assert_array_equal(rotation_derivative_at(beta, x), rotation_derivative(x))
 
@@ -144,7 +147,7 @@ def test_bias_noise_jacobian_C_finite_difference(gyro_scale):
     state = _bias_state(rng)
     gyro_hat, accel_hat = rng.normal(size=3) * gyro_scale, G_UP + rng.normal(size=3)
 
-    def with_noise(noise):   # true rate ω̂ - b - ω̃, true specific force q̂ - q̃, bias step σ_b √δ n
+    def with_noise(noise):  # true rate ω̂ - b - ω̃, true specific force q̂ - q̃, bias step σ_b √δ n
         out = bias_imu_step_reference(state, gyro_hat - noise[:3] * sigma_w, accel_hat - noise[3:6] * sigma_q, dt)
         out[6:] += noise[6:] * sigma_b * math.sqrt(dt)
         return out
@@ -207,8 +210,9 @@ def test_paper_filter_is_the_six_state_kernels():
     for i in range(1, 200):
         gyro, accel = rng.normal(size=3), G_UP + rng.normal(size=3)
         ekf.predict(i * 0.01, gyro, accel)
-        ekf_predict_kernel(state, cov, gyro - bias, accel, 0.01 * i - 0.01 * (i - 1), PAPER.gyro_noise,
-                           PAPER.accel_noise, True)
+        ekf_predict_kernel(
+            state, cov, gyro - bias, accel, 0.01 * i - 0.01 * (i - 1), PAPER.gyro_noise, PAPER.accel_noise, True
+        )
         if i % 3 == 0:
             z = rng.normal(size=3) * 0.1
             ekf.correct(z)
@@ -236,15 +240,28 @@ def test_backends_agree_through_the_class(estimate_gyro_bias):
 
 # --- covariance stays SPD (hypothesis) ------------------------------------------------------------------
 @settings(max_examples=25, deadline=None)
-@given(seed=st.integers(0, 2 ** 32 - 1), n_steps=st.integers(50, 1500), correction_every=st.integers(1, 400),
-       gyro_scale=st.floats(0.0, 10.0), accel_scale=st.floats(0.0, 30.0), dt=st.floats(1e-4, 0.09),
-       exact=st.booleans(), sigma_v=st.floats(1e-3, 1.0), estimate_gyro_bias=st.booleans(),
-       bias_walk=st.floats(1e-7, 1e-2))
-def test_covariance_stays_symmetric_positive_definite(seed, n_steps, correction_every, gyro_scale, accel_scale, dt,
-                                                     exact, sigma_v, estimate_gyro_bias, bias_walk):
+@given(
+    seed=st.integers(0, 2**32 - 1),
+    n_steps=st.integers(50, 1500),
+    correction_every=st.integers(1, 400),
+    gyro_scale=st.floats(0.0, 10.0),
+    accel_scale=st.floats(0.0, 30.0),
+    dt=st.floats(1e-4, 0.09),
+    exact=st.booleans(),
+    sigma_v=st.floats(1e-3, 1.0),
+    estimate_gyro_bias=st.booleans(),
+    bias_walk=st.floats(1e-7, 1e-2),
+)
+def test_covariance_stays_symmetric_positive_definite(
+    seed, n_steps, correction_every, gyro_scale, accel_scale, dt, exact, sigma_v, estimate_gyro_bias, bias_walk
+):
     rng = np.random.default_rng(seed)
-    params = VelocityEKFParams(exact_jacobian=exact, velocity_noise=sigma_v, estimate_gyro_bias=estimate_gyro_bias,
-                               gyro_bias_random_walk=bias_walk)
+    params = VelocityEKFParams(
+        exact_jacobian=exact,
+        velocity_noise=sigma_v,
+        estimate_gyro_bias=estimate_gyro_bias,
+        gyro_bias_random_walk=bias_walk,
+    )
     ekf = VelocityEKF(G_UP, 0.0, params=params)
     t = 0.0
     for i in range(n_steps):
@@ -261,7 +278,7 @@ def test_covariance_stays_symmetric_positive_definite(seed, n_steps, correction_
 # --- the robot standing still ---------------------------------------------------------------------------
 def test_standing_robot_gives_zero_velocity_and_gravity():
     rng = np.random.default_rng(6)
-    tilt = rotation_y(0.1)                     # trunk leaning 0.1 rad
+    tilt = rotation_y(0.1)  # trunk leaning 0.1 rad
     true_g = tilt.T @ G_UP
     chains = (nao_leg("left"), nao_leg("right"))
     angles = np.array([[0.0, -0.45, 0.9, -0.45, 0.0, 0.0]] * 2)
@@ -284,12 +301,12 @@ def test_standing_robot_gives_zero_velocity_and_gravity():
                 np.testing.assert_allclose(sample.velocity_kinematic, 0.0, atol=1e-12)
         velocities.append(ekf.velocity)
     velocities = np.array(velocities[-500:])
-    assert np.linalg.norm(velocities.mean(axis=0)) < 0.01        # no drift, only sensor noise
+    assert np.linalg.norm(velocities.mean(axis=0)) < 0.01  # no drift, only sensor noise
     assert np.abs(velocities).max() < 0.03
     assert math.degrees(tilt_error(ekf.gravity, true_g)) < 0.5
     assert not ekf.is_stale
     assert_spd(ekf.covariance)
-    assert np.linalg.norm(imu_only.velocity) > np.linalg.norm(velocities[-1])   # dead reckoning drifts
+    assert np.linalg.norm(imu_only.velocity) > np.linalg.norm(velocities[-1])  # dead reckoning drifts
 
 
 def test_noise_free_standing_is_exactly_still():
@@ -311,20 +328,22 @@ def test_from_standing_starts_the_bias_state():
     ekf = VelocityEKF.from_standing(np.tile(G_UP, (51, 1)), 0.5, params=params, gyro_samples=gyro)
     assert ekf.state.shape == (9,)
     np.testing.assert_allclose(ekf.gyro_bias, gyro.mean(axis=0), rtol=0, atol=1e-17)
-    np.testing.assert_allclose(np.diag(ekf.covariance)[6:], 0.01 ** 2 / 51, rtol=1e-12)
+    np.testing.assert_allclose(np.diag(ekf.covariance)[6:], 0.01**2 / 51, rtol=1e-12)
     unmeasured = VelocityEKF.from_standing(np.tile(G_UP, (51, 1)), 0.5, params=params)
     np.testing.assert_array_equal(unmeasured.gyro_bias, 0.0)
-    np.testing.assert_allclose(np.diag(unmeasured.covariance)[6:], params.initial_gyro_bias_std ** 2)
+    np.testing.assert_allclose(np.diag(unmeasured.covariance)[6:], params.initial_gyro_bias_std**2)
 
 
 def test_bias_state_learns_a_tilting_bias_the_paper_filter_cannot():
     rng = np.random.default_rng(27)
     tilt = rotation_y(0.2)
     true_g = tilt.T @ G_UP
-    bias = np.array([0.004, -0.003, 0.0])       # about the horizontal axes: turns g, so it shows in v
+    bias = np.array([0.004, -0.003, 0.0])  # about the horizontal axes: turns g, so it shows in v
     # σ_v well above the measurements' spread: the velocity is left to show what the turning g does to it.
-    filters = {flag: VelocityEKF(true_g, 0.0, params=VelocityEKFParams(estimate_gyro_bias=flag, velocity_noise=0.05))
-               for flag in (True, False)}
+    filters = {
+        flag: VelocityEKF(true_g, 0.0, params=VelocityEKFParams(estimate_gyro_bias=flag, velocity_noise=0.05))
+        for flag in (True, False)
+    }
     for i in range(1, 3001):
         gyro, accel = bias + rng.normal(size=3) * 0.01, true_g + rng.normal(size=3) * 0.05
         for ekf in filters.values():
@@ -332,7 +351,7 @@ def test_bias_state_learns_a_tilting_bias_the_paper_filter_cannot():
             if i % 3 == 0:
                 ekf.correct(rng.normal(size=3) * 0.003)
     with_bias, paper = filters[True], filters[False]
-    horizontal = tilt.T[:, :2]                  # the IMU-frame directions of the level x and y axes
+    horizontal = tilt.T[:, :2]  # the IMU-frame directions of the level x and y axes
     assert np.abs(horizontal.T @ (with_bias.gyro_bias - bias)).max() < 0.001
     assert math.degrees(tilt_error(with_bias.gravity, true_g)) < 0.1
     # The paper's filter lags behind the turning g: tilted, and its velocity off although the robot is still.
@@ -342,10 +361,12 @@ def test_bias_state_learns_a_tilting_bias_the_paper_filter_cannot():
 
 
 def test_noise_free_walk_all_estimators_track_truth():
-    sensors = SensorParams(accel_noise=0, accel_bias=0, gyro_noise=0, gyro_bias=0, encoder_resolution=0,
-                           contact_error=0)
+    sensors = SensorParams(
+        accel_noise=0, accel_bias=0, gyro_noise=0, gyro_bias=0, encoder_resolution=0, contact_error=0
+    )
     run = simulate_walk(4.0, 0, sensors=sensors, disturbances=DisturbanceParams(0.0, slip_probability=0.0))
     from demos.velocity import EKF_VARIANTS, default_variants, run_estimators
+
     result = run_estimators(run, params=default_variants())
     n0 = result["n0"]
     assert np.abs(result["imu_velocity"][n0:] - run.true_velocity[n0:]).max() < 0.01
@@ -365,15 +386,17 @@ def test_bad_samples_are_rejected_and_leave_state_untouched():
     ekf = VelocityEKF(G_UP, 1.0)
     ekf.predict(1.01, [0.1, 0, 0], G_UP)
     before = (ekf.state, ekf.covariance, ekf.time)
-    cases = [((1.01, [0, 0, 0], G_UP), "time must be after"),          # zero time step
-             ((1.0, [0, 0, 0], G_UP), "out of order"),
-             ((np.nan, [0, 0, 0], G_UP), "time must be finite"),
-             ((1.02, [0, np.nan, 0], G_UP), "gyro must be finite"),
-             ((1.02, np.array([0.0, np.inf, 0.0]), G_UP), "gyro must be finite"),
-             ((1.02, np.zeros(3), np.array([9.81, np.nan, 0.0])), "accel must be finite"),
-             ((1.02, np.zeros(4), G_UP), "gyro must have shape"),
-             ((1.02, [0, 0, 0], [0, 0]), "accel must have shape"),
-             ((5.0, [0, 0, 0], G_UP), "max_imu_gap")]
+    cases = [
+        ((1.01, [0, 0, 0], G_UP), "time must be after"),  # zero time step
+        ((1.0, [0, 0, 0], G_UP), "out of order"),
+        ((np.nan, [0, 0, 0], G_UP), "time must be finite"),
+        ((1.02, [0, np.nan, 0], G_UP), "gyro must be finite"),
+        ((1.02, np.array([0.0, np.inf, 0.0]), G_UP), "gyro must be finite"),
+        ((1.02, np.zeros(3), np.array([9.81, np.nan, 0.0])), "accel must be finite"),
+        ((1.02, np.zeros(4), G_UP), "gyro must have shape"),
+        ((1.02, [0, 0, 0], [0, 0]), "accel must have shape"),
+        ((5.0, [0, 0, 0], G_UP), "max_imu_gap"),
+    ]
     for args, message in cases:
         with pytest.raises(ValueError, match=message):
             ekf.predict(*args)
@@ -399,8 +422,9 @@ def test_bad_samples_are_rejected_and_leave_state_untouched():
 
 def test_every_form_of_a_sample_gives_the_same_filter():
     rng = np.random.default_rng(28)
-    samples = [(rng.normal(size=3) * 0.3, G_UP + rng.normal(size=3) * 0.1, rng.normal(size=3) * 0.05)
-               for _ in range(30)]
+    samples = [
+        (rng.normal(size=3) * 0.3, G_UP + rng.normal(size=3) * 0.1, rng.normal(size=3) * 0.05) for _ in range(30)
+    ]
     kept = [tuple(v.copy() for v in sample) for sample in samples]
     forms = (lambda v: v, lambda v: v.tolist(), lambda v: np.repeat(v, 2)[::2], lambda v: tuple(v))
     filters = []
@@ -413,7 +437,7 @@ def test_every_form_of_a_sample_gives_the_same_filter():
     for ekf in filters[1:]:
         np.testing.assert_array_equal(ekf.state, filters[0].state)
         np.testing.assert_array_equal(ekf.covariance, filters[0].covariance)
-    for sample, copy in zip(samples, kept):       # the filter reads the caller's arrays, never writes them
+    for sample, copy in zip(samples, kept):  # the filter reads the caller's arrays, never writes them
         for v, c in zip(sample, copy):
             np.testing.assert_array_equal(v, c)
 
@@ -435,7 +459,7 @@ def test_no_foot_in_contact_for_long_predicts_only():
     ekf = VelocityEKF(G_UP, 0.0)
     odometry = LegOdometry((nao_leg("left"), nao_leg("right")), ekf)
     no_contact = np.zeros((2, 4), dtype=bool)
-    for i in range(1, 3001):                   # 30 s airborne (or with broken contact sensors)
+    for i in range(1, 3001):  # 30 s airborne (or with broken contact sensors)
         odometry.imu(i * 0.01, rng.normal(size=3) * 0.01, G_UP + rng.normal(size=3) * 0.05)
         if i % 3 == 0:
             sample = odometry.kinematics(i * 0.01, np.zeros((2, 6)), no_contact)
@@ -458,7 +482,7 @@ def test_support_foot_selection():
 @pytest.mark.parametrize("lateral", [0.0, 0.05])
 def test_planar_increments_follow_a_constant_velocity_arc(lateral):
     speed, yaw_rate, dt, steps = 0.2, 0.4, 0.01, 1000
-    trunk = rotation_y(0.15) @ Rotation.from_rotvec([0.08, 0, 0]).as_matrix()   # tilted IMU (level → IMU: Rᵀ)
+    trunk = rotation_y(0.15) @ Rotation.from_rotvec([0.08, 0, 0]).as_matrix()  # tilted IMU (level → IMU: Rᵀ)
     # Level frame: x is the IMU x axis projected; the robot-frame velocity (speed, lateral) in IMU axes:
     forward = trunk[:, 0] - trunk[2, 0] * np.array([0, 0, 1.0])
     forward /= np.linalg.norm(forward)
@@ -474,8 +498,9 @@ def test_planar_increments_follow_a_constant_velocity_arc(lateral):
     t = steps * dt
     heading0 = math.atan2(lateral, speed)
     radius = math.hypot(speed, lateral) / yaw_rate
-    expected = radius * np.array([math.sin(yaw_rate * t + heading0) - math.sin(heading0),
-                                  math.cos(heading0) - math.cos(yaw_rate * t + heading0)])
+    expected = radius * np.array(
+        [math.sin(yaw_rate * t + heading0) - math.sin(heading0), math.cos(heading0) - math.cos(yaw_rate * t + heading0)]
+    )
     np.testing.assert_allclose(pose[:2], expected, atol=1e-12)
     assert pose[2] == pytest.approx(yaw_rate * t, abs=1e-12)
     # Rows give the same as one at a time, and a straight line stays exact.
@@ -490,7 +515,7 @@ def test_simulator_is_deterministic_and_twist_keeps_noise():
     c = simulate_walk(3.0, 11, disturbances=DisturbanceParams(twist_probability=0.0))
     np.testing.assert_array_equal(a.gyro, b.gyro)
     np.testing.assert_array_equal(a.joint_angles, b.joint_angles)
-    np.testing.assert_array_equal(a.gyro, c.gyro)                # the trunk and IMU do not feel a twist
+    np.testing.assert_array_equal(a.gyro, c.gyro)  # the trunk and IMU do not feel a twist
     res = a.sensors.encoder_resolution
     np.testing.assert_allclose(a.joint_angles / res, np.round(a.joint_angles / res), atol=1e-9)
     assert a.contacts.shape == (a.kin_time.size, 2, 4)
@@ -498,17 +523,24 @@ def test_simulator_is_deterministic_and_twist_keeps_noise():
 
 def test_demo_main_json(capsys):
     from demos.velocity import main
+
     assert main(["--json", "--duration", "5", "--seeds", "1", "--no-twist"]) == 0
     report = json.loads(capsys.readouterr().out)
-    assert set(report["average_forward_velocity"]) == {"imu", "kinematics", "kinematics+gyro", "ekf", "ekf zeroed",
-                                                       "ekf+bias"}
+    assert set(report["average_forward_velocity"]) == {
+        "imu",
+        "kinematics",
+        "kinematics+gyro",
+        "ekf",
+        "ekf zeroed",
+        "ekf+bias",
+    }
     assert report["labels"]["ekf"] == "ekf (paper)"
     assert report["labels"]["ekf+bias"].startswith("ekf variant")
     for name in ("ekf", "ekf zeroed", "ekf+bias"):
         assert report["timing"][name]["max_state_difference"] < 1e-9
         assert len(report["seed_spread"][f"{name}_error_percent"]) == 1
     assert report["ekf_params"]["ekf"]["estimate_gyro_bias"] is False
-    assert report["ekf_params"]["ekf"]["exact_jacobian"] is False          # eq. 24 as printed
+    assert report["ekf_params"]["ekf"]["exact_jacobian"] is False  # eq. 24 as printed
     assert report["ekf_params"]["ekf+bias"]["estimate_gyro_bias"] is True
     assert len(report["rmse"]) == 4
     assert all(set(block) >= {"ekf", "ekf+bias"} for block in report["rmse"].values())

@@ -41,7 +41,7 @@ def test_nominal_robot_is_the_drawings_and_the_datasheet():
     assert robot.accel_bias_scale == 1.0 and robot.gyro_bias_scale == 1.0 and robot.gyro_bias_drift == 0.0
     np.testing.assert_array_equal(robot.accel_scale, 1.0)
     np.testing.assert_array_equal(robot.gyro_scale, 1.0)
-    run = simulate_walk(2.0, 3, disturbances=CALM)           # the default is the nominal robot
+    run = simulate_walk(2.0, 3, disturbances=CALM)  # the default is the nominal robot
     for leg, side in enumerate(("left", "right")):
         np.testing.assert_array_equal(run.true_chains[leg].a, nao_leg(side).a)
 
@@ -60,8 +60,10 @@ def test_draws_stay_in_their_ranges_and_use_them():
         assert variation.gyro_bias_drift[0] <= robot.gyro_bias_drift <= variation.gyro_bias_drift[1]
     factors, zeros, plays = np.array(factors), np.array(zeros), np.array(plays)
     assert np.all(np.abs(factors - 1.0) <= variation.link_length_error + 1e-12)
-    assert np.abs(factors - 1.0).max() > 0.9 * variation.link_length_error       # the range is used
-    assert np.all(np.abs(zeros) <= variation.joint_zero_error) and np.abs(zeros).max() > 0.9 * variation.joint_zero_error
+    assert np.abs(factors - 1.0).max() > 0.9 * variation.link_length_error  # the range is used
+    assert (
+        np.all(np.abs(zeros) <= variation.joint_zero_error) and np.abs(zeros).max() > 0.9 * variation.joint_zero_error
+    )
     assert np.all((plays >= variation.backlash[0]) & (plays <= variation.backlash[1]))
     assert min(noise) >= variation.gyro_noise_factor[0] and max(noise) <= variation.gyro_noise_factor[1]
     assert min(noise) < 0.8 and max(noise) > 1.5
@@ -72,10 +74,13 @@ def test_wider_chain_error_moves_the_same_robot_further():
     assert eight.joint_zero_error == pytest.approx(math.radians(1.6))
     a, b = draw_robot(7, SensorParams(), five), draw_robot(7, SensorParams(), eight)
     published = np.array(NaoLegDimensions().as_tuple())
-    np.testing.assert_allclose((np.array(b.dimensions[0].as_tuple()) / published - 1.0),
-                               (np.array(a.dimensions[0].as_tuple()) / published - 1.0) * 0.08 / 0.05, rtol=1e-9)
+    np.testing.assert_allclose(
+        (np.array(b.dimensions[0].as_tuple()) / published - 1.0),
+        (np.array(a.dimensions[0].as_tuple()) / published - 1.0) * 0.08 / 0.05,
+        rtol=1e-9,
+    )
     np.testing.assert_allclose(b.joint_offsets, a.joint_offsets * 0.08 / 0.05, rtol=1e-9)
-    assert a.gyro_noise == b.gyro_noise                          # the rest of the draw is the same
+    assert a.gyro_noise == b.gyro_noise  # the rest of the draw is the same
 
 
 def test_the_walk_and_its_noise_do_not_depend_on_the_variation_and_repeat_bit_for_bit():
@@ -85,7 +90,7 @@ def test_the_walk_and_its_noise_do_not_depend_on_the_variation_and_repeat_bit_fo
     np.testing.assert_array_equal(a.joint_angles, b.joint_angles)
     nominal = simulate_walk(3.0, 11)
     np.testing.assert_array_equal(a.trunk_position, nominal.trunk_position)
-    assert not np.array_equal(a.joint_angles, nominal.joint_angles)       # other legs, other readings
+    assert not np.array_equal(a.joint_angles, nominal.joint_angles)  # other legs, other readings
     # The run's own legs put its trunk where the truth says; the estimators' legs (the drawings) do not.
     k, foot = 40, 0
     pose = a.true_chains[foot].forward(a.true_joint_angles[k, foot])
@@ -98,9 +103,9 @@ def test_backlash_is_a_play_operator():
     play = np.full((2, 6), 0.02)
     read = _backlash(angles, play)
     assert read[0, 0, 0] == 0.0
-    assert read[10, 0, 0] == pytest.approx(0.09)                # lags by half the play going up
-    assert read[11, 0, 0] == pytest.approx(0.09)                # and stays put at the reversal
-    assert read[-1, 0, 0] == pytest.approx(0.01)                # then lags going down
+    assert read[10, 0, 0] == pytest.approx(0.09)  # lags by half the play going up
+    assert read[11, 0, 0] == pytest.approx(0.09)  # and stays put at the reversal
+    assert read[-1, 0, 0] == pytest.approx(0.01)  # then lags going down
     np.testing.assert_array_equal(_backlash(angles, np.zeros((2, 6))), angles)
 
 
@@ -123,9 +128,11 @@ def test_bad_variations_are_refused():
 
 # --- the simulator shares nothing with the estimators' settings -------------------------------------------
 STRUCTURAL = {
-    0.0, 1.0,              # nothing, one
-    biped.GRAVITY,         # gravity
-    100.0, 30.0,           # the IMU and kinematics rates, both the simulator's and the robot's
+    0.0,
+    1.0,  # nothing, one
+    biped.GRAVITY,  # gravity
+    100.0,
+    30.0,  # the IMU and kinematics rates, both the simulator's and the robot's
 }
 LIMITS = ("max_imu_gap", "max_prediction_time")
 """VelocityEKFParams fields that are input checks (the IMU gap refused, when a filter is stale), not a model of
@@ -149,8 +156,14 @@ def _numbers(value) -> list[float]:
 def simulator_constants() -> list[float]:
     """Every numeric constant, nominal parameter and range endpoint of the simulator."""
     numbers = []
-    for obj in (SensorParams(), RobotVariation(), RobotVariation.nominal(), DisturbanceParams(), GaitParams(),
-                NaoLegDimensions()):
+    for obj in (
+        SensorParams(),
+        RobotVariation(),
+        RobotVariation.nominal(),
+        DisturbanceParams(),
+        GaitParams(),
+        NaoLegDimensions(),
+    ):
         numbers += _numbers(obj)
     for name in dir(biped):
         if name.isupper():
@@ -211,7 +224,7 @@ def test_the_demo_takes_its_noise_settings_from_the_fit_file():
         assert dataclasses.asdict(params) == fit["variants"][name]
     paper = default_variants()["ekf"]
     assert paper.estimate_gyro_bias is False and paper.exact_jacobian is False
-    assert VARIANT_SETTINGS["ekf"]["zero_gyro"] is False                # the raw gyro, as in the paper
+    assert VARIANT_SETTINGS["ekf"]["zero_gyro"] is False  # the raw gyro, as in the paper
     assert set(EKF_VARIANTS) == set(fit["variants"])
     assert not set(fit["training_seeds"]) & set(range(1000, 1012))
 
@@ -221,10 +234,14 @@ def fake_standing(n_walks, n_samples, accel_noise, gyro_noise, gyro_bias, rng):
     runs = []
     for _ in range(n_walks):
         bias = rng.normal(0.0, gyro_bias, 3)
-        runs.append(SimpleNamespace(
-            imu_time=np.arange(n_samples + 5) * 0.01, gait=SimpleNamespace(stand_time=n_samples * 0.01 - 1e-9),
-            accel=np.array([0.3, -0.2, 9.7]) + rng.normal(0.0, accel_noise, (n_samples + 5, 3)),
-            gyro=bias + rng.normal(0.0, gyro_noise, (n_samples + 5, 3))))
+        runs.append(
+            SimpleNamespace(
+                imu_time=np.arange(n_samples + 5) * 0.01,
+                gait=SimpleNamespace(stand_time=n_samples * 0.01 - 1e-9),
+                accel=np.array([0.3, -0.2, 9.7]) + rng.normal(0.0, accel_noise, (n_samples + 5, 3)),
+                gyro=bias + rng.normal(0.0, gyro_noise, (n_samples + 5, 3)),
+            )
+        )
     return runs
 
 
@@ -248,13 +265,13 @@ def test_the_fit_picks_the_best_setting_of_its_grid_on_the_training_walks():
 
     runs = [simulate_walk(5.0, seed, variation=RobotVariation()) for seed in (100, 101)]
     fit = fit_noise(runs)
-    assert fit_noise(runs) == fit                                   # same walks, same fit
+    assert fit_noise(runs) == fit  # same walks, same fit
     for name, grid in fit["grid"].items():
         assert len(grid) == 24
         best = min(grid, key=lambda g: g["mean_error_percent"])
         assert fit["variants"][name]["velocity_noise"] == best["velocity_noise"]
         assert np.mean(fit["training_error_percent"][name]) == pytest.approx(best["mean_error_percent"])
-        VelocityEKFParams(**fit["variants"][name])                  # a valid setting
+        VelocityEKFParams(**fit["variants"][name])  # a valid setting
 
 
 # --- refusals ---------------------------------------------------------------------------------------------
@@ -272,7 +289,7 @@ def test_refused_calls_change_nothing(tmp_path, capsys):
         ekf_params_for(SensorParams(), "ekf")
     save = tmp_path / "table.json"
     with pytest.raises(SystemExit):
-        main(["--mismatch", "--seed", "105", "--save", str(save)])       # training seeds are refused
+        main(["--mismatch", "--seed", "105", "--save", str(save)])  # training seeds are refused
     assert "training seeds" in capsys.readouterr().err
     assert not save.exists()
 

@@ -19,7 +19,7 @@ from proprioception.velocity_odometry import EKFOdometry, OdometryIncrement, Pla
 
 G = 9.81
 DT = 0.01
-TILT = rotation_y(0.12) @ rotation_x(0.06)      # IMU → level frame: a leaning trunk, no yaw (ZYX angles)
+TILT = rotation_y(0.12) @ rotation_x(0.06)  # IMU → level frame: a leaning trunk, no yaw (ZYX angles)
 
 
 def level_to_imu(vector) -> np.ndarray:
@@ -53,14 +53,14 @@ def test_standing_robot_gives_zero_increments():
     for step in taken:
         assert step.odometry == (0.0, 0.0, 0.0)
         assert step.dt == pytest.approx(3 * DT, abs=1e-12) and step.samples == 3
-    assert odometry.take() == OdometryIncrement(0.0, 0.0, 0.0, 0.0, 0)       # nothing since the last take
+    assert odometry.take() == OdometryIncrement(0.0, 0.0, 0.0, 0.0, 0)  # nothing since the last take
 
 
 def test_constant_velocity_straight_walk_integrates_to_the_distance():
     speed, n = 0.2, 1000
     odometry = make_odometry(velocity_level=(speed, 0.0, 0.0))
     taken = feed(odometry, n, take_every=7)
-    odometry_rest = odometry.take()                      # 1000 = 7·142 + 6: the remainder is not lost
+    odometry_rest = odometry.take()  # 1000 = 7·142 + 6: the remainder is not lost
     steps = [t.odometry for t in taken] + [odometry_rest.odometry]
     pose = compose_increments(steps)[-1]
     np.testing.assert_allclose(pose, [speed * n * DT, 0.0, 0.0], atol=1e-9)
@@ -74,7 +74,7 @@ def test_constant_velocity_straight_walk_integrates_to_the_distance():
 def test_turn_in_place_integrates_to_the_angle_and_removes_the_bias(turn_rate):
     bias = np.array([0.004, -0.003, 0.005])
     odometry = make_odometry(gyro_bias=bias, params=VelocityEKFParams(estimate_gyro_bias=False))
-    n = 600                                              # 200 filter steps of 3 samples
+    n = 600  # 200 filter steps of 3 samples
     taken = feed(odometry, n, gyro_level=(0.0, 0.0, turn_rate), bias=bias)
     pose = compose_increments([t.odometry for t in taken])[-1]
     expected = math.remainder(turn_rate * n * DT, 2 * math.pi)
@@ -91,18 +91,18 @@ def test_walking_arc_summed_at_any_rate_is_the_same_arc():
         total = PlanarOdometry()
         taken = []
         for i in range(1, n + 1):
-            total.add_sample(gravity, velocity, gyro, DT)    # the velocity is constant in the robot frame
+            total.add_sample(gravity, velocity, gyro, DT)  # the velocity is constant in the robot frame
             if i % every == 0:
                 taken.append(total.take().odometry)
         pose = compose_increments(taken)[-1]
         angle = turn_rate * n * DT
-        np.testing.assert_allclose(pose, [radius * math.sin(angle), radius * (1 - math.cos(angle)), angle],
-                                   atol=1e-12)
+        np.testing.assert_allclose(pose, [radius * math.sin(angle), radius * (1 - math.cos(angle)), angle], atol=1e-12)
 
 
-@given(st.lists(st.tuples(st.floats(-0.05, 0.05), st.floats(-0.05, 0.05), st.floats(-0.5, 0.5)),
-                min_size=1, max_size=40),
-       st.integers(1, 7))
+@given(
+    st.lists(st.tuples(st.floats(-0.05, 0.05), st.floats(-0.05, 0.05), st.floats(-0.5, 0.5)), min_size=1, max_size=40),
+    st.integers(1, 7),
+)
 def test_summing_in_groups_is_chaining_every_increment(increments, group):
     total = PlanarOdometry()
     sums = []
@@ -124,7 +124,7 @@ def test_heading_is_wrapped_only_on_output():
     for _ in range(4):
         total.add((0.0, 0.0, 1.0), DT)
     assert total.peek().dtheta == pytest.approx(4.0 - 2 * math.pi)
-    total.add((1.0, 0.0, 0.0), DT)                       # along the heading of 4 rad, not of its wrap
+    total.add((1.0, 0.0, 0.0), DT)  # along the heading of 4 rad, not of its wrap
     step = total.take()
     assert (step.dx, step.dy) == pytest.approx((math.cos(4.0), math.sin(4.0)))
 
@@ -136,12 +136,12 @@ def test_bad_samples_raise_and_leave_ekf_and_sum_untouched():
     state, cov, before = odometry.ekf.state, odometry.ekf.covariance, odometry.sum.peek()
     accel, gyro = level_to_imu([0, 0, G]), np.zeros(3)
     bad_calls = [
-        ((0.05, gyro, accel), "time"),                    # does not advance
+        ((0.05, gyro, accel), "time"),  # does not advance
         ((math.nan, gyro, accel), "time"),
         ((0.06, [0.0, math.nan, 0.0], accel), "gyro"),
         ((0.06, gyro, [0.0, 0.0]), "accel"),
         ((0.06, [0.0, 0.0], accel), "gyro"),
-        ((5.0, gyro, accel), "max_imu_gap"),              # a gap the EKF refuses
+        ((5.0, gyro, accel), "max_imu_gap"),  # a gap the EKF refuses
         (("soon", gyro, accel), "time"),
     ]
     for args, name in bad_calls:
@@ -150,7 +150,7 @@ def test_bad_samples_raise_and_leave_ekf_and_sum_untouched():
         np.testing.assert_array_equal(odometry.ekf.state, state)
         np.testing.assert_array_equal(odometry.ekf.covariance, cov)
         assert odometry.sum.peek() == before
-    odometry.imu(0.06, gyro, accel)                      # and it carries on
+    odometry.imu(0.06, gyro, accel)  # and it carries on
     assert odometry.sum.peek().samples == before.samples + 1
 
 
@@ -158,13 +158,18 @@ def test_running_sum_rejects_bad_increments():
     total = PlanarOdometry()
     total.add((0.01, 0.0, 0.1), DT)
     before = total.peek()
-    for increment, dt, name in (((math.inf, 0, 0), DT, "increment"), ((0, 0), DT, "increment"),
-                                ((0, 0, 0), -DT, "dt"), ((0, 0, 0), math.nan, "dt"), ((0, 0, 0), "x", "dt")):
+    for increment, dt, name in (
+        ((math.inf, 0, 0), DT, "increment"),
+        ((0, 0), DT, "increment"),
+        ((0, 0, 0), -DT, "dt"),
+        ((0, 0, 0), math.nan, "dt"),
+        ((0, 0, 0), "x", "dt"),
+    ):
         with pytest.raises(ValueError, match=name):
             total.add(increment, dt)
         assert total.peek() == before
     with pytest.raises(ValueError, match="gravity"):
-        total.add_sample([9.81, 0, 0], [0, 0, 0], [0, 0, 0], DT)     # IMU x axis vertical: no heading
+        total.add_sample([9.81, 0, 0], [0, 0, 0], [0, 0, 0], DT)  # IMU x axis vertical: no heading
     assert total.peek() == before
     with pytest.raises(ValueError, match="increments"):
         compose_increments(np.zeros((3, 2)))
@@ -175,8 +180,9 @@ def test_running_sum_rejects_bad_increments():
 
 
 # --- on the simulated walk ------------------------------------------------------------------------------
-QUIET = SensorParams(accel_noise=0.0, accel_bias=0.0, gyro_noise=0.0, gyro_bias=0.0, encoder_resolution=0.0,
-                     contact_error=0.0)
+QUIET = SensorParams(
+    accel_noise=0.0, accel_bias=0.0, gyro_noise=0.0, gyro_bias=0.0, encoder_resolution=0.0, contact_error=0.0
+)
 CALM = DisturbanceParams(twist_probability=0.0, slip_probability=0.0)
 
 
@@ -222,15 +228,23 @@ def test_figure_5_is_deterministic_and_recorded(tmp_path):
     for source in ODOMETRY_SOURCES:
         assert 0.0 < a[source]["position_rmse_m"] < 0.5
         assert a[source]["dead_reckoning_position_m"] >= 0.0
-    assert a["ideal command"]["dead_reckoning_position_m"] < 0.02       # the trunk follows the request
+    assert a["ideal command"]["dead_reckoning_position_m"] < 0.02  # the trunk follows the request
     path = tmp_path / "velocity.rrd"
     recorded = write_recording(str(path), run, run_estimators(run), 4, "straight", 100)
-    assert recorded == a                                                  # recording changes nothing
+    assert recorded == a  # recording changes nothing
     entities = {chunk.entity_path for chunk in rrc.RrdReader(str(path)).stream()}
     for name in ("truth", "imu", "kinematics", "kinematics_gyro", "ekf", "ekf_bias"):
         assert f"/proprioception/forward_velocity/{name}" in entities
-    for expected in ("/robot/estimate", "/robot/truth", "/robot/estimate_command", "/particles", "/observations",
-                     "/error/position", "/error/position_command", "/robot/dead_reckoning/ekf_odometry"):
+    for expected in (
+        "/robot/estimate",
+        "/robot/truth",
+        "/robot/estimate_command",
+        "/particles",
+        "/observations",
+        "/error/position",
+        "/error/position_command",
+        "/robot/dead_reckoning/ekf_odometry",
+    ):
         assert expected in entities
     assert rrc.RrdReader(str(path)).blueprints()
 
@@ -249,8 +263,13 @@ def test_demo_reports_figure_5_as_json(capsys):
         block = odometry["walks"][walk]
         assert len(block["runs"]) == 1
         for source in ODOMETRY_SOURCES:
-            for key in ("position_rmse_m", "heading_rmse_deg", "sparse_camera_position_rmse_m",
-                        "dead_reckoning_position_m", "dead_reckoning_heading_deg"):
+            for key in (
+                "position_rmse_m",
+                "heading_rmse_deg",
+                "sparse_camera_position_rmse_m",
+                "dead_reckoning_position_m",
+                "dead_reckoning_heading_deg",
+            ):
                 assert block["summary"][source][key]["median"] == block["runs"][0][source][key]
     with pytest.raises(SystemExit):
         main(["--particles", "0"])

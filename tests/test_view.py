@@ -1,5 +1,6 @@
 """The camera's view and negative information: `sensing.view.CameraView`, `LandmarkSensorModel.seen` and the
 localizer's quality when frames come with their view."""
+
 import math
 
 import numpy as np
@@ -28,8 +29,11 @@ def detections(pose, view: CameraView, keep=1.0, noise=None, rng=None):
             d = target - pose[:2]
             r = math.hypot(*d)
             b = math.remainder(math.atan2(d[1], d[0]) - pose[2], 2 * math.pi)
-            if (view.min_range <= r <= view.range_of(kind) and abs(math.remainder(b - view.yaw, 2 * math.pi))
-                    <= view.half_fov and rng.random() < keep):
+            if (
+                view.min_range <= r <= view.range_of(kind)
+                and abs(math.remainder(b - view.yaw, 2 * math.pi)) <= view.half_fov
+                and rng.random() < keep
+            ):
                 if noise is not None:
                     r += noise[0] * rng.standard_normal()
                     b += noise[1] * rng.standard_normal()
@@ -47,11 +51,19 @@ def test_a_view_wraps_its_yaw_and_insets_within_itself():
     assert view.inset(1.0) == view
 
 
-@pytest.mark.parametrize("arguments", [
-    dict(yaw=math.nan, half_fov=0.5, max_range=5.0), dict(yaw=0.0, half_fov=0.0, max_range=5.0),
-    dict(yaw=0.0, half_fov=4.0, max_range=5.0), dict(yaw=0.0, half_fov=0.5, max_range=0.0),
-    dict(yaw=0.0, half_fov=0.5, max_range=5.0, min_range=5.0), dict(yaw=0.0, half_fov=0.5, max_range=2e3),
-    dict(yaw=1e3, half_fov=0.5, max_range=5.0), dict(yaw=0.0, half_fov=0.5, max_range=5.0, min_range=-1.0)])
+@pytest.mark.parametrize(
+    "arguments",
+    [
+        dict(yaw=math.nan, half_fov=0.5, max_range=5.0),
+        dict(yaw=0.0, half_fov=0.0, max_range=5.0),
+        dict(yaw=0.0, half_fov=4.0, max_range=5.0),
+        dict(yaw=0.0, half_fov=0.5, max_range=0.0),
+        dict(yaw=0.0, half_fov=0.5, max_range=5.0, min_range=5.0),
+        dict(yaw=0.0, half_fov=0.5, max_range=2e3),
+        dict(yaw=1e3, half_fov=0.5, max_range=5.0),
+        dict(yaw=0.0, half_fov=0.5, max_range=5.0, min_range=-1.0),
+    ],
+)
 def test_a_bad_view_is_refused_naming_the_value(arguments):
     with pytest.raises(ValueError) as error:
         CameraView(**arguments)
@@ -68,12 +80,12 @@ def test_a_view_of_the_wrong_type_is_refused_as_a_type_error():
 # -- a farthest range per landmark type -------------------------------------------------------------------------
 def test_a_range_per_type_parses_its_keys_and_fills_the_others():
     view = CameraView(0.0, 0.5, {LandmarkType.GOALPOST: 8.0, "penalty mark": 3, 3: 4.5, "T": 5.0}, 0.2)
-    assert view.per_type and view.max_range == (8.0, 8.0, 5.0, 4.5, 3.0, 8.0)    # unnamed: the largest given
+    assert view.per_type and view.max_range == (8.0, 8.0, 5.0, 4.5, 3.0, 8.0)  # unnamed: the largest given
     assert view.range_of("post") == 8.0 and view.range_of(LandmarkType.X_CROSSING) == 4.5
     assert view.max_ranges.tolist() == list(view.max_range) and not view.max_ranges.flags.writeable
     others = CameraView(0.0, 0.5, {"goalpost": 8.0, "others": 4.0})
     assert others.max_range == (8.0, 4.0, 4.0, 4.0, 4.0, 4.0)
-    assert CameraView(0.0, 0.5, others.max_range) == others                 # the tuple it keeps is taken back
+    assert CameraView(0.0, 0.5, others.max_range) == others  # the tuple it keeps is taken back
     assert hash(others) == hash(CameraView(0.0, 0.5, {"others": 4.0, LandmarkType.GOALPOST: 8}))
     plain = CameraView(0.0, 0.5, 6.0)
     assert not plain.per_type and plain.max_range == 6.0 and plain.range_of("X") == 6.0
@@ -84,8 +96,8 @@ def test_a_view_with_ranges_per_type_insets_each_within_itself():
     view = CameraView(0.3, 0.6, {"goalpost": 8.0, "others": 4.0}, 0.4)
     inner = view.inset(0.8)
     assert inner.half_fov == pytest.approx(0.48) and inner.yaw == view.yaw
-    assert inner.max_range == pytest.approx((8.0 - 0.76, *(5 * [4.0 - 0.36])))   # 10 % of each span
-    assert inner.min_range == pytest.approx(0.4 + 0.36)                          # 10 % of the shortest span
+    assert inner.max_range == pytest.approx((8.0 - 0.76, *(5 * [4.0 - 0.36])))  # 10 % of each span
+    assert inner.min_range == pytest.approx(0.4 + 0.36)  # 10 % of the shortest span
     assert view.inset(1.0) == view
     # with every type at one range, the per-type inset is the plain one
     same = CameraView(0.3, 0.6, {"others": 6.0}, 0.4).inset(0.7)
@@ -93,11 +105,20 @@ def test_a_view_with_ranges_per_type_insets_each_within_itself():
     assert same.max_range == 6 * (plain.max_range,) and same.min_range == plain.min_range
 
 
-@pytest.mark.parametrize("max_range,match", [
-    ({}, "at least one"), ({"goalpost": 0.0}, r"max_range\['goalpost'\] = 0.0"),
-    ({"post": 5.0, "goalpost": 6.0}, "goalpost twice"), ({"corner": 5.0}, "max_range key 'corner'"),
-    ({9: 5.0}, "max_range key 9"), ({"goalpost": math.inf}, "goalpost"), ({"others": -1.0}, "others"),
-    ((5.0, 4.0), "6 ranges"), ((5.0, 4.0, 4.0, 4.0, 4.0, 2e3), r"max_range\[center_mark\]")])
+@pytest.mark.parametrize(
+    "max_range,match",
+    [
+        ({}, "at least one"),
+        ({"goalpost": 0.0}, r"max_range\['goalpost'\] = 0.0"),
+        ({"post": 5.0, "goalpost": 6.0}, "goalpost twice"),
+        ({"corner": 5.0}, "max_range key 'corner'"),
+        ({9: 5.0}, "max_range key 9"),
+        ({"goalpost": math.inf}, "goalpost"),
+        ({"others": -1.0}, "others"),
+        ((5.0, 4.0), "6 ranges"),
+        ((5.0, 4.0, 4.0, 4.0, 4.0, 2e3), r"max_range\[center_mark\]"),
+    ],
+)
 def test_bad_ranges_per_type_are_refused_naming_the_key_and_value(max_range, match):
     with pytest.raises(ValueError, match=match):
         CameraView(0.0, 0.5, max_range)
@@ -125,16 +146,19 @@ def test_a_range_per_type_decides_which_landmarks_are_expected():
         assert model.seen(pose, Observations.empty(), view) == (int(expect_post), 0)
         assert model.seen_reference(pose, Observations.empty(), view) == (int(expect_post), 0)
     mark = table[offsets[LandmarkType.PENALTY_MARK]]
-    pose = np.array([mark[0], mark[1] + 6.0, -math.pi / 2])      # beside the field, looking at the mark alone
-    for view, expected in ((CameraView(0.0, 0.05, {"goalpost": 8.0, "others": 4.0}), 0),
-                           (CameraView(0.0, 0.05, {"goalpost": 8.0, "penalty_mark": 6.5}), 1),
-                           (CameraView(0.0, 0.05, 8.0), 1)):
+    pose = np.array([mark[0], mark[1] + 6.0, -math.pi / 2])  # beside the field, looking at the mark alone
+    for view, expected in (
+        (CameraView(0.0, 0.05, {"goalpost": 8.0, "others": 4.0}), 0),
+        (CameraView(0.0, 0.05, {"goalpost": 8.0, "penalty_mark": 6.5}), 1),
+        (CameraView(0.0, 0.05, 8.0), 1),
+    ):
         assert model.seen(pose, Observations.empty(), view)[0] == expected
         assert model.seen_reference(pose, Observations.empty(), view)[0] == expected
 
 
-ranges_per_type = st.fixed_dictionaries({}, optional={kind.name.lower(): st.floats(1.0, 9.0) for kind in KINDS}) \
-    .filter(bool)
+ranges_per_type = st.fixed_dictionaries({}, optional={kind.name.lower(): st.floats(1.0, 9.0) for kind in KINDS}).filter(
+    bool
+)
 
 
 # -- seen: the kernel, its twin, and what it says -----------------------------------------------------------
@@ -142,21 +166,34 @@ poses_on_field = st.tuples(st.floats(-4.5, 4.5), st.floats(-3.0, 3.0), st.floats
 
 
 @settings(max_examples=60, deadline=None)
-@given(pose=poses_on_field, yaw=st.floats(-1.2, 1.2), half_fov=st.floats(0.2, 1.6), seed=st.integers(0, 2**32 - 1),
-       ranges=ranges_per_type, others=st.one_of(st.none(), st.floats(1.0, 9.0)), keep=st.floats(0.0, 1.0),
-       rate=st.sampled_from([0.0, 0.3]))
-def test_with_ranges_per_type_the_kernels_equal_their_numpy_twins(pose, yaw, half_fov, seed, ranges, others, keep,
-                                                                  rate):
+@given(
+    pose=poses_on_field,
+    yaw=st.floats(-1.2, 1.2),
+    half_fov=st.floats(0.2, 1.6),
+    seed=st.integers(0, 2**32 - 1),
+    ranges=ranges_per_type,
+    others=st.one_of(st.none(), st.floats(1.0, 9.0)),
+    keep=st.floats(0.0, 1.0),
+    rate=st.sampled_from([0.0, 0.3]),
+)
+def test_with_ranges_per_type_the_kernels_equal_their_numpy_twins(
+    pose, yaw, half_fov, seed, ranges, others, keep, rate
+):
     rng = np.random.default_rng(seed)
     model = LandmarkSensorModel(FIELD, detection_rate=rate)
     view = CameraView(yaw, half_fov, ranges if others is None else {**ranges, "others": others}, 0.3)
     observations = detections(np.array(pose), view, keep, noise=(0.1, 0.05), rng=rng).with_view(view)
     for at in (np.array(pose), np.array(pose) + rng.normal(0, 0.4, 3)):
-        assert model.seen(at, observations, view, 2.5, 0.1, 0.03) == model.seen_reference(at, observations, view,
-                                                                                          2.5, 0.1, 0.03)
+        assert model.seen(at, observations, view, 2.5, 0.1, 0.03) == model.seen_reference(
+            at, observations, view, 2.5, 0.1, 0.03
+        )
     poses = np.array(pose) + rng.normal(0, 0.5, (30, 3))
-    np.testing.assert_allclose(model.log_likelihood(poses, observations),
-                               model.log_likelihood_reference(poses, observations), rtol=1e-9, atol=1e-9)
+    np.testing.assert_allclose(
+        model.log_likelihood(poses, observations),
+        model.log_likelihood_reference(poses, observations),
+        rtol=1e-9,
+        atol=1e-9,
+    )
 
 
 def test_one_range_and_the_same_range_for_every_type_score_the_same_bits():
@@ -166,13 +203,21 @@ def test_one_range_and_the_same_range_for_every_type_score_the_same_bits():
     observations = detections(pose, plain, keep=0.6, rng=np.random.default_rng(2))
     poses = pose + np.random.default_rng(3).normal(0, 0.6, (200, 3))
     model = LandmarkSensorModel(FIELD, detection_rate=0.3)
-    assert model.log_likelihood(poses, observations.with_view(plain)).tobytes() == \
-        model.log_likelihood(poses, observations.with_view(every)).tobytes()
+    assert (
+        model.log_likelihood(poses, observations.with_view(plain)).tobytes()
+        == model.log_likelihood(poses, observations.with_view(every)).tobytes()
+    )
 
 
 @settings(max_examples=80, deadline=None)
-@given(pose=poses_on_field, yaw=st.floats(-1.2, 1.2), half_fov=st.floats(0.2, 1.6), seed=st.integers(0, 2**32 - 1),
-       linear=st.sampled_from([0.0, 0.05]), keep=st.floats(0.0, 1.0))
+@given(
+    pose=poses_on_field,
+    yaw=st.floats(-1.2, 1.2),
+    half_fov=st.floats(0.2, 1.6),
+    seed=st.integers(0, 2**32 - 1),
+    linear=st.sampled_from([0.0, 0.05]),
+    keep=st.floats(0.0, 1.0),
+)
 def test_seen_equals_its_numpy_twin_and_stays_within_its_bounds(pose, yaw, half_fov, seed, linear, keep):
     rng = np.random.default_rng(seed)
     model = LandmarkSensorModel(FIELD, range_noise_linear=linear)
@@ -231,13 +276,13 @@ def test_a_pose_that_explains_the_detections_but_misses_what_it_should_see_is_po
     view = CameraView(0.0, math.radians(35), 7.0, 0.3)
     full = detections(pose, view)
     assert len(full) >= 3
-    for _ in range(60):          # 2.4 s of frames that report one landmark of the view's several
+    for _ in range(60):  # 2.4 s of frames that report one landmark of the view's several
         t += 0.04
         loc.motion(t, MotionInput(0.04, odometry=(0.0, 0.0, 0.0)))
         one = Observations.from_arrays(full.kinds[:1], full.ranges[:1], full.bearings[:1])
         loc.observe(one, capture_time=t, view=view)
-    assert loc.fit > 0.9                  # each detection still fits ...
-    assert loc.seen_share < 0.4           # ... but most of what should be seen is not
+    assert loc.fit > 0.9  # each detection still fits ...
+    assert loc.seen_share < 0.4  # ... but most of what should be seen is not
     assert loc.quality() is Quality.POOR and loc.is_lost
 
 
@@ -278,16 +323,26 @@ def test_the_seen_thresholds_are_checked():
 
 # -- negative information in the likelihood ---------------------------------------------------------------------
 @settings(max_examples=60, deadline=None)
-@given(pose=poses_on_field, yaw=st.floats(-1.2, 1.2), seed=st.integers(0, 2**32 - 1), keep=st.floats(0.2, 1.0),
-       rate=st.sampled_from([0.0, 0.3, 0.9]), mixture=st.sampled_from(["max", "sum"]))
+@given(
+    pose=poses_on_field,
+    yaw=st.floats(-1.2, 1.2),
+    seed=st.integers(0, 2**32 - 1),
+    keep=st.floats(0.2, 1.0),
+    rate=st.sampled_from([0.0, 0.3, 0.9]),
+    mixture=st.sampled_from(["max", "sum"]),
+)
 def test_the_likelihood_with_a_view_equals_its_numpy_twin(pose, yaw, seed, keep, rate, mixture):
     rng = np.random.default_rng(seed)
     model = LandmarkSensorModel(FIELD, detection_rate=rate, mixture=mixture)
     view = CameraView(yaw, 0.6, 7.0, 0.3)
     observations = detections(np.array(pose), view, keep, noise=(0.1, 0.05), rng=rng).with_view(view)
     poses = np.array(pose) + rng.normal(0, 0.5, (40, 3))
-    np.testing.assert_allclose(model.log_likelihood(poses, observations),
-                               model.log_likelihood_reference(poses, observations), rtol=1e-9, atol=1e-9)
+    np.testing.assert_allclose(
+        model.log_likelihood(poses, observations),
+        model.log_likelihood_reference(poses, observations),
+        rtol=1e-9,
+        atol=1e-9,
+    )
     missed = model.missed_in_view_reference(poses, observations)
     assert (missed <= 0).all() and np.isfinite(missed).all()
     if rate == 0.0 or len(observations) == 0:
@@ -299,10 +354,11 @@ def test_without_a_view_the_likelihood_is_what_it_was():
     view = CameraView(0.0, 0.6, 7.0, 0.3)
     observations = detections(pose, view)
     poses = pose + np.random.default_rng(1).normal(0, 0.5, (30, 3))
-    np.testing.assert_array_equal(SENSOR.log_likelihood(poses, observations),
-                                  SENSOR.log_likelihood(poses, observations.with_view(None)))
+    np.testing.assert_array_equal(
+        SENSOR.log_likelihood(poses, observations), SENSOR.log_likelihood(poses, observations.with_view(None))
+    )
     assert not SENSOR.scores_view(observations) and SENSOR.scores_view(observations.with_view(view))
-    assert not SENSOR.scores_view(Observations.empty().with_view(view))      # a blind frame says nothing
+    assert not SENSOR.scores_view(Observations.empty().with_view(view))  # a blind frame says nothing
 
 
 def test_a_pose_that_should_have_seen_more_is_less_likely():
@@ -329,8 +385,15 @@ def test_with_view_shares_the_arrays_and_refuses_what_is_not_a_view():
     with pytest.raises(ArgumentTypeError, match="view"):
         observations.with_view((0.1, 0.5, 6.0))
     with pytest.raises(ArgumentTypeError, match="view"):
-        Observations(observations.kinds, observations.ranges, observations.bearings, observations.range_sigmas,
-                     observations.bearing_sigmas, None, "wide")
+        Observations(
+            observations.kinds,
+            observations.ranges,
+            observations.bearings,
+            observations.range_sigmas,
+            observations.bearing_sigmas,
+            None,
+            "wide",
+        )
     with pytest.raises(ValueError, match="detection_rate"):
         LandmarkSensorModel(FIELD, detection_rate=1.0)
 
@@ -340,11 +403,13 @@ def test_the_filter_scores_a_frame_with_a_view_as_the_plain_calls_do():
     sequence (log_likelihood, then normalize) for the same particles."""
     from mcl import ParticleFilter
     from motion_models import VelocityLinear
+
     pose = np.array([-2.0, 1.0, 0.3])
     view = CameraView(0.2, 0.6, 7.0, 0.3)
     observations = detections(pose, view, keep=0.6, rng=np.random.default_rng(4)).with_view(view)
-    pf = ParticleFilter(FIELD, VelocityLinear(), SENSOR, n_particles=200, seed=5, augmented=None,
-                        resample_threshold=0.0)
+    pf = ParticleFilter(
+        FIELD, VelocityLinear(), SENSOR, n_particles=200, seed=5, augmented=None, resample_threshold=0.0
+    )
     pf.reset_around(pose, (0.5, 0.5, 0.5))
     poses = pf.poses.copy()
     pf.correct(observations)
@@ -359,7 +424,7 @@ def test_dead_reckoning_far_without_an_explained_detection_is_no_longer_okay():
     for walk, expected in ((0.0, Quality.OKAY), (0.05, Quality.POOR)):
         loc = tracking_localizer(np.array([-2.0, 1.0, 0.0]))
         t = loc.time
-        for _ in range(100):                         # 4 s; 5 m when walking
+        for _ in range(100):  # 4 s; 5 m when walking
             t += 0.04
             loc.motion(t, MotionInput(0.04, odometry=(walk, 0.0, 0.0)))
             loc.observe(Observations.empty(), capture_time=t)

@@ -42,6 +42,7 @@ exits 130. Any other exception is a bug in robocup-mcl: one line naming its type
 the debug variable, exit 1. With `ROBOCUP_MCL_DEBUG=1` in the environment nothing is caught: every error
 raises with its full traceback. (docs/reliability.md, "Command-line errors".)
 """
+
 from __future__ import annotations
 
 import importlib
@@ -54,8 +55,10 @@ from mcl.tools.cli_checks import CommandError, one_line
 
 DEBUG_VARIABLE = "ROBOCUP_MCL_DEBUG"
 EXIT_ERROR, EXIT_USAGE, EXIT_INTERRUPTED = 1, 2, 130
-NO_RERUN = ("Rerun recordings (--rrd, the recording benchmark) need the rerun-sdk package, 0.41, which needs "
-            "Python >= 3.11: pip install 'rerun-sdk~=0.41.0'")
+NO_RERUN = (
+    "Rerun recordings (--rrd, the recording benchmark) need the rerun-sdk package, 0.41, which needs "
+    "Python >= 3.11: pip install 'rerun-sdk~=0.41.0'"
+)
 
 DEMOS = {
     "walk": ("demos.walk", "the particle filter on the 60 s walk scenario with a kidnapping"),
@@ -71,7 +74,10 @@ BENCHES = {
     "lwpr": ("demos.lwpr_cross", "LWPR on the cross benchmark: accuracy, receptive fields, speed"),
     "replay": ("demos.replay_speed", "a 10-minute MCAP log replayed, in multiples of real time"),
     "compare": ("benchmarks.compare", "this checkout's speed against another revision's, in alternated runs"),
-    "tune": ("benchmarks.tune_scaling", "robocup-mcl tune with 1 and 2 Ray workers, Ray's cost per task, cluster projection"),
+    "tune": (
+        "benchmarks.tune_scaling",
+        "robocup-mcl tune with 1 and 2 Ray workers, Ray's cost per task, cluster projection",
+    ),
     "same": ("benchmarks.same", "results bit for bit against another revision: battery, walk, paper demos, replay"),
     "team": ("benchmarks.team", "the robot's loop with and without team messages; one team message, one ball sighting"),
 }
@@ -82,7 +88,10 @@ FITS = {
 }
 
 NODE_TOOLS = {
-    "bench": ("mcl.tools.ros.bench", "a log played to the node over DDS in a loopback-only namespace: latency, CPU, drops"),
+    "bench": (
+        "mcl.tools.ros.bench",
+        "a log played to the node over DDS in a loopback-only namespace: latency, CPU, drops",
+    ),
     "play": ("mcl.tools.ros.player", "a robot's MCAP log played to its topics, in real time or faster"),
     "messages": ("mcl.tools.ros.messages", "generate the ROS 2 message packages that have no wheel (cmake)"),
 }
@@ -110,6 +119,7 @@ def version() -> str:
         return metadata.version(PACKAGE)
     except metadata.PackageNotFoundError:
         import mcl
+
         return str(getattr(mcl, "__version__", "unknown"))
 
 
@@ -120,7 +130,7 @@ def _dispatch(table: dict, name: str, argv: list[str], what: str, prog: str) -> 
     if (what, name) in OUTPUT_OPTIONS:
         _check_outputs(argv, OUTPUT_OPTIONS[(what, name)])
     if any(a == "--rrd" or a.startswith("--rrd=") for a in argv) and not rerun_available():
-        raise CommandError(NO_RERUN)       # before a run of minutes, not after it
+        raise CommandError(NO_RERUN)  # before a run of minutes, not after it
     return _call(table[name][0], argv, prog)
 
 
@@ -141,9 +151,16 @@ def commands() -> dict[str, str]:
     table.update({f"{PROGRAM} bench {name}": module for name, (module, _) in BENCHES.items()})
     table.update({f"{PROGRAM} fit {name}": module for name, (module, _) in FITS.items()})
     table.update({f"{PROGRAM} node {name}": module for name, (module, _) in NODE_TOOLS.items()})
-    table.update({f"{PROGRAM} bench": BENCHES["step"][0], f"{PROGRAM} eval": "demos.battery",
-                  f"{PROGRAM} soak": "benchmarks.soak", f"{PROGRAM} replay": "mcl.tools.replay",
-                  f"{PROGRAM} tune": "demos.tune", f"{PROGRAM} node": "mcl.tools.ros.node"})
+    table.update(
+        {
+            f"{PROGRAM} bench": BENCHES["step"][0],
+            f"{PROGRAM} eval": "demos.battery",
+            f"{PROGRAM} soak": "benchmarks.soak",
+            f"{PROGRAM} replay": "mcl.tools.replay",
+            f"{PROGRAM} tune": "demos.tune",
+            f"{PROGRAM} node": "mcl.tools.ros.node",
+        }
+    )
     return table
 
 
@@ -152,14 +169,16 @@ def _harness(name: str):
     `benchmarks`; they run from a clone (`benchmarks` is not installed with the package)."""
     package = name.split(".")[0]
     if importlib.util.find_spec(package) is None and is_source_checkout() and str(ROOT) not in sys.path:
-        sys.path.append(str(ROOT))          # a clone: its benchmarks/ beside the installed packages
+        sys.path.append(str(ROOT))  # a clone: its benchmarks/ beside the installed packages
     try:
         return importlib.import_module(name)
     except ModuleNotFoundError as error:
         if error.name != package:
             raise
-        raise CommandError(f"{name} is not here: the {package} run from a clone of the repository "
-                           "(git clone, then `make demo` or `.venv/bin/robocup-mcl ...` in it)") from None
+        raise CommandError(
+            f"{name} is not here: the {package} run from a clone of the repository "
+            "(git clone, then `make demo` or `.venv/bin/robocup-mcl ...` in it)"
+        ) from None
 
 
 # Output options of commands whose own main does not check them before its run (the step benchmark runs for
@@ -175,7 +194,7 @@ def _check_outputs(argv: list[str], options: tuple[str, ...]) -> None:
     from mcl.tools.cli_checks import check_output_file
 
     class _Lenient(argparse.ArgumentParser):
-        def error(self, message):            # the command's parser reports usage errors, not this one
+        def error(self, message):  # the command's parser reports usage errors, not this one
             raise CommandError(message)
 
     parser = _Lenient(add_help=False, allow_abbrev=False)
@@ -191,8 +210,8 @@ def _check_outputs(argv: list[str], options: tuple[str, ...]) -> None:
 
 def _run(argv: list[str] | None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
-    guard_source_checkout()           # before any kernel runs (see mcl.numba_cache)
-    serialize_cache_access()          # other processes may share numba's cache (a test session, a tuning study)
+    guard_source_checkout()  # before any kernel runs (see mcl.numba_cache)
+    serialize_cache_access()  # other processes may share numba's cache (a test session, a tuning study)
     if not argv or argv[0] in ("-h", "--help"):
         print(_usage())
         return 0 if argv else EXIT_USAGE
@@ -207,6 +226,7 @@ def _run(argv: list[str] | None) -> int:
         return _dispatch(DEMOS, rest[0], rest[1:], "demo", f"{PROGRAM} demo {rest[0]}")
     if command == "replay":
         from mcl.tools.replay import main as replay_main
+
         return replay_main(rest, prog=f"{PROGRAM} replay")
     if command == "eval":
         return _call("demos.battery", rest, f"{PROGRAM} eval")
@@ -240,7 +260,7 @@ def _user_errors() -> tuple[type[BaseException], ...]:
     """The exceptions that mean "cannot run as asked" rather than a bug (see the module docstring)."""
     errors: list[type[BaseException]] = [ValueError, TypeError, OSError, CommandError]
     for module, name in (("mcl.tools.logs", "LogError"), ("benchmarks.compare", "CompareError")):
-        loaded = sys.modules.get(module)     # raised only by a module already imported
+        loaded = sys.modules.get(module)  # raised only by a module already imported
         if loaded is not None and hasattr(loaded, name):
             errors.append(getattr(loaded, name))
     return tuple(errors)
@@ -249,7 +269,7 @@ def _user_errors() -> tuple[type[BaseException], ...]:
 def _say(message: str) -> None:
     try:
         print(f"robocup-mcl: {message}", file=sys.stderr, flush=True)
-    except OSError:                          # stderr itself is gone: nothing left to tell
+    except OSError:  # stderr itself is gone: nothing left to tell
         pass
 
 
@@ -288,8 +308,10 @@ def main(argv: list[str] | None = None) -> int:
         elif isinstance(error, _user_errors()):
             _say(one_line(error))
         else:
-            _say(f"internal error: {type(error).__name__}: {one_line(error)} "
-                 f"(a bug in robocup-mcl; set {DEBUG_VARIABLE}=1 for the traceback)")
+            _say(
+                f"internal error: {type(error).__name__}: {one_line(error)} "
+                f"(a bug in robocup-mcl; set {DEBUG_VARIABLE}=1 for the traceback)"
+            )
         return EXIT_ERROR
 
 

@@ -15,6 +15,7 @@ Writability is tried, not inferred from permission bits (which say nothing for r
 read-only mount): the check opens the file for appending when it exists (nothing is truncated or written), or
 creates it and removes it again.
 """
+
 from __future__ import annotations
 
 import math
@@ -70,13 +71,13 @@ def check_output_file(path, option: str, make_parents: bool = True) -> Path | No
         raise CommandError(f"{option} {path}: {parent} is not a directory")
     try:
         if path.exists():
-            with open(path, "ab"):          # appending writes nothing and truncates nothing
+            with open(path, "ab"):  # appending writes nothing and truncates nothing
                 pass
         else:
             with open(path, "xb"):
                 pass
             path.unlink()
-    except FileExistsError:                   # created in between by someone else: it exists, fine
+    except FileExistsError:  # created in between by someone else: it exists, fine
         pass
     except OSError as error:
         raise CommandError(f"{option} {path}: cannot write there: {_reason(error)}") from None
@@ -167,8 +168,11 @@ def check_duration(parser, seconds: float, least: float) -> None:
 
 def add_save_option(parser) -> None:
     """Add `--save PATH` (also write the command's JSON results to PATH) to the argparse `parser`."""
-    parser.add_argument("--save", metavar="PATH", help="also write the JSON results to PATH (the figures the "
-                        "docs read from results files)")
+    parser.add_argument(
+        "--save",
+        metavar="PATH",
+        help="also write the JSON results to PATH (the figures the docs read from results files)",
+    )
 
 
 def save_json(path, result) -> None:
@@ -188,8 +192,7 @@ def save_json(path, result) -> None:
     Path(path).write_text(json.dumps(result, indent=2) + "\n", encoding="utf-8")
 
 
-def save_and_print(result: Any, save: str | os.PathLike | None, as_json: bool,
-                   printer: Callable[[Any], None]) -> None:
+def save_and_print(result: Any, save: str | os.PathLike | None, as_json: bool, printer: Callable[[Any], None]) -> None:
     """What a measuring command does with its result: `save_json(save, result)`, then print it, as indented
     JSON with `--json` (`as_json`), else with `printer(result)`.
 
@@ -213,8 +216,9 @@ def save_and_print(result: Any, save: str | os.PathLike | None, as_json: bool,
         printer(result)
 
 
-def progress_wanted(args=None, *, json_output: bool | None = None, no_progress: bool | None = None,
-                    force: bool = False, stream=None) -> bool:
+def progress_wanted(
+    args=None, *, json_output: bool | None = None, no_progress: bool | None = None, force: bool = False, stream=None
+) -> bool:
     """Whether a command shows progress bars: not with --json or --no-progress (read from `args`, a parsed
     namespace, unless given), otherwise when `force` or when `stream` (default stderr) is a terminal."""
     import sys
@@ -230,12 +234,13 @@ def progress_wanted(args=None, *, json_output: bool | None = None, no_progress: 
     stream = sys.stderr if stream is None else stream
     try:
         return bool(stream.isatty())
-    except (AttributeError, ValueError, OSError):       # closed or replaced by something without a terminal
+    except (AttributeError, ValueError, OSError):  # closed or replaced by something without a terminal
         return False
 
 
-def progress_bar(iterable=None, *, enabled: bool, total: float | None = None, desc: str | None = None,
-                 unit: str = "it", **options):
+def progress_bar(
+    iterable=None, *, enabled: bool, total: float | None = None, desc: str | None = None, unit: str = "it", **options
+):
     """A tqdm bar on stderr over `iterable` (or updated by hand up to `total`) when `enabled`; otherwise, or
     without tqdm installed, a pass-through with the same `update`, `set_postfix_str` and `close`. The bar is
     cleared when it closes (`leave=False`)."""

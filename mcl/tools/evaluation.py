@@ -25,6 +25,7 @@ What each figure means (the thresholds are the module's constants):
   them are `lost`.
 Counts are kept as (hits, of) pairs so that a family's or a battery's figures pool its runs' samples.
 """
+
 from __future__ import annotations
 
 import math
@@ -36,17 +37,17 @@ from mcl.localizer import Quality
 
 QUALITY_LEVELS = (Quality.SUPERB, Quality.OKAY, Quality.POOR, Quality.UNSURE_HALF)
 QUALITY_CODE = {level: code for code, level in enumerate(QUALITY_LEVELS)}
-FAIL_POSITION = 0.5                 # m
-MIRROR_POSITION = 0.5               # m
+FAIL_POSITION = 0.5  # m
+MIRROR_POSITION = 0.5  # m
 MIRROR_HEADING = math.radians(45.0)
-CONVERGED_POSITION = 0.3            # m
+CONVERGED_POSITION = 0.3  # m
 CONVERGED_HEADING = math.radians(20.0)
-CONVERGED_HOLD = 1.0                # s
-ON_MIRROR_HOLD = 2.0                # s
-WRONG_POSITION = 0.5                # m, a quality level's "wrong" samples
-TRACKED_POSITION = 0.3              # m, the samples SUPERB coverage and false alarms count
-LOST_POSITION = 1.0                 # m
-LOST_EPISODE = 2.0                  # s
+CONVERGED_HOLD = 1.0  # s
+ON_MIRROR_HOLD = 2.0  # s
+WRONG_POSITION = 0.5  # m, a quality level's "wrong" samples
+TRACKED_POSITION = 0.3  # m, the samples SUPERB coverage and false alarms count
+LOST_POSITION = 1.0  # m
+LOST_EPISODE = 2.0  # s
 _EPS = 1e-9
 
 
@@ -85,8 +86,9 @@ def mirrored(truth, estimates) -> np.ndarray:
     """(M,) near the mirrored truth (−x, −y, θ+π) and not near the truth (0.5 m and 45° each)."""
     truth = np.asarray(truth, dtype=np.float64)
     image = np.column_stack([-truth[:, 0], -truth[:, 1], wrap_angles(truth[:, 2] + math.pi)])
-    return (near(image, estimates, MIRROR_POSITION, MIRROR_HEADING)
-            & ~near(truth, estimates, MIRROR_POSITION, MIRROR_HEADING))
+    return near(image, estimates, MIRROR_POSITION, MIRROR_HEADING) & ~near(
+        truth, estimates, MIRROR_POSITION, MIRROR_HEADING
+    )
 
 
 def failed(truth, estimates) -> np.ndarray:
@@ -130,8 +132,7 @@ def first_stretch(times, mask, since: float = 0.0, seconds: float = CONVERGED_HO
 
 def convergence_time(times, position_error, heading_error, since: float = 0.0) -> float:
     """Seconds from `since` until the first stretch of >= 1 s with error < 0.3 m and < 20° starts (inf: never)."""
-    good = ((np.asarray(position_error) < CONVERGED_POSITION)
-            & (np.asarray(heading_error) < CONVERGED_HEADING))
+    good = (np.asarray(position_error) < CONVERGED_POSITION) & (np.asarray(heading_error) < CONVERGED_HEADING)
     return first_stretch(times, good, since, CONVERGED_HOLD)
 
 
@@ -155,8 +156,10 @@ def quality_counts(quality, position_error) -> dict:
         at = quality == QUALITY_CODE[level]
         out[level.name] = {"steps": int(at.sum()), "wrong": int((at & wrong).sum())}
     tracked = np.asarray(position_error) < TRACKED_POSITION
-    out["superb_coverage"] = {"steps": int(tracked.sum()),
-                              "superb": int((tracked & (quality == QUALITY_CODE[Quality.SUPERB])).sum())}
+    out["superb_coverage"] = {
+        "steps": int(tracked.sum()),
+        "superb": int((tracked & (quality == QUALITY_CODE[Quality.SUPERB])).sum()),
+    }
     return out
 
 
@@ -169,7 +172,7 @@ def lost_episodes(times, position_error) -> np.ndarray:
     delay = int(math.ceil(LOST_EPISODE / period - 1e-6))
     for start, end in zip(starts, ends):
         if (end - start) * period > LOST_EPISODE + _EPS:
-            due[start + delay:end] = True
+            due[start + delay : end] = True
     return due
 
 
@@ -179,8 +182,10 @@ def lost_counts(times, position_error, lost) -> dict:
     lost = np.asarray(lost, dtype=bool)
     due = lost_episodes(times, position_error)
     calm = np.asarray(position_error) < TRACKED_POSITION
-    return {"recall": {"steps": int(due.sum()), "lost": int((due & lost).sum())},
-            "false_alarm": {"steps": int(calm.sum()), "lost": int((calm & lost).sum())}}
+    return {
+        "recall": {"steps": int(due.sum()), "lost": int((due & lost).sum())},
+        "false_alarm": {"steps": int(calm.sum()), "lost": int((calm & lost).sum())},
+    }
 
 
 def share(hits: int, of: int) -> float | None:
@@ -197,8 +202,9 @@ def evaluate(times, truth, estimates, quality, lost, windows=()) -> dict:
     truth = np.asarray(truth, dtype=np.float64)
     estimates = np.asarray(estimates, dtype=np.float64)
     if truth.shape != estimates.shape or truth.ndim != 2 or truth.shape[1] != 3 or times.shape != truth.shape[:1]:
-        raise ValueError(f"times {times.shape}, truth {truth.shape} and estimates {estimates.shape} must be "
-                         f"(M,), (M, 3) and (M, 3)")
+        raise ValueError(
+            f"times {times.shape}, truth {truth.shape} and estimates {estimates.shape} must be (M,), (M, 3) and (M, 3)"
+        )
     position, heading = pose_errors(truth, estimates)
     mirror = mirrored(truth, estimates)
     fail = (position > FAIL_POSITION) | mirror

@@ -37,6 +37,7 @@ Conversions:
   equals ours while the team plays left to right and is its mirror through the centre mark,
   (x, y, θ) -> (-x, -y, θ + π), otherwise. `venue_to_team_frame` converts back.
 """
+
 from __future__ import annotations
 
 import math
@@ -53,11 +54,11 @@ UNESTIMATED_VARIANCE = 1.0e6
 # Indices of x, y and yaw in ROS's (x, y, z, roll, pitch, yaw) ordering.
 _ROS_PLANAR_AXES = (0, 1, 5)
 _NANOSECONDS_PER_SECOND = 1_000_000_000
-_INT32_RANGE = (-(2 ** 31), 2 ** 31 - 1)
+_INT32_RANGE = (-(2**31), 2**31 - 1)
 
 
 def _finite_number(name: str, value: object) -> float:
-    if type(value) is float and math.isfinite(value):      # what a decoded message holds: no ABC check
+    if type(value) is float and math.isfinite(value):  # what a decoded message holds: no ABC check
         return value
     if isinstance(value, bool) or not isinstance(value, numbers.Real):
         raise ValueError(f"{name} = {value!r} must be a number")
@@ -98,8 +99,10 @@ def _checked_covariance(name: str, matrix: object, size: int, *shapes: tuple[int
     asymmetry = np.abs(checked - checked.T)
     if (asymmetry > 1e-9 * np.abs(checked).max(initial=0.0)).any():
         row, column = (int(i) for i in np.unravel_index(np.argmax(asymmetry), asymmetry.shape))
-        raise ValueError(f"{name} is not symmetric: [{row}, {column}] = {float(checked[row, column])!r} but "
-                         f"[{column}, {row}] = {float(checked[column, row])!r}")
+        raise ValueError(
+            f"{name} is not symmetric: [{row}, {column}] = {float(checked[row, column])!r} but "
+            f"[{column}, {row}] = {float(checked[column, row])!r}"
+        )
     diagonal = np.diag(checked)
     if (diagonal < 0).any():
         i = int(np.argmax(diagonal < 0))
@@ -155,8 +158,10 @@ def pose_to_ros_pose(pose: object) -> dict:
     """A `geometry_msgs/msg/Pose` as a dict: position (z = 0) and the quaternion of θ."""
     checked = _checked_pose(pose)
     qx, qy, qz, qw = yaw_to_quaternion(checked[2])
-    return {"position": {"x": float(checked[0]), "y": float(checked[1]), "z": 0.0},
-            "orientation": {"x": qx, "y": qy, "z": qz, "w": qw}}
+    return {
+        "position": {"x": float(checked[0]), "y": float(checked[1]), "z": 0.0},
+        "orientation": {"x": qx, "y": qy, "z": qz, "w": qw},
+    }
 
 
 _MISSING = object()
@@ -169,7 +174,7 @@ def _member(message: object, path: str, root: str = "message") -> object:
     for depth, name in enumerate(names):
         value = value.get(name, _MISSING) if isinstance(value, dict) else getattr(value, name, _MISSING)
         if value is _MISSING:
-            raise ValueError(f"{root}.{'.'.join(names[:depth + 1])} is missing")
+            raise ValueError(f"{root}.{'.'.join(names[: depth + 1])} is missing")
     return value
 
 
@@ -178,8 +183,7 @@ def ros_pose_to_pose(pose_message: object, name: str = "pose") -> np.ndarray:
 
     `name` is what errors call the message (e.g. "message.pose.pose").
     """
-    x, y = (_finite_number(f"{name}.position.{axis}", _member(pose_message, f"position.{axis}", name))
-            for axis in "xy")
+    x, y = (_finite_number(f"{name}.position.{axis}", _member(pose_message, f"position.{axis}", name)) for axis in "xy")
     orientation = [_member(pose_message, f"orientation.{axis}", name) for axis in "xyzw"]
     try:
         yaw = quaternion_to_yaw(*(_finite_number(axis, value) for axis, value in zip("xyzw", orientation)))
@@ -188,8 +192,13 @@ def ros_pose_to_pose(pose_message: object, name: str = "pose") -> np.ndarray:
     return np.array([x, y, yaw])
 
 
-def pose_to_ros(pose: object, covariance: object, stamp_ns: int, frame_id: str = "map",
-                unestimated_variance: float = UNESTIMATED_VARIANCE) -> dict:
+def pose_to_ros(
+    pose: object,
+    covariance: object,
+    stamp_ns: int,
+    frame_id: str = "map",
+    unestimated_variance: float = UNESTIMATED_VARIANCE,
+) -> dict:
     """A `geometry_msgs/msg/PoseWithCovarianceStamped` as a dict: header (stamp, frame_id) and pose.
 
     `stamp_ns` is integer nanoseconds since the epoch; the covariance is filled as `covariance3_to_ros6` does.
@@ -203,8 +212,10 @@ def pose_to_ros(pose: object, covariance: object, stamp_ns: int, frame_id: str =
         raise ValueError(f"stamp_ns = {stamp_ns!r} does not fit a ROS time (int32 seconds)")
     if not isinstance(frame_id, str):
         raise ValueError(f"frame_id = {frame_id!r} must be a string")
-    return {"header": {"stamp": {"sec": seconds, "nanosec": nanoseconds}, "frame_id": frame_id},
-            "pose": {"pose": ros_pose, "covariance": full_covariance.tolist()}}
+    return {
+        "header": {"stamp": {"sec": seconds, "nanosec": nanoseconds}, "frame_id": frame_id},
+        "pose": {"pose": ros_pose, "covariance": full_covariance.tolist()},
+    }
 
 
 def ros_to_pose(message: object) -> tuple[int, np.ndarray, np.ndarray]:
@@ -215,10 +226,15 @@ def ros_to_pose(message: object) -> tuple[int, np.ndarray, np.ndarray]:
     stamp = {}
     for name, limit in (("sec", None), ("nanosec", _NANOSECONDS_PER_SECOND)):
         value = _member(message, f"header.stamp.{name}")
-        if isinstance(value, bool) or not isinstance(value, numbers.Integral) or \
-                (limit is not None and not 0 <= int(value) < limit):
-            raise ValueError(f"message.header.stamp.{name} = {value!r} must be an integer"
-                             + ("" if limit is None else f" in [0, {limit})"))
+        if (
+            isinstance(value, bool)
+            or not isinstance(value, numbers.Integral)
+            or (limit is not None and not 0 <= int(value) < limit)
+        ):
+            raise ValueError(
+                f"message.header.stamp.{name} = {value!r} must be an integer"
+                + ("" if limit is None else f" in [0, {limit})")
+            )
         stamp[name] = int(value)
     pose = ros_pose_to_pose(_member(message, "pose.pose"), "message.pose.pose")
     try:
@@ -243,8 +259,9 @@ def pose_to_spl(pose: object) -> tuple[float, float, float]:
 
 def spl_to_pose(x_mm: float, y_mm: float, theta: float) -> np.ndarray:
     """The pose [x [m], y [m], θ [rad]] of an SPL message's (x [mm], y [mm], θ [rad])."""
-    return _checked_pose([_finite_number("x_mm", x_mm) / 1000.0, _finite_number("y_mm", y_mm) / 1000.0,
-                          _finite_number("theta", theta)])
+    return _checked_pose(
+        [_finite_number("x_mm", x_mm) / 1000.0, _finite_number("y_mm", y_mm) / 1000.0, _finite_number("theta", theta)]
+    )
 
 
 # -- team and venue frames --------------------------------------------------------------------------------------

@@ -35,6 +35,7 @@ as detections). Logged call by call, most of a step's cost was its `log` calls. 
 compiled pass (`weight_colors`), and the detection arrows are computed for all the buffered steps at once when
 they are sent (`robocup-mcl bench` measures the recording phase; docs/recording.md).
 """
+
 from __future__ import annotations
 
 import math
@@ -75,25 +76,33 @@ LANDMARK_PALETTE = np.zeros((max(kind.value for kind in LandmarkType) + 1, 3), d
 for _kind, _color in LANDMARK_COLORS.items():
     LANDMARK_PALETTE[_kind.value] = _color
 # Radii: positive in metres, negative in the viewer's UI points (the same size at any zoom).
-PARTICLE_RADIUS = -2.5          # UI points: a dot that reads at whole-field zoom (about 0.05 m there) and in close-ups
-HEADING_LENGTH = 0.15           # m: a particle's heading arrow
+PARTICLE_RADIUS = -2.5  # UI points: a dot that reads at whole-field zoom (about 0.05 m there) and in close-ups
+HEADING_LENGTH = 0.15  # m: a particle's heading arrow
 HEADING_RADIUS = -0.75
 HEADING_COLOR = (235, 235, 235, 160)
 RAY_RADIUS = 0.01
-ARROW_RADIUS = 0.03             # the estimate's and the truth's arrows
-ELLIPSE_CHI2 = -2.0 * math.log(0.05)    # the 95 % quantile of χ² with 2 degrees of freedom (5.991)
-ELLIPSE_VERTICES = 33                   # a closed strip: the first vertex repeated at the end
+ARROW_RADIUS = 0.03  # the estimate's and the truth's arrows
+ELLIPSE_CHI2 = -2.0 * math.log(0.05)  # the 95 % quantile of χ² with 2 degrees of freedom (5.991)
+ELLIPSE_VERTICES = 33  # a closed strip: the first vertex repeated at the end
 ELLIPSE_RADIUS = -1.5
-ELLIPSE_COLORS = {"robot/uncertainty/particles": (120, 200, 255, 255),
-                  "robot/uncertainty/estimate": (255, 110, 110, 255)}
-LOG_TIMELINE = "ros2_timestamp"         # Rerun's MCAP import puts ROS 2 header stamps on this timeline
-EVENT_LEVELS = {"TRACE": (150, 150, 150), "DEBUG": (150, 150, 150), "INFO": (120, 200, 255),
-                "WARN": (255, 170, 40), "ERROR": (255, 60, 60), "CRITICAL": (255, 0, 200)}
+ELLIPSE_COLORS = {
+    "robot/uncertainty/particles": (120, 200, 255, 255),
+    "robot/uncertainty/estimate": (255, 110, 110, 255),
+}
+LOG_TIMELINE = "ros2_timestamp"  # Rerun's MCAP import puts ROS 2 header stamps on this timeline
+EVENT_LEVELS = {
+    "TRACE": (150, 150, 150),
+    "DEBUG": (150, 150, 150),
+    "INFO": (120, 200, 255),
+    "WARN": (255, 170, 40),
+    "ERROR": (255, 60, 60),
+    "CRITICAL": (255, 0, 200),
+}
 EVENT_KIND = re.compile(r"^[a-z0-9_]+$")
 
 
-_LOW = np.array([40.0, 30.0, 120.0])        # the lightest particle's colour (dark blue)
-_HIGH = np.array([255.0, 230.0, 40.0])      # the heaviest's (yellow)
+_LOW = np.array([40.0, 30.0, 120.0])  # the lightest particle's colour (dark blue)
+_HIGH = np.array([255.0, 230.0, 40.0])  # the heaviest's (yellow)
 
 
 def weight_colors(weights: np.ndarray) -> np.ndarray:
@@ -126,7 +135,7 @@ def _weight_colors(weights, low, high, out):
         top = weights[0]
         for i in range(1, n):
             w = weights[i]
-            if w > top or w != w:             # np.max: the largest, NaN if there is one
+            if w > top or w != w:  # np.max: the largest, NaN if there is one
                 top = w
                 if w != w:
                     break
@@ -138,7 +147,7 @@ def _weight_colors(weights, low, high, out):
     d0, d1, d2 = high[0] - low[0], high[1] - low[1], high[2] - low[2]
     for i in range(n):
         level = weights[i] / top
-        level = 0.0 if level < 0.0 else level     # np.clip (a NaN stays NaN)
+        level = 0.0 if level < 0.0 else level  # np.clip (a NaN stays NaN)
         level = 1.0 if level > 1.0 else level
         out[i, 0] = np.uint8(low[0] + level * d0)
         out[i, 1] = np.uint8(low[1] + level * d1)
@@ -191,8 +200,9 @@ def weighted_position_covariance(poses: np.ndarray, weights: np.ndarray) -> tupl
     return mean, (d * w[:, None]).T @ d
 
 
-def covariance_ellipse(mean: ArrayLike, covariance: ArrayLike, chi2: float = ELLIPSE_CHI2,
-                       vertices: int = ELLIPSE_VERTICES) -> np.ndarray:
+def covariance_ellipse(
+    mean: ArrayLike, covariance: ArrayLike, chi2: float = ELLIPSE_CHI2, vertices: int = ELLIPSE_VERTICES
+) -> np.ndarray:
     """The closed outline (vertices, 2) of {p : (p − mean)ᵀ covariance⁻¹ (p − mean) = chi2} (by default the 95 %
     ellipse of a 2-D normal); a degenerate covariance gives a segment or a point, a non-finite one NaNs.
 
@@ -219,17 +229,18 @@ def covariance_ellipse(mean: ArrayLike, covariance: ArrayLike, chi2: float = ELL
     if not np.isfinite(covariance).all() or not np.isfinite(mean).all():
         return np.full((vertices, 2), np.nan)
     values, vectors = np.linalg.eigh(0.5 * (covariance + covariance.T))
-    axes = vectors * np.sqrt(chi2 * np.clip(values, 0.0, None))          # columns: the semi-axes
+    axes = vectors * np.sqrt(chi2 * np.clip(values, 0.0, None))  # columns: the semi-axes
     angles = np.linspace(0.0, 2.0 * math.pi, vertices)
     outline = mean + np.stack([np.cos(angles), np.sin(angles)], axis=1) @ axes.T
     outline[-1] = outline[0]
     return outline
 
 
-def default_blueprint(series: tuple[tuple[str, str], ...] = (("/entropy", "entropy [bits]"),
-                                                              ("/error", "error [m, rad]")),
-                      field_bounds: tuple[tuple[float, float], tuple[float, float]] | None = None,
-                      time_panel: rrb.TimePanel | None = None) -> rrb.Blueprint:
+def default_blueprint(
+    series: tuple[tuple[str, str], ...] = (("/entropy", "entropy [bits]"), ("/error", "error [m, rad]")),
+    field_bounds: tuple[tuple[float, float], tuple[float, float]] | None = None,
+    time_panel: rrb.TimePanel | None = None,
+) -> rrb.Blueprint:
     """The field view beside a column of time-series plots, one per (entity origin, title) in `series`, each
     with the event marks (`/events/marks/**`), above the event log (`/events`). field_bounds: what the field view
     shows, ((x_min, x_max), (y_min, y_max)) in the field frame (default: all of it); time_panel: e.g. the
@@ -255,16 +266,23 @@ def default_blueprint(series: tuple[tuple[str, str], ...] = (("/entropy", "entro
     bounds = None
     if field_bounds is not None:
         (x0, x1), (y0, y1) = field_bounds
-        bounds = rrb.VisualBounds2D(x_range=[x0, x1], y_range=[-y1, -y0])     # the view's y is the field's -y
+        bounds = rrb.VisualBounds2D(x_range=[x0, x1], y_range=[-y1, -y0])  # the view's y is the field's -y
     return rrb.Blueprint(
         rrb.Horizontal(
-            rrb.Spatial2DView(origin="/", name="field", visual_bounds=bounds,
-                              contents=["/field/**", "/particles/**", "/robot/**", "/observations"]),
-            rrb.Vertical(*(rrb.TimeSeriesView(origin=origin, name=name,
-                                              contents=[f"{origin}/**", "/events/marks/**"])
-                           for origin, name in series),
-                         rrb.TextLogView(origin="/events", name="events"),
-                         row_shares=[3] * len(series) + [2]),
+            rrb.Spatial2DView(
+                origin="/",
+                name="field",
+                visual_bounds=bounds,
+                contents=["/field/**", "/particles/**", "/robot/**", "/observations"],
+            ),
+            rrb.Vertical(
+                *(
+                    rrb.TimeSeriesView(origin=origin, name=name, contents=[f"{origin}/**", "/events/marks/**"])
+                    for origin, name in series
+                ),
+                rrb.TextLogView(origin="/events", name="events"),
+                row_shares=[3] * len(series) + [2],
+            ),
             column_shares=[3, 2],
         ),
         *(() if time_panel is None else (time_panel,)),
@@ -272,8 +290,11 @@ def default_blueprint(series: tuple[tuple[str, str], ...] = (("/entropy", "entro
     )
 
 
-def compact_file(path: str | Path, blueprint: rrb.Blueprint | None = None,
-                 profile: rrc.OptimizationProfile = rrc.OptimizationProfile.OBJECT_STORE) -> None:
+def compact_file(
+    path: str | Path,
+    blueprint: rrb.Blueprint | None = None,
+    profile: rrc.OptimizationProfile = rrc.OptimizationProfile.OBJECT_STORE,
+) -> None:
     """Rewrite the .rrd file at `path` with its recording's chunks merged (`profile`, by default Rerun's
     object-store profile: chunks up to about 2 MiB, as `rerun rrd optimize` makes them), keeping its application
     and recording ids, with `blueprint` as the default blueprint (None: the file's blueprint is not kept). The new
@@ -350,16 +371,30 @@ class Recorder:
         given; TypeError (`field.checks.ArgumentTypeError`) if `origin_ns` is not an integer.
     """
 
-    def __init__(self, path: str | Path | None, field: Field, particles_every: int = 5,
-                 application_id: str = "robocup-mcl", stream: rr.RecordingStream | None = None,
-                 blueprint: rrb.Blueprint | None = None, flush_every: int = 200,
-                 max_points: int = 1_000_000, max_headings: int = 100, recording_id: str | None = None,
-                 origin_ns: int | None = None, compact: bool = True) -> None:
-        for name, value in (("particles_every", particles_every), ("flush_every", flush_every),
-                            ("max_points", max_points), ("max_headings", max_headings)):
+    def __init__(
+        self,
+        path: str | Path | None,
+        field: Field,
+        particles_every: int = 5,
+        application_id: str = "robocup-mcl",
+        stream: rr.RecordingStream | None = None,
+        blueprint: rrb.Blueprint | None = None,
+        flush_every: int = 200,
+        max_points: int = 1_000_000,
+        max_headings: int = 100,
+        recording_id: str | None = None,
+        origin_ns: int | None = None,
+        compact: bool = True,
+    ) -> None:
+        for name, value in (
+            ("particles_every", particles_every),
+            ("flush_every", flush_every),
+            ("max_points", max_points),
+            ("max_headings", max_headings),
+        ):
             if isinstance(value, bool) or not isinstance(value, int) or value < 1:
                 raise ValueError(f"{name} = {value!r} must be an integer >= 1")
-        self.origin_ns = None if origin_ns is None else integer("origin_ns", origin_ns, -2**63, 2**63 - 1)
+        self.origin_ns = None if origin_ns is None else integer("origin_ns", origin_ns, -(2**63), 2**63 - 1)
         self.flush_every = flush_every
         self.max_points = max_points
         self.max_headings = max_headings
@@ -374,7 +409,7 @@ class Recorder:
         self._rays: list[tuple[int, float, np.ndarray, np.ndarray, np.ndarray, tuple]] = []
         self._events: list[tuple[int, float, str, str, str]] = []
         self._event_kinds: set[str] = set()
-        self._last: dict[str, object] = {}          # `log_change`'s last value per kind
+        self._last: dict[str, object] = {}  # `log_change`'s last value per kind
         self._last_injected = 0
         self._buffered_points = 0
         self._buffered_steps = 0
@@ -409,25 +444,39 @@ class Recorder:
         for path, rows in self._scalars.items():
             if rows:
                 steps, times, values = (np.array(column) for column in zip(*rows))
-                self.stream.send_columns(path, indexes=self._indexes(steps, times),
-                                         columns=rr.Scalars.columns(scalars=values))
+                self.stream.send_columns(
+                    path, indexes=self._indexes(steps, times), columns=rr.Scalars.columns(scalars=values)
+                )
         for path, arrow_rows in self._arrows.items():
             if arrow_rows:
-                table = np.array(arrow_rows)      # colours and radii: static (`_log_field`)
-                self.stream.send_columns(path, indexes=self._indexes(table[:, 0].astype(np.int64), table[:, 1]),
-                                         columns=rr.Arrows2D.columns(origins=table[:, 2:4], vectors=table[:, 4:6]))
+                table = np.array(arrow_rows)  # colours and radii: static (`_log_field`)
+                self.stream.send_columns(
+                    path,
+                    indexes=self._indexes(table[:, 0].astype(np.int64), table[:, 1]),
+                    columns=rr.Arrows2D.columns(origins=table[:, 2:4], vectors=table[:, 4:6]),
+                )
         if self._particles:
-            self._send_rows("particles", self._particles, lambda lengths, positions, colors:
-                            rr.Points2D.columns(positions=positions, colors=colors))
+            self._send_rows(
+                "particles",
+                self._particles,
+                lambda lengths, positions, colors: rr.Points2D.columns(positions=positions, colors=colors),
+            )
         if self._headings:
-            self._send_rows("particles/headings", self._headings, lambda lengths, origins, vectors:
-                            rr.Arrows2D.columns(origins=origins, vectors=vectors))
+            self._send_rows(
+                "particles/headings",
+                self._headings,
+                lambda lengths, origins, vectors: rr.Arrows2D.columns(origins=origins, vectors=vectors),
+            )
         for path, ellipse_rows in self._ellipses.items():
             if ellipse_rows:
                 at_steps, at_times, outlines = zip(*ellipse_rows)
-                self.stream.send_columns(path, indexes=self._indexes(np.array(at_steps), np.array(at_times)),
-                                         columns=rr.LineStrips2D.columns(strips=np.stack(outlines))
-                                         .partition(np.ones(len(outlines), dtype=np.int64)))
+                self.stream.send_columns(
+                    path,
+                    indexes=self._indexes(np.array(at_steps), np.array(at_times)),
+                    columns=rr.LineStrips2D.columns(strips=np.stack(outlines)).partition(
+                        np.ones(len(outlines), dtype=np.int64)
+                    ),
+                )
         if self._rays:
             self._send_rows("observations", self._rays, self._ray_columns)
         if self._events:
@@ -445,13 +494,20 @@ class Recorder:
     def _send_events(self) -> None:
         """The buffered events as one text-log column on `events` and one mark column per kind."""
         steps, times, kinds, texts, levels = (np.array(column) for column in zip(*self._events))
-        self.stream.send_columns("events", indexes=self._indexes(steps, times),
-                                 columns=rr.TextLog.columns(text=[f"{kind}: {text}" for kind, text in
-                                                                  zip(kinds, texts)], level=list(levels)))
+        self.stream.send_columns(
+            "events",
+            indexes=self._indexes(steps, times),
+            columns=rr.TextLog.columns(
+                text=[f"{kind}: {text}" for kind, text in zip(kinds, texts)], level=list(levels)
+            ),
+        )
         for kind in dict.fromkeys(kinds):
             rows = kinds == kind
-            self.stream.send_columns(f"events/marks/{kind}", indexes=self._indexes(steps[rows], times[rows]),
-                                     columns=rr.Scalars.columns(scalars=np.zeros(int(rows.sum()))))
+            self.stream.send_columns(
+                f"events/marks/{kind}",
+                indexes=self._indexes(steps[rows], times[rows]),
+                columns=rr.Scalars.columns(scalars=np.zeros(int(rows.sum()))),
+            )
 
     def _send_rows(self, path: str, rows: list, columns) -> None:
         """Rows (step, time, arrays of that step's entries[, a tuple of that step's values]) as one send of
@@ -459,16 +515,18 @@ class Recorder:
         of one row per step]) makes them. The radii (and colours shared by all) are static (`_log_field`)."""
         steps, times, *arrays = zip(*rows)
         lengths = [entries.shape[0] for entries in arrays[0]]
-        batch = columns(lengths, *(np.array(parts) if isinstance(parts[0], tuple) else np.concatenate(parts)
-                                   for parts in arrays))
-        self.stream.send_columns(path, indexes=self._indexes(np.array(steps), np.array(times)),
-                                 columns=batch.partition(lengths))
+        batch = columns(
+            lengths, *(np.array(parts) if isinstance(parts[0], tuple) else np.concatenate(parts) for parts in arrays)
+        )
+        self.stream.send_columns(
+            path, indexes=self._indexes(np.array(steps), np.array(times)), columns=batch.partition(lengths)
+        )
 
     @staticmethod
     def _ray_columns(lengths, ranges, bearings, kinds, estimates):
         """The detection arrows of buffered rows: from the estimate at each row's step (`estimates`, one
         (x, y, cos θ, sin θ) per row) to each detection, in the field frame."""
-        px, py = ranges * np.cos(bearings), ranges * np.sin(bearings)       # `Observations.points`
+        px, py = ranges * np.cos(bearings), ranges * np.sin(bearings)  # `Observations.points`
         frames = np.repeat(estimates, lengths, axis=0)
         c, s = frames[:, 2], frames[:, 3]
         vectors = np.stack([c * px - s * py, s * px + c * py], axis=1)
@@ -490,33 +548,54 @@ class Recorder:
         self._scalars.setdefault(path, []).append((self._step, self._time, float(value)))
 
     def _arrow(self, path: str, pose: tuple[float, float, float]) -> None:
-        self._arrows.setdefault(path, []).append((self._step, self._time, float(pose[0]), float(pose[1]),
-                                                  0.35 * math.cos(pose[2]), 0.35 * math.sin(pose[2])))
+        self._arrows.setdefault(path, []).append(
+            (self._step, self._time, float(pose[0]), float(pose[1]), 0.35 * math.cos(pose[2]), 0.35 * math.sin(pose[2]))
+        )
 
     def _log_field(self) -> None:
         log = self.stream.log
         for root in ("field", "particles", "robot", "observations"):
             log(root, rr.Transform3D(scale=[1.0, -1.0, 1.0]), static=True)
-        log("field/lines", rr.LineStrips2D(np.array(self.field.segments), colors=[(230, 230, 230)],
-                                           radii=self.field.dims.line_width / 2), static=True)
+        log(
+            "field/lines",
+            rr.LineStrips2D(
+                np.array(self.field.segments), colors=[(230, 230, 230)], radii=self.field.dims.line_width / 2
+            ),
+            static=True,
+        )
         cx, cy, radius = self.field.center_circle
         angles = np.linspace(0.0, 2.0 * math.pi, 97)
         circle = np.stack([cx + radius * np.cos(angles), cy + radius * np.sin(angles)], axis=1)
-        log("field/center_circle", rr.LineStrips2D([circle], colors=[(230, 230, 230)],
-                                                   radii=self.field.dims.line_width / 2), static=True)
+        log(
+            "field/center_circle",
+            rr.LineStrips2D([circle], colors=[(230, 230, 230)], radii=self.field.dims.line_width / 2),
+            static=True,
+        )
         hl, hw, border = self.field.half_length, self.field.half_width, self.field.dims.border_strip_width
-        carpet = np.array([[-hl - border, -hw - border], [hl + border, -hw - border], [hl + border, hw + border],
-                           [-hl - border, hw + border], [-hl - border, -hw - border]])
+        carpet = np.array(
+            [
+                [-hl - border, -hw - border],
+                [hl + border, -hw - border],
+                [hl + border, hw + border],
+                [-hl - border, hw + border],
+                [-hl - border, -hw - border],
+            ]
+        )
         log("field/carpet", rr.LineStrips2D([carpet], colors=[(20, 110, 40)], radii=0.02), static=True)
         for kind in LandmarkType:
             points = np.array(self.field.landmarks_of(kind))
             if points.shape[0]:
-                log(f"field/landmarks/{kind.name.lower()}",
-                    rr.Points2D(points, colors=[LANDMARK_COLORS[kind]], radii=0.06), static=True)
-        for path, name, color in (("entropy/position", "position", (80, 160, 255)),
-                                  ("entropy/orientation", "orientation", (255, 140, 40)),
-                                  ("error/position", "position [m]", (80, 220, 120)),
-                                  ("error/heading", "heading [rad]", (230, 80, 80))):
+                log(
+                    f"field/landmarks/{kind.name.lower()}",
+                    rr.Points2D(points, colors=[LANDMARK_COLORS[kind]], radii=0.06),
+                    static=True,
+                )
+        for path, name, color in (
+            ("entropy/position", "position", (80, 160, 255)),
+            ("entropy/orientation", "orientation", (255, 140, 40)),
+            ("error/position", "position [m]", (80, 220, 120)),
+            ("error/heading", "heading [rad]", (230, 80, 80)),
+        ):
             log(path, rr.SeriesLines(names=name, colors=[color]), static=True)
         log("particles", rr.Points2D.from_fields(radii=PARTICLE_RADIUS), static=True)
         log("particles/headings", rr.Arrows2D.from_fields(colors=[HEADING_COLOR], radii=HEADING_RADIUS), static=True)
@@ -547,8 +626,9 @@ class Recorder:
         self.stream.set_time("step", sequence=self._step)
         self.stream.set_time("time", duration=self._time)
         if self.origin_ns is not None:
-            self.stream.set_time(LOG_TIMELINE, timestamp=np.datetime64(
-                self.origin_ns + int(round(self._time * 1e9)), "ns"))
+            self.stream.set_time(
+                LOG_TIMELINE, timestamp=np.datetime64(self.origin_ns + int(round(self._time * 1e9)), "ns")
+            )
 
     def log_event(self, kind: str, text: str, level: str = "INFO") -> None:
         """Log an event at the current time (buffered): a `TextLog` line "kind: text" with `level` (TRACE, DEBUG,
@@ -578,13 +658,16 @@ class Recorder:
             raise ArgumentTypeError(f"level = {level!r} must be one of {tuple(EVENT_LEVELS)}")
         if kind not in self._event_kinds:
             self._event_kinds.add(kind)
-            self.stream.log(f"events/marks/{kind}", rr.SeriesPoints(names=kind, colors=[EVENT_LEVELS[level]],
-                                                                     markers="diamond", marker_sizes=6.0),
-                            static=True)
+            self.stream.log(
+                f"events/marks/{kind}",
+                rr.SeriesPoints(names=kind, colors=[EVENT_LEVELS[level]], markers="diamond", marker_sizes=6.0),
+                static=True,
+            )
         self._events.append((self._step, self._time, kind, text, level))
 
-    def log_change(self, kind: str, value: object, text: str | None = None, level: str = "INFO",
-                   initial: bool = True) -> bool:
+    def log_change(
+        self, kind: str, value: object, text: str | None = None, level: str = "INFO", initial: bool = True
+    ) -> bool:
         """Log an event (`log_event`) when `value` differs from the value last given for `kind` (the first value
         too, unless `initial` is False): e.g. log_change("quality", localizer.quality().value) each step marks
         each change of quality. `text` defaults to str(value). Returns whether an event was logged.
@@ -645,8 +728,15 @@ class Recorder:
         for path, value in checked:
             self._scalar(path, value)
 
-    def log_step(self, step: int, t: float, pf: ParticleFilter, truth: Sequence[float] | np.ndarray | None = None,
-                 observations: Observations | None = None, entropy: Entropy | None = None) -> None:
+    def log_step(
+        self,
+        step: int,
+        t: float,
+        pf: ParticleFilter,
+        truth: Sequence[float] | np.ndarray | None = None,
+        observations: Observations | None = None,
+        entropy: Entropy | None = None,
+    ) -> None:
         """Log one filter step: entropy and pose every step; the particles, their headings and the uncertainty
         ellipses every `particles_every` steps (buffered, see the module's docstring). When the filter's last
         correction injected particles (augmented MCL's sensor resetting, `pf.injected`) and the one before had
@@ -697,13 +787,18 @@ class Recorder:
             self._scalar("error/heading", abs(math.remainder(theta - ttheta, 2.0 * math.pi)))
         if step % self.particles_every == 0:
             poses, weights = pf.poses, pf.weights
-            positions = poses[:, :2].astype(np.float32)      # a copy, as Rerun stores positions
+            positions = poses[:, :2].astype(np.float32)  # a copy, as Rerun stores positions
             self._particles.append((self._step, self._time, positions, weight_colors(weights)))
             stride = -(-poses.shape[0] // self.max_headings)
             headings = poses[::stride, 2]
-            self._headings.append((self._step, self._time, positions[::stride],
-                                   (HEADING_LENGTH * np.stack([np.cos(headings), np.sin(headings)], axis=1))
-                                   .astype(np.float32)))
+            self._headings.append(
+                (
+                    self._step,
+                    self._time,
+                    positions[::stride],
+                    (HEADING_LENGTH * np.stack([np.cos(headings), np.sin(headings)], axis=1)).astype(np.float32),
+                )
+            )
             self._buffered_points += positions.shape[0] + headings.shape[0]
             mean, covariance = weighted_position_covariance(poses, weights)
             self._ellipse("robot/uncertainty/particles", covariance_ellipse(mean, covariance))
@@ -716,5 +811,13 @@ class Recorder:
             # The arrows are computed for all the buffered steps when they are sent (`_ray_columns`): at robot
             # sizes, numpy's calls on one step's few detections cost more than their elements. The batch's
             # arrays are its own and read-only: kept as they are.
-            self._rays.append((self._step, self._time, observations.ranges, observations.bearings,
-                               observations.kinds, (x, y, math.cos(theta), math.sin(theta))))
+            self._rays.append(
+                (
+                    self._step,
+                    self._time,
+                    observations.ranges,
+                    observations.bearings,
+                    observations.kinds,
+                    (x, y, math.cos(theta), math.sin(theta)),
+                )
+            )

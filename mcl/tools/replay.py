@@ -41,6 +41,7 @@ The estimates written with `--out poses.npz` (`poses_out`; numpy's `np.load`), o
   the columnar format, its `origin_ns`. Times are header stamps relative to it, so a stamp taken before the
   first message was logged gives a negative time.
 """
+
 from __future__ import annotations
 
 import math
@@ -71,8 +72,8 @@ MODELS = {"velocity-linear": VelocityLinear, "constant": ConstantNoise}
 STARTS = ("own_half", "field", "initial", "penalty")
 QUALITY_CODES = {Quality.SUPERB: 2, Quality.OKAY: 1, Quality.POOR: 0, Quality.UNSURE_HALF: 3}
 MAX_NOTES = 10
-LONG_STEP = 0.5   # s: a motion step this long is a gap in the log, worth a note
-WRONG = 0.5     # m: an estimate this far from the truth is wrong (for the quality flag's figures)
+LONG_STEP = 0.5  # s: a motion step this long is a gap in the log, worth a note
+WRONG = 0.5  # m: an estimate this far from the truth is wrong (for the quality flag's figures)
 
 
 @dataclass
@@ -127,7 +128,7 @@ class ReplayResult:
     entropy: np.ndarray
     truth: np.ndarray
     dropped: dict[str, int] = dataclass_field(default_factory=dict)
-    notes: list[str] = dataclass_field(default_factory=list)      # the first few events worth a look, with times
+    notes: list[str] = dataclass_field(default_factory=list)  # the first few events worth a look, with times
     frames_used: int = 0
     elapsed: float = 0.0
     log_duration: float = 0.0
@@ -153,43 +154,67 @@ class ReplayResult:
     def figures(self) -> dict:
         """Speed, quality shares and, with ground truth, the errors (NaN-free figures only)."""
         steps = self.times.shape[0]
-        out = {"steps": steps, "frames_used": self.frames_used, "dropped": dict(self.dropped), "notes": list(self.notes),
-               "log_seconds": self.log_duration, "replay_seconds": self.elapsed,
-               "real_time_factor": self.log_duration / self.elapsed if self.elapsed > 0 else None,
-               "quality_share": {q.value: float(np.mean(self.quality == code)) if steps else 0.0
-                                 for q, code in QUALITY_CODES.items()},
-               "lost_share": float(np.mean(self.lost)) if steps else 0.0,
-               "log_evidence_per_frame": (self.log_evidence / self.evidence_frames
-                                          if self.evidence_frames and math.isfinite(self.log_evidence) else None)}
+        out = {
+            "steps": steps,
+            "frames_used": self.frames_used,
+            "dropped": dict(self.dropped),
+            "notes": list(self.notes),
+            "log_seconds": self.log_duration,
+            "replay_seconds": self.elapsed,
+            "real_time_factor": self.log_duration / self.elapsed if self.elapsed > 0 else None,
+            "quality_share": {
+                q.value: float(np.mean(self.quality == code)) if steps else 0.0 for q, code in QUALITY_CODES.items()
+            },
+            "lost_share": float(np.mean(self.lost)) if steps else 0.0,
+            "log_evidence_per_frame": (
+                self.log_evidence / self.evidence_frames
+                if self.evidence_frames and math.isfinite(self.log_evidence)
+                else None
+            ),
+        }
         has_truth = self.has_truth
         if has_truth.any():
             position, heading = self.position_errors[has_truth], self.heading_errors[has_truth]
-            out["position_error_m"] = {"median": float(np.median(position)), "p95": float(np.percentile(position, 95)),
-                                       "rmse": float(np.sqrt(np.mean(position ** 2)))}
-            out["heading_error_deg"] = {"median": math.degrees(float(np.median(heading))),
-                                        "p95": math.degrees(float(np.percentile(heading, 95)))}
+            out["position_error_m"] = {
+                "median": float(np.median(position)),
+                "p95": float(np.percentile(position, 95)),
+                "rmse": float(np.sqrt(np.mean(position**2))),
+            }
+            out["heading_error_deg"] = {
+                "median": math.degrees(float(np.median(heading))),
+                "p95": math.degrees(float(np.percentile(heading, 95))),
+            }
             # How honest the quality flag is: the share of each level's steps whose error exceeds 0.5 m.
             wrong = position > WRONG
             quality = self.quality[has_truth]
-            out["wrong_share_by_quality"] = {q.value: float(np.mean(wrong[quality == code])) if (quality == code).any()
-                                             else None for q, code in QUALITY_CODES.items()}
+            out["wrong_share_by_quality"] = {
+                q.value: float(np.mean(wrong[quality == code])) if (quality == code).any() else None
+                for q, code in QUALITY_CODES.items()
+            }
         return out
 
     def summary(self) -> str:
         """The figures (`figures`) as a few lines of text: speed, quality shares, errors against the truth (when
         the log has it), what was dropped, and the notes."""
         f = self.figures()
-        lines = [f"{f['steps']} steps, {f['frames_used']} camera frames used, "
-                 f"{f['log_seconds']:.1f} s of log in {f['replay_seconds']:.1f} s"
-                 + (f" ({f['real_time_factor']:.1f}x real time)" if f["real_time_factor"] else "")]
+        lines = [
+            f"{f['steps']} steps, {f['frames_used']} camera frames used, "
+            f"{f['log_seconds']:.1f} s of log in {f['replay_seconds']:.1f} s"
+            + (f" ({f['real_time_factor']:.1f}x real time)" if f["real_time_factor"] else "")
+        ]
         shares = ", ".join(f"{name} {100 * share:.0f} %" for name, share in f["quality_share"].items())
         lines.append(f"quality: {shares}; lost {100 * f['lost_share']:.0f} % of the time")
         if "position_error_m" in f:
             p, h = f["position_error_m"], f["heading_error_deg"]
-            lines.append(f"error against truth: position median {p['median']:.3f} m, p95 {p['p95']:.3f} m, "
-                         f"RMSE {p['rmse']:.3f} m; heading median {h['median']:.1f}°, p95 {h['p95']:.1f}°")
-            wrong = ", ".join(f"{name} {100 * share:.1f} %" for name, share in f["wrong_share_by_quality"].items()
-                              if share is not None)
+            lines.append(
+                f"error against truth: position median {p['median']:.3f} m, p95 {p['p95']:.3f} m, "
+                f"RMSE {p['rmse']:.3f} m; heading median {h['median']:.1f}°, p95 {h['p95']:.1f}°"
+            )
+            wrong = ", ".join(
+                f"{name} {100 * share:.1f} %"
+                for name, share in f["wrong_share_by_quality"].items()
+                if share is not None
+            )
             lines.append(f"steps more than {WRONG} m off, by quality: {wrong}")
         for reason, count in sorted(self.dropped.items()):
             lines.append(f"dropped {count}: {reason}")
@@ -197,8 +222,9 @@ class ReplayResult:
         return "\n".join(lines)
 
 
-def check_inputs(log: RobotLog, report: ReadReport | None = None, topics: Topics | None = None,
-                 require_vision: bool = True) -> None:
+def check_inputs(
+    log: RobotLog, report: ReadReport | None = None, topics: Topics | None = None, require_vision: bool = True
+) -> None:
     """Raise `LogError` when `log` cannot drive a replay: it has no motion input (neither two or more odometry
     poses nor a walk command), or (with `require_vision`) no camera frame with a detection. The message names
     what is missing; with the MCAP reader's `report` and the `topics` it was read with (default `Topics()`),
@@ -224,21 +250,33 @@ def check_inputs(log: RobotLog, report: ReadReport | None = None, topics: Topics
     """
     problems = []
     if log.odometry_times.shape[0] < 2 and log.command_times.shape[0] == 0:
-        problems.append(("no motion input: the log has neither odometry (two or more poses) nor walk commands, "
-                         "so nothing moves the filter", ("odometry", "commands")))
+        problems.append(
+            (
+                "no motion input: the log has neither odometry (two or more poses) nor walk commands, "
+                "so nothing moves the filter",
+                ("odometry", "commands"),
+            )
+        )
     if require_vision and not any(not frame.observations.is_empty for frame in log.vision):
-        seen = (f"{len(log.vision)} camera frames, none with a detection" if log.vision
-                else "no camera frames")
-        problems.append((f"no detections: the log has {seen}, so nothing corrects the filter (the estimates "
-                         f"would be the start belief moved by dead reckoning)", ("goalposts", "markings")))
+        seen = f"{len(log.vision)} camera frames, none with a detection" if log.vision else "no camera frames"
+        problems.append(
+            (
+                f"no detections: the log has {seen}, so nothing corrects the filter (the estimates "
+                f"would be the start belief moved by dead reckoning)",
+                ("goalposts", "markings"),
+            )
+        )
     if not problems:
         return
     messages = []
     for text, streams in problems:
         if report is not None and report.path.endswith(".mcap"):
             options = " or ".join(f"--topic-{stream}" for stream in streams)
-            text += ("; " + "; ".join(_stream_source(stream, report, topics) for stream in streams)
-                     + f"; name a topic with {options} (--list shows the log's topics)")
+            text += (
+                "; "
+                + "; ".join(_stream_source(stream, report, topics) for stream in streams)
+                + f"; name a topic with {options} (--list shows the log's topics)"
+            )
         messages.append(text)
     where = "" if report is None else f"{report.path}: "
     raise LogError(where + "; and ".join(messages))
@@ -251,8 +289,10 @@ def _stream_source(stream: str, report: ReadReport, topics: Topics | None) -> st
     if stream in report.topics:
         topic, how = report.topics[stream]
         dropped = sum(count for (where, _), count in report.dropped.items() if where == topic)
-        return (f"{stream}: {topic} (chosen by {'type' if how == 'type' else 'name'}), "
-                f"{report.messages.get(topic, 0)} messages, {dropped} dropped")
+        return (
+            f"{stream}: {topic} (chosen by {'type' if how == 'type' else 'name'}), "
+            f"{report.messages.get(topic, 0)} messages, {dropped} dropped"
+        )
     topic = getattr(topics if topics is not None else Topics(), stream)
     if not topic:
         return f"{stream}: not read (its topic is '')"
@@ -287,19 +327,23 @@ def motion_events(log: RobotLog) -> tuple[np.ndarray, list[MotionInput]]:
         t, pose = log.odometry_times, log.odometry
         d = np.diff(pose[:, :2], axis=0)
         c, s = np.cos(pose[:-1, 2]), np.sin(pose[:-1, 2])
-        local = np.column_stack([c * d[:, 0] + s * d[:, 1], -s * d[:, 0] + c * d[:, 1],
-                                 wrap_angles(np.diff(pose[:, 2]))])
+        local = np.column_stack(
+            [c * d[:, 0] + s * d[:, 1], -s * d[:, 0] + c * d[:, 1], wrap_angles(np.diff(pose[:, 2]))]
+        )
         dts = np.diff(t)
         commands = _commands_at(log, t[:-1])
-        inputs = [MotionInput(dt=float(dts[k]), odometry=tuple(local[k]),
-                              command=None if commands is None else tuple(commands[k]))
-                  for k in range(dts.shape[0])]
+        inputs = [
+            MotionInput(
+                dt=float(dts[k]), odometry=tuple(local[k]), command=None if commands is None else tuple(commands[k])
+            )
+            for k in range(dts.shape[0])
+        ]
         return t[1:], inputs
     if log.command_times.shape[0] >= 1:
         t = log.command_times
         end = max(log.end_time, float(t[-1]))
         ends = np.append(t[1:], end) if end > t[-1] + SAME_TIME else t[1:]
-        dts = ends - t[:ends.shape[0]]
+        dts = ends - t[: ends.shape[0]]
         inputs = [MotionInput(dt=float(dts[k]), command=tuple(log.commands[k])) for k in range(ends.shape[0])]
         return ends, inputs
     raise LogError("the log has neither odometry (two or more poses) nor walk commands: nothing moves the filter")
@@ -315,11 +359,22 @@ def _commands_at(log: RobotLog, times: np.ndarray) -> np.ndarray | None:
     return commands
 
 
-def replay(log: RobotLog, field: Field, model: str = "velocity-linear", particles: int = 500, seed: int = 0,
-           compensate_latency: bool = True, history: float = 1.0,
-           start: str | Sequence[float] | np.ndarray = "own_half", rrd: str | None = None,
-           poses_out: str | None = None, record_every: int = 5, progress: bool = False,
-           localizer: Localizer | None = None, require_vision: bool = True) -> ReplayResult:
+def replay(
+    log: RobotLog,
+    field: Field,
+    model: str = "velocity-linear",
+    particles: int = 500,
+    seed: int = 0,
+    compensate_latency: bool = True,
+    history: float = 1.0,
+    start: str | Sequence[float] | np.ndarray = "own_half",
+    rrd: str | None = None,
+    poses_out: str | None = None,
+    record_every: int = 5,
+    progress: bool = False,
+    localizer: Localizer | None = None,
+    require_vision: bool = True,
+) -> ReplayResult:
     """Run the log through a `Localizer` and collect the estimates (see the module docstring).
 
     A log without motion input, or (unless `require_vision` is False: dead reckoning from `start`) without a
@@ -377,16 +432,32 @@ def replay(log: RobotLog, field: Field, model: str = "velocity-linear", particle
     check_inputs(log, require_vision=require_vision)
     times, inputs = motion_events(log)
     if localizer is None:
-        localizer = Localizer(field, MODELS[model](), n_particles=particles, seed=seed, history=history,
-                              compensate_latency=compensate_latency)
+        localizer = Localizer(
+            field,
+            MODELS[model](),
+            n_particles=particles,
+            seed=seed,
+            history=history,
+            compensate_latency=compensate_latency,
+        )
     _start(localizer, start)
     recorder = None
     if rrd:
         from mcl.tools.recording import Recorder, default_blueprint
-        recorder = Recorder(rrd, field, particles_every=record_every, origin_ns=log.origin_ns,
-                            blueprint=default_blueprint(
-            (("/entropy", "entropy [bits]"), ("/error", "error [m, rad]"),
-             ("/localization", "quality (2 superb, 1 okay, 0 poor), lost"))))
+
+        recorder = Recorder(
+            rrd,
+            field,
+            particles_every=record_every,
+            origin_ns=log.origin_ns,
+            blueprint=default_blueprint(
+                (
+                    ("/entropy", "entropy [bits]"),
+                    ("/error", "error [m, rad]"),
+                    ("/localization", "quality (2 superb, 1 okay, 0 poor), lost"),
+                )
+            ),
+        )
     writer = _pose_writer(poses_out, log.origin_ns) if poses_out else None
     m = times.shape[0]
     estimates, covariances, weights = np.empty((m, 3)), np.empty((m, 3, 3)), np.empty(m)
@@ -403,14 +474,17 @@ def replay(log: RobotLog, field: Field, model: str = "velocity-linear", particle
             notes.append(text)
         elif len(notes) == MAX_NOTES:
             notes.append("(further notes left out)")
+
     evidence_before, frames_before = localizer.log_evidence, localizer.evidence_frames
     started = time.perf_counter()
     try:
         for k in range(m):
             t = float(times[k])
             if inputs[k].dt > LONG_STEP:
-                note(f"motion step of {inputs[k].dt:.2f} s ending at {t:.3f} s (a gap in the motion stream): "
-                     "integrated as one step")
+                note(
+                    f"motion step of {inputs[k].dt:.2f} s ending at {t:.3f} s (a gap in the motion stream): "
+                    "integrated as one step"
+                )
             localizer.motion(t, inputs[k])
             step_observations = None
             while next_frame < len(frames) and frames[next_frame].received <= t + SAME_TIME:
@@ -420,7 +494,7 @@ def replay(log: RobotLog, field: Field, model: str = "velocity-linear", particle
                     if localizer.observe(frame.observations, capture_time=frame.stamp):
                         frames_used += 1
                         step_observations = frame.observations
-                except ValueError as error:   # counted by the localizer
+                except ValueError as error:  # counted by the localizer
                     note(f"camera frame arriving at {frame.received:.3f} s dropped: {error}")
             estimate = localizer.pose()
             h = localizer.entropy()
@@ -429,14 +503,21 @@ def replay(log: RobotLog, field: Field, model: str = "velocity-linear", particle
             lost[k] = localizer.is_lost
             entropy[k] = (h.position, h.orientation)
             if recorder is not None:
-                recorder.log_step(k, t, localizer.filter, truth=None if np.isnan(truth[k, 0]) else truth[k],
-                                  observations=step_observations, entropy=h)
+                recorder.log_step(
+                    k,
+                    t,
+                    localizer.filter,
+                    truth=None if np.isnan(truth[k, 0]) else truth[k],
+                    observations=step_observations,
+                    entropy=h,
+                )
                 recorder.log_scalars({"localization/quality": float(quality[k]), "localization/lost": float(lost[k])})
                 if k == 0:
                     recorder.log_event("reset", f"the belief starts: {start if isinstance(start, str) else 'a pose'}")
                 recorder.log_change("quality", localizer.quality().value, f"quality {localizer.quality().value}")
-                recorder.log_change("lost", bool(lost[k]), "lost" if lost[k] else "no longer lost",
-                                    level="WARN" if lost[k] else "INFO")
+                recorder.log_change(
+                    "lost", bool(lost[k]), "lost" if lost[k] else "no longer lost", level="WARN" if lost[k] else "INFO"
+                )
             if writer is not None:
                 writer.write(t, estimate.pose, estimate.covariance, localizer.quality(), bool(lost[k]))
             if bar is not None:
@@ -452,9 +533,23 @@ def replay(log: RobotLog, field: Field, model: str = "velocity-linear", particle
     dropped = dict(localizer.counts)
     if next_frame < len(frames):
         dropped["camera frame after the last motion step"] = len(frames) - next_frame
-    return ReplayResult(times, estimates, covariances, weights, quality, lost, entropy, truth, dropped, notes,
-                        frames_used, elapsed, log.duration, localizer.log_evidence - evidence_before,
-                        localizer.evidence_frames - frames_before)
+    return ReplayResult(
+        times,
+        estimates,
+        covariances,
+        weights,
+        quality,
+        lost,
+        entropy,
+        truth,
+        dropped,
+        notes,
+        frames_used,
+        elapsed,
+        log.duration,
+        localizer.log_evidence - evidence_before,
+        localizer.evidence_frames - frames_before,
+    )
 
 
 def _start(localizer: Localizer, start: str | Sequence[float] | np.ndarray) -> None:
@@ -480,6 +575,7 @@ class _PoseOutput:
         self._mcap = None
         if path.suffix == ".mcap":
             from mcl.tools.logs.mcap_io import PoseWriter
+
             self._mcap = PoseWriter(path)
             self._mcap.__enter__()
 
@@ -495,10 +591,18 @@ class _PoseOutput:
             return
         rows = np.array(self.rows, dtype=np.float64).reshape(-1, 15)
         if self.path.suffix == ".npz":
-            np.savez(self.path, times=rows[:, 0], poses=rows[:, 1:4], covariances=rows[:, 4:13].reshape(-1, 3, 3),
-                     quality=rows[:, 13].astype(np.int8), lost=rows[:, 14].astype(bool), origin_ns=self.origin_ns)
+            np.savez(
+                self.path,
+                times=rows[:, 0],
+                poses=rows[:, 1:4],
+                covariances=rows[:, 4:13].reshape(-1, 3, 3),
+                quality=rows[:, 13].astype(np.int8),
+                lost=rows[:, 14].astype(bool),
+                origin_ns=self.origin_ns,
+            )
             return
         from mcl.tools.formats import pose_to_spl
+
         with open(self.path, "w") as out:
             out.write("t_s,x_mm,y_mm,theta_rad,sigma_x_mm,sigma_y_mm,sigma_theta_rad,quality,lost\n")
             for row in rows:
@@ -506,8 +610,10 @@ class _PoseOutput:
                 cov = row[4:13].reshape(3, 3)
                 sx, sy, st = (math.sqrt(max(cov[i, i], 0.0)) for i in range(3))
                 quality = {code: q.value for q, code in QUALITY_CODES.items()}[int(row[13])]
-                out.write(f"{row[0]:.6f},{x_mm:.1f},{y_mm:.1f},{theta:.5f},{1e3 * sx:.1f},{1e3 * sy:.1f},"
-                          f"{st:.5f},{quality},{int(row[14])}\n")
+                out.write(
+                    f"{row[0]:.6f},{x_mm:.1f},{y_mm:.1f},{theta:.5f},{1e3 * sx:.1f},{1e3 * sy:.1f},"
+                    f"{st:.5f},{quality},{int(row[14])}\n"
+                )
 
 
 POSE_SUFFIXES = (".mcap", ".csv", ".npz")
@@ -527,15 +633,22 @@ def _progress_bar(times: np.ndarray, enabled: bool):
     if not enabled:
         return None
     from mcl.tools.cli_checks import progress_bar
+
     total = float(times[-1]) if times.shape[0] else 0.0
-    return progress_bar(enabled=True, total=total, desc="replay", unit="s",
-                        bar_format="{desc}: {percentage:3.0f}%|{bar}| {n:.1f}/{total:.1f} s of log "
-                                   "[{elapsed}<{remaining}, {rate_noinv_fmt} = x real time]")
+    return progress_bar(
+        enabled=True,
+        total=total,
+        desc="replay",
+        unit="s",
+        bar_format="{desc}: {percentage:3.0f}%|{bar}| {n:.1f}/{total:.1f} s of log "
+        "[{elapsed}<{remaining}, {rate_noinv_fmt} = x real time]",
+    )
 
 
 def _field(name: str) -> Field:
     """The field `--field` names: a preset or a field file (`field.io.field_by_name_or_path`)."""
     from field.io import field_by_name_or_path
+
     return field_by_name_or_path(name)
 
 
@@ -553,7 +666,7 @@ def _parse_start(text: str):
 
 PROG = "robocup-mcl replay"
 WARM_UP_PARTICLES = 64
-WARM_UP_STEPS = 200          # motion steps of the log the warm-up localizer follows (about 2 s at 100 Hz)
+WARM_UP_STEPS = 200  # motion steps of the log the warm-up localizer follows (about 2 s at 100 Hz)
 
 
 def build_parser(prog: str = PROG) -> argparse.ArgumentParser:
@@ -574,33 +687,53 @@ def build_parser(prog: str = PROG) -> argparse.ArgumentParser:
     from mcl.tools.cli_checks import NO_PROGRESS_HELP
 
     parser = argparse.ArgumentParser(
-        prog=prog, description="Replay a robot's log (ROS 2 MCAP, .npz, or a CSV folder) through the filter: "
-        "estimates, errors against ground truth, a Rerun recording, poses out.")
+        prog=prog,
+        description="Replay a robot's log (ROS 2 MCAP, .npz, or a CSV folder) through the filter: "
+        "estimates, errors against ground truth, a Rerun recording, poses out.",
+    )
     parser.add_argument("log", help="the log: .mcap, .npz, or a folder of CSV files")
     parser.add_argument("--list", action="store_true", help="list the log's topics (MCAP) and stop")
-    parser.add_argument("--field", default="spl",
-                        help="spl, kidsize, adultsize, or a field file (.toml/.json) (default spl)")
-    parser.add_argument("--model", choices=sorted(MODELS), default=None,
-                        help="the motion model (default velocity-linear; not with --profile, which sets it)")
-    parser.add_argument("--particles", type=int, default=None,
-                        help="particles (default 500, or the profile's)")
-    parser.add_argument("--profile", metavar="TOML",
-                        help="the localizer's settings from a profile (mcl.profile; `robocup-mcl tune` writes "
-                             "them); --particles, --seed, --history and --no-latency given here win over it")
+    parser.add_argument(
+        "--field", default="spl", help="spl, kidsize, adultsize, or a field file (.toml/.json) (default spl)"
+    )
+    parser.add_argument(
+        "--model",
+        choices=sorted(MODELS),
+        default=None,
+        help="the motion model (default velocity-linear; not with --profile, which sets it)",
+    )
+    parser.add_argument("--particles", type=int, default=None, help="particles (default 500, or the profile's)")
+    parser.add_argument(
+        "--profile",
+        metavar="TOML",
+        help="the localizer's settings from a profile (mcl.profile; `robocup-mcl tune` writes "
+        "them); --particles, --seed, --history and --no-latency given here win over it",
+    )
     parser.add_argument("--seed", type=int, default=0, help="seed of the filter (default 0)")
-    parser.add_argument("--start", default="own_half",
-                        help=f"initial belief: {', '.join(STARTS)}, or a pose x,y,theta (default own_half)")
-    parser.add_argument("--no-latency", action="store_true",
-                        help="score camera frames as if current (default: at their capture time)")
-    parser.add_argument("--history", type=float, default=None,
-                        help="seconds of motion kept for late frames (default 1)")
+    parser.add_argument(
+        "--start",
+        default="own_half",
+        help=f"initial belief: {', '.join(STARTS)}, or a pose x,y,theta (default own_half)",
+    )
+    parser.add_argument(
+        "--no-latency", action="store_true", help="score camera frames as if current (default: at their capture time)"
+    )
+    parser.add_argument(
+        "--history", type=float, default=None, help="seconds of motion kept for late frames (default 1)"
+    )
     parser.add_argument("--gap", type=float, default=1.0, help="report gaps longer than this [s] (default 1)")
     parser.add_argument("--rrd", help="write a Rerun recording here")
-    parser.add_argument("--out", help="write the estimates here: .mcap (PoseWithCovarianceStamped), "
-                                      ".csv (SPL convention: mm, rad), .npz")
+    parser.add_argument(
+        "--out",
+        help="write the estimates here: .mcap (PoseWithCovarianceStamped), .csv (SPL convention: mm, rad), .npz",
+    )
     parser.add_argument("--json", action="store_true", help="print the figures and the read report as JSON")
-    parser.add_argument("--progress", choices=("auto", "on", "off"), default="auto",
-                        help="progress bar on stderr (auto: when stderr is a terminal and without --json)")
+    parser.add_argument(
+        "--progress",
+        choices=("auto", "on", "off"),
+        default="auto",
+        help="progress bar on stderr (auto: when stderr is a terminal and without --json)",
+    )
     parser.add_argument("--no-progress", action="store_true", help=NO_PROGRESS_HELP + "; as --progress off")
     add_topic_options(parser)
     return parser
@@ -617,9 +750,12 @@ def add_topic_options(parser: argparse.ArgumentParser) -> None:
     for f in fields(Topics):
         if f.name != "pose_out":
             found = "; when the log lacks it, its only topic of the type" if f.name in DISCOVERY_TYPES else ""
-            parser.add_argument(f"--topic-{f.name.replace('_', '-')}", dest=f"topic_{f.name}",
-                                help=f"topic of the {f.name.replace('_', ' ')} (default {getattr(defaults, f.name)}"
-                                     f"{found}; '' reads none)")
+            parser.add_argument(
+                f"--topic-{f.name.replace('_', '-')}",
+                dest=f"topic_{f.name}",
+                help=f"topic of the {f.name.replace('_', ' ')} (default {getattr(defaults, f.name)}"
+                f"{found}; '' reads none)",
+            )
 
 
 def topics_from_args(args: argparse.Namespace) -> Topics | None:
@@ -628,13 +764,22 @@ def topics_from_args(args: argparse.Namespace) -> Topics | None:
 
     from mcl.tools.logs.mcap_io import Topics
 
-    given = {f.name: getattr(args, f"topic_{f.name}") for f in fields(Topics)
-             if f.name != "pose_out" and getattr(args, f"topic_{f.name}", None) is not None}
+    given = {
+        f.name: getattr(args, f"topic_{f.name}")
+        for f in fields(Topics)
+        if f.name != "pose_out" and getattr(args, f"topic_{f.name}", None) is not None
+    }
     return Topics(**given) if given else None
 
 
-def warm_up_replay(log: RobotLog, field: Field, model: str, compensate_latency: bool = True,
-                   history: float = 1.0, progress: bool = False) -> WarmUp:
+def warm_up_replay(
+    log: RobotLog,
+    field: Field,
+    model: str,
+    compensate_latency: bool = True,
+    history: float = 1.0,
+    progress: bool = False,
+) -> WarmUp:
     """Compile (or load from numba's cache) the kernels a replay reaches, on a throw-away localizer of a few
     particles, before the replay is timed; returns the `mcl.numba_cache.WarmUp`. The filter's groups of kernels
     come one by one (`mcl.numba_cache.filter_stages`, with the log's first motion step and first frame with
@@ -668,11 +813,23 @@ def warm_up_replay(log: RobotLog, field: Field, model: str, compensate_latency: 
     from mcl.numba_cache import filter_kernels, filter_stages, warm_up
 
     times, inputs = motion_events(log)
-    localizer = Localizer(field, MODELS[model](), n_particles=WARM_UP_PARTICLES, seed=0, history=history,
-                          compensate_latency=compensate_latency)
+    localizer = Localizer(
+        field,
+        MODELS[model](),
+        n_particles=WARM_UP_PARTICLES,
+        seed=0,
+        history=history,
+        compensate_latency=compensate_latency,
+    )
     localizer.filter.reset_uniform("own_half")
-    follower = Localizer(field, MODELS[model](), n_particles=WARM_UP_PARTICLES, seed=0, history=history,
-                         compensate_latency=compensate_latency)
+    follower = Localizer(
+        field,
+        MODELS[model](),
+        n_particles=WARM_UP_PARTICLES,
+        seed=0,
+        history=history,
+        compensate_latency=compensate_latency,
+    )
     follower.filter.reset_uniform("own_half")
     frames = [frame for frame in log.vision if len(frame.observations) > 0]
     stages = filter_stages(localizer.filter, inputs[0], frames[0].observations) if frames else []
@@ -743,8 +900,9 @@ def main(argv: list[str] | None = None, prog: str = PROG) -> int:
         check_output_file(args.out, "--out")
         log, report = read_log(args.log, topics=topics, gap=args.gap)
         check_inputs(log, report, topics)
-        progress = (args.progress != "off" and
-                    progress_wanted(args, force=args.progress == "on", no_progress=args.no_progress))
+        progress = args.progress != "off" and progress_wanted(
+            args, force=args.progress == "on", no_progress=args.no_progress
+        )
         history = 1.0 if args.history is None else args.history
         model = args.model or "velocity-linear"
         localizer = None
@@ -762,15 +920,29 @@ def main(argv: list[str] | None = None, prog: str = PROG) -> int:
                 overrides["compensate_latency"] = False
             localizer = Profile.load(args.profile).localizer(field, **overrides)
         warm = warm_up_replay(log, field, model, not args.no_latency, history, progress)
-        result = replay(log, field, model=model, particles=args.particles or 500, seed=args.seed,
-                        compensate_latency=not args.no_latency, history=history, start=start, rrd=args.rrd,
-                        poses_out=args.out, progress=progress, localizer=localizer)
+        result = replay(
+            log,
+            field,
+            model=model,
+            particles=args.particles or 500,
+            seed=args.seed,
+            compensate_latency=not args.no_latency,
+            history=history,
+            start=start,
+            rrd=args.rrd,
+            poses_out=args.out,
+            progress=progress,
+            localizer=localizer,
+        )
     except (ValueError, OSError) as error:
         print(f"robocup-mcl replay: {one_line(error)}", file=sys.stderr)
         return 1
     if args.json:
-        json.dump({"log": report.to_json(), "replay": result.figures(), "rrd": args.rrd, "out": args.out,
-                   **warm.as_dict()}, sys.stdout, indent=2)
+        json.dump(
+            {"log": report.to_json(), "replay": result.figures(), "rrd": args.rrd, "out": args.out, **warm.as_dict()},
+            sys.stdout,
+            indent=2,
+        )
         print()
         return 0
     print(report.summary())

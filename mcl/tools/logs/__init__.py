@@ -10,6 +10,7 @@ array per stream, times in seconds from the log's origin. `mcl.tools.logs.mcap_i
 without a ROS install (the message schemas travel inside the file); `mcl.tools.logs.columnar` is the format for teams
 without ROS.
 """
+
 from __future__ import annotations
 
 import math
@@ -65,19 +66,23 @@ def read_log(path: str | os.PathLike, topics: Topics | None = None, gap: float =
         raise ValueError(f"gap = {gap!r} must be a positive number of seconds")
     if topics is not None:
         from mcl.tools.logs.mcap_io import Topics
+
         if not isinstance(topics, Topics):
             raise TypeError(f"topics = {topics!r} must be a mcl.tools.logs.mcap_io.Topics (or None for the defaults)")
     path = Path(path)
     if path.is_dir():
         from mcl.tools.logs.columnar import read_csv
+
         return read_csv(path)
     if not path.exists():
         raise LogError(f"{path}: no such file or folder")
     if path.suffix == ".npz":
         from mcl.tools.logs.columnar import read_npz
+
         return read_npz(path)
     if path.suffix == ".mcap":
         from mcl.tools.logs.mcap_io import Topics, read_mcap
+
         return read_mcap(path, topics or Topics(), gap=gap)
     raise LogError(f"{path}: not a log this library reads (.mcap, .npz, or a folder of CSV files)")
 
@@ -97,10 +102,13 @@ def write_log(log: RobotLog, path: str | os.PathLike, topics: Topics | None = No
     path = Path(path)
     if path.suffix == ".mcap":
         from mcl.tools.logs.mcap_io import Topics, write_mcap
+
         write_mcap(log, path, topics or Topics())
     elif path.suffix == ".npz":
         from mcl.tools.logs.columnar import write_npz
+
         write_npz(log, path)
     else:
         from mcl.tools.logs.columnar import write_csv
+
         write_csv(log, path)

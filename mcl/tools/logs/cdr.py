@@ -20,6 +20,7 @@ yields much more than n values. Definitions that contain themselves, directly or
 `MAX_NESTING` (which a decoder would follow until Python's recursion limit) raise ValueError when their
 decoders are asked for, as ROS 2 does not define them.
 """
+
 from __future__ import annotations
 
 import keyword
@@ -30,18 +31,28 @@ from typing import Any
 from mcap.records import Schema
 from mcap_ros2.decoder import DecoderFactory as Ros2DecoderFactory
 
-try:                                   # the parser and the message classes mcap_ros2 decodes into
+try:  # the parser and the message classes mcap_ros2 decodes into
     from mcap_ros2._dynamic import TimeDefinition, _for_each_msgdef, _message_class
-except ImportError:                    # pragma: no cover - a mcap_ros2 without them: its own decoders throughout
+except ImportError:  # pragma: no cover - a mcap_ros2 without them: its own decoders throughout
     _for_each_msgdef = None  # type: ignore[assignment]  # no parser: compile_decoders checks for None
 
 __all__ = ["DecoderFactory", "compile_decoders"]
 
 # Primitive type -> (struct code, size); bool, byte/uint8 and strings are read by hand.
-_NUMERIC = {"char": ("b", 1), "int8": ("b", 1), "int16": ("h", 2), "uint16": ("H", 2), "int32": ("i", 4),
-            "uint32": ("I", 4), "int64": ("q", 8), "uint64": ("Q", 8), "float32": ("f", 4), "float64": ("d", 8)}
+_NUMERIC = {
+    "char": ("b", 1),
+    "int8": ("b", 1),
+    "int16": ("h", 2),
+    "uint16": ("H", 2),
+    "int32": ("i", 4),
+    "uint32": ("I", 4),
+    "int64": ("q", 8),
+    "uint64": ("Q", 8),
+    "float32": ("f", 4),
+    "float64": ("d", 8),
+}
 _UINT32 = struct.Struct("<I").unpack_from
-MAX_NESTING = 64      # the deepest nesting of message types accepted (ROS's own are under 10 deep)
+MAX_NESTING = 64  # the deepest nesting of message types accepted (ROS's own are under 10 deep)
 
 
 class _Unsupported(Exception):
@@ -129,23 +140,30 @@ def _field_code(field, definitions: dict, functions: dict, lines: list[str], ind
 
 def _check_nesting(schema_name: str, definitions: dict) -> None:
     """ValueError when a type of `definitions` contains itself or nests deeper than MAX_NESTING."""
-    def nested(definition) -> set[str]:
-        return {f"{field.type.pkg_name}/{field.type.type}" for field in definition.fields
-                if not field.type.is_primitive_type()} & definitions.keys()
 
-    depth: dict[str, int] = {}            # type -> how many types deep its fields nest (itself counted)
+    def nested(definition) -> set[str]:
+        return {
+            f"{field.type.pkg_name}/{field.type.type}"
+            for field in definition.fields
+            if not field.type.is_primitive_type()
+        } & definitions.keys()
+
+    depth: dict[str, int] = {}  # type -> how many types deep its fields nest (itself counted)
 
     def visit(key: str, path: list[str]) -> int:
         if key in depth:
             return depth[key]
         if key in path:
-            raise ValueError(f"{schema_name}: the message type {key} contains itself "
-                             f"({' -> '.join(path[path.index(key):] + [key])})")
+            raise ValueError(
+                f"{schema_name}: the message type {key} contains itself "
+                f"({' -> '.join(path[path.index(key) :] + [key])})"
+            )
         if len(path) < MAX_NESTING:
             depth[key] = 1 + max((visit(inner, path + [key]) for inner in nested(definitions[key])), default=0)
         if depth.get(key, MAX_NESTING + 1) > MAX_NESTING:
-            raise ValueError(f"{schema_name}: message types nest more than MAX_NESTING = {MAX_NESTING} deep "
-                             f"(from {key})")
+            raise ValueError(
+                f"{schema_name}: message types nest more than MAX_NESTING = {MAX_NESTING} deep (from {key})"
+            )
         return depth[key]
 
     for key in definitions:
@@ -185,8 +203,11 @@ def _compile_readers(schema_name: str, schema_text: str) -> dict[str, Callable[[
     _check_nesting(schema_name, definitions)
     functions = {key: f"_read_{i}" for i, key in enumerate(definitions)}
     classes: dict[str, type] = {}
-    namespace: dict[str, Any] = {"unpack_from": struct.unpack_from, "U32": _UINT32,
-                                 "U8": struct.Struct("<B").unpack_from}
+    namespace: dict[str, Any] = {
+        "unpack_from": struct.unpack_from,
+        "U32": _UINT32,
+        "U8": struct.Struct("<B").unpack_from,
+    }
     source: list[str] = []
     try:
         for key, definition in definitions.items():
@@ -213,7 +234,7 @@ def compile_decoders(schema_name: str, schema_text: str) -> dict[str, Callable[[
         def decode(data, read=read):
             if len(data) < 4:
                 raise ValueError(f"Invalid CDR data size {len(data)}, must contain at least a 4-byte header")
-            if not data[1] & 1:           # CDR's second header byte: bit 0 set for little-endian
+            if not data[1] & 1:  # CDR's second header byte: bit 0 set for little-endian
                 raise ValueError("big-endian CDR data: decode it with mcap_ros2")
             return read(data, 4)[0]
 
@@ -239,11 +260,13 @@ class DecoderFactory(Ros2DecoderFactory):
             if read is None:
                 decoder = general
             else:
+
                 def decoder(data, read=read, general=general):
                     # shorter than the CDR header (mcap_ros2 raises) or big-endian (bit 0 of its second
                     # byte clear): mcap_ros2's; else the compiled reader
                     if len(data) < 4 or not data[1] & 1:
                         return general(data)
                     return read(data, 4)[0]
+
             self._compiled[schema.id] = decoder
         return decoder

@@ -83,6 +83,7 @@ takes (`L`, `T`, `X`, `post`, `penalty`, `center`, `centre`, `centre_mark`; any 
 
 The CSV writer writes kinds by name and a noise that was not given as an empty cell.
 """
+
 from __future__ import annotations
 
 import csv
@@ -108,7 +109,7 @@ if TYPE_CHECKING:
 from mcl.tools.logs.robot_log import MAX_TIME, LogError, ReadReport, RobotLog, VisionFrame
 
 FORMAT_VERSION = 1
-INT64_RANGE = (-2 ** 63, 2 ** 63 - 1)
+INT64_RANGE = (-(2**63), 2**63 - 1)
 # deflate writes at least one bit per 258 bytes: a member claiming more per compressed byte is corrupt
 _DEFLATE_MAX_RATIO = 1032
 
@@ -135,16 +136,23 @@ class _Stream:
         return [self.times] + [values for values, _ in self.blocks]
 
     def block_columns(self, joint_names: Sequence[str]) -> list[tuple[str, ...]]:
-        return [tuple(f"{name}{_JOINT_UNIT}" for name in joint_names) if columns is None else columns
-                for _, columns in self.blocks]
+        return [
+            tuple(f"{name}{_JOINT_UNIT}" for name in joint_names) if columns is None else columns
+            for _, columns in self.blocks
+        ]
 
 
 _STREAMS = (
     _Stream("odometry", "odometry_times", (("odometry", ("x_m", "y_m", "yaw_rad")),)),
     _Stream("commands", "command_times", (("commands", ("vx_m_s", "vy_m_s", "omega_rad_s")),)),
-    _Stream("imu", "imu_times", (("gyro", ("gyro_x_rad_s", "gyro_y_rad_s", "gyro_z_rad_s")),
-                                 ("acceleration", ("acceleration_x_m_s2", "acceleration_y_m_s2",
-                                                   "acceleration_z_m_s2")))),
+    _Stream(
+        "imu",
+        "imu_times",
+        (
+            ("gyro", ("gyro_x_rad_s", "gyro_y_rad_s", "gyro_z_rad_s")),
+            ("acceleration", ("acceleration_x_m_s2", "acceleration_y_m_s2", "acceleration_z_m_s2")),
+        ),
+    ),
     _Stream("joint_commands", "joint_command_times", (("joint_commands", None),)),
     _Stream("joint_readings", "joint_reading_times", (("joint_readings", None),)),
     _Stream("truth", "truth_times", (("truth", ("x_m", "y_m", "theta_rad")),)),
@@ -154,8 +162,10 @@ _JOINT_STREAMS = tuple(stream for stream in _STREAMS if stream.blocks[0][1] is N
 # What a value must be: a test on an array, and what a failing value is told.
 _RULES: dict[str, tuple[Callable[[np.ndarray], np.ndarray], str]] = {
     "finite": (np.isfinite, "must be finite"),
-    "time": (lambda v: np.isfinite(v) & (np.abs(v) <= MAX_TIME),
-             f"must be finite and within MAX_TIME = {MAX_TIME:g} s of origin_ns"),
+    "time": (
+        lambda v: np.isfinite(v) & (np.abs(v) <= MAX_TIME),
+        f"must be finite and within MAX_TIME = {MAX_TIME:g} s of origin_ns",
+    ),
     "nonnegative": (lambda v: np.isfinite(v) & (v >= 0), "must be finite and >= 0"),
     "noise": (lambda v: np.isnan(v) | (np.isfinite(v) & (v > 0)), "must be > 0 (or empty / NaN: not given)"),
     "kind": (lambda v: np.isin(v, [member.value for member in LandmarkType]), "is not a landmark type value"),
@@ -171,8 +181,13 @@ _LANDMARK_FIELDS = (
 )
 _FRAME_COLUMNS = ("stamp_s", "received_s")
 _LINE_COLUMNS = ("x_m", "y_m")
-_VISION_KEYS = ("vision_stamps", "vision_received", "vision_landmark_counts", "vision_line_point_counts",
-                "vision_line_points") + tuple(key for _, key, _, _ in _LANDMARK_FIELDS)
+_VISION_KEYS = (
+    "vision_stamps",
+    "vision_received",
+    "vision_landmark_counts",
+    "vision_line_point_counts",
+    "vision_line_points",
+) + tuple(key for _, key, _, _ in _LANDMARK_FIELDS)
 _META_KEYS = ("format_version", "origin_ns")
 _NPZ_KEYS = frozenset(_META_KEYS + ("joint_names",) + _VISION_KEYS + tuple(k for s in _STREAMS for k in s.keys))
 
@@ -187,8 +202,9 @@ def _check_values(values: np.ndarray, rule: str, where: Callable[[tuple[int, ...
         raise LogError(f"{where(index)} = {values[index].item()!r} {requirement}")
 
 
-def _check_order(times: np.ndarray, stream: str, where: Callable[[tuple[int, ...]], str],
-                 strictly: bool = True) -> None:
+def _check_order(
+    times: np.ndarray, stream: str, where: Callable[[tuple[int, ...]], str], strictly: bool = True
+) -> None:
     """Raise a LogError at the first time that does not follow its predecessor, or (`strictly`: the times of a
     timed stream) lies more than `MAX_STEP_DT` after it: a gap no motion step can span, which a replay would
     otherwise meet only when it builds that step."""
@@ -197,18 +213,28 @@ def _check_order(times: np.ndarray, stream: str, where: Callable[[tuple[int, ...
     if bad.any():
         i = int(np.argmax(bad)) + 1
         order = "increase" if strictly else "never decrease"
-        raise LogError(f"{where((i,))} = {float(times[i])!r} s does not follow {float(times[i - 1])!r} s: "
-                       f"the times of {stream} must {order}")
+        raise LogError(
+            f"{where((i,))} = {float(times[i])!r} s does not follow {float(times[i - 1])!r} s: "
+            f"the times of {stream} must {order}"
+        )
     if strictly and (steps > MAX_STEP_DT).any():
         i = int(np.argmax(steps > MAX_STEP_DT)) + 1
-        raise LogError(f"{where((i,))} = {float(times[i])!r} s lies {float(steps[i - 1]):g} s after "
-                       f"{float(times[i - 1])!r} s: consecutive times of {stream} must be at most "
-                       f"MAX_STEP_DT = {MAX_STEP_DT:g} s apart (the longest motion step)")
+        raise LogError(
+            f"{where((i,))} = {float(times[i])!r} s lies {float(steps[i - 1]):g} s after "
+            f"{float(times[i - 1])!r} s: consecutive times of {stream} must be at most "
+            f"MAX_STEP_DT = {MAX_STEP_DT:g} s apart (the longest motion step)"
+        )
 
 
-def _vision_frames(stamps: np.ndarray, received: np.ndarray, landmark_frames: np.ndarray,
-                   landmarks: dict[str, np.ndarray], line_frames: np.ndarray,
-                   line_points: np.ndarray, where: Callable[[int], str]) -> tuple[VisionFrame, ...]:
+def _vision_frames(
+    stamps: np.ndarray,
+    received: np.ndarray,
+    landmark_frames: np.ndarray,
+    landmarks: dict[str, np.ndarray],
+    line_frames: np.ndarray,
+    line_points: np.ndarray,
+    where: Callable[[int], str],
+) -> tuple[VisionFrame, ...]:
     """The frames, given each landmark's and line point's frame index (their order within a frame is kept);
     a LogError naming the frame (`where(i)`) when `Observations` refuses its detections."""
     count = stamps.shape[0]
@@ -219,13 +245,15 @@ def _vision_frames(stamps: np.ndarray, received: np.ndarray, landmark_frames: np
         return [np.split(array[order], bounds) for array in arrays]
 
     kinds, ranges, bearings, range_sigmas, bearing_sigmas = per_frame(
-        landmark_frames, [landmarks[name] for name, _, _, _ in _LANDMARK_FIELDS])
+        landmark_frames, [landmarks[name] for name, _, _, _ in _LANDMARK_FIELDS]
+    )
     (points_per_frame,) = per_frame(line_frames, [line_points])
     frames = []
     for i in range(count):
         try:
-            observations = Observations(kinds[i], ranges[i], bearings[i], range_sigmas[i], bearing_sigmas[i],
-                                        line_points=points_per_frame[i])
+            observations = Observations(
+                kinds[i], ranges[i], bearings[i], range_sigmas[i], bearing_sigmas[i], line_points=points_per_frame[i]
+            )
         except ValueError as error:
             raise LogError(f"{where(i)}: {error}") from None
         frames.append(VisionFrame(float(stamps[i]), float(received[i]), observations))
@@ -254,8 +282,11 @@ def _report(path: Path, log: RobotLog, sources: dict[str, str]) -> ReadReport:
 # -- NPZ ----------------------------------------------------------------------------------------------------------
 def write_npz(log: RobotLog, path: str | Path) -> None:
     """Write `log` to `path` as an NPZ file (the name is kept as given: no '.npz' is added)."""
-    arrays: dict[str, np.ndarray] = {"format_version": np.int64(FORMAT_VERSION), "origin_ns": np.int64(log.origin_ns),
-                                     "joint_names": np.array(log.joint_names, dtype=np.str_).reshape(-1)}
+    arrays: dict[str, np.ndarray] = {
+        "format_version": np.int64(FORMAT_VERSION),
+        "origin_ns": np.int64(log.origin_ns),
+        "joint_names": np.array(log.joint_names, dtype=np.str_).reshape(-1),
+    }
     for stream in _STREAMS:
         for key in stream.keys:
             arrays[key] = getattr(log, key)
@@ -263,13 +294,15 @@ def write_npz(log: RobotLog, path: str | Path) -> None:
     arrays["vision_stamps"] = np.array([frame.stamp for frame in frames], dtype=np.float64)
     arrays["vision_received"] = np.array([frame.received for frame in frames], dtype=np.float64)
     arrays["vision_landmark_counts"] = np.array([len(frame.observations) for frame in frames], dtype=np.int64)
-    arrays["vision_line_point_counts"] = np.array([frame.observations.line_points.shape[0] for frame in frames],
-                                                  dtype=np.int64)
+    arrays["vision_line_point_counts"] = np.array(
+        [frame.observations.line_points.shape[0] for frame in frames], dtype=np.int64
+    )
     for name, key, _, _ in _LANDMARK_FIELDS:
         dtype = np.int64 if name == "kinds" else np.float64
         arrays[key] = np.concatenate([getattr(frame.observations, name) for frame in frames] + [np.zeros(0, dtype)])
-    arrays["vision_line_points"] = np.concatenate([frame.observations.line_points for frame in frames]
-                                                  + [np.zeros((0, 2))])
+    arrays["vision_line_points"] = np.concatenate(
+        [frame.observations.line_points for frame in frames] + [np.zeros((0, 2))]
+    )
     with open(path, "wb") as file:
         np.savez(file, **arrays)  # type: ignore[arg-type]  # numpy's stub: a key could be allow_pickle
 
@@ -289,8 +322,10 @@ def read_npz(path: str | Path) -> tuple[RobotLog, ReadReport]:
             with zipfile.ZipFile(file) as archive:
                 members = {info.filename.removesuffix(".npy"): info for info in archive.infolist()}
                 size = os.fstat(file.fileno()).st_size
-                arrays = {key: _npz_member(path, archive, key, info, size) if key in _NPZ_KEYS else None
-                          for key, info in members.items()}
+                arrays = {
+                    key: _npz_member(path, archive, key, info, size) if key in _NPZ_KEYS else None
+                    for key, info in members.items()
+                }
     except (FileNotFoundError, LogError):
         raise
     except (OSError, ValueError, EOFError, zipfile.BadZipFile, zipfile.LargeZipFile, NotImplementedError) as error:
@@ -302,29 +337,29 @@ def read_npz(path: str | Path) -> tuple[RobotLog, ReadReport]:
 def _npz_member(path: Path, archive: zipfile.ZipFile, key: str, info: zipfile.ZipInfo, size: int) -> np.ndarray:
     """The array of one member, read only after its header and claimed sizes fit the file: its data is never
     given more memory than the member holds."""
+
     def fail(reason: str) -> LogError:
         return LogError(f"{path}: {key} {reason}")
 
-    if info.flag_bits & 0x61:              # encrypted (bits 0 and 6), or compressed patched data (bit 5)
+    if info.flag_bits & 0x61:  # encrypted (bits 0 and 6), or compressed patched data (bit 5)
         raise fail("is encrypted or patched: numpy writes neither")
     if info.compress_type not in (zipfile.ZIP_STORED, zipfile.ZIP_DEFLATED):
         raise fail(f"is compressed with zip method {info.compress_type}: numpy writes stored or deflated members")
     if info.compress_size > size or info.file_size > (
-            info.compress_size if info.compress_type == zipfile.ZIP_STORED
-            else _DEFLATE_MAX_RATIO * info.compress_size + 64):
+        info.compress_size if info.compress_type == zipfile.ZIP_STORED else _DEFLATE_MAX_RATIO * info.compress_size + 64
+    ):
         raise fail(f"claims {info.file_size} bytes ({info.compress_size} compressed) in a file of {size} bytes")
     try:
         with archive.open(info) as member:
             version = np.lib.format.read_magic(member)
             if version == (1, 0):
                 shape, fortran_order, dtype = np.lib.format.read_array_header_1_0(member)
-            elif version in ((2, 0), (3, 0)):        # 3.0 differs in the header's text encoding only
+            elif version in ((2, 0), (3, 0)):  # 3.0 differs in the header's text encoding only
                 shape, fortran_order, dtype = np.lib.format.read_array_header_2_0(member)
             else:
                 raise fail(f"is a .npy array of format version {version}, not 1, 2 or 3")
             if dtype.hasobject:
-                raise fail(f"cannot be read: it holds Python objects (dtype {dtype}), and pickled data is not "
-                           f"read")
+                raise fail(f"cannot be read: it holds Python objects (dtype {dtype}), and pickled data is not read")
             if any(length < 0 for length in shape):
                 raise fail(f"has shape {shape}: a length is negative")
             count = math.prod(shape)
@@ -350,32 +385,33 @@ class _NpzReader:
 
     def __init__(self, path: Path, arrays: dict[str, np.ndarray | None]) -> None:
         self.path = path
-        self.arrays = arrays      # None for a key of no stream (not read)
+        self.arrays = arrays  # None for a key of no stream (not read)
 
     def where(self, key: str) -> Callable[[tuple[int, ...]], str]:
         return lambda index: f"{self.path}: {key}[{', '.join(map(str, index))}]"
 
-    def array(self, key: str, shape: tuple[int | None, ...], rows_are: str = "",
-              integer: bool = False) -> np.ndarray:
+    def array(self, key: str, shape: tuple[int | None, ...], rows_are: str = "", integer: bool = False) -> np.ndarray:
         """arrays[key] as float64 (int64 if `integer`) of `shape` (None: any length); `rows_are` says why.
 
         An empty (0,) array stands for an empty table too: a writer need not give it its columns.
         """
         array = self.present(key)
         if array.dtype.kind not in ("iu" if integer else "iuf"):
-            raise LogError(f"{self.path}: {key} has dtype {array.dtype}, expected "
-                           f"{'integers' if integer else 'numbers'}")
+            raise LogError(
+                f"{self.path}: {key} has dtype {array.dtype}, expected {'integers' if integer else 'numbers'}"
+            )
         if integer and array.dtype.kind == "u" and array.size and int(array.max()) > INT64_RANGE[1]:
             index = tuple(int(i) for i in np.unravel_index(int(np.argmax(array)), array.shape))
             raise LogError(f"{self.where(key)(index)} = {int(array[index])} does not fit int64")
         if array.size == 0 and array.ndim == 1 and len(shape) == 2 and shape[1] is not None:
             array = array.reshape(0, shape[1])
-        if array.ndim != len(shape) or any(want is not None and have != want
-                                           for have, want in zip(array.shape, shape)):
+        if array.ndim != len(shape) or any(want is not None and have != want for have, want in zip(array.shape, shape)):
             expected = ", ".join("any" if want is None else str(want) for want in shape)
             expected = f"({expected},)" if len(shape) == 1 else f"({expected})"
-            raise LogError(f"{self.path}: {key} has shape {array.shape}, expected {expected}"
-                           + (f" ({rows_are})" if rows_are else ""))
+            raise LogError(
+                f"{self.path}: {key} has shape {array.shape}, expected {expected}"
+                + (f" ({rows_are})" if rows_are else "")
+            )
         return array.astype(np.int64 if integer else np.float64)
 
     def present(self, key: str) -> np.ndarray:
@@ -407,19 +443,20 @@ class _NpzReader:
         if "joint_names" in self.arrays:
             names = self.present("joint_names")
             if names.dtype.kind not in "US" or names.ndim != 1:
-                raise LogError(f"{self.path}: joint_names has dtype {names.dtype} and shape {names.shape}, "
-                               f"expected (n,) strings")
+                raise LogError(
+                    f"{self.path}: joint_names has dtype {names.dtype} and shape {names.shape}, expected (n,) strings"
+                )
             if names.dtype.kind == "U" and names.size and names.dtype.itemsize:
                 # UTF-32 code units: numpy cannot make a str of one beyond U+10FFFF, nor is a surrogate text
                 codes = names.astype(names.dtype.newbyteorder("<")).view("<u4").reshape(names.shape[0], -1)
                 bad = (codes > 0x10FFFF) | ((codes >= 0xD800) & (codes <= 0xDFFF))
                 if bad.any():
                     i, j = (int(k) for k in np.argwhere(bad)[0])
-                    raise LogError(f"{self.path}: joint_names[{i}] holds {int(codes[i, j]):#x}, not a Unicode "
-                                   f"character")
+                    raise LogError(
+                        f"{self.path}: joint_names[{i}] holds {int(codes[i, j]):#x}, not a Unicode character"
+                    )
             try:
-                joint_names = tuple(name.decode() if isinstance(name, bytes) else str(name)
-                                    for name in names.tolist())
+                joint_names = tuple(name.decode() if isinstance(name, bytes) else str(name) for name in names.tolist())
             except UnicodeDecodeError as error:
                 raise LogError(f"{self.path}: joint_names holds a name that is not UTF-8 ({error})") from None
         fields["joint_names"] = joint_names
@@ -431,8 +468,9 @@ class _NpzReader:
             _check_values(times, "time", self.where(stream.times))
             _check_order(times, stream.name, self.where(stream.times))
             fields[stream.times] = times
-            rows_are = f"one row per {stream.times}" + (", one column per joint_names entry"
-                                                        if stream in _JOINT_STREAMS else "")
+            rows_are = f"one row per {stream.times}" + (
+                ", one column per joint_names entry" if stream in _JOINT_STREAMS else ""
+            )
             for (key, _), columns in zip(stream.blocks, stream.block_columns(joint_names)):
                 values = self.array(key, (times.shape[0], len(columns)), rows_are)
                 _check_values(values, "finite", self.where(key))
@@ -461,16 +499,26 @@ class _NpzReader:
         landmark_total = sum(counts["vision_landmark_counts"].tolist())
         landmarks = {}
         for name, key, _, rule in _LANDMARK_FIELDS:
-            landmarks[name] = self.array(key, (landmark_total,), "the sum of vision_landmark_counts",
-                                         integer=name == "kinds")
+            landmarks[name] = self.array(
+                key, (landmark_total,), "the sum of vision_landmark_counts", integer=name == "kinds"
+            )
             _check_values(landmarks[name], rule, self.where(key))
-        line_points = self.array("vision_line_points", (sum(counts["vision_line_point_counts"].tolist()), 2),
-                                 "the sum of vision_line_point_counts")
+        line_points = self.array(
+            "vision_line_points",
+            (sum(counts["vision_line_point_counts"].tolist()), 2),
+            "the sum of vision_line_point_counts",
+        )
         _check_values(line_points, "finite", self.where("vision_line_points"))
         frame_indices = np.arange(stamps.shape[0])
-        return _vision_frames(stamps, received, np.repeat(frame_indices, counts["vision_landmark_counts"]),
-                              landmarks, np.repeat(frame_indices, counts["vision_line_point_counts"]), line_points,
-                              lambda i: f"{self.path}: vision frame {i} (vision_stamps[{i}])")
+        return _vision_frames(
+            stamps,
+            received,
+            np.repeat(frame_indices, counts["vision_landmark_counts"]),
+            landmarks,
+            np.repeat(frame_indices, counts["vision_line_point_counts"]),
+            line_points,
+            lambda i: f"{self.path}: vision frame {i} (vision_stamps[{i}])",
+        )
 
 
 # -- CSV ----------------------------------------------------------------------------------------------------------
@@ -495,16 +543,21 @@ def write_csv(log: RobotLog, folder: str | Path) -> None:
     folder = Path(folder)
     for name in log.joint_names:
         if not name or name != name.strip() or log.joint_names.count(name) > 1:
-            raise LogError(f"joint name {name!r} cannot head a CSV column: joint names must be unique, "
-                           f"non-empty and not begin or end with white space")
+            raise LogError(
+                f"joint name {name!r} cannot head a CSV column: joint names must be unique, "
+                f"non-empty and not begin or end with white space"
+            )
     keys = [(float(frame.stamp), float(frame.received)) for frame in log.vision]
     if len(set(keys)) != len(keys):
         stamp, received = next(key for key in keys if keys.count(key) > 1)
-        raise LogError(f"two vision frames share stamp {stamp!r} s and received {received!r} s: the CSV form "
-                       f"tells frames apart by these times")
+        raise LogError(
+            f"two vision frames share stamp {stamp!r} s and received {received!r} s: the CSV form "
+            f"tells frames apart by these times"
+        )
     folder.mkdir(parents=True, exist_ok=True)
-    _write_rows(folder / "meta.csv", ("key", "value"),
-                [("format_version", FORMAT_VERSION), ("origin_ns", int(log.origin_ns))])
+    _write_rows(
+        folder / "meta.csv", ("key", "value"), [("format_version", FORMAT_VERSION), ("origin_ns", int(log.origin_ns))]
+    )
     for stream in _STREAMS:
         header = ["t_s"] + [column for columns in stream.block_columns(log.joint_names) for column in columns]
         table = np.column_stack([getattr(log, key) for key in stream.keys])
@@ -514,12 +567,16 @@ def write_csv(log: RobotLog, folder: str | Path) -> None:
     line_rows: list[list[object]] = []
     for frame, (stamp, received) in zip(log.vision, keys):
         seen = frame.observations
-        for kind, *numbers in zip(seen.kinds.tolist(), seen.ranges, seen.bearings, seen.range_sigmas,
-                                  seen.bearing_sigmas):
+        for kind, *numbers in zip(
+            seen.kinds.tolist(), seen.ranges, seen.bearings, seen.range_sigmas, seen.bearing_sigmas
+        ):
             landmark_rows.append([stamp, received, LandmarkType(kind).name] + [_cell_text(n) for n in numbers])
         line_rows.extend([stamp, received, x, y] for x, y in seen.line_points.tolist())
-    _write_rows(folder / "vision_landmarks.csv",
-                _FRAME_COLUMNS + tuple(column for _, _, column, _ in _LANDMARK_FIELDS), landmark_rows)
+    _write_rows(
+        folder / "vision_landmarks.csv",
+        _FRAME_COLUMNS + tuple(column for _, _, column, _ in _LANDMARK_FIELDS),
+        landmark_rows,
+    )
     _write_rows(folder / "vision_lines.csv", _FRAME_COLUMNS + _LINE_COLUMNS, line_rows)
 
 
@@ -597,8 +654,7 @@ def _read_table(path: Path, rules: dict[str, str]) -> _Table:
                         parse(cell)
                     except ValueError as error:
                         reason = error if rules[name] == "kind" else "not a number"
-                        raise LogError(f"{path}, line {reader.line_num}, column {name}: {cell!r}: {reason}") \
-                            from None
+                        raise LogError(f"{path}, line {reader.line_num}, column {name}: {cell!r}: {reason}") from None
             lines.append(reader.line_num)
     cells = np.array(rows, dtype=np.float64).reshape(len(rows), len(header))
     table = _Table(path, {name: cells[:, i] for i, name in enumerate(header)}, np.array(lines, dtype=np.int64))
@@ -619,22 +675,24 @@ def _read_meta(path: Path) -> dict[str, int]:
             if not row:
                 continue
             if len(row) != 2 or row[0].strip() not in _META_KEYS or row[0].strip() in meta:
-                raise LogError(f"{path}, line {reader.line_num}: {','.join(row)!r} is not one of the rows "
-                               f"{', '.join(f'{key},<integer>' for key in _META_KEYS)} (each once)")
+                raise LogError(
+                    f"{path}, line {reader.line_num}: {','.join(row)!r} is not one of the rows "
+                    f"{', '.join(f'{key},<integer>' for key in _META_KEYS)} (each once)"
+                )
             try:
                 meta[row[0].strip()] = int(row[1])
             except ValueError:
-                raise LogError(f"{path}, line {reader.line_num}, column value: {row[1]!r} is not an integer") \
-                    from None
+                raise LogError(f"{path}, line {reader.line_num}, column value: {row[1]!r} is not an integer") from None
     for key in _META_KEYS:
         if key not in meta:
             raise LogError(f"{path}: the row {key},<integer> is missing")
     if meta["format_version"] != FORMAT_VERSION:
-        raise LogError(f"{path}: format_version = {meta['format_version']}, this reader reads version "
-                       f"{FORMAT_VERSION}")
+        raise LogError(f"{path}: format_version = {meta['format_version']}, this reader reads version {FORMAT_VERSION}")
     if not INT64_RANGE[0] <= meta["origin_ns"] <= INT64_RANGE[1]:
-        raise LogError(f"{path}: origin_ns = {meta['origin_ns']} does not fit int64 (nanoseconds since the epoch, "
-                       f"as the NPZ form holds it)")
+        raise LogError(
+            f"{path}: origin_ns = {meta['origin_ns']} does not fit int64 (nanoseconds since the epoch, "
+            f"as the NPZ form holds it)"
+        )
     return meta
 
 
@@ -648,13 +706,15 @@ def _joint_names(folder: Path) -> tuple[str, ...]:
         columns = [name for name in _read_header(path) if name != "t_s"]
         for column in columns:
             if not column.endswith(_JOINT_UNIT) or column == _JOINT_UNIT:
-                raise LogError(f"{path}: column {column} must be a joint name followed by {_JOINT_UNIT} "
-                               f"(joint angles are radians)")
-        named[stream.file] = tuple(column[:-len(_JOINT_UNIT)] for column in columns)
+                raise LogError(
+                    f"{path}: column {column} must be a joint name followed by {_JOINT_UNIT} (joint angles are radians)"
+                )
+        named[stream.file] = tuple(column[: -len(_JOINT_UNIT)] for column in columns)
     if len(set(named.values())) > 1:
         (first, first_names), (second, second_names) = named.items()
-        raise LogError(f"{folder}: {first} names the joints {', '.join(first_names)} but {second} names "
-                       f"{', '.join(second_names)}")
+        raise LogError(
+            f"{folder}: {first} names the joints {', '.join(first_names)} but {second} names {', '.join(second_names)}"
+        )
     return next(iter(named.values()), ())
 
 
@@ -673,16 +733,20 @@ def _read_vision(folder: Path) -> tuple[VisionFrame, ...] | None:
     frame_of_key: dict[tuple[float, float], int] = {}
     for i, key in enumerate(zip(stamps.tolist(), received.tolist())):
         if key in frame_of_key:
-            raise LogError(f"{frames_path}, line {frames.lines[i]}: a second frame with stamp_s = {key[0]!r} and "
-                           f"received_s = {key[1]!r} (line {frames.lines[frame_of_key[key]]})")
+            raise LogError(
+                f"{frames_path}, line {frames.lines[i]}: a second frame with stamp_s = {key[0]!r} and "
+                f"received_s = {key[1]!r} (line {frames.lines[frame_of_key[key]]})"
+            )
         frame_of_key[key] = i
 
     def frame_indices(table: _Table) -> np.ndarray:
         indices = np.empty(len(table), dtype=np.int64)
         for row, key in enumerate(zip(table.columns["stamp_s"].tolist(), table.columns["received_s"].tolist())):
             if key not in frame_of_key:
-                raise LogError(f"{table.path}, line {table.lines[row]}: no frame in {frames_path.name} has "
-                               f"stamp_s = {key[0]!r} and received_s = {key[1]!r}")
+                raise LogError(
+                    f"{table.path}, line {table.lines[row]}: no frame in {frames_path.name} has "
+                    f"stamp_s = {key[0]!r} and received_s = {key[1]!r}"
+                )
             indices[row] = frame_of_key[key]
         return indices
 
@@ -700,8 +764,15 @@ def _read_vision(folder: Path) -> tuple[VisionFrame, ...] | None:
         table = _read_table(detection_paths[1], line_rules)
         line_points = np.column_stack([table.columns[column] for column in _LINE_COLUMNS])
         line_frames = frame_indices(table)
-    return _vision_frames(stamps, received, landmark_frames, landmarks, line_frames, line_points,
-                          lambda i: f"{frames_path}, line {frames.lines[i]}: the frame's detections")
+    return _vision_frames(
+        stamps,
+        received,
+        landmark_frames,
+        landmarks,
+        line_frames,
+        line_points,
+        lambda i: f"{frames_path}, line {frames.lines[i]}: the frame's detections",
+    )
 
 
 def read_csv(folder: str | Path) -> tuple[RobotLog, ReadReport]:
@@ -729,8 +800,9 @@ def read_csv(folder: str | Path) -> tuple[RobotLog, ReadReport]:
         sources["vision"] = "vision_frames.csv, vision_landmarks.csv, vision_lines.csv"
     log = _log(folder, fields)
     report = _report(folder, log, sources)
-    known = {"meta.csv", "vision_frames.csv", "vision_landmarks.csv", "vision_lines.csv"} | \
-        {stream.file for stream in _STREAMS}
+    known = {"meta.csv", "vision_frames.csv", "vision_landmarks.csv", "vision_lines.csv"} | {
+        stream.file for stream in _STREAMS
+    }
     for path in sorted(folder.glob("*.csv")):
         if path.name not in known:
             report.drop(path.name, "not a file of the columnar format")

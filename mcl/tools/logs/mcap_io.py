@@ -83,6 +83,7 @@ not carried. Times are written to the nanosecond.
 covariance holds the filter's 3x3 in the x, y, yaw rows and columns and 1e6 ("unknown") as the variance
 of z, roll and pitch (`unestimated_variance=0.0` gives nav2_amcl's zeros). `read_poses` reads them back.
 """
+
 from __future__ import annotations
 
 import bisect
@@ -117,31 +118,32 @@ from sensing.observations import Observations
 
 try:
     import zstandard
-except ImportError:          # without zstandard, a zstd chunk is unsupported (an McapError)
+except ImportError:  # without zstandard, a zstd chunk is unsupported (an McapError)
     zstandard = None  # type: ignore[assignment]  # an optional package, None when it is not installed
 try:
     import lz4.frame as lz4_frame
-except ImportError:          # without lz4, an lz4 chunk is unsupported
+except ImportError:  # without lz4, an lz4 chunk is unsupported
     lz4_frame = None
 
 # What a truncated or corrupt file raises while its records are read: mcap's own errors (EndOfFile,
 # a record longer than the file, bad magic), a record cut inside a field (struct), a bad checksum, a chunk
 # that does not decompress (zstd; lz4 reports a corrupt frame as RuntimeError), a name that is not UTF-8.
-BROKEN_FILE_ERRORS = (McapError, CRCValidationError, struct.error, RuntimeError, UnicodeDecodeError) \
-    + ((zstandard.ZstdError,) if zstandard is not None else ())
+BROKEN_FILE_ERRORS = (McapError, CRCValidationError, struct.error, RuntimeError, UnicodeDecodeError) + (
+    (zstandard.ZstdError,) if zstandard is not None else ()
+)
 # What decoding one message's CDR bytes raises when they do not fit the schema.
 _DECODE_ERRORS = (McapError, struct.error, ValueError, IndexError, UnicodeDecodeError, NotImplementedError)
 
 ORIGIN_METADATA = "robocup_mcl.origin"
 MCAP0_MAGIC = b"\x89MCAP0\r\n"
-FOOTER_RECORD_BYTES = 1 + 8 + 20     # opcode, length, then summary start, summary offset start, CRC
-MAX_CHUNK_BYTES = 1 << 30        # a chunk claiming more (uncompressed) is taken for corrupt
-_DECOMPRESS_BLOCK = 1 << 20      # [bytes] a chunk is decompressed this much at a time
-SEGMENT_SPACING = 0.15          # [m] the largest distance between line points sampled along a segment
-MAX_SEGMENT_LENGTH = 30.0       # [m] a longer segment (no field line is seen that long) is dropped, not sampled
+FOOTER_RECORD_BYTES = 1 + 8 + 20  # opcode, length, then summary start, summary offset start, CRC
+MAX_CHUNK_BYTES = 1 << 30  # a chunk claiming more (uncompressed) is taken for corrupt
+_DECOMPRESS_BLOCK = 1 << 20  # [bytes] a chunk is decompressed this much at a time
+SEGMENT_SPACING = 0.15  # [m] the largest distance between line points sampled along a segment
+MAX_SEGMENT_LENGTH = 30.0  # [m] a longer segment (no field line is seen that long) is dropped, not sampled
 PENALTY_MARK_MAX_DIAMETER = 0.5  # [m] a smaller ellipse is the penalty mark, a larger one the centre circle
-PENALTY_MARK_DIAMETER = 0.1     # [m] written for a penalty mark
-CENTER_CIRCLE_DIAMETER = 1.5    # [m] written for the centre mark
+PENALTY_MARK_DIAMETER = 0.1  # [m] written for a penalty mark
+CENTER_CIRCLE_DIAMETER = 1.5  # [m] written for the centre mark
 CROSSING_RAYS = {2: LandmarkType.L_CROSSING, 3: LandmarkType.T_CROSSING, 4: LandmarkType.X_CROSSING}
 VISION_FRAME_ID = "base_footprint"
 
@@ -166,8 +168,16 @@ class Topics:
     truth: str = "/ground_truth"
     pose_out: str = "/robocup_mcl/pose"
 
-    STREAMS: ClassVar[tuple[str, ...]] = ("odometry", "commands", "joint_commands", "joint_states", "imu",
-                                          "goalposts", "markings", "truth")
+    STREAMS: ClassVar[tuple[str, ...]] = (
+        "odometry",
+        "commands",
+        "joint_commands",
+        "joint_states",
+        "imu",
+        "goalposts",
+        "markings",
+        "truth",
+    )
 
     def __post_init__(self) -> None:
         for name in (f.name for f in fields(self)):
@@ -222,11 +232,12 @@ DISCOVERY_TYPES: dict[str, tuple[str, ...]] = {
 # ---------------------------------------------------------------------------------------------------------
 # Header stamps (poses and covariances convert with mcl.tools.formats)
 
+
 def _stamp_ns(header: Any) -> int:
     sec, nanosec = header.stamp.sec, header.stamp.nanosec
     if not all(isinstance(v, int) and not isinstance(v, bool) for v in (sec, nanosec)):
         raise _Drop("the header stamp is not integer sec and nanosec")
-    if not (-2 ** 31 <= sec < 2 ** 31 and 0 <= nanosec < 2 ** 32):
+    if not (-(2**31) <= sec < 2**31 and 0 <= nanosec < 2**32):
         raise _Drop("the header stamp does not fit builtin_interfaces/Time (int32 sec, uint32 nanosec)")
     return sec * 1_000_000_000 + nanosec
 
@@ -238,6 +249,7 @@ def _header(stamp_ns: int, frame_id: str) -> dict[str, Any]:
 
 # ---------------------------------------------------------------------------------------------------------
 # Scanning a file's records, to the end or to where it breaks
+
 
 class _ExactReads:
     """A file whose reads return every byte asked for or raise EndOfFile, so that a record cut by the end
@@ -252,8 +264,10 @@ class _ExactReads:
     def read(self, size: int = -1) -> bytes:
         position = self._file.tell()
         if size > self._size - position:
-            raise EndOfFile(f"the file ends {size - (self._size - position)} bytes before the end of a record "
-                            f"(a record read from byte {position})")
+            raise EndOfFile(
+                f"the file ends {size - (self._size - position)} bytes before the end of a record "
+                f"(a record read from byte {position})"
+            )
         return self._file.read(size)
 
     def seek(self, offset: int, whence: int = os.SEEK_SET) -> int:
@@ -270,13 +284,13 @@ class _ExactReads:
 class _Scan:
     schemas: dict[int, Schema] = dataclass_field(default_factory=dict)
     channels: dict[int, Channel] = dataclass_field(default_factory=dict)
-    kept: dict[int, list[Message]] = dataclass_field(default_factory=dict)     # channel id -> messages
+    kept: dict[int, list[Message]] = dataclass_field(default_factory=dict)  # channel id -> messages
     counts: dict[int, int] = dataclass_field(default_factory=dict)
     first_ns: dict[int, int] = dataclass_field(default_factory=dict)
     last_ns: dict[int, int] = dataclass_field(default_factory=dict)
-    orphans: int = 0                       # messages on a channel never defined
-    origin_ns: int | None = None           # from the metadata write_mcap leaves
-    last_read_ns: int | None = None        # log time of the last message read, in file order
+    orphans: int = 0  # messages on a channel never defined
+    origin_ns: int | None = None  # from the metadata write_mcap leaves
+    last_read_ns: int | None = None  # log time of the last message read, in file order
     stop_reason: str | None = None
 
     @property
@@ -298,7 +312,7 @@ def _origin_from(metadata: Metadata) -> int | None:
         origin = int(metadata.metadata["origin_ns"])
     except (KeyError, ValueError, TypeError):
         return None
-    return origin if -2 ** 63 <= origin < 2 ** 64 else None
+    return origin if -(2**63) <= origin < 2**64 else None
 
 
 def _decompressed(chunk: Chunk) -> bytes:
@@ -322,7 +336,7 @@ def _decompressed(chunk: Chunk) -> bytes:
                 return b""
             return decompressor.decompress(pending.pop() if pending else b"", max_length=_DECOMPRESS_BLOCK)
     else:
-        return chunk.data            # uncompressed (mcap reads an unknown compression as none)
+        return chunk.data  # uncompressed (mcap reads an unknown compression as none)
     blocks, size = [], 0
     while block := read():
         size += len(block)
@@ -356,16 +370,21 @@ def _scan(path: str, keep_topics: set[str], keep_types: frozenset[str] = frozens
     kept_channels: set[int] = set()
     size = os.path.getsize(path)
     with open(path, "rb") as file:
-        records = StreamReader(cast(IO[bytes], _ExactReads(file, size)), emit_chunks=True, validate_crcs=True,
-                               record_size_limit=max(size, 1)).records
+        records = StreamReader(
+            cast(IO[bytes], _ExactReads(file, size)),
+            emit_chunks=True,
+            validate_crcs=True,
+            record_size_limit=max(size, 1),
+        ).records
         try:
             first = next(records)
         except (StopIteration,) + BROKEN_FILE_ERRORS as error:
-            raise LogError(f"{path} is not an MCAP file (it does not start with the MCAP magic and a header): "
-                           f"{type(error).__name__}: {error}") from None
+            raise LogError(
+                f"{path} is not an MCAP file (it does not start with the MCAP magic and a header): "
+                f"{type(error).__name__}: {error}"
+            ) from None
         if not isinstance(first, Header):
-            raise LogError(f"{path} is not an MCAP file: its first record is a {type(first).__name__}, "
-                           f"not a Header")
+            raise LogError(f"{path} is not an MCAP file: its first record is a {type(first).__name__}, not a Header")
         try:
             for record in _unchunked(records):
                 if isinstance(record, Message):
@@ -384,8 +403,9 @@ def _scan(path: str, keep_topics: set[str], keep_types: frozenset[str] = frozens
                     scan.schemas[record.id] = record
                 elif isinstance(record, Channel):
                     scan.channels[record.id] = record
-                    if (record.topic in keep_topics
-                            or (keep_types and schemas.short_name(scan.type_of(record)) in keep_types)):
+                    if record.topic in keep_topics or (
+                        keep_types and schemas.short_name(scan.type_of(record)) in keep_types
+                    ):
                         kept_channels.add(record.id)
                     else:
                         kept_channels.discard(record.id)
@@ -409,7 +429,7 @@ def _topics_from_summary(path: str) -> list[dict] | None:
 
     size = os.path.getsize(path)
     if size < 2 * len(MCAP0_MAGIC) + FOOTER_RECORD_BYTES:
-        return None                  # too short to hold a header and a footer: the scan says what it is
+        return None  # too short to hold a header and a footer: the scan says what it is
     with open(path, "rb") as file:
         try:
             summary = SeekingReader(cast(IO[bytes], _ExactReads(file, size)), record_size_limit=size).get_summary()
@@ -438,20 +458,29 @@ def _topics_from_summary(path: str) -> list[dict] | None:
     rows = []
     for channel_id, channel in summary.channels.items():
         count = counts.get(channel_id, 0)
-        if count and channel_id not in first:       # messages outside chunks: the index cannot place them
+        if count and channel_id not in first:  # messages outside chunks: the index cannot place them
             return None
         schema = summary.schemas.get(channel.schema_id)
-        rows.append(_topic_row(channel.topic, schema.name if schema else "(no schema)", count,
-                               first.get(channel_id), last.get(channel_id), origin))
+        rows.append(
+            _topic_row(
+                channel.topic,
+                schema.name if schema else "(no schema)",
+                count,
+                first.get(channel_id),
+                last.get(channel_id),
+                origin,
+            )
+        )
     return rows
 
 
-def _topic_row(topic: str, type_name: str, count: int, first_ns: int | None, last_ns: int | None,
-               origin_ns: int) -> dict:
+def _topic_row(
+    topic: str, type_name: str, count: int, first_ns: int | None, last_ns: int | None, origin_ns: int
+) -> dict:
     def seconds(ns: int | None) -> float | None:
         return None if ns is None else (ns - origin_ns) / 1e9
-    return {"topic": topic, "type": type_name, "count": count, "first_s": seconds(first_ns),
-            "last_s": seconds(last_ns)}
+
+    return {"topic": topic, "type": type_name, "count": count, "first_s": seconds(first_ns), "last_s": seconds(last_ns)}
 
 
 def _mcap_path(path: str | os.PathLike) -> str:
@@ -476,11 +505,19 @@ def list_topics(path: str | os.PathLike) -> list[dict]:
     if rows is None:
         scan = _scan(path, set())
         origin = scan.origin_ns if scan.origin_ns is not None else (scan.start_ns or 0)
-        rows = [_topic_row(channel.topic, scan.type_of(channel), scan.counts.get(cid, 0),
-                           scan.first_ns.get(cid), scan.last_ns.get(cid), origin)
-                for cid, channel in scan.channels.items()]
+        rows = [
+            _topic_row(
+                channel.topic,
+                scan.type_of(channel),
+                scan.counts.get(cid, 0),
+                scan.first_ns.get(cid),
+                scan.last_ns.get(cid),
+                origin,
+            )
+            for cid, channel in scan.channels.items()
+        ]
     merged: dict[str, dict] = {}
-    for row in rows:              # a topic recorded on two channels is one row
+    for row in rows:  # a topic recorded on two channels is one row
         seen = merged.get(row["topic"])
         if seen is None:
             merged[row["topic"]] = row
@@ -494,6 +531,7 @@ def list_topics(path: str | os.PathLike) -> list[dict]:
 
 # ---------------------------------------------------------------------------------------------------------
 # Reading: decode, convert, check order, assemble
+
 
 class _Drop(Exception):
     """A message that cannot be used; the argument is the reason counted in the report.
@@ -532,11 +570,19 @@ def _sequence(value: Any, what: str) -> list:
 
 
 def _pose_value(pose: Any) -> list[float]:
-    _finite([pose.position.x, pose.position.y, pose.orientation.x, pose.orientation.y, pose.orientation.z,
-             pose.orientation.w])
+    _finite(
+        [
+            pose.position.x,
+            pose.position.y,
+            pose.orientation.x,
+            pose.orientation.y,
+            pose.orientation.z,
+            pose.orientation.w,
+        ]
+    )
     try:
         return ros_pose_to_pose(pose).tolist()
-    except ValueError as error:          # a quaternion of zero length
+    except ValueError as error:  # a quaternion of zero length
         raise _Drop(f"unusable pose: {error}") from None
 
 
@@ -560,7 +606,7 @@ def _truth_value(msg: Any) -> list[float]:
 
 def _joint_value(msg: Any) -> dict[str, float]:
     names = getattr(msg, "name", None)
-    if names is None:                       # a bitbots_msgs/JointCommand
+    if names is None:  # a bitbots_msgs/JointCommand
         names, positions = msg.joint_names, msg.positions
     else:
         positions = msg.position
@@ -573,7 +619,7 @@ def _joint_value(msg: Any) -> dict[str, float]:
 
 
 def _xy(point: Any) -> tuple[float, float]:
-    point = getattr(point, "position", point)       # an older soccer_vision_3d_msgs gives a Pose
+    point = getattr(point, "position", point)  # an older soccer_vision_3d_msgs gives a Pose
     return point.x, point.y
 
 
@@ -588,8 +634,10 @@ def _segment_points(start: tuple[float, float], end: tuple[float, float]) -> lis
     if length == 0.0:
         return [start]
     count = math.ceil(length / SEGMENT_SPACING)
-    return [(start[0] + (end[0] - start[0]) * i / count, start[1] + (end[1] - start[1]) * i / count)
-            for i in range(count + 1)]
+    return [
+        (start[0] + (end[0] - start[0]) * i / count, start[1] + (end[1] - start[1]) * i / count)
+        for i in range(count + 1)
+    ]
 
 
 def _marking_value(msg: Any) -> tuple[list, list, list[str]]:
@@ -620,14 +668,20 @@ def _marking_value(msg: Any) -> tuple[list, list, list[str]]:
 
 
 _VALUE_OF: dict[str, Callable[[Any], Any]] = {
-    "odometry": _odometry_value, "commands": _command_value, "imu": _imu_value, "truth": _truth_value,
-    "joint_states": _joint_value, "joint_commands": _joint_value,
-    "goalposts": _goalpost_value, "markings": _marking_value,
+    "odometry": _odometry_value,
+    "commands": _command_value,
+    "imu": _imu_value,
+    "truth": _truth_value,
+    "joint_states": _joint_value,
+    "joint_commands": _joint_value,
+    "goalposts": _goalpost_value,
+    "markings": _marking_value,
 }
 
 
-def _accept(topic: str, stream: str, messages: list[tuple[Message, Any]], report: ReadReport,
-            origin_ns: int) -> list[_Accepted]:
+def _accept(
+    topic: str, stream: str, messages: list[tuple[Message, Any]], report: ReadReport, origin_ns: int
+) -> list[_Accepted]:
     """Decode and convert a topic's messages (in log-time order); drop, counting why, those not usable.
 
     Stamps must increase in float64 seconds from `origin_ns` too (as `RobotLog` holds them): far from the
@@ -648,11 +702,12 @@ def _accept(topic: str, stream: str, messages: list[tuple[Message, Any]], report
         except _Drop as drop:
             report.drop(topic, str(drop))
             continue
-        except AttributeError as error:      # the file defines the message type without a field read here
+        except AttributeError as error:  # the file defines the message type without a field read here
             report.drop(topic, f"no field {error.name or error} in the message (its schema is not the ROS one)")
             continue
-        fingerprint = hashlib.blake2b(stamp.to_bytes(16, "little", signed=True) + bytes(message.data),
-                                      digest_size=16).digest()
+        fingerprint = hashlib.blake2b(
+            stamp.to_bytes(16, "little", signed=True) + bytes(message.data), digest_size=16
+        ).digest()
         if fingerprint in seen:
             report.drop(topic, "duplicate")
             continue
@@ -660,8 +715,9 @@ def _accept(topic: str, stream: str, messages: list[tuple[Message, Any]], report
         if accepted and stamp < accepted[-1].stamp_ns:
             report.drop(topic, "time went backwards")
             continue
-        if accepted and (stamp == accepted[-1].stamp_ns
-                         or (stamp - origin_ns) / 1e9 == (accepted[-1].stamp_ns - origin_ns) / 1e9):
+        if accepted and (
+            stamp == accepted[-1].stamp_ns or (stamp - origin_ns) / 1e9 == (accepted[-1].stamp_ns - origin_ns) / 1e9
+        ):
             report.drop(topic, "same stamp as the previous message")
             continue
         if stream in ("goalposts", "markings"):
@@ -679,8 +735,9 @@ def _rows(accepted: list[_Accepted], columns: int) -> np.ndarray:
     return np.array([a.value for a in accepted], dtype=np.float64).reshape(len(accepted), columns)
 
 
-def _joint_streams(topics: dict[str, str], accepted: dict[str, list[_Accepted]], report: ReadReport,
-                   origin_ns: int) -> dict[str, Any]:
+def _joint_streams(
+    topics: dict[str, str], accepted: dict[str, list[_Accepted]], report: ReadReport, origin_ns: int
+) -> dict[str, Any]:
     readings = accepted.get("joint_states", [])
     commands = accepted.get("joint_commands", [])
     source = readings or commands
@@ -705,29 +762,35 @@ def _joint_streams(topics: dict[str, str], accepted: dict[str, list[_Accepted]],
             if latest >= 0:
                 row = [reading_rows[latest][i] if math.isnan(v) else v for i, v in enumerate(row)]
         if any(math.isnan(v) for v in row):
-            report.drop(topics["joint_commands"],
-                        f"joint {names[[math.isnan(v) for v in row].index(True)]} has no command or reading yet")
+            report.drop(
+                topics["joint_commands"],
+                f"joint {names[[math.isnan(v) for v in row].index(True)]} has no command or reading yet",
+            )
             continue
         current = row
         command_rows.append(row)
         command_ns.append(item.stamp_ns)
     n = len(names)
-    return {"joint_names": names,
-            "joint_reading_times": _seconds(reading_ns, origin_ns),
-            "joint_readings": np.array(reading_rows, dtype=np.float64).reshape(len(reading_rows), n),
-            "joint_command_times": _seconds(command_ns, origin_ns),
-            "joint_commands": np.array(command_rows, dtype=np.float64).reshape(len(command_rows), n)}
+    return {
+        "joint_names": names,
+        "joint_reading_times": _seconds(reading_ns, origin_ns),
+        "joint_readings": np.array(reading_rows, dtype=np.float64).reshape(len(reading_rows), n),
+        "joint_command_times": _seconds(command_ns, origin_ns),
+        "joint_commands": np.array(command_rows, dtype=np.float64).reshape(len(command_rows), n),
+    }
 
 
-def _vision_frames(topics: dict[str, str], accepted: dict[str, list[_Accepted]], report: ReadReport,
-                   origin_ns: int) -> tuple[VisionFrame, ...]:
+def _vision_frames(
+    topics: dict[str, str], accepted: dict[str, list[_Accepted]], report: ReadReport, origin_ns: int
+) -> tuple[VisionFrame, ...]:
     """The camera frames of the accepted vision messages; a frame whose detections `Observations` refuses (a
     landmark too far, say) is left out, each of its messages counted as dropped with the reason."""
     frames: dict[int, dict[str, Any]] = {}
-    for stream in ("goalposts", "markings"):          # goalposts first: a frame's order
+    for stream in ("goalposts", "markings"):  # goalposts first: a frame's order
         for item in accepted.get(stream, []):
-            frame = frames.setdefault(item.stamp_ns, {"received": item.log_ns, "landmarks": [], "points": [],
-                                                      "topics": []})
+            frame = frames.setdefault(
+                item.stamp_ns, {"received": item.log_ns, "landmarks": [], "points": [], "topics": []}
+            )
             frame["received"] = max(frame["received"], item.log_ns)
             landmarks, points, _ = item.value
             frame["landmarks"].extend(landmarks)
@@ -741,7 +804,8 @@ def _vision_frames(topics: dict[str, str], accepted: dict[str, list[_Accepted]],
                 [int(kind) for kind, _, _ in landmarks],
                 [math.hypot(x, y) for _, x, y in landmarks],
                 [math.atan2(y, x) for _, x, y in landmarks],
-                line_points=np.array(frame["points"], dtype=np.float64).reshape(-1, 2))
+                line_points=np.array(frame["points"], dtype=np.float64).reshape(-1, 2),
+            )
         except ValueError as error:
             for topic in frame["topics"]:
                 report.drop(topic, f"detections refused: {error}")
@@ -756,11 +820,13 @@ def _decoder_for(channel: Channel, schema: Schema | None, factory: DecoderFactor
         return None, "cannot decode: the channel has no schema"
     try:
         decoder = factory.decoder_for(channel.message_encoding, schema)
-    except Exception as error:       # the vendored ROS parser raises many kinds for a bad definition
+    except Exception as error:  # the vendored ROS parser raises many kinds for a bad definition
         return None, f"cannot decode: the schema {schema.name} does not parse ({type(error).__name__})"
     if decoder is None:
-        return None, (f"cannot decode: encoding {channel.message_encoding!r} with a {schema.encoding!r} "
-                      f"schema (only cdr with ros2msg)")
+        return None, (
+            f"cannot decode: encoding {channel.message_encoding!r} with a {schema.encoding!r} "
+            f"schema (only cdr with ros2msg)"
+        )
     return decoder, None
 
 
@@ -796,8 +862,10 @@ def read_mcap(path: str | os.PathLike, topics: Topics = Topics(), gap: float = 1
         for cid, channel in channels:
             type_name = scan.type_of(channel)
             if schemas.short_name(type_name) not in ACCEPTED_TYPES[stream]:
-                raise LogError(f"{path}: topic {topic} carries {type_name}, but the {stream} stream expects "
-                               f"{' or '.join(ACCEPTED_TYPES[stream])}")
+                raise LogError(
+                    f"{path}: topic {topic} carries {type_name}, but the {stream} stream expects "
+                    f"{' or '.join(ACCEPTED_TYPES[stream])}"
+                )
             report.types[topic] = type_name
             kept = scan.kept.get(cid, [])
             decoder, reason = _decoder_for(channel, scan.schemas.get(channel.schema_id), factory)
@@ -806,7 +874,7 @@ def read_mcap(path: str | os.PathLike, topics: Topics = Topics(), gap: float = 1
                     report.drop(topic, reason, len(kept))
                 continue
             messages.extend((message, decoder) for message in kept)
-        messages.sort(key=lambda entry: entry[0].log_time)     # stable: file order among equal log times
+        messages.sort(key=lambda entry: entry[0].log_time)  # stable: file order among equal log times
         report.messages[topic] = sum(scan.counts.get(cid, 0) for cid, _ in channels)
         accepted[stream] = _accept(topic, stream, messages, report, origin_ns)
         stamps = _seconds([a.stamp_ns for a in accepted[stream]], origin_ns)
@@ -818,13 +886,20 @@ def read_mcap(path: str | os.PathLike, topics: Topics = Topics(), gap: float = 1
 
     imu = _rows(accepted.get("imu", []), 6)
     try:
-        log = RobotLog(origin_ns=origin_ns,
-                       odometry_times=times("odometry"), odometry=_rows(accepted.get("odometry", []), 3),
-                       command_times=times("commands"), commands=_rows(accepted.get("commands", []), 3),
-                       imu_times=times("imu"), gyro=imu[:, :3], acceleration=imu[:, 3:],
-                       truth_times=times("truth"), truth=_rows(accepted.get("truth", []), 3),
-                       vision=_vision_frames(chosen, accepted, report, origin_ns),
-                       **_joint_streams(chosen, accepted, report, origin_ns))
+        log = RobotLog(
+            origin_ns=origin_ns,
+            odometry_times=times("odometry"),
+            odometry=_rows(accepted.get("odometry", []), 3),
+            command_times=times("commands"),
+            commands=_rows(accepted.get("commands", []), 3),
+            imu_times=times("imu"),
+            gyro=imu[:, :3],
+            acceleration=imu[:, 3:],
+            truth_times=times("truth"),
+            truth=_rows(accepted.get("truth", []), 3),
+            vision=_vision_frames(chosen, accepted, report, origin_ns),
+            **_joint_streams(chosen, accepted, report, origin_ns),
+        )
     except LogError as error:
         raise LogError(f"{path}: {error}") from None
     return log, report
@@ -847,20 +922,29 @@ def _choose_topics(path: str, scan: _Scan, topics: Topics, report: ReadReport) -
             report.topics[stream] = (topic, "name" if stream in required else "default name")
         elif stream in required:
             where = " (before the file broke)" if scan.stop_reason else ""
-            raise LogError(f"{path}: topic {topic} ({stream}) is not in the log{where}; the log has: "
-                           f"{', '.join(scan.topics()) or 'no topics'}")
+            raise LogError(
+                f"{path}: topic {topic} ({stream}) is not in the log{where}; the log has: "
+                f"{', '.join(scan.topics()) or 'no topics'}"
+            )
     taken = set(chosen.values())
     for stream, topic in wanted.items():
         if stream in chosen:
             continue
         types = DISCOVERY_TYPES.get(stream, ())
-        candidates = sorted({channel.topic for channel in scan.channels.values()
-                             if channel.topic not in taken and schemas.short_name(scan.type_of(channel)) in types})
+        candidates = sorted(
+            {
+                channel.topic
+                for channel in scan.channels.values()
+                if channel.topic not in taken and schemas.short_name(scan.type_of(channel)) in types
+            }
+        )
         if len(candidates) > 1:
             option = f"--topic-{stream.replace('_', '-')}"
-            raise LogError(f"{path}: topic {topic} ({stream}) is not in the log, and {len(candidates)} topics carry "
-                           f"{' or '.join(types)}: {', '.join(candidates)}; choose one with {option} TOPIC "
-                           f"(Topics.{stream} in Python), or {option} '' to read none")
+            raise LogError(
+                f"{path}: topic {topic} ({stream}) is not in the log, and {len(candidates)} topics carry "
+                f"{' or '.join(types)}: {', '.join(candidates)}; choose one with {option} TOPIC "
+                f"(Topics.{stream} in Python), or {option} '' to read none"
+            )
         if candidates:
             chosen[stream] = candidates[0]
             taken.add(candidates[0])
@@ -873,6 +957,7 @@ def _choose_topics(path: str, scan: _Scan, topics: Topics, report: ReadReport) -
 # ---------------------------------------------------------------------------------------------------------
 # Writing
 
+
 def _ray(heading: float) -> dict[str, float]:
     return {"x": math.cos(heading), "y": math.sin(heading), "z": 0.0}
 
@@ -884,23 +969,32 @@ def _vision_messages(observations: Observations, header: dict) -> tuple[dict, di
         x, y = float(r * math.cos(b)), float(r * math.sin(b))
         kind = LandmarkType(int(kind))
         if kind == LandmarkType.GOALPOST:
-            posts.append({"bb": {"center": {"position": {"x": x, "y": y, "z": 0.0}},
-                                 "size": {"x": 0.1, "y": 0.1, "z": 0.8}}})
+            posts.append(
+                {"bb": {"center": {"position": {"x": x, "y": y, "z": 0.0}}, "size": {"x": 0.1, "y": 0.1, "z": 0.8}}}
+            )
         elif kind in rays_of:
             rays = rays_of[kind]
-            intersections.append({"center": {"x": x, "y": y, "z": 0.0}, "num_rays": rays,
-                                  "rays": [_ray(i * math.pi / 2) for i in range(rays)]})
+            intersections.append(
+                {
+                    "center": {"x": x, "y": y, "z": 0.0},
+                    "num_rays": rays,
+                    "rays": [_ray(i * math.pi / 2) for i in range(rays)],
+                }
+            )
         else:
             diameter = PENALTY_MARK_DIAMETER if kind == LandmarkType.PENALTY_MARK else CENTER_CIRCLE_DIAMETER
             ellipses.append({"diameter": diameter, "center": {"position": {"x": x, "y": y, "z": 0.0}}})
-    segments = [{"start": {"x": float(x), "y": float(y), "z": 0.0}, "end": {"x": float(x), "y": float(y), "z": 0.0}}
-                for x, y in observations.line_points]
-    return ({"header": header, "posts": posts},
-            {"header": header, "ellipses": ellipses, "intersections": intersections, "segments": segments})
+    segments = [
+        {"start": {"x": float(x), "y": float(y), "z": 0.0}, "end": {"x": float(x), "y": float(y), "z": 0.0}}
+        for x, y in observations.line_points
+    ]
+    return (
+        {"header": header, "posts": posts},
+        {"header": header, "ellipses": ellipses, "intersections": intersections, "segments": segments},
+    )
 
 
-def write_mcap(log: RobotLog, path: str | os.PathLike, topics: Topics = Topics(), *,
-               chunk_size: int = 1 << 20) -> None:
+def write_mcap(log: RobotLog, path: str | os.PathLike, topics: Topics = Topics(), *, chunk_size: int = 1 << 20) -> None:
     """Write every non-empty stream of `log` to a ROS 2 MCAP file (see the module docstring for how).
 
     `chunk_size` [bytes] is how much the MCAP writer gathers before compressing a chunk: a file cut short
@@ -916,7 +1010,7 @@ def write_mcap(log: RobotLog, path: str | os.PathLike, topics: Topics = Topics()
     def ns(seconds: float) -> int:
         return log.origin_ns + int(round(float(seconds) * 1e9))
 
-    pending: list[tuple[int, str, str, dict]] = []      # (log time, topic, type, message)
+    pending: list[tuple[int, str, str, dict]] = []  # (log time, topic, type, message)
 
     def add(stream: str, type_name: str, times: np.ndarray, messages: Iterable[dict]) -> None:
         topic = getattr(topics, stream)
@@ -928,36 +1022,73 @@ def write_mcap(log: RobotLog, path: str | os.PathLike, topics: Topics = Topics()
     def stamped(times: np.ndarray, frame_id: str) -> list[dict]:
         return [_header(ns(t), frame_id) for t in times]
 
-    add("odometry", schemas.ODOMETRY, log.odometry_times,
-        ({"header": h, "child_frame_id": "base_footprint", "pose": {"pose": pose_to_ros_pose(p)}}
-         for h, p in zip(stamped(log.odometry_times, "odom"), log.odometry)))
-    add("commands", schemas.TWIST, log.command_times,
-        ({"linear": {"x": float(vx), "y": float(vy), "z": 0.0}, "angular": {"x": 0.0, "y": 0.0, "z": float(w)}}
-         for vx, vy, w in log.commands))
+    add(
+        "odometry",
+        schemas.ODOMETRY,
+        log.odometry_times,
+        (
+            {"header": h, "child_frame_id": "base_footprint", "pose": {"pose": pose_to_ros_pose(p)}}
+            for h, p in zip(stamped(log.odometry_times, "odom"), log.odometry)
+        ),
+    )
+    add(
+        "commands",
+        schemas.TWIST,
+        log.command_times,
+        (
+            {"linear": {"x": float(vx), "y": float(vy), "z": 0.0}, "angular": {"x": 0.0, "y": 0.0, "z": float(w)}}
+            for vx, vy, w in log.commands
+        ),
+    )
     # An orientation covariance of -1 is sensor_msgs/Imu's "no orientation estimate".
-    add("imu", schemas.IMU, log.imu_times,
-        ({"header": h, "orientation_covariance": [-1.0] + [0.0] * 8,
-          "angular_velocity": dict(zip("xyz", map(float, g))),
-          "linear_acceleration": dict(zip("xyz", map(float, a)))}
-         for h, g, a in zip(stamped(log.imu_times, "imu_frame"), log.gyro, log.acceleration)))
+    add(
+        "imu",
+        schemas.IMU,
+        log.imu_times,
+        (
+            {
+                "header": h,
+                "orientation_covariance": [-1.0] + [0.0] * 8,
+                "angular_velocity": dict(zip("xyz", map(float, g))),
+                "linear_acceleration": dict(zip("xyz", map(float, a))),
+            }
+            for h, g, a in zip(stamped(log.imu_times, "imu_frame"), log.gyro, log.acceleration)
+        ),
+    )
     names = list(log.joint_names)
-    for stream, times, values in (("joint_states", log.joint_reading_times, log.joint_readings),
-                                  ("joint_commands", log.joint_command_times, log.joint_commands)):
-        add(stream, schemas.JOINT_STATE, times,
-            ({"header": h, "name": names, "position": [float(v) for v in row]}
-             for h, row in zip(stamped(times, ""), values)))
-    add("truth", schemas.POSE_STAMPED, log.truth_times,
-        ({"header": h, "pose": pose_to_ros_pose(p)} for h, p in zip(stamped(log.truth_times, "map"), log.truth)))
+    for stream, times, values in (
+        ("joint_states", log.joint_reading_times, log.joint_readings),
+        ("joint_commands", log.joint_command_times, log.joint_commands),
+    ):
+        add(
+            stream,
+            schemas.JOINT_STATE,
+            times,
+            (
+                {"header": h, "name": names, "position": [float(v) for v in row]}
+                for h, row in zip(stamped(times, ""), values)
+            ),
+        )
+    add(
+        "truth",
+        schemas.POSE_STAMPED,
+        log.truth_times,
+        ({"header": h, "pose": pose_to_ros_pose(p)} for h, p in zip(stamped(log.truth_times, "map"), log.truth)),
+    )
     for frame in log.vision:
         goalposts, markings = _vision_messages(frame.observations, _header(ns(frame.stamp), VISION_FRAME_ID))
-        for stream, type_name, message in (("goalposts", schemas.GOALPOST_ARRAY, goalposts),
-                                           ("markings", schemas.MARKING_ARRAY, markings)):
+        for stream, type_name, message in (
+            ("goalposts", schemas.GOALPOST_ARRAY, goalposts),
+            ("markings", schemas.MARKING_ARRAY, markings),
+        ):
             if getattr(topics, stream):
                 pending.append((ns(frame.received), getattr(topics, stream), type_name, message))
 
     if pending and min(entry[0] for entry in pending) < 0:
-        raise ValueError(f"log.origin_ns = {log.origin_ns}: some times fall before 1970 (MCAP log times are "
-                         f"unsigned nanoseconds since the epoch)")
+        raise ValueError(
+            f"log.origin_ns = {log.origin_ns}: some times fall before 1970 (MCAP log times are "
+            f"unsigned nanoseconds since the epoch)"
+        )
     pending.sort(key=lambda entry: entry[0])
     with open(os.fspath(path), "wb") as file:
         writer = Ros2Writer(file, chunk_size=chunk_size)
@@ -984,21 +1115,28 @@ class PoseWriter:
     each message is its stamp. Close it (or leave the `with`) to finish the file.
     """
 
-    def __init__(self, path: str | os.PathLike, topic: str = Topics.pose_out, frame_id: str = "map",
-                 origin_ns: int = 0, unestimated_variance: float = UNESTIMATED_VARIANCE) -> None:
+    def __init__(
+        self,
+        path: str | os.PathLike,
+        topic: str = Topics.pose_out,
+        frame_id: str = "map",
+        origin_ns: int = 0,
+        unestimated_variance: float = UNESTIMATED_VARIANCE,
+    ) -> None:
         if not isinstance(topic, str) or not topic.startswith("/"):
             raise ValueError(f"topic = {topic!r} must be a topic name starting with '/'")
         if isinstance(origin_ns, bool) or not isinstance(origin_ns, (int, np.integer)):
             raise ValueError(f"origin_ns = {origin_ns!r} must be an integer of nanoseconds")
         if not isinstance(frame_id, str):
             raise ValueError(f"frame_id = {frame_id!r} must be a string")
-        covariance3_to_ros6(np.zeros((3, 3)), unestimated_variance)      # rejects a bad value here, not later
+        covariance3_to_ros6(np.zeros((3, 3)), unestimated_variance)  # rejects a bad value here, not later
         self.path, self.topic, self.frame_id = os.fspath(path), topic, frame_id
         self.origin_ns, self.unestimated_variance = int(origin_ns), float(unestimated_variance)
         self._file = open(self.path, "wb")
         self._writer = Ros2Writer(self._file)
-        self._schema = self._writer.register_msgdef(schemas.POSE_WITH_COVARIANCE_STAMPED,
-                                                    schemas.definition(schemas.POSE_WITH_COVARIANCE_STAMPED))
+        self._schema = self._writer.register_msgdef(
+            schemas.POSE_WITH_COVARIANCE_STAMPED, schemas.definition(schemas.POSE_WITH_COVARIANCE_STAMPED)
+        )
         self.count = 0
 
     def write(self, stamp: int | float, pose, covariance) -> None:
@@ -1044,15 +1182,17 @@ def read_poses(path: str | os.PathLike, topic: str = Topics.pose_out) -> tuple[n
     scan = _scan(path, {topic})
     channels = [(cid, channel) for cid, channel in scan.channels.items() if channel.topic == topic]
     if not channels:
-        raise LogError(f"{path}: topic {topic} is not in the log; the log has: "
-                       f"{', '.join(scan.topics()) or 'no topics'}")
+        raise LogError(
+            f"{path}: topic {topic} is not in the log; the log has: {', '.join(scan.topics()) or 'no topics'}"
+        )
     factory = DecoderFactory()
     rows: list[tuple[int, int, np.ndarray, np.ndarray]] = []
     for cid, channel in channels:
         type_name = scan.type_of(channel)
         if schemas.short_name(type_name) != schemas.short_name(schemas.POSE_WITH_COVARIANCE_STAMPED):
-            raise LogError(f"{path}: topic {topic} carries {type_name}, expected "
-                           f"{schemas.POSE_WITH_COVARIANCE_STAMPED}")
+            raise LogError(
+                f"{path}: topic {topic} carries {type_name}, expected {schemas.POSE_WITH_COVARIANCE_STAMPED}"
+            )
         decoder, _ = _decoder_for(channel, scan.schemas.get(channel.schema_id), factory)
         for message in scan.kept.get(cid, []) if decoder is not None else []:
             try:
@@ -1061,6 +1201,8 @@ def read_poses(path: str | os.PathLike, topic: str = Topics.pose_out) -> tuple[n
                 continue
             rows.append((message.log_time, stamp_ns, pose, covariance))
     rows.sort(key=lambda row: row[0])
-    return (np.array([row[1] for row in rows], dtype=np.int64),
-            np.array([row[2] for row in rows], dtype=np.float64).reshape(-1, 3),
-            np.array([row[3] for row in rows], dtype=np.float64).reshape(-1, 3, 3))
+    return (
+        np.array([row[1] for row in rows], dtype=np.int64),
+        np.array([row[2] for row in rows], dtype=np.float64).reshape(-1, 3),
+        np.array([row[3] for row in rows], dtype=np.float64).reshape(-1, 3, 3),
+    )

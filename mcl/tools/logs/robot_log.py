@@ -22,6 +22,7 @@ times more than `MAX_TIME` from the origin: no clock a log comes from reaches th
 nanoseconds span 584 years), so such a time is corrupt, and bounded times keep every duration finite.
 Arguments of the wrong type (text, complex numbers, an origin that is not an integer) raise `TypeError`.
 """
+
 from __future__ import annotations
 
 import math
@@ -32,7 +33,7 @@ import numpy as np
 
 from sensing.observations import Observations
 
-MAX_TIME = 1e11      # [s] the farthest a time may lie from the origin, before or after (about 3 000 years)
+MAX_TIME = 1e11  # [s] the farthest a time may lie from the origin, before or after (about 3 000 years)
 
 
 class LogError(ValueError):
@@ -69,7 +70,7 @@ def _real_array(name: str, value) -> np.ndarray:
         raise TypeError(f"{name} = {value!r} must be an array of numbers, not text")
     try:
         array = np.asarray(value)
-    except ValueError as error:          # ragged nested sequences
+    except ValueError as error:  # ragged nested sequences
         raise TypeError(f"{name} must be an array of numbers ({error})") from None
     if array.dtype.kind not in "biuf":
         raise TypeError(f"{name} has dtype {array.dtype}, expected real numbers")
@@ -133,8 +134,13 @@ class RobotLog:
     truth_times: np.ndarray = dataclass_field(default_factory=_empty)
     truth: np.ndarray = dataclass_field(default_factory=lambda: _empty(3))
 
-    STREAMS = (("odometry_times", "odometry", 3), ("command_times", "commands", 3), ("imu_times", "gyro", 3),
-               ("imu_times", "acceleration", 3), ("truth_times", "truth", 3))
+    STREAMS = (
+        ("odometry_times", "odometry", 3),
+        ("command_times", "commands", 3),
+        ("imu_times", "gyro", 3),
+        ("imu_times", "acceleration", 3),
+        ("truth_times", "truth", 3),
+    )
 
     def __post_init__(self) -> None:
         if isinstance(self.origin_ns, (bool, np.bool_)) or not isinstance(self.origin_ns, (int, np.integer)):
@@ -144,21 +150,26 @@ class RobotLog:
             raise TypeError(f"joint_names = {self.joint_names!r} must be a sequence of names, not one string")
         n_joints = len(self.joint_names)
         for times_name, values_name, columns in self.STREAMS + (
-                ("joint_command_times", "joint_commands", n_joints),
-                ("joint_reading_times", "joint_readings", n_joints)):
+            ("joint_command_times", "joint_commands", n_joints),
+            ("joint_reading_times", "joint_readings", n_joints),
+        ):
             times = _real_array(times_name, getattr(self, times_name)).reshape(-1)
             values = _real_array(values_name, getattr(self, values_name))
             if values.size == 0:
                 values = values.reshape(times.shape[0] if times.shape[0] and columns == 0 else 0, columns)
             if values.ndim != 2 or values.shape != (times.shape[0], columns):
-                raise LogError(f"{values_name} has shape {values.shape}, expected ({times.shape[0]}, {columns}) "
-                               f"to match {times_name}")
+                raise LogError(
+                    f"{values_name} has shape {values.shape}, expected ({times.shape[0]}, {columns}) "
+                    f"to match {times_name}"
+                )
             if not (np.isfinite(times).all() and np.isfinite(values).all()):
                 raise LogError(f"{times_name} / {values_name} hold a NaN or an infinity")
             if times.shape[0] and np.abs(times).max() > MAX_TIME:
                 i = int(np.argmax(np.abs(times) > MAX_TIME))
-                raise LogError(f"{times_name}[{i}] = {float(times[i])!r} s lies more than MAX_TIME = {MAX_TIME:g} s "
-                               f"from the origin")
+                raise LogError(
+                    f"{times_name}[{i}] = {float(times[i])!r} s lies more than MAX_TIME = {MAX_TIME:g} s "
+                    f"from the origin"
+                )
             if times.shape[0] > 1 and not (np.diff(times) > 0).all():
                 i = int(np.argmax(np.diff(times) <= 0)) + 1
                 raise LogError(f"{times_name}[{i}] = {times[i]:.6f} s does not follow {times[i - 1]:.6f} s")
@@ -178,17 +189,27 @@ class RobotLog:
             if not (math.isfinite(frame.stamp) and math.isfinite(frame.received)):
                 raise LogError(f"vision[{i}] has a non-finite time")
             if max(abs(frame.stamp), abs(frame.received)) > MAX_TIME:
-                raise LogError(f"vision[{i}] (stamp {float(frame.stamp)!r} s, received {float(frame.received)!r} s) "
-                               f"lies more than MAX_TIME = {MAX_TIME:g} s from the origin")
+                raise LogError(
+                    f"vision[{i}] (stamp {float(frame.stamp)!r} s, received {float(frame.received)!r} s) "
+                    f"lies more than MAX_TIME = {MAX_TIME:g} s from the origin"
+                )
             if i and frame.received < frames[i - 1].received:
-                raise LogError(f"vision[{i}] arrives at {frame.received:.6f} s, before vision[{i - 1}] "
-                               f"({frames[i - 1].received:.6f} s): frames are sorted by arrival")
+                raise LogError(
+                    f"vision[{i}] arrives at {frame.received:.6f} s, before vision[{i - 1}] "
+                    f"({frames[i - 1].received:.6f} s): frames are sorted by arrival"
+                )
         object.__setattr__(self, "vision", frames)
 
     def _span(self) -> tuple[float, float] | None:
         starts, ends = [], []
-        for times in (self.odometry_times, self.command_times, self.imu_times, self.joint_command_times,
-                      self.joint_reading_times, self.truth_times):
+        for times in (
+            self.odometry_times,
+            self.command_times,
+            self.imu_times,
+            self.joint_command_times,
+            self.joint_reading_times,
+            self.truth_times,
+        ):
             if times.shape[0]:
                 starts.append(times[0])
                 ends.append(times[-1])
@@ -275,13 +296,13 @@ class ReadReport:
     """
 
     path: str
-    messages: dict[str, int] = dataclass_field(default_factory=dict)       # topic -> messages read
-    types: dict[str, str] = dataclass_field(default_factory=dict)          # topic -> message type
+    messages: dict[str, int] = dataclass_field(default_factory=dict)  # topic -> messages read
+    types: dict[str, str] = dataclass_field(default_factory=dict)  # topic -> message type
     dropped: dict[tuple[str, str], int] = dataclass_field(default_factory=dict)
-    gaps: list[tuple[str, float, float]] = dataclass_field(default_factory=list)   # (topic, start s, length s)
-    stopped_at: float | None = None        # log time [s] of the last message read from a broken log
+    gaps: list[tuple[str, float, float]] = dataclass_field(default_factory=list)  # (topic, start s, length s)
+    stopped_at: float | None = None  # log time [s] of the last message read from a broken log
     stop_reason: str | None = None
-    missing: list[str] = dataclass_field(default_factory=list)   # default topics the log does not have
+    missing: list[str] = dataclass_field(default_factory=list)  # default topics the log does not have
     # stream -> (topic, how it was chosen: "name", "default name" or "type"); MCAP logs only
     topics: dict[str, tuple[str, str]] = dataclass_field(default_factory=dict)
 
@@ -315,8 +336,11 @@ class ReadReport:
         for topic in sorted(self.messages):
             lines.append(f"  {topic} ({self.types.get(topic, '?')}): {self.messages[topic]}")
         for stream, (topic, how) in self.topics.items():
-            why = {"name": "by name, as given", "default name": "by name, the default",
-                   "type": f"by type: the log's only {self.types.get(topic, 'such')} topic"}.get(how, how)
+            why = {
+                "name": "by name, as given",
+                "default name": "by name, the default",
+                "type": f"by type: the log's only {self.types.get(topic, 'such')} topic",
+            }.get(how, how)
             lines.append(f"  {stream.replace('_', ' ')} from {topic} ({why})")
         for (topic, reason), count in sorted(self.dropped.items()):
             lines.append(f"  dropped {count} on {topic}: {reason}")
@@ -331,9 +355,15 @@ class ReadReport:
 
     def to_json(self) -> dict:
         """The report as a dict of JSON types: the drops and gaps as lists of objects, `complete` added."""
-        return {"path": self.path, "messages": dict(self.messages), "types": dict(self.types),
-                "dropped": [{"topic": t, "reason": r, "count": c} for (t, r), c in sorted(self.dropped.items())],
-                "gaps": [{"topic": t, "start_s": s, "length_s": g} for t, s, g in self.gaps],
-                "complete": self.complete, "stopped_at_s": self.stopped_at, "stop_reason": self.stop_reason,
-                "missing": list(self.missing),
-                "topics": {stream: {"topic": topic, "by": how} for stream, (topic, how) in self.topics.items()}}
+        return {
+            "path": self.path,
+            "messages": dict(self.messages),
+            "types": dict(self.types),
+            "dropped": [{"topic": t, "reason": r, "count": c} for (t, r), c in sorted(self.dropped.items())],
+            "gaps": [{"topic": t, "start_s": s, "length_s": g} for t, s, g in self.gaps],
+            "complete": self.complete,
+            "stopped_at_s": self.stopped_at,
+            "stop_reason": self.stop_reason,
+            "missing": list(self.missing),
+            "topics": {stream: {"topic": topic, "by": how} for stream, (topic, how) in self.topics.items()},
+        }

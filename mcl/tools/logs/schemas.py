@@ -13,6 +13,7 @@ ros-sports/soccer_interfaces: soccer_vision_3d_msgs, soccer_vision_attribute_msg
 in either spelling, `nav_msgs/msg/Odometry` (an MCAP schema name) or `nav_msgs/Odometry` (a field type);
 `short_name` turns the first into the second.
 """
+
 from __future__ import annotations
 
 TIME = "builtin_interfaces/msg/Time"
@@ -45,39 +46,71 @@ FIELDS: dict[str, tuple[str, ...]] = {
     "geometry_msgs/Pose": ("geometry_msgs/Point position", "geometry_msgs/Quaternion orientation"),
     "geometry_msgs/PoseStamped": ("std_msgs/Header header", "geometry_msgs/Pose pose"),
     "geometry_msgs/PoseWithCovariance": ("geometry_msgs/Pose pose", "float64[36] covariance"),
-    "geometry_msgs/PoseWithCovarianceStamped": ("std_msgs/Header header",
-                                                "geometry_msgs/PoseWithCovariance pose"),
+    "geometry_msgs/PoseWithCovarianceStamped": ("std_msgs/Header header", "geometry_msgs/PoseWithCovariance pose"),
     "geometry_msgs/Twist": ("geometry_msgs/Vector3 linear", "geometry_msgs/Vector3 angular"),
     "geometry_msgs/TwistWithCovariance": ("geometry_msgs/Twist twist", "float64[36] covariance"),
-    "nav_msgs/Odometry": ("std_msgs/Header header", "string child_frame_id",
-                          "geometry_msgs/PoseWithCovariance pose", "geometry_msgs/TwistWithCovariance twist"),
-    "sensor_msgs/JointState": ("std_msgs/Header header", "string[] name", "float64[] position",
-                               "float64[] velocity", "float64[] effort"),
-    "sensor_msgs/Imu": ("std_msgs/Header header",
-                        "geometry_msgs/Quaternion orientation", "float64[9] orientation_covariance",
-                        "geometry_msgs/Vector3 angular_velocity", "float64[9] angular_velocity_covariance",
-                        "geometry_msgs/Vector3 linear_acceleration",
-                        "float64[9] linear_acceleration_covariance"),
+    "nav_msgs/Odometry": (
+        "std_msgs/Header header",
+        "string child_frame_id",
+        "geometry_msgs/PoseWithCovariance pose",
+        "geometry_msgs/TwistWithCovariance twist",
+    ),
+    "sensor_msgs/JointState": (
+        "std_msgs/Header header",
+        "string[] name",
+        "float64[] position",
+        "float64[] velocity",
+        "float64[] effort",
+    ),
+    "sensor_msgs/Imu": (
+        "std_msgs/Header header",
+        "geometry_msgs/Quaternion orientation",
+        "float64[9] orientation_covariance",
+        "geometry_msgs/Vector3 angular_velocity",
+        "float64[9] angular_velocity_covariance",
+        "geometry_msgs/Vector3 linear_acceleration",
+        "float64[9] linear_acceleration_covariance",
+    ),
     "vision_msgs/BoundingBox3D": ("geometry_msgs/Pose center", "geometry_msgs/Vector3 size"),
     "soccer_vision_attribute_msgs/Confidence": ("float32 CONFIDENCE_UNKNOWN=-1", "float32 confidence -1"),
-    "soccer_vision_attribute_msgs/Goalpost": ("uint8 SIDE_UNKNOWN=0", "uint8 SIDE_LEFT=1", "uint8 SIDE_RIGHT=2",
-                                              "uint8 TEAM_UNKNOWN=0", "uint8 TEAM_OWN=1", "uint8 TEAM_OPPONENT=2",
-                                              "uint8 side", "uint8 team"),
-    "soccer_vision_3d_msgs/Goalpost": ("vision_msgs/BoundingBox3D bb",
-                                       "soccer_vision_attribute_msgs/Goalpost attributes",
-                                       "soccer_vision_attribute_msgs/Confidence confidence"),
+    "soccer_vision_attribute_msgs/Goalpost": (
+        "uint8 SIDE_UNKNOWN=0",
+        "uint8 SIDE_LEFT=1",
+        "uint8 SIDE_RIGHT=2",
+        "uint8 TEAM_UNKNOWN=0",
+        "uint8 TEAM_OWN=1",
+        "uint8 TEAM_OPPONENT=2",
+        "uint8 side",
+        "uint8 team",
+    ),
+    "soccer_vision_3d_msgs/Goalpost": (
+        "vision_msgs/BoundingBox3D bb",
+        "soccer_vision_attribute_msgs/Goalpost attributes",
+        "soccer_vision_attribute_msgs/Confidence confidence",
+    ),
     "soccer_vision_3d_msgs/GoalpostArray": ("std_msgs/Header header", "soccer_vision_3d_msgs/Goalpost[] posts"),
-    "soccer_vision_3d_msgs/MarkingEllipse": ("float64 diameter", "geometry_msgs/Pose center",
-                                             "soccer_vision_attribute_msgs/Confidence confidence"),
-    "soccer_vision_3d_msgs/MarkingIntersection": ("geometry_msgs/Point center", "int32 num_rays",
-                                                  "geometry_msgs/Vector3[] rays",
-                                                  "soccer_vision_attribute_msgs/Confidence confidence"),
-    "soccer_vision_3d_msgs/MarkingSegment": ("geometry_msgs/Point start", "geometry_msgs/Point end",
-                                             "soccer_vision_attribute_msgs/Confidence confidence"),
-    "soccer_vision_3d_msgs/MarkingArray": ("std_msgs/Header header",
-                                           "soccer_vision_3d_msgs/MarkingEllipse[] ellipses",
-                                           "soccer_vision_3d_msgs/MarkingIntersection[] intersections",
-                                           "soccer_vision_3d_msgs/MarkingSegment[] segments"),
+    "soccer_vision_3d_msgs/MarkingEllipse": (
+        "float64 diameter",
+        "geometry_msgs/Pose center",
+        "soccer_vision_attribute_msgs/Confidence confidence",
+    ),
+    "soccer_vision_3d_msgs/MarkingIntersection": (
+        "geometry_msgs/Point center",
+        "int32 num_rays",
+        "geometry_msgs/Vector3[] rays",
+        "soccer_vision_attribute_msgs/Confidence confidence",
+    ),
+    "soccer_vision_3d_msgs/MarkingSegment": (
+        "geometry_msgs/Point start",
+        "geometry_msgs/Point end",
+        "soccer_vision_attribute_msgs/Confidence confidence",
+    ),
+    "soccer_vision_3d_msgs/MarkingArray": (
+        "std_msgs/Header header",
+        "soccer_vision_3d_msgs/MarkingEllipse[] ellipses",
+        "soccer_vision_3d_msgs/MarkingIntersection[] intersections",
+        "soccer_vision_3d_msgs/MarkingSegment[] segments",
+    ),
 }
 
 
@@ -97,8 +130,9 @@ def _field_lines(type_name: str) -> tuple[str, ...]:
     try:
         return FIELDS[short_name(type_name)]
     except KeyError:
-        raise ValueError(f"type_name = {type_name!r} is not one of the message types here: "
-                         f"{', '.join(sorted(FIELDS))}") from None
+        raise ValueError(
+            f"type_name = {type_name!r} is not one of the message types here: {', '.join(sorted(FIELDS))}"
+        ) from None
 
 
 def dependencies(type_name: str) -> list[str]:

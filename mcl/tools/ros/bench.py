@@ -18,6 +18,7 @@ the node's subscriptions are matched, and records the poses with `PoseListener`.
   with the odometry message after its arrival, as the replay does; a frame that DDS delivers after the
   odometry message published just after it is applied one step later than in the replay.
 """
+
 from __future__ import annotations
 
 import json
@@ -37,12 +38,12 @@ if TYPE_CHECKING:
 
 PROG = "robocup-mcl node bench"
 ISOLATED_VARIABLE = "ROBOCUP_MCL_NETNS"
-READY_TIMEOUT = 300.0          # s: the node's start, kernels compiled on a first run included
+READY_TIMEOUT = 300.0  # s: the node's start, kernels compiled on a first run included
 
 
 def loopback_only() -> bool:
     """Whether this process's network namespace has no interface but the loopback."""
-    try:          # /proc/net/dev lists the reading process's namespace (sysfs may show the host's)
+    try:  # /proc/net/dev lists the reading process's namespace (sysfs may show the host's)
         lines = Path("/proc/net/dev").read_text().splitlines()[2:]
     except OSError:
         return False
@@ -63,8 +64,13 @@ def namespace_command(argv: list[str]) -> list[str] | None:
 
 def dds_environment(domain: int) -> dict[str, str]:
     """The environment for DDS on the loopback only: discovery range, localhost-only and a private domain."""
-    return {**os.environ, "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST", "ROS_LOCALHOST_ONLY": "1",
-            "ROS_DOMAIN_ID": str(domain), "RMW_IMPLEMENTATION": "rmw_fastrtps_cpp"}
+    return {
+        **os.environ,
+        "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST",
+        "ROS_LOCALHOST_ONLY": "1",
+        "ROS_DOMAIN_ID": str(domain),
+        "RMW_IMPLEMENTATION": "rmw_fastrtps_cpp",
+    }
 
 
 def _percentiles(values: list[float]) -> dict[str, float | None]:
@@ -73,12 +79,17 @@ def _percentiles(values: list[float]) -> dict[str, float | None]:
     if not values:
         return {"median": None, "p90": None, "p99": None, "max": None}
     array = np.asarray(values) * 1e3
-    return {"median": float(np.median(array)), "p90": float(np.percentile(array, 90)),
-            "p99": float(np.percentile(array, 99)), "max": float(array.max())}
+    return {
+        "median": float(np.median(array)),
+        "p90": float(np.percentile(array, 90)),
+        "p99": float(np.percentile(array, 99)),
+        "max": float(array.max()),
+    }
 
 
-def compare_with_replay(log_path: str, settings: Any, poses: dict[int, tuple[float, float, float]],
-                        seconds: float | None) -> dict:
+def compare_with_replay(
+    log_path: str, settings: Any, poses: dict[int, tuple[float, float, float]], seconds: float | None
+) -> dict:
     """The node's poses (by stamp) against `mcl.tools.replay.replay` of the same log and settings: how many stamps both
     have, the share equal bit for bit, the largest distance [m]."""
     import numpy as np
@@ -87,9 +98,17 @@ def compare_with_replay(log_path: str, settings: Any, poses: dict[int, tuple[flo
     from mcl.tools.replay import replay
 
     log, _ = read_log(log_path)
-    result = replay(log, settings.localizer().field, model=settings.model, particles=settings.particles,
-                    seed=settings.seed, history=settings.history, compensate_latency=settings.compensate_latency,
-                    start=settings.start, localizer=settings.localizer() if settings.profile else None)
+    result = replay(
+        log,
+        settings.localizer().field,
+        model=settings.model,
+        particles=settings.particles,
+        seed=settings.seed,
+        history=settings.history,
+        compensate_latency=settings.compensate_latency,
+        start=settings.start,
+        localizer=settings.localizer() if settings.profile else None,
+    )
     stamps = [log.origin_ns + round(t * 1e9) for t in result.times]
     same, distances, first = 0, [], None
     for t, stamp, estimate in zip(result.times, stamps, result.estimates):
@@ -98,15 +117,19 @@ def compare_with_replay(log_path: str, settings: Any, poses: dict[int, tuple[flo
             continue
         # x and y travel as they are; the heading through a quaternion (its last bits may change)
         equal = (float(estimate[0]), float(estimate[1])) == pose[:2] and abs(
-            math.remainder(float(estimate[2]) - pose[2], math.tau)) < 1e-9
+            math.remainder(float(estimate[2]) - pose[2], math.tau)
+        ) < 1e-9
         same += int(equal)
         if not equal and first is None:
             first = float(t)
         distances.append(float(np.hypot(estimate[0] - pose[0], estimate[1] - pose[1])))
-    return {"compared": len(distances), "equal_share": same / len(distances) if distances else None,
-            "first_difference_s": first,
-            "max_distance_m": max(distances) if distances else None,
-            "median_distance_m": float(np.median(distances)) if distances else None}
+    return {
+        "compared": len(distances),
+        "equal_share": same / len(distances) if distances else None,
+        "first_difference_s": first,
+        "max_distance_m": max(distances) if distances else None,
+        "median_distance_m": float(np.median(distances)) if distances else None,
+    }
 
 
 def run(args: argparse.Namespace, node_argv: list[str]) -> dict:
@@ -117,11 +140,19 @@ def run(args: argparse.Namespace, node_argv: list[str]) -> dict:
     from mcl.tools.ros.player import LogPlayer, PoseListener
 
     env = dds_environment(args.domain)
-    os.environ.update({k: env[k] for k in ("ROS_AUTOMATIC_DISCOVERY_RANGE", "ROS_LOCALHOST_ONLY", "ROS_DOMAIN_ID",
-                                           "RMW_IMPLEMENTATION")})
+    os.environ.update(
+        {
+            k: env[k]
+            for k in ("ROS_AUTOMATIC_DISCOVERY_RANGE", "ROS_LOCALHOST_ONLY", "ROS_DOMAIN_ID", "RMW_IMPLEMENTATION")
+        }
+    )
     stats_path = Path(tempfile.mkdtemp(prefix="robocup-mcl-node-")) / "stats.json"
-    node = subprocess.Popen([sys.executable, "-m", "mcl.tools.ros.node", *node_argv, "--stats", str(stats_path)],
-                            env=env, stderr=subprocess.PIPE, text=True)
+    node = subprocess.Popen(
+        [sys.executable, "-m", "mcl.tools.ros.node", *node_argv, "--stats", str(stats_path)],
+        env=env,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
     context = Context()
     rclpy.init(context=context)
     player = listener = None
@@ -130,18 +161,21 @@ def run(args: argparse.Namespace, node_argv: list[str]) -> dict:
         listener = PoseListener(context=context)
         listener.spin_in_thread(context)
         deadline = time.monotonic() + READY_TIMEOUT
-        topics = [t for t in player.publishers if t in ("/motion_odometry", "/goal_posts_relative",
-                                                        "/markings_relative")]
+        topics = [
+            t for t in player.publishers if t in ("/motion_odometry", "/goal_posts_relative", "/markings_relative")
+        ]
         while time.monotonic() < deadline and node.poll() is None:
             if player.wait_for_subscribers(topics, 0.2) and listener.pose_sub.get_publisher_count() > 0:
                 break
         if node.poll() is not None:
-            raise RuntimeError(f"the node stopped before the log was played: {node.stderr.read()[-2000:] if node.stderr else ''}")
-        time.sleep(0.5)              # the node's subscriptions matched: let the discovery settle
+            raise RuntimeError(
+                f"the node stopped before the log was played: {node.stderr.read()[-2000:] if node.stderr else ''}"
+            )
+        time.sleep(0.5)  # the node's subscriptions matched: let the discovery settle
         started = time.perf_counter()
         sent = player.play(args.rate, args.repeat)
         played = time.perf_counter() - started
-        time.sleep(1.0)              # the last answers
+        time.sleep(1.0)  # the last answers
     finally:
         node.send_signal(signal.SIGINT)
         try:
@@ -164,52 +198,83 @@ def run(args: argparse.Namespace, node_argv: list[str]) -> dict:
     latencies = [answered[stamp][0] - at for stamp, at in sent.items() if stamp in answered]
     expected = len(sent) - 1
     from mcl.tools.ros.parameters import NodeSettings
-    settings = NodeSettings.from_dict({k: v for k, v in vars(args).items() if k in NodeSettings.__dataclass_fields__
-                                       and v is not None})
-    return {"log": args.log, "rate": args.rate, "repeat": args.repeat, "log_seconds_played": played * args.rate,
-            "wall_seconds_played": played, "particles": settings.particles, "field": settings.field,
-            "odometry_sent": len(sent), "poses_received": len(answered), "poses_expected": expected,
-            "poses_dropped": max(expected - len([s for s in sent if s in answered]), 0),
-            "latency_ms": _percentiles(latencies), "tf_messages": len(listener.transforms),
-            "tf_frames": sorted({f"{parent}->{child}" for _, parent, child in listener.transforms}),
-            "quality_changes": listener.qualities, "skipped_topics": player.skipped,
-            "particle_messages": len(listener.particle_counts),
-            "particles_per_message": sorted(set(listener.particle_counts)),
-            "field_markers": {ns: sum(1 for n, _, _ in listener.field_markers if n == ns)
-                              for ns in sorted({n for n, _, _ in listener.field_markers})},
-            "node": stats,
-            "replay": compare_with_replay(args.log, settings, {s: p for s, (_, p) in answered.items()}, args.seconds)}
+
+    settings = NodeSettings.from_dict(
+        {k: v for k, v in vars(args).items() if k in NodeSettings.__dataclass_fields__ and v is not None}
+    )
+    return {
+        "log": args.log,
+        "rate": args.rate,
+        "repeat": args.repeat,
+        "log_seconds_played": played * args.rate,
+        "wall_seconds_played": played,
+        "particles": settings.particles,
+        "field": settings.field,
+        "odometry_sent": len(sent),
+        "poses_received": len(answered),
+        "poses_expected": expected,
+        "poses_dropped": max(expected - len([s for s in sent if s in answered]), 0),
+        "latency_ms": _percentiles(latencies),
+        "tf_messages": len(listener.transforms),
+        "tf_frames": sorted({f"{parent}->{child}" for _, parent, child in listener.transforms}),
+        "quality_changes": listener.qualities,
+        "skipped_topics": player.skipped,
+        "particle_messages": len(listener.particle_counts),
+        "particles_per_message": sorted(set(listener.particle_counts)),
+        "field_markers": {
+            ns: sum(1 for n, _, _ in listener.field_markers if n == ns)
+            for ns in sorted({n for n, _, _ in listener.field_markers})
+        },
+        "node": stats,
+        "replay": compare_with_replay(args.log, settings, {s: p for s, (_, p) in answered.items()}, args.seconds),
+    }
 
 
 def summary(result: dict) -> None:
     """Print the figures for a reader."""
     latency, node = result["latency_ms"], result["node"]
-    print(f"{result['log']}: {result['log_seconds_played']:.1f} s of log at {result['rate']:g}x, "
-          f"{result['particles']} particles")
-    print(f"poses: {result['poses_received']} of {result['poses_expected']} expected, "
-          f"{result['poses_dropped']} dropped")
+    print(
+        f"{result['log']}: {result['log_seconds_played']:.1f} s of log at {result['rate']:g}x, "
+        f"{result['particles']} particles"
+    )
+    print(
+        f"poses: {result['poses_received']} of {result['poses_expected']} expected, {result['poses_dropped']} dropped"
+    )
     if latency["median"] is not None:
-        print(f"latency odometry -> pose: median {latency['median']:.2f} ms, p90 {latency['p90']:.2f} ms, "
-              f"p99 {latency['p99']:.2f} ms, max {latency['max']:.2f} ms")
+        print(
+            f"latency odometry -> pose: median {latency['median']:.2f} ms, p90 {latency['p90']:.2f} ms, "
+            f"p99 {latency['p99']:.2f} ms, max {latency['max']:.2f} ms"
+        )
     if node.get("ordering"):
         print(f"the node ordered camera frames against odometry by {node['ordering']}")
     if node.get("cpu_share") is not None:
-        print(f"node CPU: {100 * node['cpu_share']:.1f} % of one core ({node['cpu_seconds']:.1f} s over "
-              f"{node['wall_seconds']:.1f} s)")
+        print(
+            f"node CPU: {100 * node['cpu_share']:.1f} % of one core ({node['cpu_seconds']:.1f} s over "
+            f"{node['wall_seconds']:.1f} s)"
+        )
     odometry = node.get("callbacks", {}).get("/motion_odometry")
     if odometry:
-        print(f"the node's odometry callback (motion, frames, publishing): median {odometry['median_ms']:.2f} ms, "
-              f"p99 {odometry['p99_ms']:.2f} ms, max {odometry['max_ms']:.2f} ms")
+        print(
+            f"the node's odometry callback (motion, frames, publishing): median {odometry['median_ms']:.2f} ms, "
+            f"p99 {odometry['p99_ms']:.2f} ms, max {odometry['max_ms']:.2f} ms"
+        )
     if result.get("particle_messages") is not None:
-        print(f"particles: {result['particle_messages']} messages of {result['particles_per_message']} poses; "
-              f"field markers: {result['field_markers']}")
+        print(
+            f"particles: {result['particle_messages']} messages of {result['particles_per_message']} poses; "
+            f"field markers: {result['field_markers']}"
+        )
     replay = result["replay"]
     if replay["compared"]:
         first = replay.get("first_difference_s")
-        print(f"against the replay: {replay['compared']} poses, {100 * replay['equal_share']:.1f} % equal bit for bit"
-              + (f" (first difference at {first:.2f} s), median distance {replay['median_distance_m']:.4f} m,"
-                 if first is not None else ",")
-              + f" largest distance {replay['max_distance_m']:.4f} m")
+        print(
+            f"against the replay: {replay['compared']} poses, {100 * replay['equal_share']:.1f} % equal bit for bit"
+            + (
+                f" (first difference at {first:.2f} s), median distance {replay['median_distance_m']:.4f} m,"
+                if first is not None
+                else ","
+            )
+            + f" largest distance {replay['max_distance_m']:.4f} m"
+        )
     if node.get("not_used"):
         print(f"not used by the node: {node['not_used']}")
 
@@ -221,20 +286,31 @@ def build_parser(prog: str = PROG) -> argparse.ArgumentParser:
     from mcl.tools.cli_checks import NO_PROGRESS_HELP, add_save_option
 
     parser = argparse.ArgumentParser(
-        prog=prog, description="Play a robot's MCAP log to the live node over DDS, in a network namespace with "
+        prog=prog,
+        description="Play a robot's MCAP log to the live node over DDS, in a network namespace with "
         "only the loopback: latency from odometry to pose, drops, the node's CPU share, and its poses against the "
-        "replay's.")
+        "replay's.",
+    )
     parser.add_argument("log", help="the MCAP log (robocup-mcl replay's topics)")
-    parser.add_argument("--field", default="spl", help="the node's field: spl, kidsize, adultsize or a file (default spl)")
+    parser.add_argument(
+        "--field", default="spl", help="the node's field: spl, kidsize, adultsize or a file (default spl)"
+    )
     parser.add_argument("--particles", type=int, default=500, help="the node's particles (default 500)")
     parser.add_argument("--seed", type=int, default=0, help="the node's seed (default 0)")
     parser.add_argument("--rate", type=float, default=1.0, help="play at this multiple of real time (default 1)")
     parser.add_argument("--seconds", type=float, default=None, help="play at most this many seconds of the log")
-    parser.add_argument("--repeat", type=int, default=1,
-                        help="play the log this many times in a row, stamps moved on (a soak; default 1)")
-    parser.add_argument("--no-source-timestamps", action="store_true",
-                        help="run the node with use_source_timestamps false: frames ordered as on Humble (receive "
-                        "order and header stamps)")
+    parser.add_argument(
+        "--repeat",
+        type=int,
+        default=1,
+        help="play the log this many times in a row, stamps moved on (a soak; default 1)",
+    )
+    parser.add_argument(
+        "--no-source-timestamps",
+        action="store_true",
+        help="run the node with use_source_timestamps false: frames ordered as on Humble (receive "
+        "order and header stamps)",
+    )
     parser.add_argument("--domain", type=int, default=None, help="ROS_DOMAIN_ID (default: 100 + pid %% 100)")
     parser.add_argument("--json", action="store_true", help="print the figures as JSON")
     add_save_option(parser)
@@ -260,19 +336,22 @@ def main(argv: list[str] | None = None, prog: str = PROG) -> int:
             raise CommandError("the namespace has interfaces besides the loopback; refusing to start DDS")
         wrapped = namespace_command([sys.executable, "-m", "mcl.tools.ros.bench", *argv])
         if wrapped is None:
-            raise CommandError("cannot make a loopback-only network namespace here (needs root, unshare and ip); "
-                               "DDS is not started on the host's network")
+            raise CommandError(
+                "cannot make a loopback-only network namespace here (needs root, unshare and ip); "
+                "DDS is not started on the host's network"
+            )
         return subprocess.run(wrapped, env={**os.environ, ISOLATED_VARIABLE: "1"}).returncode
     if args.domain is None:
         args.domain = 100 + os.getpid() % 100
     from mcl.numba_cache import guard_source_checkout
+
     guard_source_checkout()
     node_argv = ["--field", args.field, "--particles", str(args.particles), "--seed", str(args.seed)]
     if args.no_source_timestamps:
         node_argv.append("--no-use-source-timestamps")
     try:
         result = run(args, node_argv)
-    except RuntimeError as error:        # the node or the player failed: their own messages say why
+    except RuntimeError as error:  # the node or the player failed: their own messages say why
         raise CommandError(str(error)) from None
     save_and_print(result, args.save, args.json, summary)
     return 0
@@ -280,4 +359,5 @@ def main(argv: list[str] | None = None, prog: str = PROG) -> int:
 
 if __name__ == "__main__":
     from mcl.tools.cli_checks import run_main
+
     raise SystemExit(run_main(main, "python -m mcl.tools.ros.bench"))

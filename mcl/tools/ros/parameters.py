@@ -11,6 +11,7 @@ Topics and frames follow `mcl.tools.logs.mcap_io.Topics` and `robocup-mcl replay
 a log recorded on the robot replays with the same topics the node listens to. A topic set to "" is not
 subscribed (or published).
 """
+
 from __future__ import annotations
 
 import math
@@ -20,8 +21,17 @@ from typing import Any
 from mcl.tools.logs.mcap_io import Topics
 
 _TOPICS = Topics()
-EVENTS = ("initial_placement", "kickoff_placement", "kickoff_placement_defending", "manual_placement",
-          "anywhere_in_own_half", "penalized", "penalty_return", "fallen", "got_up")
+EVENTS = (
+    "initial_placement",
+    "kickoff_placement",
+    "kickoff_placement_defending",
+    "manual_placement",
+    "anywhere_in_own_half",
+    "penalized",
+    "penalty_return",
+    "fallen",
+    "got_up",
+)
 STARTS = ("own_half", "field", "initial", "penalty")
 
 
@@ -166,8 +176,21 @@ class NodeSettings:
         player = self.player_number or None
         if self.profile:
             from mcl.profile import Profile
+
             return Profile.load(self.profile).localizer(
-                field, seed=self.seed, n_particles=self.particles, history=self.history,
-                compensate_latency=self.compensate_latency, team=Team(player))
-        return Localizer(field, MODELS[self.model](), n_particles=self.particles, seed=self.seed,
-                         history=self.history, compensate_latency=self.compensate_latency, team=Team(player))
+                field,
+                seed=self.seed,
+                n_particles=self.particles,
+                history=self.history,
+                compensate_latency=self.compensate_latency,
+                team=Team(player),
+            )
+        return Localizer(
+            field,
+            MODELS[self.model](),
+            n_particles=self.particles,
+            seed=self.seed,
+            history=self.history,
+            compensate_latency=self.compensate_latency,
+            team=Team(player),
+        )

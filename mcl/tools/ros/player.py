@@ -14,6 +14,7 @@ with every header stamp moved on by the log's length (and one odometry period), 
 goes back: an hour from a minute-long log. Messages of a type that does not import here are left out (listed in
 `skipped`). Publishers are reliable with a queue of 100 (the node's subscriptions match).
 """
+
 from __future__ import annotations
 
 import importlib
@@ -50,8 +51,9 @@ class LogPlayer:
         The topic whose send times `play` returns (its messages' stamps as keys).
     """
 
-    def __init__(self, path: str, context: Any = None, seconds: float | None = None,
-                 odometry_topic: str = ODOMETRY_TOPIC) -> None:
+    def __init__(
+        self, path: str, context: Any = None, seconds: float | None = None, odometry_topic: str = ODOMETRY_TOPIC
+    ) -> None:
         import rclpy
         from mcap.reader import make_reader
         from rclpy.qos import QoSProfile, ReliabilityPolicy
@@ -74,14 +76,20 @@ class LogPlayer:
                     except (ImportError, AttributeError):
                         self.skipped[topic] = type_name
                         continue
-                rows.append((message.log_time, topic != odometry_topic, topic,
-                             deserialize_message(message.data, classes[topic])))
+                rows.append(
+                    (
+                        message.log_time,
+                        topic != odometry_topic,
+                        topic,
+                        deserialize_message(message.data, classes[topic]),
+                    )
+                )
         if not rows:
             raise ValueError(f"{path}: no message of a type that imports here")
         first = rows[0][0]
         if seconds is not None:
             rows = [row for row in rows if row[0] - first <= seconds * 1e9]
-        rows.sort(key=lambda row: (row[0], not row[1]))      # at one log time: the camera, then odometry
+        rows.sort(key=lambda row: (row[0], not row[1]))  # at one log time: the camera, then odometry
         self.messages = [(log_ns - first, topic, message) for log_ns, _, topic, message in rows]
         self.duration_ns = self.messages[-1][0]
         odometry = [t for t, topic, _ in self.messages if topic == odometry_topic]
@@ -111,7 +119,7 @@ class LogPlayer:
                 if pause > 0:
                     time.sleep(pause)
                 header = getattr(message, "header", None)
-                if header is not None and lap:        # each lap moves the stamps of the one before on
+                if header is not None and lap:  # each lap moves the stamps of the one before on
                     stamp = header.stamp.sec * 1_000_000_000 + header.stamp.nanosec + shift_ns
                     header.stamp.sec, header.stamp.nanosec = divmod(stamp, 1_000_000_000)
                 self.publishers[topic].publish(message)
@@ -129,9 +137,14 @@ class PoseListener:
     changes, the sizes of its particle messages and its field markers (latched: received however late the
     listener starts). Spin `node` with an executor (`spin_in_thread`)."""
 
-    def __init__(self, context: Any = None, pose_topic: str = "/robocup_mcl/pose",
-                 quality_topic: str = "/robocup_mcl/quality", particles_topic: str = "/robocup_mcl/particles",
-                 field_topic: str = "/robocup_mcl/field") -> None:
+    def __init__(
+        self,
+        context: Any = None,
+        pose_topic: str = "/robocup_mcl/pose",
+        quality_topic: str = "/robocup_mcl/quality",
+        particles_topic: str = "/robocup_mcl/particles",
+        field_topic: str = "/robocup_mcl/field",
+    ) -> None:
         import rclpy
         from geometry_msgs.msg import PoseArray, PoseWithCovarianceStamped
         from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
@@ -139,28 +152,36 @@ class PoseListener:
         from tf2_msgs.msg import TFMessage
 
         self.node = rclpy.create_node("robocup_mcl_listener", context=context)
-        self.poses: list[tuple[int, float, tuple[float, float, float]]] = []   # (stamp ns, arrival, pose)
+        self.poses: list[tuple[int, float, tuple[float, float, float]]] = []  # (stamp ns, arrival, pose)
         self.transforms: list[tuple[int, str, str]] = []
         self.qualities: list[str] = []
-        self.particle_counts: list[int] = []            # poses in each particles message
-        self.field_markers: list[tuple[str, int, int]] = []     # (namespace, id, type) of the last MarkerArray
+        self.particle_counts: list[int] = []  # poses in each particles message
+        self.field_markers: list[tuple[str, int, int]] = []  # (namespace, id, type) of the last MarkerArray
         self._lock = threading.Lock()
         self.pose_sub = self.node.create_subscription(PoseWithCovarianceStamped, pose_topic, self._pose, 100)
         self.node.create_subscription(TFMessage, "/tf", self._tf, QoSProfile(depth=100))
-        self.node.create_subscription(String, quality_topic, lambda m: self.qualities.append(m.data),
-                                      QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
-                                                 durability=DurabilityPolicy.TRANSIENT_LOCAL))
-        self.node.create_subscription(PoseArray, particles_topic,
-                                      lambda m: self.particle_counts.append(len(m.poses)), 10)
+        self.node.create_subscription(
+            String,
+            quality_topic,
+            lambda m: self.qualities.append(m.data),
+            QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL),
+        )
+        self.node.create_subscription(
+            PoseArray, particles_topic, lambda m: self.particle_counts.append(len(m.poses)), 10
+        )
         try:
             marker_array = message_class("visualization_msgs/MarkerArray")
-        except ImportError:         # the field is not listened to where the message is not installed
+        except ImportError:  # the field is not listened to where the message is not installed
             pass
         else:
             self.node.create_subscription(
-                marker_array, field_topic, self._field,
-                QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
-                           durability=DurabilityPolicy.TRANSIENT_LOCAL))
+                marker_array,
+                field_topic,
+                self._field,
+                QoSProfile(
+                    depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL
+                ),
+            )
         self._executor: Any = None
         self._thread: threading.Thread | None = None
 
@@ -192,7 +213,7 @@ class PoseListener:
     def _spin(self) -> None:
         try:
             self._executor.spin()
-        except Exception:        # noqa: BLE001 - the executor stops when the context shuts down
+        except Exception:  # noqa: BLE001 - the executor stops when the context shuts down
             pass
 
     def close(self) -> None:
@@ -210,14 +231,21 @@ def build_parser(prog: str = PROG) -> argparse.ArgumentParser:
 
     from mcl.tools.cli_checks import NO_PROGRESS_HELP
 
-    parser = argparse.ArgumentParser(prog=prog, description="Play a robot's MCAP log to its ROS 2 topics, in "
-                                     "log-time order at its log times (camera messages before odometry at equal times).")
+    parser = argparse.ArgumentParser(
+        prog=prog,
+        description="Play a robot's MCAP log to its ROS 2 topics, in "
+        "log-time order at its log times (camera messages before odometry at equal times).",
+    )
     parser.add_argument("log", help="the MCAP log")
     parser.add_argument("--rate", type=float, default=1.0, help="multiple of real time (default 1)")
     parser.add_argument("--seconds", type=float, default=None, help="play at most this many seconds of the log")
     parser.add_argument("--repeat", type=int, default=1, help="play it this many times, stamps moved on (default 1)")
-    parser.add_argument("--wait", type=float, default=10.0,
-                        help="seconds to wait for a subscriber on the odometry topic before playing (default 10)")
+    parser.add_argument(
+        "--wait",
+        type=float,
+        default=10.0,
+        help="seconds to wait for a subscriber on the odometry topic before playing (default 10)",
+    )
     parser.add_argument("--no-progress", action="store_true", help=NO_PROGRESS_HELP + "; this command shows none")
     return parser
 
@@ -238,8 +266,10 @@ def main(argv: list[str] | None = None, prog: str = PROG) -> int:
         player = LogPlayer(args.log, seconds=args.seconds)
         player.wait_for_subscribers([player.odometry_topic], args.wait)
         sent = player.play(args.rate, args.repeat)
-        print(f"played {len(player.messages) * args.repeat} messages ({len(sent)} odometry) of {args.log}"
-              + (f"; left out (type not installed): {player.skipped}" if player.skipped else ""))
+        print(
+            f"played {len(player.messages) * args.repeat} messages ({len(sent)} odometry) of {args.log}"
+            + (f"; left out (type not installed): {player.skipped}" if player.skipped else "")
+        )
         player.close()
     finally:
         if rclpy.ok():

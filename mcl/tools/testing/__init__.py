@@ -47,6 +47,7 @@ centimetres, detections within the carpet's diagonal); `hostile_motion_inputs` a
 the extremes the library still accepts (a step of 99 m and 99 rad, ranges of 1000 m, bearings of 100 rad,
 noises of 1e-6 and 1e3), and `hostile_values` what it refuses.
 """
+
 from __future__ import annotations
 
 from mcl.tools.testing.contracts import (
@@ -95,15 +96,40 @@ from mcl.tools.testing.strategies import (
 __all__ = [
     "REFUSALS",
     # strategies
-    "fields", "poses", "pose_arrays", "particle_sets", "observations", "edge_observations", "camera_views",
-    "motion_inputs", "hostile_motion_inputs", "collision_percepts", "footstep_events", "hostile_values",
+    "fields",
+    "poses",
+    "pose_arrays",
+    "particle_sets",
+    "observations",
+    "edge_observations",
+    "camera_views",
+    "motion_inputs",
+    "hostile_motion_inputs",
+    "collision_percepts",
+    "footstep_events",
+    "hostile_values",
     # filter invariants
-    "assert_weights_normalized", "assert_poses_finite_and_wrapped", "FilterSnapshot", "snapshot",
-    "assert_unchanged", "assert_refused_leaves_state", "assert_same_seed_same_run",
+    "assert_weights_normalized",
+    "assert_poses_finite_and_wrapped",
+    "FilterSnapshot",
+    "snapshot",
+    "assert_unchanged",
+    "assert_refused_leaves_state",
+    "assert_same_seed_same_run",
     # model contracts
-    "ContractReport", "assert_motion_contract", "assert_sensor_contract", "check_motion_model",
-    "check_sensor_model", "assert_fused_likelihood",
+    "ContractReport",
+    "assert_motion_contract",
+    "assert_sensor_contract",
+    "check_motion_model",
+    "check_sensor_model",
+    "assert_fused_likelihood",
     # registered models
-    "ENTRY_POINT_GROUPS", "RegisteredModel", "RegisteredReport", "register_motion_model", "register_sensor_model",
-    "unregister", "registered_models", "check_registered",
+    "ENTRY_POINT_GROUPS",
+    "RegisteredModel",
+    "RegisteredReport",
+    "register_motion_model",
+    "register_sensor_model",
+    "unregister",
+    "registered_models",
+    "check_registered",
 ]

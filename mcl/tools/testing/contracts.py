@@ -1,6 +1,7 @@
 """Contract checks of any motion or sensor model, the library's or a team's own: one example
 (`assert_motion_contract`, `assert_sensor_contract`, `assert_fused_likelihood`) or a hypothesis search
 (`check_motion_model`, `check_sensor_model`)."""
+
 from __future__ import annotations
 
 import math
@@ -72,8 +73,9 @@ def _fresh_state(model, n: int) -> np.ndarray | None:
         state = np.ascontiguousarray(make(n))
     except Exception as error:
         raise AssertionError(f"{_name(model)}.particle_state({n}) raised {type(error).__name__}: {error}") from error
-    assert state.ndim >= 1 and state.shape[0] == n, \
+    assert state.ndim >= 1 and state.shape[0] == n, (
         f"{_name(model)}.particle_state({n}) must have {n} rows, got shape {state.shape}"
+    )
     return state
 
 
@@ -86,8 +88,9 @@ def _predict(model, poses: np.ndarray, u: MotionInput, seed: int, state: np.ndar
     return rng
 
 
-def assert_motion_contract(model: MotionModel, poses: ArrayLike, u: MotionInput, seed: int = 0, *,
-                           strict: bool = False) -> bool:
+def assert_motion_contract(
+    model: MotionModel, poses: ArrayLike, u: MotionInput, seed: int = 0, *, strict: bool = False
+) -> bool:
     """Check one motion input against a motion model's contract.
 
     `model.check(u)` either refuses with ValueError/TypeError (any other exception fails), or accepts; then
@@ -131,8 +134,10 @@ def assert_motion_contract(model: MotionModel, poses: ArrayLike, u: MotionInput,
             _assert_predict_refuses(model, start, u, seed, error)
         return False
     except Exception as error:
-        raise AssertionError(f"{name}.check({u!r}) raised {type(error).__name__}: {error}; a refused input must "
-                             "raise ValueError or TypeError") from error
+        raise AssertionError(
+            f"{name}.check({u!r}) raised {type(error).__name__}: {error}; a refused input must "
+            "raise ValueError or TypeError"
+        ) from error
     results = []
     for _ in range(2):
         moved = start.copy()
@@ -141,17 +146,20 @@ def assert_motion_contract(model: MotionModel, poses: ArrayLike, u: MotionInput,
         try:
             rng = _predict(model, moved, u, seed, state)
         except Exception as error:
-            raise AssertionError(f"{name}.check accepted {u!r} but predict raised {type(error).__name__}: "
-                                 f"{error}") from error
-        assert moved.shape == (n, 3) and moved.dtype == np.float64, \
+            raise AssertionError(
+                f"{name}.check accepted {u!r} but predict raised {type(error).__name__}: {error}"
+            ) from error
+        assert moved.shape == (n, 3) and moved.dtype == np.float64, (
             f"{name}.predict changed the poses' shape or dtype to {moved.dtype} {moved.shape} (input {u!r})"
+        )
         try:
             assert_poses_finite_and_wrapped(moved)
         except AssertionError as error:
             raise AssertionError(f"{name}.predict with {u!r}: {error}") from None
         if state is not None:
-            assert state.shape == state_shape, \
+            assert state.shape == state_shape, (
                 f"{name}.predict changed the state's shape from {state_shape} to {state.shape} (input {u!r})"
+            )
             if state.dtype.kind in "fc":
                 assert np.isfinite(state).all(), f"{name}.predict left a non-finite particle state (input {u!r})"
         results.append((moved, state, _frozen(rng.bit_generator.state)))
@@ -159,10 +167,13 @@ def assert_motion_contract(model: MotionModel, poses: ArrayLike, u: MotionInput,
     for label, a, b in (("poses", first, second), ("state", first_state, second_state)):
         difference = _array_difference(label, a, b)
         if difference:
-            raise AssertionError(f"{name}.predict from the same seed gave different results: {difference} "
-                                 f"(input {u!r}); it must draw only from the generator it is given")
-    assert first_rng == second_rng, \
+            raise AssertionError(
+                f"{name}.predict from the same seed gave different results: {difference} "
+                f"(input {u!r}); it must draw only from the generator it is given"
+            )
+    assert first_rng == second_rng, (
         f"{name}.predict from the same seed left the generator in different states (input {u!r})"
+    )
     return True
 
 
@@ -181,35 +192,50 @@ def _assert_predict_refuses(model, start: np.ndarray, u: MotionInput, seed: int,
     except REFUSALS:
         pass
     except Exception as error:
-        raise AssertionError(f"{name}.predict({u!r}) raised {type(error).__name__}: {error}; check refused it "
-                             f"({type(refusal).__name__}), predict must refuse it with ValueError or "
-                             "TypeError") from error
+        raise AssertionError(
+            f"{name}.predict({u!r}) raised {type(error).__name__}: {error}; check refused it "
+            f"({type(refusal).__name__}), predict must refuse it with ValueError or "
+            "TypeError"
+        ) from error
     else:
-        raise AssertionError(f"{name}.check refused {u!r} ({type(refusal).__name__}: {refusal}) but predict "
-                             "accepted it")
+        raise AssertionError(
+            f"{name}.check refused {u!r} ({type(refusal).__name__}: {refusal}) but predict accepted it"
+        )
     difference = _array_difference("poses", start, moved) or _array_difference("state", state_before, state)
     if difference:
         raise AssertionError(f"{name}.predict refused {u!r} but changed {difference}")
-    assert _frozen(rng.bit_generator.state) == rng_before, \
-        f"{name}.predict refused {u!r} but drew random numbers first"
+    assert _frozen(rng.bit_generator.state) == rng_before, f"{name}.predict refused {u!r} but drew random numbers first"
 
 
 def _run(test: Callable, max_examples: int, strategies: dict, shrink: bool | None) -> None:
     """Run `test` on `max_examples` examples drawn from `strategies`: the same examples on every run, nothing
     stored; the phases of the loaded hypothesis profile unless `shrink` says whether to shrink a failure."""
-    configured = settings(max_examples=max_examples, deadline=None, derandomize=True, database=None,
-                          suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large,
-                                                 HealthCheck.filter_too_much])
+    configured = settings(
+        max_examples=max_examples,
+        deadline=None,
+        derandomize=True,
+        database=None,
+        suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large, HealthCheck.filter_too_much],
+    )
     if shrink is not None:
-        configured = settings(configured, phases=tuple(Phase) if shrink else (Phase.explicit, Phase.reuse,
-                                                                                Phase.generate))
+        configured = settings(
+            configured, phases=tuple(Phase) if shrink else (Phase.explicit, Phase.reuse, Phase.generate)
+        )
     configured(given(**strategies)(test))()
 
 
-def check_motion_model(model: MotionModel, field: Field | None = None, *, n: int | tuple[int, int] = (1, 64),
-                       inputs: st.SearchStrategy | None = None, hostile: st.SearchStrategy | None = None,
-                       refused: Sequence[MotionInput] = (), strict: bool = False,
-                       max_examples: int = 20, shrink: bool | None = None) -> ContractReport:
+def check_motion_model(
+    model: MotionModel,
+    field: Field | None = None,
+    *,
+    n: int | tuple[int, int] = (1, 64),
+    inputs: st.SearchStrategy | None = None,
+    hostile: st.SearchStrategy | None = None,
+    refused: Sequence[MotionInput] = (),
+    strict: bool = False,
+    max_examples: int = 20,
+    shrink: bool | None = None,
+) -> ContractReport:
     """Check a motion model against the contract the filter relies on, on examples hypothesis draws.
 
     Each example runs `assert_motion_contract` on particles on the carpet, for an input from `inputs` and one
@@ -260,8 +286,10 @@ def check_motion_model(model: MotionModel, field: Field | None = None, *, n: int
         except REFUSALS:
             pass
         except Exception as error:
-            raise AssertionError(f"{_name(model)}.check({u!r}) raised {type(error).__name__}: {error}; it must "
-                                 "refuse with ValueError or TypeError") from error
+            raise AssertionError(
+                f"{_name(model)}.check({u!r}) raised {type(error).__name__}: {error}; it must "
+                "refuse with ValueError or TypeError"
+            ) from error
         else:
             raise AssertionError(f"{_name(model)}.check accepted {u!r}, which it must refuse")
         assert not assert_motion_contract(model, start, u, strict=strict)
@@ -277,11 +305,20 @@ def check_motion_model(model: MotionModel, field: Field | None = None, *, n: int
         else:
             report.hostile_refused += 1
 
-    _run(test, max_examples, dict(
-        poses=pose_arrays(field, n), u=motion_inputs("any", collision=True) if inputs is None else inputs,
-        bad=hostile_motion_inputs() if hostile is None else hostile, seed=st.integers(0, 2**63 - 1)), shrink)
-    assert report.accepted > 0, (f"{_name(model)} refused all {report.refused} inputs drawn: give `inputs=` a "
-                                 "strategy of the inputs it takes")
+    _run(
+        test,
+        max_examples,
+        dict(
+            poses=pose_arrays(field, n),
+            u=motion_inputs("any", collision=True) if inputs is None else inputs,
+            bad=hostile_motion_inputs() if hostile is None else hostile,
+            seed=st.integers(0, 2**63 - 1),
+        ),
+        shrink,
+    )
+    assert report.accepted > 0, (
+        f"{_name(model)} refused all {report.refused} inputs drawn: give `inputs=` a strategy of the inputs it takes"
+    )
     return report
 
 
@@ -290,7 +327,8 @@ _OBSERVATION_ARRAYS = ("kinds", "ranges", "bearings", "range_sigmas", "bearing_s
 
 def _observation_image(observations) -> tuple:
     return tuple((name, _copy(getattr(observations, name, None))) for name in _OBSERVATION_ARRAYS) + (
-        ("view", repr(getattr(observations, "view", None))),)
+        ("view", repr(getattr(observations, "view", None))),
+    )
 
 
 def _bound_of(bound, observations) -> float | None:
@@ -299,8 +337,9 @@ def _bound_of(bound, observations) -> float | None:
     return float(bound(observations)) if callable(bound) else float(bound)
 
 
-def assert_fused_likelihood(model: SensorModel, poses: ArrayLike, observations: Observations,
-                            since: Sequence[float] | np.ndarray | None = None) -> bool:
+def assert_fused_likelihood(
+    model: SensorModel, poses: ArrayLike, observations: Observations, since: Sequence[float] | np.ndarray | None = None
+) -> bool:
     """The sensor model's fused-likelihood kernels (`sensing.fused`), run as the filter's fused step runs them,
     give `log_likelihood` bit for bit; with `since` (camera latency), `log_likelihood` of the poses moved back.
 
@@ -340,22 +379,30 @@ def assert_fused_likelihood(model: SensorModel, poses: ArrayLike, observations: 
     fused = np.empty(n)
     work = kernels.workspace(frame, min(max(n, 1), STEP_BLOCK))
     copying = (False, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, False, np.empty((0, 3)))
-    fused_step(kernels).predict_and_score(poses, np.empty_like(poses), np.empty((n, 2)), fused, copying, (0, 0),
-                                          frame, work, 0, n, False, displacement)
+    fused_step(kernels).predict_and_score(
+        poses, np.empty_like(poses), np.empty((n, 2)), fused, copying, (0, 0), frame, work, 0, n, False, displacement
+    )
     scored = poses
     if since is not None:
         scored = np.empty_like(poses)
         move_back(poses, displacement, scored)
     plain = np.asarray(model.log_likelihood(scored, observations), dtype=np.float64)
     differ = np.flatnonzero(fused.view(np.int64) != plain.view(np.int64))
-    assert differ.size == 0, (f"{_name(model)}: the fused kernels score particle {differ[0]} "
-                              f"{fused[differ[0]]!r}, log_likelihood {plain[differ[0]]!r}")
+    assert differ.size == 0, (
+        f"{_name(model)}: the fused kernels score particle {differ[0]} "
+        f"{fused[differ[0]]!r}, log_likelihood {plain[differ[0]]!r}"
+    )
     return True
 
 
-def assert_sensor_contract(model: SensorModel, poses: ArrayLike, observations: Observations, *,
-                           bound: float | Callable[[Observations], float] | None = None,
-                           allow_neg_inf: bool = False) -> bool:
+def assert_sensor_contract(
+    model: SensorModel,
+    poses: ArrayLike,
+    observations: Observations,
+    *,
+    bound: float | Callable[[Observations], float] | None = None,
+    allow_neg_inf: bool = False,
+) -> bool:
     """Check one frame against a sensor model's contract.
 
     `model.check(observations)` either refuses with ValueError/TypeError (any other exception fails), or
@@ -398,13 +445,16 @@ def assert_sensor_contract(model: SensorModel, poses: ArrayLike, observations: O
     except REFUSALS:
         return False
     except Exception as error:
-        raise AssertionError(f"{name}.check raised {type(error).__name__}: {error}; refused observations must "
-                             "raise ValueError or TypeError") from error
+        raise AssertionError(
+            f"{name}.check raised {type(error).__name__}: {error}; refused observations must "
+            "raise ValueError or TypeError"
+        ) from error
     terms = getattr(model, "terms", None)
     if callable(terms):
         count = terms(observations)
-        assert isinstance(count, (int, np.integer)) and not isinstance(count, (bool, np.bool_)), \
+        assert isinstance(count, (int, np.integer)) and not isinstance(count, (bool, np.bool_)), (
             f"{name}.terms returned {count!r} ({type(count).__name__}), not an int"
+        )
         assert count >= 0, f"{name}.terms returned {count!r}, not >= 0"
         assert terms(observations) == count, f"{name}.terms gave two answers for the same observations"
     image = _observation_image(observations)
@@ -413,27 +463,33 @@ def assert_sensor_contract(model: SensorModel, poses: ArrayLike, observations: O
     try:
         first = model.log_likelihood(scored, observations, out=buffer)
     except TypeError as error:
-        raise AssertionError(f"{name}.log_likelihood(poses, observations, out=buffer) raised TypeError: {error}; "
-                             "the filter passes `out=` (it may be ignored, the returned array is used)") from error
+        raise AssertionError(
+            f"{name}.log_likelihood(poses, observations, out=buffer) raised TypeError: {error}; "
+            "the filter passes `out=` (it may be ignored, the returned array is used)"
+        ) from error
     except Exception as error:
-        raise AssertionError(f"{name}.check accepted the observations but log_likelihood raised "
-                             f"{type(error).__name__}: {error}") from error
+        raise AssertionError(
+            f"{name}.check accepted the observations but log_likelihood raised {type(error).__name__}: {error}"
+        ) from error
     first = np.array(first, copy=True)
     assert first.shape == (n,), f"{name}.log_likelihood returned shape {first.shape} for {n} poses; must be ({n},)"
     assert first.dtype.kind == "f", f"{name}.log_likelihood returned dtype {first.dtype}; must be floats"
     bad = np.isnan(first) | np.isposinf(first) | (np.isneginf(first) & (not allow_neg_inf))
     if bad.any():
         i = int(np.argmax(bad))
-        raise AssertionError(f"{name}.log_likelihood gave {float(first[i])!r} for poses[{i}] = {start[i].tolist()!r} "
-                             f"({int(bad.sum())} of {n}); must be finite"
-                             + (" or -inf" if allow_neg_inf else ""))
+        raise AssertionError(
+            f"{name}.log_likelihood gave {float(first[i])!r} for poses[{i}] = {start[i].tolist()!r} "
+            f"({int(bad.sum())} of {n}); must be finite" + (" or -inf" if allow_neg_inf else "")
+        )
     limit = _bound_of(bound, observations)
     if limit is not None:
         above = first > limit
         if above.any():
             i = int(np.argmax(above))
-            raise AssertionError(f"{name}.log_likelihood gave {float(first[i])!r} for poses[{i}] = "
-                                 f"{start[i].tolist()!r}, above the bound {limit!r}")
+            raise AssertionError(
+                f"{name}.log_likelihood gave {float(first[i])!r} for poses[{i}] = "
+                f"{start[i].tolist()!r}, above the bound {limit!r}"
+            )
     difference = _array_difference("poses", start, scored)
     if difference:
         raise AssertionError(f"{name}.log_likelihood changed its input: {difference}")
@@ -446,28 +502,43 @@ def assert_sensor_contract(model: SensorModel, poses: ArrayLike, observations: O
         again = np.array(model.log_likelihood(start.copy(), observations), copy=True)
         third = np.array(model.log_likelihood(start.copy(), observations, out=np.full(n, np.inf)), copy=True)
     except Exception as error:
-        raise AssertionError(f"{name}.log_likelihood raised {type(error).__name__} on the same input the second "
-                             f"time: {error}") from error
+        raise AssertionError(
+            f"{name}.log_likelihood raised {type(error).__name__} on the same input the second time: {error}"
+        ) from error
     for label, values in (("without out", again), ("with another out buffer", third)):
         difference = _array_difference("log_likelihood", first, values)
         if difference:
-            raise AssertionError(f"{name}.log_likelihood gave different results for the same input ({label}): "
-                                 f"{difference}")
+            raise AssertionError(
+                f"{name}.log_likelihood gave different results for the same input ({label}): {difference}"
+            )
     return True
 
 
 def _far_rows(field: Field) -> st.SearchStrategy:
     """Poses a filter may hold far off the carpet (set_particles takes |x|, |y| up to 1000 m)."""
     corner = st.sampled_from([-LARGEST_COORDINATE, LARGEST_COORDINATE, 0.0])
-    return st.lists(st.tuples(st.one_of(corner, st.floats(-LARGEST_COORDINATE, LARGEST_COORDINATE)),
-                              st.one_of(corner, st.floats(-LARGEST_COORDINATE, LARGEST_COORDINATE)),
-                              st.floats(-math.pi, math.pi, exclude_min=True)), max_size=3)
+    return st.lists(
+        st.tuples(
+            st.one_of(corner, st.floats(-LARGEST_COORDINATE, LARGEST_COORDINATE)),
+            st.one_of(corner, st.floats(-LARGEST_COORDINATE, LARGEST_COORDINATE)),
+            st.floats(-math.pi, math.pi, exclude_min=True),
+        ),
+        max_size=3,
+    )
 
 
-def check_sensor_model(model: SensorModel, field: Field, *, n: int | tuple[int, int] = (1, 64),
-                       frames: st.SearchStrategy | None = None, hostile: st.SearchStrategy | None = None,
-                       bound: float | Callable[[Observations], float] | None = None, allow_neg_inf: bool = False,
-                       max_examples: int = 20, shrink: bool | None = None) -> ContractReport:
+def check_sensor_model(
+    model: SensorModel,
+    field: Field,
+    *,
+    n: int | tuple[int, int] = (1, 64),
+    frames: st.SearchStrategy | None = None,
+    hostile: st.SearchStrategy | None = None,
+    bound: float | Callable[[Observations], float] | None = None,
+    allow_neg_inf: bool = False,
+    max_examples: int = 20,
+    shrink: bool | None = None,
+) -> ContractReport:
     """Check a sensor model against the contract the filter relies on, on examples hypothesis draws.
 
     Each example runs `assert_sensor_contract` on particles on the carpet (sometimes with a few far off it)
@@ -512,8 +583,11 @@ def check_sensor_model(model: SensorModel, field: Field, *, n: int | tuple[int, 
         every frame from `observations`.
     """
     report = ContractReport()
-    good = frames if frames is not None else observations(field, max_detections=8, with_sigmas=True,
-                                                           max_line_points=16, with_view=True)
+    good = (
+        frames
+        if frames is not None
+        else observations(field, max_detections=8, with_sigmas=True, max_line_points=16, with_view=True)
+    )
     bad_frames = edge_observations(field) if hostile is None else hostile
 
     def test(poses, far, frame, bad):
@@ -528,8 +602,10 @@ def check_sensor_model(model: SensorModel, field: Field, *, n: int | tuple[int, 
         else:
             report.hostile_refused += 1
 
-    _run(test, max_examples, dict(poses=pose_arrays(field, n), far=_far_rows(field), frame=good, bad=bad_frames),
-         shrink)
-    assert report.accepted > 0, (f"{_name(model)} refused all {report.refused} frames drawn: give "
-                                 "`frames=` a strategy of the frames it takes")
+    _run(
+        test, max_examples, dict(poses=pose_arrays(field, n), far=_far_rows(field), frame=good, bad=bad_frames), shrink
+    )
+    assert report.accepted > 0, (
+        f"{_name(model)} refused all {report.refused} frames drawn: give `frames=` a strategy of the frames it takes"
+    )
     return report

@@ -1,5 +1,6 @@
 """Invariants of a `mcl.ParticleFilter` as plain functions that raise AssertionError naming what broke: weights
 normalized, poses finite and wrapped, a refused call leaves the state unchanged, same seed same run."""
+
 from __future__ import annotations
 
 import math
@@ -38,13 +39,16 @@ def assert_poses_finite_and_wrapped(poses: ArrayLike | ParticleFilter) -> None:
     finite = np.isfinite(array).all(axis=1)
     if not finite.all():
         i = int(np.argmin(finite))
-        raise AssertionError(f"poses[{i}] = {array[i].tolist()!r} is not finite ({int((~finite).sum())} of "
-                             f"{array.shape[0]} rows)")
+        raise AssertionError(
+            f"poses[{i}] = {array[i].tolist()!r} is not finite ({int((~finite).sum())} of {array.shape[0]} rows)"
+        )
     wrapped = np.abs(array[:, 2]) <= math.pi
     if not wrapped.all():
         i = int(np.argmin(wrapped))
-        raise AssertionError(f"poses[{i}] = {array[i].tolist()!r}: heading not wrapped into [-π, π] "
-                             f"({int((~wrapped).sum())} of {array.shape[0]} rows)")
+        raise AssertionError(
+            f"poses[{i}] = {array[i].tolist()!r}: heading not wrapped into [-π, π] "
+            f"({int((~wrapped).sum())} of {array.shape[0]} rows)"
+        )
 
 
 def assert_weights_normalized(pf: ParticleFilter, tolerance: float = 1e-9) -> None:
@@ -72,8 +76,9 @@ def assert_weights_normalized(pf: ParticleFilter, tolerance: float = 1e-9) -> No
     bad = ~(np.isfinite(weights) & (weights >= 0))
     if bad.any():
         i = int(np.argmax(bad))
-        raise AssertionError(f"weights[{i}] = {float(weights[i])!r}: weights must be finite and >= 0 "
-                             f"({int(bad.sum())} are not)")
+        raise AssertionError(
+            f"weights[{i}] = {float(weights[i])!r}: weights must be finite and >= 0 ({int(bad.sum())} are not)"
+        )
     total = float(np.sum(weights, dtype=np.float64))
     assert abs(total - 1.0) <= tolerance, f"weights sum to {total!r}, not 1 (tolerance {tolerance:g})"
     bad = np.isnan(log_weights) | np.isposinf(log_weights)
@@ -85,9 +90,11 @@ def assert_weights_normalized(pf: ParticleFilter, tolerance: float = 1e-9) -> No
     off = ~np.isclose(expected, weights, rtol=1e-9, atol=tolerance)
     if off.any():
         i = int(np.argmax(off))
-        raise AssertionError(f"weights[{i}] = {float(weights[i])!r} but exp(log_weights[{i}]) = "
-                             f"{float(expected[i])!r}: the log-weights are not the logarithms of the normalized "
-                             "weights")
+        raise AssertionError(
+            f"weights[{i}] = {float(weights[i])!r} but exp(log_weights[{i}]) = "
+            f"{float(expected[i])!r}: the log-weights are not the logarithms of the normalized "
+            "weights"
+        )
 
 
 def _frozen(value) -> Any:
@@ -131,14 +138,18 @@ def _array_difference(name: str, a: np.ndarray | None, b: np.ndarray | None) -> 
     flat = int(np.argmax(differ))
     index = np.unravel_index(flat, a.shape)
     where = ", ".join(str(int(i)) for i in index)
-    return (f"{name}[{where}]: {a[index].item()!r} -> {b[index].item()!r} ({int(differ.sum())} of {a.size} entries "
-            "differ)")
+    return (
+        f"{name}[{where}]: {a[index].item()!r} -> {b[index].item()!r} ({int(differ.sum())} of {a.size} entries differ)"
+    )
 
 
 def _scalar_difference(name: str, a, b) -> str | None:
     if isinstance(a, float) or isinstance(b, float):
-        if isinstance(a, (int, float)) and isinstance(b, (int, float)) and \
-                np.float64(a).tobytes() == np.float64(b).tobytes():
+        if (
+            isinstance(a, (int, float))
+            and isinstance(b, (int, float))
+            and np.float64(a).tobytes() == np.float64(b).tobytes()
+        ):
             return None
     elif a == b:
         return None
@@ -240,8 +251,18 @@ class FilterSnapshot:
     __hash__ = None  # type: ignore[assignment]
 
 
-_SCALARS = ("w_slow", "w_fast", "ess", "frame_fit", "resampled", "injected", "resampling", "resample_threshold",
-            "augmented", "n")
+_SCALARS = (
+    "w_slow",
+    "w_fast",
+    "ess",
+    "frame_fit",
+    "resampled",
+    "injected",
+    "resampling",
+    "resample_threshold",
+    "augmented",
+    "n",
+)
 
 
 def snapshot(pf: ParticleFilter, estimate: bool = True) -> FilterSnapshot:
@@ -277,13 +298,23 @@ def snapshot(pf: ParticleFilter, estimate: bool = True) -> FilterSnapshot:
     summary = None
     if estimate and np.isfinite(np.asarray(pf.poses)).all():
         e = pf.estimate()
-        summary = (_copy(np.asarray(e.pose, dtype=np.float64)), _copy(np.asarray(e.covariance, dtype=np.float64)),
-                   float(e.weight))
+        summary = (
+            _copy(np.asarray(e.pose, dtype=np.float64)),
+            _copy(np.asarray(e.covariance, dtype=np.float64)),
+            float(e.weight),
+        )
     motion_state = getattr(pf, "motion_state", None)
     return FilterSnapshot(
-        poses=_copy_array(pf.poses), log_weights=_copy_array(pf.log_weights), weights=_copy_array(pf.weights),
-        rng_state=_frozen(pf.rng.bit_generator.state), motion_state=_copy(motion_state), scalars=tuple(scalars),
-        roughening=_copy(roughening), anchor=_copy(anchor), estimate=summary)
+        poses=_copy_array(pf.poses),
+        log_weights=_copy_array(pf.log_weights),
+        weights=_copy_array(pf.weights),
+        rng_state=_frozen(pf.rng.bit_generator.state),
+        motion_state=_copy(motion_state),
+        scalars=tuple(scalars),
+        roughening=_copy(roughening),
+        anchor=_copy(anchor),
+        estimate=summary,
+    )
 
 
 def assert_unchanged(before: FilterSnapshot, after: FilterSnapshot, what: str = "the filter") -> None:
@@ -306,8 +337,9 @@ def assert_unchanged(before: FilterSnapshot, after: FilterSnapshot, what: str = 
         raise AssertionError(f"{what} changed: " + "; ".join(differences))
 
 
-def assert_refused_leaves_state(pf: ParticleFilter, call: Callable[..., Any], *args: Any,
-                                exceptions: tuple = REFUSALS, **kwargs: Any) -> BaseException:
+def assert_refused_leaves_state(
+    pf: ParticleFilter, call: Callable[..., Any], *args: Any, exceptions: tuple = REFUSALS, **kwargs: Any
+) -> BaseException:
     """Assert that `call(*args, **kwargs)` is refused and leaves the filter exactly as it was.
 
     Parameters
@@ -339,17 +371,22 @@ def assert_refused_leaves_state(pf: ParticleFilter, call: Callable[..., Any], *a
     except exceptions as error:
         caught = error
     except Exception as error:
-        raise AssertionError(f"{name} raised {type(error).__name__}: {error}; a refused call must raise one of "
-                             f"{tuple(e.__name__ for e in exceptions)}") from error
+        raise AssertionError(
+            f"{name} raised {type(error).__name__}: {error}; a refused call must raise one of "
+            f"{tuple(e.__name__ for e in exceptions)}"
+        ) from error
     else:
-        raise AssertionError(f"{name}{_show_args(args, kwargs)} was accepted; it should have been refused "
-                             f"with one of {tuple(e.__name__ for e in exceptions)}")
+        raise AssertionError(
+            f"{name}{_show_args(args, kwargs)} was accepted; it should have been refused "
+            f"with one of {tuple(e.__name__ for e in exceptions)}"
+        )
     assert str(caught), f"{name} raised {type(caught).__name__} without a message"
     after = snapshot(pf)
     differences = before.differences(after)
     if differences:
-        raise AssertionError(f"{name} was refused ({type(caught).__name__}: {caught}) but changed the filter: "
-                             + "; ".join(differences))
+        raise AssertionError(
+            f"{name} was refused ({type(caught).__name__}: {caught}) but changed the filter: " + "; ".join(differences)
+        )
     return caught
 
 

@@ -1,4 +1,5 @@
 """Models registered by name (in code or through entry points) and checked together (`check_registered`)."""
+
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
@@ -84,8 +85,9 @@ def _register(kind: str, name, make, refused: Sequence[MotionInput] = ()) -> Reg
     return entry
 
 
-def register_motion_model(name: str, make: Callable[[], Any], *,
-                          refused: Sequence[MotionInput] = ()) -> RegisteredModel:
+def register_motion_model(
+    name: str, make: Callable[[], Any], *, refused: Sequence[MotionInput] = ()
+) -> RegisteredModel:
     """Register a motion model for `check_registered` (and the library's contract tests run in this process).
 
     Parameters
@@ -160,10 +162,13 @@ def unregister(kind: str, name: str) -> None:
 
 def _entry_points(kind: str) -> list[RegisteredModel]:
     from importlib.metadata import entry_points
+
     found = []
     for point in entry_points(group=ENTRY_POINT_GROUPS[kind]):
+
         def make(*args, _point=point):
             return _point.load()(*args)
+
         found.append(RegisteredModel(point.name, kind, make, (), f"entry point {point.value}"))
     return found
 
@@ -191,8 +196,7 @@ def registered_models(kind: str | None = None) -> list[RegisteredModel]:
     if kind is not None and kind not in MODEL_KINDS:
         raise ValueError(f"kind must be one of {MODEL_KINDS} or None, not {kind!r}")
     kinds = MODEL_KINDS if kind is None else (kind,)
-    return [entry for k in kinds for entry in
-            [e for (ek, _), e in _REGISTERED.items() if ek == k] + _entry_points(k)]
+    return [entry for k in kinds for entry in [e for (ek, _), e in _REGISTERED.items() if ek == k] + _entry_points(k)]
 
 
 @dataclass
@@ -219,8 +223,9 @@ class RegisteredReport:
     same_run: bool = True
 
 
-def check_registered(field: Field | None = None, *, kind: str | None = None, max_examples: int = 20,
-                     strict: bool = True) -> list[RegisteredReport]:
+def check_registered(
+    field: Field | None = None, *, kind: str | None = None, max_examples: int = 20, strict: bool = True
+) -> list[RegisteredReport]:
     """Run every registered model (see `registered_models`) through the contract checks the library's own
     models pass: `check_motion_model` (shapes, finite and wrapped poses, refusals that change nothing, same
     seed same result) or `check_sensor_model`, a short filter run from the same seed twice, and which part of
@@ -258,12 +263,15 @@ def check_registered(field: Field | None = None, *, kind: str | None = None, max
         try:
             model = entry.build(field)
         except Exception as error:
-            raise AssertionError(f"registered {entry.kind} model {entry.name!r} ({entry.source}) could not be "
-                                 f"built: {type(error).__name__}: {error}") from error
+            raise AssertionError(
+                f"registered {entry.kind} model {entry.name!r} ({entry.source}) could not be "
+                f"built: {type(error).__name__}: {error}"
+            ) from error
         try:
             if entry.kind == "motion":
-                contract = check_motion_model(model, field, refused=entry.refused, strict=strict,
-                                              max_examples=max_examples)
+                contract = check_motion_model(
+                    model, field, refused=entry.refused, strict=strict, max_examples=max_examples
+                )
                 motion, sensor = model, LandmarkSensorModel(field)
                 u = _accepted_input(model)
             else:
@@ -278,8 +286,9 @@ def check_registered(field: Field | None = None, *, kind: str | None = None, max
             if not failures:
                 raise
             more = f" (and {len(failures) - 1} other failures)" if len(failures) > 1 else ""
-            raise AssertionError(f"registered {entry.kind} model {entry.name!r} ({entry.source}): "
-                                 f"{failures[0]}{more}") from error
+            raise AssertionError(
+                f"registered {entry.kind} model {entry.name!r} ({entry.source}): {failures[0]}{more}"
+            ) from error
         reports.append(RegisteredReport(entry, contract, fast_path(motion, sensor)))
     return reports
 
@@ -296,12 +305,22 @@ def _assertions(error: BaseException) -> list[AssertionError]:
     return [] if not all(found) else [failure for group in found for failure in group]
 
 
-_PROBES = (MotionInput(dt=0.01, command=(0.2, 0.0, 0.1), collision=NO_COLLISION),
-           MotionInput(dt=0.01, odometry=(0.002, 0.0, 0.001), collision=NO_COLLISION),
-           MotionInput(dt=0.01, footstep=FootstepEvent(support=1, commanded=(0.04, 0.0, 0.1),
-                                                       sensor=(0.04, 0.0, 0.1), duration=0.3,
-                                                       previous_sensor=(0.04, 0.0, 0.1), previous_duration=0.3),
-                       collision=NO_COLLISION))
+_PROBES = (
+    MotionInput(dt=0.01, command=(0.2, 0.0, 0.1), collision=NO_COLLISION),
+    MotionInput(dt=0.01, odometry=(0.002, 0.0, 0.001), collision=NO_COLLISION),
+    MotionInput(
+        dt=0.01,
+        footstep=FootstepEvent(
+            support=1,
+            commanded=(0.04, 0.0, 0.1),
+            sensor=(0.04, 0.0, 0.1),
+            duration=0.3,
+            previous_sensor=(0.04, 0.0, 0.1),
+            previous_duration=0.3,
+        ),
+        collision=NO_COLLISION,
+    ),
+)
 
 
 def _accepted_input(model) -> MotionInput | None:

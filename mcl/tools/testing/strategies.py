@@ -1,5 +1,6 @@
 """Hypothesis strategies for the library's inputs: fields, poses, particle sets, observations, camera views,
 motion inputs and percepts, and the hostile values a refused call must reject."""
+
 from __future__ import annotations
 
 import math
@@ -36,8 +37,9 @@ def _carpet(field: Field, margin: float = 0.0) -> tuple[float, float, float, flo
     """(x_min, x_max, y_min, y_max) of the field and its border strip, `margin` inside its edge."""
     if not isinstance(field, Field):
         raise TypeError(f"field = {field!r} must be a field.Field, not {type(field).__name__}")
-    if not (isinstance(margin, (int, float)) and not isinstance(margin, bool) and math.isfinite(margin)
-            and margin >= 0):
+    if not (
+        isinstance(margin, (int, float)) and not isinstance(margin, bool) and math.isfinite(margin) and margin >= 0
+    ):
         raise ValueError(f"margin = {margin!r} must be a finite number >= 0 (metres)")
     border = field.dims.border_strip_width
     half_x, half_y = field.half_length + border - margin, field.half_width + border - margin
@@ -86,8 +88,9 @@ def poses(field: Field, margin: float = 0.0) -> st.SearchStrategy[np.ndarray]:
         float64 arrays of shape (3,): finite, θ wrapped into (-π, π].
     """
     x_min, x_max, y_min, y_max = _carpet(field, margin)
-    return st.tuples(st.floats(x_min, x_max), st.floats(y_min, y_max),
-                     st.floats(-math.pi, math.pi, exclude_min=True)).map(lambda p: np.array(p, dtype=np.float64))
+    return st.tuples(
+        st.floats(x_min, x_max), st.floats(y_min, y_max), st.floats(-math.pi, math.pi, exclude_min=True)
+    ).map(lambda p: np.array(p, dtype=np.float64))
 
 
 def _scale_poses(unit: np.ndarray, bounds: tuple[float, float, float, float]) -> np.ndarray:
@@ -95,7 +98,7 @@ def _scale_poses(unit: np.ndarray, bounds: tuple[float, float, float, float]) ->
     out = np.empty_like(unit)
     out[:, 0] = np.minimum(x_min + unit[:, 0] * (x_max - x_min), x_max)
     out[:, 1] = np.minimum(y_min + unit[:, 1] * (y_max - y_min), y_max)
-    theta = math.pi - unit[:, 2] * (2.0 * math.pi)          # unit in [0, 1): θ in (-π, π]
+    theta = math.pi - unit[:, 2] * (2.0 * math.pi)  # unit in [0, 1): θ in (-π, π]
     out[:, 2] = np.where(theta <= -math.pi, math.pi, theta)
     return out
 
@@ -120,8 +123,11 @@ def pose_arrays(field: Field, n: int | tuple[int, int] = (1, 64), margin: float 
     bounds = _carpet(field, margin)
     low, high = _sizes(n)
     unit = st.floats(0.0, 1.0, exclude_max=True)
-    return st.integers(low, high).flatmap(
-        lambda rows: hnp.arrays(np.float64, (rows, 3), elements=unit)).map(lambda a: _scale_poses(a, bounds))
+    return (
+        st.integers(low, high)
+        .flatmap(lambda rows: hnp.arrays(np.float64, (rows, 3), elements=unit))
+        .map(lambda a: _scale_poses(a, bounds))
+    )
 
 
 def particle_sets(field: Field, n: int | tuple[int, int] = (1, 64)) -> st.SearchStrategy:
@@ -140,14 +146,14 @@ def particle_sets(field: Field, n: int | tuple[int, int] = (1, 64)) -> st.Search
         (poses, log_weights): poses as `pose_arrays` draws them, log_weights float64 (N,) unnormalized, within
         [-50, 10] or -inf, at least one of them finite.
     """
-    weight = st.one_of(st.floats(-50.0, 10.0), st.floats(-50.0, 10.0), st.floats(-50.0, 10.0),
-                       st.just(-math.inf))
+    weight = st.one_of(st.floats(-50.0, 10.0), st.floats(-50.0, 10.0), st.floats(-50.0, 10.0), st.just(-math.inf))
 
     def with_weights(p: np.ndarray) -> st.SearchStrategy:
         def finite_one(w: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
             if not np.isfinite(w).any():
                 w[0] = 0.0
             return p, w
+
         return hnp.arrays(np.float64, (p.shape[0],), elements=weight).map(finite_one)
 
     return pose_arrays(field, n).flatmap(with_weights)
@@ -173,15 +179,29 @@ def camera_views() -> st.SearchStrategy[CameraView]:
         some types by name, with or without "others").
     """
     farthest = st.floats(2.0, 10.0)
-    per_type = st.fixed_dictionaries({}, optional={**{kind.name.lower(): farthest for kind in LandmarkType},
-                                                   "others": farthest}).filter(bool)
-    return st.builds(CameraView, yaw=st.floats(-2.0, 2.0), half_fov=st.floats(0.2, 1.2),
-                     max_range=st.one_of(farthest, per_type), min_range=st.floats(0.0, 0.5))
+    per_type = st.fixed_dictionaries(
+        {}, optional={**{kind.name.lower(): farthest for kind in LandmarkType}, "others": farthest}
+    ).filter(bool)
+    return st.builds(
+        CameraView,
+        yaw=st.floats(-2.0, 2.0),
+        half_fov=st.floats(0.2, 1.2),
+        max_range=st.one_of(farthest, per_type),
+        min_range=st.floats(0.0, 0.5),
+    )
 
 
-def observations(field: Field, max_detections: int = 8, with_sigmas: bool = False, *, min_detections: int = 0,
-                 max_range: float | None = None, max_line_points: int = 0, with_view: bool = False,
-                 seen_from: Sequence[float] | np.ndarray | None = None) -> st.SearchStrategy[Observations]:
+def observations(
+    field: Field,
+    max_detections: int = 8,
+    with_sigmas: bool = False,
+    *,
+    min_detections: int = 0,
+    max_range: float | None = None,
+    max_line_points: int = 0,
+    with_view: bool = False,
+    seen_from: Sequence[float] | np.ndarray | None = None,
+) -> st.SearchStrategy[Observations]:
     """Camera frames: `sensing.Observations` batches a sensor model for `field` accepts.
 
     Parameters
@@ -213,18 +233,25 @@ def observations(field: Field, max_detections: int = 8, with_sigmas: bool = Fals
         Typed detections with finite ranges in [0, max_range] and bearings in (-π, π].
     """
     if not 0 <= min_detections <= max_detections:
-        raise ValueError(f"min_detections = {min_detections!r}, max_detections = {max_detections!r}: need "
-                         "0 <= min_detections <= max_detections")
+        raise ValueError(
+            f"min_detections = {min_detections!r}, max_detections = {max_detections!r}: need "
+            "0 <= min_detections <= max_detections"
+        )
     kinds = _kinds_on(field)
     if not kinds and max_detections > 0:
         raise ValueError(f"field {field.name!r} has no landmarks to detect")
     far = _carpet_diagonal(field) if max_range is None else float(max_range)
     sigma = st.floats(0.005, 1.0)
-    noise = st.one_of(st.tuples(st.none(), st.none()), st.tuples(sigma, sigma)) if with_sigmas \
-        else st.just((None, None))
+    noise = (
+        st.one_of(st.tuples(st.none(), st.none()), st.tuples(sigma, sigma)) if with_sigmas else st.just((None, None))
+    )
     if seen_from is None:
-        detection = st.tuples(st.sampled_from(kinds) if kinds else st.nothing(), st.floats(0.0, far),
-                              st.floats(-math.pi, math.pi, exclude_min=True), noise)
+        detection = st.tuples(
+            st.sampled_from(kinds) if kinds else st.nothing(),
+            st.floats(0.0, far),
+            st.floats(-math.pi, math.pi, exclude_min=True),
+            noise,
+        )
         point = st.tuples(st.floats(-6.0, 6.0), st.floats(-6.0, 6.0))
     else:
         detection, point = _seen(field, seen_from, noise)
@@ -235,13 +262,16 @@ def observations(field: Field, max_detections: int = 8, with_sigmas: bool = Fals
         rows, line_points, camera = args
         nan = math.nan
         batch = Observations.from_arrays(
-            [int(r[0]) for r in rows], [r[1] for r in rows], [r[2] for r in rows],
-            [nan if r[3][0] is None else r[3][0] for r in rows], [nan if r[3][1] is None else r[3][1] for r in rows],
-            line_points=np.array(line_points, dtype=np.float64).reshape(-1, 2))
+            [int(r[0]) for r in rows],
+            [r[1] for r in rows],
+            [r[2] for r in rows],
+            [nan if r[3][0] is None else r[3][0] for r in rows],
+            [nan if r[3][1] is None else r[3][1] for r in rows],
+            line_points=np.array(line_points, dtype=np.float64).reshape(-1, 2),
+        )
         return batch if camera is None else batch.with_view(camera)
 
-    return st.tuples(st.lists(detection, min_size=min_detections, max_size=max_detections), points,
-                     view).map(build)
+    return st.tuples(st.lists(detection, min_size=min_detections, max_size=max_detections), points, view).map(build)
 
 
 def _seen(field: Field, pose, noise: st.SearchStrategy) -> tuple[st.SearchStrategy, st.SearchStrategy]:
@@ -249,8 +279,11 @@ def _seen(field: Field, pose, noise: st.SearchStrategy) -> tuple[st.SearchStrate
     x, y, theta = (float(v) for v in np.asarray(pose, dtype=np.float64).reshape(3))
     if not all(math.isfinite(v) for v in (x, y, theta)):
         raise ValueError(f"seen_from = {pose!r} must be a finite pose (x, y, θ)")
-    landmarks = [(kind, float(p[0]), float(p[1])) for kind in _kinds_on(field)
-                 for p in np.asarray(field.landmarks_of(kind)).reshape(-1, 2)]
+    landmarks = [
+        (kind, float(p[0]), float(p[1]))
+        for kind in _kinds_on(field)
+        for p in np.asarray(field.landmarks_of(kind)).reshape(-1, 2)
+    ]
     if not landmarks:
         raise ValueError(f"field {field.name!r} has no landmarks to detect")
     c, s = math.cos(theta), math.sin(theta)
@@ -266,8 +299,7 @@ def _seen(field: Field, pose, noise: st.SearchStrategy) -> tuple[st.SearchStrate
         return c * dx + s * dy + ex, -s * dx + c * dy + ey
 
     on_lines = [tuple(p) for p in np.asarray(field.line_points(spacing=0.1)).tolist()]
-    detection = st.tuples(st.sampled_from(landmarks), st.floats(0.95, 1.05), st.floats(-0.05, 0.05),
-                          noise).map(detect)
+    detection = st.tuples(st.sampled_from(landmarks), st.floats(0.95, 1.05), st.floats(-0.05, 0.05), noise).map(detect)
     point = st.tuples(st.sampled_from(on_lines), st.floats(-0.02, 0.02), st.floats(-0.02, 0.02)).map(to_robot)
     return detection, point
 
@@ -292,25 +324,38 @@ def edge_observations(field: Field | None = None, max_detections: int = 6) -> st
     """
     del field
     ranges = st.one_of(st.sampled_from([0.0, 5e-324, 1e-9, LARGEST_COORDINATE]), st.floats(0.0, LARGEST_COORDINATE))
-    bearings = st.one_of(st.sampled_from([-LARGEST_ANGLE, LARGEST_ANGLE, math.pi, -math.pi, 0.0]),
-                         st.floats(-LARGEST_ANGLE, LARGEST_ANGLE))
-    sigmas = st.one_of(st.just(math.nan), st.sampled_from([SMALLEST_SIGMA, LARGEST_SIGMA]),
-                       st.floats(SMALLEST_SIGMA, LARGEST_SIGMA))
+    bearings = st.one_of(
+        st.sampled_from([-LARGEST_ANGLE, LARGEST_ANGLE, math.pi, -math.pi, 0.0]),
+        st.floats(-LARGEST_ANGLE, LARGEST_ANGLE),
+    )
+    sigmas = st.one_of(
+        st.just(math.nan), st.sampled_from([SMALLEST_SIGMA, LARGEST_SIGMA]), st.floats(SMALLEST_SIGMA, LARGEST_SIGMA)
+    )
     detection = st.tuples(st.sampled_from([kind.value for kind in LandmarkType]), ranges, bearings, sigmas, sigmas)
-    coordinate = st.one_of(st.sampled_from([-LARGEST_COORDINATE, LARGEST_COORDINATE, 0.0]),
-                           st.floats(-LARGEST_COORDINATE, LARGEST_COORDINATE))
+    coordinate = st.one_of(
+        st.sampled_from([-LARGEST_COORDINATE, LARGEST_COORDINATE, 0.0]),
+        st.floats(-LARGEST_COORDINATE, LARGEST_COORDINATE),
+    )
     points = st.lists(st.tuples(coordinate, coordinate), max_size=40)
 
     def build(args) -> Observations:
         rows, line_points, camera = args
-        kinds, ranges, bearings, range_sigmas, bearing_sigmas = \
+        kinds, ranges, bearings, range_sigmas, bearing_sigmas = (
             [list(column) for column in zip(*rows)] if rows else [[], [], [], [], []]
-        batch = Observations.from_arrays(kinds, ranges, bearings, range_sigmas, bearing_sigmas,
-                                         line_points=np.array(line_points, dtype=np.float64).reshape(-1, 2))
+        )
+        batch = Observations.from_arrays(
+            kinds,
+            ranges,
+            bearings,
+            range_sigmas,
+            bearing_sigmas,
+            line_points=np.array(line_points, dtype=np.float64).reshape(-1, 2),
+        )
         return batch if camera is None else batch.with_view(camera)
 
-    return st.tuples(st.lists(detection, max_size=max_detections), points,
-                     st.one_of(st.none(), camera_views())).map(build)
+    return st.tuples(st.lists(detection, max_size=max_detections), points, st.one_of(st.none(), camera_views())).map(
+        build
+    )
 
 
 def collision_percepts() -> st.SearchStrategy[CollisionPercept]:
@@ -321,10 +366,19 @@ def collision_percepts() -> st.SearchStrategy[CollisionPercept]:
     hypothesis.strategies.SearchStrategy of proprioception.collision.CollisionPercept
         Any sides, relative deviations within [0, 10], rates within [0, 1].
     """
-    return st.one_of(st.just(NO_COLLISION), st.builds(
-        CollisionPercept, left=st.booleans(), right=st.booleans(), s_rel_left=st.floats(0.0, 10.0),
-        s_rel_right=st.floats(0.0, 10.0), rate=st.floats(0.0, 1.0), recent_left=st.booleans(),
-        recent_right=st.booleans()))
+    return st.one_of(
+        st.just(NO_COLLISION),
+        st.builds(
+            CollisionPercept,
+            left=st.booleans(),
+            right=st.booleans(),
+            s_rel_left=st.floats(0.0, 10.0),
+            s_rel_right=st.floats(0.0, 10.0),
+            rate=st.floats(0.0, 1.0),
+            recent_left=st.booleans(),
+            recent_right=st.booleans(),
+        ),
+    )
 
 
 _STEP = st.tuples(st.floats(-0.08, 0.08), st.floats(-0.05, 0.05), st.floats(-0.4, 0.4))
@@ -339,9 +393,16 @@ def footstep_events() -> st.SearchStrategy[FootstepEvent]:
         Support +1 (left) or -1 (right); commanded and sensor-based steps within 8 cm, 5 cm and 0.4 rad;
         step durations within [0.1, 1] s.
     """
-    return st.builds(FootstepEvent, support=st.sampled_from([1, -1]), commanded=_STEP, previous_commanded=_STEP,
-                     sensor=_STEP, previous_sensor=_STEP, duration=st.floats(0.1, 1.0),
-                     previous_duration=st.floats(0.1, 1.0))
+    return st.builds(
+        FootstepEvent,
+        support=st.sampled_from([1, -1]),
+        commanded=_STEP,
+        previous_commanded=_STEP,
+        sensor=_STEP,
+        previous_sensor=_STEP,
+        duration=st.floats(0.1, 1.0),
+        previous_duration=st.floats(0.1, 1.0),
+    )
 
 
 MOTION_KINDS = ("command", "odometry", "footstep", "any")
@@ -378,14 +439,16 @@ def motion_inputs(kind: str = "any", collision: bool = False, max_dt: float = 0.
     odometry = st.tuples(st.floats(-0.1, 0.1), st.floats(-0.05, 0.05), st.floats(-0.5, 0.5))
 
     def footstep_input(dt_: float, event, step, percept_) -> MotionInput:
-        return MotionInput(dt=dt_, odometry=event.sensor if event is not None else step, collision=percept_,
-                           footstep=event)
+        return MotionInput(
+            dt=dt_, odometry=event.sensor if event is not None else step, collision=percept_, footstep=event
+        )
 
     by_kind = {
         "command": st.builds(MotionInput, dt=dt, command=command, collision=percept),
         "odometry": st.builds(MotionInput, dt=measured_dt, odometry=odometry, collision=percept),
-        "footstep": st.builds(footstep_input, measured_dt, st.one_of(footstep_events(), footstep_events(), st.none()),
-                              _STEP, percept),
+        "footstep": st.builds(
+            footstep_input, measured_dt, st.one_of(footstep_events(), footstep_events(), st.none()), _STEP, percept
+        ),
     }
     if kind == "any":
         return st.one_of(*by_kind.values())
@@ -404,17 +467,45 @@ def hostile_values() -> st.SearchStrategy[Any]:
     -------
     hypothesis.strategies.SearchStrategy
     """
-    arrays = [lambda: np.empty(0), lambda: np.empty((0, 3)), lambda: np.zeros((2, 2)), lambda: np.zeros((3, 3, 3)),
-              lambda: np.full(3, np.nan), lambda: np.full((4, 3), np.inf), lambda: np.array(["x", "y", "z"]),
-              lambda: np.zeros(2), lambda: np.zeros((5, 2))]
+    arrays = [
+        lambda: np.empty(0),
+        lambda: np.empty((0, 3)),
+        lambda: np.zeros((2, 2)),
+        lambda: np.zeros((3, 3, 3)),
+        lambda: np.full(3, np.nan),
+        lambda: np.full((4, 3), np.inf),
+        lambda: np.array(["x", "y", "z"]),
+        lambda: np.zeros(2),
+        lambda: np.zeros((5, 2)),
+    ]
     huge = st.floats(allow_nan=False, allow_infinity=False).filter(lambda v: abs(v) >= 1e7)
     return st.one_of(
-        st.sampled_from([math.nan, math.inf, -math.inf, 1e300, -1e300, 1.7976931348623157e308,
-                         -1.7976931348623157e308, np.float64("nan"), np.float64("inf")]),
+        st.sampled_from(
+            [
+                math.nan,
+                math.inf,
+                -math.inf,
+                1e300,
+                -1e300,
+                1.7976931348623157e308,
+                -1.7976931348623157e308,
+                np.float64("nan"),
+                np.float64("inf"),
+            ]
+        ),
         huge,
-        st.integers(10**7, 10**400), st.integers(-10**400, -10**7),
-        st.none(), st.booleans(), st.text(max_size=4), st.binary(max_size=3),
-        st.just(complex(1.0, 1.0)), st.builds(object), st.just({}), st.just(()), st.just([]), st.just(set()),
+        st.integers(10**7, 10**400),
+        st.integers(-(10**400), -(10**7)),
+        st.none(),
+        st.booleans(),
+        st.text(max_size=4),
+        st.binary(max_size=3),
+        st.just(complex(1.0, 1.0)),
+        st.builds(object),
+        st.just({}),
+        st.just(()),
+        st.just([]),
+        st.just(set()),
         st.lists(st.text(max_size=2), min_size=1, max_size=3),
         st.sampled_from(arrays).map(lambda make: make()),
     )

@@ -9,9 +9,25 @@
 Needs the `tune` extra (Ray, Optuna, matplotlib), installed from the clone: `pip install -e '.[tune]'`. The
 profiles it writes (`mcl.profile`) need nothing more than the library.
 """
+
 from mcl.tools.tuning.objective import OBJECTIVES, LogCase, combine, evaluate_case, summary, truth_figures
 from mcl.tools.tuning.search import StudyOutcome, TuneError, TuneSettings, run_study, start_ray, tune
 from mcl.tools.tuning.space import Parameter, SearchSpace, SpaceError
 
-__all__ = ["OBJECTIVES", "LogCase", "Parameter", "SearchSpace", "SpaceError", "StudyOutcome", "TuneError",
-           "TuneSettings", "combine", "evaluate_case", "run_study", "start_ray", "summary", "truth_figures", "tune"]
+__all__ = [
+    "OBJECTIVES",
+    "LogCase",
+    "Parameter",
+    "SearchSpace",
+    "SpaceError",
+    "StudyOutcome",
+    "TuneError",
+    "TuneSettings",
+    "combine",
+    "evaluate_case",
+    "run_study",
+    "start_ray",
+    "summary",
+    "truth_figures",
+    "tune",
+]

@@ -25,6 +25,7 @@ Objectives (`OBJECTIVES`), both minimized:
 The figures of the other objective are computed too whenever they can be (the truth's, when the logs have it),
 so that a study shows whether maximizing the evidence also lowers the error.
 """
+
 from __future__ import annotations
 
 import functools
@@ -38,8 +39,8 @@ from typing import Any
 import numpy as np
 
 OBJECTIVES = ("truth", "evidence")
-RECONVERGE_CAP = 30.0          # s: re-convergence counted up to this, and a "never" counts as this
-RECONVERGE_WEIGHT = 0.25       # the loss of a run that never re-converges, in fail-share units
+RECONVERGE_CAP = 30.0  # s: re-convergence counted up to this, and a "never" counts as this
+RECONVERGE_WEIGHT = 0.25  # the loss of a run that never re-converges, in fail-share units
 
 
 @dataclass(frozen=True)
@@ -74,11 +75,13 @@ class LogCase:
         truth = None
         has = result.has_truth
         if has.any():
-            codes = (2 - result.quality[has]).astype(np.int8)          # replay's 2 superb .. 0 poor -> evaluation's
-            truth = truth_figures(result.times[has], result.truth[has], result.estimates[has], codes,
-                                  result.lost[has])
-        return {"log_evidence": float(localizer.log_evidence), "evidence_frames": int(localizer.evidence_frames),
-                "truth": truth}
+            codes = (2 - result.quality[has]).astype(np.int8)  # replay's 2 superb .. 0 poor -> evaluation's
+            truth = truth_figures(result.times[has], result.truth[has], result.estimates[has], codes, result.lost[has])
+        return {
+            "log_evidence": float(localizer.log_evidence),
+            "evidence_frames": int(localizer.evidence_frames),
+            "truth": truth,
+        }
 
 
 @functools.lru_cache(maxsize=64)
@@ -100,12 +103,15 @@ def truth_figures(times, truth, estimates, quality_codes, lost, windows=()) -> d
     reconverge = figures["reconverge_s"]
     reconverge_term = 0.0 if reconverge is None else min(reconverge, RECONVERGE_CAP) / RECONVERGE_CAP
     rmse = figures["rmse_position_m"]
-    loss = (figures["fail_share"] + (0.0 if rmse is None else rmse) + RECONVERGE_WEIGHT * reconverge_term
-            + superb_wrong)
-    return {"fail_share": figures["fail_share"], "rmse_position_m": rmse,
-            "reconverge_s": None if reconverge is None or math.isinf(reconverge) else reconverge,
-            "never": reconverge is not None and math.isinf(reconverge),
-            "superb_wrong": superb_wrong, "loss": loss}
+    loss = figures["fail_share"] + (0.0 if rmse is None else rmse) + RECONVERGE_WEIGHT * reconverge_term + superb_wrong
+    return {
+        "fail_share": figures["fail_share"],
+        "rmse_position_m": rmse,
+        "reconverge_s": None if reconverge is None or math.isinf(reconverge) else reconverge,
+        "never": reconverge is not None and math.isinf(reconverge),
+        "superb_wrong": superb_wrong,
+        "loss": loss,
+    }
 
 
 def evaluate_case(case: Any, values: Mapping[str, Any], seed: int, particles: int = 500) -> dict:
@@ -142,13 +148,18 @@ def summary(results: Sequence[dict]) -> dict:
     the mean fail share, RMSE, SUPERB-wrong share, runs that never re-converged and the truth loss."""
     frames = sum(r["evidence_frames"] for r in results)
     evidence = sum(r["log_evidence"] for r in results)
-    out: dict = {"evidence_per_frame": evidence / frames if frames and math.isfinite(evidence) else None,
-                 "frames": frames}
+    out: dict = {
+        "evidence_per_frame": evidence / frames if frames and math.isfinite(evidence) else None,
+        "frames": frames,
+    }
     if results and all(r["truth"] is not None for r in results):
         t = [r["truth"] for r in results]
         rmse = [x["rmse_position_m"] for x in t if x["rmse_position_m"] is not None]
-        out.update(fail_share=float(np.mean([x["fail_share"] for x in t])),
-                   rmse_position_m=float(np.mean(rmse)) if rmse else None,
-                   superb_wrong=float(np.mean([x["superb_wrong"] for x in t])),
-                   never=sum(bool(x["never"]) for x in t), truth_loss=float(np.mean([x["loss"] for x in t])))
+        out.update(
+            fail_share=float(np.mean([x["fail_share"] for x in t])),
+            rmse_position_m=float(np.mean(rmse)) if rmse else None,
+            superb_wrong=float(np.mean([x["superb_wrong"] for x in t])),
+            never=sum(bool(x["never"]) for x in t),
+            truth_loss=float(np.mean([x["loss"] for x in t])),
+        )
     return out

@@ -1,13 +1,19 @@
 """The tuning report: the text table, and the convergence and parameter-importance plots (PNG, matplotlib)."""
+
 from __future__ import annotations
 
 import math
 import os
 from typing import Any
 
-FIGURES = (("fail_share", "fail share", "{:.1%}"), ("rmse_position_m", "RMSE position [m]", "{:.3f}"),
-           ("superb_wrong", "SUPERB wrong", "{:.2%}"), ("never", "never re-converged", "{:d}"),
-           ("truth_loss", "truth loss", "{:.4f}"), ("evidence_per_frame", "evidence / frame", "{:.3f}"))
+FIGURES = (
+    ("fail_share", "fail share", "{:.1%}"),
+    ("rmse_position_m", "RMSE position [m]", "{:.3f}"),
+    ("superb_wrong", "SUPERB wrong", "{:.2%}"),
+    ("never", "never re-converged", "{:d}"),
+    ("truth_loss", "truth loss", "{:.4f}"),
+    ("evidence_per_frame", "evidence / frame", "{:.3f}"),
+)
 
 
 def spearman(x, y) -> float | None:
@@ -30,20 +36,26 @@ def _cell(value: Any, fmt: str) -> str:
 def format_report(result: dict) -> str:
     """The printed report of `robocup-mcl tune` (its JSON result)."""
     s = result["settings"]
-    lines = [f"tune: {s['trials']} trials ({s['sampler']}, seed {s['seed']}), objective {s['objective']}, "
-             f"{s['training_cases']} training cases × {len(s['seeds'])} filter seed(s), "
-             f"{s['holdout_cases']} held-out cases" + (f", study {s['study']}" if s.get("study") else "")]
+    lines = [
+        f"tune: {s['trials']} trials ({s['sampler']}, seed {s['seed']}), objective {s['objective']}, "
+        f"{s['training_cases']} training cases × {len(s['seeds'])} filter seed(s), "
+        f"{s['holdout_cases']} held-out cases" + (f", study {s['study']}" if s.get("study") else "")
+    ]
     r = result["ray"]
     first, later = r.get("first_task_s"), r.get("later_task_s")
-    lines.append(f"Ray: {r['address']}, {r['cpus']} CPUs on {r['nodes']} node(s); {r['tasks']} tasks on "
-                 f"{r['workers_seen']} worker(s); a worker's first task {_cell(first, '{:.2f}')} s, later tasks "
-                 f"{_cell(later, '{:.2f}')} s (median); {result['trials_per_hour']:.0f} trials per hour")
+    lines.append(
+        f"Ray: {r['address']}, {r['cpus']} CPUs on {r['nodes']} node(s); {r['tasks']} tasks on "
+        f"{r['workers_seen']} worker(s); a worker's first task {_cell(first, '{:.2f}')} s, later tasks "
+        f"{_cell(later, '{:.2f}')} s (median); {result['trials_per_hour']:.0f} trials per hour"
+    )
     if result["resumed"]:
         lines.append(f"resumed a study with {result['resumed']} completed trials")
     best = result["best"]
     start = next((t for t in result["trials"] if t.get("start")), None)
-    lines.append(f"best trial {best['trial']}: {best['value']:.4f}"
-                 + (f" (the defaults, trial {start['number']}: {start['value']:.4f})" if start else ""))
+    lines.append(
+        f"best trial {best['trial']}: {best['value']:.4f}"
+        + (f" (the defaults, trial {start['number']}: {start['value']:.4f})" if start else "")
+    )
     defaults = result["defaults"]
     for name, value in best["values"].items():
         default = defaults.get(name)
@@ -52,9 +64,11 @@ def format_report(result: dict) -> str:
         lines.append("importance: " + ", ".join(f"{k} {v:.2f}" for k, v in result["importance"].items()))
     if result.get("evidence_vs_error"):
         e = result["evidence_vs_error"]
-        lines.append(f"evidence against error over {e['trials']} trials: Spearman {_cell(e['spearman'], '{:+.2f}')} "
-                     "between the mean log evidence per frame and the truth loss (negative: more evidence, less "
-                     "error)")
+        lines.append(
+            f"evidence against error over {e['trials']} trials: Spearman {_cell(e['spearman'], '{:+.2f}')} "
+            "between the mean log evidence per frame and the truth loss (negative: more evidence, less "
+            "error)"
+        )
     lines.append("")
     header = f"{'':<22}" + "".join(f"{name:>24}" for name in ("training", "held-out"))
     lines.append(header)
@@ -73,8 +87,10 @@ def format_report(result: dict) -> str:
             cells = []
             for which in ("default", "tuned"):
                 f = row[which]
-                cells.append(f"{_cell(f.get('fail_share'), '{:.1%}')} / {_cell(f.get('rmse_position_m'), '{:.3f}')} / "
-                             f"{_cell(f.get('evidence_per_frame'), '{:.2f}')}")
+                cells.append(
+                    f"{_cell(f.get('fail_share'), '{:.1%}')} / {_cell(f.get('rmse_position_m'), '{:.3f}')} / "
+                    f"{_cell(f.get('evidence_per_frame'), '{:.2f}')}"
+                )
             lines.append(f"  {row['case']:<26} {cells[0]:>28} | {cells[1]}")
     return "\n".join(lines)
 

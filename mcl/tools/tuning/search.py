@@ -28,6 +28,7 @@ were first, and the outcome says what that cost (`first_task_s` against `later_t
 Fault injection for the tests: with `ROBOCUP_MCL_TUNE_CRASH_ONCE` set to a file path in the environment Ray's
 workers start with, the first task to run kills its worker process (`os._exit`) after creating that file.
 """
+
 from __future__ import annotations
 
 import math
@@ -92,9 +93,16 @@ class TuneSettings:
 
     def fingerprint(self) -> dict:
         """What makes a study: a journal file is resumed only with the same fingerprint."""
-        return {"cases": [repr(c) for c in self.cases], "space": self.space.to_dict(),
-                "objective": self.objective, "seeds": list(self.seeds), "sampler": self.sampler, "seed": self.seed,
-                "particles": self.particles, "parallel_trials": self.parallel_trials}
+        return {
+            "cases": [repr(c) for c in self.cases],
+            "space": self.space.to_dict(),
+            "objective": self.objective,
+            "seeds": list(self.seeds),
+            "sampler": self.sampler,
+            "seed": self.seed,
+            "particles": self.particles,
+            "parallel_trials": self.parallel_trials,
+        }
 
 
 @dataclass
@@ -105,17 +113,28 @@ class TaskLog:
     rows: list = dataclass_field(default_factory=list)
 
     def add(self, result: dict, label: str, trial: int | str) -> None:
-        self.rows.append({"case": label, "trial": trial, "seconds": result["seconds"], "pid": result["pid"],
-                          "node": result["node"], "first": result["first_in_worker"]})
+        self.rows.append(
+            {
+                "case": label,
+                "trial": trial,
+                "seconds": result["seconds"],
+                "pid": result["pid"],
+                "node": result["node"],
+                "first": result["first_in_worker"],
+            }
+        )
 
     def costs(self) -> dict:
         """The first-task cost: the mean seconds of the workers' first tasks against the median of the rest."""
         first = [r["seconds"] for r in self.rows if r["first"]]
         later = [r["seconds"] for r in self.rows if not r["first"]]
-        return {"tasks": len(self.rows), "workers_seen": len({(r["node"], r["pid"]) for r in self.rows}),
-                "nodes_seen": len({r["node"] for r in self.rows}),
-                "first_task_s": float(np.mean(first)) if first else None,
-                "later_task_s": float(np.median(later)) if later else None}
+        return {
+            "tasks": len(self.rows),
+            "workers_seen": len({(r["node"], r["pid"]) for r in self.rows}),
+            "nodes_seen": len({r["node"] for r in self.rows}),
+            "first_task_s": float(np.mean(first)) if first else None,
+            "later_task_s": float(np.median(later)) if later else None,
+        }
 
 
 def _task(case: Any, values: dict, seed: int, particles: int) -> dict:
@@ -128,10 +147,10 @@ def _task(case: Any, values: dict, seed: int, particles: int) -> dict:
             pass
         else:
             os.close(fd)
-            os._exit(1)                    # the worker dies mid-task; Ray retries the task elsewhere
+            os._exit(1)  # the worker dies mid-task; Ray retries the task elsewhere
     first = _WORKER["tasks"] == 0
     _WORKER["tasks"] += 1
-    if first:                              # the workers compile the same kernels into one cache side by side
+    if first:  # the workers compile the same kernels into one cache side by side
         serialize_cache_access()
     result = evaluate_case(case, values, seed, particles)
     import ray
@@ -162,8 +181,12 @@ def start_ray(address: str | None = None, workers: int | None = None) -> dict:
 
     started = time.perf_counter()
     if not ray.is_initialized():
-        options: dict[str, Any] = {"include_dashboard": False, "log_to_driver": False, "logging_level": "ERROR",
-                                   "configure_logging": True}
+        options: dict[str, Any] = {
+            "include_dashboard": False,
+            "log_to_driver": False,
+            "logging_level": "ERROR",
+            "configure_logging": True,
+        }
         try:
             if address:
                 ray.init(address=address, **options)
@@ -171,11 +194,18 @@ def start_ray(address: str | None = None, workers: int | None = None) -> dict:
                 ray.init(num_cpus=workers or os.cpu_count() or 1, **options)
         except (ConnectionError, RuntimeError, ValueError, TimeoutError) as error:
             text = " ".join(str(error).split()) or type(error).__name__
-            raise TuneError(f"cannot reach the Ray cluster at {address}: {text[:200]}" if address
-                            else f"cannot start a local Ray instance: {text[:200]}") from None
+            raise TuneError(
+                f"cannot reach the Ray cluster at {address}: {text[:200]}"
+                if address
+                else f"cannot start a local Ray instance: {text[:200]}"
+            ) from None
     resources = ray.cluster_resources()
-    return {"address": address or "local", "cpus": int(resources.get("CPU", 0)),
-            "nodes": len([n for n in ray.nodes() if n.get("Alive")]), "seconds": time.perf_counter() - started}
+    return {
+        "address": address or "local",
+        "cpus": int(resources.get("CPU", 0)),
+        "nodes": len([n for n in ray.nodes() if n.get("Alive")]),
+        "seconds": time.perf_counter() - started,
+    }
 
 
 def check_address(address: str, timeout: float = 5.0) -> None:
@@ -236,8 +266,13 @@ def _open_study(settings: TuneSettings, study_path: str | None):
 
     optuna.logging.set_verbosity(optuna.logging.WARNING)
     storage = JournalStorage(JournalFileBackend(study_path)) if study_path else None
-    study = optuna.create_study(storage=storage, study_name=STUDY_NAME, direction="minimize",
-                                sampler=_sampler(settings.sampler, settings.seed), load_if_exists=True)
+    study = optuna.create_study(
+        storage=storage,
+        study_name=STUDY_NAME,
+        direction="minimize",
+        sampler=_sampler(settings.sampler, settings.seed),
+        load_if_exists=True,
+    )
     fingerprint = settings.fingerprint()
     made_for = study.user_attrs.get("settings")
     if made_for is None:
@@ -252,13 +287,16 @@ def _open_study(settings: TuneSettings, study_path: str | None):
             study.enqueue_trial(start, user_attrs={"start": "library defaults"})
     elif made_for != fingerprint:
         changed = sorted(k for k in fingerprint if fingerprint[k] != made_for.get(k))
-        raise TuneError(f"the study file {study_path} was made for other settings ({', '.join(changed)} differ): "
-                        "give another --study file, or the same settings to resume it")
+        raise TuneError(
+            f"the study file {study_path} was made for other settings ({', '.join(changed)} differ): "
+            "give another --study file, or the same settings to resume it"
+        )
     return study
 
 
-def run_study(settings: TuneSettings, study_path: str | None = None,
-              on_trial: Callable[[dict], None] | None = None) -> StudyOutcome:
+def run_study(
+    settings: TuneSettings, study_path: str | None = None, on_trial: Callable[[dict], None] | None = None
+) -> StudyOutcome:
     """Run (or resume) the study until `settings.trials` trials have completed; Ray must be started
     (`start_ray`). `on_trial` is called with each completed trial's row (for a progress bar)."""
     import optuna
@@ -267,7 +305,7 @@ def run_study(settings: TuneSettings, study_path: str | None = None,
     started = time.perf_counter()
     study = _open_study(settings, study_path)
     for trial in study.get_trials(deepcopy=False, states=(TrialState.RUNNING,)):
-        study.tell(trial.number, state=TrialState.FAIL)       # interrupted mid-trial: asked again below
+        study.tell(trial.number, state=TrialState.FAIL)  # interrupted mid-trial: asked again below
     resumed = len(study.get_trials(deepcopy=False, states=(TrialState.COMPLETE,)))
     distributions = settings.space.distributions()
     tasks = TaskLog()
@@ -289,8 +327,9 @@ def run_study(settings: TuneSettings, study_path: str | None = None,
                 study.tell(trial, state=TrialState.FAIL)
                 failed += 1
                 if failed >= max(10, settings.trials):
-                    raise TuneError(f"{failed} parameter sets refused by the library (the last: {error}); "
-                                    "narrow the space") from None
+                    raise TuneError(
+                        f"{failed} parameter sets refused by the library (the last: {error}); narrow the space"
+                    ) from None
                 continue
             batch.append((trial, values))
         if not batch:
@@ -299,8 +338,8 @@ def run_study(settings: TuneSettings, study_path: str | None = None,
         results = evaluate_many(jobs, settings)
         per_trial = len(settings.cases) * len(settings.seeds)
         for i, (trial, values) in enumerate(batch):
-            chunk = results[i * per_trial:(i + 1) * per_trial]
-            for (case, _, _), result in zip(jobs[i * per_trial:(i + 1) * per_trial], chunk):
+            chunk = results[i * per_trial : (i + 1) * per_trial]
+            for (case, _, _), result in zip(jobs[i * per_trial : (i + 1) * per_trial], chunk):
                 tasks.add(result, case.label, trial.number)
             value = combine(settings.objective, chunk)
             figures = summary(chunk)
@@ -310,22 +349,49 @@ def run_study(settings: TuneSettings, study_path: str | None = None,
                 on_trial({"number": trial.number, "value": value, "values": values, "figures": figures})
     rows = []
     for t in study.get_trials(deepcopy=False, states=(TrialState.COMPLETE,)):
-        rows.append({"number": t.number, "value": t.value, "values": dict(t.params),
-                     "figures": t.user_attrs.get("figures"), "start": t.user_attrs.get("start")})
+        rows.append(
+            {
+                "number": t.number,
+                "value": t.value,
+                "values": dict(t.params),
+                "figures": t.user_attrs.get("figures"),
+                "start": t.user_attrs.get("start"),
+            }
+        )
     rows.sort(key=lambda r: r["number"])
     best = min(rows, key=lambda r: (r["value"], r["number"]))
     try:
-        importance = {k: float(v) for k, v in optuna.importance.get_param_importances(
-            study, evaluator=optuna.importance.PedAnovaImportanceEvaluator()).items()} \
-            if len(rows) >= 2 and len(settings.space.parameters) > 1 else {}
+        importance = (
+            {
+                k: float(v)
+                for k, v in optuna.importance.get_param_importances(
+                    study, evaluator=optuna.importance.PedAnovaImportanceEvaluator()
+                ).items()
+            }
+            if len(rows) >= 2 and len(settings.space.parameters) > 1
+            else {}
+        )
     except (RuntimeError, ValueError, ZeroDivisionError):
         importance = {}
-    return StudyOutcome(rows, best["values"], best["value"], best["number"], importance, tasks, resumed, failed,
-                        time.perf_counter() - started)
+    return StudyOutcome(
+        rows,
+        best["values"],
+        best["value"],
+        best["number"],
+        importance,
+        tasks,
+        resumed,
+        failed,
+        time.perf_counter() - started,
+    )
 
 
-def tune(settings: TuneSettings, holdout: Sequence[Any] = (), study_path: str | None = None,
-         on_trial: Callable[[dict], None] | None = None) -> dict:
+def tune(
+    settings: TuneSettings,
+    holdout: Sequence[Any] = (),
+    study_path: str | None = None,
+    on_trial: Callable[[dict], None] | None = None,
+) -> dict:
     """`run_study`, then the library's defaults and the best parameter set on the training and the `holdout`
     cases (every filter seed); returns the JSON-ready result: "trials", "best", "defaults", "importance",
     "comparison" (per split the default's and the tuned set's `summary`, and per case), "ray" (the task costs),
@@ -342,30 +408,48 @@ def tune(settings: TuneSettings, holdout: Sequence[Any] = (), study_path: str | 
     for split, cases in (("training", tuple(settings.cases)), ("holdout", tuple(holdout))):
         if not cases:
             continue
-        jobs = [(case, values, seed) for values in ({}, outcome.best_values) for case in cases
-                for seed in settings.seeds]
+        jobs = [
+            (case, values, seed) for values in ({}, outcome.best_values) for case in cases for seed in settings.seeds
+        ]
         results = evaluate_many(jobs, settings)
         for (case, _, _), row in zip(jobs, results):
             outcome.tasks.add(row, case.label, "comparison")
         half = len(results) // 2
-        compare[split] = {"default": summary(results[:half]), "tuned": summary(results[half:]),
-                          "per_case": [{"case": case.label, "default": summary(results[i * per:(i + 1) * per]),
-                                        "tuned": summary(results[half + i * per:half + (i + 1) * per])}
-                                       for i, case in enumerate(cases)]}
+        compare[split] = {
+            "default": summary(results[:half]),
+            "tuned": summary(results[half:]),
+            "per_case": [
+                {
+                    "case": case.label,
+                    "default": summary(results[i * per : (i + 1) * per]),
+                    "tuned": summary(results[half + i * per : half + (i + 1) * per]),
+                }
+                for i, case in enumerate(cases)
+            ],
+        }
     new_trials = len(outcome.trials) - outcome.resumed
     defaults = default_values(settings.particles)
     result: dict = {
-        "ray": outcome.tasks.costs(), "resumed": outcome.resumed, "failed": outcome.failed,
+        "ray": outcome.tasks.costs(),
+        "resumed": outcome.resumed,
+        "failed": outcome.failed,
         "trials": outcome.trials,
         "best": {"trial": outcome.best_trial, "value": outcome.best_value, "values": outcome.best_values},
         "defaults": {name: defaults.get(name) for name in settings.space.names},
-        "importance": outcome.importance, "comparison": compare, "study_s": study_seconds,
+        "importance": outcome.importance,
+        "comparison": compare,
+        "study_s": study_seconds,
         "trials_per_hour": 3600.0 * new_trials / study_seconds if new_trials and study_seconds > 0 else 0.0,
     }
     if settings.objective == "evidence":
-        pairs = [(t["figures"].get("evidence_per_frame"), t["figures"].get("truth_loss")) for t in outcome.trials
-                 if t["figures"]]
+        pairs = [
+            (t["figures"].get("evidence_per_frame"), t["figures"].get("truth_loss"))
+            for t in outcome.trials
+            if t["figures"]
+        ]
         if pairs and all(b is not None for _, b in pairs):
-            result["evidence_vs_error"] = {"trials": len(pairs),
-                                           "spearman": spearman([a for a, _ in pairs], [b for _, b in pairs])}
+            result["evidence_vs_error"] = {
+                "trials": len(pairs),
+                "spearman": spearman([a for a, _ in pairs], [b for _, b in pairs]),
+            }
     return result

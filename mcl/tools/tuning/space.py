@@ -18,6 +18,7 @@ Anything else in the file is an error: a section or setting a profile does not h
 with `low` <= 0, a value the library refuses (a range end that makes a negative noise, say), or a
 missing `low`/`high`. Each error is one line naming the file and the setting (`SpaceError`).
 """
+
 from __future__ import annotations
 
 import os
@@ -55,7 +56,7 @@ class Parameter:
         return optuna.distributions.FloatDistribution(float(self.low), float(self.high), log=self.log)
 
     def describe(self) -> str:
-        """"sensor.outlier_weight in [0.001, 0.1] (log)" and the like."""
+        """ "sensor.outlier_weight in [0.001, 0.1] (log)" and the like."""
         if self.choices:
             return f"{self.name} in {{{', '.join(map(repr, self.choices))}}}"
         return f"{self.name} in [{self.low:g}, {self.high:g}]" + (" (log)" if self.log else "")
@@ -79,9 +80,14 @@ class SearchSpace:
 
     def to_dict(self) -> dict:
         """JSON-ready: per parameter its range or choices."""
-        return {p.name: ({"choices": list(p.choices)} if p.choices else
-                         {"low": p.low, "high": p.high, "log": p.log, "int": p.kind is int})
-                for p in self.parameters}
+        return {
+            p.name: (
+                {"choices": list(p.choices)}
+                if p.choices
+                else {"low": p.low, "high": p.high, "log": p.log, "int": p.kind is int}
+            )
+            for p in self.parameters
+        }
 
     @classmethod
     def load(cls, path: str | os.PathLike) -> SearchSpace:
@@ -117,8 +123,7 @@ def _parameter(where: str, section: str, name: str, spec: Any) -> Parameter:
     if name not in SECTIONS[section]:
         raise SpaceError(f"{where}[{section}] unknown setting {name!r}; known: {', '.join(SECTIONS[section])}")
     if not isinstance(spec, Mapping):
-        raise SpaceError(f"{where}{full} = {spec!r} must be a table: {{ low = .., high = .. }} or "
-                         "{ choices = [..] }")
+        raise SpaceError(f"{where}{full} = {spec!r} must be a table: {{ low = .., high = .. }} or {{ choices = [..] }}")
     kind = SECTIONS[section][name]
     extra = set(spec) - {"low", "high", "log", "choices"}
     if extra:
@@ -134,7 +139,12 @@ def _parameter(where: str, section: str, name: str, spec: Any) -> Parameter:
         raise SpaceError(f"{where}{full}: needs low and high")
     low, high, log = spec["low"], spec["high"], spec.get("log", False)
     for key, value in (("low", low), ("high", high)):
-        if isinstance(value, bool) or not isinstance(value, (int, float)) or value != value or abs(value) == float("inf"):
+        if (
+            isinstance(value, bool)
+            or not isinstance(value, (int, float))
+            or value != value
+            or abs(value) == float("inf")
+        ):
             raise SpaceError(f"{where}{full}: {key} = {value!r} must be a finite number")
         if kind is int and float(value) != int(value):
             raise SpaceError(f"{where}{full}: {key} = {value!r} must be an integer (the setting is one)")
