@@ -52,8 +52,9 @@ class _OldNames(importlib.abc.MetaPathFinder, importlib.abc.Loader):
 
     def create_module(self, spec) -> ModuleType:
         new = self.new_name(spec.name)
+        assert new is not None  # find_spec made this spec only for a moved name
         _warn(spec.name, new)
-        return importlib.import_module(new)  # type: ignore[arg-type]
+        return importlib.import_module(new)
 
     def exec_module(self, module: ModuleType) -> None:
         """Nothing to run: the module at the new name has run already."""

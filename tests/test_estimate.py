@@ -228,16 +228,17 @@ def _kde_log_density_reference(poses, weights, pose):
     residual = poses - centre
     residual[:, 2] = (residual[:, 2] + math.pi) % (2 * math.pi) - math.pi
     bandwidth = np.maximum(np.sqrt(weights @ residual**2) * n_effective ** (-1 / 7), 0.005)
-    total = 0.0
+    terms = []  # log of each particle's term, summed in log space (a far pose underflows exp)
     for p, w in zip(poses, weights):
         d = pose - p
         d[2] = (d[2] + math.pi) % (2 * math.pi) - math.pi
-        total += (
-            w
-            * math.exp(-0.5 * float(np.sum((d / bandwidth) ** 2)))
-            / ((2 * math.pi) ** 1.5 * float(np.prod(bandwidth)))
+        terms.append(
+            math.log(w)
+            - 0.5 * float(np.sum((d / bandwidth) ** 2))
+            - math.log((2 * math.pi) ** 1.5 * float(np.prod(bandwidth)))
         )
-    return math.log(total)
+    top = max(terms)
+    return top + math.log(sum(math.exp(term - top) for term in terms))
 
 
 @given(clouds)
