@@ -220,6 +220,13 @@ def summary_lines(rows: list[dict]) -> list[str]:
     return battery + lines
 
 
+def report_text(result: dict) -> str:
+    """The printed report of a comparison's result (as `--json` prints and `--save` writes it)."""
+    same = result["cases"] - len(result["different"])
+    head = f"{result['base']} against the {result['current']}: {same}/{result['cases']} cases bit for bit the same"
+    return "\n".join([head] + summary_lines(result["rows"]))
+
+
 def build_parser(prog: str = PROG) -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog=prog, description=__doc__.split("\n\n")[0])
     parser.add_argument(
@@ -240,6 +247,9 @@ def build_parser(prog: str = PROG) -> argparse.ArgumentParser:
         action="store_true",
         help="no progress bars (there are none: each side says on stderr when it starts)",
     )
+    parser.add_argument(
+        "--show", metavar="PATH", help="print the report of a result saved with --save, and run nothing"
+    )
     parser.add_argument("--inside", action="store_true", help=argparse.SUPPRESS)
     return parser
 
@@ -252,6 +262,10 @@ def main(argv: list[str] | None = None, prog: str = PROG) -> int:
         parser.error(f"--sections: choose from {', '.join(SECTIONS)}")
     if args.seeds < 1 or args.jobs < 1:
         parser.error("--seeds and --jobs must be at least 1")
+    if args.show:
+        with open(args.show, encoding="utf-8") as saved:
+            print(report_text(json.load(saved)))
+        return 0
     if args.inside:  # the fresh process of one side: its fingerprints as JSON on stdout
         print(json.dumps(fingerprints(sections, args.seeds, args.jobs)))
         return 0
@@ -286,20 +300,8 @@ def main(argv: list[str] | None = None, prog: str = PROG) -> int:
         "different": differ,
         "rows": rows,
     }
-    save_and_print(
-        result,
-        args.save,
-        args.json,
-        lambda r: print(
-            "\n".join(
-                [
-                    f"{r['base']} against the {r['current']}: {r['cases'] - len(r['different'])}/{r['cases']} cases bit for "
-                    "bit the same"
-                ]
-                + summary_lines(r["rows"])
-            )
-        ),
-    )
+    save_and_print(result, args.save, args.json, lambda r: print(report_text(r)))
+
     return 1 if differ else 0
 
 

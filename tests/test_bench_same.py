@@ -54,3 +54,14 @@ def test_bad_options_are_refused(argv):
     with pytest.raises(SystemExit) as raised:
         same.main(argv)
     assert raised.value.code == 2
+
+
+def test_a_saved_result_is_shown_again(tmp_path, capsys):
+    rows = same.compare({"replay/0": "a", "walk/constant/0": "b"}, {"replay/0": "a", "walk/constant/0": "c"})
+    result = {"base": "REV", "current": "working tree", "cases": 2, "different": ["walk/constant/0"], "rows": rows}
+    saved = tmp_path / "same.json"
+    saved.write_text(__import__("json").dumps(result))
+    assert same.main(["--show", str(saved)]) == 0
+    out = capsys.readouterr().out
+    assert out.startswith("REV against the working tree: 1/2 cases bit for bit the same")
+    assert "walk/constant/0" in out and "DIFFERENT" in out
