@@ -242,7 +242,7 @@ def main(argv: list[str] | None = None, prog: str = PROG) -> int:
     if importlib.util.find_spec("ray") is None or importlib.util.find_spec("optuna") is None:
         from mcl.tools.cli_checks import CommandError
 
-        raise CommandError("tune needs Ray and Optuna: pip install 'robocup-mcl[tune]'")
+        raise CommandError("tune needs Ray and Optuna: pip install -e '.[tune]' in the clone")
     check_output_file(args.save, "--save")
     check_output_file(args.out, "--out")
     result = run(args, parser)

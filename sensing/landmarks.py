@@ -291,8 +291,8 @@ def _general_likelihood(poses, trig, landmarks, batch, noise, exact, sum_mixture
 # in the same order, in plain IEEE arithmetic (no fast-math, no fused multiply-add), so nothing is left to the
 # compiler's choice and the results are the same on every machine, whichever way LLVM arranges the loops. (A
 # fused multiply-add spelled out is one instruction with FMA3, but a call into libm's fma on a processor
-# without it, such as the NAO's Atom: compiled for its instruction set, this scoring took 175 ns per particle
-# with them and 50 without, on a machine whose libm still has the FMA unit.) They work on a block at a time,
+# without it, such as the NAO's Atom: compiled for its instruction set, this scoring was several times slower
+# with them than without.) They work on a block at a time,
 # with the candidates' geometry and the running maxima in rows over the block, so that every inner loop runs
 # over particles and vectorizes (four particles per AVX2 instruction). The maxima alternate between two rows
 # (`BEST`), because a row that is read and written in the same loop becomes a masked store, which is slow on
