@@ -164,26 +164,26 @@ def cli_module(root: Path) -> str:
     return "mcl.tools.cli" if (root / "mcl" / "tools" / "cli.py").exists() else "mcl.cli"
 
 
-def run_bench(side: Side, arguments: list[str]) -> dict:
-    """`robocup-mcl bench ARGUMENTS` in a fresh process that imports `side`'s packages; its JSON result."""
-    environment = side_environment(side)
+def run_json(side: Side, command: list[str], what: str) -> dict:
+    """`command` in a fresh process that imports `side`'s packages (run in its root); the JSON it printed.
+    CompareError, naming `what` and quoting the end of its stderr or stdout, when it fails or prints no JSON."""
     done = subprocess.run(
-        [sys.executable, "-m", cli_module(side.root), "bench", *arguments],
-        cwd=side.root,
-        env=environment,
-        capture_output=True,
-        text=True,
-        check=False,
+        command, cwd=side.root, env=side_environment(side), capture_output=True, text=True, check=False
     )
     if done.returncode != 0:
         raise CompareError(
-            f"the bench of {side.label} failed (exit {done.returncode}):\n"
+            f"the {what} of {side.label} failed (exit {done.returncode}):\n"
             + "\n".join(done.stderr.strip().splitlines()[-15:])
         )
     try:
         return json.loads(done.stdout)
     except json.JSONDecodeError:
-        raise CompareError(f"the bench of {side.label} printed no JSON result:\n{done.stdout[-2000:]}") from None
+        raise CompareError(f"the {what} of {side.label} printed no JSON result:\n{done.stdout[-2000:]}") from None
+
+
+def run_bench(side: Side, arguments: list[str]) -> dict:
+    """`robocup-mcl bench ARGUMENTS` in a fresh process that imports `side`'s packages; its JSON result."""
+    return run_json(side, [sys.executable, "-m", cli_module(side.root), "bench", *arguments], "bench")
 
 
 def alternate(

@@ -27,7 +27,6 @@ import contextlib
 import hashlib
 import io
 import json
-import subprocess
 import sys
 from pathlib import Path
 
@@ -158,32 +157,20 @@ def fingerprints(sections, seeds: int, jobs: int) -> dict[str, str]:
 # -- the two sides ---------------------------------------------------------------------------------------------------
 def run_side(root: Path, sections, seeds: int, jobs: int, label: str) -> dict[str, str]:
     """The fingerprints of the tree at `root`, from this file run in a fresh process that imports that tree."""
-    from benchmarks.compare import CompareError, Side, side_environment
+    from benchmarks.compare import Side, run_json
 
-    done = subprocess.run(
-        [
-            sys.executable,
-            str(Path(__file__).resolve()),
-            "--inside",
-            "--sections",
-            ",".join(sections),
-            "--seeds",
-            str(seeds),
-            "--jobs",
-            str(jobs),
-        ],
-        cwd=root,
-        env=side_environment(Side(label, root)),
-        capture_output=True,
-        text=True,
-        check=False,
-    )
-    if done.returncode != 0:
-        raise CompareError(
-            f"the cases of {label} failed (exit {done.returncode}):\n"
-            + "\n".join(done.stderr.strip().splitlines()[-15:])
-        )
-    return json.loads(done.stdout)
+    command = [
+        sys.executable,
+        str(Path(__file__).resolve()),
+        "--inside",
+        "--sections",
+        ",".join(sections),
+        "--seeds",
+        str(seeds),
+        "--jobs",
+        str(jobs),
+    ]
+    return run_json(Side(label, root), command, "cases")
 
 
 def compare(base: dict[str, str], current: dict[str, str]) -> list[dict]:
