@@ -417,3 +417,21 @@ def test_the_command_fails_in_one_line(case, logs, tmp_path):
         "unknown field": "spll",
     }[case]
     assert words in done.stderr
+
+
+def test_a_local_start_never_joins_another_process_s_ray(monkeypatch):
+    """With no address, Ray would join the newest cluster on the machine (another test worker's, another
+    study's), refusing the CPU count; the embedded instance is asked for explicitly ("local")."""
+    import ray
+
+    from mcl.tools.tuning.search import start_ray
+
+    calls = []
+    monkeypatch.setattr(ray, "is_initialized", lambda: False)
+    monkeypatch.setattr(ray, "init", lambda **options: calls.append(options))
+    monkeypatch.setattr(ray, "cluster_resources", lambda: {"CPU": 2.0})
+    monkeypatch.setattr(ray, "nodes", lambda: [{"Alive": True}])
+    assert start_ray(workers=2)["cpus"] == 2
+    assert calls[0]["address"] == "local" and calls[0]["num_cpus"] == 2
+    start_ray("127.0.0.1:6379")
+    assert calls[1]["address"] == "127.0.0.1:6379" and "num_cpus" not in calls[1]

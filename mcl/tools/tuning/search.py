@@ -191,7 +191,9 @@ def start_ray(address: str | None = None, workers: int | None = None) -> dict:
             if address:
                 ray.init(address=address, **options)
             else:
-                ray.init(num_cpus=workers or os.cpu_count() or 1, **options)
+                # "local": a new embedded instance even where another process runs one (with no address Ray
+                # would join the newest cluster on this machine, whose CPUs it may not set)
+                ray.init(address="local", num_cpus=workers or os.cpu_count() or 1, **options)
         except (ConnectionError, RuntimeError, ValueError, TimeoutError) as error:
             text = " ".join(str(error).split()) or type(error).__name__
             raise TuneError(
