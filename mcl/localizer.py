@@ -42,9 +42,11 @@ passed with their camera view: the share of the landmarks the estimate puts in v
 dominant cluster's covariance and weight, the belief's grid entropy, and the mirror odds of the last
 re-localization (the mirror pose explains every detection as well; only the prior tells them apart, and the
 odds must hold without the heading reference, see `mcl.relocalization`):
-- SUPERB: tight (position σ, heading σ small), one cluster, low entropy, recent detections explained, most of
-  what should be in view seen, the mirror ruled out by odds of 10 or more;
-- OKAY: usable for behaviour, but wider or with less support, the pose at least as probable as its mirror;
+- SUPERB: tight (position σ, heading σ small), one cluster, low entropy, recent detections explained and the
+  latest ones not contradicting it (`surprise`, a change detector that reacts within a frame or two, where the
+  fit over 1.5 s lags), most of what should be in view seen, the mirror ruled out by odds of 10 or more;
+- OKAY: usable for behaviour, but wider or with less support, the pose at least three times as probable as its
+  mirror (never after an unseen move alone: `mcl.side.SideSettings.jump_cap`);
 - POOR: anything else. `is_lost` is POOR for `lost_after` seconds (1 s) in a row.
 """
 
@@ -160,6 +162,20 @@ class QualityThresholds:
         Seconds of POOR in a row before `Localizer.is_lost`.
     okay_walked : float, default 2.0
         At most this distance dead-reckoned since the last explained detection [m].
+    superb_surprise, okay_surprise : float, default 4.0, 5.0
+        At most this `Localizer.surprise`: the evidence, in log odds, that the estimate stopped explaining
+        the detections since it last did (a change detector that reacts within a frame or two, where the fit
+        over `fit_window` lags: after a kidnapping the estimate is still tight and the window still full of
+        explained detections).
+    surprise_cap : float, default 8.0
+        The surprise is held at or below this, so that once the estimate is right again a few explained
+        detections make it forget a long wrong stretch (or a burst of false detections). A limit at or above it
+        never binds.
+    explained_rate, wrong_rate : float, default 0.9, 0.3
+        The share of detections an estimate explains when it is right, and when it is wrong (a wrong pose still
+        explains some: many landmarks of a type); 0 < wrong_rate < explained_rate < 1. Each unexplained
+        detection adds log((1 − wrong_rate) / (1 − explained_rate)) to the surprise, each explained one takes
+        log(explained_rate / wrong_rate) from it.
     superb_seen, okay_seen : float, default 0.4, 0.3
         With views: at least this share of the landmarks the estimate expects in view detected
         (`Localizer.seen_share`), in [0, 1] ...
@@ -201,6 +217,11 @@ class QualityThresholds:
     okay_seen: float = 0.3  # expects in view that were detected (`seen_share`), at least this ...
     view_expected: int = 4  # ... once the recent frames expected this many
     view_inset: float = 0.8  # a landmark is expected inside this share of the view (`CameraView.inset`)
+    superb_surprise: float = 4.0  # log odds that the estimate stopped explaining the detections, at most
+    okay_surprise: float = 5.0
+    surprise_cap: float = 8.0  # the surprise is held at or below this
+    explained_rate: float = 0.9  # share of the detections a right estimate explains ...
+    wrong_rate: float = 0.3  # ... and a wrong one
 
     def __post_init__(self) -> None:
         for name, value in self.__dict__.items():
@@ -213,6 +234,35 @@ class QualityThresholds:
             raise ValueError(f"fit_window = {self.fit_window!r}, gate = {self.gate!r} must be > 0")
         if not 0 < self.view_inset <= 1:
             raise ValueError(f"view_inset = {self.view_inset!r} must be within (0, 1]")
+        if not 0 < self.wrong_rate < self.explained_rate < 1:
+            raise ValueError(
+                f"wrong_rate = {self.wrong_rate!r}, explained_rate = {self.explained_rate!r}: "
+                "need 0 < wrong_rate < explained_rate < 1"
+            )
+
+    @property
+    def surprise_steps(self) -> tuple[float, float]:
+        """What one unexplained detection adds to `Localizer.surprise`, and what one explained detection takes."""
+        p, q = self.explained_rate, self.wrong_rate
+        return math.log((1.0 - q) / (1.0 - p)), math.log(p / q)
+
+    def next_surprise(self, surprise: float, detections: int, explained: int) -> float:
+        """The surprise after a frame of `detections` of which the estimate explained `explained`: Page's CUSUM
+        of the log-likelihood ratio "the estimate stopped explaining the detections" against "it still does",
+        each detection independent (`explained_rate`, `wrong_rate`), held within [0, `surprise_cap`].
+
+        Raises
+        ------
+        ValueError
+            Unless 0 <= explained <= detections and the surprise lies within [0, `surprise_cap`].
+        """
+        if not 0 <= explained <= detections:
+            raise ValueError(f"explained = {explained!r} must lie within [0, detections = {detections!r}]")
+        if not 0.0 <= surprise <= self.surprise_cap:
+            raise ValueError(f"surprise = {surprise!r} must lie within [0, {self.surprise_cap!r}]")
+        unexplained, explained_step = self.surprise_steps
+        step = (detections - explained) * unexplained - explained * explained_step
+        return min(max(0.0, surprise + step), self.surprise_cap)
 
 
 TWIN_RADIUS = 1.0  # m: particles this close to the estimate's mirror image form its twin ...
@@ -379,6 +429,10 @@ class Localizer:
         settings on logs without ground truth (`mcl.tools.tuning`); -inf once a frame explains nothing.
     evidence_frames : int
         How many frames it sums.
+    surprise : float
+        The evidence (log odds) that the estimate stopped explaining the detections since it last did
+        (`QualityThresholds.next_surprise`): 0 while it explains them; a frame or two of unexplained detections
+        after a kidnapping raise it above `superb_surprise` and `okay_surprise`. 0 after a reset.
     """
 
     def __init__(
@@ -434,6 +488,7 @@ class Localizer:
         self._frames: deque = deque()  # (capture time, detections, explained, expected in view, seen) per frame
         self._last_explained: float | None = None  # capture time of the last frame with an explained detection
         self._walked = 0.0  # m dead-reckoned since then (since the last reset, before the first one)
+        self.surprise = 0.0
         self.is_penalized = False
         # (start, end) of the stretches the robot was fallen or penalized (end None while it lasts): a frame
         # captured inside one is not used, whenever it arrives
@@ -666,8 +721,9 @@ class Localizer:
     def side_log_odds(self) -> float:
         """The log odds of the estimate against its mirror image (−x, −y, θ+π): the last re-localization's
         prior (`SoccerRelocalization.mirror_log_odds`, capped by `SideSettings.prior_cap`, or by `kidnap_cap` once
-        a re-localization since the last placement rested on a kidnapping law: continuity with a pose whose side
-        was a guess is no surer than the guess) plus what the
+        a re-localization since the last placement rested on a kidnapping law, by `jump_cap` once one lay beyond
+        the anchor's drift at all: continuity with a pose whose side was a guess is no surer than the guess) plus
+        what the
         teammates' view of the ball says (`mcl.side`: weighed jointly with whether each teammate is itself on the
         mirror)."""
         relocalization = self.filter.relocalization
@@ -678,7 +734,8 @@ class Localizer:
             # the prior's odds are those of the anchor's pose: an estimate that has left it (a re-localization
             # not yet accepted) is no surer of its side than a kidnapping law
             kidnapped = not holds(self.filter.estimate().pose)
-        return self.side.log_odds(self._side_sign * prior, kidnapped)
+        jumped = bool(getattr(relocalization, "jumped", False))
+        return self.side.log_odds(self._side_sign * prior, kidnapped, jumped)
 
     def hypotheses(self) -> list[Hypothesis]:
         """The main modes of the belief, most probable first: the estimate, its mirror image (the same
@@ -884,6 +941,7 @@ class Localizer:
         if count:
             self._last_explained = now
             self._walked = 0.0
+        self.surprise = q.next_surprise(self.surprise, m, count)
 
     def _assess(self) -> Quality:
         q = self.thresholds
@@ -911,6 +969,7 @@ class Localizer:
             and explained >= q.superb_detections
             and age <= q.superb_age
             and seen >= q.superb_seen
+            and self.surprise <= q.superb_surprise
         )
         if superb and side_log_odds >= _log(q.superb_mirror_odds):
             return Quality.SUPERB
@@ -923,6 +982,7 @@ class Localizer:
             and self._walked <= q.okay_walked
             and not fit < q.okay_fit
             and seen >= q.okay_seen
+            and self.surprise <= q.okay_surprise
         )
         if okay and side_log_odds >= _log(q.okay_mirror_odds):
             return Quality.OKAY
@@ -1078,6 +1138,7 @@ class Localizer:
         self._side_pose = None
         self._relocalizations = self._relocalization_count()
         self._frames.clear()
+        self.surprise = 0.0
         self._last_explained = None
         self._walked = 0.0
         self._quality = None

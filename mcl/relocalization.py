@@ -253,6 +253,10 @@ class SoccerRelocalization:
         with its mirror image about as far from the anchor (within a factor `KIDNAP_AMBIGUITY`): its
         `mirror_log_odds` then rest on the prior's kidnap law, not on continuity, and so does continuity with it
         afterwards. False after a reset.
+    jumped : bool
+        Whether a re-localized pose since the last reset lay beyond the anchor's drift at all (the robot was
+        moved unseen: pushed far, carried, or the estimate had been wrong): its `mirror_log_odds` then rest on
+        the distance part of the kidnap law, however far the mirror image lies. False after a reset.
 
     Raises
     ------
@@ -277,6 +281,7 @@ class SoccerRelocalization:
         self._carpet = (-1.0, 1.0, -1.0, 1.0)
         self.relocalizations = 0  # re-localized poses accepted so far (`confirm`)
         self.kidnapped = False  # a re-localized pose since the reset rested on the kidnap law
+        self.jumped = False  # a re-localized pose since the reset lay beyond the anchor's drift
 
     @property
     def anchor(self) -> np.ndarray | None:
@@ -314,6 +319,7 @@ class SoccerRelocalization:
         self.region = (x_min, x_max, y_min, y_max)
         self.mirror_log_odds = math.inf
         self.kidnapped = False
+        self.jumped = False
         self._anchor = None
         self.travelled = 0.0
         self.tracking = False
@@ -333,6 +339,7 @@ class SoccerRelocalization:
         self.region = None
         self.mirror_log_odds = math.inf
         self.kidnapped = False
+        self.jumped = False
         self.tracking = True
         self._streak = 0
         self._pending = None
@@ -423,6 +430,7 @@ class SoccerRelocalization:
                 # about as far from the anchor) are only as good as that law: the side belief trusts them less
                 # (and continuity with such a pose is no surer: it holds until the next reset)
                 self.kidnapped = self.kidnapped or self._kidnap_odds(pose, mirror)
+                self.jumped = self.jumped or anchor is not None
                 # the same odds without the heading reference: how far position alone tells the pair apart
                 log_prior = self.log_prior(pair, heading_kept=0.0)
                 position_odds = float(log_prior[0] - log_prior[1])

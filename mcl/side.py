@@ -90,6 +90,12 @@ class SideSettings:
         ... and the most when the prior rests on a kidnapping law (the re-localized pose lies beyond the
         anchor's drift, `SoccerRelocalization.kidnapped`: the law of an unseen kidnapping is a guess), within
         (0, prior_cap].
+    jump_cap : float, default 1.0
+        ... and the most when a re-localized pose lay beyond the anchor's drift at all, however far its mirror
+        image (`SoccerRelocalization.jumped`: the robot was moved unseen, and how far robots are carried is a
+        guess), within [kidnap_cap, prior_cap]. The default is below log 3, the odds
+        `QualityThresholds.okay_mirror_odds` asks: after an unseen move the pose is UNSURE_HALF until the
+        teammates' evidence (or a placement) tells the half; a guessed law never makes it OKAY or SUPERB.
     flip : float, default 2.3
         The robot changes sides when the log odds stay below −flip (log 10) ...
     flip_hold : float, default 1.0
@@ -123,6 +129,7 @@ class SideSettings:
     max_teammates: int = 7
     prior_cap: float = 3.0
     kidnap_cap: float = 1.0
+    jump_cap: float = 1.0
     flip: float = 2.3
     flip_hold: float = 1.0
     confirm_window: float = 0.5
@@ -138,6 +145,7 @@ class SideSettings:
                 real(f.name, getattr(self, f.name), 0.0, low_open=f.name in positive)
         integer("max_teammates", self.max_teammates, 1, 10)
         real("kidnap_cap", self.kidnap_cap, 0.0, self.prior_cap, low_open=True)
+        real("jump_cap", self.jump_cap, self.kidnap_cap, self.prior_cap)
         real("outlier_share", self.outlier_share, 0.0, 1.0, low_open=True, high_open=True)
         real("teammate_mirrored", self.teammate_mirrored, 0.0, 0.5, low_open=True, high_open=True)
         trust = self.teammate_trust
@@ -275,11 +283,12 @@ class SideBelief:
         """What the teammates' reports say of the robot's side (log odds of the main pose; 0: nothing)."""
         return self._side_marginal() if self._side_evidence else 0.0
 
-    def log_odds(self, prior_log_odds: float, kidnapped: bool = False) -> float:
+    def log_odds(self, prior_log_odds: float, kidnapped: bool = False, jumped: bool = False) -> float:
         """The log odds of the main pose against its mirror image: the prior, capped at `prior_cap` (at
-        `kidnap_cap` when it rests on a kidnapping law, `kidnapped`; NaN counts as even), plus the teammates'
-        evidence."""
-        cap = self.settings.kidnap_cap if kidnapped else self.settings.prior_cap
+        `kidnap_cap` when it rests on a kidnapping law, `kidnapped`, at `jump_cap` when on the distance part of
+        one, `jumped`; NaN counts as even), plus the teammates' evidence."""
+        s = self.settings
+        cap = s.kidnap_cap if kidnapped else s.jump_cap if jumped else s.prior_cap
         prior = 0.0 if math.isnan(prior_log_odds) else min(max(prior_log_odds, -cap), cap)
         self._prior = prior
         return prior + self.team_log_odds()

@@ -258,7 +258,9 @@ def test_quality_is_superb_while_tracking_and_the_robot_is_lost_when_detections_
     scenario, sim = walk(seed=4, duration=10.0)
     result = replay(to_robot_log(sim), FIELD, particles=300, seed=4, start=tuple(sim.start))
     tracking = result.times > 1.0
-    assert np.mean(result.quality[tracking] == 2) > 0.9
+    # mostly SUPERB; the surprise (QualityThresholds.superb_surprise) takes a few stretches of unexplained
+    # detections in a row down to OKAY (89 % SUPERB on this walk, 95 % without the surprise)
+    assert np.mean(result.quality[tracking] == 2) > 0.85
     assert not result.lost.any()
     # Without injection, a kidnapped filter cannot recover: detections stop fitting and it is lost.
     loc = Localizer(FIELD, n_particles=300, seed=4, augmented=AugmentedMCL(), history=1.0)
