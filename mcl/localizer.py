@@ -72,6 +72,7 @@ from sensing.view import CameraView
 from .filter import ParticleFilter
 from .latency import MotionHistory, move_back
 from .particles import check_sigma
+from .relocalization import KIDNAP_AMBIGUITY
 from .side import SideBelief, SideSettings, Team
 from .summary import Entropy, Estimate
 
@@ -269,6 +270,20 @@ TWIN_RADIUS = 1.0  # m: particles this close to the estimate's mirror image form
 TWIN_HEADING = 0.8  # rad: ... and this close in heading
 
 
+# m: an estimate this far from where the detections last contradicted it was re-localized (`Localizer.moved_unseen`;
+# a turn alone, as after a fall or a spin, does not bring the robot nearer its mirror image)
+CONTINUITY_POSITION = 0.5
+
+
+def _dead_reckon(pose: np.ndarray, displacement) -> np.ndarray:
+    """`pose` (x, y, θ) moved by a robot-frame displacement (dx, dy, dθ)."""
+    c, s = math.cos(pose[2]), math.sin(pose[2])
+    dx, dy, dtheta = (float(v) for v in displacement)
+    return np.array(
+        [pose[0] + c * dx - s * dy, pose[1] + s * dx + c * dy, math.remainder(pose[2] + dtheta, 2 * math.pi)]
+    )
+
+
 def _same_place(a: np.ndarray, b: np.ndarray) -> bool:
     """Whether two poses are the same place for the side evidence (TWIN_RADIUS, TWIN_HEADING)."""
     return (
@@ -433,6 +448,12 @@ class Localizer:
         The evidence (log odds) that the estimate stopped explaining the detections since it last did
         (`QualityThresholds.next_surprise`): 0 while it explains them; a frame or two of unexplained detections
         after a kidnapping raise it above `superb_surprise` and `okay_surprise`. 0 after a reset.
+    moved_unseen : bool
+        Whether, since the last reset, the estimate came to fit the detections again somewhere else (more than
+        `CONTINUITY_POSITION` from where they last contradicted it, dead-reckoned, and its mirror image not
+        more than `mcl.relocalization.KIDNAP_AMBIGUITY` times as far) after a stretch in which they contradicted
+        it (the surprise above `okay_surprise`): it was re-localized, and its mirror image is as plausible a
+        continuation, so its side odds are capped as after a jump (`SideSettings.jump_cap`).
     """
 
     def __init__(
@@ -489,6 +510,10 @@ class Localizer:
         self._last_explained: float | None = None  # capture time of the last frame with an explained detection
         self._walked = 0.0  # m dead-reckoned since then (since the last reset, before the first one)
         self.surprise = 0.0
+        # where the estimate was when the detections last contradicted it (dead-reckoned since), until they
+        # fit again; and whether the estimate then fitted them somewhere else (`moved_unseen`)
+        self._contradicted_at: np.ndarray | None = None
+        self.moved_unseen = False
         self.is_penalized = False
         # (start, end) of the stretches the robot was fallen or penalized (end None while it lasts): a frame
         # captured inside one is not used, whenever it arrives
@@ -553,6 +578,8 @@ class Localizer:
             self.filter.predict(u)
             self.history.record(t, u.dt, displacement)
             self._walked += math.hypot(displacement[0], displacement[1])
+            if self._contradicted_at is not None:
+                self._contradicted_at = _dead_reckon(self._contradicted_at, displacement)
         self.time = t
         self._quality = None
         self._track_side()
@@ -734,7 +761,7 @@ class Localizer:
             # the prior's odds are those of the anchor's pose: an estimate that has left it (a re-localization
             # not yet accepted) is no surer of its side than a kidnapping law
             kidnapped = not holds(self.filter.estimate().pose)
-        jumped = bool(getattr(relocalization, "jumped", False))
+        jumped = self.moved_unseen or bool(getattr(relocalization, "jumped", False))
         return self.side.log_odds(self._side_sign * prior, kidnapped, jumped)
 
     def hypotheses(self) -> list[Hypothesis]:
@@ -942,6 +969,27 @@ class Localizer:
             self._last_explained = now
             self._walked = 0.0
         self.surprise = q.next_surprise(self.surprise, m, count)
+        self._follow_contradiction()
+
+    def _follow_contradiction(self) -> None:
+        """After a frame: when the surprise passes `okay_surprise`, keep where the estimate was; when it is back
+        to 0, an estimate that now fits somewhere else (more than `CONTINUITY_POSITION` from there,
+        dead-reckoned) was re-localized; when its mirror image lies about as near to there (within a factor
+        `KIDNAP_AMBIGUITY`), its side no longer rests on continuity (`moved_unseen`). Only once the filter
+        has tracked since the last reset (`SoccerRelocalization.tracking`)."""
+        q = self.thresholds
+        if not getattr(self.filter.relocalization, "tracking", True):
+            return  # still settling after a reset: the placement's region prior speaks for the side
+        if self.surprise > q.okay_surprise:
+            if self._contradicted_at is None:
+                self._contradicted_at = self.filter.estimate().pose.copy()
+        elif self.surprise == 0.0 and self._contradicted_at is not None:
+            pose, before = self.filter.estimate().pose, self._contradicted_at
+            moved = math.hypot(pose[0] - before[0], pose[1] - before[1])
+            to_mirror = math.hypot(pose[0] + before[0], pose[1] + before[1])  # from there to the pose's mirror image
+            if moved > CONTINUITY_POSITION and to_mirror <= KIDNAP_AMBIGUITY * moved:
+                self.moved_unseen = True
+            self._contradicted_at = None
 
     def _assess(self) -> Quality:
         q = self.thresholds
@@ -1139,6 +1187,8 @@ class Localizer:
         self._relocalizations = self._relocalization_count()
         self._frames.clear()
         self.surprise = 0.0
+        self._contradicted_at = None
+        self.moved_unseen = False
         self._last_explained = None
         self._walked = 0.0
         self._quality = None

@@ -163,3 +163,21 @@ def test_after_an_unseen_move_without_teammates_the_pose_is_unsure_of_its_half()
     assert loc.quality() is Quality.UNSURE_HALF
     loc.place(carried)
     assert not relocalization.jumped and loc.quality() is not Quality.UNSURE_HALF
+
+
+def test_a_pose_found_again_after_the_detections_contradicted_it_no_longer_rests_on_continuity():
+    """Tracked near the centre mark, then carried 1.2 m and turned unseen: the detections contradict the
+    estimate, it settles on the new pose, whose mirror image is as near to where it was, and its side odds
+    are capped as after a jump (`Localizer.moved_unseen`) until the next placement."""
+    start, moved = np.array([-0.6, -0.5, 0.2]), np.array([0.4, 0.15, 1.6])
+    loc = Localizer(FIELD, n_particles=500, seed=4)
+    loc.place(start, sigma=(0.02, 0.02, 0.02))
+    t = _stand(loc, 0.0, start, 150)
+    assert loc.filter.relocalization.tracking and not loc.moved_unseen
+    t = _stand(loc, t, moved, 150)
+    assert np.hypot(*(loc.pose().pose[:2] - moved[:2])) < 0.2
+    assert loc.moved_unseen
+    assert loc.side_log_odds <= SideSettings().jump_cap
+    assert loc.quality() is Quality.UNSURE_HALF
+    loc.place(moved)
+    assert not loc.moved_unseen
