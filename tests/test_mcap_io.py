@@ -445,6 +445,24 @@ def test_backwards_duplicate_repeated_and_non_finite_messages_are_dropped_and_co
     assert report.messages[topic] == len(sequence)
 
 
+def test_a_stamp_more_than_the_longest_motion_step_ahead_is_dropped_and_counted(tmp_path):
+    """A stamp two hours after the previous one (a clock jump) is dropped, as the columnar reader refuses it: no
+    replay step could span it, and the messages after it that follow the earlier ones are kept."""
+    topic, ms = "/motion_odometry", 1_000_000
+    stamps = [0, 10, 7_200_000, 20, 30]  # [ms]: the third two hours ahead
+    write_raw(
+        tmp_path / "j.mcap",
+        [
+            (topic, schemas.ODOMETRY, odometry(ORIGIN_NS + t * ms, float(i)), ORIGIN_NS + i * ms)
+            for i, t in enumerate(stamps)
+        ],
+    )
+    log, report = read_mcap(tmp_path / "j.mcap")
+    assert report.dropped == {(topic, "more than MAX_STEP_DT = 3600 s after the previous message"): 1}
+    np.testing.assert_allclose(log.odometry_times, [0.0, 0.01, 0.02, 0.03])
+    np.testing.assert_allclose(log.odometry[:, 0], [0.0, 1.0, 3.0, 4.0])
+
+
 def test_a_gap_is_reported(tmp_path):
     write_raw(
         tmp_path / "g.mcap",

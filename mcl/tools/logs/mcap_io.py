@@ -53,7 +53,8 @@ written by `write_mcap` records, so a round trip keeps every time):
 - nothing is skipped silently: every message not used is counted in `report.dropped` under (topic,
   reason): "cannot decode ...", "non-finite value", "duplicate" (same topic, stamp and bytes),
   "time went backwards", "same stamp as the previous message" (also: stamps that are one float64 time in
-  seconds from the origin), joint and vision reasons, and those of a message type the file defines unlike
+  seconds from the origin), a stamp more than `MAX_STEP_DT` (an hour, the longest motion step) after the
+  previous accepted one of its topic (the columnar reader refuses such a log), joint and vision reasons, and those of a message type the file defines unlike
   ROS ("no field ... in the message", "a field holds str, not a number", "... not an array").
 - a gap longer than `gap` seconds between accepted messages of a topic is listed in `report.gaps`.
 - a truncated or corrupt file yields everything before the break; `report.stop_reason` says what broke and
@@ -114,6 +115,7 @@ from mcl.tools.formats import (
 from mcl.tools.logs import schemas
 from mcl.tools.logs.cdr import DecoderFactory
 from mcl.tools.logs.robot_log import LogError, ReadReport, RobotLog, VisionFrame
+from motion_models.base import MAX_STEP_DT
 from sensing.observations import Observations
 
 try:
@@ -138,6 +140,7 @@ ORIGIN_METADATA = "robocup_mcl.origin"
 MCAP0_MAGIC = b"\x89MCAP0\r\n"
 FOOTER_RECORD_BYTES = 1 + 8 + 20  # opcode, length, then summary start, summary offset start, CRC
 MAX_CHUNK_BYTES = 1 << 30  # a chunk claiming more (uncompressed) is taken for corrupt
+_FAR_AHEAD = f"more than MAX_STEP_DT = {MAX_STEP_DT:g} s after the previous message"
 _DECOMPRESS_BLOCK = 1 << 20  # [bytes] a chunk is decompressed this much at a time
 SEGMENT_SPACING = 0.15  # [m] the largest distance between line points sampled along a segment
 MAX_SEGMENT_LENGTH = 30.0  # [m] a longer segment (no field line is seen that long) is dropped, not sampled
@@ -719,6 +722,9 @@ def _accept(
             stamp == accepted[-1].stamp_ns or (stamp - origin_ns) / 1e9 == (accepted[-1].stamp_ns - origin_ns) / 1e9
         ):
             report.drop(topic, "same stamp as the previous message")
+            continue
+        if accepted and (stamp - accepted[-1].stamp_ns) / 1e9 > MAX_STEP_DT:
+            report.drop(topic, _FAR_AHEAD)
             continue
         if stream in ("goalposts", "markings"):
             for reason in value[2]:
