@@ -13,6 +13,11 @@ the node's subscriptions are matched, and records the poses with `PoseListener`.
   (one process, one clock: `time.perf_counter`), median, p90, p99 and max [ms];
 - drops: odometry messages sent that no pose answered (the first odometry message of a run only starts it);
 - CPU: the node's CPU seconds over its wall seconds (`--stats`), and its callbacks' durations;
+- soak: the poses and /tf transforms holding a NaN or an infinity (none are recorded as poses), the node's
+  resident memory (VmRSS of /proc/PID/status) sampled every `--rss-interval` seconds while the log plays, and
+  its growth from the first to the last ten minutes (a sixth of the run each, when the run is shorter than an
+  hour), and the node's shutdown: the signal sent (`--stop-signal`), whether the node exited by itself with
+  status 0 (within 15 s) and its statistics file was written, and how long that took;
 - the replay: the node's poses against `robocup-mcl replay`'s for the same log, settings and seed, by stamp
   (first lap): the share that are equal bit for bit and the largest distance. The node applies a camera frame
   with the odometry message after its arrival, as the replay does; a frame that DDS delivers after the
@@ -87,6 +92,108 @@ def _percentiles(values: list[float]) -> dict[str, float | None]:
     }
 
 
+def rss_bytes(pid: int) -> int | None:
+    """The resident memory of process `pid` [bytes] (VmRSS in /proc/PID/status), or None when it is gone."""
+    try:
+        for line in Path(f"/proc/{pid}/status").read_text().splitlines():
+            if line.startswith("VmRSS:"):
+                return int(line.split()[1]) * 1024
+    except (OSError, ValueError, IndexError):
+        return None
+    return None
+
+
+class RssSampler:
+    """Samples a process's resident memory every `interval` seconds in a daemon thread: `samples` holds
+    (seconds since `start`, bytes)."""
+
+    def __init__(self, pid: int, interval: float) -> None:
+        import threading
+
+        self.pid, self.interval = pid, interval
+        self.samples: list[tuple[float, int]] = []
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, daemon=True)
+        self._started = 0.0
+
+    def start(self) -> None:
+        self._started = time.monotonic()
+        self._thread.start()
+
+    def _run(self) -> None:
+        while True:
+            value = rss_bytes(self.pid)
+            if value is not None:
+                self.samples.append((time.monotonic() - self._started, value))
+            if self._stop.wait(self.interval):
+                return
+
+    def stop(self) -> None:
+        """Take a last sample and stop."""
+        self._stop.set()
+        self._thread.join(timeout=5)
+        value = rss_bytes(self.pid)
+        if value is not None:
+            self.samples.append((time.monotonic() - self._started, value))
+
+
+def rss_summary(samples: list[tuple[float, int]], window: float = 600.0) -> dict:
+    """Memory over a run from `RssSampler.samples`: the mean of the first and of the last `window` seconds
+    (a sixth of the run each when it is shorter than six windows) [MB], the growth between them [MB and %],
+    the least and the most, and a least-squares slope [MB per hour]."""
+    import numpy as np
+
+    if not samples:
+        return {"samples": 0}
+    times = np.array([t for t, _ in samples])
+    mb = np.array([b for _, b in samples]) / 1e6
+    duration = float(times[-1] - times[0])
+    width = min(window, duration / 6) if duration > 0 else 0.0
+    first = mb[times <= times[0] + width]
+    last = mb[times >= times[-1] - width]
+    slope = float(np.polyfit(times, mb, 1)[0] * 3600) if len(samples) > 2 and duration > 0 else None
+    return {
+        "samples": len(samples),
+        "seconds": duration,
+        "window_s": width,
+        "first_window_mb": float(first.mean()),
+        "last_window_mb": float(last.mean()),
+        "growth_mb": float(last.mean() - first.mean()),
+        "growth_percent": float(100 * (last.mean() - first.mean()) / first.mean()),
+        "min_mb": float(mb.min()),
+        "max_mb": float(mb.max()),
+        "slope_mb_per_hour": slope,
+        "series": [[round(float(t), 1), round(float(m), 2)] for t, m in zip(times, mb)],
+    }
+
+
+def stop_node(node: subprocess.Popen, signal_name: str, stats_path: Path) -> dict:
+    """Send `signal_name` (SIGINT or SIGTERM) to the node and wait 15 s for it to exit by itself; then
+    SIGTERM (5 s more) and SIGKILL. Returns what happened."""
+    sent = time.monotonic()
+    node.send_signal(getattr(signal, signal_name))
+    escalated = None
+    try:
+        node.wait(timeout=15)
+    except subprocess.TimeoutExpired:
+        escalated = "SIGTERM"
+        node.terminate()
+        try:
+            node.wait(timeout=5)
+        except subprocess.TimeoutExpired:
+            escalated = "SIGKILL"
+            node.kill()
+            node.wait()
+    return {
+        "signal": signal_name,
+        "exit_status": node.returncode,
+        "seconds": time.monotonic() - sent,
+        "escalated_to": escalated,
+        "stats_written": stats_path.exists(),
+        "completed": escalated is None and node.returncode == 0 and stats_path.exists(),
+    }
+
+
 def compare_with_replay(
     log_path: str, settings: Any, poses: dict[int, tuple[float, float, float]], seconds: float | None
 ) -> dict:
@@ -147,12 +254,17 @@ def run(args: argparse.Namespace, node_argv: list[str]) -> dict:
         }
     )
     stats_path = Path(tempfile.mkdtemp(prefix="robocup-mcl-node-")) / "stats.json"
-    node = subprocess.Popen(
-        [sys.executable, "-m", "mcl.tools.ros.node", *node_argv, "--stats", str(stats_path)],
-        env=env,
-        stderr=subprocess.PIPE,
-        text=True,
-    )
+    # the node's stderr goes to a file: a pipe nobody reads during a long run would fill and block it
+    stderr_path = stats_path.with_name("stderr.txt")
+    with open(stderr_path, "w", encoding="utf-8") as stderr_file:
+        node = subprocess.Popen(
+            [sys.executable, "-m", "mcl.tools.ros.node", *node_argv, "--stats", str(stats_path)],
+            env=env,
+            stderr=stderr_file,
+            text=True,
+        )
+    sampler = RssSampler(node.pid, args.rss_interval)
+    shutdown: dict = {}
     context = Context()
     rclpy.init(context=context)
     player = listener = None
@@ -168,25 +280,16 @@ def run(args: argparse.Namespace, node_argv: list[str]) -> dict:
             if player.wait_for_subscribers(topics, 0.2) and listener.pose_sub.get_publisher_count() > 0:
                 break
         if node.poll() is not None:
-            raise RuntimeError(
-                f"the node stopped before the log was played: {node.stderr.read()[-2000:] if node.stderr else ''}"
-            )
+            raise RuntimeError(f"the node stopped before the log was played: {stderr_path.read_text()[-2000:]}")
         time.sleep(0.5)  # the node's subscriptions matched: let the discovery settle
+        sampler.start()
         started = time.perf_counter()
         sent = player.play(args.rate, args.repeat)
         played = time.perf_counter() - started
         time.sleep(1.0)  # the last answers
+        sampler.stop()
     finally:
-        node.send_signal(signal.SIGINT)
-        try:
-            node.wait(timeout=15)
-        except subprocess.TimeoutExpired:
-            node.terminate()
-            try:
-                node.wait(timeout=5)
-            except subprocess.TimeoutExpired:
-                node.kill()
-                node.wait()
+        shutdown = stop_node(node, args.stop_signal, stats_path)
         if listener is not None:
             listener.close()
         if player is not None:
@@ -225,6 +328,10 @@ def run(args: argparse.Namespace, node_argv: list[str]) -> dict:
             ns: sum(1 for n, _, _ in listener.field_markers if n == ns)
             for ns in sorted({n for n, _, _ in listener.field_markers})
         },
+        "nonfinite_poses": listener.nonfinite_poses,
+        "nonfinite_transforms": listener.nonfinite_transforms,
+        "rss": rss_summary(sampler.samples),
+        "shutdown": shutdown,
         "node": stats,
         "replay": compare_with_replay(args.log, settings, {s: p for s, (_, p) in answered.items()}, args.seconds),
     }
@@ -275,6 +382,26 @@ def summary(result: dict) -> None:
             )
             + f" largest distance {replay['max_distance_m']:.4f} m"
         )
+    print(
+        f"poses or transforms with a NaN or an infinity: {result['nonfinite_poses']} poses, "
+        f"{result['nonfinite_transforms']} transforms"
+    )
+    rss = result.get("rss", {})
+    if rss.get("samples"):
+        print(
+            f"node memory (RSS, {rss['samples']} samples over {rss['seconds']:.0f} s): "
+            f"{rss['first_window_mb']:.1f} MB in the first {rss['window_s']:.0f} s, "
+            f"{rss['last_window_mb']:.1f} MB in the last ({rss['growth_mb']:+.1f} MB, {rss['growth_percent']:+.2f} %), "
+            f"range {rss['min_mb']:.1f}-{rss['max_mb']:.1f} MB"
+        )
+    shutdown = result.get("shutdown", {})
+    if shutdown:
+        print(
+            f"shutdown on {shutdown['signal']}: "
+            + ("completed" if shutdown["completed"] else "NOT completed")
+            + f" in {shutdown['seconds']:.2f} s, exit status {shutdown['exit_status']}"
+            + (f", escalated to {shutdown['escalated_to']}" if shutdown["escalated_to"] else "")
+        )
     if node.get("not_used"):
         print(f"not used by the node: {node['not_used']}")
 
@@ -311,6 +438,18 @@ def build_parser(prog: str = PROG) -> argparse.ArgumentParser:
         help="run the node with use_source_timestamps false: frames ordered as on Humble (receive "
         "order and header stamps)",
     )
+    parser.add_argument(
+        "--stop-signal",
+        choices=("SIGINT", "SIGTERM"),
+        default="SIGINT",
+        help="stop the node with this signal when the log has played (default SIGINT)",
+    )
+    parser.add_argument(
+        "--rss-interval",
+        type=float,
+        default=5.0,
+        help="sample the node's resident memory every this many seconds (default 5)",
+    )
     parser.add_argument("--domain", type=int, default=None, help="ROS_DOMAIN_ID (default: 100 + pid %% 100)")
     parser.add_argument("--json", action="store_true", help="print the figures as JSON")
     add_save_option(parser)
@@ -325,8 +464,8 @@ def main(argv: list[str] | None = None, prog: str = PROG) -> int:
 
     argv = list(sys.argv[1:] if argv is None else argv)
     args = build_parser(prog).parse_args(argv)
-    if not (args.rate > 0 and args.repeat >= 1 and args.particles > 0):
-        raise CommandError("--rate must be > 0, --repeat >= 1 and --particles > 0")
+    if not (args.rate > 0 and args.repeat >= 1 and args.particles > 0 and args.rss_interval > 0):
+        raise CommandError("--rate must be > 0, --repeat >= 1, --particles > 0 and --rss-interval > 0")
     if not os.path.isfile(args.log):
         raise CommandError(f"{args.log}: no such file")
     require_ros()

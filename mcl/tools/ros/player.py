@@ -18,6 +18,7 @@ goes back: an hour from a minute-long log. Messages of a type that does not impo
 from __future__ import annotations
 
 import importlib
+import math
 import threading
 import time
 from typing import TYPE_CHECKING, Any
@@ -157,6 +158,8 @@ class PoseListener:
         self.qualities: list[str] = []
         self.particle_counts: list[int] = []  # poses in each particles message
         self.field_markers: list[tuple[str, int, int]] = []  # (namespace, id, type) of the last MarkerArray
+        self.nonfinite_poses = 0  # poses whose position, orientation or covariance holds a NaN or an infinity
+        self.nonfinite_transforms = 0  # the same for the /tf transforms' translations and rotations
         self._lock = threading.Lock()
         self.pose_sub = self.node.create_subscription(PoseWithCovarianceStamped, pose_topic, self._pose, 100)
         self.node.create_subscription(TFMessage, "/tf", self._tf, QoSProfile(depth=100))
@@ -189,6 +192,11 @@ class PoseListener:
         from mcl.tools.formats import ros_to_pose
 
         arrived = time.perf_counter()
+        p, q = msg.pose.pose.position, msg.pose.pose.orientation
+        values = [p.x, p.y, p.z, q.x, q.y, q.z, q.w, *msg.pose.covariance]
+        if not all(math.isfinite(v) for v in values):
+            self.nonfinite_poses += 1
+            return
         stamp, pose, _ = ros_to_pose(msg)
         with self._lock:
             self.poses.append((stamp, arrived, (float(pose[0]), float(pose[1]), float(pose[2]))))
@@ -198,6 +206,9 @@ class PoseListener:
 
     def _tf(self, msg: Any) -> None:
         for transform in msg.transforms:
+            t, r = transform.transform.translation, transform.transform.rotation
+            if not all(math.isfinite(v) for v in (t.x, t.y, t.z, r.x, r.y, r.z, r.w)):
+                self.nonfinite_transforms += 1
             stamp = transform.header.stamp.sec * 1_000_000_000 + transform.header.stamp.nanosec
             self.transforms.append((stamp, transform.header.frame_id, transform.child_frame_id))
 
