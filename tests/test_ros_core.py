@@ -70,6 +70,62 @@ def test_the_core_gives_the_replay_s_estimates_bit_for_bit(battery_log):
     assert [out.stamp_ns for out in outputs] == [read.origin_ns + round(t * 1e9) for t in result.times]
 
 
+def feed(core, path):
+    """The log's messages through `core` in the log's order; the outputs of the odometry messages."""
+    outputs = []
+    for _, topic, message in decoded_messages(path):
+        if topic == "/motion_odometry":
+            out = core.odometry(message)
+            if out is not None:
+                outputs.append(out)
+        elif topic == "/goal_posts_relative":
+            core.goalposts(message)
+        elif topic == "/markings_relative":
+            core.markings(message)
+    return outputs
+
+
+def test_a_recording_of_the_run_reads_back_and_changes_no_estimate(battery_log, tmp_path):
+    """`NodeCore.record` (the node's --rrd): the estimates are those of a run without it, bit for bit; the .rrd
+    holds one estimate per odometry message on the messages' header stamps, the particles every 4th step,
+    the detections of the steps that used a camera frame, and the quality."""
+    import rerun.chunk as rrc
+
+    from mcl.tools.recording import LOG_TIMELINE
+
+    path, log, field_name = battery_log
+    settings = NodeSettings(field=field_name, particles=200, seed=3)
+    plain = feed(NodeCore(settings, origin_ns=log.origin_ns), path)
+    core = NodeCore(settings, origin_ns=log.origin_ns)
+    rrd = tmp_path / "live.rrd"
+    core.record(str(rrd), every=4)
+    recorded = feed(core, path)
+    core.close()
+    assert np.array_equal(np.array([o.pose for o in recorded]), np.array([o.pose for o in plain]))
+    assert np.array_equal(np.array([o.covariance for o in recorded]), np.array([o.covariance for o in plain]))
+    assert not any("recording" in reason for reason in core.all_counts())
+    steps: dict[str, list[int]] = {}
+    stamps: list[int] = []
+    for chunk in rrc.RrdReader(str(rrd)).stream():
+        if chunk.is_static:
+            continue
+        batch = chunk.to_record_batch()
+        steps.setdefault(chunk.entity_path, []).extend(batch.column(batch.schema.names.index("step")).to_pylist())
+        if chunk.entity_path == "/robot/estimate":
+            column = batch.column(batch.schema.names.index(LOG_TIMELINE)).cast("int64")
+            stamps.extend(column.to_pylist())
+    n = len(plain)
+    assert sorted(steps["/robot/estimate"]) == list(range(n))
+    assert sorted(steps["/particles"]) == list(range(0, n, 4))
+    # the detections (not the line points) of a step's last frame used
+    assert set(steps["/observations"]) <= {k for k, o in enumerate(plain) if o.frames_used}
+    assert len(steps["/observations"]) > 100
+    assert "/events" in steps and sorted(steps["/localization/quality"]) == list(range(n))
+    assert sorted(stamps) == [o.stamp_ns for o in plain]
+    with pytest.raises(ValueError, match="every"):
+        core.record(str(tmp_path / "other.rrd"), every=0)
+
+
 def test_map_to_odom_composes_with_the_odometry_pose_to_the_estimate():
     estimate, odometry = np.array([1.0, -2.0, 2.5]), np.array([0.3, 0.7, -1.2])
     x, y, theta = map_to_odom(estimate, odometry)

@@ -18,6 +18,10 @@ the node's subscriptions are matched, and records the poses with `PoseListener`.
   its growth from the first to the last ten minutes (a sixth of the run each, when the run is shorter than an
   hour), and the node's shutdown: the signal sent (`--stop-signal`), whether the node exited by itself with
   status 0 (within 15 s) and its statistics file was written, and how long that took;
+- `--rrd PATH`: the cost of the node's Rerun recording. The log is played twice, to a node without `--rrd`
+  and then to one with it; the figures are the odometry callback's median and p99 in both runs and their
+  ratios, the node's CPU share in both, whether the two runs published the same poses (bit for bit), and the
+  recording's size and rows (read back);
 - the replay: the node's poses against `robocup-mcl replay`'s for the same log, settings and seed, by stamp
   (first lap): the share that are equal bit for bit and the largest distance. The node applies a camera frame
   with the odometry message after its arrival, as the replay does; a frame that DDS delivers after the
@@ -334,6 +338,57 @@ def run(args: argparse.Namespace, node_argv: list[str]) -> dict:
         "shutdown": shutdown,
         "node": stats,
         "replay": compare_with_replay(args.log, settings, {s: p for s, (_, p) in answered.items()}, args.seconds),
+        "_poses": {s: p for s, (_, p) in answered.items()},
+    }
+
+
+def read_back(path: str) -> dict:
+    """What a node's .rrd holds: its size [bytes], its recording ids, and the rows of the estimate and of the
+    particles (an error's text when it does not read)."""
+    out: dict[str, Any] = {"path": path, "bytes": os.path.getsize(path) if os.path.exists(path) else None}
+    try:
+        import rerun.chunk as rrc
+
+        reader = rrc.RrdReader(path)
+        rows: dict[str, int] = {}
+        for chunk in reader.stream():
+            if not chunk.is_static and chunk.entity_path in ("/robot/estimate", "/particles"):
+                rows[chunk.entity_path] = rows.get(chunk.entity_path, 0) + chunk.to_record_batch().num_rows
+        out["recordings"] = len(reader.recordings())
+        out["estimate_rows"] = rows.get("/robot/estimate", 0)
+        out["particle_rows"] = rows.get("/particles", 0)
+    except Exception as error:  # noqa: BLE001 - reported, not raised: the figures of the runs still count
+        out["error"] = f"{type(error).__name__}: {error}"
+    return out
+
+
+def recording_overhead(plain: dict, recorded: dict, path: str) -> dict:
+    """The odometry callback's cost with a recording against without (`--rrd`), from two runs' results."""
+
+    def callback(result: dict) -> dict:
+        return result["node"].get("callbacks", {}).get("/motion_odometry", {})
+
+    without, with_ = callback(plain), callback(recorded)
+
+    def ratio(key: str) -> float | None:
+        a, b = without.get(key), with_.get(key)
+        return b / a if a and b is not None else None
+
+    same = plain["_poses"] == recorded["_poses"]
+    return {
+        "odometry_callback_ms_without": {k: without.get(k) for k in ("median_ms", "p99_ms", "max_ms")},
+        "odometry_callback_ms_with": {k: with_.get(k) for k in ("median_ms", "p99_ms", "max_ms")},
+        "median_ratio": ratio("median_ms"),
+        "p99_ratio": ratio("p99_ms"),
+        "cpu_share_without": plain["node"].get("cpu_share"),
+        "cpu_share_with": recorded["node"].get("cpu_share"),
+        "latency_median_ms_without": plain["latency_ms"]["median"],
+        "latency_median_ms_with": recorded["latency_ms"]["median"],
+        "same_poses": same,
+        "poses_compared": len(plain["_poses"]),
+        "poses_dropped_with": recorded["poses_dropped"],
+        "shutdown_with": recorded["shutdown"],
+        "file": read_back(path),
     }
 
 
@@ -402,6 +457,17 @@ def summary(result: dict) -> None:
             + f" in {shutdown['seconds']:.2f} s, exit status {shutdown['exit_status']}"
             + (f", escalated to {shutdown['escalated_to']}" if shutdown["escalated_to"] else "")
         )
+    rrd = result.get("rrd")
+    if rrd:
+        a, b = rrd["odometry_callback_ms_without"], rrd["odometry_callback_ms_with"]
+        if a.get("median_ms") is not None and b.get("median_ms") is not None:
+            print(
+                f"--rrd: odometry callback median {a['median_ms']:.3f} -> {b['median_ms']:.3f} ms "
+                f"(x{rrd['median_ratio']:.2f}), p99 {a['p99_ms']:.2f} -> {b['p99_ms']:.2f} ms (x{rrd['p99_ratio']:.2f}); "
+                f"the same poses: {rrd['same_poses']} ({rrd['poses_compared']}); "
+                f"{rrd['file'].get('bytes')} bytes, {rrd['file'].get('estimate_rows')} estimates read back"
+                + (f" (error: {rrd['file']['error']})" if rrd["file"].get("error") else "")
+            )
     if node.get("not_used"):
         print(f"not used by the node: {node['not_used']}")
 
@@ -450,6 +516,13 @@ def build_parser(prog: str = PROG) -> argparse.ArgumentParser:
         default=5.0,
         help="sample the node's resident memory every this many seconds (default 5)",
     )
+    parser.add_argument(
+        "--rrd",
+        metavar="PATH",
+        help="also play the log to a node recording to this Rerun file, and compare: the recording's cost "
+        "on the odometry callback (ratio), the same poses, the file read back",
+    )
+    parser.add_argument("--record-every", type=int, default=5, help="with --rrd, the node's --record-every (default 5)")
     parser.add_argument("--domain", type=int, default=None, help="ROS_DOMAIN_ID (default: 100 + pid %% 100)")
     parser.add_argument("--json", action="store_true", help="print the figures as JSON")
     add_save_option(parser)
@@ -470,6 +543,9 @@ def main(argv: list[str] | None = None, prog: str = PROG) -> int:
         raise CommandError(f"{args.log}: no such file")
     require_ros()
     check_output_file(args.save, "--save")
+    check_output_file(args.rrd, "--rrd")
+    if args.record_every < 1:
+        raise CommandError("--record-every must be >= 1")
     if not loopback_only():
         if os.environ.get(ISOLATED_VARIABLE):
             raise CommandError("the namespace has interfaces besides the loopback; refusing to start DDS")
@@ -490,8 +566,13 @@ def main(argv: list[str] | None = None, prog: str = PROG) -> int:
         node_argv.append("--no-use-source-timestamps")
     try:
         result = run(args, node_argv)
+        if args.rrd:
+            path = os.path.abspath(args.rrd)
+            recorded = run(args, [*node_argv, "--rrd", path, "--record-every", str(args.record_every)])
+            result["rrd"] = recording_overhead(result, recorded, path)
     except RuntimeError as error:  # the node or the player failed: their own messages say why
         raise CommandError(str(error)) from None
+    result.pop("_poses", None)
     save_and_print(result, args.save, args.json, summary)
     return 0
 

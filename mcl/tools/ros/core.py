@@ -28,6 +28,12 @@ gives the replay's estimates:
   is `penalized` and `penalty_return`; an event message names a `Localizer` call (`mcl.tools.ros.parameters.EVENTS`);
   an initial pose is `place` (its σ from the message's covariance when given).
 
+A Rerun recording of the run (`NodeCore.record`, the node's `--rrd`): `mcl.tools.recording.Recorder`, made at the
+first estimate (its origin is the node's, so the recording's `ros2_timestamp` timeline is the messages' header
+stamps), logs each odometry message's step as `robocup-mcl replay --rrd` logs a replay's: the estimate, the entropy,
+the particles every `every` steps, the detections the step used, the quality and the lost flag and their changes,
+and the game events. It only reads the filter; a recording that fails is counted and stops, the node goes on.
+
 What the node draws (no DDS here): `NodeCore.particles()` is the filter's particles, the node's PoseArray;
 `field_markers(field)` is the field as `FieldMarker`s, each one visualization_msgs/Marker of the node's
 MarkerArray.
@@ -50,7 +56,7 @@ from field.angles import wrap_angles
 from mcl.latency import SAME_TIME
 from mcl.localizer import Localizer, Quality
 from mcl.tools.logs import mcap_io
-from mcl.tools.replay import _start
+from mcl.tools.replay import QUALITY_CODES, _start
 from mcl.tools.ros.parameters import EVENTS, NodeSettings
 from motion_models import MotionInput
 from sensing.observations import Observations
@@ -215,6 +221,9 @@ class NodeCore:
         # complete frames waiting for a motion step: (the last part's send time or None, capture stamp, detections)
         self._ready: list[tuple[int | None, int, Observations]] = []
         self._game: Any = None
+        self._record: tuple[str, int] | None = None  # (path, particles every) until the recorder is made
+        self.recorder: Any = None
+        self._steps = 0  # estimates given so far: the recording's step
 
     # -- time ----------------------------------------------------------------------------------------------
     def seconds(self, ns: int) -> float:
@@ -290,6 +299,7 @@ class NodeCore:
             return None
         used = 0
         later = []
+        step_observations = None
         for frame in self._ready:
             frame_sent, capture_ns, observations = frame
             if sent_ns is not None and frame_sent is not None:
@@ -302,12 +312,13 @@ class NodeCore:
             try:
                 if self.localizer.observe(observations, capture_time=self.seconds(capture_ns)):
                     used += 1
+                    step_observations = observations
             except ValueError:  # counted by the localizer ("observation older than history", ...)
                 pass
         self._ready = later
         self.frames_used += used
         estimate = self.localizer.pose()
-        return Output(
+        out = Output(
             stamp,
             estimate.pose,
             estimate.covariance,
@@ -316,6 +327,61 @@ class NodeCore:
             map_to_odom(estimate.pose, pose),
             used,
         )
+        if self._record is not None or self.recorder is not None:
+            self._log_step(t, out, step_observations)
+        self._steps += 1
+        return out
+
+    # -- recording -----------------------------------------------------------------------------------------
+    def record(self, path: str, every: int = 5) -> None:
+        """Record the run to the Rerun file `path` from the next estimate on, the particles every `every` steps
+        (`mcl.tools.recording.Recorder`); `close` finishes the file. ValueError when `every` < 1."""
+        if isinstance(every, bool) or not isinstance(every, int) or every < 1:
+            raise ValueError(f"every = {every!r} must be an integer >= 1")
+        self._record = (str(path), every)
+
+    def _log_step(self, t: float, out: Output, observations: Observations | None) -> None:
+        try:
+            if self.recorder is None and self._record is not None:
+                from mcl.tools.recording import Recorder, default_blueprint
+
+                path, every = self._record
+                self._record = None
+                self.recorder = Recorder(
+                    path,
+                    self.localizer.field,
+                    particles_every=every,
+                    origin_ns=self.origin_ns,
+                    blueprint=default_blueprint(
+                        (
+                            ("/entropy", "entropy [bits]"),
+                            ("/localization", "quality (2 superb, 1 okay, 0 poor), lost"),
+                        )
+                    ),
+                )
+                self.recorder.set_time(self._steps, t)
+                self.recorder.log_event("reset", f"the node starts: {self.settings.start}")
+            recorder = self.recorder
+            recorder.log_step(
+                self._steps, t, self.localizer.filter, observations=observations, entropy=self.localizer.entropy()
+            )
+            recorder.log_scalars(
+                {"localization/quality": float(QUALITY_CODES[out.quality]), "localization/lost": float(out.lost)}
+            )
+            recorder.log_change("quality", out.quality.value, f"quality {out.quality.value}")
+            recorder.log_change(
+                "lost", bool(out.lost), "lost" if out.lost else "no longer lost", level="WARN" if out.lost else "INFO"
+            )
+        except Exception as error:  # noqa: BLE001 - the recording must never stop the node
+            self.counts[f"recording: stopped ({type(error).__name__}: {error})"] += 1
+            self._record = None
+            self.recorder = None
+
+    def close(self) -> None:
+        """Finish the recording, when there is one (`record`)."""
+        recorder, self.recorder, self._record = self.recorder, None, None
+        if recorder is not None:
+            recorder.close()
 
     # -- vision --------------------------------------------------------------------------------------------
     def goalposts(self, msg: Any, sent_ns: int | None = None) -> None:
@@ -420,6 +486,8 @@ class NodeCore:
             getattr(self.localizer, name)()
         self._ready.clear()  # frames seen before a placement say nothing of the new belief
         self.counts[f"event {name}"] += 1
+        if self.recorder is not None:
+            self.recorder.log_event("game_event", name)
 
     def initial_pose(self, msg: Any) -> None:
         """A geometry_msgs/PoseWithCovarianceStamped: the pose is known (`Localizer.place`), its σ from the
@@ -432,6 +500,8 @@ class NodeCore:
         self.localizer.place(pose, sigma)
         self._ready.clear()
         self.counts["event place"] += 1
+        if self.recorder is not None:
+            self.recorder.log_event("game_event", f"place at {pose[0]:.2f} m, {pose[1]:.2f} m, {pose[2]:.2f} rad")
 
     def particles(self) -> np.ndarray:
         """The filter's particles now: a copy of its (N, 3) poses x [m], y [m], θ [rad] in the field frame."""

@@ -13,7 +13,8 @@ rclpy is imported only when the node starts, so this module (and `robocup-mcl no
 without rclpy or the generated messages the command says in one line what to install (`make ros`). The filter's
 kernels are compiled (or loaded from numba's cache) before the node subscribes, so the first messages are not
 held up by the compiler. With `--stats PATH` the node writes, when it stops, what it received and published,
-what it dropped and why, its callbacks' durations and its CPU time (`robocup-mcl node bench` reads it).
+what it dropped and why, its callbacks' durations and its CPU time (`robocup-mcl node bench` reads it). With
+`--rrd PATH` it records the live run to a Rerun file (`mcl.tools.ros.core.NodeCore.record`), finished when it stops.
 """
 
 from __future__ import annotations
@@ -427,6 +428,19 @@ def build_parser(prog: str = PROG) -> argparse.ArgumentParser:
         help="when the node stops, write what it received, published "
         "and dropped, its callbacks' durations and its CPU time to PATH (JSON)",
     )
+    parser.add_argument(
+        "--rrd",
+        metavar="PATH",
+        help="record the live run to this Rerun file (.rrd): the estimate, the particles, the detections "
+        "used, the quality and the events, on the messages' header stamps; written when the node stops",
+    )
+    parser.add_argument(
+        "--record-every",
+        type=int,
+        default=5,
+        metavar="N",
+        help="with --rrd, record the particles every N odometry messages (default 5)",
+    )
     parser.add_argument("--no-progress", action="store_true", help=NO_PROGRESS_HELP + "; the node shows none")
     return parser
 
@@ -447,6 +461,11 @@ def main(argv: list[str] | None = None, prog: str = PROG) -> int:
     from mcl.tools.cli_checks import check_output_file
 
     check_output_file(args.stats, "--stats")
+    check_output_file(args.rrd, "--rrd")
+    if args.record_every < 1:
+        from mcl.tools.cli_checks import CommandError
+
+        raise CommandError(f"--record-every {args.record_every}: must be >= 1")
     guard_source_checkout()
     seconds = warm_up(settings)
     import rclpy
@@ -456,6 +475,8 @@ def main(argv: list[str] | None = None, prog: str = PROG) -> int:
     node = None
     try:
         node = LocalizationNode(settings)
+        if args.rrd:
+            node.core.record(args.rrd, args.record_every)
         executor = SingleThreadedExecutor()
         executor.add_node(node.node)
         print(f"{prog}: ready (kernels warmed up in {seconds:.1f} s)", file=sys.stderr, flush=True)
@@ -465,6 +486,10 @@ def main(argv: list[str] | None = None, prog: str = PROG) -> int:
             pass
     finally:  # also after a parameter given with --ros-args that NodeSettings refuses
         if node is not None:
+            try:
+                node.core.close()  # the recording's footer
+            except Exception as error:  # noqa: BLE001 - the statistics are still written
+                node.core.counts[f"recording: not finished ({type(error).__name__}: {error})"] += 1
             if args.stats:
                 with open(args.stats, "w", encoding="utf-8") as out:
                     json.dump(node.statistics(), out, indent=2)
