@@ -285,3 +285,48 @@ def test_callbacks_take_message_info_only_where_rclpy_gives_it():
     stats.timed("/a", lambda message, sent_ns: seen.append((message, sent_ns)), with_info=False)("m")
     stats.timed("/b", lambda message, sent_ns: seen.append((message, sent_ns)))("n", {"source_timestamp": 7})
     assert seen == [("m", None), ("n", 7)] and stats.received == {"/a": 1, "/b": 1}
+
+
+def test_the_statistics_set_the_recording_apart_from_the_callback():
+    """The node's statistics time each odometry callback and the part its recording took, in the same calls: the
+    callback without that part is the difference (no timing is asserted, only the bookkeeping)."""
+    from mcl.tools.ros.node import Statistics
+
+    stats = Statistics()
+    stats.recording_topic = "/odom"
+    callback = stats.timed("/odom", lambda message, sent_ns: stats.recording.append(0.0), with_info=False)
+    for _ in range(5):
+        callback(object())
+    assert "recording" not in stats.as_dict({})  # nothing recorded: no figures
+    stats.recording[2] = 1e-9
+    figures = stats.as_dict({})["recording"]
+    assert figures["callback_median_ms"] >= figures["callback_without_median_ms"]
+    assert set(figures) >= {"median_ratio", "p99_ratio", "total_ratio"}
+
+
+def test_the_figure_draws_what_the_node_published(tmp_path):
+    """`robocup-mcl node figure` draws the JSON of `node bench --published` (here a small hand-made one)."""
+    pytest.importorskip("matplotlib")
+    from mcl.tools.ros.figure import main
+
+    published = {
+        "field_markers": [
+            {"ns": "lines", "id": 0, "type": 5, "points": [[-4.5, -3], [4.5, -3]], "position": [0, 0], "scale_x": 0.05},
+            {
+                "ns": "centre_circle",
+                "id": 0,
+                "type": 4,
+                "points": [[0.75, 0], [0, 0.75], [-0.75, 0]],
+                "position": [0, 0],
+                "scale_x": 0.05,
+            },
+            {"ns": "goalposts", "id": 0, "type": 3, "points": [], "position": [4.5, 1.3], "scale_x": 0.1},
+        ],
+        "poses": [[ORIGIN_NS + k * 10_000_000, 0.01 * k, 0.0, 0.1] for k in range(300)],
+        "particles": [{"stamp_ns": ORIGIN_NS + 2_000_000_000, "poses": [[0.2, 0.1, 0.0], [0.3, -0.1, 1.0]]}],
+        "quality_changes": ["okay"],
+    }
+    path = tmp_path / "published.json"
+    path.write_text(__import__("json").dumps(published))
+    assert main([str(path), "--out", str(tmp_path / "node.png"), "--at", "1.5"]) == 0
+    assert (tmp_path / "node.png").stat().st_size > 1000

@@ -18,10 +18,10 @@ the node's subscriptions are matched, and records the poses with `PoseListener`.
   its growth from the first to the last ten minutes (a sixth of the run each, when the run is shorter than an
   hour), and the node's shutdown: the signal sent (`--stop-signal`), whether the node exited by itself with
   status 0 (within 15 s) and its statistics file was written, and how long that took;
-- `--rrd PATH`: the cost of the node's Rerun recording. The log is played twice, to a node without `--rrd`
-  and then to one with it; the figures are the odometry callback's median and p99 in both runs and their
-  ratios, the node's CPU share in both, whether the two runs published the same poses (bit for bit), and the
-  recording's size and rows (read back);
+- `--rrd PATH`: the node records the run to a Rerun file, and times that part of each odometry callback
+  apart (`NodeCore.recording_seconds`): the callback's median and p99 with the recording and without its part,
+  in the same run and under the same load, and their ratios; the file is read back (size, rows). That the
+  recording changes no estimate shows in the comparison with the replay;
 - the replay: the node's poses against `robocup-mcl replay`'s for the same log, settings and seed, by stamp
   (first lap): the share that are equal bit for bit and the largest distance. The node applies a camera frame
   with the odometry message after its arrival, as the replay does; a frame that DDS delivers after the
@@ -338,7 +338,7 @@ def run(args: argparse.Namespace, node_argv: list[str]) -> dict:
         "shutdown": shutdown,
         "node": stats,
         "replay": compare_with_replay(args.log, settings, {s: p for s, (_, p) in answered.items()}, args.seconds),
-        "_poses": {s: p for s, (_, p) in answered.items()},
+        "_published": listener.published(),
     }
 
 
@@ -362,34 +362,10 @@ def read_back(path: str) -> dict:
     return out
 
 
-def recording_overhead(plain: dict, recorded: dict, path: str) -> dict:
-    """The odometry callback's cost with a recording against without (`--rrd`), from two runs' results."""
-
-    def callback(result: dict) -> dict:
-        return result["node"].get("callbacks", {}).get("/motion_odometry", {})
-
-    without, with_ = callback(plain), callback(recorded)
-
-    def ratio(key: str) -> float | None:
-        a, b = without.get(key), with_.get(key)
-        return b / a if a and b is not None else None
-
-    same = plain["_poses"] == recorded["_poses"]
-    return {
-        "odometry_callback_ms_without": {k: without.get(k) for k in ("median_ms", "p99_ms", "max_ms")},
-        "odometry_callback_ms_with": {k: with_.get(k) for k in ("median_ms", "p99_ms", "max_ms")},
-        "median_ratio": ratio("median_ms"),
-        "p99_ratio": ratio("p99_ms"),
-        "cpu_share_without": plain["node"].get("cpu_share"),
-        "cpu_share_with": recorded["node"].get("cpu_share"),
-        "latency_median_ms_without": plain["latency_ms"]["median"],
-        "latency_median_ms_with": recorded["latency_ms"]["median"],
-        "same_poses": same,
-        "poses_compared": len(plain["_poses"]),
-        "poses_dropped_with": recorded["poses_dropped"],
-        "shutdown_with": recorded["shutdown"],
-        "file": read_back(path),
-    }
+def recording_overhead(result: dict, path: str) -> dict:
+    """The recording's cost on the odometry callback, from the node's statistics of a run with `--rrd`, and the
+    file read back."""
+    return {**result["node"].get("recording", {}), "file": read_back(path)}
 
 
 def summary(result: dict) -> None:
@@ -459,15 +435,18 @@ def summary(result: dict) -> None:
         )
     rrd = result.get("rrd")
     if rrd:
-        a, b = rrd["odometry_callback_ms_without"], rrd["odometry_callback_ms_with"]
-        if a.get("median_ms") is not None and b.get("median_ms") is not None:
+        if rrd.get("median_ratio") is not None:
             print(
-                f"--rrd: odometry callback median {a['median_ms']:.3f} -> {b['median_ms']:.3f} ms "
-                f"(x{rrd['median_ratio']:.2f}), p99 {a['p99_ms']:.2f} -> {b['p99_ms']:.2f} ms (x{rrd['p99_ratio']:.2f}); "
-                f"the same poses: {rrd['same_poses']} ({rrd['poses_compared']}); "
-                f"{rrd['file'].get('bytes')} bytes, {rrd['file'].get('estimate_rows')} estimates read back"
-                + (f" (error: {rrd['file']['error']})" if rrd["file"].get("error") else "")
+                f"--rrd: odometry callback without the recording's part -> with it: median "
+                f"{rrd['callback_without_median_ms']:.3f} -> {rrd['callback_median_ms']:.3f} ms "
+                f"(x{rrd['median_ratio']:.2f}), p99 {rrd['callback_without_p99_ms']:.2f} -> "
+                f"{rrd['callback_p99_ms']:.2f} ms (x{rrd['p99_ratio']:.2f}), all callbacks x{rrd['total_ratio']:.2f}"
             )
+        print(
+            f"--rrd: {rrd['file'].get('bytes')} bytes, {rrd['file'].get('estimate_rows')} estimates and "
+            f"{rrd['file'].get('particle_rows')} particle rows read back"
+            + (f" (error: {rrd['file']['error']})" if rrd["file"].get("error") else "")
+        )
     if node.get("not_used"):
         print(f"not used by the node: {node['not_used']}")
 
@@ -519,10 +498,16 @@ def build_parser(prog: str = PROG) -> argparse.ArgumentParser:
     parser.add_argument(
         "--rrd",
         metavar="PATH",
-        help="also play the log to a node recording to this Rerun file, and compare: the recording's cost "
-        "on the odometry callback (ratio), the same poses, the file read back",
+        help="the node records the run to this Rerun file: the recording's share of the odometry callback "
+        "(ratio with and without it, in the same run), the file read back",
     )
     parser.add_argument("--record-every", type=int, default=5, help="with --rrd, the node's --record-every (default 5)")
+    parser.add_argument(
+        "--published",
+        metavar="PATH",
+        help="write what the listener heard from the node (the field's markers, every pose, the latest "
+        "particle messages) to PATH as JSON: `robocup-mcl node figure PATH` draws it",
+    )
     parser.add_argument("--domain", type=int, default=None, help="ROS_DOMAIN_ID (default: 100 + pid %% 100)")
     parser.add_argument("--json", action="store_true", help="print the figures as JSON")
     add_save_option(parser)
@@ -537,13 +522,16 @@ def main(argv: list[str] | None = None, prog: str = PROG) -> int:
 
     argv = list(sys.argv[1:] if argv is None else argv)
     args = build_parser(prog).parse_args(argv)
-    if not (args.rate > 0 and args.repeat >= 1 and args.particles > 0 and args.rss_interval > 0):
-        raise CommandError("--rate must be > 0, --repeat >= 1, --particles > 0 and --rss-interval > 0")
+    if not (args.rate > 0 and args.repeat >= 1 and args.particles > 0):
+        raise CommandError("--rate must be > 0, --repeat >= 1 and --particles > 0")
+    if not args.rss_interval > 0:
+        raise CommandError("--rss-interval must be > 0")
     if not os.path.isfile(args.log):
         raise CommandError(f"{args.log}: no such file")
     require_ros()
     check_output_file(args.save, "--save")
     check_output_file(args.rrd, "--rrd")
+    check_output_file(args.published, "--published")
     if args.record_every < 1:
         raise CommandError("--record-every must be >= 1")
     if not loopback_only():
@@ -565,14 +553,17 @@ def main(argv: list[str] | None = None, prog: str = PROG) -> int:
     if args.no_source_timestamps:
         node_argv.append("--no-use-source-timestamps")
     try:
+        if args.rrd:
+            node_argv += ["--rrd", os.path.abspath(args.rrd), "--record-every", str(args.record_every)]
         result = run(args, node_argv)
         if args.rrd:
-            path = os.path.abspath(args.rrd)
-            recorded = run(args, [*node_argv, "--rrd", path, "--record-every", str(args.record_every)])
-            result["rrd"] = recording_overhead(result, recorded, path)
+            result["rrd"] = recording_overhead(result, os.path.abspath(args.rrd))
     except RuntimeError as error:  # the node or the player failed: their own messages say why
         raise CommandError(str(error)) from None
-    result.pop("_poses", None)
+    published = result.pop("_published")
+    if args.published:
+        published.update(log=args.log, rate=args.rate, field=args.field, filter_particles=args.particles)
+        Path(args.published).write_text(json.dumps(published) + "\n", encoding="utf-8")
     save_and_print(result, args.save, args.json, summary)
     return 0
 

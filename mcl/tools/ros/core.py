@@ -33,6 +33,8 @@ first estimate (its origin is the node's, so the recording's `ros2_timestamp` ti
 stamps), logs each odometry message's step as `robocup-mcl replay --rrd` logs a replay's: the estimate, the entropy,
 the particles every `every` steps, the detections the step used, the quality and the lost flag and their changes,
 and the game events. It only reads the filter; a recording that fails is counted and stops, the node goes on.
+`recording_seconds` is what the last odometry message's recording took (the node's statistics set it against the
+whole callback's time).
 
 What the node draws (no DDS here): `NodeCore.particles()` is the filter's particles, the node's PoseArray;
 `field_markers(field)` is the field as `FieldMarker`s, each one visualization_msgs/Marker of the node's
@@ -45,6 +47,7 @@ origin. Nothing is dropped silently: `counts` holds what was not used, by reason
 from __future__ import annotations
 
 import math
+import time
 from collections import Counter
 from dataclasses import dataclass
 from typing import Any
@@ -224,6 +227,7 @@ class NodeCore:
         self._record: tuple[str, int] | None = None  # (path, particles every) until the recorder is made
         self.recorder: Any = None
         self._steps = 0  # estimates given so far: the recording's step
+        self.recording_seconds = 0.0  # what the last odometry message's recording took [s] (0 without one)
 
     # -- time ----------------------------------------------------------------------------------------------
     def seconds(self, ns: int) -> float:
@@ -252,8 +256,8 @@ class NodeCore:
         if not self._commands:
             return None
         current = (0.0, 0.0, 0.0)
-        for time, value in self._commands:
-            if time > t + SAME_TIME:
+        for at, value in self._commands:
+            if at > t + SAME_TIME:
                 break
             current = value
         return current
@@ -270,6 +274,7 @@ class NodeCore:
         except mcap_io._Drop as drop:
             self.counts[f"odometry: {drop}"] += 1
             return None
+        self.recording_seconds = 0.0
         t = self.seconds(stamp)
         if self._odometry is None or self._odometry_time is None:
             self._odometry, self._odometry_time = pose, t
@@ -328,7 +333,9 @@ class NodeCore:
             used,
         )
         if self._record is not None or self.recorder is not None:
+            started = time.perf_counter()
             self._log_step(t, out, step_observations)
+            self.recording_seconds = time.perf_counter() - started
         self._steps += 1
         return out
 
@@ -338,6 +345,8 @@ class NodeCore:
         (`mcl.tools.recording.Recorder`); `close` finishes the file. ValueError when `every` < 1."""
         if isinstance(every, bool) or not isinstance(every, int) or every < 1:
             raise ValueError(f"every = {every!r} must be an integer >= 1")
+        import mcl.tools.recording  # noqa: F401 - Rerun imports now (about a second), not in the first callback
+
         self._record = (str(path), every)
 
     def _log_step(self, t: float, out: Output, observations: Observations | None) -> None:

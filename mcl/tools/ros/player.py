@@ -21,12 +21,15 @@ import importlib
 import math
 import threading
 import time
+from collections import deque
 from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
     import argparse
 
 PROG = "robocup-mcl node play"
+PARTICLE_SNAPSHOTS = 240  # particle messages the listener keeps (two minutes at the node's default 2 Hz)
+PUBLISHED_SNAPSHOTS = 24  # of them, about this many go into `PoseListener.published`
 ODOMETRY_TOPIC = "/motion_odometry"
 
 
@@ -158,6 +161,10 @@ class PoseListener:
         self.qualities: list[str] = []
         self.particle_counts: list[int] = []  # poses in each particles message
         self.field_markers: list[tuple[str, int, int]] = []  # (namespace, id, type) of the last MarkerArray
+        # the last MarkerArray's geometry: (namespace, id, type, points [(x, y)], position (x, y), scale x)
+        self.field_geometry: list[tuple[str, int, int, list[tuple[float, float]], tuple[float, float], float]] = []
+        # the latest particle messages: (stamp ns, [(x, y, θ)]), at most `PARTICLE_SNAPSHOTS` of them
+        self.particle_snapshots: deque[tuple[int, list[tuple[float, float, float]]]] = deque(maxlen=PARTICLE_SNAPSHOTS)
         self.nonfinite_poses = 0  # poses whose position, orientation or covariance holds a NaN or an infinity
         self.nonfinite_transforms = 0  # the same for the /tf transforms' translations and rotations
         self._lock = threading.Lock()
@@ -169,9 +176,7 @@ class PoseListener:
             lambda m: self.qualities.append(m.data),
             QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL),
         )
-        self.node.create_subscription(
-            PoseArray, particles_topic, lambda m: self.particle_counts.append(len(m.poses)), 10
-        )
+        self.node.create_subscription(PoseArray, particles_topic, self._particles, 10)
         try:
             marker_array = message_class("visualization_msgs/MarkerArray")
         except ImportError:  # the field is not listened to where the message is not installed
@@ -201,8 +206,61 @@ class PoseListener:
         with self._lock:
             self.poses.append((stamp, arrived, (float(pose[0]), float(pose[1]), float(pose[2]))))
 
+    def _particles(self, msg: Any) -> None:
+        from mcl.tools.formats import quaternion_to_yaw
+
+        self.particle_counts.append(len(msg.poses))
+        stamp = msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
+        self.particle_snapshots.append(
+            (
+                stamp,
+                [
+                    (
+                        float(p.position.x),
+                        float(p.position.y),
+                        quaternion_to_yaw(p.orientation.x, p.orientation.y, p.orientation.z, p.orientation.w),
+                    )
+                    for p in msg.poses
+                ],
+            )
+        )
+
     def _field(self, msg: Any) -> None:
         self.field_markers = [(marker.ns, int(marker.id), int(marker.type)) for marker in msg.markers]
+        self.field_geometry = [
+            (
+                marker.ns,
+                int(marker.id),
+                int(marker.type),
+                [(float(point.x), float(point.y)) for point in marker.points],
+                (float(marker.pose.position.x), float(marker.pose.position.y)),
+                float(marker.scale.x),
+            )
+            for marker in msg.markers
+        ]
+
+    def published(self) -> dict:
+        """What the listener heard, as JSON-ready values (`robocup-mcl node figure` draws it): the field's markers
+        (namespace, id, visualization_msgs/Marker type, points, position, scale x), the poses (stamp ns, x, y, θ),
+        about `PUBLISHED_SNAPSHOTS` of the latest particle messages, evenly spaced, and the last (positions to 0.1 mm),
+        and the quality changes."""
+        with self._lock:
+            poses = [[stamp, *(round(v, 5) for v in pose)] for stamp, _, pose in self.poses]
+        snapshots = list(self.particle_snapshots)
+        kept = snapshots[:: max(1, len(snapshots) // PUBLISHED_SNAPSHOTS)]
+        if snapshots and kept[-1] is not snapshots[-1]:
+            kept.append(snapshots[-1])
+        return {
+            "field_markers": [
+                {"ns": ns, "id": i, "type": kind, "points": points, "position": position, "scale_x": scale}
+                for ns, i, kind, points, position, scale in self.field_geometry
+            ],
+            "poses": poses,
+            "particles": [
+                {"stamp_ns": stamp, "poses": [[round(v, 4) for v in pose] for pose in poses]} for stamp, poses in kept
+            ],
+            "quality_changes": list(self.qualities),
+        }
 
     def _tf(self, msg: Any) -> None:
         for transform in msg.transforms:
