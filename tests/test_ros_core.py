@@ -330,3 +330,108 @@ def test_the_figure_draws_what_the_node_published(tmp_path):
     path.write_text(__import__("json").dumps(published))
     assert main([str(path), "--out", str(tmp_path / "node.png"), "--at", "1.5"]) == 0
     assert (tmp_path / "node.png").stat().st_size > 1000
+
+
+def team_msg(sec=5, **values):
+    """A robocup_mcl_msgs/TeamMessage as an object with its fields (a good one unless `values` say otherwise)."""
+    fields = {
+        "sender": 2,
+        "is_goalkeeper": False,
+        "x": -1.0,
+        "y": 0.5,
+        "theta": 0.3,
+        "has_pose_covariance": True,
+        "pose_covariance": [0.04, 0.0, 0.0, 0.0, 0.04, 0.0, 0.0, 0.0, 0.01],
+        "confidence": -1.0,
+        "has_ball": True,
+        "ball_x": 1.0,
+        "ball_y": -0.5,
+        "has_ball_velocity": True,
+        "ball_vx": 0.2,
+        "ball_vy": 0.0,
+        "ball_age": 0.1,
+        "has_ball_covariance": False,
+        "ball_covariance": [0.0] * 4,
+        "clock_offset": 0.0,
+        **values,
+    }
+    header = SimpleNamespace(stamp=SimpleNamespace(sec=sec, nanosec=0), frame_id=fields.pop("frame_id", "map"))
+    return SimpleNamespace(header=header, **fields)
+
+
+def test_a_team_message_is_the_localizer_s_team_message_field_for_field():
+    from mcl.tools.ros.core import TEAM_MESSAGE_FIELDS, team_message
+
+    msg = team_msg()
+    assert set(vars(msg)) == set(TEAM_MESSAGE_FIELDS)
+    out = team_message(msg, 5.0)
+    assert (out.sender, out.time, out.pose, out.is_goalkeeper) == (2, 5.0, (-1.0, 0.5, 0.3), False)
+    assert np.array_equal(out.pose_covariance, np.diag([0.04, 0.04, 0.01])) and out.confidence is None
+    assert (out.ball, out.ball_velocity, out.ball_age, out.ball_covariance) == ((1.0, -0.5), (0.2, 0.0), 0.1, None)
+    bare = team_message(team_msg(has_pose_covariance=False, confidence=0.7, has_ball=False, ball_age=3.0), 1.0)
+    assert bare.pose_covariance is None and bare.confidence == 0.7 and bare.ball is None and bare.ball_age == 0.0
+    core = NodeCore(NodeSettings(particles=100, player_number=1), origin_ns=0)
+    assert core.team(team_msg()) and core.localizer.counts["team message"] == 1
+
+
+@pytest.mark.parametrize(
+    "values, kind",
+    [
+        ({"x": float("nan")}, "pose"),
+        ({"theta": float("inf")}, "pose"),
+        ({"confidence": float("nan")}, "confidence"),
+        ({"confidence": 1.5, "has_pose_covariance": False}, "confidence"),
+        ({"sender": 0}, "sender"),
+        ({"sender": 1}, "refused by the localizer"),  # the robot's own number
+        ({"frame_id": "odom"}, "frame_id"),
+        ({"pose_covariance": [1.0, 2.0, 0.0, 2.0, 1.0, 0.0, 0.0, 0.0, 1.0]}, "pose_covariance"),
+        ({"pose_covariance": [1.0] * 4}, "cannot reshape"),
+        ({"ball_age": -1.0}, "ball_age"),
+        ({"ball_x": 1e12}, "ball"),
+        ({"sec": 10**6}, "refused by the localizer"),  # sent far in the robot's future
+    ],
+)
+def test_a_bad_team_message_is_counted_by_kind_and_dropped(values, kind):
+    core = NodeCore(NodeSettings(particles=100, player_number=1), origin_ns=0)
+    core.localizer.motion(5.0, __import__("motion_models").MotionInput(dt=0.01, odometry=(0.0, 0.0, 0.0)))
+    before = core.localizer.pose().pose.copy()
+    sec = values.pop("sec", 5)
+    assert not core.team(team_msg(sec, **values))
+    (reason,) = [k for k in core.counts if k.startswith("team message")]
+    assert kind in reason, reason
+    assert core.localizer.counts.get("team message", 0) == 0
+    assert np.array_equal(core.localizer.pose().pose, before)
+
+
+def test_two_thousand_random_team_messages_never_raise_nor_make_the_estimate_nan():
+    rng = np.random.default_rng(42)
+    core = NodeCore(NodeSettings(particles=100, player_number=1), origin_ns=0)
+    specials = [float("nan"), float("inf"), -float("inf"), 1e300, -1e-300, 0.0, -1.0]
+
+    def value():
+        return specials[rng.integers(len(specials))] if rng.random() < 0.3 else float(rng.normal(0.0, 3.0))
+
+    from motion_models import MotionInput
+
+    used = 0
+    for k in range(2000):
+        core.localizer.motion(0.01 * (k + 1), MotionInput(dt=0.01, odometry=(0.001, 0.0, 0.0)))
+        fields = {
+            name: value()
+            for name in ("x", "y", "theta", "confidence", "ball_x", "ball_y", "ball_vx", "ball_vy", "ball_age")
+        }
+        fields.update(
+            sender=int(rng.integers(0, 25)),
+            has_pose_covariance=bool(rng.random() < 0.5),
+            pose_covariance=[value() for _ in range(int(rng.choice([9, 9, 9, 4, 0])))],
+            has_ball=bool(rng.random() < 0.7),
+            has_ball_covariance=bool(rng.random() < 0.3),
+            ball_covariance=[value() for _ in range(4)],
+            clock_offset=value() if rng.random() < 0.1 else 0.0,
+            frame_id=str(rng.choice(["map", "", "odom"])),
+        )
+        used += core.team(team_msg(int(rng.integers(0, 30)), **fields))
+        assert np.all(np.isfinite(core.localizer.pose().pose))
+    dropped = sum(n for reason, n in core.counts.items() if reason.startswith("team message"))
+    assert used + dropped == 2000 and dropped > 1000
+    assert len([r for r in core.counts if r.startswith("team message")]) < 40  # counted by kind, not by value

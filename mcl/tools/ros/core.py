@@ -24,6 +24,8 @@ gives the replay's estimates:
   Without them (rclpy of Humble has no `MessageInfo`), "next" is by the order the messages are taken, and a frame
   captured after the odometry message's stamp waits for a later step (it cannot have been sent before it);
 - the ball (BallArray, the most confident ball) is side evidence (`Localizer.observe_ball`) at its capture;
+- a teammate's broadcast (robocup_mcl_msgs/TeamMessage, the project's own message: no common one exists) is
+  `Localizer.team_message`, its header stamp the send time on the node's clock (`team_message`);
 - game events: the GameState's INITIAL (entered) is `initial_placement`, its `penalized` flag turning on and off
   is `penalized` and `penalty_return`; an event message names a `Localizer` call (`mcl.tools.ros.parameters.EVENTS`);
   an initial pose is `place` (its σ from the message's covariance when given).
@@ -47,6 +49,7 @@ origin. Nothing is dropped silently: `counts` holds what was not used, by reason
 from __future__ import annotations
 
 import math
+import re
 import time
 from collections import Counter
 from dataclasses import dataclass
@@ -63,7 +66,7 @@ from mcl.tools.replay import QUALITY_CODES, _start
 from mcl.tools.ros.parameters import EVENTS, NodeSettings
 from motion_models import MotionInput
 from sensing.observations import Observations
-from sensing.team import BallDetection
+from sensing.team import BallDetection, TeamMessage
 
 GAMESTATE_INITIAL = 0
 
@@ -191,6 +194,68 @@ def map_to_odom(estimate: np.ndarray, odometry: np.ndarray) -> tuple[float, floa
     return x, y, math.atan2(math.sin(theta), math.cos(theta))
 
 
+TEAM_MESSAGE_FIELDS = (
+    "header",
+    "sender",
+    "is_goalkeeper",
+    "x",
+    "y",
+    "theta",
+    "has_pose_covariance",
+    "pose_covariance",
+    "confidence",
+    "has_ball",
+    "ball_x",
+    "ball_y",
+    "has_ball_velocity",
+    "ball_vx",
+    "ball_vy",
+    "ball_age",
+    "has_ball_covariance",
+    "ball_covariance",
+    "clock_offset",
+)
+
+
+def _reason(error: BaseException) -> str:
+    """A drop's kind for the counts: the error's text without the values it quotes (cut at its first " = " or
+    ", got ", numbers left as "#"), so that messages differing only in their values count as one kind; or the
+    error's type."""
+    text = re.split(r" = |,? got ", str(error))[0]
+    text = re.sub(r"[-+]?(?:\d+\.?\d*(?:e[-+]?\d+)?|nan|inf)\b", "#", text).strip()
+    return (text or type(error).__name__)[:80]
+
+
+def team_message(msg: Any, time: float, map_frame: str = "map") -> TeamMessage:
+    """The `sensing.team.TeamMessage` of a robocup_mcl_msgs/TeamMessage `msg` sent at `time` [s] (its header
+    stamp on the node's clock): field for field, the optional parts by their `has_*` flags, a negative
+    confidence as none. ValueError for a `frame_id` other than `map_frame` (or empty) and for what
+    `TeamMessage` refuses (NaN, out of range, a covariance not positive definite)."""
+    frame = str(msg.header.frame_id)
+    if frame not in ("", map_frame):
+        raise ValueError(f"frame_id = {frame!r} is not the field frame {map_frame!r}")
+    confidence = float(msg.confidence)
+    if math.isnan(confidence):
+        raise ValueError("confidence = nan must be a number in [0, 1] (negative: not given)")
+
+    def matrix(values: Any, size: int) -> np.ndarray:
+        return np.array([float(v) for v in values], dtype=np.float64).reshape(size, size)
+
+    return TeamMessage(
+        sender=int(msg.sender),
+        time=time,
+        pose=(float(msg.x), float(msg.y), float(msg.theta)),
+        pose_covariance=matrix(msg.pose_covariance, 3) if msg.has_pose_covariance else None,
+        confidence=None if confidence < 0 else confidence,
+        is_goalkeeper=bool(msg.is_goalkeeper),
+        ball=(float(msg.ball_x), float(msg.ball_y)) if msg.has_ball else None,
+        ball_velocity=(float(msg.ball_vx), float(msg.ball_vy)) if msg.has_ball and msg.has_ball_velocity else None,
+        ball_age=float(msg.ball_age) if msg.has_ball else 0.0,
+        ball_covariance=matrix(msg.ball_covariance, 2) if msg.has_ball and msg.has_ball_covariance else None,
+        clock_offset=float(msg.clock_offset),
+    )
+
+
 class NodeCore:
     """The localizer driven by ROS messages (see the module docstring).
 
@@ -300,7 +365,7 @@ class NodeCore:
         try:
             self.localizer.motion(t, u)
         except ValueError as error:
-            self.counts[f"odometry: refused ({error})"] += 1
+            self.counts[f"odometry: refused ({_reason(error)})"] += 1
             return None
         used = 0
         later = []
@@ -447,7 +512,7 @@ class NodeCore:
                 line_points=np.array(points, dtype=np.float64).reshape(-1, 2),
             )
         except ValueError as error:
-            self.counts[f"camera frame: detections refused: {error}"] += 1
+            self.counts[f"camera frame: detections refused: {_reason(error)}"] += 1
             return
         self._ready.append((parts.get("sent"), stamp, observations))
 
@@ -466,6 +531,24 @@ class NodeCore:
             self.counts[f"ball: {type(error).__name__}"] += 1
             return False
         return used
+
+    # -- teammates ------------------------------------------------------------------------------------------
+    def team(self, msg: Any) -> bool:
+        """A robocup_mcl_msgs/TeamMessage (a teammate's broadcast, `TEAM_MESSAGE_FIELDS`) to
+        `Localizer.team_message`, its send time (header stamp) on the node's clock; False when not used: a
+        message that does not make a `sensing.team.TeamMessage` or that the localizer refuses (its own number, a
+        sender not a teammate, sent too long ago or in the future) is counted by reason and dropped."""
+        try:
+            message = team_message(msg, self.seconds(stamp_ns(msg.header)), self.settings.map_frame)
+        except (ValueError, TypeError, AttributeError, OverflowError) as error:
+            self.counts[f"team message: {_reason(error)}"] += 1
+            return False
+        try:
+            self.localizer.team_message(message)
+        except ValueError as error:
+            self.counts[f"team message: refused by the localizer ({_reason(error)})"] += 1
+            return False
+        return True
 
     # -- game events ---------------------------------------------------------------------------------------
     def game_state(self, msg: Any) -> list[str]:

@@ -315,10 +315,12 @@ class LocalizationNode:
             (s.goalposts_topic, None, self.core.goalposts),
             (s.markings_topic, None, self.core.markings),
             (s.balls_topic, None, lambda msg, sent_ns: self.core.balls(msg)),
+            (s.team_topic, None, lambda msg, sent_ns: self.core.team(msg)),
             (s.commands_topic, Twist, self._command),
             (s.odometry_topic, Odometry, self._odometry),
         ]
         from game_controller_hl_interfaces.msg import GameState
+        from robocup_mcl_msgs.msg import TeamMessage
         from soccer_vision_3d_msgs.msg import BallArray, GoalpostArray, MarkingArray
 
         generated = {
@@ -326,6 +328,7 @@ class LocalizationNode:
             s.markings_topic: MarkingArray,
             s.balls_topic: BallArray,
             s.game_state_topic: GameState,
+            s.team_topic: TeamMessage,
         }
         # DDS's source timestamps order a camera frame against the odometry (NodeCore.odometry) where rclpy gives
         # them; elsewhere (Humble) the order the executor takes the messages in, and their header stamps
@@ -336,7 +339,10 @@ class LocalizationNode:
                 kind = kind or generated[topic]
                 self._subscriptions.append(
                     self.node.create_subscription(
-                        kind, topic, self.stats.timed(topic, callback, self.source_timestamps), reliable
+                        kind,
+                        topic,
+                        self.stats.timed(topic, self._logging_new_drops(callback), self.source_timestamps),
+                        reliable,
                     )
                 )
         if self._hypotheses_pub is not None:
@@ -345,6 +351,23 @@ class LocalizationNode:
             self._particles_timer = self.node.create_timer(1.0 / s.particles_rate, self._particles)
 
     # -- callbacks -------------------------------------------------------------------------------------------
+    def _logging_new_drops(self, callback):
+        """`callback` followed by a warning for each kind of dropped message not seen before (`NodeCore.counts`:
+        each kind is logged once, then only counted; `--stats` has the counts)."""
+        counts = self.core.counts
+
+        def wrapped(message: Any, sent_ns: int | None) -> None:
+            size = len(counts)
+            try:
+                callback(message, sent_ns)
+            finally:
+                if len(counts) != size:
+                    for kind in list(counts)[size:]:  # a Counter keeps its keys in insertion order
+                        if not kind.startswith("event "):
+                            self.node.get_logger().warning(f"dropped: {kind} (logged once; counted from now on)")
+
+        return wrapped
+
     def _command(self, msg: Any, sent_ns: int | None) -> None:
         self.core.command(msg, self.node.get_clock().now().nanoseconds)
 
