@@ -274,6 +274,7 @@ def run(args: argparse.Namespace, node_argv: list[str]) -> dict:
     player = listener = None
     try:
         player = LogPlayer(args.log, context=context, seconds=args.seconds)
+        team = player.add_team_messages(args.team_rate, bad_every=args.team_bad_every) if args.team_rate else (0, 0)
         listener = PoseListener(context=context)
         listener.spin_in_thread(context)
         deadline = time.monotonic() + READY_TIMEOUT
@@ -332,6 +333,8 @@ def run(args: argparse.Namespace, node_argv: list[str]) -> dict:
             ns: sum(1 for n, _, _ in listener.field_markers if n == ns)
             for ns in sorted({n for n, _, _ in listener.field_markers})
         },
+        "team_messages_sent": team[0] * args.repeat,
+        "team_messages_bad_sent": team[1] * args.repeat,
         "nonfinite_poses": listener.nonfinite_poses,
         "nonfinite_transforms": listener.nonfinite_transforms,
         "rss": rss_summary(sampler.samples),
@@ -412,6 +415,13 @@ def summary(result: dict) -> None:
                 else ","
             )
             + f" largest distance {replay['max_distance_m']:.4f} m"
+        )
+    if result.get("team_messages_sent"):
+        received = node.get("received", {}).get("/robocup_mcl/team", 0)
+        used = node.get("not_used", {}).get("team message", 0)
+        print(
+            f"team messages: {result['team_messages_sent']} sent ({result['team_messages_bad_sent']} bad), "
+            f"{received} received, {used} given to the localizer"
         )
     print(
         f"poses or transforms with a NaN or an infinity: {result['nonfinite_poses']} poses, "
@@ -503,6 +513,19 @@ def build_parser(prog: str = PROG) -> argparse.ArgumentParser:
     )
     parser.add_argument("--record-every", type=int, default=5, help="with --rrd, the node's --record-every (default 5)")
     parser.add_argument(
+        "--team-rate",
+        type=float,
+        default=0.0,
+        help="also play a teammate's broadcasts (robocup_mcl_msgs/TeamMessage, no ball) this many times a "
+        "second (default 0: none)",
+    )
+    parser.add_argument(
+        "--team-bad-every",
+        type=int,
+        default=0,
+        help="with --team-rate, make every N-th broadcast bad (a NaN x; default 0: none)",
+    )
+    parser.add_argument(
         "--published",
         metavar="PATH",
         help="write what the listener heard from the node (the field's markers, every pose, the latest "
@@ -524,6 +547,8 @@ def main(argv: list[str] | None = None, prog: str = PROG) -> int:
     args = build_parser(prog).parse_args(argv)
     if not (args.rate > 0 and args.repeat >= 1 and args.particles > 0):
         raise CommandError("--rate must be > 0, --repeat >= 1 and --particles > 0")
+    if not (args.team_rate >= 0 and args.team_bad_every >= 0):
+        raise CommandError("--team-rate and --team-bad-every must be >= 0")
     if not args.rss_interval > 0:
         raise CommandError("--rss-interval must be > 0")
     if not os.path.isfile(args.log):

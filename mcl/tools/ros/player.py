@@ -31,6 +31,7 @@ PROG = "robocup-mcl node play"
 PARTICLE_SNAPSHOTS = 240  # particle messages the listener keeps (two minutes at the node's default 2 Hz)
 PUBLISHED_SNAPSHOTS = 24  # of them, about this many go into `PoseListener.published`
 ODOMETRY_TOPIC = "/motion_odometry"
+TEAM_TOPIC = "/robocup_mcl/team"  # the node's team_topic by default
 
 
 def message_class(type_name: str) -> Any:
@@ -100,6 +101,34 @@ class LogPlayer:
         self.period_ns = int(odometry[1] - odometry[0]) if len(odometry) > 1 else 10_000_000
         qos = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
         self.publishers = {topic: self.node.create_publisher(classes[topic], topic, qos) for topic in classes}
+
+    def add_team_messages(self, rate: float, topic: str = TEAM_TOPIC, bad_every: int = 0) -> tuple[int, int]:
+        """Play a teammate's broadcasts too (robocup_mcl_msgs/TeamMessage on `topic`), `rate` a second: player 2,
+        at (0, 0, 0) with confidence 0.5 and no ball (no side evidence), stamped as the odometry message before
+        it; every `bad_every`-th has a NaN x (0: none). Returns (messages, bad ones) per lap."""
+        from rclpy.qos import QoSProfile, ReliabilityPolicy
+
+        team_message = message_class("robocup_mcl_msgs/TeamMessage")
+        period = round(1e9 / rate)
+        rows, stamp, next_ns, count, bad = [], None, 0, 0, 0
+        for offset_ns, row_topic, message in self.messages:
+            if row_topic == self.odometry_topic:
+                stamp = message.header.stamp
+            while stamp is not None and offset_ns >= next_ns:
+                count += 1
+                msg = team_message(sender=2, x=0.0, y=0.0, theta=0.0, confidence=0.5)
+                msg.header.frame_id = "map"
+                msg.header.stamp.sec, msg.header.stamp.nanosec = stamp.sec, stamp.nanosec
+                if bad_every and count % bad_every == 0:
+                    msg.x = math.nan
+                    bad += 1
+                rows.append((next_ns, topic, msg))
+                next_ns += period
+        self.messages = sorted(self.messages + rows, key=lambda row: row[0])  # stable: the log's order kept
+        self.publishers[topic] = self.node.create_publisher(
+            team_message, topic, QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
+        )
+        return count, bad
 
     def wait_for_subscribers(self, topics: list[str], timeout: float) -> bool:
         """Wait until each of `topics` has a subscriber; False on timeout."""
