@@ -22,6 +22,8 @@ the node's subscriptions are matched, and records the poses with `PoseListener`.
   apart (`NodeCore.recording_seconds`): the callback's median and p99 with the recording and without its part,
   in the same run and under the same load, and their ratios; the file is read back (size, rows). That the
   recording changes no estimate shows in the comparison with the replay;
+- `--trace-order`: the order the node took the messages in against the order they were published in
+  (`order_analysis`), and a core fed the node's order;
 - the replay: the node's poses against `robocup-mcl replay`'s for the same log, settings and seed, by stamp
   (first lap): the share that are equal bit for bit and the largest distance. The node applies a camera frame
   with the odometry message after its arrival, as the replay does; a frame that DDS delivers after the
@@ -221,7 +223,7 @@ def compare_with_replay(
         localizer=settings.localizer() if settings.profile else None,
     )
     stamps = [log.origin_ns + round(t * 1e9) for t in result.times]
-    same, distances, first = 0, [], None
+    same, distances, first, at = 0, [], None, []
     for t, stamp, estimate in zip(result.times, stamps, result.estimates):
         pose = poses.get(stamp)
         if pose is None:
@@ -234,11 +236,13 @@ def compare_with_replay(
         if not equal and first is None:
             first = float(t)
         distances.append(float(np.hypot(estimate[0] - pose[0], estimate[1] - pose[1])))
+        at.append(float(t))
     return {
         "compared": len(distances),
         "equal_share": same / len(distances) if distances else None,
         "first_difference_s": first,
         "max_distance_m": max(distances) if distances else None,
+        "max_distance_at_s": at[int(np.argmax(distances))] if distances else None,
         "median_distance_m": float(np.median(distances)) if distances else None,
     }
 
@@ -260,6 +264,9 @@ def run(args: argparse.Namespace, node_argv: list[str]) -> dict:
     stats_path = Path(tempfile.mkdtemp(prefix="robocup-mcl-node-")) / "stats.json"
     # the node's stderr goes to a file: a pipe nobody reads during a long run would fill and block it
     stderr_path = stats_path.with_name("stderr.txt")
+    trace_path = stats_path.with_name("taken.json")
+    if args.trace_order:
+        node_argv = [*node_argv, "--trace-order", str(trace_path)]
     with open(stderr_path, "w", encoding="utf-8") as stderr_file:
         node = subprocess.Popen(
             [sys.executable, "-m", "mcl.tools.ros.node", *node_argv, "--stats", str(stats_path)],
@@ -275,6 +282,12 @@ def run(args: argparse.Namespace, node_argv: list[str]) -> dict:
     try:
         player = LogPlayer(args.log, context=context, seconds=args.seconds)
         team = player.add_team_messages(args.team_rate, bad_every=args.team_bad_every) if args.team_rate else (0, 0)
+        published_order, by_key = [], {}  # the first lap's order, and its messages by (topic, stamp)
+        for _, topic, message in player.messages:
+            if hasattr(message, "header"):
+                key = (topic, message.header.stamp.sec * 1_000_000_000 + message.header.stamp.nanosec)
+                published_order.append(key)
+                by_key[key] = message
         listener = PoseListener(context=context)
         listener.spin_in_thread(context)
         deadline = time.monotonic() + READY_TIMEOUT
@@ -310,7 +323,12 @@ def run(args: argparse.Namespace, node_argv: list[str]) -> dict:
     settings = NodeSettings.from_dict(
         {k: v for k, v in vars(args).items() if k in NodeSettings.__dataclass_fields__ and v is not None}
     )
+    order = None
+    if args.trace_order:
+        taken = [(topic, stamp) for topic, stamp in json.loads(trace_path.read_text())] if trace_path.exists() else []
+        order = order_analysis(published_order, taken, by_key, settings, {s: p for s, (_, p) in answered.items()})
     return {
+        "order": order,
         "log": args.log,
         "rate": args.rate,
         "repeat": args.repeat,
@@ -342,6 +360,88 @@ def run(args: argparse.Namespace, node_argv: list[str]) -> dict:
         "node": stats,
         "replay": compare_with_replay(args.log, settings, {s: p for s, (_, p) in answered.items()}, args.seconds),
         "_published": listener.published(),
+    }
+
+
+def order_analysis(
+    published: list[tuple[str, int]],
+    taken: list[tuple[str, int | None]],
+    messages: dict[tuple[str, int], Any],
+    settings: Any,
+    node_poses: dict[int, tuple[float, float, float]],
+    odometry_topic: str = "/motion_odometry",
+) -> dict:
+    """How the order the node took the messages in differs from the order they were published in, and whether
+    that order explains the node's poses.
+
+    For each camera message: the odometry messages published before it and those the node took before it.
+    Fewer taken than published: the node took the frame before an odometry message published earlier ("early":
+    without send times the frame then corrects the filter one step before the replay does); more: after one
+    published later ("late"). Then a `NodeCore` without send times is fed the messages in the node's order, in
+    this process: its poses against the node's (the same bit for bit when the order is all that differs)."""
+    from mcl.tools.ros.core import NodeCore
+
+    cameras = (settings.goalposts_topic, settings.markings_topic)
+
+    def odometry_before(order: list) -> dict[tuple[str, int], int]:
+        count, out = 0, {}
+        for topic, stamp in order:
+            if topic == odometry_topic:
+                count += 1
+            elif topic in cameras and stamp is not None:
+                out[(topic, stamp)] = count
+        return out
+
+    sent, took = odometry_before(published), odometry_before(taken)
+    first = min(stamp for _, stamp in published)
+    early = [key for key in sent if key in took and took[key] < sent[key]]
+    late = [key for key in sent if key in took and took[key] > sent[key]]
+
+    def feed(order: list) -> tuple[dict[int, tuple[float, float, float]], dict[int, int]]:
+        """A core without send times fed `order`: its poses by stamp, and the step each frame corrected at."""
+        core = NodeCore(settings)
+        core.applied = []
+        poses: dict[int, tuple[float, float, float]] = {}
+        for topic, stamp in order:
+            message = messages.get((topic, stamp)) if stamp is not None else None
+            if message is None:
+                continue
+            if topic == odometry_topic:
+                out = core.odometry(message)
+                if out is not None:
+                    poses[out.stamp_ns] = (float(out.pose[0]), float(out.pose[1]), float(out.pose[2]))
+            elif topic == settings.goalposts_topic:
+                core.goalposts(message)
+            elif topic == settings.markings_topic:
+                core.markings(message)
+        return poses, dict(core.applied)
+
+    poses, applied = feed(taken)
+    _, applied_in_order = feed(published)  # the publisher's order: the replay's steps
+    moved = sorted(
+        (capture, applied[capture] - step) for capture, step in applied_in_order.items() if applied.get(capture) != step
+    )
+    missing = [capture for capture in applied_in_order if capture not in applied]
+    both = [stamp for stamp in node_poses if stamp in poses]
+    same = sum(
+        1
+        for stamp in both
+        if node_poses[stamp][:2] == poses[stamp][:2]
+        and abs(math.remainder(node_poses[stamp][2] - poses[stamp][2], math.tau)) < 1e-9
+    )
+    return {
+        "camera_messages": len(sent),
+        "taken_early": len(early),
+        "taken_late": len(late),
+        "first_early_s": (min(stamp for _, stamp in early) - first) / 1e9 if early else None,
+        "first_late_s": (min(stamp for _, stamp in late) - first) / 1e9 if late else None,
+        "frames_applied": len(applied_in_order),
+        "frames_applied_at_another_step": len(moved),
+        "frames_applied_earlier": sum(1 for _, shift in moved if shift < 0),
+        "frames_not_applied": len(missing),
+        "first_frame_at_another_step_s": (moved[0][0] - first) / 1e9 if moved else None,
+        "core_in_node_order_compared": len(both),
+        "core_in_node_order_equal_share": same / len(both) if both else None,
     }
 
 
@@ -457,6 +557,20 @@ def summary(result: dict) -> None:
             f"{rrd['file'].get('particle_rows')} particle rows read back"
             + (f" (error: {rrd['file']['error']})" if rrd["file"].get("error") else "")
         )
+    order = result.get("order")
+    if order:
+        share = order["core_in_node_order_equal_share"]
+        print(
+            f"order taken: of {order['camera_messages']} camera messages, {order['taken_early']} taken before an "
+            f"odometry message published before them (first at {order['first_early_s']} s), "
+            f"{order['taken_late']} after one published after them (first at {order['first_late_s']} s); "
+            f"of {order['frames_applied']} frames that corrected the filter in the published order, "
+            f"{order['frames_applied_at_another_step']} did at another step in the node's "
+            f"({order['frames_applied_earlier']} earlier, first captured at {order['first_frame_at_another_step_s']} s) "
+            f"and {order['frames_not_applied']} not at all; a core fed "
+            f"the node's order: {order['core_in_node_order_compared']} poses, "
+            + (f"{100 * share:.1f} % equal to the node's" if share is not None else "none compared")
+        )
     if node.get("not_used"):
         print(f"not used by the node: {node['not_used']}")
 
@@ -526,6 +640,13 @@ def build_parser(prog: str = PROG) -> argparse.ArgumentParser:
         help="with --team-rate, make every N-th broadcast bad (a NaN x; default 0: none)",
     )
     parser.add_argument(
+        "--trace-order",
+        action="store_true",
+        help="record the order the node took the messages in and compare it with the order they were "
+        "published in (camera frames taken before or after an odometry message published before or after them), "
+        "and feed a core the messages in the node's order (its poses against the node's); needs --repeat 1",
+    )
+    parser.add_argument(
         "--published",
         metavar="PATH",
         help="write what the listener heard from the node (the field's markers, every pose, the latest "
@@ -549,6 +670,8 @@ def main(argv: list[str] | None = None, prog: str = PROG) -> int:
         raise CommandError("--rate must be > 0, --repeat >= 1 and --particles > 0")
     if not (args.team_rate >= 0 and args.team_bad_every >= 0):
         raise CommandError("--team-rate and --team-bad-every must be >= 0")
+    if args.trace_order and args.repeat != 1:
+        raise CommandError("--trace-order needs --repeat 1")
     if not args.rss_interval > 0:
         raise CommandError("--rss-interval must be > 0")
     if not os.path.isfile(args.log):

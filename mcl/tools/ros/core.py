@@ -293,6 +293,8 @@ class NodeCore:
         self.recorder: Any = None
         self._steps = 0  # estimates given so far: the recording's step
         self.recording_seconds = 0.0  # what the last odometry message's recording took [s] (0 without one)
+        # a list: (capture stamp, odometry stamp) of each camera frame the filter took, at the step it took it
+        self.applied: list[tuple[int, int]] | None = None
 
     # -- time ----------------------------------------------------------------------------------------------
     def seconds(self, ns: int) -> float:
@@ -383,6 +385,8 @@ class NodeCore:
                 if self.localizer.observe(observations, capture_time=self.seconds(capture_ns)):
                     used += 1
                     step_observations = observations
+                    if self.applied is not None:
+                        self.applied.append((capture_ns, stamp))
             except ValueError:  # counted by the localizer ("observation older than history", ...)
                 pass
         self._ready = later

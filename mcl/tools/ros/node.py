@@ -126,6 +126,7 @@ class Statistics:
         self.durations: dict[str, array[float]] = {}
         self.recording: array[float] = array("d")  # per odometry callback: the part its Rerun recording took [s]
         self.recording_topic: str | None = None  # the odometry topic: its callback's durations include `recording`
+        self.taken: list[tuple[str, int | None]] | None = None  # a list: (topic, header stamp) of each message taken
         self.started_wall = time.perf_counter()
         self.started_cpu = time.process_time()
 
@@ -138,6 +139,10 @@ class Statistics:
 
         def counted(message, sent_ns):
             self.received[name] = self.received.get(name, 0) + 1
+            if self.taken is not None:
+                header = getattr(message, "header", None)
+                stamp = header.stamp.sec * 1_000_000_000 + header.stamp.nanosec if header is not None else None
+                self.taken.append((name, stamp))
             start = time.perf_counter()
             try:
                 callback(message, sent_ns)
@@ -493,6 +498,12 @@ def build_parser(prog: str = PROG) -> argparse.ArgumentParser:
         metavar="N",
         help="with --rrd, record the particles every N odometry messages (default 5)",
     )
+    parser.add_argument(
+        "--trace-order",
+        metavar="PATH",
+        help="when the node stops, write the order it took the messages in (topic and header stamp of each) to "
+        "PATH (JSON; robocup-mcl node bench --trace-order reads it)",
+    )
     parser.add_argument("--no-progress", action="store_true", help=NO_PROGRESS_HELP + "; the node shows none")
     return parser
 
@@ -514,6 +525,7 @@ def main(argv: list[str] | None = None, prog: str = PROG) -> int:
 
     check_output_file(args.stats, "--stats")
     check_output_file(args.rrd, "--rrd")
+    check_output_file(args.trace_order, "--trace-order")
     if args.record_every < 1:
         from mcl.tools.cli_checks import CommandError
 
@@ -529,6 +541,8 @@ def main(argv: list[str] | None = None, prog: str = PROG) -> int:
         node = LocalizationNode(settings)
         if args.rrd:
             node.core.record(args.rrd, args.record_every)
+        if args.trace_order:
+            node.stats.taken = []
         executor = SingleThreadedExecutor()
         executor.add_node(node.node)
         print(f"{prog}: ready (kernels warmed up in {seconds:.1f} s)", file=sys.stderr, flush=True)
@@ -542,6 +556,9 @@ def main(argv: list[str] | None = None, prog: str = PROG) -> int:
                 node.core.close()  # the recording's footer
             except Exception as error:  # noqa: BLE001 - the statistics are still written
                 node.core.counts[f"recording: not finished ({type(error).__name__}: {error})"] += 1
+            if args.trace_order:
+                with open(args.trace_order, "w", encoding="utf-8") as out:
+                    json.dump(node.stats.taken, out)
             if args.stats:
                 with open(args.stats, "w", encoding="utf-8") as out:
                     json.dump(node.statistics(), out, indent=2)
