@@ -174,7 +174,7 @@ class Statistics:
             if values
         }
         out: dict = {}
-        timed = self.durations.get(self.recording_topic or "", [])
+        timed = self.durations.get(self.recording_topic or "", array("d"))
         if any(self.recording) and len(timed) == len(self.recording):
             with_ = np.asarray(timed)
             without = with_ - np.asarray(self.recording)
@@ -325,15 +325,16 @@ class LocalizationNode:
             (s.odometry_topic, Odometry, self._odometry),
         ]
         from game_controller_hl_interfaces.msg import GameState
-        from robocup_mcl_msgs.msg import TeamMessage
         from soccer_vision_3d_msgs.msg import BallArray, GoalpostArray, MarkingArray
+
+        from mcl.tools.ros.player import message_class
 
         generated = {
             s.goalposts_topic: GoalpostArray,
             s.markings_topic: MarkingArray,
             s.balls_topic: BallArray,
             s.game_state_topic: GameState,
-            s.team_topic: TeamMessage,
+            s.team_topic: message_class("robocup_mcl_msgs/TeamMessage"),  # the project's own, generated
         }
         # DDS's source timestamps order a camera frame against the odometry (NodeCore.odometry) where rclpy gives
         # them; elsewhere (Humble) the order the executor takes the messages in, and their header stamps
