@@ -435,3 +435,24 @@ def test_two_thousand_random_team_messages_never_raise_nor_make_the_estimate_nan
     dropped = sum(n for reason, n in core.counts.items() if reason.startswith("team message"))
     assert used + dropped == 2000 and dropped > 1000
     assert len([r for r in core.counts if r.startswith("team message")]) < 40  # counted by kind, not by value
+
+
+def test_each_kind_of_drop_is_logged_once():
+    from collections import Counter
+
+    from mcl.tools.ros.node import log_new_drops
+
+    counts: Counter = Counter()
+    logged: list[str] = []
+
+    def callback(message, sent_ns):
+        counts[message] += 1
+
+    wrapped = log_new_drops(callback, counts, logged.append)
+    for message in ["team message: pose", "team message: pose", "event fallen", "odometry: time went backwards"]:
+        wrapped(message, None)
+    assert logged == [
+        "dropped: team message: pose (logged once; counted from now on)",
+        "dropped: odometry: time went backwards (logged once; counted from now on)",
+    ]
+    assert counts["team message: pose"] == 2

@@ -4,7 +4,7 @@
     robocup-mcl node --ros-args -p particles:=300 -r __ns:=/robot1    # ROS arguments after --ros-args
 
 Subscribes to the robot's odometry, walk command, vision (goalposts, markings, balls), the game controller's
-GameState, game events and an initial pose; publishes the estimate (PoseWithCovarianceStamped) per odometry
+GameState, game events, an initial pose and the teammates' broadcasts (robocup_mcl_msgs/TeamMessage); publishes the estimate (PoseWithCovarianceStamped) per odometry
 message, map -> odom on /tf, the quality and the "lost" flag when they change, the hypotheses and the particles a
 few times a second, and the field's markings once at start (latched). What it does with each message is `mcl.tools.ros.core.NodeCore`'s (the replay's order and conventions); the
 parameters and topics are `mcl.tools.ros.parameters.NodeSettings`.
@@ -114,6 +114,24 @@ def marker_array(markers: list, frame_id: str) -> Any:
             marker.points = [Point(x=float(x), y=float(y), z=0.0) for x, y in item.points]
         out.markers.append(marker)
     return out
+
+
+def log_new_drops(callback, counts: dict[str, int], warn):
+    """`callback(message, sent_ns)` followed by `warn(text)` for each kind of dropped message it added to `counts`
+    (`NodeCore.counts`) that was not there before: each kind is logged once, then only counted (`--stats` has
+    the counts). The game events the counts also hold ("event ...") are not drops and are not logged."""
+
+    def wrapped(message: Any, sent_ns: int | None) -> None:
+        size = len(counts)
+        try:
+            callback(message, sent_ns)
+        finally:
+            if len(counts) != size:
+                for kind in list(counts)[size:]:  # a dict keeps its keys in insertion order
+                    if not kind.startswith("event "):
+                        warn(f"dropped: {kind} (logged once; counted from now on)")
+
+    return wrapped
 
 
 class Statistics:
@@ -358,21 +376,7 @@ class LocalizationNode:
 
     # -- callbacks -------------------------------------------------------------------------------------------
     def _logging_new_drops(self, callback):
-        """`callback` followed by a warning for each kind of dropped message not seen before (`NodeCore.counts`:
-        each kind is logged once, then only counted; `--stats` has the counts)."""
-        counts = self.core.counts
-
-        def wrapped(message: Any, sent_ns: int | None) -> None:
-            size = len(counts)
-            try:
-                callback(message, sent_ns)
-            finally:
-                if len(counts) != size:
-                    for kind in list(counts)[size:]:  # a Counter keeps its keys in insertion order
-                        if not kind.startswith("event "):
-                            self.node.get_logger().warning(f"dropped: {kind} (logged once; counted from now on)")
-
-        return wrapped
+        return log_new_drops(callback, self.core.counts, self.node.get_logger().warning)
 
     def _command(self, msg: Any, sent_ns: int | None) -> None:
         self.core.command(msg, self.node.get_clock().now().nanoseconds)
