@@ -24,6 +24,10 @@ the node's subscriptions are matched, and records the poses with `PoseListener`.
   recording changes no estimate shows in the comparison with the replay;
 - `--trace-order`: the order the node took the messages in against the order they were published in
   (`order_analysis`), and a core fed the node's order;
+- `--team-rate HZ` (and `--team-bad-every N`): a teammate's broadcasts played beside the log
+  (`LogPlayer.add_team_messages`): how many were sent, received and given to the localizer;
+- `--published PATH`: what the listener heard (the field's markers, every pose, particle messages) as JSON, for
+  `robocup-mcl node figure`;
 - the replay: the node's poses against `robocup-mcl replay`'s for the same log, settings and seed, by stamp
   (first lap): the share that are equal bit for bit and the largest distance. The node applies a camera frame
   with the odometry message after its arrival, as the replay does; a frame that DDS delivers after the
