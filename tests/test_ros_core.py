@@ -302,6 +302,9 @@ def test_the_statistics_set_the_recording_apart_from_the_callback():
     figures = stats.as_dict({})["recording"]
     assert figures["callback_median_ms"] >= figures["callback_without_median_ms"]
     assert set(figures) >= {"median_ratio", "p99_ratio", "total_ratio"}
+    counting = Statistics(keep_durations=False)  # the node without --stats: counts only, no growing arrays
+    counting.timed("/odom", lambda message, sent_ns: None, with_info=False)(object())
+    assert counting.received == {"/odom": 1} and counting.as_dict({})["callbacks"] == {}
 
 
 def test_the_figure_draws_what_the_node_published(tmp_path):
