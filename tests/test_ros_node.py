@@ -114,6 +114,53 @@ def test_the_node_answers_without_source_timestamps_as_on_humble(log_path):
     assert node["frames_used"] > 0 and result["replay"]["compared"] == result["poses_received"]
 
 
+def test_team_messages_over_dds_reach_the_localizer_and_bad_ones_are_dropped(log_path, tmp_path):
+    """A teammate's broadcasts (robocup_mcl_msgs/TeamMessage) at 10 Hz beside the log, every third with a NaN x:
+    the node receives them all, gives the good ones to the localizer, counts the bad ones by kind and drops
+    them, and no pose it publishes holds a NaN. The node records the run (--rrd): the file reads back with one
+    estimate per pose published."""
+    _dds_or_skip()
+    rrd = tmp_path / "live.rrd"
+    path, field = log_path
+    done = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "mcl.tools.cli",
+            "node",
+            "bench",
+            str(path),
+            "--field",
+            field,
+            "--particles",
+            "100",
+            "--team-rate",
+            "10",
+            "--team-bad-every",
+            "3",
+            "--rrd",
+            str(rrd),
+            "--json",
+        ],
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
+    assert done.returncode == 0, done.stderr[-3000:]
+    result = json.loads(done.stdout)
+    sent, bad = result["team_messages_sent"], result["team_messages_bad_sent"]
+    assert sent >= 59 and bad == sent // 3
+    node = result["node"]
+    assert node["received"]["/robocup_mcl/team"] == sent
+    assert node["not_used"]["team message"] == sent - bad
+    assert node["not_used"]["team message: pose"] == bad
+    assert result["nonfinite_poses"] == 0 and result["poses_received"] > 0
+    assert result["shutdown"]["completed"]
+    recording = result["rrd"]["file"]
+    assert "error" not in recording and recording["recordings"] == 1
+    assert recording["estimate_rows"] == node["published"]["/robocup_mcl/pose"] > 0
+
+
 def test_without_ros_the_commands_say_what_to_install(tmp_path):
     if ros_available() is None:
         pytest.skip("ROS 2 is installed here: the commands run")

@@ -23,6 +23,7 @@
     robocup-mcl node bench LOG [--seconds S] [--json] [--save PATH]  # a log played to the node over DDS: latency
     robocup-mcl node play LOG [--rate R]              # a robot's MCAP log played to its topics
     robocup-mcl node messages [--check]               # generate the ROS messages that have no wheel
+    robocup-mcl node figure PUBLISHED.json --out PNG  # draw what the node published in a bench run
     robocup-mcl --version                             # the installed version
     robocup-mcl COMMAND --help                        # every option of a command, each with its help
 
@@ -94,6 +95,7 @@ NODE_TOOLS = {
     ),
     "play": ("mcl.tools.ros.player", "a robot's MCAP log played to its topics, in real time or faster"),
     "messages": ("mcl.tools.ros.messages", "generate the ROS 2 message packages that have no wheel (cmake)"),
+    "figure": ("mcl.tools.ros.figure", "draw what the node published in a bench run (--published) as a PNG"),
 }
 
 

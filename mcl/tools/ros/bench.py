@@ -13,6 +13,21 @@ the node's subscriptions are matched, and records the poses with `PoseListener`.
   (one process, one clock: `time.perf_counter`), median, p90, p99 and max [ms];
 - drops: odometry messages sent that no pose answered (the first odometry message of a run only starts it);
 - CPU: the node's CPU seconds over its wall seconds (`--stats`), and its callbacks' durations;
+- soak: the poses and /tf transforms holding a NaN or an infinity (none are recorded as poses), the node's
+  resident memory (VmRSS of /proc/PID/status) sampled every `--rss-interval` seconds while the log plays, and
+  its growth from the first to the last ten minutes (a sixth of the run each, when the run is shorter than an
+  hour), and the node's shutdown: the signal sent (`--stop-signal`), whether the node exited by itself with
+  status 0 (within 15 s) and its statistics file was written, and how long that took;
+- `--rrd PATH`: the node records the run to a Rerun file, and times that part of each odometry callback
+  apart (`NodeCore.recording_seconds`): the callback's median and p99 with the recording and without its part,
+  in the same run and under the same load, and their ratios; the file is read back (size, rows). That the
+  recording changes no estimate shows in the comparison with the replay;
+- `--trace-order`: the order the node took the messages in against the order they were published in
+  (`order_analysis`), and a core fed the node's order;
+- `--team-rate HZ` (and `--team-bad-every N`): a teammate's broadcasts played beside the log
+  (`LogPlayer.add_team_messages`): how many were sent, received and given to the localizer;
+- `--published PATH`: what the listener heard (the field's markers, every pose, particle messages) as JSON, for
+  `robocup-mcl node figure`;
 - the replay: the node's poses against `robocup-mcl replay`'s for the same log, settings and seed, by stamp
   (first lap): the share that are equal bit for bit and the largest distance. The node applies a camera frame
   with the odometry message after its arrival, as the replay does; a frame that DDS delivers after the
@@ -87,6 +102,108 @@ def _percentiles(values: list[float]) -> dict[str, float | None]:
     }
 
 
+def rss_bytes(pid: int) -> int | None:
+    """The resident memory of process `pid` [bytes] (VmRSS in /proc/PID/status), or None when it is gone."""
+    try:
+        for line in Path(f"/proc/{pid}/status").read_text().splitlines():
+            if line.startswith("VmRSS:"):
+                return int(line.split()[1]) * 1024
+    except (OSError, ValueError, IndexError):
+        return None
+    return None
+
+
+class RssSampler:
+    """Samples a process's resident memory every `interval` seconds in a daemon thread: `samples` holds
+    (seconds since `start`, bytes)."""
+
+    def __init__(self, pid: int, interval: float) -> None:
+        import threading
+
+        self.pid, self.interval = pid, interval
+        self.samples: list[tuple[float, int]] = []
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, daemon=True)
+        self._started = 0.0
+
+    def start(self) -> None:
+        self._started = time.monotonic()
+        self._thread.start()
+
+    def _run(self) -> None:
+        while True:
+            value = rss_bytes(self.pid)
+            if value is not None:
+                self.samples.append((time.monotonic() - self._started, value))
+            if self._stop.wait(self.interval):
+                return
+
+    def stop(self) -> None:
+        """Take a last sample and stop."""
+        self._stop.set()
+        self._thread.join(timeout=5)
+        value = rss_bytes(self.pid)
+        if value is not None:
+            self.samples.append((time.monotonic() - self._started, value))
+
+
+def rss_summary(samples: list[tuple[float, int]], window: float = 600.0) -> dict:
+    """Memory over a run from `RssSampler.samples`: the mean of the first and of the last `window` seconds
+    (a sixth of the run each when it is shorter than six windows) [MB], the growth between them [MB and %],
+    the least and the most, and a least-squares slope [MB per hour]."""
+    import numpy as np
+
+    if not samples:
+        return {"samples": 0}
+    times = np.array([t for t, _ in samples])
+    mb = np.array([b for _, b in samples]) / 1e6
+    duration = float(times[-1] - times[0])
+    width = min(window, duration / 6) if duration > 0 else 0.0
+    first = mb[times <= times[0] + width]
+    last = mb[times >= times[-1] - width]
+    slope = float(np.polyfit(times, mb, 1)[0] * 3600) if len(samples) > 2 and duration > 0 else None
+    return {
+        "samples": len(samples),
+        "seconds": duration,
+        "window_s": width,
+        "first_window_mb": float(first.mean()),
+        "last_window_mb": float(last.mean()),
+        "growth_mb": float(last.mean() - first.mean()),
+        "growth_percent": float(100 * (last.mean() - first.mean()) / first.mean()),
+        "min_mb": float(mb.min()),
+        "max_mb": float(mb.max()),
+        "slope_mb_per_hour": slope,
+        "series": [[round(float(t), 1), round(float(m), 2)] for t, m in zip(times, mb)],
+    }
+
+
+def stop_node(node: subprocess.Popen, signal_name: str, stats_path: Path) -> dict:
+    """Send `signal_name` (SIGINT or SIGTERM) to the node and wait 15 s for it to exit by itself; then
+    SIGTERM (5 s more) and SIGKILL. Returns what happened."""
+    sent = time.monotonic()
+    node.send_signal(getattr(signal, signal_name))
+    escalated = None
+    try:
+        node.wait(timeout=15)
+    except subprocess.TimeoutExpired:
+        escalated = "SIGTERM"
+        node.terminate()
+        try:
+            node.wait(timeout=5)
+        except subprocess.TimeoutExpired:
+            escalated = "SIGKILL"
+            node.kill()
+            node.wait()
+    return {
+        "signal": signal_name,
+        "exit_status": node.returncode,
+        "seconds": time.monotonic() - sent,
+        "escalated_to": escalated,
+        "stats_written": stats_path.exists(),
+        "completed": escalated is None and node.returncode == 0 and stats_path.exists(),
+    }
+
+
 def compare_with_replay(
     log_path: str, settings: Any, poses: dict[int, tuple[float, float, float]], seconds: float | None
 ) -> dict:
@@ -110,7 +227,7 @@ def compare_with_replay(
         localizer=settings.localizer() if settings.profile else None,
     )
     stamps = [log.origin_ns + round(t * 1e9) for t in result.times]
-    same, distances, first = 0, [], None
+    same, distances, first, at = 0, [], None, []
     for t, stamp, estimate in zip(result.times, stamps, result.estimates):
         pose = poses.get(stamp)
         if pose is None:
@@ -123,11 +240,13 @@ def compare_with_replay(
         if not equal and first is None:
             first = float(t)
         distances.append(float(np.hypot(estimate[0] - pose[0], estimate[1] - pose[1])))
+        at.append(float(t))
     return {
         "compared": len(distances),
         "equal_share": same / len(distances) if distances else None,
         "first_difference_s": first,
         "max_distance_m": max(distances) if distances else None,
+        "max_distance_at_s": at[int(np.argmax(distances))] if distances else None,
         "median_distance_m": float(np.median(distances)) if distances else None,
     }
 
@@ -147,17 +266,32 @@ def run(args: argparse.Namespace, node_argv: list[str]) -> dict:
         }
     )
     stats_path = Path(tempfile.mkdtemp(prefix="robocup-mcl-node-")) / "stats.json"
-    node = subprocess.Popen(
-        [sys.executable, "-m", "mcl.tools.ros.node", *node_argv, "--stats", str(stats_path)],
-        env=env,
-        stderr=subprocess.PIPE,
-        text=True,
-    )
+    # the node's stderr goes to a file: a pipe nobody reads during a long run would fill and block it
+    stderr_path = stats_path.with_name("stderr.txt")
+    trace_path = stats_path.with_name("taken.json")
+    if args.trace_order:
+        node_argv = [*node_argv, "--trace-order", str(trace_path)]
+    with open(stderr_path, "w", encoding="utf-8") as stderr_file:
+        node = subprocess.Popen(
+            [sys.executable, "-m", "mcl.tools.ros.node", *node_argv, "--stats", str(stats_path)],
+            env=env,
+            stderr=stderr_file,
+            text=True,
+        )
+    sampler = RssSampler(node.pid, args.rss_interval)
+    shutdown: dict = {}
     context = Context()
     rclpy.init(context=context)
     player = listener = None
     try:
         player = LogPlayer(args.log, context=context, seconds=args.seconds)
+        team = player.add_team_messages(args.team_rate, bad_every=args.team_bad_every) if args.team_rate else (0, 0)
+        published_order, by_key = [], {}  # the first lap's order, and its messages by (topic, stamp)
+        for _, topic, message in player.messages:
+            if hasattr(message, "header"):
+                key = (topic, message.header.stamp.sec * 1_000_000_000 + message.header.stamp.nanosec)
+                published_order.append(key)
+                by_key[key] = message
         listener = PoseListener(context=context)
         listener.spin_in_thread(context)
         deadline = time.monotonic() + READY_TIMEOUT
@@ -168,25 +302,16 @@ def run(args: argparse.Namespace, node_argv: list[str]) -> dict:
             if player.wait_for_subscribers(topics, 0.2) and listener.pose_sub.get_publisher_count() > 0:
                 break
         if node.poll() is not None:
-            raise RuntimeError(
-                f"the node stopped before the log was played: {node.stderr.read()[-2000:] if node.stderr else ''}"
-            )
+            raise RuntimeError(f"the node stopped before the log was played: {stderr_path.read_text()[-2000:]}")
         time.sleep(0.5)  # the node's subscriptions matched: let the discovery settle
+        sampler.start()
         started = time.perf_counter()
         sent = player.play(args.rate, args.repeat)
         played = time.perf_counter() - started
         time.sleep(1.0)  # the last answers
+        sampler.stop()
     finally:
-        node.send_signal(signal.SIGINT)
-        try:
-            node.wait(timeout=15)
-        except subprocess.TimeoutExpired:
-            node.terminate()
-            try:
-                node.wait(timeout=5)
-            except subprocess.TimeoutExpired:
-                node.kill()
-                node.wait()
+        shutdown = stop_node(node, args.stop_signal, stats_path)
         if listener is not None:
             listener.close()
         if player is not None:
@@ -202,7 +327,12 @@ def run(args: argparse.Namespace, node_argv: list[str]) -> dict:
     settings = NodeSettings.from_dict(
         {k: v for k, v in vars(args).items() if k in NodeSettings.__dataclass_fields__ and v is not None}
     )
+    order = None
+    if args.trace_order:
+        taken = [(topic, stamp) for topic, stamp in json.loads(trace_path.read_text())] if trace_path.exists() else []
+        order = order_analysis(published_order, taken, by_key, settings, {s: p for s, (_, p) in answered.items()})
     return {
+        "order": order,
         "log": args.log,
         "rate": args.rate,
         "repeat": args.repeat,
@@ -225,9 +355,124 @@ def run(args: argparse.Namespace, node_argv: list[str]) -> dict:
             ns: sum(1 for n, _, _ in listener.field_markers if n == ns)
             for ns in sorted({n for n, _, _ in listener.field_markers})
         },
+        "team_messages_sent": team[0] * args.repeat,
+        "team_messages_bad_sent": team[1] * args.repeat,
+        "nonfinite_poses": listener.nonfinite_poses,
+        "nonfinite_transforms": listener.nonfinite_transforms,
+        "rss": rss_summary(sampler.samples),
+        "shutdown": shutdown,
         "node": stats,
         "replay": compare_with_replay(args.log, settings, {s: p for s, (_, p) in answered.items()}, args.seconds),
+        "_published": listener.published(),
     }
+
+
+def order_analysis(
+    published: list[tuple[str, int]],
+    taken: list[tuple[str, int | None]],
+    messages: dict[tuple[str, int], Any],
+    settings: Any,
+    node_poses: dict[int, tuple[float, float, float]],
+    odometry_topic: str = "/motion_odometry",
+) -> dict:
+    """How the order the node took the messages in differs from the order they were published in, and whether
+    that order explains the node's poses.
+
+    For each camera message: the odometry messages published before it and those the node took before it.
+    Fewer taken than published: the node took the frame before an odometry message published earlier ("early":
+    without send times the frame then corrects the filter one step before the replay does); more: after one
+    published later ("late"). Then a `NodeCore` without send times is fed the messages in the node's order, in
+    this process: its poses against the node's (the same bit for bit when the order is all that differs)."""
+    from mcl.tools.ros.core import NodeCore
+
+    cameras = (settings.goalposts_topic, settings.markings_topic)
+
+    def odometry_before(order: list) -> dict[tuple[str, int], int]:
+        count, out = 0, {}
+        for topic, stamp in order:
+            if topic == odometry_topic:
+                count += 1
+            elif topic in cameras and stamp is not None:
+                out[(topic, stamp)] = count
+        return out
+
+    sent, took = odometry_before(published), odometry_before(taken)
+    first = min(stamp for _, stamp in published)
+    early = [key for key in sent if key in took and took[key] < sent[key]]
+    late = [key for key in sent if key in took and took[key] > sent[key]]
+
+    def feed(order: list) -> tuple[dict[int, tuple[float, float, float]], dict[int, int]]:
+        """A core without send times fed `order`: its poses by stamp, and the step each frame corrected at."""
+        core = NodeCore(settings)
+        core.applied = []
+        poses: dict[int, tuple[float, float, float]] = {}
+        for topic, stamp in order:
+            message = messages.get((topic, stamp)) if stamp is not None else None
+            if message is None:
+                continue
+            if topic == odometry_topic:
+                out = core.odometry(message)
+                if out is not None:
+                    poses[out.stamp_ns] = (float(out.pose[0]), float(out.pose[1]), float(out.pose[2]))
+            elif topic == settings.goalposts_topic:
+                core.goalposts(message)
+            elif topic == settings.markings_topic:
+                core.markings(message)
+        return poses, dict(core.applied)
+
+    poses, applied = feed(taken)
+    _, applied_in_order = feed(published)  # the publisher's order: the replay's steps
+    moved = sorted(
+        (capture, applied[capture] - step) for capture, step in applied_in_order.items() if applied.get(capture) != step
+    )
+    missing = [capture for capture in applied_in_order if capture not in applied]
+    both = [stamp for stamp in node_poses if stamp in poses]
+    same = sum(
+        1
+        for stamp in both
+        if node_poses[stamp][:2] == poses[stamp][:2]
+        and abs(math.remainder(node_poses[stamp][2] - poses[stamp][2], math.tau)) < 1e-9
+    )
+    return {
+        "camera_messages": len(sent),
+        "taken_early": len(early),
+        "taken_late": len(late),
+        "first_early_s": (min(stamp for _, stamp in early) - first) / 1e9 if early else None,
+        "first_late_s": (min(stamp for _, stamp in late) - first) / 1e9 if late else None,
+        "frames_applied": len(applied_in_order),
+        "frames_applied_at_another_step": len(moved),
+        "frames_applied_earlier": sum(1 for _, shift in moved if shift < 0),
+        "frames_not_applied": len(missing),
+        "first_frame_at_another_step_s": (moved[0][0] - first) / 1e9 if moved else None,
+        "core_in_node_order_compared": len(both),
+        "core_in_node_order_equal_share": same / len(both) if both else None,
+    }
+
+
+def read_back(path: str) -> dict:
+    """What a node's .rrd holds: its size [bytes], its recording ids, and the rows of the estimate and of the
+    particles (an error's text when it does not read)."""
+    out: dict[str, Any] = {"path": path, "bytes": os.path.getsize(path) if os.path.exists(path) else None}
+    try:
+        import rerun.chunk as rrc
+
+        reader = rrc.RrdReader(path)
+        rows: dict[str, int] = {}
+        for chunk in reader.stream():
+            if not chunk.is_static and chunk.entity_path in ("/robot/estimate", "/particles"):
+                rows[chunk.entity_path] = rows.get(chunk.entity_path, 0) + chunk.to_record_batch().num_rows
+        out["recordings"] = len(reader.recordings())
+        out["estimate_rows"] = rows.get("/robot/estimate", 0)
+        out["particle_rows"] = rows.get("/particles", 0)
+    except Exception as error:  # noqa: BLE001 - reported, not raised: the figures of the runs still count
+        out["error"] = f"{type(error).__name__}: {error}"
+    return out
+
+
+def recording_overhead(result: dict, path: str) -> dict:
+    """The recording's cost on the odometry callback, from the node's statistics of a run with `--rrd`, and the
+    file read back."""
+    return {**result["node"].get("recording", {}), "file": read_back(path)}
 
 
 def summary(result: dict) -> None:
@@ -275,6 +520,61 @@ def summary(result: dict) -> None:
             )
             + f" largest distance {replay['max_distance_m']:.4f} m"
         )
+    if result.get("team_messages_sent"):
+        received = node.get("received", {}).get("/robocup_mcl/team", 0)
+        used = node.get("not_used", {}).get("team message", 0)
+        print(
+            f"team messages: {result['team_messages_sent']} sent ({result['team_messages_bad_sent']} bad), "
+            f"{received} received, {used} given to the localizer"
+        )
+    print(
+        f"poses or transforms with a NaN or an infinity: {result['nonfinite_poses']} poses, "
+        f"{result['nonfinite_transforms']} transforms"
+    )
+    rss = result.get("rss", {})
+    if rss.get("samples"):
+        print(
+            f"node memory (RSS, {rss['samples']} samples over {rss['seconds']:.0f} s): "
+            f"{rss['first_window_mb']:.1f} MB in the first {rss['window_s']:.0f} s, "
+            f"{rss['last_window_mb']:.1f} MB in the last ({rss['growth_mb']:+.1f} MB, {rss['growth_percent']:+.2f} %), "
+            f"range {rss['min_mb']:.1f}-{rss['max_mb']:.1f} MB"
+        )
+    shutdown = result.get("shutdown", {})
+    if shutdown:
+        print(
+            f"shutdown on {shutdown['signal']}: "
+            + ("completed" if shutdown["completed"] else "NOT completed")
+            + f" in {shutdown['seconds']:.2f} s, exit status {shutdown['exit_status']}"
+            + (f", escalated to {shutdown['escalated_to']}" if shutdown["escalated_to"] else "")
+        )
+    rrd = result.get("rrd")
+    if rrd:
+        if rrd.get("median_ratio") is not None:
+            print(
+                f"--rrd: odometry callback without the recording's part -> with it: median "
+                f"{rrd['callback_without_median_ms']:.3f} -> {rrd['callback_median_ms']:.3f} ms "
+                f"(x{rrd['median_ratio']:.2f}), p99 {rrd['callback_without_p99_ms']:.2f} -> "
+                f"{rrd['callback_p99_ms']:.2f} ms (x{rrd['p99_ratio']:.2f}), all callbacks x{rrd['total_ratio']:.2f}"
+            )
+        print(
+            f"--rrd: {rrd['file'].get('bytes')} bytes, {rrd['file'].get('estimate_rows')} estimates and "
+            f"{rrd['file'].get('particle_rows')} particle rows read back"
+            + (f" (error: {rrd['file']['error']})" if rrd["file"].get("error") else "")
+        )
+    order = result.get("order")
+    if order:
+        share = order["core_in_node_order_equal_share"]
+        print(
+            f"order taken: of {order['camera_messages']} camera messages, {order['taken_early']} taken before an "
+            f"odometry message published before them (first at {order['first_early_s']} s), "
+            f"{order['taken_late']} after one published after them (first at {order['first_late_s']} s); "
+            f"of {order['frames_applied']} frames that corrected the filter in the published order, "
+            f"{order['frames_applied_at_another_step']} did at another step in the node's "
+            f"({order['frames_applied_earlier']} earlier, first captured at {order['first_frame_at_another_step_s']} s) "
+            f"and {order['frames_not_applied']} not at all; a core fed "
+            f"the node's order: {order['core_in_node_order_compared']} poses, "
+            + (f"{100 * share:.1f} % equal to the node's" if share is not None else "none compared")
+        )
     if node.get("not_used"):
         print(f"not used by the node: {node['not_used']}")
 
@@ -311,6 +611,51 @@ def build_parser(prog: str = PROG) -> argparse.ArgumentParser:
         help="run the node with use_source_timestamps false: frames ordered as on Humble (receive "
         "order and header stamps)",
     )
+    parser.add_argument(
+        "--stop-signal",
+        choices=("SIGINT", "SIGTERM"),
+        default="SIGINT",
+        help="stop the node with this signal when the log has played (default SIGINT)",
+    )
+    parser.add_argument(
+        "--rss-interval",
+        type=float,
+        default=5.0,
+        help="sample the node's resident memory every this many seconds (default 5)",
+    )
+    parser.add_argument(
+        "--rrd",
+        metavar="PATH",
+        help="the node records the run to this Rerun file: the recording's share of the odometry callback "
+        "(ratio with and without it, in the same run), the file read back",
+    )
+    parser.add_argument("--record-every", type=int, default=5, help="with --rrd, the node's --record-every (default 5)")
+    parser.add_argument(
+        "--team-rate",
+        type=float,
+        default=0.0,
+        help="also play a teammate's broadcasts (robocup_mcl_msgs/TeamMessage, no ball) this many times a "
+        "second (default 0: none)",
+    )
+    parser.add_argument(
+        "--team-bad-every",
+        type=int,
+        default=0,
+        help="with --team-rate, make every N-th broadcast bad (a NaN x; default 0: none)",
+    )
+    parser.add_argument(
+        "--trace-order",
+        action="store_true",
+        help="record the order the node took the messages in and compare it with the order they were "
+        "published in (camera frames taken before or after an odometry message published before or after them), "
+        "and feed a core the messages in the node's order (its poses against the node's); needs --repeat 1",
+    )
+    parser.add_argument(
+        "--published",
+        metavar="PATH",
+        help="write what the listener heard from the node (the field's markers, every pose, the latest "
+        "particle messages) to PATH as JSON: `robocup-mcl node figure PATH` draws it",
+    )
     parser.add_argument("--domain", type=int, default=None, help="ROS_DOMAIN_ID (default: 100 + pid %% 100)")
     parser.add_argument("--json", action="store_true", help="print the figures as JSON")
     add_save_option(parser)
@@ -327,10 +672,20 @@ def main(argv: list[str] | None = None, prog: str = PROG) -> int:
     args = build_parser(prog).parse_args(argv)
     if not (args.rate > 0 and args.repeat >= 1 and args.particles > 0):
         raise CommandError("--rate must be > 0, --repeat >= 1 and --particles > 0")
+    if not (args.team_rate >= 0 and args.team_bad_every >= 0):
+        raise CommandError("--team-rate and --team-bad-every must be >= 0")
+    if args.trace_order and args.repeat != 1:
+        raise CommandError("--trace-order needs --repeat 1")
+    if not args.rss_interval > 0:
+        raise CommandError("--rss-interval must be > 0")
     if not os.path.isfile(args.log):
         raise CommandError(f"{args.log}: no such file")
     require_ros()
     check_output_file(args.save, "--save")
+    check_output_file(args.rrd, "--rrd")
+    check_output_file(args.published, "--published")
+    if args.record_every < 1:
+        raise CommandError("--record-every must be >= 1")
     if not loopback_only():
         if os.environ.get(ISOLATED_VARIABLE):
             raise CommandError("the namespace has interfaces besides the loopback; refusing to start DDS")
@@ -350,9 +705,17 @@ def main(argv: list[str] | None = None, prog: str = PROG) -> int:
     if args.no_source_timestamps:
         node_argv.append("--no-use-source-timestamps")
     try:
+        if args.rrd:
+            node_argv += ["--rrd", os.path.abspath(args.rrd), "--record-every", str(args.record_every)]
         result = run(args, node_argv)
+        if args.rrd:
+            result["rrd"] = recording_overhead(result, os.path.abspath(args.rrd))
     except RuntimeError as error:  # the node or the player failed: their own messages say why
         raise CommandError(str(error)) from None
+    published = result.pop("_published")
+    if args.published:
+        published.update(log=args.log, rate=args.rate, field=args.field, filter_particles=args.particles)
+        Path(args.published).write_text(json.dumps(published) + "\n", encoding="utf-8")
     save_and_print(result, args.save, args.json, summary)
     return 0
 

@@ -24,9 +24,19 @@ gives the replay's estimates:
   Without them (rclpy of Humble has no `MessageInfo`), "next" is by the order the messages are taken, and a frame
   captured after the odometry message's stamp waits for a later step (it cannot have been sent before it);
 - the ball (BallArray, the most confident ball) is side evidence (`Localizer.observe_ball`) at its capture;
+- a teammate's broadcast (robocup_mcl_msgs/TeamMessage, the project's own message: no common one exists) is
+  `Localizer.team_message`, its header stamp the send time on the node's clock (`team_message`);
 - game events: the GameState's INITIAL (entered) is `initial_placement`, its `penalized` flag turning on and off
   is `penalized` and `penalty_return`; an event message names a `Localizer` call (`mcl.tools.ros.parameters.EVENTS`);
   an initial pose is `place` (its σ from the message's covariance when given).
+
+A Rerun recording of the run (`NodeCore.record`, the node's `--rrd`): `mcl.tools.recording.Recorder`, made at the
+first estimate (its origin is the node's, so the recording's `ros2_timestamp` timeline is the messages' header
+stamps), logs each odometry message's step as `robocup-mcl replay --rrd` logs a replay's: the estimate, the entropy,
+the particles every `every` steps, the detections the step used, the quality and the lost flag and their changes,
+and the game events. It only reads the filter; a recording that fails is counted and stops, the node goes on.
+`recording_seconds` is what the last odometry message's recording took (the node's statistics set it against the
+whole callback's time).
 
 What the node draws (no DDS here): `NodeCore.particles()` is the filter's particles, the node's PoseArray;
 `field_markers(field)` is the field as `FieldMarker`s, each one visualization_msgs/Marker of the node's
@@ -39,6 +49,8 @@ origin. Nothing is dropped silently: `counts` holds what was not used, by reason
 from __future__ import annotations
 
 import math
+import re
+import time
 from collections import Counter
 from dataclasses import dataclass
 from typing import Any
@@ -50,11 +62,11 @@ from field.angles import wrap_angles
 from mcl.latency import SAME_TIME
 from mcl.localizer import Localizer, Quality
 from mcl.tools.logs import mcap_io
-from mcl.tools.replay import _start
+from mcl.tools.replay import QUALITY_CODES, _start
 from mcl.tools.ros.parameters import EVENTS, NodeSettings
 from motion_models import MotionInput
 from sensing.observations import Observations
-from sensing.team import BallDetection
+from sensing.team import BallDetection, TeamMessage
 
 GAMESTATE_INITIAL = 0
 
@@ -182,6 +194,68 @@ def map_to_odom(estimate: np.ndarray, odometry: np.ndarray) -> tuple[float, floa
     return x, y, math.atan2(math.sin(theta), math.cos(theta))
 
 
+TEAM_MESSAGE_FIELDS = (
+    "header",
+    "sender",
+    "is_goalkeeper",
+    "x",
+    "y",
+    "theta",
+    "has_pose_covariance",
+    "pose_covariance",
+    "confidence",
+    "has_ball",
+    "ball_x",
+    "ball_y",
+    "has_ball_velocity",
+    "ball_vx",
+    "ball_vy",
+    "ball_age",
+    "has_ball_covariance",
+    "ball_covariance",
+    "clock_offset",
+)
+
+
+def _reason(error: BaseException) -> str:
+    """A drop's kind for the counts: the error's text without the values it quotes (cut at its first " = " or
+    ", got ", numbers left as "#"), so that messages differing only in their values count as one kind; or the
+    error's type."""
+    text = re.split(r" = |,? got ", str(error))[0]
+    text = re.sub(r"[-+]?(?:\d+\.?\d*(?:e[-+]?\d+)?|nan|inf)\b", "#", text).strip()
+    return (text or type(error).__name__)[:80]
+
+
+def team_message(msg: Any, time: float, map_frame: str = "map") -> TeamMessage:
+    """The `sensing.team.TeamMessage` of a robocup_mcl_msgs/TeamMessage `msg` sent at `time` [s] (its header
+    stamp on the node's clock): field for field, the optional parts by their `has_*` flags, a negative
+    confidence as none. ValueError for a `frame_id` other than `map_frame` (or empty) and for what
+    `TeamMessage` refuses (NaN, out of range, a covariance not positive definite)."""
+    frame = str(msg.header.frame_id)
+    if frame not in ("", map_frame):
+        raise ValueError(f"frame_id = {frame!r} is not the field frame {map_frame!r}")
+    confidence = float(msg.confidence)
+    if math.isnan(confidence):
+        raise ValueError("confidence = nan must be a number in [0, 1] (negative: not given)")
+
+    def matrix(values: Any, size: int) -> np.ndarray:
+        return np.array([float(v) for v in values], dtype=np.float64).reshape(size, size)
+
+    return TeamMessage(
+        sender=int(msg.sender),
+        time=time,
+        pose=(float(msg.x), float(msg.y), float(msg.theta)),
+        pose_covariance=matrix(msg.pose_covariance, 3) if msg.has_pose_covariance else None,
+        confidence=None if confidence < 0 else confidence,
+        is_goalkeeper=bool(msg.is_goalkeeper),
+        ball=(float(msg.ball_x), float(msg.ball_y)) if msg.has_ball else None,
+        ball_velocity=(float(msg.ball_vx), float(msg.ball_vy)) if msg.has_ball and msg.has_ball_velocity else None,
+        ball_age=float(msg.ball_age) if msg.has_ball else 0.0,
+        ball_covariance=matrix(msg.ball_covariance, 2) if msg.has_ball and msg.has_ball_covariance else None,
+        clock_offset=float(msg.clock_offset),
+    )
+
+
 class NodeCore:
     """The localizer driven by ROS messages (see the module docstring).
 
@@ -215,6 +289,12 @@ class NodeCore:
         # complete frames waiting for a motion step: (the last part's send time or None, capture stamp, detections)
         self._ready: list[tuple[int | None, int, Observations]] = []
         self._game: Any = None
+        self._record: tuple[str, int] | None = None  # (path, particles every) until the recorder is made
+        self.recorder: Any = None
+        self._steps = 0  # estimates given so far: the recording's step
+        self.recording_seconds = 0.0  # what the last odometry message's recording took [s] (0 without one)
+        # a list: (capture stamp, odometry stamp) of each camera frame the filter took, at the step it took it
+        self.applied: list[tuple[int, int]] | None = None
 
     # -- time ----------------------------------------------------------------------------------------------
     def seconds(self, ns: int) -> float:
@@ -243,8 +323,8 @@ class NodeCore:
         if not self._commands:
             return None
         current = (0.0, 0.0, 0.0)
-        for time, value in self._commands:
-            if time > t + SAME_TIME:
+        for at, value in self._commands:
+            if at > t + SAME_TIME:
                 break
             current = value
         return current
@@ -261,6 +341,7 @@ class NodeCore:
         except mcap_io._Drop as drop:
             self.counts[f"odometry: {drop}"] += 1
             return None
+        self.recording_seconds = 0.0
         t = self.seconds(stamp)
         if self._odometry is None or self._odometry_time is None:
             self._odometry, self._odometry_time = pose, t
@@ -286,10 +367,11 @@ class NodeCore:
         try:
             self.localizer.motion(t, u)
         except ValueError as error:
-            self.counts[f"odometry: refused ({error})"] += 1
+            self.counts[f"odometry: refused ({_reason(error)})"] += 1
             return None
         used = 0
         later = []
+        step_observations = None
         for frame in self._ready:
             frame_sent, capture_ns, observations = frame
             if sent_ns is not None and frame_sent is not None:
@@ -302,12 +384,15 @@ class NodeCore:
             try:
                 if self.localizer.observe(observations, capture_time=self.seconds(capture_ns)):
                     used += 1
+                    step_observations = observations
+                    if self.applied is not None:
+                        self.applied.append((capture_ns, stamp))
             except ValueError:  # counted by the localizer ("observation older than history", ...)
                 pass
         self._ready = later
         self.frames_used += used
         estimate = self.localizer.pose()
-        return Output(
+        out = Output(
             stamp,
             estimate.pose,
             estimate.covariance,
@@ -316,6 +401,65 @@ class NodeCore:
             map_to_odom(estimate.pose, pose),
             used,
         )
+        if self._record is not None or self.recorder is not None:
+            started = time.perf_counter()
+            self._log_step(t, out, step_observations)
+            self.recording_seconds = time.perf_counter() - started
+        self._steps += 1
+        return out
+
+    # -- recording -----------------------------------------------------------------------------------------
+    def record(self, path: str, every: int = 5) -> None:
+        """Record the run to the Rerun file `path` from the next estimate on, the particles every `every` steps
+        (`mcl.tools.recording.Recorder`); `close` finishes the file. ValueError when `every` < 1."""
+        if isinstance(every, bool) or not isinstance(every, int) or every < 1:
+            raise ValueError(f"every = {every!r} must be an integer >= 1")
+        import mcl.tools.recording  # noqa: F401 - Rerun imports now (about a second), not in the first callback
+
+        self._record = (str(path), every)
+
+    def _log_step(self, t: float, out: Output, observations: Observations | None) -> None:
+        try:
+            if self.recorder is None and self._record is not None:
+                from mcl.tools.recording import Recorder, default_blueprint
+
+                path, every = self._record
+                self._record = None
+                self.recorder = Recorder(
+                    path,
+                    self.localizer.field,
+                    particles_every=every,
+                    origin_ns=self.origin_ns,
+                    blueprint=default_blueprint(
+                        (
+                            ("/entropy", "entropy [bits]"),
+                            ("/localization", "quality (2 superb, 1 okay, 0 poor), lost"),
+                        )
+                    ),
+                )
+                self.recorder.set_time(self._steps, t)
+                self.recorder.log_event("reset", f"the node starts: {self.settings.start}")
+            recorder = self.recorder
+            recorder.log_step(
+                self._steps, t, self.localizer.filter, observations=observations, entropy=self.localizer.entropy()
+            )
+            recorder.log_scalars(
+                {"localization/quality": float(QUALITY_CODES[out.quality]), "localization/lost": float(out.lost)}
+            )
+            recorder.log_change("quality", out.quality.value, f"quality {out.quality.value}")
+            recorder.log_change(
+                "lost", bool(out.lost), "lost" if out.lost else "no longer lost", level="WARN" if out.lost else "INFO"
+            )
+        except Exception as error:  # noqa: BLE001 - the recording must never stop the node
+            self.counts[f"recording: stopped ({type(error).__name__}: {error})"] += 1
+            self._record = None
+            self.recorder = None
+
+    def close(self) -> None:
+        """Finish the recording, when there is one (`record`)."""
+        recorder, self.recorder, self._record = self.recorder, None, None
+        if recorder is not None:
+            recorder.close()
 
     # -- vision --------------------------------------------------------------------------------------------
     def goalposts(self, msg: Any, sent_ns: int | None = None) -> None:
@@ -372,7 +516,7 @@ class NodeCore:
                 line_points=np.array(points, dtype=np.float64).reshape(-1, 2),
             )
         except ValueError as error:
-            self.counts[f"camera frame: detections refused: {error}"] += 1
+            self.counts[f"camera frame: detections refused: {_reason(error)}"] += 1
             return
         self._ready.append((parts.get("sent"), stamp, observations))
 
@@ -391,6 +535,24 @@ class NodeCore:
             self.counts[f"ball: {type(error).__name__}"] += 1
             return False
         return used
+
+    # -- teammates ------------------------------------------------------------------------------------------
+    def team(self, msg: Any) -> bool:
+        """A robocup_mcl_msgs/TeamMessage (a teammate's broadcast, `TEAM_MESSAGE_FIELDS`) to
+        `Localizer.team_message`, its send time (header stamp) on the node's clock; False when not used: a
+        message that does not make a `sensing.team.TeamMessage` or that the localizer refuses (its own number, a
+        sender not a teammate, sent too long ago or in the future) is counted by reason and dropped."""
+        try:
+            message = team_message(msg, self.seconds(stamp_ns(msg.header)), self.settings.map_frame)
+        except (ValueError, TypeError, AttributeError, OverflowError) as error:
+            self.counts[f"team message: {_reason(error)}"] += 1
+            return False
+        try:
+            self.localizer.team_message(message)
+        except ValueError as error:
+            self.counts[f"team message: refused by the localizer ({_reason(error)})"] += 1
+            return False
+        return True
 
     # -- game events ---------------------------------------------------------------------------------------
     def game_state(self, msg: Any) -> list[str]:
@@ -420,6 +582,8 @@ class NodeCore:
             getattr(self.localizer, name)()
         self._ready.clear()  # frames seen before a placement say nothing of the new belief
         self.counts[f"event {name}"] += 1
+        if self.recorder is not None:
+            self.recorder.log_event("game_event", name)
 
     def initial_pose(self, msg: Any) -> None:
         """A geometry_msgs/PoseWithCovarianceStamped: the pose is known (`Localizer.place`), its σ from the
@@ -432,6 +596,8 @@ class NodeCore:
         self.localizer.place(pose, sigma)
         self._ready.clear()
         self.counts["event place"] += 1
+        if self.recorder is not None:
+            self.recorder.log_event("game_event", f"place at {pose[0]:.2f} m, {pose[1]:.2f} m, {pose[2]:.2f} rad")
 
     def particles(self) -> np.ndarray:
         """The filter's particles now: a copy of its (N, 3) poses x [m], y [m], θ [rad] in the field frame."""

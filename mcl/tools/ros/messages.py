@@ -6,7 +6,8 @@
 The ROS 2 wheels on the package registry (`pip install -e '.[ros]'`, rclpy of Kilted) bring rclpy, the DDS
 middleware and the common message packages (std_msgs, geometry_msgs, nav_msgs, sensor_msgs), but no wheel holds
 `tf2_msgs`, `vision_msgs`, `soccer_vision_attribute_msgs`, `soccer_vision_3d_msgs` or
-`game_controller_hl_interfaces`, and rclpy takes a topic's DDS type from a generated Python class: a stand-in
+`game_controller_hl_interfaces`, nor the project's own `robocup_mcl_msgs` (`TeamMessage`: a teammate's
+broadcast, which no common message carries), and rclpy takes a topic's DDS type from a generated Python class: a stand-in
 class is refused. So this step builds them, in this order (each needs the ones before it), with the ROS code
 generators the `ros` extra installs and the system's cmake and C compiler:
 
@@ -14,7 +15,7 @@ generators the `ros` extra installs and the system's cmake and C compiler:
    rewritten to this environment's own (`sysconfig`, `numpy.get_include()`), once;
 2. each package is an ordinary ament package (package.xml, a CMakeLists.txt calling
    `rosidl_generate_interfaces`, its .msg files: those in `mcl/tools/ros/msg/`, copied field for field from their
-   public sources, see `SOURCES`), configured, built and installed into the environment's prefix
+   public sources, see `SOURCES`, and the project's own TeamMessage), configured, built and installed into the environment's prefix
    (`sys.prefix`) with cmake.
 
 Only the messages the node uses are generated (`soccer_vision_3d_msgs`: the goalposts, markings and balls; the
@@ -46,6 +47,7 @@ PACKAGES: dict[str, tuple[str, ...]] = {
     "soccer_vision_attribute_msgs": (),
     "soccer_vision_3d_msgs": ("std_msgs", "geometry_msgs", "vision_msgs", "soccer_vision_attribute_msgs"),
     "game_controller_hl_interfaces": ("std_msgs",),
+    "robocup_mcl_msgs": ("std_msgs",),
 }
 SOURCES = {
     "tf2_msgs": "ros2/geometry2, tf2_msgs/msg",
@@ -53,6 +55,7 @@ SOURCES = {
     "soccer_vision_attribute_msgs": "ros-sports/soccer_interfaces, soccer_vision_attribute_msgs/msg",
     "soccer_vision_3d_msgs": "ros-sports/soccer_interfaces, soccer_vision_3d_msgs/msg",
     "game_controller_hl_interfaces": "ros-sports/game_controller_hl, game_controller_hl_interfaces/msg",
+    "robocup_mcl_msgs": "robocup-mcl's own: TeamMessage, a teammate's broadcast",
 }
 WHEEL_PYTHON_PREFIX = "/opt/python/cp311-cp311/"  # where the wheels were built: their CMake files name it
 PROG = "robocup-mcl node messages"
@@ -205,7 +208,8 @@ def build_parser(prog: str = PROG) -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog=prog,
         description="Generate the ROS 2 message packages the node needs that have no wheel "
-        "(tf2_msgs, vision_msgs, the soccer vision messages, GameState) into this environment, with cmake.",
+        "(tf2_msgs, vision_msgs, the soccer vision messages, GameState, robocup_mcl_msgs) into this environment, "
+        "with cmake.",
     )
     parser.add_argument("--check", action="store_true", help="only say which packages are missing (exit 1 if any)")
     parser.add_argument("--force", action="store_true", help="build every package again, even those that import")

@@ -4,7 +4,7 @@
     robocup-mcl node --ros-args -p particles:=300 -r __ns:=/robot1    # ROS arguments after --ros-args
 
 Subscribes to the robot's odometry, walk command, vision (goalposts, markings, balls), the game controller's
-GameState, game events and an initial pose; publishes the estimate (PoseWithCovarianceStamped) per odometry
+GameState, game events, an initial pose and the teammates' broadcasts (robocup_mcl_msgs/TeamMessage); publishes the estimate (PoseWithCovarianceStamped) per odometry
 message, map -> odom on /tf, the quality and the "lost" flag when they change, the hypotheses and the particles a
 few times a second, and the field's markings once at start (latched). What it does with each message is `mcl.tools.ros.core.NodeCore`'s (the replay's order and conventions); the
 parameters and topics are `mcl.tools.ros.parameters.NodeSettings`.
@@ -13,7 +13,8 @@ rclpy is imported only when the node starts, so this module (and `robocup-mcl no
 without rclpy or the generated messages the command says in one line what to install (`make ros`). The filter's
 kernels are compiled (or loaded from numba's cache) before the node subscribes, so the first messages are not
 held up by the compiler. With `--stats PATH` the node writes, when it stops, what it received and published,
-what it dropped and why, its callbacks' durations and its CPU time (`robocup-mcl node bench` reads it).
+what it dropped and why, its callbacks' durations and its CPU time (`robocup-mcl node bench` reads it). With
+`--rrd PATH` it records the live run to a Rerun file (`mcl.tools.ros.core.NodeCore.record`), finished when it stops.
 """
 
 from __future__ import annotations
@@ -22,6 +23,7 @@ import json
 import math
 import sys
 import time
+from array import array
 from dataclasses import fields
 from typing import TYPE_CHECKING, Any
 
@@ -114,13 +116,40 @@ def marker_array(markers: list, frame_id: str) -> Any:
     return out
 
 
-class Statistics:
-    """What the node received, published and spent: per-callback durations [s], counts, CPU time."""
+def log_new_drops(callback, counts: dict[str, int], warn):
+    """`callback(message, sent_ns)` followed by `warn(text)` for each kind of dropped message it added to `counts`
+    (`NodeCore.counts`) that was not there before: each kind is logged once, then only counted (`--stats` has
+    the counts). The game events the counts also hold ("event ...") are not drops and are not logged."""
 
-    def __init__(self) -> None:
+    def wrapped(message: Any, sent_ns: int | None) -> None:
+        size = len(counts)
+        try:
+            callback(message, sent_ns)
+        finally:
+            if len(counts) != size:
+                for kind in list(counts)[size:]:  # a dict keeps its keys in insertion order
+                    if not kind.startswith("event "):
+                        warn(f"dropped: {kind} (logged once; counted from now on)")
+
+    return wrapped
+
+
+class Statistics:
+    """What the node received, published and spent: per-callback durations [s], counts, CPU time.
+
+    With `keep_durations` (the node's `--stats`) every callback's duration is kept, 8 bytes each (an array of
+    doubles; a list of floats takes about 33): some 7 MB an hour at 100 Hz odometry and two camera topics at
+    26 Hz, with the recording's part of each odometry callback. Without, only the counts and the CPU time are
+    kept: nothing here grows with the node's running time."""
+
+    def __init__(self, keep_durations: bool = True) -> None:
         self.received: dict[str, int] = {}
         self.published: dict[str, int] = {}
-        self.durations: dict[str, list[float]] = {}
+        self.keep_durations = keep_durations
+        self.durations: dict[str, array[float]] = {}
+        self.recording: array[float] = array("d")  # per odometry callback: the part its Rerun recording took [s]
+        self.recording_topic: str | None = None  # the odometry topic: its callback's durations include `recording`
+        self.taken: list[tuple[str, int | None]] | None = None  # a list: (topic, header stamp) of each message taken
         self.started_wall = time.perf_counter()
         self.started_cpu = time.process_time()
 
@@ -129,10 +158,17 @@ class Statistics:
         with `with_info`, a `(message, MessageInfo)` callback (the message's source timestamp as `sent_ns`; rclpy
         passes MessageInfo to a callback of two arguments from Iron on); without, a `(message)` callback
         (`sent_ns` None), which every rclpy calls, Humble's included."""
-        durations = self.durations.setdefault(name, [])
+        durations = self.durations.setdefault(name, array("d"))
 
         def counted(message, sent_ns):
             self.received[name] = self.received.get(name, 0) + 1
+            if self.taken is not None:
+                header = getattr(message, "header", None)
+                stamp = header.stamp.sec * 1_000_000_000 + header.stamp.nanosec if header is not None else None
+                self.taken.append((name, stamp))
+            if not self.keep_durations:
+                callback(message, sent_ns)
+                return
             start = time.perf_counter()
             try:
                 callback(message, sent_ns)
@@ -163,7 +199,25 @@ class Statistics:
             for name, values in self.durations.items()
             if values
         }
+        out: dict = {}
+        timed = self.durations.get(self.recording_topic or "", array("d"))
+        if any(self.recording) and len(timed) == len(self.recording):
+            with_ = np.asarray(timed)
+            without = with_ - np.asarray(self.recording)
+            out["recording"] = {
+                "median_ms": float(np.median(self.recording)) * 1e3,
+                "p99_ms": float(np.percentile(self.recording, 99)) * 1e3,
+                "max_ms": float(np.max(self.recording)) * 1e3,
+                "callback_median_ms": float(np.median(with_)) * 1e3,
+                "callback_without_median_ms": float(np.median(without)) * 1e3,
+                "callback_p99_ms": float(np.percentile(with_, 99)) * 1e3,
+                "callback_without_p99_ms": float(np.percentile(without, 99)) * 1e3,
+                "median_ratio": float(np.median(with_) / np.median(without)),
+                "p99_ratio": float(np.percentile(with_, 99) / np.percentile(without, 99)),
+                "total_ratio": float(with_.sum() / without.sum()),
+            }
         return {
+            **out,
             "wall_seconds": wall,
             "cpu_seconds": cpu,
             "cpu_share": cpu / wall if wall > 0 else None,
@@ -222,9 +276,13 @@ class LocalizationNode:
         The rclpy context (None: the default one).
     name : str, default "robocup_mcl"
         The node's name.
+    keep_durations : bool, default True
+        Keep every callback's duration (`Statistics`; `robocup-mcl node` does with `--stats` only).
     """
 
-    def __init__(self, settings: NodeSettings, context: Any = None, name: str = "robocup_mcl") -> None:
+    def __init__(
+        self, settings: NodeSettings, context: Any = None, name: str = "robocup_mcl", keep_durations: bool = True
+    ) -> None:
         import rclpy
         from geometry_msgs.msg import PoseArray, PoseWithCovarianceStamped, TransformStamped, Twist
         from nav_msgs.msg import Odometry
@@ -240,7 +298,8 @@ class LocalizationNode:
             values[f.name] = self.node.declare_parameter(f.name, getattr(settings, f.name)).value
         self.settings = NodeSettings.from_dict(values)
         self.core = NodeCore(self.settings)
-        self.stats = Statistics()
+        self.stats = Statistics(keep_durations)
+        self.stats.recording_topic = self.settings.odometry_topic
         self._messages = {
             "PoseWithCovarianceStamped": PoseWithCovarianceStamped,
             "TransformStamped": TransformStamped,
@@ -291,17 +350,21 @@ class LocalizationNode:
             (s.goalposts_topic, None, self.core.goalposts),
             (s.markings_topic, None, self.core.markings),
             (s.balls_topic, None, lambda msg, sent_ns: self.core.balls(msg)),
+            (s.team_topic, None, lambda msg, sent_ns: self.core.team(msg)),
             (s.commands_topic, Twist, self._command),
             (s.odometry_topic, Odometry, self._odometry),
         ]
         from game_controller_hl_interfaces.msg import GameState
         from soccer_vision_3d_msgs.msg import BallArray, GoalpostArray, MarkingArray
 
+        from mcl.tools.ros.player import message_class
+
         generated = {
             s.goalposts_topic: GoalpostArray,
             s.markings_topic: MarkingArray,
             s.balls_topic: BallArray,
             s.game_state_topic: GameState,
+            s.team_topic: message_class("robocup_mcl_msgs/TeamMessage"),  # the project's own, generated
         }
         # DDS's source timestamps order a camera frame against the odometry (NodeCore.odometry) where rclpy gives
         # them; elsewhere (Humble) the order the executor takes the messages in, and their header stamps
@@ -312,7 +375,10 @@ class LocalizationNode:
                 kind = kind or generated[topic]
                 self._subscriptions.append(
                     self.node.create_subscription(
-                        kind, topic, self.stats.timed(topic, callback, self.source_timestamps), reliable
+                        kind,
+                        topic,
+                        self.stats.timed(topic, self._logging_new_drops(callback), self.source_timestamps),
+                        reliable,
                     )
                 )
         if self._hypotheses_pub is not None:
@@ -321,6 +387,9 @@ class LocalizationNode:
             self._particles_timer = self.node.create_timer(1.0 / s.particles_rate, self._particles)
 
     # -- callbacks -------------------------------------------------------------------------------------------
+    def _logging_new_drops(self, callback):
+        return log_new_drops(callback, self.core.counts, self.node.get_logger().warning)
+
     def _command(self, msg: Any, sent_ns: int | None) -> None:
         self.core.command(msg, self.node.get_clock().now().nanoseconds)
 
@@ -332,7 +401,14 @@ class LocalizationNode:
             self.node.get_logger().warning(str(error))
 
     def _odometry(self, msg: Any, sent_ns: int | None) -> None:
-        out = self.core.odometry(msg, sent_ns)
+        self.core.recording_seconds = 0.0
+        try:
+            self._publish(self.core.odometry(msg, sent_ns))
+        finally:
+            if self.stats.keep_durations:
+                self.stats.recording.append(self.core.recording_seconds)
+
+    def _publish(self, out: Any) -> None:
         if out is None:
             return
         self._last_stamp_ns = out.stamp_ns
@@ -427,6 +503,25 @@ def build_parser(prog: str = PROG) -> argparse.ArgumentParser:
         help="when the node stops, write what it received, published "
         "and dropped, its callbacks' durations and its CPU time to PATH (JSON)",
     )
+    parser.add_argument(
+        "--rrd",
+        metavar="PATH",
+        help="record the live run to this Rerun file (.rrd): the estimate, the particles, the detections "
+        "used, the quality and the events, on the messages' header stamps; written when the node stops",
+    )
+    parser.add_argument(
+        "--record-every",
+        type=int,
+        default=5,
+        metavar="N",
+        help="with --rrd, record the particles every N odometry messages (default 5)",
+    )
+    parser.add_argument(
+        "--trace-order",
+        metavar="PATH",
+        help="when the node stops, write the order it took the messages in (topic and header stamp of each) to "
+        "PATH (JSON; robocup-mcl node bench --trace-order reads it)",
+    )
     parser.add_argument("--no-progress", action="store_true", help=NO_PROGRESS_HELP + "; the node shows none")
     return parser
 
@@ -447,6 +542,12 @@ def main(argv: list[str] | None = None, prog: str = PROG) -> int:
     from mcl.tools.cli_checks import check_output_file
 
     check_output_file(args.stats, "--stats")
+    check_output_file(args.rrd, "--rrd")
+    check_output_file(args.trace_order, "--trace-order")
+    if args.record_every < 1:
+        from mcl.tools.cli_checks import CommandError
+
+        raise CommandError(f"--record-every {args.record_every}: must be >= 1")
     guard_source_checkout()
     seconds = warm_up(settings)
     import rclpy
@@ -455,7 +556,11 @@ def main(argv: list[str] | None = None, prog: str = PROG) -> int:
     rclpy.init(args=["robocup_mcl", *ros_args])
     node = None
     try:
-        node = LocalizationNode(settings)
+        node = LocalizationNode(settings, keep_durations=bool(args.stats))
+        if args.rrd:
+            node.core.record(args.rrd, args.record_every)
+        if args.trace_order:
+            node.stats.taken = []
         executor = SingleThreadedExecutor()
         executor.add_node(node.node)
         print(f"{prog}: ready (kernels warmed up in {seconds:.1f} s)", file=sys.stderr, flush=True)
@@ -465,6 +570,13 @@ def main(argv: list[str] | None = None, prog: str = PROG) -> int:
             pass
     finally:  # also after a parameter given with --ros-args that NodeSettings refuses
         if node is not None:
+            try:
+                node.core.close()  # the recording's footer
+            except Exception as error:  # noqa: BLE001 - the statistics are still written
+                node.core.counts[f"recording: not finished ({type(error).__name__}: {error})"] += 1
+            if args.trace_order:
+                with open(args.trace_order, "w", encoding="utf-8") as out:
+                    json.dump(node.stats.taken, out)
             if args.stats:
                 with open(args.stats, "w", encoding="utf-8") as out:
                     json.dump(node.statistics(), out, indent=2)

@@ -69,6 +69,8 @@ class NodeSettings:
         BallArray, game_controller_hl_interfaces/GameState.
     event_topic, initial_pose_topic : str
         Inputs: std_msgs/String game events (`EVENTS`), geometry_msgs/PoseWithCovarianceStamped (a known pose).
+    team_topic : str
+        Input: robocup_mcl_msgs/TeamMessage, the teammates' broadcasts (`Localizer.team_message`).
     pose_topic, quality_topic, lost_topic, hypotheses_topic : str
         Outputs: PoseWithCovarianceStamped per odometry message; std_msgs/String quality and std_msgs/Bool
         lost when they change (latched); geometry_msgs/PoseArray of the hypotheses, most probable first.
@@ -110,6 +112,7 @@ class NodeSettings:
     game_state_topic: str = "/gamestate"
     event_topic: str = "/robocup_mcl/event"
     initial_pose_topic: str = "/initialpose"
+    team_topic: str = "/robocup_mcl/team"
     pose_topic: str = _TOPICS.pose_out
     quality_topic: str = "/robocup_mcl/quality"
     lost_topic: str = "/robocup_mcl/lost"

@@ -18,15 +18,20 @@ goes back: an hour from a minute-long log. Messages of a type that does not impo
 from __future__ import annotations
 
 import importlib
+import math
 import threading
 import time
+from collections import deque
 from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
     import argparse
 
 PROG = "robocup-mcl node play"
+PARTICLE_SNAPSHOTS = 240  # particle messages the listener keeps (two minutes at the node's default 2 Hz)
+PUBLISHED_SNAPSHOTS = 24  # of them, about this many go into `PoseListener.published`
 ODOMETRY_TOPIC = "/motion_odometry"
+TEAM_TOPIC = "/robocup_mcl/team"  # the node's team_topic by default
 
 
 def message_class(type_name: str) -> Any:
@@ -97,6 +102,34 @@ class LogPlayer:
         qos = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
         self.publishers = {topic: self.node.create_publisher(classes[topic], topic, qos) for topic in classes}
 
+    def add_team_messages(self, rate: float, topic: str = TEAM_TOPIC, bad_every: int = 0) -> tuple[int, int]:
+        """Play a teammate's broadcasts too (robocup_mcl_msgs/TeamMessage on `topic`), `rate` a second: player 2,
+        at (0, 0, 0) with confidence 0.5 and no ball (no side evidence), stamped as the odometry message before
+        it; every `bad_every`-th has a NaN x (0: none). Returns (messages, bad ones) per lap."""
+        from rclpy.qos import QoSProfile, ReliabilityPolicy
+
+        team_message = message_class("robocup_mcl_msgs/TeamMessage")
+        period = round(1e9 / rate)
+        rows, stamp, next_ns, count, bad = [], None, 0, 0, 0
+        for offset_ns, row_topic, message in self.messages:
+            if row_topic == self.odometry_topic:
+                stamp = message.header.stamp
+            while stamp is not None and offset_ns >= next_ns:
+                count += 1
+                msg = team_message(sender=2, x=0.0, y=0.0, theta=0.0, confidence=0.5)
+                msg.header.frame_id = "map"
+                msg.header.stamp.sec, msg.header.stamp.nanosec = stamp.sec, stamp.nanosec
+                if bad_every and count % bad_every == 0:
+                    msg.x = math.nan
+                    bad += 1
+                rows.append((next_ns, topic, msg))
+                next_ns += period
+        self.messages = sorted(self.messages + rows, key=lambda row: row[0])  # stable: the log's order kept
+        self.publishers[topic] = self.node.create_publisher(
+            team_message, topic, QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
+        )
+        return count, bad
+
     def wait_for_subscribers(self, topics: list[str], timeout: float) -> bool:
         """Wait until each of `topics` has a subscriber; False on timeout."""
         deadline = time.monotonic() + timeout
@@ -157,6 +190,12 @@ class PoseListener:
         self.qualities: list[str] = []
         self.particle_counts: list[int] = []  # poses in each particles message
         self.field_markers: list[tuple[str, int, int]] = []  # (namespace, id, type) of the last MarkerArray
+        # the last MarkerArray's geometry: (namespace, id, type, points [(x, y)], position (x, y), scale x)
+        self.field_geometry: list[tuple[str, int, int, list[tuple[float, float]], tuple[float, float], float]] = []
+        # the latest particle messages: (stamp ns, [(x, y, θ)]), at most `PARTICLE_SNAPSHOTS` of them
+        self.particle_snapshots: deque[tuple[int, list[tuple[float, float, float]]]] = deque(maxlen=PARTICLE_SNAPSHOTS)
+        self.nonfinite_poses = 0  # poses whose position, orientation or covariance holds a NaN or an infinity
+        self.nonfinite_transforms = 0  # the same for the /tf transforms' translations and rotations
         self._lock = threading.Lock()
         self.pose_sub = self.node.create_subscription(PoseWithCovarianceStamped, pose_topic, self._pose, 100)
         self.node.create_subscription(TFMessage, "/tf", self._tf, QoSProfile(depth=100))
@@ -166,9 +205,7 @@ class PoseListener:
             lambda m: self.qualities.append(m.data),
             QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL),
         )
-        self.node.create_subscription(
-            PoseArray, particles_topic, lambda m: self.particle_counts.append(len(m.poses)), 10
-        )
+        self.node.create_subscription(PoseArray, particles_topic, self._particles, 10)
         try:
             marker_array = message_class("visualization_msgs/MarkerArray")
         except ImportError:  # the field is not listened to where the message is not installed
@@ -189,15 +226,76 @@ class PoseListener:
         from mcl.tools.formats import ros_to_pose
 
         arrived = time.perf_counter()
+        p, q = msg.pose.pose.position, msg.pose.pose.orientation
+        values = [p.x, p.y, p.z, q.x, q.y, q.z, q.w, *msg.pose.covariance]
+        if not all(math.isfinite(v) for v in values):
+            self.nonfinite_poses += 1
+            return
         stamp, pose, _ = ros_to_pose(msg)
         with self._lock:
             self.poses.append((stamp, arrived, (float(pose[0]), float(pose[1]), float(pose[2]))))
 
+    def _particles(self, msg: Any) -> None:
+        from mcl.tools.formats import quaternion_to_yaw
+
+        self.particle_counts.append(len(msg.poses))
+        stamp = msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
+        self.particle_snapshots.append(
+            (
+                stamp,
+                [
+                    (
+                        float(p.position.x),
+                        float(p.position.y),
+                        quaternion_to_yaw(p.orientation.x, p.orientation.y, p.orientation.z, p.orientation.w),
+                    )
+                    for p in msg.poses
+                ],
+            )
+        )
+
     def _field(self, msg: Any) -> None:
         self.field_markers = [(marker.ns, int(marker.id), int(marker.type)) for marker in msg.markers]
+        self.field_geometry = [
+            (
+                marker.ns,
+                int(marker.id),
+                int(marker.type),
+                [(float(point.x), float(point.y)) for point in marker.points],
+                (float(marker.pose.position.x), float(marker.pose.position.y)),
+                float(marker.scale.x),
+            )
+            for marker in msg.markers
+        ]
+
+    def published(self) -> dict:
+        """What the listener heard, as JSON-ready values (`robocup-mcl node figure` draws it): the field's markers
+        (namespace, id, visualization_msgs/Marker type, points, position, scale x), the poses (stamp ns, x, y, θ),
+        about `PUBLISHED_SNAPSHOTS` of the latest particle messages, evenly spaced, and the last (positions to 0.1 mm),
+        and the quality changes."""
+        with self._lock:
+            poses = [[stamp, *(round(v, 5) for v in pose)] for stamp, _, pose in self.poses]
+        snapshots = list(self.particle_snapshots)
+        kept = snapshots[:: max(1, len(snapshots) // PUBLISHED_SNAPSHOTS)]
+        if snapshots and kept[-1] is not snapshots[-1]:
+            kept.append(snapshots[-1])
+        return {
+            "field_markers": [
+                {"ns": ns, "id": i, "type": kind, "points": points, "position": position, "scale_x": scale}
+                for ns, i, kind, points, position, scale in self.field_geometry
+            ],
+            "poses": poses,
+            "particles": [
+                {"stamp_ns": stamp, "poses": [[round(v, 4) for v in pose] for pose in poses]} for stamp, poses in kept
+            ],
+            "quality_changes": list(self.qualities),
+        }
 
     def _tf(self, msg: Any) -> None:
         for transform in msg.transforms:
+            t, r = transform.transform.translation, transform.transform.rotation
+            if not all(math.isfinite(v) for v in (t.x, t.y, t.z, r.x, r.y, r.z, r.w)):
+                self.nonfinite_transforms += 1
             stamp = transform.header.stamp.sec * 1_000_000_000 + transform.header.stamp.nanosec
             self.transforms.append((stamp, transform.header.frame_id, transform.child_frame_id))
 
