@@ -77,6 +77,26 @@ def namespace_command(argv: list[str]) -> list[str] | None:
     return [unshare, "--net", "sh", "-c", f'{ip} link set lo up && exec "$@"', "sh", *argv]
 
 
+def rerun_isolated(module: str, argv: list[str], opens: str) -> int | None:
+    """None when this process's namespace has only the loopback; else run `python -m module argv` inside a new
+    loopback-only namespace and return its exit status. A CommandError when the namespace has other interfaces
+    although it was made for this (`ISOLATED_VARIABLE`), or when no namespace can be made: `opens` names what
+    is then not started ("DDS", "the viewer and the browser")."""
+    from mcl.tools.cli_checks import CommandError
+
+    if loopback_only():
+        return None
+    if os.environ.get(ISOLATED_VARIABLE):
+        raise CommandError(f"the namespace has interfaces besides the loopback; refusing to start {opens}")
+    wrapped = namespace_command([sys.executable, "-m", module, *argv])
+    if wrapped is None:
+        raise CommandError(
+            "cannot make a loopback-only network namespace here (needs root, unshare and ip); "
+            f"not starting {opens} on the machine's network"
+        )
+    return subprocess.run(wrapped, env={**os.environ, ISOLATED_VARIABLE: "1"}).returncode
+
+
 def dds_environment(domain: int) -> dict[str, str]:
     """The environment for DDS on the loopback only: discovery range, localhost-only and a private domain."""
     return {
@@ -686,16 +706,9 @@ def main(argv: list[str] | None = None, prog: str = PROG) -> int:
     check_output_file(args.published, "--published")
     if args.record_every < 1:
         raise CommandError("--record-every must be >= 1")
-    if not loopback_only():
-        if os.environ.get(ISOLATED_VARIABLE):
-            raise CommandError("the namespace has interfaces besides the loopback; refusing to start DDS")
-        wrapped = namespace_command([sys.executable, "-m", "mcl.tools.ros.bench", *argv])
-        if wrapped is None:
-            raise CommandError(
-                "cannot make a loopback-only network namespace here (needs root, unshare and ip); "
-                "DDS is not started on the host's network"
-            )
-        return subprocess.run(wrapped, env={**os.environ, ISOLATED_VARIABLE: "1"}).returncode
+    status = rerun_isolated("mcl.tools.ros.bench", argv, "DDS")
+    if status is not None:
+        return status
     if args.domain is None:
         args.domain = 100 + os.getpid() % 100
     from mcl.numba_cache import guard_source_checkout

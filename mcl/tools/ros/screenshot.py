@@ -204,7 +204,7 @@ def build_parser(prog: str = PROG) -> argparse.ArgumentParser:
 def main(argv: list[str] | None = None, prog: str = PROG) -> int:
     """`python -m mcl.tools.ros.screenshot RRD PNG` (see `--help`); returns the exit status."""
     from mcl.tools.cli_checks import CommandError, check_output_file
-    from mcl.tools.ros.bench import ISOLATED_VARIABLE, loopback_only, namespace_command
+    from mcl.tools.ros.bench import rerun_isolated
 
     argv = list(sys.argv[1:] if argv is None else argv)
     args = build_parser(prog).parse_args(argv)
@@ -213,16 +213,9 @@ def main(argv: list[str] | None = None, prog: str = PROG) -> int:
     if not (args.wait >= 0 and args.width > 0 and args.height > 0):
         raise CommandError("--wait must be >= 0, --width and --height > 0")
     check_output_file(args.out, "out")
-    if not loopback_only():
-        if os.environ.get(ISOLATED_VARIABLE):
-            raise CommandError("the namespace has interfaces besides the loopback; refusing to open ports")
-        wrapped = namespace_command([sys.executable, "-m", "mcl.tools.ros.screenshot", *argv])
-        if wrapped is None:
-            raise CommandError(
-                "cannot make a loopback-only network namespace here (needs root, unshare and ip); "
-                "no port is opened on the machine's network"
-            )
-        return subprocess.run(wrapped, env={**os.environ, ISOLATED_VARIABLE: "1"}).returncode
+    status = rerun_isolated("mcl.tools.ros.screenshot", argv, "the viewer and the browser")
+    if status is not None:
+        return status
     try:
         screenshot(os.path.abspath(args.rrd), os.path.abspath(args.out), args.wait, args.width, args.height)
     except (RuntimeError, OSError) as error:
