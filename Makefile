@@ -11,20 +11,13 @@ $(PY):
 
 # The library declares version ranges (pyproject.toml); the development environment installs the versions that
 # last passed, pinned in constraints.txt (`make lock` refreshes it; CONSTRAINTS= installs without it). Reinstall
-# whenever the package metadata or the pins change. The installer is uv (itself installed by pip into the
-# environment), which fetches and unpacks the packages in parallel: seconds where pip takes minutes on a fresh
-# machine. INSTALLER=pip installs with pip instead. Modules are byte-compiled when first imported.
+# whenever the package metadata or the pins change. --no-compile: modules are byte-compiled when first imported
+# instead of all at install time.
 CONSTRAINTS ?= constraints.txt
-INSTALLER ?= uv
-ifeq ($(INSTALLER),pip)
-INSTALL := $(PY) -m pip install --quiet --no-compile
-else
-INSTALL := $(VENV)/bin/uv pip install --quiet --python $(PY)
-endif
+PIP_INSTALL := $(PY) -m pip install --quiet --no-compile $(if $(CONSTRAINTS),-c $(CONSTRAINTS))
 $(STAMP): pyproject.toml $(CONSTRAINTS) | $(PY)
 	$(PY) -m pip install --quiet --upgrade pip
-	$(if $(filter pip,$(INSTALLER)),,$(PY) -m pip install --quiet $(if $(CONSTRAINTS),-c $(CONSTRAINTS)) uv)
-	$(INSTALL) $(if $(CONSTRAINTS),-c $(CONSTRAINTS)) -e '.[test,docs,tune]'
+	$(PIP_INSTALL) -e '.[test,docs,tune]'
 	touch $(STAMP)
 
 # The newest versions the ranges allow, in an environment of their own, pinned into constraints.txt (the
@@ -34,7 +27,7 @@ lock:
 	rm -rf $(LOCK_VENV)
 	$(PYTHON) -m venv $(LOCK_VENV)
 	$(LOCK_VENV)/bin/python -m pip install --quiet --upgrade pip
-	$(LOCK_VENV)/bin/python -m pip install --quiet -e '.[test,docs,tune]' uv
+	$(LOCK_VENV)/bin/python -m pip install --quiet -e '.[test,docs,tune]'
 	{ echo "# The versions \`make test\` installs (pip install -c constraints.txt): refreshed by \`make lock\`,"; \
 	  echo "# made with $$($(LOCK_VENV)/bin/python -V) on $$(uname -sm). The library's own ranges are in pyproject.toml."; \
 	  $(LOCK_VENV)/bin/python -m pip freeze --exclude-editable; } > constraints.txt
