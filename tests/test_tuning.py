@@ -435,3 +435,17 @@ def test_a_local_start_never_joins_another_process_s_ray(monkeypatch):
     assert calls[0]["address"] == "local" and calls[0]["num_cpus"] == 2
     start_ray("127.0.0.1:6379")
     assert calls[1]["address"] == "127.0.0.1:6379" and "num_cpus" not in calls[1]
+
+
+def test_a_replays_quality_codes_become_the_evaluations_level_by_level():
+    """Every level of a replay, UNSURE_HALF included, is the same level in the evaluation's figures (the truth
+    objective counts each level's wrong steps)."""
+    from mcl.localizer import Quality
+    from mcl.tools.evaluation import QUALITY_CODE
+    from mcl.tools.replay import QUALITY_CODES
+    from mcl.tools.tuning.objective import evaluation_codes
+
+    levels = list(Quality) * 3
+    replayed = np.array([QUALITY_CODES[level] for level in levels], dtype=np.int8)
+    np.testing.assert_array_equal(evaluation_codes(replayed), [QUALITY_CODE[level] for level in levels])
+    assert evaluation_codes(replayed).dtype == np.int8

@@ -80,8 +80,8 @@ WRONG = 0.5  # m: an estimate this far from the truth is wrong (for the quality 
 class ReplayResult:
     """Per motion step: `times` (M,), `estimates` (M, 3), `covariances` (M, 3, 3), `weights` (M,) the dominant
     cluster's share of the weight, `quality` (M,) codes
-    (2 superb, 1 okay, 0 poor), `lost` (M,), `entropy` (M, 2) position/orientation bits, `truth` (M, 3) (NaN
-    where the log has none); `dropped` {reason: count}; `frames_used`; `elapsed` seconds of replay.
+    (2 superb, 1 okay, 0 poor, 3 unsure of the half), `lost` (M,), `entropy` (M, 2) position/orientation bits,
+    `truth` (M, 3) (NaN where the log has none); `dropped` {reason: count}; `frames_used`; `elapsed` seconds of replay.
 
     Attributes
     ----------
@@ -454,7 +454,7 @@ def replay(
                 (
                     ("/entropy", "entropy [bits]"),
                     ("/error", "error [m, rad]"),
-                    ("/localization", "quality (2 superb, 1 okay, 0 poor), lost"),
+                    ("/localization", "quality (2 superb, 1 okay, 0 poor, 3 unsure of the half), lost"),
                 )
             ),
         )

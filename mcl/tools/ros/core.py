@@ -433,7 +433,7 @@ class NodeCore:
                     blueprint=default_blueprint(
                         (
                             ("/entropy", "entropy [bits]"),
-                            ("/localization", "quality (2 superb, 1 okay, 0 poor), lost"),
+                            ("/localization", "quality (2 superb, 1 okay, 0 poor, 3 unsure of the half), lost"),
                         )
                     ),
                 )

@@ -75,7 +75,7 @@ class LogCase:
         truth = None
         has = result.has_truth
         if has.any():
-            codes = (2 - result.quality[has]).astype(np.int8)  # replay's 2 superb .. 0 poor -> evaluation's
+            codes = evaluation_codes(result.quality[has])
             truth = truth_figures(result.times[has], result.truth[has], result.estimates[has], codes, result.lost[has])
         return {
             "log_evidence": float(localizer.log_evidence),
@@ -90,6 +90,19 @@ def _read(path: str, topics: Any = None):
     from mcl.tools.logs import read_log
 
     return read_log(path, topics=topics)[0]
+
+
+def evaluation_codes(replay_codes) -> np.ndarray:
+    """Quality codes of a replay (`mcl.tools.replay.QUALITY_CODES`: 2 superb, 1 okay, 0 poor, 3 unsure of the
+    half) as `mcl.tools.evaluation` codes them (`QUALITY_CODE`: 0 superb, 1 okay, 2 poor, 3 unsure of the
+    half), level by level."""
+    from mcl.tools.evaluation import QUALITY_CODE
+    from mcl.tools.replay import QUALITY_CODES
+
+    table = np.empty(len(QUALITY_CODES), dtype=np.int8)
+    for level, code in QUALITY_CODES.items():
+        table[code] = QUALITY_CODE[level]
+    return table[np.asarray(replay_codes, dtype=np.intp)]
 
 
 def truth_figures(times, truth, estimates, quality_codes, lost, windows=()) -> dict:
