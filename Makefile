@@ -37,10 +37,11 @@ demo: $(STAMP)
 	$(VENV)/bin/robocup-mcl demo walk --rrd recordings/walk.rrd
 
 # Parallel workers, one per core (TEST_WORKERS=0: one process); tests/conftest.py compiles the kernels once
-# before the workers start.
+# before the workers start. The tests run in a loopback-only network namespace where the machine can make one
+# (tests/loopback_only.sh).
 TEST_WORKERS ?= auto
 test: $(STAMP)
-	$(PY) -m pytest -n $(TEST_WORKERS)
+	sh tests/loopback_only.sh $(PY) -m pytest -n $(TEST_WORKERS)
 
 # Formats the code with ruff ([tool.ruff.format] in pyproject.toml); `make test` lints it (tests/test_lint.py).
 format: $(STAMP)

@@ -57,9 +57,27 @@ def _controller_of_workers(config) -> bool:
     )
 
 
+RAY_SKIP = (
+    "starts Ray, which listens on every network interface: run only in a loopback-only network namespace "
+    "(make test makes one where it can, tests/loopback_only.sh)"
+)
+
+
+def pytest_collection_modifyitems(config, items):
+    """Tests marked `ray` skip unless the session's network namespace has no interface but the loopback."""
+    from mcl.tools.ros.bench import loopback_only
+
+    if loopback_only():
+        return
+    for item in items:
+        if item.get_closest_marker("ray") is not None:
+            item.add_marker(pytest.mark.skip(reason=RAY_SKIP))
+
+
 def pytest_configure(config):
     """The controller compiles the kernels once into the shared cache before its workers start (see the module
     docstring); each part's exit code, output and time go to a directory the workers find in MCL_KERNEL_WARMUP."""
+    config.addinivalue_line("markers", f"ray: {RAY_SKIP}")
     if not _controller_of_workers(config) or os.environ.get(WARMUP_VARIABLE) == "0":
         return
     folder = Path(tempfile.mkdtemp(prefix="mcl-kernel-warmup-"))

@@ -171,6 +171,7 @@ def test_the_truth_loss_is_zero_for_a_perfect_run_and_counts_a_never():
 
 
 # -- the study on a local Ray instance --------------------------------------------------------------------------
+@pytest.mark.ray
 def test_the_same_seed_gives_the_same_study_and_it_starts_from_the_defaults(local_ray, tmp_path):
     assert local_ray["cpus"] == 2
     first = run_study(settings(), str(tmp_path / "a.journal"))
@@ -188,12 +189,14 @@ def test_the_same_seed_gives_the_same_study_and_it_starts_from_the_defaults(loca
     assert history(other)[1:] != history(first)[1:]
 
 
+@pytest.mark.ray
 def test_cma_es_searches_too_and_is_seeded(local_ray):
     first = run_study(settings(trials=4, sampler="cmaes"))
     again = run_study(settings(trials=4, sampler="cmaes"))
     assert history(first) == history(again) and len({h[2] for h in history(first)}) == 4
 
 
+@pytest.mark.ray
 def test_parallel_trials_complete_the_count_and_are_seeded(local_ray):
     first = run_study(settings(trials=5, parallel_trials=2))
     again = run_study(settings(trials=5, parallel_trials=2))
@@ -201,6 +204,7 @@ def test_parallel_trials_complete_the_count_and_are_seeded(local_ray):
     assert first.tasks.costs()["tasks"] == 5 * len(CASES)
 
 
+@pytest.mark.ray
 def test_an_interrupted_study_resumes_where_it_stopped(local_ray, tmp_path):
     import optuna
 
@@ -218,6 +222,7 @@ def test_an_interrupted_study_resumes_where_it_stopped(local_ray, tmp_path):
     assert [(v, p) for _, v, p in history(resumed)] == [(v, p) for _, v, p in history(straight)]
 
 
+@pytest.mark.ray
 def test_a_study_file_made_for_other_settings_is_refused(local_ray, tmp_path):
     from mcl.tools.tuning import TuneError
 
@@ -227,6 +232,7 @@ def test_a_study_file_made_for_other_settings_is_refused(local_ray, tmp_path):
         run_study(settings(trials=1, objective="evidence"), path)
 
 
+@pytest.mark.ray
 def test_refused_combinations_are_failed_trials_that_do_not_count(local_ray):
     space = SearchSpace.from_toml(
         "[augmented]\nalpha_slow = { low = 0.001, high = 0.3 }\nalpha_fast = { low = 0.05, high = 0.5 }\n"
@@ -247,6 +253,7 @@ def run_command(*args, env=None):
     )
 
 
+@pytest.mark.ray
 def test_the_command_tunes_logs_writes_a_profile_that_replay_and_eval_load(logs, tmp_path):
     space = tmp_path / "space.toml"
     space.write_text(SPACE)
@@ -326,6 +333,7 @@ def test_the_command_tunes_logs_writes_a_profile_that_replay_and_eval_load(logs,
     assert json.loads(evaluated.stdout)["profile"]["values"] == result["best"]["values"]
 
 
+@pytest.mark.ray
 def test_the_command_tunes_on_the_battery_and_reports_held_out_seeds(tmp_path):
     space = tmp_path / "space.toml"
     space.write_text(SPACE)
@@ -357,6 +365,7 @@ def test_the_command_tunes_on_the_battery_and_reports_held_out_seeds(tmp_path):
     assert result["ray"]["cpus"] == 2 and result["ray"]["first_task_s"] is not None
 
 
+@pytest.mark.ray
 def test_the_command_reads_an_mcap_log_by_the_topics_given(logs, tmp_path):
     from mcl.tools.logs import read_log
     from mcl.tools.logs.mcap_io import Topics
@@ -373,6 +382,7 @@ def test_the_command_reads_an_mcap_log_by_the_topics_given(logs, tmp_path):
     assert missing.returncode == 1 and "/not/there" in missing.stderr and len(missing.stderr.strip().splitlines()) == 1
 
 
+@pytest.mark.ray
 @pytest.mark.parametrize(
     "case",
     [

@@ -8,6 +8,7 @@ import os
 import pytest
 
 pytest.importorskip("ray")
+pytestmark = pytest.mark.ray  # every test here starts Ray
 pytest.importorskip("optuna")
 
 from demos.battery import BatteryCase  # noqa: E402
