@@ -70,7 +70,7 @@ from sensing.team import BallDetection, TeamMessage
 from sensing.view import CameraView
 
 from .filter import ParticleFilter
-from .latency import MotionHistory, move_back
+from .latency import MotionHistory, compose, move_back
 from .particles import check_sigma
 from .relocalization import KIDNAP_AMBIGUITY
 from .side import SideBelief, SideSettings, Team
@@ -273,15 +273,6 @@ TWIN_HEADING = 0.8  # rad: ... and this close in heading
 # m: an estimate this far from where the detections last contradicted it was re-localized (`Localizer.moved_unseen`;
 # a turn alone, as after a fall or a spin, does not bring the robot nearer its mirror image)
 CONTINUITY_POSITION = 0.5
-
-
-def _dead_reckon(pose: np.ndarray, displacement) -> np.ndarray:
-    """`pose` (x, y, θ) moved by a robot-frame displacement (dx, dy, dθ)."""
-    c, s = math.cos(pose[2]), math.sin(pose[2])
-    dx, dy, dtheta = (float(v) for v in displacement)
-    return np.array(
-        [pose[0] + c * dx - s * dy, pose[1] + s * dx + c * dy, math.remainder(pose[2] + dtheta, 2 * math.pi)]
-    )
 
 
 def _same_place(a: np.ndarray, b: np.ndarray) -> bool:
@@ -512,7 +503,7 @@ class Localizer:
         self.surprise = 0.0
         # where the estimate was when the detections last contradicted it (dead-reckoned since), until they
         # fit again; and whether the estimate then fitted them somewhere else (`moved_unseen`)
-        self._contradicted_at: np.ndarray | None = None
+        self._contradicted_at: tuple[float, float, float] | None = None
         self.moved_unseen = False
         self.is_penalized = False
         # (start, end) of the stretches the robot was fallen or penalized (end None while it lasts): a frame
@@ -579,7 +570,7 @@ class Localizer:
             self.history.record(t, u.dt, displacement)
             self._walked += math.hypot(displacement[0], displacement[1])
             if self._contradicted_at is not None:
-                self._contradicted_at = _dead_reckon(self._contradicted_at, displacement)
+                self._contradicted_at = compose(self._contradicted_at, displacement)
         self.time = t
         self._quality = None
         self._track_side()
@@ -982,7 +973,8 @@ class Localizer:
             return  # still settling after a reset: the placement's region prior speaks for the side
         if self.surprise > q.okay_surprise:
             if self._contradicted_at is None:
-                self._contradicted_at = self.filter.estimate().pose.copy()
+                x, y, theta = (float(v) for v in self.filter.estimate().pose)
+                self._contradicted_at = (x, y, theta)
         elif self.surprise == 0.0 and self._contradicted_at is not None:
             pose, before = self.filter.estimate().pose, self._contradicted_at
             moved = math.hypot(pose[0] - before[0], pose[1] - before[1])

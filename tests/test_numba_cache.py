@@ -56,17 +56,23 @@ def _checked(returncode: int, stdout: str, stderr: str) -> dict:
     return json.loads(stdout.strip().splitlines()[-1])
 
 
+def _session() -> dict | None:
+    """What the session's controller wrote of its warm-up (tests/conftest.py): when it started, how long it took,
+    and whether the cache was empty; None when it ran none."""
+    folder = os.environ.get("MCL_KERNEL_WARMUP")
+    if not folder or folder == "0" or not (Path(folder) / "session.json").exists():
+        return None
+    return {"folder": Path(folder), **json.loads((Path(folder) / "session.json").read_text())}
+
+
 def _session_warmup() -> tuple[list[dict], float] | None:
     """The reports of the parts the session's controller ran before its parallel workers started, against an
     empty cache, the one the workers share (tests/conftest.py), and when it started them; None when it did not
     run them, or the cache held kernels already (a kernel loaded with its callees leaves them uncompiled)."""
-    folder = os.environ.get("MCL_KERNEL_WARMUP")
-    if not folder or folder == "0" or not (Path(folder) / "session.json").exists():
+    session = _session()
+    if session is None or not session["empty"]:
         return None
-    session = json.loads((Path(folder) / "session.json").read_text())
-    if not session["empty"]:
-        return None
-    parts = [json.loads((Path(folder) / f"{part}.json").read_text()) for part in ("filter", "models")]
+    parts = [json.loads((session["folder"] / f"{part}.json").read_text()) for part in ("filter", "models")]
     return [_checked(part["returncode"], part["stdout"], part["stderr"]) for part in parts], session["started"]
 
 
@@ -83,10 +89,8 @@ def _sources() -> dict[str, float]:
 def _warm_session() -> bool:
     """Whether the session's controller ran the parts against a cache that already held kernels (a tree tested
     or run before, whose sources did not change since: `make demo` then `make test` on a fresh clone)."""
-    folder = os.environ.get("MCL_KERNEL_WARMUP")
-    if not folder or folder == "0" or not (Path(folder) / "session.json").exists():
-        return False
-    return not json.loads((Path(folder) / "session.json").read_text())["empty"]
+    session = _session()
+    return session is not None and not session["empty"]
 
 
 def test_every_kernel_is_cached_and_found_again(tmp_path):
