@@ -95,45 +95,73 @@ def _kernel_terms(xs, ys, ts, weights, count, cx, cy, ct, r2, angle_radius, rows
         rows[3, p] = w
 
 
-@numba.njit(cache=True)
-def _kernel_mean(xs, ys, ts, weights, cx, cy, ct, radius, angle_radius, rows, chunk):
+def _kernel_mean_body(xs, ys, ts, weights, cx, cy, ct, radius, angle_radius, scratch, chunk):
     """Weighted mean of the particles within the flat kernel around (cx, cy, ct).
 
     The heading is the intrinsic circular mean: the centre plus the weighted mean of the wrapped residuals
     (one step of the Fréchet-mean iteration on the circle; repeated calls converge). Within the kernel's
-    ±angle_radius this needs no trigonometry. rows: (≥ 4, BLOCK) scratch; chunk: unused (the signature of
-    `_kernel_mean_chunked`, which the same `_dominant_cluster` calls).
+    ±angle_radius this needs no trigonometry. The sums are taken chunk by chunk (within a chunk in index order,
+    then over the chunks in order): `_kernel_mean` compiles this with one chunk of every particle (ONE_CHUNK,
+    scratch: (>= 4, BLOCK) rows, chunk unused), `_kernel_mean_chunked` with chunks of `chunk` on threads.
     """
+    n = xs.shape[0]
+    if ONE_CHUNK:
+        chunk = max(n, 1)
+    chunks = max(1, (n + chunk - 1) // chunk)
+    partial = np.zeros((chunks, 4))
+    r2 = radius * radius
+    for t in numba.prange(chunks):
+        if ONE_CHUNK:
+            rows = scratch
+        else:
+            rows = np.empty((4, BLOCK))
+        sx = 0.0
+        sy = 0.0
+        st = 0.0
+        total = 0.0
+        for start in range(t * chunk, min(n, (t + 1) * chunk), BLOCK):
+            stop = min(start + BLOCK, n, (t + 1) * chunk)
+            count = stop - start
+            _kernel_terms(
+                xs[start:stop],
+                ys[start:stop],
+                ts[start:stop],
+                weights[start:stop],
+                count,
+                cx,
+                cy,
+                ct,
+                r2,
+                angle_radius,
+                rows,
+            )
+            for p in range(count):
+                sx += rows[0, p]
+                sy += rows[1, p]
+                st += rows[2, p]
+                total += rows[3, p]
+        partial[t, 0] = sx
+        partial[t, 1] = sy
+        partial[t, 2] = st
+        partial[t, 3] = total
     sx = 0.0
     sy = 0.0
     st = 0.0
     total = 0.0
-    r2 = radius * radius
-    n = xs.shape[0]
-    for start in range(0, n, BLOCK):
-        count = min(BLOCK, n - start)
-        stop = start + count
-        _kernel_terms(
-            xs[start:stop],
-            ys[start:stop],
-            ts[start:stop],
-            weights[start:stop],
-            count,
-            cx,
-            cy,
-            ct,
-            r2,
-            angle_radius,
-            rows,
-        )
-        for p in range(count):
-            sx += rows[0, p]
-            sy += rows[1, p]
-            st += rows[2, p]
-            total += rows[3, p]
+    for t in range(chunks):
+        sx += partial[t, 0]
+        sy += partial[t, 1]
+        st += partial[t, 2]
+        total += partial[t, 3]
     if total <= 0.0:
         return cx, cy, ct, 0.0
     return cx + sx / total, cy + sy / total, wrap(ct + st / total), total
+
+
+# Whether a variant of the bodies above and below takes its sums in one chunk (the serial kernels), bound by
+# each variant (`numerics.compile.variant`).
+ONE_CHUNK = True
+_kernel_mean = variant(_kernel_mean_body, "serial", {"ONE_CHUNK": True})
 
 
 @numba.njit(cache=True, error_model="numpy")
@@ -152,43 +180,57 @@ def _covariance_terms(xs, ys, ts, weights, count, mx, my, mt, r2, angle_radius, 
         rows[5, p] = w * dt * dt
 
 
-@numba.njit(cache=True)
-def _kernel_covariance(xs, ys, ts, weights, mx, my, mt, radius, angle_radius, total, rows, out_cov, chunk):
-    """Covariance of the particles within the kernel around the mean (mx, my, mt), θ residual wrapped."""
-    c00 = c01 = c02 = c11 = c12 = c22 = 0.0
-    r2 = radius * radius
+def _kernel_covariance_body(xs, ys, ts, weights, mx, my, mt, radius, angle_radius, total, scratch, out_cov, chunk):
+    """Covariance of the particles within the kernel around the mean (mx, my, mt), θ residual wrapped; its sums
+    in chunks as `_kernel_mean_body` takes them (`_kernel_covariance`: one chunk, scratch (6, BLOCK) rows;
+    `_kernel_covariance_chunked`: chunks of `chunk` on threads)."""
     n = xs.shape[0]
+    if ONE_CHUNK:
+        chunk = max(n, 1)
+    chunks = max(1, (n + chunk - 1) // chunk)
+    partial = np.zeros((chunks, 6))
+    r2 = radius * radius
     if total > 0.0:
-        for start in range(0, n, BLOCK):
-            count = min(BLOCK, n - start)
-            stop = start + count
-            _covariance_terms(
-                xs[start:stop],
-                ys[start:stop],
-                ts[start:stop],
-                weights[start:stop],
-                count,
-                mx,
-                my,
-                mt,
-                r2,
-                angle_radius,
-                total,
-                rows,
-            )
-            for p in range(count):
-                c00 += rows[0, p]
-                c01 += rows[1, p]
-                c02 += rows[2, p]
-                c11 += rows[3, p]
-                c12 += rows[4, p]
-                c22 += rows[5, p]
-    out_cov[0, 0] = c00
-    out_cov[0, 1] = out_cov[1, 0] = c01
-    out_cov[0, 2] = out_cov[2, 0] = c02
-    out_cov[1, 1] = c11
-    out_cov[1, 2] = out_cov[2, 1] = c12
-    out_cov[2, 2] = c22
+        for t in numba.prange(chunks):
+            if ONE_CHUNK:
+                rows = scratch
+            else:
+                rows = np.empty((6, BLOCK))
+            sums = np.zeros(6)
+            for start in range(t * chunk, min(n, (t + 1) * chunk), BLOCK):
+                stop = min(start + BLOCK, n, (t + 1) * chunk)
+                count = stop - start
+                _covariance_terms(
+                    xs[start:stop],
+                    ys[start:stop],
+                    ts[start:stop],
+                    weights[start:stop],
+                    count,
+                    mx,
+                    my,
+                    mt,
+                    r2,
+                    angle_radius,
+                    total,
+                    rows,
+                )
+                for p in range(count):
+                    for q in range(6):
+                        sums[q] += rows[q, p]
+            partial[t, :] = sums
+    c = np.zeros(6)
+    for t in range(chunks):
+        for q in range(6):
+            c[q] += partial[t, q]
+    out_cov[0, 0] = c[0]
+    out_cov[0, 1] = out_cov[1, 0] = c[1]
+    out_cov[0, 2] = out_cov[2, 0] = c[2]
+    out_cov[1, 1] = c[3]
+    out_cov[1, 2] = out_cov[2, 1] = c[4]
+    out_cov[2, 2] = c[5]
+
+
+_kernel_covariance = variant(_kernel_covariance_body, "serial", {"ONE_CHUNK": True})
 
 
 @numba.njit(cache=True, inline="always")
@@ -604,98 +646,10 @@ def summary_entropy(grid, histograms, bitmaps):
 # serial one's bit for bit when a chunk holds every particle, otherwise equal to rounding.
 
 
-@numba.njit(cache=True, parallel=True)
-def _kernel_mean_chunked(xs, ys, ts, weights, cx, cy, ct, radius, angle_radius, scratch, chunk):
-    n = xs.shape[0]
-    chunks = max(1, (n + chunk - 1) // chunk)
-    partial = np.zeros((chunks, 4))
-    r2 = radius * radius
-    for t in numba.prange(chunks):
-        rows = np.empty((4, BLOCK))
-        sx = 0.0
-        sy = 0.0
-        st = 0.0
-        total = 0.0
-        for start in range(t * chunk, min(n, (t + 1) * chunk), BLOCK):
-            stop = min(start + BLOCK, n, (t + 1) * chunk)
-            count = stop - start
-            _kernel_terms(
-                xs[start:stop],
-                ys[start:stop],
-                ts[start:stop],
-                weights[start:stop],
-                count,
-                cx,
-                cy,
-                ct,
-                r2,
-                angle_radius,
-                rows,
-            )
-            for p in range(count):
-                sx += rows[0, p]
-                sy += rows[1, p]
-                st += rows[2, p]
-                total += rows[3, p]
-        partial[t, 0] = sx
-        partial[t, 1] = sy
-        partial[t, 2] = st
-        partial[t, 3] = total
-    sx = 0.0
-    sy = 0.0
-    st = 0.0
-    total = 0.0
-    for t in range(chunks):
-        sx += partial[t, 0]
-        sy += partial[t, 1]
-        st += partial[t, 2]
-        total += partial[t, 3]
-    if total <= 0.0:
-        return cx, cy, ct, 0.0
-    return cx + sx / total, cy + sy / total, wrap(ct + st / total), total
+_kernel_mean_chunked = variant(_kernel_mean_body, "chunked", {"ONE_CHUNK": False}, parallel=True)
 
 
-@numba.njit(cache=True, parallel=True)
-def _kernel_covariance_chunked(xs, ys, ts, weights, mx, my, mt, radius, angle_radius, total, scratch, out_cov, chunk):
-    n = xs.shape[0]
-    chunks = max(1, (n + chunk - 1) // chunk)
-    partial = np.zeros((chunks, 6))
-    r2 = radius * radius
-    if total > 0.0:
-        for t in numba.prange(chunks):
-            rows = np.empty((6, BLOCK))
-            sums = np.zeros(6)
-            for start in range(t * chunk, min(n, (t + 1) * chunk), BLOCK):
-                stop = min(start + BLOCK, n, (t + 1) * chunk)
-                count = stop - start
-                _covariance_terms(
-                    xs[start:stop],
-                    ys[start:stop],
-                    ts[start:stop],
-                    weights[start:stop],
-                    count,
-                    mx,
-                    my,
-                    mt,
-                    r2,
-                    angle_radius,
-                    total,
-                    rows,
-                )
-                for p in range(count):
-                    for q in range(6):
-                        sums[q] += rows[q, p]
-            partial[t, :] = sums
-    c = np.zeros(6)
-    for t in range(chunks):
-        for q in range(6):
-            c[q] += partial[t, q]
-    out_cov[0, 0] = c[0]
-    out_cov[0, 1] = out_cov[1, 0] = c[1]
-    out_cov[0, 2] = out_cov[2, 0] = c[2]
-    out_cov[1, 1] = c[3]
-    out_cov[1, 2] = out_cov[2, 1] = c[4]
-    out_cov[2, 2] = c[5]
+_kernel_covariance_chunked = variant(_kernel_covariance_body, "chunked", {"ONE_CHUNK": False}, parallel=True)
 
 
 summary_estimate_chunked = variant(
