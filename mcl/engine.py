@@ -20,10 +20,14 @@ model that offers compiled kernels, `mcl.contracts.fused_kernels`), the engine a
 weights, resampling and the summary as one call into compiled code (`fused_step`, `mcl.step`), with the results
 of the stages one by one bit for bit. `fuses` says whether a frame can be corrected that way: frames the
 sensor model scores with its camera view (negative information) cannot.
+
+`ReferenceEngine` runs the same stages in numpy (the twins of `mcl.reference`) and never fuses them:
+`ParticleFilter(..., reference=True)`, slow, for reading and for tests that compare the compiled filter with it.
 """
 
 from __future__ import annotations
 
+import math
 from typing import Any, NamedTuple
 
 import numba
@@ -32,11 +36,13 @@ import numpy as np
 from field.checks import ArgumentTypeError
 from motion_models.base import MotionInput
 from motion_models.kernels import NO_WORK, move_chunked, move_range, move_range_fast
+from motion_models.reference import move_with_noise as move_with_noise_reference
 from numerics.chunks import balanced_chunk
 from numerics.random import bit_generator_handle, draw_variates, parallel_uniforms
 from numerics.trig import SQRT3
 from sensing.observations import Observations
 
+from . import reference
 from .contracts import fused_kernels, moves_by_bounded_noise
 from .estimate import (
     summary_entropy,
@@ -60,7 +66,7 @@ from .step import (
     resample_and_summarize,
     summarize,
 )
-from .summary import Entropy, Estimate, Summary
+from .summary import SHIFT_ITERATIONS, Entropy, Estimate, Summary
 from .weights import reweigh, weigh
 
 _CHUNK = 4096  # particles per chunk with threads > 1, about (`balanced_chunk`: a function of N alone, so the
@@ -118,6 +124,8 @@ class Engine:
     fast : bool, default False
         Compile options with fast-math (`mcl.ParticleFilter`'s `fast`).
     """
+
+    reference = False  # whether the stages run in numpy (`ReferenceEngine`)
 
     def __init__(self, particles: Particles, summary: Summary, threads: int = 1, fast: bool = False) -> None:
         self.particles = particles
@@ -403,3 +411,135 @@ class Engine:
         """Whether a fused step's injection can finish in `resample_and_summarize` (one thread, systematic
         resampling, no per-particle motion state)."""
         return self.threads == 1 and scheme == "systematic" and self.particles.motion_state is None
+
+
+class ReferenceEngine(Engine):
+    """The filter's stages in plain numpy, one by one: what `Engine` computes, with the same random draws in the
+    same order and the same results to rounding. The weights, the resampling, the estimate and the entropy are
+    the numpy twins of the kernels (`mcl.reference`); a bounded-noise motion model moves the particles by
+    `motion_models.reference.move_with_noise`, and a sensor model that offers `log_likelihood_reference` (the
+    landmark and line models do) scores them by it; other models are called through their contracts
+    (`predict`, `log_likelihood`). One thread, no fast-math, no fused step.
+
+    Parameters
+    ----------
+    particles : Particles
+        The filter's particle set: the arrays the stages work in.
+    summary : Summary
+        The filter's summary: the cached estimate and entropy (its histograms are not used).
+    """
+
+    reference = True
+
+    def __init__(self, particles: Particles, summary: Summary) -> None:
+        super().__init__(particles, summary, threads=1, fast=False)
+
+    def predict(
+        self, motion_model: Any, u: MotionInput, rng: np.random.Generator, motion: tuple[float, ...] | None = None
+    ) -> None:
+        """`Engine.predict` in numpy for a bounded-noise model (`motion`, `Engine.motion`'s answer, given: the
+        variates the model's own `predict` draws, then `motion_models.reference.move_with_noise`); otherwise the
+        motion model's own `predict`."""
+        if motion is None:
+            super().predict(motion_model, u, rng)
+            return
+        p = self.particles
+        gaussian = bool(motion_model.gaussian)
+        variates = draw_variates(rng, p.n, gaussian)
+        dx, dy, dtheta, bound_x, bound_y, bound_theta = motion
+        move_with_noise_reference(p.poses, dx, dy, dtheta, bound_x, bound_y, bound_theta, gaussian, variates)
+
+    def likelihood(self, sensor_model: Any, observations: Observations, since: np.ndarray | None) -> np.ndarray:
+        """`Engine.likelihood` in numpy: the particles moved back along `since` by `mcl.reference.move_back`, scored
+        by the sensor model's `log_likelihood_reference` when it has one (else its `log_likelihood`)."""
+        score = getattr(sensor_model, "log_likelihood_reference", None)
+        if not callable(score):
+            return super().likelihood(sensor_model, observations, since)
+        p = self.particles
+        scored = p.poses if since is None else reference.move_back(p.poses, since)
+        p.log_likelihood[:] = score(scored, observations)
+        return p.log_likelihood
+
+    def fuses(self, sensor_model: Any, observations: Observations) -> bool:
+        """Never: every stage is a call of its own."""
+        return False
+
+    def resamples_fused(self, scheme: str) -> bool:
+        """Never: resampling and the summary are calls of their own."""
+        return False
+
+    def weigh(self, log_likelihood: np.ndarray, count: int) -> tuple[bool, float, float, float]:
+        """`Engine.weigh` in numpy: (valid, native log average over the first `count`, log evidence, ESS)."""
+        p = self.particles
+        log_likelihood = np.asarray(log_likelihood, dtype=np.float64)
+        if np.isnan(log_likelihood).any() or np.isposinf(log_likelihood).any():
+            return False, 0.0, 0.0, 0.0
+        prior, joint = p.log_weights[:count], p.log_weights[:count] + log_likelihood[:count]
+        native = -np.inf
+        if count and np.max(prior) > -np.inf and np.max(joint) > -np.inf:
+            native = float(_log_sum_exp(joint) - _log_sum_exp(prior))
+        candidates = p.log_weights + log_likelihood
+        if np.max(candidates) == -np.inf:
+            return True, native, -np.inf, 0.0
+        weights, log_evidence, ess = reference.normalize(candidates)
+        p.weights[:] = weights
+        return True, native, float(log_evidence), float(ess)
+
+    def reweigh(self, log_likelihood: np.ndarray, log_evidence: float) -> None:
+        """`Engine.reweigh` in numpy."""
+        p = self.particles
+        p.log_weights[:] = p.log_weights + log_likelihood - log_evidence
+
+    def resample(self, scheme: str, injected: np.ndarray, roughening: np.ndarray, rng: np.random.Generator) -> None:
+        """`Engine.resample` in numpy: the scheme's ancestors, then the roughening's jitter."""
+        p = self.particles
+        keep = p.n - injected.shape[0]
+        ancestors = getattr(reference, scheme)(p.weights, keep, rng)
+        previous = p.poses.copy()
+        uniforms = draw_variates(rng, keep, False)
+        p.poses[:keep] = reference.gather_with_jitter(previous, ancestors, roughening * SQRT3, uniforms)
+        if p.motion_state is not None:
+            p.motion_state[:keep] = p.motion_state[ancestors]
+        p.fresh_state(keep)
+        p.poses[keep:] = injected
+        p.uniform_weights()
+
+    def estimate(self) -> Estimate:
+        """`Engine.estimate` in numpy (`mcl.reference.cluster_estimate`), cached until the particles change."""
+        s, p = self.summary, self.particles
+        if s.estimate is None:
+            g = s.grid
+            mean, cov, weight = reference.cluster_estimate(
+                p.poses,
+                p.weights,
+                s.x_min,
+                s.y_min,
+                g.cluster_cell,
+                s.cluster_nx,
+                s.cluster_ny,
+                g.cluster_orientation_bins,
+                g.cluster_radius,
+                g.cluster_angle_radius,
+                SHIFT_ITERATIONS,
+                s.previous.copy() if s.has_previous else None,
+            )
+            s.estimate = Estimate(mean, cov, float(weight))
+            s.previous[:] = mean
+            s.has_previous = True
+        return s.estimate
+
+    def entropy(self) -> Entropy:
+        """`Engine.entropy` in numpy (`mcl.reference.grid_entropy`), cached until the particles change."""
+        s, p = self.summary, self.particles
+        if s.entropy is None:
+            g = s.grid
+            position, orientation = reference.grid_entropy(
+                p.poses, p.weights, s.x_min, s.y_min, g.position_cell, s.entropy_nx, s.entropy_ny, g.orientation_bins
+            )
+            s.entropy = Entropy(float(position), float(orientation))
+        return s.entropy
+
+
+def _log_sum_exp(values: np.ndarray) -> float:
+    peak = float(np.max(values))
+    return peak + math.log(float(np.sum(np.exp(values - peak))))

@@ -71,7 +71,7 @@ from motion_models.base import MotionInput, MotionModel
 from sensing.observations import Observations
 
 from .contracts import Relocalization, SensorModel, lacks
-from .engine import Engine
+from .engine import Engine, ReferenceEngine
 from .latency import move_forward
 from .particles import Particles, check_pose, check_poses, check_sigma
 from .relocalization import SoccerRelocalization, region_bounds
@@ -220,10 +220,15 @@ def _check_field_and_seed(field: object, n_particles: object, seed: object) -> N
         integer("seed", seed, 0)
 
 
-def _check_engine_options(threads: object, fast: object) -> None:
+def _check_engine_options(threads: object, fast: object, reference: object) -> None:
     integer("threads", threads, 1, MAX_THREADS)
-    if not isinstance(fast, (bool, np.bool_)):
-        raise ArgumentTypeError(f"fast = {fast!r} must be True or False, not {type(fast).__name__}")
+    for name, value in (("fast", fast), ("reference", reference)):
+        if not isinstance(value, (bool, np.bool_)):
+            raise ArgumentTypeError(f"{name} = {value!r} must be True or False, not {type(value).__name__}")
+    if reference and (threads != 1 or fast):
+        raise ValueError(
+            f"reference = True runs in numpy on one thread: threads = {threads!r} must be 1 and fast False"
+        )
 
 
 def _check_contract(name: str, obj: object, contract: type) -> None:
@@ -307,6 +312,11 @@ class ParticleFilter:
     relocalization : Relocalization or None, default None
         The soccer rules the filter resets and injects by (`mcl.contracts.Relocalization`); None makes a
         `mcl.relocalization.SoccerRelocalization` with its default prior.
+    reference : bool, default False
+        True runs every stage in plain numpy (`mcl.engine.ReferenceEngine`: the twins of `mcl.reference`, the
+        models through their contracts, a soccer relocalization's injection by its numpy route): the same
+        random draws, results equal to the compiled filter's to rounding, many times slower. For reading the
+        algorithm and for tests; only with threads = 1 and fast = False.
 
     Raises
     ------
@@ -331,6 +341,7 @@ class ParticleFilter:
         threads: int = 1,
         fast: bool = False,
         relocalization: Relocalization | None = None,
+        reference: bool = False,
     ) -> None:
         _check_field_and_seed(field, n_particles, seed)
         self.resampling = resampling  # (the setters check them)
@@ -338,7 +349,7 @@ class ParticleFilter:
         _check_contract("motion_model", motion_model, MotionModel)
         _check_contract("sensor_model", sensor_model, SensorModel)
         self.roughening = roughening
-        _check_engine_options(threads, fast)
+        _check_engine_options(threads, fast, reference)
         self._field = field
         self._n = int(n_particles)
         self.motion_model = motion_model
@@ -355,7 +366,11 @@ class ParticleFilter:
         _check_contract("relocalization", self.relocalization, Relocalization)  # which poses to inject
         self.relocalization.bind(self._summary.carpet)
         self._particles = Particles(int(n_particles), motion_model)
-        self._engine = Engine(self._particles, self._summary, int(threads), bool(fast))
+        self._engine = (
+            ReferenceEngine(self._particles, self._summary)
+            if reference
+            else Engine(self._particles, self._summary, int(threads), bool(fast))
+        )
         self.reset_uniform("field")
 
     # -- the particles, the summary, the engine and the settings -----------------------------------------------
@@ -395,6 +410,8 @@ class ParticleFilter:
     """The number of threads the compiled step runs on (a constructor option)."""
     fast: _Fixed[bool] = _Fixed("_engine.fast")
     """Whether the compiled step computes sin, cos, exp and its sums the fast way (a constructor option)."""
+    reference: _Fixed[bool] = _Fixed("_engine.reference")
+    """Whether every stage runs in plain numpy (`mcl.engine.ReferenceEngine`; a constructor option)."""
     resampling: _Setting[str] = _Setting(_scheme)
     """The resampling scheme, one of `mcl.resampling.SCHEMES` (may be changed between steps)."""
     resample_threshold: _Setting[float] = _Setting(_threshold)
@@ -895,9 +912,13 @@ class ParticleFilter:
         return 0 if a is None else int(round(min(fraction, a.cap(self.relocalization.tracking)) * self._n))
 
     def _sample_injection(self, count: int, observations: Observations) -> np.ndarray:
-        """`count` poses for augmented MCL to inject, as the relocalization proposes them (`propose`)."""
+        """`count` poses for augmented MCL to inject, as the relocalization proposes them (`propose`; a soccer
+        relocalization by its numpy route on the reference engine)."""
+        options = (
+            {"reference": True} if self.reference and isinstance(self.relocalization, SoccerRelocalization) else {}
+        )
         return np.ascontiguousarray(
-            self.relocalization.propose(count, observations, self.sensor_model, self.rng), dtype=np.float64
+            self.relocalization.propose(count, observations, self.sensor_model, self.rng, **options), dtype=np.float64
         )
 
     def _resample(self, count: int, observations: Observations, since: np.ndarray | None = None) -> None:

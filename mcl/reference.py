@@ -6,7 +6,8 @@
 
 Each function computes what the kernel of the same name in `mcl.weights`, `mcl.resampling`, `mcl.estimate` or
 `mcl.latency` computes, with numpy's arrays: the same random draws in the same order, and the same results to
-rounding (bit for bit where its docstring says so). The filter never calls them.
+rounding (bit for bit where its docstring says so). The filter calls them only on its reference engine
+(`ParticleFilter(..., reference=True)`, `mcl.engine.ReferenceEngine`).
 """
 
 from __future__ import annotations
@@ -56,6 +57,26 @@ def multinomial(weights, m, rng):
     spacings = rng.standard_exponential(m + 1)
     running = np.cumsum(spacings)  # running[-1] is the sequential total, as the kernel sums it
     return _searchsorted(np.asarray(weights, float), running[:-1] / running[-1])
+
+
+def residual(weights, m, rng):
+    """Numpy twin of `mcl.resampling.residual`: ⌊M·wᵢ⌋ copies of each particle, the rest drawn multinomially
+    from the residual weights (the same exponential draws)."""
+    weights = np.asarray(weights, float)
+    copies = np.minimum(np.floor(m * weights).astype(np.int64), m)
+    excess = int(copies.sum()) - m
+    if excess > 0:  # rounding in weights that sum to slightly more than one
+        copies[np.argmax(copies)] -= excess
+    rest = m - int(copies.sum())
+    spacings = rng.standard_exponential(rest + 1)
+    kept = np.repeat(np.arange(weights.shape[0]), copies)
+    if rest <= 0:
+        return kept
+    remainder = m * weights - copies
+    total = float(np.sum(remainder))
+    remainder = remainder / total if total > 0.0 else np.full(weights.shape[0], 1.0 / weights.shape[0])
+    running = np.cumsum(spacings)
+    return np.concatenate([kept, _searchsorted(remainder, running[:-1] / running[-1])])
 
 
 def _cells(values, origin, size, count):

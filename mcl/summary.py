@@ -145,6 +145,9 @@ class Grid:
         integer("cluster_orientation_bins", self.cluster_orientation_bins, 1, 360)
 
 
+SHIFT_ITERATIONS = 3  # mean-shift steps of the estimate's cluster (from a cell's centre, and from the last estimate)
+
+
 class Summary:
     """The estimate and the entropy of a particle set on a field's carpet, cached until the particles change.
 
@@ -196,7 +199,7 @@ class Summary:
             grid.cluster_orientation_bins,
             grid.cluster_radius,
             grid.cluster_angle_radius,
-            3,
+            SHIFT_ITERATIONS,
             grid.position_cell,
             self.entropy_nx,
             self.entropy_ny,

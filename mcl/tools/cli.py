@@ -14,6 +14,7 @@
     robocup-mcl bench compare REV [--rounds 3] [--json]  # this checkout against another revision, alternated
     robocup-mcl bench team [--rounds 5] [--json] [--save PATH]  # team messages and the ball in the loop
     robocup-mcl bench same [REV] [--seeds 20] [--json] [--save PATH]  # results bit for bit against REV
+    robocup-mcl bench engines [--sizes ...] [--json] [--save PATH]  # the numpy reference engine's step
     robocup-mcl eval [--families ...] [--split train|holdout|both] [--json] [--save PATH]   # the scenario battery
     robocup-mcl soak [--minutes 60] [--particles 500] [--seed S] [--json] [--save PATH]  # an hour in the loop
     robocup-mcl fit adaptive|ekf|odometry [...] [--json] [--save PATH]   # a model's parameters from training logs
@@ -81,6 +82,7 @@ BENCHES = {
     ),
     "same": ("benchmarks.same", "results bit for bit against another revision: battery, walk, paper demos, replay"),
     "team": ("benchmarks.team", "the robot's loop with and without team messages; one team message, one ball sighting"),
+    "engines": ("benchmarks.engines", "the filter's step on the numpy reference engine against the compiled engine"),
 }
 FITS = {
     "adaptive": ("demos.fit_adaptive", "the adaptive motion model's collision terms (beta) from training logs"),
