@@ -108,7 +108,8 @@ def _kernel_mean_body(xs, ys, ts, weights, cx, cy, ct, radius, angle_radius, scr
     if ONE_CHUNK:
         chunk = max(n, 1)
     chunks = max(1, (n + chunk - 1) // chunk)
-    partial = np.zeros((chunks, 4))
+    # each chunk's sums (one chunk: the first row of the scratch, once its rows are done with)
+    partial = scratch if ONE_CHUNK else np.zeros((chunks, 4))
     r2 = radius * radius
     for t in numba.prange(chunks):
         if ONE_CHUNK:
@@ -188,46 +189,62 @@ def _kernel_covariance_body(xs, ys, ts, weights, mx, my, mt, radius, angle_radiu
     if ONE_CHUNK:
         chunk = max(n, 1)
     chunks = max(1, (n + chunk - 1) // chunk)
-    partial = np.zeros((chunks, 6))
+    if not total > 0.0:
+        out_cov[:, :] = 0.0
+        return
+    # each chunk's sums (one chunk: the first row of the scratch, once its rows are done with)
+    partial = scratch if ONE_CHUNK else np.zeros((chunks, 6))
     r2 = radius * radius
-    if total > 0.0:
-        for t in numba.prange(chunks):
-            if ONE_CHUNK:
-                rows = scratch
-            else:
-                rows = np.empty((6, BLOCK))
-            sums = np.zeros(6)
-            for start in range(t * chunk, min(n, (t + 1) * chunk), BLOCK):
-                stop = min(start + BLOCK, n, (t + 1) * chunk)
-                count = stop - start
-                _covariance_terms(
-                    xs[start:stop],
-                    ys[start:stop],
-                    ts[start:stop],
-                    weights[start:stop],
-                    count,
-                    mx,
-                    my,
-                    mt,
-                    r2,
-                    angle_radius,
-                    total,
-                    rows,
-                )
-                for p in range(count):
-                    for q in range(6):
-                        sums[q] += rows[q, p]
-            partial[t, :] = sums
-    c = np.zeros(6)
+    for t in numba.prange(chunks):
+        if ONE_CHUNK:
+            rows = scratch
+        else:
+            rows = np.empty((6, BLOCK))
+        s0 = s1 = s2 = s3 = s4 = s5 = 0.0
+        for start in range(t * chunk, min(n, (t + 1) * chunk), BLOCK):
+            stop = min(start + BLOCK, n, (t + 1) * chunk)
+            count = stop - start
+            _covariance_terms(
+                xs[start:stop],
+                ys[start:stop],
+                ts[start:stop],
+                weights[start:stop],
+                count,
+                mx,
+                my,
+                mt,
+                r2,
+                angle_radius,
+                total,
+                rows,
+            )
+            for p in range(count):
+                s0 += rows[0, p]
+                s1 += rows[1, p]
+                s2 += rows[2, p]
+                s3 += rows[3, p]
+                s4 += rows[4, p]
+                s5 += rows[5, p]
+        partial[t, 0] = s0
+        partial[t, 1] = s1
+        partial[t, 2] = s2
+        partial[t, 3] = s3
+        partial[t, 4] = s4
+        partial[t, 5] = s5
+    c0 = c1 = c2 = c3 = c4 = c5 = 0.0
     for t in range(chunks):
-        for q in range(6):
-            c[q] += partial[t, q]
-    out_cov[0, 0] = c[0]
-    out_cov[0, 1] = out_cov[1, 0] = c[1]
-    out_cov[0, 2] = out_cov[2, 0] = c[2]
-    out_cov[1, 1] = c[3]
-    out_cov[1, 2] = out_cov[2, 1] = c[4]
-    out_cov[2, 2] = c[5]
+        c0 += partial[t, 0]
+        c1 += partial[t, 1]
+        c2 += partial[t, 2]
+        c3 += partial[t, 3]
+        c4 += partial[t, 4]
+        c5 += partial[t, 5]
+    out_cov[0, 0] = c0
+    out_cov[0, 1] = out_cov[1, 0] = c1
+    out_cov[0, 2] = out_cov[2, 0] = c2
+    out_cov[1, 1] = c3
+    out_cov[1, 2] = out_cov[2, 1] = c4
+    out_cov[2, 2] = c5
 
 
 _kernel_covariance = variant(_kernel_covariance_body, "serial", {"ONE_CHUNK": True})
