@@ -84,6 +84,7 @@ from demos.walk_sim import WalkScenario, _camera
 from field.angles import wrap_angles
 from mcl import ParticleFilter
 from motion_models import MotionInput, VelocityLinear
+from proprioception import reference as ekf_reference
 from proprioception.kinematics import nao_leg
 from proprioception.velocity import (
     ImuOnlyEstimator,
@@ -91,11 +92,8 @@ from proprioception.velocity import (
     VelocityEKF,
     VelocityEKFParams,
     ekf_bias_predict_kernel,
-    ekf_bias_predict_reference,
     ekf_correct_kernel,
-    ekf_correct_reference,
     ekf_predict_kernel,
-    ekf_predict_reference,
     tilt_error,
 )
 from proprioception.velocity_odometry import EKFOdometry, compose_increments
@@ -365,7 +363,7 @@ def timing(result: dict, name: str = "ekf", repeats: int = 3) -> dict:
             )
 
         def predict_reference(state, cov, gyro, accel, dt):
-            return ekf_bias_predict_reference(
+            return ekf_reference.ekf_bias_predict(
                 state, cov, gyro, accel, dt, p.gyro_noise, p.accel_noise, p.gyro_bias_random_walk, p.exact_jacobian
             )
     else:
@@ -374,7 +372,7 @@ def timing(result: dict, name: str = "ekf", repeats: int = 3) -> dict:
             ekf_predict_kernel(state, cov, gyro, accel, dt, p.gyro_noise, p.accel_noise, p.exact_jacobian)
 
         def predict_reference(state, cov, gyro, accel, dt):
-            return ekf_predict_reference(state, cov, gyro, accel, dt, p.gyro_noise, p.accel_noise, p.exact_jacobian)
+            return ekf_reference.ekf_predict(state, cov, gyro, accel, dt, p.gyro_noise, p.accel_noise, p.exact_jacobian)
 
     def replay(kind):
         state = result["initial_state"][name].copy()
@@ -398,7 +396,7 @@ def timing(result: dict, name: str = "ekf", repeats: int = 3) -> dict:
                 if kind == "numba":
                     ekf_correct_kernel(state, cov, event[1], p.velocity_noise)
                 else:
-                    state, cov = ekf_correct_reference(state, cov, event[1], p.velocity_noise)
+                    state, cov = ekf_reference.ekf_correct(state, cov, event[1], p.velocity_noise)
                 t_correct += clock() - start
                 n_correct += 1
             states[e] = state

@@ -19,7 +19,7 @@ The four estimators of the paper: `ImuOnlyEstimator` (eq. 1–4), `kinematic_vel
 is the accelerometer reading at rest (pointing up, |g| ≈ 9.81 m/s²), `v` the IMU velocity over the ground.
 
 The EKF prediction and correction run in numba kernels (`ekf_predict_kernel`, `ekf_correct_kernel`); the plain
-numpy twins (`ekf_predict_reference`, `ekf_correct_reference`) compute the same thing and serve as reference.
+numpy twins (`proprioception.reference`: `ekf_predict`, `ekf_correct`) compute the same thing and serve as reference.
 Choices beyond the paper, all documented where they are made: the transition Jacobian F keeps the rotation
 blocks that eq. 24 drops to first order (`exact_jacobian=False` gives eq. 24 verbatim); the covariance update
 of eq. 37 is evaluated in Joseph form, equal in exact arithmetic, so P stays symmetric positive definite.
@@ -28,7 +28,7 @@ The gyro bias (not in the paper, on by default: `VelocityEKFParams(estimate_gyro
 [g, v, b], the IMU step turns g and v by ω̂ - b, and b is a slow random walk (`gyro_bias_random_walk`).
 Without it, a bias left after zeroing the gyro on a standing robot keeps turning g, and the velocity follows
 the corrections with a lag, which biases v. Its kernels are `ekf_bias_predict_kernel` and
-`ekf_bias_jacobians_kernel` (numpy: `ekf_bias_predict_reference`, `ekf_bias_jacobians_reference`); the
+`ekf_bias_jacobians_kernel` (numpy: `proprioception.reference.ekf_bias_predict`, `ekf_bias_jacobians`); the
 correction is shared. The paper's filter as written is `estimate_gyro_bias=False, exact_jacobian=False` with
 the raw gyro; giving `from_standing` the standing gyro samples (their mean subtracted) is a variant.
 
@@ -48,7 +48,21 @@ import numba
 import numpy as np
 
 from field.checks import LARGEST_SIGMA, SMALLEST_SIGMA, real
+from field.moved import moved_names
 from proprioception.kinematics import LegChain
+
+__getattr__ = moved_names(
+    __name__,
+    {
+        "imu_step_reference": "proprioception.reference.imu_step",
+        "ekf_jacobians_reference": "proprioception.reference.ekf_jacobians",
+        "ekf_predict_reference": "proprioception.reference.ekf_predict",
+        "bias_imu_step_reference": "proprioception.reference.bias_imu_step",
+        "ekf_bias_jacobians_reference": "proprioception.reference.ekf_bias_jacobians",
+        "ekf_bias_predict_reference": "proprioception.reference.ekf_bias_predict",
+        "ekf_correct_reference": "proprioception.reference.ekf_correct",
+    },
+)
 
 
 # ---------------------------------------------------------------------------------------------------------
@@ -368,96 +382,6 @@ def ekf_correct_kernel(state, cov, measured, sigma_v):
                 acc += r2 * gain[i, k] * gain[j, k]
             cov[i, j] = acc
             cov[j, i] = acc
-
-
-# ---------------------------------------------------------------------------------------------------------
-# Plain numpy references
-# ---------------------------------------------------------------------------------------------------------
-def imu_step_reference(state, gyro, accel, dt) -> np.ndarray:
-    """Eq. 2–4 in numpy, returning the new [g, v]."""
-    state = np.asarray(state, dtype=np.float64)
-    gyro = np.asarray(gyro, dtype=np.float64)
-    g_mid = rotate(-gyro * dt / 2.0, state[:3])
-    v = rotate(-gyro * dt, state[3:]) + (np.asarray(accel, dtype=np.float64) - g_mid) * dt
-    return np.concatenate([rotate(-gyro * dt / 2.0, g_mid), v])
-
-
-def ekf_jacobians_reference(state, gyro, dt, sigma_w, sigma_q, exact=True) -> tuple[np.ndarray, np.ndarray]:
-    """F (eq. 24, or its exact form) and C (eq. 25) in numpy."""
-    state = np.asarray(state, dtype=np.float64)
-    gyro = np.asarray(gyro, dtype=np.float64)
-    eye = np.eye(3)
-    if exact:
-        half = rotation_matrix(-gyro * dt / 2.0)
-        full = half @ half
-        f = np.block([[full, np.zeros((3, 3))], [-half * dt, full]])
-    else:
-        f = np.block([[eye, np.zeros((3, 3))], [-eye * dt, eye]])
-    dg = rotation_derivative(state[:3])
-    dv = rotation_derivative(state[3:])
-    c = np.block(
-        [[dg * dt * sigma_w, np.zeros((3, 3))], [dv * dt * sigma_w - dg * dt**2 * sigma_w / 2.0, -eye * dt * sigma_q]]
-    )
-    return f, c
-
-
-def ekf_predict_reference(state, cov, gyro, accel, dt, sigma_w, sigma_q, exact=True):
-    """Numpy twin of `ekf_predict_kernel`: returns (state, covariance)."""
-    f, c = ekf_jacobians_reference(state, gyro, dt, sigma_w, sigma_q, exact)
-    new_cov = f @ cov @ f.T + c @ c.T
-    return imu_step_reference(state, gyro, accel, dt), (new_cov + new_cov.T) / 2.0
-
-
-def bias_imu_step_reference(state, gyro, accel, dt) -> np.ndarray:
-    """The IMU step of the state [g, v, b] in numpy: eq. 2–4 with the rate ω̂ - b; b unchanged."""
-    state = np.asarray(state, dtype=np.float64)
-    corrected = np.asarray(gyro, dtype=np.float64) - state[6:]
-    return np.concatenate([imu_step_reference(state[:6], corrected, accel, dt), state[6:]])
-
-
-def ekf_bias_jacobians_reference(
-    state, gyro, dt, sigma_w, sigma_q, sigma_b, exact=True
-) -> tuple[np.ndarray, np.ndarray]:
-    """F and C of the filter with state [g, v, b] in numpy (see `ekf_bias_jacobians_kernel`)."""
-    state = np.asarray(state, dtype=np.float64)
-    corrected = np.asarray(gyro, dtype=np.float64) - state[6:]
-    g, v = state[:3], state[3:6]
-    f6, _ = ekf_jacobians_reference(state[:6], corrected, dt, sigma_w, sigma_q, exact)
-    if exact:
-        # -∂[g, v]⁺/∂u with g⁺ = f(-uδ, g), v⁺ = f(-uδ, v) + (q - f(-uδ/2, g))δ.
-        full, half = -corrected * dt, -corrected * dt / 2.0
-        f_gb = rotation_derivative_at(full, g) * dt
-        f_vb = rotation_derivative_at(full, v) * dt - rotation_derivative_at(half, g) * dt**2 / 2.0
-    else:
-        f_gb = rotation_derivative(g) * dt
-        f_vb = rotation_derivative(v) * dt - rotation_derivative(g) * dt**2 / 2.0
-    f_b = np.vstack([f_gb, f_vb])
-    f = np.block([[f6, f_b], [np.zeros((3, 6)), np.eye(3)]])
-    c = np.zeros((9, 9))
-    c[:6, :3] = f_b * sigma_w
-    c[3:6, 3:6] = -np.eye(3) * dt * sigma_q
-    c[6:, 6:] = np.eye(3) * math.sqrt(dt) * sigma_b
-    return f, c
-
-
-def ekf_bias_predict_reference(state, cov, gyro, accel, dt, sigma_w, sigma_q, sigma_b, exact=True):
-    """Numpy twin of `ekf_bias_predict_kernel`: returns (state, covariance)."""
-    f, c = ekf_bias_jacobians_reference(state, gyro, dt, sigma_w, sigma_q, sigma_b, exact)
-    new_cov = f @ cov @ f.T + c @ c.T
-    return bias_imu_step_reference(state, gyro, accel, dt), (new_cov + new_cov.T) / 2.0
-
-
-def ekf_correct_reference(state, cov, measured, sigma_v):
-    """Numpy twin of `ekf_correct_kernel`: returns (state, covariance)."""
-    n = state.shape[0]
-    h = np.zeros((3, n))  # eq. 33, H = [0 I] (and 0 for the bias)
-    h[:, 3:6] = np.eye(3)
-    s = h @ cov @ h.T + np.eye(3) * sigma_v**2
-    gain = np.linalg.solve(s, h @ cov).T  # P Hᵀ S⁻¹ (S and P symmetric)
-    new_state = state + gain @ (np.asarray(measured, dtype=np.float64) - state[3:6])
-    a = np.eye(n) - gain @ h
-    new_cov = a @ cov @ a.T + sigma_v**2 * gain @ gain.T
-    return new_state, (new_cov + new_cov.T) / 2.0
 
 
 # ---------------------------------------------------------------------------------------------------------
@@ -781,7 +705,9 @@ class VelocityEKF(_GravityVelocityState):
                     p.exact_jacobian,
                 )
             else:
-                self._state, self._cov = ekf_bias_predict_reference(
+                from proprioception import reference  # (the numpy twins import this module's rotations)
+
+                self._state, self._cov = reference.ekf_bias_predict(
                     self._state,
                     self._cov,
                     gyro,
@@ -799,7 +725,9 @@ class VelocityEKF(_GravityVelocityState):
         if self.backend == "numba":
             ekf_predict_kernel(self._state, self._cov, gyro, accel, dt, p.gyro_noise, p.accel_noise, p.exact_jacobian)
         else:
-            self._state, self._cov = ekf_predict_reference(
+            from proprioception import reference
+
+            self._state, self._cov = reference.ekf_predict(
                 self._state, self._cov, gyro, accel, dt, p.gyro_noise, p.accel_noise, p.exact_jacobian
             )
         self._time = float(time)
@@ -812,7 +740,9 @@ class VelocityEKF(_GravityVelocityState):
         if self.backend == "numba":
             ekf_correct_kernel(self._state, self._cov, measured, sigma_v)
         else:
-            self._state, self._cov = ekf_correct_reference(self._state, self._cov, measured, sigma_v)
+            from proprioception import reference
+
+            self._state, self._cov = reference.ekf_correct(self._state, self._cov, measured, sigma_v)
         self._last_correction = self._time
         self.n_corrections += 1
 

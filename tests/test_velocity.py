@@ -12,23 +12,17 @@ from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
 
 from demos.biped import DisturbanceParams, SensorParams, simulate_walk
+from proprioception import reference as ekf_reference
 from proprioception.kinematics import nao_leg, rotation_y
 from proprioception.velocity import (
     ImuOnlyEstimator,
     LegOdometry,
     VelocityEKF,
     VelocityEKFParams,
-    bias_imu_step_reference,
     ekf_bias_jacobians_kernel,
-    ekf_bias_jacobians_reference,
     ekf_bias_predict_kernel,
-    ekf_bias_predict_reference,
     ekf_correct_kernel,
-    ekf_correct_reference,
-    ekf_jacobians_reference,
     ekf_predict_kernel,
-    ekf_predict_reference,
-    imu_step_reference,
     left_jacobian,
     planar_increment,
     rotate,
@@ -76,11 +70,11 @@ def test_transition_jacobian_F_finite_difference():
     for _ in range(5):
         state = np.concatenate([G_UP + rng.normal(size=3) * 0.3, rng.normal(size=3) * 0.2])
         gyro, accel = rng.normal(size=3) * 2.0, G_UP + rng.normal(size=3)
-        numeric = _numeric_jacobian(lambda s: imu_step_reference(s, gyro, accel, dt), state)
-        f_exact, _ = ekf_jacobians_reference(state, gyro, dt, 0.01, 0.05, exact=True)
+        numeric = _numeric_jacobian(lambda s: ekf_reference.imu_step(s, gyro, accel, dt), state)
+        f_exact, _ = ekf_reference.ekf_jacobians(state, gyro, dt, 0.01, 0.05, exact=True)
         np.testing.assert_allclose(f_exact, numeric, atol=1e-8)
         # Eq. 24 is its first-order form: off by O(|ω| δ).
-        f_paper, _ = ekf_jacobians_reference(state, gyro, dt, 0.01, 0.05, exact=False)
+        f_paper, _ = ekf_reference.ekf_jacobians(state, gyro, dt, 0.01, 0.05, exact=False)
         assert np.abs(f_paper - numeric).max() < 2.0 * np.linalg.norm(gyro) * dt
 
 
@@ -92,10 +86,10 @@ def test_noise_jacobian_C_finite_difference(gyro_scale):
     gyro_hat, accel_hat = rng.normal(size=3) * gyro_scale, G_UP + rng.normal(size=3)
 
     def with_noise(noise):  # eq. 16–18: true inputs are ω̂ - ω̃ and q̂ - q̃, noise scaled as in eq. 23
-        return imu_step_reference(state, gyro_hat - noise[:3] * sigma_w, accel_hat - noise[3:] * sigma_q, dt)
+        return ekf_reference.imu_step(state, gyro_hat - noise[:3] * sigma_w, accel_hat - noise[3:] * sigma_q, dt)
 
     numeric = _numeric_jacobian(with_noise, np.zeros(6), h=1e-4)
-    _, c = ekf_jacobians_reference(state, gyro_hat, dt, sigma_w, sigma_q)
+    _, c = ekf_reference.ekf_jacobians(state, gyro_hat, dt, sigma_w, sigma_q)
     tolerance = 1e-9 if gyro_scale == 0.0 else 2.0 * np.linalg.norm(gyro_hat) * dt * np.abs(c).max()
     np.testing.assert_allclose(c, numeric, atol=tolerance)
 
@@ -127,15 +121,15 @@ def test_bias_transition_jacobian_F_finite_difference():
     for gyro_scale in (0.0, 2.0, 20.0):
         state = _bias_state(rng)
         gyro, accel = rng.normal(size=3) * gyro_scale, G_UP + rng.normal(size=3)
-        numeric = _numeric_jacobian(lambda s: bias_imu_step_reference(s, gyro, accel, dt), state)
-        f_exact, _ = ekf_bias_jacobians_reference(state, gyro, dt, 0.01, 0.05, 1e-4, exact=True)
+        numeric = _numeric_jacobian(lambda s: ekf_reference.bias_imu_step(s, gyro, accel, dt), state)
+        f_exact, _ = ekf_reference.ekf_bias_jacobians(state, gyro, dt, 0.01, 0.05, 1e-4, exact=True)
         np.testing.assert_allclose(f_exact, numeric, atol=1e-8)
-        f_first, _ = ekf_bias_jacobians_reference(state, gyro, dt, 0.01, 0.05, 1e-4, exact=False)
+        f_first, _ = ekf_reference.ekf_bias_jacobians(state, gyro, dt, 0.01, 0.05, 1e-4, exact=False)
         # First order (eq. 24 and the bias columns at u = 0): off by O(|ω̂ - b| δ).
         assert np.abs(f_first - numeric).max() <= 2.0 * np.linalg.norm(gyro - state[6:]) * dt + 1e-8
         # The [g, v] block is the paper's filter's F at the corrected rate ω̂ - b.
         for exact, f in ((True, f_exact), (False, f_first)):
-            f6, _ = ekf_jacobians_reference(state[:6], gyro - state[6:], dt, 0.01, 0.05, exact)
+            f6, _ = ekf_reference.ekf_jacobians(state[:6], gyro - state[6:], dt, 0.01, 0.05, exact)
             np.testing.assert_array_equal(f[:6, :6], f6)
         np.testing.assert_array_equal(f_exact[6:], np.hstack([np.zeros((3, 6)), np.eye(3)]))
 
@@ -148,16 +142,16 @@ def test_bias_noise_jacobian_C_finite_difference(gyro_scale):
     gyro_hat, accel_hat = rng.normal(size=3) * gyro_scale, G_UP + rng.normal(size=3)
 
     def with_noise(noise):  # true rate ω̂ - b - ω̃, true specific force q̂ - q̃, bias step σ_b √δ n
-        out = bias_imu_step_reference(state, gyro_hat - noise[:3] * sigma_w, accel_hat - noise[3:6] * sigma_q, dt)
+        out = ekf_reference.bias_imu_step(state, gyro_hat - noise[:3] * sigma_w, accel_hat - noise[3:6] * sigma_q, dt)
         out[6:] += noise[6:] * sigma_b * math.sqrt(dt)
         return out
 
     numeric = _numeric_jacobian(with_noise, np.zeros(9), h=1e-4)
-    _, c_exact = ekf_bias_jacobians_reference(state, gyro_hat, dt, sigma_w, sigma_q, sigma_b, exact=True)
+    _, c_exact = ekf_reference.ekf_bias_jacobians(state, gyro_hat, dt, sigma_w, sigma_q, sigma_b, exact=True)
     np.testing.assert_allclose(c_exact, numeric, atol=1e-10)
     # Not exact: the [g, v] rows are eq. 25 at ω̂ - b, the bias rows the random walk.
-    _, c_first = ekf_bias_jacobians_reference(state, gyro_hat, dt, sigma_w, sigma_q, sigma_b, exact=False)
-    _, c6 = ekf_jacobians_reference(state[:6], gyro_hat - state[6:], dt, sigma_w, sigma_q)
+    _, c_first = ekf_reference.ekf_bias_jacobians(state, gyro_hat, dt, sigma_w, sigma_q, sigma_b, exact=False)
+    _, c6 = ekf_reference.ekf_jacobians(state[:6], gyro_hat - state[6:], dt, sigma_w, sigma_q)
     np.testing.assert_allclose(c_first[:6, :6], c6, atol=1e-18)
     np.testing.assert_array_equal(c_first[6:], c_exact[6:])
     tolerance = 1e-10 + 2.0 * np.linalg.norm(gyro_hat - state[6:]) * dt * np.abs(c_first).max()
@@ -171,7 +165,7 @@ def test_bias_jacobian_kernel_matches_reference(exact):
         state, gyro = _bias_state(rng), rng.normal(size=3) * gyro_scale
         f, c = np.empty((9, 9)), np.empty((9, 9))
         ekf_bias_jacobians_kernel(state, gyro, 0.01, 0.01, 0.05, 1e-4, exact, f, c)
-        f_ref, c_ref = ekf_bias_jacobians_reference(state, gyro, 0.01, 0.01, 0.05, 1e-4, exact)
+        f_ref, c_ref = ekf_reference.ekf_bias_jacobians(state, gyro, 0.01, 0.01, 0.05, 1e-4, exact)
         np.testing.assert_allclose(f, f_ref, rtol=0, atol=1e-15)
         np.testing.assert_allclose(c, c_ref, rtol=0, atol=1e-17)
 
@@ -182,11 +176,11 @@ def test_kernels_match_references(estimate_gyro_bias):
     if estimate_gyro_bias:
         state = np.concatenate([G_UP, [0.1, 0.0, 0.0], [0.01, -0.02, 0.005]])
         cov = np.diag([0.01] * 3 + [0.001] * 3 + [1e-5] * 3)
-        kernel, reference, bias_walk = ekf_bias_predict_kernel, ekf_bias_predict_reference, (1e-4,)
+        kernel, reference, bias_walk = ekf_bias_predict_kernel, ekf_reference.ekf_bias_predict, (1e-4,)
     else:
         state = np.concatenate([G_UP, [0.1, 0.0, 0.0]])
         cov = np.diag([0.01] * 3 + [0.001] * 3)
-        kernel, reference, bias_walk = ekf_predict_kernel, ekf_predict_reference, ()
+        kernel, reference, bias_walk = ekf_predict_kernel, ekf_reference.ekf_predict, ()
     s_k, c_k = state.copy(), cov.copy()
     for i in range(300):
         gyro, accel = rng.normal(size=3), G_UP + rng.normal(size=3)
@@ -195,7 +189,7 @@ def test_kernels_match_references(estimate_gyro_bias):
         if i % 3 == 0:
             z = rng.normal(size=3) * 0.1
             ekf_correct_kernel(s_k, c_k, z, 0.05)
-            state, cov = ekf_correct_reference(state, cov, z, 0.05)
+            state, cov = ekf_reference.ekf_correct(state, cov, z, 0.05)
     np.testing.assert_allclose(s_k, state, atol=1e-12)
     np.testing.assert_allclose(c_k, cov, atol=1e-15)
     assert_spd(c_k)
@@ -544,3 +538,23 @@ def test_demo_main_json(capsys):
     assert report["ekf_params"]["ekf+bias"]["estimate_gyro_bias"] is True
     assert len(report["rmse"]) == 4
     assert all(set(block) >= {"ekf", "ekf+bias"} for block in report["rmse"].values())
+
+
+@pytest.mark.parametrize(
+    "old, new",
+    [
+        ("imu_step_reference", "imu_step"),
+        ("ekf_jacobians_reference", "ekf_jacobians"),
+        ("ekf_predict_reference", "ekf_predict"),
+        ("bias_imu_step_reference", "bias_imu_step"),
+        ("ekf_bias_jacobians_reference", "ekf_bias_jacobians"),
+        ("ekf_bias_predict_reference", "ekf_bias_predict"),
+        ("ekf_correct_reference", "ekf_correct"),
+    ],
+)
+def test_the_numpy_twins_old_names_still_import_with_a_warning(old, new):
+    import proprioception.velocity as velocity
+
+    with pytest.warns(DeprecationWarning, match=f"proprioception.reference.{new}"):
+        moved = getattr(velocity, old)
+    assert moved is getattr(ekf_reference, new)
