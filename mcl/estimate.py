@@ -745,57 +745,15 @@ def summary_fill_chunked(grid, poses, weights, coordinates, histograms, bitmaps,
 
 
 # -- the opt-in fast variant ----------------------------------------------------------------------------------------
-# With `ParticleFilter(fast=True)`: the mean shift's and the covariance's sums reassociated (one vectorized loop
-# each), equal to the serial estimate to rounding.
+# With `ParticleFilter(fast=True)`: the serial kernels' one body with fast-math, so that their sums are
+# reassociated (vectorized), equal to the serial estimate to rounding.
 FAST = {"nsz", "arcp", "contract", "afn", "reassoc"}  # fast-math without assuming no NaN / inf
 
 
-@numba.njit(cache=True, fastmath=FAST, error_model="numpy")
-def _kernel_mean_fast(xs, ys, ts, weights, cx, cy, ct, radius, angle_radius, rows, chunk):
-    sx = 0.0
-    sy = 0.0
-    st = 0.0
-    total = 0.0
-    r2 = radius * radius
-    for i in range(xs.shape[0]):
-        dx = xs[i] - cx
-        dy = ys[i] - cy
-        dt = wrap(ts[i] - ct)
-        inside = (dx * dx + dy * dy <= r2) & (abs(dt) <= angle_radius)
-        w = weights[i] if inside else 0.0
-        sx += w * dx
-        sy += w * dy
-        st += w * dt
-        total += w
-    if total <= 0.0:
-        return cx, cy, ct, 0.0
-    return cx + sx / total, cy + sy / total, wrap(ct + st / total), total
-
-
-@numba.njit(cache=True, fastmath=FAST, error_model="numpy")
-def _kernel_covariance_fast(xs, ys, ts, weights, mx, my, mt, radius, angle_radius, total, rows, out_cov, chunk):
-    c00 = c01 = c02 = c11 = c12 = c22 = 0.0
-    r2 = radius * radius
-    if total > 0.0:
-        inverse = 1.0 / total
-        for i in range(xs.shape[0]):
-            dx = xs[i] - mx
-            dy = ys[i] - my
-            dt = wrap(ts[i] - mt)
-            inside = (dx * dx + dy * dy <= r2) & (abs(dt) <= angle_radius)
-            w = weights[i] * inverse if inside else 0.0
-            c00 += w * dx * dx
-            c01 += w * dx * dy
-            c02 += w * dx * dt
-            c11 += w * dy * dy
-            c12 += w * dy * dt
-            c22 += w * dt * dt
-    out_cov[0, 0] = c00
-    out_cov[0, 1] = out_cov[1, 0] = c01
-    out_cov[0, 2] = out_cov[2, 0] = c02
-    out_cov[1, 1] = c11
-    out_cov[1, 2] = out_cov[2, 1] = c12
-    out_cov[2, 2] = c22
+_kernel_mean_fast = variant(_kernel_mean_body, "fast", {"ONE_CHUNK": True}, fastmath=FAST, error_model="numpy")
+_kernel_covariance_fast = variant(
+    _kernel_covariance_body, "fast", {"ONE_CHUNK": True}, fastmath=FAST, error_model="numpy"
+)
 
 
 summary_estimate_fast = variant(
