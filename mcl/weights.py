@@ -21,6 +21,7 @@ from numba import types
 from numba.extending import intrinsic
 
 from field.moved import moved_names
+from numerics.compile import variant
 
 # The numpy twins moved to the package's `reference` module; their old names still work, with a warning.
 __getattr__ = moved_names(__name__, {"normalize_reference": "mcl.reference.normalize"})
@@ -156,11 +157,20 @@ def weigh(log_weights, log_likelihood, count, weights_out):
     return True, native, peak + math.log(total), 1.0 / squares
 
 
-@numba.njit(cache=True)
-def reweigh(log_weights, log_likelihood, log_total):
-    """log_weights ← log_weights + log_likelihood - log_total: the normalized posterior log-weights."""
-    for i in range(log_weights.shape[0]):
-        log_weights[i] = log_weights[i] + log_likelihood[i] - log_total
+def _reweigh_body(log_weights, log_likelihood, log_total, chunk=0):
+    """log_weights ← log_weights + log_likelihood - log_total: the normalized posterior log-weights, elementwise
+    (the same numbers in one chunk, `reweigh`, or in chunks of `chunk` on threads, `reweigh_chunked`)."""
+    n = log_weights.shape[0]
+    if ONE_CHUNK:
+        chunk = max(n, 1)
+    for t in numba.prange(max(1, (n + chunk - 1) // chunk)):
+        for i in range(t * chunk, min(n, (t + 1) * chunk)):
+            log_weights[i] = log_weights[i] + log_likelihood[i] - log_total
+
+
+ONE_CHUNK = True  # bound by each variant (`numerics.compile.variant`)
+reweigh = variant(_reweigh_body, "serial", {"ONE_CHUNK": True})
+reweigh_chunked = variant(_reweigh_body, "chunked", {"ONE_CHUNK": False}, parallel=True)
 
 
 # -- the same in chunks, on several threads -------------------------------------------------------------------------
@@ -266,15 +276,6 @@ def weigh_chunked(log_weights, log_likelihood, count, weights_out, chunk):
     for t in range(chunks):
         squares += sums[t, 2]
     return True, native, peak + math.log(total), 1.0 / squares
-
-
-@numba.njit(cache=True, parallel=True)
-def reweigh_chunked(log_weights, log_likelihood, log_total, chunk):
-    """`reweigh` on several threads (elementwise: the same numbers)."""
-    n = log_weights.shape[0]
-    for t in numba.prange(max(1, (n + chunk - 1) // chunk)):
-        for i in range(t * chunk, min(n, (t + 1) * chunk)):
-            log_weights[i] = log_weights[i] + log_likelihood[i] - log_total
 
 
 # -- the opt-in fast variant ----------------------------------------------------------------------------------------
