@@ -242,9 +242,7 @@ class Engine:
             gather_with_jitter(p.previous, ancestors, bounds, draw_variates(rng, keep, False, out=p.variates), p.poses)
             if p.motion_state is not None:
                 p.motion_state[:keep] = p.motion_state[ancestors]
-        p.fresh_state(keep)
-        p.poses[keep:] = injected
-        p.uniform_weights()
+        p.take_injected(keep, injected)
 
     # -- summarize -----------------------------------------------------------------------------------------------
     def fill(self) -> None:
@@ -262,56 +260,57 @@ class Engine:
 
     def estimate(self) -> Estimate:
         """The summary's estimate (`mcl.estimate`: the dominant cluster), cached until the particles change."""
-        s, p = self.summary, self.particles
+        s = self.summary
         if s.estimate is None:
-            mean, cov = np.empty(3), np.empty((3, 3))
-            if self.threads == 1 and not s.valid:
-                # One dispatch: the histograms, the estimate and (once asked for) the entropy.
-                weight, position, orientation = summarize(p.poses, p.weights, s.group(True, mean, cov), self.fast)
-                s.keep(None, position, orientation)
-            else:
-                self.fill()
-                arguments = (
-                    s.parameters,
-                    s.coordinates,
-                    p.weights,
-                    s.histograms,
-                    s.bitmaps,
-                    s.previous,
-                    s.has_previous,
-                    mean,
-                    cov,
-                )
-                if self.threads > 1:
-                    with self.scope:
-                        weight = summary_estimate_chunked(*arguments, self.chunk)
-                else:
-                    weight = (summary_estimate_fast if self.fast else summary_estimate)(*arguments)
-                s.previous[:] = mean
-            s.estimate = Estimate(mean, cov, float(weight))
+            s.estimate = self._dominant_cluster()
             s.has_previous = True
         return s.estimate
 
     def entropy(self) -> Entropy:
         """The summary's grid entropy, cached until the particles change; from now on the compiled step
         computes it too."""
-        s, p = self.summary, self.particles
+        s = self.summary
         s.entropy_wanted = True
         if s.entropy is None:
-            if self.threads == 1 and not s.valid:
-                # One dispatch: the histograms and the entropy (no estimate: it would move the hysteresis anchor).
-                _, position, orientation = summarize(
-                    p.poses,
-                    p.weights,
-                    s.group(False, _NO_MEAN, _NO_COVARIANCE, use_previous=False, want_entropy=True),
-                    self.fast,
-                )
-                s.valid = True
-            else:
-                self.fill()
-                position, orientation = summary_entropy(s.parameters, s.histograms, s.bitmaps)
-            s.entropy = Entropy(float(position), float(orientation))
+            s.entropy = self._grid_entropy()
         return s.entropy
+
+    def _dominant_cluster(self) -> Estimate:
+        """The dominant cluster of the particles as they are; the estimate's hysteresis anchor
+        (`Summary.previous`) moves to it."""
+        s, p = self.summary, self.particles
+        mean, cov = np.empty(3), np.empty((3, 3))
+        if self.threads == 1 and not s.valid:
+            # One dispatch: the histograms, the estimate and (once asked for) the entropy.
+            weight, position, orientation = summarize(p.poses, p.weights, s.group(True, mean, cov), self.fast)
+            s.keep(None, position, orientation)
+        else:
+            self.fill()
+            arguments = (s.parameters, s.coordinates, p.weights, s.histograms, s.bitmaps, s.previous, s.has_previous)
+            if self.threads > 1:
+                with self.scope:
+                    weight = summary_estimate_chunked(*arguments, mean, cov, self.chunk)
+            else:
+                weight = (summary_estimate_fast if self.fast else summary_estimate)(*arguments, mean, cov)
+            s.previous[:] = mean
+        return Estimate(mean, cov, float(weight))
+
+    def _grid_entropy(self) -> Entropy:
+        """The grid entropy of the particles as they are."""
+        s, p = self.summary, self.particles
+        if self.threads == 1 and not s.valid:
+            # One dispatch: the histograms and the entropy (no estimate: it would move the hysteresis anchor).
+            _, position, orientation = summarize(
+                p.poses,
+                p.weights,
+                s.group(False, _NO_MEAN, _NO_COVARIANCE, use_previous=False, want_entropy=True),
+                self.fast,
+            )
+            s.valid = True
+        else:
+            self.fill()
+            position, orientation = summary_entropy(s.parameters, s.histograms, s.bitmaps)
+        return Entropy(float(position), float(orientation))
 
     # -- the fused step ------------------------------------------------------------------------------------------
     def fuses(self, sensor_model: Any, observations: Observations) -> bool:
@@ -500,44 +499,38 @@ class ReferenceEngine(Engine):
         p.poses[:keep] = reference.gather_with_jitter(previous, ancestors, roughening * SQRT3, uniforms)
         if p.motion_state is not None:
             p.motion_state[:keep] = p.motion_state[ancestors]
-        p.fresh_state(keep)
-        p.poses[keep:] = injected
-        p.uniform_weights()
+        p.take_injected(keep, injected)
 
-    def estimate(self) -> Estimate:
-        """`Engine.estimate` in numpy (`mcl.reference.cluster_estimate`), cached until the particles change."""
+    def _dominant_cluster(self) -> Estimate:
+        """`Engine`'s dominant cluster in numpy (`mcl.reference.cluster_estimate`); the hysteresis anchor moves
+        to it."""
         s, p = self.summary, self.particles
-        if s.estimate is None:
-            g = s.grid
-            mean, cov, weight = reference.cluster_estimate(
-                p.poses,
-                p.weights,
-                s.x_min,
-                s.y_min,
-                g.cluster_cell,
-                s.cluster_nx,
-                s.cluster_ny,
-                g.cluster_orientation_bins,
-                g.cluster_radius,
-                g.cluster_angle_radius,
-                SHIFT_ITERATIONS,
-                s.previous.copy() if s.has_previous else None,
-            )
-            s.estimate = Estimate(mean, cov, float(weight))
-            s.previous[:] = mean
-            s.has_previous = True
-        return s.estimate
+        g = s.grid
+        mean, cov, weight = reference.cluster_estimate(
+            p.poses,
+            p.weights,
+            s.x_min,
+            s.y_min,
+            g.cluster_cell,
+            s.cluster_nx,
+            s.cluster_ny,
+            g.cluster_orientation_bins,
+            g.cluster_radius,
+            g.cluster_angle_radius,
+            SHIFT_ITERATIONS,
+            s.previous.copy() if s.has_previous else None,
+        )
+        s.previous[:] = mean
+        return Estimate(mean, cov, float(weight))
 
-    def entropy(self) -> Entropy:
-        """`Engine.entropy` in numpy (`mcl.reference.grid_entropy`), cached until the particles change."""
+    def _grid_entropy(self) -> Entropy:
+        """`Engine`'s grid entropy in numpy (`mcl.reference.grid_entropy`)."""
         s, p = self.summary, self.particles
-        if s.entropy is None:
-            g = s.grid
-            position, orientation = reference.grid_entropy(
-                p.poses, p.weights, s.x_min, s.y_min, g.position_cell, s.entropy_nx, s.entropy_ny, g.orientation_bins
-            )
-            s.entropy = Entropy(float(position), float(orientation))
-        return s.entropy
+        g = s.grid
+        position, orientation = reference.grid_entropy(
+            p.poses, p.weights, s.x_min, s.y_min, g.position_cell, s.entropy_nx, s.entropy_ny, g.orientation_bins
+        )
+        return Entropy(float(position), float(orientation))
 
 
 def _log_sum_exp(values: np.ndarray) -> float:

@@ -116,6 +116,13 @@ class Particles:
         if self.motion_state is not None:
             self.motion_state[start:] = self.motion_model.particle_state(self.n - start)
 
+    def take_injected(self, keep: int, injected: np.ndarray) -> None:
+        """After `keep` resampled particles: the `injected` poses behind them, with fresh motion state; equal
+        weights for all."""
+        self.fresh_state(keep)
+        self.poses[keep:] = injected
+        self.uniform_weights()
+
     def uniform_weights(self) -> None:
         """Equal weights 1/N."""
         self.log_weights[:] = -math.log(self.n)
