@@ -39,10 +39,10 @@ from mcl.estimate import (
     summary_fill,
     summary_fill_chunked,
 )
-from mcl.reference import cluster_estimate as cluster_estimate_reference
 from mcl.reference import gather_with_jitter as gather_with_jitter_reference
-from mcl.reference import grid_entropy as grid_entropy_reference
 from mcl.reference import normalize as normalize_reference
+from mcl.reference import summary_entropy as summary_entropy_reference
+from mcl.reference import summary_estimate as summary_estimate_reference
 from mcl.reference import systematic as systematic_reference
 from mcl.resampling import resample_with_jitter, resample_with_jitter_chunked, systematic_counted
 from mcl.step import NO_SINCE, STEP_BLOCK, fused_step
@@ -79,25 +79,9 @@ def numpy_step(pf, u: MotionInput, observations: Observations, timings: dict | N
     )
     weights = np.full(pf.n, 1.0 / pf.n)
     marks.append(clock())
-    g, s = pf.grid, pf.summary
-    mean, cov, cluster_weight = cluster_estimate_reference(
-        poses,
-        weights,
-        s.x_min,
-        s.y_min,
-        g.cluster_cell,
-        s.cluster_nx,
-        s.cluster_ny,
-        g.cluster_orientation_bins,
-        g.cluster_radius,
-        g.cluster_angle_radius,
-        3,
-        s.previous if s.has_previous else None,
-    )
+    mean, cov, cluster_weight = summary_estimate_reference(pf.summary, poses, weights)
     marks.append(clock())
-    entropy = grid_entropy_reference(
-        poses, weights, s.x_min, s.y_min, g.position_cell, s.entropy_nx, s.entropy_ny, g.orientation_bins
-    )
+    entropy = summary_entropy_reference(pf.summary, poses, weights)
     marks.append(clock())
     if timings is not None:
         for name, a, b in zip(PHASES, marks[:-1], marks[1:]):

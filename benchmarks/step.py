@@ -30,10 +30,10 @@ import numpy as np
 from field import spl
 from mcl import resampling
 from mcl.filter import AugmentedMCL, ParticleFilter
-from mcl.reference import cluster_estimate as cluster_estimate_reference
 from mcl.reference import gather_with_jitter as gather_with_jitter_reference
-from mcl.reference import grid_entropy as grid_entropy_reference
 from mcl.reference import normalize as normalize_reference
+from mcl.reference import summary_entropy as summary_entropy_reference
+from mcl.reference import summary_estimate as summary_estimate_reference
 from mcl.reference import systematic as systematic_reference
 from mcl.resampling import gather_with_jitter, systematic
 from mcl.weights import normalize
@@ -187,14 +187,14 @@ PHASES = (
         "estimate",
         "estimate: dominant cluster (histogram seed, mean shift), weighted circular mean",
         "ParticleFilter.estimate (what it keeps dropped first)",
-        "mcl.estimate.cluster_estimate_reference",
+        "mcl.reference.summary_estimate",
     ),
     Phase(
         "entropy",
         "grid entropy, position and orientation (Hoffmann eq. 27); where the filter shares its "
         "histograms with the estimate, both phases include filling them",
         "ParticleFilter.entropy (what it keeps dropped first)",
-        "mcl.estimate.grid_entropy_reference",
+        "mcl.reference.summary_entropy",
     ),
     Phase(
         "recording",
@@ -466,7 +466,6 @@ class PhaseScene:
         poses, state, quiet = self.poses["numpy"], self.state["numpy"], self.state_quiet["numpy"]
         injecting = self.injecting_filter()
         model = self.velocity_linear
-        g = pf.grid
 
         def predict_velocity_linear():
             move_with_noise_reference(
@@ -495,25 +494,10 @@ class PhaseScene:
         s = pf.summary
 
         def estimate():
-            cluster_estimate_reference(
-                pf.poses,
-                pf.weights,
-                s.x_min,
-                s.y_min,
-                g.cluster_cell,
-                s.cluster_nx,
-                s.cluster_ny,
-                g.cluster_orientation_bins,
-                g.cluster_radius,
-                g.cluster_angle_radius,
-                3,
-                None,
-            )
+            summary_estimate_reference(s, pf.poses, pf.weights, use_previous=False)
 
         def entropy():
-            grid_entropy_reference(
-                pf.poses, pf.weights, s.x_min, s.y_min, g.position_cell, s.entropy_nx, s.entropy_ny, g.orientation_bins
-            )
+            summary_entropy_reference(s, pf.poses, pf.weights)
 
         return {
             "predict_velocity_linear": predict_velocity_linear,

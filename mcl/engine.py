@@ -27,7 +27,6 @@ sensor model scores with its camera view (negative information) cannot.
 
 from __future__ import annotations
 
-import math
 from typing import Any, NamedTuple
 
 import numba
@@ -66,7 +65,7 @@ from .step import (
     resample_and_summarize,
     summarize,
 )
-from .summary import SHIFT_ITERATIONS, Entropy, Estimate, Summary
+from .summary import Entropy, Estimate, Summary
 from .weights import reweigh, weigh
 
 _CHUNK = 4096  # particles per chunk with threads > 1, about (`balanced_chunk`: a function of N alone, so the
@@ -473,10 +472,7 @@ class ReferenceEngine(Engine):
         log_likelihood = np.asarray(log_likelihood, dtype=np.float64)
         if np.isnan(log_likelihood).any() or np.isposinf(log_likelihood).any():
             return False, 0.0, 0.0, 0.0
-        prior, joint = p.log_weights[:count], p.log_weights[:count] + log_likelihood[:count]
-        native = -np.inf
-        if count and np.max(prior) > -np.inf and np.max(joint) > -np.inf:
-            native = float(_log_sum_exp(joint) - _log_sum_exp(prior))
+        native = reference.log_mean_likelihood(p.log_weights, log_likelihood, count)
         candidates = p.log_weights + log_likelihood
         if np.max(candidates) == -np.inf:
             return True, native, -np.inf, 0.0
@@ -502,37 +498,13 @@ class ReferenceEngine(Engine):
         p.take_injected(keep, injected)
 
     def _dominant_cluster(self) -> Estimate:
-        """`Engine`'s dominant cluster in numpy (`mcl.reference.cluster_estimate`); the hysteresis anchor moves
+        """`Engine`'s dominant cluster in numpy (`mcl.reference.summary_estimate`); the hysteresis anchor moves
         to it."""
-        s, p = self.summary, self.particles
-        g = s.grid
-        mean, cov, weight = reference.cluster_estimate(
-            p.poses,
-            p.weights,
-            s.x_min,
-            s.y_min,
-            g.cluster_cell,
-            s.cluster_nx,
-            s.cluster_ny,
-            g.cluster_orientation_bins,
-            g.cluster_radius,
-            g.cluster_angle_radius,
-            SHIFT_ITERATIONS,
-            s.previous.copy() if s.has_previous else None,
-        )
-        s.previous[:] = mean
+        mean, cov, weight = reference.summary_estimate(self.summary, self.particles.poses, self.particles.weights)
+        self.summary.previous[:] = mean
         return Estimate(mean, cov, float(weight))
 
     def _grid_entropy(self) -> Entropy:
-        """`Engine`'s grid entropy in numpy (`mcl.reference.grid_entropy`)."""
-        s, p = self.summary, self.particles
-        g = s.grid
-        position, orientation = reference.grid_entropy(
-            p.poses, p.weights, s.x_min, s.y_min, g.position_cell, s.entropy_nx, s.entropy_ny, g.orientation_bins
-        )
+        """`Engine`'s grid entropy in numpy (`mcl.reference.summary_entropy`)."""
+        position, orientation = reference.summary_entropy(self.summary, self.particles.poses, self.particles.weights)
         return Entropy(float(position), float(orientation))
-
-
-def _log_sum_exp(values: np.ndarray) -> float:
-    peak = float(np.max(values))
-    return peak + math.log(float(np.sum(np.exp(values - peak))))

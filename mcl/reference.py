@@ -29,6 +29,22 @@ def normalize(log_weights):
     return w, peak + math.log(total), 1.0 / np.sum(w * w)
 
 
+def log_mean_likelihood(log_weights, log_likelihood, count):
+    """Numpy twin of `mcl.weights.log_mean_likelihood`: log(Σ wᵢ pᵢ / Σ wᵢ) over the first `count` particles;
+    -inf when none of them has a finite weight and likelihood."""
+    prior = np.asarray(log_weights[:count], dtype=np.float64)
+    joint = prior + np.asarray(log_likelihood[:count], dtype=np.float64)
+    if count <= 0 or np.max(prior) == -np.inf or np.max(joint) == -np.inf:
+        return -np.inf
+    peak_prior, peak_joint = np.max(prior), np.max(joint)
+    return float(
+        peak_joint
+        + math.log(np.sum(np.exp(joint - peak_joint)))
+        - peak_prior
+        - math.log(np.sum(np.exp(prior - peak_prior)))
+    )
+
+
 def gather_with_jitter(source, ancestors, bounds, uniforms):
     """Numpy twin of `mcl.resampling.gather_with_jitter`."""
     picked = source[ancestors].copy()
@@ -135,6 +151,44 @@ def cluster_estimate(
         cov = (d[mask] * w[:, None]).T @ d[mask]
     mean[2] = float(wrap_angles(mean[2]))
     return mean, cov, float(total)
+
+
+def summary_estimate(summary, poses, weights, use_previous: bool = True):
+    """`cluster_estimate` on the grid of `summary` (`mcl.summary.Summary`: its cluster cells, the mean shift's
+    kernel and its `shift_iterations`), from the summary's last estimate when it has one and `use_previous`: the
+    numpy twin of the filter's estimate (`mcl.estimate.summary_estimate`). Returns (mean (3,), cov (3, 3),
+    weight); the summary is left as it is."""
+    g = summary.grid
+    return cluster_estimate(
+        poses,
+        weights,
+        summary.x_min,
+        summary.y_min,
+        g.cluster_cell,
+        summary.cluster_nx,
+        summary.cluster_ny,
+        g.cluster_orientation_bins,
+        g.cluster_radius,
+        g.cluster_angle_radius,
+        summary.shift_iterations,
+        summary.previous.copy() if use_previous and summary.has_previous else None,
+    )
+
+
+def summary_entropy(summary, poses, weights):
+    """`grid_entropy` on the entropy grid of `summary` (`mcl.summary.Summary`): the numpy twin of the filter's
+    entropy (`mcl.estimate.summary_entropy`). Returns (position bits, orientation bits)."""
+    g = summary.grid
+    return grid_entropy(
+        poses,
+        weights,
+        summary.x_min,
+        summary.y_min,
+        g.position_cell,
+        summary.entropy_nx,
+        summary.entropy_ny,
+        g.orientation_bins,
+    )
 
 
 def move_back(poses: np.ndarray, displacement) -> np.ndarray:

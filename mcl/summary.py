@@ -170,6 +170,8 @@ class Summary:
         If `grid` is not a `Grid`.
     """
 
+    shift_iterations = SHIFT_ITERATIONS  # the estimate's mean-shift steps (`mcl.reference.summary_estimate` reads it)
+
     def __init__(self, field: Field, grid: Grid, n: int, threads: int) -> None:
         if not isinstance(grid, Grid):
             raise ArgumentTypeError(f"grid = {grid!r} must be an mcl.Grid, not {type(grid).__name__}")

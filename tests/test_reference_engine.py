@@ -139,3 +139,25 @@ def test_bench_engines_refuses_bad_sizes(sizes, capsys):
         main(["--sizes", sizes])
     assert exit_info.value.code == 2
     assert "--sizes" in capsys.readouterr().err
+
+
+def test_the_numpy_twin_of_log_mean_likelihood_equals_the_kernel():
+    """`mcl.reference.log_mean_likelihood` (what the reference engine's weights take the frame's evidence by)
+    against the kernel, with particles of zero weight or likelihood among them and counts from 0 to N."""
+    from mcl import reference
+    from mcl.weights import log_mean_likelihood
+
+    rng = np.random.default_rng(3)
+    for trial in range(50):
+        n = int(rng.integers(1, 40))
+        log_weights = rng.normal(0.0, 2.0, n)
+        log_likelihood = rng.normal(-3.0, 2.0, n)
+        log_weights[rng.random(n) < 0.2] = -np.inf
+        log_likelihood[rng.random(n) < 0.2] = -np.inf
+        for count in (0, n // 2, n):
+            expected = log_mean_likelihood(log_weights, log_likelihood, count)
+            got = reference.log_mean_likelihood(log_weights, log_likelihood, count)
+            if expected == -np.inf:
+                assert got == -np.inf, (trial, count)
+            else:
+                assert got == pytest.approx(expected, rel=1e-12, abs=1e-12), (trial, count)
