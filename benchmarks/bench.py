@@ -23,7 +23,8 @@ medians taken; the machine may be busy with other work). JSON keys first, the --
   (NPY_DISABLE_CPU_FEATURES), alternated with processes with numpy as it is;
 - models [models]: LWPR update and predict (2 inputs), velocity-EKF predict and correct, and the README
   robot loop's calls at N = 500 (a frame without detections, predict alone, correct with a list of
-  detections, building a batch; the Localizer's frame and its latency-compensated observe), in µs;
+  detections, building a batch; the Localizer's frame, its latency-compensated observe, and a frame of a young
+  track with its rival places), in µs;
 - between_frames [frames]: the full step and the issue's step shape at N <= 1 000, one call after each 10 ms
   sleep (a 100 Hz loop: the caches as the time between frames leaves them), in µs;
 - bearing_accuracy [accuracy]: what the von Mises bearing term costs in accuracy (total-variation distance

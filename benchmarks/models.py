@@ -127,6 +127,23 @@ def time_robot_loop(budget_s: float = 0.3, n: int = 500) -> dict:
 
     for _ in range(10):  # a motion history to reach back into
         localizer_frame()
+
+    # A young track (`mcl.rivals`): after a reset over the own half, every frame also looks for rival places;
+    # a frame at 30 Hz, the track kept young (a re-localization's new track every 5 s).
+    young = Localizer(spl(), n_particles=n, seed=0)
+    young.anywhere_in_own_half()
+    young_clock = {"t": 0.0, "start": 0.0}
+
+    def young_frame():
+        young_clock["t"] += 1 / 30
+        young.motion(young_clock["t"], MotionInput(dt=1 / 30, odometry=(0.01, 0.0, 0.003)))
+        young.observe(batch, capture_time=young_clock["t"] - 0.03)
+        if young.rivals is not None and young_clock["t"] - young_clock["start"] > 5.0:
+            young.rivals.new_track(young_clock["t"])
+            young_clock["start"] = young_clock["t"]
+
+    for _ in range(30):
+        young_frame()
     timed = measure(
         {
             "frame": frame,
@@ -136,6 +153,7 @@ def time_robot_loop(budget_s: float = 0.3, n: int = 500) -> dict:
             "from_arrays": lambda: Observations.from_arrays(kinds, ranges, bearings),
             "localizer_frame": localizer_frame,
             "observe": lambda: localizer.observe(batch, capture_time=clock["t"] - 0.03),
+            "young": young_frame,
         },
         budget_s,
         min_samples=20,
@@ -150,6 +168,7 @@ def time_robot_loop(budget_s: float = 0.3, n: int = 500) -> dict:
         "from_arrays_us": us["from_arrays"],
         "localizer_frame_us": us["localizer_frame"],
         "localizer_observe_us": us["observe"],
+        "localizer_young_frame_us": us["young"],
         "method": "benchmarks.models.time_robot_loop: the README loop's calls, interleaved medians",
     }
 

@@ -533,6 +533,12 @@ def format_report(result: dict) -> str:
                 f"{loop['from_arrays_us']:.1f} µs; Localizer, walking: a frame (motion, pose, quality) "
                 f"{loop['localizer_frame_us']:.1f} µs, observe 3 detections 30 ms old "
                 f"{loop['localizer_observe_us']:.1f} µs"
+                + (
+                    f"; a frame of a young track (motion and observe, with its rival places) "
+                    f"{loop['localizer_young_frame_us']:.1f} µs"
+                    if "localizer_young_frame_us" in loop
+                    else ""
+                )
             )
         for key in ("lwpr_error", "ekf_error", "robot_loop_error"):
             if key in models:

@@ -57,6 +57,7 @@ import math
 from collections import Counter, deque
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
+from dataclasses import field as dataclass_field
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -73,6 +74,7 @@ from .filter import ParticleFilter
 from .latency import MotionHistory, compose, move_back
 from .particles import check_sigma
 from .relocalization import KIDNAP_AMBIGUITY
+from .rivals import RivalPoses, RivalSettings
 from .side import SideBelief, SideSettings, Team
 from .summary import Entropy, Estimate
 
@@ -151,6 +153,13 @@ class QualityThresholds:
         The side odds (`Localizer.side_log_odds`: the last re-localization's preference of its pose to the mirror
         pose, `SoccerRelocalization.mirror_log_odds`, plus the teammates' evidence) are at least these. A pose
         that meets the other limits of SUPERB or OKAY but not these odds is UNSURE_HALF.
+    superb_rival_odds, okay_rival_odds : float, default 10.0, 3.0
+        While the track is young (`mcl.rivals`), the estimate explains the recent frames at least this many
+        times better than any other place that explains them (`Localizer.rival_log_odds`); below
+        `okay_rival_odds` the pose is POOR, whatever else holds.
+    rivals : RivalSettings or None, default RivalSettings()
+        How a young track is checked against the other places that explain the same detections (`mcl.rivals`);
+        None: not checked (`Localizer.rival_log_odds` stays +inf).
     fit_window : float, default 1.5
         Seconds of detections the fit is taken over (> 0).
     gate : float, default 3.0
@@ -206,6 +215,8 @@ class QualityThresholds:
     # much at least (`SoccerRelocalization.mirror_log_odds`; the mirror
     # explains every detection as well, so nothing seen afterwards can)
     okay_mirror_odds: float = 3.0  # below these odds the pose is UNSURE_HALF (its mirror image too probable)
+    superb_rival_odds: float = 10.0  # a young track explains the frames this much better than any other place
+    okay_rival_odds: float = 3.0  # (`mcl.rivals`); below these odds the pose is POOR
     okay_fit: float = 0.4
     okay_age: float = 10.0  # s since the last explained detection, at most
     fit_window: float = 1.5  # s of detections the fit is taken over
@@ -223,9 +234,14 @@ class QualityThresholds:
     surprise_cap: float = 8.0  # the surprise is held at or below this
     explained_rate: float = 0.9  # share of the detections a right estimate explains ...
     wrong_rate: float = 0.3  # ... and a wrong one
+    rivals: RivalSettings | None = dataclass_field(default_factory=RivalSettings)  # how a young track meets its rivals
 
     def __post_init__(self) -> None:
+        if self.rivals is not None and not isinstance(self.rivals, RivalSettings):
+            raise ArgumentTypeError(f"rivals = {self.rivals!r} must be an mcl.rivals.RivalSettings or None")
         for name, value in self.__dict__.items():
+            if name == "rivals":
+                continue
             if isinstance(value, bool) or not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0):
                 raise ValueError(f"{name} = {value!r} must be a finite number >= 0")
         for name in ("superb_fit", "okay_fit", "superb_seen", "okay_seen"):
@@ -445,6 +461,9 @@ class Localizer:
         more than `mcl.relocalization.KIDNAP_AMBIGUITY` times as far) after a stretch in which they contradicted
         it (the surprise above `okay_surprise`): it was re-localized, and its mirror image is as plausible a
         continuation, so its side odds are capped as after a jump (`SideSettings.jump_cap`).
+    rival_log_odds : float
+        How much better (log odds) the estimate explained the frames than the best rival place, while its track
+        is young (`mcl.rivals`); +inf without a rival, outside that time, or with `rivals=None`.
     """
 
     def __init__(
@@ -514,6 +533,13 @@ class Localizer:
         self._side_sign = 1.0  # +1 while the main pose is the one the re-localization's odds were taken for
         self._side_pose: np.ndarray | None = None  # where the side evidence was last weighed
         self._relocalizations = self._relocalization_count()
+        self.rivals = None if quality.rivals is None else RivalPoses(quality.rivals, seed)
+        border = field.dims.border_strip_width
+        self._carpet = (-field.half_length - border, field.half_length + border) + (
+            -field.half_width - border,
+            field.half_width + border,
+        )
+        self.rival_log_odds = math.inf
 
     @classmethod
     def from_profile(cls, field: Field, profile: Any, **overrides: Any) -> Localizer:
@@ -569,6 +595,8 @@ class Localizer:
             self.filter.predict(u)
             self.history.record(t, u.dt, displacement)
             self._walked += math.hypot(displacement[0], displacement[1])
+            if self.rivals is not None:
+                self.rivals.moved(displacement)
             if self._contradicted_at is not None:
                 self._contradicted_at = compose(self._contradicted_at, displacement)
         self.time = t
@@ -806,6 +834,8 @@ class Localizer:
         if count != self._relocalizations:
             self._relocalizations = count
             self._side_sign = 1.0
+            if self.rivals is not None:
+                self.rivals.new_track(self._now())
         self._track_side()
 
     def _track_side(self) -> None:
@@ -961,6 +991,15 @@ class Localizer:
             self._walked = 0.0
         self.surprise = q.next_surprise(self.surprise, m, count)
         self._follow_contradiction()
+        if self.rivals is not None:
+            self.rival_log_odds = self.rivals.frame(
+                self.filter.sensor_model,
+                observations,
+                self.filter.estimate().pose,
+                since,
+                now,
+                self._carpet,
+            )
 
     def _follow_contradiction(self) -> None:
         """After a frame: when the surprise passes `okay_surprise`, keep where the estimate was; when it is back
@@ -1010,6 +1049,7 @@ class Localizer:
             and age <= q.superb_age
             and seen >= q.superb_seen
             and self.surprise <= q.superb_surprise
+            and self.rival_log_odds >= _log(q.superb_rival_odds)
         )
         if superb and side_log_odds >= _log(q.superb_mirror_odds):
             return Quality.SUPERB
@@ -1023,6 +1063,7 @@ class Localizer:
             and not fit < q.okay_fit
             and seen >= q.okay_seen
             and self.surprise <= q.okay_surprise
+            and self.rival_log_odds >= _log(q.okay_rival_odds)
         )
         if okay and side_log_odds >= _log(q.okay_mirror_odds):
             return Quality.OKAY
@@ -1130,8 +1171,9 @@ class Localizer:
         sigma : sequence of float, numpy.ndarray or None, default None
             Standard deviations (x [m], y [m], θ [rad]); None: `placement_sigma`.
         """
-        self.filter.reset_around(pose, self.placement_sigma if sigma is None else sigma)
-        self._after_reset()
+        sigma = self.placement_sigma if sigma is None else sigma
+        self.filter.reset_around(pose, sigma)
+        self._after_reset(np.asarray(pose, dtype=np.float64).reshape(1, 3), sigma)
 
     def fallen(self) -> None:
         """The robot fell: motion and the frames captured from now are ignored (and counted) until `got_up`."""
@@ -1170,9 +1212,11 @@ class Localizer:
 
     def _reset(self, poses, sigma) -> None:
         self.filter.reset_candidates(poses, sigma, region="own_half")
-        self._after_reset()
+        self._after_reset(np.asarray(poses, dtype=np.float64).reshape(-1, 3), sigma)
 
-    def _after_reset(self) -> None:
+    def _after_reset(self, poses: np.ndarray | None = None, sigma=None) -> None:
+        """After any reset; `poses` (K, 3) and `sigma` (x, y, θ): a reset around these candidates (None: over a
+        region), whose rivals can only lie within 3 σ of one of them."""
         self.side.moved()
         self._side_sign = 1.0
         self._side_pose = None
@@ -1181,6 +1225,10 @@ class Localizer:
         self.surprise = 0.0
         self._contradicted_at = None
         self.moved_unseen = False
+        if self.rivals is not None:
+            near = None if poses is None else (poses, 3.0 * float(max(np.asarray(sigma, dtype=np.float64)[:2])))
+            self.rivals.new_track(self.time, forget_frames=True, near=near)
+        self.rival_log_odds = math.inf
         self._last_explained = None
         self._walked = 0.0
         self._quality = None
