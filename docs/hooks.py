@@ -534,7 +534,11 @@ def acting_thresholds() -> str:
 
     from mcl.localizer import QualityThresholds
 
-    defaults = {f.name: f.default for f in dataclasses.fields(QualityThresholds)}
+    # a default made by a factory (the rival places' `RivalSettings`) is shown by its class's name
+    defaults = {
+        f.name: f.default if f.default is not dataclasses.MISSING else f"{f.default_factory.__name__}()"  # type: ignore[misc]
+        for f in dataclasses.fields(QualityThresholds)
+    }
     described = _threshold_help()
     rows = ["| limit | SUPERB | OKAY | meaning |", "|---|---|---|---|"]
     done = set()
@@ -550,7 +554,8 @@ def acting_thresholds() -> str:
             rows.append(f"| {stem} | {cells[0]} | {cells[1]} | {text} |")
         else:
             done.add(name)
-            rows.append(f"| {name} | `{name}` = {defaults[name]:g} (every level) | | {described.get(name, '')} |")
+            value = defaults[name] if isinstance(defaults[name], str) else f"{defaults[name]:g}"
+            rows.append(f"| {name} | `{name}` = {value} (every level) | | {described.get(name, '')} |")
     return "\n".join(rows)
 
 

@@ -517,6 +517,7 @@ class Localizer:
         self._poor_since: float | None = None
         self._quality: Quality | None = None
         self._frames: deque = deque()  # (capture time, detections, explained, expected in view, seen) per frame
+        self._frame_sums = [0, 0, 0, 0]  # the kept frames' detections, explained, expected in view, seen
         self._last_explained: float | None = None  # capture time of the last frame with an explained detection
         self._walked = 0.0  # m dead-reckoned since then (since the last reset, before the first one)
         self.surprise = 0.0
@@ -945,8 +946,8 @@ class Localizer:
     def fit(self) -> float:
         """The share of the detections of the last `fit_window` seconds that the estimate explained when they
         were scored (NaN when there were none)."""
-        seen = sum(frame[1] for frame in self._frames)
-        return sum(frame[2] for frame in self._frames) / seen if seen else math.nan
+        seen, explained = self._frame_sums[0], self._frame_sums[1]
+        return explained / seen if seen else math.nan
 
     @property
     def seen_share(self) -> float:
@@ -954,8 +955,8 @@ class Localizer:
         seconds that came with a view and at least one detection, the share that a detection of their type
         explained (NaN when none was expected). A frame without any detection is left out: a blind or covered
         camera says nothing about the pose."""
-        expected = sum(frame[3] for frame in self._frames)
-        return sum(frame[4] for frame in self._frames) / expected if expected else math.nan
+        expected, seen = self._frame_sums[2], self._frame_sums[3]
+        return seen / expected if expected else math.nan
 
     def _record_fit(self, observations: Observations, since, capture_time: float | None) -> None:
         """Score the frame against the estimate where it was at capture; keep `fit_window` seconds of frames."""
@@ -984,8 +985,11 @@ class Localizer:
             )
         now = capture_time if capture_time is not None else 0.0
         self._frames.append((now, m, count, expected, seen))
+        sums = self._frame_sums
+        sums[0], sums[1], sums[2], sums[3] = sums[0] + m, sums[1] + count, sums[2] + expected, sums[3] + seen
         while self._frames and self._frames[0][0] < now - q.fit_window:
-            self._frames.popleft()
+            old = self._frames.popleft()
+            sums[0], sums[1], sums[2], sums[3] = sums[0] - old[1], sums[1] - old[2], sums[2] - old[3], sums[3] - old[4]
         if count:
             self._last_explained = now
             self._walked = 0.0
@@ -1034,10 +1038,10 @@ class Localizer:
         now = self.time if self.time is not None else 0.0
         age = math.inf if self._last_explained is None else now - self._last_explained
         fit = self.fit
-        explained = sum(frame[2] for frame in self._frames)
+        explained = self._frame_sums[1]
         side_log_odds = self.side_log_odds
         # negative information, when frames came with their view: judged once enough landmarks were expected
-        expected = sum(frame[3] for frame in self._frames)
+        expected = self._frame_sums[2]
         seen = self.seen_share if expected >= q.view_expected else 1.0
         superb = (
             position_sigma <= q.superb_position
@@ -1222,6 +1226,7 @@ class Localizer:
         self._side_pose = None
         self._relocalizations = self._relocalization_count()
         self._frames.clear()
+        self._frame_sums = [0, 0, 0, 0]
         self.surprise = 0.0
         self._contradicted_at = None
         self.moved_unseen = False

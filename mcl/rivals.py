@@ -156,12 +156,12 @@ class RivalPoses:
         self.settings = settings
         self._rng = np.random.default_rng(seed)
         self._odometry = IDENTITY  # the robot's dead-reckoned pose in an odometry frame of its own
-        self._frames: deque = deque()  # (capture time, observations, odometry pose at capture)
+        self._frames: deque = deque()  # (capture time, observations, odometry pose on arrival, motion since capture)
         self._poses = np.empty((0, 3))  # the rivals, where they are at `_moved_to`
         self._moved_to = IDENTITY
         self._lead = np.empty(0)
         self._track_start: float | None = None
-        self._near: tuple[np.ndarray, float] | None = None
+        self._near: tuple[np.ndarray, float, tuple[float, float, float]] | None = None
 
     @property
     def log_odds(self) -> float:
@@ -176,10 +176,10 @@ class RivalPoses:
 
     def moved(self, displacement: tuple[float, float, float]) -> None:
         """The robot moved by `displacement` (dx, dy, dθ) in its own frame, by odometry."""
-        self._odometry = compose(self._odometry, displacement)
-        if self._near is not None:  # the reset's candidates move with the robot too
-            poses, radius = self._near
-            self._near = (poses, radius + math.hypot(displacement[0], displacement[1]))
+        x, y, theta = self._odometry  # `compose`, spelled out: once per motion step
+        c, s = math.cos(theta), math.sin(theta)
+        dx, dy = displacement[0], displacement[1]
+        self._odometry = (x + c * dx - s * dy, y + s * dx + c * dy, theta + displacement[2])
 
     def new_track(
         self, time: float | None, forget_frames: bool = False, near: tuple[np.ndarray, float] | None = None
@@ -189,7 +189,9 @@ class RivalPoses:
         near: (poses (K, 3), radius [m]) after a reset around candidate poses: a rival must lie within `radius` of
         one of them (a place the reset ruled out is no rival; a known pose has none); None: anywhere."""
         self._track_start = time
-        self._near = near
+        # a rival moves with the robot's odometry, so it stays within the robot's displacement since the reset
+        # of where it stood then (`_add`)
+        self._near = None if near is None else (near[0], near[1], self._odometry)
         self._poses, self._lead = np.empty((0, 3)), np.empty(0)
         if forget_frames:
             self._frames.clear()
@@ -208,8 +210,7 @@ class RivalPoses:
         if len(observations) == 0:
             return self.log_odds
         s = self.settings
-        at_capture = self._odometry if since is None else compose(self._odometry, _inverse(since))
-        self._frames.append((time, observations, at_capture))
+        self._frames.append((time, observations, self._odometry, since))  # the pose at capture when needed
         while self._frames and self._frames[0][0] < time - s.window:
             self._frames.popleft()
         if self._track_start is None:
@@ -219,7 +220,7 @@ class RivalPoses:
                 self._poses, self._lead = np.empty((0, 3)), np.empty(0)
             return math.inf
         estimate = np.asarray(estimate, dtype=np.float64).reshape(1, 3)
-        back = relative(self._odometry, at_capture)  # from now to the capture, in the robot frame
+        back = self._back(self._frames[-1])  # from now to the capture, in the robot frame
         estimate_ll = float(sensor_model.log_likelihood(displaced(estimate, back), observations)[0])
         if self._poses.shape[0]:
             self._poses = displaced(self._poses, relative(self._moved_to, self._odometry))
@@ -257,8 +258,10 @@ class RivalPoses:
             return np.empty((0, 3))
         return displaced(np.concatenate(parts).reshape(-1, 3), _inverse(back))
 
-    def _back(self, at_capture: tuple[float, float, float]) -> tuple[float, float, float]:
-        """Where the robot was at a capture, in its frame now."""
+    def _back(self, frame: tuple) -> tuple[float, float, float]:
+        """Where the robot was at a kept frame's capture, in its frame now."""
+        _, _, odometry, since = frame  # the odometry pose when the frame came, and the motion since its capture
+        at_capture = odometry if since is None else compose(odometry, _inverse(since))
         return relative(self._odometry, at_capture)
 
     def _apart(self, poses: np.ndarray, estimate: np.ndarray) -> np.ndarray:
@@ -279,7 +282,8 @@ class RivalPoses:
         )
         candidates = candidates[keep]
         if self._near is not None and candidates.shape[0]:
-            poses, radius = self._near
+            poses, radius, since = self._near
+            radius += math.hypot(self._odometry[0] - since[0], self._odometry[1] - since[1])
             gap = np.hypot(candidates[:, None, 0] - poses[None, :, 0], candidates[:, None, 1] - poses[None, :, 1])
             candidates = candidates[(gap <= radius).any(axis=1)]
         if candidates.shape[0] and self._poses.shape[0]:  # one rival per place
@@ -292,7 +296,7 @@ class RivalPoses:
         scores = np.zeros(candidates.shape[0])
         for _ in range(BORN_REFINE):  # drawn with the detections' noise: refined on their frame first
             candidates, scores = self._refine(
-                candidates, sensor_model, self._frames[-1][1], self._back(self._frames[-1][2])
+                candidates, sensor_model, self._frames[-1][1], self._back(self._frames[-1])
             )
         if candidates.shape[0] > self.settings.newborn:  # the best on their frame (the first of equals)
             candidates = candidates[np.argsort(-scores, kind="stable")[: self.settings.newborn]]
@@ -303,8 +307,8 @@ class RivalPoses:
             earlier = [earlier[int(i)] for i in np.linspace(0, len(earlier) - 1, WINDOW_FRAMES)]
         both = np.concatenate([candidates, estimate])
         lead = np.zeros(candidates.shape[0])
-        for _, observations, at_capture in earlier:
-            scores = np.asarray(sensor_model.log_likelihood(displaced(both, self._back(at_capture)), observations))
+        for frame in earlier:
+            scores = np.asarray(sensor_model.log_likelihood(displaced(both, self._back(frame)), frame[1]))
             lead += beyond_tolerance(scores[:-1] - scores[-1])
         self._poses = np.concatenate([self._poses, candidates])
         self._lead = np.concatenate([self._lead, lead])
