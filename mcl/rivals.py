@@ -36,10 +36,11 @@ from collections import deque
 from dataclasses import dataclass
 from typing import Any
 
+import numba
 import numpy as np
 
 from field import Field
-from field.angles import wrap_angles
+from field.angles import wrap_angle, wrap_angles
 from field.checks import ArgumentTypeError, reals
 from sensing.observations import Observations
 from sensing.resetting import poses_from_pairs
@@ -118,12 +119,36 @@ def relative(origin: tuple[float, float, float], pose: tuple[float, float, float
 
 
 def displaced(poses: np.ndarray, displacement: tuple[float, float, float]) -> np.ndarray:
-    """Each pose (N, 3) moved by `displacement` (dx, dy, dθ) in its own frame; headings wrapped."""
+    """Each pose (N, 3) moved by `displacement` (dx, dy, dθ) in its own frame; headings wrapped.
+
+    The headings' cosines and sines come from numpy, the rest from `displaced_kernel` (the same operations in the
+    same order as plain numpy: `displaced_reference`, bit for bit); a young track calls this some thirty times a
+    frame."""
+    poses = np.ascontiguousarray(poses, dtype=np.float64)
+    out = np.empty_like(poses)
+    dx, dy, dtheta = (float(v) for v in displacement)
+    displaced_kernel(poses, np.cos(poses[:, 2]), np.sin(poses[:, 2]), dx, dy, dtheta, out)
+    return out
+
+
+def displaced_reference(poses: np.ndarray, displacement: tuple[float, float, float]) -> np.ndarray:
+    """`displaced` in plain numpy."""
     c, s = np.cos(poses[:, 2]), np.sin(poses[:, 2])
     out = np.empty_like(poses)
     out[:, 0] = poses[:, 0] + c * displacement[0] - s * displacement[1]
     out[:, 1] = poses[:, 1] + s * displacement[0] + c * displacement[1]
     out[:, 2] = wrap_angles(poses[:, 2] + displacement[2])
+    return out
+
+
+@numba.njit(cache=True)
+def displaced_kernel(poses, cos, sin, dx, dy, dtheta, out):
+    """out[i] ← poses[i] moved by (dx, dy, dθ) in its own frame, given its heading's cos and sin; the heading
+    wrapped (`wrap_angle`). Returns out."""
+    for i in range(poses.shape[0]):
+        out[i, 0] = poses[i, 0] + cos[i] * dx - sin[i] * dy
+        out[i, 1] = poses[i, 1] + sin[i] * dx + cos[i] * dy
+        out[i, 2] = wrap_angle(poses[i, 2] + dtheta)
     return out
 
 
