@@ -4,8 +4,8 @@
     weights, log_total, ess = reference.normalize(log_weights)        # mcl.weights.normalize
     ancestors = reference.systematic(weights, m, rng)                  # mcl.resampling.systematic
 
-Each function computes what the kernel of the same name in `mcl.weights`, `mcl.resampling`, `mcl.estimate` or
-`mcl.latency` computes, with numpy's arrays: the same random draws in the same order, and the same results to
+Each function computes what the kernel of the same name in `mcl.weights`, `mcl.resampling`, `mcl.estimate`,
+`mcl.latency` or `mcl.rivals` computes, with numpy's arrays: the same random draws in the same order, and the same results to
 rounding (bit for bit where its docstring says so). The filter calls them only on its reference engine
 (`ParticleFilter(..., reference=True)`, `mcl.engine.ReferenceEngine`).
 """
@@ -197,3 +197,13 @@ def move_back(poses: np.ndarray, displacement) -> np.ndarray:
     theta = poses[:, 2] - dtheta
     c, s = sincos(theta)
     return np.column_stack([poses[:, 0] - (c * dx - s * dy), poses[:, 1] - (s * dx + c * dy), wrap_angles(theta)])
+
+
+def displaced(poses: np.ndarray, displacement) -> np.ndarray:
+    """Plain numpy twin of `mcl.rivals.displaced`: each pose moved by (dx, dy, dθ) in its own frame, bit for bit."""
+    c, s = np.cos(poses[:, 2]), np.sin(poses[:, 2])
+    out = np.empty_like(poses)
+    out[:, 0] = poses[:, 0] + c * displacement[0] - s * displacement[1]
+    out[:, 1] = poses[:, 1] + s * displacement[0] + c * displacement[1]
+    out[:, 2] = wrap_angles(poses[:, 2] + displacement[2])
+    return out

@@ -122,22 +122,12 @@ def displaced(poses: np.ndarray, displacement: tuple[float, float, float]) -> np
     """Each pose (N, 3) moved by `displacement` (dx, dy, dθ) in its own frame; headings wrapped.
 
     The headings' cosines and sines come from numpy, the rest from `displaced_kernel` (the same operations in the
-    same order as plain numpy: `displaced_reference`, bit for bit); a young track calls this some thirty times a
+    same order as its plain numpy twin, `mcl.reference.displaced`, bit for bit); a young track calls this some thirty times a
     frame."""
     poses = np.ascontiguousarray(poses, dtype=np.float64)
     out = np.empty_like(poses)
     dx, dy, dtheta = (float(v) for v in displacement)
     displaced_kernel(poses, np.cos(poses[:, 2]), np.sin(poses[:, 2]), dx, dy, dtheta, out)
-    return out
-
-
-def displaced_reference(poses: np.ndarray, displacement: tuple[float, float, float]) -> np.ndarray:
-    """`displaced` in plain numpy."""
-    c, s = np.cos(poses[:, 2]), np.sin(poses[:, 2])
-    out = np.empty_like(poses)
-    out[:, 0] = poses[:, 0] + c * displacement[0] - s * displacement[1]
-    out[:, 1] = poses[:, 1] + s * displacement[0] + c * displacement[1]
-    out[:, 2] = wrap_angles(poses[:, 2] + displacement[2])
     return out
 
 

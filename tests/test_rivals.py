@@ -13,8 +13,9 @@ from hypothesis import strategies as st
 
 from field import spl
 from field.checks import ArgumentTypeError
+from mcl import reference
 from mcl.localizer import Localizer, Quality, QualityThresholds
-from mcl.rivals import TOLERANCE, RivalPoses, RivalSettings, beyond_tolerance, displaced, displaced_reference, relative
+from mcl.rivals import TOLERANCE, RivalPoses, RivalSettings, beyond_tolerance, displaced, relative
 from motion_models import MotionInput
 from sensing import Observations
 from sensing.observations import LandmarkObservation
@@ -139,7 +140,7 @@ poses = st.tuples(st.floats(-5, 5), st.floats(-4, 4), st.floats(-math.pi, math.p
 @given(st.lists(poses, min_size=0, max_size=8), poses)
 def test_the_compiled_displacement_equals_plain_numpy_bit_for_bit(many, displacement):
     array = np.array(many, dtype=float).reshape(-1, 3)
-    assert displaced(array, displacement).tobytes() == displaced_reference(array, displacement).tobytes()
+    assert displaced(array, displacement).tobytes() == reference.displaced(array, displacement).tobytes()
 
 
 @given(poses, poses)
