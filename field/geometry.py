@@ -233,6 +233,17 @@ class Field:
         """Distance from the centre mark to a touchline's centre line, in metres."""
         return self.dims.width / 2.0
 
+    @property
+    def carpet(self) -> tuple[float, float, float, float]:
+        """The carpet's bounds (x_min, x_max, y_min, y_max) [m]: the field and its border strip."""
+        border = self.dims.border_strip_width
+        return (
+            -self.half_length - border,
+            self.half_length + border,
+            -self.half_width - border,
+            self.half_width + border,
+        )
+
     def landmarks_of(self, kind: LandmarkType | int | str) -> np.ndarray:
         """(K, 2) read-only positions of one landmark type.
 

@@ -535,11 +535,7 @@ class Localizer:
         self._side_pose: np.ndarray | None = None  # where the side evidence was last weighed
         self._relocalizations = self._relocalization_count()
         self.rivals = None if quality.rivals is None else RivalPoses(quality.rivals, seed)
-        border = field.dims.border_strip_width
-        self._carpet = (-field.half_length - border, field.half_length + border) + (
-            -field.half_width - border,
-            field.half_width + border,
-        )
+        self._carpet = field.carpet
         self.rival_log_odds = math.inf
 
     @classmethod

@@ -191,10 +191,7 @@ class RivalPoses:
 
     def moved(self, displacement: tuple[float, float, float]) -> None:
         """The robot moved by `displacement` (dx, dy, dθ) in its own frame, by odometry."""
-        x, y, theta = self._odometry  # `compose`, spelled out: once per motion step
-        c, s = math.cos(theta), math.sin(theta)
-        dx, dy = displacement[0], displacement[1]
-        self._odometry = (x + c * dx - s * dy, y + s * dx + c * dy, theta + displacement[2])
+        self._odometry = compose(self._odometry, displacement)
 
     def new_track(
         self, time: float | None, forget_frames: bool = False, near: tuple[np.ndarray, float] | None = None
@@ -242,7 +239,9 @@ class RivalPoses:
             self._poses, scores = self._refine(self._poses, sensor_model, observations, back)
             self._lead = self._lead + beyond_tolerance(scores - estimate_ll)
         self._moved_to = self._odometry
-        self._add(self._candidates(sensor_model, observations, back), estimate, sensor_model, carpet)
+        self._add(
+            self._candidates(sensor_model, observations, back), estimate, sensor_model, observations, back, carpet
+        )
         self._prune(estimate)
         return self.log_odds
 
@@ -286,7 +285,11 @@ class RivalPoses:
             np.hypot(poses[:, 0] - mirror[0], poses[:, 1] - mirror[1]) > s.mirror_apart
         )
 
-    def _add(self, candidates: np.ndarray, estimate: np.ndarray, sensor_model: Any, carpet) -> None:
+    def _add(
+        self, candidates: np.ndarray, estimate: np.ndarray, sensor_model: Any, observations: Observations, back, carpet
+    ) -> None:
+        """New rivals from this frame's `candidates` (its `observations`, captured `back` from now), scored over
+        the earlier frames."""
         x_min, x_max, y_min, y_max = carpet
         keep = (
             self._apart(candidates, estimate)
@@ -310,9 +313,7 @@ class RivalPoses:
             return
         scores = np.zeros(candidates.shape[0])
         for _ in range(BORN_REFINE):  # drawn with the detections' noise: refined on their frame first
-            candidates, scores = self._refine(
-                candidates, sensor_model, self._frames[-1][1], self._back(self._frames[-1])
-            )
+            candidates, scores = self._refine(candidates, sensor_model, observations, back)
         if candidates.shape[0] > self.settings.newborn:  # the best on their frame (the first of equals)
             candidates = candidates[np.argsort(-scores, kind="stable")[: self.settings.newborn]]
         # scored over the earlier frames (not the one they were drawn from), at most `WINDOW_FRAMES` of them

@@ -176,9 +176,7 @@ class Summary:
         if not isinstance(grid, Grid):
             raise ArgumentTypeError(f"grid = {grid!r} must be an mcl.Grid, not {type(grid).__name__}")
         self.grid = grid
-        border = field.dims.border_strip_width
-        self.x_min, self.x_max = -field.half_length - border, field.half_length + border
-        self.y_min, self.y_max = -field.half_width - border, field.half_width + border
+        self.x_min, self.x_max, self.y_min, self.y_max = field.carpet
         self.entropy_nx = max(1, math.ceil((self.x_max - self.x_min) / grid.position_cell))
         self.entropy_ny = max(1, math.ceil((self.y_max - self.y_min) / grid.position_cell))
         self.cluster_nx = max(1, math.ceil((self.x_max - self.x_min) / grid.cluster_cell))
