@@ -162,6 +162,9 @@ if part in ("filter", "all"):
     move_with_noise(poses, 0.01, 0.0, 0.01, 0.001, 0.001, 0.001, False, rng.random((len(poses), 3)))
     move_drawing_noise(poses, 0.01, 0.0, 0.01, 0.001, 0.001, 0.001, *bit_generator_handle(rng))
     skip_doubles(3, *bit_generator_handle(rng))
+    from mcl.rivals import displaced  # the localizer's rival places, carried along the odometry
+
+    displaced(poses, (0.1, 0.0, 0.05))
 
 if part in ("models", "all"):
     from motion_models.lwpr import LWPR
