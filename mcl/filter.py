@@ -68,6 +68,7 @@ import numpy as np
 from field import Field
 from field.checks import LARGEST_ANGLE, LARGEST_COORDINATE, ArgumentTypeError, integer, real, reals
 from motion_models.base import MotionInput, MotionModel
+from numerics.frozen import keeps_arrays_frozen
 from sensing.observations import Observations
 
 from .contracts import Relocalization, SensorModel, lacks
@@ -261,6 +262,7 @@ def _roughening(value: Any) -> np.ndarray:
     return array
 
 
+@keeps_arrays_frozen
 class ParticleFilter:
     """Monte Carlo localization: particles `poses` (N, 3) [x, y, θ] with `log_weights` (N,).
 

@@ -64,6 +64,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from field.checks import show as _short_repr
+from numerics.frozen import keeps_arrays_frozen
 from numerics.trig import SQRT3
 
 from .base import MotionInput, check_poses
@@ -195,6 +196,7 @@ def _raw_rms(X: np.ndarray, Y: np.ndarray) -> tuple[float, float, float]:
     return tuple(float(v) for v in np.sqrt(np.mean((Y - X[:, :3]) ** 2, axis=0)))  # type: ignore[return-value]
 
 
+@keeps_arrays_frozen
 @dataclass(frozen=True)
 class LinearStage:
     """A least-squares affine map of the inputs to the step: mean_out + ((x - mean_in) / scale_in) @ weights.

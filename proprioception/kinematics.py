@@ -33,6 +33,7 @@ import numba
 import numpy as np
 
 from field.checks import real, reals
+from numerics.frozen import keeps_arrays_frozen
 
 NAO_JOINT_NAMES = ("AnkleRoll", "AnklePitch", "KneePitch", "HipPitch", "HipRoll", "HipYawPitch")
 """Joint order of the NAO preset, foot → trunk (the NAOqi order, reversed); prefix L or R for the side."""
@@ -247,6 +248,7 @@ def _check_rotation(rotation: np.ndarray, name: str) -> None:
         raise ValueError(f"{name} must be a proper rotation matrix, got {rotation.tolist()}")
 
 
+@keeps_arrays_frozen
 @dataclass(frozen=True, eq=False)
 class LegChain:
     """A leg as a DH chain from the foot to the IMU link; see the module docstring for the frames.

@@ -72,6 +72,7 @@ from field.angles import TWO_PI, wrap_angle, wrap_angles
 from field.checks import LARGEST_SIGMA, SMALLEST_SIGMA, ArgumentTypeError, real
 from field.moved import moved_names
 from numerics.compile import variant
+from numerics.frozen import keeps_arrays_frozen
 from numerics.random import bounded_integers, draw_handles, draw_uniforms
 from numerics.trig import FAST, atan2_poly, moved_back, sincos, sincos_rows_as
 
@@ -845,6 +846,7 @@ def _log_bearing_constant(bearing_model: str, sigma: float) -> float:
     return _LOG_SQRT_TWO_PI_INV - math.log(sigma)
 
 
+@keeps_arrays_frozen
 @dataclass(frozen=True, eq=False)
 class LandmarkSensorModel:
     """Range-bearing landmark likelihood for a field. Frozen; parameters in SI units.

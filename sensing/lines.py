@@ -25,6 +25,7 @@ import numpy as np
 from field import Field
 from field.checks import LARGEST_SIGMA, SMALLEST_SIGMA, ArgumentTypeError, integer, real
 from field.moved import moved_names
+from numerics.frozen import keeps_arrays_frozen
 from numerics.trig import sincos
 
 from . import reference
@@ -80,6 +81,7 @@ MAX_CELLS = 2 * 10**7
 """The most cells a likelihood field may have (two float64 maps of this size: 320 MB)."""
 
 
+@keeps_arrays_frozen
 @dataclass(frozen=True, eq=False)
 class LineSensorModel:
     """Likelihood field of the field lines. sigma [m]: spread of a line point around its line.

@@ -36,6 +36,7 @@ import numpy as np
 from field import LandmarkType
 from field.checks import LARGEST_ANGLE, LARGEST_COORDINATE, LARGEST_SIGMA, SMALLEST_SIGMA, ArgumentTypeError, real
 from field.moved import moved_names
+from numerics.frozen import keeps_arrays_frozen
 
 from .view import CameraView
 
@@ -208,6 +209,7 @@ def _line_points(raw) -> np.ndarray:
     return points
 
 
+@keeps_arrays_frozen
 @dataclass(frozen=True, eq=False)
 class Observations:
     """One camera frame's detections as read-only arrays.

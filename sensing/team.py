@@ -39,6 +39,7 @@ from field.checks import (
     real,
     reals,
 )
+from numerics.frozen import keeps_arrays_frozen
 
 MAX_PLAYER_NUMBER = 20
 """The largest player number a message may carry (the leagues number players from 1)."""
@@ -87,6 +88,7 @@ def _optional_point(name: str, value: Any, low: float, high: float) -> tuple[flo
     return float(point[0]), float(point[1])
 
 
+@keeps_arrays_frozen
 @dataclass(frozen=True, eq=False)
 class TeamMessage:
     """What one teammate broadcasts, in field coordinates (its own belief: it may be wrong, even mirrored).

@@ -37,6 +37,7 @@ import numpy as np
 from field import LandmarkType
 from field.checks import LARGEST_ANGLE, LARGEST_COORDINATE, ArgumentTypeError, real
 from field.checks import show as _show
+from numerics.frozen import keeps_arrays_frozen
 
 OTHERS = "others"
 """The key of a `max_range` mapping that gives the range of every landmark type the mapping does not name."""
@@ -103,6 +104,7 @@ def parse_max_range(value: Any) -> float | tuple[float, ...]:
     return _range("max_range", value)
 
 
+@keeps_arrays_frozen
 @dataclass(frozen=True)
 class CameraView:
     """The camera's view for one frame, in the robot frame.

@@ -11,7 +11,7 @@ workers start.
 
 Parallel workers share the project's numba cache. Every process of the session takes numba's cache entries
 under a lock (`mcl.numba_cache.serialize_cache_access`), and before the workers start the controller compiles
-every kernel family once into that cache (tests/kernel_exercise.py, its two parts side by side, one per core),
+every kernel family once into that cache (tests/kernel_exercise.py, in two lanes side by side, one per core),
 so that the workers load those kernels instead of each compiling them. The exercise's reports are kept for
 tests/test_numba_cache.py (in the directory named by MCL_KERNEL_WARMUP), which checks them instead of compiling
 everything a second time when the warm-up started from an empty cache (a fresh clone, or sources changed since
@@ -35,7 +35,7 @@ from mcl.numba_cache import PACKAGES, guard_source_checkout, serialize_cache_acc
 
 ROOT = Path(__file__).resolve().parent.parent
 WARMUP_VARIABLE = "MCL_KERNEL_WARMUP"
-WARMUP_PARTS = ("filter", "models")
+WARMUP_PARTS = ("filter", "sensors,models")  # kernel_exercise.LANES: about equal compile times
 
 settings.register_profile(
     "ci", max_examples=60, deadline=None, derandomize=True, suppress_health_check=[HealthCheck.too_slow]
@@ -106,7 +106,7 @@ def pytest_configure(config):
         except subprocess.TimeoutExpired:
             process.kill()
             stdout, stderr = process.communicate()
-        (folder / f"{part}.json").write_text(
+        (folder / f"{part.replace(',', '+')}.json").write_text(
             json.dumps({"returncode": process.returncode, "stdout": stdout, "stderr": stderr[-20_000:]})
         )
     seconds = time.time() - started

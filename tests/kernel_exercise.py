@@ -1,7 +1,10 @@
 """Calls every cached kernel family of the project once through its public entry points, then prints a JSON
 report of the project's cached kernels: which compiled (or loaded), which have no cache index, which missed the
-cache. `python tests/kernel_exercise.py PART` with PART "filter" (the filter with its motion and sensor models),
-"models" (LWPR, the velocity EKF, the leg kinematics) or "all"; the two parts compile side by side.
+cache. `python tests/kernel_exercise.py PARTS` with PARTS "filter" (the walk demo, the fused step with each
+landmark bearing model and resampling scheme, the threaded step, the goal-direction model), "sensors" (the
+adaptive motion model, injection, the kernels public on their own), "models" (LWPR, the velocity EKF, the leg
+kinematics), a comma-separated list of them, or "all". "filter" and "sensors,models" take about as long to
+compile: the test session runs them side by side, one per core (tests/conftest.py, `WARMUP_PARTS`).
 
 tests/test_numba_cache.py runs it against an empty NUMBA_CACHE_DIR; the test session's controller runs it
 against the project's own cache before its parallel workers start (tests/conftest.py), so that the workers load
@@ -43,26 +46,19 @@ from motion_models import AdaptiveMotion, MotionInput, VelocityLinear
 from sensing import LandmarkSensorModel, Observations
 
 part = sys.argv[1]
+parts = {"filter", "sensors", "models"} if part == "all" else set(part.split(","))
 field = spl()
 rng = np.random.default_rng(0)
 observations = Observations.from_arrays(["goalpost", "goalpost"], [3.0, 4.0], [0.2, -0.3])
 
-if part in ("filter", "all"):
-    # The walk demo with field lines: velocity-linear, landmark and line likelihoods, normalize, augmented
-    # MCL, systematic resampling with roughening, estimate, entropy.
-    from demos.walk import main as walk_main
-    from mcl.estimate import cluster_estimate, grid_entropy
-    from mcl.filter import AugmentedMCL
-    from mcl.latency import move_back, move_forward
-    from mcl.resampling import SCHEMES, systematic_counted, systematic_with_jitter
-    from mcl.weights import log_mean_likelihood, normalize
-    from motion_models.kernels import move_drawing_noise, move_with_noise
-    from numerics.random import bit_generator_handle, skip_doubles
+from mcl.filter import AugmentedMCL
+from mcl.resampling import SCHEMES
 
-    with contextlib.redirect_stdout(io.StringIO()):
-        walk_main(["--duration", "0.5", "--particles", "60", "--lines", "--json"])
 
-    for bearing_model, mixture in (("von_mises", "max"), ("exact", "max"), ("exact", "sum")):
+def filters(bearings: tuple[tuple[str, str], ...]) -> ParticleFilter:
+    """A fused step and a correction with camera latency for each landmark bearing model and mixture and each
+    resampling scheme; returns the last filter."""
+    for bearing_model, mixture in bearings:
         for scheme in SCHEMES:
             pf = ParticleFilter(
                 field,
@@ -77,6 +73,17 @@ if part in ("filter", "all"):
             pf.step(MotionInput(dt=0.01, command=(0.2, 0.0, 0.1)), observations)
             pf.correct(observations, since=(0.05, 0.0, 0.02))  # camera latency: moved back (and forward)
             pf.estimate(), pf.entropy()
+    return pf
+
+
+if "filter" in parts:
+    # The walk demo with field lines: velocity-linear, landmark and line likelihoods, normalize, augmented
+    # MCL, systematic resampling with roughening, estimate, entropy.
+    from demos.walk import main as walk_main
+
+    with contextlib.redirect_stdout(io.StringIO()):
+        walk_main(["--duration", "0.5", "--particles", "60", "--lines", "--json"])
+    pf = filters((("von_mises", "max"), ("exact", "max"), ("exact", "sum")))
     if "threads" in inspect.signature(ParticleFilter).parameters:  # the chunked, multi-threaded variants
         for bearing_model in ("von_mises", "exact"):
             threaded = ParticleFilter(
@@ -92,6 +99,23 @@ if part in ("filter", "all"):
             threaded.estimate(), threaded.entropy()
         threaded.predict(MotionInput(dt=0.01, command=(0.2, 0.0, 0.1)))  # moved on threads alone
 
+    # A sensor model on the per-particle contract (`sensing.fused.per_particle_kernels`): its fused step,
+    # with camera latency, and its `log_likelihood`.
+    from sensing.goal_direction import GoalDirectionSensorModel
+
+    goals = Observations.from_arrays(["goalpost", "goalpost"], [4.0, 4.0], [0.3, -2.6])
+    goal_filter = ParticleFilter(field, VelocityLinear(), GoalDirectionSensorModel(field), n_particles=64, seed=5)
+    goal_filter.step(MotionInput(dt=0.01, command=(0.2, 0.0, 0.1)), goals)
+    goal_filter.correct(goals, since=(0.05, 0.0, 0.02))
+    goal_filter.sensor_model.log_likelihood(goal_filter.poses, goals)
+
+if "sensors" in parts:
+    from mcl.estimate import cluster_estimate, grid_entropy
+    from mcl.latency import move_back, move_forward
+    from mcl.resampling import systematic_counted, systematic_with_jitter
+    from mcl.weights import log_mean_likelihood, normalize
+    from motion_models.kernels import move_drawing_noise, move_with_noise
+    from numerics.random import bit_generator_handle, skip_doubles
     from proprioception.collision import CollisionPercept
 
     adaptive = ParticleFilter(field, AdaptiveMotion(), LandmarkSensorModel(field), n_particles=64, seed=2)
@@ -102,16 +126,6 @@ if part in ("filter", "all"):
     model = AdaptiveMotion()
     arguments = model.kernel_arguments(MotionInput(dt=0.01, command=(0.2, 0.0, 0.0), collision=percept))
     adaptive_move(adaptive.poses.copy(), model.particle_state(64), *arguments, rng.random((64, VARIATES)))
-
-    # A sensor model on the per-particle contract (`sensing.fused.per_particle_kernels`): its fused step,
-    # with camera latency, and its `log_likelihood`.
-    from sensing.goal_direction import GoalDirectionSensorModel
-
-    goals = Observations.from_arrays(["goalpost", "goalpost"], [4.0, 4.0], [0.3, -2.6])
-    goal_filter = ParticleFilter(field, VelocityLinear(), GoalDirectionSensorModel(field), n_particles=64, seed=5)
-    goal_filter.step(MotionInput(dt=0.01, command=(0.2, 0.0, 0.1)), goals)
-    goal_filter.correct(goals, since=(0.05, 0.0, 0.02))
-    goal_filter.sensor_model.log_likelihood(goal_filter.poses, goals)
 
     # Injection around a known pose (the relocalization's proposal: the single-detection sampler).
     injecting = ParticleFilter(
@@ -127,7 +141,7 @@ if part in ("filter", "all"):
 
     # Kernels that are public on their own (the tests compare them with their numpy twins) beside the fused
     # code the filter runs.
-    poses = pf.poses.copy()
+    poses = injecting.poses.copy()
     out = np.empty_like(poses)
     move_back(poses, np.array([0.1, 0.0, 0.05]), out)
     move_forward(poses, np.array([0.1, 0.0, 0.05]), out)
@@ -166,7 +180,7 @@ if part in ("filter", "all"):
 
     displaced(poses, (0.1, 0.0, 0.05))
 
-if part in ("models", "all"):
+if "models" in parts:
     from motion_models.lwpr import LWPR
     from proprioception.kinematics import nao_leg
     from proprioception.velocity import (

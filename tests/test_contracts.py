@@ -7,7 +7,9 @@ the same run. A contract a model is known to break is a strict xfail below, nami
 keeps it, the test says so.
 """
 
+import copy
 import math
+import pickle
 
 import numpy as np
 import pytest
@@ -448,3 +450,51 @@ def test_models_declared_by_an_installed_package_are_found(tmp_path, monkeypatch
     assert len(found) == 1 and found[0].source == "entry point team_models:odometry"
     reports = [r for r in mt.check_registered(FIELD, kind="motion", max_examples=5) if r.model.name == "team-odometry"]
     assert len(reports) == 1 and reports[0].fast_path["motion"]
+
+
+# -- copies ------------------------------------------------------------------------------------------------------
+def _array_types(value, path="", depth=0):
+    """numba's type of every numpy array reachable from `value` (attributes, tuples, lists, dicts), by path."""
+    import numba
+
+    if isinstance(value, np.ndarray):
+        return {path: numba.typeof(value)} if value.dtype != object else {}
+    if depth > 4:
+        return {}
+    if isinstance(value, (tuple, list)):
+        items = enumerate(value)
+    elif isinstance(value, dict):
+        items = value.items()
+    elif (
+        hasattr(value, "__dict__")
+        and not isinstance(value, type)
+        and type(value).__module__.split(".")[0]
+        in (
+            "field",
+            "sensing",
+            "motion_models",
+            "proprioception",
+            "mcl",
+        )
+    ):
+        items = vars(value).items()
+    else:
+        return {}
+    found = {}
+    for key, item in items:
+        found.update(_array_types(item, f"{path}.{key}", depth + 1))
+    return found
+
+
+COPIES = {"deepcopy": copy.deepcopy, "pickle": lambda value: pickle.loads(pickle.dumps(value))}
+
+
+@pytest.mark.parametrize("how", list(COPIES))
+@pytest.mark.parametrize("name", list(SENSOR_MODELS) + MOTION_MODELS)
+def test_a_copied_model_holds_arrays_of_the_same_types(name, how):
+    """A copy (deepcopy, pickle: a Ray task's arguments) keeps every read-only array read-only: its kernels are
+    those the original compiled, and a caller cannot change the copy's tables either."""
+    model = SENSOR_MODELS[name] if name in SENSOR_MODELS else motion_model(name)
+    types, copied = _array_types(model), _array_types(COPIES[how](model))
+    assert copied.items() <= types.items()  # (a model's memo of derived tables starts empty in a copy)
+    assert copied or not types

@@ -1,6 +1,7 @@
 import copy
 import math
 import pickle
+import sys
 from dataclasses import dataclass
 
 import numpy as np
@@ -274,6 +275,23 @@ def test_same_seed_same_run_bit_for_bit():
     assert not np.array_equal(a, c)
 
 
+def _signatures() -> dict[str, int]:
+    """How many compiled signatures each kernel of the filter's step has."""
+    from numba.core.registry import CPUDispatcher
+
+    modules = [
+        sys.modules[name]
+        for name in list(sys.modules)
+        if name.split(".")[0] in ("mcl", "sensing", "motion_models", "numerics")
+    ]
+    return {
+        f"{module.__name__}.{name}": len(kernel.signatures)
+        for module in modules
+        for name, kernel in list(vars(module).items())
+        if isinstance(kernel, CPUDispatcher)
+    }
+
+
 @pytest.mark.parametrize("adaptive", [False, True], ids=["velocity-linear", "adaptive"])
 @pytest.mark.parametrize(
     "clone", [copy.deepcopy, lambda pf: pickle.loads(pickle.dumps(pf))], ids=["deepcopy", "pickle"]
@@ -290,12 +308,15 @@ def test_a_copied_filter_steps_as_the_original(clone, adaptive):
         u = MotionInput(dt=0.033, command=(0.1, 0.05, 0.2))
         pf = make(200, seed=5)
     pf.step(u, detections(TRUE_POSE))
+    pf.step(u, detections(TRUE_POSE))  # (injection's kernels too)
     twin = clone(pf)
-    before = state(pf)
+    before, compiled = state(pf), _signatures()
     for _ in range(3):
         twin.step(u, detections(TRUE_POSE))
         twin.predict(u)
     assert same_state(state(pf), before)
+    # the copy's read-only arrays stayed read-only: its kernels are the original's, none compiled again
+    assert _signatures() == compiled
     for _ in range(3):
         pf.step(u, detections(TRUE_POSE))
         pf.predict(u)

@@ -24,7 +24,10 @@ import subprocess
 import sys
 from pathlib import Path
 
+from conftest import WARMUP_PARTS
+
 ROOT = Path(__file__).resolve().parents[1]
+LANES = WARMUP_PARTS  # the exercise's two lanes, side by side
 
 EXERCISE = Path(__file__).resolve().parent / "kernel_exercise.py"
 
@@ -72,7 +75,7 @@ def _session_warmup() -> tuple[list[dict], float] | None:
     session = _session()
     if session is None or not session["empty"]:
         return None
-    parts = [json.loads((session["folder"] / f"{part}.json").read_text()) for part in ("filter", "models")]
+    parts = [json.loads((session["folder"] / f"{lane.replace(',', '+')}.json").read_text()) for lane in LANES]
     return [_checked(part["returncode"], part["stdout"], part["stderr"]) for part in parts], session["started"]
 
 
@@ -111,7 +114,7 @@ def test_every_kernel_is_cached_and_found_again(tmp_path):
     warmup = _session_warmup()
     if warmup is None:
         before, cache = _sources(), tmp_path
-        parts = [_start(part, cache) for part in ("filter", "models")]  # side by side: two cores
+        parts = [_start(lane, cache) for lane in LANES]  # side by side: two cores
         reports = [_report(process) for process in parts]
     else:
         reports, started = warmup
