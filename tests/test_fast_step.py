@@ -602,6 +602,7 @@ def test_a_missing_landmark_type_is_rejected_before_anything_changes():
     sensor = LandmarkSensorModel(FIELD)
     offsets = sensor._offsets.copy()
     offsets[2:] -= offsets[2] - offsets[1]  # a field without L crossings (the later types' rows shift)
+    offsets.flags.writeable = False  # as the model holds it (a writable array would compile the kernels again)
     object.__setattr__(sensor, "_offsets", offsets)
     pf = make(sensor=sensor)
     pf.step(MotionInput(dt=0.01, command=(0.1, 0.0, 0.0)), detections(TRUE_POSE, np.random.default_rng(0)))
