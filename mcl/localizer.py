@@ -110,7 +110,8 @@ class Hypothesis:
     weight : float
         Its probability, in [0, 1]; the hypotheses' weights sum to at most 1.
     kind : str
-        "main" (the estimate), "mirror" (its point image: the same landmarks, the other half) or "other" (the
+        "main" (the estimate), "mirror" (its point image: the same landmarks, the other half), "rival" (another
+        place that explains the recent detections while the track is young, `mcl.rivals`) or "other" (the
         particles outside the main cluster, pooled).
     """
 
@@ -282,6 +283,7 @@ class QualityThresholds:
         return min(max(0.0, surprise + step), self.surprise_cap)
 
 
+HYPOTHESIS_SHARE = 0.05  # `Localizer.hypotheses` lists a rival or the pooled rest from this share of the weight
 TWIN_RADIUS = 1.0  # m: particles this close to the estimate's mirror image form its twin ...
 TWIN_HEADING = 0.8  # rad: ... and this close in heading
 
@@ -782,9 +784,13 @@ class Localizer:
 
     def hypotheses(self) -> list[Hypothesis]:
         """The main modes of the belief, most probable first: the estimate, its mirror image (the same
-        landmarks, the other half; weighed by `side_log_odds`), and the particles outside the estimate's
-        cluster pooled as one, when they hold at least 5 % of the weight. A behaviour that sees two
-        hypotheses of similar weight can act on it: look at the ball, ask the team.
+        landmarks, the other half; weighed by `side_log_odds`), while the track is young the rival places that
+        explain the recent detections too (`rivals`, weighed by their leads), and the particles outside the
+        estimate's cluster pooled as one. A rival and the pooled rest are listed from 5 % of the weight. A
+        behaviour that sees two hypotheses of similar weight can act on it: look at the ball, ask the team.
+
+        The estimate's cluster weight is shared by the estimate, its mirror image and the rivals in proportion
+        to their odds (a rival's covariance is the estimate's: the rivals are points that explain the frames).
 
         Returns
         -------
@@ -795,12 +801,18 @@ class Localizer:
         odds = self.side_log_odds
         main_share = 1.0 / (1.0 + math.exp(-odds)) if odds > -700 else 0.0
         mirror_pose = self.field.mirror_poses(estimate.pose[None])[0]
+        rival_poses, leads = self.rivals.poses if self.rivals is not None else (np.empty((0, 3)), np.empty(0))
+        rival_odds = np.exp(np.minimum(leads, 700.0))  # each rival against the estimate
+        cluster = estimate.weight / (1.0 + float(rival_odds.sum()))
         out = [
-            Hypothesis(estimate.pose.copy(), estimate.covariance.copy(), estimate.weight * main_share, "main"),
-            Hypothesis(mirror_pose, estimate.covariance.copy(), estimate.weight * (1.0 - main_share), "mirror"),
+            Hypothesis(estimate.pose.copy(), estimate.covariance.copy(), cluster * main_share, "main"),
+            Hypothesis(mirror_pose, estimate.covariance.copy(), cluster * (1.0 - main_share), "mirror"),
         ]
+        for pose, odds_against in zip(rival_poses, rival_odds):
+            if cluster * odds_against >= HYPOTHESIS_SHARE:
+                out.append(Hypothesis(pose, estimate.covariance.copy(), float(cluster * odds_against), "rival"))
         rest = 1.0 - estimate.weight
-        if rest >= 0.05:
+        if rest >= HYPOTHESIS_SHARE:
             poses, weights = self.filter.poses, self.filter.weights
             d2 = (poses[:, 0] - estimate.pose[0]) ** 2 + (poses[:, 1] - estimate.pose[1]) ** 2
             outside = d2 > 1.0

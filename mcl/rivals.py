@@ -185,9 +185,11 @@ class RivalPoses:
 
     @property
     def poses(self) -> tuple[np.ndarray, np.ndarray]:
-        """The rivals (R, 3) with their leads (R,) over the estimate, best first (a copy each)."""
+        """The rivals (R, 3), where they are now (carried along the odometry since the last frame), with their
+        leads (R,) over the estimate in log odds, best first (new arrays)."""
         order = np.argsort(-self._lead, kind="stable")
-        return self._poses[order].copy(), self._lead[order].copy()
+        now = displaced(self._poses, relative(self._moved_to, self._odometry)) if self._lead.size else self._poses
+        return now[order], self._lead[order].copy()
 
     def moved(self, displacement: tuple[float, float, float]) -> None:
         """The robot moved by `displacement` (dx, dy, dθ) in its own frame, by odometry."""

@@ -216,3 +216,28 @@ def test_without_rivals_or_once_old_the_quality_is_as_without_the_check():
         truth,
     )
     assert off == never
+
+
+def test_a_young_tracks_rival_is_a_hypothesis_weighed_by_its_odds():
+    posts = FIELD.landmarks_of("goalpost")
+    post = posts[np.argmax(posts[:, 0] + posts[:, 1])]
+    truth = np.array([post[0] - 1.5, post[1], 0.0])
+    wrong = np.array([post[0] - 1.5, -post[1], 0.0])
+    loc = Localizer(FIELD, n_particles=300, seed=0)
+    walk_in_front_of_a_goalpost(loc, wrong, truth, seconds=1.0)
+    hypotheses = loc.hypotheses()
+    rivals = [h for h in hypotheses if h.kind == "rival"]
+    main = next(h for h in hypotheses if h.kind == "main")
+    assert rivals and sum(h.weight for h in hypotheses) <= 1.0 + 1e-12
+    assert [h.weight for h in hypotheses] == sorted((h.weight for h in hypotheses), reverse=True)
+    # the rival stands where the frames cannot tell from the estimate: the other post's view
+    other = wrong if np.hypot(*(main.pose[:2] - truth[:2])) < 0.5 else truth
+    best = max(rivals, key=lambda h: h.weight)
+    assert np.hypot(*(best.pose[:2] - other[:2])) < 0.5
+    poses, leads = loc.rivals.poses
+    assert best.weight / main.weight == pytest.approx(
+        math.exp(leads[0]) / (1.0 / (1.0 + math.exp(-loc.side_log_odds))), rel=1e-9
+    )
+    off = Localizer(FIELD, n_particles=300, seed=0, quality=QualityThresholds(rivals=None))
+    walk_in_front_of_a_goalpost(off, wrong, truth, seconds=1.0)
+    assert all(h.kind != "rival" for h in off.hypotheses())
