@@ -47,6 +47,7 @@ from field import spl
 from mcl.localizer import Localizer, Quality, QualityThresholds
 from mcl.profile import Profile
 from mcl.relocalization import RelocalizationPrior, SoccerRelocalization
+from mcl.rivals import RivalSettings
 from mcl.tools.evaluation import (
     CONVERGED_HEADING,
     CONVERGED_POSITION,
@@ -86,6 +87,13 @@ def split_seeds(split: str, k: int) -> list[int]:
     return list(range(first, first + k))
 
 
+def quality_thresholds(values: dict) -> QualityThresholds:
+    """`QualityThresholds(**values)`, where a name "rivals.NAME" sets a number of its `RivalSettings`."""
+    rivals = {name.partition(".")[2]: v for name, v in values.items() if name.startswith("rivals.")}
+    own = {name: v for name, v in values.items() if not name.startswith("rivals.")}
+    return QualityThresholds(**own, **({"rivals": RivalSettings(**rivals)} if rivals else {}))
+
+
 def make_localizer(
     field,
     seed: int,
@@ -105,7 +113,13 @@ def make_localizer(
             RelocalizationPrior(**{**base.get("relocalization", {}), **prior})
         )
     if quality:
-        options["quality"] = QualityThresholds(**{**base.get("quality", {}), **quality})
+        options["quality"] = quality_thresholds(
+            {
+                **base.get("quality", {}),
+                **{f"rivals.{name}": value for name, value in base.get("rivals", {}).items()},
+                **quality,
+            }
+        )
     if sensor:
         options["sensor_model"] = LandmarkSensorModel(field, **{**base.get("sensor", {}), **sensor})
     options.update(n_particles=particles, seed=seed)
@@ -700,7 +714,13 @@ def format_comparison(base: dict, current: dict, split: str, names=("base", "cur
 def _overrides(parser, option: str, items: list[str], kind, build=None) -> dict:
     """NAME=VALUE strings as a dict of numbers, checked against the dataclass `kind`'s numeric fields by
     building one (`build(**values)`, default `kind(**values)`; exit 2 when wrong)."""
-    names = {f.name: f for f in fields(kind) if f.init and f.type in (int, float, "int", "float")}
+
+    def numbers(cls) -> dict:
+        return {f.name: f for f in fields(cls) if f.init and f.type in (int, float, "int", "float")}
+
+    names = numbers(kind)
+    if kind is QualityThresholds:  # and the numbers of its rivals' settings, as rivals.NAME
+        names.update({f"rivals.{name}": f for name, f in numbers(RivalSettings).items()})
     out: dict = {}
     for item in items:
         name, _, text = item.partition("=")
@@ -769,7 +789,8 @@ def build_parser(prog: str = PROG) -> argparse.ArgumentParser:
         action="append",
         default=[],
         metavar="NAME=VALUE",
-        help="a variant: set a field of mcl.localizer.QualityThresholds (repeatable)",
+        help="a variant: set a field of mcl.localizer.QualityThresholds, or rivals.NAME a number of its "
+        "mcl.rivals.RivalSettings (repeatable)",
     )
     parser.add_argument(
         "--sensor",
@@ -839,7 +860,9 @@ def main(argv: list[str] | None = None, prog: str = PROG) -> int:
     check_duration(parser, args.duration, 10.0)
     check_output_file(args.save, "--save", make_parents=False)  # before the battery runs, not after it
     prior = _overrides(parser, "--prior", args.prior, RelocalizationPrior)
-    quality = _overrides(parser, "--quality", args.quality, QualityThresholds)
+    quality = _overrides(
+        parser, "--quality", args.quality, QualityThresholds, lambda **values: quality_thresholds(values)
+    )
     sensor = _overrides(
         parser, "--sensor", args.sensor, LandmarkSensorModel, lambda **values: LandmarkSensorModel(spl(), **values)
     )

@@ -23,6 +23,7 @@ Its sections and settings (`SECTIONS`):
 | `[augmented]` | `mcl.filter.AugmentedMCL` (injection) | its averaging rates, thresholds and caps |
 | `[relocalization]` | `mcl.relocalization.RelocalizationPrior` | its scalar settings |
 | `[quality]` | `mcl.localizer.QualityThresholds` | every threshold |
+| `[rivals]` | `mcl.rivals.RivalSettings` (the quality's `rivals`) | its scalar settings (`young = 0`: no check) |
 
 For example:
 
@@ -57,6 +58,7 @@ from sensing import LandmarkSensorModel
 from .filter import MAX_PARTICLES, AugmentedMCL
 from .localizer import MAX_ODOMETRY_SCALE, Localizer, QualityThresholds
 from .relocalization import RelocalizationPrior, SoccerRelocalization
+from .rivals import RivalSettings
 
 if sys.version_info >= (3, 11):
     import tomllib
@@ -80,6 +82,7 @@ _CLASSES = {
     "augmented": AugmentedMCL,
     "relocalization": RelocalizationPrior,
     "quality": QualityThresholds,
+    "rivals": RivalSettings,
 }
 _TYPES = {"float": float, "int": int, "bool": bool, "str": str}
 
@@ -295,8 +298,11 @@ class Profile:
             options["augmented"] = AugmentedMCL(**s["augmented"])
         if "relocalization" in s:
             options["relocalization"] = SoccerRelocalization(RelocalizationPrior(**s["relocalization"]))
-        if "quality" in s:
-            options["quality"] = QualityThresholds(**s["quality"])
+        if "quality" in s or "rivals" in s:
+            quality = QualityThresholds(**s.get("quality", {}))
+            if "rivals" in s:
+                quality = dataclasses.replace(quality, rivals=RivalSettings(**s["rivals"]))
+            options["quality"] = quality
         return options
 
     def localizer(self, field: Field, **overrides: Any) -> Localizer:

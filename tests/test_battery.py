@@ -382,6 +382,8 @@ def test_command_line(capsys, tmp_path):
         ["--prior", "pool=0"],
         ["--quality", "gate=x"],
         ["--quality", "superb_fit=2"],
+        ["--quality", "rivals.nope=1"],
+        ["--quality", "rivals.young=-1"],
         ["--sensor", "detection_rate=1"],
         ["--sensor", "field=1"],
         ["--sensor", "bogus=0.1"],
@@ -496,3 +498,14 @@ def test_kidnap_mirror_odds_follow_the_simulators_own_law():
     assert fig["event"] == "kidnap" and "kidnap_log_odds" in fig
     summary = summarize_family([fig])
     assert sum(v["runs"] for v in summary["kidnap_odds"].values()) == 1
+
+
+def test_a_quality_variant_sets_the_rivals_numbers_by_dotted_name():
+    from demos.battery import make_localizer
+    from field import spl
+    from mcl.profile import Profile
+
+    loc = make_localizer(spl(), 0, 50, quality={"rivals.young": 2.0, "superb_rival_odds": 20.0})
+    assert loc.thresholds.rivals.young == 2.0 and loc.thresholds.superb_rival_odds == 20.0
+    profile = Profile({"rivals": {"keep": 4}})
+    assert make_localizer(spl(), 0, 50, quality={"rivals.young": 1.0}, profile=profile).thresholds.rivals.keep == 4

@@ -12,6 +12,7 @@ from hypothesis import strategies as st
 from field import LandmarkType, spl
 from mcl.localizer import Localizer
 from mcl.profile import SECTIONS, Profile, ProfileError, default_values
+from mcl.rivals import RivalSettings
 from motion_models import MotionInput
 from sensing import LandmarkSensorModel
 from sensing.observations import Observations
@@ -34,6 +35,8 @@ values = st.fixed_dictionaries(
         "odometry.scale_x": st.floats(0.5, 2.0),
         "augmented.fit_threshold": st.floats(0.0, 1.0),
         "quality.superb_detections": st.integers(1, 10),
+        "rivals.young": st.floats(0.0, 10.0),
+        "rivals.keep": st.integers(1, 32),
         "localizer.particles": st.integers(1, 2000),
         "localizer.compensate_latency": st.booleans(),
     },
@@ -61,6 +64,7 @@ def test_profile_sets_what_it_names_and_keeps_the_rest(tmp_path):
             "augmented.fit_threshold": 0.1,
             "relocalization.kidnap_share": 0.2,
             "quality.superb_fit": 0.6,
+            "rivals.young": 3.0,
         }
     ).save(path)
     loc = Localizer.from_profile(FIELD, Profile.load(path), seed=4)
@@ -71,6 +75,7 @@ def test_profile_sets_what_it_names_and_keeps_the_rest(tmp_path):
     assert loc.filter.poses.shape[0] == 123
     assert loc.filter.augmented.fit_threshold == 0.1
     assert loc.thresholds.superb_fit == 0.6
+    assert loc.thresholds.rivals.young == 3.0 and loc.thresholds.rivals.keep == RivalSettings().keep
     # an override wins over the profile
     assert Localizer.from_profile(FIELD, Profile.load(path), n_particles=50).filter.poses.shape[0] == 50
     with pytest.raises(TypeError, match="Profile.load"):
@@ -104,6 +109,7 @@ def test_an_empty_profile_is_the_defaults_bit_for_bit():
         ({"odometry": {"scale_x": 0.0}}, "odometry_scale"),
         ({"augmented": {"alpha_slow": 0.5, "alpha_fast": 0.1}}, "alpha_slow"),
         ({"sensor": 3}, "must be a table"),
+        ({"rivals": {"drop_odds": 0.5}}, "drop_odds"),
     ],
 )
 def test_a_wrong_profile_is_refused_in_one_line_naming_the_file(sections, words):
