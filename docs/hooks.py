@@ -457,7 +457,8 @@ ACTIONS = {
     "is_lost": "stop, turn the head and then the body to look around; tell the team; wait for a game event or "
     "for the quality to come back",
     "hypotheses": "when `mirror` weighs about as much as `main`, pick by the ball: the half where the own ball "
-    "sighting agrees with the teammates'; show both to the team",
+    "sighting agrees with the teammates'; when a `rival` does, look at the landmarks that tell the two apart; "
+    "show them to the team",
 }
 TEAM_COMMAND = "robocup-mcl eval --split both --seeds 20 --save results/eval_team.json"
 
