@@ -59,21 +59,21 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Iterable, Sequence
-from dataclasses import dataclass
 from operator import attrgetter
 from typing import Any, Generic, TypeVar, overload
 
 import numpy as np
 
 from field import Field
-from field.checks import LARGEST_ANGLE, LARGEST_COORDINATE, ArgumentTypeError, integer, real, reals
+from field.checks import ArgumentTypeError, integer, real
 from motion_models.base import MotionInput, MotionModel
 from numerics.frozen import keeps_arrays_frozen
 from sensing.observations import Observations
 
+from .augmented import AugmentedMCL, Injection
 from .contracts import Relocalization, SensorModel, lacks
 from .engine import Engine, ReferenceEngine
-from .latency import move_forward
+from .latency import check_since, move_forward
 from .particles import Particles, check_pose, check_poses, check_sigma
 from .relocalization import SoccerRelocalization, region_bounds
 from .resampling import SCHEMES
@@ -87,83 +87,6 @@ _MOVED = "; the particles moved by u (the prediction ran), their weights are unc
 MAX_PARTICLES = 10**7
 """The most particles a filter may have (about 2 GB of buffers); more is refused with a ValueError."""
 MAX_THREADS = 1024
-
-
-@dataclass(frozen=True)
-class AugmentedMCL:
-    """Augmented MCL parameters: averaging rates of w_slow and w_fast (0 < alpha_slow << alpha_fast <= 1).
-
-    Parameters
-    ----------
-    alpha_slow : float, default 0.002
-        Averaging rate of w_slow, the long-term average likelihood per detection.
-    alpha_fast : float, default 0.1
-        Averaging rate of w_fast, the short-term one (0 < alpha_slow < alpha_fast <= 1).
-    ratio_threshold : float, default 0.5
-        Inject 1 - (w_fast/w_slow)/ratio_threshold of the particles, in [0, 1]: only when the short-term fit
-        drops below this share of the long-term one (1.0 is plain augmented MCL).
-    fit_threshold : float, default 0.2
-        Also inject 1 - w_fast/fit_threshold when the fit is poor in absolute terms (sensor resetting),
-        >= 0; 0 switches it off.
-    max_fraction : float, default 0.25
-        Never replace more than this share of the particles at once, in [0, 1].
-    max_fraction_tracking : float, default 0.05
-        Nor more than this once the filter has been confident (the relocalization's `tracking`), in [0, 1].
-
-    Raises
-    ------
-    ValueError
-        If a value is out of its range (the comments below say why each default is what it is).
-    """
-
-    alpha_slow: float = 0.002
-    alpha_fast: float = 0.1
-    ratio_threshold: float = 0.5  # inject 1 - (w_fast/w_slow)/ratio_threshold of the particles: only
-    # when the short-term fit drops below this share of the long-term
-    # one (1.0 is plain augmented MCL, which reacts to every false
-    # positive in a frame with a single detection)
-    fit_threshold: float = 0.2  # also inject 1 - w_fast/fit_threshold when the fit is poor in absolute
-    # terms (sensor resetting, Lenser & Veloso 2000): a perfect match
-    # scores 1 per detection with sensing.LandmarkSensorModel. Below the
-    # 1st percentile of w_fast while tracking (0.29 over every frame of
-    # `robocup-mcl demo walk --seeds 0-9`), so it rarely fires then;
-    # 0 switches it off
-    max_fraction: float = 0.25  # never replace more than this share of the particles at once ...
-    max_fraction_tracking: float = 0.05  # ... nor more than this once the filter has been confident (the
-    # relocalization's `tracking`): a streak of false positives must not
-    # dissolve a correct cluster (at 25 % a frame, 90 % of it is gone in 8
-    # frames); the injected poses are chosen among many candidates for how
-    # well they explain the frame, so few are needed
-
-    def update(self, w_slow: float, w_fast: float, log_average: float) -> tuple[float, float, float]:
-        """w_slow and w_fast moved towards exp(log_average), the frame's average likelihood per detection (set
-        to it at the first frame, w_slow = 0), and the share of the particles to inject that they ask for."""
-        average = math.exp(log_average)
-        if w_slow == 0.0:
-            w_slow = w_fast = average
-        else:
-            w_slow += self.alpha_slow * (average - w_slow)
-            w_fast += self.alpha_fast * (average - w_fast)
-        relative = 1.0 - w_fast / (self.ratio_threshold * w_slow) if w_slow > 0 else 1.0
-        absolute = 1.0 - w_fast / self.fit_threshold if self.fit_threshold > 0 else 0.0
-        return w_slow, w_fast, max(0.0, relative, absolute)
-
-    def cap(self, tracking: bool) -> float:
-        """The largest share of the particles one correction may replace: `max_fraction_tracking` once the
-        filter has been confident (`tracking`), else `max_fraction`."""
-        return self.max_fraction_tracking if tracking else self.max_fraction
-
-    def __post_init__(self) -> None:
-        real("alpha_slow", self.alpha_slow)
-        real("alpha_fast", self.alpha_fast)
-        if not (0 < self.alpha_slow < self.alpha_fast <= 1):
-            raise ValueError(
-                f"alpha_slow = {self.alpha_slow!r}, alpha_fast = {self.alpha_fast!r}: "
-                "need 0 < alpha_slow < alpha_fast <= 1"
-            )
-        for name in ("max_fraction", "max_fraction_tracking", "ratio_threshold"):
-            real(name, getattr(self, name), 0.0, 1.0)
-        real("fit_threshold", self.fit_threshold, 0.0)
 
 
 T = TypeVar("T")
@@ -211,6 +134,23 @@ class _Setting(Generic[T]):
 
     def __set__(self, obj: object, value: Any) -> None:
         setattr(obj, self.slot, self.check(value))
+
+
+class _Linked(Generic[T]):
+    """An attribute of the filter that one of its parts keeps, found along `path` ("_injection.w_slow")."""
+
+    def __init__(self, path: str) -> None:
+        self.part, _, self.name = path.rpartition(".")
+
+    @overload
+    def __get__(self, obj: None, kind: type | None = None) -> _Linked[T]: ...
+    @overload
+    def __get__(self, obj: object, kind: type | None = None) -> T: ...
+    def __get__(self, obj, kind=None):
+        return self if obj is None else getattr(getattr(obj, self.part), self.name)
+
+    def __set__(self, obj: object, value: T) -> None:
+        setattr(getattr(obj, self.part), self.name, value)
 
 
 def _check_field_and_seed(field: object, n_particles: object, seed: object) -> None:
@@ -359,7 +299,7 @@ class ParticleFilter:
         self.augmented = augmented
         self.rng = np.random.default_rng(seed)
         self._summary = Summary(field, grid, int(n_particles), int(threads))
-        self.w_slow = self.w_fast = 0.0  # augmented MCL's long- and short-term average likelihoods
+        self._injection = Injection()  # augmented MCL's running averages
         self.frame_fit = self.frame_log_likelihood = math.nan  # the last correction's evidence (see above)
         self.ess = float(n_particles)
         self.resampled = False  # whether the last correction resampled
@@ -423,6 +363,11 @@ class ParticleFilter:
     roughening: _Setting[np.ndarray] = _Setting(_roughening)
     """The roughening's standard deviations (x [m], y [m], θ [rad]), read-only (may be replaced between steps by
     three finite numbers >= 0)."""
+    w_slow: _Linked[float] = _Linked("_injection.w_slow")
+    """Augmented MCL's long-term average likelihood per scored term (`mcl.augmented.Injection`; 0 after a
+    reset)."""
+    w_fast: _Linked[float] = _Linked("_injection.w_fast")
+    """Augmented MCL's short-term average likelihood per scored term."""
     _resampling: str  # the settings' checked values
     _resample_threshold: float
     _augmented: AugmentedMCL | None
@@ -600,7 +545,7 @@ class ParticleFilter:
     def _reset(self, poses: np.ndarray) -> None:
         """`_assign` for a reset: augmented MCL's averages start afresh too."""
         self._assign(poses)
-        self.w_slow = self.w_fast = 0.0
+        self._injection.restart()
 
     def _assign(self, poses: np.ndarray) -> None:
         """New poses with equal weights and fresh motion state; the estimate's hysteresis starts afresh."""
@@ -730,7 +675,7 @@ class ParticleFilter:
         """`since` checked before any kernel is prepared (a refusal changes nothing; the detections are checked
         first): None when the detections were captured now."""
         try:
-            return self._check_since(since)
+            return check_since(since)
         except ValueError:
             self.sensor_model.check(observations)
             raise
@@ -759,22 +704,6 @@ class ParticleFilter:
         """
         return self._engine.entropy()
 
-    @staticmethod
-    def _check_since(since) -> np.ndarray | None:
-        if since is None:
-            return None
-        if type(since) is tuple and len(since) == 3 and all(type(v) is float for v in since):
-            # `MotionHistory.since` gives three floats: checked without numpy's calls on a tiny array
-            if not (math.hypot(since[0], since[1]) <= LARGEST_COORDINATE and abs(since[2]) <= LARGEST_ANGLE):
-                return ParticleFilter._check_since(list(since))  # raises, naming the rule
-            return None if since == (0.0, 0.0, 0.0) else np.array(since)
-        array = reals("since", since, 3)
-        if math.hypot(array[0], array[1]) > LARGEST_COORDINATE or abs(array[2]) > LARGEST_ANGLE:
-            raise ValueError(
-                f"since = {since!r} must move at most {LARGEST_COORDINATE:g} m and turn at most {LARGEST_ANGLE:g} rad"
-            )
-        return None if not array.any() else array
-
     def _correct(self, observations: Observations, since: np.ndarray | None = None) -> None:
         """Weigh by the frame stage by stage: likelihood, weights, then resampling and injection if needed."""
         if observations.is_empty:
@@ -792,9 +721,8 @@ class ParticleFilter:
             return
         engine.reweigh(log_likelihood, log_evidence)
         self.ess = ess
-        fraction = 0.0
-        if self._augmented is not None:
-            fraction = self._update_augmented(native_log_average / terms) if terms > 0 else 0.0
+        a = self._augmented
+        fraction = self._injection.update(a, native_log_average / terms) if a is not None and terms > 0 else 0.0
         count = self._injection_count(fraction)
         if count > 0 or ess < self._resample_threshold * self._n:
             self._resample(count, observations, since)
@@ -822,19 +750,7 @@ class ParticleFilter:
         """[predict by `motion`,] correct(observations) [captured `since` ago] in the engine's fused step."""
         a = self._augmented
         terms = getattr(self.sensor_model, "terms", len)(observations)
-        if a is None:
-            augmented = (False, 0.0, 0.0, 1.0, 0.0, self.w_slow, self.w_fast, 0.0)
-        else:
-            augmented = (
-                True,
-                a.alpha_slow,
-                a.alpha_fast,
-                a.ratio_threshold,
-                a.fit_threshold,
-                self.w_slow,
-                self.w_fast,
-                a.cap(self.relocalization.tracking),
-            )
+        augmented = self._injection.kernel_arguments(a, self.relocalization.tracking)
         # Only an estimate the stages one by one compute (after a correction with augmentation, or at the end of
         # `step`) may be computed here: computing one moves the hysteresis anchor.
         want_estimate = in_step or a is not None
@@ -864,8 +780,7 @@ class ParticleFilter:
             return
         self.ess = outcome.ess
         if a is not None and terms > 0:
-            self.w_slow = outcome.w_slow
-            self.w_fast = outcome.w_fast
+            self._injection.w_slow, self._injection.w_fast = outcome.w_slow, outcome.w_fast
         if outcome.status == STEP_RESAMPLE:
             count = self._injection_count(outcome.fraction)
             if count > 0 and self._engine.resamples_fused(self._resampling):
@@ -891,27 +806,18 @@ class ParticleFilter:
 
     def _track_confidence(self) -> None:
         """Tell the relocalization what the correction left: the estimate, and whether the belief explains the
-        detections as well as it usually does (w_fast at least `ratio_threshold` of
-        w_slow: no injection asked for by a drop of the fit; an absolute level would depend on how noisy the
-        camera is)."""
+        detections as well as it usually does (`Injection.fits`)."""
         if self._augmented is None:
             return
         estimate = self.estimate()
-        if self.relocalization.confirm(estimate, self.w_fast >= self._augmented.ratio_threshold * self.w_slow):
+        if self.relocalization.confirm(estimate, self._injection.fits(self._augmented)):
             # The relocalization's prior puts the belief on the mirror side of the field, which the detections
             # cannot tell from this one (the field is point-symmetric): the particles go there, weights kept.
             self._mirror()
 
-    def _update_augmented(self, log_average: float) -> float:
-        """Update w_slow, w_fast with the per-detection average likelihood; return the injection share."""
-        assert self._augmented is not None  # called with augmented MCL on only
-        self.w_slow, self.w_fast, fraction = self._augmented.update(self.w_slow, self.w_fast, log_average)
-        return fraction
-
     def _injection_count(self, fraction: float) -> int:
         """How many particles to inject for the share `fraction`, within the cap (none without augmented MCL)."""
-        a = self._augmented
-        return 0 if a is None else int(round(min(fraction, a.cap(self.relocalization.tracking)) * self._n))
+        return Injection.count(self._augmented, fraction, self._n, self.relocalization.tracking)
 
     def _sample_injection(self, count: int, observations: Observations) -> np.ndarray:
         """`count` poses for augmented MCL to inject, as the relocalization proposes them (`propose`; a soccer

@@ -144,3 +144,28 @@ class MotionHistory:
             step = displacement if share == 1.0 else tuple(share * v for v in displacement)
             total = compose(total, step)
         return total
+
+
+def check_since(since) -> np.ndarray | None:
+    """A correction's `since` checked (`ParticleFilter.correct`): the robot's motion (dx, dy, dθ) from the
+    detections' capture to now, at most `LARGEST_COORDINATE` metres and `LARGEST_ANGLE` radians; None when it
+    is None or zero (captured now), else as an array.
+
+    Raises
+    ------
+    ValueError
+        If it is not three finite numbers, or moves or turns too far.
+    """
+    if since is None:
+        return None
+    if type(since) is tuple and len(since) == 3 and all(type(v) is float for v in since):
+        # `MotionHistory.since` gives three floats: checked without numpy's calls on a tiny array
+        if not (math.hypot(since[0], since[1]) <= LARGEST_COORDINATE and abs(since[2]) <= LARGEST_ANGLE):
+            return check_since(list(since))  # raises, naming the rule
+        return None if since == (0.0, 0.0, 0.0) else np.array(since)
+    array = reals("since", since, 3)
+    if math.hypot(array[0], array[1]) > LARGEST_COORDINATE or abs(array[2]) > LARGEST_ANGLE:
+        raise ValueError(
+            f"since = {since!r} must move at most {LARGEST_COORDINATE:g} m and turn at most {LARGEST_ANGLE:g} rad"
+        )
+    return None if not array.any() else array

@@ -20,7 +20,7 @@ Its sections and settings (`SECTIONS`):
 | `[odometry]` | `Localizer`'s `odometry_scale` | `scale_x`, `scale_y`, `scale_theta` |
 | `[motion]` | the motion model | `model` ("velocity-linear" or "constant") and that model's numbers |
 | `[sensor]` | `sensing.LandmarkSensorModel` | its noise, outlier floor, mixture and negative information |
-| `[augmented]` | `mcl.filter.AugmentedMCL` (injection) | its averaging rates, thresholds and caps |
+| `[augmented]` | `mcl.augmented.AugmentedMCL` (injection) | its averaging rates, thresholds and caps |
 | `[relocalization]` | `mcl.relocalization.RelocalizationPrior` | its scalar settings |
 | `[quality]` | `mcl.localizer.QualityThresholds` | every threshold |
 | `[rivals]` | `mcl.rivals.RivalSettings` (the quality's `rivals`) | its scalar settings (`young = 0`: no check) |
@@ -55,7 +55,8 @@ from field import Field, spl
 from motion_models import ConstantNoise, VelocityLinear
 from sensing import LandmarkSensorModel
 
-from .filter import MAX_PARTICLES, AugmentedMCL
+from .augmented import AugmentedMCL
+from .filter import MAX_PARTICLES
 from .localizer import MAX_ODOMETRY_SCALE, Localizer, QualityThresholds
 from .relocalization import RelocalizationPrior, SoccerRelocalization
 from .rivals import RivalSettings

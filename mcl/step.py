@@ -74,7 +74,7 @@ STEP_DONE, STEP_MISSING, STEP_INVALID, STEP_UNEXPLAINED, STEP_RESAMPLE = range(5
 
 @numba.njit(cache=True)
 def augmented_update(w_slow, w_fast, log_average, alpha_slow, alpha_fast, ratio_threshold, fit_threshold):
-    """`ParticleFilter._update_augmented` in compiled code: (w_slow, w_fast, injection share)."""
+    """`mcl.augmented.AugmentedMCL.update` in compiled code: (w_slow, w_fast, injection share)."""
     average = math.exp(log_average)
     if w_slow == 0.0:
         w_slow = w_fast = average
@@ -326,7 +326,7 @@ def compiled_step(particles, motion, draws, sensor, weighting, resampling, summa
         w_slow, w_fast, fraction = augmented_update(
             w_slow, w_fast, native / terms, alpha_slow, alpha_fast, ratio_threshold, fit_threshold
         )
-    # `_injection_count`: round(min(fraction, cap)·N) > 0, i.e. the product exceeds one half.
+    # `Injection.count`: round(min(fraction, cap)·N) > 0, i.e. the product exceeds one half.
     inject = augmented and (cap if cap < fraction else fraction) * n > 0.5
     resample = ess < resample_threshold * n
     if inject or (resample and not can_resample):

@@ -19,6 +19,7 @@ from benchmarks.reference import PHASES, compiled_phases, full_step, sample_inje
 from benchmarks.step import COLLISION
 from field import spl
 from mcl import AugmentedMCL, Entropy, Estimate, ParticleFilter
+from mcl.augmented import Injection
 from mcl.contracts import fused_kernels
 from mcl.engine import Engine
 from mcl.estimate import cluster_estimate, grid_entropy
@@ -626,21 +627,19 @@ def test_a_missing_landmark_type_is_rejected_before_anything_changes():
 def test_augmented_update_in_compiled_code_equals_the_python_method(
     w_slow, w_fast, log_average, alpha_slow, alpha_fast, ratio, fit
 ):
-    pf = make(
-        augmented=AugmentedMCL(
-            alpha_slow=alpha_slow,
-            alpha_fast=max(alpha_fast, alpha_slow * 1.01),
-            ratio_threshold=ratio,
-            fit_threshold=fit,
-        )
+    a = AugmentedMCL(
+        alpha_slow=alpha_slow,
+        alpha_fast=max(alpha_fast, alpha_slow * 1.01),
+        ratio_threshold=ratio,
+        fit_threshold=fit,
     )
-    pf.w_slow, pf.w_fast = w_slow, w_fast
-    a = pf.augmented
+    injection = Injection()
+    injection.w_slow, injection.w_fast = w_slow, w_fast
     compiled = augmented_update(
         w_slow, w_fast, log_average, a.alpha_slow, a.alpha_fast, a.ratio_threshold, a.fit_threshold
     )
-    fraction = pf._update_augmented(log_average)
-    assert compiled == (pf.w_slow, pf.w_fast, fraction)
+    fraction = injection.update(a, log_average)
+    assert compiled == (injection.w_slow, injection.w_fast, fraction)
 
 
 # -- the opt-in variants ----------------------------------------------------------------------------------------
