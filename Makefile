@@ -36,12 +36,13 @@ lock:
 demo: $(STAMP)
 	$(VENV)/bin/robocup-mcl demo walk --rrd recordings/walk.rrd
 
-# Parallel workers, one per core (TEST_WORKERS=0: one process); tests/conftest.py compiles the kernels once
-# before the workers start. The tests run in a loopback-only network namespace where the machine can make one
+# Parallel workers, one per core (TEST_WORKERS=0: one process), a worker that runs out of tests taking some of
+# the other's (a few tests take tens of seconds); tests/conftest.py compiles the kernels once before the workers
+# start. The tests run in a loopback-only network namespace where the machine can make one
 # (tests/loopback_only.sh).
 TEST_WORKERS ?= auto
 test: $(STAMP)
-	sh tests/loopback_only.sh $(PY) -m pytest -n $(TEST_WORKERS)
+	sh tests/loopback_only.sh $(PY) -m pytest -n $(TEST_WORKERS) $(if $(filter 0,$(TEST_WORKERS)),,--dist worksteal)
 
 # Formats the code with ruff ([tool.ruff.format] in pyproject.toml); `make test` lints it (tests/test_lint.py).
 format: $(STAMP)
