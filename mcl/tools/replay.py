@@ -813,24 +813,20 @@ def warm_up_replay(
     from mcl.numba_cache import filter_kernels, filter_stages, warm_up
 
     times, inputs = motion_events(log)
-    localizer = Localizer(
-        field,
-        MODELS[model](),
-        n_particles=WARM_UP_PARTICLES,
-        seed=0,
-        history=history,
-        compensate_latency=compensate_latency,
-    )
-    localizer.filter.reset_uniform("own_half")
-    follower = Localizer(
-        field,
-        MODELS[model](),
-        n_particles=WARM_UP_PARTICLES,
-        seed=0,
-        history=history,
-        compensate_latency=compensate_latency,
-    )
-    follower.filter.reset_uniform("own_half")
+
+    def fresh() -> Localizer:
+        made = Localizer(
+            field,
+            MODELS[model](),
+            n_particles=WARM_UP_PARTICLES,
+            seed=0,
+            history=history,
+            compensate_latency=compensate_latency,
+        )
+        made.filter.reset_uniform("own_half")
+        return made
+
+    localizer, follower = fresh(), fresh()
     frames = [frame for frame in log.vision if len(frame.observations) > 0]
     stages = filter_stages(localizer.filter, inputs[0], frames[0].observations) if frames else []
 
