@@ -5,8 +5,8 @@
     ancestors = reference.systematic(weights, m, rng)                  # mcl.resampling.systematic
 
 Each function computes what the kernel of the same name in `mcl.weights`, `mcl.resampling`, `mcl.estimate`,
-`mcl.latency` or `mcl.rivals` computes, with numpy's arrays: the same random draws in the same order, and the same results to
-rounding (bit for bit where its docstring says so). The filter calls them only on its reference engine
+`mcl.latency` or `mcl.rivals` computes, with numpy's arrays: the same random draws in the same order, and the
+same results to rounding (bit for bit where its docstring says so). The filter calls them only on its reference engine
 (`ParticleFilter(..., reference=True)`, `mcl.engine.ReferenceEngine`).
 """
 

@@ -571,16 +571,8 @@ class Recorder:
             rr.LineStrips2D([circle], colors=[(230, 230, 230)], radii=self.field.dims.line_width / 2),
             static=True,
         )
-        hl, hw, border = self.field.half_length, self.field.half_width, self.field.dims.border_strip_width
-        carpet = np.array(
-            [
-                [-hl - border, -hw - border],
-                [hl + border, -hw - border],
-                [hl + border, hw + border],
-                [-hl - border, hw + border],
-                [-hl - border, -hw - border],
-            ]
-        )
+        x_min, x_max, y_min, y_max = self.field.carpet
+        carpet = np.array([[x_min, y_min], [x_max, y_min], [x_max, y_max], [x_min, y_max], [x_min, y_min]])
         log("field/carpet", rr.LineStrips2D([carpet], colors=[(20, 110, 40)], radii=0.02), static=True)
         for kind in LandmarkType:
             points = np.array(self.field.landmarks_of(kind))

@@ -41,8 +41,8 @@ def _carpet(field: Field, margin: float = 0.0) -> tuple[float, float, float, flo
         isinstance(margin, (int, float)) and not isinstance(margin, bool) and math.isfinite(margin) and margin >= 0
     ):
         raise ValueError(f"margin = {margin!r} must be a finite number >= 0 (metres)")
-    border = field.dims.border_strip_width
-    half_x, half_y = field.half_length + border - margin, field.half_width + border - margin
+    _, x_max, _, y_max = field.carpet
+    half_x, half_y = x_max - margin, y_max - margin
     if half_x <= 0 or half_y <= 0:
         raise ValueError(f"margin = {margin!r} leaves nothing of the carpet of field {field.name!r}")
     return -half_x, half_x, -half_y, half_y
