@@ -537,7 +537,6 @@ class Localizer:
         self._side_pose: np.ndarray | None = None  # where the side evidence was last weighed
         self._relocalizations = self._relocalization_count()
         self.rivals = None if quality.rivals is None else RivalPoses(quality.rivals, seed)
-        self._carpet = field.carpet
         self.rival_log_odds = math.inf
 
     @classmethod
@@ -1010,7 +1009,7 @@ class Localizer:
                 self.filter.estimate().pose,
                 since,
                 now,
-                self._carpet,
+                self.field,
             )
 
     def _follow_contradiction(self) -> None:

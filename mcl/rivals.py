@@ -217,10 +217,11 @@ class RivalPoses:
         estimate: np.ndarray,
         since: tuple[float, float, float] | None,
         time: float,
-        carpet: tuple[float, float, float, float],
+        field: Field,
     ) -> float:
         """A frame captured at `time` (`since`: the robot's displacement from the capture to now, None: none),
-        scored after the correction whose estimate (x, y, θ) is now `estimate`. Returns `log_odds`."""
+        scored after the correction whose estimate (x, y, θ) is now `estimate`; new rivals only on `field`'s
+        carpet. Returns `log_odds`."""
         if len(observations) == 0:
             return self.log_odds
         s = self.settings
@@ -241,9 +242,7 @@ class RivalPoses:
             self._poses, scores = self._refine(self._poses, sensor_model, observations, back)
             self._lead = self._lead + beyond_tolerance(scores - estimate_ll)
         self._moved_to = self._odometry
-        self._add(
-            self._candidates(sensor_model, observations, back), estimate, sensor_model, observations, back, carpet
-        )
+        self._add(self._candidates(sensor_model, observations, back), estimate, sensor_model, observations, back, field)
         self._prune(estimate)
         return self.log_odds
 
@@ -288,19 +287,11 @@ class RivalPoses:
         )
 
     def _add(
-        self, candidates: np.ndarray, estimate: np.ndarray, sensor_model: Any, observations: Observations, back, carpet
+        self, candidates: np.ndarray, estimate: np.ndarray, sensor_model: Any, observations: Observations, back, field
     ) -> None:
         """New rivals from this frame's `candidates` (its `observations`, captured `back` from now), scored over
         the earlier frames."""
-        x_min, x_max, y_min, y_max = carpet
-        keep = (
-            self._apart(candidates, estimate)
-            & (candidates[:, 0] >= x_min)
-            & (candidates[:, 0] <= x_max)
-            & (candidates[:, 1] >= y_min)
-            & (candidates[:, 1] <= y_max)
-        )
-        candidates = candidates[keep]
+        candidates = candidates[self._apart(candidates, estimate) & field.contains(candidates[:, :2])]
         if self._near is not None and candidates.shape[0]:
             poses, radius, since = self._near
             radius += math.hypot(self._odometry[0] - since[0], self._odometry[1] - since[1])

@@ -21,7 +21,6 @@ from sensing import Observations
 from sensing.observations import LandmarkObservation
 
 FIELD = spl()
-CARPET = (-5.2, 5.2, -3.7, 3.7)
 FRAME = Observations.coerce([LandmarkObservation("goalpost", 1.5, 0.0)])
 HERE = np.array([-2.0, 1.0, 0.0])  # the estimate
 THERE = np.array([-2.0, -1.5, 0.5])  # another place
@@ -49,7 +48,7 @@ class Places:
 
 def run_frames(rivals, model, frames, dt=1 / 30, estimate=HERE, start=0.0):
     for k in range(frames):
-        log_odds = rivals.frame(model, FRAME, estimate, None, start + k * dt, CARPET)
+        log_odds = rivals.frame(model, FRAME, estimate, None, start + k * dt, FIELD)
     return log_odds
 
 
