@@ -6,6 +6,11 @@ STAMP  := $(VENV)/.installed
 
 .PHONY: demo test docs fuzz bench ros clean lock format
 
+# Python keeps the bytecode of what it imports (__pycache__), even where the environment says not to
+# (PYTHONDONTWRITEBYTECODE): a test run starts many Python processes (the workers, Ray's workers, the command line
+# under test), and without the caches each of them compiles every module it imports from source again.
+unexport PYTHONDONTWRITEBYTECODE
+
 $(PY):
 	$(PYTHON) -m venv $(VENV)
 

@@ -30,7 +30,8 @@ import hashlib
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
-PACKAGES = ("field", "numerics", "motion_models", "sensing", "mcl", "demos", "benchmarks")
+PACKAGES = ("field", "numerics", "motion_models", "sensing", "proprioception", "mcl", "demos", "benchmarks")
+"""The project's packages that hold cached kernels (tests/test_numba_cache.py checks that none is missing)."""
 SOURCES_STAMP = ".numba-sources"
 
 

@@ -23,7 +23,7 @@ import warnings
 
 from numba.core.errors import NumbaWarning
 
-from mcl.numba_cache import serialize_cache_access
+from mcl.numba_cache import PACKAGES, serialize_cache_access
 
 serialize_cache_access()  # other processes may share the cache (the test session's workers)
 
@@ -32,7 +32,6 @@ warnings.filterwarnings("error", message=".*cach", category=NumbaWarning)
 
 import numpy as np
 
-PACKAGES = ("field", "numerics", "sensing", "motion_models", "mcl", "demos", "benchmarks")
 modules = []
 for package_name in PACKAGES:
     package = importlib.import_module(package_name)

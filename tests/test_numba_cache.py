@@ -267,3 +267,21 @@ def test_the_cache_lock_is_taken_on_the_cache_directory(tmp_path, monkeypatch):
     cache.save(("sig",), {"data": 1})
     assert cache.load(("sig",)) == {"data": 1}
     assert taken == [(str(tmp_path), fcntl.LOCK_EX), (str(tmp_path), fcntl.LOCK_SH)]
+
+
+def test_every_package_with_cached_kernels_is_guarded():
+    """The staleness guard and the kernel exercise cover every package of the project that caches a kernel: a
+    package left out of `mcl.numba_cache.PACKAGES` would keep its callers' old machine code after an edit, and
+    its kernels would go unchecked by the test above."""
+    from mcl.numba_cache import PACKAGES, ROOT
+
+    caching = {
+        path.relative_to(ROOT).parts[0]
+        for path in ROOT.glob("*/**/*.py")
+        if path.relative_to(ROOT).parts[0] not in {"tests", "build", "site", "docs"}
+        and not path.relative_to(ROOT).parts[0].startswith(".")
+        and (ROOT / path.relative_to(ROOT).parts[0] / "__init__.py").exists()
+        and "cache=True" in path.read_text(encoding="utf-8")
+    }
+    assert "proprioception" in caching and "mcl" in caching
+    assert caching <= set(PACKAGES), f"packages with cached kernels missing from PACKAGES: {caching - set(PACKAGES)}"
