@@ -78,21 +78,17 @@ def log_mean_likelihood(log_weights, log_likelihood, count):
     return peak_joint + math.log(joint) - peak_prior - math.log(prior)
 
 
-@numba.njit(cache=True, inline="always")
-def _peaks(log_weights, log_likelihood, count):
-    """One scan for `weigh`: (valid, peak over all candidates log_weights + log_likelihood, peak over the first
-    `count` candidates, peak of the first `count` log-weights, whether those log-weights are all equal).
-    valid is False at the first NaN or +inf log-likelihood."""
-    n = log_weights.shape[0]
-    peak = -np.inf
-    peak_joint = -np.inf
-    peak_prior = -np.inf
-    equal_prior = True
-    first = log_weights[0] if n > 0 else 0.0
-    for i in range(n):
+@numba.njit(cache=True)
+def _scan(log_weights, log_likelihood, count, first, start, stop):
+    """One scan over particles start..stop for the weight update: (valid, peak of the candidates log_weights +
+    log_likelihood, peak of those among the first `count`, peak of the first `count` log-weights, whether those
+    log-weights all equal `first`). valid is False at the first NaN or +inf log-likelihood (the scan stops)."""
+    peak = peak_joint = peak_prior = -np.inf
+    equal = True
+    for i in range(start, stop):
         ll = log_likelihood[i]
         if np.isnan(ll) or ll == np.inf:
-            return False, peak, peak_joint, peak_prior, equal_prior
+            return False, peak, peak_joint, peak_prior, equal
         candidate = log_weights[i] + ll
         if candidate > peak:
             peak = candidate
@@ -102,12 +98,12 @@ def _peaks(log_weights, log_likelihood, count):
             if log_weights[i] > peak_prior:
                 peak_prior = log_weights[i]
             if log_weights[i] != first:
-                equal_prior = False
-    return True, peak, peak_joint, peak_prior, equal_prior
+                equal = False
+    return True, peak, peak_joint, peak_prior, equal
 
 
-@numba.njit(cache=True)
-def weigh(log_weights, log_likelihood, count, weights_out):
+# -- the weight update: one source, a serial and a chunked kernel ------------------------------------------------------
+def _weigh_body(log_weights, log_likelihood, count, weights_out, chunk=0):
     """A correction's weight update; returns (valid, native, log_total, ess).
 
     valid: False when a log-likelihood is NaN or +inf (then nothing is written and the rest is meaningless).
@@ -116,97 +112,33 @@ def weigh(log_weights, log_likelihood, count, weights_out):
     candidate is -inf). log_weights itself is left as it is: `reweigh` normalizes it.
 
     Equal to those functions bit for bit: the exponentials of the candidates that `normalize` sums are the
-    ones `log_mean_likelihood` sums over the first `count` particles when both share the peak (a running
+    ones `log_mean_likelihood` sums over the first `count` particles when both share the peak (the running
     total read at `count`); with equal prior log-weights (after resampling) each prior term is exp(0) = 1, so
     the prior sum is `count` exactly. Otherwise the missing sum is taken as those functions take it.
+
+    One source, two kernels (`numerics.compile.variant`): `weigh` takes every sum in index order (one chunk);
+    `weigh_chunked` takes each sum chunk by chunk (within a chunk in index order, then over the chunks in
+    order), the chunks of `chunk` particles spread over threads: the same results for any number of threads,
+    `weigh`'s bit for bit when chunk >= N (0.0 + a sum is that sum), and otherwise equal to rounding. The
+    exponentials' loop stops at `count` and goes on from there, so that it reads the share of the first `count`
+    without a branch per particle. `weigh_fast` (below) is the fast-math kernel.
     """
-    n = log_weights.shape[0]
-    valid, peak, peak_joint, peak_prior, equal_prior = _peaks(log_weights, log_likelihood, count)
-    if not valid:
-        return False, 0.0, 0.0, 0.0
-    total = 0.0
-    joint = 0.0
-    if peak > -np.inf:
-        for i in range(n):
-            e = math.exp(log_weights[i] + log_likelihood[i] - peak)
-            weights_out[i] = e
-            total += e
-            if i == count - 1:
-                joint = total
-    native = -np.inf
-    if peak_prior > -np.inf and peak_joint > -np.inf:
-        if peak_joint != peak:
-            joint = 0.0
-            for i in range(count):
-                joint += math.exp(log_weights[i] + log_likelihood[i] - peak_joint)
-        if equal_prior:
-            prior = float(count)
-        else:
-            prior = 0.0
-            for i in range(count):
-                prior += math.exp(log_weights[i] - peak_prior)
-        native = peak_joint + math.log(joint) - peak_prior - math.log(prior)
-    if peak == -np.inf:
-        return True, native, -np.inf, 0.0
-    inverse = 1.0 / total
-    squares = 0.0
-    for i in range(n):
-        w = weights_out[i] * inverse
-        weights_out[i] = w
-        squares += w * w
-    return True, native, peak + math.log(total), 1.0 / squares
-
-
-def _reweigh_body(log_weights, log_likelihood, log_total, chunk=0):
-    """log_weights ← log_weights + log_likelihood - log_total: the normalized posterior log-weights, elementwise
-    (the same numbers in one chunk, `reweigh`, or in chunks of `chunk` on threads, `reweigh_chunked`)."""
     n = log_weights.shape[0]
     if ONE_CHUNK:
         chunk = max(n, 1)
-    for t in numba.prange(max(1, (n + chunk - 1) // chunk)):
-        for i in range(t * chunk, min(n, (t + 1) * chunk)):
-            log_weights[i] = log_weights[i] + log_likelihood[i] - log_total
-
-
-ONE_CHUNK = True  # bound by each variant (`numerics.compile.variant`)
-reweigh = variant(_reweigh_body, "serial", {"ONE_CHUNK": True})
-reweigh_chunked = variant(_reweigh_body, "chunked", {"ONE_CHUNK": False}, parallel=True)
-
-
-# -- the same in chunks, on several threads -------------------------------------------------------------------------
-@numba.njit(cache=True, parallel=True)
-def weigh_chunked(log_weights, log_likelihood, count, weights_out, chunk):
-    """`weigh` with every sum taken chunk by chunk (within a chunk in index order, then over the chunks in
-    order) and the chunks spread over threads (`numba.set_num_threads`): the same results for any number of
-    threads, `weigh`'s bit for bit when chunk >= N, and otherwise equal to rounding."""
-    n = log_weights.shape[0]
     chunks = max(1, (n + chunk - 1) // chunk)
     peaks = np.full((chunks, 3), -np.inf)  # all, joint (first `count`), prior (first `count`)
     flags = np.zeros((chunks, 2), dtype=np.bool_)  # invalid, unequal prior
     first = log_weights[0] if n > 0 else 0.0
     for t in numba.prange(chunks):
-        invalid = False
-        unequal = False
-        peak = peak_joint = peak_prior = -np.inf
-        for i in range(t * chunk, min(n, (t + 1) * chunk)):
-            ll = log_likelihood[i]
-            if np.isnan(ll) or ll == np.inf:
-                invalid = True
-            candidate = log_weights[i] + ll
-            if candidate > peak:
-                peak = candidate
-            if i < count:
-                if candidate > peak_joint:
-                    peak_joint = candidate
-                if log_weights[i] > peak_prior:
-                    peak_prior = log_weights[i]
-                if log_weights[i] != first:
-                    unequal = True
+        valid, peak, peak_joint, peak_prior, equal = _scan(
+            log_weights, log_likelihood, count, first, t * chunk, min(n, (t + 1) * chunk)
+        )
         peaks[t, 0] = peak
         peaks[t, 1] = peak_joint
         peaks[t, 2] = peak_prior
-        flags[t, 0] = invalid
-        flags[t, 1] = unequal
+        flags[t, 0] = not valid
+        flags[t, 1] = not equal
     peak = -np.inf
     peak_joint = -np.inf
     peak_prior = -np.inf
@@ -218,25 +150,29 @@ def weigh_chunked(log_weights, log_likelihood, count, weights_out, chunk):
         peak_joint = max(peak_joint, peaks[t, 1])
         peak_prior = max(peak_prior, peaks[t, 2])
         equal_prior = equal_prior and not flags[t, 1]
-    sums = np.zeros((chunks, 3))  # exp total, joint, prior
+    sums = np.zeros((chunks, 3))  # exp total, its share of the first `count`, a third sum
     if peak > -np.inf:
         for t in numba.prange(chunks):
+            start = t * chunk
+            stop = min(n, start + chunk)
+            split = min(max(count, start), stop)
             total = 0.0
-            for i in range(t * chunk, min(n, (t + 1) * chunk)):
+            for i in range(start, split):
                 e = math.exp(log_weights[i] + log_likelihood[i] - peak)
                 weights_out[i] = e
                 total += e
-                if i == count - 1:
-                    sums[t, 1] = total
+            sums[t, 1] = total
+            for i in range(split, stop):
+                e = math.exp(log_weights[i] + log_likelihood[i] - peak)
+                weights_out[i] = e
+                total += e
             sums[t, 0] = total
     native = -np.inf
     if peak_prior > -np.inf and peak_joint > -np.inf:
+        joint = 0.0
         if peak_joint == peak:
-            joint = 0.0
             for t in range(chunks):
-                if (t + 1) * chunk < count:
-                    joint += sums[t, 0]
-                elif t * chunk < count:
+                if t * chunk < count:
                     joint += sums[t, 1]
         else:
             for t in numba.prange(chunks):
@@ -244,7 +180,6 @@ def weigh_chunked(log_weights, log_likelihood, count, weights_out, chunk):
                 for i in range(t * chunk, min(count, (t + 1) * chunk)):
                     part += math.exp(log_weights[i] + log_likelihood[i] - peak_joint)
                 sums[t, 1] = part
-            joint = 0.0
             for t in range(chunks):
                 joint += sums[t, 1]
         if equal_prior:
@@ -278,8 +213,28 @@ def weigh_chunked(log_weights, log_likelihood, count, weights_out, chunk):
     return True, native, peak + math.log(total), 1.0 / squares
 
 
-# -- the opt-in fast variant ----------------------------------------------------------------------------------------
-# With `ParticleFilter(fast=True)`: the exponentials by a polynomial (no libm call, so the loop vectorizes) and
+ONE_CHUNK = True  # bound by each variant (`numerics.compile.variant`)
+weigh = variant(_weigh_body, "serial", {"ONE_CHUNK": True})
+weigh_chunked = variant(_weigh_body, "chunked", {"ONE_CHUNK": False}, parallel=True)
+
+
+def _reweigh_body(log_weights, log_likelihood, log_total, chunk=0):
+    """log_weights ← log_weights + log_likelihood - log_total: the normalized posterior log-weights, elementwise
+    (the same numbers in one chunk, `reweigh`, or in chunks of `chunk` on threads, `reweigh_chunked`)."""
+    n = log_weights.shape[0]
+    if ONE_CHUNK:
+        chunk = max(n, 1)
+    for t in numba.prange(max(1, (n + chunk - 1) // chunk)):
+        for i in range(t * chunk, min(n, (t + 1) * chunk)):
+            log_weights[i] = log_weights[i] + log_likelihood[i] - log_total
+
+
+reweigh = variant(_reweigh_body, "serial", {"ONE_CHUNK": True})
+reweigh_chunked = variant(_reweigh_body, "chunked", {"ONE_CHUNK": False}, parallel=True)
+
+
+# -- the opt-in fast variant -------------------------------------------------------------------------------------------
+# With `ParticleFilter(fast=True)`: the exponentials by a polynomial (no libm call, so the loops vectorize) and
 # the sums reassociated (vectorized). Equal to `weigh` to about 10⁻¹⁵ relative.
 FAST = {"nsz", "arcp", "contract", "afn", "reassoc"}  # fast-math without assuming no NaN / inf
 _LOG2E = 1.44269504088896338700e00
@@ -399,7 +354,8 @@ def _scale_and_squares(weights, inverse):
 def weigh_fast(log_weights, log_likelihood, count, weights_out):
     """`weigh` with `fast_exp` and reassociated sums (equal to rounding)."""
     n = log_weights.shape[0]
-    valid, peak, peak_joint, peak_prior, equal_prior = _peaks(log_weights, log_likelihood, count)
+    first = log_weights[0] if n > 0 else 0.0
+    valid, peak, peak_joint, peak_prior, equal_prior = _scan(log_weights, log_likelihood, count, first, 0, n)
     if not valid:
         return False, 0.0, 0.0, 0.0
     total = 0.0

@@ -90,8 +90,9 @@ BEARING_MODELS = ("von_mises", "exact")
 # -- the range noise law -------------------------------------------------------------------------------------------
 # The kernels take the law as (range_noise_floor, range_noise_growth): the growth is a float c, for
 # σ_r = floor + c·r², or the pair (b, c), for σ_r = floor + b·r + c·r² (b is
-# `LandmarkSensorModel.range_noise_linear`). A model with b = 0 passes the float, so that its kernels compute what
-# they computed before the linear term existed, bit for bit; only a model with a linear term compiles the pair's.
+# `LandmarkSensorModel.range_noise_linear`). The model always passes the pair, so that models with and without a
+# linear term share one compiled specialization: with b = 0 the term b·r is 0 (ranges are finite), and floor + 0 is
+# floor, so σ_r is bit for bit floor + c·r².
 def range_noise_sigma(r, range_noise_floor, range_noise_growth):
     """σ_r [m] at range r [m] (a number or an array): floor + growth·r² for a float growth [1/m], and
     floor + b·r + c·r² for growth = (b, c) (b dimensionless, c [1/m]). In compiled code the overload below picks
@@ -954,11 +955,9 @@ class LandmarkSensorModel:
         ranges = np.asarray(ranges, dtype=np.float64)
         return range_noise_sigma(ranges, self.range_noise_floor, self._range_noise_growth())
 
-    def _range_noise_growth(self) -> float | tuple[float, float]:
-        """The kernels' `range_noise_growth` argument: the float c without a linear term (the kernels then compute
-        floor + c·r² as they always did), else the pair (b, c)."""
-        if self.range_noise_linear == 0:
-            return float(self.range_noise_growth)
+    def _range_noise_growth(self) -> tuple[float, float]:
+        """The kernels' `range_noise_growth` argument: the pair (b, c), b = 0 without a linear term (the same σ_r
+        as floor + c·r², bit for bit: see `range_noise_sigma`)."""
         return float(self.range_noise_linear), float(self.range_noise_growth)
 
     def noise_group(self) -> tuple:
@@ -1352,8 +1351,7 @@ class LandmarkSensorModel:
         `fused_workspace` and `fused_score` with params (table, offsets, range_noise_floor, range_noise_growth,
         bearing_sigma, log outlier_weight, exact); None for the sum mixture, which the filter scores through
         `log_likelihood`. A subclass that changes `log_likelihood` must return None. range_noise_growth is the
-        float c, or the pair (range_noise_linear, c) when the model has a linear term: the kernels take either
-        (`range_noise_sigma`). A frame with a camera view is scored through `log_likelihood` (`scores_view`)."""
+        pair (range_noise_linear, c) (`range_noise_sigma`). A frame with a camera view is scored through `log_likelihood` (`scores_view`)."""
         if self.mixture != "max":
             return None
         params = (

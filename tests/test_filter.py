@@ -485,6 +485,14 @@ def test_weigh_is_log_mean_likelihood_and_normalize_bit_for_bit():
         expected = normalize(log_weights + log_likelihood, expected_weights)
         assert valid and (log_total, ess) == expected and np.array_equal(weights, expected_weights)
         assert native == log_mean_likelihood(log_weights, log_likelihood, count)
+        one_chunk = np.empty(n)  # the chunked kernel with one chunk: weigh's bits
+        assert weigh_chunked(log_weights, log_likelihood, count, one_chunk, n + trial) == (
+            valid,
+            native,
+            log_total,
+            ess,
+        )
+        assert np.array_equal(one_chunk, weights)
         for variant in (
             lambda w: weigh_chunked(log_weights, log_likelihood, count, w, 16),
             lambda w: weigh_fast(log_weights, log_likelihood, count, w),
@@ -496,3 +504,5 @@ def test_weigh_is_log_mean_likelihood_and_normalize_bit_for_bit():
     broken = np.zeros(5)
     broken[2] = np.nan
     assert not weigh(np.zeros(5), broken, 5, np.empty(5))[0]
+    assert not weigh_chunked(np.zeros(5), broken, 5, np.empty(5), 2)[0]
+    assert not weigh_fast(np.zeros(5), broken, 5, np.empty(5))[0]

@@ -1,5 +1,6 @@
 import math
 
+import numba
 import numpy as np
 import pytest
 from hypothesis import given
@@ -7,7 +8,10 @@ from hypothesis import strategies as st
 
 from field import LandmarkType, spl
 from field.angles import wrap_angles
+from field.checks import LARGEST_SIGMA, SMALLEST_SIGMA
 from sensing import LandmarkObservation, LandmarkSensorModel, Observations
+from sensing.landmarks import range_noise_sigma
+from sensing.observations import MAX_RANGE
 
 FIELD = spl()
 
@@ -336,16 +340,36 @@ def test_range_sigma_is_floor_plus_linear_plus_quadratic_term(floor, linear, gro
     assert np.array_equal(model.range_sigma(np.array([0.0, 3.0])) > floor, [False, linear + growth > 0])
 
 
-def test_the_default_law_is_the_quadratic_one_and_passes_the_kernels_a_float():
-    """Without a linear term the kernels get the float growth, as before the term existed (the same compiled
-    kernels, the same bits); with one, the pair (linear, growth)."""
+def test_the_default_law_is_the_quadratic_one_and_passes_the_kernels_the_pair():
+    """Without a linear term the kernels get the pair (0, growth), which scores as floor + growth·r², bit for bit
+    (see the next test): models with and without a linear term share one compiled specialization."""
     model = LandmarkSensorModel(FIELD)
     assert model.range_noise_linear == 0.0
-    assert type(model.fused_likelihood().params[3]) is float and model.fused_likelihood().params[3] == 0.02
+    assert model.fused_likelihood().params[3] == (0.0, 0.02)
     r = np.array([0.5, 2.0, 5.0])
     assert np.array_equal(model.range_sigma(r), 0.05 + 0.02 * r * r)
     linear = LandmarkSensorModel(FIELD, range_noise_linear=0.04)
     assert linear.fused_likelihood().params[3] == (0.04, 0.02)
+
+
+@numba.njit
+def _compiled_sigma(r, floor, growth):
+    return range_noise_sigma(r, floor, growth)
+
+
+@given(
+    st.floats(0.0, MAX_RANGE),
+    st.floats(SMALLEST_SIGMA, LARGEST_SIGMA),
+    st.floats(0.0, LARGEST_SIGMA),
+)
+def test_a_zero_linear_term_leaves_the_quadratic_law_bit_for_bit(r, floor, growth):
+    """floor + 0·r + c·r² is floor + c·r² to the last bit for every accepted range and noise (b·r is +0 for a
+    finite range, and floor + 0 is floor), in Python, numpy and compiled code."""
+    quadratic = range_noise_sigma(r, floor, growth)
+    assert range_noise_sigma(r, floor, (0.0, growth)) == quadratic
+    assert _compiled_sigma(r, floor, (0.0, growth)) == _compiled_sigma(r, floor, growth) == quadratic
+    ranges = np.array([r, 0.0, MAX_RANGE])
+    assert np.array_equal(range_noise_sigma(ranges, floor, (0.0, growth)), range_noise_sigma(ranges, floor, growth))
 
 
 @pytest.mark.parametrize("value", [-0.01, float("nan"), float("inf"), True, "0.1", None])
