@@ -125,7 +125,7 @@ def landmark_log_likelihood(poses, landmarks, batch, noise, exact, sum_mixture, 
 
     landmarks, batch, noise: the groups of the module docstring. The candidates of type t are
     table[offsets[t]:offsets[t+1]]. A NaN sigma means "use the noise model":
-    σ_r = `range_noise_sigma(r, range_noise_floor, range_noise_growth)` (growth a float c or the pair (b, c)).
+    σ_r = `range_noise_sigma(r, range_noise_floor, range_noise_growth)` (growth the pair (b, c); a float c works too).
     Detections are grouped by type first, so the geometry to a type's candidates is computed once per
     particle and shared by all its detections.
     """

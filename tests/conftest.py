@@ -35,7 +35,7 @@ from mcl.numba_cache import PACKAGES, guard_source_checkout, serialize_cache_acc
 
 ROOT = Path(__file__).resolve().parent.parent
 WARMUP_VARIABLE = "MCL_KERNEL_WARMUP"
-WARMUP_PARTS = ("filter", "sensors,models")  # kernel_exercise.LANES: about equal compile times
+WARMUP_PARTS = ("filter", "sensors,models,extension")  # about equal compile times, no kernel in both
 
 settings.register_profile(
     "ci", max_examples=60, deadline=None, derandomize=True, suppress_health_check=[HealthCheck.too_slow]

@@ -1,10 +1,14 @@
 """Calls every cached kernel family of the project once through its public entry points, then prints a JSON
 report of the project's cached kernels: which compiled (or loaded), which have no cache index, which missed the
 cache. `python tests/kernel_exercise.py PARTS` with PARTS "filter" (the walk demo, the fused step with each
-landmark bearing model and resampling scheme, the threaded step, the goal-direction model), "sensors" (the
-adaptive motion model, injection, the kernels public on their own), "models" (LWPR, the velocity EKF, the leg
-kinematics), a comma-separated list of them, or "all". "filter" and "sensors,models" take about as long to
-compile: the test session runs them side by side, one per core (tests/conftest.py, `WARMUP_PARTS`).
+landmark bearing model and resampling scheme, the threaded step, the adaptive motion model's step), "sensors"
+(injection, the kernels public on their own), "models" (LWPR, the velocity EKF, the leg kinematics), "extension"
+(the goal-direction model: a sensor model on the per-particle contract), a comma-separated list of them, or
+"all". "filter" and "sensors,models,extension" take about as long to compile: the test session runs them side
+by side, one per core (tests/conftest.py, `WARMUP_PARTS`). No kernel should compile in both: two processes
+compiling one kernel at once both pay for it (the cache keeps one), so each family belongs to one lane, and
+"extension", whose fused step calls the kernels that "filter" compiles first, comes last in its lane, by which
+time it finds them in the cache.
 
 tests/test_numba_cache.py runs it against an empty NUMBA_CACHE_DIR; the test session's controller runs it
 against the project's own cache before its parallel workers start (tests/conftest.py), so that the workers load
@@ -45,7 +49,7 @@ from motion_models import AdaptiveMotion, MotionInput, VelocityLinear
 from sensing import LandmarkSensorModel, Observations
 
 part = sys.argv[1]
-parts = {"filter", "sensors", "models"} if part == "all" else set(part.split(","))
+parts = {"filter", "sensors", "models", "extension"} if part == "all" else set(part.split(","))
 field = spl()
 rng = np.random.default_rng(0)
 observations = Observations.from_arrays(["goalpost", "goalpost"], [3.0, 4.0], [0.2, -0.3])
@@ -98,15 +102,13 @@ if "filter" in parts:
             threaded.estimate(), threaded.entropy()
         threaded.predict(MotionInput(dt=0.01, command=(0.2, 0.0, 0.1)))  # moved on threads alone
 
-    # A sensor model on the per-particle contract (`sensing.fused.per_particle_kernels`): its fused step,
-    # with camera latency, and its `log_likelihood`.
-    from sensing.goal_direction import GoalDirectionSensorModel
+    # The adaptive motion model's step: its draws in the kernel, and the fused correction compiled above (in this
+    # lane, so that the other does not compile the same step at the same time).
+    from proprioception.collision import CollisionPercept
 
-    goals = Observations.from_arrays(["goalpost", "goalpost"], [4.0, 4.0], [0.3, -2.6])
-    goal_filter = ParticleFilter(field, VelocityLinear(), GoalDirectionSensorModel(field), n_particles=64, seed=5)
-    goal_filter.step(MotionInput(dt=0.01, command=(0.2, 0.0, 0.1)), goals)
-    goal_filter.correct(goals, since=(0.05, 0.0, 0.02))
-    goal_filter.sensor_model.log_likelihood(goal_filter.poses, goals)
+    adaptive = ParticleFilter(field, AdaptiveMotion(), LandmarkSensorModel(field), n_particles=64, seed=2)
+    bumped = CollisionPercept(left=True, s_rel_left=1.5, rate=0.3, recent_left=True)
+    adaptive.step(MotionInput(dt=0.01, command=(0.2, 0.0, 0.0), collision=bumped), observations)
 
 if "sensors" in parts:
     from mcl.estimate import cluster_estimate, grid_entropy
@@ -117,14 +119,12 @@ if "sensors" in parts:
     from numerics.random import bit_generator_handle, skip_doubles
     from proprioception.collision import CollisionPercept
 
-    adaptive = ParticleFilter(field, AdaptiveMotion(), LandmarkSensorModel(field), n_particles=64, seed=2)
     percept = CollisionPercept(left=True, s_rel_left=1.5, rate=0.3, recent_left=True)
-    adaptive.step(MotionInput(dt=0.01, command=(0.2, 0.0, 0.0), collision=percept), observations)
-    from motion_models.adaptive import VARIATES, adaptive_move  # (predict draws in the kernel instead)
+    from motion_models.adaptive import VARIATES, adaptive_move  # (the filter's predict draws in the kernel)
 
     model = AdaptiveMotion()
     arguments = model.kernel_arguments(MotionInput(dt=0.01, command=(0.2, 0.0, 0.0), collision=percept))
-    adaptive_move(adaptive.poses.copy(), model.particle_state(64), *arguments, rng.random((64, VARIATES)))
+    adaptive_move(rng.random((64, 3)), model.particle_state(64), *arguments, rng.random((64, VARIATES)))
 
     # Injection around a known pose (the relocalization's proposal: the single-detection sampler).
     injecting = ParticleFilter(
@@ -206,6 +206,17 @@ if "models" in parts:
     angles = np.zeros(leg.n_joints) + 0.1
     leg.velocities(angles, angles, (0.0, 0.0, 0.1))
     leg.velocities_batch(np.tile(angles, (3, 1)), np.tile(angles, (3, 1)), np.zeros((3, 3)))
+
+if "extension" in parts:
+    # A sensor model on the per-particle contract (`sensing.fused.per_particle_kernels`): its fused step,
+    # with camera latency, and its `log_likelihood`.
+    from sensing.goal_direction import GoalDirectionSensorModel
+
+    goals = Observations.from_arrays(["goalpost", "goalpost"], [4.0, 4.0], [0.3, -2.6])
+    goal_filter = ParticleFilter(field, VelocityLinear(), GoalDirectionSensorModel(field), n_particles=64, seed=5)
+    goal_filter.step(MotionInput(dt=0.01, command=(0.2, 0.0, 0.1)), goals)
+    goal_filter.correct(goals, since=(0.05, 0.0, 0.02))
+    goal_filter.sensor_model.log_likelihood(goal_filter.poses, goals)
 
 # Every cached kernel defined in the project: compiled here or not, its cache index, cache misses.
 from numba.core.registry import CPUDispatcher
