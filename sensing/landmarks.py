@@ -408,17 +408,26 @@ def move_block_back(work, count, displacement, fast=False):
     sincos_rows_as(work[TOTAL], work[COS], work[SIN], count, fast)
 
 
-@numba.njit(cache=True, error_model="numpy")
-def score_block(work, count, table, offsets, detections, groups, log_outlier):
-    """Row TOTAL of the work array: the log-likelihood (von Mises, max-mixture) of the block's `count` particles,
-    whose rows X, Y, COS, SIN are loaded. Bit for bit `landmark_log_likelihood` with exact = sum_mixture = False."""
+def _score_block_body(work, count, table, offsets, detections, groups, log_outlier):
+    """Row TOTAL of the work array: the log-likelihood (max-mixture) of the block's `count` particles, whose rows
+    X, Y, COS, SIN are loaded. One source, two kernels (`numerics.compile.variant`, EXACT bound to a constant,
+    so that each compiles only its own branches):
+
+    - `score_block`, the von Mises bearing term: bit for bit `landmark_log_likelihood` with exact = sum_mixture =
+      False. The geometry rows hold each candidate's distance and unit direction in the robot frame.
+    - `score_block_exact`, the exact bearing term, -½(wrap(b - b̂)/σ_b)² (`prepare_detections` with exact made the
+      detections, their bearings b wrapped): the rows hold the distance and the bearing b̂ (`atan2_poly`), and
+      the error b - b̂, within [-2π, 2π], is wrapped by two selects, so that every loop vectorizes.
+      `landmark_log_likelihood` with exact = True, sum_mixture = False to rounding (that kernel takes libm's
+      atan2 and fast-math).
+    """
     for p in range(count):
         work[TOTAL, p] = 0.0
     for g in range(groups.shape[0]):
         kind = groups[g, 0]
         first = offsets[kind]
         n_cand = offsets[kind + 1] - first
-        # Geometry to each candidate, once per particle and type: distance and unit direction, robot frame.
+        # Geometry to each candidate, once per particle and type, in the robot frame.
         for k in range(n_cand):
             tx = table[first + k, 0]
             ty = table[first + k, 1]
@@ -430,17 +439,21 @@ def score_block(work, count, table, offsets, detections, groups, log_outlier):
                 s = work[SIN, p]
                 rx = c * dxw + s * dyw
                 ry = -s * dxw + c * dyw
-                d = math.sqrt(rx * rx + ry * ry)
-                inverse = 1.0 / d
-                far = d > 1e-12
-                work[row, p] = d
-                work[row + 1, p] = inverse * rx if far else 1.0
-                work[row + 2, p] = inverse * ry if far else 0.0
+                if EXACT:
+                    work[row, p] = math.sqrt(rx * rx + ry * ry)
+                    work[row + 1, p] = atan2_poly(ry, rx)
+                else:
+                    d = math.sqrt(rx * rx + ry * ry)
+                    inverse = 1.0 / d
+                    far = d > 1e-12
+                    work[row, p] = d
+                    work[row + 1, p] = inverse * rx if far else 1.0
+                    work[row + 2, p] = inverse * ry if far else 0.0
         for j in range(groups[g, 1], groups[g, 2]):
             r = detections[j, 0]
             wr = detections[j, 1]
-            bc = detections[j, 2]
-            bs = detections[j, 3]
+            second = detections[j, 2]  # von Mises: bc; exact: wb
+            third = detections[j, 3]  # von Mises: bs; exact: the bearing b
             for p in range(count):
                 work[BEST, p] = -np.inf
             for k in range(n_cand):
@@ -449,65 +462,30 @@ def score_block(work, count, table, offsets, detections, groups, log_outlier):
                 target = BEST + 1 - k % 2
                 for p in range(count):
                     er = r - work[row, p]
-                    score = wr * er * er + bc * work[row + 1, p] + bs * work[row + 2, p]
+                    if EXACT:
+                        eb = third - work[row + 1, p]  # in [-2π, 2π]: b is wrapped, atan2 in [-π, π]
+                        eb = eb - TWO_PI if eb > math.pi else eb
+                        eb = eb + TWO_PI if eb <= -math.pi else eb
+                        score = wr * er * er + second * eb * eb
+                    else:
+                        score = wr * er * er + second * work[row + 1, p] + third * work[row + 2, p]
                     best = work[source, p]
                     work[target, p] = score if score > best else best
-            offset = detections[j, 4]
             last = BEST + n_cand % 2
-            for p in range(count):
-                best = work[last, p] + offset
-                work[TOTAL, p] += log_outlier if log_outlier > best else best
-
-
-@numba.njit(cache=True, error_model="numpy")
-def score_block_exact(work, count, table, offsets, detections, groups, log_outlier):
-    """`score_block` with the exact bearing term, -½(wrap(b - b̂)/σ_b)² (max-mixture; `prepare_detections` with
-    exact made the detections, their bearings b wrapped): the candidates' distances and bearings b̂ (`atan2_poly`)
-    in rows over the block, and the error b - b̂, within [-2π, 2π], wrapped by two selects, so that every loop
-    vectorizes. `landmark_log_likelihood` with exact = True, sum_mixture = False to rounding (that kernel takes
-    libm's atan2 and fast-math)."""
-    for p in range(count):
-        work[TOTAL, p] = 0.0
-    for g in range(groups.shape[0]):
-        kind = groups[g, 0]
-        first = offsets[kind]
-        n_cand = offsets[kind + 1] - first
-        for k in range(n_cand):
-            tx = table[first + k, 0]
-            ty = table[first + k, 1]
-            row = GEOMETRY + 3 * k
-            for p in range(count):
-                dxw = tx - work[X, p]
-                dyw = ty - work[Y, p]
-                c = work[COS, p]
-                s = work[SIN, p]
-                rx = c * dxw + s * dyw
-                ry = -s * dxw + c * dyw
-                work[row, p] = math.sqrt(rx * rx + ry * ry)
-                work[row + 1, p] = atan2_poly(ry, rx)
-        for j in range(groups[g, 1], groups[g, 2]):
-            r = detections[j, 0]
-            wr = detections[j, 1]
-            wb = detections[j, 2]
-            b = detections[j, 3]
-            for p in range(count):
-                work[BEST, p] = -np.inf
-            for k in range(n_cand):
-                row = GEOMETRY + 3 * k
-                source = BEST + k % 2
-                target = BEST + 1 - k % 2
+            if EXACT:
                 for p in range(count):
-                    er = r - work[row, p]
-                    eb = b - work[row + 1, p]  # in [-2π, 2π]: b is wrapped, atan2 in [-π, π]
-                    eb = eb - TWO_PI if eb > math.pi else eb
-                    eb = eb + TWO_PI if eb <= -math.pi else eb
-                    score = wr * er * er + wb * eb * eb
-                    best = work[source, p]
-                    work[target, p] = score if score > best else best
-            last = BEST + n_cand % 2
-            for p in range(count):
-                best = work[last, p]
-                work[TOTAL, p] += log_outlier if log_outlier > best else best
+                    best = work[last, p]
+                    work[TOTAL, p] += log_outlier if log_outlier > best else best
+            else:
+                offset = detections[j, 4]
+                for p in range(count):
+                    best = work[last, p] + offset
+                    work[TOTAL, p] += log_outlier if log_outlier > best else best
+
+
+EXACT = False  # bound by each variant (`numerics.compile.variant`)
+score_block = variant(_score_block_body, "von_mises", {"EXACT": False}, error_model="numpy")
+score_block_exact = variant(_score_block_body, "exact", {"EXACT": True}, error_model="numpy")
 
 
 # -- the fused step's kernels (`sensing.fused`: the calling convention) -------------------------------------------
@@ -590,30 +568,6 @@ def von_mises_log_likelihood(poses, table, offsets, detections, groups, log_outl
 
 
 @numba.njit(cache=True)
-def _von_mises_log_likelihood(poses, landmarks, batch, noise, log_outlier, out):
-    """`LandmarkSensorModel.log_likelihood` of the default variant in one call (landmarks, batch, noise: the
-    module docstring's groups); returns the first detection whose type has no landmark on the field (nothing
-    written), or -1."""
-    table, offsets, _ = landmarks
-    kinds, ranges, bearings, range_sigmas, bearing_sigmas = batch
-    range_noise_floor, range_noise_growth, bearing_sigma = noise
-    detections, groups, missing = prepare_detections(
-        kinds,
-        ranges,
-        bearings,
-        range_sigmas,
-        bearing_sigmas,
-        offsets,
-        range_noise_floor,
-        range_noise_growth,
-        bearing_sigma,
-    )
-    if missing < 0:
-        von_mises_log_likelihood(poses, table, offsets, detections, groups, log_outlier, out, np.empty((0, 2)))
-    return missing
-
-
-@numba.njit(cache=True)
 def exact_log_likelihood(poses, table, offsets, detections, groups, log_outlier, out):
     """out[i] = the exact-bearing max-mixture log-likelihood of particle i (`prepare_detections` with exact made
     the detections), a block of particles at a time (`score_block_exact`)."""
@@ -628,11 +582,11 @@ def exact_log_likelihood(poses, table, offsets, detections, groups, log_outlier,
     return out
 
 
-@numba.njit(cache=True)
-def _exact_log_likelihood(poses, landmarks, batch, noise, log_outlier, out):
-    """`LandmarkSensorModel.log_likelihood` of the exact bearing term with the max-mixture in one call (landmarks,
-    batch, noise: the module docstring's groups); returns the first detection whose type has no landmark on the
-    field (nothing written), or -1."""
+def _one_call_body(poses, landmarks, batch, noise, log_outlier, out):
+    """`LandmarkSensorModel.log_likelihood` with the max-mixture in one call (landmarks, batch, noise: the module
+    docstring's groups); returns the first detection whose type has no landmark on the field (nothing written),
+    or -1. One source, two kernels (`numerics.compile.variant`, EXACT bound): `_von_mises_log_likelihood`, the
+    default variant, and `_exact_log_likelihood`, the exact bearing term."""
     table, offsets, _ = landmarks
     kinds, ranges, bearings, range_sigmas, bearing_sigmas = batch
     range_noise_floor, range_noise_growth, bearing_sigma = noise
@@ -646,11 +600,18 @@ def _exact_log_likelihood(poses, landmarks, batch, noise, log_outlier, out):
         range_noise_floor,
         range_noise_growth,
         bearing_sigma,
-        True,
+        EXACT,
     )
     if missing < 0:
-        exact_log_likelihood(poses, table, offsets, detections, groups, log_outlier, out)
+        if EXACT:
+            exact_log_likelihood(poses, table, offsets, detections, groups, log_outlier, out)
+        else:
+            von_mises_log_likelihood(poses, table, offsets, detections, groups, log_outlier, out, np.empty((0, 2)))
     return missing
+
+
+_von_mises_log_likelihood = variant(_one_call_body, "von_mises", {"EXACT": False})
+_exact_log_likelihood = variant(_one_call_body, "exact", {"EXACT": True})
 
 
 _NO_ANGLES = np.empty(0)
