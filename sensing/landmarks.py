@@ -125,7 +125,7 @@ def landmark_log_likelihood(poses, landmarks, batch, noise, exact, sum_mixture, 
 
     landmarks, batch, noise: the groups of the module docstring. The candidates of type t are
     table[offsets[t]:offsets[t+1]]. A NaN sigma means "use the noise model":
-    σ_r = `range_noise_sigma(r, range_noise_floor, range_noise_growth)` (growth the pair (b, c); a float c works too).
+    σ_r = `range_noise_sigma(r, range_noise_floor, range_noise_growth)` (growth the pair (b, c), or a float c).
     Detections are grouped by type first, so the geometry to a type's candidates is computed once per
     particle and shared by all its detections.
     """
@@ -1312,7 +1312,8 @@ class LandmarkSensorModel:
         `fused_workspace` and `fused_score` with params (table, offsets, range_noise_floor, range_noise_growth,
         bearing_sigma, log outlier_weight, exact); None for the sum mixture, which the filter scores through
         `log_likelihood`. A subclass that changes `log_likelihood` must return None. range_noise_growth is the
-        pair (range_noise_linear, c) (`range_noise_sigma`). A frame with a camera view is scored through `log_likelihood` (`scores_view`)."""
+        pair (range_noise_linear, c) (`range_noise_sigma`). A frame with a camera view is scored through
+        `log_likelihood` (`scores_view`)."""
         if self.mixture != "max":
             return None
         params = (

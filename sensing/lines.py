@@ -123,16 +123,14 @@ class LineSensorModel:
         real("resolution", self.resolution, MIN_RESOLUTION, 1.0)
         real("outlier_weight", self.outlier_weight, 0.0, 1.0, low_open=True)
         integer("max_points", self.max_points, 1, 10**6)
-        x_min, x_max, y_min, y_max = self.field.carpet
-        cells = math.ceil((x_max - x_min) / self.resolution) * math.ceil((y_max - y_min) / self.resolution)
-        if cells > MAX_CELLS:
+        x0, x_max, y0, y_max = self.field.carpet
+        nx = math.ceil((x_max - x0) / self.resolution)
+        ny = math.ceil((y_max - y0) / self.resolution)
+        if nx * ny > MAX_CELLS:
             raise ValueError(
-                f"resolution = {self.resolution!r} makes {cells} cells on field {self.field.name!r}; "
+                f"resolution = {self.resolution!r} makes {nx * ny} cells on field {self.field.name!r}; "
                 f"at most {MAX_CELLS} are accepted (a coarser resolution)"
             )
-        x0, x_max, y0, y_max = self.field.carpet
-        nx = int(math.ceil((x_max - x0) / self.resolution))
-        ny = int(math.ceil((y_max - y0) / self.resolution))
         on_line = np.ones((ny, nx), dtype=bool)  # True = not a line cell (the transform measures to False)
         points = self.field.line_points(spacing=self.resolution / 2)
         cols = np.clip(((points[:, 0] - x0) / self.resolution).astype(np.int64), 0, nx - 1)

@@ -45,7 +45,10 @@ for package_name in PACKAGES:
 
 from field import spl
 from mcl import ParticleFilter
+from mcl.filter import AugmentedMCL
+from mcl.resampling import SCHEMES
 from motion_models import AdaptiveMotion, MotionInput, VelocityLinear
+from proprioception.collision import CollisionPercept
 from sensing import LandmarkSensorModel, Observations
 
 part = sys.argv[1]
@@ -53,15 +56,19 @@ parts = {"filter", "sensors", "models", "extension"} if part == "all" else set(p
 field = spl()
 rng = np.random.default_rng(0)
 observations = Observations.from_arrays(["goalpost", "goalpost"], [3.0, 4.0], [0.2, -0.3])
-
-from mcl.filter import AugmentedMCL
-from mcl.resampling import SCHEMES
+percept = CollisionPercept(left=True, s_rel_left=1.5, rate=0.3, recent_left=True)  # the adaptive model's input
 
 
-def filters(bearings: tuple[tuple[str, str], ...]) -> ParticleFilter:
-    """A fused step and a correction with camera latency for each landmark bearing model and mixture and each
-    resampling scheme; returns the last filter."""
-    for bearing_model, mixture in bearings:
+if "filter" in parts:
+    # The walk demo with field lines: velocity-linear, landmark and line likelihoods, normalize, augmented
+    # MCL, systematic resampling with roughening, estimate, entropy.
+    from demos.walk import main as walk_main
+
+    with contextlib.redirect_stdout(io.StringIO()):
+        walk_main(["--duration", "0.5", "--particles", "60", "--lines", "--json"])
+    # A fused step and a correction with camera latency for each landmark bearing model and mixture and each
+    # resampling scheme.
+    for bearing_model, mixture in (("von_mises", "max"), ("exact", "max"), ("exact", "sum")):
         for scheme in SCHEMES:
             pf = ParticleFilter(
                 field,
@@ -76,17 +83,6 @@ def filters(bearings: tuple[tuple[str, str], ...]) -> ParticleFilter:
             pf.step(MotionInput(dt=0.01, command=(0.2, 0.0, 0.1)), observations)
             pf.correct(observations, since=(0.05, 0.0, 0.02))  # camera latency: moved back (and forward)
             pf.estimate(), pf.entropy()
-    return pf
-
-
-if "filter" in parts:
-    # The walk demo with field lines: velocity-linear, landmark and line likelihoods, normalize, augmented
-    # MCL, systematic resampling with roughening, estimate, entropy.
-    from demos.walk import main as walk_main
-
-    with contextlib.redirect_stdout(io.StringIO()):
-        walk_main(["--duration", "0.5", "--particles", "60", "--lines", "--json"])
-    pf = filters((("von_mises", "max"), ("exact", "max"), ("exact", "sum")))
     if "threads" in inspect.signature(ParticleFilter).parameters:  # the chunked, multi-threaded variants
         for bearing_model in ("von_mises", "exact"):
             threaded = ParticleFilter(
@@ -104,23 +100,17 @@ if "filter" in parts:
 
     # The adaptive motion model's step: its draws in the kernel, and the fused correction compiled above (in this
     # lane, so that the other does not compile the same step at the same time).
-    from proprioception.collision import CollisionPercept
-
     adaptive = ParticleFilter(field, AdaptiveMotion(), LandmarkSensorModel(field), n_particles=64, seed=2)
-    bumped = CollisionPercept(left=True, s_rel_left=1.5, rate=0.3, recent_left=True)
-    adaptive.step(MotionInput(dt=0.01, command=(0.2, 0.0, 0.0), collision=bumped), observations)
+    adaptive.step(MotionInput(dt=0.01, command=(0.2, 0.0, 0.0), collision=percept), observations)
 
 if "sensors" in parts:
     from mcl.estimate import cluster_estimate, grid_entropy
     from mcl.latency import move_back, move_forward
     from mcl.resampling import systematic_counted, systematic_with_jitter
     from mcl.weights import log_mean_likelihood, normalize
+    from motion_models.adaptive import VARIATES, adaptive_move  # (the filter's predict draws in the kernel)
     from motion_models.kernels import move_drawing_noise, move_with_noise
     from numerics.random import bit_generator_handle, skip_doubles
-    from proprioception.collision import CollisionPercept
-
-    percept = CollisionPercept(left=True, s_rel_left=1.5, rate=0.3, recent_left=True)
-    from motion_models.adaptive import VARIATES, adaptive_move  # (the filter's predict draws in the kernel)
 
     model = AdaptiveMotion()
     arguments = model.kernel_arguments(MotionInput(dt=0.01, command=(0.2, 0.0, 0.0), collision=percept))
