@@ -106,13 +106,18 @@ def pytest_configure(config):
         except subprocess.TimeoutExpired:
             process.kill()
             stdout, stderr = process.communicate()
-        (folder / f"{part.replace(',', '+')}.json").write_text(
+        warmup_report(folder, part).write_text(
             json.dumps({"returncode": process.returncode, "stdout": stdout, "stderr": stderr[-20_000:]})
         )
     seconds = time.time() - started
     (folder / "session.json").write_text(json.dumps({"started": started, "seconds": seconds, "empty": empty}))
     os.environ[WARMUP_VARIABLE] = str(folder)  # inherited by the workers, started after this hook
     config._mcl_kernel_warmup = (folder, seconds)
+
+
+def warmup_report(folder: Path, part: str) -> Path:
+    """Where the warm-up keeps a part's report (exit code, output and time) in `folder`."""
+    return folder / f"{part.replace(',', '+')}.json"
 
 
 def pytest_unconfigure(config):

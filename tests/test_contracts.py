@@ -457,6 +457,8 @@ def _array_types(value, path="", depth=0):
     """numba's type of every numpy array reachable from `value` (attributes, tuples, lists, dicts), by path."""
     import numba
 
+    from mcl.numba_cache import PACKAGES
+
     if isinstance(value, np.ndarray):
         return {path: numba.typeof(value)} if value.dtype != object else {}
     if depth > 4:
@@ -468,14 +470,7 @@ def _array_types(value, path="", depth=0):
     elif (
         hasattr(value, "__dict__")
         and not isinstance(value, type)
-        and type(value).__module__.split(".")[0]
-        in (
-            "field",
-            "sensing",
-            "motion_models",
-            "proprioception",
-            "mcl",
-        )
+        and type(value).__module__.split(".")[0] in PACKAGES  # the project's own objects
     ):
         items = vars(value).items()
     else:

@@ -24,10 +24,9 @@ import subprocess
 import sys
 from pathlib import Path
 
-from conftest import WARMUP_PARTS
+from conftest import WARMUP_PARTS, warmup_report
 
 ROOT = Path(__file__).resolve().parents[1]
-LANES = WARMUP_PARTS  # the exercise's two lanes, side by side
 
 EXERCISE = Path(__file__).resolve().parent / "kernel_exercise.py"
 
@@ -75,7 +74,7 @@ def _session_warmup() -> tuple[list[dict], float] | None:
     session = _session()
     if session is None or not session["empty"]:
         return None
-    parts = [json.loads((session["folder"] / f"{lane.replace(',', '+')}.json").read_text()) for lane in LANES]
+    parts = [json.loads(warmup_report(session["folder"], lane).read_text()) for lane in WARMUP_PARTS]
     return [_checked(part["returncode"], part["stdout"], part["stderr"]) for part in parts], session["started"]
 
 
@@ -114,7 +113,7 @@ def test_every_kernel_is_cached_and_found_again(tmp_path):
     warmup = _session_warmup()
     if warmup is None:
         before, cache = _sources(), tmp_path
-        parts = [_start(lane, cache) for lane in LANES]  # side by side: two cores
+        parts = [_start(lane, cache) for lane in WARMUP_PARTS]  # the exercise's lanes side by side: two cores
         reports = [_report(process) for process in parts]
     else:
         reports, started = warmup
@@ -275,13 +274,11 @@ def test_every_package_with_cached_kernels_is_guarded():
     its kernels would go unchecked by the test above."""
     from mcl.numba_cache import PACKAGES, ROOT
 
+    packages = [folder for folder in ROOT.iterdir() if (folder / "__init__.py").exists() and folder.name != "tests"]
     caching = {
-        path.relative_to(ROOT).parts[0]
-        for path in ROOT.glob("*/**/*.py")
-        if path.relative_to(ROOT).parts[0] not in {"tests", "build", "site", "docs"}
-        and not path.relative_to(ROOT).parts[0].startswith(".")
-        and (ROOT / path.relative_to(ROOT).parts[0] / "__init__.py").exists()
-        and "cache=True" in path.read_text(encoding="utf-8")
+        folder.name
+        for folder in packages
+        if any("cache=True" in path.read_text(encoding="utf-8") for path in folder.rglob("*.py"))
     }
     assert "proprioception" in caching and "mcl" in caching
     assert caching <= set(PACKAGES), f"packages with cached kernels missing from PACKAGES: {caching - set(PACKAGES)}"
