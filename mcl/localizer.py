@@ -151,11 +151,13 @@ class QualityThresholds:
     superb_age, okay_age : float, default 1.5, 10.0
         The last explained detection captured at most this long ago [s].
     superb_mirror_odds, okay_mirror_odds : float, default 10.0, 3.0
-        The side odds (`Localizer.side_log_odds`: the last re-localization's preference of its pose to the mirror
-        pose, `SoccerRelocalization.mirror_log_odds`, plus the teammates' evidence) are at least these. A pose
+        The side odds that hold without any one teammate (`Localizer.held_side_log_odds`: the last
+        re-localization's preference of its pose to the mirror pose, `SoccerRelocalization.mirror_log_odds`,
+        plus the teammates' evidence that remains when any one of them is left out) are at least these. A pose
         that meets the other limits of SUPERB or OKAY but not these odds is UNSURE_HALF.
     superb_rival_odds, okay_rival_odds : float, default 10.0, 3.0
-        While the track is young (`mcl.rivals`), the estimate explains the recent frames at least this many
+        While the track is young (`mcl.rivals`: after a reset, a re-localization, or a jump of the estimate), the
+        estimate explains the recent frames at least this many
         times better than any other place that explains them (`Localizer.rival_log_odds`); below
         `okay_rival_odds` the pose is POOR, whatever else holds.
     rivals : RivalSettings or None, default RivalSettings()
@@ -466,6 +468,9 @@ class Localizer:
     rival_log_odds : float
         How much better (log odds) the estimate explained the frames than the best rival place, while its track
         is young (`mcl.rivals`); +inf without a rival, outside that time, or with `rivals=None`.
+    jumps : int
+        How often a correction left the estimate more than `CONTINUITY_POSITION` from where the last one had
+        (moved on by odometry) without a re-localization: each starts a young track.
     """
 
     def __init__(
@@ -526,7 +531,9 @@ class Localizer:
         # where the estimate was when the detections last contradicted it (dead-reckoned since), until they
         # fit again; and whether the estimate then fitted them somewhere else (`moved_unseen`)
         self._contradicted_at: tuple[float, float, float] | None = None
+        self._track_pose: tuple[float, float, float] | None = None  # the estimate after the last correction, moved on
         self.moved_unseen = False
+        self.jumps = 0
         self.is_penalized = False
         # (start, end) of the stretches the robot was fallen or penalized (end None while it lasts): a frame
         # captured inside one is not used, whenever it arrives
@@ -597,6 +604,8 @@ class Localizer:
                 self.rivals.moved(displacement)
             if self._contradicted_at is not None:
                 self._contradicted_at = compose(self._contradicted_at, displacement)
+            if self._track_pose is not None:
+                self._track_pose = compose(self._track_pose, displacement)
         self.time = t
         self._quality = None
         self._track_side()
@@ -770,6 +779,19 @@ class Localizer:
         what the
         teammates' view of the ball says (`mcl.side`: weighed jointly with whether each teammate is itself on the
         mirror)."""
+        return self.side.log_odds(*self._side_prior())
+
+    @property
+    def held_side_log_odds(self) -> float:
+        """`side_log_odds` with only the teammates' evidence that holds without any one of them
+        (`mcl.side.SideBelief.held_team_log_odds`): the odds the quality asks for its mirror limits, so that one
+        teammate alone, however sure, never makes a pose SUPERB or OKAY of its half (it may be on the mirror
+        itself). Without teammates' evidence, `side_log_odds`."""
+        return self.side.held_log_odds(*self._side_prior())
+
+    def _side_prior(self) -> tuple[float, bool, bool]:
+        """The re-localization's side prior (signed for the current main pose), and whether it rests on a
+        kidnapping law or on an unseen move (`SideBelief.log_odds`)."""
         relocalization = self.filter.relocalization
         prior = getattr(relocalization, "mirror_log_odds", math.inf)
         kidnapped = bool(getattr(relocalization, "kidnapped", False))
@@ -779,7 +801,7 @@ class Localizer:
             # not yet accepted) is no surer of its side than a kidnapping law
             kidnapped = not holds(self.filter.estimate().pose)
         jumped = self.moved_unseen or bool(getattr(relocalization, "jumped", False))
-        return self.side.log_odds(self._side_sign * prior, kidnapped, jumped)
+        return self._side_sign * prior, kidnapped, jumped
 
     def hypotheses(self) -> list[Hypothesis]:
         """The main modes of the belief, most probable first: the estimate, its mirror image (the same
@@ -837,13 +859,24 @@ class Localizer:
         return int(getattr(self.filter.relocalization, "relocalizations", 0))
 
     def _follow_relocalization(self) -> None:
-        """After a correction: when the filter re-localized, the new pose's odds are the re-localization's own."""
+        """After a correction: when the filter re-localized, the new pose's odds are the re-localization's own.
+        Otherwise, an estimate that now lies more than `CONTINUITY_POSITION` from where the last correction left
+        it (moved on by odometry) starts a new track for the rivals all the same: the particles moved to another
+        place (the dominant cluster changed) without a re-localization, and a young track is checked against the
+        other places that explain the frames, whatever made it."""
         count = self._relocalization_count()
+        pose = self.filter.estimate().pose
+        left = self._track_pose
+        jumped = left is not None and math.hypot(pose[0] - left[0], pose[1] - left[1]) > CONTINUITY_POSITION
+        self._track_pose = (float(pose[0]), float(pose[1]), float(pose[2]))
         if count != self._relocalizations:
             self._relocalizations = count
             self._side_sign = 1.0
             if self.rivals is not None:
                 self.rivals.new_track(self._now())
+        elif jumped and self.rivals is not None:
+            self.rivals.new_track(self._now())
+            self.jumps += 1
         self._track_side()
 
     def _track_side(self) -> None:
@@ -892,6 +925,9 @@ class Localizer:
             return
         if self.side.should_flip(self.side_log_odds, self._now()):
             self.filter.reset_mirrored()
+            if self._track_pose is not None:  # the same track, on the other half
+                x, y, theta = self._track_pose
+                self._track_pose = (-x, -y, theta + math.pi)
             self.side.mirrored()
             self._side_sign = -self._side_sign
             self._side_pose = self.field.mirror_poses(estimate.pose[None])[0]
@@ -1046,7 +1082,7 @@ class Localizer:
         age = math.inf if self._last_explained is None else now - self._last_explained
         fit = self.fit
         explained = self._frame_sums[1]
-        side_log_odds = self.side_log_odds
+        side_log_odds = self.held_side_log_odds  # no single teammate makes a pose sure of its half
         # negative information, when frames came with their view: judged once enough landmarks were expected
         expected = self._frame_sums[2]
         seen = self.seen_share if expected >= q.view_expected else 1.0
@@ -1236,6 +1272,7 @@ class Localizer:
         self._frame_sums = [0, 0, 0, 0]
         self.surprise = 0.0
         self._contradicted_at = None
+        self._track_pose = None
         self.moved_unseen = False
         if self.rivals is not None:
             near = None if poses is None else (poses, 3.0 * float(max(np.asarray(sigma, dtype=np.float64)[:2])))

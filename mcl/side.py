@@ -240,7 +240,8 @@ class SideBelief:
 
     State index bits: bit 0 the robot's side (0: the main pose, 1: its mirror image), bit j + 1 teammate j's
     flag (1: on the mirror). `_log_joint` holds log p(reports | state) + log p(teammates' flags); the
-    robot's own prior on its side is added when the odds are read (`log_odds`).
+    robot's own prior on its side is added when the odds are read (`log_odds`). Its row 0 is the joint over
+    every report, its row j + 1 the same joint without teammate j's reports (`held_team_log_odds`).
 
     Attributes
     ----------
@@ -260,7 +261,7 @@ class SideBelief:
         self.settings = settings
         self._area = 4.0 * field.half_length * field.half_width
         self._senders: list[int] = []  # teammate j is bit j + 1
-        self._log_joint = np.zeros(2)  # over the robot's side alone, at first
+        self._log_joint = np.zeros((1, 2))  # over the robot's side alone, at first (row 0: every report)
         self._joint_time: float | None = None  # when the teammates' flags were last aged
         self._side_evidence = False  # whether the joint says anything of the side
         self._latest: dict[int, TeamMessage] = {}  # sender: its newest message
@@ -274,32 +275,53 @@ class SideBelief:
         self.unconfirmed = 0
 
     # -- reading it --------------------------------------------------------------------------------------------
-    def _side_marginal(self) -> float:
-        """log p(reports | main) − log p(reports | mirror), the teammates' flags summed out."""
+    def _side_marginals(self) -> np.ndarray:
+        """Per row of the joint, log p(reports | main) − log p(reports | mirror), the teammates' flags summed
+        out."""
         joint = self._log_joint
-        return float(np.logaddexp.reduce(joint[0::2]) - np.logaddexp.reduce(joint[1::2]))
+        return np.logaddexp.reduce(joint[:, 0::2], axis=1) - np.logaddexp.reduce(joint[:, 1::2], axis=1)
+
+    def _side_marginal(self) -> float:
+        """log p(reports | main) − log p(reports | mirror) over every report."""
+        return float(self._side_marginals()[0])
 
     def team_log_odds(self) -> float:
         """What the teammates' reports say of the robot's side (log odds of the main pose; 0: nothing)."""
         return self._side_marginal() if self._side_evidence else 0.0
 
+    def held_team_log_odds(self) -> float:
+        """The teammates' evidence for the main pose that holds without any one of them: the least of
+        `team_log_odds` and of the same odds with each teammate's reports left out in turn (0: nothing). One
+        teammate alone never raises it above 0, however sure it is; two that agree do."""
+        return float(self._side_marginals().min()) if self._side_evidence else 0.0
+
+    def _capped_prior(self, prior_log_odds: float, kidnapped: bool, jumped: bool) -> float:
+        s = self.settings
+        cap = s.kidnap_cap if kidnapped else s.jump_cap if jumped else s.prior_cap
+        return 0.0 if math.isnan(prior_log_odds) else min(max(prior_log_odds, -cap), cap)
+
     def log_odds(self, prior_log_odds: float, kidnapped: bool = False, jumped: bool = False) -> float:
         """The log odds of the main pose against its mirror image: the prior, capped at `prior_cap` (at
         `kidnap_cap` when it rests on a kidnapping law, `kidnapped`, at `jump_cap` when on the distance part of
         one, `jumped`; NaN counts as even), plus the teammates' evidence."""
-        s = self.settings
-        cap = s.kidnap_cap if kidnapped else s.jump_cap if jumped else s.prior_cap
-        prior = 0.0 if math.isnan(prior_log_odds) else min(max(prior_log_odds, -cap), cap)
+        prior = self._capped_prior(prior_log_odds, kidnapped, jumped)
         self._prior = prior
         return prior + self.team_log_odds()
+
+    def held_log_odds(self, prior_log_odds: float, kidnapped: bool = False, jumped: bool = False) -> float:
+        """As `log_odds`, with the teammates' evidence that holds without any one of them
+        (`held_team_log_odds`): what the quality asks, so that no single teammate makes a pose sure of its
+        half."""
+        return self._capped_prior(prior_log_odds, kidnapped, jumped) + self.held_team_log_odds()
 
     def teammate_mirrored(self, sender: int) -> float | None:
         """The probability that teammate `sender` is on the mirror (None: not heard from, or not modelled)."""
         if sender not in self._senders:
             return None
         bit = 1 << (self._senders.index(sender) + 1)
-        index = np.arange(self._log_joint.shape[0])
-        joint = self._log_joint - np.logaddexp.reduce(self._log_joint)
+        full = self._log_joint[0]
+        index = np.arange(full.shape[0])
+        joint = full - np.logaddexp.reduce(full)
         return float(np.exp(joint[(index & bit) != 0]).sum())
 
     @property
@@ -375,17 +397,26 @@ class SideBelief:
             self._add_teammate(sender)
         self._age(now)
         value = side_evidence(sighting.point, sighting.covariance, point, covariance, s.outlier_share, self._area)
-        # the report supports the main pose when the robot's side and the teammate's flag agree (both 0 or 1)
-        against = _masks(len(self._senders), self._senders.index(sender))[0]
-        self._log_joint = self._log_joint + np.where(against, -0.5 * value, 0.5 * value)
-        self._log_joint -= self._log_joint.max()
-        self._side_evidence = True
+        self._report(self._senders.index(sender), value)
         self.reports += 1
 
+    def _report(self, j: int, value: float) -> None:
+        """Teammate j's report favours the main pose by `value` (log odds): into every row of the joint but
+        the one that leaves teammate j out."""
+        # the report supports the main pose when the robot's side and the teammate's flag agree (both 0 or 1)
+        against = _masks(len(self._senders), j)[0]
+        rows = np.arange(self._log_joint.shape[0]) != j + 1
+        self._log_joint[rows] += np.where(against, -0.5 * value, 0.5 * value)
+        self._log_joint -= self._log_joint.max(axis=1, keepdims=True)
+        self._side_evidence = True
+
     def _add_teammate(self, sender: int) -> None:
+        """A new flag in every row, and a row without the new teammate: so far, the joint over every report."""
         q = self.settings.teammate_mirrored
         self._senders.append(sender)
-        self._log_joint = np.concatenate([self._log_joint + math.log1p(-q), self._log_joint + math.log(q)])
+        joint = self._log_joint
+        joint = np.concatenate([joint + math.log1p(-q), joint + math.log(q)], axis=1)
+        self._log_joint = np.concatenate([joint, joint[:1]])
 
     def _age(self, now: float) -> None:
         """The teammates' flags may have changed since the last report: each flag is a two-state Markov chain
@@ -405,7 +436,7 @@ class SideBelief:
                     _, on_mirror, swapped = _masks(len(self._senders), j)
                     stay = np.where(on_mirror, stay_1, stay_0)
                     arrive = np.where(on_mirror, arrive_1, arrive_0)
-                    self._log_joint = np.logaddexp(self._log_joint + stay, self._log_joint[swapped] + arrive)
+                    self._log_joint = np.logaddexp(self._log_joint + stay, self._log_joint[:, swapped] + arrive)
         self._joint_time = now if self._joint_time is None else max(self._joint_time, now)
 
     # -- what the localizer tells it -------------------------------------------------------------------------
@@ -420,8 +451,8 @@ class SideBelief:
 
     def mirrored(self) -> None:
         """The main pose became its mirror image: the robot's side swaps in the joint belief."""
-        index = np.arange(self._log_joint.shape[0])
-        self._log_joint = self._log_joint[index ^ 1]
+        index = np.arange(self._log_joint.shape[1])
+        self._log_joint = self._log_joint[:, index ^ 1]
         for sighting in self._recent:
             sighting.point = -sighting.point
         if self._sighting is not None and all(self._sighting is not r for r in self._recent):
@@ -435,9 +466,9 @@ class SideBelief:
         if self._side_evidence:
             prior = self._prior
             main, mirror = -math.log1p(math.exp(-prior)), -math.log1p(math.exp(prior))
-            teammates = np.logaddexp(self._log_joint[0::2] + main, self._log_joint[1::2] + mirror)
-            teammates -= teammates.max()
-            self._log_joint = np.repeat(teammates, 2)
+            teammates = np.logaddexp(self._log_joint[:, 0::2] + main, self._log_joint[:, 1::2] + mirror)
+            teammates -= teammates.max(axis=1, keepdims=True)
+            self._log_joint = np.repeat(teammates, 2, axis=1)
         self._side_evidence = False
         self._used.clear()
         self._sighting = None

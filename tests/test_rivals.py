@@ -240,3 +240,31 @@ def test_a_young_tracks_rival_is_a_hypothesis_weighed_by_its_odds():
     off = Localizer(FIELD, n_particles=300, seed=0, quality=QualityThresholds(rivals=None))
     walk_in_front_of_a_goalpost(off, wrong, truth, seconds=1.0)
     assert all(h.kind != "rival" for h in off.hypotheses())
+
+
+def test_an_estimate_that_jumps_without_a_relocalization_is_a_young_track_again():
+    """Once the track is old the rivals are not looked for; when the particles move to another place between
+    two corrections (here: moved by hand onto the other post's identical view), the new place is checked
+    against the places that explain the frames as after a re-localization, and is not SUPERB."""
+    posts = FIELD.landmarks_of("goalpost")
+    post = posts[np.argmax(posts[:, 0] + posts[:, 1])]
+    truth = np.array([post[0] - 1.5, post[1], 0.0])
+    wrong = np.array([post[0] - 1.5, -post[1], 0.0])
+    loc = Localizer(FIELD, n_particles=300, seed=0, quality=QualityThresholds(rivals=RivalSettings(young=1.0)))
+    loc.place(truth, sigma=(0.05, 0.05, 0.05))
+    qualities, odds = [], []
+    for k in range(400):
+        t = 0.01 * (k + 1)
+        loc.motion(t, MotionInput(dt=0.01, odometry=(0.0, 0.0, 0.0)))
+        if k == 200:  # 2 s in: the track is old, and the particles jump to the other post
+            assert loc.rival_log_odds == math.inf and loc.jumps == 0
+            loc.filter.poses[:, 1] += wrong[1] - truth[1]
+        if k % 3 == 0:
+            loc.observe([LandmarkObservation("goalpost", 1.5, 0.0)], capture_time=t)
+        if 200 < k <= 220:  # the first frames after the jump
+            qualities.append(loc.quality())
+            odds.append(loc.rival_log_odds)
+    assert loc.jumps == 1
+    assert np.hypot(*(loc.pose().pose[:2] - wrong[:2])) < 0.3
+    assert any(math.isfinite(o) and o < math.log(10.0) for o in odds)  # the old place is a rival at once
+    assert Quality.SUPERB not in qualities

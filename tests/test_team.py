@@ -312,8 +312,9 @@ def test_hypotheses_hold_the_mirror_image_weighted_by_the_side_odds():
     assert main.weight / mirror.weight == pytest.approx(math.exp(loc.side_log_odds), rel=1e-6)
 
 
-def test_unsure_of_the_half_when_the_side_odds_are_even():
-    loc = standing((-2.0, 0.0, math.pi))  # facing its own goal: the frames below fit
+def sure_of_its_pose():
+    """A robot placed facing its own goal that sees the penalty mark and both goalposts for 0.9 s (until t = 1.9 s)."""
+    loc = standing((-2.0, 0.0, math.pi))
     for k in range(30):
         t = 1.0 + 0.03 * (k + 1)
         for j in range(3):
@@ -322,6 +323,11 @@ def test_unsure_of_the_half_when_the_side_odds_are_even():
             [Seen("penalty_mark", 1.2, 0.0), Seen("goalpost", 2.65, 0.31), Seen("goalpost", 2.65, -0.31)],
             capture_time=t,
         )
+    return loc
+
+
+def test_unsure_of_the_half_when_the_side_odds_are_even():
+    loc = sure_of_its_pose()
     assert loc.quality() in (Quality.SUPERB, Quality.OKAY)
     # as a re-localization that could not tell the pose from its mirror image
     loc.filter.relocalization.mirror_log_odds = math.log(loc.thresholds.okay_mirror_odds) - 0.1
@@ -387,13 +393,91 @@ def test_one_teammate_never_moves_the_odds_by_more_than_its_trust(reports, prior
     for sender, value in reports:
         if sender not in side._senders:
             side._add_teammate(sender)
-        index = np.arange(side._log_joint.shape[0])
-        bit = 1 << (side._senders.index(sender) + 1)
-        against = ((index & 1) != 0) != ((index & bit) != 0)
-        side._log_joint = side._log_joint + np.where(against, -0.5 * value, 0.5 * value)
-        side._side_evidence = True
+        side._report(side._senders.index(sender), value)
     trust = side.settings.teammate_trust
     assert abs(side.team_log_odds()) <= len(side._senders) * trust + 1e-9
     assert math.isfinite(side.log_odds(prior))
     if len(side._senders) == 1:
         assert abs(side.team_log_odds()) <= trust + 1e-9
+
+
+# -- the side odds no single teammate carries ------------------------------------------------------------------
+events = st.lists(
+    st.one_of(
+        st.tuples(st.just("report"), st.integers(1, 4), st.floats(-6.0, 6.0)),
+        st.tuples(st.sampled_from(["moved", "mirrored"]), st.just(0), st.just(0.0)),
+    ),
+    max_size=30,
+)
+
+
+def replay(events, silenced=None):
+    """A side belief fed `events` (a teammate's report, the robot moved or mirrored); the reports of teammate
+    `silenced` count for nothing (its flag is still modelled)."""
+    side = SideBelief(FIELD)
+    for kind, sender, value in events:
+        if kind == "report":
+            if sender not in side._senders:
+                side._add_teammate(sender)
+            side._report(side._senders.index(sender), 0.0 if sender == silenced else value)
+        else:
+            getattr(side, kind)()
+    return side
+
+
+@given(events)
+def test_leaving_a_teammate_out_is_the_belief_that_never_heard_its_reports(events):
+    """Row j + 1 of the joint is, to rounding, the belief in which teammate j's reports said nothing; the held
+    odds are the least of these and the full odds."""
+    side = replay(events)
+    marginals = side._side_marginals()
+    for j, sender in enumerate(side._senders):
+        assert marginals[j + 1] == pytest.approx(replay(events, silenced=sender)._side_marginal(), abs=1e-9)
+    assert side.held_team_log_odds() <= side.team_log_odds() + 1e-12
+    if side._side_evidence:
+        assert side.held_team_log_odds() == pytest.approx(min(marginals), abs=1e-12)
+
+
+@given(st.lists(st.floats(0.0, 6.0), min_size=1, max_size=30), st.floats(-3.0, 3.0))
+def test_one_teammate_alone_never_raises_the_held_odds(values, prior):
+    """However often and surely one teammate speaks for the main pose, the odds the quality reads stay the
+    prior's (capped); the full odds rise."""
+    side = SideBelief(FIELD)
+    side._add_teammate(2)
+    for value in values:
+        side._report(0, value)
+    assert side.held_team_log_odds() == pytest.approx(0.0, abs=1e-9)
+    assert side.held_log_odds(prior) == pytest.approx(min(max(prior, -3.0), 3.0), abs=1e-9)
+    assert side.team_log_odds() >= 0.0
+
+
+def test_two_agreeing_teammates_raise_the_held_odds():
+    side = SideBelief(FIELD)
+    for sender in (2, 4):
+        side._add_teammate(sender)
+    for _ in range(5):
+        side._report(0, 2.0)
+        side._report(1, 2.0)
+    assert side.held_team_log_odds() > 1.0
+    assert side.team_log_odds() > side.held_team_log_odds()
+
+
+def test_one_teammate_never_makes_the_quality_sure_of_the_half_after_an_unseen_move():
+    """After a kidnapping whose side the robot's own prior cannot tell, one confident teammate lifts the side
+    odds, but the quality stays UNSURE_HALF; the pose is not lost."""
+    loc = sure_of_its_pose()
+    loc.moved_unseen = True  # as after a kidnapping detected by its surprise: the prior is capped at jump_cap
+    loc._quality = None
+    assert loc.quality() is Quality.UNSURE_HALF
+    t = 2.0
+    for k in range(30):  # one teammate, agreeing with the robot's side, for 3 s
+        t = 2.0 + 0.1 * (k + 1)
+        for j in range(10):
+            loc.motion(t - 0.1 + 0.01 * (j + 1), MotionInput(0.01, odometry=(0.0, 0.0, 0.0)))
+        loc.team_message(report(2, t - 0.05, (-1.0, 0.8)))
+        sees_ball_at(loc, (-1.0, 0.8), t, pose=(-2.0, 0.0, math.pi))
+    assert loc.side.reports > 0
+    assert loc.side_log_odds > math.log(loc.thresholds.superb_mirror_odds)  # the full odds would say SUPERB
+    assert loc.held_side_log_odds < math.log(loc.thresholds.okay_mirror_odds)
+    assert loc.quality() is Quality.UNSURE_HALF
+    assert not loc.is_lost
