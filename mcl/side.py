@@ -262,6 +262,7 @@ class SideBelief:
         self._area = 4.0 * field.half_length * field.half_width
         self._senders: list[int] = []  # teammate j is bit j + 1
         self._log_joint = np.zeros((1, 2))  # over the robot's side alone, at first (row 0: every report)
+        self._held: float | None = None  # held_team_log_odds, until the joint changes
         self._joint_time: float | None = None  # when the teammates' flags were last aged
         self._side_evidence = False  # whether the joint says anything of the side
         self._latest: dict[int, TeamMessage] = {}  # sender: its newest message
@@ -283,7 +284,8 @@ class SideBelief:
 
     def _side_marginal(self) -> float:
         """log p(reports | main) − log p(reports | mirror) over every report."""
-        return float(self._side_marginals()[0])
+        joint = self._log_joint[0]
+        return float(np.logaddexp.reduce(joint[0::2]) - np.logaddexp.reduce(joint[1::2]))
 
     def team_log_odds(self) -> float:
         """What the teammates' reports say of the robot's side (log odds of the main pose; 0: nothing)."""
@@ -293,7 +295,11 @@ class SideBelief:
         """The teammates' evidence for the main pose that holds without any one of them: the least of
         `team_log_odds` and of the same odds with each teammate's reports left out in turn (0: nothing). One
         teammate alone never raises it above 0, however sure it is; two that agree do."""
-        return float(self._side_marginals().min()) if self._side_evidence else 0.0
+        if not self._side_evidence:
+            return 0.0
+        if self._held is None:
+            self._held = float(self._side_marginals().min())
+        return self._held
 
     def _capped_prior(self, prior_log_odds: float, kidnapped: bool, jumped: bool) -> float:
         s = self.settings
@@ -405,10 +411,13 @@ class SideBelief:
         the one that leaves teammate j out."""
         # the report supports the main pose when the robot's side and the teammate's flag agree (both 0 or 1)
         against = _masks(len(self._senders), j)[0]
-        rows = np.arange(self._log_joint.shape[0]) != j + 1
-        self._log_joint[rows] += np.where(against, -0.5 * value, 0.5 * value)
-        self._log_joint -= self._log_joint.max(axis=1, keepdims=True)
+        change = np.where(against, -0.5 * value, 0.5 * value)
+        joint = self._log_joint
+        joint[: j + 1] += change
+        joint[j + 2 :] += change
+        joint -= joint.max(axis=1, keepdims=True)
         self._side_evidence = True
+        self._held = None
 
     def _add_teammate(self, sender: int) -> None:
         """A new flag in every row, and a row without the new teammate: so far, the joint over every report."""
@@ -417,6 +426,7 @@ class SideBelief:
         joint = self._log_joint
         joint = np.concatenate([joint + math.log1p(-q), joint + math.log(q)], axis=1)
         self._log_joint = np.concatenate([joint, joint[:1]])
+        self._held = None
 
     def _age(self, now: float) -> None:
         """The teammates' flags may have changed since the last report: each flag is a two-state Markov chain
@@ -437,6 +447,7 @@ class SideBelief:
                     stay = np.where(on_mirror, stay_1, stay_0)
                     arrive = np.where(on_mirror, arrive_1, arrive_0)
                     self._log_joint = np.logaddexp(self._log_joint + stay, self._log_joint[:, swapped] + arrive)
+                self._held = None
         self._joint_time = now if self._joint_time is None else max(self._joint_time, now)
 
     # -- what the localizer tells it -------------------------------------------------------------------------
@@ -453,6 +464,7 @@ class SideBelief:
         """The main pose became its mirror image: the robot's side swaps in the joint belief."""
         index = np.arange(self._log_joint.shape[1])
         self._log_joint = self._log_joint[:, index ^ 1]
+        self._held = None
         for sighting in self._recent:
             sighting.point = -sighting.point
         if self._sighting is not None and all(self._sighting is not r for r in self._recent):
@@ -469,6 +481,7 @@ class SideBelief:
             teammates = np.logaddexp(self._log_joint[:, 0::2] + main, self._log_joint[:, 1::2] + mirror)
             teammates -= teammates.max(axis=1, keepdims=True)
             self._log_joint = np.repeat(teammates, 2, axis=1)
+            self._held = None
         self._side_evidence = False
         self._used.clear()
         self._sighting = None
