@@ -179,10 +179,10 @@ def localize(
     odometry = [tuple(row) for row in run.odometry.tolist()]
     started = time.perf_counter()
     for k in range(n):
+        changed = loc.counts["side changed by the team"]  # a side change comes with a report, or as time passes
         loc.motion(times[k], MotionInput(dt, odometry=odometry[k]))
         for call in calls_at.get(k, ()):
             call()
-        changed = loc.counts["side changed by the team"]
         for frame, ball in frames_at.get(k, ()):
             try:
                 loc.observe(

@@ -609,6 +609,8 @@ class Localizer:
         self.time = t
         self._quality = None
         self._track_side()
+        if self.side.flip_pending:  # the teammates' evidence holds the mirror image: its time runs without reports
+            self._settle_side()
         self._update_lost()
 
     def observe(

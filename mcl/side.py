@@ -14,8 +14,8 @@ hypothesis, at the point image of the main estimate, with log odds from two kind
    pose, the placement region), capped at `prior_cap`: continuity holds a robot on its side, but no prior is
    certain (the kidnapping it assumes may not be the one that happened).
 2. **The ball, seen by the robot and by its teammates** (`sensing.team.side_evidence`): each teammate's report
-   compared once with the robot's own sighting, placed on the field through the main pose and through its
-   mirror image. A sighting counts once it is confirmed (seen twice at the same place: false balls rarely
+   compared once with the robot's own sighting nearest to it in time (of the confirmed ones of the last `past`
+   seconds), placed on the field through the main pose and through its mirror image. A sighting counts once it is confirmed (seen twice at the same place: false balls rarely
    are), and a report far from both places says nothing (one of the two sightings is wrong).
 
 **A teammate can be on the mirror itself**, with high stated confidence: then its reports of the ball are
@@ -37,7 +37,8 @@ teammate j supports S when m_j = 0 and the other side when m_j = 1. The posterio
 that two agreeing teammates can.
 
 The robot changes sides (mirrors its particles: exact, since the likelihood is symmetric) when the log odds
-stay below −`flip` for `flip_hold` seconds. This module holds the numbers; `mcl.localizer.Localizer` feeds
+stay below −`flip` for `flip_hold` seconds (`flip_pending` while it waits: the localizer asks again as its clock
+runs). This module holds the numbers; `mcl.localizer.Localizer` feeds
 it and acts on it.
 """
 
@@ -45,6 +46,7 @@ from __future__ import annotations
 
 import functools
 import math
+from collections import deque
 from dataclasses import dataclass, fields
 
 import numpy as np
@@ -74,9 +76,9 @@ class SideSettings:
     rolling_sigma : float, default 1.0
         How fast the ball may have moved unseen [m/s], > 0: widens a report by this times its age.
     horizon : float, default 0.5
-        A report is compared with the robot's sighting only when the two sightings are at most this far apart
-        in time [s], > 0: a kicked ball moves metres in a second, so older pairs say more about the kick than
-        about the side.
+        A report is compared with the robot's sighting nearest to it in time only when the two sightings are at
+        most this far apart [s], > 0 (until then it waits for one): a kicked ball moves metres in a second, so
+        older pairs say more about the kick than about the side.
     teammate_mirrored : float, default 0.05
         Prior probability that a teammate is itself on the mirror, within (0, 0.5).
     teammate_hazard : float, default 0.01
@@ -267,7 +269,7 @@ class SideBelief:
         self._side_evidence = False  # whether the joint says anything of the side
         self._latest: dict[int, TeamMessage] = {}  # sender: its newest message
         self._used: dict[int, float] = {}  # sender: its sighting last compared
-        self._sighting: _Sighting | None = None
+        self._confirmed: deque[_Sighting] = deque()  # confirmed sightings of the robot's own, the last `past` s
         self._recent: list[_Sighting] = []  # own sightings of the last `confirm_window` s
         self._below_since: float | None = None
         self._prior = 0.0  # the robot's own prior, as last read
@@ -339,18 +341,19 @@ class SideBelief:
     def holds_evidence(self) -> bool:
         """Whether anything here belongs to the current main pose (evidence of its side, the robot's own
         sightings placed through it)."""
-        return bool(self._side_evidence or self._recent or self._sighting is not None)
+        return bool(self._side_evidence or self._recent or self._confirmed)
 
     # -- the evidence ----------------------------------------------------------------------------------------
     def message(self, message: TeamMessage, now: float) -> None:
         """A teammate's message arrived (`now`: the robot's clock); kept if it is its newest, and compared with
-        the robot's latest sighting when the two are close enough in time."""
+        the robot's confirmed sighting nearest in time to the teammate's, when the two are close enough in time
+        (`horizon`)."""
         latest = self._latest.get(message.sender)
         if latest is not None and latest.received_time > message.received_time:
             self.ignored += 1  # an older message arriving late: its newer one is kept
             return
         self._latest[message.sender] = message
-        if self._sighting is not None:
+        if self._confirmed:
             self._compare(message.sender, now)
 
     def sighting(
@@ -370,20 +373,22 @@ class SideBelief:
         if not confirmed:
             self.unconfirmed += 1
             return
-        self._sighting = new
+        self._confirmed.append(new)
+        while self._confirmed[0].time < capture_time - s.past:
+            self._confirmed.popleft()
         for sender in list(self._latest):
             self._compare(sender, now)
 
     def _compare(self, sender: int, now: float) -> None:
         message = self._latest[sender]
-        sighting = self._sighting
-        assert sighting is not None
-        # each sighting of a teammate's is evidence once (against the first sighting of the robot's own it meets):
-        # its error is one error, however often it is repeated (a growing age) or compared
+        # each sighting of a teammate's is evidence once (against the first sighting of the robot's own it is
+        # compared with): its error is one error, however often it is repeated (a growing age) or compared
         seen = round(message.sighting_time, 3)
         if self._used.get(sender) == seen:
             return
-        self._used[sender] = seen
+        # the robot's own confirmed sighting nearest in time to the teammate's (sightings of one ball, the less
+        # time apart the less it can have moved)
+        sighting = min(self._confirmed, key=lambda own: abs(own.time - message.sighting_time))
         s = self.settings
         report = teammate_ball(message, sighting.time, s.rolling_sigma, s.horizon)
         if report is None:
@@ -396,6 +401,7 @@ class SideBelief:
         if min(mahalanobis2(sighting.point - point, total), mahalanobis2(-sighting.point - point, total)) > s.gate:
             self.ignored += 1
             return
+        self._used[sender] = seen
         if sender not in self._senders:
             if len(self._senders) >= s.max_teammates:
                 self.ignored += 1
@@ -451,6 +457,12 @@ class SideBelief:
         self._joint_time = now if self._joint_time is None else max(self._joint_time, now)
 
     # -- what the localizer tells it -------------------------------------------------------------------------
+    @property
+    def flip_pending(self) -> bool:
+        """Whether the odds were below −`flip` when `should_flip` last asked: a side change waits for
+        `flip_hold` seconds to pass, reports or not."""
+        return self._below_since is not None
+
     def should_flip(self, log_odds: float, now: float) -> bool:
         """Whether the robot should change sides now: the log odds below −`flip` for `flip_hold` seconds."""
         if log_odds >= -self.settings.flip:
@@ -467,8 +479,9 @@ class SideBelief:
         self._held = None
         for sighting in self._recent:
             sighting.point = -sighting.point
-        if self._sighting is not None and all(self._sighting is not r for r in self._recent):
-            self._sighting.point = -self._sighting.point
+        for sighting in self._confirmed:
+            if all(sighting is not r for r in self._recent):
+                sighting.point = -sighting.point
         self._below_since = None
 
     def moved(self) -> None:
@@ -484,6 +497,6 @@ class SideBelief:
             self._held = None
         self._side_evidence = False
         self._used.clear()
-        self._sighting = None
+        self._confirmed.clear()
         self._recent = []
         self._below_since = None

@@ -481,3 +481,55 @@ def test_one_teammate_never_makes_the_quality_sure_of_the_half_after_an_unseen_m
     assert loc.held_side_log_odds < math.log(loc.thresholds.okay_mirror_odds)
     assert loc.quality() is Quality.UNSURE_HALF
     assert not loc.is_lost
+
+
+# -- pairing sightings, and the side change's hold -----------------------------------------------------------
+def step_to(loc, t):
+    """Still odometry at 100 Hz until `t`."""
+    while loc.time < t - 1e-9:
+        loc.motion(round(loc.time + 0.01, 6), MotionInput(0.01, odometry=(0.0, 0.0, 0.0)))
+
+
+def test_a_teammate_sighting_pairs_with_the_robots_own_sighting_nearest_in_time():
+    """The robot saw the ball at 1.0 s and again at 2.0 s; a teammate's sighting of 1.0 s arrives after both:
+    it is weighed against the one of 1.0 s (the ball had no time to move), not refused for the later one."""
+    loc = standing()
+    sees_ball_at(loc, (-1.0, 0.8), 1.0)
+    step_to(loc, 2.0)
+    sees_ball_at(loc, (-1.0, 0.8), 2.0)
+    step_to(loc, 2.05)
+    loc.team_message(report(2, 2.05, (-1.0, 0.8), ball_age=1.05))
+    assert loc.side.reports == 1 and loc.side_log_odds > standing().side_log_odds
+
+
+def test_a_teammate_sighting_no_own_sighting_could_pair_with_waits_for_one():
+    """A report that arrives when the robot's own sightings are all more than `horizon` from it is not used up:
+    the robot's next sighting, near it in time, is weighed against it."""
+    loc = standing()
+    sees_ball_at(loc, (-1.0, 0.8), 1.0)
+    step_to(loc, 2.05)
+    loc.team_message(report(2, 2.05, (-1.0, 0.8), ball_age=0.05))  # seen at 2.0 s: 1 s after the robot's
+    assert loc.side.reports == 0 and loc.side.ignored == 1
+    step_to(loc, 2.1)
+    sees_ball_at(loc, (-1.0, 0.8), 2.1)
+    assert loc.side.reports == 1
+
+
+def test_a_side_change_waits_for_its_hold_without_further_reports():
+    """Two agreeing teammates put the robot on the mirror, then fall silent: the side changes `flip_hold`
+    seconds after the odds fell below −`flip`, as the robot's clock runs, not at the next report."""
+    loc = standing()
+    t = 1.0
+    while loc.side_log_odds >= -loc.side.settings.flip:
+        t = round(t + 0.1, 6)
+        step_to(loc, t)
+        loc.team_message(report(2, t - 0.05, (1.0, -0.8)))
+        loc.team_message(report(4, t - 0.04, (1.05, -0.75)))
+        sees_ball_at(loc, (-1.0, 0.8), t)
+        assert t < 5.0
+    pending_since = loc.time
+    hold = loc.side.settings.flip_hold
+    step_to(loc, pending_since + hold - 0.05)
+    assert loc.counts["side changed by the team"] == 0
+    step_to(loc, pending_since + hold + 0.05)
+    assert loc.counts["side changed by the team"] == 1
