@@ -44,9 +44,9 @@ it and acts on it.
 
 from __future__ import annotations
 
+import bisect
 import functools
 import math
-from collections import deque
 from dataclasses import dataclass, fields
 
 import numpy as np
@@ -269,7 +269,9 @@ class SideBelief:
         self._side_evidence = False  # whether the joint says anything of the side
         self._latest: dict[int, TeamMessage] = {}  # sender: its newest message
         self._used: dict[int, float] = {}  # sender: its sighting last compared
-        self._confirmed: deque[_Sighting] = deque()  # confirmed sightings of the robot's own, the last `past` s
+        # the robot's own confirmed sightings of the last `past` seconds, by capture time (and their times)
+        self._confirmed: list[_Sighting] = []
+        self._confirmed_times: list[float] = []
         self._recent: list[_Sighting] = []  # own sightings of the last `confirm_window` s
         self._below_since: float | None = None
         self._prior = 0.0  # the robot's own prior, as last read
@@ -373,9 +375,11 @@ class SideBelief:
         if not confirmed:
             self.unconfirmed += 1
             return
-        self._confirmed.append(new)
-        while self._confirmed[0].time < capture_time - s.past:
-            self._confirmed.popleft()
+        at = bisect.bisect_right(self._confirmed_times, capture_time)  # the end, unless frames came out of order
+        self._confirmed.insert(at, new)
+        self._confirmed_times.insert(at, capture_time)
+        old = bisect.bisect_left(self._confirmed_times, capture_time - s.past)
+        del self._confirmed[:old], self._confirmed_times[:old]
         for sender in list(self._latest):
             self._compare(sender, now)
 
@@ -388,7 +392,11 @@ class SideBelief:
             return
         # the robot's own confirmed sighting nearest in time to the teammate's (sightings of one ball, the less
         # time apart the less it can have moved)
-        sighting = min(self._confirmed, key=lambda own: abs(own.time - message.sighting_time))
+        times = self._confirmed_times
+        at = bisect.bisect_left(times, message.sighting_time)
+        if at == len(times) or (at > 0 and message.sighting_time - times[at - 1] <= times[at] - message.sighting_time):
+            at -= 1
+        sighting = self._confirmed[at]
         s = self.settings
         report = teammate_ball(message, sighting.time, s.rolling_sigma, s.horizon)
         if report is None:
@@ -498,5 +506,6 @@ class SideBelief:
         self._side_evidence = False
         self._used.clear()
         self._confirmed.clear()
+        self._confirmed_times.clear()
         self._recent = []
         self._below_since = None
