@@ -533,6 +533,7 @@ class Localizer:
         self._contradicted_at: tuple[float, float, float] | None = None
         self._track_pose: tuple[float, float, float] | None = None  # the estimate after the last correction, moved on
         self.moved_unseen = False
+        self._placed_in_own_half = False  # the last reset was a placement in the own half (`side_placed`)
         self.jumps = 0
         self.is_penalized = False
         # (start, end) of the stretches the robot was fallen or penalized (end None while it lasts): a frame
@@ -791,6 +792,17 @@ class Localizer:
         itself). Without teammates' evidence, `side_log_odds`."""
         return self.side.held_log_odds(*self._side_prior())
 
+    @property
+    def side_placed(self) -> bool:
+        """Whether the half is known from the game's rules: the last reset was a placement in the own half
+        (`initial_placement`, `kickoff_placement`, `manual_placement`, `penalty_return`,
+        `anywhere_in_own_half`) and the robot has not been moved unseen since (no re-localization beyond the
+        anchor's drift, `moved_unseen` false). The teammates' evidence does not change its side then."""
+        if not self._placed_in_own_half or self.moved_unseen:
+            return False
+        _, kidnapped, jumped = self._side_prior()
+        return not (kidnapped or jumped)
+
     def _side_prior(self) -> tuple[float, bool, bool]:
         """The re-localization's side prior (signed for the current main pose), and whether it rests on a
         kidnapping law or on an unseen move (`SideBelief.log_odds`)."""
@@ -925,6 +937,8 @@ class Localizer:
         estimate = self.filter.estimate()
         if not estimate.is_confident():
             return
+        if self.side_placed:
+            return  # the rules put it in the own half and nothing moved it unseen since: the evidence is wrong
         if self.side.should_flip(self.side_log_odds, self._now()):
             self.filter.reset_mirrored()
             if self._track_pose is not None:  # the same track, on the other half
@@ -1202,13 +1216,13 @@ class Localizer:
             self._reset(poses, self.placement_sigma)
             return
         self.filter.reset_uniform("own_half", heading=0.0, heading_sigma=0.3)
-        self._after_reset()
+        self._after_reset(own_half=True)
 
     def anywhere_in_own_half(self) -> None:
         """The robot is somewhere in the own half, heading unknown (a robot switched on or carried in without
         a known placement): particles uniform over the own half with uniform headings."""
         self.filter.reset_uniform("own_half")
-        self._after_reset()
+        self._after_reset(own_half=True)
 
     def place(self, pose: Sequence[float] | np.ndarray, sigma: Sequence[float] | np.ndarray | None = None) -> None:
         """The pose is known: particles around it, its heading trusted for injection.
@@ -1261,11 +1275,13 @@ class Localizer:
 
     def _reset(self, poses, sigma) -> None:
         self.filter.reset_candidates(poses, sigma, region="own_half")
-        self._after_reset(np.asarray(poses, dtype=np.float64).reshape(-1, 3), sigma)
+        self._after_reset(np.asarray(poses, dtype=np.float64).reshape(-1, 3), sigma, own_half=True)
 
-    def _after_reset(self, poses: np.ndarray | None = None, sigma=None) -> None:
+    def _after_reset(self, poses: np.ndarray | None = None, sigma=None, own_half: bool = False) -> None:
         """After any reset; `poses` (K, 3) and `sigma` (x, y, θ): a reset around these candidates (None: over a
-        region), whose rivals can only lie within 3 σ of one of them."""
+        region), whose rivals can only lie within 3 σ of one of them; `own_half`: a placement the game's rules
+        put in the own half."""
+        self._placed_in_own_half = own_half
         self.side.moved()
         self._side_sign = 1.0
         self._side_pose = None

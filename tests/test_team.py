@@ -486,8 +486,8 @@ def test_one_teammate_never_makes_the_quality_sure_of_the_half_after_an_unseen_m
 # -- pairing sightings, and the side change's hold -----------------------------------------------------------
 def step_to(loc, t):
     """Still odometry at 100 Hz until `t`."""
-    while loc.time < t - 1e-9:
-        loc.motion(round(loc.time + 0.01, 6), MotionInput(0.01, odometry=(0.0, 0.0, 0.0)))
+    while loc.time is None or loc.time < t - 1e-9:
+        loc.motion(round((loc.time or 0.0) + 0.01, 6), MotionInput(0.01, odometry=(0.0, 0.0, 0.0)))
 
 
 def test_a_teammate_sighting_pairs_with_the_robots_own_sighting_nearest_in_time():
@@ -532,4 +532,31 @@ def test_a_side_change_waits_for_its_hold_without_further_reports():
     step_to(loc, pending_since + hold - 0.05)
     assert loc.counts["side changed by the team"] == 0
     step_to(loc, pending_since + hold + 0.05)
+    assert loc.counts["side changed by the team"] == 1
+
+
+def test_a_robot_placed_in_its_own_half_keeps_its_side_until_it_is_moved_unseen():
+    """The rules put a placed robot in its own half: two agreeing teammates that speak for the mirror image do
+    not change its side while nothing has moved it unseen; once something has, they do."""
+    loc = Localizer(FIELD, seed=0)
+    loc.manual_placement([(-2.0, 0.0, 0.0)])
+    step_to(loc, 1.0)
+    assert loc.side_placed
+
+    def teammates_say_mirror(t0, seconds):
+        t = t0
+        for _ in range(int(seconds / 0.1)):
+            t = round(t + 0.1, 6)
+            step_to(loc, t)
+            loc.team_message(report(2, t - 0.05, (1.0, -0.8)))
+            loc.team_message(report(4, t - 0.04, (1.05, -0.75)))
+            sees_ball_at(loc, (-1.0, 0.8), t)
+        return t
+
+    t = teammates_say_mirror(1.0, 4.0)
+    assert loc.side_log_odds < -loc.side.settings.flip  # the evidence says mirror ...
+    assert loc.counts["side changed by the team"] == 0  # ... and the placement holds
+    loc.moved_unseen = True  # as after a kidnapping the surprise caught
+    assert not loc.side_placed
+    teammates_say_mirror(t, 2.0)
     assert loc.counts["side changed by the team"] == 1
