@@ -157,9 +157,8 @@ class QualityThresholds:
         that meets the other limits of SUPERB or OKAY but not these odds is UNSURE_HALF.
     superb_rival_odds, okay_rival_odds : float, default 10.0, 3.0
         While the track is young (`mcl.rivals`: after a reset, a re-localization, or a jump of the estimate), the
-        estimate explains the recent frames at least this many
-        times better than any other place that explains them (`Localizer.rival_log_odds`); below
-        `okay_rival_odds` the pose is POOR, whatever else holds.
+        estimate explains the recent frames at least this many times better than any other place that explains
+        them (`Localizer.rival_log_odds`); below `okay_rival_odds` the pose is POOR, whatever else holds.
     rivals : RivalSettings or None, default RivalSettings()
         How a young track is checked against the other places that explain the same detections (`mcl.rivals`);
         None: not checked (`Localizer.rival_log_odds` stays +inf).

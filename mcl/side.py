@@ -15,8 +15,9 @@ hypothesis, at the point image of the main estimate, with log odds from two kind
    certain (the kidnapping it assumes may not be the one that happened).
 2. **The ball, seen by the robot and by its teammates** (`sensing.team.side_evidence`): each teammate's report
    compared once with the robot's own sighting nearest to it in time (of the confirmed ones of the last `past`
-   seconds), placed on the field through the main pose and through its mirror image. A sighting counts once it is confirmed (seen twice at the same place: false balls rarely
-   are), and a report far from both places says nothing (one of the two sightings is wrong).
+   seconds), placed on the field through the main pose and through its mirror image. A sighting counts once it
+   is confirmed (seen twice at the same place: false balls rarely are), and a report far from both places says
+   nothing (one of the two sightings is wrong).
 
 **A teammate can be on the mirror itself**, with high stated confidence: then its reports of the ball are
 point images, and they speak against the right side. So the belief is a joint one, over the robot's side S and
@@ -38,8 +39,7 @@ that two agreeing teammates can.
 
 The robot changes sides (mirrors its particles: exact, since the likelihood is symmetric) when the log odds
 stay below −`flip` for `flip_hold` seconds (`flip_pending` while it waits: the localizer asks again as its clock
-runs). This module holds the numbers; `mcl.localizer.Localizer` feeds
-it and acts on it.
+runs). This module holds the numbers; `mcl.localizer.Localizer` feeds it and acts on it.
 """
 
 from __future__ import annotations
