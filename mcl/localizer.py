@@ -797,9 +797,9 @@ class Localizer:
         (`initial_placement`, `kickoff_placement`, `manual_placement`, `penalty_return`,
         `anywhere_in_own_half`) and the robot has not been moved unseen since (no re-localization beyond the
         anchor's drift, `moved_unseen` false). The teammates' evidence does not change its side then."""
-        if not self._placed_in_own_half or self.moved_unseen:
+        if not self._placed_in_own_half:
             return False
-        _, kidnapped, jumped = self._side_prior()
+        _, kidnapped, jumped = self._side_prior()  # (jumped includes moved_unseen)
         return not (kidnapped or jumped)
 
     def _side_prior(self) -> tuple[float, bool, bool]:
