@@ -69,7 +69,7 @@ def numpy_step(pf, u: MotionInput, observations: Observations, timings: dict | N
     gaussian = pf.motion_model.gaussian
     move_with_noise_reference(poses, *u.displacement(), *bounds, gaussian, draw_variates(pf.rng, pf.n, gaussian))
     marks.append(clock())
-    log_likelihood = pf.sensor_model.log_likelihood_reference(poses, observations)
+    log_likelihood = pf.sensor_model.numpy_twin().log_likelihood(poses, observations)
     marks.append(clock())
     weights, log_total, ess = normalize_reference(pf.log_weights + log_likelihood)
     marks.append(clock())
@@ -164,7 +164,7 @@ def _issue_shaped_kernel(
 
 def sample_injection_reference(pf, count: int, observations: Observations) -> np.ndarray:
     """Plain numpy twin of `ParticleFilter._sample_injection` (augmented MCL's injected poses): the same draws
-    from `pf.rng`, the same poses bit for bit, with the sensor model's `sample_poses_reference`."""
+    from `pf.rng`, the same poses bit for bit, with the sensor model's `numpy_twin().sample_poses`."""
     return pf.relocalization.propose(count, observations, pf.sensor_model, pf.rng, reference=True)
 
 

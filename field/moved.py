@@ -3,6 +3,7 @@
     from field.moved import keep_old_names, moved_names
     keep_old_names({"mcl.replay": "mcl.tools.replay"})     # a module: in the package that held the old name
     __getattr__ = moved_names(__name__, {"normalize_reference": "mcl.reference.normalize"})   # a name
+    __getattr__ = moved_methods("Model", {"seen_reference": ("numpy_twin().seen", lambda m: m.numpy_twin().seen)})
 
 An import of an old name (or of anything below it: `mcl.logs.mcap_io`) gives the module at its new name, the
 same module object, so classes and exceptions compare equal whichever name a caller used; `python -m` with an
@@ -22,9 +23,9 @@ from types import CodeType, ModuleType
 from typing import Any
 
 
-def _warn(old: str, new: str) -> None:
+def _warn(old: str, new: str, use: str = "import") -> None:
     warnings.warn(
-        f"{old} moved to {new}: import it from there (the old name will be removed)", DeprecationWarning, stacklevel=3
+        f"{old} moved to {new}: {use} it from there (the old name will be removed)", DeprecationWarning, stacklevel=3
     )
 
 
@@ -76,15 +77,16 @@ def keep_old_names(moved: dict[str, str]) -> None:
     sys.meta_path.insert(0, _OldNames(moved))
 
 
-def moved_names(module: str, moves: dict[str, str]) -> Callable[[str], Any]:
+def moved_names(module: str, moves: dict[str, str | tuple[str, Callable[[], Any]]]) -> Callable[[str], Any]:
     """A module `__getattr__` (PEP 562) that finds each old name of `moves` at its new place.
 
     Parameters
     ----------
     module : str
         The module's name (`__name__`), for the messages.
-    moves : dict of str to str
-        Old name -> the qualified name it moved to ("package.module.name").
+    moves : dict of str to str or (str, callable)
+        Old name -> the qualified name it moved to ("package.module.name"), or (what replaces it, said in the
+        warning; a function of nothing that returns it) for a name that became a call with other arguments.
 
     Returns
     -------
@@ -96,8 +98,38 @@ def moved_names(module: str, moves: dict[str, str]) -> Callable[[str], Any]:
         target = moves.get(name)
         if target is None:
             raise AttributeError(f"module {module!r} has no attribute {name!r}")
+        if isinstance(target, tuple):
+            _warn(f"{module}.{name}", target[0], "call")
+            return target[1]()
         _warn(f"{module}.{name}", target)
         where, _, attribute = target.rpartition(".")
         return getattr(importlib.import_module(where), attribute)
+
+    return __getattr__
+
+
+def moved_methods(owner: str, moves: dict[str, tuple[str, Callable[[Any], Any]]]) -> Callable[[Any, str], Any]:
+    """A class `__getattr__` that finds each old method name of `moves` at its new place.
+
+    Parameters
+    ----------
+    owner : str
+        The class's name, for the messages.
+    moves : dict of str to (str, callable)
+        Old name -> (where it went, said in the warning; a function of the instance that returns it).
+
+    Returns
+    -------
+    callable
+        `__getattr__(self, name)`: the moved method, with a DeprecationWarning; AttributeError for any other
+        name (it reads nothing of the instance, so copying and unpickling find nothing here).
+    """
+
+    def __getattr__(self: Any, name: str) -> Any:
+        move = moves.get(name)
+        if move is None:
+            raise AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}")
+        _warn(f"{owner}.{name}", f"{owner}.{move[0]}", "call")
+        return move[1](self)
 
     return __getattr__

@@ -415,8 +415,8 @@ class ReferenceEngine(Engine):
     """The filter's stages in plain numpy, one by one: what `Engine` computes, with the same random draws in the
     same order and the same results to rounding. The weights, the resampling, the estimate and the entropy are
     the numpy twins of the kernels (`mcl.reference`); a bounded-noise motion model moves the particles by
-    `motion_models.reference.move_with_noise`, and a sensor model that offers `log_likelihood_reference` (the
-    landmark and line models do) scores them by it; other models are called through their contracts
+    `motion_models.reference.move_with_noise`, and a sensor model that offers a numpy twin (`numpy_twin()`, whose
+    `log_likelihood` scores them: the landmark and line models do); other models are called through their contracts
     (`predict`, `log_likelihood`). One thread, no fast-math, no fused step.
 
     Parameters
@@ -449,8 +449,9 @@ class ReferenceEngine(Engine):
 
     def likelihood(self, sensor_model: Any, observations: Observations, since: np.ndarray | None) -> np.ndarray:
         """`Engine.likelihood` in numpy: the particles moved back along `since` by `mcl.reference.move_back`, scored
-        by the sensor model's `log_likelihood_reference` when it has one (else its `log_likelihood`)."""
-        score = getattr(sensor_model, "log_likelihood_reference", None)
+        by the sensor model's numpy twin when it has one (`numpy_twin().log_likelihood`; else its `log_likelihood`)."""
+        twin = getattr(sensor_model, "numpy_twin", None)
+        score = getattr(twin(), "log_likelihood", None) if callable(twin) else None
         if not callable(score):
             return super().likelihood(sensor_model, observations, since)
         p = self.particles

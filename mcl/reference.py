@@ -5,7 +5,7 @@
     ancestors = reference.systematic(weights, m, rng)                  # mcl.resampling.systematic
 
 Each function computes what the kernel of the same name in `mcl.weights`, `mcl.resampling`, `mcl.estimate`,
-`mcl.latency` or `mcl.rivals` computes, with numpy's arrays: the same random draws in the same order, and the
+`mcl.latency`, `mcl.rivals` or `mcl.relocalization` computes (and the recording's colours), with numpy's arrays: the same random draws in the same order, and the
 same results to rounding (bit for bit where its docstring says so). The filter calls them only on its reference engine
 (`ParticleFilter(..., reference=True)`, `mcl.engine.ReferenceEngine`).
 """
@@ -16,7 +16,7 @@ import math
 
 import numpy as np
 
-from field.angles import wrap_angles
+from field.angles import TWO_PI, wrap_angles
 from numerics.reference import sincos
 
 
@@ -207,3 +207,38 @@ def displaced(poses: np.ndarray, displacement) -> np.ndarray:
     out[:, 1] = poses[:, 1] + s * displacement[0] + c * displacement[1]
     out[:, 2] = wrap_angles(poses[:, 2] + displacement[2])
     return out
+
+
+def log_prior(poses, anchor, mixture, region):
+    """Plain numpy twin of `mcl.relocalization.log_prior_kernel` (`SoccerRelocalization.log_prior`, whose
+    `_prior_arguments` give anchor, mixture and region): the prior's log-density at each pose (N, 3), the same
+    operations in the same order."""
+    has_anchor, ax, ay, at = anchor
+    track2, kidnap2, heading_sigma, kidnap_share, tail_share, heading_kept, uniform = mixture
+    has_region, x_min, x_max, y_min, y_max, log_region_tail = region
+    poses = np.asarray(poses, dtype=np.float64)
+    if not has_anchor:
+        log_density = np.full(poses.shape[0], math.log(uniform))
+    else:
+        d2 = (poses[:, 0] - ax) ** 2 + (poses[:, 1] - ay) ** 2
+        turn = wrap_angles(poses[:, 2] - at)
+        heading = np.exp(-0.5 * (turn / heading_sigma) ** 2) / (math.sqrt(TWO_PI) * heading_sigma)
+        kidnap_heading = (1.0 - heading_kept) / TWO_PI + heading_kept * heading
+        density = (
+            (1.0 - kidnap_share - tail_share) * np.exp(-0.5 * d2 / track2) / (TWO_PI * track2) * heading
+            + kidnap_share * np.exp(-0.5 * d2 / kidnap2) / (TWO_PI * kidnap2) * kidnap_heading
+            + tail_share * uniform
+        )
+        log_density = np.log(density)
+    if has_region:
+        inside = (poses[:, 0] >= x_min) & (poses[:, 0] <= x_max) & (poses[:, 1] >= y_min) & (poses[:, 1] <= y_max)
+        log_density = log_density + np.where(inside, 0.0, log_region_tail)
+    return log_density
+
+
+def weight_colors(weights, low, high):
+    """Plain numpy twin of `mcl.tools.recording`'s colour kernel (`weight_colors`): (N, 3) uint8 RGB from `low`
+    (the lightest) to `high` (the heaviest), relative to the heaviest, bit for bit."""
+    top = float(weights.max()) if weights.size else 1.0
+    level = np.clip(weights / top, 0.0, 1.0) if top > 0 else np.zeros_like(weights)
+    return (low + level[:, None] * (high - low)).astype(np.uint8)

@@ -60,6 +60,7 @@ from field.checks import LARGEST_COORDINATE, reals
 from sensing.observations import Observations
 from sensing.resetting import poses_from_pairs
 
+from . import reference as twins
 from .resampling import systematic
 
 TWO_PI = 2.0 * math.pi
@@ -538,11 +539,11 @@ class SoccerRelocalization:
             (self.region is not None, *region, math.log(p.region_tail)),
         )
 
-    def log_prior(self, poses: np.ndarray, heading_kept: float | None = None) -> np.ndarray:
+    def log_prior(self, poses: np.ndarray, heading_kept: float | None = None, *, reference: bool = False) -> np.ndarray:
         """The prior's log-density at each pose (N, 3) (see `RelocalizationPrior`); without an anchor, uniform
         (times `region_tail` outside the placement region). heading_kept: instead of the prior's (0: a
         displacement odometry did not see says nothing of the heading). Compiled (`log_prior_kernel`); the numpy
-        twin is `log_prior_reference`.
+        twin is `mcl.reference.log_prior` (`reference=True`).
 
         Parameters
         ----------
@@ -551,6 +552,8 @@ class SoccerRelocalization:
         heading_kept : float or None, optional
             Share of unseen displacements that keep the heading, instead of the prior's `heading_kept`; None
             (the default) takes the prior's.
+        reference : bool, default False
+            Compute it with the numpy twin instead of the kernel (for tests; equal to rounding).
 
         Returns
         -------
@@ -558,43 +561,9 @@ class SoccerRelocalization:
             (N,) float64 log-densities.
         """
         poses = np.ascontiguousarray(poses, dtype=np.float64)
+        if reference:
+            return twins.log_prior(poses, *self._prior_arguments(heading_kept))
         return log_prior_kernel(poses, *self._prior_arguments(heading_kept), np.empty(poses.shape[0]))
-
-    def log_prior_reference(self, poses: np.ndarray, heading_kept: float | None = None) -> np.ndarray:
-        """Plain numpy twin of `log_prior`.
-
-        Parameters
-        ----------
-        poses, heading_kept
-            As `log_prior`.
-
-        Returns
-        -------
-        np.ndarray
-            (N,) float64 log-densities, as `log_prior` gives them.
-        """
-        anchor, mixture, region = self._prior_arguments(heading_kept)
-        has_anchor, ax, ay, at = anchor
-        track2, kidnap2, heading_sigma, kidnap_share, tail_share, heading_kept, uniform = mixture
-        has_region, x_min, x_max, y_min, y_max, log_region_tail = region
-        poses = np.asarray(poses, dtype=np.float64)
-        if not has_anchor:
-            log_prior = np.full(poses.shape[0], math.log(uniform))
-        else:
-            d2 = (poses[:, 0] - ax) ** 2 + (poses[:, 1] - ay) ** 2
-            turn = wrap_angles(poses[:, 2] - at)
-            heading = np.exp(-0.5 * (turn / heading_sigma) ** 2) / (math.sqrt(TWO_PI) * heading_sigma)
-            kidnap_heading = (1.0 - heading_kept) / TWO_PI + heading_kept * heading
-            density = (
-                (1.0 - kidnap_share - tail_share) * np.exp(-0.5 * d2 / track2) / (TWO_PI * track2) * heading
-                + kidnap_share * np.exp(-0.5 * d2 / kidnap2) / (TWO_PI * kidnap2) * kidnap_heading
-                + tail_share * uniform
-            )
-            log_prior = np.log(density)
-        if has_region:
-            inside = (poses[:, 0] >= x_min) & (poses[:, 0] <= x_max) & (poses[:, 1] >= y_min) & (poses[:, 1] <= y_max)
-            log_prior = log_prior + np.where(inside, 0.0, log_region_tail)
-        return log_prior
 
     def propose(
         self,
@@ -606,8 +575,8 @@ class SoccerRelocalization:
     ) -> np.ndarray:
         """`count` poses (count, 3) to inject: candidates drawn from the detections, weighed by how well they
         explain the whole frame and by the prior, `count` of them drawn in proportion (systematic).
-        reference: use the plain twins (`sample_poses_reference`, `poses_from_pairs(..., reference=True)`), for
-        tests.
+        reference: use the plain twins (the sensor model's `numpy_twin().sample_poses`, `poses_from_pairs(...,
+        reference=True)`), for tests.
 
         Parameters
         ----------
@@ -640,7 +609,11 @@ class SoccerRelocalization:
             if n_pairs:
                 parts.append(pairs if n_pairs == pairs.shape[0] else pairs[rng.permutation(pairs.shape[0])[:n_pairs]])
         n_uniform = max(1, int(round(p.uniform_share * pool)))
-        sampler = getattr(sensor_model, "sample_poses_reference" if reference else "sample_poses", None)
+        if reference:
+            twin = getattr(sensor_model, "numpy_twin", None)
+            sampler = getattr(twin(), "sample_poses", None) if callable(twin) else None
+        else:
+            sampler = getattr(sensor_model, "sample_poses", None)
         n_single = pool - n_pairs - n_uniform
         if n_single > 0 and sampler is not None and len(observations) > 0:
             parts.append(np.asarray(sampler(observations, n_single, rng, heading=None), dtype=np.float64))
@@ -686,7 +659,7 @@ class SoccerRelocalization:
 @numba.njit(cache=True)
 def log_prior_kernel(poses, anchor, mixture, region, out):
     """out[i] ← the prior's log-density at poses[i] (`SoccerRelocalization.log_prior`; numpy twin
-    `SoccerRelocalization.log_prior_reference`, the same operations in the same order). Returns out.
+    `mcl.reference.log_prior`, the same operations in the same order). Returns out.
 
     Its parameters come in three groups (`SoccerRelocalization._prior_arguments` builds them):
 

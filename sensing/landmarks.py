@@ -61,6 +61,7 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 from dataclasses import field as dataclass_field
+from typing import TYPE_CHECKING
 
 import numba
 import numpy as np
@@ -68,9 +69,9 @@ from numba.core import types as numba_types
 from numba.extending import overload
 
 from field import Field, LandmarkType
-from field.angles import TWO_PI, wrap_angle, wrap_angles
+from field.angles import TWO_PI, wrap_angle
 from field.checks import LARGEST_SIGMA, SMALLEST_SIGMA, ArgumentTypeError, real
-from field.moved import moved_names
+from field.moved import moved_methods, moved_names
 from numerics.compile import variant
 from numerics.frozen import keeps_arrays_frozen
 from numerics.random import bounded_integers, draw_handles, draw_uniforms
@@ -690,7 +691,7 @@ def explained_detections(landmarks, pose, batch, noise, gate, out):
     """out[j] ← whether a landmark of detection j's type lies within `gate` standard deviations of where the
     pose (x, y, θ) would see it, range and bearing errors together (landmarks, pose, batch, noise, gate: the
     module docstring's groups; `LandmarkSensorModel.explained`; numpy twin
-    `LandmarkSensorModel.explained_reference`). Returns out."""
+    `LandmarkSensorModel.numpy_twin().explained`). Returns out."""
     table, offsets, _ = landmarks
     x, y, theta = pose
     kinds, ranges, bearings, _, _ = batch
@@ -775,7 +776,7 @@ def landmarks_in_view(landmarks, pose, batch, noise, gate, view, out):
     lies within `gate` standard deviations of (range and bearing errors together; σ: the detection's own, else
     the model's at the detected range, plus the slacks, as `explained_detections`). landmarks, pose, batch, noise,
     gate, view: the module docstring's groups (`table_kinds[k]` is landmark k's type value).
-    (`LandmarkSensorModel.seen`; numpy twin `LandmarkSensorModel.seen_reference`.) Returns out."""
+    (`LandmarkSensorModel.seen`; numpy twin `LandmarkSensorModel.numpy_twin().seen`.) Returns out."""
     expected, seen = _view_counts(landmarks, pose, batch, noise, gate, view)
     out[0] = expected
     out[1] = seen
@@ -787,7 +788,7 @@ def add_missed_in_view(poses, landmarks, batch, noise, gate, view, log_miss, out
     """out[i] += log_miss × the landmarks pose i puts inside the view that no detection of their type explains
     (`landmarks_in_view`'s expected − seen; landmarks, batch, noise, gate, view: the module docstring's groups):
     negative information (`LandmarkSensorModel.log_likelihood` with a view; numpy twin
-    `missed_in_view_reference`). Returns out."""
+    `LandmarkSensorModel.numpy_twin().missed_in_view`). Returns out."""
     for i in range(poses.shape[0]):
         expected, seen = _view_counts(landmarks, (poses[i, 0], poses[i, 1], poses[i, 2]), batch, noise, gate, view)
         out[i] += (expected - seen) * log_miss
@@ -958,7 +959,7 @@ class LandmarkSensorModel:
     ) -> np.ndarray:
         """Which detections (bool per detection) the pose (x, y, θ) explains: a landmark of the detection's type
         lies within `gate` standard deviations, in range and bearing together (σ: the detection's own, else
-        the model's, plus the slacks). Compiled (`explained_detections`); numpy twin `explained_reference`.
+        the model's, plus the slacks). Compiled (`explained_detections`); numpy twin `numpy_twin().explained`.
 
         Parameters
         ----------
@@ -989,36 +990,6 @@ class LandmarkSensorModel:
             np.empty(len(observations), dtype=np.bool_),
         )
 
-    def explained_reference(
-        self,
-        pose: Sequence[float] | np.ndarray,
-        observations: Observations,
-        gate: float = 3.0,
-        range_slack: float = 0.0,
-        bearing_slack: float = 0.0,
-    ) -> np.ndarray:
-        """Plain numpy twin of `explained`: the same parameters and result."""
-        observations = Observations.coerce(observations)
-        self.check(observations)
-        m = len(observations)
-        explained = np.zeros(m, dtype=bool)
-        x, y, theta = float(pose[0]), float(pose[1]), float(pose[2])
-        range_sigmas, bearing_sigmas = self._sigmas(observations)
-        range_sigmas = range_sigmas + range_slack
-        bearing_sigmas = bearing_sigmas + bearing_slack
-        for kind in np.unique(observations.kinds):
-            rows = np.flatnonzero(observations.kinds == kind)
-            landmarks = self.candidates(int(kind))
-            dx = landmarks[:, 0] - x
-            dy = landmarks[:, 1] - y
-            range_error = (observations.ranges[rows, None] - np.hypot(dx, dy)[None, :]) / range_sigmas[rows, None]
-            bearing_error = (
-                wrap_angles(observations.bearings[rows, None] - (np.arctan2(dy, dx) - theta)[None, :])
-                / bearing_sigmas[rows, None]
-            )
-            explained[rows] = (range_error**2 + bearing_error**2 <= gate * gate).any(axis=1)
-        return explained
-
     def seen(
         self,
         pose: Sequence[float] | np.ndarray,
@@ -1032,7 +1003,7 @@ class LandmarkSensorModel:
         `view` (`sensing.view.CameraView`), and how many of those a detection of their type lies within `gate`
         standard deviations of (σ as in `explained`). A right pose sees most of what it expects; a wrong pose
         that happens to explain a few detections (aliasing) usually expects landmarks the frame did not report.
-        Compiled (`landmarks_in_view`); numpy twin `seen_reference`.
+        Compiled (`landmarks_in_view`); numpy twin `numpy_twin().seen`.
 
         Parameters
         ----------
@@ -1073,39 +1044,6 @@ class LandmarkSensorModel:
             np.zeros(2, dtype=np.int64),
         )
         return int(out[0]), int(out[1])
-
-    def seen_reference(
-        self,
-        pose: Sequence[float] | np.ndarray,
-        observations: Observations,
-        view: CameraView,
-        gate: float = 3.0,
-        range_slack: float = 0.0,
-        bearing_slack: float = 0.0,
-    ) -> tuple[int, int]:
-        """Plain numpy twin of `seen`: the same parameters and result."""
-        observations = Observations.coerce(observations)
-        self.check(observations)
-        x, y, theta = float(pose[0]), float(pose[1]), float(pose[2])
-        dx = self._table[:, 0] - x
-        dy = self._table[:, 1] - y
-        r = np.hypot(dx, dy)
-        bearing = np.arctan2(dy, dx) - theta
-        inside = (
-            (r >= view.min_range)
-            & (r <= view.max_ranges[self._table_kinds])
-            & (np.abs(wrap_angles(bearing - view.yaw)) <= view.half_fov)
-        )
-        range_sigmas, bearing_sigmas = self._sigmas(observations)
-        range_sigmas = range_sigmas + range_slack
-        bearing_sigmas = bearing_sigmas + bearing_slack
-        seen = 0
-        for k in np.flatnonzero(inside):
-            rows = observations.kinds == self._table_kinds[k]
-            range_error = (observations.ranges[rows] - r[k]) / range_sigmas[rows]
-            bearing_error = wrap_angles(observations.bearings[rows] - bearing[k]) / bearing_sigmas[rows]
-            seen += bool((range_error**2 + bearing_error**2 <= gate * gate).any())
-        return int(inside.sum()), seen
 
     @property
     def landmark_table(self) -> tuple[np.ndarray, np.ndarray]:
@@ -1289,23 +1227,23 @@ class LandmarkSensorModel:
         """
         return observations.view is not None and self.detection_rate > 0 and observations.kinds.shape[0] > 0
 
-    def missed_in_view_reference(self, poses: np.ndarray, observations: Observations) -> np.ndarray:
-        """Plain numpy twin of the negative-information term `log_likelihood` adds (zeros when `scores_view` is
-        False), for (N, 3) poses: (N,) log-likelihood terms."""
-        poses = np.asarray(poses, dtype=np.float64)
-        if observations.view is None or not self.scores_view(observations):
-            return np.zeros(poses.shape[0])
-        view = observations.view.inset(self.view_inset)
-        missed = np.array(
-            [
-                np.subtract(
-                    *self.seen_reference(pose, observations, view, VIEW_GATE, VIEW_RANGE_SLACK, VIEW_BEARING_SLACK)
+    def numpy_twin(self) -> reference.LandmarkTwin:
+        """This model computed in plain numpy (`sensing.reference.LandmarkTwin`): `log_likelihood`, `explained`,
+        `seen`, `missed_in_view` and `sample_poses` with the parameters and results of this model's calls, for
+        the reference engine and the tests. The twin reads this model; it copies nothing."""
+        return reference.LandmarkTwin(self)
+
+    if not TYPE_CHECKING:  # the deprecated names (a type checker would accept any attribute after a __getattr__)
+        __getattr__ = moved_methods(
+            "LandmarkSensorModel",
+            {
+                f"{name}_reference": (
+                    f"numpy_twin().{name}",
+                    lambda model, name=name: getattr(model.numpy_twin(), name),
                 )
-                for pose in poses
-            ],
-            dtype=np.float64,
+                for name in ("log_likelihood", "explained", "seen", "missed_in_view", "sample_poses")
+            },
         )
-        return missed * math.log1p(-self.detection_rate)
 
     def fused_likelihood(self) -> FusedLikelihoodKernels | None:
         """This model's likelihood for the filter's fused compiled step (`sensing.fused`): `fused_prepare`,
@@ -1327,25 +1265,6 @@ class LandmarkSensorModel:
         )
         return FusedLikelihoodKernels(fused_prepare, fused_workspace, fused_score, params, detection_batch)
 
-    def log_likelihood_reference(self, poses: np.ndarray, observations: Observations) -> np.ndarray:
-        """`log_likelihood` in plain numpy (slow; for tests and the benchmark): the same parameters and result."""
-        observations = Observations.coerce(observations)
-        self.check(observations)
-        range_sigmas, bearing_sigmas = self._sigmas(observations)
-        by_kind = {t.value: self.candidates(t) for t in LandmarkType}
-        return reference.landmark_log_likelihood(
-            poses,
-            by_kind,
-            observations.kinds,
-            observations.ranges,
-            observations.bearings,
-            range_sigmas,
-            bearing_sigmas,
-            self.bearing_model == "exact",
-            self.outlier_weight,
-            self.mixture == "sum",
-        ) + self.missed_in_view_reference(poses, observations)
-
     # -- sensor resetting ---------------------------------------------------------------------------------
     def sample_poses(
         self,
@@ -1366,7 +1285,7 @@ class LandmarkSensorModel:
         the headings, `rng.standard_normal` for the ranges and bearings): the integers and uniforms drawn in
         a kernel from the generator's own bit generator (`reset_choices`, the numbers numpy would give), the
         normals by numpy, and the poses come from them in one compiled pass (`sensor_reset_poses`): bit for
-        bit `sample_poses_reference`.
+        bit `numpy_twin().sample_poses`.
 
         Parameters
         ----------
@@ -1416,36 +1335,3 @@ class LandmarkSensorModel:
             (float(heading_mean), float(heading_sigma)),
             np.empty((n, 3)),
         )
-
-    def sample_poses_reference(
-        self,
-        observations: Observations,
-        n: int,
-        rng: np.random.Generator,
-        heading: float | None = None,
-        heading_sigma: float = 0.3,
-    ) -> np.ndarray:
-        """Plain numpy twin of `sample_poses` (the same parameters and result): the same draws give the same
-        poses."""
-        observations = Observations.coerce(observations)
-        self.check(observations)
-        m = len(observations)
-        if m == 0 or n <= 0:
-            return np.empty((0, 3))
-        range_sigmas, bearing_sigmas = self._sigmas(observations)
-        j = rng.integers(0, m, size=n)
-        kinds = observations.kinds[j]
-        counts = self._offsets[kinds + 1] - self._offsets[kinds]
-        k = self._offsets[kinds] + np.floor(rng.random(n) * counts).astype(np.int64)
-        if heading is None:
-            theta = rng.uniform(-math.pi, math.pi, n)
-        else:
-            theta = heading + heading_sigma * rng.standard_normal(n)
-        r = np.maximum(observations.ranges[j] + range_sigmas[j] * rng.standard_normal(n), 0.0)
-        b = observations.bearings[j] + bearing_sigmas[j] * rng.standard_normal(n)
-        direction = theta + b
-        poses = np.empty((n, 3))
-        poses[:, 0] = self._table[k, 0] - r * np.cos(direction)
-        poses[:, 1] = self._table[k, 1] - r * np.sin(direction)
-        poses[:, 2] = wrap_angles(theta)
-        return poses

@@ -18,13 +18,14 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 from dataclasses import field as dataclass_field
+from typing import TYPE_CHECKING
 
 import numba
 import numpy as np
 
 from field import Field
 from field.checks import LARGEST_SIGMA, SMALLEST_SIGMA, ArgumentTypeError, integer, real
-from field.moved import moved_names
+from field.moved import moved_methods, moved_names
 from numerics.frozen import keeps_arrays_frozen
 from numerics.trig import sincos
 
@@ -214,17 +215,13 @@ class LineSensorModel:
         x0, y0 = self._origin
         return line_log_likelihood(poses, points, self._factors, x0, y0, 1.0 / self.resolution, self._outlier, out)
 
-    def log_likelihood_reference(self, poses: np.ndarray, observations: Observations) -> np.ndarray:
-        """`log_likelihood` in plain numpy, from the distance map (exp per point), for tests.
+    def numpy_twin(self) -> reference.LineTwin:
+        """This model computed in plain numpy (`sensing.reference.LineTwin`): its `log_likelihood` from the
+        distance map (exp per point), for the reference engine and the tests."""
+        return reference.LineTwin(self)
 
-        Parameters
-        ----------
-        poses, observations
-            As `log_likelihood`.
-        """
-        points = self.used_points(Observations.coerce(observations))
-        if points.shape[0] == 0:
-            return np.zeros(poses.shape[0])
-        return reference.line_log_likelihood(
-            poses, points, self._distance, *self._origin, self.resolution, self.sigma, self.outlier_weight
+    if not TYPE_CHECKING:  # the deprecated names (a type checker would accept any attribute after a __getattr__)
+        __getattr__ = moved_methods(
+            "LineSensorModel",
+            {"log_likelihood_reference": ("numpy_twin().log_likelihood", lambda m: m.numpy_twin().log_likelihood)},
         )

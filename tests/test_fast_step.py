@@ -809,7 +809,7 @@ def test_issue_shaped_step_equals_its_numpy_twin(fast):
 
     move_with_noise_reference(poses, *u.displacement(), *pf.motion_model.noise_bounds(u), False, rng.random((700, 3)))
     weights, _, expected_ess = normalize_reference(
-        log_weights + pf.sensor_model.log_likelihood_reference(poses, observations)
+        log_weights + pf.sensor_model.numpy_twin().log_likelihood(poses, observations)
     )
     expected = poses[systematic_reference(weights, 700, rng)]
     np.testing.assert_allclose(pf.poses, expected, rtol=0, atol=1e-12)

@@ -26,7 +26,6 @@ from mcl.tools.recording import (
     covariance_ellipse,
     default_blueprint,
     weight_colors,
-    weight_colors_reference,
     weighted_position_covariance,
 )
 
@@ -61,7 +60,7 @@ def test_particles_and_rays_read_back_as_logged(tmp_path, flush_every, max_point
             recorder.log_step(step, 0.01 * step, pf, truth=TRUE_POSE, observations=observations)
             if step % 2 == 0:
                 expected_particles[step] = pf.poses[:, :2].astype(np.float32)
-                expected_colors[step] = weight_colors_reference(pf.weights)
+                expected_colors[step] = weight_colors(pf.weights, reference=True)
             c, s = math.cos(estimate.theta), math.sin(estimate.theta)
             expected_origins[step] = np.tile(estimate.pose[:2], (len(observations), 1))
             expected_vectors[step] = points @ np.array([[c, s], [-s, c]])
@@ -87,7 +86,7 @@ def test_particles_and_rays_read_back_as_logged(tmp_path, flush_every, max_point
 
 @given(st.lists(st.floats(0.0, 1e3), max_size=300), st.sampled_from(["as drawn", "zeros", "one NaN"]))
 def test_weight_colors_are_their_numpy_twins(weights, case):
-    """The compiled colours are `weight_colors_reference`'s, bit for bit: dark blue (lightest) to yellow
+    """The compiled colours are their numpy twin's (`reference=True`), bit for bit: dark blue (lightest) to yellow
     (heaviest), all dark blue when no weight is positive."""
     weights = np.array(weights, dtype=np.float64)
     if case == "zeros":
@@ -96,7 +95,7 @@ def test_weight_colors_are_their_numpy_twins(weights, case):
         weights[weights.size // 2] = np.nan
     colors = weight_colors(weights)
     assert colors.dtype == np.uint8 and colors.shape == (weights.size, 3)
-    assert np.array_equal(colors, weight_colors_reference(weights))
+    assert np.array_equal(colors, weight_colors(weights, reference=True))
     if weights.size and weights.max() > 0:
         assert colors[int(np.argmax(weights))].tolist() == [255, 230, 40]
     else:

@@ -199,7 +199,7 @@ def test_the_mirror_odds_must_hold_without_the_heading_reference():
     pair = np.array([pose, FIELD.mirror_poses(pose[None])[0]])
     full = relocalization.log_prior(pair)
     position = relocalization.log_prior(pair, heading_kept=0.0)
-    np.testing.assert_allclose(relocalization.log_prior_reference(pair, heading_kept=0.0), position, rtol=1e-12)
+    np.testing.assert_allclose(relocalization.log_prior(pair, heading_kept=0.0, reference=True), position, rtol=1e-12)
     assert full[0] - full[1] > math.log(RelocalizationPrior().mirror_odds)  # the heading prefers it ...
     assert abs(position[0] - position[1]) < 0.2  # ... position cannot tell
     confident = Estimate(pose, np.diag([1e-3, 1e-3, 1e-3]), 1.0)
@@ -282,7 +282,7 @@ def test_kernels_equal_their_numpy_twins(pose, seed, linear):
     probe = pose + rng.normal(0, 0.3, 3)
     np.testing.assert_array_equal(
         model.explained(probe, observations, 2.5, 0.1, 0.03),
-        model.explained_reference(probe, observations, 2.5, 0.1, 0.03),
+        model.numpy_twin().explained(probe, observations, 2.5, 0.1, 0.03),
     )
     relocalization = SoccerRelocalization()
     relocalization.bind((-5.2, 5.2, -3.7, 3.7))
@@ -295,5 +295,5 @@ def test_kernels_equal_their_numpy_twins(pose, seed, linear):
         reset()
         relocalization.travelled = float(rng.uniform(0, 5))
         np.testing.assert_allclose(
-            relocalization.log_prior(poses), relocalization.log_prior_reference(poses), rtol=0, atol=1e-12
+            relocalization.log_prior(poses), relocalization.log_prior(poses, reference=True), rtol=0, atol=1e-12
         )

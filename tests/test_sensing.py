@@ -252,7 +252,7 @@ def test_kernel_matches_numpy_reference(detections, bearing_model, seed):
     )
     model = LandmarkSensorModel(FIELD, bearing_model=bearing_model)
     fast = model.log_likelihood(poses, obs)
-    slow = model.log_likelihood_reference(poses, obs)
+    slow = model.numpy_twin().log_likelihood(poses, obs)
     assert np.isfinite(fast).all()
     np.testing.assert_allclose(fast, slow, rtol=1e-9, atol=1e-9)
 
@@ -317,7 +317,7 @@ def test_max_and_sum_mixtures_differ_by_at_most_log2(seed, bearing_model):
     by_sum = LandmarkSensorModel(FIELD, bearing_model=bearing_model, mixture="sum").log_likelihood(poses, obs)
     np.testing.assert_allclose(
         by_sum,
-        LandmarkSensorModel(FIELD, bearing_model=bearing_model, mixture="sum").log_likelihood_reference(poses, obs),
+        LandmarkSensorModel(FIELD, bearing_model=bearing_model, mixture="sum").numpy_twin().log_likelihood(poses, obs),
         atol=1e-9,
     )
     assert (by_sum >= by_max - 1e-12).all() and (by_sum - by_max <= 3 * math.log(2) + 1e-12).all()
@@ -407,8 +407,8 @@ def test_a_linear_law_scores_the_hand_computed_gaussian(bearing_model, mixture):
     obs = Observations.from_arrays(["goalpost"], [r], [b])
     scores = model.log_likelihood(poses, obs)
     assert scores[0] == pytest.approx(expected, rel=1e-9, abs=1e-12)
-    assert model.log_likelihood_reference(poses, obs)[0] == pytest.approx(expected, rel=1e-9, abs=1e-12)
-    np.testing.assert_allclose(scores, model.log_likelihood_reference(poses, obs), rtol=1e-9, atol=1e-12)
+    assert model.numpy_twin().log_likelihood(poses, obs)[0] == pytest.approx(expected, rel=1e-9, abs=1e-12)
+    np.testing.assert_allclose(scores, model.numpy_twin().log_likelihood(poses, obs), rtol=1e-9, atol=1e-12)
     # The same law with only the quadratic term would score otherwise: the linear term is used.
     quadratic = LandmarkSensorModel(
         FIELD,
@@ -473,7 +473,7 @@ def test_kernels_with_a_linear_law_equal_their_twins(detections, seed, floor, li
             bearing_model=bearing_model,
         )
         scores = model.log_likelihood(poses, obs)
-        np.testing.assert_allclose(scores, model.log_likelihood_reference(poses, obs), rtol=1e-9, atol=1e-9)
+        np.testing.assert_allclose(scores, model.numpy_twin().log_likelihood(poses, obs), rtol=1e-9, atol=1e-9)
         if bearing_model == "von_mises":
             general = np.empty(n)
             landmark_log_likelihood(
@@ -490,7 +490,7 @@ def test_kernels_with_a_linear_law_equal_their_twins(detections, seed, floor, li
     if len(obs):
         compiled_rng, plain_rng = np.random.default_rng(seed), np.random.default_rng(seed)
         compiled = model.sample_poses(obs, 40, compiled_rng, heading=0.3)
-        plain = model.sample_poses_reference(obs, 40, plain_rng, heading=0.3)
+        plain = model.numpy_twin().sample_poses(obs, 40, plain_rng, heading=0.3)
         assert np.array_equal(compiled, plain)
 
 
@@ -531,7 +531,7 @@ def test_sampled_poses_equal_their_numpy_twin_bit_for_bit(n, heading, heading_si
     model = LandmarkSensorModel(FIELD)
     compiled_rng, plain_rng = np.random.default_rng(seed), np.random.default_rng(seed)
     compiled = model.sample_poses(obs, n, compiled_rng, heading=heading, heading_sigma=heading_sigma)
-    plain = model.sample_poses_reference(obs, n, plain_rng, heading=heading, heading_sigma=heading_sigma)
+    plain = model.numpy_twin().sample_poses(obs, n, plain_rng, heading=heading, heading_sigma=heading_sigma)
     assert compiled.shape == (n, 3) and np.array_equal(compiled, plain)
     assert compiled_rng.bit_generator.state == plain_rng.bit_generator.state
     assert np.isfinite(compiled).all() and (np.abs(compiled[:, 2]) <= math.pi).all()
@@ -613,7 +613,7 @@ def test_general_kernel_scores_each_particle_alone(bearing_model, mixture):
     picked = np.r_[0, TRIG_CHUNK - 1, TRIG_CHUNK, TRIG_CHUNK + 1, 2 * TRIG_CHUNK, n - 1]
     alone = np.array([model.log_likelihood(poses[i : i + 1], obs)[0] for i in picked])
     assert np.array_equal(together[picked], alone)
-    np.testing.assert_allclose(together, model.log_likelihood_reference(poses, obs), rtol=1e-9, atol=1e-9)
+    np.testing.assert_allclose(together, model.numpy_twin().log_likelihood(poses, obs), rtol=1e-9, atol=1e-9)
 
 
 def test_block_kernel_keeps_cos_and_sin_of_the_headings():

@@ -144,7 +144,7 @@ def test_a_range_per_type_decides_which_landmarks_are_expected():
         pose = np.array([post[0] - distance, post[1], 0.0])
         view = CameraView(0.0, 0.05, {"goalpost": 8.0, "others": 4.0})
         assert model.seen(pose, Observations.empty(), view) == (int(expect_post), 0)
-        assert model.seen_reference(pose, Observations.empty(), view) == (int(expect_post), 0)
+        assert model.numpy_twin().seen(pose, Observations.empty(), view) == (int(expect_post), 0)
     mark = table[offsets[LandmarkType.PENALTY_MARK]]
     pose = np.array([mark[0], mark[1] + 6.0, -math.pi / 2])  # beside the field, looking at the mark alone
     for view, expected in (
@@ -153,7 +153,7 @@ def test_a_range_per_type_decides_which_landmarks_are_expected():
         (CameraView(0.0, 0.05, 8.0), 1),
     ):
         assert model.seen(pose, Observations.empty(), view)[0] == expected
-        assert model.seen_reference(pose, Observations.empty(), view)[0] == expected
+        assert model.numpy_twin().seen(pose, Observations.empty(), view)[0] == expected
 
 
 ranges_per_type = st.fixed_dictionaries({}, optional={kind.name.lower(): st.floats(1.0, 9.0) for kind in KINDS}).filter(
@@ -184,13 +184,13 @@ def test_with_ranges_per_type_the_kernels_equal_their_numpy_twins(
     view = CameraView(yaw, half_fov, ranges if others is None else {**ranges, "others": others}, 0.3)
     observations = detections(np.array(pose), view, keep, noise=(0.1, 0.05), rng=rng).with_view(view)
     for at in (np.array(pose), np.array(pose) + rng.normal(0, 0.4, 3)):
-        assert model.seen(at, observations, view, 2.5, 0.1, 0.03) == model.seen_reference(
+        assert model.seen(at, observations, view, 2.5, 0.1, 0.03) == model.numpy_twin().seen(
             at, observations, view, 2.5, 0.1, 0.03
         )
     poses = np.array(pose) + rng.normal(0, 0.5, (30, 3))
     np.testing.assert_allclose(
         model.log_likelihood(poses, observations),
-        model.log_likelihood_reference(poses, observations),
+        model.numpy_twin().log_likelihood(poses, observations),
         rtol=1e-9,
         atol=1e-9,
     )
@@ -227,7 +227,7 @@ def test_seen_equals_its_numpy_twin_and_stays_within_its_bounds(pose, yaw, half_
     probe = pose + rng.normal(0, 0.4, 3)
     for at in (pose, probe):
         expected, seen = model.seen(at, observations, view, 2.5, 0.1, 0.03)
-        assert (expected, seen) == model.seen_reference(at, observations, view, 2.5, 0.1, 0.03)
+        assert (expected, seen) == model.numpy_twin().seen(at, observations, view, 2.5, 0.1, 0.03)
         assert 0 <= seen <= expected <= model.landmark_table[0].shape[0]
 
 
@@ -339,11 +339,11 @@ def test_the_likelihood_with_a_view_equals_its_numpy_twin(pose, yaw, seed, keep,
     poses = np.array(pose) + rng.normal(0, 0.5, (40, 3))
     np.testing.assert_allclose(
         model.log_likelihood(poses, observations),
-        model.log_likelihood_reference(poses, observations),
+        model.numpy_twin().log_likelihood(poses, observations),
         rtol=1e-9,
         atol=1e-9,
     )
-    missed = model.missed_in_view_reference(poses, observations)
+    missed = model.numpy_twin().missed_in_view(poses, observations)
     assert (missed <= 0).all() and np.isfinite(missed).all()
     if rate == 0.0 or len(observations) == 0:
         assert not missed.any()
@@ -368,7 +368,7 @@ def test_a_pose_that_should_have_seen_more_is_less_likely():
     view = CameraView(0.0, math.radians(35), 7.0, 0.3)
     full = detections(pose, view)
     one = Observations.from_arrays(full.kinds[:1], full.ranges[:1], full.bearings[:1]).with_view(view)
-    missed = SENSOR.missed_in_view_reference(pose[None], one)[0]
+    missed = SENSOR.numpy_twin().missed_in_view(pose[None], one)[0]
     expected, seen = SENSOR.seen(pose, one, view.inset(SENSOR.view_inset), 3.0, 0.1, 0.03)
     assert expected - seen >= 2 and seen <= 1
     assert missed == pytest.approx((expected - seen) * math.log(1 - SENSOR.detection_rate), abs=1e-12)
@@ -413,7 +413,7 @@ def test_the_filter_scores_a_frame_with_a_view_as_the_plain_calls_do():
     pf.reset_around(pose, (0.5, 0.5, 0.5))
     poses = pf.poses.copy()
     pf.correct(observations)
-    expected = SENSOR.log_likelihood_reference(poses, observations)
+    expected = SENSOR.numpy_twin().log_likelihood(poses, observations)
     expected = np.exp(expected - expected.max())
     np.testing.assert_allclose(pf.weights, expected / expected.sum(), rtol=1e-9, atol=1e-15)
 

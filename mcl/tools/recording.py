@@ -43,6 +43,7 @@ import os
 import re
 import uuid
 from collections.abc import Sequence
+from functools import partial
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -55,6 +56,8 @@ from numpy.typing import ArrayLike
 
 from field import Field, LandmarkType
 from field.checks import ArgumentTypeError, integer, real, reals
+from field.moved import moved_names
+from mcl import reference as twins
 from sensing.observations import Observations
 
 if TYPE_CHECKING:
@@ -101,20 +104,32 @@ EVENT_LEVELS = {
 EVENT_KIND = re.compile(r"^[a-z0-9_]+$")
 
 
+__getattr__ = moved_names(
+    __name__,
+    {
+        "weight_colors_reference": (
+            "weight_colors(weights, reference=True)",
+            lambda: partial(weight_colors, reference=True),
+        )
+    },
+)
+
 _LOW = np.array([40.0, 30.0, 120.0])  # the lightest particle's colour (dark blue)
 _HIGH = np.array([255.0, 230.0, 40.0])  # the heaviest's (yellow)
 
 
-def weight_colors(weights: np.ndarray) -> np.ndarray:
+def weight_colors(weights: np.ndarray, *, reference: bool = False) -> np.ndarray:
     """Map weights to RGB (N, 3) uint8 from dark blue (lightest) to yellow (heaviest), relative to the heaviest
-    (all dark blue when the heaviest is not positive). One pass in compiled code (`weight_colors_reference`,
-    bit for bit): numpy's half a dozen passes and (N, 3) temporaries cost more than the rest of a step's
+    (all dark blue when the heaviest is not positive). One pass in compiled code (its numpy twin
+    `mcl.reference.weight_colors`, bit for bit): numpy's half a dozen passes and (N, 3) temporaries cost more than the rest of a step's
     recording at N >= 10 000, and their calls more than the particles at N = 100.
 
     Parameters
     ----------
     weights : np.ndarray
         (N,) particle weights (any scale: only their ratio to the heaviest counts).
+    reference : bool, default False
+        Compute them with the numpy twin instead (for tests).
 
     Returns
     -------
@@ -122,6 +137,8 @@ def weight_colors(weights: np.ndarray) -> np.ndarray:
         (N, 3) uint8 RGB colours.
     """
     weights = np.ascontiguousarray(weights, dtype=np.float64)
+    if reference:
+        return twins.weight_colors(weights, _LOW, _HIGH)
     out = np.empty((weights.shape[0], 3), dtype=np.uint8)
     _weight_colors(weights, _LOW, _HIGH, out)
     return out
@@ -152,24 +169,6 @@ def _weight_colors(weights, low, high, out):
         out[i, 0] = np.uint8(low[0] + level * d0)
         out[i, 1] = np.uint8(low[1] + level * d1)
         out[i, 2] = np.uint8(low[2] + level * d2)
-
-
-def weight_colors_reference(weights: np.ndarray) -> np.ndarray:
-    """Plain numpy twin of `weight_colors`.
-
-    Parameters
-    ----------
-    weights : np.ndarray
-        As `weight_colors`.
-
-    Returns
-    -------
-    np.ndarray
-        (N, 3) uint8 RGB colours, as `weight_colors` gives them.
-    """
-    top = float(weights.max()) if weights.size else 1.0
-    level = np.clip(weights / top, 0.0, 1.0) if top > 0 else np.zeros_like(weights)
-    return (_LOW + level[:, None] * (_HIGH - _LOW)).astype(np.uint8)
 
 
 def weighted_position_covariance(poses: np.ndarray, weights: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
