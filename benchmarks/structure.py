@@ -16,7 +16,9 @@ revision (extracted with `git archive` into a temporary directory), and reports:
   longest_function   outside kernels and among kernels (a kernel: decorated with numba's njit/jit/vectorize,
                      or intrinsic/overload, called or not; imports resolved, typing.overload excluded).
   widest_parameters  the most parameters (*args and **kwargs one each, a leading self/cls not counted).
-  largest_class      by lines and by methods (and the five largest by lines).
+  largest_class      by lines and by methods (and the five largest by lines), and by code lines: the lines its
+                     statements span, documentation (a bare string statement), blank lines and comment lines
+                     between statements left out.
   paired_variants    functions named as another's variant (`*_reference`, `*_chunked`, `*_fast`, `*_compiled`):
                      how many, and which.
   import_contract    `lint-imports` on the tree when importlinter is installed and pyproject.toml has a
@@ -353,9 +355,37 @@ class Class:
     line: int
     lines: int
     methods: int
+    code_lines: int = 0
 
     def as_dict(self) -> dict:
-        return {"name": self.name, "file": self.file, "line": self.line, "lines": self.lines, "methods": self.methods}
+        return {
+            "name": self.name,
+            "file": self.file,
+            "line": self.line,
+            "lines": self.lines,
+            "methods": self.methods,
+            "code_lines": self.code_lines,
+        }
+
+
+def code_lines(node: ast.AST) -> int:
+    """The lines of `node` that hold code: each simple statement's lines, a compound statement's header (its
+    decorators, and its lines up to its body), a docstring or any other bare string statement left out; so
+    neither documentation nor the blank and comment lines between statements count."""
+    covered: set[int] = set()
+    for child in ast.walk(node):
+        if not isinstance(child, ast.stmt):
+            continue
+        if isinstance(child, ast.Expr) and isinstance(child.value, ast.Constant) and isinstance(child.value.value, str):
+            continue
+        body = getattr(child, "body", None)
+        if isinstance(body, list) and body and isinstance(body[0], ast.stmt):  # compound: its header
+            for decorator in getattr(child, "decorator_list", ()):
+                covered.update(range(decorator.lineno, decorator.end_lineno + 1))
+            covered.update(range(child.lineno, max(child.lineno, body[0].lineno - 1) + 1))
+        else:
+            covered.update(range(child.lineno, child.end_lineno + 1))
+    return len(covered)
 
 
 def parameter_count(arguments: ast.arguments) -> int:
@@ -389,7 +419,14 @@ def definitions(module: Module) -> tuple[list[Function], list[Class]]:
             elif isinstance(child, ast.ClassDef):
                 methods = sum(isinstance(c, (ast.FunctionDef, ast.AsyncFunctionDef)) for c in child.body)
                 classes.append(
-                    Class(prefix + child.name, module.path, child.lineno, child.end_lineno - child.lineno + 1, methods)
+                    Class(
+                        prefix + child.name,
+                        module.path,
+                        child.lineno,
+                        child.end_lineno - child.lineno + 1,
+                        methods,
+                        code_lines(child),
+                    )
                 )
                 visit(child, f"{prefix}{child.name}.", in_kernel)
             else:
@@ -558,6 +595,7 @@ def analyse(
         "largest_class": {
             "by_lines": _first(classes, lambda c: c.lines),
             "by_methods": _first(classes, lambda c: c.methods),
+            "by_code_lines": _first(classes, lambda c: c.code_lines),
             "classes": len(classes),
             "top": [c.as_dict() for c in sorted(classes, key=lambda c: -c.lines)[:5]],
         },
@@ -690,6 +728,7 @@ def render(report: dict) -> str:
         ("widest kernel", _where(widest["kernels"]["widest"], "parameters")),
         ("largest class", _where(largest["by_lines"], "lines")),
         ("most methods", _where(largest["by_methods"], "methods")),
+        ("most code lines", _where(largest["by_code_lines"], "code_lines").replace("code_lines", "code lines")),
         (
             "paired variants",
             f"{report['paired_variants']['count']} functions named *_reference, *_chunked, *_fast, *_compiled",

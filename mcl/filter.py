@@ -448,8 +448,7 @@ class ParticleFilter:
         """Spread the particles evenly over several candidate poses (K, 3), normal around each with `sigma`.
 
         For a placement the rules fix up to a choice the robot cannot know (which touchline, which kick-off
-        position). Injection stays inside `region` with uniform headings until the filter is confident again
-        (as after `reset_uniform`): the candidates' headings differ, so no one heading guides it yet.
+        position). Injection stays inside `region`, any heading, until the filter is confident (`reset_uniform`).
 
         Parameters
         ----------
@@ -466,9 +465,7 @@ class ParticleFilter:
         ValueError
             If there is no candidate, a pose or standard deviation is out of range, or the region is unknown.
         """
-        candidates = check_poses("poses", poses)
-        if candidates.shape[0] == 0:
-            raise ValueError(f"poses = {poses!r} must be one or more (x, y, θ) poses")
+        candidates = check_poses("poses", poses, at_least=1)
         sigma, bounds = check_sigma(sigma), region_bounds(self._field, region)
         self._reset(self._particles.normal_poses(candidates, sigma, self.rng))
         self.relocalization.reset_region(bounds)
@@ -491,7 +488,6 @@ class ParticleFilter:
         sigma = check_sigma(sigma)
         self._particles.diffuse(sigma, self.rng)
         self._summary.forget_anchor()
-        self._summary.changed()
 
     def reweigh(self, log_factors: Sequence[float] | np.ndarray) -> None:
         """Multiply each particle's weight by exp(log_factors[i]) and normalize; poses and motion state kept.
@@ -539,7 +535,6 @@ class ParticleFilter:
         """
         ess = self._particles.replace(poses, log_weights, motion_state)
         self._summary.forget_anchor()
-        self._summary.changed()
         self.ess = ess
 
     def _reset(self, poses: np.ndarray) -> None:
@@ -552,13 +547,11 @@ class ParticleFilter:
         self._particles.assign(poses)
         self._summary.forget_anchor()
         self.ess = float(self._n)
-        self._summary.changed()
 
     def _mirror(self) -> None:
         """Every particle through the centre mark, weights kept; the estimate's hysteresis starts afresh."""
         self._particles.mirror(self._field)
         self._summary.forget_anchor()
-        self._summary.changed()
 
     # -- the algorithm ------------------------------------------------------------------------------------------
 

@@ -32,8 +32,8 @@ def check_pose(name: str, pose) -> np.ndarray:
     return array
 
 
-def check_poses(name: str, poses) -> np.ndarray:
-    """Poses (K, 3) (or one (3,)) as float64 (K, 3), each within the bounds of `check_pose`."""
+def check_poses(name: str, poses, at_least: int = 0) -> np.ndarray:
+    """Poses (K, 3) (or one (3,)) as float64 (K, 3), K >= `at_least`, each within the bounds of `check_pose`."""
     if isinstance(poses, (str, bytes, dict)) or poses is None or np.ndim(poses) == 0:
         raise ArgumentTypeError(f"{name} = {poses!r} must be (x, y, θ) poses, not {type(poses).__name__}")
     try:
@@ -44,6 +44,8 @@ def check_poses(name: str, poses) -> np.ndarray:
         array = array.reshape(1, 3)
     if array.ndim != 2 or array.shape[1] != 3:
         raise ValueError(f"{name} must have shape (K, 3), got {array.shape}")
+    if array.shape[0] < at_least:
+        raise ValueError(f"{name} = {poses!r} must be {at_least} or more (x, y, θ) poses")
     inside = (
         np.isfinite(array).all(axis=1)
         & (np.abs(array[:, :2]) <= LARGEST_COORDINATE).all(axis=1)

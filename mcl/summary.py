@@ -237,8 +237,9 @@ class Summary:
 
     def forget_anchor(self) -> None:
         """The particles moved in a way the estimate's continuity cannot follow (set, mirrored, diffused): the
-        next estimate starts without its hysteresis anchor."""
+        next estimate starts without its hysteresis anchor, and the cached ones are stale (`changed`)."""
         self.has_previous = False
+        self.changed()
 
     def group(
         self,

@@ -4,6 +4,7 @@ Nothing here reads the repository's own figures (they change with every restruct
 measures a synthetic tree too.
 """
 
+import ast
 import importlib.util
 import json
 import subprocess
@@ -285,6 +286,40 @@ def test_the_largest_class_by_lines_and_by_methods(tmp_path):
     largest = analyse(root, run_contract=False)["largest_class"]
     assert (largest["by_lines"]["name"], largest["by_lines"]["lines"]) == ("Long", 9)
     assert (largest["by_methods"]["name"], largest["by_methods"]["methods"]) == ("Many", 3)
+    # Long's code: its header, three assignments, the method's header and its pass (no docstring, no blanks)
+    assert (largest["by_code_lines"]["name"], largest["by_code_lines"]["code_lines"]) == ("Long", 6)
+    assert [c["code_lines"] for c in largest["top"]] == [6, 4]
+
+
+def test_code_lines_leave_out_docstrings_blank_and_comment_lines_but_keep_a_multiline_statement():
+    from benchmarks.structure import code_lines
+
+    tree = ast.parse(
+        textwrap.dedent(
+            '''\
+            @decorated(
+                option=1,
+            )
+            class Filter:
+                """Many
+                lines
+                of docs."""
+
+                # a comment between statements
+                n: int = 3
+                """The attribute's docstring."""
+
+                def step(self, a,
+                         b):
+                    """Docs."""
+                    total = (a
+                             + b)
+                    return total
+            '''
+        )
+    )
+    # decorator 3, class header 1, n 1, def header 2, the assignment 2, return 1
+    assert code_lines(tree.body[0]) == 10
 
 
 def test_lines_per_module_package_and_group(tmp_path):
