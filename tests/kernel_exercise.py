@@ -3,7 +3,7 @@ report of the project's cached kernels: which compiled (or loaded), which have n
 cache. `python tests/kernel_exercise.py PARTS` with PARTS "filter" (the walk demo, the fused step with each
 landmark bearing model and resampling scheme, the threaded step, the adaptive motion model's step), "sensors"
 (injection, the kernels public on their own), "models" (LWPR, the velocity EKF, the leg kinematics), "extension"
-(the goal-direction model: a sensor model on the per-particle contract; docs/extending.md's models), a comma-separated list of them, or
+(the goal-direction model: a sensor model on the per-particle contract), a comma-separated list of them, or
 "all". "filter" and "sensors,models,extension" take about as long to compile: the test session runs them side
 by side, one per core (tests/conftest.py, `WARMUP_PARTS`). No kernel should compile in both: two processes
 compiling one kernel at once both pay for it (the cache keeps one), so each family belongs to one lane, and
@@ -207,19 +207,6 @@ if "extension" in parts:
     goal_filter.step(MotionInput(dt=0.01, command=(0.2, 0.0, 0.1)), goals)
     goal_filter.correct(goals, since=(0.05, 0.0, 0.02))
     goal_filter.sensor_model.log_likelihood(goal_filter.poses, goals)
-
-    # docs/extending.md's models, written there from scratch, run as the page has them (their fused step, under
-    # the module name tests/test_extending.py and the docs examples give them): compiled once here, where both of
-    # those tests would otherwise compile them in their own workers at the same time.
-    import re
-    import types
-    from pathlib import Path
-
-    page = Path(__file__).resolve().parent.parent / "docs" / "extending.md"
-    example = sys.modules.setdefault("extending_example", types.ModuleType("extending_example"))
-    with contextlib.redirect_stdout(io.StringIO()):
-        for block in re.findall(r"```python\n(.*?)```", page.read_text(), re.DOTALL):
-            exec(compile(block, str(page), "exec"), example.__dict__)
 
 # Every cached kernel defined in the project: compiled here or not, its cache index, cache misses.
 from numba.core.registry import CPUDispatcher
