@@ -730,6 +730,10 @@ def render(report: dict) -> str:
         ("most methods", _where(largest["by_methods"], "methods")),
         ("most code lines", _where(largest["by_code_lines"], "code_lines").replace("code_lines", "code lines")),
         (
+            "largest classes",
+            ", ".join(f"{c['name']} {c['lines']} ({c['code_lines']} code)" for c in largest["top"]) or "-",
+        ),
+        (
             "paired variants",
             f"{report['paired_variants']['count']} functions named *_reference, *_chunked, *_fast, *_compiled",
         ),
