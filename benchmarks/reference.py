@@ -10,7 +10,7 @@
     issue_shaped_step(pf, u, observations)()     # the C reference's shape: no roughening, no estimate
     sample_injection_reference(pf, count, observations)   # augmented MCL's injected poses, in numpy
 
-`numpy_step` calls the `*_reference` twin of each kernel the filter uses; with the same generator state its
+`numpy_step` calls the numpy twin of each kernel the filter uses; with the same generator state its
 results agree with the filter's to rounding (the draws are the same, in the same order).
 
 `compiled_phases` calls, one dispatch each, the kernels that `mcl.step.compiled_step` runs in a single

@@ -9,7 +9,8 @@ The step: predict (velocity-linear), correct with 10 detections of a 4-way ambig
 normalize and ESS, systematic resampling, estimate (dominant cluster), entropy. The numba step is timed
 through the filter's public calls (`step` + `entropy`, resampling forced every step); the numpy step is
 `benchmarks.reference.numpy_step`, the same computation in plain numpy. Each phase of `PHASES` pairs the numba call
-the filter makes with its numpy twin (`*_reference`); phases that have no twin (recording) say so.
+the filter makes with its numpy twin (`mcl.reference`, `motion_models.reference`, a model's `numpy_twin()`);
+phases that have no twin (recording) say so.
 Timings: the candidates are called in turn (A, B, A, B, ...) and the median is taken, so a machine shared with
 other work biases both alike; ratios compare figures of one run.
 """
@@ -128,20 +129,20 @@ PHASES = (
         "predict_velocity_linear",
         "motion model: velocity-linear (Hoffmann eq. 10), variates drawn included",
         "VelocityLinear.predict",
-        "motion_models.kernels.move_with_noise_reference",
+        "motion_models.reference.move_with_noise",
     ),
     Phase(
         "predict_adaptive",
         "motion model: adaptive, five mobility states, during frequent collisions (Hoffmann "
         "eq. 11-26), the states in that condition's stationary mix",
         "AdaptiveMotion.predict(state=...)",
-        "motion_models.adaptive.adaptive_move_reference",
+        "motion_models.reference.adaptive_move",
     ),
     Phase(
         "predict_adaptive_quiet",
         "motion model: adaptive, walking without collisions (every particle free)",
         "AdaptiveMotion.predict(state=...)",
-        "motion_models.adaptive.adaptive_move_reference",
+        "motion_models.reference.adaptive_move",
     ),
     Phase(
         "likelihood_von_mises",
@@ -165,7 +166,7 @@ PHASES = (
         "normalize",
         "normalization (log-sum-exp) and ESS, prior log-weights + log-likelihood included",
         "mcl.weights.normalize",
-        "mcl.weights.normalize_reference",
+        "mcl.reference.normalize",
     ),
     Phase(
         "resample",
@@ -174,7 +175,7 @@ PHASES = (
         f"mcl.resampling.{FUSED[0]} (fused, uniforms drawn in the kernel)"
         if FUSED
         else "mcl.resampling.systematic + gather_with_jitter",
-        "mcl.resampling.systematic_reference + gather_with_jitter_reference",
+        "mcl.reference.systematic + gather_with_jitter",
     ),
     Phase(
         "injection",
