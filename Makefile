@@ -19,9 +19,11 @@ $(PY):
 # whenever the package metadata or the pins change. --no-compile: modules are byte-compiled when first imported
 # instead of all at install time.
 CONSTRAINTS ?= constraints.txt
-PIP_INSTALL := $(PY) -m pip install --quiet --no-compile --resume-retries 20 $(if $(CONSTRAINTS),-c $(CONSTRAINTS))
-# A large wheel (rerun-sdk: 170 MB) sometimes arrives cut off, at the same byte however often pip resumes it: a failed
-# install is started afresh, up to three times (what was downloaded whole stays in pip's cache).
+# A large wheel (rerun-sdk: 170 MB) sometimes arrives cut off: pip resumes it (RESUME), and when it stops at the same
+# byte however often it resumes, a failed install is started afresh, up to three times (RETRY; what was downloaded
+# whole stays in pip's cache).
+RESUME := --resume-retries 20
+PIP_INSTALL := $(PY) -m pip install --quiet --no-compile $(RESUME) $(if $(CONSTRAINTS),-c $(CONSTRAINTS))
 RETRY := sh -c 'for i in 1 2 3; do "$$@" && exit 0; echo "install attempt $$i of 3 failed" >&2; sleep 20; done; exit 1' retry
 $(STAMP): pyproject.toml $(CONSTRAINTS) | $(PY)
 	$(RETRY) $(PY) -m pip install --quiet --upgrade pip
@@ -69,7 +71,7 @@ fuzz: $(STAMP)
 # The benchmark also needs the `bench` extra (filterpy and particles to compare with, matplotlib to plot).
 BENCH_STAMP := $(VENV)/.installed-bench
 $(BENCH_STAMP): $(STAMP)
-	$(RETRY) $(PY) -m pip install --quiet --resume-retries 20 -e '.[test,bench]'
+	$(RETRY) $(PY) -m pip install --quiet $(RESUME) -e '.[test,bench]'
 	touch $(BENCH_STAMP)
 
 bench: $(BENCH_STAMP)
@@ -85,7 +87,7 @@ ROS_STAMP := $(ROS_VENV)/.installed
 $(ROS_STAMP): pyproject.toml
 	$(PYTHON) -m venv $(ROS_VENV)
 	$(RETRY) $(ROS_PY) -m pip install --quiet --upgrade pip
-	$(RETRY) $(ROS_PY) -m pip install --quiet --resume-retries 20 -e '.[ros,test]'
+	$(RETRY) $(ROS_PY) -m pip install --quiet $(RESUME) -e '.[ros,test]'
 	$(ROS_PY) -m mcl.tools.ros.messages --build-dir build/ros-msgs
 	touch $(ROS_STAMP)
 

@@ -56,6 +56,7 @@ __all__ = [
     "capabilities",
     "moves_by_bounded_noise",
     "fused_kernels",
+    "numpy_twin",
     "fast_path",
     "REQUIRED_METHODS",
     "lacks",
@@ -385,6 +386,25 @@ def moves_by_bounded_noise(model: object) -> bool:
         and kind.predict is BoundedNoiseModel.predict
         and kind.check is BoundedNoiseModel.check
     )
+
+
+def numpy_twin(model: object) -> Any | None:
+    """The model computed in plain numpy (its `numpy_twin()`, as the landmark and line models offer it: methods of
+    the names and results of the model's own), or None when it offers none. The reference engine scores and
+    draws through it.
+
+    Parameters
+    ----------
+    model : object
+        A sensor model.
+
+    Returns
+    -------
+    object or None
+        What the model's `numpy_twin()` returned; None when it has no such method.
+    """
+    offer = getattr(model, "numpy_twin", None)
+    return offer() if callable(offer) else None
 
 
 def fused_kernels(sensor_model: object) -> FusedLikelihoodKernels | None:

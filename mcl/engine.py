@@ -42,7 +42,7 @@ from numerics.trig import SQRT3
 from sensing.observations import Observations
 
 from . import reference
-from .contracts import fused_kernels, moves_by_bounded_noise
+from .contracts import fused_kernels, moves_by_bounded_noise, numpy_twin
 from .estimate import (
     summary_entropy,
     summary_estimate,
@@ -450,8 +450,7 @@ class ReferenceEngine(Engine):
     def likelihood(self, sensor_model: Any, observations: Observations, since: np.ndarray | None) -> np.ndarray:
         """`Engine.likelihood` in numpy: the particles moved back along `since` by `mcl.reference.move_back`, scored
         by the sensor model's numpy twin when it has one (`numpy_twin().log_likelihood`; else its `log_likelihood`)."""
-        twin = getattr(sensor_model, "numpy_twin", None)
-        score = getattr(twin(), "log_likelihood", None) if callable(twin) else None
+        score = getattr(numpy_twin(sensor_model), "log_likelihood", None)
         if not callable(score):
             return super().likelihood(sensor_model, observations, since)
         p = self.particles

@@ -61,6 +61,7 @@ from sensing.observations import Observations
 from sensing.resetting import poses_from_pairs
 
 from . import reference as twins
+from .contracts import numpy_twin
 from .resampling import systematic
 
 TWO_PI = 2.0 * math.pi
@@ -609,11 +610,7 @@ class SoccerRelocalization:
             if n_pairs:
                 parts.append(pairs if n_pairs == pairs.shape[0] else pairs[rng.permutation(pairs.shape[0])[:n_pairs]])
         n_uniform = max(1, int(round(p.uniform_share * pool)))
-        if reference:
-            twin = getattr(sensor_model, "numpy_twin", None)
-            sampler = getattr(twin(), "sample_poses", None) if callable(twin) else None
-        else:
-            sampler = getattr(sensor_model, "sample_poses", None)
+        sampler = getattr(numpy_twin(sensor_model) if reference else sensor_model, "sample_poses", None)
         n_single = pool - n_pairs - n_uniform
         if n_single > 0 and sampler is not None and len(observations) > 0:
             parts.append(np.asarray(sampler(observations, n_single, rng, heading=None), dtype=np.float64))
