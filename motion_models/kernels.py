@@ -125,35 +125,17 @@ def move_with_noise(poses, dx, dy, dtheta, bound_x, bound_y, bound_theta, gaussi
     (2u - 1)·bound, or, with `gaussian`, normal with the same variance (sigma = bound / sqrt(3)), so that
     switching the distribution keeps the spread. `variates` (N, 3) come from `draw_variates`.
     """
-    move_range(
-        poses,
-        poses,
-        0,
-        poses.shape[0],
-        (dx, dy, dtheta),
-        (bound_x, bound_y, bound_theta),
-        gaussian,
-        variates,
-        (0, 0),
-        np.empty(0),
-    )
+    displacement, bounds = (dx, dy, dtheta), (bound_x, bound_y, bound_theta)
+    move_range(poses, poses, 0, poses.shape[0], displacement, bounds, gaussian, variates, (0, 0), np.empty(0))
 
 
 @numba.njit(cache=True)
 def move_drawing_noise(poses, dx, dy, dtheta, bound_x, bound_y, bound_theta, function, state):
     """`move_with_noise` with uniform noise whose variates are drawn in the kernel from a bit generator
     (`bit_generator_handle`): the same poses as `move_with_noise(..., False, rng.random((N, 3)))`."""
+    displacement, bounds = (dx, dy, dtheta), (bound_x, bound_y, bound_theta)
     move_range(
-        poses,
-        poses,
-        0,
-        poses.shape[0],
-        (dx, dy, dtheta),
-        (bound_x, bound_y, bound_theta),
-        False,
-        np.empty((0, 3)),
-        (function, state),
-        np.empty(0),
+        poses, poses, 0, poses.shape[0], displacement, bounds, False, np.empty((0, 3)), (function, state), np.empty(0)
     )
 
 
@@ -161,19 +143,10 @@ def move_drawing_noise(poses, dx, dy, dtheta, bound_x, bound_y, bound_theta, fun
 def move_chunked(poses, dx, dy, dtheta, bound_x, bound_y, bound_theta, gaussian, variates, chunk):
     """`move_with_noise` with chunks of `chunk` particles on several threads (elementwise: the same poses)."""
     n = poses.shape[0]
+    displacement, bounds = (dx, dy, dtheta), (bound_x, bound_y, bound_theta)
     for t in numba.prange(max(1, (n + chunk - 1) // chunk)):
-        move_range(
-            poses,
-            poses,
-            t * chunk,
-            min(n, (t + 1) * chunk),
-            (dx, dy, dtheta),
-            (bound_x, bound_y, bound_theta),
-            gaussian,
-            variates,
-            (0, 0),
-            np.empty(0),
-        )
+        start, stop = t * chunk, min(n, (t + 1) * chunk)
+        move_range(poses, poses, start, stop, displacement, bounds, gaussian, variates, (0, 0), np.empty(0))
 
 
 # -- the opt-in fast variant ----------------------------------------------------------------------------------------
