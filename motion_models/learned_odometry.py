@@ -59,6 +59,7 @@ import json
 import math
 import os
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -283,8 +284,48 @@ class LinearStage:
         return {name: getattr(self, name).tolist() for name in _LINEAR_KEYS}
 
 
+class _FootstepMotion:
+    """The motion model interface both footstep models share: at a support swap every pose moves by the step's
+    displacement and noise standard deviations (`_step`: the learned prediction, or the event's raw
+    displacement) with Gaussian robot-frame noise; between swaps nothing moves."""
+
+    inputs: str
+
+    def _step(self, event: FootstepEvent) -> tuple[Any, Any]:
+        """The step's (dx, dy, dθ) displacement and (x, y, θ) noise standard deviations."""
+        raise NotImplementedError
+
+    def check(self, u: MotionInput) -> None:
+        """Raise ValueError unless `u.footstep` is None or a FootstepEvent with this input set's fields.
+
+        Parameters
+        ----------
+        u : MotionInput
+            As `motion_models.base.MotionModel.check`.
+        """
+        _check_footstep(u, self.inputs)
+
+    def predict(self, poses: np.ndarray, u: MotionInput, rng: np.random.Generator) -> None:
+        """At a support swap, move every pose by the step (the learned prediction, or the event's raw
+        displacement) plus N(0, σ²) robot-frame noise; between swaps, leave the poses (and the generator)
+        untouched.
+
+        Parameters
+        ----------
+        poses, u, rng
+            As `motion_models.base.MotionModel.predict`; `u.footstep` (None between swaps) drives the motion.
+            ValueError when `poses` breaks the particle array contract or `u` fails `check`.
+        """
+        check_poses(poses)
+        self.check(u)
+        if u.footstep is None:
+            return
+        mean, sigma = self._step(u.footstep)
+        _move_gaussian(poses, mean, sigma, rng)
+
+
 @dataclass(frozen=True)
-class LearnedFootstepOdometry:
+class LearnedFootstepOdometry(_FootstepMotion):
     """Three trained LWPR models (dx, dy, dθ) and how their predictions move particles.
 
     Build one with `train` or `load`; the LWPR objects must not be updated in place (use `updated`).
@@ -536,33 +577,8 @@ class LearnedFootstepOdometry:
         mean, sigma = self.predict_steps(event.inputs(self.inputs)[None, :])
         return mean[0], sigma[0]
 
-    # -- the motion model interface ---------------------------------------------------------------------
-    def check(self, u: MotionInput) -> None:
-        """Raise ValueError unless `u.footstep` is None or a FootstepEvent with this input set's fields.
-
-        Parameters
-        ----------
-        u : MotionInput
-            As `motion_models.base.MotionModel.check`.
-        """
-        _check_footstep(u, self.inputs)
-
-    def predict(self, poses: np.ndarray, u: MotionInput, rng: np.random.Generator) -> None:
-        """At a support swap, move every pose by the predicted step plus N(0, σ²) robot-frame noise; between
-        swaps, leave the poses (and the generator) untouched.
-
-        Parameters
-        ----------
-        poses, u, rng
-            As `motion_models.base.MotionModel.predict`; `u.footstep` (None between swaps) drives the motion.
-            ValueError when `poses` breaks the particle array contract or `u` fails `check`.
-        """
-        check_poses(poses)
-        self.check(u)
-        if u.footstep is None:
-            return
-        mean, sigma = self.predict_event(u.footstep)
-        _move_gaussian(poses, mean, sigma, rng)
+    def _step(self, event: FootstepEvent) -> tuple[np.ndarray, np.ndarray]:
+        return self.predict_event(event)
 
     # -- files ------------------------------------------------------------------------------------------
     def save(self, directory: str | os.PathLike) -> None:
@@ -798,7 +814,7 @@ def _move_gaussian(poses: np.ndarray, mean, sigma, rng: np.random.Generator) -> 
 
 
 @dataclass(frozen=True)
-class RawFootstepOdometry:
+class RawFootstepOdometry(_FootstepMotion):
     """The footstep displacement without learning: the event's commanded ("apriori") or sensor ("online")
     displacement plus constant Gaussian robot-frame noise `sigma` (m, m, rad) per step of the gait (drawn at a
     support swap, not per filter step: the same at any update rate).
@@ -845,32 +861,8 @@ class RawFootstepOdometry:
         X, Y = _training_arrays(inputs, targets, kind)
         return cls(kind, _raw_rms(X, Y))
 
-    def check(self, u: MotionInput) -> None:
-        """Raise ValueError unless `u.footstep` is None or a FootstepEvent with this input set's fields.
-
-        Parameters
-        ----------
-        u : MotionInput
-            As `motion_models.base.MotionModel.check`.
-        """
-        _check_footstep(u, self.inputs)
-
-    def predict(self, poses: np.ndarray, u: MotionInput, rng: np.random.Generator) -> None:
-        """At a support swap, move every pose by the event's raw displacement plus N(0, σ²) robot-frame noise;
-        between swaps, leave the poses (and the generator) untouched.
-
-        Parameters
-        ----------
-        poses, u, rng
-            As `motion_models.base.MotionModel.predict`; `u.footstep` (None between swaps) drives the motion.
-            ValueError when `poses` breaks the particle array contract or `u` fails `check`.
-        """
-        check_poses(poses)
-        self.check(u)
-        if u.footstep is None:
-            return
-        event = u.footstep
-        _move_gaussian(poses, event.commanded if self.inputs == "apriori" else event.sensor, self.sigma, rng)
+    def _step(self, event: FootstepEvent) -> tuple[Any, tuple[float, float, float]]:
+        return (event.commanded if self.inputs == "apriori" else event.sensor), self.sigma
 
 
 def _check_footstep(u: MotionInput, inputs: str) -> None:
