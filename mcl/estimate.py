@@ -82,8 +82,7 @@ def _cell_float(value, origin, size, count):
 
 
 @numba.njit(cache=True, error_model="numpy")
-def _kernel_terms(xs, ys, ts, weights, count, cx, cy, ct, r2, angle_radius, total, rows):
-    """The mean's terms of a block: w·dx, w·dy, w·dθ and w for each particle within the kernel (total unused)."""
+def _kernel_terms(xs, ys, ts, weights, count, cx, cy, ct, r2, angle_radius, rows):
     for p in range(count):
         dx = xs[p] - cx
         dy = ys[p] - cy
@@ -96,10 +95,78 @@ def _kernel_terms(xs, ys, ts, weights, count, cx, cy, ct, r2, angle_radius, tota
         rows[3, p] = w
 
 
+def _kernel_mean_body(xs, ys, ts, weights, cx, cy, ct, radius, angle_radius, scratch, chunk):
+    """Weighted mean of the particles within the flat kernel around (cx, cy, ct).
+
+    The heading is the intrinsic circular mean: the centre plus the weighted mean of the wrapped residuals
+    (one step of the Fréchet-mean iteration on the circle; repeated calls converge). Within the kernel's
+    ±angle_radius this needs no trigonometry. The sums are taken chunk by chunk (within a chunk in index order,
+    then over the chunks in order): `_kernel_mean` compiles this with one chunk of every particle (ONE_CHUNK,
+    scratch: (>= 4, BLOCK) rows, chunk unused), `_kernel_mean_chunked` with chunks of `chunk` on threads.
+    """
+    n = xs.shape[0]
+    if ONE_CHUNK:
+        chunk = max(n, 1)
+    chunks = max(1, (n + chunk - 1) // chunk)
+    # each chunk's sums (one chunk: the first row of the scratch, once its rows are done with)
+    partial = scratch if ONE_CHUNK else np.zeros((chunks, 4))
+    r2 = radius * radius
+    for t in numba.prange(chunks):
+        if ONE_CHUNK:
+            rows = scratch
+        else:
+            rows = np.empty((4, BLOCK))
+        sx = 0.0
+        sy = 0.0
+        st = 0.0
+        total = 0.0
+        for start in range(t * chunk, min(n, (t + 1) * chunk), BLOCK):
+            stop = min(start + BLOCK, n, (t + 1) * chunk)
+            count = stop - start
+            _kernel_terms(
+                xs[start:stop],
+                ys[start:stop],
+                ts[start:stop],
+                weights[start:stop],
+                count,
+                cx,
+                cy,
+                ct,
+                r2,
+                angle_radius,
+                rows,
+            )
+            for p in range(count):
+                sx += rows[0, p]
+                sy += rows[1, p]
+                st += rows[2, p]
+                total += rows[3, p]
+        partial[t, 0] = sx
+        partial[t, 1] = sy
+        partial[t, 2] = st
+        partial[t, 3] = total
+    sx = 0.0
+    sy = 0.0
+    st = 0.0
+    total = 0.0
+    for t in range(chunks):
+        sx += partial[t, 0]
+        sy += partial[t, 1]
+        st += partial[t, 2]
+        total += partial[t, 3]
+    if total <= 0.0:
+        return cx, cy, ct, 0.0
+    return cx + sx / total, cy + sy / total, wrap(ct + st / total), total
+
+
+# Whether a variant of the bodies above and below takes its sums in one chunk (the serial kernels), bound by
+# each variant (`numerics.compile.variant`).
+ONE_CHUNK = True
+_kernel_mean = variant(_kernel_mean_body, "serial", {"ONE_CHUNK": True})
+
+
 @numba.njit(cache=True, error_model="numpy")
 def _covariance_terms(xs, ys, ts, weights, count, mx, my, mt, r2, angle_radius, total, rows):
-    """The covariance's terms of a block: the six products of the residuals, weighted by w / total within the
-    kernel."""
     for p in range(count):
         dx = xs[p] - mx
         dy = ys[p] - my
@@ -114,36 +181,38 @@ def _covariance_terms(xs, ys, ts, weights, count, mx, my, mt, r2, angle_radius, 
         rows[5, p] = w * dt * dt
 
 
-def _kernel_sums_body(xs, ys, ts, weights, cx, cy, ct, r2, angle_radius, total, scratch, chunk):
-    """The sums over the particles of the ROWS terms `block_terms` writes for a block (`_kernel_terms`: 4,
-    `_covariance_terms`: 6), taken chunk by chunk: within a chunk in index order, then over the chunks in order.
-    Returns six sums, those past ROWS zero. One chunk of every particle (ONE_CHUNK, the serial and fast kernels):
-    scratch holds the rows ((ROWS, BLOCK) at least) and the chunk's sums, chunk is unused; otherwise chunks of
-    `chunk` on threads. (A template, compiled by `_kernels` for each kind of terms and of chunks.)"""
+def _kernel_covariance_body(xs, ys, ts, weights, mx, my, mt, radius, angle_radius, total, scratch, out_cov, chunk):
+    """Covariance of the particles within the kernel around the mean (mx, my, mt), θ residual wrapped; its sums
+    in chunks as `_kernel_mean_body` takes them (`_kernel_covariance`: one chunk, scratch (6, BLOCK) rows;
+    `_kernel_covariance_chunked`: chunks of `chunk` on threads)."""
     n = xs.shape[0]
     if ONE_CHUNK:
         chunk = max(n, 1)
     chunks = max(1, (n + chunk - 1) // chunk)
+    if not total > 0.0:
+        out_cov[:, :] = 0.0
+        return
     # each chunk's sums (one chunk: the first row of the scratch, once its rows are done with)
-    partial = scratch if ONE_CHUNK else np.zeros((chunks, ROWS))
+    partial = scratch if ONE_CHUNK else np.zeros((chunks, 6))
+    r2 = radius * radius
     for t in numba.prange(chunks):
         if ONE_CHUNK:
             rows = scratch
         else:
-            rows = np.empty((ROWS, BLOCK))
+            rows = np.empty((6, BLOCK))
         s0 = s1 = s2 = s3 = s4 = s5 = 0.0
         for start in range(t * chunk, min(n, (t + 1) * chunk), BLOCK):
             stop = min(start + BLOCK, n, (t + 1) * chunk)
             count = stop - start
-            block_terms(
+            _covariance_terms(
                 xs[start:stop],
                 ys[start:stop],
                 ts[start:stop],
                 weights[start:stop],
                 count,
-                cx,
-                cy,
-                ct,
+                mx,
+                my,
+                mt,
                 r2,
                 angle_radius,
                 total,
@@ -154,63 +223,22 @@ def _kernel_sums_body(xs, ys, ts, weights, cx, cy, ct, r2, angle_radius, total, 
                 s1 += rows[1, p]
                 s2 += rows[2, p]
                 s3 += rows[3, p]
-                if ROWS == 6:
-                    s4 += rows[4, p]
-                    s5 += rows[5, p]
+                s4 += rows[4, p]
+                s5 += rows[5, p]
         partial[t, 0] = s0
         partial[t, 1] = s1
         partial[t, 2] = s2
         partial[t, 3] = s3
-        if ROWS == 6:
-            partial[t, 4] = s4
-            partial[t, 5] = s5
+        partial[t, 4] = s4
+        partial[t, 5] = s5
     c0 = c1 = c2 = c3 = c4 = c5 = 0.0
     for t in range(chunks):
         c0 += partial[t, 0]
         c1 += partial[t, 1]
         c2 += partial[t, 2]
         c3 += partial[t, 3]
-        if ROWS == 6:
-            c4 += partial[t, 4]
-            c5 += partial[t, 5]
-    return c0, c1, c2, c3, c4, c5
-
-
-# What a variant of the template above sums, bound by each variant (`numerics.compile.variant`): whether it takes
-# its sums in one chunk (the serial and fast kernels), the function writing a block's terms and how many rows
-# of terms it writes.
-ONE_CHUNK = True
-block_terms = None
-ROWS = 6
-
-
-def _kernel_mean_body(xs, ys, ts, weights, cx, cy, ct, radius, angle_radius, scratch, chunk):
-    """Weighted mean of the particles within the flat kernel around (cx, cy, ct).
-
-    The heading is the intrinsic circular mean: the centre plus the weighted mean of the wrapped residuals
-    (one step of the Fréchet-mean iteration on the circle; repeated calls converge). Within the kernel's
-    ±angle_radius this needs no trigonometry. The sums are `kernel_sums`'s: `_kernel_mean` takes them in one
-    chunk of every particle (scratch: (>= 4, BLOCK) rows, chunk unused), `_kernel_mean_chunked` in chunks of
-    `chunk` on threads.
-    """
-    sx, sy, st, total, _, _ = kernel_sums(
-        xs, ys, ts, weights, cx, cy, ct, radius * radius, angle_radius, 0.0, scratch, chunk
-    )
-    if total <= 0.0:
-        return cx, cy, ct, 0.0
-    return cx + sx / total, cy + sy / total, wrap(ct + st / total), total
-
-
-def _kernel_covariance_body(xs, ys, ts, weights, mx, my, mt, radius, angle_radius, total, scratch, out_cov, chunk):
-    """Covariance of the particles within the kernel around the mean (mx, my, mt), θ residual wrapped; its sums
-    `kernel_sums`'s, as `_kernel_mean_body` takes them (`_kernel_covariance`: one chunk, scratch (6, BLOCK)
-    rows; `_kernel_covariance_chunked`: chunks of `chunk` on threads)."""
-    if not total > 0.0:
-        out_cov[:, :] = 0.0
-        return
-    c0, c1, c2, c3, c4, c5 = kernel_sums(
-        xs, ys, ts, weights, mx, my, mt, radius * radius, angle_radius, total, scratch, chunk
-    )
+        c4 += partial[t, 4]
+        c5 += partial[t, 5]
     out_cov[0, 0] = c0
     out_cov[0, 1] = out_cov[1, 0] = c1
     out_cov[0, 2] = out_cov[2, 0] = c2
@@ -219,26 +247,7 @@ def _kernel_covariance_body(xs, ys, ts, weights, mx, my, mt, radius, angle_radiu
     out_cov[2, 2] = c5
 
 
-# The sums the two bodies above call by this name, bound by each variant (`numerics.compile.variant`).
-kernel_sums = None
-
-
-def _kernels(key: str, one_chunk: bool, sums_options: dict | None = None, **options) -> tuple:
-    """The mean and covariance kernels compiled as `key` (serial, chunked or fast) with `options`, each calling
-    `_kernel_sums_body` compiled for its terms with the same options and `sums_options` (one chunk of every
-    particle when `one_chunk`)."""
-    kernels = []
-    for body, kind, terms, rows in (
-        (_kernel_mean_body, "mean", _kernel_terms, 4),
-        (_kernel_covariance_body, "covariance", _covariance_terms, 6),
-    ):
-        names = {"ONE_CHUNK": one_chunk, "block_terms": terms, "ROWS": rows}
-        sums = variant(_kernel_sums_body, f"{kind}-{key}", names, **(sums_options or {}), **options)
-        kernels.append(variant(body, key, {"kernel_sums": sums}, **options))
-    return tuple(kernels)
-
-
-_kernel_mean, _kernel_covariance = _kernels("serial", True)
+_kernel_covariance = variant(_kernel_covariance_body, "serial", {"ONE_CHUNK": True})
 
 
 @numba.njit(cache=True, inline="always")
@@ -654,7 +663,10 @@ def summary_entropy(grid, histograms, bitmaps):
 # serial one's bit for bit when a chunk holds every particle, otherwise equal to rounding.
 
 
-_kernel_mean_chunked, _kernel_covariance_chunked = _kernels("chunked", False, {"parallel": True})
+_kernel_mean_chunked = variant(_kernel_mean_body, "chunked", {"ONE_CHUNK": False}, parallel=True)
+
+
+_kernel_covariance_chunked = variant(_kernel_covariance_body, "chunked", {"ONE_CHUNK": False}, parallel=True)
 
 
 summary_estimate_chunked = variant(
@@ -738,7 +750,10 @@ def summary_fill_chunked(grid, poses, weights, coordinates, histograms, bitmaps,
 FAST = {"nsz", "arcp", "contract", "afn", "reassoc"}  # fast-math without assuming no NaN / inf
 
 
-_kernel_mean_fast, _kernel_covariance_fast = _kernels("fast", True, fastmath=FAST, error_model="numpy")
+_kernel_mean_fast = variant(_kernel_mean_body, "fast", {"ONE_CHUNK": True}, fastmath=FAST, error_model="numpy")
+_kernel_covariance_fast = variant(
+    _kernel_covariance_body, "fast", {"ONE_CHUNK": True}, fastmath=FAST, error_model="numpy"
+)
 
 
 summary_estimate_fast = variant(

@@ -158,8 +158,6 @@ def predict_and_score(poses, scratch, trig, log_likelihood, motion, draws, frame
     since: (dx, dy, dθ) when the detections were captured earlier (copying only): the model scores each
     particle where it was at capture (`trig` keeps its heading now)."""
     move, dx, dy, dtheta, bound_x, bound_y, bound_theta, gaussian, variates = motion
-    displacement = (dx, dy, dtheta)
-    bounds = (bound_x, bound_y, bound_theta)
     move_work = np.empty(MOVE_WORK)
     rows = np.empty((3, STEP_BLOCK))
     for block in range(start, stop, STEP_BLOCK):
@@ -167,9 +165,31 @@ def predict_and_score(poses, scratch, trig, log_likelihood, motion, draws, frame
         if not move:
             scratch[block:end] = poses[block:end]
         elif fast:
-            move_range_fast(poses, scratch, block, end, displacement, bounds, gaussian, variates, draws, move_work)
+            move_range_fast(
+                poses,
+                scratch,
+                block,
+                end,
+                (dx, dy, dtheta),
+                (bound_x, bound_y, bound_theta),
+                gaussian,
+                variates,
+                draws,
+                move_work,
+            )
         else:
-            move_range(poses, scratch, block, end, displacement, bounds, gaussian, variates, draws, move_work)
+            move_range(
+                poses,
+                scratch,
+                block,
+                end,
+                (dx, dy, dtheta),
+                (bound_x, bound_y, bound_theta),
+                gaussian,
+                variates,
+                draws,
+                move_work,
+            )
         block_trig(scratch, block, end - block, trig, rows, fast)
         score(scratch, rows[1:3], block, end - block, work, since, fast, frame, log_likelihood)
 
