@@ -186,8 +186,11 @@ class QualityThresholds:
     explained_rate, wrong_rate : float, default 0.9, 0.3
         The share of detections an estimate explains when it is right, and when it is wrong (a wrong pose still
         explains some: many landmarks of a type); 0 < wrong_rate < explained_rate < 1. Each unexplained
-        detection adds log((1 − wrong_rate) / (1 − explained_rate)) to the surprise, each explained one takes
-        log(explained_rate / wrong_rate) from it.
+        detection adds log((1 − q) / (1 − explained_rate)) to the surprise, each explained one takes
+        log(explained_rate / q) from it, q = wrong_rate; with a sensor model that says how likely a pose
+        anywhere explains each detection (`LandmarkSensorModel.chance_explained`, over the carpet), q is that
+        chance held within [wrong_rate, explained_rate] (`surprise_after`): a far, noisy detection of a
+        common type, which a wrong pose explains as well, moves the surprise little.
     superb_seen, okay_seen : float, default 0.4, 0.3
         With views: at least this share of the landmarks the estimate expects in view detected
         (`Localizer.seen_share`), in [0, 1] ...
@@ -264,6 +267,43 @@ class QualityThresholds:
         """What one unexplained detection adds to `Localizer.surprise`, and what one explained detection takes."""
         p, q = self.explained_rate, self.wrong_rate
         return math.log((1.0 - q) / (1.0 - p)), math.log(p / q)
+
+    def surprise_after(self, surprise: float, explained: np.ndarray, chances: np.ndarray) -> float:
+        """`next_surprise` with each detection's own wrong rate: its chance to be explained by a pose anywhere
+        (`LandmarkSensorModel.chance_explained`), held within [`wrong_rate`, `explained_rate`]. A detection
+        that any pose explains (far, noisy, of a type with many landmarks) then moves the surprise little
+        either way; one at or above `explained_rate` not at all.
+
+        Parameters
+        ----------
+        surprise : float
+            Within [0, `surprise_cap`].
+        explained : numpy.ndarray
+            (n,) bool: which of the frame's detections the estimate explained.
+        chances : numpy.ndarray
+            (n,) float: each detection's chance to be explained from a random pose.
+
+        Raises
+        ------
+        ValueError
+            Unless the surprise lies within [0, `surprise_cap`] and the two arrays have one entry per detection,
+            the chances numbers within [0, 1].
+        """
+        if not 0.0 <= surprise <= self.surprise_cap:
+            raise ValueError(f"surprise = {surprise!r} must lie within [0, {self.surprise_cap!r}]")
+        explained = np.asarray(explained, dtype=bool)
+        chances = np.asarray(chances, dtype=np.float64)
+        if explained.ndim != 1 or chances.shape != explained.shape:
+            raise ValueError(f"explained {explained.shape} and chances {chances.shape} must be (n,) each")
+        p, floor = self.explained_rate, self.wrong_rate
+        step = 0.0
+        # a few detections a frame: plain Python is quicker than numpy's calls on arrays this small
+        for seen, chance in zip(explained.tolist(), chances.tolist()):
+            if not 0.0 <= chance <= 1.0:
+                raise ValueError(f"chances = {chances!r} must lie within [0, 1]")
+            wrong = min(max(chance, floor), p)
+            step += -math.log(p / wrong) if seen else math.log((1.0 - wrong) / (1.0 - p))
+        return min(max(0.0, surprise + step), self.surprise_cap)
 
     def next_surprise(self, surprise: float, detections: int, explained: int) -> float:
         """The surprise after a frame of `detections` of which the estimate explained `explained`: Page's CUSUM
@@ -887,9 +927,13 @@ class Localizer:
             self._side_sign = 1.0
             if self.rivals is not None:
                 self.rivals.new_track(self._now())
-        elif jumped and self.rivals is not None:
-            self.rivals.new_track(self._now())
+        elif jumped and left is not None:
             self.jumps += 1
+            # a jump to the mirror image is the side's question, not a new place: the rivals leave the mirror
+            # image to the side odds, so the track they checked is the same
+            to_mirror = math.hypot(pose[0] + left[0], pose[1] + left[1])
+            if self.rivals is not None and to_mirror > CONTINUITY_POSITION:
+                self.rivals.new_track(self._now())
         self._track_side()
 
     def _track_side(self) -> None:
@@ -964,19 +1008,24 @@ class Localizer:
     def _weigh_twin(self, estimate: Estimate, odds: float) -> None:
         """Scale the weight of the particles near the estimate's mirror image down to exp(−odds) times the
         estimate's cluster weight, when they hold more."""
-        poses, weights = self.filter.poses, self.filter.weights
-        x, y, theta = (float(v) for v in estimate.pose)
-        # the mirror image (-x, -y, θ + π); within TWIN_HEADING of its heading: cos(Δ) >= cos(TWIN_HEADING)
-        near = ((poses[:, 0] + x) ** 2 + (poses[:, 1] + y) ** 2 <= TWIN_RADIUS**2) & (
-            -(np.cos(poses[:, 2]) * math.cos(theta) + np.sin(poses[:, 2]) * math.sin(theta)) >= math.cos(TWIN_HEADING)
-        )
-        held = float(weights[near].sum())
+        near = self._twin(estimate)
+        held = float(self.filter.weights[near].sum())
         allowed = estimate.weight * math.exp(-odds)
         if held > allowed > 0.0:
-            factors = np.zeros(poses.shape[0])
+            factors = np.zeros(near.shape[0])
             factors[near] = math.log(allowed / held)
             self.filter.reweigh(factors)
             self.counts["mirror twin weighed down"] += 1
+
+    def _twin(self, estimate: Estimate) -> np.ndarray:
+        """Which particles (bool per particle) form the estimate's mirror twin: within `TWIN_RADIUS` of its point
+        image (-x, -y) and `TWIN_HEADING` of its heading θ + π."""
+        poses = self.filter.poses
+        x, y, theta = (float(v) for v in estimate.pose)
+        # within TWIN_HEADING of the image's heading: cos(Δ) >= cos(TWIN_HEADING)
+        return ((poses[:, 0] + x) ** 2 + (poses[:, 1] + y) ** 2 <= TWIN_RADIUS**2) & (
+            -(np.cos(poses[:, 2]) * math.cos(theta) + np.sin(poses[:, 2]) * math.sin(theta)) >= math.cos(TWIN_HEADING)
+        )
 
     def _scale(self, u: MotionInput) -> MotionInput:
         """`u` with its odometry and command scaled by `odometry_scale` (a ValueError if that moves too far)."""
@@ -1051,7 +1100,13 @@ class Localizer:
         if count:
             self._last_explained = now
             self._walked = 0.0
-        self.surprise = q.next_surprise(self.surprise, m, count)
+        chance = getattr(self.filter.sensor_model, "chance_explained", None)
+        if explained is not None and callable(chance):
+            x0, x1, y0, y1 = self.field.carpet
+            chances = chance(observations, (x1 - x0) * (y1 - y0), q.gate, q.range_slack, q.bearing_slack)
+            self.surprise = q.surprise_after(self.surprise, explained, chances)
+        else:
+            self.surprise = q.next_surprise(self.surprise, m, count)
         self._follow_contradiction()
         if self.rivals is not None:
             self.rival_log_odds = self.rivals.frame(
@@ -1098,13 +1153,21 @@ class Localizer:
         fit = self.fit
         explained = self._frame_sums[1]
         side_log_odds = self.held_side_log_odds  # no single teammate makes a pose sure of its half
+        weight = estimate.weight
+        if weight < q.superb_weight or (1.0 - weight) * q.superb_mirror_odds > weight:
+            # the weight on the mirror twin leaves the pose as sure of where it is, and only as sure of its half
+            # as the split between the two says (computed only where the twin could change the answer)
+            twin = float(self.filter.weights[self._twin(estimate)].sum())
+            if twin > 0.0:
+                weight += twin
+                side_log_odds = min(side_log_odds, math.log(estimate.weight / twin))
         # negative information, when frames came with their view: judged once enough landmarks were expected
         expected = self._frame_sums[2]
         seen = self.seen_share if expected >= q.view_expected else 1.0
         superb = (
             position_sigma <= q.superb_position
             and heading_sigma <= q.superb_heading
-            and estimate.weight >= q.superb_weight
+            and weight >= q.superb_weight
             and entropy <= q.superb_entropy
             and fit >= q.superb_fit
             and explained >= q.superb_detections
@@ -1118,7 +1181,7 @@ class Localizer:
         okay = (
             position_sigma <= q.okay_position
             and heading_sigma <= q.okay_heading
-            and estimate.weight >= q.okay_weight
+            and weight >= q.okay_weight
             and entropy <= q.okay_entropy
             and age <= q.okay_age
             and self._walked <= q.okay_walked

@@ -21,7 +21,8 @@ the robot is metres away. The other places that explain the same detections are 
   (+inf without rivals). `QualityThresholds.superb_rival_odds` and `okay_rival_odds` ask for it.
 
 Only a young track is checked: for `young` seconds after a reset, a re-localization, or a jump of the estimate
-that no re-localization made (the dominant cluster changed between two frames; `Localizer` calls `new_track`).
+that no re-localization made (the dominant cluster changed between two frames; `Localizer` calls `new_track`;
+not for a jump to the estimate's mirror image, which the rivals leave to the side odds).
 A track that has explained the frames for longer has been tested against what the head saw while it panned, and
 a kidnapping of it is the surprise's to detect (`Localizer.surprise`). Outside that time only the frames are kept
 (a few bytes each), so the step's cost does not change.
