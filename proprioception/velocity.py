@@ -164,27 +164,11 @@ def rotation_derivative_at(beta, x) -> np.ndarray:
 # Kernels
 # ---------------------------------------------------------------------------------------------------------
 @numba.njit(cache=True)
-def _turns(w0, w1, w2, dt):
-    """The rotations f(-ωδ/2, ·) and f(-ωδ, ·) of eq. 2–4 as matrices: half, and full = half·half."""
-    half = np.empty((3, 3))
-    rotation_matrix_kernel(-w0 * dt / 2.0, -w1 * dt / 2.0, -w2 * dt / 2.0, half)
-    return half, half @ half
-
-
-@numba.njit(cache=True)
-def _turn_blocks(half, full, dt, f_out):
-    """F's exact [g, v] blocks (eq. 24) from the turns, into f_out[:6, :6]."""
-    for r in range(3):
-        for c in range(3):
-            f_out[r, c] = full[r, c]
-            f_out[3 + r, 3 + c] = full[r, c]
-            f_out[3 + r, c] = -half[r, c] * dt
-
-
-@numba.njit(cache=True)
 def imu_step_kernel(state, gyro, accel, dt):
     """Eq. 2–4 (and 28–30) in place on state = [g, v]: gravity turned in two halves around the velocity step."""
-    half, full = _turns(gyro[0], gyro[1], gyro[2], dt)
+    half = np.empty((3, 3))
+    rotation_matrix_kernel(-gyro[0] * dt / 2.0, -gyro[1] * dt / 2.0, -gyro[2] * dt / 2.0, half)
+    full = half @ half
     g_mid = half @ state[:3]  # eq. 2
     v_new = full @ state[3:]  # eq. 3, f(-ωδ, v) + (q - g)δ
     for k in range(3):
@@ -200,8 +184,14 @@ def ekf_jacobians_kernel(state, gyro, dt, sigma_w, sigma_q, exact, f_out, c_out)
     f_out[:, :] = 0.0
     c_out[:, :] = 0.0
     if exact:
-        half, full = _turns(gyro[0], gyro[1], gyro[2], dt)
-        _turn_blocks(half, full, dt, f_out)
+        half = np.empty((3, 3))
+        rotation_matrix_kernel(-gyro[0] * dt / 2.0, -gyro[1] * dt / 2.0, -gyro[2] * dt / 2.0, half)
+        full = half @ half
+        for r in range(3):
+            for c in range(3):
+                f_out[r, c] = full[r, c]
+                f_out[3 + r, 3 + c] = full[r, c]
+                f_out[3 + r, c] = -half[r, c] * dt
     else:
         for k in range(3):
             f_out[k, k] = 1.0
@@ -220,24 +210,16 @@ def ekf_jacobians_kernel(state, gyro, dt, sigma_w, sigma_q, exact, f_out, c_out)
 
 
 @numba.njit(cache=True)
-def _sparse_product(a, m):
-    """a·m for a square `a` with many zeros (F of eq. 31, I - KH of eq. 37): its zeros are skipped."""
-    n = m.shape[0]
-    am = np.zeros((n, n))
-    for i in range(n):
-        for k in range(n):
-            aik = a[i, k]
-            if aik != 0.0:
-                for j in range(n):
-                    am[i, j] += aik * m[k, j]
-    return am
-
-
-@numba.njit(cache=True)
 def propagate_covariance(cov, f, c):
     """cov ← F cov Fᵀ + C Cᵀ in place (eq. 31), exactly symmetric; skips the zeros of the sparse F."""
     n = cov.shape[0]
-    fp = _sparse_product(f, cov)
+    fp = np.zeros((n, n))
+    for i in range(n):
+        for k in range(n):
+            fik = f[i, k]
+            if fik != 0.0:
+                for j in range(n):
+                    fp[i, j] += fik * cov[k, j]
     for i in range(n):
         for j in range(i, n):
             acc = 0.0
@@ -283,8 +265,14 @@ def ekf_bias_jacobians_kernel(state, gyro, dt, sigma_w, sigma_q, sigma_b, exact,
     g = state[0:3].copy()
     v = state[3:6].copy()
     if exact:
-        half, full = _turns(u0, u1, u2, dt)
-        _turn_blocks(half, full, dt, f_out)
+        half = np.empty((3, 3))
+        rotation_matrix_kernel(-u0 * dt / 2.0, -u1 * dt / 2.0, -u2 * dt / 2.0, half)
+        full = half @ half
+        for r in range(3):
+            for c in range(3):
+                f_out[r, c] = full[r, c]
+                f_out[3 + r, 3 + c] = full[r, c]
+                f_out[3 + r, c] = -half[r, c] * dt
         jac_full = np.empty((3, 3))
         jac_half = np.empty((3, 3))
         left_jacobian_kernel(-u0 * dt, -u1 * dt, -u2 * dt, jac_full)
@@ -377,7 +365,13 @@ def ekf_correct_kernel(state, cov, measured, sigma_v):
         a[i, i] = 1.0
         for k in range(3):
             a[i, 3 + k] -= gain[i, k]
-    ap = _sparse_product(a, cov)
+    ap = np.zeros((n, n))
+    for i in range(n):
+        for k in range(n):
+            aik = a[i, k]
+            if aik != 0.0:
+                for j in range(n):
+                    ap[i, j] += aik * cov[k, j]
     r2 = sigma_v * sigma_v
     for i in range(n):
         for j in range(i, n):
@@ -695,19 +689,45 @@ class VelocityEKF(_GravityVelocityState):
         dt = _imu_interval(time, self._time, p.max_imu_gap)
         gyro = _vector3(gyro, "gyro")
         accel = _vector3(accel, "accel")
-        bias = p.estimate_gyro_bias
-        if bias:
-            noises: tuple[float, ...] = (p.gyro_noise, p.accel_noise, p.gyro_bias_random_walk)
-        else:
-            gyro = gyro - self._fixed_gyro_bias
-            noises = (p.gyro_noise, p.accel_noise)
-        arguments = (self._state, self._cov, gyro, accel, dt, *noises, p.exact_jacobian)
-        if self.backend == "numba":
-            (ekf_bias_predict_kernel if bias else ekf_predict_kernel)(*arguments)
-        else:
-            from proprioception import reference  # (the numpy twins import this module's rotations)
+        if p.estimate_gyro_bias:
+            if self.backend == "numba":
+                ekf_bias_predict_kernel(
+                    self._state,
+                    self._cov,
+                    gyro,
+                    accel,
+                    dt,
+                    p.gyro_noise,
+                    p.accel_noise,
+                    p.gyro_bias_random_walk,
+                    p.exact_jacobian,
+                )
+            else:
+                from proprioception import reference  # (the numpy twins import this module's rotations)
 
-            self._state, self._cov = (reference.ekf_bias_predict if bias else reference.ekf_predict)(*arguments)
+                self._state, self._cov = reference.ekf_bias_predict(
+                    self._state,
+                    self._cov,
+                    gyro,
+                    accel,
+                    dt,
+                    p.gyro_noise,
+                    p.accel_noise,
+                    p.gyro_bias_random_walk,
+                    p.exact_jacobian,
+                )
+            self._time = float(time)
+            self.n_predictions += 1
+            return
+        gyro = gyro - self._fixed_gyro_bias
+        if self.backend == "numba":
+            ekf_predict_kernel(self._state, self._cov, gyro, accel, dt, p.gyro_noise, p.accel_noise, p.exact_jacobian)
+        else:
+            from proprioception import reference
+
+            self._state, self._cov = reference.ekf_predict(
+                self._state, self._cov, gyro, accel, dt, p.gyro_noise, p.accel_noise, p.exact_jacobian
+            )
         self._time = float(time)
         self.n_predictions += 1
 
