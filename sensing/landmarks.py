@@ -1029,7 +1029,7 @@ class LandmarkSensorModel:
         gate, range_slack, bearing_slack = gate_group(gate, range_slack, bearing_slack)
         observations = Observations.coerce(observations)
         self.check(observations)
-        floor, growth, model_bearing_sigma = self.noise_group()
+        range_sigmas, bearing_sigmas = self._sigmas(observations)
         offsets = self._offsets.tolist()
         scale = math.pi * gate * gate / area
         out = np.empty(len(observations))
@@ -1038,14 +1038,10 @@ class LandmarkSensorModel:
             zip(
                 observations.kinds.tolist(),
                 observations.ranges.tolist(),
-                observations.range_sigmas.tolist(),
-                observations.bearing_sigmas.tolist(),
+                range_sigmas.tolist(),
+                bearing_sigmas.tolist(),
             )
         ):
-            if math.isnan(range_sigma):
-                range_sigma = range_noise_sigma(r, floor, growth)
-            if math.isnan(bearing_sigma):
-                bearing_sigma = model_bearing_sigma
             count = offsets[kind + 1] - offsets[kind]
             chance = count * scale * (range_sigma + range_slack) * (bearing_sigma + bearing_slack) * r
             out[j] = min(max(chance, 0.0), 1.0)
