@@ -56,6 +56,7 @@ from mcl.tools.evaluation import (
     QUALITY_LEVELS,
     evaluate,
     first_stretch,
+    lost_episodes,
     median_worst,
     mirrored,
     pool_counts,
@@ -316,6 +317,12 @@ def side_figures(run: BatteryRun, out: dict) -> dict:
         doubted = (out["quality"] == QUALITY_CODE[Quality.UNSURE_HALF]) | out["lost"]
         figures["mirror_steps"] = int(due.sum())
         figures["mirror_steps_doubted"] = int((due & doubted).sum())
+        # the steps `is_lost` should have flagged and did not, split by what the quality said instead: on the
+        # mirror image and UNSURE_HALF (the pose known up to the field's symmetry, which is not lost), or not
+        missed = lost_episodes(run.times, position) & ~out["lost"]
+        unsure = out["quality"] == QUALITY_CODE[Quality.UNSURE_HALF]
+        figures["recall_missed"] = int(missed.sum())
+        figures["recall_missed_mirror_unsure"] = int((missed & mirror & unsure).sum())
     return figures
 
 
@@ -408,6 +415,8 @@ def summarize_family(runs: list[dict]) -> dict:
                 },
                 "mirror_steps": sum(r.get("mirror_steps", 0) for r in members),
                 "mirror_steps_doubted": sum(r.get("mirror_steps_doubted", 0) for r in members),
+                "recall_missed": sum(r.get("recall_missed", 0) for r in members),
+                "recall_missed_mirror_unsure": sum(r.get("recall_missed_mirror_unsure", 0) for r in members),
             }
     out["team_runs"] = sum(bool(r.get("team")) for r in runs)
     out["team_flips"] = sum(r.get("team_flips", 0) for r in runs)
@@ -473,6 +482,11 @@ def format_family(name: str, s: dict) -> list[str]:
             lines.append(
                 f"    {'clear kidnaps: lost recall':<32}{_percent(clear['pooled']['recall']['share']):>10}"
                 f"   false alarms {_percent(clear['pooled']['false_alarm']['share'])}"
+            )
+            lines.append(
+                f"    {'clear: missed, mirror & unsure':<32}"
+                f"{share_text(clear['recall_missed_mirror_unsure'], clear['recall_missed']):>10}   of "
+                f"{clear['recall_missed']} missed steps (on the mirror image, UNSURE_HALF)"
             )
         if even["runs"]:
             lines.append(

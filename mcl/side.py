@@ -13,11 +13,18 @@ hypothesis, at the point image of the main estimate, with log odds from two kind
 1. **The robot's own prior** (the re-localization's `mirror_log_odds`: continuity with the last confident
    pose, the placement region), capped at `prior_cap`: continuity holds a robot on its side, but no prior is
    certain (the kidnapping it assumes may not be the one that happened).
-2. **The ball, seen by the robot and by its teammates** (`sensing.team.side_evidence`): each teammate's report
-   compared once with the robot's own sighting nearest to it in time (of the confirmed ones of the last `past`
-   seconds), placed on the field through the main pose and through its mirror image. A sighting counts once it
-   is confirmed (seen twice at the same place: false balls rarely are), and a report far from both places says
-   nothing (one of the two sightings is wrong).
+2. **The ball, seen by the robot and by its teammates** (`sensing.team.report_log_likelihoods`): each
+   teammate's report compared once with the robot's own sighting nearest to it in time (of the confirmed ones
+   of the last `past` seconds), placed on the field through the main pose and through its mirror image. A
+   sighting counts once it is confirmed (seen twice at the same place: false balls rarely are), and a report far
+   from both places says nothing (one of the two sightings is wrong).
+
+   **The robot's own sighting can be wrong too** (a false ball seen twice in one place, another ball), and
+   every report compared with it shares that error: so the reports compared with one sighting count together,
+   as the likelihood of a mixture in which the sighting is not the ball with probability `sighting_outlier`.
+   Reports that fit one of its two places well add up; reports that fit neither (a teammate sees the ball at
+   the centre mark, the robot a false one by the touchline) move the odds by at most log(1 / sighting_outlier)
+   together, however many there are.
 
 **A teammate can be on the mirror itself**, with high stated confidence: then its reports of the ball are
 point images, and they speak against the right side. So the belief is a joint one, over the robot's side S and
@@ -59,7 +66,7 @@ from sensing.team import (
     TeamMessage,
     ball_on_field,
     mahalanobis2,
-    side_evidence,
+    report_log_likelihoods,
     teammate_ball,
 )
 
@@ -79,6 +86,10 @@ class SideSettings:
         A report is compared with the robot's sighting nearest to it in time only when the two sightings are at
         most this far apart [s], > 0 (until then it waits for one): a kicked ball moves metres in a second, so
         older pairs say more about the kick than about the side.
+    sighting_outlier : float, default 0.2
+        Probability that a confirmed sighting of the robot's own is not the ball its teammates report (a false
+        detection seen twice in one place, another ball), within (0, 1): what the reports compared with one
+        sighting can say together when none of them fits it.
     teammate_mirrored : float, default 0.05
         Prior probability that a teammate is itself on the mirror, within (0, 0.5).
     teammate_hazard : float, default 0.01
@@ -126,6 +137,7 @@ class SideSettings:
     outlier_share: float = 0.2
     rolling_sigma: float = 1.0
     horizon: float = 0.5
+    sighting_outlier: float = 0.2
     teammate_mirrored: float = 0.05
     teammate_hazard: float = 0.01
     max_teammates: int = 7
@@ -149,6 +161,7 @@ class SideSettings:
         real("kidnap_cap", self.kidnap_cap, 0.0, self.prior_cap, low_open=True)
         real("jump_cap", self.jump_cap, self.kidnap_cap, self.prior_cap)
         real("outlier_share", self.outlier_share, 0.0, 1.0, low_open=True, high_open=True)
+        real("sighting_outlier", self.sighting_outlier, 0.0, 1.0, low_open=True, high_open=True)
         real("teammate_mirrored", self.teammate_mirrored, 0.0, 0.5, low_open=True, high_open=True)
         trust = self.teammate_trust
         if trust >= self.prior_cap + self.flip:
@@ -230,11 +243,14 @@ def _masks(teammates: int, j: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 
 @dataclass
 class _Sighting:
-    """One of the robot's own ball sightings, on the field through the main pose at its capture time."""
+    """One of the robot's own ball sightings, on the field through the main pose at its capture time; `fits`:
+    the summed log-likelihoods (`sensing.team.report_log_likelihoods`) of the reports compared with it, per row
+    and state of the joint (None before the first)."""
 
     time: float
     point: np.ndarray
     covariance: np.ndarray
+    fits: np.ndarray | None = None
 
 
 class SideBelief:
@@ -416,19 +432,28 @@ class SideBelief:
                 return
             self._add_teammate(sender)
         self._age(now)
-        value = side_evidence(sighting.point, sighting.covariance, point, covariance, s.outlier_share, self._area)
-        self._report(self._senders.index(sender), value)
+        near, far = report_log_likelihoods(
+            sighting.point, sighting.covariance, point, covariance, s.outlier_share, self._area
+        )
+        self._report(self._senders.index(sender), near, far, sighting)
         self.reports += 1
 
-    def _report(self, j: int, value: float) -> None:
-        """Teammate j's report favours the main pose by `value` (log odds): into every row of the joint but
-        the one that leaves teammate j out."""
+    def _report(self, j: int, near: float, far: float, sighting: _Sighting) -> None:
+        """Teammate j's report, compared with `sighting`, fits the main pose by `near` and its mirror image by
+        `far`: into every row of the joint but the one that leaves teammate j out, together with the reports
+        compared with the same sighting before (see the module docstring)."""
         # the report supports the main pose when the robot's side and the teammate's flag agree (both 0 or 1)
         against = _masks(len(self._senders), j)[0]
-        change = np.where(against, -0.5 * value, 0.5 * value)
+        term = np.where(against, far, near)
         joint = self._log_joint
-        joint[: j + 1] += change
-        joint[j + 2 :] += change
+        before = np.zeros_like(joint) if sighting.fits is None else sighting.fits
+        fits = before.copy()
+        fits[: j + 1] += term
+        fits[j + 2 :] += term
+        sighting.fits = fits
+        outlier = self.settings.sighting_outlier
+        share, keep = math.log(outlier), math.log1p(-outlier)
+        joint += np.logaddexp(share, keep + fits) - np.logaddexp(share, keep + before)
         joint -= joint.max(axis=1, keepdims=True)
         self._side_evidence = True
         self._held = None
@@ -441,6 +466,10 @@ class SideBelief:
         joint = np.concatenate([joint + math.log1p(-q), joint + math.log(q)], axis=1)
         self._log_joint = np.concatenate([joint, joint[:1]])
         self._held = None
+        for sighting in self._confirmed:  # the reports so far say nothing of the new flag
+            if sighting.fits is not None:
+                fits = np.concatenate([sighting.fits, sighting.fits], axis=1)
+                sighting.fits = np.concatenate([fits, fits[:1]])
 
     def _age(self, now: float) -> None:
         """The teammates' flags may have changed since the last report: each flag is a two-state Markov chain
@@ -490,6 +519,8 @@ class SideBelief:
         for sighting in self._confirmed:
             if all(sighting is not r for r in self._recent):
                 sighting.point = -sighting.point
+            if sighting.fits is not None:
+                sighting.fits = sighting.fits[:, index ^ 1]
         self._below_since = None
 
     def moved(self) -> None:

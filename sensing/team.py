@@ -291,6 +291,31 @@ def _log_normal2(d: np.ndarray, covariance: np.ndarray) -> float:
     return -0.5 * mahalanobis2(d, covariance) - math.log(2.0 * math.pi) - 0.5 * math.log(det)
 
 
+def report_log_likelihoods(
+    own_point: np.ndarray,
+    own_covariance: np.ndarray,
+    team_point: np.ndarray,
+    team_covariance: np.ndarray,
+    outlier_share: float,
+    area: float,
+) -> tuple[float, float]:
+    """How well a teammate's report of the ball fits the robot's own sighting placed through the pose, and
+    through its mirror image: (log p(report | pose), log p(report | mirror pose)), each relative to a report
+    that could be anywhere on the `area` [m²] (0: no better than anywhere).
+
+    Through the pose the robot's sighting is at `own_point`; through the mirror pose at −`own_point` (the same
+    covariance). The teammate's report is normal around the ball with the two covariances added, or, with
+    probability `outlier_share`, anywhere on the area (the teammate is wrong, sees another ball, or the ball was
+    kicked): each value is at least log(outlier_share).
+    """
+    covariance = own_covariance + team_covariance
+    floor = math.log(outlier_share)
+    keep = math.log1p(-outlier_share) + math.log(area)
+    near = _logaddexp(keep + _log_normal2(own_point - team_point, covariance), floor)
+    far = _logaddexp(keep + _log_normal2(-own_point - team_point, covariance), floor)
+    return near, far
+
+
 def side_evidence(
     own_point: np.ndarray,
     own_covariance: np.ndarray,
@@ -300,20 +325,12 @@ def side_evidence(
     area: float,
 ) -> float:
     """log p(teammate's ball | the pose) − log p(teammate's ball | its mirror image): how much one report of
-    the ball by a teammate favours the robot's pose over its mirror image.
-
-    Through the pose the robot's sighting is at `own_point`; through the mirror pose at −`own_point` (the same
-    covariance). The teammate's report is normal around the ball with the two covariances added, or, with
-    probability `outlier_share`, anywhere on the `area` [m²] (the teammate is wrong, sees another ball, or the
-    ball was kicked): so one report moves the odds by at most about log(1 / outlier_share), and a ball near
-    the centre mark, where b and −b are close, by almost nothing.
+    the ball by a teammate favours the robot's pose over its mirror image (`report_log_likelihoods`, the one
+    less the other): at most about log(1 / outlier_share) from a report that fits one of the two places, and
+    almost nothing from a ball near the centre mark, where b and −b are close.
     """
-    covariance = own_covariance + team_covariance
-    near = _log_normal2(own_point - team_point, covariance)
-    far = _log_normal2(-own_point - team_point, covariance)
-    floor = math.log(outlier_share / area)
-    keep = math.log1p(-outlier_share)
-    return _logaddexp(keep + near, floor) - _logaddexp(keep + far, floor)
+    near, far = report_log_likelihoods(own_point, own_covariance, team_point, team_covariance, outlier_share, area)
+    return near - far
 
 
 def _logaddexp(a: float, b: float) -> float:

@@ -10,7 +10,7 @@ from hypothesis import strategies as st
 
 from field import spl
 from mcl.localizer import Localizer, Quality
-from mcl.side import SideBelief, SideSettings, Team
+from mcl.side import SideBelief, SideSettings, Team, _Sighting
 from motion_models import MotionInput
 from sensing import LandmarkObservation as Seen
 from sensing.team import BallDetection, TeamMessage, ball_on_field, side_evidence, teammate_ball
@@ -63,6 +63,13 @@ def sees_ball_at(loc, ball_xy, t, pose=(-2.0, 0.0, 0.0), twice=True):
 
 def report(sender, t, ball, confidence=0.95, **fields):
     return TeamMessage(sender, t, (0.0, 1.0, 0.0), confidence=confidence, ball=ball, **fields)
+
+
+def feed(side, j, value, sighting=None):
+    """Teammate j's report for the main pose by `value` (log odds), compared with `sighting` (by default a
+    sighting of its own, compared with nothing else)."""
+    sighting = _Sighting(0.0, np.zeros(2), np.eye(2)) if sighting is None else sighting
+    side._report(j, 0.5 * value, -0.5 * value, sighting)
 
 
 # -- the types ---------------------------------------------------------------------------------------------
@@ -393,7 +400,7 @@ def test_one_teammate_never_moves_the_odds_by_more_than_its_trust(reports, prior
     for sender, value in reports:
         if sender not in side._senders:
             side._add_teammate(sender)
-        side._report(side._senders.index(sender), value)
+        feed(side, side._senders.index(sender), value)
     trust = side.settings.teammate_trust
     assert abs(side.team_log_odds()) <= len(side._senders) * trust + 1e-9
     assert math.isfinite(side.log_odds(prior))
@@ -419,7 +426,7 @@ def replay(events, silenced=None):
         if kind == "report":
             if sender not in side._senders:
                 side._add_teammate(sender)
-            side._report(side._senders.index(sender), 0.0 if sender == silenced else value)
+            feed(side, side._senders.index(sender), 0.0 if sender == silenced else value)
         else:
             getattr(side, kind)()
     return side
@@ -445,10 +452,48 @@ def test_one_teammate_alone_never_raises_the_held_odds(values, prior):
     side = SideBelief(FIELD)
     side._add_teammate(2)
     for value in values:
-        side._report(0, value)
+        feed(side, 0, value)
     assert side.held_team_log_odds() == pytest.approx(0.0, abs=1e-9)
     assert side.held_log_odds(prior) == pytest.approx(min(max(prior, -3.0), 3.0), abs=1e-9)
     assert side.team_log_odds() >= 0.0
+
+
+fit = st.floats(math.log(0.2), 0.0)  # a report that fits a place no better than anywhere on the field
+
+
+@given(st.lists(st.tuples(st.integers(1, 4), fit, fit), min_size=1, max_size=30), st.floats(0.01, 0.99))
+def test_reports_that_fit_neither_place_of_one_sighting_say_little_together(reports, outlier):
+    """Reports compared with one sighting of the robot's own that fit neither its place nor the mirror image's
+    better than anywhere on the field move the side odds by at most log(1 / sighting_outlier) together, however
+    many teammates send however many: the sighting itself may be no ball."""
+    side = SideBelief(FIELD, SideSettings(sighting_outlier=outlier))
+    sighting = _Sighting(0.0, np.array([2.0, 3.0]), np.eye(2))
+    for sender, near, far in reports:
+        if sender not in side._senders:
+            side._add_teammate(sender)
+            if sighting.fits is not None:  # a new teammate widens what the sighting keeps, as it does in _compare
+                fits = np.concatenate([sighting.fits, sighting.fits], axis=1)
+                sighting.fits = np.concatenate([fits, fits[:1]])
+        side._report(side._senders.index(sender), near, far, sighting)
+    assert abs(side.team_log_odds()) <= -math.log(outlier) + 1e-9
+
+
+def test_a_false_ball_of_the_robots_own_does_not_let_teammates_flip_it():
+    """The robot sees a false ball twice by the touchline (confirmed); two teammates report the real ball near
+    the centre mark again and again, a little nearer the point image of the false one. Compared report by report
+    they would flip the robot onto its mirror image; together, as what one wrong sighting can say, they do not."""
+    loc = standing((1.0, 3.1, -0.2), seconds=1.0)
+    loc.moved_unseen = True  # as after a kidnapping: its own prior holds the side weakly (jump_cap)
+    sees_ball_at(loc, (2.1, 3.0), 1.0, pose=(1.0, 3.1, -0.2))
+    for k in range(30):  # ten reports per teammate and second, for 3 s; the robot sees no ball again
+        t = 1.0 + 0.1 * (k + 1)
+        for j in range(10):
+            loc.motion(t - 0.1 + 0.01 * (j + 1), MotionInput(0.01, odometry=(0.0, 0.0, 0.0)))
+        for sender, ball in ((2, (-0.5, -0.2)), (4, (-0.3, -0.4))):
+            loc.team_message(report(sender, t, ball, pose_covariance=np.diag([2.0, 2.0, 0.1])))
+    assert loc.side.reports >= 8
+    assert abs(loc.side.team_log_odds()) <= -math.log(loc.side.settings.sighting_outlier) + 1e-9
+    assert loc.counts["side changed by the team"] == 0
 
 
 def test_two_agreeing_teammates_raise_the_held_odds():
@@ -456,8 +501,8 @@ def test_two_agreeing_teammates_raise_the_held_odds():
     for sender in (2, 4):
         side._add_teammate(sender)
     for _ in range(5):
-        side._report(0, 2.0)
-        side._report(1, 2.0)
+        feed(side, 0, 2.0)
+        feed(side, 1, 2.0)
     assert side.held_team_log_odds() > 1.0
     assert side.team_log_odds() > side.held_team_log_odds()
 
