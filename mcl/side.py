@@ -244,13 +244,14 @@ def _masks(teammates: int, j: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 @dataclass
 class _Sighting:
     """One of the robot's own ball sightings, on the field through the main pose at its capture time; `fits`:
-    the summed log-likelihoods (`sensing.team.report_log_likelihoods`) of the reports compared with it, per row
-    and state of the joint (None before the first)."""
+    for the reports compared with it, per row and state of the joint, their summed log-likelihoods
+    (`sensing.team.report_log_likelihoods`) and what they add to the joint together, as a mixture with the
+    sighting being no ball (None before the first report)."""
 
     time: float
     point: np.ndarray
     covariance: np.ndarray
-    fits: np.ndarray | None = None
+    fits: tuple[np.ndarray, np.ndarray] | None = None
 
 
 class SideBelief:
@@ -278,6 +279,9 @@ class SideBelief:
             raise ValueError(f"settings = {settings!r} must be an mcl.side.SideSettings")
         self.settings = settings
         self._area = 4.0 * field.half_length * field.half_width
+        # a sighting of the robot's own is no ball, or the ball its teammates report (`_report`)
+        self._no_ball = math.log(settings.sighting_outlier)
+        self._ball = math.log1p(-settings.sighting_outlier)
         self._senders: list[int] = []  # teammate j is bit j + 1
         self._log_joint = np.zeros((1, 2))  # over the robot's side alone, at first (row 0: every report)
         self._held: float | None = None  # held_team_log_odds, until the joint changes
@@ -446,14 +450,17 @@ class SideBelief:
         against = _masks(len(self._senders), j)[0]
         term = np.where(against, far, near)
         joint = self._log_joint
-        before = np.zeros_like(joint) if sighting.fits is None else sighting.fits
-        fits = before.copy()
-        fits[: j + 1] += term
-        fits[j + 2 :] += term
-        sighting.fits = fits
-        outlier = self.settings.sighting_outlier
-        share, keep = math.log(outlier), math.log1p(-outlier)
-        joint += np.logaddexp(share, keep + fits) - np.logaddexp(share, keep + before)
+        if sighting.fits is None:
+            sums = np.repeat(term[np.newaxis], joint.shape[0], axis=0)
+            sums[j + 1] = 0.0
+        else:
+            sums = sighting.fits[0].copy()
+            sums[: j + 1] += term
+            sums[j + 2 :] += term
+            joint -= sighting.fits[1]
+        mixture = np.logaddexp(self._no_ball, sums + self._ball)
+        sighting.fits = sums, mixture
+        joint += mixture
         joint -= joint.max(axis=1, keepdims=True)
         self._side_evidence = True
         self._held = None
@@ -468,8 +475,8 @@ class SideBelief:
         self._held = None
         for sighting in self._confirmed:  # the reports so far say nothing of the new flag
             if sighting.fits is not None:
-                fits = np.concatenate([sighting.fits, sighting.fits], axis=1)
-                sighting.fits = np.concatenate([fits, fits[:1]])
+                sums, mixture = (np.concatenate([array, array], axis=1) for array in sighting.fits)
+                sighting.fits = np.concatenate([sums, sums[:1]]), np.concatenate([mixture, mixture[:1]])
 
     def _age(self, now: float) -> None:
         """The teammates' flags may have changed since the last report: each flag is a two-state Markov chain
@@ -520,7 +527,7 @@ class SideBelief:
             if all(sighting is not r for r in self._recent):
                 sighting.point = -sighting.point
             if sighting.fits is not None:
-                sighting.fits = sighting.fits[:, index ^ 1]
+                sighting.fits = sighting.fits[0][:, index ^ 1], sighting.fits[1][:, index ^ 1]
         self._below_since = None
 
     def moved(self) -> None:

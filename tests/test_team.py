@@ -471,9 +471,9 @@ def test_reports_that_fit_neither_place_of_one_sighting_say_little_together(repo
     for sender, near, far in reports:
         if sender not in side._senders:
             side._add_teammate(sender)
-            if sighting.fits is not None:  # a new teammate widens what the sighting keeps, as it does in _compare
-                fits = np.concatenate([sighting.fits, sighting.fits], axis=1)
-                sighting.fits = np.concatenate([fits, fits[:1]])
+            if sighting.fits is not None:  # a new teammate widens what the sighting keeps, as in _compare
+                sums, mixture = (np.concatenate([array, array], axis=1) for array in sighting.fits)
+                sighting.fits = np.concatenate([sums, sums[:1]]), np.concatenate([mixture, mixture[:1]])
         side._report(side._senders.index(sender), near, far, sighting)
     assert abs(side.team_log_odds()) <= -math.log(outlier) + 1e-9
 
