@@ -457,6 +457,8 @@ class SideBelief:
             sums = sighting.fits[0].copy()
             sums[: j + 1] += term
             sums[j + 2 :] += term
+            # (taken out of a joint whose flags may have aged since: they change at `teammate_hazard`, about 1 %
+            # a second, and a sighting's reports come within `horizon` of it)
             joint -= sighting.fits[1]
         mixture = np.logaddexp(self._no_ball, sums + self._ball)
         sighting.fits = sums, mixture
