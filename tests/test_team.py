@@ -478,6 +478,25 @@ def test_reports_that_fit_neither_place_of_one_sighting_say_little_together(repo
     assert abs(side.team_log_odds()) <= -math.log(outlier) + 1e-9
 
 
+@given(st.lists(st.tuples(st.integers(1, 4), fit, st.floats(-1.6, 4.0)), min_size=1, max_size=20))
+def test_a_sighting_that_is_surely_the_ball_counts_its_reports_one_by_one(reports):
+    """With `sighting_outlier` near 0 the mixture is the plain sum: reports compared with one sighting move the
+    odds as much as the same reports compared each with a sighting of its own."""
+    together, apart = (SideBelief(FIELD, SideSettings(sighting_outlier=1e-12)) for _ in range(2))
+    shared = _Sighting(0.0, np.array([2.0, 3.0]), np.eye(2))
+    for sender, near, far in reports:
+        for side in (together, apart):
+            if sender not in side._senders:
+                side._add_teammate(sender)
+        if shared.fits is not None and shared.fits[0].shape != together._log_joint.shape:
+            sums, mixture = (np.concatenate([array, array], axis=1) for array in shared.fits)
+            shared.fits = np.concatenate([sums, sums[:1]]), np.concatenate([mixture, mixture[:1]])
+        together._report(together._senders.index(sender), near, far, shared)
+        apart._report(apart._senders.index(sender), near, far, _Sighting(0.0, np.array([2.0, 3.0]), np.eye(2)))
+    assert together.team_log_odds() == pytest.approx(apart.team_log_odds(), abs=1e-6)
+    assert together.held_team_log_odds() == pytest.approx(apart.held_team_log_odds(), abs=1e-6)
+
+
 def test_a_false_ball_of_the_robots_own_does_not_let_teammates_flip_it():
     """The robot sees a false ball twice by the touchline (confirmed); two teammates report the real ball near
     the centre mark again and again, a little nearer the point image of the false one. Compared report by report
