@@ -461,6 +461,15 @@ def test_one_teammate_alone_never_raises_the_held_odds(values, prior):
 fit = st.floats(math.log(0.2), 0.0)  # a report that fits a place no better than anywhere on the field
 
 
+def widened(side, sighting):
+    """`sighting`, its reports' fits widened to the joint's teammates as `SideBelief._add_teammate` widens
+    those of the sightings it keeps (tests that hand `_report` a sighting of their own)."""
+    while sighting.fits is not None and sighting.fits[0].shape != side._log_joint.shape:
+        sums, mixture = (np.concatenate([array, array], axis=1) for array in sighting.fits)
+        sighting.fits = np.concatenate([sums, sums[:1]]), np.concatenate([mixture, mixture[:1]])
+    return sighting
+
+
 @given(st.lists(st.tuples(st.integers(1, 4), fit, fit), min_size=1, max_size=30), st.floats(0.01, 0.99))
 def test_reports_that_fit_neither_place_of_one_sighting_say_little_together(reports, outlier):
     """Reports compared with one sighting of the robot's own that fit neither its place nor the mirror image's
@@ -471,10 +480,7 @@ def test_reports_that_fit_neither_place_of_one_sighting_say_little_together(repo
     for sender, near, far in reports:
         if sender not in side._senders:
             side._add_teammate(sender)
-            if sighting.fits is not None:  # a new teammate widens what the sighting keeps, as in _compare
-                sums, mixture = (np.concatenate([array, array], axis=1) for array in sighting.fits)
-                sighting.fits = np.concatenate([sums, sums[:1]]), np.concatenate([mixture, mixture[:1]])
-        side._report(side._senders.index(sender), near, far, sighting)
+        side._report(side._senders.index(sender), near, far, widened(side, sighting))
     assert abs(side.team_log_odds()) <= -math.log(outlier) + 1e-9
 
 
@@ -488,10 +494,7 @@ def test_a_sighting_that_is_surely_the_ball_counts_its_reports_one_by_one(report
         for side in (together, apart):
             if sender not in side._senders:
                 side._add_teammate(sender)
-        if shared.fits is not None and shared.fits[0].shape != together._log_joint.shape:
-            sums, mixture = (np.concatenate([array, array], axis=1) for array in shared.fits)
-            shared.fits = np.concatenate([sums, sums[:1]]), np.concatenate([mixture, mixture[:1]])
-        together._report(together._senders.index(sender), near, far, shared)
+        together._report(together._senders.index(sender), near, far, widened(together, shared))
         apart._report(apart._senders.index(sender), near, far, _Sighting(0.0, np.array([2.0, 3.0]), np.eye(2)))
     assert together.team_log_odds() == pytest.approx(apart.team_log_odds(), abs=1e-6)
     assert together.held_team_log_odds() == pytest.approx(apart.held_team_log_odds(), abs=1e-6)
