@@ -314,13 +314,13 @@ def side_figures(run: BatteryRun, out: dict) -> dict:
         good = (position < CONVERGED_POSITION) & (heading < CONVERGED_HEADING)
         figures["correct_2s_s"] = first_stretch(run.times, good, end, CORRECT_HOLD) + CORRECT_HOLD
         due = mirror & (run.times >= end + UNSURE_AFTER)
-        doubted = (out["quality"] == QUALITY_CODE[Quality.UNSURE_HALF]) | out["lost"]
+        unsure = out["quality"] == QUALITY_CODE[Quality.UNSURE_HALF]
+        doubted = unsure | out["lost"]
         figures["mirror_steps"] = int(due.sum())
         figures["mirror_steps_doubted"] = int((due & doubted).sum())
         # the steps `is_lost` should have flagged and did not, split by what the quality said instead: on the
         # mirror image and UNSURE_HALF (the pose known up to the field's symmetry, which is not lost), or not
         missed = lost_episodes(run.times, position) & ~out["lost"]
-        unsure = out["quality"] == QUALITY_CODE[Quality.UNSURE_HALF]
         figures["recall_missed"] = int(missed.sum())
         figures["recall_missed_mirror_unsure"] = int((missed & mirror & unsure).sum())
     return figures
